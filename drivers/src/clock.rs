@@ -1,0 +1,203 @@
+//! The clock instruments and the survey engine share.
+//!
+//! Real instruments run on [`SystemClock`]. Simulated instruments run on a
+//! [`VirtualClock`]: sleeping advances virtual time at once, so hours of
+//! instrument time pass in seconds and every run is deterministic. Time is read
+//! only through the clock, never from the OS inside a simulator or the engine.
+
+use crate::error::{DriverError, Result};
+use std::fmt::Debug;
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::task::{Context, Poll};
+use std::time::{Duration, Instant};
+
+/// A boxed sleep future.
+pub type Sleep<'a> = Pin<Box<dyn Future<Output = ()> + Send + 'a>>;
+
+/// A source of time and of waiting.
+pub trait Clock: Send + Sync + Debug {
+    /// Time since the clock's epoch.
+    fn now(&self) -> Duration;
+    /// Wait for `d` of this clock's time.
+    fn sleep(&self, d: Duration) -> Sleep<'_>;
+    /// Whether this clock's time is simulated (it then runs much faster than
+    /// the wall clock).
+    fn is_virtual(&self) -> bool;
+}
+
+/// The wall clock, for real instruments.
+#[derive(Debug, Clone)]
+pub struct SystemClock {
+    epoch: Instant,
+}
+
+impl SystemClock {
+    pub fn new() -> Self {
+        Self { epoch: Instant::now() }
+    }
+}
+
+impl Default for SystemClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for SystemClock {
+    fn now(&self) -> Duration {
+        self.epoch.elapsed()
+    }
+    fn sleep(&self, d: Duration) -> Sleep<'_> {
+        Box::pin(tokio::time::sleep(d))
+    }
+    fn is_virtual(&self) -> bool {
+        false
+    }
+}
+
+/// Simulated time. `sleep(d)` reads the time when it is first polled, yields
+/// once, then advances the clock to at least that time plus `d`. Sequential
+/// sleeps add up; sleeps that run concurrently (`join!`) overlap, so two
+/// instruments read at the same time cost the longer of the two, as they
+/// would on hardware.
+#[derive(Debug, Clone, Default)]
+pub struct VirtualClock {
+    nanos: Arc<AtomicU64>,
+}
+
+impl VirtualClock {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A clock that starts at `t`.
+    pub fn starting_at(t: Duration) -> Self {
+        let c = Self::new();
+        c.advance_to(t);
+        c
+    }
+
+    /// Move time forward to `t` (never backward).
+    pub fn advance_to(&self, t: Duration) {
+        self.nanos.fetch_max(t.as_nanos().min(u64::MAX as u128) as u64, Ordering::SeqCst);
+    }
+
+    /// Move time forward by `d`.
+    pub fn advance(&self, d: Duration) {
+        self.advance_to(self.now() + d);
+    }
+}
+
+impl Clock for VirtualClock {
+    fn now(&self) -> Duration {
+        Duration::from_nanos(self.nanos.load(Ordering::SeqCst))
+    }
+    fn sleep(&self, d: Duration) -> Sleep<'_> {
+        Box::pin(VirtualSleep { clock: self, d, start: None })
+    }
+    fn is_virtual(&self) -> bool {
+        true
+    }
+}
+
+struct VirtualSleep<'a> {
+    clock: &'a VirtualClock,
+    d: Duration,
+    start: Option<Duration>,
+}
+
+impl Future for VirtualSleep<'_> {
+    type Output = ();
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<()> {
+        match self.start {
+            None => {
+                self.start = Some(self.clock.now());
+                cx.waker().wake_by_ref();
+                Poll::Pending
+            }
+            Some(start) => {
+                self.clock.advance_to(start + self.d);
+                Poll::Ready(())
+            }
+        }
+    }
+}
+
+/// How long a call on a virtual clock may take in real time before it is
+/// declared hung: simulated instruments answer at once in real time, so this
+/// only catches a simulator that never answers.
+pub const VIRTUAL_REAL_TIME_GUARD: Duration = Duration::from_secs(30);
+
+/// Run one instrument call with a deadline of `limit` on `clock`.
+///
+/// On the system clock the call is cancelled at the deadline. On a virtual
+/// clock the call is also failed when it took more than `limit` of virtual
+/// time (a simulated instrument that is too slow), and cancelled if it takes
+/// longer than [`VIRTUAL_REAL_TIME_GUARD`] in real time (one that never answers).
+pub async fn with_timeout<T, F>(clock: &dyn Clock, limit: Duration, instrument: &str, what: &str, call: F) -> Result<T>
+where
+    F: Future<Output = Result<T>>,
+{
+    let started = clock.now();
+    let real_limit = if clock.is_virtual() { VIRTUAL_REAL_TIME_GUARD } else { limit };
+    match tokio::time::timeout(real_limit, call).await {
+        Err(_) => {
+            tracing::warn!(instrument, what, ?limit, "instrument call timed out");
+            Err(DriverError::timeout(instrument, what, limit))
+        }
+        Ok(result) => {
+            if clock.is_virtual() && clock.now().saturating_sub(started) > limit {
+                tracing::warn!(instrument, what, ?limit, "simulated instrument call exceeded its deadline");
+                return Err(DriverError::timeout(instrument, what, limit));
+            }
+            result
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::ErrorKind;
+
+    #[tokio::test]
+    async fn sequential_sleeps_add_and_concurrent_ones_overlap() {
+        let c = VirtualClock::new();
+        c.sleep(Duration::from_millis(10)).await;
+        c.sleep(Duration::from_millis(20)).await;
+        assert_eq!(c.now(), Duration::from_millis(30));
+        tokio::join!(c.sleep(Duration::from_secs(1)), c.sleep(Duration::from_millis(5)));
+        assert_eq!(c.now(), Duration::from_millis(1030));
+        c.advance_to(Duration::from_millis(1)); // never backward
+        assert_eq!(c.now(), Duration::from_millis(1030));
+    }
+
+    #[tokio::test]
+    async fn virtual_timeout_fails_a_slow_simulated_call() {
+        let c = VirtualClock::new();
+        let slow = async {
+            c.sleep(Duration::from_secs(5)).await;
+            Ok(1)
+        };
+        let e = with_timeout(&c, Duration::from_secs(2), "tracker", "measure", slow).await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::Timeout);
+        assert!(e.is_link());
+        let fast = async {
+            c.sleep(Duration::from_secs(1)).await;
+            Ok(2)
+        };
+        assert_eq!(with_timeout(&c, Duration::from_secs(2), "tracker", "measure", fast).await, Ok(2));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn system_timeout_cancels_a_call_that_never_answers() {
+        let c = SystemClock::new();
+        let never = std::future::pending::<Result<()>>();
+        let e = with_timeout(&c, Duration::from_millis(50), "positioner", "status", never).await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::Timeout);
+        assert!(e.to_string().contains("positioner: timeout"), "{e}");
+    }
+}

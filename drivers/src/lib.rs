@@ -1,0 +1,15 @@
+//! Instrument driver traits for a positioner survey.
+//!
+//! One async trait per instrument ([`Positioner`], [`Tracker`],
+//! [`Autocollimator`]), one error type ([`DriverError`]) whose [`ErrorKind`]
+//! tells link faults from device faults and bad usage, and the [`Clock`] every
+//! instrument and the survey engine share, so simulated instruments can run on
+//! virtual time.
+
+pub mod clock;
+pub mod error;
+pub mod traits;
+
+pub use clock::{Clock, SystemClock, VirtualClock};
+pub use error::{DriverError, ErrorKind, Result};
+pub use traits::*;

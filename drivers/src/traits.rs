@@ -1,0 +1,128 @@
+//! One async trait per instrument, with what an unattended survey needs of it.
+//!
+//! Every method is one bounded request to the instrument: the engine wraps each
+//! call in [`crate::clock::with_timeout`], and a driver that talks over a wire
+//! also bounds its own reads.
+
+use crate::error::Result;
+use async_trait::async_trait;
+use serde::{Deserialize, Serialize};
+use std::fmt::Debug;
+use survey_processing::table::CorrectionTable;
+
+/// A fault the instrument itself reports, with its own code and text.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DeviceFault {
+    pub code: i64,
+    pub text: String,
+}
+
+/// Which travel limit is active.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Limit {
+    Lower,
+    Upper,
+}
+
+/// The positioner controller's status word, decoded.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct PositionerStatus {
+    /// The axis is moving.
+    pub moving: bool,
+    /// The axis has reached its commanded position and settled in the window.
+    pub in_position: bool,
+    /// The controller reports a fault.
+    pub fault: Option<DeviceFault>,
+    /// A travel limit switch is active.
+    pub limit: Option<Limit>,
+    /// The correction table is loaded and applied in the feedback path.
+    pub correction_enabled: bool,
+}
+
+/// A positioner controller: one axis.
+#[async_trait]
+pub trait Positioner: Send + Debug {
+    /// A short name for logs (`"sim-positioner"`, `"modbus-tcp 10.0.0.5:502"`).
+    fn name(&self) -> &str;
+    /// Start a move to the absolute readout angle `target_deg`; returns when
+    /// the controller has accepted the command (not when the move ends).
+    async fn move_to(&mut self, target_deg: f64) -> Result<()>;
+    /// The readout angle: what the controller displays, degrees.
+    async fn readout(&mut self) -> Result<f64>;
+    /// Moving, in position, fault, limits.
+    async fn status(&mut self) -> Result<PositionerStatus>;
+    /// Stop any motion now.
+    async fn stop(&mut self) -> Result<()>;
+    /// Set the velocity for the following moves, degrees per second.
+    async fn set_velocity(&mut self, deg_per_s: f64) -> Result<()>;
+    /// Clear a latched fault (after the cause is gone).
+    async fn clear_fault(&mut self) -> Result<()>;
+    /// Load a correction table into the controller (not yet applied).
+    async fn load_correction_table(&mut self, table: &CorrectionTable) -> Result<()>;
+    /// Apply (or stop applying) the loaded table in the feedback path.
+    async fn enable_correction(&mut self, enabled: bool) -> Result<()>;
+}
+
+/// One stationary measurement of the SMR, in the tracker's frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SmrMeasurement {
+    pub x_mm: f64,
+    pub y_mm: f64,
+    pub z_mm: f64,
+    /// The instrument's standard deviations of the coordinates, mm.
+    pub std_dev_mm: [f64; 3],
+    /// How long the stationary measurement took, seconds.
+    pub measurement_time_s: f64,
+}
+
+impl SmrMeasurement {
+    pub fn xyz(&self) -> [f64; 3] {
+        [self.x_mm, self.y_mm, self.z_mm]
+    }
+}
+
+/// The tracking laser's state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum TrackerState {
+    /// The beam is on the SMR: measurements can be taken.
+    TargetLocked,
+    /// The beam lost the SMR: re-acquire before measuring.
+    BeamBroken,
+    /// Initialising, warming up or otherwise not able to measure.
+    NotReady,
+}
+
+/// A tracking laser measuring an SMR on an arm fixed to the turntable.
+#[async_trait]
+pub trait Tracker: Send + Debug {
+    fn name(&self) -> &str;
+    /// A stationary measurement (takes the instrument's measurement time).
+    async fn measure(&mut self) -> Result<SmrMeasurement>;
+    async fn status(&mut self) -> Result<TrackerState>;
+    /// Find the reflector again after a beam break.
+    async fn reacquire(&mut self) -> Result<()>;
+}
+
+/// One autocollimator reading, arcseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AcReading {
+    pub x_arcsec: f64,
+    pub y_arcsec: f64,
+}
+
+/// Whether the autocollimator sees a mirror.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum AcState {
+    InRange,
+    NoReflection,
+}
+
+/// An autocollimator looking at a polygon face (or mirror) on the turntable.
+#[async_trait]
+pub trait Autocollimator: Send + Debug {
+    fn name(&self) -> &str;
+    /// An absolute X/Y reading. Fails with a device error when no mirror is in
+    /// range.
+    async fn read(&mut self) -> Result<AcReading>;
+    async fn status(&mut self) -> Result<AcState>;
+}

@@ -1,0 +1,51 @@
+//! What the engine records at each target, and the sink it records into.
+
+use async_trait::async_trait;
+use serde::{Deserialize, Serialize};
+use survey_drivers::{AcReading, SmrMeasurement};
+use survey_processing::Sample;
+
+/// The reference instrument's raw values behind one sample.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum RawReading {
+    /// Imported data carries no raw values.
+    None,
+    /// A tracking-laser stationary measurement of the SMR.
+    Smr(SmrMeasurement),
+    /// An autocollimator reading of polygon face `face` (0-based).
+    Autocollimator { face: u32, reading: AcReading },
+}
+
+/// One acquired sample: its place in the survey plan (`seq`, 0-based and
+/// dense), the paired readout/actual values and the raw reference reading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RecordedSample {
+    pub seq: u64,
+    pub sample: Sample,
+    pub raw: RawReading,
+}
+
+/// Where the engine puts samples. `record` may buffer; a sample counts as
+/// acknowledged (durable) once `flush` has returned after it.
+#[async_trait]
+pub trait SampleSink: Send {
+    async fn record(&mut self, sample: RecordedSample) -> anyhow::Result<()>;
+    async fn flush(&mut self) -> anyhow::Result<()>;
+}
+
+/// A sink that keeps samples in memory (tests, dry runs).
+#[derive(Debug, Default)]
+pub struct MemorySink {
+    pub samples: Vec<RecordedSample>,
+}
+
+#[async_trait]
+impl SampleSink for MemorySink {
+    async fn record(&mut self, sample: RecordedSample) -> anyhow::Result<()> {
+        self.samples.push(sample);
+        Ok(())
+    }
+    async fn flush(&mut self) -> anyhow::Result<()> {
+        Ok(())
+    }
+}

@@ -1,0 +1,1 @@
+//! ISO 230-2 statistics.

@@ -1,0 +1,14 @@
+//! Pure processing for rotary-positioner surveys.
+//!
+//! Functions from data to data: no I/O, no clock, no async runtime, no database.
+//! The simulators (`survey-sims`) and the orchestrator both build on it, so the
+//! error model that generates simulated data is the same code that explains
+//! measured data.
+
+pub mod geometry;
+pub mod iso230;
+pub mod model;
+pub mod table;
+pub mod types;
+
+pub use types::{Direction, Sample};

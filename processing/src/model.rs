@@ -1,0 +1,513 @@
+//! The positioner error model (the contract's model file, TOML).
+//!
+//! Pure data and arithmetic: the simulators generate readouts with it and the
+//! processing explains measured data with it, so both agree by construction.
+//!
+//! A periodic effect contributes `amplitude_deg * sin(cycles_per_rev * theta + phase_deg)`
+//! with `theta` the axis angle; backlash adds `+amplitude/2` on forward approaches
+//! and `-amplitude/2` on reverse ones; drift adds `rate_deg_per_run` per run
+//! elapsed; noise is a normal, non-repeatable error of `sigma_deg`.
+
+use crate::types::Direction;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// What the positioner is built from: the basis for naming spectral lines.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Design {
+    /// Gear passes per axis revolution (a 12:1 pinion gives 12).
+    pub gear_ratios: Vec<f64>,
+    /// Tooth counts of gears that turn once per revolution.
+    pub tooth_counts: Vec<u32>,
+    /// Number of encoder heads (2 diametric heads cancel odd harmonics).
+    pub encoder_heads: Option<u32>,
+}
+
+/// The kind of a periodic effect, named as in the model file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PeriodicKind {
+    Eccentricity,
+    Ellipticity,
+    GearPass,
+    ToothMesh,
+    Harmonic,
+}
+
+impl PeriodicKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PeriodicKind::Eccentricity => "eccentricity",
+            PeriodicKind::Ellipticity => "ellipticity",
+            PeriodicKind::GearPass => "gear_pass",
+            PeriodicKind::ToothMesh => "tooth_mesh",
+            PeriodicKind::Harmonic => "harmonic",
+        }
+    }
+
+    /// The fixed frequency of the kind, if it has one.
+    pub fn fixed_cycles(self) -> Option<f64> {
+        match self {
+            PeriodicKind::Eccentricity => Some(1.0),
+            PeriodicKind::Ellipticity => Some(2.0),
+            _ => None,
+        }
+    }
+}
+
+/// One error effect of the model file.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Effect {
+    Periodic { kind: PeriodicKind, cycles_per_rev: f64, amplitude_deg: f64, phase_deg: f64 },
+    Backlash { amplitude_deg: f64 },
+    Drift { rate_deg_per_run: f64 },
+    Noise { sigma_deg: f64 },
+}
+
+impl Effect {
+    /// The kind as written in the model file.
+    pub fn kind_str(&self) -> &'static str {
+        match self {
+            Effect::Periodic { kind, .. } => kind.as_str(),
+            Effect::Backlash { .. } => "backlash",
+            Effect::Drift { .. } => "drift",
+            Effect::Noise { .. } => "noise",
+        }
+    }
+
+    /// The contribution of a periodic effect at axis angle `theta_deg`.
+    pub fn periodic_at(&self, theta_deg: f64) -> f64 {
+        match self {
+            Effect::Periodic { cycles_per_rev, amplitude_deg, phase_deg, .. } => {
+                amplitude_deg * (cycles_per_rev * theta_deg + phase_deg).to_radians().sin()
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+/// A positioner error model: its design and its effects.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Model {
+    pub design: Design,
+    pub effects: Vec<Effect>,
+}
+
+/// A defect of a model file, naming where it is.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}{}: {message}", source_name, line.map(|l| format!(":{l}")).unwrap_or_default())]
+pub struct ModelError {
+    /// The file (or `<model>` for text without a file).
+    pub source_name: String,
+    /// The 1-based line, when it is known.
+    pub line: Option<usize>,
+    /// What is wrong, naming the key (`effect[3].sigma_deg`).
+    pub message: String,
+}
+
+const KINDS: &str = "eccentricity, ellipticity, gear_pass, tooth_mesh, harmonic, backlash, drift, noise";
+
+impl Model {
+    /// Read and validate a model file.
+    pub fn from_file(path: &Path) -> Result<Self, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ModelError {
+            source_name: path.display().to_string(),
+            line: None,
+            message: format!("cannot read the model file: {e}"),
+        })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parse and validate model-file text; `source_name` names it in errors.
+    pub fn parse(text: &str, source_name: &str) -> Result<Self, ModelError> {
+        let err = |line: Option<usize>, message: String| ModelError {
+            source_name: source_name.to_string(),
+            line,
+            message,
+        };
+        let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            let line = e.span().map(|s| line_of_offset(text, s.start));
+            err(line, format!("not valid TOML: {}", e.message()))
+        })?;
+        let locate = Locator { text };
+        for key in table.keys() {
+            if key != "design" && key != "effect" {
+                return Err(err(
+                    locate.top_key(key),
+                    format!("unknown top-level key '{key}' (expected [design] and [[effect]])"),
+                ));
+            }
+        }
+        let design = match table.get("design") {
+            None => Design::default(),
+            Some(toml::Value::Table(t)) => parse_design(t, &locate).map_err(|(l, m)| err(l, m))?,
+            Some(_) => return Err(err(locate.top_key("design"), "'design' must be a table".into())),
+        };
+        let mut effects = Vec::new();
+        match table.get("effect") {
+            None => {}
+            Some(toml::Value::Array(items)) => {
+                for (i, item) in items.iter().enumerate() {
+                    let toml::Value::Table(t) = item else {
+                        return Err(err(None, format!("effect[{}] must be a table ([[effect]])", i + 1)));
+                    };
+                    effects.push(parse_effect(t, i, &locate).map_err(|(l, m)| err(l, m))?);
+                }
+            }
+            Some(_) => {
+                return Err(err(locate.top_key("effect"), "'effect' must be an array of tables ([[effect]])".into()));
+            }
+        }
+        Ok(Model { design, effects })
+    }
+
+    /// The model as a model file (TOML), which [`Model::parse`] reads back.
+    pub fn to_toml(&self) -> String {
+        let mut s = String::from("[design]\n");
+        let ratios: Vec<String> = self.design.gear_ratios.iter().map(|r| fmt_num(*r)).collect();
+        let teeth: Vec<String> = self.design.tooth_counts.iter().map(|t| t.to_string()).collect();
+        let _ = writeln!(s, "gear_ratios = [{}]", ratios.join(", "));
+        let _ = writeln!(s, "tooth_counts = [{}]", teeth.join(", "));
+        if let Some(h) = self.design.encoder_heads {
+            let _ = writeln!(s, "encoder_heads = {h}");
+        }
+        for e in &self.effects {
+            let _ = write!(s, "\n[[effect]]\nkind = \"{}\"\n", e.kind_str());
+            match e {
+                Effect::Periodic { cycles_per_rev, amplitude_deg, phase_deg, .. } => {
+                    let _ = writeln!(s, "cycles_per_rev = {}", fmt_num(*cycles_per_rev));
+                    let _ = writeln!(s, "amplitude_deg = {}", fmt_num(*amplitude_deg));
+                    let _ = writeln!(s, "phase_deg = {}", fmt_num(*phase_deg));
+                }
+                Effect::Backlash { amplitude_deg } => {
+                    let _ = writeln!(s, "amplitude_deg = {}", fmt_num(*amplitude_deg));
+                }
+                Effect::Drift { rate_deg_per_run } => {
+                    let _ = writeln!(s, "rate_deg_per_run = {}", fmt_num(*rate_deg_per_run));
+                }
+                Effect::Noise { sigma_deg } => {
+                    let _ = writeln!(s, "sigma_deg = {}", fmt_num(*sigma_deg));
+                }
+            }
+        }
+        s
+    }
+
+    /// Sum of the periodic effects at axis angle `theta_deg`.
+    pub fn periodic_error_deg(&self, theta_deg: f64) -> f64 {
+        self.effects.iter().map(|e| e.periodic_at(theta_deg)).sum()
+    }
+
+    /// Total backlash (forward reads `+backlash/2`, reverse `-backlash/2`).
+    pub fn backlash_deg(&self) -> f64 {
+        self.effects
+            .iter()
+            .map(|e| if let Effect::Backlash { amplitude_deg } = e { *amplitude_deg } else { 0.0 })
+            .sum()
+    }
+
+    /// Drift per run.
+    pub fn drift_deg_per_run(&self) -> f64 {
+        self.effects
+            .iter()
+            .map(|e| if let Effect::Drift { rate_deg_per_run } = e { *rate_deg_per_run } else { 0.0 })
+            .sum()
+    }
+
+    /// Standard deviation of the non-repeatable noise (independent noises add in quadrature).
+    pub fn noise_sigma_deg(&self) -> f64 {
+        self.effects
+            .iter()
+            .map(|e| if let Effect::Noise { sigma_deg } = e { sigma_deg * sigma_deg } else { 0.0 })
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// The repeatable part of the readout error at axis angle `theta_deg`,
+    /// approached in `direction`: periodic effects plus backlash.
+    pub fn repeatable_error_deg(&self, theta_deg: f64, direction: Direction) -> f64 {
+        self.periodic_error_deg(theta_deg) + direction.sign() * self.backlash_deg() / 2.0
+    }
+
+    /// The systematic readout error (everything but noise) after `runs_elapsed`
+    /// runs (0 during the first run; fractional values for drift within a run).
+    pub fn systematic_error_deg(&self, theta_deg: f64, direction: Direction, runs_elapsed: f64) -> f64 {
+        self.repeatable_error_deg(theta_deg, direction) + self.drift_deg_per_run() * runs_elapsed
+    }
+
+    /// The periodic effects, in file order.
+    pub fn periodic_effects(&self) -> impl Iterator<Item = &Effect> {
+        self.effects.iter().filter(|e| matches!(e, Effect::Periodic { .. }))
+    }
+}
+
+/// Formats a number so that TOML reads it back as the same `f64`.
+fn fmt_num(v: f64) -> String {
+    let s = format!("{v:?}");
+    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") { s } else { format!("{s}.0") }
+}
+
+fn line_of_offset(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+/// Finds the line of a key in the model text, for error messages.
+struct Locator<'a> {
+    text: &'a str,
+}
+
+impl Locator<'_> {
+    fn lines(&self) -> impl Iterator<Item = (usize, &str)> {
+        self.text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()))
+    }
+
+    fn top_key(&self, key: &str) -> Option<usize> {
+        self.lines()
+            .find(|(_, l)| l.starts_with(&format!("[{key}]")) || l.starts_with(&format!("[[{key}]]")) || is_key_line(l, key))
+            .map(|(n, _)| n)
+    }
+
+    /// The line of `[[effect]]` number `index` (0-based).
+    fn effect_header(&self, index: usize) -> Option<usize> {
+        self.lines().filter(|(_, l)| l.starts_with("[[effect]]")).nth(index).map(|(n, _)| n)
+    }
+
+    /// The line of `key` inside the table starting at `header`.
+    fn key_in_table(&self, header: Option<usize>, key: &str) -> Option<usize> {
+        let start = header?;
+        self.lines()
+            .skip(start)
+            .take_while(|(_, l)| !l.starts_with('['))
+            .find(|(_, l)| is_key_line(l, key))
+            .map(|(n, _)| n)
+            .or(Some(start))
+    }
+
+    fn design_header(&self) -> Option<usize> {
+        self.lines().find(|(_, l)| l.starts_with("[design]")).map(|(n, _)| n)
+    }
+}
+
+fn is_key_line(line: &str, key: &str) -> bool {
+    line.strip_prefix(key).is_some_and(|rest| rest.trim_start().starts_with('='))
+}
+
+type Fail = (Option<usize>, String);
+
+fn number(v: &toml::Value) -> Option<f64> {
+    match v {
+        toml::Value::Float(f) => Some(*f),
+        toml::Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
+    let header = loc.design_header();
+    let at = |key: &str| loc.key_in_table(header, key);
+    let mut d = Design::default();
+    for (key, value) in t {
+        match key.as_str() {
+            "gear_ratios" => {
+                let arr = value.as_array().ok_or((at(key), "design.gear_ratios must be an array of numbers".into()))?;
+                for v in arr {
+                    match number(v) {
+                        Some(r) if r > 0.0 && r.is_finite() => d.gear_ratios.push(r),
+                        _ => return Err((at(key), format!("design.gear_ratios: {v} is not a positive number"))),
+                    }
+                }
+            }
+            "tooth_counts" => {
+                let arr = value.as_array().ok_or((at(key), "design.tooth_counts must be an array of integers".into()))?;
+                for v in arr {
+                    match v.as_integer() {
+                        Some(n) if n > 0 && n <= u32::MAX as i64 => d.tooth_counts.push(n as u32),
+                        _ => return Err((at(key), format!("design.tooth_counts: {v} is not a positive integer"))),
+                    }
+                }
+            }
+            "encoder_heads" => match value.as_integer() {
+                Some(n) if (1..=64).contains(&n) => d.encoder_heads = Some(n as u32),
+                _ => return Err((at(key), format!("design.encoder_heads must be an integer from 1 to 64, got {value}"))),
+            },
+            other => {
+                return Err((
+                    at(other),
+                    format!("design: unknown key '{other}' (expected gear_ratios, tooth_counts, encoder_heads)"),
+                ));
+            }
+        }
+    }
+    Ok(d)
+}
+
+fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, Fail> {
+    let header = loc.effect_header(index);
+    let n = index + 1;
+    let at = |key: &str| loc.key_in_table(header, key);
+    let kind = match t.get("kind") {
+        None => return Err((header, format!("effect[{n}]: missing key 'kind' (one of {KINDS})"))),
+        Some(toml::Value::String(s)) => s.as_str(),
+        Some(v) => return Err((at("kind"), format!("effect[{n}].kind must be a string, got {v}"))),
+    };
+    let allowed: &[&str] = match kind {
+        "eccentricity" | "ellipticity" | "gear_pass" | "tooth_mesh" | "harmonic" => {
+            &["kind", "cycles_per_rev", "amplitude_deg", "phase_deg"]
+        }
+        "backlash" => &["kind", "amplitude_deg"],
+        "drift" => &["kind", "rate_deg_per_run"],
+        "noise" => &["kind", "sigma_deg"],
+        other => return Err((at("kind"), format!("effect[{n}]: unknown kind '{other}' (one of {KINDS})"))),
+    };
+    for key in t.keys() {
+        if !allowed.contains(&key.as_str()) {
+            return Err((
+                at(key),
+                format!("effect[{n}] ({kind}): unknown key '{key}' (expected {})", allowed[1..].join(", ")),
+            ));
+        }
+    }
+    let get = |key: &str| -> Result<f64, Fail> {
+        let v = t.get(key).ok_or((header, format!("effect[{n}] ({kind}): missing key '{key}'")))?;
+        match number(v) {
+            Some(x) if x.is_finite() => Ok(x),
+            _ => Err((at(key), format!("effect[{n}] ({kind}).{key} must be a finite number, got {v}"))),
+        }
+    };
+    let non_negative = |key: &str, x: f64| -> Result<f64, Fail> {
+        if x < 0.0 {
+            Err((at(key), format!("effect[{n}] ({kind}).{key} must not be negative, got {x}")))
+        } else {
+            Ok(x)
+        }
+    };
+    let periodic = |kind: PeriodicKind| -> Result<Effect, Fail> {
+        let cycles = match (kind.fixed_cycles(), t.contains_key("cycles_per_rev")) {
+            (Some(fixed), false) => fixed,
+            _ => get("cycles_per_rev")?,
+        };
+        if let Some(fixed) = kind.fixed_cycles()
+            && cycles != fixed
+        {
+            return Err((
+                at("cycles_per_rev"),
+                format!("effect[{n}] ({}).cycles_per_rev must be {fixed}, got {cycles}", kind.as_str()),
+            ));
+        }
+        if cycles <= 0.0 {
+            return Err((at("cycles_per_rev"), format!("effect[{n}] ({}).cycles_per_rev must be positive, got {cycles}", kind.as_str())));
+        }
+        let amplitude_deg = non_negative("amplitude_deg", get("amplitude_deg")?)?;
+        let phase_deg = if t.contains_key("phase_deg") { get("phase_deg")? } else { 0.0 };
+        Ok(Effect::Periodic { kind, cycles_per_rev: cycles, amplitude_deg, phase_deg })
+    };
+    match kind {
+        "eccentricity" => periodic(PeriodicKind::Eccentricity),
+        "ellipticity" => periodic(PeriodicKind::Ellipticity),
+        "gear_pass" => periodic(PeriodicKind::GearPass),
+        "tooth_mesh" => periodic(PeriodicKind::ToothMesh),
+        "harmonic" => periodic(PeriodicKind::Harmonic),
+        "backlash" => Ok(Effect::Backlash { amplitude_deg: non_negative("amplitude_deg", get("amplitude_deg")?)? }),
+        "drift" => Ok(Effect::Drift { rate_deg_per_run: get("rate_deg_per_run")? }),
+        "noise" => Ok(Effect::Noise { sigma_deg: non_negative("sigma_deg", get("sigma_deg")?)? }),
+        _ => unreachable!("kind checked above"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const EXAMPLE: &str = r#"
+[design]
+gear_ratios = [12]
+tooth_counts = [216]
+encoder_heads = 2
+
+[[effect]]
+kind = "gear_pass"
+cycles_per_rev = 12
+amplitude_deg = 0.006
+phase_deg = 30.0
+
+[[effect]]
+kind = "backlash"
+amplitude_deg = 0.004
+
+[[effect]]
+kind = "drift"
+rate_deg_per_run = 0.0002
+
+[[effect]]
+kind = "noise"
+sigma_deg = 0.0005
+"#;
+
+    #[test]
+    fn parses_the_contract_example_and_evaluates() {
+        let m = Model::parse(EXAMPLE, "m.toml").unwrap();
+        assert_eq!(m.design.gear_ratios, vec![12.0]);
+        assert_eq!(m.design.tooth_counts, vec![216]);
+        assert_eq!(m.design.encoder_heads, Some(2));
+        assert_eq!(m.effects.len(), 4);
+        // 12 * 2.5 deg + 30 deg = 60 deg.
+        let expect = 0.006 * 60f64.to_radians().sin();
+        assert!((m.periodic_error_deg(2.5) - expect).abs() < 1e-15);
+        assert!((m.repeatable_error_deg(2.5, Direction::Forward) - (expect + 0.002)).abs() < 1e-15);
+        assert!((m.repeatable_error_deg(2.5, Direction::Reverse) - (expect - 0.002)).abs() < 1e-15);
+        assert!((m.systematic_error_deg(2.5, Direction::Reverse, 2.0) - (expect - 0.002 + 0.0004)).abs() < 1e-15);
+        assert_eq!(m.noise_sigma_deg(), 0.0005);
+    }
+
+    #[test]
+    fn round_trips_through_toml() {
+        let m = Model::parse(EXAMPLE, "m.toml").unwrap();
+        let again = Model::parse(&m.to_toml(), "again").unwrap();
+        assert_eq!(m, again);
+    }
+
+    #[test]
+    fn design_only_and_empty_files_are_valid() {
+        assert_eq!(Model::parse("", "e").unwrap(), Model::default());
+        let m = Model::parse("[design]\ngear_ratios = [20]\n", "d").unwrap();
+        assert!(m.effects.is_empty());
+    }
+
+    fn error_of(text: &str) -> ModelError {
+        Model::parse(text, "bad.toml").unwrap_err()
+    }
+
+    #[test]
+    fn unknown_kind_names_line_and_kind() {
+        let e = error_of("[design]\n\n[[effect]]\nkind = \"wobble\"\namplitude_deg = 1\n");
+        assert_eq!(e.line, Some(4));
+        assert!(e.to_string().starts_with("bad.toml:4: "), "{e}");
+        assert!(e.message.contains("unknown kind 'wobble'"), "{e}");
+    }
+
+    #[test]
+    fn missing_key_names_the_effect() {
+        let e = error_of("[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 12\nphase_deg = 0\n");
+        assert_eq!(e.line, Some(1));
+        assert!(e.message.contains("effect[1] (gear_pass): missing key 'amplitude_deg'"), "{e}");
+    }
+
+    #[test]
+    fn negative_sigma_names_the_key_line() {
+        let e = error_of("[[effect]]\nkind = \"backlash\"\namplitude_deg = 0.001\n\n[[effect]]\nkind = \"noise\"\nsigma_deg = -0.1\n");
+        assert_eq!(e.line, Some(7));
+        assert!(e.message.contains("effect[2] (noise).sigma_deg must not be negative"), "{e}");
+    }
+
+    #[test]
+    fn other_defects_are_named() {
+        assert!(error_of("[[effect]]\nkind = \"noise\"\nsigma = 1\n").message.contains("unknown key 'sigma'"));
+        assert!(error_of("[[effect]]\nkind = \"eccentricity\"\ncycles_per_rev = 3\namplitude_deg = 1\n")
+            .message
+            .contains("must be 1"));
+        assert!(error_of("[design]\ngear_ratio = [1]\n").message.contains("unknown key 'gear_ratio'"));
+        assert!(error_of("[[effect]]\nkind = \"drift\"\nrate_deg_per_run = \"x\"\n").message.contains("finite number"));
+        let syntax = error_of("[design\n");
+        assert_eq!(syntax.line, Some(1));
+        assert!(error_of("[[effect]]\namplitude_deg = 1\n").message.contains("missing key 'kind'"));
+    }
+}
