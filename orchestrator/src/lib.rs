@@ -1,4 +1,11 @@
 //! The survey orchestrator: the engine that acquires a survey from the
 //! instrument drivers, the SQLite store it writes to, and the `survey` CLI.
 
+pub mod cli;
+pub mod commands;
+pub mod engine;
+pub mod plan;
 pub mod record;
+pub mod run;
+pub mod csvio;
+pub mod store;

@@ -4,6 +4,7 @@ use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 use survey_drivers::{AcReading, SmrMeasurement};
 use survey_processing::Sample;
+use survey_processing::geometry::AxisFit;
 
 /// The reference instrument's raw values behind one sample.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -31,12 +32,24 @@ pub struct RecordedSample {
 pub trait SampleSink: Send {
     async fn record(&mut self, sample: RecordedSample) -> anyhow::Result<()>;
     async fn flush(&mut self) -> anyhow::Result<()>;
+    /// The axis was located from these SMR positions (readout, measurement).
+    async fn axis_located(&mut self, _points: &[(f64, SmrMeasurement)], _fit: &AxisFit) -> anyhow::Result<()> {
+        Ok(())
+    }
+    /// Something worth keeping in the survey's log (a fault survived, a resume).
+    async fn event(&mut self, _at_s: f64, _level: &str, _message: &str) -> anyhow::Result<()> {
+        Ok(())
+    }
 }
 
 /// A sink that keeps samples in memory (tests, dry runs).
 #[derive(Debug, Default)]
 pub struct MemorySink {
     pub samples: Vec<RecordedSample>,
+    pub axis: Option<AxisFit>,
+    pub locate_points: Vec<(f64, SmrMeasurement)>,
+    /// (instrument time, level, message)
+    pub events: Vec<(f64, String, String)>,
 }
 
 #[async_trait]
@@ -46,6 +59,15 @@ impl SampleSink for MemorySink {
         Ok(())
     }
     async fn flush(&mut self) -> anyhow::Result<()> {
+        Ok(())
+    }
+    async fn axis_located(&mut self, points: &[(f64, SmrMeasurement)], fit: &AxisFit) -> anyhow::Result<()> {
+        self.locate_points = points.to_vec();
+        self.axis = Some(fit.clone());
+        Ok(())
+    }
+    async fn event(&mut self, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
+        self.events.push((at_s, level.to_string(), message.to_string()));
         Ok(())
     }
 }

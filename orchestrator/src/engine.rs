@@ -1,0 +1,459 @@
+//! The survey engine: locate the axis, then step it forward and back over the
+//! runs, reading the positioner and the reference instrument at every target.
+//!
+//! Every instrument call is bounded by [`with_timeout`]; every failure is
+//! classified by [`ErrorKind`], logged, recorded as an event, and handled:
+//! link faults and device faults are retried (a positioner fault is cleared,
+//! a broken tracker beam is re-acquired) up to `Timing::max_retries` times, bad
+//! usage stops the survey at once. When the engine gives up, what was recorded
+//! stays recorded and the survey can be resumed from its next step.
+
+use crate::plan::{SurveyPlan, move_time};
+use crate::record::{RawReading, RecordedSample, SampleSink};
+use std::sync::Arc;
+use std::time::Duration;
+use survey_drivers::clock::with_timeout;
+use survey_drivers::{
+    AcReading, Autocollimator, Clock, DriverError, ErrorKind, Positioner, SmrMeasurement, Tracker, TrackerState,
+};
+use survey_processing::geometry::{AxisFit, GeometryError, fit_axis};
+use survey_processing::{Direction, Sample};
+
+/// The independent instrument that measures the actual angle.
+#[derive(Debug)]
+pub enum Reference {
+    /// A tracking laser measuring an SMR on an arm: the axis is located first.
+    Tracker(Box<dyn Tracker>),
+    /// An autocollimator looking at an N-face polygon: the targets are the
+    /// faces; `certificate_arcsec[k]` is face k's calibrated deviation.
+    Autocollimator { instrument: Box<dyn Autocollimator>, faces: u32, certificate_arcsec: Vec<f64> },
+}
+
+impl Reference {
+    pub fn name(&self) -> &str {
+        match self {
+            Reference::Tracker(t) => t.name(),
+            Reference::Autocollimator { instrument, .. } => instrument.name(),
+        }
+    }
+}
+
+/// Deadlines, waits and retry limits.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Timing {
+    /// Deadline of a short request (status, readout, command).
+    pub call_timeout: Duration,
+    /// Deadline of a reference measurement (a tracker's stationary measurement
+    /// takes about a second).
+    pub measure_timeout: Duration,
+    /// A move may take this much longer than its motion profile predicts
+    /// (settling included) before it counts as stuck.
+    pub move_margin: Duration,
+    /// How often the status is polled while waiting for in-position.
+    pub poll_interval: Duration,
+    /// Wait after in-position before reading (the axis comes to rest).
+    pub dwell: Duration,
+    /// Retries of one operation before the engine gives up.
+    pub max_retries: u32,
+    /// Wait before a retry.
+    pub retry_backoff: Duration,
+    /// SMR positions measured to locate the axis.
+    pub locate_points: u32,
+    /// Axis velocity and acceleration used to predict move times, deg/s and deg/s².
+    pub velocity_deg_s: f64,
+    pub accel_deg_s2: f64,
+}
+
+impl Default for Timing {
+    fn default() -> Self {
+        Self {
+            call_timeout: Duration::from_secs(2),
+            measure_timeout: Duration::from_secs(10),
+            move_margin: Duration::from_secs(10),
+            poll_interval: Duration::from_millis(100),
+            dwell: Duration::from_millis(500),
+            max_retries: 3,
+            retry_backoff: Duration::from_secs(1),
+            locate_points: 12,
+            velocity_deg_s: 10.0,
+            accel_deg_s2: 20.0,
+        }
+    }
+}
+
+/// Why a survey stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    /// An instrument failed and retries did not help (or the request was bad).
+    #[error("{0}")]
+    Instrument(#[from] DriverError),
+    /// The axis could not be located from the SMR positions.
+    #[error("locating the axis failed: {0}")]
+    Geometry(#[from] GeometryError),
+    /// The sample store failed.
+    #[error("recording failed: {0:#}")]
+    Sink(anyhow::Error),
+    /// The plan does not fit the reference instrument.
+    #[error("{0}")]
+    Plan(String),
+}
+
+/// Where the survey is, for progress displays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    pub done: u64,
+    pub total: u64,
+    pub run: u32,
+    pub direction: Direction,
+    pub instrument_time: Duration,
+}
+
+/// What a finished (or stopped) pass of the engine did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Outcome {
+    pub samples_recorded: u64,
+    pub faults_survived: u32,
+    pub instrument_time: Duration,
+}
+
+/// The survey engine.
+#[derive(Debug)]
+pub struct Engine {
+    clock: Arc<dyn Clock>,
+    positioner: Box<dyn Positioner>,
+    reference: Reference,
+    timing: Timing,
+    axis: Option<AxisFit>,
+    /// The last commanded position, to know from which side the next target
+    /// is approached.
+    commanded: Option<f64>,
+    faults_survived: u32,
+}
+
+impl Engine {
+    pub fn new(clock: Arc<dyn Clock>, positioner: Box<dyn Positioner>, reference: Reference, timing: Timing) -> Self {
+        Self { clock, positioner, reference, timing, axis: None, commanded: None, faults_survived: 0 }
+    }
+
+    /// Use an axis located earlier (resuming a survey).
+    pub fn with_axis(mut self, axis: AxisFit) -> Self {
+        self.axis = Some(axis);
+        self
+    }
+
+    pub fn axis(&self) -> Option<&AxisFit> {
+        self.axis.as_ref()
+    }
+
+    pub fn positioner_mut(&mut self) -> &mut dyn Positioner {
+        self.positioner.as_mut()
+    }
+
+    pub fn clock(&self) -> &Arc<dyn Clock> {
+        &self.clock
+    }
+
+    /// Locate the rotary axis with the tracker: SMR positions at
+    /// `Timing::locate_points` readouts spread over the plan's span (a full
+    /// revolution or the partial range), a plane and circle fit. Does nothing
+    /// for an autocollimator reference.
+    pub async fn locate_axis(&mut self, plan: &SurveyPlan, sink: &mut dyn SampleSink) -> Result<Option<AxisFit>, EngineError> {
+        if !matches!(self.reference, Reference::Tracker(_)) {
+            return Ok(None);
+        }
+        let readouts = locate_readouts(plan, self.timing.locate_points);
+        let mut points = Vec::with_capacity(readouts.len());
+        for &target in &readouts {
+            self.approach(target, Direction::Forward, plan.overrun_deg, sink).await?;
+            let (readout, raw) = self.read_pair(sink).await?;
+            let RawReading::Smr(m) = raw else { unreachable!("tracker reference gives SMR readings") };
+            points.push((readout, m));
+        }
+        let xyz: Vec<[f64; 3]> = points.iter().map(|(_, m)| m.xyz()).collect();
+        let ro: Vec<f64> = points.iter().map(|(r, _)| *r).collect();
+        let fit = fit_axis(&xyz, &ro)?;
+        tracing::info!(
+            radius_mm = fit.radius_mm,
+            plane_rms_mm = fit.plane_rms_mm,
+            circle_rms_mm = fit.circle_rms_mm,
+            "axis located from {} SMR positions",
+            points.len()
+        );
+        sink.axis_located(&points, &fit).await.map_err(EngineError::Sink)?;
+        self.axis = Some(fit.clone());
+        Ok(Some(fit))
+    }
+
+    /// Acquire the plan's steps from `from_seq` on (0 for a new survey),
+    /// recording each sample into `sink`. The sink is flushed at the end of
+    /// every pass and before returning, also on failure.
+    pub async fn run(
+        &mut self,
+        plan: &SurveyPlan,
+        from_seq: u64,
+        sink: &mut dyn SampleSink,
+        progress: &mut (dyn FnMut(&Progress) + Send),
+    ) -> Result<Outcome, EngineError> {
+        let result = self.run_steps(plan, from_seq, sink, progress).await;
+        let flushed = sink.flush().await.map_err(EngineError::Sink);
+        let outcome = result?;
+        flushed?;
+        Ok(outcome)
+    }
+
+    async fn run_steps(
+        &mut self,
+        plan: &SurveyPlan,
+        from_seq: u64,
+        sink: &mut dyn SampleSink,
+        progress: &mut (dyn FnMut(&Progress) + Send),
+    ) -> Result<Outcome, EngineError> {
+        if let Reference::Autocollimator { faces, .. } = &self.reference {
+            check_polygon_plan(plan, *faces)?;
+        }
+        if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
+            self.locate_axis(plan, sink).await?;
+        }
+        let steps = plan.steps();
+        let total = steps.len() as u64;
+        let mut outcome = Outcome::default();
+        let faults_before = self.faults_survived;
+        let mut previous: Option<(u32, Direction)> = None;
+        for step in steps.into_iter().skip(from_seq as usize) {
+            if previous.is_some_and(|p| p != (step.run, step.direction)) {
+                sink.flush().await.map_err(EngineError::Sink)?;
+            }
+            previous = Some((step.run, step.direction));
+            self.approach(step.target_deg, step.direction, plan.overrun_deg, sink).await?;
+            let (readout, raw) = self.read_pair(sink).await?;
+            let actual = self.actual_deg(step.target_deg, &raw)?;
+            let sample = Sample {
+                run: step.run,
+                direction: step.direction,
+                target_deg: step.target_deg,
+                readout_deg: readout,
+                actual_deg: actual,
+                timestamp_s: Some(self.clock.now().as_secs_f64()),
+            };
+            sink.record(RecordedSample { seq: step.seq, sample, raw }).await.map_err(EngineError::Sink)?;
+            outcome.samples_recorded += 1;
+            progress(&Progress {
+                done: step.seq + 1,
+                total,
+                run: step.run,
+                direction: step.direction,
+                instrument_time: self.clock.now(),
+            });
+        }
+        outcome.faults_survived = self.faults_survived - faults_before;
+        outcome.instrument_time = self.clock.now();
+        Ok(outcome)
+    }
+
+    /// The actual angle from a reference reading.
+    fn actual_deg(&self, target_deg: f64, raw: &RawReading) -> Result<f64, EngineError> {
+        match (raw, &self.reference) {
+            (RawReading::Smr(m), _) => {
+                let axis = self.axis.as_ref().ok_or_else(|| EngineError::Plan("the axis has not been located".into()))?;
+                Ok(axis.angle_deg(m.xyz(), target_deg))
+            }
+            (RawReading::Autocollimator { face, reading }, Reference::Autocollimator { faces, certificate_arcsec, .. }) => {
+                let nominal = *face as f64 * 360.0 / *faces as f64;
+                let nominal = nominal + ((target_deg - nominal) / 360.0).round() * 360.0;
+                let cert = certificate_arcsec.get(*face as usize).copied().unwrap_or(0.0);
+                Ok(nominal + (reading.x_arcsec + cert) / 3600.0)
+            }
+            _ => Err(EngineError::Plan("reading does not match the reference instrument".into())),
+        }
+    }
+
+    /// Bring the axis to `target` approaching in `direction`: when the axis is
+    /// on the wrong side (or at the target), go past it by the overrun first.
+    async fn approach(
+        &mut self,
+        target: f64,
+        direction: Direction,
+        overrun: f64,
+        sink: &mut dyn SampleSink,
+    ) -> Result<(), EngineError> {
+        let wrong_side = self.commanded.is_none_or(|c| (target - c) * direction.sign() <= 0.0);
+        if wrong_side {
+            self.move_to(target - direction.sign() * overrun, sink).await?;
+        }
+        self.move_to(target, sink).await?;
+        self.clock.sleep(self.timing.dwell).await;
+        Ok(())
+    }
+
+    /// Move and wait for in-position, retrying faults.
+    async fn move_to(&mut self, target: f64, sink: &mut dyn SampleSink) -> Result<(), EngineError> {
+        let mut attempt = 0;
+        loop {
+            match self.try_move(target).await {
+                Ok(()) => {
+                    self.commanded = Some(target);
+                    return Ok(());
+                }
+                Err(e) => {
+                    attempt += 1;
+                    self.survive(e, attempt, &format!("move to {target} deg"), sink).await?;
+                }
+            }
+        }
+    }
+
+    async fn try_move(&mut self, target: f64) -> Result<(), DriverError> {
+        let clock = self.clock.clone();
+        let t = &self.timing;
+        let name = self.positioner.name().to_string();
+        let from = self.commanded.unwrap_or(target);
+        with_timeout(&*clock, t.call_timeout, &name, "move command", self.positioner.move_to(target)).await?;
+        let expected = Duration::from_secs_f64(move_time(target - from, t.velocity_deg_s, t.accel_deg_s2));
+        let deadline = clock.now() + expected + t.move_margin;
+        loop {
+            let status = with_timeout(&*clock, t.call_timeout, &name, "status", self.positioner.status()).await?;
+            if let Some(f) = status.fault {
+                return Err(DriverError::device(name, f.code, f.text));
+            }
+            if let Some(limit) = status.limit
+                && !status.moving
+                && !status.in_position
+            {
+                return Err(DriverError::new(ErrorKind::Device, name, format!("stopped at the {limit:?} limit switch")));
+            }
+            if status.in_position && !status.moving {
+                return Ok(());
+            }
+            if clock.now() > deadline {
+                return Err(DriverError::new(
+                    ErrorKind::Timeout,
+                    name,
+                    format!("the move to {target} deg did not reach in-position within {:?}", expected + t.move_margin),
+                ));
+            }
+            clock.sleep(t.poll_interval).await;
+        }
+    }
+
+    /// Read the readout and the reference at the same time, retrying faults.
+    async fn read_pair(&mut self, sink: &mut dyn SampleSink) -> Result<(f64, RawReading), EngineError> {
+        let mut attempt = 0;
+        loop {
+            let clock = self.clock.clone();
+            let t = self.timing.clone();
+            let pos_name = self.positioner.name().to_string();
+            let readout = with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout());
+            let reference = read_reference(&*clock, &t, &mut self.reference, self.commanded.unwrap_or(0.0));
+            let (readout, reference) = tokio::join!(readout, reference);
+            match readout.and_then(|r| reference.map(|raw| (r, raw))) {
+                Ok(pair) => return Ok(pair),
+                Err(e) => {
+                    attempt += 1;
+                    self.survive(e, attempt, "reading", sink).await?;
+                }
+            }
+        }
+    }
+
+    /// Handle a failed operation: log it, record it, recover the instrument,
+    /// and say whether to retry (Ok) or give up (Err).
+    async fn survive(
+        &mut self,
+        error: DriverError,
+        attempt: u32,
+        what: &str,
+        sink: &mut dyn SampleSink,
+    ) -> Result<(), EngineError> {
+        let now = self.clock.now().as_secs_f64();
+        let give_up = error.kind == ErrorKind::Usage || attempt > self.timing.max_retries;
+        if give_up {
+            tracing::error!(%error, attempt, what, "giving up");
+            let _ = sink.event(now, "error", &format!("{what}: {error} (attempt {attempt}, giving up)")).await;
+            return Err(EngineError::Instrument(error));
+        }
+        tracing::warn!(%error, attempt, what, kind = %error.kind, "instrument fault, retrying");
+        sink.event(now, "warn", &format!("{what}: {error} (attempt {attempt}, retrying)"))
+            .await
+            .map_err(EngineError::Sink)?;
+        self.faults_survived += 1;
+        self.clock.sleep(self.timing.retry_backoff).await;
+        if error.kind == ErrorKind::Device {
+            self.recover_device(&error).await;
+        }
+        Ok(())
+    }
+
+    /// After a device fault: clear a positioner fault, re-acquire a broken beam.
+    async fn recover_device(&mut self, error: &DriverError) {
+        let clock = self.clock.clone();
+        let t = self.timing.clone();
+        if error.instrument == self.positioner.name() {
+            let name = self.positioner.name().to_string();
+            if let Err(e) = with_timeout(&*clock, t.call_timeout, &name, "clear fault", self.positioner.clear_fault()).await {
+                tracing::warn!(%e, "clearing the positioner fault failed");
+            }
+            // The axis may have stopped anywhere: approach the next target afresh.
+            self.commanded = None;
+        }
+        if let Reference::Tracker(tracker) = &mut self.reference {
+            let name = tracker.name().to_string();
+            let state = with_timeout(&*clock, t.call_timeout, &name, "status", tracker.status()).await;
+            if matches!(state, Ok(TrackerState::BeamBroken) | Ok(TrackerState::NotReady)) {
+                tracing::info!("re-acquiring the SMR");
+                if let Err(e) = with_timeout(&*clock, t.measure_timeout * 3, &name, "re-acquire", tracker.reacquire()).await {
+                    tracing::warn!(%e, "re-acquiring the SMR failed");
+                }
+            }
+        }
+    }
+}
+
+/// One reading of the reference instrument.
+async fn read_reference(
+    clock: &dyn Clock,
+    t: &Timing,
+    reference: &mut Reference,
+    near_deg: f64,
+) -> Result<RawReading, DriverError> {
+    match reference {
+        Reference::Tracker(tracker) => {
+            let name = tracker.name().to_string();
+            let m: SmrMeasurement = with_timeout(clock, t.measure_timeout, &name, "measurement", tracker.measure()).await?;
+            Ok(RawReading::Smr(m))
+        }
+        Reference::Autocollimator { instrument, faces, .. } => {
+            let name = instrument.name().to_string();
+            let reading: AcReading = with_timeout(clock, t.measure_timeout, &name, "reading", instrument.read()).await?;
+            let face = (near_deg / 360.0 * *faces as f64).round().rem_euclid(*faces as f64) as u32;
+            Ok(RawReading::Autocollimator { face, reading })
+        }
+    }
+}
+
+/// The readouts at which the SMR is measured to locate the axis.
+pub fn locate_readouts(plan: &SurveyPlan, points: u32) -> Vec<f64> {
+    let points = points.max(3);
+    let first = plan.targets_deg[0];
+    let last = *plan.targets_deg.last().expect("a plan has targets");
+    let spacing = if plan.targets_deg.len() > 1 { plan.targets_deg[1] - first } else { 0.0 };
+    let full_circle = (last - first + spacing - 360.0).abs() < 1e-6;
+    if full_circle {
+        (0..points).map(|k| first + k as f64 * 360.0 / points as f64).collect()
+    } else {
+        (0..points).map(|k| first + k as f64 * (last - first) / (points - 1) as f64).collect()
+    }
+}
+
+/// With a polygon reference, every target must be a face.
+fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> {
+    let pitch = 360.0 / faces as f64;
+    for &t in &plan.targets_deg {
+        let k = t / pitch;
+        if (k - k.round()).abs() > 1e-6 {
+            return Err(EngineError::Plan(format!(
+                "target {t} deg is not a face of the {faces}-face polygon (faces every {pitch} deg): use --points {faces}"
+            )));
+        }
+    }
+    Ok(())
+}

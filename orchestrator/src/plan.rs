@@ -1,0 +1,228 @@
+//! The survey plan: targets, runs, directions, and the order of the steps.
+//!
+//! Each run is a forward pass over the targets approaching each from below,
+//! then (bidirectional) an overrun past the last target and a reverse pass
+//! approaching each from above, as ISO 230-2 prescribes. The steps are numbered
+//! densely from 0 (`seq`): a stored sample is identified by its step, which is
+//! how an interrupted survey resumes without losing or duplicating a sample.
+
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+use survey_processing::Direction;
+
+/// What to measure.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurveyPlan {
+    /// Target readout angles in ascending order, degrees.
+    pub targets_deg: Vec<f64>,
+    /// Number of runs (ISO 230-2 asks for 5).
+    pub runs: u32,
+    /// Measure the reverse pass too.
+    pub bidirectional: bool,
+    /// How far past a target the axis goes before approaching it from the
+    /// other side, degrees (takes up backlash before the first target of a pass).
+    pub overrun_deg: f64,
+}
+
+/// One step of the plan: measure `target_deg` approached in `direction` during `run`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Step {
+    pub seq: u64,
+    pub run: u32,
+    pub direction: Direction,
+    pub target_index: usize,
+    pub target_deg: f64,
+}
+
+/// Why a plan is not valid.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    #[error("--points must be at least 2, got {0}")]
+    TooFewPoints(u32),
+    #[error("--runs must be at least 2 (repeatability needs two runs; ISO 230-2 asks for 5), got {0}")]
+    TooFewRuns(u32),
+    #[error("the range {start}..{end} deg is empty or not finite")]
+    BadRange { start: f64, end: f64 },
+    #[error("the overrun must be positive and finite, got {0} deg")]
+    BadOverrun(f64),
+    #[error("targets {first}..{last} deg with {overrun} deg of overrun leave the travel {min}..{max} deg")]
+    OutsideTravel { first: f64, last: f64, overrun: f64, min: f64, max: f64 },
+}
+
+impl SurveyPlan {
+    /// `points` targets evenly over a full revolution: `k * 360 / points`.
+    pub fn full_circle(points: u32, runs: u32, bidirectional: bool) -> Result<Self, PlanError> {
+        Self::check_counts(points, runs)?;
+        let targets_deg = (0..points).map(|k| k as f64 * 360.0 / points as f64).collect();
+        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: default_overrun(points, 360.0) })
+    }
+
+    /// `points` targets evenly from `start` to `end` inclusive (a partial-range axis).
+    pub fn range(start: f64, end: f64, points: u32, runs: u32, bidirectional: bool) -> Result<Self, PlanError> {
+        Self::check_counts(points, runs)?;
+        if !(start.is_finite() && end.is_finite() && end > start) {
+            return Err(PlanError::BadRange { start, end });
+        }
+        let step = (end - start) / (points - 1) as f64;
+        let targets_deg = (0..points).map(|k| start + k as f64 * step).collect();
+        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: default_overrun(points, end - start) })
+    }
+
+    /// A plan for a travel-limited axis: targets spread over the travel,
+    /// kept one overrun inside each end so every target can be approached
+    /// from both sides.
+    pub fn within_travel(min: f64, max: f64, points: u32, runs: u32, bidirectional: bool) -> Result<Self, PlanError> {
+        let overrun = default_overrun(points, max - min);
+        let mut plan = Self::range(min + overrun, max - overrun, points, runs, bidirectional)?;
+        plan.overrun_deg = overrun;
+        Ok(plan)
+    }
+
+    fn check_counts(points: u32, runs: u32) -> Result<(), PlanError> {
+        if points < 2 {
+            return Err(PlanError::TooFewPoints(points));
+        }
+        if runs < 2 {
+            return Err(PlanError::TooFewRuns(runs));
+        }
+        Ok(())
+    }
+
+    /// Check that every position the plan visits (targets and overruns) lies
+    /// within the travel.
+    pub fn check_travel(&self, min: f64, max: f64) -> Result<(), PlanError> {
+        if !(self.overrun_deg.is_finite() && self.overrun_deg > 0.0) {
+            return Err(PlanError::BadOverrun(self.overrun_deg));
+        }
+        let first = self.targets_deg[0];
+        let last = *self.targets_deg.last().expect("a plan has targets");
+        if first - self.overrun_deg < min - 1e-9 || last + self.overrun_deg > max + 1e-9 {
+            return Err(PlanError::OutsideTravel { first, last, overrun: self.overrun_deg, min, max });
+        }
+        Ok(())
+    }
+
+    /// The directions measured in each run, in order.
+    pub fn directions(&self) -> &'static [Direction] {
+        if self.bidirectional { &[Direction::Forward, Direction::Reverse] } else { &[Direction::Forward] }
+    }
+
+    /// Number of samples the plan acquires.
+    pub fn total_steps(&self) -> u64 {
+        self.targets_deg.len() as u64 * self.runs as u64 * self.directions().len() as u64
+    }
+
+    /// Every step in acquisition order.
+    pub fn steps(&self) -> Vec<Step> {
+        let mut steps = Vec::with_capacity(self.total_steps() as usize);
+        let n = self.targets_deg.len();
+        for run in 1..=self.runs {
+            for &direction in self.directions() {
+                for k in 0..n {
+                    let target_index = if direction == Direction::Forward { k } else { n - 1 - k };
+                    steps.push(Step {
+                        seq: steps.len() as u64,
+                        run,
+                        direction,
+                        target_index,
+                        target_deg: self.targets_deg[target_index],
+                    });
+                }
+            }
+        }
+        steps
+    }
+
+    /// Instrument time the plan takes, from the axis dynamics and the time
+    /// spent at each target (settle, dwell and measurement).
+    pub fn estimate_duration(&self, velocity_deg_s: f64, accel_deg_s2: f64, per_target: Duration) -> Duration {
+        let mut total = 0.0;
+        let mut pos = self.targets_deg[0] - self.overrun_deg;
+        for step in self.steps() {
+            let approach_from = step.target_deg - step.direction.sign() * self.overrun_deg;
+            let wrong_side = (step.target_deg - pos) * step.direction.sign() <= 0.0;
+            if wrong_side {
+                total += move_time(approach_from - pos, velocity_deg_s, accel_deg_s2);
+                pos = approach_from;
+            }
+            total += move_time(step.target_deg - pos, velocity_deg_s, accel_deg_s2) + per_target.as_secs_f64();
+            pos = step.target_deg;
+        }
+        Duration::from_secs_f64(total)
+    }
+
+    /// Instrument time of one run.
+    pub fn estimate_run_duration(&self, velocity_deg_s: f64, accel_deg_s2: f64, per_target: Duration) -> Duration {
+        self.estimate_duration(velocity_deg_s, accel_deg_s2, per_target) / self.runs
+    }
+}
+
+/// Half a target spacing, at most 1 degree: enough to take up backlash, small
+/// enough to stay clear of the neighbouring target.
+fn default_overrun(points: u32, span_deg: f64) -> f64 {
+    (0.5 * span_deg / points as f64).min(1.0)
+}
+
+/// Time of a trapezoidal (or triangular) move over `distance` degrees.
+pub fn move_time(distance: f64, velocity: f64, accel: f64) -> f64 {
+    let d = distance.abs();
+    if d == 0.0 {
+        return 0.0;
+    }
+    let d_ramp = velocity * velocity / accel;
+    if d >= d_ramp { d / velocity + velocity / accel } else { 2.0 * (d / accel).sqrt() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn full_circle_steps_go_forward_then_reverse_each_run() {
+        let plan = SurveyPlan::full_circle(4, 2, true).unwrap();
+        assert_eq!(plan.targets_deg, vec![0.0, 90.0, 180.0, 270.0]);
+        let steps = plan.steps();
+        assert_eq!(steps.len() as u64, plan.total_steps());
+        assert_eq!(steps.len(), 16);
+        let order: Vec<(u32, Direction, f64)> = steps.iter().map(|s| (s.run, s.direction, s.target_deg)).collect();
+        assert_eq!(order[0..8], [
+            (1, Direction::Forward, 0.0),
+            (1, Direction::Forward, 90.0),
+            (1, Direction::Forward, 180.0),
+            (1, Direction::Forward, 270.0),
+            (1, Direction::Reverse, 270.0),
+            (1, Direction::Reverse, 180.0),
+            (1, Direction::Reverse, 90.0),
+            (1, Direction::Reverse, 0.0),
+        ]);
+        assert!(steps.iter().enumerate().all(|(i, s)| s.seq == i as u64));
+        assert_eq!(steps[8].run, 2);
+    }
+
+    #[test]
+    fn unidirectional_and_partial_range() {
+        let plan = SurveyPlan::within_travel(-10.0, 90.0, 11, 3, false).unwrap();
+        assert_eq!(plan.steps().len(), 33);
+        assert!(plan.targets_deg[0] > -10.0 && *plan.targets_deg.last().unwrap() < 90.0);
+        plan.check_travel(-10.0, 90.0).unwrap();
+        let full = SurveyPlan::full_circle(10, 2, true).unwrap();
+        assert!(matches!(full.check_travel(0.0, 300.0), Err(PlanError::OutsideTravel { .. })));
+    }
+
+    #[test]
+    fn rejects_too_few_points_or_runs() {
+        assert_eq!(SurveyPlan::full_circle(1, 5, true), Err(PlanError::TooFewPoints(1)));
+        assert_eq!(SurveyPlan::full_circle(10, 1, true), Err(PlanError::TooFewRuns(1)));
+        assert!(SurveyPlan::range(5.0, 5.0, 3, 2, false).is_err());
+    }
+
+    #[test]
+    fn move_time_matches_the_profile() {
+        // 90 deg at 10 deg/s and 20 deg/s^2: 0.5 s ramps, 9.5 s in all.
+        assert!((move_time(90.0, 10.0, 20.0) - 9.5).abs() < 1e-12);
+        // Short move: triangular, 2*sqrt(d/a).
+        assert!((move_time(1.0, 10.0, 20.0) - 2.0 * (1.0f64 / 20.0).sqrt()).abs() < 1e-12);
+        let plan = SurveyPlan::full_circle(4, 2, false).unwrap();
+        assert!(plan.estimate_duration(10.0, 20.0, Duration::from_secs(1)) > Duration::from_secs(8));
+    }
+}

@@ -1,0 +1,238 @@
+//! `survey run`: acquire a survey on the simulated bench (the embedded
+//! default) into the store, then report the ISO 230-2 statistics.
+
+use crate::cli::{Failure, ReferenceKind, RunArgs};
+use crate::commands::{stats_json, stats_text};
+use crate::engine::{Engine, Outcome, Progress, Reference, Timing};
+use crate::plan::SurveyPlan;
+use crate::store::{NewSurvey, Store, StoreSink, SurveyStatus};
+use anyhow::Context as _;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use survey_drivers::{Clock, VirtualClock};
+use survey_processing::Sample;
+use survey_processing::iso230::iso230_2;
+use survey_processing::model::Model;
+use survey_sims::autocollimator::AutocollimatorConfig;
+use survey_sims::{Preset, SimBench};
+
+/// Everything a simulated survey was made from, stored with it.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct SimulatedSetup {
+    pub preset: String,
+    pub model_file: Option<String>,
+    pub reference: ReferenceKind,
+    pub seed: u64,
+    pub plan: SurveyPlan,
+    pub timing: Timing,
+    /// Instrument time of one run, which turns the model's drift per run into drift over time.
+    pub run_period_s: f64,
+}
+
+/// The stationary measurement time of each simulated reference.
+fn measurement_time(reference: ReferenceKind) -> Duration {
+    match reference {
+        ReferenceKind::Tracker => Duration::from_secs(1),
+        ReferenceKind::Autocollimator => Duration::from_millis(200),
+    }
+}
+
+/// Check the arguments and build the setup, before anything is stored.
+fn setup(args: &RunArgs) -> Result<(SimulatedSetup, Preset, Model), Failure> {
+    let preset = Preset::by_name(&args.preset)
+        .ok_or_else(|| Failure::usage(anyhow::anyhow!("unknown preset '{}'", args.preset)))?;
+    let model = match &args.model {
+        Some(path) => Model::from_file(path).map_err(Failure::usage)?,
+        None => preset.model.clone(),
+    };
+    let plan = match (args.reference, preset.travel) {
+        (ReferenceKind::Autocollimator, Some((lo, hi))) => {
+            return Err(Failure::usage(anyhow::anyhow!(
+                "the autocollimator reference needs a full revolution, but preset {} travels {lo}..{hi} deg",
+                preset.name
+            )));
+        }
+        (_, None) => SurveyPlan::full_circle(args.points, args.runs, args.bidirectional),
+        (_, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, args.points, args.runs, args.bidirectional),
+    }
+    .map_err(Failure::usage)?;
+    let timing = Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
+    let per_target = preset.settle + timing.dwell + measurement_time(args.reference) + timing.poll_interval;
+    let run_period = plan.estimate_run_duration(timing.velocity_deg_s, timing.accel_deg_s2, per_target);
+    let setup = SimulatedSetup {
+        preset: preset.name.to_string(),
+        model_file: args.model.as_ref().map(|p| p.display().to_string()),
+        reference: args.reference,
+        seed: args.seed,
+        plan,
+        timing,
+        run_period_s: run_period.as_secs_f64(),
+    };
+    Ok((setup, preset, model))
+}
+
+/// Build the simulated instruments of a setup on `clock`.
+pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<VirtualClock>) -> Engine {
+    let dyn_clock: Arc<dyn Clock> = clock;
+    let mut builder = SimBench::builder(preset, setup.seed, dyn_clock.clone())
+        .model(model)
+        .drift_run_period(Duration::from_secs_f64(setup.run_period_s));
+    if setup.reference == ReferenceKind::Autocollimator {
+        let faces = setup.plan.targets_deg.len() as u32;
+        builder = builder.autocollimator(AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3)));
+    }
+    let bench = builder.build();
+    let reference = match setup.reference {
+        ReferenceKind::Tracker => Reference::Tracker(Box::new(bench.tracker)),
+        ReferenceKind::Autocollimator => Reference::Autocollimator {
+            faces: bench.autocollimator.faces(),
+            certificate_arcsec: bench.autocollimator.certificate_arcsec().to_vec(),
+            instrument: Box::new(bench.autocollimator),
+        },
+    };
+    Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
+}
+
+pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
+    let (setup, preset, model) = setup(&args)?;
+    let plan = setup.plan.clone();
+    let clock = Arc::new(VirtualClock::new());
+    let mut engine = simulated_engine(&setup, &preset, model.clone(), clock.clone());
+
+    let store = Store::open(db).await.map_err(Failure::runtime)?;
+    let instruments = serde_json::json!({
+        "positioner": format!("simulated {} positioner", preset.name),
+        "reference": format!("simulated {}", match setup.reference { ReferenceKind::Tracker => "tracker", ReferenceKind::Autocollimator => "autocollimator" }),
+    });
+    let id = store
+        .create_survey(&NewSurvey {
+            status: SurveyStatus::Running,
+            source: "simulated".into(),
+            points: Some(plan.targets_deg.len() as u32),
+            runs: Some(plan.runs),
+            bidirectional: plan.bidirectional,
+            config_json: serde_json::to_string(&setup).expect("setup serialises"),
+            model_toml: Some(model.to_toml()),
+            instruments_json: instruments.to_string(),
+            planned_samples: Some(plan.total_steps()),
+        })
+        .await
+        .map_err(Failure::runtime)?;
+    tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
+    let estimate = Duration::from_secs_f64(setup.run_period_s * plan.runs as f64);
+    eprintln!(
+        "survey {id}: {} targets x {} runs{}, simulated {} positioner, {} reference: about {} of instrument time",
+        plan.targets_deg.len(),
+        plan.runs,
+        if plan.bidirectional { " bidirectional" } else { "" },
+        preset.name,
+        instruments["reference"].as_str().unwrap_or_default().trim_start_matches("simulated "),
+        human(estimate)
+    );
+
+    let mut sink = StoreSink::new(store.clone(), id);
+    let started = Instant::now();
+    let outcome = acquire(&mut engine, &plan, 0, &mut sink, !args.json).await;
+    let real = started.elapsed();
+    finish(&store, id, &outcome, clock.now()).await?;
+    let outcome = outcome.map_err(Failure::runtime)?;
+    summarise(&store, id, db, &outcome, real, args.json).await
+}
+
+/// Run the engine with a progress bar; Ctrl-C stops it cleanly (what was
+/// measured is flushed and the survey can be resumed).
+pub async fn acquire(
+    engine: &mut Engine,
+    plan: &SurveyPlan,
+    from_seq: u64,
+    sink: &mut StoreSink,
+    show_progress: bool,
+) -> anyhow::Result<Outcome> {
+    let bar = ProgressBar::with_draw_target(Some(plan.total_steps()), ProgressDrawTarget::stderr());
+    if !show_progress {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        ProgressStyle::with_template("{bar:32} {pos}/{len} targets  {msg}  time left {eta}")
+            .expect("valid template"),
+    );
+    bar.set_position(from_seq);
+    let mut on_progress = |p: &Progress| {
+        bar.set_position(p.done);
+        bar.set_message(format!(
+            "run {} {} · instrument time {}",
+            p.run,
+            p.direction,
+            human(p.instrument_time)
+        ));
+    };
+    let result = tokio::select! {
+        r = engine.run(plan, from_seq, sink, &mut on_progress) => r.map_err(anyhow::Error::from),
+        _ = tokio::signal::ctrl_c() => Err(anyhow::anyhow!("interrupted (Ctrl-C)")),
+    };
+    bar.finish_and_clear();
+    if result.is_err() {
+        // Keep what was measured: the engine flushes on its own paths, but an
+        // interrupted future may have left samples in the buffer.
+        use crate::record::SampleSink as _;
+        sink.flush().await.context("saving the samples measured before the failure")?;
+    }
+    result
+}
+
+/// Mark the survey complete or interrupted.
+async fn finish(store: &Store, id: i64, outcome: &anyhow::Result<Outcome>, now: Duration) -> Result<(), Failure> {
+    let status = if outcome.is_ok() { SurveyStatus::Complete } else { SurveyStatus::Interrupted };
+    if let Err(e) = outcome {
+        let _ = store.log_event(id, now.as_secs_f64(), "error", &format!("{e:#}")).await;
+        eprintln!("survey {id} stopped: {e:#}");
+    }
+    store.set_status(id, status, Some(now.as_secs_f64())).await.map_err(Failure::runtime)?;
+    Ok(())
+}
+
+async fn summarise(
+    store: &Store,
+    id: i64,
+    db: &Path,
+    outcome: &Outcome,
+    real: Duration,
+    json: bool,
+) -> Result<(), Failure> {
+    let samples: Vec<Sample> = store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let iso = iso230_2(&samples).context("ISO 230-2 statistics").map_err(Failure::runtime)?;
+    if json {
+        let mut doc = stats_json(id, &iso);
+        doc["samples"] = samples.len().into();
+        doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
+        doc["real_time_s"] = real.as_secs_f64().into();
+        doc["faults_survived"] = outcome.faults_survived.into();
+        doc["db"] = db.display().to_string().into();
+        println!("{doc}");
+    } else {
+        println!(
+            "survey {id}: {} samples in {} of instrument time (acquired in {:.1} s){}",
+            samples.len(),
+            human(outcome.instrument_time),
+            real.as_secs_f64(),
+            if outcome.faults_survived > 0 { format!(", {} faults survived", outcome.faults_survived) } else { String::new() }
+        );
+        print!("{}", stats_text(id, &iso));
+        println!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV", db.display());
+    }
+    Ok(())
+}
+
+/// `3h 12m`, `4m 05s`, `12.3 s`.
+pub fn human(d: Duration) -> String {
+    let s = d.as_secs();
+    if s >= 3600 {
+        format!("{}h {:02}m", s / 3600, (s % 3600) / 60)
+    } else if s >= 60 {
+        format!("{}m {:02}s", s / 60, s % 60)
+    } else {
+        format!("{:.1} s", d.as_secs_f64())
+    }
+}

@@ -1,0 +1,267 @@
+//! A simulated tracking laser measuring an SMR on an arm fixed to the turntable.
+//!
+//! # Geometry ([`ArmGeometry`])
+//!
+//! The tracker sits at the origin of its frame (mm). The axis passes through
+//! `axis_center_mm` along the unit vector `axis_normal`. With `u`, `v` an
+//! orthonormal basis of the plane perpendicular to the normal (`u` is the
+//! tracker's x axis projected into that plane, `v = normal × u`, so
+//! `u × v = normal`), the SMR at true axis angle `theta` is at
+//!
+//! `centre + smr_height*normal + radius*(cos(theta+phase) u + sin(theta+phase) v)`.
+//!
+//! Increasing axis angle is a right-handed rotation about `axis_normal`.
+//! The tracker does not measure an angle: the engine fits a plane and a circle
+//! to the SMR positions and takes each angle around the circle's centre (the
+//! arm's phase is a constant offset).
+//!
+//! # Noise
+//!
+//! Each coordinate gets independent Gaussian noise of
+//! `sigma = (15 um + 6 um/m * distance) / 2` (the Leica AT-class MPE halved as
+//! the typical value), distance from the tracker to the SMR in metres;
+//! `std_dev_mm` reports that sigma for each coordinate. About 0.001 deg of arc
+//! on a 1 m arm 2.7 m away.
+//!
+//! # Timing and faults
+//!
+//! `measure()` reads the true angle at the start of the measurement, then takes
+//! `measurement_time` of clock time. With `beam_break_probability` per
+//! measurement (or on the scheduled measurement `break_on_measurement`,
+//! 1-based) the beam breaks: that measurement fails with the device code
+//! [`CODE_BEAM_BROKEN`], the state becomes `BeamBroken` and every measurement
+//! fails at once with that code until `reacquire()` (which takes
+//! `reacquire_time`). `status()` and a locked `reacquire()` cost the link latency.
+
+use crate::turntable::Turntable;
+use crate::{FAULT_STREAM, LINK_LATENCY, NOISE_STREAM, seeded_rng};
+use async_trait::async_trait;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use std::sync::Arc;
+use std::time::Duration;
+use survey_drivers::clock::Clock;
+use survey_drivers::error::{DriverError, Result};
+use survey_drivers::traits::{SmrMeasurement, Tracker, TrackerState};
+
+const INSTRUMENT: &str = "tracker";
+
+/// Device code of a measurement that failed because the beam is broken (the
+/// simulator's own code in the style of emScon's `ES_ResultStatus`, whose TPI
+/// reports a lost beam as an error answer with no dedicated status value).
+pub const CODE_BEAM_BROKEN: i64 = 9001;
+
+/// The arm on the turntable and where the axis is in the tracker's frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmGeometry {
+    /// Radius of the SMR's circle, mm (default 1000).
+    pub radius_mm: f64,
+    /// A point on the axis, mm, tracker frame (default `[2500, 800, -300]`).
+    pub axis_center_mm: [f64; 3],
+    /// Direction of the axis (normalised on use; default tilted 0.3 deg from +z).
+    pub axis_normal: [f64; 3],
+    /// Angle of the arm at axis angle 0, deg (default 37).
+    pub arm_phase_deg: f64,
+    /// Height of the SMR above `axis_center_mm` along the normal, mm (default 50).
+    pub smr_height_mm: f64,
+}
+
+impl Default for ArmGeometry {
+    fn default() -> Self {
+        let tilt = 0.3f64.to_radians();
+        let toward = 30f64.to_radians();
+        Self {
+            radius_mm: 1000.0,
+            axis_center_mm: [2500.0, 800.0, -300.0],
+            axis_normal: [tilt.sin() * toward.cos(), tilt.sin() * toward.sin(), tilt.cos()],
+            arm_phase_deg: 37.0,
+            smr_height_mm: 50.0,
+        }
+    }
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn scaled(a: [f64; 3], k: f64) -> [f64; 3] {
+    a.map(|x| x * k)
+}
+
+fn normalised(a: [f64; 3]) -> [f64; 3] {
+    scaled(a, 1.0 / dot(a, a).sqrt())
+}
+
+impl ArmGeometry {
+    /// The orthonormal frame `(u, v, normal)` of the axis, `u × v = normal`.
+    pub fn basis(&self) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        let n = normalised(self.axis_normal);
+        // Project the tracker's x axis into the plane (y if x is nearly the normal).
+        let seed = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+        let u = normalised(std::array::from_fn(|i| seed[i] - dot(seed, n) * n[i]));
+        let v = cross(n, u);
+        (u, v, n)
+    }
+
+    /// The centre of the SMR's circle, mm.
+    pub fn circle_center_mm(&self) -> [f64; 3] {
+        let (_, _, n) = self.basis();
+        std::array::from_fn(|i| self.axis_center_mm[i] + self.smr_height_mm * n[i])
+    }
+
+    /// The SMR position at true axis angle `theta_deg`, mm, tracker frame.
+    pub fn smr_position_mm(&self, theta_deg: f64) -> [f64; 3] {
+        let (u, v, _) = self.basis();
+        let c = self.circle_center_mm();
+        let phi = (theta_deg + self.arm_phase_deg).to_radians();
+        let (s, k) = phi.sin_cos();
+        std::array::from_fn(|i| c[i] + self.radius_mm * (k * u[i] + s * v[i]))
+    }
+}
+
+/// The tracker's per-coordinate standard deviation at `distance_mm` from it,
+/// mm: `(0.015 + 0.006 * distance_m) / 2`.
+pub fn sigma_mm(distance_mm: f64) -> f64 {
+    (0.015 + 0.006 * distance_mm / 1000.0) / 2.0
+}
+
+/// Configuration of a [`SimTracker`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackerConfig {
+    /// Where the SMR is (default [`ArmGeometry::default`]).
+    pub arm: ArmGeometry,
+    /// Duration of a stationary measurement (default 1 s).
+    pub measurement_time: Duration,
+    /// Probability that a measurement breaks the beam (default 0).
+    pub beam_break_probability: f64,
+    /// Time to find the SMR again after a break (default 5 s).
+    pub reacquire_time: Duration,
+    /// Seed of the noise and beam-break streams.
+    pub seed: u64,
+    /// Break the beam on this measurement (1-based), for tests.
+    pub break_on_measurement: Option<usize>,
+    /// Multiplies the noise (1 = the instrument's; 0 = exact positions, for
+    /// tests). The reported `std_dev_mm` is always the instrument's sigma.
+    pub noise_scale: f64,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            arm: ArmGeometry::default(),
+            measurement_time: Duration::from_secs(1),
+            beam_break_probability: 0.0,
+            reacquire_time: Duration::from_secs(5),
+            seed: 0,
+            break_on_measurement: None,
+            noise_scale: 1.0,
+        }
+    }
+}
+
+/// The simulated tracking laser. See the module documentation.
+#[derive(Debug)]
+pub struct SimTracker {
+    clock: Arc<dyn Clock>,
+    cfg: TrackerConfig,
+    turntable: Turntable,
+    state: TrackerState,
+    measurements: usize,
+    noise_rng: ChaCha8Rng,
+    fault_rng: ChaCha8Rng,
+}
+
+impl SimTracker {
+    /// A tracker looking at the SMR on `turntable`'s arm.
+    pub fn new(cfg: TrackerConfig, clock: Arc<dyn Clock>, turntable: Turntable) -> Self {
+        Self {
+            noise_rng: seeded_rng(cfg.seed, NOISE_STREAM),
+            fault_rng: seeded_rng(cfg.seed, FAULT_STREAM),
+            clock,
+            cfg,
+            turntable,
+            state: TrackerState::TargetLocked,
+            measurements: 0,
+        }
+    }
+
+    /// The configuration (the designed geometry, for tests).
+    pub fn config(&self) -> &TrackerConfig {
+        &self.cfg
+    }
+
+    /// Measurements attempted so far (broken ones included).
+    pub fn measurements(&self) -> usize {
+        self.measurements
+    }
+
+    fn broken(&self) -> DriverError {
+        DriverError::device(INSTRUMENT, CODE_BEAM_BROKEN, "beam broken: the SMR is not locked (reacquire it)")
+    }
+}
+
+#[async_trait]
+impl Tracker for SimTracker {
+    fn name(&self) -> &str {
+        "sim-tracker"
+    }
+
+    async fn measure(&mut self) -> Result<SmrMeasurement> {
+        if self.state != TrackerState::TargetLocked {
+            self.clock.sleep(LINK_LATENCY).await;
+            return Err(self.broken());
+        }
+        self.measurements += 1;
+        let theta = self.turntable.actual_deg(self.clock.now());
+        let draw: f64 = self.fault_rng.random();
+        let breaks =
+            self.cfg.break_on_measurement == Some(self.measurements) || draw < self.cfg.beam_break_probability;
+        self.clock.sleep(self.cfg.measurement_time).await;
+        if breaks {
+            self.state = TrackerState::BeamBroken;
+            tracing::debug!(measurement = self.measurements, "simulated tracker beam break");
+            return Err(DriverError::device(
+                INSTRUMENT,
+                CODE_BEAM_BROKEN,
+                "beam broken during the measurement (reacquire the SMR)",
+            ));
+        }
+        let p = self.cfg.arm.smr_position_mm(theta);
+        let sigma = sigma_mm(dot(p, p).sqrt());
+        let mut noisy = [0.0; 3];
+        for (out, x) in noisy.iter_mut().zip(p) {
+            let z: f64 = StandardNormal.sample(&mut self.noise_rng);
+            *out = x + z * sigma * self.cfg.noise_scale;
+        }
+        Ok(SmrMeasurement {
+            x_mm: noisy[0],
+            y_mm: noisy[1],
+            z_mm: noisy[2],
+            std_dev_mm: [sigma; 3],
+            measurement_time_s: self.cfg.measurement_time.as_secs_f64(),
+        })
+    }
+
+    async fn status(&mut self) -> Result<TrackerState> {
+        self.clock.sleep(LINK_LATENCY).await;
+        Ok(self.state)
+    }
+
+    async fn reacquire(&mut self) -> Result<()> {
+        if self.state == TrackerState::TargetLocked {
+            self.clock.sleep(LINK_LATENCY).await;
+            return Ok(());
+        }
+        self.clock.sleep(self.cfg.reacquire_time).await;
+        self.state = TrackerState::TargetLocked;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;
