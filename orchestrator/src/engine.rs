@@ -457,3 +457,7 @@ fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> 
     }
     Ok(())
 }
+
+#[cfg(test)]
+#[path = "engine_tests.rs"]
+mod tests;

@@ -1,0 +1,1 @@
+//! Engine tests: fault survival on the simulated bench.
