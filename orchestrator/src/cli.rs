@@ -31,6 +31,8 @@ pub struct Cli {
 pub enum Command {
     /// Acquire a survey (simulated instruments unless --config is given).
     Run(RunArgs),
+    /// Continue an interrupted survey from its last stored sample.
+    Resume(ResumeArgs),
     /// Store measured data from a CSV file as a new survey; prints its id.
     Import(ImportArgs),
     /// Write a survey in the import CSV format.
@@ -72,6 +74,16 @@ pub struct RunArgs {
     /// Seed of every random draw of the simulated instruments.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Print the summary as one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ResumeArgs {
+    /// Survey id (default: the latest).
+    #[arg(long, value_name = "ID")]
+    pub survey: Option<i64>,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -148,5 +160,10 @@ pub fn main() -> ExitCode {
 fn init_logging() {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
-    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).try_init();
+    use std::io::IsTerminal as _;
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .try_init();
 }

@@ -306,7 +306,11 @@ impl Engine {
         let clock = self.clock.clone();
         let t = &self.timing;
         let name = self.positioner.name().to_string();
-        let from = self.commanded.unwrap_or(target);
+        // After a start, a resume or a fault the axis may be anywhere: ask it.
+        let from = match self.commanded {
+            Some(c) => c,
+            None => with_timeout(&*clock, t.call_timeout, &name, "readout", self.positioner.readout()).await?,
+        };
         with_timeout(&*clock, t.call_timeout, &name, "move command", self.positioner.move_to(target)).await?;
         let expected = Duration::from_secs_f64(move_time(target - from, t.velocity_deg_s, t.accel_deg_s2));
         let deadline = clock.now() + expected + t.move_margin;

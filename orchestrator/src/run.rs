@@ -1,7 +1,7 @@
 //! `survey run`: acquire a survey on the simulated bench (the embedded
 //! default) into the store, then report the ISO 230-2 statistics.
 
-use crate::cli::{Failure, ReferenceKind, RunArgs};
+use crate::cli::{Failure, ReferenceKind, ResumeArgs, RunArgs};
 use crate::commands::{stats_json, stats_text};
 use crate::engine::{Engine, Outcome, Progress, Reference, Timing};
 use crate::plan::SurveyPlan;
@@ -99,7 +99,7 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
     let (setup, preset, model) = setup(&args)?;
     let plan = setup.plan.clone();
     let clock = Arc::new(VirtualClock::new());
-    let mut engine = simulated_engine(&setup, &preset, model.clone(), clock.clone());
+    let engine = simulated_engine(&setup, &preset, model.clone(), clock.clone());
 
     let store = Store::open(db).await.map_err(Failure::runtime)?;
     let instruments = serde_json::json!({
@@ -132,13 +132,89 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
         human(estimate)
     );
 
-    let mut sink = StoreSink::new(store.clone(), id);
+    let sink = StoreSink::new(store.clone(), id);
+    drive(engine, &plan, 0, sink, clock, db, args.json).await
+}
+
+/// `survey resume`: continue an interrupted survey from its first missing step.
+pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
+    let store = crate::commands::open_existing(db).await?;
+    let row = store.resolve(args.survey).await.map_err(crate::commands::classify)?;
+    let id = row.id;
+    match row.status {
+        SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Failed => {}
+        SurveyStatus::Complete => {
+            return Err(Failure::usage(anyhow::anyhow!("survey {id} is complete: there is nothing to resume")));
+        }
+        SurveyStatus::Imported => {
+            return Err(Failure::usage(anyhow::anyhow!("survey {id} was imported, not acquired: it cannot be resumed")));
+        }
+    }
+    if row.source != "simulated" {
+        return Err(Failure::usage(anyhow::anyhow!(
+            "survey {id} was acquired from '{}'; only simulated surveys can be resumed by this version",
+            row.source
+        )));
+    }
+    let setup: SimulatedSetup = serde_json::from_str(&row.config_json)
+        .with_context(|| format!("survey {id}: its stored configuration cannot be read"))
+        .map_err(Failure::runtime)?;
+    let preset = Preset::by_name(&setup.preset)
+        .ok_or_else(|| Failure::runtime(anyhow::anyhow!("survey {id}: unknown preset '{}'", setup.preset)))?;
+    let model = match &row.model_toml {
+        Some(text) => Model::parse(text, &format!("survey {id} model")).map_err(Failure::runtime)?,
+        None => preset.model.clone(),
+    };
+    let stored = row.sample_count;
+    let next = store.last_seq(id).await.map_err(Failure::runtime)?.map_or(0, |s| s + 1);
+    if next != stored {
+        return Err(Failure::runtime(anyhow::anyhow!(
+            "survey {id}: {stored} samples stored but the last step is {next}: the survey is not a dense prefix of its plan"
+        )));
+    }
+    let plan = setup.plan.clone();
+    if next >= plan.total_steps() {
+        store.set_status(id, SurveyStatus::Complete, None).await.map_err(Failure::runtime)?;
+        return Err(Failure::usage(anyhow::anyhow!("survey {id} already holds all {next} samples: marked complete")));
+    }
+    // Instrument time goes on from where the survey stopped (drift continues),
+    // and the simulators draw new noise rather than replaying the first steps'.
+    let samples = store.samples(id).await.map_err(Failure::runtime)?;
+    let last_time = samples.iter().filter_map(|r| r.sample.timestamp_s).fold(row.started_at_s.unwrap_or(0.0), f64::max);
+    let clock = Arc::new(VirtualClock::starting_at(Duration::from_secs_f64(last_time.max(0.0))));
+    let mut resumed = setup.clone();
+    resumed.seed = survey_sims::derive_seed(setup.seed, 0x5e5u64 + next);
+    let mut engine = simulated_engine(&resumed, &preset, model, clock.clone());
+    if let Some(axis) = &row.axis_json {
+        let axis = serde_json::from_str(axis).context("the stored axis cannot be read").map_err(Failure::runtime)?;
+        engine = engine.with_axis(axis);
+    }
+    store.set_status(id, SurveyStatus::Running, None).await.map_err(Failure::runtime)?;
+    let message = format!("resumed at step {next} of {}", plan.total_steps());
+    store.log_event(id, last_time, "info", &message).await.map_err(Failure::runtime)?;
+    eprintln!("survey {id}: {message}");
+    let sink = StoreSink::new(store.clone(), id);
+    drive(engine, &plan, next, sink, clock, db, args.json).await
+}
+
+/// Acquire from `from_seq`, mark the survey, and print the summary.
+async fn drive(
+    mut engine: Engine,
+    plan: &SurveyPlan,
+    from_seq: u64,
+    mut sink: StoreSink,
+    clock: Arc<VirtualClock>,
+    db: &Path,
+    json: bool,
+) -> Result<(), Failure> {
+    let store = sink.store().clone();
+    let id = sink.survey_id();
     let started = Instant::now();
-    let outcome = acquire(&mut engine, &plan, 0, &mut sink, !args.json).await;
+    let outcome = acquire(&mut engine, plan, from_seq, &mut sink, !json).await;
     let real = started.elapsed();
     finish(&store, id, &outcome, clock.now()).await?;
     let outcome = outcome.map_err(Failure::runtime)?;
-    summarise(&store, id, db, &outcome, real, args.json).await
+    summarise(&store, id, db, &outcome, real, json).await
 }
 
 /// Run the engine with a progress bar; Ctrl-C stops it cleanly (what was
@@ -171,6 +247,7 @@ pub async fn acquire(
     let result = tokio::select! {
         r = engine.run(plan, from_seq, sink, &mut on_progress) => r.map_err(anyhow::Error::from),
         _ = tokio::signal::ctrl_c() => Err(anyhow::anyhow!("interrupted (Ctrl-C)")),
+        _ = terminated() => Err(anyhow::anyhow!("terminated (SIGTERM)")),
     };
     bar.finish_and_clear();
     if result.is_err() {
@@ -187,7 +264,7 @@ async fn finish(store: &Store, id: i64, outcome: &anyhow::Result<Outcome>, now: 
     let status = if outcome.is_ok() { SurveyStatus::Complete } else { SurveyStatus::Interrupted };
     if let Err(e) = outcome {
         let _ = store.log_event(id, now.as_secs_f64(), "error", &format!("{e:#}")).await;
-        eprintln!("survey {id} stopped: {e:#}");
+        eprintln!("survey {id} stopped: {e:#}\nwhat was measured is stored; continue with `survey resume --survey {id}`");
     }
     store.set_status(id, status, Some(now.as_secs_f64())).await.map_err(Failure::runtime)?;
     Ok(())
@@ -235,4 +312,20 @@ pub fn human(d: Duration) -> String {
     } else {
         format!("{:.1} s", d.as_secs_f64())
     }
+}
+
+/// Resolves when the process is asked to terminate (SIGTERM on Unix).
+async fn terminated() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    }
+    #[cfg(not(unix))]
+    std::future::pending::<()>().await
 }

@@ -1,6 +1,8 @@
 //! End-to-end tests of the survey engine on the simulated instruments, into
 //! SQLite, checked against the truth the simulators know.
 
+mod resume;
+
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
 use survey_orchestrator::engine::{Engine, Reference, Timing};
