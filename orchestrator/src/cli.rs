@@ -167,3 +167,11 @@ fn init_logging() {
         .with_ansi(std::io::stderr().is_terminal())
         .try_init();
 }
+
+/// Write command output to stdout. A closed pipe (`survey stats | head`) is
+/// not an error worth a panic: the reader has what it wanted.
+pub fn emit(text: &str) {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
+}

@@ -52,7 +52,7 @@ async fn import(db: &std::path::Path, args: ImportArgs) -> Result<(), Failure> {
     };
     let id = store.import(&survey, &samples).await.map_err(Failure::runtime)?;
     store.close().await;
-    println!("{id}");
+    crate::cli::emit(&format!("{id}\n"));
     eprintln!("imported {} samples ({targets} targets, {runs} runs) from {name} as survey {id} in {}", samples.len(), db.display());
     Ok(())
 }
@@ -88,9 +88,9 @@ async fn stats(db: &std::path::Path, args: StatsArgs) -> Result<(), Failure> {
         .with_context(|| format!("survey {} cannot give ISO 230-2 statistics", survey.id))
         .map_err(Failure::usage)?;
     if args.json {
-        println!("{}", stats_json(survey.id, &iso));
+        crate::cli::emit(&format!("{}\n", stats_json(survey.id, &iso)));
     } else {
-        print!("{}", stats_text(survey.id, &iso));
+        crate::cli::emit(&stats_text(survey.id, &iso));
     }
     Ok(())
 }

@@ -287,17 +287,19 @@ async fn summarise(
         doc["real_time_s"] = real.as_secs_f64().into();
         doc["faults_survived"] = outcome.faults_survived.into();
         doc["db"] = db.display().to_string().into();
-        println!("{doc}");
+        crate::cli::emit(&format!("{doc}\n"));
     } else {
-        println!(
+        let mut text = format!(
             "survey {id}: {} samples in {} of instrument time (acquired in {:.1} s){}",
             samples.len(),
             human(outcome.instrument_time),
             real.as_secs_f64(),
             if outcome.faults_survived > 0 { format!(", {} faults survived", outcome.faults_survived) } else { String::new() }
         );
-        print!("{}", stats_text(id, &iso));
-        println!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV", db.display());
+        text += "\n";
+        text += &stats_text(id, &iso);
+        text += &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
+        crate::cli::emit(&text);
     }
     Ok(())
 }
