@@ -120,6 +120,7 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
         })
         .await
         .map_err(Failure::runtime)?;
+    store.set_started(id, clock.now().as_secs_f64()).await.map_err(Failure::runtime)?;
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
     let estimate = Duration::from_secs_f64(setup.run_period_s * plan.runs as f64);
     eprintln!(
