@@ -14,8 +14,8 @@ use std::process::ExitCode;
 /// A survey steps the axis forward and back over several runs, pairing the
 /// positioner's readout with an independent reference (a tracking laser or an
 /// autocollimator), stores every sample in SQLite, and computes ISO 230-2
-/// statistics. Without `--config`, `survey run` uses the built-in simulated
-/// instruments (the paper's Figure 8 positioner and a tracking laser).
+/// statistics. `survey run` uses the built-in simulated instruments (the
+/// paper's Figure 8 positioner and a tracking laser by default).
 #[derive(Debug, Parser)]
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100)]
 pub struct Cli {
@@ -29,7 +29,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Acquire a survey (simulated instruments unless --config is given).
+    /// Acquire a survey on the simulated instruments.
     Run(RunArgs),
     /// Continue an interrupted survey from its last stored sample.
     Resume(ResumeArgs),

@@ -1,7 +1,7 @@
 //! What each command does, between the parsed arguments and the library.
 
 use crate::cli::{Cli, Command, ExportArgs, Failure, ImportArgs, StatsArgs};
-use crate::csvio::{parse_survey_csv, write_survey_csv};
+use crate::csvio::{read_survey_csv, write_survey_csv};
 use crate::store::{NewSurvey, Store, SurveyStatus};
 use anyhow::Context as _;
 use survey_processing::Sample;
@@ -30,15 +30,11 @@ pub fn classify(e: anyhow::Error) -> Failure {
 
 async fn import(db: &std::path::Path, args: ImportArgs) -> Result<(), Failure> {
     let name = args.file.display().to_string();
-    let text = std::fs::read_to_string(&args.file)
-        .with_context(|| format!("cannot read {name}"))
-        .map_err(Failure::usage)?;
-    let samples = parse_survey_csv(&text, &name).map_err(Failure::usage)?;
-    // Check the data is usable before storing anything.
+    let samples = read_survey_csv(&args.file).map_err(Failure::usage)?;
     let runs = samples.iter().map(|s| s.run).max().unwrap_or(0);
     let bidirectional = samples.iter().any(|s| s.direction == survey_processing::Direction::Reverse);
     let targets = distinct_targets(&samples);
-    let store = Store::open(db).await.map_err(Failure::runtime)?;
+    let store = Store::open(db).await.map_err(classify)?;
     let survey = NewSurvey {
         status: SurveyStatus::Imported,
         source: format!("import:{name}"),
@@ -53,6 +49,9 @@ async fn import(db: &std::path::Path, args: ImportArgs) -> Result<(), Failure> {
     let id = store.import(&survey, &samples).await.map_err(Failure::runtime)?;
     store.close().await;
     crate::cli::emit(&format!("{id}\n"));
+    if let Err(e) = iso230_2(&samples) {
+        eprintln!("note: survey {id} cannot give ISO 230-2 statistics yet: {e}");
+    }
     eprintln!("imported {} samples ({targets} targets, {runs} runs) from {name} as survey {id} in {}", samples.len(), db.display());
     Ok(())
 }

@@ -101,7 +101,7 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
     let clock = Arc::new(VirtualClock::new());
     let engine = simulated_engine(&setup, &preset, model.clone(), clock.clone());
 
-    let store = Store::open(db).await.map_err(Failure::runtime)?;
+    let store = Store::open(db).await.map_err(crate::commands::classify)?;
     let instruments = serde_json::json!({
         "positioner": format!("simulated {} positioner", preset.name),
         "reference": format!("simulated {}", match setup.reference { ReferenceKind::Tracker => "tracker", ReferenceKind::Autocollimator => "autocollimator" }),
@@ -215,7 +215,11 @@ async fn drive(
     let real = started.elapsed();
     finish(&store, id, &outcome, clock.now()).await?;
     let outcome = outcome.map_err(Failure::runtime)?;
-    summarise(&store, id, db, &outcome, real, json).await
+    let summary = summarise(&store, id, db, &outcome, real, json).await;
+    drop(sink);
+    // Closing checkpoints the WAL into the database file.
+    store.close().await;
+    summary
 }
 
 /// Run the engine with a progress bar; Ctrl-C stops it cleanly (what was
@@ -291,7 +295,7 @@ async fn summarise(
         crate::cli::emit(&format!("{doc}\n"));
     } else {
         let mut text = format!(
-            "survey {id}: {} samples in {} of instrument time (acquired in {:.1} s){}",
+            "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}",
             samples.len(),
             human(outcome.instrument_time),
             real.as_secs_f64(),
