@@ -7,7 +7,9 @@
 //! virtual time.
 
 pub mod clock;
+pub mod elcomat;
 pub mod error;
+pub mod scpi;
 pub mod traits;
 
 pub use clock::{Clock, SystemClock, VirtualClock};

@@ -39,8 +39,10 @@
 
 pub mod autocollimator;
 pub mod bench;
+pub mod elcomat_server;
 pub mod positioner;
 pub mod presets;
+pub mod scpi_server;
 pub mod tracker;
 pub mod turntable;
 
