@@ -211,13 +211,13 @@ impl Engine {
         if let Reference::Autocollimator { faces, .. } = &self.reference {
             check_polygon_plan(plan, *faces)?;
         }
+        let faults_before = self.faults_survived;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
             self.locate_axis(plan, sink).await?;
         }
         let steps = plan.steps();
         let total = steps.len() as u64;
         let mut outcome = Outcome::default();
-        let faults_before = self.faults_survived;
         let mut previous: Option<(u32, Direction)> = None;
         for step in steps.into_iter().skip(from_seq as usize) {
             if previous.is_some_and(|p| p != (step.run, step.direction)) {
@@ -296,7 +296,7 @@ impl Engine {
                 }
                 Err(e) => {
                     attempt += 1;
-                    self.survive(e, attempt, &format!("move to {target} deg"), sink).await?;
+                    self.survive(e, Failed::Positioner, attempt, &format!("move to {target} deg"), sink).await?;
                 }
             }
         }
@@ -319,16 +319,19 @@ impl Engine {
             if let Some(f) = status.fault {
                 return Err(DriverError::device(name, f.code, f.text));
             }
-            if let Some(limit) = status.limit
-                && !status.moving
-                && !status.in_position
-            {
-                return Err(DriverError::new(ErrorKind::Device, name, format!("stopped at the {limit:?} limit switch")));
-            }
             if status.in_position && !status.moving {
                 return Ok(());
             }
             if clock.now() > deadline {
+                // A limit switch is reported at a target on the end of the
+                // travel too, so it only explains a move that never arrived.
+                if let Some(limit) = status.limit {
+                    return Err(DriverError::new(
+                        ErrorKind::Device,
+                        name,
+                        format!("the move to {target} deg stopped at the {limit:?} limit switch"),
+                    ));
+                }
                 return Err(DriverError::new(
                     ErrorKind::Timeout,
                     name,
@@ -349,13 +352,13 @@ impl Engine {
             let readout = with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout());
             let reference = read_reference(&*clock, &t, &mut self.reference, self.commanded.unwrap_or(0.0));
             let (readout, reference) = tokio::join!(readout, reference);
-            match readout.and_then(|r| reference.map(|raw| (r, raw))) {
-                Ok(pair) => return Ok(pair),
-                Err(e) => {
-                    attempt += 1;
-                    self.survive(e, attempt, "reading", sink).await?;
-                }
-            }
+            let (error, failed) = match (readout, reference) {
+                (Ok(r), Ok(raw)) => return Ok((r, raw)),
+                (Err(e), _) => (e, Failed::Positioner),
+                (Ok(_), Err(e)) => (e, Failed::Reference),
+            };
+            attempt += 1;
+            self.survive(error, failed, attempt, "reading", sink).await?;
         }
     }
 
@@ -364,6 +367,7 @@ impl Engine {
     async fn survive(
         &mut self,
         error: DriverError,
+        failed: Failed,
         attempt: u32,
         what: &str,
         sink: &mut dyn SampleSink,
@@ -382,16 +386,16 @@ impl Engine {
         self.faults_survived += 1;
         self.clock.sleep(self.timing.retry_backoff).await;
         if error.kind == ErrorKind::Device {
-            self.recover_device(&error).await;
+            self.recover_device(failed).await;
         }
         Ok(())
     }
 
     /// After a device fault: clear a positioner fault, re-acquire a broken beam.
-    async fn recover_device(&mut self, error: &DriverError) {
+    async fn recover_device(&mut self, failed: Failed) {
         let clock = self.clock.clone();
         let t = self.timing.clone();
-        if error.instrument == self.positioner.name() {
+        if failed == Failed::Positioner {
             let name = self.positioner.name().to_string();
             if let Err(e) = with_timeout(&*clock, t.call_timeout, &name, "clear fault", self.positioner.clear_fault()).await {
                 tracing::warn!(%e, "clearing the positioner fault failed");
@@ -399,7 +403,7 @@ impl Engine {
             // The axis may have stopped anywhere: approach the next target afresh.
             self.commanded = None;
         }
-        if let Reference::Tracker(tracker) = &mut self.reference {
+        if let (Failed::Reference, Reference::Tracker(tracker)) = (failed, &mut self.reference) {
             let name = tracker.name().to_string();
             let state = with_timeout(&*clock, t.call_timeout, &name, "status", tracker.status()).await;
             if matches!(state, Ok(TrackerState::BeamBroken) | Ok(TrackerState::NotReady)) {
@@ -410,6 +414,13 @@ impl Engine {
             }
         }
     }
+}
+
+/// Which instrument an operation failed on: decides the recovery.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Failed {
+    Positioner,
+    Reference,
 }
 
 /// One reading of the reference instrument.
