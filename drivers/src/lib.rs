@@ -9,6 +9,7 @@
 pub mod clock;
 pub mod elcomat;
 pub mod error;
+pub mod reconnect;
 pub mod scpi;
 pub mod traits;
 
