@@ -32,11 +32,17 @@ pub trait Clock: Send + Sync + Debug {
 #[derive(Debug, Clone)]
 pub struct SystemClock {
     epoch: Instant,
+    offset: Duration,
 }
 
 impl SystemClock {
     pub fn new() -> Self {
-        Self { epoch: Instant::now() }
+        Self { epoch: Instant::now(), offset: Duration::ZERO }
+    }
+
+    /// A clock whose time starts at `offset` (a resumed survey's time goes on).
+    pub fn starting_at(offset: Duration) -> Self {
+        Self { epoch: Instant::now(), offset }
     }
 }
 
@@ -48,7 +54,7 @@ impl Default for SystemClock {
 
 impl Clock for SystemClock {
     fn now(&self) -> Duration {
-        self.epoch.elapsed()
+        self.offset + self.epoch.elapsed()
     }
     fn sleep(&self, d: Duration) -> Sleep<'_> {
         Box::pin(tokio::time::sleep(d))

@@ -7,7 +7,7 @@
 //! The engine's retry loop decides whether to call again; this wrapper only
 //! makes sure the call after a link fault starts on a clean connection.
 
-use crate::error::{DriverError, ErrorKind, Result};
+use crate::error::{DriverError, Result};
 use crate::traits::{
     AcReading, AcState, Autocollimator, Positioner, PositionerStatus, SmrMeasurement, Tracker, TrackerState,
 };
@@ -162,6 +162,7 @@ impl Autocollimator for Reconnecting<dyn Autocollimator> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::ErrorKind;
     use std::sync::Arc;
     use std::sync::atomic::{AtomicU32, Ordering};
 

@@ -14,8 +14,8 @@ use std::process::ExitCode;
 /// A survey steps the axis forward and back over several runs, pairing the
 /// positioner's readout with an independent reference (a tracking laser or an
 /// autocollimator), stores every sample in SQLite, and computes ISO 230-2
-/// statistics. `survey run` uses the built-in simulated instruments (the
-/// paper's Figure 8 positioner and a tracking laser by default).
+/// statistics. Without `--config`, `survey run` uses the built-in simulated
+/// instruments (the paper's Figure 8 positioner and a tracking laser).
 #[derive(Debug, Parser)]
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100)]
 pub struct Cli {
@@ -29,8 +29,10 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Acquire a survey on the simulated instruments.
+    /// Acquire a survey (the simulated instruments unless --config is given).
     Run(RunArgs),
+    /// Connect to every configured instrument and say plainly what is wrong.
+    Check(CheckArgs),
     /// Continue an interrupted survey from its last stored sample.
     Resume(ResumeArgs),
     /// Store measured data from a CSV file as a new survey; prints its id.
@@ -53,15 +55,19 @@ pub enum ReferenceKind {
 
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// Targets per revolution (or over the travel of a partial-range axis).
+    /// Targets per revolution (or over the travel of a partial-range axis);
+    /// with an autocollimator, the polygon's faces.
     #[arg(long, value_name = "N")]
-    pub points: u32,
+    pub points: Option<u32>,
     /// Measure the reverse pass too (needed for hysteresis and the reversal value).
     #[arg(long)]
     pub bidirectional: bool,
-    /// Runs (ISO 230-2 asks for 5).
-    #[arg(long, value_name = "R", default_value_t = 5)]
-    pub runs: u32,
+    /// Runs [default: 5, as ISO 230-2 asks].
+    #[arg(long, value_name = "R")]
+    pub runs: Option<u32>,
+    /// Survey real instruments described in this configuration file (TOML).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["model", "preset", "reference", "seed"])]
+    pub config: Option<PathBuf>,
     /// Positioner model file (TOML) for the simulated positioner, instead of the preset's.
     #[arg(long, value_name = "FILE")]
     pub model: Option<PathBuf>,
@@ -75,6 +81,16 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Print the summary as one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct CheckArgs {
+    /// The configuration file whose instruments to check.
+    #[arg(long, value_name = "FILE")]
+    pub config: PathBuf,
+    /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
 }

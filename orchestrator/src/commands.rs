@@ -10,6 +10,7 @@ use survey_processing::iso230::{Iso230, iso230_2};
 pub async fn dispatch(cli: Cli) -> Result<(), Failure> {
     match cli.command {
         Command::Run(args) => crate::run::run(&cli.db, args).await,
+        Command::Check(args) => crate::run::check(args).await,
         Command::Resume(args) => crate::run::resume(&cli.db, args).await,
         Command::Import(args) => import(&cli.db, args).await,
         Command::Export(args) => export(&cli.db, args).await,

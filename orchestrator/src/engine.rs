@@ -124,6 +124,8 @@ pub struct Engine {
     reference: Reference,
     timing: Timing,
     axis: Option<AxisFit>,
+    /// The arm's nominal radius and tolerance, mm, to check the located axis.
+    arm_check: Option<(f64, f64)>,
     /// The last commanded position, to know from which side the next target
     /// is approached.
     commanded: Option<f64>,
@@ -132,7 +134,14 @@ pub struct Engine {
 
 impl Engine {
     pub fn new(clock: Arc<dyn Clock>, positioner: Box<dyn Positioner>, reference: Reference, timing: Timing) -> Self {
-        Self { clock, positioner, reference, timing, axis: None, commanded: None, faults_survived: 0 }
+        Self { clock, positioner, reference, timing, axis: None, arm_check: None, commanded: None, faults_survived: 0 }
+    }
+
+    /// Refuse a located axis whose radius differs from the arm's `radius_mm`
+    /// by more than `tolerance_mm` (the SMR is not where the arm puts it).
+    pub fn with_arm_check(mut self, radius_mm: f64, tolerance_mm: f64) -> Self {
+        self.arm_check = Some((radius_mm, tolerance_mm));
+        self
     }
 
     /// Use an axis located earlier (resuming a survey).
@@ -143,6 +152,14 @@ impl Engine {
 
     pub fn axis(&self) -> Option<&AxisFit> {
         self.axis.as_ref()
+    }
+
+    pub fn positioner_name(&self) -> &str {
+        self.positioner.name()
+    }
+
+    pub fn reference_name(&self) -> &str {
+        self.reference.name()
     }
 
     pub fn positioner_mut(&mut self) -> &mut dyn Positioner {
@@ -172,6 +189,15 @@ impl Engine {
         let xyz: Vec<[f64; 3]> = points.iter().map(|(_, m)| m.xyz()).collect();
         let ro: Vec<f64> = points.iter().map(|(r, _)| *r).collect();
         let fit = fit_axis(&xyz, &ro)?;
+        if let Some((radius, tolerance)) = self.arm_check
+            && (fit.radius_mm - radius).abs() > tolerance
+        {
+            return Err(EngineError::Plan(format!(
+                "the SMR moves on a circle of radius {:.3} mm but the arm is {radius} mm (tolerance {tolerance} mm): \
+                 is the SMR on the arm, and the arm on the turntable?",
+                fit.radius_mm
+            )));
+        }
         tracing::info!(
             radius_mm = fit.radius_mm,
             plane_rms_mm = fit.plane_rms_mm,

@@ -3,7 +3,9 @@
 
 pub mod cli;
 pub mod commands;
+pub mod config;
 pub mod engine;
+pub mod instruments;
 pub mod plan;
 pub mod record;
 pub mod run;

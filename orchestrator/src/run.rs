@@ -1,7 +1,9 @@
 //! `survey run`: acquire a survey on the simulated bench (the embedded
 //! default) into the store, then report the ISO 230-2 statistics.
 
-use crate::cli::{Failure, ReferenceKind, ResumeArgs, RunArgs};
+use crate::cli::{CheckArgs, Failure, ReferenceKind, ResumeArgs, RunArgs};
+use crate::config::SurveyConfig;
+use crate::instruments::Instruments;
 use crate::commands::{stats_json, stats_text};
 use crate::engine::{Engine, Outcome, Progress, Reference, Timing};
 use crate::plan::SurveyPlan;
@@ -11,7 +13,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use survey_drivers::{Clock, VirtualClock};
+use survey_drivers::{Clock, SystemClock, VirtualClock};
 use survey_processing::Sample;
 use survey_processing::iso230::iso230_2;
 use survey_processing::model::Model;
@@ -31,6 +33,16 @@ pub struct SimulatedSetup {
     pub run_period_s: f64,
 }
 
+/// Runs when neither the command line nor the configuration says: ISO 230-2's five.
+pub const DEFAULT_RUNS: u32 = 5;
+
+/// What a survey of real instruments was made from, stored with it.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct ConfiguredSetup {
+    pub config: SurveyConfig,
+    pub plan: SurveyPlan,
+}
+
 /// The stationary measurement time of each simulated reference.
 fn measurement_time(reference: ReferenceKind) -> Duration {
     match reference {
@@ -41,6 +53,8 @@ fn measurement_time(reference: ReferenceKind) -> Duration {
 
 /// Check the arguments and build the setup, before anything is stored.
 fn setup(args: &RunArgs) -> Result<(SimulatedSetup, Preset, Model), Failure> {
+    let points = args.points.ok_or_else(|| Failure::usage(anyhow::anyhow!("--points N is required")))?;
+    let runs = args.runs.unwrap_or(DEFAULT_RUNS);
     let preset = Preset::by_name(&args.preset)
         .ok_or_else(|| Failure::usage(anyhow::anyhow!("unknown preset '{}'", args.preset)))?;
     let model = match &args.model {
@@ -54,8 +68,8 @@ fn setup(args: &RunArgs) -> Result<(SimulatedSetup, Preset, Model), Failure> {
                 preset.name
             )));
         }
-        (_, None) => SurveyPlan::full_circle(args.points, args.runs, args.bidirectional),
-        (_, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, args.points, args.runs, args.bidirectional),
+        (_, None) => SurveyPlan::full_circle(points, runs, args.bidirectional),
+        (_, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, args.bidirectional),
     }
     .map_err(Failure::usage)?;
     let timing = Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
@@ -96,6 +110,9 @@ pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, c
 }
 
 pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
+    if let Some(path) = &args.config {
+        return run_configured(db, &args, path).await;
+    }
     let (setup, preset, model) = setup(&args)?;
     let plan = setup.plan.clone();
     let clock = Arc::new(VirtualClock::new());
@@ -137,6 +154,109 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
     drive(engine, &plan, 0, sink, clock, db, args.json).await
 }
 
+/// `survey run --config FILE`: a survey of real instruments.
+async fn run_configured(db: &Path, args: &RunArgs, path: &Path) -> Result<(), Failure> {
+    let cfg = SurveyConfig::from_file(path).map_err(Failure::usage)?;
+    let points = args.points.or(cfg.survey.points).ok_or_else(|| {
+        Failure::usage(anyhow::anyhow!("--points N is required (or `points` in the [survey] section of {})", path.display()))
+    })?;
+    let runs = args.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
+    let bidirectional = args.bidirectional || cfg.survey.bidirectional.unwrap_or(false);
+    let mut plan = match cfg.survey.travel_deg {
+        Some([lo, hi]) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional),
+        None => SurveyPlan::full_circle(points, runs, bidirectional),
+    }
+    .map_err(Failure::usage)?;
+    if let Some(overrun) = cfg.survey.overrun_deg {
+        plan.overrun_deg = overrun;
+    }
+    if let Some([lo, hi]) = cfg.survey.travel_deg {
+        plan.check_travel(lo, hi).map_err(Failure::usage)?;
+    }
+    let clock: Arc<dyn Clock> = Arc::new(SystemClock::new());
+    let setup = ConfiguredSetup { config: cfg.clone(), plan: plan.clone() };
+    let engine = configured_engine(&cfg, clock.clone());
+    let store = Store::open(db).await.map_err(crate::commands::classify)?;
+    let instruments = serde_json::json!({
+        "config_file": path.display().to_string(),
+        "positioner": engine_names(&engine).0,
+        "reference": engine_names(&engine).1,
+    });
+    let id = store
+        .create_survey(&NewSurvey {
+            status: SurveyStatus::Running,
+            source: "instruments".into(),
+            points: Some(plan.targets_deg.len() as u32),
+            runs: Some(plan.runs),
+            bidirectional: plan.bidirectional,
+            config_json: serde_json::to_string(&setup).expect("setup serialises"),
+            model_toml: None,
+            instruments_json: instruments.to_string(),
+            planned_samples: Some(plan.total_steps()),
+        })
+        .await
+        .map_err(Failure::runtime)?;
+    store.set_started(id, clock.now().as_secs_f64()).await.map_err(Failure::runtime)?;
+    let per_target = engine_per_target(&cfg);
+    let estimate = plan.estimate_duration(cfg.timing().velocity_deg_s, cfg.timing().accel_deg_s2, per_target);
+    eprintln!(
+        "survey {id}: {} targets x {} runs{}, {} against {}: about {}",
+        plan.targets_deg.len(),
+        plan.runs,
+        if plan.bidirectional { " bidirectional" } else { "" },
+        instruments["positioner"].as_str().unwrap_or_default(),
+        instruments["reference"].as_str().unwrap_or_default(),
+        human(estimate)
+    );
+    let sink = StoreSink::new(store.clone(), id);
+    drive(engine, &plan, 0, sink, clock, db, args.json).await
+}
+
+/// The engine on the configured instruments.
+fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
+    let mut engine = Instruments::from_config(cfg).into_engine(clock, cfg);
+    if let Some(arm) = &cfg.arm {
+        engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
+    }
+    engine
+}
+
+fn engine_names(engine: &Engine) -> (String, String) {
+    (engine.positioner_name().to_string(), engine.reference_name().to_string())
+}
+
+/// Time spent at each target besides the move, for the duration estimate.
+fn engine_per_target(cfg: &SurveyConfig) -> Duration {
+    let t = cfg.timing();
+    let measure = if cfg.reference() == ReferenceKind::Tracker { Duration::from_secs(1) } else { Duration::from_millis(200) };
+    t.dwell + measure + t.poll_interval
+}
+
+/// `survey check --config FILE`.
+pub async fn check(args: CheckArgs) -> Result<(), Failure> {
+    let cfg = SurveyConfig::from_file(&args.config).map_err(Failure::usage)?;
+    let clock = SystemClock::new();
+    let lines = crate::instruments::check(&cfg, &clock).await;
+    let failed = lines.iter().filter(|l| !l.ok).count();
+    if args.json {
+        let doc = serde_json::json!({ "ok": failed == 0, "instruments": lines });
+        crate::cli::emit(&format!("{doc}\n"));
+    } else {
+        let mut text = String::new();
+        for l in &lines {
+            text += &format!("{:<15} {:<28} {:<20} {}\n", l.instrument, l.address, l.verdict, l.detail);
+        }
+        crate::cli::emit(&text);
+    }
+    if failed > 0 {
+        return Err(Failure::runtime(anyhow::anyhow!(
+            "{failed} of {} instruments failed the check: fix them before starting a survey",
+            lines.len()
+        )));
+    }
+    Ok(())
+}
+
 /// `survey resume`: continue an interrupted survey from its first missing step.
 pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
     let store = crate::commands::open_existing(db).await?;
@@ -151,21 +271,6 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
             return Err(Failure::usage(anyhow::anyhow!("survey {id} was imported, not acquired: it cannot be resumed")));
         }
     }
-    if row.source != "simulated" {
-        return Err(Failure::usage(anyhow::anyhow!(
-            "survey {id} was acquired from '{}'; only simulated surveys can be resumed by this version",
-            row.source
-        )));
-    }
-    let setup: SimulatedSetup = serde_json::from_str(&row.config_json)
-        .with_context(|| format!("survey {id}: its stored configuration cannot be read"))
-        .map_err(Failure::runtime)?;
-    let preset = Preset::by_name(&setup.preset)
-        .ok_or_else(|| Failure::runtime(anyhow::anyhow!("survey {id}: unknown preset '{}'", setup.preset)))?;
-    let model = match &row.model_toml {
-        Some(text) => Model::parse(text, &format!("survey {id} model")).map_err(Failure::runtime)?,
-        None => preset.model.clone(),
-    };
     let stored = row.sample_count;
     let next = store.last_seq(id).await.map_err(Failure::runtime)?.map_or(0, |s| s + 1);
     if next != stored {
@@ -173,19 +278,42 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
             "survey {id}: {stored} samples stored but the last step is {next}: the survey is not a dense prefix of its plan"
         )));
     }
-    let plan = setup.plan.clone();
+    // Instrument time goes on from where the survey stopped (drift continues).
+    let samples = store.samples(id).await.map_err(Failure::runtime)?;
+    let last_time = samples.iter().filter_map(|r| r.sample.timestamp_s).fold(row.started_at_s.unwrap_or(0.0), f64::max);
+    let resume_at = Duration::from_secs_f64(last_time.max(0.0));
+    let (plan, mut engine, clock): (SurveyPlan, Engine, Arc<dyn Clock>) = match row.source.as_str() {
+        "simulated" => {
+            let setup: SimulatedSetup = serde_json::from_str(&row.config_json)
+                .with_context(|| format!("survey {id}: its stored configuration cannot be read"))
+                .map_err(Failure::runtime)?;
+            let preset = Preset::by_name(&setup.preset)
+                .ok_or_else(|| Failure::runtime(anyhow::anyhow!("survey {id}: unknown preset '{}'", setup.preset)))?;
+            let model = match &row.model_toml {
+                Some(text) => Model::parse(text, &format!("survey {id} model")).map_err(Failure::runtime)?,
+                None => preset.model.clone(),
+            };
+            // The simulators draw new noise rather than replaying the first steps'.
+            let mut resumed = setup.clone();
+            resumed.seed = survey_sims::derive_seed(setup.seed, 0x5e5u64 + next);
+            let clock = Arc::new(VirtualClock::starting_at(resume_at));
+            (setup.plan, simulated_engine(&resumed, &preset, model, clock.clone()), clock)
+        }
+        "instruments" => {
+            let setup: ConfiguredSetup = serde_json::from_str(&row.config_json)
+                .with_context(|| format!("survey {id}: its stored configuration cannot be read"))
+                .map_err(Failure::runtime)?;
+            let clock: Arc<dyn Clock> = Arc::new(SystemClock::starting_at(resume_at));
+            (setup.plan, configured_engine(&setup.config, clock.clone()), clock)
+        }
+        other => {
+            return Err(Failure::usage(anyhow::anyhow!("survey {id} came from '{other}': it cannot be resumed")));
+        }
+    };
     if next >= plan.total_steps() {
         store.set_status(id, SurveyStatus::Complete, None).await.map_err(Failure::runtime)?;
         return Err(Failure::usage(anyhow::anyhow!("survey {id} already holds all {next} samples: marked complete")));
     }
-    // Instrument time goes on from where the survey stopped (drift continues),
-    // and the simulators draw new noise rather than replaying the first steps'.
-    let samples = store.samples(id).await.map_err(Failure::runtime)?;
-    let last_time = samples.iter().filter_map(|r| r.sample.timestamp_s).fold(row.started_at_s.unwrap_or(0.0), f64::max);
-    let clock = Arc::new(VirtualClock::starting_at(Duration::from_secs_f64(last_time.max(0.0))));
-    let mut resumed = setup.clone();
-    resumed.seed = survey_sims::derive_seed(setup.seed, 0x5e5u64 + next);
-    let mut engine = simulated_engine(&resumed, &preset, model, clock.clone());
     if let Some(axis) = &row.axis_json {
         let axis = serde_json::from_str(axis).context("the stored axis cannot be read").map_err(Failure::runtime)?;
         engine = engine.with_axis(axis);
@@ -204,7 +332,7 @@ async fn drive(
     plan: &SurveyPlan,
     from_seq: u64,
     mut sink: StoreSink,
-    clock: Arc<VirtualClock>,
+    clock: Arc<dyn Clock>,
     db: &Path,
     json: bool,
 ) -> Result<(), Failure> {

@@ -13,6 +13,8 @@
 //! the first that does not exist); a failed command must leave that list equal,
 //! and the next valid import must get the next id.
 
+mod instruments;
+
 use serde_json::Value;
 use std::fmt;
 use std::path::PathBuf;

@@ -1,0 +1,335 @@
+//! The survey configuration file (`survey run --config FILE`): which driver
+//! and address for each instrument, the reference, the polygon or arm data,
+//! travel limits and timing.
+//!
+//! ```toml
+//! [survey]
+//! points = 360
+//! runs = 5
+//! bidirectional = true
+//! reference = "tracker"          # or "autocollimator"
+//! travel_deg = [-10.0, 90.0]     # omit for continuous rotation
+//!
+//! [positioner]
+//! driver = "scpi-tcp"
+//! address = "192.168.1.20:4000"
+//!
+//! [tracker]
+//! driver = "emscon"
+//! address = "192.168.1.30:700"
+//!
+//! [timing]
+//! dwell_s = 0.5
+//! ```
+//!
+//! Unknown keys are errors, so a misspelt setting never silently falls back
+//! to a default.
+
+use crate::cli::ReferenceKind;
+use crate::engine::Timing;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::time::Duration;
+
+/// A whole configuration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurveyConfig {
+    #[serde(default)]
+    pub survey: SurveySection,
+    pub positioner: PositionerConfig,
+    #[serde(default)]
+    pub tracker: Option<TrackerConfig>,
+    #[serde(default)]
+    pub autocollimator: Option<AutocollimatorConfig>,
+    /// The SMR arm, used to check the located axis.
+    #[serde(default)]
+    pub arm: Option<ArmSection>,
+    /// The polygon the autocollimator looks at.
+    #[serde(default)]
+    pub polygon: Option<PolygonSection>,
+    #[serde(default)]
+    pub timing: TimingSection,
+}
+
+/// `[survey]`: the plan; command-line flags override these.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurveySection {
+    pub points: Option<u32>,
+    pub runs: Option<u32>,
+    pub bidirectional: Option<bool>,
+    /// The reference instrument (default: tracker).
+    pub reference: Option<ReferenceKind>,
+    /// Travel limits of a partial-range axis, degrees.
+    pub travel_deg: Option<[f64; 2]>,
+    /// Distance past a target before approaching it from the other side, degrees.
+    pub overrun_deg: Option<f64>,
+}
+
+/// `[positioner]`: the controller and how to reach it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "driver", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum PositionerConfig {
+    /// An MI-4190-style controller over TCP (SCPI-like text commands).
+    ScpiTcp {
+        /// `host:port`.
+        address: String,
+        #[serde(default = "one")]
+        controller: u32,
+        #[serde(default = "one")]
+        axis: u32,
+    },
+    /// The same controller over a serial port.
+    ScpiSerial {
+        port: String,
+        #[serde(default = "baud_9600")]
+        baud: u32,
+        #[serde(default = "one")]
+        controller: u32,
+        #[serde(default = "one")]
+        axis: u32,
+    },
+}
+
+/// `[tracker]`: the tracking laser.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "driver", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TrackerConfig {}
+
+/// `[autocollimator]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "driver", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum AutocollimatorConfig {
+    /// A Moeller-Wedel ELCOMAT on a serial port (8N1).
+    Elcomat {
+        port: String,
+        #[serde(default = "baud_9600")]
+        baud: u32,
+    },
+}
+
+/// `[arm]`: what the SMR arm is, to check the located axis against.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArmSection {
+    /// Distance of the SMR from the axis, mm.
+    pub radius_mm: f64,
+    /// How far the fitted radius may differ before the survey refuses to start, mm.
+    #[serde(default = "radius_tolerance")]
+    pub radius_tolerance_mm: f64,
+}
+
+/// `[polygon]`: the N-face polygon and its certificate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolygonSection {
+    pub faces: u32,
+    /// Face angle deviations from nominal, arcseconds, one per face (default all 0).
+    #[serde(default)]
+    pub certificate_arcsec: Vec<f64>,
+}
+
+/// `[timing]`: deadlines, waits, retries and the axis dynamics, in seconds and
+/// degrees. Every key is optional; the defaults are those of [`Timing`].
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimingSection {
+    pub call_timeout_s: Option<f64>,
+    pub measure_timeout_s: Option<f64>,
+    pub move_margin_s: Option<f64>,
+    pub poll_interval_s: Option<f64>,
+    pub dwell_s: Option<f64>,
+    pub max_retries: Option<u32>,
+    pub retry_backoff_s: Option<f64>,
+    pub locate_points: Option<u32>,
+    pub velocity_deg_s: Option<f64>,
+    pub accel_deg_s2: Option<f64>,
+}
+
+fn one() -> u32 {
+    1
+}
+fn baud_9600() -> u32 {
+    9600
+}
+fn radius_tolerance() -> f64 {
+    5.0
+}
+
+/// A defect of a configuration file, naming the file and where.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}: {message}")]
+pub struct ConfigError {
+    pub file: String,
+    pub message: String,
+}
+
+impl SurveyConfig {
+    /// Read and check a configuration file.
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ConfigError { file: file.clone(), message: format!("cannot read the configuration: {e}") })?;
+        Self::parse(&text, &file)
+    }
+
+    /// Parse and check configuration text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
+        let err = |message: String| ConfigError { file: file.to_string(), message };
+        let cfg: SurveyConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
+            let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+            match line {
+                Some(l) => err(format!("line {l}: {}", e.message())),
+                None => err(e.message().to_string()),
+            }
+        })?;
+        cfg.check().map_err(err)?;
+        Ok(cfg)
+    }
+
+    /// The reference instrument this configuration uses.
+    pub fn reference(&self) -> ReferenceKind {
+        self.survey.reference.unwrap_or(ReferenceKind::Tracker)
+    }
+
+    fn check(&self) -> Result<(), String> {
+        match self.reference() {
+            ReferenceKind::Tracker if self.tracker.is_none() => {
+                return Err("the reference is the tracker but there is no [tracker] section".into());
+            }
+            ReferenceKind::Autocollimator => {
+                if self.autocollimator.is_none() {
+                    return Err("the reference is the autocollimator but there is no [autocollimator] section".into());
+                }
+                let Some(p) = &self.polygon else {
+                    return Err("the autocollimator reference needs a [polygon] section (faces, certificate_arcsec)".into());
+                };
+                if p.faces < 2 {
+                    return Err(format!("polygon.faces must be at least 2, got {}", p.faces));
+                }
+                if !p.certificate_arcsec.is_empty() && p.certificate_arcsec.len() != p.faces as usize {
+                    return Err(format!(
+                        "polygon.certificate_arcsec has {} values for {} faces",
+                        p.certificate_arcsec.len(),
+                        p.faces
+                    ));
+                }
+                if p.certificate_arcsec.iter().any(|c| !c.is_finite()) {
+                    return Err("polygon.certificate_arcsec holds a value that is not a finite number".into());
+                }
+            }
+            _ => {}
+        }
+        if let Some([lo, hi]) = self.survey.travel_deg
+            && !(lo.is_finite() && hi.is_finite() && hi > lo)
+        {
+            return Err(format!("survey.travel_deg = [{lo}, {hi}] is not an increasing pair of finite angles"));
+        }
+        let t = &self.timing;
+        for (key, value) in [
+            ("call_timeout_s", t.call_timeout_s),
+            ("measure_timeout_s", t.measure_timeout_s),
+            ("move_margin_s", t.move_margin_s),
+            ("poll_interval_s", t.poll_interval_s),
+            ("dwell_s", t.dwell_s),
+            ("retry_backoff_s", t.retry_backoff_s),
+            ("velocity_deg_s", t.velocity_deg_s),
+            ("accel_deg_s2", t.accel_deg_s2),
+        ] {
+            if let Some(v) = value
+                && !(v.is_finite() && v >= 0.0)
+            {
+                return Err(format!("timing.{key} must be a non-negative number of seconds (or deg/s), got {v}"));
+            }
+        }
+        for (key, value) in [("velocity_deg_s", t.velocity_deg_s), ("accel_deg_s2", t.accel_deg_s2)] {
+            if value == Some(0.0) {
+                return Err(format!("timing.{key} must be positive"));
+            }
+        }
+        if let Some(arm) = &self.arm
+            && !(arm.radius_mm.is_finite() && arm.radius_mm > 0.0 && arm.radius_tolerance_mm > 0.0)
+        {
+            return Err("arm.radius_mm and arm.radius_tolerance_mm must be positive".into());
+        }
+        Ok(())
+    }
+
+    /// The engine timing: the defaults with this file's settings on top.
+    pub fn timing(&self) -> Timing {
+        let t = &self.timing;
+        let d = Timing::default();
+        let secs = |v: Option<f64>, default: Duration| v.map(Duration::from_secs_f64).unwrap_or(default);
+        Timing {
+            call_timeout: secs(t.call_timeout_s, d.call_timeout),
+            measure_timeout: secs(t.measure_timeout_s, d.measure_timeout),
+            move_margin: secs(t.move_margin_s, d.move_margin),
+            poll_interval: secs(t.poll_interval_s, d.poll_interval),
+            dwell: secs(t.dwell_s, d.dwell),
+            max_retries: t.max_retries.unwrap_or(d.max_retries),
+            retry_backoff: secs(t.retry_backoff_s, d.retry_backoff),
+            locate_points: t.locate_points.unwrap_or(d.locate_points),
+            velocity_deg_s: t.velocity_deg_s.unwrap_or(d.velocity_deg_s),
+            accel_deg_s2: t.accel_deg_s2.unwrap_or(d.accel_deg_s2),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_example_files_parse() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config");
+        let mut seen = 0;
+        for entry in std::fs::read_dir(dir).expect("examples/config exists") {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                SurveyConfig::from_file(&path).unwrap_or_else(|e| panic!("{e}"));
+                seen += 1;
+            }
+        }
+        assert!(seen >= 2, "at least one example per driver family");
+    }
+
+    fn error_of(text: &str) -> String {
+        SurveyConfig::parse(text, "c.toml").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn defects_are_named_with_the_file_and_line() {
+        let e = error_of("[positioner]\ndriver = \"warp-drive\"\naddress = \"x\"\n");
+        assert!(e.starts_with("c.toml: line 2") && e.contains("warp-drive"), "{e}");
+        let e = error_of("[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\nadress = \"x\"\n\n[tracker]\n");
+        assert!(e.contains("adress"), "{e}");
+        let e = error_of("[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n");
+        assert!(e.contains("no [tracker] section"), "{e}");
+        let e = error_of(
+            "[survey]\nreference = \"autocollimator\"\n[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n\
+             [autocollimator]\ndriver = \"elcomat\"\nport = \"/dev/ttyS0\"\n[polygon]\nfaces = 4\ncertificate_arcsec = [0.1]\n",
+        );
+        assert!(e.contains("1 values for 4 faces"), "{e}");
+        let e = error_of(
+            "[survey]\nreference = \"autocollimator\"\n[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n\
+             [autocollimator]\ndriver = \"elcomat\"\nport = \"/dev/ttyS0\"\n[polygon]\nfaces = 4\n[timing]\ndwell_s = -1\n",
+        );
+        assert!(e.contains("timing.dwell_s"), "{e}");
+    }
+
+    #[test]
+    fn timing_overrides_the_defaults() {
+        let cfg = SurveyConfig::parse(
+            "[survey]\nreference = \"autocollimator\"\n[positioner]\ndriver = \"scpi-serial\"\nport = \"/dev/ttyUSB0\"\n\
+             [autocollimator]\ndriver = \"elcomat\"\nport = \"/dev/ttyS0\"\n[polygon]\nfaces = 24\n[timing]\ndwell_s = 2.0\nmax_retries = 5\n",
+            "c.toml",
+        )
+        .unwrap();
+        let t = cfg.timing();
+        assert_eq!(t.dwell, Duration::from_secs(2));
+        assert_eq!(t.max_retries, 5);
+        assert_eq!(t.call_timeout, Timing::default().call_timeout);
+        assert_eq!(cfg.positioner, PositionerConfig::ScpiSerial { port: "/dev/ttyUSB0".into(), baud: 9600, controller: 1, axis: 1 });
+    }
+}

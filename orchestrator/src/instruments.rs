@@ -1,0 +1,231 @@
+//! Real instruments from a configuration: one connector per driver, every
+//! driver behind [`Reconnecting`], and `survey check`.
+
+use crate::config::{AutocollimatorConfig, PositionerConfig, SurveyConfig, TrackerConfig};
+use crate::engine::{Engine, Reference};
+use async_trait::async_trait;
+use std::sync::Arc;
+use std::time::Duration;
+use survey_drivers::clock::with_timeout;
+use survey_drivers::elcomat::ElcomatDriver;
+use survey_drivers::reconnect::{Connect, Reconnecting};
+use survey_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
+use survey_drivers::{Autocollimator, Clock, DriverError, ErrorKind, Positioner, Tracker};
+
+/// Opens the configured positioner controller.
+#[derive(Debug, Clone)]
+pub struct PositionerConnector {
+    pub config: PositionerConfig,
+    pub timeout: Duration,
+}
+
+#[async_trait]
+impl Connect<dyn Positioner> for PositionerConnector {
+    async fn connect(&self) -> survey_drivers::Result<Box<dyn Positioner>> {
+        let timeouts = ScpiTimeouts { request: self.timeout, ..ScpiTimeouts::default() };
+        match &self.config {
+            PositionerConfig::ScpiTcp { address, controller, axis } => {
+                let d = ScpiPositioner::connect_tcp(address.as_str(), timeouts).await?;
+                Ok(Box::new(d.with_address(Address { controller: *controller, axis: *axis })))
+            }
+            PositionerConfig::ScpiSerial { port, baud, controller, axis } => {
+                let d = ScpiPositioner::open_serial(port, *baud, timeouts)?;
+                Ok(Box::new(d.with_address(Address { controller: *controller, axis: *axis })))
+            }
+        }
+    }
+    fn describe(&self) -> String {
+        match &self.config {
+            PositionerConfig::ScpiTcp { address, .. } => format!("scpi-tcp {address}"),
+            PositionerConfig::ScpiSerial { port, .. } => format!("scpi-serial {port}"),
+        }
+    }
+}
+
+/// Opens the configured tracking laser.
+#[derive(Debug, Clone)]
+pub struct TrackerConnector {
+    pub config: TrackerConfig,
+    pub timeout: Duration,
+}
+
+#[async_trait]
+impl Connect<dyn Tracker> for TrackerConnector {
+    async fn connect(&self) -> survey_drivers::Result<Box<dyn Tracker>> {
+        match self.config {}
+    }
+    fn describe(&self) -> String {
+        match self.config {}
+    }
+}
+
+/// Opens the configured autocollimator.
+#[derive(Debug, Clone)]
+pub struct AutocollimatorConnector {
+    pub config: AutocollimatorConfig,
+    pub timeout: Duration,
+}
+
+#[async_trait]
+impl Connect<dyn Autocollimator> for AutocollimatorConnector {
+    async fn connect(&self) -> survey_drivers::Result<Box<dyn Autocollimator>> {
+        match &self.config {
+            AutocollimatorConfig::Elcomat { port, baud } => {
+                Ok(Box::new(ElcomatDriver::open_serial(port, *baud)?.with_timeout(self.timeout)))
+            }
+        }
+    }
+    fn describe(&self) -> String {
+        match &self.config {
+            AutocollimatorConfig::Elcomat { port, .. } => format!("elcomat {port}"),
+        }
+    }
+}
+
+/// The instruments a configuration names, each behind a reconnecting wrapper.
+#[derive(Debug)]
+pub struct Instruments {
+    pub positioner: Reconnecting<dyn Positioner>,
+    pub reference: ReferenceInstrument,
+}
+
+/// The reference instrument, not yet connected.
+#[derive(Debug)]
+pub enum ReferenceInstrument {
+    Tracker(Reconnecting<dyn Tracker>),
+    Autocollimator { instrument: Reconnecting<dyn Autocollimator>, faces: u32, certificate_arcsec: Vec<f64> },
+}
+
+impl Instruments {
+    /// Build (without connecting) the instruments of a configuration.
+    pub fn from_config(cfg: &SurveyConfig) -> Self {
+        let timing = cfg.timing();
+        let positioner = Reconnecting::new(Box::new(PositionerConnector {
+            config: cfg.positioner.clone(),
+            timeout: timing.call_timeout,
+        }) as Box<dyn Connect<dyn Positioner>>);
+        let reference = match cfg.reference() {
+            crate::cli::ReferenceKind::Tracker => {
+                let tracker = cfg.tracker.clone().expect("checked when the configuration was read");
+                ReferenceInstrument::Tracker(Reconnecting::new(Box::new(TrackerConnector {
+                    config: tracker,
+                    timeout: timing.measure_timeout,
+                }) as Box<dyn Connect<dyn Tracker>>))
+            }
+            crate::cli::ReferenceKind::Autocollimator => {
+                let ac = cfg.autocollimator.clone().expect("checked when the configuration was read");
+                let polygon = cfg.polygon.clone().expect("checked when the configuration was read");
+                let certificate_arcsec = if polygon.certificate_arcsec.is_empty() {
+                    vec![0.0; polygon.faces as usize]
+                } else {
+                    polygon.certificate_arcsec
+                };
+                ReferenceInstrument::Autocollimator {
+                    instrument: Reconnecting::new(Box::new(AutocollimatorConnector {
+                        config: ac,
+                        timeout: timing.measure_timeout,
+                    }) as Box<dyn Connect<dyn Autocollimator>>),
+                    faces: polygon.faces,
+                    certificate_arcsec,
+                }
+            }
+        };
+        Self { positioner, reference }
+    }
+
+    /// The survey engine on these instruments.
+    pub fn into_engine(self, clock: Arc<dyn Clock>, cfg: &SurveyConfig) -> Engine {
+        let reference = match self.reference {
+            ReferenceInstrument::Tracker(t) => Reference::Tracker(Box::new(t)),
+            ReferenceInstrument::Autocollimator { instrument, faces, certificate_arcsec } => {
+                Reference::Autocollimator { instrument: Box::new(instrument), faces, certificate_arcsec }
+            }
+        };
+        Engine::new(clock, Box::new(self.positioner), reference, cfg.timing())
+    }
+}
+
+/// What `survey check` found about one instrument.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CheckLine {
+    pub instrument: String,
+    pub address: String,
+    pub ok: bool,
+    /// `ok`, `address unreachable`, `no reply`, `wrong protocol`, `device fault`, `bad usage`.
+    pub verdict: String,
+    pub detail: String,
+}
+
+fn verdict(e: &DriverError) -> &'static str {
+    match e.kind {
+        ErrorKind::Disconnected => "address unreachable",
+        ErrorKind::Timeout => "no reply",
+        ErrorKind::Garbled => "wrong protocol",
+        ErrorKind::Device => "device fault",
+        ErrorKind::Usage => "bad usage",
+    }
+}
+
+fn line(instrument: &str, address: String, result: Result<String, DriverError>) -> CheckLine {
+    match result {
+        Ok(detail) => CheckLine { instrument: instrument.into(), address, ok: true, verdict: "ok".into(), detail },
+        Err(e) => {
+            CheckLine { instrument: instrument.into(), address, ok: false, verdict: verdict(&e).into(), detail: e.to_string() }
+        }
+    }
+}
+
+/// Connect to every instrument and read its status, bounded by the
+/// configuration's timeouts.
+pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
+    let timing = cfg.timing();
+    let mut instruments = Instruments::from_config(cfg);
+    let mut lines = Vec::new();
+    let limit = timing.call_timeout * 3;
+    let name = instruments.positioner.name().to_string();
+    let p = &mut instruments.positioner;
+    let result = async {
+        with_timeout(clock, limit, &name, "connect", p.connect()).await?;
+        let status = with_timeout(clock, timing.call_timeout, &name, "status", p.status()).await?;
+        if let Some(f) = &status.fault {
+            return Err(DriverError::device(name.clone(), f.code, f.text.clone()));
+        }
+        let readout = with_timeout(clock, timing.call_timeout, &name, "readout", p.readout()).await?;
+        Ok(format!(
+            "readout {readout} deg, {}{}",
+            if status.moving { "moving" } else if status.in_position { "in position" } else { "at rest" },
+            status.limit.map(|l| format!(", at the {l:?} limit")).unwrap_or_default()
+        ))
+    }
+    .await;
+    lines.push(line("positioner", name.clone(), result));
+    match &mut instruments.reference {
+        ReferenceInstrument::Tracker(t) => {
+            let name = t.name().to_string();
+            let result = async {
+                with_timeout(clock, limit, &name, "connect", t.connect()).await?;
+                let state = with_timeout(clock, timing.call_timeout, &name, "status", t.status()).await?;
+                match state {
+                    survey_drivers::TrackerState::TargetLocked => Ok("target locked".to_string()),
+                    other => Err(DriverError::new(ErrorKind::Device, name.clone(), format!("{other:?}: the SMR is not locked"))),
+                }
+            }
+            .await;
+            lines.push(line("tracker", name.clone(), result));
+        }
+        ReferenceInstrument::Autocollimator { instrument, .. } => {
+            let name = instrument.name().to_string();
+            let result = async {
+                with_timeout(clock, limit, &name, "connect", instrument.connect()).await?;
+                let state = with_timeout(clock, timing.measure_timeout, &name, "status", instrument.status()).await?;
+                Ok(match state {
+                    survey_drivers::AcState::InRange => "mirror in range".to_string(),
+                    survey_drivers::AcState::NoReflection => "answers, but sees no mirror (turn to a face)".to_string(),
+                })
+            }
+            .await;
+            lines.push(line("autocollimator", name.clone(), result));
+        }
+    }
+    lines
+}

@@ -1,0 +1,130 @@
+//! `survey check --config` and `survey run --config`, from outside: against
+//! simulators speaking the real protocols, and against addresses where
+//! nothing answers.
+
+use super::Bench;
+use serde_json::Value;
+use std::sync::Arc;
+use survey_drivers::{Clock, VirtualClock};
+use survey_sims::autocollimator::AutocollimatorConfig;
+use survey_sims::elcomat_server::{ElcomatFaults, pty_pair, serve};
+use survey_sims::scpi_server::{ScpiFaults, serve_tcp};
+use survey_sims::{Preset, SimBench};
+use tokio_serial::SerialPort as _;
+
+/// A configuration for an SCPI positioner at `address` and an ELCOMAT on `port`.
+fn config(address: &str, port: &str) -> String {
+    format!(
+        "[survey]\npoints = 24\nruns = 2\nbidirectional = true\nreference = \"autocollimator\"\n\
+         [positioner]\ndriver = \"scpi-tcp\"\naddress = \"{address}\"\n\
+         [autocollimator]\ndriver = \"elcomat\"\nport = \"{port}\"\nbaud = 115200\n\
+         [polygon]\nfaces = 24\n\
+         [timing]\ncall_timeout_s = 0.5\nmeasure_timeout_s = 1.0\n"
+    )
+}
+
+#[test]
+fn check_says_which_instrument_is_unreachable() {
+    let bench = Bench::new();
+    // Port 1 on loopback refuses connections; the serial port does not exist.
+    bench.write("c.toml", config("127.0.0.1:1", "/nonexistent/ttyX"));
+    let out = bench.survey(&["check", "--config", "c.toml", "--json"]);
+    assert_eq!(out.code, 1, "{out}");
+    let doc: Value = serde_json::from_str(&out.stdout).expect("one JSON document");
+    assert_eq!(doc["ok"], false);
+    let lines = doc["instruments"].as_array().unwrap();
+    assert_eq!(lines.len(), 2);
+    for l in lines {
+        assert_eq!(l["ok"], false, "{l}");
+        assert_eq!(l["verdict"], "address unreachable", "{l}");
+    }
+    assert!(out.stderr.contains("2 of 2 instruments failed the check"), "{out}");
+    assert!(!bench.exists("survey.db"), "check stores nothing");
+}
+
+#[test]
+fn check_says_when_the_device_speaks_another_protocol() {
+    // A TCP server that answers every line with binary garbage.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = listener.local_addr().unwrap().to_string();
+    std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        if let Ok((mut s, _)) = listener.accept() {
+            let mut buf = [0u8; 256];
+            while let Ok(n) = s.read(&mut buf) {
+                if n == 0 || s.write_all(&[0xff, 0xfe, 0x00, b'\n']).is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    let bench = Bench::new();
+    bench.write("c.toml", config(&address, "/nonexistent/ttyX"));
+    let out = bench.survey(&["check", "--config", "c.toml"]);
+    assert_eq!(out.code, 1, "{out}");
+    let positioner = out.stdout.lines().find(|l| l.starts_with("positioner")).expect("a positioner line");
+    assert!(positioner.contains("wrong protocol"), "{out}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn check_passes_against_simulators_speaking_the_protocols() {
+    let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
+    let preset = Preset::by_name("fig8").unwrap();
+    let sims = SimBench::builder(&preset, 3, clock).autocollimator(AutocollimatorConfig::seeded(24, 4)).build();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let address = listener.local_addr().unwrap().to_string();
+    let server = tokio::spawn(serve_tcp(listener, sims.positioner, ScpiFaults::new()));
+    let (master, slave) = pty_pair().unwrap();
+    let port = slave.name().expect("the pty has a path");
+    let bench = Bench::new();
+    bench.write("c.toml", config(&address, &port));
+    // Keep our slave open until the survey binary has opened the port, so the
+    // master does not read EIO; the binary's open is not exclusive of ours.
+    let elcomat = tokio::spawn(serve(master, sims.autocollimator, ElcomatFaults::default()));
+    let out = tokio::task::spawn_blocking(move || {
+        let out = bench.survey(&["check", "--config", "c.toml", "--json"]);
+        drop(slave);
+        out
+    })
+    .await
+    .unwrap();
+    server.abort();
+    elcomat.abort();
+    assert_eq!(out.code, 0, "{out}");
+    let doc: Value = serde_json::from_str(&out.stdout).unwrap();
+    assert_eq!(doc["ok"], true, "{out}");
+    let lines = doc["instruments"].as_array().unwrap();
+    assert_eq!(lines[0]["instrument"], "positioner");
+    assert!(lines[0]["detail"].as_str().unwrap().contains("readout 0 deg"), "{out}");
+    assert_eq!(lines[1]["verdict"], "ok");
+}
+
+#[test]
+fn a_bad_configuration_is_bad_input_naming_the_file_and_line() {
+    let bench = Bench::new();
+    bench.write("c.toml", "[positioner]\ndriver = \"scpi-tcp\"\nadress = \"10.0.0.1:4000\"\n");
+    let out = bench.survey(&["run", "--config", "c.toml"]);
+    assert_eq!(out.code, 2, "{out}");
+    assert!(out.stderr.contains("c.toml") && out.stderr.contains("line") && out.stderr.contains("adress"), "{out}");
+    assert!(!bench.exists("survey.db"), "nothing stored");
+    let out = bench.survey(&["check", "--config", "missing.toml"]);
+    assert_eq!(out.code, 2, "{out}");
+    assert!(out.stderr.contains("missing.toml"), "{out}");
+    // Simulation flags make no sense with real instruments.
+    bench.write("ok.toml", config("127.0.0.1:1", "/nonexistent/ttyX"));
+    let out = bench.survey(&["run", "--config", "ok.toml", "--preset", "fig4"]);
+    assert_eq!(out.code, 2, "{out}");
+}
+
+#[test]
+fn a_survey_of_unreachable_instruments_fails_at_run_time_and_can_be_resumed_later() {
+    let bench = Bench::new();
+    bench.write("c.toml", config("127.0.0.1:1", "/nonexistent/ttyX").replace("[timing]\n", "[timing]\nmax_retries = 1\nretry_backoff_s = 0.01\n"));
+    let out = bench.survey(&["run", "--config", "c.toml"]);
+    assert_eq!(out.code, 1, "{out}");
+    assert!(out.stderr.contains("cannot connect") && out.stderr.contains("survey resume --survey 1"), "{out}");
+    // The survey is kept as interrupted, with its configuration, for `resume`.
+    let out = bench.survey(&["resume"]);
+    assert_eq!(out.code, 1, "{out}");
+    assert!(out.stderr.contains("resumed at step 0"), "{out}");
+}

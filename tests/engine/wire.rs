@@ -1,0 +1,104 @@
+//! A survey whose instruments sit behind their wire protocols, configured by a
+//! configuration file like a user's, gives the same statistics as the same
+//! simulated bench driven in-process.
+
+use std::sync::Arc;
+use survey_drivers::{Clock, VirtualClock};
+use survey_orchestrator::config::SurveyConfig;
+use survey_orchestrator::engine::{Engine, Reference, Timing};
+use survey_orchestrator::instruments::{Instruments, ReferenceInstrument};
+use survey_orchestrator::plan::SurveyPlan;
+use survey_orchestrator::record::MemorySink;
+use survey_processing::iso230::{Iso230, iso230_2};
+use survey_processing::{Direction, Sample};
+use survey_sims::autocollimator::AutocollimatorConfig;
+use survey_sims::elcomat_server::{ElcomatFaults, pty_pair, serve};
+use survey_sims::scpi_server::{ScpiFaults, serve_tcp};
+use survey_sims::{Preset, SimBench};
+use tokio_serial::SerialPort as _;
+
+const FACES: u32 = 24;
+const RUNS: u32 = 4;
+
+fn bench(seed: u64, clock: Arc<dyn Clock>) -> SimBench {
+    let preset = Preset::by_name("fig8").unwrap();
+    SimBench::builder(&preset, seed, clock).autocollimator(AutocollimatorConfig::seeded(FACES, 4)).build()
+}
+
+async fn survey(engine: &mut Engine) -> (Vec<Sample>, Iso230) {
+    let plan = SurveyPlan::full_circle(FACES, RUNS, true).unwrap();
+    let mut sink = MemorySink::default();
+    engine.run(&plan, 0, &mut sink, &mut |_| {}).await.unwrap();
+    let samples: Vec<Sample> = sink.samples.iter().map(|r| r.sample).collect();
+    let iso = iso230_2(&samples).unwrap();
+    (samples, iso)
+}
+
+fn mean_error(samples: &[Sample], target: f64, dir: Direction) -> f64 {
+    let e: Vec<f64> = samples.iter().filter(|s| s.target_deg == target && s.direction == dir).map(|s| s.error_deg()).collect();
+    e.iter().sum::<f64>() / e.len() as f64
+}
+
+#[tokio::test]
+async fn a_survey_over_scpi_and_elcomat_matches_the_in_process_survey() {
+    // Over the wire: the positioner behind the SCPI server on loopback TCP, the
+    // autocollimator behind the ELCOMAT server on a pty, both on one virtual clock.
+    let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
+    let wired = bench(21, clock.clone());
+    let certificate = wired.autocollimator.certificate_arcsec().to_vec();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let address = listener.local_addr().unwrap();
+    let server = tokio::spawn(serve_tcp(listener, wired.positioner, ScpiFaults::new()));
+    let (master, slave) = pty_pair().unwrap();
+    let port = slave.name().expect("the pty has a path");
+    drop(slave);
+    let cert: Vec<String> = certificate.iter().map(|c| format!("{c:?}")).collect();
+    let text = format!(
+        "[survey]\nreference = \"autocollimator\"\n\
+         [positioner]\ndriver = \"scpi-tcp\"\naddress = \"{address}\"\n\
+         [autocollimator]\ndriver = \"elcomat\"\nport = \"{port}\"\nbaud = 115200\n\
+         [polygon]\nfaces = {FACES}\ncertificate_arcsec = [{}]\n",
+        cert.join(", ")
+    );
+    let cfg = SurveyConfig::parse(&text, "wire.toml").unwrap();
+    let mut instruments = Instruments::from_config(&cfg);
+    // The pty's master reads EIO until a slave is open: open it, then serve.
+    let ReferenceInstrument::Autocollimator { instrument, .. } = &mut instruments.reference else { unreachable!() };
+    instrument.connect().await.unwrap();
+    let elcomat = tokio::spawn(serve(master, wired.autocollimator, ElcomatFaults::default()));
+    let mut engine = instruments.into_engine(clock.clone(), &cfg);
+    let (wire_samples, wire) = survey(&mut engine).await;
+    drop(engine);
+    server.abort();
+    let _ = elcomat.await;
+
+    // In process: the same bench (another seed: independent noise), no wire.
+    let local_clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
+    let local = bench(22, local_clock.clone());
+    let reference = Reference::Autocollimator {
+        faces: local.autocollimator.faces(),
+        certificate_arcsec: local.autocollimator.certificate_arcsec().to_vec(),
+        instrument: Box::new(local.autocollimator),
+    };
+    let mut engine = Engine::new(local_clock, Box::new(local.positioner), reference, Timing::default());
+    let (local_samples, local) = survey(&mut engine).await;
+
+    // Both estimate the same error map; each target mean has sd
+    // sigma/sqrt(RUNS) with sigma the positioner's noise (0.0004 deg in fig8)
+    // plus 0.1" of autocollimator noise and the 0.01" print rounding of the
+    // ELCOMAT replies. The difference of two means: sqrt(2) of that. 5 sd.
+    let sigma = (0.0004f64.powi(2) + (0.1f64 / 3600.0).powi(2)).sqrt();
+    let tol = 5.0 * sigma * (2.0 / RUNS as f64).sqrt();
+    for t in SurveyPlan::full_circle(FACES, RUNS, true).unwrap().targets_deg {
+        for dir in [Direction::Forward, Direction::Reverse] {
+            let (a, b) = (mean_error(&wire_samples, t, dir), mean_error(&local_samples, t, dir));
+            assert!((a - b).abs() < tol, "target {t} {dir}: wire {a} vs in-process {b} (tolerance {tol})");
+        }
+    }
+    // The ISO figures agree: B_mean averages 24 such differences, E and M are
+    // extremes of the means (within the same per-target tolerance).
+    assert!((wire.b_mean.unwrap() - local.b_mean.unwrap()).abs() < tol / (FACES as f64).sqrt() * 2.0);
+    assert!((wire.e - local.e).abs() < 2.0 * tol, "E {} vs {}", wire.e, local.e);
+    assert!((wire.m.unwrap() - local.m.unwrap()).abs() < 2.0 * tol);
+    assert_eq!(wire_samples.len(), local_samples.len());
+}
