@@ -6,9 +6,12 @@
 //! instrument and the survey engine share, so simulated instruments can run on
 //! virtual time.
 
+pub mod canopen;
 pub mod clock;
 pub mod elcomat;
+pub mod emscon;
 pub mod error;
+pub mod modbus;
 pub mod reconnect;
 pub mod scpi;
 pub mod traits;

@@ -39,7 +39,10 @@
 
 pub mod autocollimator;
 pub mod bench;
+pub mod canopen_node;
 pub mod elcomat_server;
+pub mod modbus_server;
+pub mod emscon_server;
 pub mod positioner;
 pub mod presets;
 pub mod scpi_server;

@@ -1,0 +1,719 @@
+//! A simulated CiA 402 servo drive on a CAN bus, serving a [`SimPositioner`].
+//!
+//! [`serve`] speaks the protocol of [`survey_drivers::canopen`] (see its module
+//! documentation for the frames, the objects and what was looked up versus
+//! chosen) over any [`CanBus`]: an endpoint of a
+//! [`MemoryBus`](survey_drivers::canopen::MemoryBus) in tests, a
+//! [`SocketCanBus`](survey_drivers::canopen::SocketCanBus) where the kernel
+//! has CAN. It shares the driver's sans-IO codecs (SDO frames, segmenting,
+//! NMT frames, the object constants and the table layout); the object
+//! dictionary, the SDO server's transfer handling and the drive state machine
+//! are written here from the standard's tables, independently of the driver.
+//! Physics, clock and the sim's own faults are the positioner's.
+//!
+//! # Behaviour
+//!
+//! - NMT: boot-up frame (`0x700 + node`, `[0x00]`) when serving starts, then
+//!   pre-operational. Start, stop, enter pre-operational, reset node and
+//!   reset communication (to this node or to all) are served; each state
+//!   change is announced with one heartbeat frame (a real node sends them
+//!   periodically per 0x1017; one per change keeps tests deterministic).
+//!   In Stopped, SDO requests get no answer. Reset node also disables the
+//!   drive (switch on disabled, motion halted).
+//! - SDO server: expedited and segmented upload and download of the objects
+//!   below, one transfer at a time (a new initiate drops an open one; a
+//!   client abort drops it silently). Unknown object `0x0602_0000`, unknown
+//!   sub-index `0x0609_0011`, write to a read-only object `0x0601_0002`,
+//!   wrong length `0x0607_0012`/`0x0607_0013` (fixed-size objects) or
+//!   `0x0607_0010` (the table), segment without a transfer `0x0504_0001`,
+//!   toggle not alternated `0x0503_0000`, unknown or block specifier
+//!   `0x0504_0001`.
+//! - Drive state machine (CiA 402): starts in switch on disabled; shutdown,
+//!   switch on, enable operation (3 + 4 from ready to switch on in one
+//!   write), disable operation, disable voltage, quick stop, and fault reset
+//!   on the rising edge of bit 7. Entering operation enabled needs NMT
+//!   operational (else abort `0x0800_0022`). Leaving operation enabled, or a
+//!   rising halt bit 8, stops the sim.
+//! - Profile position: the rising edge of controlword bit 4 starts a move to
+//!   0x607A, and sets set-point acknowledge (bit 12) until bit 4 falls. A
+//!   rising bit 4 outside operation enabled, with halt set, or with modes of
+//!   operation not 1 is refused with `0x0800_0022` (nothing is applied).
+//!   0x607A outside the sim's travel is refused with `0x0609_0030`; 0x6081
+//!   of 0 with `0x0609_0032`, above [`NodeConfig::max_velocity_deg_s`] with
+//!   `0x0609_0031`; 0x6060 other than 1 with `0x0609_0030`.
+//! - Statusword: state bits, remote (9), target reached (10) = the sim's
+//!   `in_position`, internal limit (11) = the sim's `limit`, set-point
+//!   acknowledge (12). 0x60FD bit 0/1 = lower/upper limit.
+//! - Faults: when the sim reports a fault (or refuses a move with one) the
+//!   drive goes to fault, 0x603F holds the code (codes above 0xFFFF become
+//!   0xFF00 "device specific", the original in the text), 0x2102 the text,
+//!   0x1001 bit 0 is set. Fault reset calls the sim's `clear_fault`.
+//! - Correction: 0x2100 download installs the table in the sim (refused
+//!   while moving with `0x0800_0022`; bad layout with the
+//!   [`TableDomainError`](survey_drivers::canopen::objects::TableDomainError)
+//!   code); upload returns the bytes held, or `0x0800_0024` when none.
+//!   0x2101 = 1 without a table is `0x0800_0024`.
+//! - A sim call that fails with a link fault of its own becomes the same
+//!   fault on the bus: `Timeout` and `Disconnected` = no response (a CAN
+//!   node has no connection to drop), `Garbled` = a garbled response.
+//!
+//! # Fault injection ([`NodeFaults`])
+//!
+//! A shared handle; what is armed applies to the next SDO traffic:
+//! [`drop_next_responses`](NodeFaults::drop_next_responses) (the request is
+//! executed, the response not sent),
+//! [`garble_next_response`](NodeFaults::garble_next_response) (a [`Garble`]
+//! applied to the next response it fits),
+//! [`abort_next_request`](NodeFaults::abort_next_request) (answered with
+//! that abort code, not executed), and
+//! [`silence_after_segments`](NodeFaults::silence_after_segments) (the next
+//! segmented transfer gets that many segment responses, then silence until
+//! the client aborts or starts another transfer: a node dropping off the bus
+//! mid-transfer).
+
+use crate::positioner::SimPositioner;
+use std::sync::{Arc, Mutex, MutexGuard};
+use survey_drivers::canopen::DEFAULT_COUNTS_PER_DEGREE;
+use survey_drivers::canopen::frame::{CanBus, CanFrame};
+use survey_drivers::canopen::nmt::{self, NmtCommand, NmtState};
+use survey_drivers::canopen::objects::{
+    DriveCommand, DriveState, MAX_TABLE_ROWS, PROFILE_POSITION_MODE, TABLE_HEADER, counts_to_degrees, cw,
+    degrees_to_counts, di, sw,
+};
+use survey_drivers::canopen::sdo::{
+    InitData, Reassembler, SDO_REQUEST_BASE, SDO_RESPONSE_BASE, SdoRequest, SdoResponse, Segmenter, abort,
+};
+use survey_drivers::error::{DriverError, ErrorKind};
+use survey_drivers::traits::{DeviceFault, Limit, Positioner, PositionerStatus};
+
+mod od;
+
+/// Fastest profile velocity 0x6081 accepts, degrees per second.
+pub const MAX_VELOCITY_DEG_S: f64 = 100.0;
+/// The default device name (0x1008).
+pub const DEVICE_NAME: &str = "survey-sims CiA 402 positioner (simulated)";
+
+/// Settings of the simulated node.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeConfig {
+    /// Node-ID, 1..=127 (default 1).
+    pub node_id: u8,
+    /// Counts per degree of 0x607A / 0x6064 (default the driver's default).
+    pub counts_per_degree: f64,
+    /// 0x1008 (default [`DEVICE_NAME`]).
+    pub device_name: String,
+    /// Fastest profile velocity accepted (default [`MAX_VELOCITY_DEG_S`]).
+    pub max_velocity_deg_s: f64,
+}
+
+impl NodeConfig {
+    /// Defaults for node `node_id`.
+    pub fn new(node_id: u8) -> Self {
+        Self {
+            node_id,
+            counts_per_degree: DEFAULT_COUNTS_PER_DEGREE,
+            device_name: DEVICE_NAME.into(),
+            max_velocity_deg_s: MAX_VELOCITY_DEG_S,
+        }
+    }
+}
+
+impl Default for NodeConfig {
+    fn default() -> Self {
+        Self::new(1)
+    }
+}
+
+/// How a response is garbled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Garble {
+    /// Only the first 4 of the 8 bytes are sent (any response).
+    Truncated,
+    /// Command specifier 7 (any response).
+    BadSpecifier,
+    /// The index echoed plus one (initiate responses).
+    WrongIndex,
+    /// The toggle bit flipped (segment responses).
+    FlipToggle,
+}
+
+/// Faults armed by a test; a cheap handle shared by clones.
+#[derive(Debug, Clone, Default)]
+pub struct NodeFaults {
+    plan: Arc<Mutex<Plan>>,
+}
+
+#[derive(Debug, Default)]
+struct Plan {
+    drop: usize,
+    garble: Option<Garble>,
+    abort: Option<u32>,
+    silence_after: Option<usize>,
+}
+
+impl NodeFaults {
+    /// Nothing armed.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn plan(&self) -> MutexGuard<'_, Plan> {
+        self.plan.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Execute but do not answer the next `n` SDO requests that have a response.
+    pub fn drop_next_responses(&self, n: usize) {
+        self.plan().drop += n;
+    }
+
+    /// Garble the next response this kind of garbling fits.
+    pub fn garble_next_response(&self, how: Garble) {
+        self.plan().garble = Some(how);
+    }
+
+    /// Answer the next SDO request with this abort code (not executing it).
+    pub fn abort_next_request(&self, code: u32) {
+        self.plan().abort = Some(code);
+    }
+
+    /// In the next segmented transfer, answer `k` segment requests, then
+    /// nothing until the transfer is aborted or another starts.
+    pub fn silence_after_segments(&self, k: usize) {
+        self.plan().silence_after = Some(k);
+    }
+}
+
+/// What [`serve`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct NodeReport {
+    /// SDO requests received (served or not).
+    pub sdo_requests: usize,
+    /// SDO responses sent (including garbled ones).
+    pub sdo_responses: usize,
+    /// NMT commands addressed to this node.
+    pub nmt_commands: usize,
+    /// Aborts received from the client.
+    pub client_aborts: usize,
+}
+
+/// Why a request gets no normal response.
+enum Refusal {
+    Abort(u32),
+    Silent,
+    Garble,
+}
+
+impl From<u32> for Refusal {
+    fn from(code: u32) -> Self {
+        Refusal::Abort(code)
+    }
+}
+
+/// A sim link fault, as it shows on the bus.
+fn link(e: DriverError) -> Refusal {
+    match e.kind {
+        ErrorKind::Timeout | ErrorKind::Disconnected => Refusal::Silent,
+        ErrorKind::Garbled => Refusal::Garble,
+        ErrorKind::Device | ErrorKind::Usage => Refusal::Abort(abort::GENERAL),
+    }
+}
+
+enum Transfer {
+    Upload { mux: (u16, u8), segments: Segmenter },
+    Download { mux: (u16, u8), joined: Reassembler },
+}
+
+/// What to put on the bus for a request.
+enum Answer {
+    Respond(SdoResponse),
+    GarbleIt,
+    Nothing,
+}
+
+struct Node<B> {
+    bus: B,
+    sim: SimPositioner,
+    cfg: NodeConfig,
+    faults: NodeFaults,
+    nmt: NmtState,
+    drive: DriveState,
+    controlword: u16,
+    mode: i8,
+    target: i32,
+    velocity: u32,
+    ack: bool,
+    fault: Option<DeviceFault>,
+    table: Option<Vec<u8>>,
+    transfer: Option<Transfer>,
+    /// Segment requests answered in the current transfer.
+    segments_answered: usize,
+    /// Silent until the transfer ends (injected).
+    silent: bool,
+    report: NodeReport,
+}
+
+/// Serve `sim` as node `cfg.node_id` on `bus` until the bus fails (shut
+/// down, interface gone). Returns what was served.
+pub async fn serve<B: CanBus>(bus: B, sim: SimPositioner, cfg: NodeConfig, faults: NodeFaults) -> NodeReport {
+    let velocity = (sim.config().velocity_deg_s * cfg.counts_per_degree).round() as u32;
+    let mut node = Node {
+        bus,
+        sim,
+        cfg,
+        faults,
+        nmt: NmtState::PreOperational,
+        drive: DriveState::SwitchOnDisabled,
+        controlword: 0,
+        mode: 0,
+        target: 0,
+        velocity,
+        ack: false,
+        fault: None,
+        table: None,
+        transfer: None,
+        segments_answered: 0,
+        silent: false,
+        report: NodeReport::default(),
+    };
+    if node.heartbeat(NmtState::BootUp).await.is_err() {
+        return node.report;
+    }
+    loop {
+        let frame = match node.bus.recv().await {
+            Ok(f) => f,
+            Err(e) => {
+                tracing::debug!(error = %e, "CANopen node: bus gone");
+                return node.report;
+            }
+        };
+        if let Err(e) = node.handle(frame).await {
+            tracing::debug!(error = %e, "CANopen node: bus gone while answering");
+            return node.report;
+        }
+    }
+}
+
+impl<B: CanBus> Node<B> {
+    async fn heartbeat(&mut self, state: NmtState) -> survey_drivers::Result<()> {
+        self.bus.send(nmt::encode_heartbeat(self.cfg.node_id, state)).await
+    }
+
+    async fn handle(&mut self, frame: CanFrame) -> survey_drivers::Result<()> {
+        if frame.id() == nmt::NMT_COB_ID {
+            return self.nmt_command(&frame).await;
+        }
+        if frame.id() != SDO_REQUEST_BASE + u16::from(self.cfg.node_id) {
+            return Ok(());
+        }
+        self.report.sdo_requests += 1;
+        if self.nmt == NmtState::Stopped {
+            tracing::debug!(%frame, "CANopen node: stopped, SDO ignored");
+            return Ok(());
+        }
+        let answer = match SdoRequest::decode(frame.data()) {
+            Ok(req) => self.sdo(req).await,
+            Err(e) => {
+                tracing::debug!(%frame, error = %e, "CANopen node: undecodable SDO request");
+                self.transfer = None;
+                Answer::Respond(SdoResponse::Abort { index: 0, subindex: 0, code: abort::COMMAND_SPECIFIER })
+            }
+        };
+        self.respond(answer).await
+    }
+
+    async fn nmt_command(&mut self, frame: &CanFrame) -> survey_drivers::Result<()> {
+        let (cmd, target) = match nmt::decode_command(frame) {
+            Ok(c) => c,
+            Err(e) => {
+                tracing::debug!(%frame, error = %e, "CANopen node: bad NMT frame ignored");
+                return Ok(());
+            }
+        };
+        if target != 0 && target != self.cfg.node_id {
+            return Ok(());
+        }
+        self.report.nmt_commands += 1;
+        tracing::debug!(?cmd, "CANopen node: NMT");
+        let state = match cmd {
+            NmtCommand::Start => NmtState::Operational,
+            NmtCommand::Stop => NmtState::Stopped,
+            NmtCommand::EnterPreOperational => NmtState::PreOperational,
+            NmtCommand::ResetNode | NmtCommand::ResetCommunication => {
+                self.transfer = None;
+                self.silent = false;
+                if cmd == NmtCommand::ResetNode {
+                    if self.drive == DriveState::OperationEnabled {
+                        let _ = self.sim.stop().await;
+                    }
+                    self.drive = if self.fault.is_some() { DriveState::Fault } else { DriveState::SwitchOnDisabled };
+                    self.controlword = 0;
+                    self.mode = 0;
+                    self.ack = false;
+                }
+                self.nmt = NmtState::PreOperational;
+                return self.heartbeat(NmtState::BootUp).await;
+            }
+        };
+        self.nmt = state;
+        self.heartbeat(state).await
+    }
+
+    /// Serve one SDO request.
+    async fn sdo(&mut self, req: SdoRequest) -> Answer {
+        let injected = self.faults.plan().abort.take();
+        if let Some(code) = injected {
+            let (index, subindex) = self.request_mux(&req);
+            tracing::debug!(code = format_args!("0x{code:08X}"), "CANopen node: injected abort");
+            self.transfer = None;
+            return Answer::Respond(SdoResponse::Abort { index, subindex, code });
+        }
+        let mux = self.request_mux(&req);
+        let result = match req {
+            SdoRequest::Abort { code, .. } => {
+                self.report.client_aborts += 1;
+                tracing::debug!(code = format_args!("0x{code:08X}"), "CANopen node: client aborted");
+                self.transfer = None;
+                self.silent = false;
+                return Answer::Nothing;
+            }
+            SdoRequest::InitiateUpload { index, subindex } => {
+                self.begin();
+                self.initiate_upload(index, subindex).await
+            }
+            SdoRequest::InitiateDownload { index, subindex, data } => {
+                self.begin();
+                self.initiate_download(index, subindex, data).await
+            }
+            SdoRequest::UploadSegment { toggle } => {
+                if self.silenced() {
+                    return Answer::Nothing;
+                }
+                self.upload_segment(toggle)
+            }
+            SdoRequest::DownloadSegment { toggle, data, last } => {
+                if self.silenced() {
+                    return Answer::Nothing;
+                }
+                self.download_segment(toggle, &data, last).await
+            }
+        };
+        match result {
+            Ok(r) => Answer::Respond(r),
+            Err(Refusal::Abort(code)) => {
+                self.transfer = None;
+                Answer::Respond(SdoResponse::Abort { index: mux.0, subindex: mux.1, code })
+            }
+            Err(Refusal::Silent) => Answer::Nothing,
+            Err(Refusal::Garble) => Answer::GarbleIt,
+        }
+    }
+
+    /// The object a request is about (the open transfer's for segments).
+    fn request_mux(&self, req: &SdoRequest) -> (u16, u8) {
+        match req {
+            SdoRequest::InitiateDownload { index, subindex, .. }
+            | SdoRequest::InitiateUpload { index, subindex }
+            | SdoRequest::Abort { index, subindex, .. } => (*index, *subindex),
+            _ => match &self.transfer {
+                Some(Transfer::Upload { mux, .. } | Transfer::Download { mux, .. }) => *mux,
+                None => (0, 0),
+            },
+        }
+    }
+
+    /// A new transfer starts: drop the old one and any injected silence.
+    fn begin(&mut self) {
+        self.transfer = None;
+        self.silent = false;
+        self.segments_answered = 0;
+    }
+
+    /// Whether this segment request meets the injected silence.
+    fn silenced(&mut self) -> bool {
+        if !self.silent {
+            let mut plan = self.faults.plan();
+            if plan.silence_after.is_some_and(|k| self.transfer.is_some() && self.segments_answered >= k) {
+                plan.silence_after = None;
+                self.silent = true;
+                tracing::debug!(after = self.segments_answered, "CANopen node: silent mid-transfer (injected)");
+            }
+        }
+        if !self.silent {
+            self.segments_answered += 1;
+        }
+        self.silent
+    }
+
+    async fn initiate_upload(&mut self, index: u16, subindex: u8) -> Result<SdoResponse, Refusal> {
+        let data = self.read(index, subindex).await?;
+        if (1..=4).contains(&data.len()) {
+            return Ok(SdoResponse::InitiateUpload {
+                index,
+                subindex,
+                data: InitData::Expedited { data, size_indicated: true },
+            });
+        }
+        let size = data.len() as u32;
+        self.transfer = Some(Transfer::Upload { mux: (index, subindex), segments: Segmenter::new(data) });
+        Ok(SdoResponse::InitiateUpload { index, subindex, data: InitData::Segmented { size: Some(size) } })
+    }
+
+    fn upload_segment(&mut self, toggle: bool) -> Result<SdoResponse, Refusal> {
+        let Some(Transfer::Upload { segments, .. }) = self.transfer.as_mut() else {
+            return Err(abort::COMMAND_SPECIFIER.into());
+        };
+        if toggle != segments.toggle() {
+            return Err(abort::TOGGLE_BIT.into());
+        }
+        let Some(seg) = segments.next_segment() else {
+            return Err(abort::COMMAND_SPECIFIER.into());
+        };
+        if seg.last {
+            self.transfer = None;
+        }
+        Ok(SdoResponse::UploadSegment { toggle: seg.toggle, data: seg.data, last: seg.last })
+    }
+
+    async fn initiate_download(&mut self, index: u16, subindex: u8, data: InitData) -> Result<SdoResponse, Refusal> {
+        let entry = od::writable(index, subindex)?;
+        match data {
+            InitData::Expedited { data, size_indicated } => {
+                let bytes = match (size_indicated, entry.size()) {
+                    // Size not indicated: the object's own size of the 4 bytes.
+                    (false, Some(n)) if n <= data.len() => data[..n].to_vec(),
+                    _ => data,
+                };
+                self.write(index, &bytes).await?;
+            }
+            InitData::Segmented { size } => {
+                let joined = Reassembler::new(size, entry.max_len()).map_err(|e| Refusal::Abort(e.abort_code()))?;
+                self.transfer = Some(Transfer::Download { mux: (index, subindex), joined });
+            }
+        }
+        Ok(SdoResponse::InitiateDownload { index, subindex })
+    }
+
+    async fn download_segment(&mut self, toggle: bool, data: &[u8], last: bool) -> Result<SdoResponse, Refusal> {
+        let Some(Transfer::Download { mux, joined }) = self.transfer.as_mut() else {
+            return Err(abort::COMMAND_SPECIFIER.into());
+        };
+        let mux = *mux;
+        joined.push(toggle, data, last).map_err(|e| Refusal::Abort(e.abort_code()))?;
+        if last {
+            let Some(Transfer::Download { joined, .. }) = self.transfer.take() else {
+                unreachable!("the transfer was a download a moment ago");
+            };
+            self.write(mux.0, &joined.into_data()).await?;
+        }
+        Ok(SdoResponse::DownloadSegment { toggle })
+    }
+
+    /// Send what a request gets, applying the armed response faults.
+    async fn respond(&mut self, answer: Answer) -> survey_drivers::Result<()> {
+        let resp = match answer {
+            Answer::Nothing => return Ok(()),
+            Answer::GarbleIt => {
+                return self.send_raw(&[0xE0, 0, 0, 0, 0, 0, 0, 0]).await;
+            }
+            Answer::Respond(r) => r,
+        };
+        let (dropped, garble) = {
+            let mut plan = self.faults.plan();
+            if plan.drop > 0 {
+                plan.drop -= 1;
+                (true, None)
+            } else {
+                let fits = plan.garble.filter(|g| garble_fits(*g, &resp));
+                if fits.is_some() {
+                    plan.garble = None;
+                }
+                (false, fits)
+            }
+        };
+        if dropped {
+            tracing::debug!(?resp, "CANopen node: response dropped (injected)");
+            return Ok(());
+        }
+        let mut bytes = resp.encode();
+        let len = match garble {
+            None => 8,
+            Some(g) => {
+                tracing::debug!(?g, ?resp, "CANopen node: response garbled (injected)");
+                match g {
+                    Garble::Truncated => 4,
+                    Garble::BadSpecifier => {
+                        bytes[0] = 0xE0;
+                        8
+                    }
+                    Garble::WrongIndex => {
+                        let i = u16::from_le_bytes([bytes[1], bytes[2]]).wrapping_add(1);
+                        bytes[1..3].copy_from_slice(&i.to_le_bytes());
+                        8
+                    }
+                    Garble::FlipToggle => {
+                        bytes[0] ^= 0x10;
+                        8
+                    }
+                }
+            }
+        };
+        self.send_raw(&bytes[..len]).await
+    }
+
+    async fn send_raw(&mut self, bytes: &[u8]) -> survey_drivers::Result<()> {
+        let id = SDO_RESPONSE_BASE + u16::from(self.cfg.node_id);
+        let frame = CanFrame::new(id, bytes).map_err(|e| DriverError::usage("canopen node", e.to_string()))?;
+        self.report.sdo_responses += 1;
+        self.bus.send(frame).await
+    }
+
+    // -- the drive ------------------------------------------------------------
+
+    /// The sim's status; latches a fault the sim reports.
+    async fn poll(&mut self) -> Result<PositionerStatus, Refusal> {
+        let s = self.sim.status().await.map_err(link)?;
+        if let Some(f) = &s.fault
+            && self.drive != DriveState::Fault
+        {
+            self.latch(f.clone());
+        }
+        Ok(s)
+    }
+
+    fn latch(&mut self, fault: DeviceFault) {
+        tracing::debug!(?fault, "CANopen node: drive fault");
+        self.drive = DriveState::Fault;
+        self.ack = false;
+        self.fault = Some(fault);
+    }
+
+    fn error_code(&self) -> u16 {
+        match &self.fault {
+            None => 0,
+            Some(f) => u16::try_from(f.code).unwrap_or(0xFF00),
+        }
+    }
+
+    fn fault_text(&self) -> String {
+        match &self.fault {
+            None => String::new(),
+            Some(f) if u16::try_from(f.code).is_ok() => f.text.clone(),
+            Some(f) => format!("code {}: {}", f.code, f.text),
+        }
+    }
+
+    async fn statusword(&mut self) -> Result<u16, Refusal> {
+        let s = self.poll().await?;
+        let mut w = self.drive.statusword_bits() | sw::REMOTE;
+        if s.in_position {
+            w |= sw::TARGET_REACHED;
+        }
+        if s.limit.is_some() {
+            w |= sw::INTERNAL_LIMIT;
+        }
+        if self.ack {
+            w |= sw::SET_POINT_ACK;
+        }
+        Ok(w)
+    }
+
+    async fn digital_inputs(&mut self) -> Result<u32, Refusal> {
+        Ok(match self.poll().await?.limit {
+            Some(Limit::Lower) => di::NEGATIVE_LIMIT,
+            Some(Limit::Upper) => di::POSITIVE_LIMIT,
+            None => 0,
+        })
+    }
+
+    async fn position(&mut self) -> Result<i32, Refusal> {
+        let deg = self.sim.readout().await.map_err(link)?;
+        degrees_to_counts(deg, self.cfg.counts_per_degree).ok_or(Refusal::Abort(abort::CANNOT_STORE))
+    }
+
+    /// A controlword write: the state machine, halt and the set-point.
+    async fn controlword(&mut self, new: u16) -> Result<(), Refusal> {
+        let old = self.controlword;
+        let cmd = DriveCommand::of(new);
+        if self.drive == DriveState::Fault {
+            if cmd == DriveCommand::FaultReset && old & cw::FAULT_RESET == 0 {
+                self.sim.clear_fault().await.map_err(link)?;
+                if self.sim.status().await.map_err(link)?.fault.is_none() {
+                    tracing::debug!("CANopen node: fault reset");
+                    self.drive = DriveState::SwitchOnDisabled;
+                    self.fault = None;
+                }
+            }
+            self.controlword = new;
+            return Ok(());
+        }
+        use DriveState as S;
+        let next = match (self.drive, cmd) {
+            (S::SwitchOnDisabled, DriveCommand::Shutdown) => S::ReadyToSwitchOn,
+            (S::ReadyToSwitchOn, DriveCommand::SwitchOn) => S::SwitchedOn,
+            (S::ReadyToSwitchOn | S::SwitchedOn | S::QuickStopActive, DriveCommand::EnableOperation) => {
+                S::OperationEnabled
+            }
+            (S::SwitchedOn | S::OperationEnabled, DriveCommand::Shutdown) => S::ReadyToSwitchOn,
+            (S::OperationEnabled, DriveCommand::SwitchOn) => S::SwitchedOn,
+            (S::OperationEnabled, DriveCommand::QuickStop) => S::QuickStopActive,
+            (S::ReadyToSwitchOn | S::SwitchedOn, DriveCommand::QuickStop) => S::SwitchOnDisabled,
+            (
+                S::ReadyToSwitchOn | S::SwitchedOn | S::OperationEnabled | S::QuickStopActive,
+                DriveCommand::DisableVoltage,
+            ) => S::SwitchOnDisabled,
+            (s, _) => s,
+        };
+        if next == S::OperationEnabled && self.drive != S::OperationEnabled && self.nmt != NmtState::Operational {
+            return Err(abort::DEVICE_STATE.into());
+        }
+        let set_point = new & cw::NEW_SET_POINT != 0 && old & cw::NEW_SET_POINT == 0;
+        let halt = new & cw::HALT != 0;
+        if set_point && (next != S::OperationEnabled || halt || self.mode != PROFILE_POSITION_MODE) {
+            return Err(abort::DEVICE_STATE.into());
+        }
+        if self.drive == S::OperationEnabled && next != S::OperationEnabled {
+            self.sim.stop().await.map_err(link)?;
+        }
+        if self.drive != next {
+            tracing::debug!(from = %self.drive, to = %next, "CANopen node: drive state");
+        }
+        self.drive = next;
+        self.controlword = new;
+        if new & cw::NEW_SET_POINT == 0 {
+            self.ack = false;
+        }
+        if next != S::OperationEnabled {
+            return Ok(());
+        }
+        if halt && old & cw::HALT == 0 {
+            self.sim.stop().await.map_err(link)?;
+        }
+        if set_point {
+            let deg = counts_to_degrees(self.target, self.cfg.counts_per_degree);
+            match self.sim.move_to(deg).await {
+                Ok(()) => self.ack = true,
+                Err(e) if e.kind == ErrorKind::Device => {
+                    self.latch(DeviceFault { code: e.code.unwrap_or(0xFF00), text: e.message });
+                }
+                Err(e) if e.kind == ErrorKind::Usage => return Err(abort::VALUE_RANGE.into()),
+                Err(e) => return Err(link(e)),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether garbling `g` applies to `resp`.
+fn garble_fits(g: Garble, resp: &SdoResponse) -> bool {
+    match g {
+        Garble::Truncated | Garble::BadSpecifier => true,
+        Garble::WrongIndex => matches!(resp, SdoResponse::InitiateUpload { .. } | SdoResponse::InitiateDownload { .. }),
+        Garble::FlipToggle => matches!(resp, SdoResponse::UploadSegment { .. } | SdoResponse::DownloadSegment { .. }),
+    }
+}
+
+/// Largest correction-table domain accepted, bytes.
+const MAX_TABLE_BYTES: usize = TABLE_HEADER + 8 * MAX_TABLE_ROWS;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,850 @@
+//! A simulated emScon server (Leica laser tracker, TPI binary protocol) on a
+//! TCP port.
+//!
+//! [`serve_tcp`] speaks the protocol of [`survey_drivers::emscon`] (see its
+//! module documentation for the packet layouts and what was looked up versus
+//! chosen) and answers from a [`SimTracker`]: positions, noise, measurement
+//! time, beam breaks and re-acquisition are the simulated tracker's, on its
+//! clock (use a [`VirtualClock`](survey_drivers::VirtualClock): a measurement
+//! then costs no real time). Only the tracker's public API is used.
+//!
+//! # Behaviour
+//!
+//! - One client at a time, like the hardware. A second client that connects
+//!   while one is served gets its first command answered with
+//!   `ES_RS_MultiConnectionsNotAllowed` (10011) and is then disconnected; the
+//!   next client is served once the current one has gone. The server state
+//!   (initialised, units, modes, lock) survives reconnections.
+//! - A fresh server is not initialised (`StartMeasurement`,
+//!   `GoLastMeasuredPoint` and `FindReflector` answer
+//!   `ES_RS_TrackerNotInitialized` until `Initialize`) and reports lengths in
+//!   metres (`ES_LU_Meter`, the enum's first value) until `SetUnits`.
+//!   All length, temperature and pressure units of `Enum.h` are honoured;
+//!   an out-of-range unit is `ES_RS_WrongParameter1..5` for the offending field.
+//! - Only `ES_CS_RHR` and `ES_MM_Stationary` are implemented (other defined
+//!   values: `ES_RS_NotImplemented`; undefined ones: `ES_RS_WrongParameter1`).
+//!   `lMeasTime` must be at least 1 ms (`ES_RS_Parameter1OutOfRangeNOK`); it is
+//!   kept, but a simulated measurement always takes the [`SimTracker`]'s own
+//!   configured measurement time (its API has no setter).
+//! - `StartMeasurement` answers with a `SingleMeasResultT`: the tracker's
+//!   position and standard deviations (also as the a-priori ones; the totals
+//!   are the root sum of squares; no pointing error), at 20 °C, 1013.25 mbar,
+//!   50 %RH. When the beam breaks during the measurement the server first
+//!   sends the status change `ES_SSC_MeasStatus_NotReady`, then answers
+//!   `ES_RS_NoStationaryResult` (10009); while it stays broken, measurements
+//!   answer `ES_RS_MeasurementStatusNotReady` (10004).
+//! - `GoLastMeasuredPoint` re-acquires the SMR ([`SimTracker::reacquire`])
+//!   when a measurement succeeded before, else answers
+//!   `ES_RS_NoLastMeasuredPoint` (28). `FindReflector` re-acquires it (a
+//!   distance that is not a positive number: `ES_RS_Parameter1OutOfRangeNOK`).
+//!   Both send `ES_SSC_MeasStatus_Ready` first when the lock comes back.
+//! - `GetSystemStatus`: `ES_TPS_Initialized` once initialised (else
+//!   `ES_TPS_CompensationSet`), laser ready, ADM ready, version 3.6.0, serial
+//!   [`SIM_SERIAL_NUMBER`], and the status of the previous command.
+//!   `GetMeasurementStatusInfo`: tracker, compensation, ADM, face 1 and nivel
+//!   bits, `ES_MSI_Initialized` once initialised, `ES_MSI_ReflectorFound`
+//!   while the tracker is locked.
+//! - A command this server does not model: a bare answer with
+//!   `ES_RS_NotImplemented`; a command packet of the wrong size:
+//!   `ES_RS_WrongParameter`; a packet that is not a command: an
+//!   `ErrorResponseT` for `ES_C_Unknown` with `ES_RS_WrongParameter`; an
+//!   absurd size field: the connection is closed.
+//!
+//! # Fault injection ([`EmsconFaults`])
+//!
+//! A shared handle (clone it before passing it in); what is armed applies to
+//! the next answers as they are sent:
+//!
+//! - [`drop_next_answers`](EmsconFaults::drop_next_answers): commands are
+//!   executed but not answered (status changes are still sent);
+//! - [`garble_next_answer`](EmsconFaults::garble_next_answer): the answer's
+//!   type is made unknown, its last 4 bytes are cut (size field patched), or
+//!   its size field made absurd ([`Garble`]);
+//! - [`close_during_next_answer`](EmsconFaults::close_during_next_answer):
+//!   the first half of the answer, then the connection is closed;
+//! - [`status_change_before_next_answer`](EmsconFaults::status_change_before_next_answer):
+//!   an unsolicited `SystemStatusChangeT` (e.g. `ES_SSC_MeasStatus_NotReady`)
+//!   right before the answer (the tracker's state does not change);
+//! - [`reject_next_command`](EmsconFaults::reject_next_command): the next
+//!   command is not executed and is answered with the given result status
+//!   (e.g. `ES_RS_SensorNotWarmedUp`), as a bare `BasicCommandRT` or as an
+//!   `ErrorResponseT` ([`Refusal`]).
+//!
+//! [`EmsconFaults::requests`] lists the commands received, for tests.
+
+use crate::tracker::{CODE_BEAM_BROKEN, SimTracker};
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex, MutexGuard};
+use survey_drivers::emscon::codes::{
+    adm_status, command as cmd, coordinate_system, laser_status, length_unit, meas_mode,
+    measurement_status_info as msi, pressure_unit, status, status_change, temperature_unit,
+    tracker_processor_status, weather_monitor_status,
+};
+use survey_drivers::emscon::packets::{
+    Answer, AnswerBody, MeasurementStatusInfo, Reply, Request, RequestDecoder, SingleMeasResult,
+    StationaryModeData, SystemStatus, SystemUnits,
+};
+use survey_drivers::traits::{SmrMeasurement, Tracker, TrackerState};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::task::JoinSet;
+
+/// `dTemperature` of every result, °C.
+pub const SIM_TEMPERATURE_C: f64 = 20.0;
+/// `dPressure` of every result, mbar.
+pub const SIM_PRESSURE_MBAR: f64 = 1013.25;
+/// `dHumidity` of every result, %RH.
+pub const SIM_HUMIDITY_RH: f64 = 50.0;
+/// `lTrackerSerialNumber` of `GetSystemStatus`.
+pub const SIM_SERIAL_NUMBER: i32 = 390_001;
+
+/// How [`EmsconFaults::garble_next_answer`] garbles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Garble {
+    /// The `type` field becomes a value no `ES_DataType` has.
+    UnknownType,
+    /// The last 4 bytes are cut and `lPacketSize` says so: a size that does
+    /// not fit the packet's type.
+    WrongLength,
+    /// `lPacketSize` becomes absurd (1 GiB): the framing is lost.
+    AbsurdSize,
+}
+
+/// How [`EmsconFaults::reject_next_command`] answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refusal {
+    /// A bare `BasicCommandRT` with the status.
+    CommandAnswer,
+    /// An `ErrorResponseT` (`ES_DT_Error`).
+    ErrorPacket,
+}
+
+/// Faults armed by a test, and the commands received; a cheap handle shared
+/// by clones. See the module documentation.
+#[derive(Debug, Clone, Default)]
+pub struct EmsconFaults {
+    plan: Arc<Mutex<Plan>>,
+}
+
+#[derive(Debug, Default)]
+struct Plan {
+    drop_answers: usize,
+    garble: VecDeque<Garble>,
+    close_in_answer: bool,
+    status_changes: VecDeque<i32>,
+    reject: VecDeque<(i32, Refusal)>,
+    requests: Vec<Request>,
+}
+
+impl EmsconFaults {
+    /// No faults armed.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn plan(&self) -> MutexGuard<'_, Plan> {
+        self.plan.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Execute the next `n` commands without answering them.
+    pub fn drop_next_answers(&self, n: usize) {
+        self.plan().drop_answers += n;
+    }
+
+    /// Garble the next answer (one per call, in order).
+    pub fn garble_next_answer(&self, how: Garble) {
+        self.plan().garble.push_back(how);
+    }
+
+    /// Send half of the next answer, then close the connection.
+    pub fn close_during_next_answer(&self) {
+        self.plan().close_in_answer = true;
+    }
+
+    /// Send a `SystemStatusChangeT` with `event` right before the next answer
+    /// (one per call, in order).
+    pub fn status_change_before_next_answer(&self, event: i32) {
+        self.plan().status_changes.push_back(event);
+    }
+
+    /// Answer the next command (one per call, in order) with the result
+    /// status `code` instead of executing it.
+    pub fn reject_next_command(&self, code: i32, how: Refusal) {
+        self.plan().reject.push_back((code, how));
+    }
+
+    /// The commands received so far, in order (also the refused ones).
+    pub fn requests(&self) -> Vec<Request> {
+        self.plan().requests.clone()
+    }
+}
+
+/// Serve the tracker on `listener`, one client at a time, until the task
+/// running this future is dropped or aborted.
+pub async fn serve_tcp(listener: TcpListener, tracker: SimTracker, faults: EmsconFaults) {
+    let mut server = Server::new(tracker, faults);
+    let mut refused = JoinSet::new();
+    loop {
+        let (stream, peer) = match listener.accept().await {
+            Ok(accepted) => accepted,
+            Err(e) => {
+                tracing::warn!(error = %e, "emscon simulator: accept failed");
+                tokio::task::yield_now().await;
+                continue;
+            }
+        };
+        tracing::debug!(%peer, "emscon simulator: client connected");
+        let mut serving = std::pin::pin!(server.serve(stream));
+        loop {
+            tokio::select! {
+                biased;
+                () = &mut serving => break,
+                accepted = listener.accept() => match accepted {
+                    Ok((other, who)) => {
+                        tracing::info!(%who, "emscon simulator: refusing a second client");
+                        refused.spawn(refuse(other));
+                    }
+                    Err(e) => tracing::warn!(error = %e, "emscon simulator: accept failed"),
+                },
+                Some(_) = refused.join_next(), if !refused.is_empty() => {}
+            }
+        }
+        tracing::debug!(%peer, "emscon simulator: client gone");
+    }
+}
+
+/// Answer a second client's first command with
+/// `ES_RS_MultiConnectionsNotAllowed`, then hang up.
+async fn refuse(mut stream: TcpStream) {
+    let mut decoder = RequestDecoder::new();
+    let mut buf = [0u8; 512];
+    loop {
+        match stream.read(&mut buf).await {
+            Ok(0) | Err(_) => return,
+            Ok(n) => decoder.push(&buf[..n]),
+        }
+        if let Some(item) = decoder.next_request() {
+            let command = match item {
+                Ok(r) => r.command(),
+                Err((_, c)) => c.unwrap_or(cmd::UNKNOWN),
+            };
+            let answer = Reply::answer(command, status::MULTI_CONNECTIONS_NOT_ALLOWED).encode();
+            let _ = stream.write_all(&answer).await;
+            return;
+        }
+    }
+}
+
+/// Packets for one command: status changes, then the answer.
+struct Response {
+    events: Vec<i32>,
+    answer: Reply,
+}
+
+/// The fault the next answer meets.
+enum AnswerFault {
+    Drop,
+    Garble(Garble),
+    CloseHalfway,
+    None,
+}
+
+struct Server {
+    sim: SimTracker,
+    faults: EmsconFaults,
+    initialized: bool,
+    units: SystemUnits,
+    stationary: StationaryModeData,
+    /// Mirror of the tracker's lock (only measure and reacquire change it).
+    locked: bool,
+    last_point: bool,
+    last_status: i32,
+}
+
+fn ok(command: i32) -> Reply {
+    Reply::answer(command, status::ALL_OK)
+}
+
+impl Server {
+    fn new(sim: SimTracker, faults: EmsconFaults) -> Self {
+        let meas_time_ms = i32::try_from(sim.config().measurement_time.as_millis()).unwrap_or(i32::MAX);
+        Self {
+            sim,
+            faults,
+            initialized: false,
+            units: SystemUnits { length: length_unit::METER, angle: 0, temperature: 0, pressure: 0, humidity: 0 },
+            stationary: StationaryModeData { meas_time_ms, use_adm: false },
+            locked: true,
+            last_point: false,
+            last_status: status::ALL_OK,
+        }
+    }
+
+    /// Serve one connection until it closes (or a fault closes it).
+    async fn serve(&mut self, mut stream: TcpStream) {
+        stream.set_nodelay(true).ok();
+        let mut decoder = RequestDecoder::new();
+        let mut buf = vec![0u8; 4096];
+        loop {
+            let n = match stream.read(&mut buf).await {
+                Ok(0) | Err(_) => return,
+                Ok(n) => n,
+            };
+            decoder.push(&buf[..n]);
+            while let Some(item) = decoder.next_request() {
+                let response = match item {
+                    Ok(request) => self.handle(request).await,
+                    Err((e, _)) if e.loses_framing() => {
+                        tracing::warn!(error = %e, "emscon simulator: unframed request, closing");
+                        return;
+                    }
+                    Err((e, command)) => {
+                        tracing::debug!(error = %e, "emscon simulator: request refused");
+                        let code = match e {
+                            survey_drivers::emscon::DecodeError::UnsupportedCommand { .. } => status::NOT_IMPLEMENTED,
+                            _ => status::WRONG_PARAMETER,
+                        };
+                        let answer = match command {
+                            Some(c) => Reply::answer(c, code),
+                            None => Reply::Error { command: cmd::UNKNOWN, status: code },
+                        };
+                        Response { events: Vec::new(), answer }
+                    }
+                };
+                if !self.respond(&mut stream, response).await {
+                    return;
+                }
+            }
+        }
+    }
+
+    /// Send the status changes and the answer, applying the armed faults.
+    /// False: close the connection.
+    async fn respond(&mut self, stream: &mut TcpStream, response: Response) -> bool {
+        let (extra, fault) = {
+            let mut plan = self.faults.plan();
+            let fault = if plan.drop_answers > 0 {
+                plan.drop_answers -= 1;
+                AnswerFault::Drop
+            } else if let Some(g) = plan.garble.pop_front() {
+                AnswerFault::Garble(g)
+            } else if std::mem::take(&mut plan.close_in_answer) {
+                AnswerFault::CloseHalfway
+            } else {
+                AnswerFault::None
+            };
+            (plan.status_changes.pop_front(), fault)
+        };
+        let mut bytes = Vec::new();
+        for event in response.events.iter().chain(&extra) {
+            bytes.extend(Reply::StatusChange(*event).encode());
+        }
+        let answer = response.answer.encode();
+        let mut close = false;
+        match fault {
+            AnswerFault::Drop => tracing::debug!(?response.answer, "emscon simulator: answer dropped (injected)"),
+            AnswerFault::Garble(how) => bytes.extend(garble(answer, how)),
+            AnswerFault::CloseHalfway => {
+                bytes.extend_from_slice(&answer[..answer.len() / 2]);
+                close = true;
+            }
+            AnswerFault::None => bytes.extend(answer),
+        }
+        let sent = stream.write_all(&bytes).await.is_ok() && stream.flush().await.is_ok();
+        sent && !close
+    }
+
+    async fn handle(&mut self, request: Request) -> Response {
+        let c = request.command();
+        let rejected = {
+            let mut plan = self.faults.plan();
+            plan.requests.push(request);
+            plan.reject.pop_front()
+        };
+        if let Some((code, how)) = rejected {
+            tracing::debug!(?request, code, "emscon simulator: command refused (injected)");
+            self.last_status = code;
+            let answer = match how {
+                Refusal::CommandAnswer => Reply::answer(c, code),
+                Refusal::ErrorPacket => Reply::Error { command: c, status: code },
+            };
+            return Response { events: Vec::new(), answer };
+        }
+        let mut events = Vec::new();
+        let fail = |code| Reply::answer(c, code);
+        let answer = match request {
+            Request::Initialize => {
+                self.initialized = true;
+                ok(c)
+            }
+            Request::SetUnits(u) => match bad_unit(u) {
+                Some(field) => fail(status::WRONG_PARAMETER1 + field),
+                None => {
+                    self.units = u;
+                    ok(c)
+                }
+            },
+            Request::SetCoordinateSystemType(t) => match t {
+                coordinate_system::RHR => ok(c),
+                1..=coordinate_system::SCC => fail(status::NOT_IMPLEMENTED),
+                _ => fail(status::WRONG_PARAMETER1),
+            },
+            Request::SetMeasurementMode(m) => match m {
+                meas_mode::STATIONARY => ok(c),
+                1..=meas_mode::LAST => fail(status::NOT_IMPLEMENTED),
+                _ => fail(status::WRONG_PARAMETER1),
+            },
+            Request::SetStationaryModeParams(p) if p.meas_time_ms < 1 => fail(status::PARAMETER1_OUT_OF_RANGE_NOK),
+            Request::SetStationaryModeParams(p) => {
+                let sim_ms = self.sim.config().measurement_time.as_millis();
+                if u128::try_from(p.meas_time_ms).ok() != Some(sim_ms) {
+                    tracing::debug!(p.meas_time_ms, sim_ms, "emscon simulator: lMeasTime kept, the sim's own time applies");
+                }
+                self.stationary = p;
+                ok(c)
+            }
+            Request::GetSystemStatus => Reply::Answer(Answer {
+                command: c,
+                status: status::ALL_OK,
+                body: AnswerBody::SystemStatus(self.system_status()),
+            }),
+            Request::GetMeasurementStatusInfo => {
+                let locked = matches!(self.sim.status().await, Ok(TrackerState::TargetLocked));
+                let mut info = msi::TRACKER_FOUND
+                    | msi::TRACKER_COMPENSATION_FOUND
+                    | msi::ADM_FOUND
+                    | msi::ADM_COMPENSATION_FOUND
+                    | msi::IN_FACE1
+                    | msi::NIVEL_IN_WORKING_RANGE;
+                if self.initialized {
+                    info |= msi::INITIALIZED;
+                }
+                if locked {
+                    info |= msi::REFLECTOR_FOUND;
+                }
+                let m = MeasurementStatusInfo { last_result_status: self.last_status, info };
+                Reply::Answer(Answer { command: c, status: status::ALL_OK, body: AnswerBody::MeasurementStatusInfo(m) })
+            }
+            _ if !self.initialized => fail(status::TRACKER_NOT_INITIALIZED),
+            Request::StartMeasurement => self.measure(&mut events).await,
+            Request::GoLastMeasuredPoint if !self.last_point => fail(status::NO_LAST_MEASURED_POINT),
+            Request::GoLastMeasuredPoint => self.relock(c, &mut events).await,
+            Request::FindReflector { approx_distance } if !(approx_distance.is_finite() && approx_distance > 0.0) => {
+                fail(status::PARAMETER1_OUT_OF_RANGE_NOK)
+            }
+            Request::FindReflector { .. } => self.relock(c, &mut events).await,
+        };
+        self.last_status = match &answer {
+            Reply::Answer(a) => a.status,
+            Reply::SingleMeas(m) => m.status,
+            Reply::Error { status, .. } => *status,
+            Reply::StatusChange(_) | Reply::Other { .. } => status::ALL_OK,
+        };
+        Response { events, answer }
+    }
+
+    async fn measure(&mut self, events: &mut Vec<i32>) -> Reply {
+        let c = cmd::START_MEASUREMENT;
+        let before = self.sim.measurements();
+        match self.sim.measure().await {
+            Ok(m) => {
+                self.last_point = true;
+                self.locked = true;
+                Reply::SingleMeas(self.result(&m))
+            }
+            Err(e) if e.code == Some(CODE_BEAM_BROKEN) => {
+                let broke_now = self.sim.measurements() > before;
+                if broke_now && self.locked {
+                    events.push(status_change::MEAS_STATUS_NOT_READY);
+                }
+                self.locked = false;
+                let code = if broke_now { status::NO_STATIONARY_RESULT } else { status::MEASUREMENT_STATUS_NOT_READY };
+                Reply::answer(c, code)
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "emscon simulator: the simulated tracker failed");
+                Reply::answer(c, status::UNKNOWN)
+            }
+        }
+    }
+
+    async fn relock(&mut self, c: i32, events: &mut Vec<i32>) -> Reply {
+        match self.sim.reacquire().await {
+            Ok(()) => {
+                if !self.locked {
+                    events.push(status_change::MEAS_STATUS_READY);
+                    self.locked = true;
+                }
+                ok(c)
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "emscon simulator: re-acquisition failed");
+                Reply::answer(c, status::UNKNOWN)
+            }
+        }
+    }
+
+    fn system_status(&self) -> SystemStatus {
+        SystemStatus {
+            last_result_status: self.last_status,
+            tracker_processor_status: if self.initialized {
+                tracker_processor_status::INITIALIZED
+            } else {
+                tracker_processor_status::COMPENSATION_SET
+            },
+            laser_status: laser_status::LASER_READY,
+            adm_status: adm_status::ADM_READY,
+            version: [3, 6, 0],
+            weather_monitor_status: weather_monitor_status::READ_ONLY,
+            flags: 0,
+            tracker_serial_number: SIM_SERIAL_NUMBER,
+        }
+    }
+
+    /// The tracker's measurement in the units set.
+    fn result(&self, m: &SmrMeasurement) -> SingleMeasResult {
+        let k = per_mm(self.units.length);
+        let std = m.std_dev_mm.map(|s| s * k);
+        let total = std.iter().map(|s| s * s).sum::<f64>().sqrt();
+        let temperature = match self.units.temperature {
+            temperature_unit::FAHRENHEIT => SIM_TEMPERATURE_C * 9.0 / 5.0 + 32.0,
+            _ => SIM_TEMPERATURE_C,
+        };
+        SingleMeasResult {
+            status: status::ALL_OK,
+            meas_mode: meas_mode::STATIONARY,
+            is_try_mode: false,
+            val: m.xyz().map(|v| v * k),
+            std,
+            std_total: total,
+            pointing_error: [0.0; 3],
+            apriori_std: std,
+            apriori_std_total: total,
+            temperature,
+            pressure: SIM_PRESSURE_MBAR * per_mbar(self.units.pressure),
+            humidity: SIM_HUMIDITY_RH,
+        }
+    }
+}
+
+/// The field (0-based) of `SystemUnitsDataT` holding an undefined value.
+fn bad_unit(u: SystemUnits) -> Option<i32> {
+    let ok = [(0..=5).contains(&u.length), (0..=2).contains(&u.angle), (0..=1).contains(&u.temperature)];
+    let ok = [ok[0], ok[1], ok[2], (0..=6).contains(&u.pressure), u.humidity == 0];
+    ok.iter().position(|good| !good).map(|i| i as i32)
+}
+
+/// Length units per millimetre.
+fn per_mm(unit: i32) -> f64 {
+    match unit {
+        length_unit::METER => 1e-3,
+        length_unit::MICRON => 1e3,
+        length_unit::FOOT => 1.0 / 304.8,
+        length_unit::YARD => 1.0 / 914.4,
+        length_unit::INCH => 1.0 / 25.4,
+        _ => 1.0,
+    }
+}
+
+/// Pressure units per millibar.
+fn per_mbar(unit: i32) -> f64 {
+    match unit {
+        pressure_unit::KPASCAL => 0.1,
+        pressure_unit::MMHG => 0.750_061_683,
+        pressure_unit::PSI => 0.014_503_773_8,
+        pressure_unit::INH2O => 0.401_463_078,
+        pressure_unit::INHG => 0.029_529_983_1,
+        _ => 1.0,
+    }
+}
+
+/// A packet garbled as `how` asks.
+fn garble(mut packet: Vec<u8>, how: Garble) -> Vec<u8> {
+    match how {
+        Garble::UnknownType => packet[4..8].copy_from_slice(&0x0BAD_F00Di32.to_le_bytes()),
+        Garble::WrongLength => {
+            packet.truncate(packet.len() - 4);
+            let n = packet.len() as i32;
+            packet[..4].copy_from_slice(&n.to_le_bytes());
+        }
+        Garble::AbsurdSize => packet[..4].copy_from_slice(&(1i32 << 30).to_le_bytes()),
+    }
+    tracing::debug!(?how, "emscon simulator: answer garbled (injected)");
+    packet
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracker::TrackerConfig;
+    use crate::turntable::Turntable;
+    use std::net::SocketAddr;
+    use std::sync::Arc;
+    use std::time::Duration;
+    use survey_drivers::VirtualClock;
+    use survey_drivers::clock::Clock;
+    use survey_drivers::emscon::{EmsconConfig, EmsconTimeouts, EmsconTracker};
+    use survey_drivers::error::ErrorKind;
+    use tokio::task::JoinHandle;
+
+    const ANGLE: f64 = 30.0;
+
+    fn sim_cfg(seed: u64, break_on: Option<usize>) -> TrackerConfig {
+        let measurement_time = Duration::from_millis(50);
+        TrackerConfig { seed, break_on_measurement: break_on, measurement_time, ..TrackerConfig::default() }
+    }
+
+    fn driver_cfg() -> EmsconConfig {
+        let timeouts = EmsconTimeouts {
+            request_ms: 200,
+            initialize_ms: 200,
+            measurement_margin_ms: 150,
+            reacquire_ms: 200,
+            resync_grace_ms: 30,
+            ..EmsconTimeouts::default()
+        };
+        EmsconConfig { measurement_time_ms: 50, timeouts, ..EmsconConfig::default() }
+    }
+
+    /// A server on 127.0.0.1:0, and a second tracker with the same seed and
+    /// angle measured directly.
+    struct Rig {
+        clock: VirtualClock,
+        faults: EmsconFaults,
+        addr: SocketAddr,
+        server: JoinHandle<()>,
+        direct: SimTracker,
+    }
+
+    impl Drop for Rig {
+        fn drop(&mut self) {
+            self.server.abort();
+        }
+    }
+
+    impl Rig {
+        async fn new(cfg: TrackerConfig) -> Rig {
+            let clock = VirtualClock::new();
+            let sim = SimTracker::new(cfg.clone(), Arc::new(clock.clone()), Turntable::new(ANGLE));
+            let direct = SimTracker::new(cfg, Arc::new(VirtualClock::new()), Turntable::new(ANGLE));
+            let faults = EmsconFaults::new();
+            let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+            let addr = listener.local_addr().unwrap();
+            let server = tokio::spawn(serve_tcp(listener, sim, faults.clone()));
+            Rig { clock, faults, addr, server, direct }
+        }
+
+        async fn connect(&self) -> EmsconTracker<TcpStream> {
+            EmsconTracker::connect(self.addr, driver_cfg()).await.unwrap()
+        }
+    }
+
+    #[tokio::test]
+    async fn connect_sets_up_and_measures_as_the_simulator_does() {
+        let mut rig = Rig::new(sim_cfg(7, None)).await;
+        let mut t = rig.connect().await;
+        let params = StationaryModeData { meas_time_ms: 50, use_adm: false };
+        let setup = vec![
+            Request::Initialize,
+            Request::SetUnits(SystemUnits::SURVEY),
+            Request::SetCoordinateSystemType(coordinate_system::RHR),
+            Request::SetMeasurementMode(meas_mode::STATIONARY),
+            Request::SetStationaryModeParams(params),
+        ];
+        assert_eq!(rig.faults.requests(), setup);
+        assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+        let s = t.system_status().await.unwrap();
+        assert_eq!((s.tracker_serial_number, s.version), (SIM_SERIAL_NUMBER, [3, 6, 0]));
+        for _ in 0..3 {
+            let t0 = rig.clock.now();
+            let wire = t.measure().await.unwrap();
+            assert_eq!(rig.clock.now() - t0, Duration::from_millis(50), "the sim's measurement time");
+            // Same seed, same angle, mm on the wire: bit for bit the same.
+            assert_eq!(wire, rig.direct.measure().await.unwrap());
+        }
+        let r = *t.last_result().unwrap();
+        assert_eq!((r.temperature, r.pressure, r.humidity), (20.0, 1013.25, 50.0));
+        assert!((r.std_total - r.std[0] * 3f64.sqrt()).abs() < 1e-15);
+    }
+
+    /// Hand-built packets, offsets from the header, independent of the codec.
+    #[tokio::test]
+    async fn raw_packets_follow_the_header_layout() {
+        let mut rig = Rig::new(sim_cfg(3, None)).await;
+        let mut s = TcpStream::connect(rig.addr).await.unwrap();
+        let le = |w: &[i32]| w.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>();
+        async fn ask(s: &mut TcpStream, bytes: &[u8]) -> Vec<u8> {
+            s.write_all(bytes).await.unwrap();
+            let mut size = [0u8; 4];
+            s.read_exact(&mut size).await.unwrap();
+            let mut rest = vec![0u8; i32::from_le_bytes(size) as usize - 4];
+            s.read_exact(&mut rest).await.unwrap();
+            [size.to_vec(), rest].concat()
+        }
+        let f = |p: &[u8], at: usize| f64::from_le_bytes(p[at..at + 8].try_into().unwrap());
+        // Not initialised yet: ES_RS_TrackerNotInitialized.
+        assert_eq!(ask(&mut s, &le(&[12, 0, 49])).await, le(&[16, 0, 49, 39]));
+        assert_eq!(ask(&mut s, &le(&[12, 0, 7])).await, le(&[16, 0, 7, 0]));
+        // Metres until SetUnits.
+        let m = ask(&mut s, &le(&[12, 0, 49])).await;
+        assert_eq!((m.len(), &m[..20]), (156, &le(&[156, 2, 0, 0, 0])[..]));
+        let direct = rig.direct.measure().await.unwrap();
+        assert!((f(&m, 20) - direct.x_mm / 1000.0).abs() < 1e-12, "{} vs {}", f(&m, 20), direct.x_mm);
+        assert!((f(&m, 44) - direct.std_dev_mm[0] / 1000.0).abs() < 1e-15);
+        // mm, degree, Fahrenheit, psi, RH.
+        assert_eq!(ask(&mut s, &le(&[32, 0, 5, 1, 1, 1, 4, 0])).await, le(&[16, 0, 5, 0]));
+        let m = ask(&mut s, &le(&[12, 0, 49])).await;
+        let direct = rig.direct.measure().await.unwrap();
+        assert_eq!([f(&m, 20), f(&m, 28), f(&m, 36)], direct.xyz());
+        assert_eq!(f(&m, 132), 68.0);
+        assert!((f(&m, 140) - 14.6959).abs() < 1e-3, "{}", f(&m, 140));
+        // Undefined unit in field 4 (pressure): ES_RS_WrongParameter4.
+        assert_eq!(ask(&mut s, &le(&[32, 0, 5, 1, 1, 0, 9, 0])).await, le(&[16, 0, 5, 7]));
+        // A command not modelled, a packet that is no command, a wrong size.
+        assert_eq!(ask(&mut s, &le(&[12, 0, 6])).await, le(&[16, 0, 6, 2]));
+        assert_eq!(ask(&mut s, &le(&[12, 8, 25])).await, le(&[16, 1, 64, 3]));
+        assert_eq!(ask(&mut s, &le(&[16, 0, 7, 0])).await, le(&[16, 0, 7, 3]));
+        let info = ask(&mut s, &le(&[12, 0, 122])).await;
+        assert_eq!(&info[..16], &le(&[24, 0, 122, 0])[..]);
+        assert_eq!(i32::from_le_bytes(info[20..24].try_into().unwrap()) & (2048 | 65536), 2048 | 65536);
+    }
+
+    #[tokio::test]
+    async fn beam_break_is_a_device_error_and_reacquire_restores_measurements() {
+        let mut rig = Rig::new(sim_cfg(11, Some(2))).await;
+        let mut t = rig.connect().await;
+        assert_eq!(t.measure().await.unwrap(), rig.direct.measure().await.unwrap());
+        let e = t.measure().await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(i64::from(status::NO_STATIONARY_RESULT))), "{e}");
+        assert!(e.message.contains("ES_RS_NoStationaryResult"), "{e}");
+        assert_eq!(t.last_status_change(), Some(status_change::MEAS_STATUS_NOT_READY));
+        assert_eq!(t.state(), TrackerState::BeamBroken);
+        assert!(rig.direct.measure().await.is_err());
+        assert_eq!(t.status().await.unwrap(), TrackerState::BeamBroken);
+        let e = t.measure().await.unwrap_err();
+        assert_eq!(e.code, Some(i64::from(status::MEASUREMENT_STATUS_NOT_READY)), "{e}");
+        assert!(e.message.contains("ES_RS_MeasurementStatusNotReady"), "{e}");
+        let before = rig.faults.requests().len();
+        let t0 = rig.clock.now();
+        t.reacquire().await.unwrap();
+        assert!(rig.clock.now() - t0 >= rig.direct.config().reacquire_time);
+        let tail = rig.faults.requests()[before..].to_vec();
+        assert_eq!(tail, [Request::GoLastMeasuredPoint, Request::GetMeasurementStatusInfo]);
+        assert_eq!(t.last_status_change(), Some(status_change::MEAS_STATUS_READY));
+        assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+        rig.direct.reacquire().await.unwrap();
+        assert_eq!(t.measure().await.unwrap(), rig.direct.measure().await.unwrap());
+    }
+
+    #[tokio::test]
+    async fn reacquire_without_a_last_point_searches_for_the_reflector() {
+        let rig = Rig::new(sim_cfg(5, Some(1))).await;
+        let mut t = rig.connect().await;
+        assert_eq!(t.measure().await.unwrap_err().code, Some(i64::from(status::NO_STATIONARY_RESULT)));
+        let before = rig.faults.requests().len();
+        t.reacquire().await.unwrap();
+        let tail = rig.faults.requests()[before..].to_vec();
+        let find = Request::FindReflector { approx_distance: 3000.0 };
+        assert_eq!(tail, [Request::GoLastMeasuredPoint, find, Request::GetMeasurementStatusInfo]);
+        t.measure().await.unwrap();
+        assert_eq!(t.state(), TrackerState::TargetLocked);
+    }
+
+    #[tokio::test]
+    async fn status_changes_before_an_answer_are_applied_not_taken_for_it() {
+        let mut rig = Rig::new(sim_cfg(9, None)).await;
+        let mut t = rig.connect().await;
+        rig.faults.status_change_before_next_answer(status_change::MEAS_STATUS_NOT_READY);
+        assert_eq!(t.measure().await.unwrap(), rig.direct.measure().await.unwrap());
+        assert_eq!((t.last_status_change(), t.status_changes_seen()), (Some(25), 1));
+        assert_eq!(t.state(), TrackerState::TargetLocked, "a result proves the lock");
+        rig.faults.status_change_before_next_answer(status_change::LASER_WARMED_UP);
+        rig.faults.status_change_before_next_answer(status_change::MEAS_STATUS_BUSY);
+        assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+        assert_eq!((t.last_status_change(), t.status_changes_seen()), (Some(26), 3));
+    }
+
+    #[tokio::test]
+    async fn a_dropped_answer_times_out_and_the_next_request_succeeds() {
+        let rig = Rig::new(sim_cfg(1, None)).await;
+        let mut t = rig.connect().await;
+        rig.faults.drop_next_answers(1);
+        let started = tokio::time::Instant::now();
+        let e = t.status().await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+        assert!(started.elapsed() >= Duration::from_millis(200));
+        assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+        rig.faults.drop_next_answers(1);
+        let e = t.measure().await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+        assert!(e.message.contains("200ms"), "measurement time + margin: {e}");
+        t.measure().await.unwrap();
+    }
+
+    #[tokio::test]
+    async fn garbled_answers_are_garbled_and_the_link_recovers() {
+        let rig = Rig::new(sim_cfg(2, None)).await;
+        let mut t = rig.connect().await;
+        for (how, says) in [
+            (Garble::UnknownType, "unknown packet type"),
+            (Garble::WrongLength, "expected 156"),
+            (Garble::AbsurdSize, "absurd packet size"),
+        ] {
+            rig.faults.garble_next_answer(how);
+            let e = t.measure().await.unwrap_err();
+            assert_eq!(e.kind, ErrorKind::Garbled, "{how:?}: {e}");
+            assert!(e.message.contains(says), "{how:?}: {e}");
+            t.measure().await.unwrap();
+            assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+        }
+    }
+
+    #[tokio::test]
+    async fn a_truncated_answer_then_close_is_a_disconnection() {
+        let rig = Rig::new(sim_cfg(4, None)).await;
+        let mut t = rig.connect().await;
+        rig.faults.close_during_next_answer();
+        let e = t.measure().await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
+        assert!(e.message.contains("after 78 bytes of a packet"), "{e}");
+        let started = tokio::time::Instant::now();
+        assert_eq!(t.status().await.unwrap_err().kind, ErrorKind::Disconnected);
+        assert!(started.elapsed() < Duration::from_millis(100), "fails at once");
+        drop(t);
+        let mut again = rig.connect().await;
+        again.measure().await.unwrap();
+    }
+
+    #[tokio::test]
+    async fn error_statuses_carry_their_code_and_name() {
+        let rig = Rig::new(sim_cfg(6, None)).await;
+        rig.faults.reject_next_command(status::SENSOR_NOT_WARMED_UP, Refusal::CommandAnswer);
+        let e = EmsconTracker::connect(rig.addr, driver_cfg()).await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_012)), "{e}");
+        assert!(e.message.contains("ES_RS_SensorNotWarmedUp (10012) in answer to ES_C_Initialize"), "{e}");
+        let mut t = rig.connect().await;
+        rig.faults.reject_next_command(status::SENSOR_NOT_WARMED_UP, Refusal::CommandAnswer);
+        let e = t.measure().await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_012)), "{e}");
+        assert_eq!(t.state(), TrackerState::NotReady);
+        rig.faults.reject_next_command(status::SYSTEM_NOT_READY_FOR_MEASUREMENT, Refusal::ErrorPacket);
+        let e = t.status().await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_014)), "{e}");
+        assert!(e.message.contains("ES_RS_SystemNotReadyForMeasurement"), "{e}");
+        t.measure().await.unwrap();
+        assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+    }
+
+    #[tokio::test]
+    async fn a_second_client_is_refused_while_the_first_is_served() {
+        let rig = Rig::new(sim_cfg(8, None)).await;
+        let mut first = rig.connect().await;
+        let e = EmsconTracker::connect(rig.addr, driver_cfg()).await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_011)), "{e}");
+        assert!(e.message.contains("ES_RS_MultiConnectionsNotAllowed"), "{e}");
+        first.measure().await.unwrap();
+        drop(first);
+        rig.connect().await.measure().await.unwrap();
+    }
+}
