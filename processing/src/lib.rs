@@ -5,9 +5,14 @@
 //! error model that generates simulated data is the same code that explains
 //! measured data.
 
+pub mod analysis;
+pub mod correction;
+pub mod errormap;
 pub mod geometry;
 pub mod iso230;
 pub mod model;
+pub mod resample;
+pub mod spectrum;
 pub mod table;
 pub mod types;
 

@@ -1,0 +1,481 @@
+//! Correction tables from a survey's error map, and the predicted accuracy
+//! (the paper's section 4, "Final processing of the data").
+//!
+//! # The table
+//!
+//! The input is the repeatable part of the error (the mean over runs),
+//! `error = readout - actual`, at `N` uniform angles `360 j / N` over a full
+//! revolution. A survey stops the axis where the readout equals the target, so
+//! the map is already indexed by the readout angle: exactly what the contract's
+//! table stores (`corrected = readout - error(readout)`). No change of variable
+//! is needed; the error as a function of the *true* angle would differ by
+//! about `error * slope`, which the tests against the simulators' convention
+//! (`readout = actual + e(actual)`) confirm is absent here.
+//!
+//! [`TableBuilder`] (and the one-shot [`build_table`]) follow the paper: the map
+//! is taken to the spectral domain ([`Resampler`]), the [`SpectralEdit`] is
+//! applied on the dense grid of `dense` points (default 131072, the paper's
+//! "128k": relocated lines must lie below `dense / 2`), and the result is
+//! decimated to the table's `rows` (default 16384, the paper's dense hardware
+//! table) by spectral truncation. Decimating the dense map by truncation is the
+//! same as evaluating the edited series at the table rows, so the dense map is
+//! only materialised when asked for ([`TableBuilder::dense_map`]); a test
+//! checks the two agree to 1e-12. The decimation is a low-pass: a line at or
+//! above `rows / 2` cannot be held by the table and is dropped rather than
+//! aliased.
+//!
+//! Linear interpolation between rows (the contract's reading) loses at most
+//! `A (2 pi k / rows)^2 / 8` on a line of amplitude `A` at `k` cycles: for the
+//! paper's 648-cycle ring-gear harmonic (0.25 mdeg) at 16384 rows, 2 udeg.
+//!
+//! Partial-span axes (an elevation from -10 to 90 deg) are not periodic over
+//! what was measured: [`build_partial_table`] fits them without that
+//! assumption (see [`crate::resample::PartialMethod`]).
+//!
+//! # The predicted accuracy
+//!
+//! [`predict_accuracy`] applies a table to measured samples: the corrected
+//! error of a sample is `(readout - table.error_at(readout, direction)) - actual`.
+//! Its figures, native and corrected:
+//!
+//! - `peak_deg` = `max |e - mean(e)|` over every sample (every run, both
+//!   directions): the "+/-" figure of the paper's Figures 8 and 9 (+/-0.015 to
+//!   +/-0.005 deg). The mean is a matter of zero reference and is removed.
+//!   These are the contract's `native_peak_deg` and `corrected_peak_deg`.
+//! - `rms_deg`: RMS of `e - mean(e)`.
+//! - `iso230_a_deg`: ISO 230-2 accuracy `A` ([`crate::iso230::iso230_2`]), when
+//!   the samples allow it (at least two runs per target and direction). The
+//!   corrected `A` uses the positioning deviation the corrected axis would show:
+//!   driven until the *corrected* readout `c = readout - E(readout)` equals the
+//!   target, its deviation is `actual - c`, so each sample's actual angle is
+//!   replaced by `target + actual - c` (with `readout = target` at rest this is
+//!   `actual + E(readout)`).
+//!
+//! The prediction is in-sample: the table was built from the same runs, so it
+//! has absorbed their mean noise and the corrected figures are slightly
+//! optimistic (by a factor of about `sqrt(1 - 1/runs)` on the noise). The
+//! repeatability floor (`floor_deg`, passed in: for example half the ISO 230-2
+//! `R`, or the bidirectional repeatability when a single table is used) is
+//! reported beside them: no correction can go below it, and the paper's
+//! answer is to measure again with the correction applied.
+
+use crate::iso230::iso230_2;
+use crate::resample::{PartialError, PartialMethod, Resampler, Series, Span, SpectralEdit, fit_partial};
+use crate::resample::EditError;
+use crate::table::{CorrectionTable, TableError};
+use crate::types::Sample;
+use serde::Serialize;
+
+#[cfg(test)]
+mod truth_tests;
+
+/// The paper's dense grid, "128k" points.
+pub const DEFAULT_DENSE_POINTS: usize = 131_072;
+/// The paper's dense hardware table, 16k rows.
+pub const DEFAULT_TABLE_ROWS: usize = 16_384;
+
+/// Why a table or a prediction cannot be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CorrectionError {
+    /// The error map has no points.
+    #[error("the error map is empty")]
+    EmptyMap,
+    /// A point of the error map is NaN or infinite.
+    #[error("error map point {index} is {value}, not a finite number")]
+    NotFinite {
+        /// Position in the map (from 0).
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+    /// The dense grid is coarser than the survey.
+    #[error("the dense grid ({dense} points) is smaller than the error map ({points} points)")]
+    DenseTooSmall {
+        /// The dense grid size.
+        dense: usize,
+        /// The map's points.
+        points: usize,
+    },
+    /// Forward and reverse maps differ in length.
+    #[error("forward and reverse maps differ in length ({forward} vs {reverse})")]
+    LengthMismatch {
+        /// Forward map points.
+        forward: usize,
+        /// Reverse map points.
+        reverse: usize,
+    },
+    /// The spectral edit does not fit the survey.
+    #[error(transparent)]
+    Edit(#[from] EditError),
+    /// The table itself is invalid (too few rows).
+    #[error(transparent)]
+    Table(#[from] TableError),
+    /// A partial-span map cannot be fitted.
+    #[error(transparent)]
+    Partial(#[from] PartialError),
+    /// No samples to predict from.
+    #[error("no samples to predict the accuracy from")]
+    NoSamples,
+    /// A sample's readout or actual angle is not finite.
+    #[error("sample {index}: readout or actual angle is not a finite number")]
+    BadSample {
+        /// Position of the sample (from 0).
+        index: usize,
+    },
+}
+
+/// Builds correction tables, reusing its FFT plans and buffers across calls.
+#[derive(Debug)]
+pub struct TableBuilder {
+    resampler: Resampler,
+    series: Series,
+    dense: usize,
+    rows: usize,
+}
+
+impl Default for TableBuilder {
+    /// [`DEFAULT_DENSE_POINTS`] and [`DEFAULT_TABLE_ROWS`].
+    fn default() -> Self {
+        Self::new(DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS)
+    }
+}
+
+impl TableBuilder {
+    /// A builder for tables of `rows` rows through a dense grid of `dense` points.
+    pub fn new(dense: usize, rows: usize) -> Self {
+        Self { resampler: Resampler::new(), series: Series::default(), dense, rows }
+    }
+
+    /// The dense grid size.
+    pub fn dense(&self) -> usize {
+        self.dense
+    }
+
+    /// The table size.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    fn prepare(&mut self, map: &[f64], edit: &SpectralEdit) -> Result<(), CorrectionError> {
+        if map.is_empty() {
+            return Err(CorrectionError::EmptyMap);
+        }
+        if let Some((index, &value)) = map.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(CorrectionError::NotFinite { index, value });
+        }
+        if self.dense < map.len() {
+            return Err(CorrectionError::DenseTooSmall { dense: self.dense, points: map.len() });
+        }
+        self.resampler.analyze_into(map, &mut self.series);
+        edit.apply(&mut self.series, map.len(), self.dense)?;
+        Ok(())
+    }
+
+    /// The edited series of `map` (for reports: the lines the table carries).
+    pub fn edited_series(&mut self, map: &[f64], edit: &SpectralEdit) -> Result<Series, CorrectionError> {
+        self.prepare(map, edit)?;
+        Ok(self.series.clone())
+    }
+
+    /// The edited map on the dense grid (`dense` points at `360 j / dense`).
+    pub fn dense_map(&mut self, map: &[f64], edit: &SpectralEdit) -> Result<Vec<f64>, CorrectionError> {
+        self.prepare(map, edit)?;
+        let mut out = vec![0.0; self.dense];
+        self.resampler.synthesize_into(&self.series, &mut out);
+        Ok(out)
+    }
+
+    /// One table column: the edited map decimated to `rows` rows.
+    pub fn column(&mut self, map: &[f64], edit: &SpectralEdit) -> Result<Vec<f64>, CorrectionError> {
+        if self.rows < 2 {
+            return Err(TableError::TooShort(self.rows).into());
+        }
+        self.prepare(map, edit)?;
+        let mut out = vec![0.0; self.rows];
+        self.resampler.synthesize_into(&self.series, &mut out);
+        Ok(out)
+    }
+
+    /// A table with one column for both directions.
+    pub fn build(&mut self, map: &[f64], edit: &SpectralEdit) -> Result<CorrectionTable, CorrectionError> {
+        Ok(CorrectionTable::new(self.column(map, edit)?)?)
+    }
+
+    /// A direction-aware table from the forward and reverse maps (same length),
+    /// the same edit applied to both.
+    pub fn build_directional(
+        &mut self,
+        forward: &[f64],
+        reverse: &[f64],
+        edit: &SpectralEdit,
+    ) -> Result<CorrectionTable, CorrectionError> {
+        if forward.len() != reverse.len() {
+            return Err(CorrectionError::LengthMismatch { forward: forward.len(), reverse: reverse.len() });
+        }
+        let f = self.column(forward, edit)?;
+        let r = self.column(reverse, edit)?;
+        Ok(CorrectionTable::directional(f, r)?)
+    }
+}
+
+/// One-shot table from the mean error map (uniform over a full revolution,
+/// indexed by readout): resample to `dense`, edit, decimate to `rows`.
+/// Reuse a [`TableBuilder`] for repeated calls.
+pub fn build_table(
+    mean_error: &[f64],
+    edit: &SpectralEdit,
+    dense: usize,
+    rows: usize,
+) -> Result<CorrectionTable, CorrectionError> {
+    TableBuilder::new(dense, rows).build(mean_error, edit)
+}
+
+/// One-shot direction-aware table from forward and reverse mean error maps.
+pub fn build_directional_table(
+    forward: &[f64],
+    reverse: &[f64],
+    edit: &SpectralEdit,
+    dense: usize,
+    rows: usize,
+) -> Result<CorrectionTable, CorrectionError> {
+    TableBuilder::new(dense, rows).build_directional(forward, reverse, edit)
+}
+
+/// A table for an axis measured over `span` only: `samples` uniform over the
+/// span (both ends included) fitted with `method`, rows inside the span from
+/// the fit, rows outside held at the nearer end ([`crate::resample::PartialFit::column`]).
+pub fn build_partial_table(
+    span: Span,
+    samples: &[f64],
+    method: &PartialMethod,
+    rows: usize,
+) -> Result<CorrectionTable, CorrectionError> {
+    let col = fit_partial(span, samples, method)?.column(rows)?;
+    Ok(CorrectionTable::new(col)?)
+}
+
+/// The direction-aware variant of [`build_partial_table`].
+pub fn build_partial_directional_table(
+    span: Span,
+    forward: &[f64],
+    reverse: &[f64],
+    method: &PartialMethod,
+    rows: usize,
+) -> Result<CorrectionTable, CorrectionError> {
+    let f = fit_partial(span, forward, method)?.column(rows)?;
+    let r = fit_partial(span, reverse, method)?.column(rows)?;
+    Ok(CorrectionTable::directional(f, r)?)
+}
+
+/// Error figures of a set of samples (see the module documentation).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ErrorFigures {
+    /// Mean error, degrees (the zero reference; removed from the others).
+    pub mean_deg: f64,
+    /// `max |e - mean|`, degrees: the "+/-" figure.
+    pub peak_deg: f64,
+    /// RMS of `e - mean`, degrees.
+    pub rms_deg: f64,
+    /// ISO 230-2 `A`, degrees, when the samples allow it.
+    pub iso230_a_deg: Option<f64>,
+}
+
+/// The accuracy a table is predicted to give on measured samples.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Prediction {
+    /// The contract's `native_peak_deg`: `max |e - mean|` without correction.
+    pub native_peak_deg: f64,
+    /// The contract's `corrected_peak_deg`: the same after correction.
+    pub corrected_peak_deg: f64,
+    /// All native figures.
+    pub native: ErrorFigures,
+    /// All corrected figures.
+    pub corrected: ErrorFigures,
+    /// The repeatability floor passed in, degrees.
+    pub floor_deg: f64,
+    /// Number of samples used.
+    pub samples: usize,
+}
+
+/// The corrected error of each sample: `(readout - table.error_at(readout)) - actual`.
+pub fn corrected_errors(samples: &[Sample], table: &CorrectionTable) -> Vec<f64> {
+    samples
+        .iter()
+        .map(|s| (s.readout_deg - table.error_at(s.readout_deg, s.direction)) - s.actual_deg)
+        .collect()
+}
+
+/// Apply `table` to `samples` and report native and corrected figures beside
+/// the repeatability floor `floor_deg` (see the module documentation).
+pub fn predict_accuracy(samples: &[Sample], table: &CorrectionTable, floor_deg: f64) -> Result<Prediction, CorrectionError> {
+    if samples.is_empty() {
+        return Err(CorrectionError::NoSamples);
+    }
+    if let Some(index) = samples.iter().position(|s| !(s.readout_deg.is_finite() && s.actual_deg.is_finite())) {
+        return Err(CorrectionError::BadSample { index });
+    }
+    let native: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
+    let corrected = corrected_errors(samples, table);
+    let shifted: Vec<Sample> = samples
+        .iter()
+        .zip(&corrected)
+        .map(|(s, e)| Sample { actual_deg: s.target_deg - e, ..*s })
+        .collect();
+    let native = figures(&native, iso230_2(samples).ok().map(|st| st.a));
+    let corrected = figures(&corrected, iso230_2(&shifted).ok().map(|st| st.a));
+    Ok(Prediction {
+        native_peak_deg: native.peak_deg,
+        corrected_peak_deg: corrected.peak_deg,
+        native,
+        corrected,
+        floor_deg,
+        samples: samples.len(),
+    })
+}
+
+fn figures(e: &[f64], iso230_a_deg: Option<f64>) -> ErrorFigures {
+    let mean = e.iter().sum::<f64>() / e.len() as f64;
+    let peak = e.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
+    let rms = (e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
+    ErrorFigures { mean_deg: mean, peak_deg: peak, rms_deg: rms, iso230_a_deg }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::resample::{Keep, Relocation, spectral_resample};
+    use crate::types::Direction;
+
+    fn map(n: usize, f: impl Fn(f64) -> f64) -> Vec<f64> {
+        (0..n).map(|j| f(360.0 * j as f64 / n as f64)).collect()
+    }
+
+    fn band_limited(t: f64) -> f64 {
+        let r = t.to_radians();
+        0.001 + 0.006 * (12.0 * r + 0.3).sin() + 0.0015 * (216.0 * r).sin() + 0.0003 * (300.0 * r + 2.0).sin()
+    }
+
+    #[test]
+    fn table_rows_are_the_map_resampled_and_the_dense_map_decimates_to_them() {
+        let m = map(720, band_limited);
+        let mut b = TableBuilder::new(8192, 2048);
+        let t = b.build(&m, &SpectralEdit::none()).unwrap();
+        assert_eq!(t.len(), 2048);
+        for (j, v) in t.forward.iter().enumerate() {
+            assert!((v - band_limited(t.readout_at(j))).abs() < 1e-12);
+        }
+        let dense = b.dense_map(&m, &SpectralEdit::none()).unwrap();
+        let decimated = spectral_resample(&dense, 2048);
+        let d = decimated.iter().zip(&t.forward).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(d < 1e-12, "{d:e}");
+        // The sign: correcting a readout removes the error it carries.
+        let r = t.readout_at(777);
+        assert!((t.correct(r, Direction::Forward) - (r - band_limited(r))).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_line_the_table_cannot_hold_is_dropped_not_aliased() {
+        // 300 cycles into a 256-row table: removed; 12 cycles kept.
+        let m = map(720, |t| 0.006 * (12.0 * t.to_radians()).sin() + 0.001 * (300.0 * t.to_radians()).sin());
+        let t = build_table(&m, &SpectralEdit::none(), 4096, 256).unwrap();
+        for (j, v) in t.forward.iter().enumerate() {
+            assert!((v - 0.006 * (12.0 * t.readout_at(j).to_radians()).sin()).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn directional_tables_and_edits() {
+        let f = map(360, |t| band_limited(t) + 0.002);
+        let r = map(360, |t| band_limited(t) - 0.002);
+        let edit = SpectralEdit { keep: Keep::Lines { cycles: vec![12] }, ..SpectralEdit::none() };
+        let t = build_directional_table(&f, &r, &edit, 4096, 1024).unwrap();
+        assert!(t.is_directional());
+        let x: f64 = 10.0;
+        let g = 0.006 * (12.0 * x.to_radians() + 0.3).sin();
+        assert!((t.error_at(x, Direction::Forward) - (g + 0.003)).abs() < 1e-5);
+        assert!((t.error_at(x, Direction::Reverse) - (g - 0.001)).abs() < 1e-5);
+    }
+
+    #[test]
+    fn bad_inputs_are_named() {
+        let m = map(720, band_limited);
+        let none = SpectralEdit::none();
+        assert_eq!(build_table(&[], &none, 1024, 64), Err(CorrectionError::EmptyMap));
+        let mut nan = m.clone();
+        nan[3] = f64::INFINITY;
+        assert!(matches!(build_table(&nan, &none, 1024, 64), Err(CorrectionError::NotFinite { index: 3, .. })));
+        assert_eq!(build_table(&m, &none, 512, 64), Err(CorrectionError::DenseTooSmall { dense: 512, points: 720 }));
+        assert_eq!(build_table(&m, &none, 1024, 1), Err(CorrectionError::Table(TableError::TooShort(1))));
+        assert!(matches!(build_directional_table(&m, &m[1..], &none, 1024, 64), Err(CorrectionError::LengthMismatch { .. })));
+        let reloc = SpectralEdit { relocate: vec![Relocation { observed_cycles: 72, true_cycles: 648 }], ..none };
+        let e = build_table(&m, &reloc, 1024, 64).unwrap_err();
+        assert!(matches!(e, CorrectionError::Edit(EditError::DenseTooSmall { .. })), "{e}");
+        assert!(e.to_string().contains("1296"), "{e}");
+    }
+
+    #[test]
+    fn partial_directional_tables_keep_both_columns() {
+        let span = Span { start_deg: -10.0, end_deg: 90.0 };
+        let f = |j: usize| 0.01 * (6.0 * (-10.0 + j as f64)).to_radians().sin();
+        let fwd: Vec<f64> = (0..=100).map(|j| f(j) + 0.002).collect();
+        let rev: Vec<f64> = (0..=100).map(|j| f(j) - 0.002).collect();
+        let t = build_partial_directional_table(span, &fwd, &rev, &PartialMethod::Cubic, 3600).unwrap();
+        for a in [-10.0, 0.0, 45.5, 90.0] {
+            let d = t.error_at(a, Direction::Forward) - t.error_at(a, Direction::Reverse);
+            assert!((d - 0.004).abs() < 1e-12, "{a}: {d}");
+        }
+        assert!(matches!(
+            build_partial_directional_table(span, &fwd, &rev[..3], &PartialMethod::Cubic, 3600),
+            Err(CorrectionError::Partial(PartialError::TooFewSamples { .. }))
+        ));
+    }
+
+    fn samples_with(error: impl Fn(f64) -> f64, runs: u32) -> Vec<Sample> {
+        let mut out = Vec::new();
+        for run in 1..=runs {
+            for direction in [Direction::Forward, Direction::Reverse] {
+                for j in 0..36 {
+                    let target = 10.0 * j as f64;
+                    out.push(Sample {
+                        run,
+                        direction,
+                        target_deg: target,
+                        readout_deg: target,
+                        actual_deg: target - error(target) + 1e-5 * (run as f64 - 1.5),
+                        timestamp_s: None,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn prediction_applies_the_table_with_the_contract_sign() {
+        let e = |t: f64| 0.004 * (3.0 * t.to_radians()).sin() + 0.01;
+        let samples = samples_with(e, 2);
+        let table = CorrectionTable::new(map(36, e)).unwrap();
+        let p = predict_accuracy(&samples, &table, 1e-5).unwrap();
+        assert_eq!(p.samples, 144);
+        assert!((p.native_peak_deg - 0.004).abs() < 1e-5, "{p:?}");
+        assert!((p.native.mean_deg - 0.01).abs() < 1e-9);
+        // The table holds the error exactly at the targets: only the +-5e-6
+        // run scatter is left.
+        assert!((p.corrected_peak_deg - 5e-6).abs() < 1e-12, "{p:?}");
+        assert!(p.corrected.mean_deg.abs() < 1e-12);
+        // ISO 230-2 A: native spans the sinusoid (2 * 0.004) plus the 2s bands;
+        // corrected only the bands (s = 1e-5 / sqrt 2 per target).
+        let s = 1e-5 / 2f64.sqrt();
+        assert!((p.native.iso230_a_deg.unwrap() - (0.008 + 4.0 * s)).abs() < 1e-4);
+        assert!((p.corrected.iso230_a_deg.unwrap() - 4.0 * s).abs() < 1e-9, "{p:?}");
+        // A wrong sign would double the error instead.
+        let wrong = CorrectionTable::new(map(36, |t| -e(t))).unwrap();
+        assert!(predict_accuracy(&samples, &wrong, 0.0).unwrap().corrected_peak_deg > 0.007);
+        // One run: no ISO figures, the rest stands.
+        let one = predict_accuracy(&samples_with(e, 1), &table, 0.0).unwrap();
+        assert_eq!(one.native.iso230_a_deg, None);
+        let json = serde_json::to_value(&p).unwrap();
+        assert!(json["native_peak_deg"].is_f64() && json["corrected_peak_deg"].is_f64());
+        assert_eq!(predict_accuracy(&[], &table, 0.0), Err(CorrectionError::NoSamples));
+    }
+}
