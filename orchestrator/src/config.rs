@@ -29,6 +29,9 @@ use crate::cli::ReferenceKind;
 use crate::engine::Timing;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use survey_drivers::canopen::CanopenConfig;
+use survey_drivers::emscon::EmsconConfig;
+use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
 use std::time::Duration;
 
 /// A whole configuration file.
@@ -90,12 +93,48 @@ pub enum PositionerConfig {
         #[serde(default = "one")]
         axis: u32,
     },
+    /// A servo drive over Modbus TCP, with its register map.
+    ModbusTcp {
+        /// `host:port` (port 502 on most devices).
+        address: String,
+        #[serde(default)]
+        map: RegisterMap,
+        #[serde(default)]
+        timeouts: ModbusTimeouts,
+    },
+    /// A servo drive over Modbus RTU on a serial port.
+    ModbusRtu {
+        port: String,
+        #[serde(default = "baud_9600")]
+        baud: u32,
+        #[serde(default = "one_u8")]
+        slave: u8,
+        #[serde(default)]
+        map: RegisterMap,
+        #[serde(default)]
+        timeouts: ModbusTimeouts,
+    },
+    /// A CiA 402 drive over CANopen on a SocketCAN interface.
+    Canopen {
+        /// The SocketCAN interface (`can0`).
+        interface: String,
+        #[serde(flatten)]
+        drive: CanopenConfig,
+    },
 }
 
 /// `[tracker]`: the tracking laser.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "driver", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum TrackerConfig {}
+pub enum TrackerConfig {
+    /// A Leica tracker through its emScon server (TPI over TCP, port 700).
+    Emscon {
+        /// `host:port`.
+        address: String,
+        #[serde(flatten)]
+        settings: EmsconConfig,
+    },
+}
 
 /// `[autocollimator]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -148,6 +187,9 @@ pub struct TimingSection {
 }
 
 fn one() -> u32 {
+    1
+}
+fn one_u8() -> u8 {
     1
 }
 fn baud_9600() -> u32 {
@@ -331,5 +373,32 @@ mod tests {
         assert_eq!(t.max_retries, 5);
         assert_eq!(t.call_timeout, Timing::default().call_timeout);
         assert_eq!(cfg.positioner, PositionerConfig::ScpiSerial { port: "/dev/ttyUSB0".into(), baud: 9600, controller: 1, axis: 1 });
+    }
+}
+
+#[cfg(test)]
+mod driver_tests {
+    use super::*;
+
+    #[test]
+    fn every_driver_reads_its_settings_and_refuses_a_misspelt_one() {
+        let tracker = "[tracker]\ndriver = \"emscon\"\naddress = \"10.0.0.5:700\"\nmeasurement_time_ms = 500\n";
+        let cfg = SurveyConfig::parse(
+            &format!("[positioner]\ndriver = \"canopen\"\ninterface = \"can0\"\nnode_id = 5\n{tracker}"),
+            "c.toml",
+        )
+        .unwrap();
+        let PositionerConfig::Canopen { interface, drive } = &cfg.positioner else { panic!() };
+        assert_eq!((interface.as_str(), drive.node_id), ("can0", 5));
+        let Some(TrackerConfig::Emscon { settings, .. }) = &cfg.tracker else { panic!() };
+        assert_eq!(settings.measurement_time_ms, 500);
+        for bad in [
+            format!("[positioner]\ndriver = \"canopen\"\ninterface = \"can0\"\nnode = 5\n{tracker}"),
+            format!("[positioner]\ndriver = \"modbus-tcp\"\naddress = \"h:502\"\n[positioner.map]\nunit = 2\n{tracker}"),
+            "[positioner]\ndriver = \"modbus-tcp\"\naddress = \"h:502\"\n[tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\nmeasurement_time = 1\n".to_string(),
+        ] {
+            let e = SurveyConfig::parse(&bad, "c.toml").unwrap_err().to_string();
+            assert!(e.contains("unknown field"), "{bad}\n-> {e}");
+        }
     }
 }

@@ -7,7 +7,10 @@ use async_trait::async_trait;
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::clock::with_timeout;
+use survey_drivers::canopen::{Cia402Positioner, SocketCanBus};
 use survey_drivers::elcomat::ElcomatDriver;
+use survey_drivers::emscon::EmsconConnector;
+use survey_drivers::modbus::ModbusPositioner;
 use survey_drivers::reconnect::{Connect, Reconnecting};
 use survey_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
 use survey_drivers::{Autocollimator, Clock, DriverError, ErrorKind, Positioner, Tracker};
@@ -32,12 +35,25 @@ impl Connect<dyn Positioner> for PositionerConnector {
                 let d = ScpiPositioner::open_serial(port, *baud, timeouts)?;
                 Ok(Box::new(d.with_address(Address { controller: *controller, axis: *axis })))
             }
+            PositionerConfig::ModbusTcp { address, map, timeouts } => {
+                Ok(Box::new(ModbusPositioner::connect_tcp(address.as_str(), map.clone(), timeouts.clone()).await?))
+            }
+            PositionerConfig::ModbusRtu { port, baud, slave, map, timeouts } => {
+                Ok(Box::new(ModbusPositioner::connect_rtu(port, *baud, *slave, map.clone(), timeouts.clone()).await?))
+            }
+            PositionerConfig::Canopen { interface, drive } => {
+                let bus = SocketCanBus::open(interface)?;
+                Ok(Box::new(Cia402Positioner::connect(bus, drive.clone()).await?))
+            }
         }
     }
     fn describe(&self) -> String {
         match &self.config {
             PositionerConfig::ScpiTcp { address, .. } => format!("scpi-tcp {address}"),
             PositionerConfig::ScpiSerial { port, .. } => format!("scpi-serial {port}"),
+            PositionerConfig::ModbusTcp { address, .. } => format!("modbus-tcp {address}"),
+            PositionerConfig::ModbusRtu { port, slave, .. } => format!("modbus-rtu {port} slave {slave}"),
+            PositionerConfig::Canopen { interface, drive } => format!("canopen {interface} node {}", drive.node_id),
         }
     }
 }
@@ -52,10 +68,16 @@ pub struct TrackerConnector {
 #[async_trait]
 impl Connect<dyn Tracker> for TrackerConnector {
     async fn connect(&self) -> survey_drivers::Result<Box<dyn Tracker>> {
-        match self.config {}
+        match &self.config {
+            TrackerConfig::Emscon { address, settings } => {
+                EmsconConnector { addr: address.clone(), cfg: settings.clone() }.connect().await
+            }
+        }
     }
     fn describe(&self) -> String {
-        match self.config {}
+        match &self.config {
+            TrackerConfig::Emscon { address, .. } => format!("emscon {address}"),
+        }
     }
 }
 

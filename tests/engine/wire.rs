@@ -102,3 +102,71 @@ async fn a_survey_over_scpi_and_elcomat_matches_the_in_process_survey() {
     assert!((wire.m.unwrap() - local.m.unwrap()).abs() < 2.0 * tol);
     assert_eq!(wire_samples.len(), local_samples.len());
 }
+
+/// The issue's configuration: a Modbus TCP positioner and an emScon tracker,
+/// both behind their protocols, against the same bench in process.
+#[tokio::test]
+async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
+    use survey_drivers::modbus::RegisterMap;
+    use survey_sims::emscon_server::EmsconFaults;
+    use survey_sims::modbus_server::{ModbusDevice, ModbusFaults};
+    const POINTS: u32 = 36;
+    const RUNS: u32 = 3;
+
+    let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
+    let preset = Preset::by_name("fig8").unwrap();
+    let wired = SimBench::new(&preset, 31, clock.clone());
+    let device = ModbusDevice::new(wired.positioner, RegisterMap::default()).unwrap();
+    let modbus = device.spawn_tcp(ModbusFaults::new()).await.unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let emscon_addr = listener.local_addr().unwrap();
+    let emscon = tokio::spawn(survey_sims::emscon_server::serve_tcp(listener, wired.tracker, EmsconFaults::new()));
+    let text = format!(
+        "[survey]\nreference = \"tracker\"\n\
+         [positioner]\ndriver = \"modbus-tcp\"\naddress = \"{}\"\n\
+         [tracker]\ndriver = \"emscon\"\naddress = \"{emscon_addr}\"\n\
+         [arm]\nradius_mm = 1000.0\n",
+        modbus.addr
+    );
+    let cfg = SurveyConfig::parse(&text, "wire.toml").unwrap();
+    let mut engine = Instruments::from_config(&cfg).into_engine(clock.clone(), &cfg).with_arm_check(1000.0, 5.0);
+    let plan = SurveyPlan::full_circle(POINTS, RUNS, true).unwrap();
+    let mut sink = MemorySink::default();
+    engine.run(&plan, 0, &mut sink, &mut |_| {}).await.unwrap();
+    let wire_samples: Vec<Sample> = sink.samples.iter().map(|r| r.sample).collect();
+    let wire = iso230_2(&wire_samples).unwrap();
+    drop(engine);
+    emscon.abort();
+    drop(modbus);
+
+    let local_clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
+    let local = SimBench::new(&preset, 32, local_clock.clone());
+    let mut engine = Engine::new(local_clock, Box::new(local.positioner), Reference::Tracker(Box::new(local.tracker)), Timing::default());
+    let mut sink = MemorySink::default();
+    engine.run(&plan, 0, &mut sink, &mut |_| {}).await.unwrap();
+    let local_samples: Vec<Sample> = sink.samples.iter().map(|r| r.sample).collect();
+    let local = iso230_2(&local_samples).unwrap();
+
+    // Per-sample noise: the positioner's 0.0004 deg and the tracker's angular
+    // noise (its coordinate sigma over the 1 m arm, at the worst target: about
+    // 0.0009 deg); the Modbus counts resolve 1e-5 deg. Each target mean has sd
+    // sigma/sqrt(RUNS); the difference of two independent means sqrt(2) of
+    // that, and each survey's axis fit adds a smooth error of about
+    // sigma_trk * sqrt(2/12) to every target. 5 sd.
+    let arm = survey_sims::tracker::ArmGeometry::default();
+    let sigma_trk = plan.targets_deg.iter().map(|&t| super::tracker_sigma_deg(&arm, t)).fold(0.0f64, f64::max);
+    let sigma = (0.0004f64.powi(2) + sigma_trk.powi(2)).sqrt();
+    let fit = sigma_trk * (2.0f64 / 12.0).sqrt();
+    let tol = 5.0 * ((2.0 * sigma * sigma / RUNS as f64) + 2.0 * fit * fit).sqrt();
+    for t in &plan.targets_deg {
+        for dir in [Direction::Forward, Direction::Reverse] {
+            let (a, b) = (mean_error(&wire_samples, *t, dir), mean_error(&local_samples, *t, dir));
+            assert!((a - b).abs() < tol, "target {t} {dir}: wire {a} vs in-process {b} (tolerance {tol})");
+        }
+    }
+    // The reversal averages the per-target differences, in which the fit error
+    // cancels (it is the same for both directions): sd sigma * sqrt(4 / (RUNS N)).
+    let b_tol = 5.0 * sigma * (4.0 / (RUNS * POINTS) as f64).sqrt();
+    assert!((wire.b_mean.unwrap() - local.b_mean.unwrap()).abs() < b_tol, "B_mean {:?} vs {:?}", wire.b_mean, local.b_mean);
+    assert!((wire.e - local.e).abs() < 2.0 * tol, "E {} vs {}", wire.e, local.e);
+}
