@@ -83,6 +83,10 @@ pub struct RunArgs {
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Fault injection for tests: the process aborts (like a power loss)
+    /// once N samples have been measured on the simulated bench.
+    #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]
+    pub sim_crash_after: Option<u64>,
 }
 
 #[derive(Debug, Args)]

@@ -151,7 +151,7 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
     );
 
     let sink = StoreSink::new(store.clone(), id);
-    drive(engine, &plan, 0, sink, clock, db, args.json).await
+    drive(engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: args.sim_crash_after }).await
 }
 
 /// `survey run --config FILE`: a survey of real instruments.
@@ -209,7 +209,7 @@ async fn run_configured(db: &Path, args: &RunArgs, path: &Path) -> Result<(), Fa
         human(estimate)
     );
     let sink = StoreSink::new(store.clone(), id);
-    drive(engine, &plan, 0, sink, clock, db, args.json).await
+    drive(engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await
 }
 
 /// The engine on the configured instruments.
@@ -323,7 +323,14 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
     store.log_event(id, last_time, "info", &message).await.map_err(Failure::runtime)?;
     eprintln!("survey {id}: {message}");
     let sink = StoreSink::new(store.clone(), id);
-    drive(engine, &plan, next, sink, clock, db, args.json).await
+    drive(engine, &plan, next, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await
+}
+
+/// How `drive` reports, and the simulated power loss of `--sim-crash-after`.
+#[derive(Debug, Clone, Copy)]
+struct DriveOptions {
+    json: bool,
+    crash_after: Option<u64>,
 }
 
 /// Acquire from `from_seq`, mark the survey, and print the summary.
@@ -334,12 +341,13 @@ async fn drive(
     mut sink: StoreSink,
     clock: Arc<dyn Clock>,
     db: &Path,
-    json: bool,
+    options: DriveOptions,
 ) -> Result<(), Failure> {
+    let DriveOptions { json, crash_after } = options;
     let store = sink.store().clone();
     let id = sink.survey_id();
     let started = Instant::now();
-    let outcome = acquire(&mut engine, plan, from_seq, &mut sink, !json).await;
+    let outcome = acquire(&mut engine, plan, from_seq, &mut sink, !json, crash_after).await;
     let real = started.elapsed();
     finish(&store, id, &outcome, clock.now()).await?;
     let outcome = outcome.map_err(Failure::runtime)?;
@@ -358,6 +366,7 @@ pub async fn acquire(
     from_seq: u64,
     sink: &mut StoreSink,
     show_progress: bool,
+    crash_after: Option<u64>,
 ) -> anyhow::Result<Outcome> {
     let bar = ProgressBar::with_draw_target(Some(plan.total_steps()), ProgressDrawTarget::stderr());
     if !show_progress {
@@ -369,6 +378,10 @@ pub async fn acquire(
     );
     bar.set_position(from_seq);
     let mut on_progress = |p: &Progress| {
+        if crash_after.is_some_and(|n| p.done >= n) {
+            // A simulated power loss: no flush, no status update, no cleanup.
+            std::process::abort();
+        }
         bar.set_position(p.done);
         bar.set_message(format!(
             "run {} {} · instrument time {}",

@@ -1,8 +1,7 @@
-//! A survey killed in the middle (SIGKILL: no chance to clean up) resumes from
+//! A survey that dies in the middle (the process aborts: no chance to clean up) resumes from
 //! its last stored sample: no sample lost, none duplicated.
 
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 use survey_orchestrator::store::{Store, SurveyStatus};
 
 #[tokio::test]
@@ -10,35 +9,25 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("k.db");
     let bin = env!("CARGO_BIN_EXE_survey");
-    let mut child = Command::new(bin)
+    // The simulated bench loses power (the process aborts: no flush, no
+    // cleanup) once 3000 of the 10800 samples have been measured.
+    let crashed = Command::new(bin)
         .args(["--db", db.to_str().unwrap(), "run", "--points", "1800", "--bidirectional", "--runs", "3"])
+        .args(["--sim-crash-after", "3000"])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
-        .spawn()
+        .status()
         .unwrap();
-    // Wait until some batches are on disk, then kill the process outright.
-    // Whatever the moment of the kill, the assertions below must hold.
-    let deadline = Instant::now() + Duration::from_secs(60);
-    loop {
-        if let Ok(store) = Store::open_existing(&db).await
-            && let Ok(Some(id)) = store.latest_survey_id().await
-            && store.survey(id).await.map(|r| r.sample_count).unwrap_or(0) >= 1000
-        {
-            store.close().await;
-            break;
-        }
-        assert!(Instant::now() < deadline, "the survey never stored 1000 samples");
-        assert!(child.try_wait().unwrap().is_none(), "the survey finished before it could be killed");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    child.kill().unwrap();
-    child.wait().unwrap();
+    assert!(!crashed.success(), "the survey was to be cut short");
 
     let store = Store::open_existing(&db).await.unwrap();
     let before = store.survey(1).await.unwrap();
     assert_eq!(before.status, SurveyStatus::Running, "a killed survey is left running");
     let kept = store.samples(1).await.unwrap();
-    assert!(kept.len() as u64 >= 1000 && (kept.len() as u64) < 10800);
+    // Batches of 256 and the end of the first pass (1800) were committed
+    // before the crash; the samples in the last unfinished batch are lost, as
+    // in a power loss, and are measured again by the resume.
+    assert!((2048..=3000).contains(&kept.len()), "{} samples kept", kept.len());
     store.close().await;
 
     let out = Command::new(bin).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
