@@ -14,6 +14,7 @@ pub mod error;
 pub mod modbus;
 pub mod reconnect;
 pub mod scpi;
+mod stream;
 pub mod traits;
 
 pub use clock::{Clock, SystemClock, VirtualClock};

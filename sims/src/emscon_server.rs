@@ -72,9 +72,9 @@
 //!
 //! [`EmsconFaults::requests`] lists the commands received, for tests.
 
+use crate::faults::{Countdown, FaultPlan};
 use crate::tracker::{CODE_BEAM_BROKEN, SimTracker};
 use std::collections::VecDeque;
-use std::sync::{Arc, Mutex, MutexGuard};
 use survey_drivers::emscon::codes::{
     adm_status, command as cmd, coordinate_system, laser_status, length_unit, meas_mode,
     measurement_status_info as msi, pressure_unit, status, status_change, temperature_unit,
@@ -123,12 +123,12 @@ pub enum Refusal {
 /// by clones. See the module documentation.
 #[derive(Debug, Clone, Default)]
 pub struct EmsconFaults {
-    plan: Arc<Mutex<Plan>>,
+    plan: FaultPlan<Plan>,
 }
 
 #[derive(Debug, Default)]
 struct Plan {
-    drop_answers: usize,
+    drop_answers: Countdown,
     garble: VecDeque<Garble>,
     close_in_answer: bool,
     status_changes: VecDeque<i32>,
@@ -142,40 +142,36 @@ impl EmsconFaults {
         Self::default()
     }
 
-    fn plan(&self) -> MutexGuard<'_, Plan> {
-        self.plan.lock().unwrap_or_else(|p| p.into_inner())
-    }
-
     /// Execute the next `n` commands without answering them.
     pub fn drop_next_answers(&self, n: usize) {
-        self.plan().drop_answers += n;
+        self.plan.lock().drop_answers.add(n);
     }
 
     /// Garble the next answer (one per call, in order).
     pub fn garble_next_answer(&self, how: Garble) {
-        self.plan().garble.push_back(how);
+        self.plan.lock().garble.push_back(how);
     }
 
     /// Send half of the next answer, then close the connection.
     pub fn close_during_next_answer(&self) {
-        self.plan().close_in_answer = true;
+        self.plan.lock().close_in_answer = true;
     }
 
     /// Send a `SystemStatusChangeT` with `event` right before the next answer
     /// (one per call, in order).
     pub fn status_change_before_next_answer(&self, event: i32) {
-        self.plan().status_changes.push_back(event);
+        self.plan.lock().status_changes.push_back(event);
     }
 
     /// Answer the next command (one per call, in order) with the result
     /// status `code` instead of executing it.
     pub fn reject_next_command(&self, code: i32, how: Refusal) {
-        self.plan().reject.push_back((code, how));
+        self.plan.lock().reject.push_back((code, how));
     }
 
     /// The commands received so far, in order (also the refused ones).
     pub fn requests(&self) -> Vec<Request> {
-        self.plan().requests.clone()
+        self.plan.lock().requests.clone()
     }
 }
 
@@ -322,9 +318,8 @@ impl Server {
     /// False: close the connection.
     async fn respond(&mut self, stream: &mut TcpStream, response: Response) -> bool {
         let (extra, fault) = {
-            let mut plan = self.faults.plan();
-            let fault = if plan.drop_answers > 0 {
-                plan.drop_answers -= 1;
+            let mut plan = self.faults.plan.lock();
+            let fault = if plan.drop_answers.take() {
                 AnswerFault::Drop
             } else if let Some(g) = plan.garble.pop_front() {
                 AnswerFault::Garble(g)
@@ -357,7 +352,7 @@ impl Server {
     async fn handle(&mut self, request: Request) -> Response {
         let c = request.command();
         let rejected = {
-            let mut plan = self.faults.plan();
+            let mut plan = self.faults.plan.lock();
             plan.requests.push(request);
             plan.reject.pop_front()
         };

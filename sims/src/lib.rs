@@ -41,6 +41,7 @@ pub mod autocollimator;
 pub mod bench;
 pub mod canopen_node;
 pub mod elcomat_server;
+pub mod faults;
 pub mod modbus_server;
 pub mod emscon_server;
 pub mod positioner;

@@ -59,9 +59,9 @@
 //!   fault with that code and text (the sim is stopped), reported by `STAT?`
 //!   and `SYST:ERR?` and refusing moves until `FAUL:CLE`.
 
+use crate::faults::{Countdown, FaultPlan};
 use crate::positioner::{FAULT_FOLLOWING_ERROR, SimPositioner};
 use std::collections::VecDeque;
-use std::sync::{Arc, Mutex, MutexGuard};
 use survey_drivers::error::{DriverError, ErrorKind};
 use survey_drivers::scpi::{Decoder, bits};
 use survey_drivers::traits::{DeviceFault, Limit, Positioner};
@@ -84,13 +84,13 @@ pub const IDN: &str = "survey-sims,MI-4190-style positioner controller (simulate
 /// documentation.
 #[derive(Debug, Clone, Default)]
 pub struct ScpiFaults {
-    plan: Arc<Mutex<Plan>>,
+    plan: FaultPlan<Plan>,
 }
 
 #[derive(Debug, Default)]
 struct Plan {
-    drop_replies: usize,
-    garble_replies: usize,
+    drop_replies: Countdown,
+    garble_replies: Countdown,
     close_in_reply: bool,
     stale_line: Option<String>,
     reject: VecDeque<(i64, String)>,
@@ -103,38 +103,34 @@ impl ScpiFaults {
         Self::default()
     }
 
-    fn plan(&self) -> MutexGuard<'_, Plan> {
-        self.plan.lock().unwrap_or_else(|p| p.into_inner())
-    }
-
     /// Do not send the next `n` replies.
     pub fn drop_next_replies(&self, n: usize) {
-        self.plan().drop_replies += n;
+        self.plan.lock().drop_replies.add(n);
     }
 
     /// Garble the next `n` replies.
     pub fn garble_next_replies(&self, n: usize) {
-        self.plan().garble_replies += n;
+        self.plan.lock().garble_replies.add(n);
     }
 
     /// Send half of the next reply, then close the connection.
     pub fn close_during_next_reply(&self) {
-        self.plan().close_in_reply = true;
+        self.plan.lock().close_in_reply = true;
     }
 
     /// Send `line` right after the next reply.
     pub fn stale_line_after_next_reply(&self, line: impl Into<String>) {
-        self.plan().stale_line = Some(line.into());
+        self.plan.lock().stale_line = Some(line.into());
     }
 
     /// Refuse the next axis command with `code` and `text`.
     pub fn reject_next_command(&self, code: i64, text: impl Into<String>) {
-        self.plan().reject.push_back((code, text.into()));
+        self.plan.lock().reject.push_back((code, text.into()));
     }
 
     /// Latch a device fault at the next request.
     pub fn trip(&self, code: i64, text: impl Into<String>) {
-        self.plan().trip = Some(DeviceFault { code, text: text.into() });
+        self.plan.lock().trip = Some(DeviceFault { code, text: text.into() });
     }
 }
 
@@ -284,12 +280,10 @@ impl Controller {
 
     /// Take the armed fault for the next reply.
     fn reply_fault(&self) -> ReplyFault {
-        let mut plan = self.faults.plan();
-        if plan.drop_replies > 0 {
-            plan.drop_replies -= 1;
+        let mut plan = self.faults.plan.lock();
+        if plan.drop_replies.take() {
             ReplyFault::Drop
-        } else if plan.garble_replies > 0 {
-            plan.garble_replies -= 1;
+        } else if plan.garble_replies.take() {
             ReplyFault::Garble
         } else if std::mem::take(&mut plan.close_in_reply) {
             ReplyFault::CloseHalfway
@@ -316,7 +310,7 @@ impl Controller {
     }
 
     async fn handle(&mut self, line: &str) -> Outcome {
-        let trip = self.faults.plan().trip.take();
+        let trip = self.faults.plan.lock().trip.take();
         if let Some(fault) = trip {
             tracing::debug!(?fault, "scpi simulator: device fault latched (injected)");
             self.injected = Some(fault);
@@ -355,7 +349,7 @@ impl Controller {
         }
         let query = tail.ends_with('?');
         if !query {
-            let rejected = self.faults.plan().reject.pop_front();
+            let rejected = self.faults.plan.lock().reject.pop_front();
             if let Some((code, text)) = rejected {
                 tracing::debug!(%line, code, "scpi simulator: command refused (injected)");
                 self.push_error(code, text);

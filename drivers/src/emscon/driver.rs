@@ -10,15 +10,13 @@ use super::packets::{
 };
 use crate::error::{DriverError, ErrorKind, Result};
 use crate::reconnect::Connect;
+use crate::stream::Drain;
 use crate::traits::{SmrMeasurement, Tracker, TrackerState};
 use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 use std::fmt;
-use std::future::poll_fn;
-use std::pin::Pin;
-use std::task::Poll;
 use std::time::Duration;
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadBuf};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::{TcpStream, ToSocketAddrs};
 use tokio::time::Instant;
 
@@ -430,40 +428,30 @@ where
         let mut stale = 0usize;
         for _ in 0..4 {
             if let Some(resync) = self.resync.take() {
-                let deadline = Instant::now() + ms(self.cfg.timeouts.resync_grace_ms);
+                let mut late = Drain::late(Instant::now() + ms(self.cfg.timeouts.resync_grace_ms));
                 loop {
                     let Some(io) = self.io.as_mut() else { return Err(self.lost(what)) };
-                    match tokio::time::timeout_at(deadline, io.read(&mut buf)).await {
-                        Err(_) => break,
-                        Ok(Ok(0)) => return Err(self.close(what, "connection closed by the tracker")),
-                        Ok(Ok(n)) if resync == Resync::FramingLost => stale += n,
-                        Ok(Ok(n)) => {
+                    match late.next(io, &mut buf).await {
+                        Ok(None) => break,
+                        Ok(Some(n)) if resync == Resync::FramingLost => stale += n,
+                        Ok(Some(n)) => {
                             self.decoder.push(&buf[..n]);
                             stale += self.take_idle();
                         }
-                        Ok(Err(e)) => return Err(self.close(what, e)),
+                        Err(lost) => return Err(self.close(what, lost.why("the tracker"))),
                     }
                 }
                 if resync == Resync::FramingLost {
                     stale += self.decoder.clear().0;
                 }
             }
+            let mut waiting = Drain::waiting();
             loop {
                 let Some(io) = self.io.as_mut() else { return Err(self.lost(what)) };
-                let ready = poll_fn(|cx| {
-                    let mut rb = ReadBuf::new(&mut buf);
-                    match Pin::new(&mut *io).poll_read(cx, &mut rb) {
-                        Poll::Ready(Ok(())) => Poll::Ready(Some(Ok(rb.filled().len()))),
-                        Poll::Ready(Err(e)) => Poll::Ready(Some(Err(e))),
-                        Poll::Pending => Poll::Ready(None),
-                    }
-                })
-                .await;
-                match ready {
-                    None => break,
-                    Some(Ok(0)) => return Err(self.close(what, "connection closed by the tracker")),
-                    Some(Ok(n)) => self.decoder.push(&buf[..n]),
-                    Some(Err(e)) => return Err(self.close(what, e)),
+                match waiting.next(io, &mut buf).await {
+                    Ok(None) => break,
+                    Ok(Some(n)) => self.decoder.push(&buf[..n]),
+                    Err(lost) => return Err(self.close(what, lost.why("the tracker"))),
                 }
             }
             stale += self.take_idle();

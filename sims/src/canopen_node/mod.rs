@@ -71,8 +71,8 @@
 //! the client aborts or starts another transfer: a node dropping off the bus
 //! mid-transfer).
 
+use crate::faults::{Countdown, FaultPlan};
 use crate::positioner::SimPositioner;
-use std::sync::{Arc, Mutex, MutexGuard};
 use survey_drivers::canopen::DEFAULT_COUNTS_PER_DEGREE;
 use survey_drivers::canopen::frame::{CanBus, CanFrame};
 use survey_drivers::canopen::nmt::{self, NmtCommand, NmtState};
@@ -140,12 +140,12 @@ pub enum Garble {
 /// Faults armed by a test; a cheap handle shared by clones.
 #[derive(Debug, Clone, Default)]
 pub struct NodeFaults {
-    plan: Arc<Mutex<Plan>>,
+    plan: FaultPlan<Plan>,
 }
 
 #[derive(Debug, Default)]
 struct Plan {
-    drop: usize,
+    drop: Countdown,
     garble: Option<Garble>,
     abort: Option<u32>,
     silence_after: Option<usize>,
@@ -157,29 +157,25 @@ impl NodeFaults {
         Self::default()
     }
 
-    fn plan(&self) -> MutexGuard<'_, Plan> {
-        self.plan.lock().unwrap_or_else(|p| p.into_inner())
-    }
-
     /// Execute but do not answer the next `n` SDO requests that have a response.
     pub fn drop_next_responses(&self, n: usize) {
-        self.plan().drop += n;
+        self.plan.lock().drop.add(n);
     }
 
     /// Garble the next response this kind of garbling fits.
     pub fn garble_next_response(&self, how: Garble) {
-        self.plan().garble = Some(how);
+        self.plan.lock().garble = Some(how);
     }
 
     /// Answer the next SDO request with this abort code (not executing it).
     pub fn abort_next_request(&self, code: u32) {
-        self.plan().abort = Some(code);
+        self.plan.lock().abort = Some(code);
     }
 
     /// In the next segmented transfer, answer `k` segment requests, then
     /// nothing until the transfer is aborted or another starts.
     pub fn silence_after_segments(&self, k: usize) {
-        self.plan().silence_after = Some(k);
+        self.plan.lock().silence_after = Some(k);
     }
 }
 
@@ -360,7 +356,7 @@ impl<B: CanBus> Node<B> {
 
     /// Serve one SDO request.
     async fn sdo(&mut self, req: SdoRequest) -> Answer {
-        let injected = self.faults.plan().abort.take();
+        let injected = self.faults.plan.lock().abort.take();
         if let Some(code) = injected {
             let (index, subindex) = self.request_mux(&req);
             tracing::debug!(code = format_args!("0x{code:08X}"), "CANopen node: injected abort");
@@ -431,7 +427,7 @@ impl<B: CanBus> Node<B> {
     /// Whether this segment request meets the injected silence.
     fn silenced(&mut self) -> bool {
         if !self.silent {
-            let mut plan = self.faults.plan();
+            let mut plan = self.faults.plan.lock();
             if plan.silence_after.is_some_and(|k| self.transfer.is_some() && self.segments_answered >= k) {
                 plan.silence_after = None;
                 self.silent = true;
@@ -518,9 +514,8 @@ impl<B: CanBus> Node<B> {
             Answer::Respond(r) => r,
         };
         let (dropped, garble) = {
-            let mut plan = self.faults.plan();
-            if plan.drop > 0 {
-                plan.drop -= 1;
+            let mut plan = self.faults.plan.lock();
+            if plan.drop.take() {
                 (true, None)
             } else {
                 let fits = plan.garble.filter(|g| garble_fits(*g, &resp));

@@ -9,6 +9,7 @@ use crate::positioner::{PositionerConfig, PositionerFaults};
 use crate::presets::{Preset, without_noise};
 use crate::turntable::Turntable;
 use rand::{Rng, SeedableRng};
+use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::VirtualClock;
 use survey_drivers::canopen::objects::{

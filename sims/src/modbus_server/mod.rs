@@ -99,6 +99,7 @@
 
 mod device;
 
+use crate::faults::{Countdown, FaultPlan};
 use crate::positioner::SimPositioner;
 use device::{DeviceState, Outcome};
 use std::collections::VecDeque;
@@ -106,8 +107,8 @@ use std::future::Future;
 use std::io;
 use std::net::SocketAddr;
 use std::pin::Pin;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
 use std::task::{Context, Poll};
 use survey_drivers::modbus::{ExceptionCode, MapError, RegisterMap, Request, Response};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
@@ -125,15 +126,15 @@ pub const MAX_TABLE_ROWS: u16 = 16_384;
 /// passing it in). Nothing is armed by default.
 #[derive(Debug, Clone, Default)]
 pub struct ModbusFaults {
-    inner: Arc<Mutex<Armed>>,
+    inner: FaultPlan<Armed>,
 }
 
 #[derive(Debug, Default)]
 struct Armed {
     close: bool,
     reject: VecDeque<ExceptionCode>,
-    drop: usize,
-    garble: usize,
+    drop: Countdown,
+    garble: Countdown,
     discard_write: Option<usize>,
     requests: usize,
 }
@@ -153,47 +154,43 @@ impl ModbusFaults {
         Self::default()
     }
 
-    fn lock(&self) -> MutexGuard<'_, Armed> {
-        self.inner.lock().unwrap_or_else(|p| p.into_inner())
-    }
-
     /// Execute the next `n` requests but send no reply.
     pub fn drop_next_replies(&self, n: usize) {
-        self.lock().drop += n;
+        self.inner.lock().drop.add(n);
     }
 
     /// Execute the next `n` requests and answer each with a reply of another
     /// function.
     pub fn garble_next_replies(&self, n: usize) {
-        self.lock().garble += n;
+        self.inner.lock().garble.add(n);
     }
 
     /// Answer the next request (not executed) with `code`. Several calls queue.
     pub fn reject_next_request(&self, code: ExceptionCode) {
-        self.lock().reject.push_back(code);
+        self.inner.lock().reject.push_back(code);
     }
 
     /// Execute the next request, then close the link in the middle of its
     /// reply (TCP: half the frame; RTU: before the reply).
     pub fn close_during_next_reply(&self) {
-        self.lock().close = true;
+        self.inner.lock().close = true;
     }
 
     /// Acknowledge the `n`-th write request from now (1 = the next one)
     /// without applying it.
     pub fn discard_nth_next_write(&self, n: usize) {
-        self.lock().discard_write = Some(n.max(1));
+        self.inner.lock().discard_write = Some(n.max(1));
     }
 
     /// Requests to this unit received so far.
     pub fn requests(&self) -> usize {
-        self.lock().requests
+        self.inner.lock().requests
     }
 
     /// Count a write request that is about to be executed; true when it is
     /// the one to discard.
     fn discard_this_write(&self) -> bool {
-        let mut a = self.lock();
+        let mut a = self.inner.lock();
         match a.discard_write {
             Some(1) => {
                 a.discard_write = None;
@@ -208,18 +205,16 @@ impl ModbusFaults {
     }
 
     fn next_plan(&self) -> Plan {
-        let mut a = self.lock();
+        let mut a = self.inner.lock();
         a.requests += 1;
         let mut plan = Plan::default();
         if std::mem::take(&mut a.close) {
             plan.close = true;
         } else if let Some(code) = a.reject.pop_front() {
             plan.reject = Some(code);
-        } else if a.drop > 0 {
-            a.drop -= 1;
+        } else if a.drop.take() {
             plan.drop = true;
-        } else if a.garble > 0 {
-            a.garble -= 1;
+        } else if a.garble.take() {
             plan.garble = true;
         }
         plan

@@ -1,0 +1,236 @@
+//! The SQLite store: surveys, their samples with the raw reference readings,
+//! the SMR positions that located the axis, and an event log.
+//!
+//! One database file holds every survey (`survey.db` by default). The schema is
+//! in `migrations/` at the root of the repository; it is embedded in the binary
+//! and applied when a database is opened.
+//!
+//! # Durability
+//!
+//! The database runs in WAL mode with `synchronous = FULL`: a transaction that
+//! has committed is on the disk and survives a power loss. [`Store::append`]
+//! writes a batch of samples in one transaction, so a batch is stored entirely
+//! or not at all, and [`StoreSink`] acknowledges a sample (see
+//! [`SampleSink`]) only when the transaction that holds it has committed.
+//!
+//! # Errors
+//!
+//! Errors are [`anyhow::Error`]s. Those caused by what the user asked for (no
+//! database at the path, no survey with that id, an empty database, a file that
+//! is not a database) carry a [`NotFound`]: find it with [`is_not_found`] and
+//! exit with status 2; everything else is a run-time failure (status 1).
+//!
+//! # Layout
+//!
+//! - this file: opening the database (schema migrations, pragmas) and the
+//!   user errors ([`NotFound`]);
+//! - `surveys`: the surveys themselves (create, status, axis, locate points,
+//!   events, look-ups);
+//! - `samples`: storing and reading samples with their raw readings;
+//! - `sink`: [`StoreSink`], the batching [`SampleSink`].
+
+mod samples;
+mod sink;
+mod surveys;
+#[cfg(test)]
+mod tests;
+
+pub use sink::StoreSink;
+pub use surveys::{EventRow, NewSurvey, SurveyRow, SurveyStatus};
+
+use std::borrow::Cow;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, anyhow};
+use sqlx::migrate::{Migration, MigrationType, Migrator};
+use sqlx::sqlite::{
+    SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous,
+};
+use sqlx::{Row, SqlSafeStr, SqlitePool};
+
+#[cfg(doc)]
+use crate::record::SampleSink;
+
+/// How long a statement waits for another connection's lock before it fails.
+pub const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Rows per multi-row `INSERT`: the widest row (a raw reading) binds 12 values,
+/// so a statement binds at most 4 800, far under SQLite's limit of 32 766.
+const CHUNK_ROWS: usize = 400;
+
+/// The schema migrations, embedded in the binary (the same versions,
+/// descriptions and checksums `sqlx::migrate!("../migrations")` would give).
+const MIGRATIONS: &[(i64, &str, &str)] =
+    &[(1, "init", include_str!("../../../migrations/0001_init.sql"))];
+
+fn migrator() -> Migrator {
+    Migrator::with_migrations(
+        MIGRATIONS
+            .iter()
+            .map(|&(version, description, sql)| {
+                Migration::new(
+                    version,
+                    Cow::Borrowed(description),
+                    MigrationType::Simple,
+                    sql.into_sql_str(),
+                    false,
+                )
+            })
+            .collect(),
+    )
+}
+
+/// A user error from the store: what was asked for is not there (the database
+/// file, a survey id, any survey at all), or the file is not a survey database.
+///
+/// The command line exits with status 2 when an error holds one (see
+/// [`is_not_found`]); its text is the whole message, e.g.
+/// `no survey with id 7 in survey.db`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct NotFound(pub String);
+
+/// Whether `err`, or any error in its chain, is a [`NotFound`] (a user error).
+pub fn is_not_found(err: &anyhow::Error) -> bool {
+    err.downcast_ref::<NotFound>().is_some() || err.chain().any(|e| e.is::<NotFound>())
+}
+
+/// The survey database. Cheap to clone: clones share one connection.
+///
+/// The pool holds a single connection (one writer; calls from several tasks
+/// take turns, waiting up to sqlx's acquire timeout of 30 s). Other processes
+/// can read the file at the same time (WAL); a second writer waits up to
+/// [`BUSY_TIMEOUT`] for the lock.
+#[derive(Debug, Clone)]
+pub struct Store {
+    pool: SqlitePool,
+    path: PathBuf,
+}
+
+impl Store {
+    /// Open the database at `path`, creating it if missing, and bring its schema
+    /// up to date. WAL journal, `synchronous = FULL` (a committed transaction
+    /// survives power loss), busy timeout 5 s, foreign keys enforced.
+    pub async fn open(path: &Path) -> anyhow::Result<Store> {
+        Self::connect(path, true).await
+    }
+
+    /// Open an existing database (for the commands that only read). Fails with a
+    /// [`NotFound`] when there is no file at `path`, and does not create one.
+    pub async fn open_existing(path: &Path) -> anyhow::Result<Store> {
+        match std::fs::metadata(path) {
+            Ok(m) if m.is_file() => {}
+            Ok(_) => {
+                return Err(NotFound(format!(
+                    "{} is not a survey database (it is not a file)",
+                    path.display()
+                ))
+                .into());
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Err(NotFound(format!(
+                    "no survey database at {}: run `survey run` or `survey import` first",
+                    path.display()
+                ))
+                .into());
+            }
+            Err(e) => {
+                return Err(
+                    anyhow!(e).context(format!("cannot open the database {}", path.display()))
+                );
+            }
+        }
+        Self::connect(path, false).await
+    }
+
+    async fn connect(path: &Path, create: bool) -> anyhow::Result<Store> {
+        // busy_timeout is applied when the connection is made, before the
+        // pragmas (so the switch to WAL waits for a lock instead of failing).
+        let options = SqliteConnectOptions::new()
+            .filename(path)
+            .create_if_missing(create)
+            .busy_timeout(BUSY_TIMEOUT)
+            .journal_mode(SqliteJournalMode::Wal)
+            .synchronous(SqliteSynchronous::Full)
+            .foreign_keys(true);
+        let pool = SqlitePoolOptions::new()
+            .max_connections(1)
+            .min_connections(0)
+            .connect_with(options)
+            .await
+            .map_err(|e| open_error(path, e))?;
+        migrator()
+            .run(&pool)
+            .await
+            .map_err(|e| match e {
+                sqlx::migrate::MigrateError::Execute(inner) => open_error(path, inner),
+                other => anyhow!(other),
+            })
+            .with_context(|| format!("cannot set up the survey database {}", path.display()))?;
+        Ok(Store {
+            pool,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The database file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The SQLite journal mode in force (`"wal"`).
+    pub async fn journal_mode(&self) -> anyhow::Result<String> {
+        let mode: String = sqlx::query_scalar("PRAGMA journal_mode")
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(mode)
+    }
+
+    /// Close the connection (this checkpoints the WAL into the database file).
+    pub async fn close(self) {
+        self.pool.close().await;
+    }
+
+    fn no_survey(&self, id: i64) -> NotFound {
+        NotFound(format!("no survey with id {id} in {}", self.path.display()))
+    }
+
+    /// A foreign key failure on `survey_id` means the survey does not exist.
+    fn fk_to_not_found(&self, id: i64, e: sqlx::Error) -> anyhow::Error {
+        if is_foreign_key_error(&e) {
+            self.no_survey(id).into()
+        } else {
+            e.into()
+        }
+    }
+}
+
+fn is_foreign_key_error(e: &sqlx::Error) -> bool {
+    e.as_database_error()
+        .is_some_and(|d| d.is_foreign_key_violation())
+}
+
+/// An error opening `path`: "file is not a database" (SQLITE_NOTADB, 26) is a
+/// user error, anything else a run-time failure; both name the path.
+fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
+    let not_a_db = e
+        .as_database_error()
+        .and_then(|d| d.code())
+        .is_some_and(|c| c == "26");
+    if not_a_db {
+        NotFound(format!(
+            "{} is not a survey database (SQLite: file is not a database)",
+            path.display()
+        ))
+        .into()
+    } else {
+        anyhow::Error::new(e).context(format!("cannot open the database {}", path.display()))
+    }
+}
+
+/// A nullable REAL column: NULL (how SQLite stores NaN) reads as NaN.
+fn real(row: &SqliteRow, col: &str) -> anyhow::Result<f64> {
+    let v: Option<f64> = row.try_get(col)?;
+    Ok(v.unwrap_or(f64::NAN))
+}

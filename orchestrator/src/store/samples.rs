@@ -1,0 +1,251 @@
+//! Samples: storing a batch (or a whole import) in one transaction, reading
+//! them back with their raw readings.
+
+use std::str::FromStr;
+
+use anyhow::{Context, anyhow, bail};
+use sqlx::sqlite::{SqliteConnection, SqliteRow};
+use sqlx::{QueryBuilder, Row, Sqlite};
+use survey_drivers::{AcReading, SmrMeasurement};
+use survey_processing::{Direction, Sample};
+
+use super::surveys::insert_survey;
+use super::{CHUNK_ROWS, NewSurvey, NotFound, Store, is_foreign_key_error, real};
+use crate::record::{RawReading, RecordedSample};
+
+impl Store {
+    /// Store samples of survey `survey_id` with their raw readings, in one
+    /// transaction: all of them or, on any error, none. A `seq` already stored
+    /// is an error (never a silent replace). When this returns `Ok`, the samples
+    /// are durable.
+    pub async fn append(&self, survey_id: i64, samples: &[RecordedSample]) -> anyhow::Result<()> {
+        if samples.is_empty() {
+            return Ok(());
+        }
+        let mut tx = self.pool.begin().await?;
+        insert_samples(&mut tx, survey_id, samples)
+            .await
+            .with_context(|| {
+                format!(
+                    "cannot store samples {}..={} of survey {} in {}",
+                    samples[0].seq,
+                    samples[samples.len() - 1].seq,
+                    survey_id,
+                    self.path.display()
+                )
+            })?;
+        tx.commit().await.with_context(|| {
+            format!(
+                "cannot commit samples of survey {survey_id} in {}",
+                self.path.display()
+            )
+        })?;
+        Ok(())
+    }
+
+    /// Store a new survey and all its samples (seq 0, 1, 2, ... in the given
+    /// order, no raw readings) in one transaction: if anything fails, nothing
+    /// is stored. Returns the new survey's id.
+    pub async fn import(&self, s: &NewSurvey, samples: &[Sample]) -> anyhow::Result<i64> {
+        let recorded: Vec<RecordedSample> = samples
+            .iter()
+            .enumerate()
+            .map(|(i, sample)| RecordedSample {
+                seq: i as u64,
+                sample: *sample,
+                raw: RawReading::None,
+            })
+            .collect();
+        let mut tx = self.pool.begin().await?;
+        let id = insert_survey(&mut tx, s).await?;
+        insert_samples(&mut tx, id, &recorded).await?;
+        tx.commit().await?;
+        Ok(id)
+    }
+
+    /// The samples of a survey, ordered by seq, with their raw readings.
+    pub async fn samples(&self, survey_id: i64) -> anyhow::Result<Vec<RecordedSample>> {
+        let rows = sqlx::query(
+            "SELECT s.seq, s.run, s.direction, s.target_deg, s.readout_deg, s.actual_deg, \
+             s.timestamp_s, r.kind, r.smr_x_mm, r.smr_y_mm, r.smr_z_mm, r.smr_sx_mm, \
+             r.smr_sy_mm, r.smr_sz_mm, r.measurement_time_s, r.ac_face, r.ac_x_arcsec, \
+             r.ac_y_arcsec \
+             FROM samples AS s LEFT JOIN raw_readings AS r \
+             ON r.survey_id = s.survey_id AND r.seq = s.seq \
+             WHERE s.survey_id = ? ORDER BY s.seq",
+        )
+        .bind(survey_id)
+        .fetch_all(&self.pool)
+        .await
+        .with_context(|| format!("cannot read the samples of survey {survey_id}"))?;
+        rows.iter()
+            .map(sample_from_row)
+            .collect::<anyhow::Result<Vec<_>>>()
+            .with_context(|| {
+                format!(
+                    "survey {survey_id} in {} holds a bad sample",
+                    self.path.display()
+                )
+            })
+    }
+
+    /// The highest seq stored for a survey (`None` when it has no sample yet).
+    /// Samples are stored in plan order, so a resume continues at `last + 1`.
+    pub async fn last_seq(&self, id: i64) -> anyhow::Result<Option<u64>> {
+        let seq: Option<i64> =
+            sqlx::query_scalar("SELECT MAX(seq) FROM samples WHERE survey_id = ?")
+                .bind(id)
+                .fetch_one(&self.pool)
+                .await?;
+        seq.map(|s| u64::try_from(s).context("negative seq in the database"))
+            .transpose()
+    }
+}
+
+/// Check what SQLite would reject with a less helpful message (or silently
+/// change: SQLite stores NaN as NULL).
+fn check_sample(r: &RecordedSample) -> anyhow::Result<()> {
+    let s = &r.sample;
+    if i64::try_from(r.seq).is_err() {
+        bail!("sample seq {} is too large", r.seq);
+    }
+    if s.run == 0 {
+        bail!("sample seq {}: run 0 (runs count from 1)", r.seq);
+    }
+    for (name, v) in [
+        ("target_deg", s.target_deg),
+        ("readout_deg", s.readout_deg),
+        ("actual_deg", s.actual_deg),
+    ] {
+        if v.is_nan() {
+            bail!("sample seq {}: {name} is NaN", r.seq);
+        }
+    }
+    if s.timestamp_s.is_some_and(f64::is_nan) {
+        bail!("sample seq {}: timestamp_s is NaN", r.seq);
+    }
+    Ok(())
+}
+
+async fn insert_samples(
+    conn: &mut SqliteConnection,
+    survey_id: i64,
+    samples: &[RecordedSample],
+) -> anyhow::Result<()> {
+    // Checked up front so that the database is not touched by a bad batch.
+    for r in samples {
+        check_sample(r)?;
+    }
+    for chunk in samples.chunks(CHUNK_ROWS) {
+        let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(
+            "INSERT INTO samples (survey_id, seq, run, direction, target_deg, readout_deg, \
+             actual_deg, timestamp_s) ",
+        );
+        qb.push_values(chunk, |mut b, r| {
+            b.push_bind(survey_id)
+                .push_bind(r.seq as i64) // checked above
+                .push_bind(i64::from(r.sample.run))
+                .push_bind(r.sample.direction.as_str())
+                .push_bind(r.sample.target_deg)
+                .push_bind(r.sample.readout_deg)
+                .push_bind(r.sample.actual_deg)
+                .push_bind(r.sample.timestamp_s);
+        });
+        qb.build().execute(&mut *conn).await.map_err(|e| {
+            if is_foreign_key_error(&e) {
+                NotFound(format!("no survey with id {survey_id}")).into()
+            } else {
+                anyhow::Error::new(e)
+            }
+        })?;
+
+        let raws: Vec<&RecordedSample> = chunk
+            .iter()
+            .filter(|r| !matches!(r.raw, RawReading::None))
+            .collect();
+        if raws.is_empty() {
+            continue;
+        }
+        let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(
+            "INSERT INTO raw_readings (survey_id, seq, kind, smr_x_mm, smr_y_mm, smr_z_mm, \
+             smr_sx_mm, smr_sy_mm, smr_sz_mm, measurement_time_s, ac_face, ac_x_arcsec, \
+             ac_y_arcsec) ",
+        );
+        qb.push_values(raws, |mut b, r| {
+            b.push_bind(survey_id).push_bind(r.seq as i64);
+            match r.raw {
+                RawReading::Smr(m) => {
+                    b.push_bind("smr")
+                        .push_bind(m.x_mm)
+                        .push_bind(m.y_mm)
+                        .push_bind(m.z_mm)
+                        .push_bind(m.std_dev_mm[0])
+                        .push_bind(m.std_dev_mm[1])
+                        .push_bind(m.std_dev_mm[2])
+                        .push_bind(m.measurement_time_s)
+                        .push_bind(None::<i64>)
+                        .push_bind(None::<f64>)
+                        .push_bind(None::<f64>);
+                }
+                RawReading::Autocollimator { face, reading } => {
+                    b.push_bind("autocollimator");
+                    for _ in 0..7 {
+                        b.push_bind(None::<f64>);
+                    }
+                    b.push_bind(i64::from(face))
+                        .push_bind(reading.x_arcsec)
+                        .push_bind(reading.y_arcsec);
+                }
+                RawReading::None => unreachable!("filtered out above"),
+            }
+        });
+        qb.build().execute(&mut *conn).await?;
+    }
+    Ok(())
+}
+
+fn sample_from_row(row: &SqliteRow) -> anyhow::Result<RecordedSample> {
+    let seq: i64 = row.try_get("seq")?;
+    let run: i64 = row.try_get("run")?;
+    let direction: String = row.try_get("direction")?;
+    let sample = Sample {
+        run: u32::try_from(run).with_context(|| format!("seq {seq}: bad run {run}"))?,
+        direction: Direction::from_str(&direction).map_err(|e| anyhow!("seq {seq}: {e}"))?,
+        target_deg: row.try_get("target_deg")?,
+        readout_deg: row.try_get("readout_deg")?,
+        actual_deg: row.try_get("actual_deg")?,
+        timestamp_s: row.try_get("timestamp_s")?,
+    };
+    let kind: Option<String> = row.try_get("kind")?;
+    let raw = match kind.as_deref() {
+        None => RawReading::None,
+        Some("smr") => RawReading::Smr(SmrMeasurement {
+            x_mm: real(row, "smr_x_mm")?,
+            y_mm: real(row, "smr_y_mm")?,
+            z_mm: real(row, "smr_z_mm")?,
+            std_dev_mm: [
+                real(row, "smr_sx_mm")?,
+                real(row, "smr_sy_mm")?,
+                real(row, "smr_sz_mm")?,
+            ],
+            measurement_time_s: real(row, "measurement_time_s")?,
+        }),
+        Some("autocollimator") => {
+            let face: i64 = row.try_get("ac_face")?;
+            RawReading::Autocollimator {
+                face: u32::try_from(face)
+                    .with_context(|| format!("seq {seq}: bad polygon face {face}"))?,
+                reading: AcReading {
+                    x_arcsec: real(row, "ac_x_arcsec")?,
+                    y_arcsec: real(row, "ac_y_arcsec")?,
+                },
+            }
+        }
+        Some(other) => bail!("seq {seq}: unknown raw reading kind '{other}'"),
+    };
+    Ok(RecordedSample {
+        seq: u64::try_from(seq).with_context(|| format!("negative seq {seq}"))?,
+        sample,
+        raw,
+    })
+}

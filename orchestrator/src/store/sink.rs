@@ -1,0 +1,148 @@
+//! [`StoreSink`]: the [`SampleSink`] that writes to the store in batches.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use async_trait::async_trait;
+use survey_drivers::SmrMeasurement;
+use survey_processing::geometry::AxisFit;
+
+use super::Store;
+use crate::record::{RecordedSample, SampleSink};
+
+/// A [`SampleSink`] that writes to the store in batches.
+///
+/// `record` buffers the sample and writes the buffer (one [`Store::append`]
+/// transaction) when
+/// - it holds `batch` samples (default 256), or
+/// - its oldest sample has waited `max_age` (default 1 s), or
+/// - the previous sample was recorded `max_age` or more ago: samples come
+///   slowly, so waiting for the next one would hold this one too long.
+///
+/// `max_age` is measured in real time ([`Instant`]), because durability is
+/// about the real disk. A sample is acknowledged (durable) when a flush that
+/// holds it returns `Ok`: on `flush()` or on the automatic flushes above. With
+/// real instruments a sample takes seconds, so each one (from the second on)
+/// is on disk as soon as it is recorded; a fast simulation writes in batches.
+/// The sink has no timer of its own: the engine calls `flush()` before anything
+/// that may wait (a fault recovery, a pause) and at the end.
+///
+/// When a write fails, the samples stay in the buffer (the transaction rolled
+/// back, nothing of them is stored) and the next flush tries again.
+#[derive(Debug)]
+pub struct StoreSink {
+    store: Store,
+    survey_id: i64,
+    batch: usize,
+    max_age: Duration,
+    buffer: Vec<RecordedSample>,
+    oldest: Option<Instant>,
+    last_record: Option<Instant>,
+    acknowledged: Option<u64>,
+}
+
+impl StoreSink {
+    /// Default number of samples per write.
+    pub const DEFAULT_BATCH: usize = 256;
+    /// Default longest time a sample waits in the buffer.
+    pub const DEFAULT_MAX_AGE: Duration = Duration::from_secs(1);
+
+    /// A sink writing the samples of survey `survey_id` into `store`.
+    pub fn new(store: Store, survey_id: i64) -> Self {
+        StoreSink {
+            store,
+            survey_id,
+            batch: Self::DEFAULT_BATCH,
+            max_age: Self::DEFAULT_MAX_AGE,
+            buffer: Vec::new(),
+            oldest: None,
+            last_record: None,
+            acknowledged: None,
+        }
+    }
+
+    /// Write every `batch` samples (at least 1).
+    pub fn with_batch(mut self, batch: usize) -> Self {
+        self.batch = batch.max(1);
+        self
+    }
+
+    /// Write when the oldest buffered sample has waited `max_age`.
+    pub fn with_max_age(mut self, max_age: Duration) -> Self {
+        self.max_age = max_age;
+        self
+    }
+
+    /// The survey the samples go to.
+    pub fn survey_id(&self) -> i64 {
+        self.survey_id
+    }
+
+    /// The store.
+    pub fn store(&self) -> &Store {
+        &self.store
+    }
+
+    /// Samples recorded but not yet acknowledged.
+    pub fn pending(&self) -> usize {
+        self.buffer.len()
+    }
+
+    /// The highest seq this sink has acknowledged (written durably), if any.
+    pub fn last_acknowledged(&self) -> Option<u64> {
+        self.acknowledged
+    }
+
+    async fn write(&mut self) -> anyhow::Result<()> {
+        if self.buffer.is_empty() {
+            return Ok(());
+        }
+        self.store.append(self.survey_id, &self.buffer).await?;
+        let top = self.buffer.iter().map(|r| r.seq).max();
+        self.acknowledged = self.acknowledged.max(top);
+        self.buffer.clear();
+        self.oldest = None;
+        Ok(())
+    }
+}
+
+#[async_trait]
+impl SampleSink for StoreSink {
+    async fn record(&mut self, sample: RecordedSample) -> anyhow::Result<()> {
+        let now = Instant::now();
+        let slow = self
+            .last_record
+            .is_some_and(|t| now.duration_since(t) >= self.max_age);
+        self.last_record = Some(now);
+        self.buffer.push(sample);
+        let oldest = *self.oldest.get_or_insert(now);
+        if slow || self.buffer.len() >= self.batch || now.duration_since(oldest) >= self.max_age {
+            self.write().await?;
+        }
+        Ok(())
+    }
+
+    async fn flush(&mut self) -> anyhow::Result<()> {
+        self.write().await
+    }
+
+    /// Stores the positions after those already stored (a resume that locates
+    /// the axis again adds its own) and replaces the survey's axis (JSON of
+    /// the [`AxisFit`]).
+    async fn axis_located(
+        &mut self,
+        points: &[(f64, SmrMeasurement)],
+        fit: &AxisFit,
+    ) -> anyhow::Result<()> {
+        let json = serde_json::to_string(fit).context("cannot encode the located axis")?;
+        self.store.add_locate_points(self.survey_id, points).await?;
+        self.store.set_axis(self.survey_id, &json).await
+    }
+
+    /// Logged at once (not buffered).
+    async fn event(&mut self, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
+        self.store
+            .log_event(self.survey_id, at_s, level, message)
+            .await
+    }
+}

@@ -1,0 +1,456 @@
+//! Tests of the store and of [`StoreSink`](super::StoreSink) on temporary
+//! database files.
+
+use std::time::Duration;
+
+use survey_drivers::{AcReading, SmrMeasurement};
+use survey_processing::geometry::AxisFit;
+use survey_processing::{Direction, Sample};
+
+use super::*;
+use crate::record::{RawReading, RecordedSample, SampleSink};
+
+fn new_survey() -> NewSurvey {
+    NewSurvey {
+        status: SurveyStatus::Running,
+        source: "simulated".into(),
+        points: Some(36),
+        runs: Some(2),
+        bidirectional: true,
+        config_json: r#"{"points":36}"#.into(),
+        model_toml: Some("[design]\n".into()),
+        instruments_json: r#"["sim-positioner","sim-tracker"]"#.into(),
+        planned_samples: Some(144),
+    }
+}
+
+fn recorded(seq: u64) -> RecordedSample {
+    let f = seq as f64;
+    let raw = match seq % 3 {
+        0 => RawReading::None,
+        1 => RawReading::Smr(SmrMeasurement {
+            x_mm: 100.0 + f * 1e-3,
+            y_mm: -50.0 + f / 7.0,
+            z_mm: 0.1 + 0.2,
+            std_dev_mm: [1e-3, 2e-3, f64::NAN],
+            measurement_time_s: 2.5,
+        }),
+        _ => RawReading::Autocollimator {
+            face: (seq % 24) as u32,
+            reading: AcReading {
+                x_arcsec: f / 3.0,
+                y_arcsec: -f / 11.0,
+            },
+        },
+    };
+    RecordedSample {
+        seq,
+        sample: Sample {
+            run: 1 + (seq / 1000) as u32,
+            direction: if seq.is_multiple_of(2) {
+                Direction::Forward
+            } else {
+                Direction::Reverse
+            },
+            target_deg: f * 0.36,
+            readout_deg: f * 0.36 + 1e-4 / (1.0 + f),
+            actual_deg: f * 0.36 - 1.0 / 3.0 * 1e-5,
+            timestamp_s: if seq.is_multiple_of(5) {
+                None
+            } else {
+                Some(f * 1.25)
+            },
+        },
+        raw,
+    }
+}
+
+/// Equal bit for bit (NaN equal to NaN).
+fn assert_same(a: &[RecordedSample], b: &[RecordedSample]) {
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(b) {
+        let (sx, sy) = (format!("{x:?}"), format!("{y:?}"));
+        assert_eq!(sx, sy);
+        assert_eq!(
+            x.sample.readout_deg.to_bits(),
+            y.sample.readout_deg.to_bits()
+        );
+        assert_eq!(x.sample.actual_deg.to_bits(), y.sample.actual_deg.to_bits());
+    }
+}
+
+async fn temp_store() -> (tempfile::TempDir, Store) {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Store::open(&dir.path().join("survey.db")).await.unwrap();
+    (dir, store)
+}
+
+#[tokio::test]
+async fn wal_mode_and_reopen() {
+    let (dir, store) = temp_store().await;
+    assert_eq!(store.journal_mode().await.unwrap(), "wal");
+    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous")
+        .fetch_one(&store.pool)
+        .await
+        .unwrap();
+    assert_eq!(sync, 2, "synchronous = FULL");
+    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys")
+        .fetch_one(&store.pool)
+        .await
+        .unwrap();
+    assert_eq!(fk, 1);
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    store.close().await;
+    // reopening runs the (already applied) migrations again without harm
+    let store = Store::open_existing(&dir.path().join("survey.db"))
+        .await
+        .unwrap();
+    assert_eq!(store.journal_mode().await.unwrap(), "wal");
+    assert_eq!(store.latest_survey_id().await.unwrap(), Some(id));
+    store.close().await;
+}
+
+#[tokio::test]
+async fn append_in_chunks_and_read_back() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    let samples: Vec<RecordedSample> = (0..5000).map(recorded).collect();
+    // 5000 rows x 8 values = 40000 > 32766: must be chunked
+    store.append(id, &samples[..4500]).await.unwrap();
+    store.append(id, &samples[4500..]).await.unwrap();
+    let back = store.samples(id).await.unwrap();
+    assert_same(&back, &samples);
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(4999));
+    assert_eq!(store.survey(id).await.unwrap().sample_count, 5000);
+    // another survey is independent
+    let other = store.create_survey(&new_survey()).await.unwrap();
+    assert!(store.samples(other).await.unwrap().is_empty());
+    assert_eq!(store.last_seq(other).await.unwrap(), None);
+    store.close().await;
+}
+
+#[tokio::test]
+async fn duplicate_seq_fails_and_stores_nothing_of_the_batch() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    let first: Vec<RecordedSample> = (0..10).map(recorded).collect();
+    store.append(id, &first).await.unwrap();
+    // seq 10..1010 then 5 again (in the third chunk)
+    let mut batch: Vec<RecordedSample> = (10..1010).map(recorded).collect();
+    let mut dup = recorded(5);
+    dup.sample.readout_deg = 99.0;
+    batch.push(dup);
+    let e = store.append(id, &batch).await.unwrap_err();
+    assert!(!is_not_found(&e));
+    assert!(
+        format!("{e:#}").contains("UNIQUE constraint failed"),
+        "{e:#}"
+    );
+    assert_same(&store.samples(id).await.unwrap(), &first);
+    // unknown survey: a NotFound
+    let e = store.append(999, &first).await.unwrap_err();
+    assert!(is_not_found(&e), "{e:#}");
+    store.close().await;
+}
+
+#[tokio::test]
+async fn negative_zero_and_extremes_survive_the_database() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    let mut s = recorded(1);
+    s.sample.target_deg = -0.0;
+    s.sample.readout_deg = 5e-324;
+    s.sample.actual_deg = f64::MAX;
+    s.sample.timestamp_s = Some(f64::MIN_POSITIVE);
+    store.append(id, &[s]).await.unwrap();
+    let back = store.samples(id).await.unwrap();
+    assert_eq!(back[0].sample.target_deg.to_bits(), (-0.0f64).to_bits());
+    assert_same(&back, &[s]);
+    let mut nan = recorded(2);
+    nan.sample.actual_deg = f64::NAN;
+    let e = store.append(id, &[nan]).await.unwrap_err();
+    assert!(format!("{e:#}").contains("actual_deg is NaN"), "{e:#}");
+    store.close().await;
+}
+
+#[tokio::test]
+async fn import_is_atomic() {
+    let (_dir, store) = temp_store().await;
+    let good: Vec<Sample> = (0..1000).map(|i| recorded(i).sample).collect();
+    // a CHECK violation (run 0) at the end
+    let mut bad = good.clone();
+    bad[999].run = 0;
+    let s = NewSurvey {
+        status: SurveyStatus::Imported,
+        source: "import:data.csv".into(),
+        ..NewSurvey::default()
+    };
+    assert!(store.import(&s, &bad).await.is_err());
+    assert!(store.list().await.unwrap().is_empty());
+    // a failure inside SQLite in the third chunk
+    sqlx::query(
+        "CREATE TEMP TRIGGER boom BEFORE INSERT ON samples WHEN NEW.seq = 900 \
+         BEGIN SELECT RAISE(ABORT, 'boom'); END",
+    )
+    .execute(&store.pool)
+    .await
+    .unwrap();
+    let e = store.import(&s, &good).await.unwrap_err();
+    assert!(format!("{e:#}").contains("boom"), "{e:#}");
+    assert!(store.list().await.unwrap().is_empty());
+    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples")
+        .fetch_one(&store.pool)
+        .await
+        .unwrap();
+    assert_eq!(n, 0);
+    sqlx::query("DROP TRIGGER boom")
+        .execute(&store.pool)
+        .await
+        .unwrap();
+
+    let id = store.import(&s, &good).await.unwrap();
+    let row = store.survey(id).await.unwrap();
+    assert_eq!(row.status, SurveyStatus::Imported);
+    assert_eq!(row.source, "import:data.csv");
+    assert_eq!(row.sample_count, 1000);
+    let back: Vec<Sample> = store
+        .samples(id)
+        .await
+        .unwrap()
+        .iter()
+        .map(|r| r.sample)
+        .collect();
+    assert_eq!(back, good);
+    assert!(
+        store
+            .samples(id)
+            .await
+            .unwrap()
+            .iter()
+            .all(|r| r.raw == RawReading::None)
+    );
+    store.close().await;
+}
+
+#[tokio::test]
+async fn resolve_latest_and_not_found() {
+    let (dir, store) = temp_store().await;
+    let e = store.resolve(None).await.unwrap_err();
+    assert!(is_not_found(&e));
+    assert!(e.to_string().starts_with("no survey in "), "{e}");
+    let a = store.create_survey(&new_survey()).await.unwrap();
+    let b = store.create_survey(&new_survey()).await.unwrap();
+    assert!(b > a);
+    assert_eq!(store.resolve(None).await.unwrap().id, b);
+    assert_eq!(store.resolve(Some(a)).await.unwrap().id, a);
+    let e = store.resolve(Some(7)).await.unwrap_err();
+    assert!(is_not_found(&e));
+    assert!(e.downcast_ref::<NotFound>().is_some());
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "no survey with id 7 in {}",
+            dir.path().join("survey.db").display()
+        )
+    );
+    assert!(is_not_found(
+        &store
+            .set_status(7, SurveyStatus::Failed, None)
+            .await
+            .unwrap_err()
+    ));
+    assert!(is_not_found(&store.set_axis(7, "{}").await.unwrap_err()));
+    assert!(is_not_found(
+        &store.log_event(7, 0.0, "info", "x").await.unwrap_err()
+    ));
+    let list = store.list().await.unwrap();
+    assert_eq!(list.iter().map(|r| r.id).collect::<Vec<_>>(), vec![a, b]);
+    store.close().await;
+}
+
+#[tokio::test]
+async fn survey_fields_status_axis_events_locate_points() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    let row = store.survey(id).await.unwrap();
+    assert_eq!(row.status, SurveyStatus::Running);
+    assert_eq!(row.points, Some(36));
+    assert_eq!(row.runs, Some(2));
+    assert!(row.bidirectional);
+    assert_eq!(row.planned_samples, Some(144));
+    assert_eq!(row.model_toml.as_deref(), Some("[design]\n"));
+    assert_eq!(row.axis_json, None);
+    assert_eq!(row.ended_at_s, None);
+    assert_eq!(row.sample_count, 0);
+    assert!(
+        row.created_at.ends_with('Z') && row.created_at.contains('T'),
+        "{}",
+        row.created_at
+    );
+
+    store.set_started(id, 0.5).await.unwrap();
+    store.set_axis(id, r#"{"center":[0,0,0]}"#).await.unwrap();
+    store
+        .set_status(id, SurveyStatus::Interrupted, None)
+        .await
+        .unwrap();
+    store
+        .set_status(id, SurveyStatus::Complete, Some(3600.25))
+        .await
+        .unwrap();
+    let row = store.survey(id).await.unwrap();
+    assert_eq!(row.status, SurveyStatus::Complete);
+    assert_eq!(row.started_at_s, Some(0.5));
+    assert_eq!(row.ended_at_s, Some(3600.25));
+    assert_eq!(row.axis_json.as_deref(), Some(r#"{"center":[0,0,0]}"#));
+
+    store
+        .log_event(id, 12.0, "warn", "beam broken, reacquired")
+        .await
+        .unwrap();
+    store
+        .log_event(id, 13.0, "info", "resumed at seq 40")
+        .await
+        .unwrap();
+    let ev = store.events(id).await.unwrap();
+    assert_eq!(ev.len(), 2);
+    assert_eq!((ev[0].at_s, ev[0].level.as_str()), (12.0, "warn"));
+    assert_eq!(ev[1].message, "resumed at seq 40");
+
+    let m = |i: f64| SmrMeasurement {
+        x_mm: i,
+        y_mm: 2.0 * i,
+        z_mm: -i,
+        std_dev_mm: [0.001, 0.002, 0.003],
+        measurement_time_s: 2.0,
+    };
+    store
+        .add_locate_points(id, &[(0.0, m(1.0)), (120.0, m(2.0))])
+        .await
+        .unwrap();
+    store
+        .add_locate_points(id, &[(240.0, m(3.0))])
+        .await
+        .unwrap();
+    let pts = store.locate_points(id).await.unwrap();
+    assert_eq!(pts, vec![(0.0, m(1.0)), (120.0, m(2.0)), (240.0, m(3.0))]);
+
+    for st in [
+        SurveyStatus::Running,
+        SurveyStatus::Interrupted,
+        SurveyStatus::Complete,
+        SurveyStatus::Failed,
+        SurveyStatus::Imported,
+    ] {
+        assert_eq!(st.as_str().parse::<SurveyStatus>().unwrap(), st);
+    }
+    store.close().await;
+}
+
+#[tokio::test]
+async fn open_existing_does_not_create() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("nothing.db");
+    let e = Store::open_existing(&path).await.unwrap_err();
+    assert!(is_not_found(&e));
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "no survey database at {}: run `survey run` or `survey import` first",
+            path.display()
+        )
+    );
+    assert!(!path.exists());
+    // a file that is not a database is a user error too
+    let junk = dir.path().join("notes.txt");
+    std::fs::write(&junk, "this is not a database, just some text that is long enough to be a header ......................................................").unwrap();
+    let e = Store::open_existing(&junk).await.unwrap_err();
+    assert!(is_not_found(&e), "{e:#}");
+    assert!(e.to_string().contains("notes.txt"), "{e:#}");
+    // open() names the path when it cannot create the file
+    let e = Store::open(&dir.path().join("no/such/dir/x.db"))
+        .await
+        .unwrap_err();
+    assert!(format!("{e:#}").contains("no/such/dir/x.db"), "{e:#}");
+}
+
+#[tokio::test]
+async fn store_sink_flushes_by_batch_and_on_flush() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    let mut sink = StoreSink::new(store.clone(), id)
+        .with_batch(10)
+        .with_max_age(Duration::from_secs(60));
+    for seq in 0..9 {
+        sink.record(recorded(seq)).await.unwrap();
+    }
+    assert_eq!(store.last_seq(id).await.unwrap(), None);
+    assert_eq!(sink.pending(), 9);
+    sink.record(recorded(9)).await.unwrap();
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(9));
+    assert_eq!(sink.pending(), 0);
+    assert_eq!(sink.last_acknowledged(), Some(9));
+    for seq in 10..13 {
+        sink.record(recorded(seq)).await.unwrap();
+    }
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(9));
+    sink.flush().await.unwrap();
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(12));
+    sink.flush().await.unwrap(); // nothing to write
+    let expected: Vec<RecordedSample> = (0..13).map(recorded).collect();
+    assert_same(&store.samples(id).await.unwrap(), &expected);
+    store.close().await;
+}
+
+#[tokio::test]
+async fn store_sink_flushes_by_age_and_keeps_failed_batches() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    let mut sink = StoreSink::new(store.clone(), id).with_max_age(Duration::from_millis(300));
+    sink.record(recorded(0)).await.unwrap();
+    sink.record(recorded(1)).await.unwrap();
+    assert_eq!(store.last_seq(id).await.unwrap(), None);
+    tokio::time::sleep(Duration::from_millis(350)).await;
+    // the oldest has waited more than max_age
+    sink.record(recorded(2)).await.unwrap();
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(2));
+    // slow samples (more than max_age apart) are written as they come
+    tokio::time::sleep(Duration::from_millis(350)).await;
+    sink.record(recorded(3)).await.unwrap();
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(3));
+
+    // events and the located axis go straight to the store
+    sink.event(4.5, "warn", "beam broken").await.unwrap();
+    let m = SmrMeasurement {
+        x_mm: 1.0,
+        y_mm: 2.0,
+        z_mm: 3.0,
+        std_dev_mm: [0.01; 3],
+        measurement_time_s: 2.0,
+    };
+    let fit = AxisFit {
+        center_mm: [0.0, 0.0, 0.0],
+        normal: [0.0, 0.0, 1.0],
+        u: [1.0, 0.0, 0.0],
+        v: [0.0, 1.0, 0.0],
+        radius_mm: 250.0,
+        zero_offset_deg: 0.5,
+        plane_rms_mm: 0.001,
+        circle_rms_mm: 0.002,
+        points: 3,
+    };
+    let pts = [(0.0, m), (120.0, m), (240.0, m)];
+    sink.axis_located(&pts, &fit).await.unwrap();
+    assert_eq!(store.locate_points(id).await.unwrap(), pts.to_vec());
+    let axis: AxisFit =
+        serde_json::from_str(&store.survey(id).await.unwrap().axis_json.unwrap()).unwrap();
+    assert_eq!(axis, fit);
+    assert_eq!(store.events(id).await.unwrap()[0].message, "beam broken");
+
+    // a failing write keeps the samples for the next try
+    sink.record(recorded(1)).await.unwrap(); // a duplicate seq, buffered
+    sink.flush().await.unwrap_err();
+    assert_eq!(sink.pending(), 1);
+    assert_eq!(sink.last_acknowledged(), Some(3));
+    store.close().await;
+}
