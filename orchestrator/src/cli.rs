@@ -41,6 +41,10 @@ pub enum Command {
     Export(ExportArgs),
     /// ISO 230-2 statistics across runs.
     Stats(StatsArgs),
+    /// Find where a model and the measured data disagree, name what the model lacks, and close the gap.
+    ModelGap(ModelGapArgs),
+    /// The paper's DSP processing: spectrum, lines, aliases, the correction table and its exports.
+    Process(ProcessArgs),
 }
 
 /// The reference instrument that measures the actual angle.
@@ -131,6 +135,43 @@ pub struct StatsArgs {
     /// Survey id (default: the latest).
     #[arg(long, value_name = "ID")]
     pub survey: Option<i64>,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ProcessArgs {
+    /// Survey id (default: the latest).
+    #[arg(long, value_name = "ID")]
+    pub survey: Option<i64>,
+    /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
+    #[arg(long, value_name = "FILE")]
+    pub design: Option<PathBuf>,
+    /// Replay this processing recipe (TOML) instead of deriving one from the survey.
+    #[arg(long, value_name = "FILE")]
+    pub recipe: Option<PathBuf>,
+    /// The correction table CSV [default: table-<ID>.csv]; the LinuxCNC files
+    /// (<stem>.comp0, <stem>.comp1), the binary table (<stem>.bin) and the recipe
+    /// used (<stem>.recipe.toml) go beside it.
+    #[arg(long, value_name = "FILE")]
+    pub table_out: Option<PathBuf>,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ModelGapArgs {
+    /// The positioner model file (TOML) to compare with the survey.
+    #[arg(long, value_name = "FILE")]
+    pub model: PathBuf,
+    /// Survey id (default: the latest).
+    #[arg(long, value_name = "ID")]
+    pub survey: Option<i64>,
+    /// Write the improved model file (the model with the effects added and adjusted) here.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,

@@ -15,6 +15,8 @@ pub async fn dispatch(cli: Cli) -> Result<(), Failure> {
         Command::Import(args) => import(&cli.db, args).await,
         Command::Export(args) => export(&cli.db, args).await,
         Command::Stats(args) => stats(&cli.db, args).await,
+        Command::ModelGap(args) => crate::modelgap::command(&cli.db, args).await,
+        Command::Process(args) => crate::process::command(&cli.db, args).await,
     }
 }
 

@@ -7,10 +7,13 @@
 
 pub mod analysis;
 pub mod correction;
+pub mod corrector;
 pub mod errormap;
 pub mod geometry;
 pub mod iso230;
 pub mod model;
+pub mod modelgap;
+pub mod recipe;
 pub mod resample;
 pub mod spectrum;
 pub mod table;

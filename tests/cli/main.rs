@@ -14,6 +14,8 @@
 //! and the next valid import must get the next id.
 
 mod instruments;
+mod modelgap;
+mod process;
 
 use serde_json::Value;
 use std::fmt;

@@ -2,6 +2,7 @@
 //! SQLite, checked against the truth the simulators know.
 
 mod resume;
+mod modelgap;
 mod wire;
 
 use std::sync::Arc;

@@ -1,0 +1,238 @@
+//! The processing itself, from samples to a table and its predicted accuracy:
+//! pure functions, no files and no database.
+
+use anyhow::{Context as _, anyhow};
+use survey_processing::Sample;
+use survey_processing::analysis::{Analysis, analyse};
+use survey_processing::correction::{Prediction, predict_accuracy};
+use survey_processing::errormap::Coverage;
+use survey_processing::iso230::{Iso230, iso230_2};
+use survey_processing::model::Design;
+use survey_processing::recipe::{ApplyError, BuiltTable, Decisions, Recipe};
+use survey_processing::resample::{MethodScore, Resampler, compare_interpolation};
+use survey_processing::table::CorrectionTable;
+
+/// The repeatability floor no correction can beat.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Floor {
+    /// Degrees, when the survey allows ISO 230-2 statistics (two runs or more).
+    pub deg: Option<f64>,
+    /// What it is, in words.
+    pub what: String,
+}
+
+/// The LinuxCNC export: the table decimated to the controller's points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompTable {
+    /// Nominal (readout) angles, ascending, degrees.
+    pub nominal_deg: Vec<f64>,
+    /// Error for forward motion at each nominal, degrees.
+    pub forward_deg: Vec<f64>,
+    /// Error for reverse motion (equal to forward for a one-column table).
+    pub reverse_deg: Vec<f64>,
+    /// The accuracy predicted with the decimated table (full circle only).
+    pub prediction: Option<Prediction>,
+}
+
+/// Everything the processing of one survey produced.
+#[derive(Debug)]
+pub struct Processed {
+    /// The spectral analysis.
+    pub analysis: Analysis,
+    /// The recipe used (replayed, or derived from this survey).
+    pub recipe: Recipe,
+    /// Whether the recipe was replayed from a file.
+    pub replayed: bool,
+    /// What the recipe decided on this survey.
+    pub decisions: Decisions,
+    /// The table.
+    pub built: BuiltTable,
+    /// Native and corrected accuracy, predicted on the survey's samples.
+    pub prediction: Prediction,
+    /// The repeatability floor.
+    pub floor: Floor,
+    /// ISO 230-2 statistics of the survey, when it allows them.
+    pub iso: Option<Iso230>,
+    /// The paper's Figure 6 comparison (or why it could not be made).
+    pub interpolation: Result<Vec<MethodScore>, String>,
+    /// The LinuxCNC export, when the recipe asks for it.
+    pub comp: Option<CompTable>,
+    /// Remarks for the operator.
+    pub notes: Vec<String>,
+}
+
+/// A survey whose targets include both 0 and 360 (the same angle twice)
+/// loses the samples at the last one, so that it is one uniform revolution.
+fn close_circle(samples: &[Sample]) -> (Vec<Sample>, Option<String>) {
+    let lo = samples.iter().map(|s| s.target_deg).fold(f64::INFINITY, f64::min);
+    let hi = samples.iter().map(|s| s.target_deg).fold(f64::NEG_INFINITY, f64::max);
+    if ((hi - lo) - 360.0).abs() < 1e-6 {
+        let kept: Vec<Sample> = samples.iter().filter(|s| (s.target_deg - hi).abs() > 1e-6).copied().collect();
+        let note = format!("targets {lo} and {hi} deg are the same angle: the samples at {hi} deg are left out of the processing");
+        (kept, Some(note))
+    } else {
+        (samples.to_vec(), None)
+    }
+}
+
+fn recipe_error(e: ApplyError, file: Option<(&str, &str)>) -> anyhow::Error {
+    match (e, file) {
+        (ApplyError::Choice(c), Some((text, name))) => anyhow!("{}", c.in_file(text, name)),
+        (ApplyError::Choice(c), None) => anyhow!("the derived recipe: {c}"),
+        (other, _) => anyhow!("{other}"),
+    }
+}
+
+/// Process `samples` of survey `id` with `design` and, when given, a replayed
+/// recipe `(recipe, its text, its file name)`; derive a recipe otherwise.
+pub fn process(id: i64, samples: &[Sample], design: &Design, replay: Option<(&Recipe, &str, &str)>) -> anyhow::Result<Processed> {
+    if samples.is_empty() {
+        return Err(anyhow!("survey {id} has no samples to process"));
+    }
+    let mut notes = Vec::new();
+    let (samples, note) = close_circle(samples);
+    notes.extend(note);
+    let base = replay.map(|(r, _, _)| r.clone()).unwrap_or_default();
+    let analysis = analyse(&samples, design, &base.analysis).with_context(|| format!("survey {id} cannot be processed"))?;
+    let recipe = match replay {
+        Some((r, _, _)) => r.clone(),
+        None => Recipe::from_analysis(&analysis, &base),
+    };
+    let file = replay.map(|(_, text, name)| (text, name));
+    let decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), file))?;
+    notes.extend(decisions.notes.iter().cloned());
+    let built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, file))?;
+    notes.extend(built.notes.iter().cloned());
+    let iso = iso230_2(&samples).ok();
+    let floor = match &iso {
+        Some(s) if built.directional => Floor {
+            deg: Some(s.r_up.unwrap_or(s.r).max(s.r_down.unwrap_or(0.0)) / 2.0),
+            what: "half the larger unidirectional ISO 230-2 repeatability (a directional table removes the reversal)".into(),
+        },
+        Some(s) => Floor {
+            deg: Some(s.r / 2.0),
+            what: "half the ISO 230-2 repeatability R (with the reversal a one-column table leaves)".into(),
+        },
+        None => Floor { deg: None, what: "one run: no repeatability figure".into() },
+    };
+    let prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))
+        .with_context(|| format!("survey {id}: predicting the corrected accuracy"))?;
+    let single = match analysis.error_map.coverage {
+        Coverage::FullCircle { .. } => analysis
+            .error_map
+            .bidirectional_mean_deg
+            .as_ref()
+            .or(analysis.error_map.forward.as_ref().map(|d| &d.mean_deg))
+            .or(analysis.error_map.reverse.as_ref().map(|d| &d.mean_deg)),
+        Coverage::Partial { .. } => None,
+    };
+    let interpolation = match single {
+        Some(map) => compare_interpolation(map).map_err(|e| e.to_string()),
+        None => Err("a partial range has no periodic map to resample".to_string()),
+    };
+    let comp = recipe.export.linuxcnc.then(|| comp_table(&analysis, &built.table, recipe.export.linuxcnc_points, &samples));
+    Ok(Processed {
+        analysis,
+        recipe,
+        replayed: replay.is_some(),
+        decisions,
+        built,
+        prediction,
+        floor,
+        iso,
+        interpolation,
+        comp,
+        notes,
+    })
+}
+
+/// The table at `points` nominal angles for LinuxCNC: over a full circle,
+/// `points - 1` rows from 0 up to `360 - 360 / (points - 1)` low-passed by
+/// spectral decimation (a line the coarse table cannot hold is dropped, not
+/// aliased) and the row at 0 repeated at 360, so the joint is covered over the
+/// whole revolution; over a partial range, `points` angles from the first
+/// target to the last, read from the table.
+pub fn comp_table(analysis: &Analysis, table: &CorrectionTable, points: usize, samples: &[Sample]) -> CompTable {
+    let reverse_col = table.reverse.as_ref().unwrap_or(&table.forward);
+    match analysis.error_map.coverage {
+        Coverage::FullCircle { .. } => {
+            let m = points - 1;
+            let mut rs = Resampler::new();
+            let f = rs.resample(&table.forward, m);
+            let r = rs.resample(reverse_col, m);
+            let coarse = if table.is_directional() {
+                CorrectionTable::directional(f.clone(), r.clone())
+            } else {
+                CorrectionTable::new(f.clone())
+            }
+            .expect("at least two finite rows");
+            let prediction = predict_accuracy(samples, &coarse, 0.0).ok();
+            let close = |c: &[f64]| c.iter().copied().chain(std::iter::once(c[0])).collect::<Vec<f64>>();
+            CompTable {
+                nominal_deg: (0..=m).map(|i| i as f64 * 360.0 / m as f64).collect(),
+                forward_deg: close(&f),
+                reverse_deg: close(&r),
+                prediction,
+            }
+        }
+        Coverage::Partial { start, end, .. } => {
+            let nominal: Vec<f64> =
+                (0..points).map(|i| start + (end - start) * i as f64 / (points - 1) as f64).collect();
+            let read = |d| nominal.iter().map(|&a| table.error_at(a, d)).collect();
+            CompTable {
+                forward_deg: read(survey_processing::Direction::Forward),
+                reverse_deg: read(survey_processing::Direction::Reverse),
+                nominal_deg: nominal,
+                prediction: None,
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use survey_processing::Direction;
+
+    fn samples(points: usize, with_360: bool) -> Vec<Sample> {
+        let mut out = Vec::new();
+        let count = if with_360 { points + 1 } else { points };
+        for run in 1..=2 {
+            for j in 0..count {
+                let t = 360.0 * j as f64 / points as f64;
+                let e = 0.01 * (20.0 * t).to_radians().sin() + 0.0001 * ((run as usize * 7 + j) % 5) as f64;
+                out.push(Sample { run, direction: Direction::Forward, target_deg: t, readout_deg: t, actual_deg: t - e, timestamp_s: None });
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_closed_circle_is_opened_and_processed() {
+        let p = process(1, &samples(90, true), &Design { gear_ratios: vec![20.0], ..Design::default() }, None).unwrap();
+        assert!(p.notes.iter().any(|n| n.contains("same angle")), "{:?}", p.notes);
+        assert_eq!(p.analysis.error_map.coverage, Coverage::FullCircle { n: 90 });
+        assert!(p.decisions.kept_cycles.contains(&20.0));
+        assert!(p.prediction.corrected_peak_deg < p.prediction.native_peak_deg / 10.0, "{:?}", p.prediction);
+        let comp = p.comp.as_ref().unwrap();
+        assert_eq!(comp.nominal_deg.len(), 256);
+        assert_eq!((comp.nominal_deg[0], comp.nominal_deg[255]), (0.0, 360.0));
+        assert_eq!(comp.forward_deg[0], comp.forward_deg[255]);
+        assert!(comp.prediction.as_ref().unwrap().corrected_peak_deg < p.prediction.native_peak_deg / 10.0);
+        assert!(process(1, &[], &Design::default(), None).unwrap_err().to_string().contains("no samples"));
+    }
+
+    #[test]
+    fn linuxcnc_decimation_drops_what_it_cannot_hold() {
+        // A 216-cycle line cannot live in 255 rows: removed, not aliased to 39.
+        let table = CorrectionTable::new(
+            (0..4096).map(|i| 0.001 * (216.0 * i as f64 * 360.0 / 4096.0).to_radians().sin() + 0.002).collect(),
+        )
+        .unwrap();
+        let p = process(1, &samples(90, false), &Design::default(), None).unwrap();
+        let comp = comp_table(&p.analysis, &table, 256, &samples(90, false));
+        for v in &comp.forward_deg {
+            assert!((v - 0.002).abs() < 1e-12, "{v}");
+        }
+    }
+}

@@ -1,0 +1,234 @@
+//! The `survey process` JSON document and human summary.
+//!
+//! The JSON holds the contract's keys (`survey_id`; `peaks` with
+//! `cycles_per_rev`, `amplitude_deg`, `source`, `repeatable`; `aliases` with
+//! `observed_cycles`, `true_cycles`, `action` = `relocated` or `nulled`;
+//! `table` with `path`, `points`, `directional`; `predicted` with
+//! `native_peak_deg` and `corrected_peak_deg`) and more: each peak's true
+//! frequency, phase, share and fate in the table; each alias' source and
+//! reason; the table's method, kept lines and hysteresis test; the predicted
+//! RMS and ISO 230-2 `A`, the repeatability floor and the LinuxCNC file's
+//! predicted peak; the Figure 6 interpolation comparison; the noise floor;
+//! the points needed; the design and recipe used; every file written; notes.
+//! `peaks` lists the significant lines of the survey; `cycles_per_rev` is
+//! where the spectrum shows the line (the alias bin of an aliased line,
+//! whose true frequency is `true_cycles_per_rev`).
+
+use super::ProcessOutcome;
+use serde_json::{Value, json};
+use std::fmt::Write as _;
+use survey_processing::recipe::LineAction;
+
+fn path(p: &Option<std::path::PathBuf>) -> Value {
+    p.as_ref().map_or(Value::Null, |p| Value::String(p.display().to_string()))
+}
+
+/// The JSON document (see the module documentation).
+pub fn json(o: &ProcessOutcome) -> Value {
+    let p = &o.processed;
+    let a = &p.analysis;
+    let peaks: Vec<Value> = a
+        .lines
+        .iter()
+        .map(|l| {
+            let d = p.decisions.lines.iter().find(|d| d.significant && d.cycles_per_rev == l.cycles_per_rev);
+            json!({
+                "cycles_per_rev": l.cycles_per_rev,
+                "amplitude_deg": l.amplitude_deg,
+                "source": l.source,
+                "repeatable": l.repeatable,
+                "true_cycles_per_rev": d.map_or(l.true_cycles_per_rev, |d| d.true_cycles_per_rev),
+                "phase_deg": l.phase_deg,
+                "share": l.share,
+                "coherence": l.coherence,
+                "kept": d.is_some_and(|d| matches!(d.action, LineAction::Kept | LineAction::Relocated)),
+                "action": d.map(|d| d.action),
+                "reason": d.map(|d| d.reason.clone()),
+            })
+        })
+        .collect();
+    let aliases: Vec<Value> = p
+        .decisions
+        .aliases
+        .iter()
+        .map(|x| {
+            json!({
+                "observed_cycles": x.observed_cycles,
+                "true_cycles": x.true_cycles,
+                "action": x.action,
+                "applied": x.applied,
+                "from_recipe": x.from_recipe,
+                "recommended": x.recommended,
+                "source": x.source,
+                "reason": x.reason,
+            })
+        })
+        .collect();
+    let t = &p.built.table;
+    let pr = &p.prediction;
+    json!({
+        "survey_id": o.survey_id,
+        "peaks": peaks,
+        "aliases": aliases,
+        "table": {
+            "path": o.files.table_csv.display().to_string(),
+            "points": t.len(),
+            "directional": t.is_directional(),
+            "spacing_deg": t.spacing_deg(),
+            "directional_reason": p.built.directional_reason,
+            "hysteresis": p.built.hysteresis,
+            "method": p.built.method,
+            "method_text": p.built.method.to_string(),
+            "kept_cycles": p.decisions.kept_cycles,
+            "null_bins": p.decisions.edit.null,
+        },
+        "predicted": {
+            "native_peak_deg": pr.native_peak_deg,
+            "corrected_peak_deg": pr.corrected_peak_deg,
+            "native_rms_deg": pr.native.rms_deg,
+            "corrected_rms_deg": pr.corrected.rms_deg,
+            "native_iso230_a_deg": pr.native.iso230_a_deg,
+            "corrected_iso230_a_deg": pr.corrected.iso230_a_deg,
+            "floor_deg": p.floor.deg,
+            "floor": p.floor.what,
+            "linuxcnc_corrected_peak_deg": p.comp.as_ref().and_then(|c| c.prediction.as_ref()).map(|c| c.corrected_peak_deg),
+            "samples": pr.samples,
+        },
+        "interpolation": p.interpolation.as_ref().ok(),
+        "noise": a.noise,
+        "points_needed": a.points_needed,
+        "runs": a.runs,
+        "points_per_rev": a.points_per_rev,
+        "design": o.design,
+        "recipe": {
+            "path": o.files.recipe.display().to_string(),
+            "replayed": p.replayed,
+            "from": path(&o.recipe_from),
+            "lines_keep": p.recipe.lines.keep,
+            "lines_remove": p.recipe.lines.remove,
+        },
+        "files": o.files,
+        "notes": a.notes.iter().chain(&p.notes).collect::<Vec<_>>(),
+    })
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or_else(|| "-".to_string(), |x| format!("{x:.5}"))
+}
+
+/// The human summary (see the module documentation).
+pub fn text(o: &ProcessOutcome) -> String {
+    let p = &o.processed;
+    let a = &p.analysis;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "survey {}: processing of {} points/rev x {} runs; design: {}; recipe: {}",
+        o.survey_id,
+        a.points_per_rev,
+        a.runs,
+        o.design.from,
+        match &o.recipe_from {
+            Some(r) => format!("replayed from {}", r.display()),
+            None => "derived from this survey".to_string(),
+        }
+    );
+    let _ = writeln!(
+        s,
+        "noise: {:.2e} deg per sample; a line needs {:.2e} deg in the mean spectrum",
+        a.noise.sample_sd_deg, a.noise.coherent_threshold_deg
+    );
+    let _ = writeln!(s, "\npeaks ({} significant):", a.lines.len());
+    let _ = writeln!(s, "  {:>8} {:>10} {:>7}  {:<10} {:<10} source", "cyc/rev", "amp deg", "share", "", "table");
+    for l in &a.lines {
+        let d = p.decisions.lines.iter().find(|d| d.significant && d.cycles_per_rev == l.cycles_per_rev);
+        let fate = match d.map(|d| (d.action, d.true_cycles_per_rev)) {
+            Some((LineAction::Relocated, f)) => format!("-> {f}"),
+            Some((action, _)) => format!("{action:?}").to_lowercase(),
+            None => "-".into(),
+        };
+        let _ = writeln!(
+            s,
+            "  {:>8} {:>10.6} {:>6.1}%  {:<10} {:<10} {}",
+            l.cycles_per_rev,
+            l.amplitude_deg,
+            100.0 * l.share,
+            if l.repeatable { "repeatable" } else { "random" },
+            fate,
+            l.source
+        );
+    }
+    for d in p.decisions.lines.iter().filter(|d| !d.significant) {
+        let _ = writeln!(s, "  {:>8} {:>10.6} {:>7}  {:<10} {:<10} {}", d.cycles_per_rev, d.amplitude_deg, "", "", "kept", d.reason);
+    }
+    let applied: Vec<_> = p.decisions.aliases.iter().filter(|x| x.applied || x.from_recipe).collect();
+    if !applied.is_empty() {
+        let _ = writeln!(s, "\naliases (observed <- true cycles/rev):");
+        for x in applied {
+            let _ = writeln!(
+                s,
+                "  {:>6} <- {:<6} {:<9} {} ({})",
+                x.observed_cycles,
+                x.true_cycles,
+                format!("{:?}", x.action).to_lowercase(),
+                x.source,
+                x.reason
+            );
+        }
+    }
+    let quiet = p.decisions.aliases.iter().filter(|x| !x.applied && !x.from_recipe).count();
+    if quiet > 0 {
+        let _ = writeln!(s, "  ({quiet} more aliased design frequencies with no line at their bin)");
+    }
+    match &p.interpolation {
+        Ok(scores) => {
+            let _ = writeln!(s, "\ninterpolation of the survey decimated by 2 (paper Figure 6), deg:");
+            for m in scores {
+                let mark = if m.method == p.recipe.table.interpolation { " *" } else { "" };
+                let _ = writeln!(s, "  {:<10} rms {:.2e}  peak {:.2e}{mark}", m.method.as_str(), m.rms_deg, m.peak_deg);
+            }
+        }
+        Err(why) => {
+            let _ = writeln!(s, "\ninterpolation comparison: not made ({why})");
+        }
+    }
+    let t = &p.built.table;
+    let _ = writeln!(
+        s,
+        "\ntable: {} rows every {:.5} deg, {}, {}; {}",
+        t.len(),
+        t.spacing_deg(),
+        if t.is_directional() { "directional" } else { "one column" },
+        p.built.method,
+        p.built.directional_reason
+    );
+    let pr = &p.prediction;
+    let _ = writeln!(
+        s,
+        "predicted: native +/-{:.5} deg (ISO A {}) -> corrected +/-{:.5} deg (ISO A {}); RMS {:.5} -> {:.5}",
+        pr.native_peak_deg,
+        opt(pr.native.iso230_a_deg),
+        pr.corrected_peak_deg,
+        opt(pr.corrected.iso230_a_deg),
+        pr.native.rms_deg,
+        pr.corrected.rms_deg
+    );
+    let _ = writeln!(s, "repeatability floor: {} deg ({})", opt(p.floor.deg), p.floor.what);
+    if let Some(c) = p.comp.as_ref().and_then(|c| c.prediction.as_ref()) {
+        let n = p.comp.as_ref().map_or(0, |c| c.nominal_deg.len());
+        let _ = writeln!(s, "LinuxCNC file ({n} points): corrected +/-{:.5} deg", c.corrected_peak_deg);
+    }
+    if let Some(n) = &a.points_needed {
+        let _ = writeln!(s, "points: {}", n.note);
+    }
+    let _ = writeln!(s, "\nfiles:");
+    let f = &o.files;
+    let _ = writeln!(s, "  table           {}", f.table_csv.display());
+    for (what, p) in [("LinuxCNC type 0", &f.linuxcnc_type0), ("LinuxCNC type 1", &f.linuxcnc_type1), ("binary", &f.binary)] {
+        if let Some(p) = p {
+            let _ = writeln!(s, "  {what:<15} {}", p.display());
+        }
+    }
+    let _ = writeln!(s, "  recipe          {} (replay with --recipe)", f.recipe.display());
+    s
+}

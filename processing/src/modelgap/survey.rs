@@ -1,0 +1,162 @@
+//! The survey as model-gap sees it: per sample its target, run, direction and
+//! time in runs, the measured error, and the noise floor.
+
+use super::ModelGapError;
+use crate::errormap::ErrorMap;
+use crate::model::Model;
+use crate::types::{Direction, Sample};
+use serde::Serialize;
+
+/// What the drift's time axis (`runs_elapsed`) is measured in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Timebase {
+    /// The samples' timestamps, in units of the mean time from one run's first
+    /// sample to the next run's (drift is a function of time, as in the simulator).
+    Timestamps,
+    /// The acquisition order: the k-th of the `n` samples of run index `r` is at
+    /// `r + k / n` runs (the samples carry no timestamps).
+    SampleOrder,
+}
+
+/// A prepared survey.
+#[derive(Debug, Clone)]
+pub(crate) struct Survey {
+    pub samples: Vec<Sample>,
+    pub map: ErrorMap,
+    /// Per sample: index into `map.targets_deg`.
+    pub target: Vec<usize>,
+    /// Per sample: index into `map.runs`.
+    pub run: Vec<usize>,
+    /// Per sample: index into `dirs`.
+    pub dir: Vec<usize>,
+    /// The measured directions (forward first).
+    pub dirs: Vec<Direction>,
+    /// Per sample: runs elapsed since the first sample.
+    pub tau: Vec<f64>,
+    /// Per sample: the measured error `readout - actual`.
+    pub y: Vec<f64>,
+    pub timebase: Timebase,
+    /// Mean run duration, seconds (with timestamps).
+    pub run_duration_s: Option<f64>,
+}
+
+impl Survey {
+    pub fn prepare(samples: &[Sample]) -> Result<Self, ModelGapError> {
+        let map = ErrorMap::from_samples(samples)?;
+        let dirs: Vec<Direction> =
+            [Direction::Forward, Direction::Reverse].into_iter().filter(|d| map.direction(*d).is_some()).collect();
+        let target: Vec<usize> = samples
+            .iter()
+            .map(|s| map.targets_deg.partition_point(|&t| t <= s.target_deg).saturating_sub(1))
+            .collect();
+        let run: Vec<usize> =
+            samples.iter().map(|s| map.runs.binary_search(&s.run).expect("every run is in the map")).collect();
+        let dir: Vec<usize> =
+            samples.iter().map(|s| dirs.iter().position(|d| *d == s.direction).expect("measured")).collect();
+        let y: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
+        let (tau, timebase, run_duration_s) = time_in_runs(samples, &run, map.runs.len());
+        Ok(Survey { samples: samples.to_vec(), map, target, run, dir, dirs, tau, y, timebase, run_duration_s })
+    }
+
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    pub fn runs(&self) -> usize {
+        self.map.runs.len()
+    }
+
+    pub fn targets(&self) -> usize {
+        self.map.targets_deg.len()
+    }
+
+    pub fn bidirectional(&self) -> bool {
+        self.dirs.len() == 2
+    }
+
+    pub fn direction(&self, i: usize) -> Direction {
+        self.dirs[self.dir[i]]
+    }
+
+    /// The model's systematic error at every sample: at the actual angle (the
+    /// simulators' convention `readout = actual + e(actual)`), in the sample's
+    /// direction, after `tau` runs.
+    pub fn predict(&self, model: &Model) -> Vec<f64> {
+        (0..self.len()).map(|i| model.systematic_error_deg(self.samples[i].actual_deg, self.direction(i), self.tau[i])).collect()
+    }
+
+    /// `y - model`, with the constant offset (zero reference) removed; returns the offset too.
+    pub fn residual(&self, model: &Model) -> (Vec<f64>, f64) {
+        let p = self.predict(model);
+        let mut r: Vec<f64> = self.y.iter().zip(&p).map(|(y, p)| y - p).collect();
+        let offset = r.iter().sum::<f64>() / r.len() as f64;
+        r.iter_mut().for_each(|v| *v -= offset);
+        (r, offset)
+    }
+
+    /// The noise floor from the two-way layout runs x cells (cell = target and
+    /// direction): the interaction residual `y - run mean - cell mean + grand
+    /// mean`. Anything that is the same in every run (the repeatable error,
+    /// whatever the model says) and anything that moves a whole run (offsets,
+    /// and a drift linear in time when the runs follow the same schedule) is
+    /// removed, so what is left is the non-repeatable random part.
+    /// `None` with one run (or one cell).
+    pub fn anova_noise(&self) -> Option<(f64, usize)> {
+        let (r, c) = (self.runs(), self.targets() * self.dirs.len());
+        if r < 2 || c < 2 {
+            return None;
+        }
+        let mut cells = vec![0.0; r * c];
+        for i in 0..self.len() {
+            cells[self.run[i] * c + self.target[i] * self.dirs.len() + self.dir[i]] = self.y[i];
+        }
+        let run_mean: Vec<f64> = (0..r).map(|k| cells[k * c..(k + 1) * c].iter().sum::<f64>() / c as f64).collect();
+        let cell_mean: Vec<f64> = (0..c).map(|j| (0..r).map(|k| cells[k * c + j]).sum::<f64>() / r as f64).collect();
+        let grand = run_mean.iter().sum::<f64>() / r as f64;
+        let ss: f64 = (0..r)
+            .flat_map(|k| (0..c).map(move |j| (k, j)))
+            .map(|(k, j)| (cells[k * c + j] - run_mean[k] - cell_mean[j] + grand).powi(2))
+            .sum();
+        let dof = (r - 1) * (c - 1);
+        Some(((ss / dof as f64).sqrt(), dof))
+    }
+}
+
+/// Runs elapsed at every sample, from the timestamps when every sample has one
+/// (and they span some time), else from the acquisition order.
+fn time_in_runs(samples: &[Sample], run: &[usize], runs: usize) -> (Vec<f64>, Timebase, Option<f64>) {
+    let stamps: Option<Vec<f64>> = samples.iter().map(|s| s.timestamp_s.filter(|t| t.is_finite())).collect();
+    if let Some(t) = stamps {
+        let t0 = t.iter().copied().fold(f64::INFINITY, f64::min);
+        let t1 = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let duration = if runs >= 2 {
+            let mut start = vec![f64::INFINITY; runs];
+            for (i, &ti) in t.iter().enumerate() {
+                start[run[i]] = start[run[i]].min(ti);
+            }
+            (start[runs - 1] - start[0]) / (runs - 1) as f64
+        } else if samples.len() >= 2 {
+            (t1 - t0) * samples.len() as f64 / (samples.len() - 1) as f64
+        } else {
+            0.0
+        };
+        if duration > 0.0 && duration.is_finite() {
+            return (t.iter().map(|ti| (ti - t0) / duration).collect(), Timebase::Timestamps, Some(duration));
+        }
+    }
+    let mut count = vec![0usize; runs];
+    for &r in run {
+        count[r] += 1;
+    }
+    let mut seen = vec![0usize; runs];
+    let tau = run
+        .iter()
+        .map(|&r| {
+            let k = seen[r];
+            seen[r] += 1;
+            r as f64 + k as f64 / count[r] as f64
+        })
+        .collect();
+    (tau, Timebase::SampleOrder, None)
+}
