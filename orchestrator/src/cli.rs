@@ -87,6 +87,13 @@ pub struct RunArgs {
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Process with this recipe (TOML) at the end, as the last calibration did.
+    #[arg(long, value_name = "FILE")]
+    pub recipe: Option<PathBuf>,
+    /// After processing, load the table into the positioner, apply it in the
+    /// feedback path and measure the corrected accuracy with a new survey.
+    #[arg(long)]
+    pub verify: bool,
     /// Fault injection for tests: the process aborts (like a power loss)
     /// once N samples have been measured on the simulated bench.
     #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]

@@ -13,6 +13,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use survey_drivers::clock::with_timeout;
 use survey_drivers::{Clock, SystemClock, VirtualClock};
 use survey_processing::Sample;
 use survey_processing::iso230::iso230_2;
@@ -110,13 +111,17 @@ pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, c
 }
 
 pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
+    // A bad recipe is found before hours of measuring, not after.
+    if let Some(path) = &args.recipe {
+        survey_processing::recipe::Recipe::from_file(path).map_err(Failure::usage)?;
+    }
     if let Some(path) = &args.config {
         return run_configured(db, &args, path).await;
     }
     let (setup, preset, model) = setup(&args)?;
     let plan = setup.plan.clone();
     let clock = Arc::new(VirtualClock::new());
-    let engine = simulated_engine(&setup, &preset, model.clone(), clock.clone());
+    let mut engine = simulated_engine(&setup, &preset, model.clone(), clock.clone());
 
     let store = Store::open(db).await.map_err(crate::commands::classify)?;
     let instruments = serde_json::json!({
@@ -151,7 +156,10 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
     );
 
     let sink = StoreSink::new(store.clone(), id);
-    drive(engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: args.sim_crash_after }).await
+    let report =
+        drive(&mut engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: args.sim_crash_after })
+            .await?;
+    finalize(&mut engine, &store, id, &plan, report, Finalize::of(&args)).await
 }
 
 /// `survey run --config FILE`: a survey of real instruments.
@@ -175,7 +183,7 @@ async fn run_configured(db: &Path, args: &RunArgs, path: &Path) -> Result<(), Fa
     }
     let clock: Arc<dyn Clock> = Arc::new(SystemClock::new());
     let setup = ConfiguredSetup { config: cfg.clone(), plan: plan.clone() };
-    let engine = configured_engine(&cfg, clock.clone());
+    let mut engine = configured_engine(&cfg, clock.clone());
     let store = Store::open(db).await.map_err(crate::commands::classify)?;
     let instruments = serde_json::json!({
         "config_file": path.display().to_string(),
@@ -209,7 +217,8 @@ async fn run_configured(db: &Path, args: &RunArgs, path: &Path) -> Result<(), Fa
         human(estimate)
     );
     let sink = StoreSink::new(store.clone(), id);
-    drive(engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await
+    let report = drive(&mut engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await?;
+    finalize(&mut engine, &store, id, &plan, report, Finalize::of(args)).await
 }
 
 /// The engine on the configured instruments.
@@ -323,7 +332,61 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
     store.log_event(id, last_time, "info", &message).await.map_err(Failure::runtime)?;
     eprintln!("survey {id}: {message}");
     let sink = StoreSink::new(store.clone(), id);
-    drive(engine, &plan, next, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await
+    let report = drive(&mut engine, &plan, next, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await?;
+    let finish = Finalize { json: args.json, recipe: None, verify: false };
+    finalize(&mut engine, &store, id, &plan, report, finish).await
+}
+
+/// What happens after the acquisition.
+#[derive(Debug, Clone)]
+struct Finalize {
+    json: bool,
+    recipe: Option<std::path::PathBuf>,
+    verify: bool,
+}
+
+impl Finalize {
+    fn of(args: &RunArgs) -> Self {
+        Self { json: args.json, recipe: args.recipe.clone(), verify: args.verify }
+    }
+}
+
+/// The end of `survey run` (and `resume`), like the paper's full process:
+/// statistics, then processing (the recipe replayed when given), then with
+/// `--verify` the corrected accuracy measured with the table applied.
+async fn finalize(
+    engine: &mut Engine,
+    store: &Store,
+    id: i64,
+    plan: &SurveyPlan,
+    mut report: Report,
+    f: Finalize,
+) -> Result<(), Failure> {
+    let options = crate::process::ProcessOptions { recipe: f.recipe.clone(), design: None, table_out: None };
+    let result = match crate::process::process_survey(store, id, options).await {
+        Ok(processed) => {
+            report.doc["process"] = processed.json();
+            report.text += "\n";
+            report.text += &processed.summary();
+            if f.verify {
+                match verify(engine, store, id, plan, &processed, f.json).await {
+                    Ok(v) => {
+                        report.doc["verify"] = v.doc;
+                        report.text += "\n";
+                        report.text += &v.text;
+                        Ok(())
+                    }
+                    Err(e) => Err(e),
+                }
+            } else {
+                Ok(())
+            }
+        }
+        Err(e) => Err(e),
+    };
+    report.emit(f.json);
+    store.clone().close().await;
+    result
 }
 
 /// How `drive` reports, and the simulated power loss of `--sim-crash-after`.
@@ -335,27 +398,24 @@ struct DriveOptions {
 
 /// Acquire from `from_seq`, mark the survey, and print the summary.
 async fn drive(
-    mut engine: Engine,
+    engine: &mut Engine,
     plan: &SurveyPlan,
     from_seq: u64,
     mut sink: StoreSink,
     clock: Arc<dyn Clock>,
     db: &Path,
     options: DriveOptions,
-) -> Result<(), Failure> {
+) -> Result<Report, Failure> {
     let DriveOptions { json, crash_after } = options;
     let store = sink.store().clone();
     let id = sink.survey_id();
     let started = Instant::now();
-    let outcome = acquire(&mut engine, plan, from_seq, &mut sink, !json, crash_after).await;
+    let outcome = acquire(engine, plan, from_seq, &mut sink, !json, crash_after).await;
     let real = started.elapsed();
     finish(&store, id, &outcome, clock.now()).await?;
     let outcome = outcome.map_err(Failure::runtime)?;
-    let summary = summarise(&store, id, db, &outcome, real, json).await;
     drop(sink);
-    // Closing checkpoints the WAL into the database file.
-    store.close().await;
-    summary
+    summarise(&store, id, db, &outcome, real).await
 }
 
 /// Run the engine with a progress bar; Ctrl-C stops it cleanly (what was
@@ -422,32 +482,140 @@ async fn summarise(
     db: &Path,
     outcome: &Outcome,
     real: Duration,
-    json: bool,
-) -> Result<(), Failure> {
+) -> Result<Report, Failure> {
     let samples: Vec<Sample> = store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
     let iso = iso230_2(&samples).context("ISO 230-2 statistics").map_err(Failure::runtime)?;
-    if json {
-        let mut doc = stats_json(id, &iso);
-        doc["samples"] = samples.len().into();
-        doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
-        doc["real_time_s"] = real.as_secs_f64().into();
-        doc["faults_survived"] = outcome.faults_survived.into();
-        doc["db"] = db.display().to_string().into();
-        crate::cli::emit(&format!("{doc}\n"));
-    } else {
-        let mut text = format!(
-            "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}",
-            samples.len(),
-            human(outcome.instrument_time),
-            real.as_secs_f64(),
-            if outcome.faults_survived > 0 { format!(", {} faults survived", outcome.faults_survived) } else { String::new() }
-        );
-        text += "\n";
-        text += &stats_text(id, &iso);
-        text += &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
-        crate::cli::emit(&text);
+    let mut doc = stats_json(id, &iso);
+    doc["samples"] = samples.len().into();
+    doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
+    doc["real_time_s"] = real.as_secs_f64().into();
+    doc["faults_survived"] = outcome.faults_survived.into();
+    doc["db"] = db.display().to_string().into();
+    let mut text = format!(
+        "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}",
+        samples.len(),
+        human(outcome.instrument_time),
+        real.as_secs_f64(),
+        if outcome.faults_survived > 0 { format!(", {} faults survived", outcome.faults_survived) } else { String::new() }
+    );
+    text += "\n";
+    text += &stats_text(id, &iso);
+    text += &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
+    Ok(Report { doc, text })
+}
+
+/// What a command prints: one JSON document or text.
+#[derive(Debug)]
+pub struct Report {
+    pub doc: serde_json::Value,
+    pub text: String,
+}
+
+impl Report {
+    fn emit(&self, json: bool) {
+        if json {
+            crate::cli::emit(&format!("{}\n", self.doc));
+        } else {
+            crate::cli::emit(&self.text);
+        }
     }
-    Ok(())
+}
+
+/// Peak of `|error - mean error|` over every sample: the "+/-" figure of the paper.
+fn peak_deg(samples: &[Sample]) -> f64 {
+    let mean = samples.iter().map(Sample::error_deg).sum::<f64>() / samples.len().max(1) as f64;
+    samples.iter().map(|s| (s.error_deg() - mean).abs()).fold(0.0, f64::max)
+}
+
+/// Peak of the systematic error: the mean error per target and direction over
+/// the runs, less the overall mean (the noise averages down by sqrt(runs)).
+fn systematic_peak_deg(samples: &[Sample]) -> f64 {
+    let mut groups: std::collections::BTreeMap<(u64, survey_processing::Direction), (f64, usize)> = Default::default();
+    for s in samples {
+        let g = groups.entry((s.target_deg.to_bits(), s.direction)).or_default();
+        g.0 += s.error_deg();
+        g.1 += 1;
+    }
+    let means: Vec<f64> = groups.values().map(|(sum, n)| sum / *n as f64).collect();
+    let mean = means.iter().sum::<f64>() / means.len().max(1) as f64;
+    means.iter().map(|m| (m - mean).abs()).fold(0.0, f64::max)
+}
+
+/// `survey run --verify`: load the table into the positioner through the
+/// driver trait, apply it in the feedback path, and measure the corrected
+/// accuracy with a new survey of the same plan.
+async fn verify(
+    engine: &mut Engine,
+    store: &Store,
+    native_id: i64,
+    plan: &SurveyPlan,
+    processed: &crate::process::ProcessOutcome,
+    json: bool,
+) -> Result<Report, Failure> {
+    let table = &processed.processed.built.table;
+    let clock = engine.clock().clone();
+    let name = engine.positioner_name().to_string();
+    let timing = Timing::default();
+    let p = engine.positioner_mut();
+    with_timeout(&*clock, timing.call_timeout * 30, &name, "load correction table", p.load_correction_table(table))
+        .await
+        .map_err(Failure::runtime)?;
+    with_timeout(&*clock, timing.call_timeout, &name, "enable correction", p.enable_correction(true))
+        .await
+        .map_err(Failure::runtime)?;
+    let native_row = store.survey(native_id).await.map_err(Failure::runtime)?;
+    let id = store
+        .create_survey(&NewSurvey {
+            status: SurveyStatus::Running,
+            source: "verification".into(),
+            points: native_row.points,
+            runs: native_row.runs,
+            bidirectional: native_row.bidirectional,
+            config_json: native_row.config_json.clone(),
+            model_toml: native_row.model_toml.clone(),
+            instruments_json: serde_json::json!({
+                "verifies_survey": native_id,
+                "table": processed.files.table_csv.display().to_string(),
+                "rows": table.len(),
+                "directional": table.is_directional(),
+            })
+            .to_string(),
+            planned_samples: Some(plan.total_steps()),
+        })
+        .await
+        .map_err(Failure::runtime)?;
+    eprintln!("survey {id}: verifying the correction table of survey {native_id} in the positioner's feedback path");
+    let mut sink = StoreSink::new(store.clone(), id);
+    let outcome = acquire(engine, plan, 0, &mut sink, !json, None).await;
+    finish(store, id, &outcome, clock.now()).await?;
+    outcome.map_err(Failure::runtime)?;
+    let native: Vec<Sample> = store.samples(native_id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let corrected: Vec<Sample> = store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let iso = iso230_2(&corrected).context("ISO 230-2 statistics of the verification").map_err(Failure::runtime)?;
+    let (native_peak, corrected_peak) = (peak_deg(&native), peak_deg(&corrected));
+    let predicted = processed.processed.prediction.corrected_peak_deg;
+    let doc = serde_json::json!({
+        "survey_id": id,
+        "verifies_survey": native_id,
+        "native_peak_deg": native_peak,
+        "corrected_peak_deg": corrected_peak,
+        "predicted_corrected_peak_deg": predicted,
+        "improvement": native_peak / corrected_peak,
+        "native_systematic_peak_deg": systematic_peak_deg(&native),
+        "corrected_systematic_peak_deg": systematic_peak_deg(&corrected),
+        "directional": table.is_directional(),
+        "iso230_2": stats_json(id, &iso)["iso230_2"].clone(),
+    });
+    let text = format!(
+        "verification (survey {id}): measured with the table applied in the feedback path\n  \
+         native peak +/-{native_peak:.5} deg, corrected +/-{corrected_peak:.5} deg (predicted +/-{predicted:.5}), {:.1}x better\n  \
+         systematic part (mean over the runs): native +/-{:.5} deg, corrected +/-{:.5} deg\n{}",
+        native_peak / corrected_peak,
+        systematic_peak_deg(&native),
+        systematic_peak_deg(&corrected),
+        stats_text(id, &iso)
+    );
+    Ok(Report { doc, text })
 }
 
 /// `3h 12m`, `4m 05s`, `12.3 s`.

@@ -61,6 +61,11 @@ impl Profile {
         if self.distance_deg == 0.0 || self.duration_s == 0.0 {
             return 1.0;
         }
+        // `end()` rounds the duration to whole nanoseconds: from then on the
+        // move is complete, whatever the rounding left of `duration_s`.
+        if now >= self.end() {
+            return 1.0;
+        }
         let total = self.duration_s;
         let t = now.saturating_sub(self.start).as_secs_f64().min(total);
         let a = self.accel_deg_s2;

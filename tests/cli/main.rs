@@ -14,6 +14,7 @@
 //! and the next valid import must get the next id.
 
 mod instruments;
+mod verify;
 mod modelgap;
 mod process;
 

@@ -178,6 +178,9 @@ fn designs_unknown_surveys_and_output_paths() {
     bench.survey(&["process"]).bad_input(&["survey.db"]);
     assert!(!bench.exists("survey.db"));
     let id = bench.small_survey(true);
+    // `survey run` ends with processing: remove its table so that what the
+    // failing commands below might write would show.
+    std::fs::remove_file(bench.path(&format!("table-{id}.csv"))).unwrap();
     let stored = bench.stored();
     bench.survey(&["process", "--survey", "7"]).bad_input(&["7"]);
     bench.write("bad-model.toml", "[design]\ngear_ratios = [12]\n\n[[effect]]\nkind = \"gear_passs\"\n");

@@ -12,6 +12,7 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     // The simulated bench loses power (the process aborts: no flush, no
     // cleanup) once 3000 of the 10800 samples have been measured.
     let crashed = Command::new(bin)
+        .current_dir(dir.path())
         .args(["--db", db.to_str().unwrap(), "run", "--points", "1800", "--bidirectional", "--runs", "3"])
         .args(["--sim-crash-after", "3000"])
         .stdout(Stdio::null())
@@ -30,7 +31,7 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     assert!((2048..=3000).contains(&kept.len()), "{} samples kept", kept.len());
     store.close().await;
 
-    let out = Command::new(bin).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
+    let out = Command::new(bin).current_dir(dir.path()).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
     assert!(out.status.success(), "resume failed: {}", String::from_utf8_lossy(&out.stderr));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains(&format!("resumed at step {}", kept.len())), "{stderr}");
@@ -53,7 +54,7 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     assert!(events.iter().any(|e| e.message.contains("resumed at step")));
 
     // A complete survey has nothing to resume: bad usage, exit 2.
-    let again = Command::new(bin).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
+    let again = Command::new(bin).current_dir(dir.path()).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
     assert_eq!(again.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&again.stderr).contains("nothing to resume"));
     store.close().await;

@@ -68,17 +68,34 @@ pub(crate) fn finish(
                     format!("{} cycles/rev: {}", num(*cycles_per_rev), line.explanation)
                 };
                 if let Some(part) = f.part.filter(|p| !p.sideband) {
-                    for other in snapshot.iter().filter(|o| o.index != f.index) {
-                        let Some(op) = other.part.filter(|q| !q.sideband) else { continue };
-                        if op.kind == part.kind && (op.base - part.base).abs() < 1e-9 {
-                            let f_other = cycles(&model.effects[other.index]);
-                            s += &format!("; its harmonic {} also shows ({} cycles/rev", op.harmonic, num(f_other));
-                            if other.aliased {
-                                s += &format!(
-                                    ", aliased to {} at {} points per revolution",
-                                    num(other.observed_cycles_per_rev.unwrap_or(f_other)),
-                                    num(points)
-                                );
+                    let mut others: Vec<(u32, f64, Option<f64>)> = snapshot
+                        .iter()
+                        .filter(|o| o.index != f.index)
+                        .filter_map(|o| o.part.filter(|q| !q.sideband && q.kind == part.kind && (q.base - part.base).abs() < 1e-9).map(|q| (q, o)))
+                        .map(|(q, o)| {
+                            let f_other = cycles(&model.effects[o.index]);
+                            (q.harmonic, f_other, o.aliased.then(|| o.observed_cycles_per_rev.unwrap_or(f_other)))
+                        })
+                        .collect();
+                    others.sort_by_key(|o| o.0);
+                    let aliased = |f: f64, seen: f64| format!("{} cycles/rev, aliased to {} at {} points per revolution", num(f), num(seen), num(points));
+                    match others.as_slice() {
+                        [] => {}
+                        [(h, f_other, seen)] => {
+                            let at = match seen {
+                                Some(seen) => aliased(*f_other, *seen),
+                                None => format!("{} cycles/rev", num(*f_other)),
+                            };
+                            s += &format!("; its harmonic {h} also shows ({at})");
+                        }
+                        many => {
+                            let hs: Vec<String> = many.iter().map(|o| o.0.to_string()).collect();
+                            let fs: Vec<String> = many.iter().map(|o| num(o.1)).collect();
+                            s += &format!("; its harmonics {} also show ({} cycles/rev", hs.join(", "), fs.join(", "));
+                            for (h, f_other, seen) in many {
+                                if let Some(seen) = seen {
+                                    s += &format!("; harmonic {h} at {}", aliased(*f_other, *seen));
+                                }
                             }
                             s += ")";
                         }

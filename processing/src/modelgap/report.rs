@@ -67,12 +67,11 @@ impl ModelGap {
             for f in &self.effects_added {
                 let phase = f.phase_deg.map(|p| format!(" at phase {p:.1} deg")).unwrap_or_default();
                 let unit = if f.kind == "drift" { " per run" } else { "" };
+                let at = if f.cycles_per_rev > 0.0 { format!(" {} cycles/rev", num(f.cycles_per_rev)) } else { String::new() };
                 let _ = writeln!(
                     s,
-                    "  {} {}{}: {:.3e} deg{unit}{phase} (+/- {:.1e}): {}",
+                    "  {}{at}: {:.3e} deg{unit}{phase} (+/- {:.1e}): {}",
                     f.kind,
-                    if f.cycles_per_rev > 0.0 { num(f.cycles_per_rev) } else { String::new() },
-                    if f.cycles_per_rev > 0.0 { " cycles/rev" } else { "" },
                     f.amplitude_deg,
                     f.standard_error_deg,
                     f.explanation

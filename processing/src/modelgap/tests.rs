@@ -238,3 +238,16 @@ fn the_report_shows_the_gap_shrinking() {
     assert!(g.before.frequency.lines.iter().any(|l| l.cycles_per_rev == 1.0));
     assert!(g.after.frequency.lines.iter().all(|l| !l.coherent), "{text}");
 }
+
+/// Noise-free data: the numerical floor keeps rounding from being named, and
+/// a missing effect is found to rounding.
+#[test]
+fn noise_free_data() {
+    let truth = model(&[20.0], &[], vec![periodic(PeriodicKind::GearPass, 20.0, 0.008, 10.0), Effect::Backlash { amplitude_deg: 0.002 }]);
+    let s = simulate(&truth, &circle(90), 2, true, 0.0, 10);
+    let g = model_gap(&s, &truth, &ModelGapOptions::default()).unwrap();
+    assert!(g.effects_added.is_empty() && g.effects_adjusted.is_empty(), "{}", g.to_text());
+    let g = model_gap(&s, &lacking(&truth, |e| matches!(e, Effect::Backlash { .. })), &ModelGapOptions::default()).unwrap();
+    assert_eq!(g.effects_added.len(), 1, "{}", g.to_text());
+    assert!((g.effects_added[0].amplitude_deg - 0.002).abs() < 1e-10, "{}", g.to_text());
+}
