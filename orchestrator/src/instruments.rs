@@ -36,10 +36,10 @@ impl Connect<dyn Positioner> for PositionerConnector {
                 Ok(Box::new(d.with_address(Address { controller: *controller, axis: *axis })))
             }
             PositionerConfig::ModbusTcp { address, map, timeouts } => {
-                Ok(Box::new(ModbusPositioner::connect_tcp(address.as_str(), map.clone(), timeouts.clone()).await?))
+                Ok(Box::new(ModbusPositioner::connect_tcp(address.as_str(), map.clone(), *timeouts).await?))
             }
             PositionerConfig::ModbusRtu { port, baud, slave, map, timeouts } => {
-                Ok(Box::new(ModbusPositioner::connect_rtu(port, *baud, *slave, map.clone(), timeouts.clone()).await?))
+                Ok(Box::new(ModbusPositioner::connect_rtu(port, *baud, *slave, map.clone(), *timeouts).await?))
             }
             PositionerConfig::Canopen { interface, drive } => {
                 let bus = SocketCanBus::open(interface)?;
