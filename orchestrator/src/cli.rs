@@ -35,6 +35,8 @@ pub enum Command {
     Check(CheckArgs),
     /// Continue an interrupted survey from its last stored sample.
     Resume(ResumeArgs),
+    /// Write the survey's report (a self-contained HTML page with its plots and tables) into DIR.
+    Report(ReportArgs),
     /// Store measured data from a CSV file as a new survey; prints its id.
     Import(ImportArgs),
     /// Write a survey in the import CSV format.
@@ -118,6 +120,16 @@ pub struct ResumeArgs {
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// Survey id (default: the latest).
+    #[arg(long, value_name = "ID")]
+    pub survey: Option<i64>,
+    /// The folder to write index.html into (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
 }
 
 #[derive(Debug, Args)]

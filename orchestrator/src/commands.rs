@@ -12,6 +12,7 @@ pub async fn dispatch(cli: Cli) -> Result<(), Failure> {
         Command::Run(args) => crate::run::run(&cli.db, args).await,
         Command::Check(args) => crate::run::check(args).await,
         Command::Resume(args) => crate::run::resume(&cli.db, args).await,
+        Command::Report(args) => crate::report::command(&cli.db, args).await,
         Command::Import(args) => import(&cli.db, args).await,
         Command::Export(args) => export(&cli.db, args).await,
         Command::Stats(args) => stats(&cli.db, args).await,

@@ -10,6 +10,7 @@ pub mod modelgap;
 pub mod plan;
 pub mod process;
 pub mod record;
+pub mod report;
 pub mod run;
 pub mod csvio;
 pub mod store;

@@ -15,6 +15,7 @@
 
 mod files;
 mod instruments;
+mod report;
 mod runs;
 mod verify;
 mod modelgap;
