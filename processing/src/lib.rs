@@ -15,6 +15,7 @@ pub mod model;
 pub mod modelgap;
 pub mod recipe;
 pub mod resample;
+mod special;
 pub mod spectrum;
 pub mod table;
 pub mod types;

@@ -8,30 +8,14 @@
 //! only for the pre-test of run-to-run offsets, where a few per cent do not
 //! matter).
 
-/// Complementary error function (fractional error below 1.2e-7 everywhere).
-pub(crate) fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let poly = -z * z - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let r = t * poly.exp();
-    if x >= 0.0 { r } else { 2.0 - r }
-}
+pub(crate) use crate::special::erfc;
 
 /// `P(|Z| > z)` for a standard normal `Z`.
 pub(crate) fn normal_two_sided_sf(z: f64) -> f64 {
     erfc(z.abs() / std::f64::consts::SQRT_2)
 }
 
-/// The `c` with `P(|Z| > c) = p`.
-pub(crate) fn normal_two_sided_isf(p: f64) -> f64 {
-    bisect(|c| normal_two_sided_sf(c) > p, 0.0, 40.0)
-}
+pub(crate) use crate::special::normal_two_sided_isf;
 
 /// `P(|T| > t)` for Student's t with `nu >= 1` degrees of freedom.
 pub(crate) fn t_two_sided_sf(t: f64, nu: usize) -> f64 {
