@@ -521,10 +521,11 @@ impl Report {
     }
 }
 
-/// Peak of `|error - mean error|` over every sample: the "+/-" figure of the paper.
+/// Peak of `|error - mean error|` over every sample: the "+/-" figure of the
+/// paper, as processing's prediction computes it.
 fn peak_deg(samples: &[Sample]) -> f64 {
-    let mean = samples.iter().map(Sample::error_deg).sum::<f64>() / samples.len().max(1) as f64;
-    samples.iter().map(|s| (s.error_deg() - mean).abs()).fold(0.0, f64::max)
+    let errors: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
+    survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg
 }
 
 /// Peak of the systematic error: the mean error per target and direction over

@@ -333,6 +333,13 @@ pub fn predict_accuracy(samples: &[Sample], table: &CorrectionTable, floor_deg: 
     })
 }
 
+impl ErrorFigures {
+    /// The figures of the errors `e` (readout - actual), with an ISO 230-2 `A` when known.
+    pub fn of(e: &[f64], iso230_a_deg: Option<f64>) -> Self {
+        figures(e, iso230_a_deg)
+    }
+}
+
 fn figures(e: &[f64], iso230_a_deg: Option<f64>) -> ErrorFigures {
     let mean = e.iter().sum::<f64>() / e.len() as f64;
     let peak = e.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
