@@ -69,7 +69,12 @@ impl<D: ?Sized + Send> Reconnecting<D> {
     fn connect_error(&self, e: DriverError) -> DriverError {
         // The connector's kind stands: a refused socket is a link fault, an
         // instrument that answers with a fault while initialising is a device fault.
-        DriverError { kind: e.kind, instrument: self.name.clone(), code: e.code, message: format!("cannot connect: {}", e.message) }
+        DriverError {
+            kind: e.kind,
+            instrument: self.name.clone(),
+            code: e.code,
+            message: format!("cannot connect: {}", e.message),
+        }
     }
 
     /// How many times a connection has been opened.
@@ -215,7 +220,8 @@ mod tests {
 
     fn wrapped(fail_on: u32, kind: ErrorKind, refuse: bool) -> (Reconnecting<dyn Autocollimator>, Arc<AtomicU32>) {
         let connects = Arc::new(AtomicU32::new(0));
-        let c = FlakyConnector { calls: Arc::new(AtomicU32::new(0)), connects: connects.clone(), fail_on, kind, refuse };
+        let c =
+            FlakyConnector { calls: Arc::new(AtomicU32::new(0)), connects: connects.clone(), fail_on, kind, refuse };
         (Reconnecting::new(Box::new(c)), connects)
     }
 

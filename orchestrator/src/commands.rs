@@ -56,7 +56,11 @@ async fn import(db: &std::path::Path, args: ImportArgs) -> Result<(), Failure> {
     if let Err(e) = iso230_2(&samples) {
         eprintln!("note: survey {id} cannot give ISO 230-2 statistics yet: {e}");
     }
-    eprintln!("imported {} samples ({targets} targets, {runs} runs) from {name} as survey {id} in {}", samples.len(), db.display());
+    eprintln!(
+        "imported {} samples ({targets} targets, {runs} runs) from {name} as survey {id} in {}",
+        samples.len(),
+        db.display()
+    );
     Ok(())
 }
 
@@ -70,7 +74,8 @@ fn distinct_targets(samples: &[Sample]) -> usize {
 async fn export(db: &std::path::Path, args: ExportArgs) -> Result<(), Failure> {
     let store = open_existing(db).await?;
     let survey = store.resolve(args.survey).await.map_err(classify)?;
-    let samples: Vec<Sample> = store.samples(survey.id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let samples: Vec<Sample> =
+        store.samples(survey.id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
     store.close().await;
     let out = std::fs::File::create(&args.csv)
         .with_context(|| format!("cannot create {}", args.csv.display()))
@@ -85,7 +90,8 @@ async fn export(db: &std::path::Path, args: ExportArgs) -> Result<(), Failure> {
 async fn stats(db: &std::path::Path, args: StatsArgs) -> Result<(), Failure> {
     let store = open_existing(db).await?;
     let survey = store.resolve(args.survey).await.map_err(classify)?;
-    let samples: Vec<Sample> = store.samples(survey.id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let samples: Vec<Sample> =
+        store.samples(survey.id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
     store.close().await;
     let iso = iso230_2(&samples)
         .with_context(|| format!("survey {} cannot give ISO 230-2 statistics", survey.id))

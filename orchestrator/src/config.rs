@@ -29,10 +29,10 @@ use crate::cli::ReferenceKind;
 use crate::engine::Timing;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use std::time::Duration;
 use survey_drivers::canopen::CanopenConfig;
 use survey_drivers::emscon::EmsconConfig;
 use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
-use std::time::Duration;
 
 /// A whole configuration file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -245,7 +245,9 @@ impl SurveyConfig {
                     return Err("the reference is the autocollimator but there is no [autocollimator] section".into());
                 }
                 let Some(p) = &self.polygon else {
-                    return Err("the autocollimator reference needs a [polygon] section (faces, certificate_arcsec)".into());
+                    return Err(
+                        "the autocollimator reference needs a [polygon] section (faces, certificate_arcsec)".into()
+                    );
                 };
                 if p.faces < 2 {
                     return Err(format!("polygon.faces must be at least 2, got {}", p.faces));
@@ -383,7 +385,10 @@ mod tests {
         assert_eq!(t.dwell, Duration::from_secs(2));
         assert_eq!(t.max_retries, 5);
         assert_eq!(t.call_timeout, Timing::default().call_timeout);
-        assert_eq!(cfg.positioner, PositionerConfig::ScpiSerial { port: "/dev/ttyUSB0".into(), baud: 9600, controller: 1, axis: 1 });
+        assert_eq!(
+            cfg.positioner,
+            PositionerConfig::ScpiSerial { port: "/dev/ttyUSB0".into(), baud: 9600, controller: 1, axis: 1 }
+        );
     }
 }
 

@@ -17,18 +17,11 @@ use std::path::Path;
 use survey_processing::{Direction, Sample};
 
 /// The required columns, in order.
-pub const REQUIRED_COLUMNS: [&str; 5] = [
-    "run",
-    "direction",
-    "target_deg",
-    "readout_deg",
-    "actual_deg",
-];
+pub const REQUIRED_COLUMNS: [&str; 5] = ["run", "direction", "target_deg", "readout_deg", "actual_deg"];
 /// The optional last column.
 pub const TIMESTAMP_COLUMN: &str = "timestamp_s";
 
-const HEADER_HELP: &str =
-    "header must be run,direction,target_deg,readout_deg,actual_deg[,timestamp_s]";
+const HEADER_HELP: &str = "header must be run,direction,target_deg,readout_deg,actual_deg[,timestamp_s]";
 
 /// A defect in a survey CSV file. Displays as `{file}:{line}: {what}`, or
 /// `{file}: {what}` when the defect is not on one line (an empty file).
@@ -45,19 +38,11 @@ pub struct CsvError {
 
 impl CsvError {
     fn at(file: &str, line: u64, what: impl Into<String>) -> Self {
-        CsvError {
-            file: file.to_string(),
-            line: Some(line),
-            what: what.into(),
-        }
+        CsvError { file: file.to_string(), line: Some(line), what: what.into() }
     }
 
     fn whole(file: &str, what: impl Into<String>) -> Self {
-        CsvError {
-            file: file.to_string(),
-            line: None,
-            what: what.into(),
-        }
+        CsvError { file: file.to_string(), line: None, what: what.into() }
     }
 }
 
@@ -65,8 +50,7 @@ impl CsvError {
 /// A file that cannot be read or is not UTF-8 is a [`CsvError`] too.
 pub fn read_survey_csv(path: &Path) -> Result<Vec<Sample>, CsvError> {
     let name = path.display().to_string();
-    let bytes =
-        std::fs::read(path).map_err(|e| CsvError::whole(&name, format!("cannot read: {e}")))?;
+    let bytes = std::fs::read(path).map_err(|e| CsvError::whole(&name, format!("cannot read: {e}")))?;
     let text = match String::from_utf8(bytes) {
         Ok(t) => t,
         Err(e) => {
@@ -84,16 +68,10 @@ pub fn parse_survey_csv(text: &str, source: &str) -> Result<Vec<Sample>, CsvErro
     if text.trim().is_empty() {
         return Err(CsvError::whole(source, "the file is empty"));
     }
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .trim(csv::Trim::All)
-        .flexible(false)
-        .from_reader(text.as_bytes());
+    let mut rdr =
+        csv::ReaderBuilder::new().has_headers(true).trim(csv::Trim::All).flexible(false).from_reader(text.as_bytes());
 
-    let header = rdr
-        .headers()
-        .map_err(|e| from_csv_error(text, source, e))?
-        .clone();
+    let header = rdr.headers().map_err(|e| from_csv_error(text, source, e))?.clone();
     let has_timestamp = check_header(&header).map_err(|w| {
         let line = line_of(text, header.position().map_or(0, |p| p.byte()));
         CsvError::at(source, line, w)
@@ -134,10 +112,7 @@ fn check_header(header: &csv::StringRecord) -> Result<bool, String> {
     }
     let expected_order = REQUIRED_COLUMNS.iter().chain([TIMESTAMP_COLUMN].iter());
     if !names.iter().zip(expected_order).all(|(a, b)| a == b) {
-        return Err(format!(
-            "columns out of order: found {} ({HEADER_HELP})",
-            names.join(",")
-        ));
+        return Err(format!("columns out of order: found {} ({HEADER_HELP})", names.join(",")));
     }
     Ok(names.len() == REQUIRED_COLUMNS.len() + 1)
 }
@@ -148,14 +123,10 @@ fn parse_row(rec: &csv::StringRecord, has_timestamp: bool) -> Result<Sample, Str
     let run = match run_text.parse::<u32>() {
         Ok(r) if r >= 1 => r,
         _ => {
-            return Err(format!(
-                "column 'run': '{run_text}' is not a run number (an integer from 1)"
-            ));
+            return Err(format!("column 'run': '{run_text}' is not a run number (an integer from 1)"));
         }
     };
-    let direction = cell(1)
-        .parse::<Direction>()
-        .map_err(|e| format!("column 'direction': {e}"))?;
+    let direction = cell(1).parse::<Direction>().map_err(|e| format!("column 'direction': {e}"))?;
     let number = |i: usize| -> Result<f64, String> {
         let name = REQUIRED_COLUMNS.get(i).copied().unwrap_or(TIMESTAMP_COLUMN);
         let text = cell(i);
@@ -171,19 +142,8 @@ fn parse_row(rec: &csv::StringRecord, has_timestamp: bool) -> Result<Sample, Str
     let target_deg = number(2)?;
     let readout_deg = number(3)?;
     let actual_deg = number(4)?;
-    let timestamp_s = if has_timestamp && !cell(5).is_empty() {
-        Some(number(5)?)
-    } else {
-        None
-    };
-    Ok(Sample {
-        run,
-        direction,
-        target_deg,
-        readout_deg,
-        actual_deg,
-        timestamp_s,
-    })
+    let timestamp_s = if has_timestamp && !cell(5).is_empty() { Some(number(5)?) } else { None };
+    Ok(Sample { run, direction, target_deg, readout_deg, actual_deg, timestamp_s })
 }
 
 /// The physical line (from 1) of the record the csv reader says starts at byte
@@ -192,9 +152,7 @@ fn parse_row(rec: &csv::StringRecord, has_timestamp: bool) -> Result<Sample, Str
 /// LF, CRLF and a lone CR each end a line.
 fn line_of(text: &str, start: u64) -> u64 {
     let bytes = text.as_bytes();
-    let mut at = usize::try_from(start)
-        .unwrap_or(usize::MAX)
-        .min(bytes.len());
+    let mut at = usize::try_from(start).unwrap_or(usize::MAX).min(bytes.len());
     while at < bytes.len() && (bytes[at] == b'\n' || bytes[at] == b'\r') {
         at += 1;
     }
@@ -209,15 +167,9 @@ fn line_of(text: &str, start: u64) -> u64 {
 
 fn from_csv_error(text: &str, source: &str, e: csv::Error) -> CsvError {
     match e.kind() {
-        csv::ErrorKind::UnequalLengths {
-            pos,
-            expected_len,
-            len,
-        } => {
-            let what = format!(
-                "the row has {len} field{}, the header has {expected_len}",
-                if *len == 1 { "" } else { "s" }
-            );
+        csv::ErrorKind::UnequalLengths { pos, expected_len, len } => {
+            let what =
+                format!("the row has {len} field{}, the header has {expected_len}", if *len == 1 { "" } else { "s" });
             match pos {
                 Some(p) => CsvError::at(source, line_of(text, p.byte()), what),
                 None => CsvError::whole(source, what),
@@ -241,9 +193,7 @@ fn from_csv_error(text: &str, source: &str, e: csv::Error) -> CsvError {
 /// for bit. Lines end with `\n`.
 pub fn write_survey_csv<W: Write>(w: W, samples: &[Sample]) -> std::io::Result<()> {
     let with_timestamp = samples.iter().any(|s| s.timestamp_s.is_some());
-    let mut wtr = csv::WriterBuilder::new()
-        .terminator(csv::Terminator::Any(b'\n'))
-        .from_writer(w);
+    let mut wtr = csv::WriterBuilder::new().terminator(csv::Terminator::Any(b'\n')).from_writer(w);
     let mut header: Vec<&str> = REQUIRED_COLUMNS.to_vec();
     if with_timestamp {
         header.push(TIMESTAMP_COLUMN);
@@ -315,9 +265,7 @@ mod tests {
 
     #[test]
     fn timestamps_may_be_empty_on_some_rows() {
-        let text = format!(
-            "{HEADER},timestamp_s\n1,forward,0,0,0,1.5\n1,forward,1,1,1,\n2,reverse,2,2,2,3\n"
-        );
+        let text = format!("{HEADER},timestamp_s\n1,forward,0,0,0,1.5\n1,forward,1,1,1,\n2,reverse,2,2,2,3\n");
         let s = parse_survey_csv(&text, "data.csv").unwrap();
         assert_eq!(s[0].timestamp_s, Some(1.5));
         assert_eq!(s[1].timestamp_s, None);
@@ -334,36 +282,19 @@ mod tests {
         assert_eq!(s[1].target_deg, 1.0);
         // errors on a CRLF file still count physical lines
         let text = format!("{HEADER}\r\n1,forward,0,0,0\r\n1,forward,0,x,0\r\n");
-        assert_eq!(
-            err(&text),
-            "data.csv:3: column 'readout_deg': 'x' is not a number"
-        );
+        assert_eq!(err(&text), "data.csv:3: column 'readout_deg': 'x' is not a number");
     }
 
     #[test]
     fn line_numbers_count_blank_lines_and_every_line_ending() {
         let text = format!("\n\n{HEADER}\n1,forward,0,0,0\n\n\n1,forward,0,0,x\n");
-        assert_eq!(
-            err(&text),
-            "data.csv:7: column 'actual_deg': 'x' is not a number"
-        );
+        assert_eq!(err(&text), "data.csv:7: column 'actual_deg': 'x' is not a number");
         let text = format!("{HEADER}\r\n\r\n1,forward,0,0,0\r\n1,forward,0,0\r\n");
-        assert_eq!(
-            err(&text),
-            "data.csv:4: the row has 4 fields, the header has 5"
-        );
+        assert_eq!(err(&text), "data.csv:4: the row has 4 fields, the header has 5");
         let text = format!("{HEADER}\r1,forward,0,0,0\r1,backward,0,0,0\r");
-        assert!(
-            err(&text).starts_with("data.csv:3: column 'direction'"),
-            "{}",
-            err(&text)
-        );
+        assert!(err(&text).starts_with("data.csv:3: column 'direction'"), "{}", err(&text));
         let text = "\r\n\r\nrun,direction\r\n".to_string();
-        assert!(
-            err(&text).starts_with("data.csv:3: missing column 'target_deg'"),
-            "{}",
-            err(&text)
-        );
+        assert!(err(&text).starts_with("data.csv:3: missing column 'target_deg'"), "{}", err(&text));
     }
 
     #[test]
@@ -373,10 +304,7 @@ mod tests {
             text.push_str(&format!("1,forward,{i},{i},{i}\n"));
         }
         text.push_str("1,forward,5,abc,5\n");
-        assert_eq!(
-            err(&text),
-            "data.csv:7: column 'readout_deg': 'abc' is not a number"
-        );
+        assert_eq!(err(&text), "data.csv:7: column 'readout_deg': 'abc' is not a number");
     }
 
     #[test]
@@ -391,28 +319,14 @@ mod tests {
     #[test]
     fn extra_duplicate_and_misordered_columns() {
         let e = err(&format!("{HEADER},temperature\n1,forward,0,0,0,20\n"));
-        assert!(
-            e.starts_with("data.csv:1: unexpected column 'temperature' (header must be"),
-            "{e}"
-        );
-        let e = err(&format!(
-            "{HEADER},timestamp_s,timestamp_s\n1,forward,0,0,0,1,1\n"
-        ));
-        assert!(
-            e.starts_with("data.csv:1: column 'timestamp_s' appears twice"),
-            "{e}"
-        );
+        assert!(e.starts_with("data.csv:1: unexpected column 'temperature' (header must be"), "{e}");
+        let e = err(&format!("{HEADER},timestamp_s,timestamp_s\n1,forward,0,0,0,1,1\n"));
+        assert!(e.starts_with("data.csv:1: column 'timestamp_s' appears twice"), "{e}");
         let e = err("direction,run,target_deg,readout_deg,actual_deg\nforward,1,0,0,0\n");
-        assert!(
-            e.starts_with("data.csv:1: columns out of order: found direction,run,"),
-            "{e}"
-        );
+        assert!(e.starts_with("data.csv:1: columns out of order: found direction,run,"), "{e}");
         // the header is on line 3 after two blank lines
         let e = err("\n\nrun,direction\n1,forward\n");
-        assert!(
-            e.starts_with("data.csv:3: missing column 'target_deg'"),
-            "{e}"
-        );
+        assert!(e.starts_with("data.csv:3: missing column 'target_deg'"), "{e}");
     }
 
     #[test]
@@ -430,9 +344,7 @@ mod tests {
             let text = format!("{HEADER}\n1,forward,0,0,0\n1,forward,0,0,0\n{bad},forward,0,0,0\n");
             assert_eq!(
                 err(&text),
-                format!(
-                    "data.csv:4: column 'run': '{bad}' is not a run number (an integer from 1)"
-                )
+                format!("data.csv:4: column 'run': '{bad}' is not a run number (an integer from 1)")
             );
         }
     }
@@ -442,68 +354,39 @@ mod tests {
         assert_eq!(err(""), "data.csv: the file is empty");
         assert_eq!(err("\n\n  \r\n"), "data.csv: the file is empty");
         assert_eq!(err("\u{feff}"), "data.csv: the file is empty");
-        assert_eq!(
-            err(&format!("{HEADER}\n")),
-            "data.csv: no samples after the header"
-        );
-        assert_eq!(
-            err(&format!("{HEADER},timestamp_s")),
-            "data.csv: no samples after the header"
-        );
+        assert_eq!(err(&format!("{HEADER}\n")), "data.csv: no samples after the header");
+        assert_eq!(err(&format!("{HEADER},timestamp_s")), "data.csv: no samples after the header");
     }
 
     #[test]
     fn wrong_field_count() {
         let text = format!("{HEADER}\n1,forward,0,0,0\n1,forward,0,0\n");
-        assert_eq!(
-            err(&text),
-            "data.csv:3: the row has 4 fields, the header has 5"
-        );
+        assert_eq!(err(&text), "data.csv:3: the row has 4 fields, the header has 5");
         let text = format!("{HEADER}\n1,forward,0,0,0,7\n");
-        assert_eq!(
-            err(&text),
-            "data.csv:2: the row has 6 fields, the header has 5"
-        );
+        assert_eq!(err(&text), "data.csv:2: the row has 6 fields, the header has 5");
     }
 
     #[test]
     fn non_finite_and_empty_numbers() {
-        for (bad, col) in [
-            ("nan", 2),
-            ("inf", 3),
-            ("-inf", 4),
-            ("NaN", 2),
-            ("infinity", 4),
-        ] {
+        for (bad, col) in [("nan", 2), ("inf", 3), ("-inf", 4), ("NaN", 2), ("infinity", 4)] {
             let mut cells = ["1", "forward", "0", "0", "0"];
             cells[col] = bad;
             let text = format!("{HEADER}\n{}\n", cells.join(","));
             assert_eq!(
                 err(&text),
-                format!(
-                    "data.csv:2: column '{}': '{bad}' is not a finite number",
-                    REQUIRED_COLUMNS[col]
-                )
+                format!("data.csv:2: column '{}': '{bad}' is not a finite number", REQUIRED_COLUMNS[col])
             );
         }
         let text = format!("{HEADER},timestamp_s\n1,forward,0,0,0,nan\n");
-        assert_eq!(
-            err(&text),
-            "data.csv:2: column 'timestamp_s': 'nan' is not a finite number"
-        );
+        assert_eq!(err(&text), "data.csv:2: column 'timestamp_s': 'nan' is not a finite number");
         let text = format!("{HEADER}\n1,forward,0,,0\n");
         assert_eq!(err(&text), "data.csv:2: column 'readout_deg' is empty");
     }
 
     #[test]
     fn quoted_cells_and_line_numbers_after_multiline_quotes() {
-        let text = format!(
-            "{HEADER}\n\"1\",\"forward\",\"0\",\"0\",\"0\"\n1,forward,0,0,0\n1,forward,0,\"a\nb\",0\n"
-        );
-        assert_eq!(
-            err(&text),
-            "data.csv:4: column 'readout_deg': 'a\nb' is not a number"
-        );
+        let text = format!("{HEADER}\n\"1\",\"forward\",\"0\",\"0\",\"0\"\n1,forward,0,0,0\n1,forward,0,\"a\nb\",0\n");
+        assert_eq!(err(&text), "data.csv:4: column 'readout_deg': 'a\nb' is not a number");
     }
 
     #[test]
@@ -513,16 +396,9 @@ mod tests {
         std::fs::write(&path, format!("{HEADER}\n1,forward,0,0,0\n1,up,0,0,0\n")).unwrap();
         let e = read_survey_csv(&path).unwrap_err();
         assert_eq!(e.line, Some(3));
-        assert!(
-            e.to_string()
-                .starts_with(&format!("{}:3: column 'direction'", path.display()))
-        );
+        assert!(e.to_string().starts_with(&format!("{}:3: column 'direction'", path.display())));
 
-        std::fs::write(
-            &path,
-            b"run,direction,target_deg,readout_deg,actual_deg\n1,forward,\xff,0,0\n",
-        )
-        .unwrap();
+        std::fs::write(&path, b"run,direction,target_deg,readout_deg,actual_deg\n1,forward,\xff,0,0\n").unwrap();
         let e = read_survey_csv(&path).unwrap_err();
         assert_eq!(e.line, Some(2));
         assert!(e.to_string().ends_with(":2: not valid UTF-8 text"), "{e}");
@@ -555,19 +431,14 @@ mod tests {
         let mut out = Vec::new();
         write_survey_csv(&mut out, &samples).unwrap();
         let text = String::from_utf8(out).unwrap();
-        assert!(
-            text.starts_with(&format!("{HEADER}\n1,forward,0,-0,0.30000000000000004\n")),
-            "{text}"
-        );
+        assert!(text.starts_with(&format!("{HEADER}\n1,forward,0,-0,0.30000000000000004\n")), "{text}");
         assert_bit_equal(&parse_survey_csv(&text, "x").unwrap(), &samples);
 
         samples[1].timestamp_s = Some(12.25);
         let mut out = Vec::new();
         write_survey_csv(&mut out, &samples).unwrap();
         let text = String::from_utf8(out).unwrap();
-        assert!(text.starts_with(&format!(
-            "{HEADER},timestamp_s\n1,forward,0,-0,0.30000000000000004,\n"
-        )));
+        assert!(text.starts_with(&format!("{HEADER},timestamp_s\n1,forward,0,-0,0.30000000000000004,\n")));
         assert_bit_equal(&parse_survey_csv(&text, "x").unwrap(), &samples);
     }
 
@@ -585,28 +456,16 @@ mod tests {
     }
 
     fn sample() -> impl Strategy<Value = Sample> {
-        (
-            1..=u32::MAX,
-            any::<bool>(),
-            finite(),
-            finite(),
-            finite(),
-            proptest::option::of(finite()),
+        (1..=u32::MAX, any::<bool>(), finite(), finite(), finite(), proptest::option::of(finite())).prop_map(
+            |(run, fwd, target_deg, readout_deg, actual_deg, timestamp_s)| Sample {
+                run,
+                direction: if fwd { Direction::Forward } else { Direction::Reverse },
+                target_deg,
+                readout_deg,
+                actual_deg,
+                timestamp_s,
+            },
         )
-            .prop_map(
-                |(run, fwd, target_deg, readout_deg, actual_deg, timestamp_s)| Sample {
-                    run,
-                    direction: if fwd {
-                        Direction::Forward
-                    } else {
-                        Direction::Reverse
-                    },
-                    target_deg,
-                    readout_deg,
-                    actual_deg,
-                    timestamp_s,
-                },
-            )
     }
 
     proptest! {

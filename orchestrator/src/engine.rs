@@ -174,7 +174,11 @@ impl Engine {
     /// `Timing::locate_points` readouts spread over the plan's span (a full
     /// revolution or the partial range), a plane and circle fit. Does nothing
     /// for an autocollimator reference.
-    pub async fn locate_axis(&mut self, plan: &SurveyPlan, sink: &mut dyn SampleSink) -> Result<Option<AxisFit>, EngineError> {
+    pub async fn locate_axis(
+        &mut self,
+        plan: &SurveyPlan,
+        sink: &mut dyn SampleSink,
+    ) -> Result<Option<AxisFit>, EngineError> {
         if !matches!(self.reference, Reference::Tracker(_)) {
             return Ok(None);
         }
@@ -280,10 +284,14 @@ impl Engine {
     fn actual_deg(&self, target_deg: f64, raw: &RawReading) -> Result<f64, EngineError> {
         match (raw, &self.reference) {
             (RawReading::Smr(m), _) => {
-                let axis = self.axis.as_ref().ok_or_else(|| EngineError::Plan("the axis has not been located".into()))?;
+                let axis =
+                    self.axis.as_ref().ok_or_else(|| EngineError::Plan("the axis has not been located".into()))?;
                 Ok(axis.angle_deg(m.xyz(), target_deg))
             }
-            (RawReading::Autocollimator { face, reading }, Reference::Autocollimator { faces, certificate_arcsec, .. }) => {
+            (
+                RawReading::Autocollimator { face, reading },
+                Reference::Autocollimator { faces, certificate_arcsec, .. },
+            ) => {
                 let nominal = *face as f64 * 360.0 / *faces as f64;
                 let nominal = nominal + ((target_deg - nominal) / 360.0).round() * 360.0;
                 let cert = certificate_arcsec.get(*face as usize).copied().unwrap_or(0.0);
@@ -423,7 +431,9 @@ impl Engine {
         let t = self.timing.clone();
         if failed == Failed::Positioner {
             let name = self.positioner.name().to_string();
-            if let Err(e) = with_timeout(&*clock, t.call_timeout, &name, "clear fault", self.positioner.clear_fault()).await {
+            if let Err(e) =
+                with_timeout(&*clock, t.call_timeout, &name, "clear fault", self.positioner.clear_fault()).await
+            {
                 tracing::warn!(%e, "clearing the positioner fault failed");
             }
             // The axis may have stopped anywhere: approach the next target afresh.
@@ -434,7 +444,9 @@ impl Engine {
             let state = with_timeout(&*clock, t.call_timeout, &name, "status", tracker.status()).await;
             if matches!(state, Ok(TrackerState::BeamBroken) | Ok(TrackerState::NotReady)) {
                 tracing::info!("re-acquiring the SMR");
-                if let Err(e) = with_timeout(&*clock, t.measure_timeout * 3, &name, "re-acquire", tracker.reacquire()).await {
+                if let Err(e) =
+                    with_timeout(&*clock, t.measure_timeout * 3, &name, "re-acquire", tracker.reacquire()).await
+                {
                     tracing::warn!(%e, "re-acquiring the SMR failed");
                 }
             }
@@ -459,12 +471,14 @@ async fn read_reference(
     match reference {
         Reference::Tracker(tracker) => {
             let name = tracker.name().to_string();
-            let m: SmrMeasurement = with_timeout(clock, t.measure_timeout, &name, "measurement", tracker.measure()).await?;
+            let m: SmrMeasurement =
+                with_timeout(clock, t.measure_timeout, &name, "measurement", tracker.measure()).await?;
             Ok(RawReading::Smr(m))
         }
         Reference::Autocollimator { instrument, faces, .. } => {
             let name = instrument.name().to_string();
-            let reading: AcReading = with_timeout(clock, t.measure_timeout, &name, "reading", instrument.read()).await?;
+            let reading: AcReading =
+                with_timeout(clock, t.measure_timeout, &name, "reading", instrument.read()).await?;
             let face = (near_deg / 360.0 * *faces as f64).round().rem_euclid(*faces as f64) as u32;
             Ok(RawReading::Autocollimator { face, reading })
         }

@@ -245,7 +245,12 @@ fn plan12() -> SurveyPlan {
     SurveyPlan::full_circle(12, 2, true).unwrap()
 }
 
-async fn run_all(rig: &mut Rig, plan: &SurveyPlan, from_seq: u64, sink: &mut dyn SampleSink) -> Result<Outcome, EngineError> {
+async fn run_all(
+    rig: &mut Rig,
+    plan: &SurveyPlan,
+    from_seq: u64,
+    sink: &mut dyn SampleSink,
+) -> Result<Outcome, EngineError> {
     rig.engine.run(plan, from_seq, sink, &mut |_| {}).await
 }
 
@@ -274,7 +279,8 @@ fn assert_step_range(samples: &[RecordedSample], plan: &SurveyPlan, from: u64, t
             r.seq
         );
     }
-    let times: Vec<f64> = samples.iter().map(|r| r.sample.timestamp_s.expect("engine samples are timestamped")).collect();
+    let times: Vec<f64> =
+        samples.iter().map(|r| r.sample.timestamp_s.expect("engine samples are timestamped")).collect();
     assert!(times.windows(2).all(|w| w[1] > w[0]), "timestamps increase: {times:?}");
 }
 
@@ -289,7 +295,9 @@ fn error_bound_deg(preset: &Preset) -> f64 {
     let zero_mean = 1.0 + 1.0 / 12f64.sqrt();
     // Every SMR position is within 4 m of the tracker (axis 2.64 m away, 1 m arm).
     let tracker_sigma_deg = (sigma_mm(4000.0) / 1000.0).to_degrees();
-    preset.native_peak_deg() + model.backlash_deg() / 2.0 + 5.0 * zero_mean * (model.noise_sigma_deg() + tracker_sigma_deg)
+    preset.native_peak_deg()
+        + model.backlash_deg() / 2.0
+        + 5.0 * zero_mean * (model.noise_sigma_deg() + tracker_sigma_deg)
 }
 
 /// Every sample's readout is its target (the servo drives the displayed
@@ -408,7 +416,8 @@ async fn forward_samples_approach_from_below_and_reverse_ones_from_above() {
 /// The last commanded move before call `index`: (previous commanded target,
 /// or the power-up readout 0, and its target).
 fn last_move_before(calls: &[Call], index: usize) -> (f64, f64) {
-    let targets: Vec<f64> = calls[..index].iter().filter_map(|c| if let Call::MoveTo(t) = c { Some(*t) } else { None }).collect();
+    let targets: Vec<f64> =
+        calls[..index].iter().filter_map(|c| if let Call::MoveTo(t) = c { Some(*t) } else { None }).collect();
     match targets.as_slice() {
         [.., from, to] => (*from, *to),
         [to] => (0.0, *to),
@@ -435,7 +444,11 @@ async fn a_positioner_fault_on_a_move_is_cleared_and_the_move_retried() {
     assert_eq!(outcome.faults_survived, 1);
     let warns = events(&sink, "warn");
     assert_eq!(warns.len(), 1, "{warns:?}");
-    assert!(warns[0].contains(&format!("code {FAULT_FOLLOWING_ERROR}")), "the warning names the fault code: {}", warns[0]);
+    assert!(
+        warns[0].contains(&format!("code {FAULT_FOLLOWING_ERROR}")),
+        "the warning names the fault code: {}",
+        warns[0]
+    );
     assert!(events(&sink, "error").is_empty());
     assert_eq!(rig.calls().iter().filter(|c| **c == Call::ClearFault).count(), 1, "the fault was cleared once");
     assert_within_model(&sink.samples, error_bound_deg(&preset));
@@ -472,7 +485,8 @@ async fn survive_link_fault(kind: &str, schedule: fn(usize) -> PositionerFaults)
         // The simulator counts calls from 1.
         let mut rig = tracker_rig(builder(&preset, 4, &clock).faults(schedule(index + 1)));
         let mut sink = MemorySink::default();
-        let outcome = run_all(&mut rig, &plan, 0, &mut sink).await.unwrap_or_else(|e| panic!("{kind} on the {what}: {e}"));
+        let outcome =
+            run_all(&mut rig, &plan, 0, &mut sink).await.unwrap_or_else(|e| panic!("{kind} on the {what}: {e}"));
         assert_steps(&sink.samples, &plan, 0);
         assert_eq!(outcome.faults_survived, 1, "{kind} on the {what}");
         let warns = events(&sink, "warn");
@@ -496,7 +510,8 @@ async fn a_positioner_timeout_is_survived() {
 
 #[tokio::test]
 async fn a_positioner_disconnect_is_survived() {
-    survive_link_fault("disconnected", |n| PositionerFaults { disconnect_on_call: Some(n), ..Default::default() }).await;
+    survive_link_fault("disconnected", |n| PositionerFaults { disconnect_on_call: Some(n), ..Default::default() })
+        .await;
 }
 
 #[tokio::test]

@@ -6,8 +6,8 @@ use crate::engine::{Engine, Reference};
 use async_trait::async_trait;
 use std::sync::Arc;
 use std::time::Duration;
-use survey_drivers::clock::with_timeout;
 use survey_drivers::canopen::{Cia402Positioner, SocketCanBus};
+use survey_drivers::clock::with_timeout;
 use survey_drivers::elcomat::ElcomatDriver;
 use survey_drivers::emscon::EmsconConnector;
 use survey_drivers::modbus::ModbusPositioner;
@@ -191,9 +191,13 @@ fn verdict(e: &DriverError) -> &'static str {
 fn line(instrument: &str, address: String, result: Result<String, DriverError>) -> CheckLine {
     match result {
         Ok(detail) => CheckLine { instrument: instrument.into(), address, ok: true, verdict: "ok".into(), detail },
-        Err(e) => {
-            CheckLine { instrument: instrument.into(), address, ok: false, verdict: verdict(&e).into(), detail: e.to_string() }
-        }
+        Err(e) => CheckLine {
+            instrument: instrument.into(),
+            address,
+            ok: false,
+            verdict: verdict(&e).into(),
+            detail: e.to_string(),
+        },
     }
 }
 
@@ -215,7 +219,13 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
         let readout = with_timeout(clock, timing.call_timeout, &name, "readout", p.readout()).await?;
         Ok(format!(
             "readout {readout} deg, {}{}",
-            if status.moving { "moving" } else if status.in_position { "in position" } else { "at rest" },
+            if status.moving {
+                "moving"
+            } else if status.in_position {
+                "in position"
+            } else {
+                "at rest"
+            },
             status.limit.map(|l| format!(", at the {l:?} limit")).unwrap_or_default()
         ))
     }
@@ -229,7 +239,11 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
                 let state = with_timeout(clock, timing.call_timeout, &name, "status", t.status()).await?;
                 match state {
                     survey_drivers::TrackerState::TargetLocked => Ok("target locked".to_string()),
-                    other => Err(DriverError::new(ErrorKind::Device, name.clone(), format!("{other:?}: the SMR is not locked"))),
+                    other => Err(DriverError::new(
+                        ErrorKind::Device,
+                        name.clone(),
+                        format!("{other:?}: the SMR is not locked"),
+                    )),
                 }
             }
             .await;

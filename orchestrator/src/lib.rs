@@ -4,6 +4,7 @@
 pub mod cli;
 pub mod commands;
 pub mod config;
+pub mod csvio;
 pub mod engine;
 pub mod instruments;
 pub mod modelgap;
@@ -12,5 +13,4 @@ pub mod process;
 pub mod record;
 pub mod report;
 pub mod run;
-pub mod csvio;
 pub mod store;

@@ -61,7 +61,8 @@ pub async fn command(db: &Path, args: ModelGapArgs) -> Result<(), Failure> {
 
 /// With a tracker, an eccentricity found may be the axis fit's error.
 fn tracker_note(gap: &mut ModelGap, axis: &AxisFit) {
-    let found = gap.effects_added.iter().any(|e| e.kind == "eccentricity") || gap.effects_adjusted.iter().any(|e| e.kind == "eccentricity");
+    let found = gap.effects_added.iter().any(|e| e.kind == "eccentricity")
+        || gap.effects_adjusted.iter().any(|e| e.kind == "eccentricity");
     if !found {
         return;
     }
@@ -95,16 +96,19 @@ fn write_model(out: &Path, gap: &ModelGap, given: &Path, survey_id: i64) -> Resu
         gap.noise_floor_deg
     );
     for e in &gap.effects_added {
-        text += &format!("# added {} {}: {}\n", e.kind, if e.cycles_per_rev > 0.0 { format!("{}", e.cycles_per_rev) } else { String::new() }, e.explanation);
+        text += &format!(
+            "# added {} {}: {}\n",
+            e.kind,
+            if e.cycles_per_rev > 0.0 { format!("{}", e.cycles_per_rev) } else { String::new() },
+            e.explanation
+        );
     }
     text += &gap.model.to_toml();
     let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "model".into());
     let tmp = out.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
     std::fs::write(&tmp, &text).with_context(|| format!("cannot write {}", out.display())).map_err(Failure::usage)?;
-    std::fs::rename(&tmp, out)
-        .with_context(|| format!("cannot write {}", out.display()))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            Failure::usage(e)
-        })
+    std::fs::rename(&tmp, out).with_context(|| format!("cannot write {}", out.display())).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Failure::usage(e)
+    })
 }

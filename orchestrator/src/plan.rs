@@ -185,16 +185,19 @@ mod tests {
         assert_eq!(steps.len() as u64, plan.total_steps());
         assert_eq!(steps.len(), 16);
         let order: Vec<(u32, Direction, f64)> = steps.iter().map(|s| (s.run, s.direction, s.target_deg)).collect();
-        assert_eq!(order[0..8], [
-            (1, Direction::Forward, 0.0),
-            (1, Direction::Forward, 90.0),
-            (1, Direction::Forward, 180.0),
-            (1, Direction::Forward, 270.0),
-            (1, Direction::Reverse, 270.0),
-            (1, Direction::Reverse, 180.0),
-            (1, Direction::Reverse, 90.0),
-            (1, Direction::Reverse, 0.0),
-        ]);
+        assert_eq!(
+            order[0..8],
+            [
+                (1, Direction::Forward, 0.0),
+                (1, Direction::Forward, 90.0),
+                (1, Direction::Forward, 180.0),
+                (1, Direction::Forward, 270.0),
+                (1, Direction::Reverse, 270.0),
+                (1, Direction::Reverse, 180.0),
+                (1, Direction::Reverse, 90.0),
+                (1, Direction::Reverse, 0.0),
+            ]
+        );
         assert!(steps.iter().enumerate().all(|(i, s)| s.seq == i as u64));
         assert_eq!(steps[8].run, 2);
     }

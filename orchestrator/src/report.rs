@@ -18,7 +18,8 @@ use survey_processing::model::Model;
 pub async fn command(db: &Path, args: ReportArgs) -> Result<(), Failure> {
     let store = open_existing(db).await?;
     let row = store.resolve(args.survey).await.map_err(classify)?;
-    let samples: Vec<Sample> = store.samples(row.id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let samples: Vec<Sample> =
+        store.samples(row.id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
     store.close().await;
     if samples.is_empty() {
         return Err(Failure::usage(anyhow::anyhow!("survey {} holds no samples yet", row.id)));
@@ -64,7 +65,13 @@ pub async fn command(db: &Path, args: ReportArgs) -> Result<(), Failure> {
                 ("B mean reversal", iso.b_mean, None, None),
                 ("M mean bidirectional deviation", iso.m, None, None),
             ] {
-                let _ = writeln!(html, "<tr><td class=\"l\">{name}</td><td>{}</td><td>{}</td><td>{}</td></tr>", f(all), f(up), f(down));
+                let _ = writeln!(
+                    html,
+                    "<tr><td class=\"l\">{name}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                    f(all),
+                    f(up),
+                    f(down)
+                );
             }
             html += "</table>\n";
         }
@@ -85,7 +92,9 @@ pub async fn command(db: &Path, args: ReportArgs) -> Result<(), Failure> {
         .with_context(|| format!("cannot create the folder {}", args.out.display()))
         .map_err(Failure::usage)?;
     let path = args.out.join("index.html");
-    std::fs::write(&path, html).with_context(|| format!("cannot write {}", path.display())).map_err(Failure::runtime)?;
+    std::fs::write(&path, html)
+        .with_context(|| format!("cannot write {}", path.display()))
+        .map_err(Failure::runtime)?;
     crate::cli::emit(&format!("{}\n", path.display()));
     Ok(())
 }
@@ -110,10 +119,14 @@ fn error_plot(map: &ErrorMap) -> anyhow::Result<String> {
         let series: Vec<Curve> = [(&map.forward, "forward", BLUE), (&map.reverse, "reverse", RED)]
             .into_iter()
             .filter_map(|(d, name, colour)| {
-                d.as_ref().map(|d| (name, colour, map.targets_deg.iter().copied().zip(d.mean_deg.iter().copied()).collect()))
+                d.as_ref()
+                    .map(|d| (name, colour, map.targets_deg.iter().copied().zip(d.mean_deg.iter().copied()).collect()))
             })
             .collect();
-        let (lo, hi) = series.iter().flat_map(|s| s.2.iter().map(|p| p.1)).fold((f64::MAX, f64::MIN), |(a, b), y| (a.min(y), b.max(y)));
+        let (lo, hi) = series
+            .iter()
+            .flat_map(|s| s.2.iter().map(|p| p.1))
+            .fold((f64::MAX, f64::MIN), |(a, b), y| (a.min(y), b.max(y)));
         let pad = ((hi - lo) * 0.1).max(1e-6);
         let x0 = map.targets_deg.first().copied().unwrap_or(0.0);
         let x1 = map.targets_deg.last().copied().unwrap_or(360.0).max(x0 + 1e-9);
@@ -140,10 +153,17 @@ fn error_plot(map: &ErrorMap) -> anyhow::Result<String> {
 /// Amplitude of the mean spectrum against cycles per revolution.
 fn spectrum_plot(a: &Analysis) -> anyhow::Result<String> {
     let Some(spectra) = &a.spectra else {
-        return Ok("<p>A partial-range axis has no FFT spectrum; the lines below come from a least-squares fit.</p>\n".into());
+        return Ok(
+            "<p>A partial-range axis has no FFT spectrum; the lines below come from a least-squares fit.</p>\n".into()
+        );
     };
-    let bins: Vec<(f64, f64)> =
-        spectra.mean.bins.iter().filter(|b| b.cycles_per_rev > 0.0).map(|b| (b.cycles_per_rev, b.amplitude_deg)).collect();
+    let bins: Vec<(f64, f64)> = spectra
+        .mean
+        .bins
+        .iter()
+        .filter(|b| b.cycles_per_rev > 0.0)
+        .map(|b| (b.cycles_per_rev, b.amplitude_deg))
+        .collect();
     let top = bins.iter().map(|b| b.1).fold(0.0f64, f64::max).max(1e-9);
     let right = bins.last().map(|b| b.0).unwrap_or(1.0).max(1.0);
     let mut svg = String::new();

@@ -2,10 +2,10 @@
 //! default) into the store, then report the ISO 230-2 statistics.
 
 use crate::cli::{CheckArgs, Failure, ReferenceKind, ResumeArgs, RunArgs};
-use crate::config::SurveyConfig;
-use crate::instruments::Instruments;
 use crate::commands::{stats_json, stats_text};
+use crate::config::SurveyConfig;
 use crate::engine::{Engine, Outcome, Progress, Reference, Timing};
+use crate::instruments::Instruments;
 use crate::plan::SurveyPlan;
 use crate::store::{NewSurvey, Store, StoreSink, SurveyStatus};
 use anyhow::Context as _;
@@ -73,7 +73,8 @@ fn setup(args: &RunArgs) -> Result<(SimulatedSetup, Preset, Model), Failure> {
         (_, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, args.bidirectional),
     }
     .map_err(Failure::usage)?;
-    let timing = Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
+    let timing =
+        Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
     let per_target = preset.settle + timing.dwell + measurement_time(args.reference) + timing.poll_interval;
     let run_period = plan.estimate_run_duration(timing.velocity_deg_s, timing.accel_deg_s2, per_target);
     let setup = SimulatedSetup {
@@ -156,9 +157,16 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
     );
 
     let sink = StoreSink::new(store.clone(), id);
-    let report =
-        drive(&mut engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: args.sim_crash_after })
-            .await?;
+    let report = drive(
+        &mut engine,
+        &plan,
+        0,
+        sink,
+        clock,
+        db,
+        DriveOptions { json: args.json, crash_after: args.sim_crash_after },
+    )
+    .await?;
     finalize(&mut engine, &store, id, &plan, report, Finalize::of(&args)).await
 }
 
@@ -166,7 +174,10 @@ pub async fn run(db: &Path, args: RunArgs) -> Result<(), Failure> {
 async fn run_configured(db: &Path, args: &RunArgs, path: &Path) -> Result<(), Failure> {
     let cfg = SurveyConfig::from_file(path).map_err(Failure::usage)?;
     let points = args.points.or(cfg.survey.points).ok_or_else(|| {
-        Failure::usage(anyhow::anyhow!("--points N is required (or `points` in the [survey] section of {})", path.display()))
+        Failure::usage(anyhow::anyhow!(
+            "--points N is required (or `points` in the [survey] section of {})",
+            path.display()
+        ))
     })?;
     let runs = args.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
     let bidirectional = args.bidirectional || cfg.survey.bidirectional.unwrap_or(false);
@@ -217,7 +228,8 @@ async fn run_configured(db: &Path, args: &RunArgs, path: &Path) -> Result<(), Fa
         human(estimate)
     );
     let sink = StoreSink::new(store.clone(), id);
-    let report = drive(&mut engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await?;
+    let report =
+        drive(&mut engine, &plan, 0, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await?;
     finalize(&mut engine, &store, id, &plan, report, Finalize::of(args)).await
 }
 
@@ -237,7 +249,8 @@ fn engine_names(engine: &Engine) -> (String, String) {
 /// Time spent at each target besides the move, for the duration estimate.
 fn engine_per_target(cfg: &SurveyConfig) -> Duration {
     let t = cfg.timing();
-    let measure = if cfg.reference() == ReferenceKind::Tracker { Duration::from_secs(1) } else { Duration::from_millis(200) };
+    let measure =
+        if cfg.reference() == ReferenceKind::Tracker { Duration::from_secs(1) } else { Duration::from_millis(200) };
     t.dwell + measure + t.poll_interval
 }
 
@@ -277,7 +290,9 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
             return Err(Failure::usage(anyhow::anyhow!("survey {id} is complete: there is nothing to resume")));
         }
         SurveyStatus::Imported => {
-            return Err(Failure::usage(anyhow::anyhow!("survey {id} was imported, not acquired: it cannot be resumed")));
+            return Err(Failure::usage(anyhow::anyhow!(
+                "survey {id} was imported, not acquired: it cannot be resumed"
+            )));
         }
     }
     let stored = row.sample_count;
@@ -332,7 +347,8 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> Result<(), Failure> {
     store.log_event(id, last_time, "info", &message).await.map_err(Failure::runtime)?;
     eprintln!("survey {id}: {message}");
     let sink = StoreSink::new(store.clone(), id);
-    let report = drive(&mut engine, &plan, next, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await?;
+    let report =
+        drive(&mut engine, &plan, next, sink, clock, db, DriveOptions { json: args.json, crash_after: None }).await?;
     let finish = Finalize { json: args.json, recipe: None, verify: false };
     finalize(&mut engine, &store, id, &plan, report, finish).await
 }
@@ -433,8 +449,7 @@ pub async fn acquire(
         bar.set_draw_target(ProgressDrawTarget::hidden());
     }
     bar.set_style(
-        ProgressStyle::with_template("{bar:32} {pos}/{len} targets  {msg}  time left {eta}")
-            .expect("valid template"),
+        ProgressStyle::with_template("{bar:32} {pos}/{len} targets  {msg}  time left {eta}").expect("valid template"),
     );
     bar.set_position(from_seq);
     let mut on_progress = |p: &Progress| {
@@ -443,12 +458,7 @@ pub async fn acquire(
             std::process::abort();
         }
         bar.set_position(p.done);
-        bar.set_message(format!(
-            "run {} {} · instrument time {}",
-            p.run,
-            p.direction,
-            human(p.instrument_time)
-        ));
+        bar.set_message(format!("run {} {} · instrument time {}", p.run, p.direction, human(p.instrument_time)));
     };
     let result = tokio::select! {
         r = engine.run(plan, from_seq, sink, &mut on_progress) => r.map_err(anyhow::Error::from),
@@ -470,20 +480,17 @@ async fn finish(store: &Store, id: i64, outcome: &anyhow::Result<Outcome>, now: 
     let status = if outcome.is_ok() { SurveyStatus::Complete } else { SurveyStatus::Interrupted };
     if let Err(e) = outcome {
         let _ = store.log_event(id, now.as_secs_f64(), "error", &format!("{e:#}")).await;
-        eprintln!("survey {id} stopped: {e:#}\nwhat was measured is stored; continue with `survey resume --survey {id}`");
+        eprintln!(
+            "survey {id} stopped: {e:#}\nwhat was measured is stored; continue with `survey resume --survey {id}`"
+        );
     }
     store.set_status(id, status, Some(now.as_secs_f64())).await.map_err(Failure::runtime)?;
     Ok(())
 }
 
-async fn summarise(
-    store: &Store,
-    id: i64,
-    db: &Path,
-    outcome: &Outcome,
-    real: Duration,
-) -> Result<Report, Failure> {
-    let samples: Vec<Sample> = store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+async fn summarise(store: &Store, id: i64, db: &Path, outcome: &Outcome, real: Duration) -> Result<Report, Failure> {
+    let samples: Vec<Sample> =
+        store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
     let iso = iso230_2(&samples).context("ISO 230-2 statistics").map_err(Failure::runtime)?;
     let mut doc = stats_json(id, &iso);
     doc["samples"] = samples.len().into();
@@ -496,11 +503,16 @@ async fn summarise(
         samples.len(),
         human(outcome.instrument_time),
         real.as_secs_f64(),
-        if outcome.faults_survived > 0 { format!(", {} faults survived", outcome.faults_survived) } else { String::new() }
+        if outcome.faults_survived > 0 {
+            format!(", {} faults survived", outcome.faults_survived)
+        } else {
+            String::new()
+        }
     );
     text += "\n";
     text += &stats_text(id, &iso);
-    text += &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
+    text +=
+        &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
     Ok(Report { doc, text })
 }
 
@@ -590,8 +602,10 @@ async fn verify(
     let outcome = acquire(engine, plan, 0, &mut sink, !json, None).await;
     finish(store, id, &outcome, clock.now()).await?;
     outcome.map_err(Failure::runtime)?;
-    let native: Vec<Sample> = store.samples(native_id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
-    let corrected: Vec<Sample> = store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let native: Vec<Sample> =
+        store.samples(native_id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
+    let corrected: Vec<Sample> =
+        store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
     let iso = iso230_2(&corrected).context("ISO 230-2 statistics of the verification").map_err(Failure::runtime)?;
     let (native_peak, corrected_peak) = (peak_deg(&native), peak_deg(&corrected));
     let predicted = processed.processed.prediction.corrected_peak_deg;

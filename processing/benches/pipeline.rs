@@ -44,7 +44,14 @@ fn survey() -> (Model, Vec<Sample>) {
             }
             for t in targets {
                 let e = model.repeatable_error_deg(t, direction) + sigma * rng.sample();
-                out.push(Sample { run, direction, target_deg: t, readout_deg: t, actual_deg: t - e, timestamp_s: None });
+                out.push(Sample {
+                    run,
+                    direction,
+                    target_deg: t,
+                    readout_deg: t,
+                    actual_deg: t - e,
+                    timestamp_s: None,
+                });
             }
         }
     }

@@ -340,14 +340,12 @@ pub fn from_bytes(bytes: &[u8]) -> Result<CorrectionTable, BinaryError> {
     }
     let rows = rows as usize;
     let decoded: Vec<f64> = match format {
-        ValueFormat::F64 => values
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8")))
-            .collect(),
-        ValueFormat::F32 => values
-            .chunks_exact(4)
-            .map(|c| f64::from(f32::from_le_bytes(c.try_into().expect("chunks of 4"))))
-            .collect(),
+        ValueFormat::F64 => {
+            values.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8"))).collect()
+        }
+        ValueFormat::F32 => {
+            values.chunks_exact(4).map(|c| f64::from(f32::from_le_bytes(c.try_into().expect("chunks of 4")))).collect()
+        }
     };
     if let Some(i) = decoded.iter().position(|v| !v.is_finite()) {
         return Err(BinaryError::NotFinite { row: i % rows, column: i / rows });

@@ -61,9 +61,8 @@ impl Coverage {
         }
         let (start, end) = (targets_deg[0], targets_deg[n - 1]);
         let step = (end - start) / (n - 1) as f64;
-        let uniform_at = |spacing: f64| {
-            targets_deg.windows(2).all(|w| ((w[1] - w[0]) - spacing).abs() <= SPACING_TOLERANCE_DEG)
-        };
+        let uniform_at =
+            |spacing: f64| targets_deg.windows(2).all(|w| ((w[1] - w[0]) - spacing).abs() <= SPACING_TOLERANCE_DEG);
         if uniform_at(360.0 / n as f64) {
             (Coverage::FullCircle { n }, true)
         } else {
@@ -128,7 +127,9 @@ pub enum ErrorMapError {
         value: f64,
     },
     /// A run has no sample at a target in a direction that was measured.
-    #[error("run {run}, target {target_deg} deg, {direction}: no sample (every run needs one sample per target in each measured direction)")]
+    #[error(
+        "run {run}, target {target_deg} deg, {direction}: no sample (every run needs one sample per target in each measured direction)"
+    )]
     MissingSample {
         /// The run without a sample.
         run: u32,
@@ -272,7 +273,8 @@ impl ErrorMap {
     /// direction, degrees (`sqrt` of the mean per-target variance); `None` with one run.
     /// It includes run-to-run offsets and drift.
     pub fn pooled_sd_deg(&self) -> Option<f64> {
-        let sds: Vec<&Vec<f64>> = [&self.forward, &self.reverse].into_iter().flatten().filter_map(|d| d.sd_deg.as_ref()).collect();
+        let sds: Vec<&Vec<f64>> =
+            [&self.forward, &self.reverse].into_iter().flatten().filter_map(|d| d.sd_deg.as_ref()).collect();
         let count: usize = sds.iter().map(|v| v.len()).sum();
         (count > 0).then(|| (sds.iter().flat_map(|v| v.iter()).map(|s| s * s).sum::<f64>() / count as f64).sqrt())
     }
@@ -316,7 +318,14 @@ mod tests {
     use Direction::{Forward, Reverse};
 
     fn s(run: u32, direction: Direction, target_deg: f64, error: f64) -> Sample {
-        Sample { run, direction, target_deg, readout_deg: target_deg + 0.5 * error, actual_deg: target_deg - 0.5 * error, timestamp_s: None }
+        Sample {
+            run,
+            direction,
+            target_deg,
+            readout_deg: target_deg + 0.5 * error,
+            actual_deg: target_deg - 0.5 * error,
+            timestamp_s: None,
+        }
     }
 
     /// 3 targets x 2 runs x 2 directions, hand-computed.

@@ -119,11 +119,8 @@ impl Model {
 
     /// Parse and validate model-file text; `source_name` names it in errors.
     pub fn parse(text: &str, source_name: &str) -> Result<Self, ModelError> {
-        let err = |line: Option<usize>, message: String| ModelError {
-            source_name: source_name.to_string(),
-            line,
-            message,
-        };
+        let err =
+            |line: Option<usize>, message: String| ModelError { source_name: source_name.to_string(), line, message };
         let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
             let line = e.span().map(|s| line_of_offset(text, s.start));
             err(line, format!("not valid TOML: {}", e.message()))
@@ -199,10 +196,7 @@ impl Model {
 
     /// Total backlash (forward reads `+backlash/2`, reverse `-backlash/2`).
     pub fn backlash_deg(&self) -> f64 {
-        self.effects
-            .iter()
-            .map(|e| if let Effect::Backlash { amplitude_deg } = e { *amplitude_deg } else { 0.0 })
-            .sum()
+        self.effects.iter().map(|e| if let Effect::Backlash { amplitude_deg } = e { *amplitude_deg } else { 0.0 }).sum()
     }
 
     /// Drift per run.
@@ -262,7 +256,9 @@ impl Locator<'_> {
 
     fn top_key(&self, key: &str) -> Option<usize> {
         self.lines()
-            .find(|(_, l)| l.starts_with(&format!("[{key}]")) || l.starts_with(&format!("[[{key}]]")) || is_key_line(l, key))
+            .find(|(_, l)| {
+                l.starts_with(&format!("[{key}]")) || l.starts_with(&format!("[[{key}]]")) || is_key_line(l, key)
+            })
             .map(|(n, _)| n)
     }
 
@@ -317,7 +313,8 @@ fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
                 }
             }
             "tooth_counts" => {
-                let arr = value.as_array().ok_or((at(key), "design.tooth_counts must be an array of integers".into()))?;
+                let arr =
+                    value.as_array().ok_or((at(key), "design.tooth_counts must be an array of integers".into()))?;
                 for v in arr {
                     match v.as_integer() {
                         Some(n) if n > 0 && n <= u32::MAX as i64 => d.tooth_counts.push(n as u32),
@@ -327,7 +324,12 @@ fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
             }
             "encoder_heads" => match value.as_integer() {
                 Some(n) if (1..=64).contains(&n) => d.encoder_heads = Some(n as u32),
-                _ => return Err((at(key), format!("design.encoder_heads must be an integer from 1 to 64, got {value}"))),
+                _ => {
+                    return Err((
+                        at(key),
+                        format!("design.encoder_heads must be an integer from 1 to 64, got {value}"),
+                    ));
+                }
             },
             other => {
                 return Err((
@@ -394,7 +396,10 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
             ));
         }
         if cycles <= 0.0 {
-            return Err((at("cycles_per_rev"), format!("effect[{n}] ({}).cycles_per_rev must be positive, got {cycles}", kind.as_str())));
+            return Err((
+                at("cycles_per_rev"),
+                format!("effect[{n}] ({}).cycles_per_rev must be positive, got {cycles}", kind.as_str()),
+            ));
         }
         let amplitude_deg = non_negative("amplitude_deg", get("amplitude_deg")?)?;
         let phase_deg = if t.contains_key("phase_deg") { get("phase_deg")? } else { 0.0 };
@@ -493,7 +498,9 @@ sigma_deg = 0.0005
 
     #[test]
     fn negative_sigma_names_the_key_line() {
-        let e = error_of("[[effect]]\nkind = \"backlash\"\namplitude_deg = 0.001\n\n[[effect]]\nkind = \"noise\"\nsigma_deg = -0.1\n");
+        let e = error_of(
+            "[[effect]]\nkind = \"backlash\"\namplitude_deg = 0.001\n\n[[effect]]\nkind = \"noise\"\nsigma_deg = -0.1\n",
+        );
         assert_eq!(e.line, Some(7));
         assert!(e.message.contains("effect[2] (noise).sigma_deg must not be negative"), "{e}");
     }
@@ -501,9 +508,11 @@ sigma_deg = 0.0005
     #[test]
     fn other_defects_are_named() {
         assert!(error_of("[[effect]]\nkind = \"noise\"\nsigma = 1\n").message.contains("unknown key 'sigma'"));
-        assert!(error_of("[[effect]]\nkind = \"eccentricity\"\ncycles_per_rev = 3\namplitude_deg = 1\n")
-            .message
-            .contains("must be 1"));
+        assert!(
+            error_of("[[effect]]\nkind = \"eccentricity\"\ncycles_per_rev = 3\namplitude_deg = 1\n")
+                .message
+                .contains("must be 1")
+        );
         assert!(error_of("[design]\ngear_ratio = [1]\n").message.contains("unknown key 'gear_ratio'"));
         assert!(error_of("[[effect]]\nkind = \"drift\"\nrate_deg_per_run = \"x\"\n").message.contains("finite number"));
         let syntax = error_of("[design\n");

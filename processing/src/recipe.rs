@@ -92,8 +92,8 @@ pub use build::{BuiltTable, Hysteresis, TableMethod, hysteresis};
 pub use decide::{AliasDecision, Decisions, LineAction, LineDecision};
 
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
-use crate::corrector::ValueFormat;
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};
+use crate::corrector::ValueFormat;
 use crate::resample::{Method as Interpolation, PartialMethod};
 use serde::{Deserialize, Serialize, Serializer};
 use std::path::Path;
@@ -308,7 +308,12 @@ impl ChoiceError {
     /// The error as a defect of the recipe file `source_name` whose text is
     /// `text` (the line is found from the key).
     pub fn in_file(self, text: &str, source_name: &str) -> RecipeError {
-        RecipeError { source_name: source_name.to_string(), line: locate(text, &self.key), key: self.key, message: self.message }
+        RecipeError {
+            source_name: source_name.to_string(),
+            line: locate(text, &self.key),
+            key: self.key,
+            message: self.message,
+        }
     }
 }
 
@@ -367,7 +372,10 @@ impl Recipe {
     pub fn validate(&self) -> Result<(), ChoiceError> {
         let bad = |key: &str, message: String| Err(ChoiceError::new(key, message));
         if self.version != RECIPE_VERSION {
-            return bad("version", format!("recipe format {} is not known (this program reads {RECIPE_VERSION})", self.version));
+            return bad(
+                "version",
+                format!("recipe format {} is not known (this program reads {RECIPE_VERSION})", self.version),
+            );
         }
         // The analysis' own ranges (analysis::AnalysisOptions checks the same
         // when it runs; checked here so the key and line can be named).
@@ -400,7 +408,10 @@ impl Recipe {
         }
         let m = self.lines.min_amplitude_deg;
         if !(m.is_finite() && m >= 0.0) {
-            return bad("lines.min_amplitude_deg", format!("must be a finite, non-negative number of degrees, got {m}"));
+            return bad(
+                "lines.min_amplitude_deg",
+                format!("must be a finite, non-negative number of degrees, got {m}"),
+            );
         }
         for (i, a) in self.aliases.iter().enumerate() {
             let key = |k: &str| format!("alias[{}].{k}", i + 1);
@@ -408,7 +419,10 @@ impl Recipe {
                 return bad(&key("true_cycles"), "must be at least 1".into());
             }
             if self.aliases[..i].iter().any(|b| b.true_cycles == a.true_cycles) {
-                return bad(&key("true_cycles"), format!("{} cycles/rev has more than one [[alias]] entry", a.true_cycles));
+                return bad(
+                    &key("true_cycles"),
+                    format!("{} cycles/rev has more than one [[alias]] entry", a.true_cycles),
+                );
             }
             let f = a.true_cycles as f64;
             if self.lines.keep.contains(&f) || self.lines.remove.contains(&f) {
@@ -436,7 +450,10 @@ impl Recipe {
         if !(2..=LINUXCNC_MAX_POINTS).contains(&self.export.linuxcnc_points) {
             return bad(
                 "export.linuxcnc_points",
-                format!("must be from 2 to {LINUXCNC_MAX_POINTS} (LinuxCNC holds 256), got {}", self.export.linuxcnc_points),
+                format!(
+                    "must be from 2 to {LINUXCNC_MAX_POINTS} (LinuxCNC holds 256), got {}",
+                    self.export.linuxcnc_points
+                ),
             );
         }
         Ok(())
@@ -527,7 +544,9 @@ fn key_at(text: &str, offset: usize) -> String {
             let n = count.entry(name.clone()).or_default();
             *n += 1;
             section = format!("{name}[{n}]");
-        } else if let Some(name) = l.strip_prefix('[').and_then(|s| s.split_once(']')).map(|(n, _)| n.trim().to_string()) {
+        } else if let Some(name) =
+            l.strip_prefix('[').and_then(|s| s.split_once(']')).map(|(n, _)| n.trim().to_string())
+        {
             section = name;
         }
     }

@@ -283,7 +283,13 @@ impl Planner {
     }
 
     /// Spectrum of `y` taken as one period of `span_deg` starting at `start_deg`.
-    pub fn spectrum(&mut self, y: &[f64], start_deg: f64, span_deg: f64, window: Window) -> Result<Spectrum, SpectrumError> {
+    pub fn spectrum(
+        &mut self,
+        y: &[f64],
+        start_deg: f64,
+        span_deg: f64,
+        window: Window,
+    ) -> Result<Spectrum, SpectrumError> {
         let n = y.len();
         if n < 3 {
             return Err(SpectrumError::TooFewPoints { points: n, min: 3 });
@@ -349,7 +355,10 @@ impl Spectrum {
     pub fn mean_of(spectra: &[Spectrum]) -> Option<Spectrum> {
         let first = spectra.first()?;
         if spectra.iter().any(|s| {
-            s.points != first.points || s.start_deg != first.start_deg || s.span_deg != first.span_deg || s.window != first.window
+            s.points != first.points
+                || s.start_deg != first.start_deg
+                || s.span_deg != first.span_deg
+                || s.window != first.window
         }) {
             return None;
         }
@@ -675,7 +684,8 @@ mod tests {
     #[test]
     fn fit_recovers_nearly_collinear_terms() {
         let theta: Vec<f64> = (0..=200).map(|j| -10.0 + 0.5 * j as f64).collect();
-        let comps = [(1.0, 0.002, 150.0), (2.0, 0.001, 10.0), (6.0, 0.028, 20.0), (12.0, 0.003, 75.0), (72.0, 0.006, 0.0)];
+        let comps =
+            [(1.0, 0.002, 150.0), (2.0, 0.001, 10.0), (6.0, 0.028, 20.0), (12.0, 0.003, 75.0), (72.0, 0.006, 0.0)];
         let y: Vec<f64> = theta
             .iter()
             .map(|t| 0.01 + comps.iter().map(|&(k, a, p)| a * (k * t + p).to_radians().sin()).sum::<f64>())
@@ -710,18 +720,39 @@ mod tests {
     fn fit_defects_are_named() {
         let theta: Vec<f64> = (0..=200).map(|j| -10.0 + 0.5 * j as f64).collect();
         let y = vec![0.0; theta.len()];
-        assert_eq!(fit_sinusoids(&theta, &y, &[6.0, 6.0]).unwrap_err(), SpectrumError::DuplicateFrequency { cycles_per_rev: 6.0 });
+        assert_eq!(
+            fit_sinusoids(&theta, &y, &[6.0, 6.0]).unwrap_err(),
+            SpectrumError::DuplicateFrequency { cycles_per_rev: 6.0 }
+        );
         assert_eq!(fit_sinusoids(&theta, &y, &[0.0]).unwrap_err(), SpectrumError::BadFrequency { cycles_per_rev: 0.0 });
         // 360 cycles/rev at 0.5 deg spacing starting at -10: sin column is zero.
-        assert_eq!(fit_sinusoids(&theta, &y, &[6.0, 360.0]).unwrap_err(), SpectrumError::Unresolvable { cycles_per_rev: 360.0 });
+        assert_eq!(
+            fit_sinusoids(&theta, &y, &[6.0, 360.0]).unwrap_err(),
+            SpectrumError::Unresolvable { cycles_per_rev: 360.0 }
+        );
         // 720 cycles/rev at 0.5 deg: indistinguishable from the offset.
-        assert_eq!(fit_sinusoids(&theta, &y, &[720.0]).unwrap_err(), SpectrumError::Unresolvable { cycles_per_rev: 720.0 });
-        assert_eq!(fit_sinusoids(&theta[..4], &y[..4], &[1.0, 2.0]).unwrap_err(), SpectrumError::TooFewPoints { points: 4, min: 5 });
-        assert_eq!(fit_sinusoids(&theta, &y[..3], &[1.0]).unwrap_err(), SpectrumError::LengthMismatch { angles: 201, values: 3 });
+        assert_eq!(
+            fit_sinusoids(&theta, &y, &[720.0]).unwrap_err(),
+            SpectrumError::Unresolvable { cycles_per_rev: 720.0 }
+        );
+        assert_eq!(
+            fit_sinusoids(&theta[..4], &y[..4], &[1.0, 2.0]).unwrap_err(),
+            SpectrumError::TooFewPoints { points: 4, min: 5 }
+        );
+        assert_eq!(
+            fit_sinusoids(&theta, &y[..3], &[1.0]).unwrap_err(),
+            SpectrumError::LengthMismatch { angles: 201, values: 3 }
+        );
         let mut bad = y.clone();
         bad[7] = f64::INFINITY;
-        assert!(matches!(fit_sinusoids(&theta, &bad, &[1.0]).unwrap_err(), SpectrumError::NonFinite { what: "sample", index: 7, .. }));
-        assert_eq!(Spectrum::full_circle(&[1.0, 2.0], 0.0).unwrap_err(), SpectrumError::TooFewPoints { points: 2, min: 3 });
+        assert!(matches!(
+            fit_sinusoids(&theta, &bad, &[1.0]).unwrap_err(),
+            SpectrumError::NonFinite { what: "sample", index: 7, .. }
+        ));
+        assert_eq!(
+            Spectrum::full_circle(&[1.0, 2.0], 0.0).unwrap_err(),
+            SpectrumError::TooFewPoints { points: 2, min: 3 }
+        );
     }
 
     proptest! {

@@ -129,9 +129,6 @@ mod tests {
             CorrectionTable::directional(vec![0.0; 4], vec![0.0; 3]),
             Err(TableError::LengthMismatch { .. })
         ));
-        assert_eq!(
-            CorrectionTable::new(vec![0.0, f64::NAN]),
-            Err(TableError::NotFinite { row: 1 })
-        );
+        assert_eq!(CorrectionTable::new(vec![0.0, f64::NAN]), Err(TableError::NotFinite { row: 1 }));
     }
 }

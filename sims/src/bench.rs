@@ -18,11 +18,11 @@
 //! ```
 
 use crate::autocollimator::{AutocollimatorConfig, SimAutocollimator};
+use crate::derive_seed;
 use crate::positioner::{PositionerConfig, PositionerFaults, SimPositioner};
 use crate::presets::{Preset, without_noise};
 use crate::tracker::{ArmGeometry, SimTracker, TrackerConfig};
 use crate::turntable::Turntable;
-use crate::derive_seed;
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::clock::Clock;
@@ -138,8 +138,8 @@ impl SimBenchBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use survey_drivers::traits::{Autocollimator, Positioner, Tracker};
     use survey_drivers::VirtualClock;
+    use survey_drivers::traits::{Autocollimator, Positioner, Tracker};
 
     async fn settle(p: &mut SimPositioner) {
         for _ in 0..100_000 {
@@ -172,7 +172,10 @@ mod tests {
     async fn same_seed_is_bit_identical_and_another_differs() {
         let a = survey(42).await;
         let b = survey(42).await;
-        assert_eq!(a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), b.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+        assert_eq!(
+            a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            b.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        );
         assert_ne!(a, survey(43).await);
     }
 

@@ -77,12 +77,12 @@ use crate::tracker::{CODE_BEAM_BROKEN, SimTracker};
 use std::collections::VecDeque;
 use survey_drivers::emscon::codes::{
     adm_status, command as cmd, coordinate_system, laser_status, length_unit, meas_mode,
-    measurement_status_info as msi, pressure_unit, status, status_change, temperature_unit,
-    tracker_processor_status, weather_monitor_status,
+    measurement_status_info as msi, pressure_unit, status, status_change, temperature_unit, tracker_processor_status,
+    weather_monitor_status,
 };
 use survey_drivers::emscon::packets::{
-    Answer, AnswerBody, MeasurementStatusInfo, Reply, Request, RequestDecoder, SingleMeasResult,
-    StationaryModeData, SystemStatus, SystemUnits,
+    Answer, AnswerBody, MeasurementStatusInfo, Reply, Request, RequestDecoder, SingleMeasResult, StationaryModeData,
+    SystemStatus, SystemUnits,
 };
 use survey_drivers::traits::{SmrMeasurement, Tracker, TrackerState};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -393,7 +393,11 @@ impl Server {
             Request::SetStationaryModeParams(p) => {
                 let sim_ms = self.sim.config().measurement_time.as_millis();
                 if u128::try_from(p.meas_time_ms).ok() != Some(sim_ms) {
-                    tracing::debug!(p.meas_time_ms, sim_ms, "emscon simulator: lMeasTime kept, the sim's own time applies");
+                    tracing::debug!(
+                        p.meas_time_ms,
+                        sim_ms,
+                        "emscon simulator: lMeasTime kept, the sim's own time applies"
+                    );
                 }
                 self.stationary = p;
                 ok(c)
@@ -567,7 +571,6 @@ fn garble(mut packet: Vec<u8>, how: Garble) -> Vec<u8> {
     tracing::debug!(?how, "emscon simulator: answer garbled (injected)");
     packet
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -336,7 +336,11 @@ impl SimPositioner {
         }
         self.clock.sleep(self.cfg.link_latency).await;
         if g < f.garbled_probability_per_call {
-            return Err(DriverError::new(ErrorKind::Garbled, INSTRUMENT, format!("bad checksum in the reply to {what} (simulated)")));
+            return Err(DriverError::new(
+                ErrorKind::Garbled,
+                INSTRUMENT,
+                format!("bad checksum in the reply to {what} (simulated)"),
+            ));
         }
         Ok(())
     }

@@ -128,9 +128,7 @@ pub fn peak_error_deg(model: &Model, travel: Option<(f64, f64)>) -> f64 {
     let n = (((hi - lo) / 0.005).ceil() as usize).max(1);
     (0..=n)
         .map(|i| lo + (hi - lo) * i as f64 / n as f64)
-        .flat_map(|t| {
-            [Direction::Forward, Direction::Reverse].map(|d| model.repeatable_error_deg(t, d).abs())
-        })
+        .flat_map(|t| [Direction::Forward, Direction::Reverse].map(|d| model.repeatable_error_deg(t, d).abs()))
         .fold(0.0, f64::max)
 }
 
@@ -187,7 +185,9 @@ mod tests {
             p.model
                 .periodic_effects()
                 .filter_map(|e| match e {
-                    Effect::Periodic { cycles_per_rev, amplitude_deg, .. } if *cycles_per_rev == c => Some(*amplitude_deg),
+                    Effect::Periodic { cycles_per_rev, amplitude_deg, .. } if *cycles_per_rev == c => {
+                        Some(*amplitude_deg)
+                    }
                     _ => None,
                 })
                 .sum::<f64>()
@@ -204,7 +204,9 @@ mod tests {
             p.model
                 .periodic_effects()
                 .filter_map(|e| match e {
-                    Effect::Periodic { cycles_per_rev, amplitude_deg, .. } if *cycles_per_rev == c => Some(*amplitude_deg),
+                    Effect::Periodic { cycles_per_rev, amplitude_deg, .. } if *cycles_per_rev == c => {
+                        Some(*amplitude_deg)
+                    }
                     _ => None,
                 })
                 .sum::<f64>()

@@ -219,8 +219,7 @@ impl Tracker for SimTracker {
         self.measurements += 1;
         let theta = self.turntable.actual_deg(self.clock.now());
         let draw: f64 = self.fault_rng.random();
-        let breaks =
-            self.cfg.break_on_measurement == Some(self.measurements) || draw < self.cfg.beam_break_probability;
+        let breaks = self.cfg.break_on_measurement == Some(self.measurements) || draw < self.cfg.beam_break_probability;
         self.clock.sleep(self.cfg.measurement_time).await;
         if breaks {
             self.state = TrackerState::BeamBroken;

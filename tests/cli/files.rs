@@ -38,20 +38,13 @@ fn export_import_export_round_trip_is_byte_identical() {
 fn import_of_a_valid_csv_without_timestamps() {
     let b = Bench::new();
     b.write("data.csv", VALID_CSV);
-    assert_eq!(
-        b.import("data.csv"),
-        1,
-        "the first survey of a fresh database"
-    );
+    assert_eq!(b.import("data.csv"), 1, "the first survey of a fresh database");
     assert!(b.exists("survey.db"), "import creates the database");
     assert_eq!(b.export(None, "out.csv"), VALID_CSV);
     let doc = b.stats_json(None);
     assert_eq!(doc["survey_id"].as_i64(), Some(1));
     for key in ISO_KEYS {
-        assert!(
-            iso_figure(&doc, key).is_some(),
-            "iso230_2.{key} of a bidirectional import: {doc}"
-        );
+        assert!(iso_figure(&doc, key).is_some(), "iso230_2.{key} of a bidirectional import: {doc}");
     }
 }
 
@@ -75,16 +68,11 @@ fn import_of_a_valid_csv_with_timestamps() {
 fn import_names_the_file_as_given_in_a_subfolder() {
     let b = Bench::new();
     std::fs::create_dir(b.path("in")).unwrap();
-    b.write(
-        "in/bad.csv",
-        format!("{HEADER}\n1,forward,0,0,0\n1,forward,10,10,oops\n"),
-    );
-    b.survey(&["import", "in/bad.csv"])
-        .bad_input(&["in/bad.csv:3", "actual_deg", "oops"]);
+    b.write("in/bad.csv", format!("{HEADER}\n1,forward,0,0,0\n1,forward,10,10,oops\n"));
+    b.survey(&["import", "in/bad.csv"]).bad_input(&["in/bad.csv:3", "actual_deg", "oops"]);
     let abs = b.path("in/bad.csv");
     let abs = abs.to_str().expect("UTF-8 temp path");
-    b.survey(&["import", abs])
-        .bad_input(&[&format!("{abs}:3"), "actual_deg", "oops"]);
+    b.survey(&["import", abs]).bad_input(&[&format!("{abs}:3"), "actual_deg", "oops"]);
 }
 
 // ---------------------------------------------------------------------------
@@ -127,9 +115,7 @@ fn import_rejects_an_unexpected_column() {
 #[test]
 fn import_rejects_a_non_number() {
     assert_import_rejected(
-        format!(
-            "{HEADER}\n1,forward,0,0,0\n1,forward,10,abc,10\n2,forward,0,0,0\n2,forward,10,10,10\n"
-        ),
+        format!("{HEADER}\n1,forward,0,0,0\n1,forward,10,abc,10\n2,forward,0,0,0\n2,forward,10,10,10\n"),
         &["bad.csv:3", "readout_deg", "abc", "not a number"],
     );
 }
@@ -190,11 +176,7 @@ fn import_rejects_nan_and_infinite_values() {
 #[test]
 fn import_rejects_text_that_is_not_utf8_naming_the_line() {
     assert_import_rejected(
-        [
-            format!("{HEADER}\n1,forward,0,0,0\n").as_bytes(),
-            b"2,forward,\xff,0,0\n",
-        ]
-        .concat(),
+        [format!("{HEADER}\n1,forward,0,0,0\n").as_bytes(), b"2,forward,\xff,0,0\n"].concat(),
         &["bad.csv:3", "UTF-8"],
     );
 }
@@ -203,8 +185,7 @@ fn import_rejects_text_that_is_not_utf8_naming_the_line() {
 fn rejected_import_into_a_fresh_folder_creates_no_database() {
     let b = Bench::new();
     b.write("bad.csv", format!("{HEADER}\n1,fwd,0,0,0\n"));
-    b.survey(&["import", "bad.csv"])
-        .bad_input(&["bad.csv:2", "fwd"]);
+    b.survey(&["import", "bad.csv"]).bad_input(&["bad.csv:2", "fwd"]);
     assert!(!b.exists("survey.db"));
 }
 
@@ -213,13 +194,10 @@ fn import_of_an_unreadable_path_exits_2() {
     let b = Bench::new();
     b.small_survey(false);
     let before = b.stored();
-    let out = b
-        .survey(&["import", "missing.csv"])
-        .bad_input(&["missing.csv"]);
+    let out = b.survey(&["import", "missing.csv"]).bad_input(&["missing.csv"]);
     assert!(out.stdout.is_empty());
     std::fs::create_dir(b.path("folder.csv")).unwrap();
-    b.survey(&["import", "folder.csv"])
-        .bad_input(&["folder.csv"]);
+    b.survey(&["import", "folder.csv"]).bad_input(&["folder.csv"]);
     b.assert_unchanged(&before, &out);
 }
 
@@ -234,41 +212,23 @@ fn assert_model_rejected(model: &str, words: &[&str]) {
     let fresh = Bench::new();
     fresh.write("bad.toml", model);
     let out = fresh
-        .survey(&[
-            "run", "--points", "36", "--runs", "2", "--model", "bad.toml",
-        ])
+        .survey(&["run", "--points", "36", "--runs", "2", "--model", "bad.toml"])
         .bad_input(&[&["bad.toml"][..], words].concat());
     assert!(out.stdout.is_empty(), "{out}");
-    assert!(
-        !fresh.exists("survey.db"),
-        "a rejected model file creates no database\n{out}"
-    );
+    assert!(!fresh.exists("survey.db"), "a rejected model file creates no database\n{out}");
 
     let b = Bench::new();
     b.small_survey(true);
     let before = b.stored();
     b.write("bad.toml", model);
-    let out = b
-        .survey(&[
-            "run",
-            "--points",
-            "36",
-            "--runs",
-            "2",
-            "--bidirectional",
-            "--model",
-            "bad.toml",
-        ])
-        .bad_input(words);
+    let out =
+        b.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--model", "bad.toml"]).bad_input(words);
     b.assert_unchanged(&before, &out);
 }
 
 #[test]
 fn model_with_an_unknown_kind_is_rejected() {
-    assert_model_rejected(
-        "[[effect]]\nkind = \"wobble\"\namplitude_deg = 0.001\n",
-        &["bad.toml:2", "kind", "wobble"],
-    );
+    assert_model_rejected("[[effect]]\nkind = \"wobble\"\namplitude_deg = 0.001\n", &["bad.toml:2", "kind", "wobble"]);
 }
 
 #[test]
@@ -298,25 +258,13 @@ fn model_with_an_unknown_key_is_rejected() {
 
 #[test]
 fn model_that_is_not_toml_is_rejected() {
-    assert_model_rejected(
-        "[design]\ngear_ratios = [12]\nthis is not toml\n",
-        &["bad.toml:3", "TOML"],
-    );
+    assert_model_rejected("[design]\ngear_ratios = [12]\nthis is not toml\n", &["bad.toml:3", "TOML"]);
 }
 
 #[test]
 fn missing_model_file_is_rejected() {
     let b = Bench::new();
-    b.survey(&[
-        "run",
-        "--points",
-        "36",
-        "--runs",
-        "2",
-        "--model",
-        "nowhere.toml",
-    ])
-    .bad_input(&["nowhere.toml"]);
+    b.survey(&["run", "--points", "36", "--runs", "2", "--model", "nowhere.toml"]).bad_input(&["nowhere.toml"]);
     assert!(!b.exists("survey.db"));
 }
 
@@ -324,26 +272,10 @@ fn missing_model_file_is_rejected() {
 fn valid_model_files_run() {
     let b = Bench::new();
     b.write("contract.toml", CONTRACT_MODEL);
-    b.write(
-        "design-only.toml",
-        "[design]\ngear_ratios = [12]\ntooth_counts = [216]\n",
-    );
+    b.write("design-only.toml", "[design]\ngear_ratios = [12]\ntooth_counts = [216]\n");
     b.write("no-effects.toml", "");
-    for (i, file) in ["contract.toml", "design-only.toml", "no-effects.toml"]
-        .iter()
-        .enumerate()
-    {
-        let out = b.survey(&[
-            "run",
-            "--points",
-            "36",
-            "--runs",
-            "2",
-            "--bidirectional",
-            "--model",
-            file,
-            "--json",
-        ]);
+    for (i, file) in ["contract.toml", "design-only.toml", "no-effects.toml"].iter().enumerate() {
+        let out = b.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--model", file, "--json"]);
         let doc = out.success().json();
         assert_eq!(doc["survey_id"].as_i64(), Some(i as i64 + 1));
         assert_bidirectional_relations(&doc);
@@ -357,36 +289,17 @@ fn valid_model_files_run() {
 #[test]
 fn model_file_backlash_shows_in_the_mean_reversal() {
     let b = Bench::new();
-    b.write(
-        "backlash.toml",
-        "[[effect]]\nkind = \"backlash\"\namplitude_deg = 0.004\n",
-    );
+    b.write("backlash.toml", "[[effect]]\nkind = \"backlash\"\namplitude_deg = 0.004\n");
     b.write("none.toml", "[design]\n");
     let run = |file| {
-        b.survey(&[
-            "run",
-            "--points",
-            "36",
-            "--runs",
-            "2",
-            "--bidirectional",
-            "--model",
-            file,
-            "--json",
-        ])
-        .success()
-        .json()
+        b.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--model", file, "--json"])
+            .success()
+            .json()
     };
     let with = number(&run("backlash.toml"), "B_mean");
     let without = number(&run("none.toml"), "B_mean");
-    assert!(
-        (with + 0.004).abs() < 0.0015,
-        "B_mean with 0.004 deg of backlash = {with}"
-    );
-    assert!(
-        without.abs() < 0.0015,
-        "B_mean without backlash = {without}"
-    );
+    assert!((with + 0.004).abs() < 0.0015, "B_mean with 0.004 deg of backlash = {with}");
+    assert!(without.abs() < 0.0015, "B_mean without backlash = {without}");
 }
 
 // ---------------------------------------------------------------------------
@@ -396,24 +309,15 @@ fn model_file_backlash_shows_in_the_mean_reversal() {
 #[test]
 fn stats_and_export_without_a_database_exit_2_and_create_none() {
     let b = Bench::new();
-    for args in [
-        vec!["stats"],
-        vec!["stats", "--json"],
-        vec!["export", "--csv", "out.csv"],
-        vec!["stats", "--survey", "1"],
-    ] {
-        let out = b
-            .survey(&args)
-            .bad_input(&["no survey database", "survey.db"]);
+    for args in
+        [vec!["stats"], vec!["stats", "--json"], vec!["export", "--csv", "out.csv"], vec!["stats", "--survey", "1"]]
+    {
+        let out = b.survey(&args).bad_input(&["no survey database", "survey.db"]);
         assert!(out.stdout.is_empty(), "{out}");
-        assert!(
-            !b.exists("survey.db"),
-            "a read command creates no database\n{out}"
-        );
+        assert!(!b.exists("survey.db"), "a read command creates no database\n{out}");
         assert!(!b.exists("out.csv"), "{out}");
     }
-    b.survey(&["--db", "elsewhere.db", "stats"])
-        .bad_input(&["no survey database", "elsewhere.db"]);
+    b.survey(&["--db", "elsewhere.db", "stats"]).bad_input(&["no survey database", "elsewhere.db"]);
     assert!(!b.exists("elsewhere.db"));
 }
 
@@ -423,16 +327,10 @@ fn unknown_survey_id_exits_2_naming_it() {
     b.small_survey(false);
     let out = b.survey(&["stats", "--survey", "999"]).bad_input(&["999"]);
     assert!(out.stdout.is_empty(), "{out}");
-    let out = b
-        .survey(&["stats", "--json", "--survey", "999"])
-        .bad_input(&["999"]);
+    let out = b.survey(&["stats", "--json", "--survey", "999"]).bad_input(&["999"]);
     assert!(out.stdout.is_empty(), "{out}");
-    b.survey(&["export", "--csv", "out.csv", "--survey", "999"])
-        .bad_input(&["999"]);
-    assert!(
-        !b.exists("out.csv"),
-        "no file for a survey that does not exist"
-    );
+    b.survey(&["export", "--csv", "out.csv", "--survey", "999"]).bad_input(&["999"]);
+    assert!(!b.exists("out.csv"), "no file for a survey that does not exist");
 }
 
 /// Runs `args` (after `--db junk.db`) with `junk.db` a text file: expects exit
@@ -479,13 +377,8 @@ fn import_into_a_file_that_is_not_a_database_exits_2() {
 #[test]
 fn stats_of_a_survey_too_small_for_iso230_2_exits_2() {
     let b = Bench::new();
-    b.write(
-        "one-run.csv",
-        format!("{HEADER}\n1,forward,0,0,0.001\n1,forward,90,90,90.001\n"),
-    );
+    b.write("one-run.csv", format!("{HEADER}\n1,forward,0,0,0.001\n1,forward,90,90,90.001\n"));
     let id = b.import("one-run.csv");
-    let out = b
-        .survey(&["stats", "--json"])
-        .bad_input(&["ISO 230-2", &id.to_string()]);
+    let out = b.survey(&["stats", "--json"]).bad_input(&["ISO 230-2", &id.to_string()]);
     assert!(out.stdout.is_empty(), "{out}");
 }

@@ -119,7 +119,11 @@ fn a_bad_configuration_is_bad_input_naming_the_file_and_line() {
 #[test]
 fn a_survey_of_unreachable_instruments_fails_at_run_time_and_can_be_resumed_later() {
     let bench = Bench::new();
-    bench.write("c.toml", config("127.0.0.1:1", "/nonexistent/ttyX").replace("[timing]\n", "[timing]\nmax_retries = 1\nretry_backoff_s = 0.01\n"));
+    bench.write(
+        "c.toml",
+        config("127.0.0.1:1", "/nonexistent/ttyX")
+            .replace("[timing]\n", "[timing]\nmax_retries = 1\nretry_backoff_s = 0.01\n"),
+    );
     let out = bench.survey(&["run", "--config", "c.toml"]);
     assert_eq!(out.code, 1, "{out}");
     assert!(out.stderr.contains("cannot connect") && out.stderr.contains("survey resume --survey 1"), "{out}");

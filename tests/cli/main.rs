@@ -15,11 +15,11 @@
 
 mod files;
 mod instruments;
+mod modelgap;
+mod process;
 mod report;
 mod runs;
 mod verify;
-mod modelgap;
-mod process;
 
 use serde_json::Value;
 use std::fmt;
@@ -31,9 +31,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_survey");
 const HEADER: &str = "run,direction,target_deg,readout_deg,actual_deg";
 
 /// The keys of `survey stats --json`'s `iso230_2` object that the contract names.
-const ISO_KEYS: [&str; 12] = [
-    "A", "A_up", "A_down", "R", "R_up", "R_down", "B", "B_mean", "E", "E_up", "E_down", "M",
-];
+const ISO_KEYS: [&str; 12] = ["A", "A_up", "A_down", "R", "R_up", "R_down", "B", "B_mean", "E", "E_up", "E_down", "M"];
 
 /// A small, valid, bidirectional survey (2 targets x 2 runs) written the way
 /// `survey export` writes numbers (shortest round-trip form), so that importing
@@ -119,10 +117,7 @@ impl Output {
     /// contains every one of `words`, and returns self.
     #[track_caller]
     fn bad_input(self, words: &[&str]) -> Self {
-        assert_eq!(
-            self.code, 2,
-            "expected exit status 2 (bad usage or input)\n{self}"
-        );
+        assert_eq!(self.code, 2, "expected exit status 2 (bad usage or input)\n{self}");
         self.stderr_mentions(words)
     }
 
@@ -130,10 +125,7 @@ impl Output {
     #[track_caller]
     fn stderr_mentions(self, words: &[&str]) -> Self {
         for w in words {
-            assert!(
-                self.stderr.contains(w),
-                "stderr should mention {w:?}\n{self}"
-            );
+            assert!(self.stderr.contains(w), "stderr should mention {w:?}\n{self}");
         }
         self
     }
@@ -143,10 +135,7 @@ impl Output {
     fn json(&self) -> Value {
         match serde_json::from_str::<Value>(&self.stdout) {
             Ok(v) => {
-                assert!(
-                    v.is_object(),
-                    "the JSON document should be an object\n{self}"
-                );
+                assert!(v.is_object(), "the JSON document should be an object\n{self}");
                 v
             }
             Err(e) => panic!("stdout should be exactly one JSON document: {e}\n{self}"),
@@ -162,9 +151,7 @@ struct Bench {
 
 impl Bench {
     fn new() -> Self {
-        Bench {
-            dir: tempfile::tempdir().expect("temporary folder"),
-        }
+        Bench { dir: tempfile::tempdir().expect("temporary folder") }
     }
 
     fn path(&self, name: &str) -> PathBuf {
@@ -187,10 +174,7 @@ impl Bench {
     /// `RUST_LOG` from the environment of the test run.
     fn command(&self, args: &[&str]) -> Command {
         let mut cmd = Command::new(BIN);
-        cmd.args(args)
-            .current_dir(self.dir.path())
-            .env_remove("SURVEY_DB")
-            .env_remove("RUST_LOG");
+        cmd.args(args).current_dir(self.dir.path()).env_remove("SURVEY_DB").env_remove("RUST_LOG");
         cmd
     }
 
@@ -198,10 +182,7 @@ impl Bench {
         let out = cmd.output().expect("start the survey binary");
         Output {
             args: args.iter().map(|s| s.to_string()).collect(),
-            code: out
-                .status
-                .code()
-                .expect("the binary exited (not killed by a signal)"),
+            code: out.status.code().expect("the binary exited (not killed by a signal)"),
             stdout: String::from_utf8(out.stdout).expect("stdout is UTF-8"),
             stderr: String::from_utf8(out.stderr).expect("stderr is UTF-8"),
         }
@@ -225,9 +206,7 @@ impl Bench {
             args.push("--bidirectional");
         }
         let out = self.survey(&args).success();
-        out.json()["survey_id"]
-            .as_i64()
-            .unwrap_or_else(|| panic!("survey_id is an integer\n{out}"))
+        out.json()["survey_id"].as_i64().unwrap_or_else(|| panic!("survey_id is an integer\n{out}"))
     }
 
     /// `survey stats --json [--survey ID]` on the default database.
@@ -260,11 +239,7 @@ impl Bench {
             .trim_end()
             .parse()
             .unwrap_or_else(|e| panic!("import should print only the new id ({e})\n{out}"));
-        assert_eq!(
-            out.stdout,
-            format!("{id}\n"),
-            "import prints the id and nothing else\n{out}"
-        );
+        assert_eq!(out.stdout, format!("{id}\n"), "import prints the id and nothing else\n{out}");
         id
     }
 
@@ -296,43 +271,24 @@ impl Bench {
     #[track_caller]
     fn assert_unchanged(&self, before: &[String], failed: &Output) {
         let after = self.stored();
-        assert_eq!(
-            after.len(),
-            before.len(),
-            "a failed command added or removed a survey\n{failed}"
-        );
+        assert_eq!(after.len(), before.len(), "a failed command added or removed a survey\n{failed}");
         for (i, (a, b)) in before.iter().zip(&after).enumerate() {
-            assert!(
-                a == b,
-                "survey {} changed after a failed command\n{failed}",
-                i + 1
-            );
+            assert!(a == b, "survey {} changed after a failed command\n{failed}", i + 1);
         }
         self.write("next-valid.csv", VALID_CSV);
         let next = self.import("next-valid.csv");
-        assert_eq!(
-            next,
-            before.len() as i64 + 1,
-            "the next import should get the next id\n{failed}"
-        );
+        assert_eq!(next, before.len() as i64 + 1, "the next import should get the next id\n{failed}");
     }
 }
 
 /// The `iso230_2` figures of a stats document, by contract key.
 fn iso_figure(doc: &Value, key: &str) -> Option<f64> {
-    let iso = doc
-        .get("iso230_2")
-        .unwrap_or_else(|| panic!("no iso230_2 in {doc}"));
-    let v = iso
-        .get(key)
-        .unwrap_or_else(|| panic!("iso230_2 has no key {key:?}: {iso}"));
+    let iso = doc.get("iso230_2").unwrap_or_else(|| panic!("no iso230_2 in {doc}"));
+    let v = iso.get(key).unwrap_or_else(|| panic!("iso230_2 has no key {key:?}: {iso}"));
     if v.is_null() {
         None
     } else {
-        Some(
-            v.as_f64()
-                .unwrap_or_else(|| panic!("iso230_2.{key} should be a number or null, got {v}")),
-        )
+        Some(v.as_f64().unwrap_or_else(|| panic!("iso230_2.{key} should be a number or null, got {v}")))
     }
 }
 
@@ -344,10 +300,7 @@ fn number(doc: &Value, key: &str) -> f64 {
 
 /// The data rows of a survey CSV (without the header), split into cells.
 fn rows(csv: &str) -> Vec<Vec<String>> {
-    csv.lines()
-        .skip(1)
-        .map(|l| l.split(',').map(str::to_string).collect())
-        .collect()
+    csv.lines().skip(1).map(|l| l.split(',').map(str::to_string).collect()).collect()
 }
 
 // ---------------------------------------------------------------------------
@@ -385,22 +338,13 @@ fn iso_from_csv(csv: &str) -> std::collections::BTreeMap<&'static str, Option<f6
     }
     let max = |it: &mut dyn Iterator<Item = f64>| it.fold(f64::NEG_INFINITY, f64::max);
     let min = |it: &mut dyn Iterator<Item = f64>| it.fold(f64::INFINITY, f64::min);
-    let up: Vec<(f64, f64)> = targets
-        .iter()
-        .filter(|t| !t.1.is_empty())
-        .map(|t| mean_s(&t.1))
-        .collect();
-    let down: Vec<(f64, f64)> = targets
-        .iter()
-        .filter(|t| !t.2.is_empty())
-        .map(|t| mean_s(&t.2))
-        .collect();
+    let up: Vec<(f64, f64)> = targets.iter().filter(|t| !t.1.is_empty()).map(|t| mean_s(&t.1)).collect();
+    let down: Vec<(f64, f64)> = targets.iter().filter(|t| !t.2.is_empty()).map(|t| mean_s(&t.2)).collect();
     let dir_figures = |d: &[(f64, f64)]| -> (Option<f64>, Option<f64>, Option<f64>) {
         if d.is_empty() {
             return (None, None, None);
         }
-        let a = max(&mut d.iter().map(|(m, s)| m + 2.0 * s))
-            - min(&mut d.iter().map(|(m, s)| m - 2.0 * s));
+        let a = max(&mut d.iter().map(|(m, s)| m + 2.0 * s)) - min(&mut d.iter().map(|(m, s)| m - 2.0 * s));
         let r = max(&mut d.iter().map(|(_, s)| 4.0 * s));
         let e = max(&mut d.iter().map(|(m, _)| *m)) - min(&mut d.iter().map(|(m, _)| *m));
         (Some(a), Some(r), Some(e))
@@ -415,11 +359,7 @@ fn iso_from_csv(csv: &str) -> std::collections::BTreeMap<&'static str, Option<f6
     f.insert("R_down", r_down);
     f.insert("E_down", e_down);
     if up.is_empty() || down.is_empty() {
-        let one = if up.is_empty() {
-            (a_down, r_down, e_down)
-        } else {
-            (a_up, r_up, e_up)
-        };
+        let one = if up.is_empty() { (a_down, r_down, e_down) } else { (a_up, r_up, e_up) };
         f.insert("A", one.0);
         f.insert("R", one.1);
         f.insert("E", one.2);
@@ -431,34 +371,21 @@ fn iso_from_csv(csv: &str) -> std::collections::BTreeMap<&'static str, Option<f6
     assert_eq!(up.len(), down.len(), "every target has both directions");
     let both: Vec<(f64, f64)> = up.iter().chain(&down).copied().collect();
     let b_i: Vec<f64> = up.iter().zip(&down).map(|(u, d)| u.0 - d.0).collect();
-    let r_i = up.iter().zip(&down).zip(&b_i).map(|((u, d), b)| {
-        (2.0 * u.1 + 2.0 * d.1 + b.abs())
-            .max(4.0 * u.1)
-            .max(4.0 * d.1)
-    });
-    let mean_bi: Vec<f64> = up
+    let r_i = up
         .iter()
         .zip(&down)
-        .map(|(u, d)| (u.0 + d.0) / 2.0)
-        .collect();
+        .zip(&b_i)
+        .map(|((u, d), b)| (2.0 * u.1 + 2.0 * d.1 + b.abs()).max(4.0 * u.1).max(4.0 * d.1));
+    let mean_bi: Vec<f64> = up.iter().zip(&down).map(|(u, d)| (u.0 + d.0) / 2.0).collect();
     f.insert(
         "A",
-        Some(
-            max(&mut both.iter().map(|(m, s)| m + 2.0 * s))
-                - min(&mut both.iter().map(|(m, s)| m - 2.0 * s)),
-        ),
+        Some(max(&mut both.iter().map(|(m, s)| m + 2.0 * s)) - min(&mut both.iter().map(|(m, s)| m - 2.0 * s))),
     );
     f.insert("R", Some(max(&mut r_i.into_iter())));
-    f.insert(
-        "E",
-        Some(max(&mut both.iter().map(|(m, _)| *m)) - min(&mut both.iter().map(|(m, _)| *m))),
-    );
+    f.insert("E", Some(max(&mut both.iter().map(|(m, _)| *m)) - min(&mut both.iter().map(|(m, _)| *m))));
     f.insert("B", Some(max(&mut b_i.iter().map(|b| b.abs()))));
     f.insert("B_mean", Some(b_i.iter().sum::<f64>() / b_i.len() as f64));
-    f.insert(
-        "M",
-        Some(max(&mut mean_bi.iter().copied()) - min(&mut mean_bi.iter().copied())),
-    );
+    f.insert("M", Some(max(&mut mean_bi.iter().copied()) - min(&mut mean_bi.iter().copied())));
     f
 }
 
@@ -471,10 +398,7 @@ fn assert_iso_matches_csv(doc: &Value, csv: &str) {
         let want = expected[key];
         match (got, want) {
             (Some(g), Some(w)) => {
-                assert!(
-                    (g - w).abs() <= 1e-12,
-                    "iso230_2.{key} = {g}, ISO 230-2 from the CSV gives {w}"
-                )
+                assert!((g - w).abs() <= 1e-12, "iso230_2.{key} = {g}, ISO 230-2 from the CSV gives {w}")
             }
             (None, None) => {}
             _ => panic!("iso230_2.{key} = {got:?}, ISO 230-2 from the CSV gives {want:?}"),
@@ -493,25 +417,13 @@ fn assert_bidirectional_relations(doc: &Value) {
         }
     }
     let f = |k| number(doc, k);
-    assert!(
-        f("R") >= f("R_up") && f("R") >= f("R_down"),
-        "R >= R_up, R_down: {doc}"
-    );
-    assert!(
-        f("A") >= f("A_up") && f("A") >= f("A_down"),
-        "A >= A_up, A_down: {doc}"
-    );
-    assert!(
-        f("E") >= f("E_up") && f("E") >= f("E_down"),
-        "E >= E_up, E_down: {doc}"
-    );
+    assert!(f("R") >= f("R_up") && f("R") >= f("R_down"), "R >= R_up, R_down: {doc}");
+    assert!(f("A") >= f("A_up") && f("A") >= f("A_down"), "A >= A_up, A_down: {doc}");
+    assert!(f("E") >= f("E_up") && f("E") >= f("E_down"), "E >= E_up, E_down: {doc}");
     assert!(f("B") >= f("B_mean").abs(), "B >= |B_mean|: {doc}");
     // A covers the 2s bands around the deviations that E spans.
     assert!(f("A") >= f("E"), "A >= E: {doc}");
-    assert!(
-        f("R") > 0.0 && f("A") > 0.0,
-        "a simulated survey has some error: {doc}"
-    );
+    assert!(f("R") > 0.0 && f("A") > 0.0, "a simulated survey has some error: {doc}");
 }
 
 // ---------------------------------------------------------------------------
@@ -523,24 +435,11 @@ fn help_lists_the_commands_and_exits_0() {
     let b = Bench::new();
     let out = b.survey(&["--help"]).success();
     for cmd in ["run", "import", "export", "stats", "--db"] {
-        assert!(
-            out.stdout.contains(cmd),
-            "--help should mention {cmd}\n{out}"
-        );
+        assert!(out.stdout.contains(cmd), "--help should mention {cmd}\n{out}");
     }
     let out = b.survey(&["run", "--help"]).success();
-    for flag in [
-        "--points",
-        "--bidirectional",
-        "--runs",
-        "--model",
-        "--json",
-        "--db",
-    ] {
-        assert!(
-            out.stdout.contains(flag),
-            "run --help should mention {flag}\n{out}"
-        );
+    for flag in ["--points", "--bidirectional", "--runs", "--model", "--json", "--db"] {
+        assert!(out.stdout.contains(flag), "run --help should mention {flag}\n{out}");
     }
     for cmd in ["import", "export", "stats"] {
         b.survey(&[cmd, "--help"]).success();
@@ -552,11 +451,7 @@ fn help_lists_the_commands_and_exits_0() {
 fn version_exits_0() {
     let b = Bench::new();
     let out = b.survey(&["--version"]).success();
-    let version = out
-        .stdout
-        .trim()
-        .strip_prefix("survey ")
-        .unwrap_or_else(|| panic!("`survey <version>`\n{out}"));
+    let version = out.stdout.trim().strip_prefix("survey ").unwrap_or_else(|| panic!("`survey <version>`\n{out}"));
     let parts: Vec<&str> = version.split('.').collect();
     assert!(
         parts.len() == 3 && parts.iter().all(|p| p.parse::<u64>().is_ok()),
@@ -595,30 +490,20 @@ fn run_without_points_exits_2() {
 #[test]
 fn run_with_a_non_number_for_points_exits_2() {
     let b = Bench::new();
-    b.survey(&["run", "--points", "abc"])
-        .bad_input(&["--points", "abc"]);
-    b.survey(&["run", "--points", "36", "--runs", "two"])
-        .bad_input(&["--runs", "two"]);
+    b.survey(&["run", "--points", "abc"]).bad_input(&["--points", "abc"]);
+    b.survey(&["run", "--points", "36", "--runs", "two"]).bad_input(&["--runs", "two"]);
     assert!(!b.exists("survey.db"));
 }
 
 #[test]
 fn run_with_too_few_points_or_runs_exits_2() {
     let b = Bench::new();
-    for (flag, value) in [
-        ("--points", "1"),
-        ("--points", "0"),
-        ("--runs", "1"),
-        ("--runs", "0"),
-    ] {
+    for (flag, value) in [("--points", "1"), ("--points", "0"), ("--runs", "1"), ("--runs", "0")] {
         let mut args = vec!["run", "--points", "36", "--runs", "2", "--bidirectional"];
         let i = args.iter().position(|a| *a == flag).expect("flag in args");
         args[i + 1] = value;
         let out = b.survey(&args).bad_input(&[flag, "at least"]);
         assert!(out.stdout.is_empty(), "{out}");
-        assert!(
-            !b.exists("survey.db"),
-            "a rejected run creates no database\n{out}"
-        );
+        assert!(!b.exists("survey.db"), "a rejected run creates no database\n{out}");
     }
 }

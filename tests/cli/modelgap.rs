@@ -55,7 +55,21 @@ fn lacking() -> String {
 
 fn run(bench: &Bench, model: &str, seed: &str) -> i64 {
     let out = bench
-        .survey(&["run", "--model", model, "--points", "180", "--runs", "3", "--bidirectional", "--reference", "autocollimator", "--seed", seed, "--json"])
+        .survey(&[
+            "run",
+            "--model",
+            model,
+            "--points",
+            "180",
+            "--runs",
+            "3",
+            "--bidirectional",
+            "--reference",
+            "autocollimator",
+            "--seed",
+            seed,
+            "--json",
+        ])
         .success();
     out.json()["survey_id"].as_i64().expect("survey_id")
 }
@@ -93,7 +107,12 @@ fn model_gap_names_the_missing_harmonic_writes_the_improved_model_and_closes_the
     let se = num(&e["standard_error_deg"]);
     assert!((got - Phasor::from_polar(0.0006, 200.0)).amplitude_deg() < 5.0 * se, "{out}");
     let explanation = e["explanation"].as_str().unwrap();
-    assert!(explanation.starts_with("150 cycles/rev: 75-tooth gear, harmonic 2 at 150 cycles/rev, aliased to 30 by 180 points/rev"), "{explanation}");
+    assert!(
+        explanation.starts_with(
+            "150 cycles/rev: 75-tooth gear, harmonic 2 at 150 cycles/rev, aliased to 30 by 180 points/rev"
+        ),
+        "{explanation}"
+    );
     let steps = doc["steps"].as_array().unwrap();
     assert_eq!(steps.len(), 1, "{out}");
     assert_eq!(steps[0]["added"], "tooth_mesh 150 cycles/rev");
@@ -107,7 +126,12 @@ fn model_gap_names_the_missing_harmonic_writes_the_improved_model_and_closes_the
     assert!(text.starts_with("# Improved by `survey model-gap` from lacking.toml on survey 1"), "{text}");
     let improved = Model::parse(&text, "improved.toml").unwrap();
     assert_eq!(improved.effects.len(), 5);
-    assert!(improved.effects.iter().any(|e| matches!(e, Effect::Periodic { cycles_per_rev, .. } if *cycles_per_rev == 150.0)));
+    assert!(
+        improved
+            .effects
+            .iter()
+            .any(|e| matches!(e, Effect::Periodic { cycles_per_rev, .. } if *cycles_per_rev == 150.0))
+    );
 
     // It explains the measured survey: nothing named, the gap at the noise floor.
     let again = bench.survey(&["model-gap", "--model", "improved.toml", "--json"]).success().json();
@@ -129,7 +153,17 @@ fn model_gap_names_the_missing_harmonic_writes_the_improved_model_and_closes_the
 
     // Without --json: the report, with the steps as a table.
     let text = bench.survey(&["model-gap", "--model", "lacking.toml", "--survey", "1"]).success().stdout;
-    for want in ["survey 1, model lacking.toml", "the gap with the model given:", "     0  the model as given", "     1  tooth_mesh 150 cycles/rev", "150 (seen at 30) cycles/rev", "the gap with the improved model:", "in angle:", "by direction:", "in time:"] {
+    for want in [
+        "survey 1, model lacking.toml",
+        "the gap with the model given:",
+        "     0  the model as given",
+        "     1  tooth_mesh 150 cycles/rev",
+        "150 (seen at 30) cycles/rev",
+        "the gap with the improved model:",
+        "in angle:",
+        "by direction:",
+        "in time:",
+    ] {
         assert!(text.contains(want), "{want:?} not in\n{text}");
     }
 }
@@ -149,11 +183,14 @@ fn model_gap_bad_input_exits_2_and_changes_nothing() {
     let before = bench.stored();
     // A model file with a defect: the file and the line are named, no --out written.
     bench.write("bad.toml", "[design]\ngear_ratios = [20]\n\n[[effect]]\nkind = \"wobble\"\namplitude_deg = 1\n");
-    let out = bench.survey(&["model-gap", "--model", "bad.toml", "--out", "never.toml"]).bad_input(&["bad.toml:5", "wobble"]);
+    let out =
+        bench.survey(&["model-gap", "--model", "bad.toml", "--out", "never.toml"]).bad_input(&["bad.toml:5", "wobble"]);
     assert!(!bench.exists("never.toml"), "{out}");
     bench.survey(&["model-gap", "--model", "missing.toml"]).bad_input(&["missing.toml"]);
     bench.survey(&["model-gap", "--model", "lacking.toml", "--survey", "99"]).bad_input(&["99"]);
-    let out = bench.survey(&["model-gap", "--model", "lacking.toml", "--out", "no/such/dir/m.toml"]).bad_input(&["no/such/dir/m.toml"]);
+    let out = bench
+        .survey(&["model-gap", "--model", "lacking.toml", "--out", "no/such/dir/m.toml"])
+        .bad_input(&["no/such/dir/m.toml"]);
     bench.survey(&["model-gap"]).bad_input(&["--model"]);
     bench.assert_unchanged(&before, &out);
 }

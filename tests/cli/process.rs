@@ -10,7 +10,19 @@ use survey_processing::recipe::Recipe;
 /// `survey run` of the Figure 4 positioner, 360 points x 3 bidirectional runs; its id.
 fn fig4_survey(bench: &Bench, seed: &str) -> i64 {
     let out = bench
-        .survey(&["run", "--points", "360", "--runs", "3", "--bidirectional", "--preset", "fig4", "--seed", seed, "--json"])
+        .survey(&[
+            "run",
+            "--points",
+            "360",
+            "--runs",
+            "3",
+            "--bidirectional",
+            "--preset",
+            "fig4",
+            "--seed",
+            seed,
+            "--json",
+        ])
         .success();
     out.json()["survey_id"].as_i64().expect("survey_id")
 }
@@ -26,7 +38,10 @@ fn num(v: &Value, what: &str) -> f64 {
 }
 
 fn numbers(line: &str, sep: char) -> Vec<f64> {
-    line.split(sep).filter(|s| !s.is_empty()).map(|s| s.parse().unwrap_or_else(|e| panic!("{s:?} in {line:?}: {e}"))).collect()
+    line.split(sep)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap_or_else(|e| panic!("{s:?} in {line:?}: {e}")))
+        .collect()
 }
 
 #[test]
@@ -43,7 +58,8 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
         assert!(p["source"].is_string() && p["repeatable"].is_boolean(), "{p}");
     }
     // The 12:1 pinion's fundamental is the largest line and repeatable.
-    let top = peaks.iter().max_by(|a, b| num(&a["amplitude_deg"], "a").total_cmp(&num(&b["amplitude_deg"], "b"))).unwrap();
+    let top =
+        peaks.iter().max_by(|a, b| num(&a["amplitude_deg"], "a").total_cmp(&num(&b["amplitude_deg"], "b"))).unwrap();
     assert_eq!((num(&top["cycles_per_rev"], "c"), &top["repeatable"]), (12.0, &Value::Bool(true)), "{top}");
     assert!(top["source"].as_str().unwrap().starts_with("gear_pass"), "{top}");
     // With 360 points the 216-tooth ring gear appears at 144 and is relocated.
@@ -54,7 +70,9 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
         assert!(a["action"] == "relocated" || a["action"] == "nulled", "{a}");
     }
     assert!(
-        aliases.iter().any(|a| a["observed_cycles"] == 144.0 && a["true_cycles"] == 216.0 && a["action"] == "relocated"),
+        aliases
+            .iter()
+            .any(|a| a["observed_cycles"] == 144.0 && a["true_cycles"] == 216.0 && a["action"] == "relocated"),
         "{aliases:#?}"
     );
     let table = &doc["table"];
@@ -116,7 +134,16 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
 
     // The human summary names the parts and the files.
     let text = bench.survey(&["process", "--survey", "1", "--table-out", "again.csv"]).success().stdout;
-    for w in ["peaks", "gear_pass", "relocated", "Figure 6", "predicted", "repeatability floor", "again.comp0", "again.recipe.toml"] {
+    for w in [
+        "peaks",
+        "gear_pass",
+        "relocated",
+        "Figure 6",
+        "predicted",
+        "repeatability floor",
+        "again.comp0",
+        "again.recipe.toml",
+    ] {
         assert!(text.contains(w), "summary should mention {w:?}\n{text}");
     }
 }
@@ -140,7 +167,8 @@ fn a_recipe_replayed_on_a_second_survey_keeps_the_same_lines() {
     let text = bench.read("table-1.recipe.toml").replace("keep = [", "keep = [100, ");
     bench.write("extra.toml", text);
     let third = process_json(&bench, &["--survey", "2", "--recipe", "extra.toml", "--table-out", "extra.csv"]);
-    let kept: Vec<f64> = third["table"]["kept_cycles"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let kept: Vec<f64> =
+        third["table"]["kept_cycles"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     assert!(kept.contains(&100.0), "{kept:?}");
 }
 
@@ -222,7 +250,17 @@ fn designs_unknown_surveys_and_output_paths() {
 fn figure_8_correction_reaches_the_papers_factor_of_3_and_beats_the_hysteresis_with_two_columns() {
     let bench = Bench::new();
     bench
-        .survey(&["run", "--points", "360", "--runs", "3", "--bidirectional", "--reference", "autocollimator", "--json"])
+        .survey(&[
+            "run",
+            "--points",
+            "360",
+            "--runs",
+            "3",
+            "--bidirectional",
+            "--reference",
+            "autocollimator",
+            "--json",
+        ])
         .success();
     let doc = process_json(&bench, &[]);
     assert_eq!(doc["table"]["directional"], true, "{}", doc["table"]["directional_reason"]);

@@ -16,7 +16,10 @@ fn report_writes_a_self_contained_page_with_plots_and_figures() {
     for words in ["Error map", "ISO 230-2", "A accuracy", "gear_pass", "forward", "reverse"] {
         assert!(html.contains(words), "the page should show {words:?}");
     }
-    assert!(!html.contains("<script") && !html.contains("src=") && !html.contains("href="), "self-contained: no scripts, no links");
+    assert!(
+        !html.contains("<script") && !html.contains("src=") && !html.contains("href="),
+        "self-contained: no scripts, no links"
+    );
     bench.survey(&["report", "--out", "r", "--survey", "9"]).bad_input(&["9"]);
     bench.survey(&["report"]).bad_input(&["--out"]);
 }

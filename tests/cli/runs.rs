@@ -2,7 +2,6 @@
 
 use super::*;
 
-
 // ---------------------------------------------------------------------------
 // run, --db, stats
 // ---------------------------------------------------------------------------
@@ -10,37 +9,14 @@ use super::*;
 #[test]
 fn run_creates_the_default_database_and_prints_the_iso_summary() {
     let b = Bench::new();
-    let out = b
-        .survey(&["run", "--points", "36", "--runs", "2", "--bidirectional"])
-        .success();
-    assert!(
-        b.exists("survey.db"),
-        "survey.db is the default database\n{out}"
-    );
-    for word in [
-        "survey 1",
-        "ISO 230-2",
-        "accuracy",
-        "repeatability",
-        "reversal",
-    ] {
-        assert!(
-            out.stdout.contains(word),
-            "the summary should mention {word:?}\n{out}"
-        );
+    let out = b.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional"]).success();
+    assert!(b.exists("survey.db"), "survey.db is the default database\n{out}");
+    for word in ["survey 1", "ISO 230-2", "accuracy", "repeatability", "reversal"] {
+        assert!(out.stdout.contains(word), "the summary should mention {word:?}\n{out}");
     }
     let stats = b.survey(&["stats"]).success();
-    for word in [
-        "survey 1",
-        "ISO 230-2",
-        "accuracy",
-        "repeatability",
-        "reversal",
-    ] {
-        assert!(
-            stats.stdout.contains(word),
-            "stats should mention {word:?}\n{stats}"
-        );
+    for word in ["survey 1", "ISO 230-2", "accuracy", "repeatability", "reversal"] {
+        assert!(stats.stdout.contains(word), "stats should mention {word:?}\n{stats}");
     }
 }
 
@@ -59,86 +35,38 @@ fn a_survey_has_every_sample_in_acquisition_order() {
             _ => blocks.push((r[0].clone(), r[1].clone(), vec![target])),
         }
     }
-    let order: Vec<(&str, &str)> = blocks
-        .iter()
-        .map(|(r, d, _)| (r.as_str(), d.as_str()))
-        .collect();
-    assert_eq!(
-        order,
-        [
-            ("1", "forward"),
-            ("1", "reverse"),
-            ("2", "forward"),
-            ("2", "reverse")
-        ]
-    );
+    let order: Vec<(&str, &str)> = blocks.iter().map(|(r, d, _)| (r.as_str(), d.as_str())).collect();
+    assert_eq!(order, [("1", "forward"), ("1", "reverse"), ("2", "forward"), ("2", "reverse")]);
     let every_10_deg: Vec<f64> = (0..36).map(|i| f64::from(i) * 10.0).collect();
     for (run, dir, targets) in &blocks {
         let mut sorted = targets.clone();
         if dir == "reverse" {
             sorted.reverse(); // reverse is decreasing angle
         }
-        assert_eq!(
-            sorted, every_10_deg,
-            "run {run} {dir} visits the 36 targets in its direction"
-        );
+        assert_eq!(sorted, every_10_deg, "run {run} {dir} visits the 36 targets in its direction");
     }
     // The simulated bench records a timestamp; acquisition order means it never goes back.
-    let stamps: Vec<f64> = rows
-        .iter()
-        .map(|r| r[5].parse().expect("timestamp_s"))
-        .collect();
-    assert!(
-        stamps.windows(2).all(|w| w[0] <= w[1]),
-        "timestamps in acquisition order"
-    );
+    let stamps: Vec<f64> = rows.iter().map(|r| r[5].parse().expect("timestamp_s")).collect();
+    assert!(stamps.windows(2).all(|w| w[0] <= w[1]), "timestamps in acquisition order");
 }
 
 #[test]
 fn db_option_works_before_and_after_the_subcommand() {
     let b = Bench::new();
-    b.survey(&[
-        "--db",
-        "a.db",
-        "run",
-        "--points",
-        "36",
-        "--runs",
-        "2",
-        "--bidirectional",
-    ])
-    .success();
-    b.survey(&["run", "--points", "36", "--runs", "2", "--db", "b.db"])
-        .success();
+    b.survey(&["--db", "a.db", "run", "--points", "36", "--runs", "2", "--bidirectional"]).success();
+    b.survey(&["run", "--points", "36", "--runs", "2", "--db", "b.db"]).success();
     assert!(b.exists("a.db") && b.exists("b.db"));
     assert!(!b.exists("survey.db"), "--db replaces the default database");
 
-    let before = b
-        .survey(&["--db", "a.db", "stats", "--json"])
-        .success()
-        .json();
-    let after = b
-        .survey(&["stats", "--json", "--db", "a.db"])
-        .success()
-        .json();
+    let before = b.survey(&["--db", "a.db", "stats", "--json"]).success().json();
+    let after = b.survey(&["stats", "--json", "--db", "a.db"]).success().json();
     assert_eq!(before, after);
-    assert!(
-        iso_figure(&before, "B").is_some(),
-        "a.db holds the bidirectional survey"
-    );
-    let other = b
-        .survey(&["stats", "--db", "b.db", "--json"])
-        .success()
-        .json();
-    assert!(
-        iso_figure(&other, "B").is_none(),
-        "b.db holds the unidirectional survey"
-    );
+    assert!(iso_figure(&before, "B").is_some(), "a.db holds the bidirectional survey");
+    let other = b.survey(&["stats", "--db", "b.db", "--json"]).success().json();
+    assert!(iso_figure(&other, "B").is_none(), "b.db holds the unidirectional survey");
 
-    b.survey(&["--db", "a.db", "export", "--csv", "a1.csv"])
-        .success();
-    b.survey(&["export", "--csv", "a2.csv", "--db", "a.db"])
-        .success();
+    b.survey(&["--db", "a.db", "export", "--csv", "a1.csv"]).success();
+    b.survey(&["export", "--csv", "a2.csv", "--db", "a.db"]).success();
     assert_eq!(b.read("a1.csv"), b.read("a2.csv"));
 
     b.write("v.csv", VALID_CSV);
@@ -152,27 +80,13 @@ fn db_option_works_before_and_after_the_subcommand() {
 #[test]
 fn survey_db_environment_variable_selects_the_database() {
     let b = Bench::new();
-    b.survey_with_env(
-        &["run", "--points", "36", "--runs", "2"],
-        "SURVEY_DB",
-        "env.db",
-    )
-    .success();
+    b.survey_with_env(&["run", "--points", "36", "--runs", "2"], "SURVEY_DB", "env.db").success();
     assert!(b.exists("env.db") && !b.exists("survey.db"));
-    b.survey_with_env(&["stats", "--json"], "SURVEY_DB", "env.db")
-        .success()
-        .json();
+    b.survey_with_env(&["stats", "--json"], "SURVEY_DB", "env.db").success().json();
     // --db on the command line wins over the environment.
-    b.survey_with_env(
-        &["--db", "cli.db", "run", "--points", "36", "--runs", "2"],
-        "SURVEY_DB",
-        "env.db",
-    )
-    .success();
+    b.survey_with_env(&["--db", "cli.db", "run", "--points", "36", "--runs", "2"], "SURVEY_DB", "env.db").success();
     assert!(b.exists("cli.db"));
-    let out = b
-        .survey_with_env(&["stats", "--survey", "2"], "SURVEY_DB", "env.db")
-        .bad_input(&["2", "env.db"]);
+    let out = b.survey_with_env(&["stats", "--survey", "2"], "SURVEY_DB", "env.db").bad_input(&["2", "env.db"]);
     assert!(out.stdout.is_empty());
 }
 
@@ -199,11 +113,7 @@ fn stats_json_of_a_unidirectional_survey_has_the_keys_with_null_reverse_figures(
         assert!(v.is_finite() && v > 0.0, "iso230_2.{key} = {v}");
     }
     for key in ["A_down", "R_down", "E_down", "B", "B_mean", "M"] {
-        assert_eq!(
-            iso_figure(&doc, key),
-            None,
-            "iso230_2.{key} should be null for a forward-only survey: {doc}"
-        );
+        assert_eq!(iso_figure(&doc, key), None, "iso230_2.{key} should be null for a forward-only survey: {doc}");
     }
     // With one direction, the axis figures are that direction's.
     assert_eq!(number(&doc, "A"), number(&doc, "A_up"));
@@ -228,29 +138,14 @@ fn stats_figures_are_iso230_2_of_the_exported_samples() {
 #[test]
 fn run_json_prints_one_document_with_the_statistics() {
     let b = Bench::new();
-    let out = b
-        .survey(&[
-            "run",
-            "--points",
-            "36",
-            "--runs",
-            "2",
-            "--bidirectional",
-            "--json",
-        ])
-        .success();
+    let out = b.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--json"]).success();
     let doc = out.json();
     assert_eq!(doc["survey_id"].as_i64(), Some(1), "{out}");
     assert_bidirectional_relations(&doc);
     let stats = b.stats_json(Some(1));
-    assert_eq!(
-        doc["iso230_2"], stats["iso230_2"],
-        "run --json reports the same figures as stats --json"
-    );
+    assert_eq!(doc["iso230_2"], stats["iso230_2"], "run --json reports the same figures as stats --json");
 
-    let out = b
-        .survey(&["run", "--points", "36", "--runs", "2", "--json"])
-        .success();
+    let out = b.survey(&["run", "--points", "36", "--runs", "2", "--json"]).success();
     let doc = out.json();
     assert_eq!(doc["survey_id"].as_i64(), Some(2), "{out}");
     for key in ISO_KEYS {
@@ -263,31 +158,16 @@ fn simulated_survey_is_reproducible() {
     let b = Bench::new();
     let first = b.small_survey(true);
     let second = b.small_survey(true);
-    assert_eq!(
-        b.export(Some(first), "1.csv"),
-        b.export(Some(second), "2.csv")
-    );
+    assert_eq!(b.export(Some(first), "1.csv"), b.export(Some(second), "2.csv"));
 }
 
 #[test]
 fn autocollimator_reference_runs() {
     let b = Bench::new();
-    let out = b
-        .survey(&[
-            "run",
-            "--reference",
-            "autocollimator",
-            "--points",
-            "24",
-            "--runs",
-            "2",
-            "--json",
-        ])
-        .success();
+    let out = b.survey(&["run", "--reference", "autocollimator", "--points", "24", "--runs", "2", "--json"]).success();
     let id = out.json()["survey_id"].as_i64().expect("survey_id");
     let csv = b.export(Some(id), "ac.csv");
     assert_eq!(rows(&csv).len(), 24 * 2, "24 faces x 2 runs, forward only");
     let doc = b.stats_json(Some(id));
     assert!(number(&doc, "R") > 0.0);
 }
-

@@ -41,7 +41,19 @@ fn run_replays_a_recipe_and_refuses_a_bad_one_before_measuring() {
     let bench = Bench::new();
     let first = bench.survey(&["run", "--points", "120", "--runs", "2", "--bidirectional", "--json"]);
     assert_eq!(first.code, 0, "{first}");
-    let again = bench.survey(&["run", "--points", "120", "--runs", "2", "--bidirectional", "--json", "--seed", "2", "--recipe", "table-1.recipe.toml"]);
+    let again = bench.survey(&[
+        "run",
+        "--points",
+        "120",
+        "--runs",
+        "2",
+        "--bidirectional",
+        "--json",
+        "--seed",
+        "2",
+        "--recipe",
+        "table-1.recipe.toml",
+    ]);
     assert_eq!(again.code, 0, "{again}");
     let doc: Value = serde_json::from_str(&again.stdout).unwrap();
     assert_eq!(doc["process"]["survey_id"], 2, "{doc}");

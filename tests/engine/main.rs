@@ -1,8 +1,8 @@
 //! End-to-end tests of the survey engine on the simulated instruments, into
 //! SQLite, checked against the truth the simulators know.
 
-mod resume;
 mod modelgap;
+mod resume;
 mod wire;
 
 use std::sync::Arc;
@@ -70,7 +70,10 @@ async fn a_bidirectional_multi_run_survey_lands_in_sqlite() {
     assert!(stored.iter().all(|r| matches!(r.raw, RawReading::Smr(_))), "raw SMR readings kept");
     let steps = plan.steps();
     for (r, step) in stored.iter().zip(&steps) {
-        assert_eq!((r.sample.run, r.sample.direction, r.sample.target_deg), (step.run, step.direction, step.target_deg));
+        assert_eq!(
+            (r.sample.run, r.sample.direction, r.sample.target_deg),
+            (step.run, step.direction, step.target_deg)
+        );
     }
     let times: Vec<f64> = stored.iter().map(|r| r.sample.timestamp_s.unwrap()).collect();
     assert!(times.windows(2).all(|w| w[1] > w[0]), "instrument time increases");
@@ -118,7 +121,8 @@ async fn iso_figures_agree_with_the_model() {
     // Expected variance of one sample: the positioner's rest noise plus the
     // tracker's angular noise at that target (the axis-fit error is the same
     // in every run and so does not enter s).
-    let var: Vec<f64> = plan.targets_deg.iter().map(|&t| sigma_pos.powi(2) + tracker_sigma_deg(&arm, t).powi(2)).collect();
+    let var: Vec<f64> =
+        plan.targets_deg.iter().map(|&t| sigma_pos.powi(2) + tracker_sigma_deg(&arm, t).powi(2)).collect();
     let mean_var = var.iter().sum::<f64>() / var.len() as f64;
     let n = runs as f64;
     let big_n = points as f64;
@@ -128,16 +132,17 @@ async fn iso_figures_agree_with_the_model() {
     // two means of n runs: sd = sqrt(2 var / n / N). Allow 5 sd.
     let b_mean = iso.b_mean.unwrap();
     let sd_b_mean = (2.0 * mean_var / n / big_n).sqrt();
-    assert!(
-        (b_mean + backlash).abs() < 5.0 * sd_b_mean,
-        "B_mean {b_mean} vs -{backlash} (5 sd = {})",
-        5.0 * sd_b_mean
-    );
+    assert!((b_mean + backlash).abs() < 5.0 * sd_b_mean, "B_mean {b_mean} vs -{backlash} (5 sd = {})", 5.0 * sd_b_mean);
 
     // Repeatability: the pooled s^2 over targets and directions estimates the
     // mean variance; with dof = 2 N (n - 1) its sd relative to sigma is about
     // 1 / sqrt(2 dof). Allow 5 of those.
-    let s2: Vec<f64> = iso.targets.iter().flat_map(|t| [t.up.as_ref().unwrap().s, t.down.as_ref().unwrap().s]).map(|s| s * s).collect();
+    let s2: Vec<f64> = iso
+        .targets
+        .iter()
+        .flat_map(|t| [t.up.as_ref().unwrap().s, t.down.as_ref().unwrap().s])
+        .map(|s| s * s)
+        .collect();
     let pooled = (s2.iter().sum::<f64>() / s2.len() as f64).sqrt();
     let expected = mean_var.sqrt();
     let dof = 2.0 * big_n * (n - 1.0);

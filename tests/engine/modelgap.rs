@@ -15,6 +15,7 @@
 //! it; [`the_trackers_axis_error_is_seen_as_eccentricity`] checks exactly that.
 
 use super::{fig8, virtual_clock};
+use PeriodicKind::{Eccentricity, GearPass, Harmonic, ToothMesh};
 use std::time::Duration;
 use survey_orchestrator::engine::{Engine, Reference, Timing};
 use survey_orchestrator::plan::SurveyPlan;
@@ -24,9 +25,8 @@ use survey_processing::geometry::AxisFit;
 use survey_processing::model::{Design, Effect, Model, PeriodicKind};
 use survey_processing::modelgap::{FoundEffect, ModelGap, ModelGapOptions, model_gap};
 use survey_processing::spectrum::{Phasor, fit_sinusoids};
-use survey_sims::tracker::ArmGeometry;
 use survey_sims::SimBench;
-use PeriodicKind::{Eccentricity, GearPass, Harmonic, ToothMesh};
+use survey_sims::tracker::ArmGeometry;
 
 fn periodic(kind: PeriodicKind, cycles: f64, amplitude: f64, phase: f64) -> Effect {
     Effect::Periodic { kind, cycles_per_rev: cycles, amplitude_deg: amplitude, phase_deg: phase }
@@ -51,17 +51,30 @@ struct Acquired {
 
 /// Acquire a full-circle survey of `truth` through the engine, the drift
 /// period set as `survey run` sets it (the plan's estimated run duration).
-async fn acquire(truth: &Model, points: u32, runs: u32, bidirectional: bool, seed: u64, tracker_noise: f64) -> Acquired {
+async fn acquire(
+    truth: &Model,
+    points: u32,
+    runs: u32,
+    bidirectional: bool,
+    seed: u64,
+    tracker_noise: f64,
+) -> Acquired {
     let preset = fig8();
     let plan = SurveyPlan::full_circle(points, runs, bidirectional).unwrap();
-    let timing = Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
+    let timing =
+        Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
     let per_target = preset.settle + timing.dwell + Duration::from_secs(1) + timing.poll_interval;
     let period = plan.estimate_run_duration(timing.velocity_deg_s, timing.accel_deg_s2, per_target);
     let mut builder = SimBench::builder(&preset, seed, virtual_clock()).model(truth.clone()).drift_run_period(period);
     builder.tracker.noise_scale = tracker_noise;
     let arm = builder.tracker.arm.clone();
     let bench = builder.build();
-    let mut engine = Engine::new(bench.clock.clone(), Box::new(bench.positioner), Reference::Tracker(Box::new(bench.tracker)), timing);
+    let mut engine = Engine::new(
+        bench.clock.clone(),
+        Box::new(bench.positioner),
+        Reference::Tracker(Box::new(bench.tracker)),
+        timing,
+    );
     let mut sink = MemorySink::default();
     engine.run(&plan, 0, &mut sink, &mut |_| {}).await.unwrap();
     Acquired {
@@ -92,10 +105,17 @@ fn assert_found(g: &ModelGap, want: &Effect, value: f64, sigma: f64) -> FoundEff
     let se = f.standard_error_deg;
     match want {
         Effect::Periodic { phase_deg, .. } => {
-            let err = (Phasor::from_polar(f.amplitude_deg, f.phase_deg.unwrap()) - Phasor::from_polar(value, *phase_deg)).amplitude_deg();
+            let err = (Phasor::from_polar(f.amplitude_deg, f.phase_deg.unwrap())
+                - Phasor::from_polar(value, *phase_deg))
+            .amplitude_deg();
             assert!(err < 5.0 * se, "phasor off by {err} (5 se = {})\n{text}", 5.0 * se);
         }
-        _ => assert!((f.amplitude_deg - value).abs() < 5.0 * se, "{} vs {value} (5 se = {})\n{text}", f.amplitude_deg, 5.0 * se),
+        _ => assert!(
+            (f.amplitude_deg - value).abs() < 5.0 * se,
+            "{} vs {value} (5 se = {})\n{text}",
+            f.amplitude_deg,
+            5.0 * se
+        ),
     }
     assert!((g.rms_after_deg / g.noise_floor_deg - 1.0).abs() < 0.06, "{text}");
     f
@@ -145,7 +165,12 @@ async fn engine_backlash() {
     let truth = model(
         &[20.0],
         &[],
-        vec![periodic(GearPass, 20.0, 0.008, 0.0), periodic(Eccentricity, 1.0, 0.0015, 110.0), Effect::Backlash { amplitude_deg: 0.003 }, Effect::Noise { sigma_deg: 0.0004 }],
+        vec![
+            periodic(GearPass, 20.0, 0.008, 0.0),
+            periodic(Eccentricity, 1.0, 0.0015, 110.0),
+            Effect::Backlash { amplitude_deg: 0.003 },
+            Effect::Noise { sigma_deg: 0.0004 },
+        ],
     );
     hidden_case(&truth, &Effect::Backlash { amplitude_deg: 0.003 }, 120, 3, 22).await;
 }
@@ -166,18 +191,34 @@ async fn engine_tooth_mesh_harmonic_aliased() {
     let truth = model(
         &[20.0],
         &[75],
-        vec![periodic(GearPass, 20.0, 0.006, 15.0), periodic(ToothMesh, 75.0, 0.0012, 20.0), h2.clone(), Effect::Backlash { amplitude_deg: 0.002 }, Effect::Noise { sigma_deg: 0.0003 }],
+        vec![
+            periodic(GearPass, 20.0, 0.006, 15.0),
+            periodic(ToothMesh, 75.0, 0.0012, 20.0),
+            h2.clone(),
+            Effect::Backlash { amplitude_deg: 0.002 },
+            Effect::Noise { sigma_deg: 0.0003 },
+        ],
     );
     let (_, f) = hidden_case(&truth, &h2, 180, 3, 24).await;
     assert_eq!((f.observed_cycles_per_rev, f.aliased), (Some(30.0), true));
-    assert!(f.explanation.starts_with("150 cycles/rev: 75-tooth gear, harmonic 2 at 150 cycles/rev, aliased to 30 by 180 points/rev"), "{}", f.explanation);
+    assert!(
+        f.explanation.starts_with(
+            "150 cycles/rev: 75-tooth gear, harmonic 2 at 150 cycles/rev, aliased to 30 by 180 points/rev"
+        ),
+        "{}",
+        f.explanation
+    );
 }
 
 #[tokio::test]
 async fn engine_a_periodic_error_that_matches_no_part_of_the_design() {
     let h7 = periodic(Harmonic, 7.0, 0.001, 250.0);
     let (_, f) = hidden_case(&fig8_like(vec![h7.clone()]), &h7, 180, 3, 25).await;
-    assert!(f.explanation.starts_with("7 cycles/rev matches no part of the design: look for a 7:1 gear pass or a bearing"), "{}", f.explanation);
+    assert!(
+        f.explanation.starts_with("7 cycles/rev matches no part of the design: look for a 7:1 gear pass or a bearing"),
+        "{}",
+        f.explanation
+    );
 }
 
 /// Nothing missing: nothing named; the model is returned as given.
@@ -217,9 +258,14 @@ async fn the_trackers_axis_error_is_seen_as_eccentricity() {
     let one = fit_sinusoids(&theta, &err, &[1.0]).unwrap().terms[0];
     let g = model_gap(&a.samples, &truth, &ModelGapOptions::default()).unwrap();
     let text = g.to_text();
-    let ecc = g.effects_added.iter().find(|f| f.kind == "eccentricity").unwrap_or_else(|| panic!("no eccentricity\n{text}"));
+    let ecc =
+        g.effects_added.iter().find(|f| f.kind == "eccentricity").unwrap_or_else(|| panic!("no eccentricity\n{text}"));
     let got = Phasor::from_polar(ecc.amplitude_deg, ecc.phase_deg.unwrap());
-    assert!((got - one.phasor).amplitude_deg() < 5.0 * ecc.standard_error_deg, "{got:?} vs the axis error {:?}\n{text}", one.phasor);
+    assert!(
+        (got - one.phasor).amplitude_deg() < 5.0 * ecc.standard_error_deg,
+        "{got:?} vs the axis error {:?}\n{text}",
+        one.phasor
+    );
 }
 
 /// SplitMix64: the randomized cases' seeded draws (the engine tests have no
@@ -257,12 +303,21 @@ async fn engine_random_hidden_effects() {
     let mut cases = 0;
     while cases < 4 {
         let (gear, teeth) = (draw.int(3, 30), draw.int(60, 200));
-        let (which, size, phase, seed) = (cases % 4, draw.uniform(1.5, 3.0), draw.uniform(0.0, 360.0), draw.next() % 1_000_000);
-        let base = model(&[gear as f64], &[teeth], vec![periodic(GearPass, gear as f64, 0.006, 30.0), Effect::Noise { sigma_deg: 0.0003 }]);
+        let (which, size, phase, seed) =
+            (cases % 4, draw.uniform(1.5, 3.0), draw.uniform(0.0, 360.0), draw.next() % 1_000_000);
+        let base = model(
+            &[gear as f64],
+            &[teeth],
+            vec![periodic(GearPass, gear as f64, 0.006, 30.0), Effect::Noise { sigma_deg: 0.0003 }],
+        );
         let bin = |f: f64| survey_processing::analysis::alias(f, points as f64).observed;
         let candidates = survey_processing::analysis::design_candidates(&base.design, &Default::default());
-        let free = |f: f64| !candidates.iter().any(|c| c.cycles_per_rev != f && (bin(c.cycles_per_rev) - bin(f)).abs() < 0.5) && 2.0 * bin(f) < points as f64 - 0.5;
-        let f_free = (5..59).map(f64::from).find(|&f| candidates.iter().all(|c| (bin(c.cycles_per_rev) - f).abs() >= 0.5));
+        let free = |f: f64| {
+            !candidates.iter().any(|c| c.cycles_per_rev != f && (bin(c.cycles_per_rev) - bin(f)).abs() < 0.5)
+                && 2.0 * bin(f) < points as f64 - 0.5
+        };
+        let f_free =
+            (5..59).map(f64::from).find(|&f| candidates.iter().all(|c| (bin(c.cycles_per_rev) - f).abs() >= 0.5));
         let control = acquire(&base, points, 3, true, seed ^ 0xabc, 0.05).await;
         let limits = model_gap(&control.samples, &base, &ModelGapOptions::default()).unwrap().detection_limits;
         let hidden = match which {
@@ -291,7 +346,9 @@ async fn engine_random_hidden_effects() {
         let se = f.standard_error_deg;
         match &hidden {
             Effect::Periodic { amplitude_deg, phase_deg, .. } => {
-                let err = (Phasor::from_polar(f.amplitude_deg, f.phase_deg.unwrap()) - Phasor::from_polar(*amplitude_deg, *phase_deg)).amplitude_deg();
+                let err = (Phasor::from_polar(f.amplitude_deg, f.phase_deg.unwrap())
+                    - Phasor::from_polar(*amplitude_deg, *phase_deg))
+                .amplitude_deg();
                 assert!(err < 5.0 * se, "phasor off by {err} (5 se = {})\n{text}", 5.0 * se);
             }
             Effect::Backlash { amplitude_deg } => assert!((f.amplitude_deg - amplitude_deg).abs() < 5.0 * se, "{text}"),

@@ -31,7 +31,8 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     assert!((2048..=3000).contains(&kept.len()), "{} samples kept", kept.len());
     store.close().await;
 
-    let out = Command::new(bin).current_dir(dir.path()).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
+    let out =
+        Command::new(bin).current_dir(dir.path()).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
     assert!(out.status.success(), "resume failed: {}", String::from_utf8_lossy(&out.stderr));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains(&format!("resumed at step {}", kept.len())), "{stderr}");
@@ -54,7 +55,8 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     assert!(events.iter().any(|e| e.message.contains("resumed at step")));
 
     // A complete survey has nothing to resume: bad usage, exit 2.
-    let again = Command::new(bin).current_dir(dir.path()).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
+    let again =
+        Command::new(bin).current_dir(dir.path()).args(["--db", db.to_str().unwrap(), "resume"]).output().unwrap();
     assert_eq!(again.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&again.stderr).contains("nothing to resume"));
     store.close().await;

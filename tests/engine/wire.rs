@@ -35,7 +35,8 @@ async fn survey(engine: &mut Engine) -> (Vec<Sample>, Iso230) {
 }
 
 fn mean_error(samples: &[Sample], target: f64, dir: Direction) -> f64 {
-    let e: Vec<f64> = samples.iter().filter(|s| s.target_deg == target && s.direction == dir).map(|s| s.error_deg()).collect();
+    let e: Vec<f64> =
+        samples.iter().filter(|s| s.target_deg == target && s.direction == dir).map(|s| s.error_deg()).collect();
     e.iter().sum::<f64>() / e.len() as f64
 }
 
@@ -141,7 +142,12 @@ async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
 
     let local_clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
     let local = SimBench::new(&preset, 32, local_clock.clone());
-    let mut engine = Engine::new(local_clock, Box::new(local.positioner), Reference::Tracker(Box::new(local.tracker)), Timing::default());
+    let mut engine = Engine::new(
+        local_clock,
+        Box::new(local.positioner),
+        Reference::Tracker(Box::new(local.tracker)),
+        Timing::default(),
+    );
     let mut sink = MemorySink::default();
     engine.run(&plan, 0, &mut sink, &mut |_| {}).await.unwrap();
     let local_samples: Vec<Sample> = sink.samples.iter().map(|r| r.sample).collect();
@@ -167,6 +173,11 @@ async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
     // The reversal averages the per-target differences, in which the fit error
     // cancels (it is the same for both directions): sd sigma * sqrt(4 / (RUNS N)).
     let b_tol = 5.0 * sigma * (4.0 / (RUNS * POINTS) as f64).sqrt();
-    assert!((wire.b_mean.unwrap() - local.b_mean.unwrap()).abs() < b_tol, "B_mean {:?} vs {:?}", wire.b_mean, local.b_mean);
+    assert!(
+        (wire.b_mean.unwrap() - local.b_mean.unwrap()).abs() < b_tol,
+        "B_mean {:?} vs {:?}",
+        wire.b_mean,
+        local.b_mean
+    );
     assert!((wire.e - local.e).abs() < 2.0 * tol, "E {} vs {}", wire.e, local.e);
 }

@@ -230,7 +230,10 @@ where
     /// (`ES_MM_Stationary`), `SetStationaryModeParams` (the configured time).
     pub async fn setup(&mut self) -> Result<()> {
         let meas_time_ms = i32::try_from(self.cfg.measurement_time_ms).ok().filter(|t| *t > 0).ok_or_else(|| {
-            DriverError::usage(&self.name, format!("measurement time {} ms out of 1..=2^31-1", self.cfg.measurement_time_ms))
+            DriverError::usage(
+                &self.name,
+                format!("measurement time {} ms out of 1..=2^31-1", self.cfg.measurement_time_ms),
+            )
         })?;
         if !(self.cfg.approx_distance_mm.is_finite() && self.cfg.approx_distance_mm > 0.0) {
             return Err(DriverError::usage(
@@ -255,7 +258,9 @@ where
     pub async fn command(&mut self, request: Request) -> Result<Answer> {
         match self.exchange(request).await? {
             Got::Answer(a) => Ok(a),
-            Got::Measurement(_) => Err(self.garbled(request.command(), "a measurement result where an answer was expected")),
+            Got::Measurement(_) => {
+                Err(self.garbled(request.command(), "a measurement result where an answer was expected"))
+            }
         }
     }
 
@@ -263,7 +268,9 @@ where
     pub async fn measure_result(&mut self) -> Result<SingleMeasResult> {
         let m = match self.exchange(Request::StartMeasurement).await? {
             Got::Measurement(m) => m,
-            Got::Answer(_) => return Err(self.garbled(command::START_MEASUREMENT, "an answer where a result was expected")),
+            Got::Answer(_) => {
+                return Err(self.garbled(command::START_MEASUREMENT, "an answer where a result was expected"));
+            }
         };
         if !m.val.iter().chain(&m.std).all(|v| v.is_finite()) {
             let e = self.garbled(command::START_MEASUREMENT, format!("non-finite coordinates or deviations: {m:?}"));
@@ -462,7 +469,11 @@ where
                 return Ok(());
             }
         }
-        let e = DriverError::new(ErrorKind::Garbled, &self.name, format!("{what}: the tracker keeps sending unframed bytes"));
+        let e = DriverError::new(
+            ErrorKind::Garbled,
+            &self.name,
+            format!("{what}: the tracker keeps sending unframed bytes"),
+        );
         tracing::warn!(instrument = %self.name, error = %e, "emScon resynchronisation failed");
         Err(e)
     }
@@ -516,7 +527,9 @@ where
     /// status as its code and its header name in the text.
     fn refused(&mut self, cmd: i32, code: i32) -> DriverError {
         match code {
-            status::MEASUREMENT_STATUS_NOT_READY | status::NO_STATIONARY_RESULT => self.state = TrackerState::BeamBroken,
+            status::MEASUREMENT_STATUS_NOT_READY | status::NO_STATIONARY_RESULT => {
+                self.state = TrackerState::BeamBroken
+            }
             status::TRACKER_NOT_INITIALIZED
             | status::SENSOR_NOT_WARMED_UP
             | status::SENSOR_NOT_STABLE

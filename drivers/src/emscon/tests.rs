@@ -136,20 +136,17 @@ fn finite() -> impl Strategy<Value = f64> {
 }
 
 fn arb_request() -> impl Strategy<Value = Request> {
-    let units = (0..6, 0..3, 0..2, 0..7, 0..1).prop_map(|(length, angle, temperature, pressure, humidity)| SystemUnits {
-        length,
-        angle,
-        temperature,
-        pressure,
-        humidity,
+    let units = (0..6, 0..3, 0..2, 0..7, 0..1).prop_map(|(length, angle, temperature, pressure, humidity)| {
+        SystemUnits { length, angle, temperature, pressure, humidity }
     });
     prop_oneof![
         Just(Request::Initialize),
         units.prop_map(Request::SetUnits),
         any::<i32>().prop_map(Request::SetCoordinateSystemType),
         any::<i32>().prop_map(Request::SetMeasurementMode),
-        (any::<i32>(), any::<bool>())
-            .prop_map(|(meas_time_ms, use_adm)| Request::SetStationaryModeParams(StationaryModeData { meas_time_ms, use_adm })),
+        (any::<i32>(), any::<bool>()).prop_map(|(meas_time_ms, use_adm)| Request::SetStationaryModeParams(
+            StationaryModeData { meas_time_ms, use_adm }
+        )),
         Just(Request::StartMeasurement),
         Just(Request::GetSystemStatus),
         Just(Request::GetMeasurementStatusInfo),
@@ -160,7 +157,16 @@ fn arb_request() -> impl Strategy<Value = Request> {
 
 fn arb_result() -> impl Strategy<Value = SingleMeasResult> {
     let f3 = || [finite(), finite(), finite()];
-    (any::<i32>(), any::<i32>(), any::<bool>(), f3(), f3(), f3(), f3(), [finite(), finite(), finite(), finite(), finite()])
+    (
+        any::<i32>(),
+        any::<i32>(),
+        any::<bool>(),
+        f3(),
+        f3(),
+        f3(),
+        f3(),
+        [finite(), finite(), finite(), finite(), finite()],
+    )
         .prop_map(|(status, meas_mode, is_try_mode, val, std, pointing_error, apriori_std, e)| SingleMeasResult {
             status,
             meas_mode,
@@ -179,32 +185,38 @@ fn arb_result() -> impl Strategy<Value = SingleMeasResult> {
 
 fn arb_answer() -> impl Strategy<Value = Answer> {
     let bare_cmd = prop_oneof![Just(7), Just(5), Just(24), Just(26), Just(28), Just(49), Just(62), Just(63)];
-    let status_body = (any::<i32>(), any::<i32>(), any::<[i32; 3]>(), any::<[i32; 5]>()).prop_map(|(a, b, version, r)| {
-        SystemStatus {
-            last_result_status: a,
-            tracker_processor_status: b,
-            laser_status: r[0],
-            adm_status: r[1],
-            version,
-            weather_monitor_status: r[2],
-            flags: r[3],
-            tracker_serial_number: r[4],
-        }
-    });
-    let other_cmd = (0..=142i32).prop_filter("unmodelled", |c| {
-        cmd::is_known(*c) && ![1, 5, 7, 24, 26, 28, 49, 62, 63, 122].contains(c)
-    });
+    let status_body =
+        (any::<i32>(), any::<i32>(), any::<[i32; 3]>(), any::<[i32; 5]>()).prop_map(|(a, b, version, r)| {
+            SystemStatus {
+                last_result_status: a,
+                tracker_processor_status: b,
+                laser_status: r[0],
+                adm_status: r[1],
+                version,
+                weather_monitor_status: r[2],
+                flags: r[3],
+                tracker_serial_number: r[4],
+            }
+        });
+    let other_cmd = (0..=142i32)
+        .prop_filter("unmodelled", |c| cmd::is_known(*c) && ![1, 5, 7, 24, 26, 28, 49, 62, 63, 122].contains(c));
     prop_oneof![
         (bare_cmd, any::<i32>()).prop_map(|(command, status)| Answer { command, status, body: AnswerBody::Empty }),
-        (any::<i32>(), status_body)
-            .prop_map(|(status, s)| Answer { command: 1, status, body: AnswerBody::SystemStatus(s) }),
+        (any::<i32>(), status_body).prop_map(|(status, s)| Answer {
+            command: 1,
+            status,
+            body: AnswerBody::SystemStatus(s)
+        }),
         (any::<i32>(), any::<i32>(), any::<i32>()).prop_map(|(status, last_result_status, info)| Answer {
             command: 122,
             status,
             body: AnswerBody::MeasurementStatusInfo(MeasurementStatusInfo { last_result_status, info }),
         }),
-        (prop_oneof![Just(1), Just(122)], (1..i32::MAX))
-            .prop_map(|(command, status)| Answer { command, status, body: AnswerBody::Empty }),
+        (prop_oneof![Just(1), Just(122)], (1..i32::MAX)).prop_map(|(command, status)| Answer {
+            command,
+            status,
+            body: AnswerBody::Empty
+        }),
         (other_cmd, any::<i32>(), proptest::collection::vec(any::<u8>(), 0..64))
             .prop_map(|(command, status, raw)| Answer { command, status, body: AnswerBody::Other(raw) }),
     ]
@@ -317,7 +329,12 @@ proptest! {
 fn quick() -> EmsconConfig {
     EmsconConfig {
         measurement_time_ms: 20,
-        timeouts: EmsconTimeouts { request_ms: 300, measurement_margin_ms: 300, resync_grace_ms: 30, ..Default::default() },
+        timeouts: EmsconTimeouts {
+            request_ms: 300,
+            measurement_margin_ms: 300,
+            resync_grace_ms: 30,
+            ..Default::default()
+        },
         ..EmsconConfig::default()
     }
 }

@@ -181,7 +181,8 @@ mod tests {
 
     #[test]
     fn csv_and_linuxcnc_formats() {
-        let t = CorrectionTable::directional(vec![0.001, 0.002, 0.003, 0.004], vec![-0.001, 0.0, 0.001, 0.002]).unwrap();
+        let t =
+            CorrectionTable::directional(vec![0.001, 0.002, 0.003, 0.004], vec![-0.001, 0.0, 0.001, 0.002]).unwrap();
         assert_eq!(
             table_csv(&t),
             "readout_deg,error_forward_deg,error_reverse_deg\n0,0.001,-0.001\n90,0.002,0\n180,0.003,0.001\n270,0.004,0.002\n"

@@ -142,8 +142,9 @@ pub async fn process_survey(store: &Store, id: i64, opts: ProcessOptions) -> Res
     };
     let samples: Vec<Sample> =
         store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
-    let processed = pipeline::process(id, &samples, &design, recipe.as_ref().map(|(r, t, n)| (r, t.as_str(), n.as_str())))
-        .map_err(Failure::usage)?;
+    let processed =
+        pipeline::process(id, &samples, &design, recipe.as_ref().map(|(r, t, n)| (r, t.as_str(), n.as_str())))
+            .map_err(Failure::usage)?;
     for n in &processed.notes {
         eprintln!("note: {n}");
     }

@@ -68,7 +68,9 @@ fn close_circle(samples: &[Sample]) -> (Vec<Sample>, Option<String>) {
     let hi = samples.iter().map(|s| s.target_deg).fold(f64::NEG_INFINITY, f64::max);
     if ((hi - lo) - 360.0).abs() < 1e-6 {
         let kept: Vec<Sample> = samples.iter().filter(|s| (s.target_deg - hi).abs() > 1e-6).copied().collect();
-        let note = format!("targets {lo} and {hi} deg are the same angle: the samples at {hi} deg are left out of the processing");
+        let note = format!(
+            "targets {lo} and {hi} deg are the same angle: the samples at {hi} deg are left out of the processing"
+        );
         (kept, Some(note))
     } else {
         (samples.to_vec(), None)
@@ -85,7 +87,12 @@ fn recipe_error(e: ApplyError, file: Option<(&str, &str)>) -> anyhow::Error {
 
 /// Process `samples` of survey `id` with `design` and, when given, a replayed
 /// recipe `(recipe, its text, its file name)`; derive a recipe otherwise.
-pub fn process(id: i64, samples: &[Sample], design: &Design, replay: Option<(&Recipe, &str, &str)>) -> anyhow::Result<Processed> {
+pub fn process(
+    id: i64,
+    samples: &[Sample],
+    design: &Design,
+    replay: Option<(&Recipe, &str, &str)>,
+) -> anyhow::Result<Processed> {
     if samples.is_empty() {
         return Err(anyhow!("survey {id} has no samples to process"));
     }
@@ -93,7 +100,8 @@ pub fn process(id: i64, samples: &[Sample], design: &Design, replay: Option<(&Re
     let (samples, note) = close_circle(samples);
     notes.extend(note);
     let base = replay.map(|(r, _, _)| r.clone()).unwrap_or_default();
-    let analysis = analyse(&samples, design, &base.analysis).with_context(|| format!("survey {id} cannot be processed"))?;
+    let analysis =
+        analyse(&samples, design, &base.analysis).with_context(|| format!("survey {id} cannot be processed"))?;
     let recipe = match replay {
         Some((r, _, _)) => r.clone(),
         None => Recipe::from_analysis(&analysis, &base),
@@ -107,7 +115,8 @@ pub fn process(id: i64, samples: &[Sample], design: &Design, replay: Option<(&Re
     let floor = match &iso {
         Some(s) if built.directional => Floor {
             deg: Some(s.r_up.unwrap_or(s.r).max(s.r_down.unwrap_or(0.0)) / 2.0),
-            what: "half the larger unidirectional ISO 230-2 repeatability (a directional table removes the reversal)".into(),
+            what: "half the larger unidirectional ISO 230-2 repeatability (a directional table removes the reversal)"
+                .into(),
         },
         Some(s) => Floor {
             deg: Some(s.r / 2.0),
@@ -130,7 +139,8 @@ pub fn process(id: i64, samples: &[Sample], design: &Design, replay: Option<(&Re
         Some(map) => compare_interpolation(map).map_err(|e| e.to_string()),
         None => Err("a partial range has no periodic map to resample".to_string()),
     };
-    let comp = recipe.export.linuxcnc.then(|| comp_table(&analysis, &built.table, recipe.export.linuxcnc_points, &samples));
+    let comp =
+        recipe.export.linuxcnc.then(|| comp_table(&analysis, &built.table, recipe.export.linuxcnc_points, &samples));
     Ok(Processed {
         analysis,
         recipe,
@@ -201,7 +211,14 @@ mod tests {
             for j in 0..count {
                 let t = 360.0 * j as f64 / points as f64;
                 let e = 0.01 * (20.0 * t).to_radians().sin() + 0.0001 * ((run as usize * 7 + j) % 5) as f64;
-                out.push(Sample { run, direction: Direction::Forward, target_deg: t, readout_deg: t, actual_deg: t - e, timestamp_s: None });
+                out.push(Sample {
+                    run,
+                    direction: Direction::Forward,
+                    target_deg: t,
+                    readout_deg: t,
+                    actual_deg: t - e,
+                    timestamp_s: None,
+                });
             }
         }
         out

@@ -159,7 +159,11 @@ pub fn text(o: &ProcessOutcome) -> String {
         );
     }
     for d in p.decisions.lines.iter().filter(|d| !d.significant) {
-        let _ = writeln!(s, "  {:>8} {:>10.6} {:>7}  {:<10} {:<10} {}", d.cycles_per_rev, d.amplitude_deg, "", "", "kept", d.reason);
+        let _ = writeln!(
+            s,
+            "  {:>8} {:>10.6} {:>7}  {:<10} {:<10} {}",
+            d.cycles_per_rev, d.amplitude_deg, "", "", "kept", d.reason
+        );
     }
     let applied: Vec<_> = p.decisions.aliases.iter().filter(|x| x.applied || x.from_recipe).collect();
     if !applied.is_empty() {
@@ -224,7 +228,9 @@ pub fn text(o: &ProcessOutcome) -> String {
     let _ = writeln!(s, "\nfiles:");
     let f = &o.files;
     let _ = writeln!(s, "  table           {}", f.table_csv.display());
-    for (what, p) in [("LinuxCNC type 0", &f.linuxcnc_type0), ("LinuxCNC type 1", &f.linuxcnc_type1), ("binary", &f.binary)] {
+    for (what, p) in
+        [("LinuxCNC type 0", &f.linuxcnc_type0), ("LinuxCNC type 1", &f.linuxcnc_type1), ("binary", &f.binary)]
+    {
         if let Some(p) = p {
             let _ = writeln!(s, "  {what:<15} {}", p.display());
         }

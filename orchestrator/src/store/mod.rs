@@ -44,9 +44,7 @@ use std::time::Duration;
 
 use anyhow::{Context, anyhow};
 use sqlx::migrate::{Migration, MigrationType, Migrator};
-use sqlx::sqlite::{
-    SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous,
-};
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous};
 use sqlx::{Row, SqlSafeStr, SqlitePool};
 
 #[cfg(doc)]
@@ -61,21 +59,14 @@ const CHUNK_ROWS: usize = 400;
 
 /// The schema migrations, embedded in the binary (the same versions,
 /// descriptions and checksums `sqlx::migrate!("../migrations")` would give).
-const MIGRATIONS: &[(i64, &str, &str)] =
-    &[(1, "init", include_str!("../../../migrations/0001_init.sql"))];
+const MIGRATIONS: &[(i64, &str, &str)] = &[(1, "init", include_str!("../../../migrations/0001_init.sql"))];
 
 fn migrator() -> Migrator {
     Migrator::with_migrations(
         MIGRATIONS
             .iter()
             .map(|&(version, description, sql)| {
-                Migration::new(
-                    version,
-                    Cow::Borrowed(description),
-                    MigrationType::Simple,
-                    sql.into_sql_str(),
-                    false,
-                )
+                Migration::new(version, Cow::Borrowed(description), MigrationType::Simple, sql.into_sql_str(), false)
             })
             .collect(),
     )
@@ -122,11 +113,7 @@ impl Store {
         match std::fs::metadata(path) {
             Ok(m) if m.is_file() => {}
             Ok(_) => {
-                return Err(NotFound(format!(
-                    "{} is not a survey database (it is not a file)",
-                    path.display()
-                ))
-                .into());
+                return Err(NotFound(format!("{} is not a survey database (it is not a file)", path.display())).into());
             }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 return Err(NotFound(format!(
@@ -136,9 +123,7 @@ impl Store {
                 .into());
             }
             Err(e) => {
-                return Err(
-                    anyhow!(e).context(format!("cannot open the database {}", path.display()))
-                );
+                return Err(anyhow!(e).context(format!("cannot open the database {}", path.display())));
             }
         }
         Self::connect(path, false).await
@@ -168,10 +153,7 @@ impl Store {
                 other => anyhow!(other),
             })
             .with_context(|| format!("cannot set up the survey database {}", path.display()))?;
-        Ok(Store {
-            pool,
-            path: path.to_path_buf(),
-        })
+        Ok(Store { pool, path: path.to_path_buf() })
     }
 
     /// The database file.
@@ -181,9 +163,7 @@ impl Store {
 
     /// The SQLite journal mode in force (`"wal"`).
     pub async fn journal_mode(&self) -> anyhow::Result<String> {
-        let mode: String = sqlx::query_scalar("PRAGMA journal_mode")
-            .fetch_one(&self.pool)
-            .await?;
+        let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(&self.pool).await?;
         Ok(mode)
     }
 
@@ -198,32 +178,20 @@ impl Store {
 
     /// A foreign key failure on `survey_id` means the survey does not exist.
     fn fk_to_not_found(&self, id: i64, e: sqlx::Error) -> anyhow::Error {
-        if is_foreign_key_error(&e) {
-            self.no_survey(id).into()
-        } else {
-            e.into()
-        }
+        if is_foreign_key_error(&e) { self.no_survey(id).into() } else { e.into() }
     }
 }
 
 fn is_foreign_key_error(e: &sqlx::Error) -> bool {
-    e.as_database_error()
-        .is_some_and(|d| d.is_foreign_key_violation())
+    e.as_database_error().is_some_and(|d| d.is_foreign_key_violation())
 }
 
 /// An error opening `path`: "file is not a database" (SQLITE_NOTADB, 26) is a
 /// user error, anything else a run-time failure; both name the path.
 fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
-    let not_a_db = e
-        .as_database_error()
-        .and_then(|d| d.code())
-        .is_some_and(|c| c == "26");
+    let not_a_db = e.as_database_error().and_then(|d| d.code()).is_some_and(|c| c == "26");
     if not_a_db {
-        NotFound(format!(
-            "{} is not a survey database (SQLite: file is not a database)",
-            path.display()
-        ))
-        .into()
+        NotFound(format!("{} is not a survey database (SQLite: file is not a database)", path.display())).into()
     } else {
         anyhow::Error::new(e).context(format!("cannot open the database {}", path.display()))
     }

@@ -23,23 +23,18 @@ impl Store {
             return Ok(());
         }
         let mut tx = self.pool.begin().await?;
-        insert_samples(&mut tx, survey_id, samples)
-            .await
-            .with_context(|| {
-                format!(
-                    "cannot store samples {}..={} of survey {} in {}",
-                    samples[0].seq,
-                    samples[samples.len() - 1].seq,
-                    survey_id,
-                    self.path.display()
-                )
-            })?;
-        tx.commit().await.with_context(|| {
+        insert_samples(&mut tx, survey_id, samples).await.with_context(|| {
             format!(
-                "cannot commit samples of survey {survey_id} in {}",
+                "cannot store samples {}..={} of survey {} in {}",
+                samples[0].seq,
+                samples[samples.len() - 1].seq,
+                survey_id,
                 self.path.display()
             )
         })?;
+        tx.commit()
+            .await
+            .with_context(|| format!("cannot commit samples of survey {survey_id} in {}", self.path.display()))?;
         Ok(())
     }
 
@@ -50,11 +45,7 @@ impl Store {
         let recorded: Vec<RecordedSample> = samples
             .iter()
             .enumerate()
-            .map(|(i, sample)| RecordedSample {
-                seq: i as u64,
-                sample: *sample,
-                raw: RawReading::None,
-            })
+            .map(|(i, sample)| RecordedSample { seq: i as u64, sample: *sample, raw: RawReading::None })
             .collect();
         let mut tx = self.pool.begin().await?;
         let id = insert_survey(&mut tx, s).await?;
@@ -81,24 +72,17 @@ impl Store {
         rows.iter()
             .map(sample_from_row)
             .collect::<anyhow::Result<Vec<_>>>()
-            .with_context(|| {
-                format!(
-                    "survey {survey_id} in {} holds a bad sample",
-                    self.path.display()
-                )
-            })
+            .with_context(|| format!("survey {survey_id} in {} holds a bad sample", self.path.display()))
     }
 
     /// The highest seq stored for a survey (`None` when it has no sample yet).
     /// Samples are stored in plan order, so a resume continues at `last + 1`.
     pub async fn last_seq(&self, id: i64) -> anyhow::Result<Option<u64>> {
-        let seq: Option<i64> =
-            sqlx::query_scalar("SELECT MAX(seq) FROM samples WHERE survey_id = ?")
-                .bind(id)
-                .fetch_one(&self.pool)
-                .await?;
-        seq.map(|s| u64::try_from(s).context("negative seq in the database"))
-            .transpose()
+        let seq: Option<i64> = sqlx::query_scalar("SELECT MAX(seq) FROM samples WHERE survey_id = ?")
+            .bind(id)
+            .fetch_one(&self.pool)
+            .await?;
+        seq.map(|s| u64::try_from(s).context("negative seq in the database")).transpose()
     }
 }
 
@@ -112,11 +96,7 @@ fn check_sample(r: &RecordedSample) -> anyhow::Result<()> {
     if s.run == 0 {
         bail!("sample seq {}: run 0 (runs count from 1)", r.seq);
     }
-    for (name, v) in [
-        ("target_deg", s.target_deg),
-        ("readout_deg", s.readout_deg),
-        ("actual_deg", s.actual_deg),
-    ] {
+    for (name, v) in [("target_deg", s.target_deg), ("readout_deg", s.readout_deg), ("actual_deg", s.actual_deg)] {
         if v.is_nan() {
             bail!("sample seq {}: {name} is NaN", r.seq);
         }
@@ -127,11 +107,7 @@ fn check_sample(r: &RecordedSample) -> anyhow::Result<()> {
     Ok(())
 }
 
-async fn insert_samples(
-    conn: &mut SqliteConnection,
-    survey_id: i64,
-    samples: &[RecordedSample],
-) -> anyhow::Result<()> {
+async fn insert_samples(conn: &mut SqliteConnection, survey_id: i64, samples: &[RecordedSample]) -> anyhow::Result<()> {
     // Checked up front so that the database is not touched by a bad batch.
     for r in samples {
         check_sample(r)?;
@@ -159,10 +135,7 @@ async fn insert_samples(
             }
         })?;
 
-        let raws: Vec<&RecordedSample> = chunk
-            .iter()
-            .filter(|r| !matches!(r.raw, RawReading::None))
-            .collect();
+        let raws: Vec<&RecordedSample> = chunk.iter().filter(|r| !matches!(r.raw, RawReading::None)).collect();
         if raws.is_empty() {
             continue;
         }
@@ -192,9 +165,7 @@ async fn insert_samples(
                     for _ in 0..7 {
                         b.push_bind(None::<f64>);
                     }
-                    b.push_bind(i64::from(face))
-                        .push_bind(reading.x_arcsec)
-                        .push_bind(reading.y_arcsec);
+                    b.push_bind(i64::from(face)).push_bind(reading.x_arcsec).push_bind(reading.y_arcsec);
                 }
                 RawReading::None => unreachable!("filtered out above"),
             }
@@ -223,29 +194,17 @@ fn sample_from_row(row: &SqliteRow) -> anyhow::Result<RecordedSample> {
             x_mm: real(row, "smr_x_mm")?,
             y_mm: real(row, "smr_y_mm")?,
             z_mm: real(row, "smr_z_mm")?,
-            std_dev_mm: [
-                real(row, "smr_sx_mm")?,
-                real(row, "smr_sy_mm")?,
-                real(row, "smr_sz_mm")?,
-            ],
+            std_dev_mm: [real(row, "smr_sx_mm")?, real(row, "smr_sy_mm")?, real(row, "smr_sz_mm")?],
             measurement_time_s: real(row, "measurement_time_s")?,
         }),
         Some("autocollimator") => {
             let face: i64 = row.try_get("ac_face")?;
             RawReading::Autocollimator {
-                face: u32::try_from(face)
-                    .with_context(|| format!("seq {seq}: bad polygon face {face}"))?,
-                reading: AcReading {
-                    x_arcsec: real(row, "ac_x_arcsec")?,
-                    y_arcsec: real(row, "ac_y_arcsec")?,
-                },
+                face: u32::try_from(face).with_context(|| format!("seq {seq}: bad polygon face {face}"))?,
+                reading: AcReading { x_arcsec: real(row, "ac_x_arcsec")?, y_arcsec: real(row, "ac_y_arcsec")? },
             }
         }
         Some(other) => bail!("seq {seq}: unknown raw reading kind '{other}'"),
     };
-    Ok(RecordedSample {
-        seq: u64::try_from(seq).with_context(|| format!("negative seq {seq}"))?,
-        sample,
-        raw,
-    })
+    Ok(RecordedSample { seq: u64::try_from(seq).with_context(|| format!("negative seq {seq}"))?, sample, raw })
 }

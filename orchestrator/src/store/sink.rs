@@ -110,9 +110,7 @@ impl StoreSink {
 impl SampleSink for StoreSink {
     async fn record(&mut self, sample: RecordedSample) -> anyhow::Result<()> {
         let now = Instant::now();
-        let slow = self
-            .last_record
-            .is_some_and(|t| now.duration_since(t) >= self.max_age);
+        let slow = self.last_record.is_some_and(|t| now.duration_since(t) >= self.max_age);
         self.last_record = Some(now);
         self.buffer.push(sample);
         let oldest = *self.oldest.get_or_insert(now);
@@ -129,11 +127,7 @@ impl SampleSink for StoreSink {
     /// Stores the positions after those already stored (a resume that locates
     /// the axis again adds its own) and replaces the survey's axis (JSON of
     /// the [`AxisFit`]).
-    async fn axis_located(
-        &mut self,
-        points: &[(f64, SmrMeasurement)],
-        fit: &AxisFit,
-    ) -> anyhow::Result<()> {
+    async fn axis_located(&mut self, points: &[(f64, SmrMeasurement)], fit: &AxisFit) -> anyhow::Result<()> {
         let json = serde_json::to_string(fit).context("cannot encode the located axis")?;
         self.store.add_locate_points(self.survey_id, points).await?;
         self.store.set_axis(self.survey_id, &json).await
@@ -141,8 +135,6 @@ impl SampleSink for StoreSink {
 
     /// Logged at once (not buffered).
     async fn event(&mut self, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
-        self.store
-            .log_event(self.survey_id, at_s, level, message)
-            .await
+        self.store.log_event(self.survey_id, at_s, level, message).await
     }
 }

@@ -172,12 +172,7 @@ impl Store {
 
     /// Set a survey's status and, when given, the instrument time it ended.
     /// A [`NotFound`] error when there is no such survey.
-    pub async fn set_status(
-        &self,
-        id: i64,
-        status: SurveyStatus,
-        ended_at_s: Option<f64>,
-    ) -> anyhow::Result<()> {
+    pub async fn set_status(&self, id: i64, status: SurveyStatus, ended_at_s: Option<f64>) -> anyhow::Result<()> {
         let done = sqlx::query(
             "UPDATE surveys SET status = ?, ended_at_s = COALESCE(?, ended_at_s), \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
@@ -227,21 +222,15 @@ impl Store {
 
     /// Add SMR positions measured to locate the axis, `(readout_deg,
     /// measurement)`, after those already stored for the survey (one transaction).
-    pub async fn add_locate_points(
-        &self,
-        id: i64,
-        points: &[(f64, SmrMeasurement)],
-    ) -> anyhow::Result<()> {
+    pub async fn add_locate_points(&self, id: i64, points: &[(f64, SmrMeasurement)]) -> anyhow::Result<()> {
         if points.is_empty() {
             return Ok(());
         }
         let mut tx = self.pool.begin().await?;
-        let next: i64 = sqlx::query_scalar(
-            "SELECT COALESCE(MAX(idx) + 1, 0) FROM locate_points WHERE survey_id = ?",
-        )
-        .bind(id)
-        .fetch_one(&mut *tx)
-        .await?;
+        let next: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(idx) + 1, 0) FROM locate_points WHERE survey_id = ?")
+            .bind(id)
+            .fetch_one(&mut *tx)
+            .await?;
         for (chunk_no, chunk) in points.chunks(CHUNK_ROWS).enumerate() {
             let base = next + (chunk_no * CHUNK_ROWS) as i64;
             let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(
@@ -261,8 +250,7 @@ impl Store {
                     .push_bind(m.measurement_time_s);
             });
             qb.build().execute(&mut *tx).await.map_err(|e| {
-                self.fk_to_not_found(id, e)
-                    .context(format!("cannot store the locate points of survey {id}"))
+                self.fk_to_not_found(id, e).context(format!("cannot store the locate points of survey {id}"))
             })?;
         }
         tx.commit().await?;
@@ -297,13 +285,7 @@ impl Store {
 
     /// Log an event (a fault survived, a resume) at instrument time `at_s`.
     /// `level` is free text; the engine uses `info`, `warn` and `error`.
-    pub async fn log_event(
-        &self,
-        id: i64,
-        at_s: f64,
-        level: &str,
-        message: &str,
-    ) -> anyhow::Result<()> {
+    pub async fn log_event(&self, id: i64, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
         sqlx::query("INSERT INTO events (survey_id, at_s, level, message) VALUES (?, ?, ?, ?)")
             .bind(id)
             .bind(at_s)
@@ -311,21 +293,16 @@ impl Store {
             .bind(message)
             .execute(&self.pool)
             .await
-            .map_err(|e| {
-                self.fk_to_not_found(id, e)
-                    .context(format!("cannot log an event of survey {id}"))
-            })?;
+            .map_err(|e| self.fk_to_not_found(id, e).context(format!("cannot log an event of survey {id}")))?;
         Ok(())
     }
 
     /// A survey's events, in the order they were logged.
     pub async fn events(&self, id: i64) -> anyhow::Result<Vec<EventRow>> {
-        let rows = sqlx::query(
-            "SELECT id, at_s, level, message FROM events WHERE survey_id = ? ORDER BY id",
-        )
-        .bind(id)
-        .fetch_all(&self.pool)
-        .await?;
+        let rows = sqlx::query("SELECT id, at_s, level, message FROM events WHERE survey_id = ? ORDER BY id")
+            .bind(id)
+            .fetch_all(&self.pool)
+            .await?;
         rows.iter()
             .map(|r| -> anyhow::Result<EventRow> {
                 Ok(EventRow {
@@ -352,9 +329,7 @@ impl Store {
 
     /// The id of the latest survey (the highest id), if any.
     pub async fn latest_survey_id(&self) -> anyhow::Result<Option<i64>> {
-        let id: Option<i64> = sqlx::query_scalar("SELECT MAX(id) FROM surveys")
-            .fetch_one(&self.pool)
-            .await?;
+        let id: Option<i64> = sqlx::query_scalar("SELECT MAX(id) FROM surveys").fetch_one(&self.pool).await?;
         Ok(id)
     }
 
@@ -383,15 +358,8 @@ impl Store {
     }
 }
 
-pub(super) async fn insert_survey(
-    conn: &mut SqliteConnection,
-    s: &NewSurvey,
-) -> anyhow::Result<i64> {
-    let planned = s
-        .planned_samples
-        .map(i64::try_from)
-        .transpose()
-        .context("planned_samples is too large")?;
+pub(super) async fn insert_survey(conn: &mut SqliteConnection, s: &NewSurvey) -> anyhow::Result<i64> {
+    let planned = s.planned_samples.map(i64::try_from).transpose().context("planned_samples is too large")?;
     let done = sqlx::query(
         "INSERT INTO surveys (status, source, points, runs, bidirectional, config_json, \
          model_toml, instruments_json, planned_samples) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -415,8 +383,7 @@ fn survey_from_row(row: &SqliteRow) -> anyhow::Result<SurveyRow> {
     let status: String = row.try_get("status")?;
     let small = |col: &str| -> anyhow::Result<Option<u32>> {
         let v: Option<i64> = row.try_get(col)?;
-        v.map(|v| u32::try_from(v).with_context(|| format!("survey {id}: bad {col} {v}")))
-            .transpose()
+        v.map(|v| u32::try_from(v).with_context(|| format!("survey {id}: bad {col} {v}"))).transpose()
     };
     let planned: Option<i64> = row.try_get("planned_samples")?;
     let count: i64 = row.try_get("sample_count")?;
@@ -436,9 +403,7 @@ fn survey_from_row(row: &SqliteRow) -> anyhow::Result<SurveyRow> {
         started_at_s: row.try_get("started_at_s")?,
         ended_at_s: row.try_get("ended_at_s")?,
         planned_samples: planned
-            .map(|p| {
-                u64::try_from(p).with_context(|| format!("survey {id}: bad planned_samples {p}"))
-            })
+            .map(|p| u64::try_from(p).with_context(|| format!("survey {id}: bad planned_samples {p}")))
             .transpose()?,
         sample_count: u64::try_from(count).unwrap_or(0),
     })

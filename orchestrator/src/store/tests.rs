@@ -37,29 +37,18 @@ fn recorded(seq: u64) -> RecordedSample {
         }),
         _ => RawReading::Autocollimator {
             face: (seq % 24) as u32,
-            reading: AcReading {
-                x_arcsec: f / 3.0,
-                y_arcsec: -f / 11.0,
-            },
+            reading: AcReading { x_arcsec: f / 3.0, y_arcsec: -f / 11.0 },
         },
     };
     RecordedSample {
         seq,
         sample: Sample {
             run: 1 + (seq / 1000) as u32,
-            direction: if seq.is_multiple_of(2) {
-                Direction::Forward
-            } else {
-                Direction::Reverse
-            },
+            direction: if seq.is_multiple_of(2) { Direction::Forward } else { Direction::Reverse },
             target_deg: f * 0.36,
             readout_deg: f * 0.36 + 1e-4 / (1.0 + f),
             actual_deg: f * 0.36 - 1.0 / 3.0 * 1e-5,
-            timestamp_s: if seq.is_multiple_of(5) {
-                None
-            } else {
-                Some(f * 1.25)
-            },
+            timestamp_s: if seq.is_multiple_of(5) { None } else { Some(f * 1.25) },
         },
         raw,
     }
@@ -71,10 +60,7 @@ fn assert_same(a: &[RecordedSample], b: &[RecordedSample]) {
     for (x, y) in a.iter().zip(b) {
         let (sx, sy) = (format!("{x:?}"), format!("{y:?}"));
         assert_eq!(sx, sy);
-        assert_eq!(
-            x.sample.readout_deg.to_bits(),
-            y.sample.readout_deg.to_bits()
-        );
+        assert_eq!(x.sample.readout_deg.to_bits(), y.sample.readout_deg.to_bits());
         assert_eq!(x.sample.actual_deg.to_bits(), y.sample.actual_deg.to_bits());
     }
 }
@@ -89,22 +75,14 @@ async fn temp_store() -> (tempfile::TempDir, Store) {
 async fn wal_mode_and_reopen() {
     let (dir, store) = temp_store().await;
     assert_eq!(store.journal_mode().await.unwrap(), "wal");
-    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous")
-        .fetch_one(&store.pool)
-        .await
-        .unwrap();
+    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(&store.pool).await.unwrap();
     assert_eq!(sync, 2, "synchronous = FULL");
-    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys")
-        .fetch_one(&store.pool)
-        .await
-        .unwrap();
+    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(&store.pool).await.unwrap();
     assert_eq!(fk, 1);
     let id = store.create_survey(&new_survey()).await.unwrap();
     store.close().await;
     // reopening runs the (already applied) migrations again without harm
-    let store = Store::open_existing(&dir.path().join("survey.db"))
-        .await
-        .unwrap();
+    let store = Store::open_existing(&dir.path().join("survey.db")).await.unwrap();
     assert_eq!(store.journal_mode().await.unwrap(), "wal");
     assert_eq!(store.latest_survey_id().await.unwrap(), Some(id));
     store.close().await;
@@ -142,10 +120,7 @@ async fn duplicate_seq_fails_and_stores_nothing_of_the_batch() {
     batch.push(dup);
     let e = store.append(id, &batch).await.unwrap_err();
     assert!(!is_not_found(&e));
-    assert!(
-        format!("{e:#}").contains("UNIQUE constraint failed"),
-        "{e:#}"
-    );
+    assert!(format!("{e:#}").contains("UNIQUE constraint failed"), "{e:#}");
     assert_same(&store.samples(id).await.unwrap(), &first);
     // unknown survey: a NotFound
     let e = store.append(999, &first).await.unwrap_err();
@@ -180,11 +155,7 @@ async fn import_is_atomic() {
     // a CHECK violation (run 0) at the end
     let mut bad = good.clone();
     bad[999].run = 0;
-    let s = NewSurvey {
-        status: SurveyStatus::Imported,
-        source: "import:data.csv".into(),
-        ..NewSurvey::default()
-    };
+    let s = NewSurvey { status: SurveyStatus::Imported, source: "import:data.csv".into(), ..NewSurvey::default() };
     assert!(store.import(&s, &bad).await.is_err());
     assert!(store.list().await.unwrap().is_empty());
     // a failure inside SQLite in the third chunk
@@ -198,37 +169,18 @@ async fn import_is_atomic() {
     let e = store.import(&s, &good).await.unwrap_err();
     assert!(format!("{e:#}").contains("boom"), "{e:#}");
     assert!(store.list().await.unwrap().is_empty());
-    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples")
-        .fetch_one(&store.pool)
-        .await
-        .unwrap();
+    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples").fetch_one(&store.pool).await.unwrap();
     assert_eq!(n, 0);
-    sqlx::query("DROP TRIGGER boom")
-        .execute(&store.pool)
-        .await
-        .unwrap();
+    sqlx::query("DROP TRIGGER boom").execute(&store.pool).await.unwrap();
 
     let id = store.import(&s, &good).await.unwrap();
     let row = store.survey(id).await.unwrap();
     assert_eq!(row.status, SurveyStatus::Imported);
     assert_eq!(row.source, "import:data.csv");
     assert_eq!(row.sample_count, 1000);
-    let back: Vec<Sample> = store
-        .samples(id)
-        .await
-        .unwrap()
-        .iter()
-        .map(|r| r.sample)
-        .collect();
+    let back: Vec<Sample> = store.samples(id).await.unwrap().iter().map(|r| r.sample).collect();
     assert_eq!(back, good);
-    assert!(
-        store
-            .samples(id)
-            .await
-            .unwrap()
-            .iter()
-            .all(|r| r.raw == RawReading::None)
-    );
+    assert!(store.samples(id).await.unwrap().iter().all(|r| r.raw == RawReading::None));
     store.close().await;
 }
 
@@ -246,23 +198,10 @@ async fn resolve_latest_and_not_found() {
     let e = store.resolve(Some(7)).await.unwrap_err();
     assert!(is_not_found(&e));
     assert!(e.downcast_ref::<NotFound>().is_some());
-    assert_eq!(
-        e.to_string(),
-        format!(
-            "no survey with id 7 in {}",
-            dir.path().join("survey.db").display()
-        )
-    );
-    assert!(is_not_found(
-        &store
-            .set_status(7, SurveyStatus::Failed, None)
-            .await
-            .unwrap_err()
-    ));
+    assert_eq!(e.to_string(), format!("no survey with id 7 in {}", dir.path().join("survey.db").display()));
+    assert!(is_not_found(&store.set_status(7, SurveyStatus::Failed, None).await.unwrap_err()));
     assert!(is_not_found(&store.set_axis(7, "{}").await.unwrap_err()));
-    assert!(is_not_found(
-        &store.log_event(7, 0.0, "info", "x").await.unwrap_err()
-    ));
+    assert!(is_not_found(&store.log_event(7, 0.0, "info", "x").await.unwrap_err()));
     let list = store.list().await.unwrap();
     assert_eq!(list.iter().map(|r| r.id).collect::<Vec<_>>(), vec![a, b]);
     store.close().await;
@@ -282,36 +221,20 @@ async fn survey_fields_status_axis_events_locate_points() {
     assert_eq!(row.axis_json, None);
     assert_eq!(row.ended_at_s, None);
     assert_eq!(row.sample_count, 0);
-    assert!(
-        row.created_at.ends_with('Z') && row.created_at.contains('T'),
-        "{}",
-        row.created_at
-    );
+    assert!(row.created_at.ends_with('Z') && row.created_at.contains('T'), "{}", row.created_at);
 
     store.set_started(id, 0.5).await.unwrap();
     store.set_axis(id, r#"{"center":[0,0,0]}"#).await.unwrap();
-    store
-        .set_status(id, SurveyStatus::Interrupted, None)
-        .await
-        .unwrap();
-    store
-        .set_status(id, SurveyStatus::Complete, Some(3600.25))
-        .await
-        .unwrap();
+    store.set_status(id, SurveyStatus::Interrupted, None).await.unwrap();
+    store.set_status(id, SurveyStatus::Complete, Some(3600.25)).await.unwrap();
     let row = store.survey(id).await.unwrap();
     assert_eq!(row.status, SurveyStatus::Complete);
     assert_eq!(row.started_at_s, Some(0.5));
     assert_eq!(row.ended_at_s, Some(3600.25));
     assert_eq!(row.axis_json.as_deref(), Some(r#"{"center":[0,0,0]}"#));
 
-    store
-        .log_event(id, 12.0, "warn", "beam broken, reacquired")
-        .await
-        .unwrap();
-    store
-        .log_event(id, 13.0, "info", "resumed at seq 40")
-        .await
-        .unwrap();
+    store.log_event(id, 12.0, "warn", "beam broken, reacquired").await.unwrap();
+    store.log_event(id, 13.0, "info", "resumed at seq 40").await.unwrap();
     let ev = store.events(id).await.unwrap();
     assert_eq!(ev.len(), 2);
     assert_eq!((ev[0].at_s, ev[0].level.as_str()), (12.0, "warn"));
@@ -324,14 +247,8 @@ async fn survey_fields_status_axis_events_locate_points() {
         std_dev_mm: [0.001, 0.002, 0.003],
         measurement_time_s: 2.0,
     };
-    store
-        .add_locate_points(id, &[(0.0, m(1.0)), (120.0, m(2.0))])
-        .await
-        .unwrap();
-    store
-        .add_locate_points(id, &[(240.0, m(3.0))])
-        .await
-        .unwrap();
+    store.add_locate_points(id, &[(0.0, m(1.0)), (120.0, m(2.0))]).await.unwrap();
+    store.add_locate_points(id, &[(240.0, m(3.0))]).await.unwrap();
     let pts = store.locate_points(id).await.unwrap();
     assert_eq!(pts, vec![(0.0, m(1.0)), (120.0, m(2.0)), (240.0, m(3.0))]);
 
@@ -355,10 +272,7 @@ async fn open_existing_does_not_create() {
     assert!(is_not_found(&e));
     assert_eq!(
         e.to_string(),
-        format!(
-            "no survey database at {}: run `survey run` or `survey import` first",
-            path.display()
-        )
+        format!("no survey database at {}: run `survey run` or `survey import` first", path.display())
     );
     assert!(!path.exists());
     // a file that is not a database is a user error too
@@ -368,9 +282,7 @@ async fn open_existing_does_not_create() {
     assert!(is_not_found(&e), "{e:#}");
     assert!(e.to_string().contains("notes.txt"), "{e:#}");
     // open() names the path when it cannot create the file
-    let e = Store::open(&dir.path().join("no/such/dir/x.db"))
-        .await
-        .unwrap_err();
+    let e = Store::open(&dir.path().join("no/such/dir/x.db")).await.unwrap_err();
     assert!(format!("{e:#}").contains("no/such/dir/x.db"), "{e:#}");
 }
 
@@ -378,9 +290,7 @@ async fn open_existing_does_not_create() {
 async fn store_sink_flushes_by_batch_and_on_flush() {
     let (_dir, store) = temp_store().await;
     let id = store.create_survey(&new_survey()).await.unwrap();
-    let mut sink = StoreSink::new(store.clone(), id)
-        .with_batch(10)
-        .with_max_age(Duration::from_secs(60));
+    let mut sink = StoreSink::new(store.clone(), id).with_batch(10).with_max_age(Duration::from_secs(60));
     for seq in 0..9 {
         sink.record(recorded(seq)).await.unwrap();
     }
@@ -421,13 +331,7 @@ async fn store_sink_flushes_by_age_and_keeps_failed_batches() {
 
     // events and the located axis go straight to the store
     sink.event(4.5, "warn", "beam broken").await.unwrap();
-    let m = SmrMeasurement {
-        x_mm: 1.0,
-        y_mm: 2.0,
-        z_mm: 3.0,
-        std_dev_mm: [0.01; 3],
-        measurement_time_s: 2.0,
-    };
+    let m = SmrMeasurement { x_mm: 1.0, y_mm: 2.0, z_mm: 3.0, std_dev_mm: [0.01; 3], measurement_time_s: 2.0 };
     let fit = AxisFit {
         center_mm: [0.0, 0.0, 0.0],
         normal: [0.0, 0.0, 1.0],
@@ -442,8 +346,7 @@ async fn store_sink_flushes_by_age_and_keeps_failed_batches() {
     let pts = [(0.0, m), (120.0, m), (240.0, m)];
     sink.axis_located(&pts, &fit).await.unwrap();
     assert_eq!(store.locate_points(id).await.unwrap(), pts.to_vec());
-    let axis: AxisFit =
-        serde_json::from_str(&store.survey(id).await.unwrap().axis_json.unwrap()).unwrap();
+    let axis: AxisFit = serde_json::from_str(&store.survey(id).await.unwrap().axis_json.unwrap()).unwrap();
     assert_eq!(axis, fit);
     assert_eq!(store.events(id).await.unwrap()[0].message, "beam broken");
 

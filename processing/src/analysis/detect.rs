@@ -114,8 +114,7 @@ impl Thresholds {
     pub fn judge(&self, t: &Tested) -> Verdict {
         let r = self.runs as f64;
         let sd_mean = t.sd_run / r.sqrt();
-        let coherent =
-            t.mean.amplitude_deg() > if t.one_dim { self.coh_1d } else { self.coh_2d } * sd_mean;
+        let coherent = t.mean.amplitude_deg() > if t.one_dim { self.coh_1d } else { self.coh_2d } * sd_mean;
         let power: f64 = t.runs.iter().map(|z| z.norm_sqr()).sum();
         let incoherent = match self.inc {
             Some(x) if !t.one_dim => power / (t.sd_run * t.sd_run) > x,
@@ -231,7 +230,9 @@ mod tests {
         // Two-sided normal: 5 % at 1.95996, 1 % at 2.57583.
         assert!((normal_two_sided_isf(0.05) - 1.959_964).abs() < 1e-5);
         assert!((normal_two_sided_isf(0.01) - 2.575_829).abs() < 1e-5);
-        assert!((crate::special::erfc(0.0) - 1.0).abs() < 1e-7 && (crate::special::erfc(-1.0) - 1.842_700_79).abs() < 1e-6);
+        assert!(
+            (crate::special::erfc(0.0) - 1.0).abs() < 1e-7 && (crate::special::erfc(-1.0) - 1.842_700_79).abs() < 1e-6
+        );
     }
 
     #[test]
@@ -245,7 +246,12 @@ mod tests {
         assert!((default_min_coherence(5) - 0.6).abs() < 1e-15);
         let z = |a: f64, p: f64| Phasor::from_polar(a, p);
         // A steady line well above the noise: repeatable.
-        let steady = Tested { runs: vec![z(1.0, 10.0), z(1.01, 11.0), z(0.99, 9.0)], mean: z(1.0, 10.0), sd_run: 0.01, one_dim: false };
+        let steady = Tested {
+            runs: vec![z(1.0, 10.0), z(1.01, 11.0), z(0.99, 9.0)],
+            mean: z(1.0, 10.0),
+            sd_run: 0.01,
+            one_dim: false,
+        };
         let v = Thresholds::new(360, 3, 0.01, default_min_coherence(3), Some(1000)).judge(&steady);
         assert!(v.coherent && v.incoherent && v.repeatable && v.coherence > 0.99, "{v:?}");
         // Same amplitude, phases spread evenly: incoherent, not repeatable.

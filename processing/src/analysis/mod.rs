@@ -387,7 +387,12 @@ pub fn analyse_map(map: ErrorMap, design: &Design, options: &AnalysisOptions) ->
     };
     let core = match map.coverage {
         Coverage::FullCircle { n } => {
-            let frame = Frame { points_per_rev: n as f64, full_circle: true, start_deg: map.targets_deg[0], encoder_heads: heads };
+            let frame = Frame {
+                points_per_rev: n as f64,
+                full_circle: true,
+                start_deg: map.targets_deg[0],
+                encoder_heads: heads,
+            };
             full_circle(&rows, &frame, &candidates, options, min_coherence, numerical_floor)?
         }
         Coverage::Partial { start, end, step } => {
@@ -429,7 +434,12 @@ struct Core {
 /// the mean curve and `total` that of the whole mean curve.
 fn make_line(observed: f64, mean: Phasor, v: &Verdict, naming: Naming, frame: &Frame, power: f64, total: f64) -> Line {
     let true_phase_deg = if naming.aliased {
-        unalias_phase_deg(mean.phase_deg(), alias(naming.true_cycles, frame.points_per_rev), frame.points_per_rev, frame.start_deg)
+        unalias_phase_deg(
+            mean.phase_deg(),
+            alias(naming.true_cycles, frame.points_per_rev),
+            frame.points_per_rev,
+            frame.start_deg,
+        )
     } else {
         mean.phase_deg()
     };
@@ -472,8 +482,10 @@ fn full_circle(
     }
     let r = rows.len();
     let mut planner = Planner::new();
-    let spectra =
-        rows.iter().map(|y| planner.spectrum(y, frame.start_deg, 360.0, Window::Rectangular)).collect::<Result<Vec<_>, _>>()?;
+    let spectra = rows
+        .iter()
+        .map(|y| planner.spectrum(y, frame.start_deg, 360.0, Window::Rectangular))
+        .collect::<Result<Vec<_>, _>>()?;
     let mean = Spectrum::mean_of(&spectra).expect("one spectrum per run, all of the same shape");
     let regular = (n - 1) / 2;
     let nyquist = n.is_multiple_of(2);
@@ -560,7 +572,11 @@ fn partial_range(
 ) -> Result<Core, AnalysisError> {
     let n = g.theta.len();
     if n < 4 || g.step <= 0.0 {
-        return Err(AnalysisError::TooFewTargets { targets: n, min: 4, why: "a least-squares fit over a partial range" });
+        return Err(AnalysisError::TooFewTargets {
+            targets: n,
+            min: 4,
+            why: "a least-squares fit over a partial range",
+        });
     }
     let points_per_rev = 360.0 / g.step;
     let frame = Frame { points_per_rev, full_circle: false, start_deg: g.start, encoder_heads: heads };
@@ -570,14 +586,20 @@ fn partial_range(
     freqs.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * a.max(1.0));
     let p = 1 + 2 * freqs.len();
     if n <= p {
-        return Err(AnalysisError::TooFewTargets { targets: n, min: p + 1, why: "fitting the design frequencies with a residual" });
+        return Err(AnalysisError::TooFewTargets {
+            targets: n,
+            min: p + 1,
+            why: "fitting the design frequencies with a residual",
+        });
     }
     let basis = SinusoidBasis::new(g.theta, &freqs)?;
     let fits = rows.iter().map(|y| basis.fit(y)).collect::<Result<Vec<_>, _>>()?;
     let r = rows.len();
     let mean_row: Vec<f64> = (0..n).map(|j| rows.iter().map(|y| y[j]).sum::<f64>() / r as f64).collect();
     let mean_fit = basis.fit(&mean_row)?;
-    let predict = |fit: &SinusoidFit, t: f64| fit.offset_deg + fit.terms.iter().map(|x| x.phasor.value_at(x.cycles_per_rev, t)).sum::<f64>();
+    let predict = |fit: &SinusoidFit, t: f64| {
+        fit.offset_deg + fit.terms.iter().map(|x| x.phasor.value_at(x.cycles_per_rev, t)).sum::<f64>()
+    };
     let residuals: Vec<Vec<f64>> =
         rows.iter().zip(&fits).map(|(y, f)| y.iter().zip(g.theta).map(|(v, &t)| v - predict(f, t)).collect()).collect();
     let dof_fit = n - p;
@@ -607,7 +629,12 @@ fn partial_range(
         let term = &mean_fit.terms[i];
         let sd_run = sample_sd * (0.5 * (term.sin_unit_var + term.cos_unit_var)).sqrt();
         sds.push(sd_run);
-        let tested = Tested { runs: fits.iter().map(|x| x.terms[i].phasor).collect(), mean: term.phasor, sd_run, one_dim: false };
+        let tested = Tested {
+            runs: fits.iter().map(|x| x.terms[i].phasor).collect(),
+            mean: term.phasor,
+            sd_run,
+            one_dim: false,
+        };
         let v = th.judge(&tested);
         if v.coherent || v.incoherent {
             let component: Vec<f64> = g.theta.iter().map(|&t| term.phasor.value_at(f, t)).collect();
@@ -674,7 +701,11 @@ fn points_needed(lines: &[Line], points_per_rev: f64) -> Option<PointsNeeded> {
     let quadratic = (20.0 * highest).ceil() as usize;
     let sufficient = points_per_rev > 2.0 * highest;
     let head = if sufficient {
-        format!("{} points/rev resolve the highest design harmonic found, {} cycles/rev", num(points_per_rev), num(highest))
+        format!(
+            "{} points/rev resolve the highest design harmonic found, {} cycles/rev",
+            num(points_per_rev),
+            num(highest)
+        )
     } else {
         format!(
             "{} points/rev resolve only up to {} cycles/rev; the highest design harmonic found, {} cycles/rev, needs {} points/rev \

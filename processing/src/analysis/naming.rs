@@ -32,7 +32,11 @@ pub struct Candidate {
 
 /// Formats a frequency or ratio: whole numbers without decimals.
 pub(crate) fn num(v: f64) -> String {
-    if (v - v.round()).abs() < 1e-9 { format!("{}", v.round() as i64) } else { format!("{}", (v * 1000.0).round() / 1000.0) }
+    if (v - v.round()).abs() < 1e-9 {
+        format!("{}", v.round() as i64)
+    } else {
+        format!("{}", (v * 1000.0).round() / 1000.0)
+    }
 }
 
 /// Every frequency the design predicts up to the configured orders, plus 1
@@ -44,7 +48,8 @@ pub fn design_candidates(design: &Design, o: &AnalysisOptions) -> Vec<Candidate>
             cycles_per_rev: 1.0,
             harmonic: 1,
             sideband: None,
-            description: "once per revolution: eccentric mounting of the encoder scale, the ring gear or the bearing".into(),
+            description: "once per revolution: eccentric mounting of the encoder scale, the ring gear or the bearing"
+                .into(),
             rank: (0, 1, 0),
         },
         Candidate {
@@ -88,7 +93,8 @@ pub fn design_candidates(design: &Design, o: &AnalysisOptions) -> Vec<Candidate>
                         if f <= 0.0 {
                             continue;
                         }
-                        let mesh = if h == 1 { format!("{t}-tooth mesh") } else { format!("{t}-tooth mesh harmonic {h}") };
+                        let mesh =
+                            if h == 1 { format!("{t}-tooth mesh") } else { format!("{t}-tooth mesh harmonic {h}") };
                         v.push(Candidate {
                             kind: PeriodicKind::ToothMesh,
                             cycles_per_rev: f,
@@ -187,7 +193,8 @@ pub(crate) struct Naming {
 
 /// Name the line observed at `observed` cycles/rev.
 pub(crate) fn name_line(observed: f64, candidates: &[Candidate], frame: &Frame) -> Naming {
-    let mut matched: Vec<&Candidate> = candidates.iter().filter(|c| frame.lands_at(c.cycles_per_rev, observed)).collect();
+    let mut matched: Vec<&Candidate> =
+        candidates.iter().filter(|c| frame.lands_at(c.cycles_per_rev, observed)).collect();
     matched.sort_by(|a, b| {
         (frame.is_aliased(a.cycles_per_rev), a.rank)
             .cmp(&(frame.is_aliased(b.cycles_per_rev), b.rank))
@@ -198,9 +205,14 @@ pub(crate) fn name_line(observed: f64, candidates: &[Candidate], frame: &Frame) 
     let (kind, explanation, true_cycles, aliased) = match matched.first() {
         None => {
             let k = num(observed);
-            let mut e = format!("{k} cycles/rev matches no part of the design: look for a {k}:1 gear pass or a bearing");
+            let mut e =
+                format!("{k} cycles/rev matches no part of the design: look for a {k}:1 gear pass or a bearing");
             if frame.full_circle && observed > 0.0 {
-                e += &format!(" (or a component at {} cycles/rev aliased by the {}-point sampling)", num(n - observed), num(n));
+                e += &format!(
+                    " (or a component at {} cycles/rev aliased by the {}-point sampling)",
+                    num(n - observed),
+                    num(n)
+                );
             }
             (PeriodicKind::Harmonic, e, observed, false)
         }
@@ -232,8 +244,13 @@ pub(crate) fn name_line(observed: f64, candidates: &[Candidate], frame: &Frame) 
     }
     let h = frame.encoder_heads;
     let whole = (observed - observed.round()).abs() < 1e-9;
-    if h >= 2 && whole && !(observed.round() as u64).is_multiple_of(u64::from(h)) && matches!(kind, PeriodicKind::Eccentricity | PeriodicKind::Harmonic) {
-        let which = if h == 2 { "odd harmonics".to_string() } else { format!("harmonics that are not multiples of {h}") };
+    if h >= 2
+        && whole
+        && !(observed.round() as u64).is_multiple_of(u64::from(h))
+        && matches!(kind, PeriodicKind::Eccentricity | PeriodicKind::Harmonic)
+    {
+        let which =
+            if h == 2 { "odd harmonics".to_string() } else { format!("harmonics that are not multiples of {h}") };
         notes.push(format!(
             "{h} encoder heads cancel the scale's {which}: an error at {} cycles/rev comes from outside the scale \
              (gear train, bearing, axis wobble) or from a faulty head",
@@ -286,8 +303,7 @@ pub(crate) fn alias_report(
     observed: impl Fn(usize) -> Option<(bool, f64, f64)>,
 ) -> Vec<AliasEntry> {
     let n = frame.points_per_rev;
-    let mut freqs: Vec<f64> =
-        candidates.iter().map(|c| c.cycles_per_rev).filter(|&f| f >= n / 2.0 - 1e-9).collect();
+    let mut freqs: Vec<f64> = candidates.iter().map(|c| c.cycles_per_rev).filter(|&f| f >= n / 2.0 - 1e-9).collect();
     freqs.sort_by(f64::total_cmp);
     freqs.dedup_by(|a, b| (*a - *b).abs() <= 1e-9);
     let mut out = Vec::new();
@@ -334,7 +350,10 @@ pub(crate) fn alias_report(
                 format!("bin {} also holds {}: the contributions cannot be separated", num(bin), names.join("; ")),
             )
         } else {
-            (AliasAction::Relocate, format!("bin {} holds no other design harmonic: move it to {} cycles/rev", num(bin), num(f)))
+            (
+                AliasAction::Relocate,
+                format!("bin {} holds no other design harmonic: move it to {} cycles/rev", num(bin), num(f)),
+            )
         };
         let phase_ok = whole && bin > 0.0 && 2.0 * bin != n;
         out.push(AliasEntry {
@@ -375,8 +394,12 @@ mod tests {
         assert_eq!(c[11].description, "sideband of the 216-tooth mesh at -1 x the 12:1 gear pass");
         assert_eq!(c[11].kind, PeriodicKind::ToothMesh);
         assert_eq!(c[11].sideband, Some(-1));
-        let o = AnalysisOptions { gear_harmonics: 2, tooth_harmonics: 1, sideband_orders: 0, ..AnalysisOptions::default() };
-        let few: Vec<f64> = design_candidates(&Design { gear_ratios: vec![2.5], ..fig4() }, &o).iter().map(|c| c.cycles_per_rev).collect();
+        let o =
+            AnalysisOptions { gear_harmonics: 2, tooth_harmonics: 1, sideband_orders: 0, ..AnalysisOptions::default() };
+        let few: Vec<f64> = design_candidates(&Design { gear_ratios: vec![2.5], ..fig4() }, &o)
+            .iter()
+            .map(|c| c.cycles_per_rev)
+            .collect();
         assert_eq!(few, vec![1.0, 2.0, 2.5, 5.0, 216.0]);
     }
 

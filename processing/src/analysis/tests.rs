@@ -9,7 +9,9 @@ use crate::types::Direction::{Forward, Reverse};
 fn periodic(m: &crate::model::Model) -> Vec<(f64, f64, f64)> {
     m.periodic_effects()
         .map(|e| match e {
-            Effect::Periodic { cycles_per_rev, amplitude_deg, phase_deg, .. } => (*cycles_per_rev, *amplitude_deg, *phase_deg),
+            Effect::Periodic { cycles_per_rev, amplitude_deg, phase_deg, .. } => {
+                (*cycles_per_rev, *amplitude_deg, *phase_deg)
+            }
             _ => unreachable!(),
         })
         .collect()
@@ -34,7 +36,8 @@ fn figure_4_at_720_points() {
     let model = fig4();
     let sigma = model.noise_sigma_deg();
     assert_eq!(sigma, 0.0002);
-    let samples = survey(&circle(720, 0.0), 5, &[Forward, Reverse], sigma, 4, |_, d, t| model.repeatable_error_deg(t, d));
+    let samples =
+        survey(&circle(720, 0.0), 5, &[Forward, Reverse], sigma, 4, |_, d, t| model.repeatable_error_deg(t, d));
     let a = analyse(&samples, &model.design, &AnalysisOptions::default()).unwrap();
     assert_eq!((a.runs, a.points_per_rev, a.method), (5, 720.0, Method::Dft));
     let sd_mean = sigma / (720.0f64 * 5.0).sqrt();
@@ -52,7 +55,12 @@ fn figure_4_at_720_points() {
 
     let tol = 5.0 * sd_mean;
     let effects = periodic(&model);
-    assert_eq!(a.lines.len(), effects.len(), "{:#?}", a.lines.iter().map(|l| (l.cycles_per_rev, &l.source)).collect::<Vec<_>>());
+    assert_eq!(
+        a.lines.len(),
+        effects.len(),
+        "{:#?}",
+        a.lines.iter().map(|l| (l.cycles_per_rev, &l.source)).collect::<Vec<_>>()
+    );
     for &(f, amp, phase) in &effects {
         let al = alias(f, 720.0);
         let seen_phase = if al.folded { 180.0 - phase } else { phase };
@@ -65,13 +73,19 @@ fn figure_4_at_720_points() {
         assert!((l.noise_sd_deg / sd_mean - 1.0).abs() < 0.05);
     }
     let source = |c: f64| line_at(&a, c).source.clone();
-    assert_eq!(source(2.0), "ellipticity: twice per revolution: elliptical distortion of the encoder scale or the ring gear");
+    assert_eq!(
+        source(2.0),
+        "ellipticity: twice per revolution: elliptical distortion of the encoder scale or the ring gear"
+    );
     assert_eq!(source(12.0), "gear_pass: 12:1 pinion, harmonic 1 (fundamental)");
     assert_eq!(source(36.0), "gear_pass: 12:1 pinion, harmonic 3");
     assert_eq!(source(216.0), "tooth_mesh: 216-tooth gear, harmonic 1");
     assert_eq!(source(204.0), "tooth_mesh: sideband of the 216-tooth mesh at -1 x the 12:1 gear pass");
     assert_eq!(source(228.0), "tooth_mesh: sideband of the 216-tooth mesh at +1 x the 12:1 gear pass");
-    assert_eq!(source(288.0), "tooth_mesh: 216-tooth gear, harmonic 2 at 432 cycles/rev, aliased to 288 by 720 points/rev");
+    assert_eq!(
+        source(288.0),
+        "tooth_mesh: 216-tooth gear, harmonic 2 at 432 cycles/rev, aliased to 288 by 720 points/rev"
+    );
     assert_eq!(
         source(72.0),
         "gear_pass: 12:1 pinion, harmonic 6; also 216-tooth gear, harmonic 3 at 648 cycles/rev, aliased to 72 by 720 points/rev"
@@ -233,7 +247,8 @@ fn partial_range_elevation() {
                 continue;
             }
         };
-        let err = (Phasor::from_polar(l.mean_amplitude_deg, l.phase_deg) - Phasor::from_polar(amp, phase)).amplitude_deg();
+        let err =
+            (Phasor::from_polar(l.mean_amplitude_deg, l.phase_deg) - Phasor::from_polar(amp, phase)).amplitude_deg();
         assert!(err < 5.0 * l.noise_sd_deg, "{f}: {err} vs sd {}", l.noise_sd_deg);
         assert!(l.repeatable);
     }
@@ -265,17 +280,28 @@ fn bad_input_is_named() {
     let model = fig4();
     let s = survey(&circle(36, 0.0), 2, &[Forward], 0.0, 0, |_, _, _| 0.0);
     let o = AnalysisOptions { series: Series::Reverse, ..AnalysisOptions::default() };
-    assert_eq!(analyse(&s, &model.design, &o).unwrap_err(), AnalysisError::MissingDirection { series: Series::Reverse });
+    assert_eq!(
+        analyse(&s, &model.design, &o).unwrap_err(),
+        AnalysisError::MissingDirection { series: Series::Reverse }
+    );
     let o = AnalysisOptions { false_alarm_rate: 0.0, ..AnalysisOptions::default() };
-    assert!(matches!(analyse(&s, &model.design, &o).unwrap_err(), AnalysisError::BadOption { option: "false_alarm_rate", .. }));
+    assert!(matches!(
+        analyse(&s, &model.design, &o).unwrap_err(),
+        AnalysisError::BadOption { option: "false_alarm_rate", .. }
+    ));
     let o = AnalysisOptions { min_coherence: Some(1.5), ..AnalysisOptions::default() };
     assert!(analyse(&s, &model.design, &o).unwrap_err().to_string().contains("min_coherence"));
     let two = survey(&[0.0, 180.0], 2, &[Forward], 0.0, 0, |_, _, _| 0.0);
-    assert!(matches!(analyse(&two, &model.design, &AnalysisOptions::default()).unwrap_err(), AnalysisError::TooFewTargets { .. }));
-    assert!(matches!(analyse(&[], &model.design, &AnalysisOptions::default()).unwrap_err(), AnalysisError::ErrorMap(_)));
+    assert!(matches!(
+        analyse(&two, &model.design, &AnalysisOptions::default()).unwrap_err(),
+        AnalysisError::TooFewTargets { .. }
+    ));
+    assert!(matches!(
+        analyse(&[], &model.design, &AnalysisOptions::default()).unwrap_err(),
+        AnalysisError::ErrorMap(_)
+    ));
     // Options read from a recipe table; unknown keys are refused.
     let o: AnalysisOptions = toml::from_str("gear_harmonics = 4\nseries = \"forward\"\n").unwrap();
     assert_eq!((o.gear_harmonics, o.series, o.tooth_harmonics), (4, Series::Forward, 3));
     assert!(toml::from_str::<AnalysisOptions>("gear_harmonic = 4\n").is_err());
 }
-

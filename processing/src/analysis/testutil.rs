@@ -78,7 +78,14 @@ pub(crate) fn survey(
             for t in ordered {
                 let actual = t + 1e-3 * run as f64;
                 let e = error(run, direction, t) + sigma * rng.sample();
-                out.push(Sample { run, direction, target_deg: t, readout_deg: actual + e, actual_deg: actual, timestamp_s: None });
+                out.push(Sample {
+                    run,
+                    direction,
+                    target_deg: t,
+                    readout_deg: actual + e,
+                    actual_deg: actual,
+                    timestamp_s: None,
+                });
             }
         }
     }

@@ -60,8 +60,8 @@
 //! answer is to measure again with the correction applied.
 
 use crate::iso230::iso230_2;
-use crate::resample::{PartialError, PartialMethod, Resampler, Series, Span, SpectralEdit, fit_partial};
 use crate::resample::EditError;
+use crate::resample::{PartialError, PartialMethod, Resampler, Series, Span, SpectralEdit, fit_partial};
 use crate::table::{CorrectionTable, TableError};
 use crate::types::Sample;
 use serde::Serialize;
@@ -299,15 +299,16 @@ pub struct Prediction {
 
 /// The corrected error of each sample: `(readout - table.error_at(readout)) - actual`.
 pub fn corrected_errors(samples: &[Sample], table: &CorrectionTable) -> Vec<f64> {
-    samples
-        .iter()
-        .map(|s| (s.readout_deg - table.error_at(s.readout_deg, s.direction)) - s.actual_deg)
-        .collect()
+    samples.iter().map(|s| (s.readout_deg - table.error_at(s.readout_deg, s.direction)) - s.actual_deg).collect()
 }
 
 /// Apply `table` to `samples` and report native and corrected figures beside
 /// the repeatability floor `floor_deg` (see the module documentation).
-pub fn predict_accuracy(samples: &[Sample], table: &CorrectionTable, floor_deg: f64) -> Result<Prediction, CorrectionError> {
+pub fn predict_accuracy(
+    samples: &[Sample],
+    table: &CorrectionTable,
+    floor_deg: f64,
+) -> Result<Prediction, CorrectionError> {
     if samples.is_empty() {
         return Err(CorrectionError::NoSamples);
     }
@@ -316,11 +317,8 @@ pub fn predict_accuracy(samples: &[Sample], table: &CorrectionTable, floor_deg: 
     }
     let native: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
     let corrected = corrected_errors(samples, table);
-    let shifted: Vec<Sample> = samples
-        .iter()
-        .zip(&corrected)
-        .map(|(s, e)| Sample { actual_deg: s.target_deg - e, ..*s })
-        .collect();
+    let shifted: Vec<Sample> =
+        samples.iter().zip(&corrected).map(|(s, e)| Sample { actual_deg: s.target_deg - e, ..*s }).collect();
     let native = figures(&native, iso230_2(samples).ok().map(|st| st.a));
     let corrected = figures(&corrected, iso230_2(&shifted).ok().map(|st| st.a));
     Ok(Prediction {
@@ -413,7 +411,10 @@ mod tests {
         assert!(matches!(build_table(&nan, &none, 1024, 64), Err(CorrectionError::NotFinite { index: 3, .. })));
         assert_eq!(build_table(&m, &none, 512, 64), Err(CorrectionError::DenseTooSmall { dense: 512, points: 720 }));
         assert_eq!(build_table(&m, &none, 1024, 1), Err(CorrectionError::Table(TableError::TooShort(1))));
-        assert!(matches!(build_directional_table(&m, &m[1..], &none, 1024, 64), Err(CorrectionError::LengthMismatch { .. })));
+        assert!(matches!(
+            build_directional_table(&m, &m[1..], &none, 1024, 64),
+            Err(CorrectionError::LengthMismatch { .. })
+        ));
         let reloc = SpectralEdit { relocate: vec![Relocation { observed_cycles: 72, true_cycles: 648 }], ..none };
         let e = build_table(&m, &reloc, 1024, 64).unwrap_err();
         assert!(matches!(e, CorrectionError::Edit(EditError::DenseTooSmall { .. })), "{e}");

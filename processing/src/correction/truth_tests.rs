@@ -231,7 +231,8 @@ fn spectrum(truth: &Truth, l: usize) -> Vec<f64> {
 
 /// Interpolation and out-of-band terms of the bound (module documentation).
 fn systematic_bound(amps: &[f64], n: usize, rows: usize, relocated: &[Relocation]) -> (f64, f64) {
-    let interp: f64 = amps.iter().enumerate().skip(1).map(|(k, a)| a * (2.0 * PI * k as f64 / rows as f64).powi(2) / 8.0).sum();
+    let interp: f64 =
+        amps.iter().enumerate().skip(1).map(|(k, a)| a * (2.0 * PI * k as f64 / rows as f64).powi(2) / 8.0).sum();
     let moved = |k: usize| relocated.iter().any(|r| r.true_cycles == k);
     let oob: f64 = amps.iter().enumerate().filter(|&(k, _)| 2 * k >= n && !moved(k)).map(|(_, a)| 2.0 * a).sum();
     let emptied: f64 = relocated.iter().map(|r| 2.0 * amps[r.observed_cycles]).sum();
@@ -322,9 +323,25 @@ fn fig4_1800_points_resampled_correct_as_well_as_16000() {
     // content only, for both.
     let (i1800, o1800) = systematic_bound(&amps, 1800, DEFAULT_TABLE_ROWS, &[]);
     let (i16k, o16k) = systematic_bound(&amps, 16_000, DEFAULT_TABLE_ROWS, &[]);
-    let clean1800 = residual(&b.build(&mean_map(&truth, 1800, 1, 0.0, &mut Gauss(0)), &none).unwrap(), &truth, Direction::Forward, 20_000);
-    let clean16k = residual(&b.build(&mean_map(&truth, 16_000, 1, 0.0, &mut Gauss(0)), &none).unwrap(), &truth, Direction::Forward, 20_000);
-    eprintln!("noise-free: 1800 peak {:.2e} (bound {:.2e}), 16000 peak {:.2e} (bound {:.2e})", clean1800.peak, i1800 + o1800, clean16k.peak, i16k + o16k);
+    let clean1800 = residual(
+        &b.build(&mean_map(&truth, 1800, 1, 0.0, &mut Gauss(0)), &none).unwrap(),
+        &truth,
+        Direction::Forward,
+        20_000,
+    );
+    let clean16k = residual(
+        &b.build(&mean_map(&truth, 16_000, 1, 0.0, &mut Gauss(0)), &none).unwrap(),
+        &truth,
+        Direction::Forward,
+        20_000,
+    );
+    eprintln!(
+        "noise-free: 1800 peak {:.2e} (bound {:.2e}), 16000 peak {:.2e} (bound {:.2e})",
+        clean1800.peak,
+        i1800 + o1800,
+        clean16k.peak,
+        i16k + o16k
+    );
     assert!(clean1800.peak <= i1800 + o1800 && clean16k.peak <= i16k + o16k);
     assert!(clean1800.peak <= 1e-5, "the systematic residual is negligible beside any noise");
 
@@ -337,8 +354,16 @@ fn fig4_1800_points_resampled_correct_as_well_as_16000() {
     let sigma_m = sigma / (runs as f64).sqrt();
     let map1800 = mean_map(&truth, 1800, runs, sigma, &mut Gauss(18));
     let r1800 = residual(&b.build(&map1800, &none).unwrap(), &truth, Direction::Forward, 20_000);
-    let r16k = residual(&b.build(&mean_map(&truth, 16_000, runs, sigma, &mut Gauss(16)), &none).unwrap(), &truth, Direction::Forward, 20_000);
-    eprintln!("sigma_m {sigma_m:.2e}: 1800 rms {:.2e} peak {:.2e}; 16000 rms {:.2e} peak {:.2e}", r1800.rms, r1800.peak, r16k.rms, r16k.peak);
+    let r16k = residual(
+        &b.build(&mean_map(&truth, 16_000, runs, sigma, &mut Gauss(16)), &none).unwrap(),
+        &truth,
+        Direction::Forward,
+        20_000,
+    );
+    eprintln!(
+        "sigma_m {sigma_m:.2e}: 1800 rms {:.2e} peak {:.2e}; 16000 rms {:.2e} peak {:.2e}",
+        r1800.rms, r1800.peak, r16k.rms, r16k.peak
+    );
     assert!(r1800.rms <= 1.25 * r16k.rms + i1800 + o1800, "{r1800:?} vs {r16k:?}");
     assert!(r1800.peak <= 6.0 * sigma_m + i1800 + o1800);
     assert!(r16k.peak <= 6.0 * sigma_m + i16k + o16k);
@@ -355,7 +380,10 @@ fn fig4_1800_points_resampled_correct_as_well_as_16000() {
     let filtered = residual(&b.build(&map1800, &filter).unwrap(), &truth, Direction::Forward, 20_000);
     let small: f64 = amps.iter().skip(1).filter(|&&a| a < 2.0 * threshold).map(|a| a * a / 2.0).sum::<f64>().sqrt();
     let bound = sigma_m * (2.0 * kept as f64 / 1800.0).sqrt() + small + i1800 + o1800;
-    eprintln!("filtered at {threshold:.1e}: {kept} lines kept, rms {:.2e} (bound {bound:.2e}), peak {:.2e}", filtered.rms, filtered.peak);
+    eprintln!(
+        "filtered at {threshold:.1e}: {kept} lines kept, rms {:.2e} (bound {bound:.2e}), peak {:.2e}",
+        filtered.rms, filtered.peak
+    );
     assert!(filtered.rms <= bound, "{filtered:?}");
     assert!(filtered.rms <= 0.5 * r1800.rms, "filtering removes most of the noise");
 }
@@ -387,7 +415,10 @@ fn backlash_needs_a_directional_table() {
     for (dir, truth, sign) in [(Direction::Forward, &tf, 1.0), (Direction::Reverse, &tr, -1.0)] {
         let d = residual(&directional, truth, dir, 20_000);
         let s = residual(&single, truth, dir, 20_000);
-        eprintln!("{dir}: directional rms {:.2e} peak {:.2e}; single mean {:.2e} rms {:.2e}", d.rms, d.peak, s.mean, s.rms);
+        eprintln!(
+            "{dir}: directional rms {:.2e} peak {:.2e}; single mean {:.2e} rms {:.2e}",
+            d.rms, d.peak, s.mean, s.rms
+        );
         assert!(d.peak <= 6.0 * sigma_m + interp + oob, "{d:?}");
         assert!(d.rms <= 1.25 * sigma_m + interp + oob, "{d:?}");
         // The single table is off by b/2 on average; the difference of the two
@@ -409,15 +440,16 @@ fn partial_span_elevation_table() {
     let at = |j: usize| span.start_deg + j as f64 * span.width_deg() / (points - 1) as f64;
     let mut rng = Gauss(90);
     let clean: Vec<f64> = (0..points).map(|j| truth.at_readout(at(j))).collect();
-    let noisy: Vec<f64> = clean
-        .iter()
-        .map(|e| (0..runs).map(|_| e + sigma * rng.normal()).sum::<f64>() / runs as f64)
-        .collect();
+    let noisy: Vec<f64> =
+        clean.iter().map(|e| (0..runs).map(|_| e + sigma * rng.normal()).sum::<f64>() / runs as f64).collect();
     let amps = spectrum(&truth, 4096);
     let rows = DEFAULT_TABLE_ROWS;
     let (interp, _) = systematic_bound(&amps, 4096, rows, &[]);
-    let dense: Vec<f64> = (0..20_000).map(|i| span.start_deg + span.width_deg() * (i as f64 + 0.37) / 20_000.0).collect();
-    let worst = |table: &CorrectionTable| dense.iter().map(|&a| (truth.at_readout(a) - table.error_at(a, Direction::Forward)).abs()).fold(0.0, f64::max);
+    let dense: Vec<f64> =
+        (0..20_000).map(|i| span.start_deg + span.width_deg() * (i as f64 + 0.37) / 20_000.0).collect();
+    let worst = |table: &CorrectionTable| {
+        dense.iter().map(|&a| (truth.at_readout(a) - table.error_at(a, Direction::Forward)).abs()).fold(0.0, f64::max)
+    };
 
     // Least squares on the design's lines and the products the readout
     // convention adds (6 +- 72, 6 + 12, 2 x 72), a cubic for the rest. What the
@@ -426,7 +458,8 @@ fn partial_span_elevation_table() {
     // its amplitudes), plus the cubic's miss on the 1- and 2-cycle part.
     let cycles = vec![6.0, 12.0, 18.0, 66.0, 72.0, 78.0, 144.0];
     let method = PartialMethod::LeastSquares { cycles: cycles.clone(), poly_degree: 3 };
-    let unmodeled: f64 = amps.iter().enumerate().filter(|&(k, _)| k >= 3 && !cycles.contains(&(k as f64))).map(|(_, a)| a).sum();
+    let unmodeled: f64 =
+        amps.iter().enumerate().filter(|&(k, _)| k >= 3 && !cycles.contains(&(k as f64))).map(|(_, a)| a).sum();
     // Chebyshev bound for a degree-3 fit of A sin(k x) over a half-width w (rad):
     // A (k w)^4 / (2^3 4!), doubled for least squares.
     let w = (span.width_deg() / 2.0).to_radians();

@@ -8,13 +8,19 @@ use crate::model::{Effect, Model, PeriodicKind};
 
 /// A frequency or ratio: whole numbers without decimals.
 pub(crate) fn num(v: f64) -> String {
-    if (v - v.round()).abs() < 1e-9 { format!("{}", v.round() as i64) } else { format!("{}", (v * 1000.0).round() / 1000.0) }
+    if (v - v.round()).abs() < 1e-9 {
+        format!("{}", v.round() as i64)
+    } else {
+        format!("{}", (v * 1000.0).round() / 1000.0)
+    }
 }
 
 /// `tooth_mesh 250 cycles/rev`, `backlash`, `drift`.
 pub(crate) fn label(e: &Effect) -> String {
     match e {
-        Effect::Periodic { kind, cycles_per_rev, .. } => format!("{} {} cycles/rev", kind.as_str(), num(*cycles_per_rev)),
+        Effect::Periodic { kind, cycles_per_rev, .. } => {
+            format!("{} {} cycles/rev", kind.as_str(), num(*cycles_per_rev))
+        }
         other => other.kind_str().to_string(),
     }
 }
@@ -71,14 +77,25 @@ pub(crate) fn finish(
                     let mut others: Vec<(u32, f64, Option<f64>)> = snapshot
                         .iter()
                         .filter(|o| o.index != f.index)
-                        .filter_map(|o| o.part.filter(|q| !q.sideband && q.kind == part.kind && (q.base - part.base).abs() < 1e-9).map(|q| (q, o)))
+                        .filter_map(|o| {
+                            o.part
+                                .filter(|q| !q.sideband && q.kind == part.kind && (q.base - part.base).abs() < 1e-9)
+                                .map(|q| (q, o))
+                        })
                         .map(|(q, o)| {
                             let f_other = cycles(&model.effects[o.index]);
                             (q.harmonic, f_other, o.aliased.then(|| o.observed_cycles_per_rev.unwrap_or(f_other)))
                         })
                         .collect();
                     others.sort_by_key(|o| o.0);
-                    let aliased = |f: f64, seen: f64| format!("{} cycles/rev, aliased to {} at {} points per revolution", num(f), num(seen), num(points));
+                    let aliased = |f: f64, seen: f64| {
+                        format!(
+                            "{} cycles/rev, aliased to {} at {} points per revolution",
+                            num(f),
+                            num(seen),
+                            num(points)
+                        )
+                    };
                     match others.as_slice() {
                         [] => {}
                         [(h, f_other, seen)] => {
@@ -146,7 +163,11 @@ pub(crate) fn finish(
 pub(crate) fn significance(ctx: &Ctx, first: &Analysis, before: &Views, line_factor: f64) -> Significance {
     let alpha = ctx.alpha;
     let m = first.noise.tests;
-    let per_line = if ctx.survey.runs() >= 2 { ctx.analysis.false_alarm_rate / (2 * m.max(1)) as f64 } else { ctx.analysis.false_alarm_rate / m.max(1) as f64 };
+    let per_line = if ctx.survey.runs() >= 2 {
+        ctx.analysis.false_alarm_rate / (2 * m.max(1)) as f64
+    } else {
+        ctx.analysis.false_alarm_rate / m.max(1) as f64
+    };
     let quarter = alpha * super::views::SCALAR_SHARE;
     let mut s = format!(
         "a disagreement is named only when a test rejects \"the model explains the data\"; on a survey the model \
@@ -174,8 +195,10 @@ pub(crate) fn significance(ctx: &Ctx, first: &Analysis, before: &Views, line_fac
                 t.threshold_deg_per_run,
                 match t.test {
                     super::TrendTest::NoiseFloor => "against the noise floor".to_string(),
-                    super::TrendTest::RunScatter =>
-                        format!("against the run-to-run scatter, Student t with {} degrees of freedom", t.dof.unwrap_or(0)),
+                    super::TrendTest::RunScatter => format!(
+                        "against the run-to-run scatter, Student t with {} degrees of freedom",
+                        t.dof.unwrap_or(0)
+                    ),
                 }
             )
         }

@@ -44,11 +44,8 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
     for (k, &i) in touched.iter().enumerate() {
         match &model.effects[i] {
             Effect::Periodic { cycles_per_rev, .. } => {
-                let (s, c): (Vec<f64>, Vec<f64>) = survey
-                    .samples
-                    .iter()
-                    .map(|x| (cycles_per_rev * x.actual_deg).to_radians().sin_cos())
-                    .unzip();
+                let (s, c): (Vec<f64>, Vec<f64>) =
+                    survey.samples.iter().map(|x| (cycles_per_rev * x.actual_deg).to_radians().sin_cos()).unzip();
                 columns.push(s);
                 columns.push(c);
                 owner.extend([k, k]);

@@ -422,7 +422,10 @@ fn validate(o: &ModelGapOptions) -> Result<(), ModelGapError> {
         });
     }
     if o.max_steps == 0 || o.max_steps > 1000 {
-        return Err(ModelGapError::BadOption { option: "max_steps", message: format!("must be from 1 to 1000, got {}", o.max_steps) });
+        return Err(ModelGapError::BadOption {
+            option: "max_steps",
+            message: format!("must be from 1 to 1000, got {}", o.max_steps),
+        });
     }
     Ok(())
 }
@@ -587,7 +590,8 @@ impl Gap<'_> {
             let weak = self.added.iter().position(|f| {
                 let se = self.se_of(f.index);
                 let (a, _) = explain::amplitude_phase(&self.model.effects[f.index]);
-                let factor = if matches!(self.model.effects[f.index], Effect::Periodic { .. }) { line_factor } else { scalar };
+                let factor =
+                    if matches!(self.model.effects[f.index], Effect::Periodic { .. }) { line_factor } else { scalar };
                 se > 0.0 && a.abs() < factor * se
             });
             let Some(k) = weak else { return Ok(()) };
@@ -654,20 +658,39 @@ pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -
         let rms = (survey.y.iter().map(|v| v * v).sum::<f64>() / survey.len() as f64).sqrt();
         (1e-12 * rms).max(8.0 * f64::EPSILON * angle)
     };
-    let mut ctx = Ctx { survey: &survey, design: &model.design, analysis, alpha: options.false_alarm_rate, sigma: numerical_floor };
+    let mut ctx = Ctx {
+        survey: &survey,
+        design: &model.design,
+        analysis,
+        alpha: options.false_alarm_rate,
+        sigma: numerical_floor,
+    };
     let (residual0, offset0) = survey.residual(model);
     let noise = match survey.anova_noise() {
-        Some((sd, dof)) => NoiseFloor { sample_sd_deg: sd, method: "run_cell_interaction", dof: Some(dof), model_noise_deg: model.noise_sigma_deg() },
+        Some((sd, dof)) => NoiseFloor {
+            sample_sd_deg: sd,
+            method: "run_cell_interaction",
+            dof: Some(dof),
+            model_noise_deg: model.noise_sigma_deg(),
+        },
         None => {
             let a = views::analyse_residual(&ctx, &residual0)?;
             let scale = if survey.bidirectional() { std::f64::consts::SQRT_2 } else { 1.0 };
-            NoiseFloor { sample_sd_deg: a.noise.sample_sd_deg * scale, method: "spectrum", dof: a.noise.dof, model_noise_deg: model.noise_sigma_deg() }
+            NoiseFloor {
+                sample_sd_deg: a.noise.sample_sd_deg * scale,
+                method: "spectrum",
+                dof: a.noise.dof,
+                model_noise_deg: model.noise_sigma_deg(),
+            }
         }
     };
     ctx.sigma = noise.sample_sd_deg.max(numerical_floor);
     let (before, first) = views::views(&ctx, model, &residual0)?;
-    let line_factor =
-        if first.noise.line_sd_mean_deg > 0.0 { first.noise.coherent_threshold_deg / first.noise.line_sd_mean_deg } else { 0.0 };
+    let line_factor = if first.noise.line_sd_mean_deg > 0.0 {
+        first.noise.coherent_threshold_deg / first.noise.line_sd_mean_deg
+    } else {
+        0.0
+    };
     let mut gap = Gap {
         ctx: ctx.clone(),
         model: model.clone(),

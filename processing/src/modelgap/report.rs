@@ -27,7 +27,11 @@ impl ModelGap {
             s,
             "noise floor {:.3e} deg (standard deviation of one sample, {}{})",
             self.noise_floor_deg,
-            if self.noise.method == "run_cell_interaction" { "scatter from run to run" } else { "from the spectrum of the one run" },
+            if self.noise.method == "run_cell_interaction" {
+                "scatter from run to run"
+            } else {
+                "from the spectrum of the one run"
+            },
             self.noise.dof.map(|d| format!(", {d} degrees of freedom")).unwrap_or_default()
         );
         let _ = writeln!(s, "significance: {}", self.significance.statement);
@@ -43,7 +47,11 @@ impl ModelGap {
         views_text(&mut s, &self.before, self.noise_floor_deg);
 
         let _ = writeln!(s, "\nsteps (each effect fitted by least squares, the model simulated again):");
-        let _ = writeln!(s, "  {:>4}  {:<52} {:>14} {:>12} {:>12}", "step", "change", "amplitude_deg", "rms_deg", "peak_deg");
+        let _ = writeln!(
+            s,
+            "  {:>4}  {:<52} {:>14} {:>12} {:>12}",
+            "step", "change", "amplitude_deg", "rms_deg", "peak_deg"
+        );
         let _ = writeln!(
             s,
             "  {:>4}  {:<52} {:>14} {:>12.3e} {:>12.3e}",
@@ -67,14 +75,15 @@ impl ModelGap {
             for f in &self.effects_added {
                 let phase = f.phase_deg.map(|p| format!(" at phase {p:.1} deg")).unwrap_or_default();
                 let unit = if f.kind == "drift" { " per run" } else { "" };
-                let at = if f.cycles_per_rev > 0.0 { format!(" {} cycles/rev", num(f.cycles_per_rev)) } else { String::new() };
+                let at = if f.cycles_per_rev > 0.0 {
+                    format!(" {} cycles/rev", num(f.cycles_per_rev))
+                } else {
+                    String::new()
+                };
                 let _ = writeln!(
                     s,
                     "  {}{at}: {:.3e} deg{unit}{phase} (+/- {:.1e}): {}",
-                    f.kind,
-                    f.amplitude_deg,
-                    f.standard_error_deg,
-                    f.explanation
+                    f.kind, f.amplitude_deg, f.standard_error_deg, f.explanation
                 );
             }
         }
@@ -99,7 +108,12 @@ impl ModelGap {
 }
 
 fn views_text(s: &mut String, v: &Views, floor: f64) {
-    let _ = writeln!(s, "  residual rms {:.3e} deg over all samples ({:.2} x the noise floor)", v.rms_deg, v.rms_deg / floor.max(f64::MIN_POSITIVE));
+    let _ = writeln!(
+        s,
+        "  residual rms {:.3e} deg over all samples ({:.2} x the noise floor)",
+        v.rms_deg,
+        v.rms_deg / floor.max(f64::MIN_POSITIVE)
+    );
     let a = &v.angle;
     if a.ranges_total == 0 {
         let _ = writeln!(
@@ -114,7 +128,9 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
             .ranges
             .iter()
             .take(6)
-            .map(|r| format!("{}..{} deg (peak {:+.2e} at {})", num(r.start_deg), num(r.end_deg), r.peak_deg, num(r.at_deg)))
+            .map(|r| {
+                format!("{}..{} deg (peak {:+.2e} at {})", num(r.start_deg), num(r.end_deg), r.peak_deg, num(r.at_deg))
+            })
             .collect();
         let _ = writeln!(
             s,
@@ -161,7 +177,11 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
                 d.forward_minus_reverse_deg,
                 d.backlash_change_deg,
                 d.standard_error_deg,
-                if d.significant { format!("significant (above {:.2e})", d.threshold_deg) } else { "not significant".into() }
+                if d.significant {
+                    format!("significant (above {:.2e})", d.threshold_deg)
+                } else {
+                    "not significant".into()
+                }
             );
         }
         None => {
@@ -176,7 +196,11 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
                 t.drift_change_deg_per_run,
                 t.standard_error_deg_per_run,
                 t.run_means.len(),
-                if t.significant { format!("significant (above {:.2e})", t.threshold_deg_per_run) } else { "not significant".into() }
+                if t.significant {
+                    format!("significant (above {:.2e})", t.threshold_deg_per_run)
+                } else {
+                    "not significant".into()
+                }
             );
         }
         None => {

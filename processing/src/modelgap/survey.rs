@@ -46,10 +46,8 @@ impl Survey {
         let map = ErrorMap::from_samples(samples)?;
         let dirs: Vec<Direction> =
             [Direction::Forward, Direction::Reverse].into_iter().filter(|d| map.direction(*d).is_some()).collect();
-        let target: Vec<usize> = samples
-            .iter()
-            .map(|s| map.targets_deg.partition_point(|&t| t <= s.target_deg).saturating_sub(1))
-            .collect();
+        let target: Vec<usize> =
+            samples.iter().map(|s| map.targets_deg.partition_point(|&t| t <= s.target_deg).saturating_sub(1)).collect();
         let run: Vec<usize> =
             samples.iter().map(|s| map.runs.binary_search(&s.run).expect("every run is in the map")).collect();
         let dir: Vec<usize> =
@@ -83,7 +81,9 @@ impl Survey {
     /// simulators' convention `readout = actual + e(actual)`), in the sample's
     /// direction, after `tau` runs.
     pub fn predict(&self, model: &Model) -> Vec<f64> {
-        (0..self.len()).map(|i| model.systematic_error_deg(self.samples[i].actual_deg, self.direction(i), self.tau[i])).collect()
+        (0..self.len())
+            .map(|i| model.systematic_error_deg(self.samples[i].actual_deg, self.direction(i), self.tau[i]))
+            .collect()
     }
 
     /// `y - model`, with the constant offset (zero reference) removed; returns the offset too.

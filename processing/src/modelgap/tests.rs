@@ -15,7 +15,14 @@ use crate::types::{Direction, Sample};
 /// it), and the reference reads the true angle plus normal noise of
 /// `reference_sigma`. One run takes 1000 s of timestamps; `runs elapsed` is
 /// time over that (the simulator's `drift_run_period`).
-pub(super) fn simulate(model: &Model, targets: &[f64], runs: u32, bidirectional: bool, reference_sigma: f64, seed: u64) -> Vec<Sample> {
+pub(super) fn simulate(
+    model: &Model,
+    targets: &[f64],
+    runs: u32,
+    bidirectional: bool,
+    reference_sigma: f64,
+    seed: u64,
+) -> Vec<Sample> {
     let mut rng = Normal::new(seed);
     let sigma = model.noise_sigma_deg();
     let per_run = targets.len() * if bidirectional { 2 } else { 1 };
@@ -41,7 +48,14 @@ pub(super) fn simulate(model: &Model, targets: &[f64], runs: u32, bidirectional:
                     }
                 }
                 let measured = actual + reference_sigma * rng.sample();
-                out.push(Sample { run, direction, target_deg: target, readout_deg: target, actual_deg: measured, timestamp_s: Some(t) });
+                out.push(Sample {
+                    run,
+                    direction,
+                    target_deg: target,
+                    readout_deg: target,
+                    actual_deg: measured,
+                    timestamp_s: Some(t),
+                });
             }
         }
     }
@@ -59,7 +73,10 @@ pub(super) fn periodic(kind: PeriodicKind, cycles: f64, amplitude: f64, phase: f
 
 /// A model from a design and effects.
 pub(super) fn model(gears: &[f64], teeth: &[u32], effects: Vec<Effect>) -> Model {
-    Model { design: crate::model::Design { gear_ratios: gears.to_vec(), tooth_counts: teeth.to_vec(), encoder_heads: None }, effects }
+    Model {
+        design: crate::model::Design { gear_ratios: gears.to_vec(), tooth_counts: teeth.to_vec(), encoder_heads: None },
+        effects,
+    }
 }
 
 /// The model without the effects for which `drop` holds.
@@ -70,8 +87,13 @@ pub(super) fn lacking(m: &Model, drop: impl Fn(&Effect) -> bool) -> Model {
 /// The contract's JSON keys are there.
 #[test]
 fn the_contract_keys_serialise() {
-    let m = model(&[20.0], &[], vec![periodic(PeriodicKind::GearPass, 20.0, 0.004, 10.0), Effect::Noise { sigma_deg: 0.0004 }]);
-    let truth = Model { effects: [m.effects.clone(), vec![Effect::Backlash { amplitude_deg: 0.003 }]].concat(), ..m.clone() };
+    let m = model(
+        &[20.0],
+        &[],
+        vec![periodic(PeriodicKind::GearPass, 20.0, 0.004, 10.0), Effect::Noise { sigma_deg: 0.0004 }],
+    );
+    let truth =
+        Model { effects: [m.effects.clone(), vec![Effect::Backlash { amplitude_deg: 0.003 }]].concat(), ..m.clone() };
     let s = simulate(&truth, &circle(90), 3, true, 0.0, 1);
     let g = model_gap(&s, &m, &ModelGapOptions::default()).unwrap();
     let v = serde_json::to_value(&g).unwrap();
@@ -85,7 +107,15 @@ fn the_contract_keys_serialise() {
     assert_eq!(v["steps"][0]["added"], "backlash");
     assert!(v["steps"][0]["rms_deg"].as_f64().unwrap() < v["rms_before_deg"].as_f64().unwrap());
     let text = g.to_text();
-    for want in ["the gap with the model given:", "in angle:", "in frequency:", "by direction:", "in time:", "steps", "backlash"] {
+    for want in [
+        "the gap with the model given:",
+        "in angle:",
+        "in frequency:",
+        "by direction:",
+        "in time:",
+        "steps",
+        "backlash",
+    ] {
         assert!(text.contains(want), "{want} not in\n{text}");
     }
 }
@@ -181,7 +211,11 @@ fn an_effect_that_is_off_is_adjusted_not_added() {
 /// Effects the model file cannot hold are not added: a negative backlash.
 #[test]
 fn a_negative_backlash_is_reported_not_added() {
-    let m = model(&[20.0], &[], vec![periodic(PeriodicKind::GearPass, 20.0, 0.004, 0.0), Effect::Noise { sigma_deg: 0.0003 }]);
+    let m = model(
+        &[20.0],
+        &[],
+        vec![periodic(PeriodicKind::GearPass, 20.0, 0.004, 0.0), Effect::Noise { sigma_deg: 0.0003 }],
+    );
     let mut s = simulate(&m, &circle(120), 3, true, 0.0, 6);
     for x in s.iter_mut() {
         // Forward reads 0.002 lower than reverse.
@@ -209,9 +243,22 @@ fn bad_input_is_refused() {
 /// One run: the noise floor comes from the spectrum; drift is not tested.
 #[test]
 fn one_run_works() {
-    let truth = model(&[20.0], &[], vec![periodic(PeriodicKind::GearPass, 20.0, 0.005, 0.0), periodic(PeriodicKind::Harmonic, 7.0, 0.001, 50.0), Effect::Noise { sigma_deg: 0.0002 }]);
+    let truth = model(
+        &[20.0],
+        &[],
+        vec![
+            periodic(PeriodicKind::GearPass, 20.0, 0.005, 0.0),
+            periodic(PeriodicKind::Harmonic, 7.0, 0.001, 50.0),
+            Effect::Noise { sigma_deg: 0.0002 },
+        ],
+    );
     let s = simulate(&truth, &circle(360), 1, true, 0.0, 8);
-    let g = model_gap(&s, &lacking(&truth, |e| matches!(e, Effect::Periodic { kind: PeriodicKind::Harmonic, .. })), &ModelGapOptions::default()).unwrap();
+    let g = model_gap(
+        &s,
+        &lacking(&truth, |e| matches!(e, Effect::Periodic { kind: PeriodicKind::Harmonic, .. })),
+        &ModelGapOptions::default(),
+    )
+    .unwrap();
     assert_eq!(g.noise.method, "spectrum");
     assert!((g.noise_floor_deg / 0.0002 - 1.0).abs() < 0.25, "{}", g.noise_floor_deg);
     assert!(g.before.time.is_none());
@@ -225,10 +272,19 @@ fn the_report_shows_the_gap_shrinking() {
     let truth = model(
         &[20.0],
         &[],
-        vec![periodic(PeriodicKind::GearPass, 20.0, 0.006, 0.0), periodic(PeriodicKind::Eccentricity, 1.0, 0.001, 30.0), Effect::Noise { sigma_deg: 0.0003 }],
+        vec![
+            periodic(PeriodicKind::GearPass, 20.0, 0.006, 0.0),
+            periodic(PeriodicKind::Eccentricity, 1.0, 0.001, 30.0),
+            Effect::Noise { sigma_deg: 0.0003 },
+        ],
     );
     let s = simulate(&truth, &circle(180), 3, true, 0.0, 9);
-    let g = model_gap(&s, &lacking(&truth, |e| matches!(e, Effect::Periodic { kind: PeriodicKind::Eccentricity, .. })), &ModelGapOptions::default()).unwrap();
+    let g = model_gap(
+        &s,
+        &lacking(&truth, |e| matches!(e, Effect::Periodic { kind: PeriodicKind::Eccentricity, .. })),
+        &ModelGapOptions::default(),
+    )
+    .unwrap();
     let text = g.to_text();
     assert!(text.contains("     0  the model as given"), "{text}");
     assert!(text.contains("     1  eccentricity 1 cycles/rev"), "{text}");
@@ -243,11 +299,16 @@ fn the_report_shows_the_gap_shrinking() {
 /// a missing effect is found to rounding.
 #[test]
 fn noise_free_data() {
-    let truth = model(&[20.0], &[], vec![periodic(PeriodicKind::GearPass, 20.0, 0.008, 10.0), Effect::Backlash { amplitude_deg: 0.002 }]);
+    let truth = model(
+        &[20.0],
+        &[],
+        vec![periodic(PeriodicKind::GearPass, 20.0, 0.008, 10.0), Effect::Backlash { amplitude_deg: 0.002 }],
+    );
     let s = simulate(&truth, &circle(90), 2, true, 0.0, 10);
     let g = model_gap(&s, &truth, &ModelGapOptions::default()).unwrap();
     assert!(g.effects_added.is_empty() && g.effects_adjusted.is_empty(), "{}", g.to_text());
-    let g = model_gap(&s, &lacking(&truth, |e| matches!(e, Effect::Backlash { .. })), &ModelGapOptions::default()).unwrap();
+    let g =
+        model_gap(&s, &lacking(&truth, |e| matches!(e, Effect::Backlash { .. })), &ModelGapOptions::default()).unwrap();
     assert_eq!(g.effects_added.len(), 1, "{}", g.to_text());
     assert!((g.effects_added[0].amplitude_deg - 0.002).abs() < 1e-10, "{}", g.to_text());
 }

@@ -37,7 +37,8 @@ use proptest::test_runner::{Config as ProptestConfig, RngSeed};
 fn raw_peak_to_peak(s: &[Sample]) -> f64 {
     let map = crate::errormap::ErrorMap::from_samples(s).unwrap();
     let series = map.run_series(crate::errormap::Series::Bidirectional).unwrap();
-    let mean: Vec<f64> = (0..map.targets_deg.len()).map(|j| series.iter().map(|r| r[j]).sum::<f64>() / series.len() as f64).collect();
+    let mean: Vec<f64> =
+        (0..map.targets_deg.len()).map(|j| series.iter().map(|r| r[j]).sum::<f64>() / series.len() as f64).collect();
     mean.iter().copied().fold(f64::NEG_INFINITY, f64::max) - mean.iter().copied().fold(f64::INFINITY, f64::min)
 }
 
@@ -58,7 +59,8 @@ fn assert_hidden(truth: &Model, hidden: &Effect, s: &[Sample], runs: u32) {
     let p = effect_peak_to_peak(hidden, runs);
     let raw = raw_peak_to_peak(s);
     assert!(p < 0.2 * raw, "not hidden: {p} vs raw peak-to-peak {raw}");
-    let largest = truth.effects.iter().filter(|e| *e != hidden).map(|e| effect_peak_to_peak(e, runs)).fold(0.0, f64::max);
+    let largest =
+        truth.effects.iter().filter(|e| *e != hidden).map(|e| effect_peak_to_peak(e, runs)).fold(0.0, f64::max);
     assert!(p < largest, "not smaller than the largest error");
 }
 
@@ -67,7 +69,11 @@ fn assert_hidden(truth: &Model, hidden: &Effect, s: &[Sample], runs: u32) {
 #[track_caller]
 pub(super) fn assert_found_only(g: &ModelGap, want: &[Effect], sigma_true: f64) -> Vec<FoundEffect> {
     let text = g.to_text();
-    assert!((g.noise_floor_deg / sigma_true - 1.0).abs() < 0.1, "noise floor {} vs {sigma_true}\n{text}", g.noise_floor_deg);
+    assert!(
+        (g.noise_floor_deg / sigma_true - 1.0).abs() < 0.1,
+        "noise floor {} vs {sigma_true}\n{text}",
+        g.noise_floor_deg
+    );
     assert_eq!(g.effects_added.len(), want.len(), "{text}");
     assert!(g.effects_adjusted.is_empty(), "{text}");
     let mut found = Vec::new();
@@ -80,7 +86,12 @@ pub(super) fn assert_found_only(g: &ModelGap, want: &[Effect], sigma_true: f64) 
         assert_close(f, w, &text);
         found.push(f.clone());
     }
-    assert!((g.rms_after_deg / g.noise_floor_deg - 1.0).abs() < 0.06, "rms after {} vs floor {}\n{text}", g.rms_after_deg, g.noise_floor_deg);
+    assert!(
+        (g.rms_after_deg / g.noise_floor_deg - 1.0).abs() < 0.06,
+        "rms after {} vs floor {}\n{text}",
+        g.rms_after_deg,
+        g.noise_floor_deg
+    );
     found
 }
 
@@ -97,7 +108,13 @@ fn assert_close(f: &FoundEffect, w: &Effect, text: &str) {
         }
         other => {
             let (a, _) = explain::amplitude_phase(other);
-            assert!((f.amplitude_deg - a).abs() < 5.0 * se, "{}: {} vs {a} (5 se = {})\n{text}", explain::label(w), f.amplitude_deg, 5.0 * se);
+            assert!(
+                (f.amplitude_deg - a).abs() < 5.0 * se,
+                "{}: {} vs {a} (5 se = {})\n{text}",
+                explain::label(w),
+                f.amplitude_deg,
+                5.0 * se
+            );
         }
     }
 }
@@ -116,7 +133,14 @@ fn fig8_like(extra: Vec<Effect>) -> Model {
 }
 
 /// Simulate `truth`, compare with `truth` minus `hidden`, and check.
-fn hidden_case(truth: &Model, hidden: &Effect, points: usize, runs: u32, bidirectional: bool, seed: u64) -> (ModelGap, Vec<Sample>) {
+fn hidden_case(
+    truth: &Model,
+    hidden: &Effect,
+    points: usize,
+    runs: u32,
+    bidirectional: bool,
+    seed: u64,
+) -> (ModelGap, Vec<Sample>) {
     let reference = 0.0002;
     let s = simulate(truth, &circle(points), runs, bidirectional, reference, seed);
     assert_hidden(truth, hidden, &s, runs);
@@ -169,10 +193,18 @@ fn drift_across_runs() {
 #[test]
 fn drift_in_a_one_way_survey_is_drift_not_lines() {
     let drift = Effect::Drift { rate_deg_per_run: -0.0005 };
-    let truth = model(&[20.0], &[], vec![periodic(GearPass, 20.0, 0.008, 0.0), drift.clone(), Effect::Noise { sigma_deg: 0.0004 }]);
+    let truth = model(
+        &[20.0],
+        &[],
+        vec![periodic(GearPass, 20.0, 0.008, 0.0), drift.clone(), Effect::Noise { sigma_deg: 0.0004 }],
+    );
     let s = simulate(&truth, &circle(180), 5, false, 0.0002, 14);
     let g = model_gap(&s, &lacking(&truth, |e| *e == drift), &ModelGapOptions::default()).unwrap();
-    assert!(g.before.frequency.lines.iter().any(|l| l.coherent), "the saw-tooth shows as lines before\n{}", g.to_text());
+    assert!(
+        g.before.frequency.lines.iter().any(|l| l.coherent),
+        "the saw-tooth shows as lines before\n{}",
+        g.to_text()
+    );
     assert_found_only(&g, &[drift], (0.0004f64.powi(2) + 0.0002f64.powi(2)).sqrt());
 }
 
@@ -185,7 +217,13 @@ fn a_tooth_mesh_whose_harmonic_aliases() {
     let truth = model(
         &[20.0],
         &[250],
-        vec![periodic(GearPass, 20.0, 0.006, 15.0), t1.clone(), t2.clone(), Effect::Backlash { amplitude_deg: 0.002 }, Effect::Noise { sigma_deg: 0.0003 }],
+        vec![
+            periodic(GearPass, 20.0, 0.006, 15.0),
+            t1.clone(),
+            t2.clone(),
+            Effect::Backlash { amplitude_deg: 0.002 },
+            Effect::Noise { sigma_deg: 0.0003 },
+        ],
     );
     let reference = 0.0002;
     let s = simulate(&truth, &circle(720), 3, true, reference, 15);
@@ -202,7 +240,13 @@ fn a_tooth_mesh_whose_harmonic_aliases() {
         f250.explanation,
         "250 cycles/rev: 250-tooth gear, harmonic 1; its harmonic 2 also shows (500 cycles/rev, aliased to 220 at 720 points per revolution)"
     );
-    assert!(f500.explanation.starts_with("500 cycles/rev: 250-tooth gear, harmonic 2 at 500 cycles/rev, aliased to 220 by 720 points/rev"), "{}", f500.explanation);
+    assert!(
+        f500.explanation.starts_with(
+            "500 cycles/rev: 250-tooth gear, harmonic 2 at 500 cycles/rev, aliased to 220 by 720 points/rev"
+        ),
+        "{}",
+        f500.explanation
+    );
     // The report names the alias in the frequency view.
     assert!(g.to_text().contains("500 (seen at 220) cycles/rev"), "{}", g.to_text());
 
@@ -303,7 +347,11 @@ fn the_figure_4_model_from_its_design_alone() {
     want.push(periodic(GearPass, 72.0, 0.00025, 180.0 - 90.0));
     let found = assert_found_only(&g, &want, 0.0002);
     let f72 = found.last().unwrap();
-    assert!(f72.explanation.contains("also 216-tooth gear, harmonic 3 at 648 cycles/rev, aliased to 72 by 720 points/rev"), "{}", f72.explanation);
+    assert!(
+        f72.explanation.contains("also 216-tooth gear, harmonic 3 at 648 cycles/rev, aliased to 72 by 720 points/rev"),
+        "{}",
+        f72.explanation
+    );
     let f12 = &found.iter().find(|f| f.cycles_per_rev == 12.0).unwrap().explanation;
     assert!(f12.contains("its harmonics 2, 3, 4, 5, 6 also show (24, 36, 48, 60, 72 cycles/rev)"), "{f12}");
 }
@@ -318,7 +366,11 @@ fn the_model_is_evaluated_at_the_actual_angle() {
     let truth = model(
         &[20.0],
         &[250],
-        vec![periodic(GearPass, 20.0, 0.02, 0.0), periodic(ToothMesh, 250.0, 0.002, 30.0), Effect::Noise { sigma_deg: 0.0001 }],
+        vec![
+            periodic(GearPass, 20.0, 0.02, 0.0),
+            periodic(ToothMesh, 250.0, 0.002, 30.0),
+            Effect::Noise { sigma_deg: 0.0001 },
+        ],
     );
     let s = simulate(&truth, &circle(720), 3, true, 0.0, 21);
     let g = model_gap(&s, &truth, &ModelGapOptions::default()).unwrap();
@@ -337,7 +389,15 @@ fn the_model_is_evaluated_at_the_actual_angle() {
 /// makes another pass).
 #[test]
 fn false_alarms_are_rare() {
-    let truth = model(&[16.0], &[], vec![periodic(GearPass, 16.0, 0.004, 0.0), Effect::Backlash { amplitude_deg: 0.002 }, Effect::Noise { sigma_deg: 0.0003 }]);
+    let truth = model(
+        &[16.0],
+        &[],
+        vec![
+            periodic(GearPass, 16.0, 0.004, 0.0),
+            Effect::Backlash { amplitude_deg: 0.002 },
+            Effect::Noise { sigma_deg: 0.0003 },
+        ],
+    );
     let surveys: u64 = std::env::var("MODELGAP_FALSE_ALARM_SURVEYS").ok().and_then(|v| v.parse().ok()).unwrap_or(100);
     let count = |alpha: f64, offset: u64, surveys: u64| -> (usize, usize) {
         let o = ModelGapOptions { false_alarm_rate: alpha, ..ModelGapOptions::default() };
@@ -353,7 +413,10 @@ fn false_alarms_are_rare() {
     };
     let (named, with) = count(0.01, 10_000, surveys);
     eprintln!("alpha 0.01: {named} effects named in {with} of {surveys} control surveys");
-    assert!(named as f64 <= 0.01 * surveys as f64 + 4.5 * (0.01 * surveys as f64).sqrt().max(1.0), "{named} in {surveys}");
+    assert!(
+        named as f64 <= 0.01 * surveys as f64 + 4.5 * (0.01 * surveys as f64).sqrt().max(1.0),
+        "{named} in {surveys}"
+    );
     let few = surveys * 2 / 5;
     let (named, with) = count(1.0, 90_000, few);
     eprintln!("alpha 1: {named} effects named in {with} of {few} control surveys");

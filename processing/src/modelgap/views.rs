@@ -237,7 +237,10 @@ fn angle_view(ctx: &Ctx, residual: &[f64]) -> AngleView {
     let per_target = (s.runs() * s.dirs.len()) as f64;
     let band = normal_two_sided_isf(ctx.alpha / t as f64) * ctx.sigma / per_target.sqrt();
     let targets = &s.map.targets_deg;
-    let (peak_i, _) = mean.iter().enumerate().fold((0, 0.0f64), |(bi, bv), (i, v)| if v.abs() > bv { (i, v.abs()) } else { (bi, bv) });
+    let (peak_i, _) = mean
+        .iter()
+        .enumerate()
+        .fold((0, 0.0f64), |(bi, bv), (i, v)| if v.abs() > bv { (i, v.abs()) } else { (bi, bv) });
     let outside: Vec<bool> = mean.iter().map(|m| m.abs() > band).collect();
     let mut ranges: Vec<(usize, usize)> = Vec::new();
     let mut i = 0;
@@ -261,7 +264,13 @@ fn angle_view(ctx: &Ctx, residual: &[f64]) -> AngleView {
         .map(|&(a, b)| {
             let idx: Vec<usize> = if a <= b { (a..=b).collect() } else { (a..t).chain(0..=b).collect() };
             let k = idx.iter().copied().fold(idx[0], |best, j| if mean[j].abs() > mean[best].abs() { j } else { best });
-            AngleRange { start_deg: targets[a], end_deg: targets[b], peak_deg: mean[k], at_deg: targets[k], targets: idx.len() }
+            AngleRange {
+                start_deg: targets[a],
+                end_deg: targets[b],
+                peak_deg: mean[k],
+                at_deg: targets[k],
+                targets: idx.len(),
+            }
         })
         .collect();
     let ranges_total = out.len();
@@ -282,7 +291,13 @@ fn angle_view(ctx: &Ctx, residual: &[f64]) -> AngleView {
 /// The model's periodic effect seen at a line: one whose frequency lands on
 /// the line's bin (full circle, aliases included), or equals it (partial
 /// range). The one at the line's true frequency first.
-pub(crate) fn effect_at(model: &Model, observed: f64, true_cycles: f64, points_per_rev: f64, full_circle: bool) -> Option<usize> {
+pub(crate) fn effect_at(
+    model: &Model,
+    observed: f64,
+    true_cycles: f64,
+    points_per_rev: f64,
+    full_circle: bool,
+) -> Option<usize> {
     let lands = |f: f64| {
         if full_circle {
             (alias(f, points_per_rev).observed - observed).abs() <= 0.5
@@ -305,7 +320,8 @@ pub(crate) fn effect_at(model: &Model, observed: f64, true_cycles: f64, points_p
 
 fn frequency_view(a: &Analysis, model: &Model) -> FrequencyView {
     let full_circle = a.method == Method::Dft;
-    let factor = if a.noise.line_sd_mean_deg > 0.0 { a.noise.coherent_threshold_deg / a.noise.line_sd_mean_deg } else { 0.0 };
+    let factor =
+        if a.noise.line_sd_mean_deg > 0.0 { a.noise.coherent_threshold_deg / a.noise.line_sd_mean_deg } else { 0.0 };
     let mut lines: Vec<GapLine> = a
         .lines
         .iter()
@@ -423,7 +439,14 @@ fn time_view(ctx: &Ctx, residual: &[f64]) -> Option<TimeView> {
         (TrendTest::NoiseFloor, (white_var / sxx).sqrt(), normal_two_sided_isf(p))
     };
     Some(TimeView {
-        run_means: s.map.runs.iter().zip(&m).zip(&x).map(|((run, mean), t)| RunMean { run: *run, mean_deg: *mean, runs_elapsed: *t }).collect(),
+        run_means: s
+            .map
+            .runs
+            .iter()
+            .zip(&m)
+            .zip(&x)
+            .map(|((run, mean), t)| RunMean { run: *run, mean_deg: *mean, runs_elapsed: *t })
+            .collect(),
         drift_change_deg_per_run: slope,
         standard_error_deg_per_run: se,
         threshold_deg_per_run: crit * se,

@@ -65,10 +65,16 @@ impl fmt::Display for TableMethod {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             TableMethod::Spectral { dense_points } => write!(f, "spectral resampling through {dense_points} points"),
-            TableMethod::Partial { fit: PartialMethod::Cubic } => f.write_str("cubic interpolation over the measured span"),
+            TableMethod::Partial { fit: PartialMethod::Cubic } => {
+                f.write_str("cubic interpolation over the measured span")
+            }
             TableMethod::Partial { fit: PartialMethod::LeastSquares { cycles, poly_degree } } => {
                 let c: Vec<String> = cycles.iter().map(|c| format!("{c}")).collect();
-                write!(f, "least squares over the measured span: degree-{poly_degree} polynomial + [{}] cycles/rev", c.join(", "))
+                write!(
+                    f,
+                    "least squares over the measured span: degree-{poly_degree} polynomial + [{}] cycles/rev",
+                    c.join(", ")
+                )
             }
         }
     }
@@ -98,12 +104,8 @@ fn rotate(series: Spectrum, start_deg: f64) -> Spectrum {
         return series;
     }
     let t = start_deg.to_radians();
-    let coeffs = series
-        .coeffs()
-        .iter()
-        .enumerate()
-        .map(|(k, c)| c * Complex64::from_polar(1.0, -(k as f64) * t))
-        .collect();
+    let coeffs =
+        series.coeffs().iter().enumerate().map(|(k, c)| c * Complex64::from_polar(1.0, -(k as f64) * t)).collect();
     Spectrum::from_coeffs(coeffs)
 }
 
@@ -120,7 +122,9 @@ impl Recipe {
         let (on, why) = match (self.table.directional, &h) {
             (Directional::Off, _) => (false, "table.directional = \"off\": one column for both directions".to_string()),
             (Directional::On, _) if both => (true, "table.directional = \"on\"".to_string()),
-            (_, None) | (Directional::On, _) => (false, "the survey measured one direction only: one column".to_string()),
+            (_, None) | (Directional::On, _) => {
+                (false, "the survey measured one direction only: one column".to_string())
+            }
             (Directional::Auto, Some(h)) => {
                 let cmp = if h.significant { ">" } else { "<=" };
                 (
@@ -160,7 +164,11 @@ impl Recipe {
             Coverage::FullCircle { n } => {
                 let dense = self.table.dense_points;
                 if dense < n {
-                    return Err(ChoiceError::new("table.dense_points", format!("{dense} points is fewer than the survey's {n}")).into());
+                    return Err(ChoiceError::new(
+                        "table.dense_points",
+                        format!("{dense} points is fewer than the survey's {n}"),
+                    )
+                    .into());
                 }
                 let mut builder = TableBuilder::new(dense, rows);
                 let mut rs = Resampler::new();
@@ -191,7 +199,9 @@ impl Recipe {
                         match fit_partial(span, single, &ls) {
                             Ok(_) => ls,
                             Err(e @ (PartialError::Degenerate { .. } | PartialError::TooFewSamples { .. })) => {
-                                notes.push(format!("least squares at the kept lines is not possible ({e}): cubic interpolation instead"));
+                                notes.push(format!(
+                                    "least squares at the kept lines is not possible ({e}): cubic interpolation instead"
+                                ));
                                 PartialMethod::Cubic
                             }
                             Err(e) => return Err(CorrectionError::from(e).into()),

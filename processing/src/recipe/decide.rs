@@ -126,14 +126,15 @@ impl Recipe {
         let mut relocated: BTreeMap<usize, (usize, String)> = BTreeMap::new();
         let mut aliases = Vec::new();
         let bin_of = |c: f64| c.round() as usize;
-        let amplitude_at = |k: usize| {
-            analysis.spectra.as_ref().and_then(|s| s.mean.bins.get(k)).map_or(0.0, |b| b.amplitude_deg)
-        };
+        let amplitude_at =
+            |k: usize| analysis.spectra.as_ref().and_then(|s| s.mean.bins.get(k)).map_or(0.0, |b| b.amplitude_deg);
         let claim = |b: usize, f: usize, key: String, relocated: &mut BTreeMap<usize, (usize, String)>| {
             if let Some((other, by)) = relocated.get(&b) {
                 return Err(ChoiceError::new(
                     key,
-                    format!("{f} and {other} cycles/rev ({by}) both appear at bin {b} with {n} points; one bin can be relocated to one frequency only: null one of them"),
+                    format!(
+                        "{f} and {other} cycles/rev ({by}) both appear at bin {b} with {n} points; one bin can be relocated to one frequency only: null one of them"
+                    ),
                 ));
             }
             relocated.insert(b, (f, key));
@@ -183,14 +184,23 @@ impl Recipe {
                 None => format!("{what} by the recipe"),
             };
             let (action, applied, reason) = if b == 0 {
-                (AliasOutcome::Nulled, false, format!("lands on bin 0 with {n} points: it cannot be told from the zero offset and is left alone"))
+                (
+                    AliasOutcome::Nulled,
+                    false,
+                    format!("lands on bin 0 with {n} points: it cannot be told from the zero offset and is left alone"),
+                )
             } else if 2 * b == n {
                 null.insert(b);
-                (AliasOutcome::Nulled, true, format!("lands on the Nyquist bin {b}, where its phase is lost: nulled (recipe: {:?})", a.action))
+                (
+                    AliasOutcome::Nulled,
+                    true,
+                    format!("lands on the Nyquist bin {b}, where its phase is lost: nulled (recipe: {:?})", a.action),
+                )
             } else {
                 match a.action {
                     AliasChoiceAction::Relocate => {
-                        claim(b, f, format!("alias[{}]", i + 1), &mut relocated).map_err(|e| ChoiceError { key: key.clone(), ..e })?;
+                        claim(b, f, format!("alias[{}]", i + 1), &mut relocated)
+                            .map_err(|e| ChoiceError { key: key.clone(), ..e })?;
                         (AliasOutcome::Relocated, true, by_recipe("relocated"))
                     }
                     AliasChoiceAction::Null => {
@@ -218,7 +228,9 @@ impl Recipe {
                 continue;
             }
             claim(b, f, "lines.keep".into(), &mut relocated)?;
-            notes.push(format!("lines.keep: {f} cycles/rev is above this survey's Nyquist ({n} points): relocated from bin {b}"));
+            notes.push(format!(
+                "lines.keep: {f} cycles/rev is above this survey's Nyquist ({n} points): relocated from bin {b}"
+            ));
         }
         for f in remove_high {
             let b = alias_of(f, n).observed_cycles;
@@ -228,13 +240,18 @@ impl Recipe {
         }
         for (b, (_, key)) in &relocated {
             if null.contains(b) {
-                return Err(ChoiceError::new(key.clone(), format!("bin {b} is both relocated and nulled with {n} points")));
+                return Err(ChoiceError::new(
+                    key.clone(),
+                    format!("bin {b} is both relocated and nulled with {n} points"),
+                ));
             }
         }
 
         // The analysis' aliased harmonics the recipe does not name.
         let named = |f: f64| {
-            self.aliases.iter().any(|a| a.true_cycles as f64 == f) || self.lines.keep.contains(&f) || self.lines.remove.contains(&f)
+            self.aliases.iter().any(|a| a.true_cycles as f64 == f)
+                || self.lines.keep.contains(&f)
+                || self.lines.remove.contains(&f)
         };
         for e in &analysis.aliases {
             if named(e.true_cycles) {
@@ -294,11 +311,21 @@ impl Recipe {
             let (action, true_cycles, from_recipe, reason) = if let Some((f, by)) = relocated.get(&k) {
                 (LineAction::Relocated, *f as f64, by != "the analysis", format!("relocated to {f} cycles/rev"))
             } else if null.contains(&k) {
-                (LineAction::Nulled, l.true_cycles_per_rev, false, format!("bin {k} is nulled (an aliased line the table cannot place shares it)"))
+                (
+                    LineAction::Nulled,
+                    l.true_cycles_per_rev,
+                    false,
+                    format!("bin {k} is nulled (an aliased line the table cannot place shares it)"),
+                )
             } else if l.aliased {
                 (LineAction::Removed, l.true_cycles_per_rev, false, "aliased and not relocated".into())
             } else if keep.contains(&k) {
-                (LineAction::Kept, k as f64, true, if listed { "in lines.keep".into() } else { "relocate in [[alias]]: resolved here".into() })
+                (
+                    LineAction::Kept,
+                    k as f64,
+                    true,
+                    if listed { "in lines.keep".into() } else { "relocate in [[alias]]: resolved here".into() },
+                )
             } else if removed.contains(&k) {
                 (LineAction::Removed, k as f64, true, "removed by the recipe".into())
             } else if self.lines.unlisted == Unlisted::Remove {

@@ -9,7 +9,9 @@ use crate::types::Direction::{self, Forward, Reverse};
 
 fn fig4_survey(points: usize, start: f64, seed: u64) -> (Model, Vec<crate::Sample>) {
     let model = fig4();
-    let s = survey(&circle(points, start), 5, &[Forward, Reverse], 0.0002, seed, |_, d, t| model.repeatable_error_deg(t, d));
+    let s = survey(&circle(points, start), 5, &[Forward, Reverse], 0.0002, seed, |_, d, t| {
+        model.repeatable_error_deg(t, d)
+    });
     (model, s)
 }
 
@@ -65,9 +67,8 @@ fn figure_4_first_processing_keeps_the_repeatable_lines_and_places_the_aliases()
     assert!((h.mean_deg - 0.001).abs() < 2e-5 && (h.noise_deg / (0.0002 * 0.4f64.sqrt()) - 1.0).abs() < 0.1, "{h:?}");
     // The table is the model without the nulled 648-cycle harmonic (the rows
     // carry the mean noise of 5 runs on ten lines: a few 1e-5 deg).
-    let truth = |t: f64, dir: Direction| {
-        model.repeatable_error_deg(t, dir) - 0.00025 * (648.0 * t + 90.0).to_radians().sin()
-    };
+    let truth =
+        |t: f64, dir: Direction| model.repeatable_error_deg(t, dir) - 0.00025 * (648.0 * t + 90.0).to_radians().sin();
     let w = worst(&built.table, truth);
     assert!(w < 5e-5, "worst {w:e}");
     assert_eq!(built.method, TableMethod::Spectral { dense_points: 32768 });
@@ -226,7 +227,9 @@ fn defects_name_the_file_line_and_key() {
     assert_eq!((e.line, e.key.as_str()), (Some(3), "lines.remove"), "{e}");
     let e = parse_err("[table]\ndirectional = \"sometimes\"\n");
     assert_eq!((e.line, e.key.as_str()), (Some(2), "table.directional"), "{e}");
-    let e = parse_err("[[alias]]\ntrue_cycles = 432\naction = \"relocate\"\n\n[[alias]]\ntrue_cycles = 432\naction = \"null\"\n");
+    let e = parse_err(
+        "[[alias]]\ntrue_cycles = 432\naction = \"relocate\"\n\n[[alias]]\ntrue_cycles = 432\naction = \"null\"\n",
+    );
     assert_eq!((e.line, e.key.as_str()), (Some(6), "alias[2].true_cycles"), "{e}");
     let e = parse_err("[[alias]]\ntrue_cycles = 432\naction = \"move\"\n");
     assert_eq!((e.line, e.key.as_str()), (Some(3), "alias[1].action"), "{e}");

@@ -132,9 +132,7 @@ pub enum EditError {
         points: usize,
     },
     /// The dense grid has no room for the true frequency.
-    #[error(
-        "relocation to {true_cycles} cycles needs more than {need} dense points, got {dense}"
-    )]
+    #[error("relocation to {true_cycles} cycles needs more than {need} dense points, got {dense}")]
     DenseTooSmall {
         /// The true frequency given.
         true_cycles: usize,
@@ -323,7 +321,10 @@ mod tests {
 
     #[test]
     fn invalid_edits_are_named() {
-        let r = |o, t| SpectralEdit { relocate: vec![Relocation { observed_cycles: o, true_cycles: t }], ..SpectralEdit::none() };
+        let r = |o, t| SpectralEdit {
+            relocate: vec![Relocation { observed_cycles: o, true_cycles: t }],
+            ..SpectralEdit::none()
+        };
         assert!(matches!(r(288, 432).validate(720, 864), Err(EditError::DenseTooSmall { need: 864, .. })));
         assert!(r(288, 432).validate(720, 865).is_ok());
         assert!(matches!(r(216, 216).validate(720, 4096), Err(EditError::NotAliased { .. })));

@@ -139,7 +139,15 @@ mod tests {
     /// its 5th harmonic, and the 2-cycle ellipticity), sampled at 720 points:
     /// every line is below 720/4, so the half survey still resolves it.
     fn fig4_like(n: usize) -> Vec<f64> {
-        let lines = [(2.0, 0.002, 40.0), (12.0, 0.006, 15.0), (24.0, 0.003, 70.0), (36.0, 0.0018, 130.0), (48.0, 0.0012, 200.0), (60.0, 0.0008, 260.0), (150.0, 0.0002, 10.0)];
+        let lines = [
+            (2.0, 0.002, 40.0),
+            (12.0, 0.006, 15.0),
+            (24.0, 0.003, 70.0),
+            (36.0, 0.0018, 130.0),
+            (48.0, 0.0012, 200.0),
+            (60.0, 0.0008, 260.0),
+            (150.0, 0.0002, 10.0),
+        ];
         (0..n)
             .map(|j| {
                 let t = 360.0 * j as f64 / n as f64;

@@ -253,9 +253,13 @@ impl Resampler {
         fft.process_with_scratch(&mut self.real, &mut self.spectrum, &mut self.scratch[..need])
             .expect("buffer lengths follow the plan");
         let inv = 1.0 / n as f64;
-        out.coeffs.extend(self.spectrum.iter().enumerate().map(|(k, x)| {
-            if k == 0 || 2 * k == n { *x * inv } else { *x * (2.0 * inv) }
-        }));
+        out.coeffs.extend(
+            self.spectrum.iter().enumerate().map(
+                |(k, x)| {
+                    if k == 0 || 2 * k == n { *x * inv } else { *x * (2.0 * inv) }
+                },
+            ),
+        );
         // Bin 0 and the Nyquist bin of a real signal are real; drop rounding.
         out.coeffs[0].im = 0.0;
         if n.is_multiple_of(2) {
@@ -390,9 +394,8 @@ mod tests {
     #[test]
     fn series_amplitudes_and_phases_follow_the_contract() {
         let mut rs = Resampler::new();
-        let y: Vec<f64> = angles(360)
-            .map(|t| 0.5 + 0.006 * (12.0 * t.to_radians() + 30f64.to_radians()).sin())
-            .collect();
+        let y: Vec<f64> =
+            angles(360).map(|t| 0.5 + 0.006 * (12.0 * t.to_radians() + 30f64.to_radians()).sin()).collect();
         let s = rs.analyze(&y);
         assert!((s.amplitude(0) - 0.5).abs() < 1e-14);
         assert!((s.amplitude(12) - 0.006).abs() < 1e-15);

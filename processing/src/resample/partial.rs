@@ -183,10 +183,8 @@ pub fn fit_partial(span: Span, samples: &[f64], method: &PartialMethod) -> Resul
                     col.push(*b);
                 }
             }
-            let (coef, r) = least_squares(cols, samples.to_vec()).map_err(|term| PartialError::Degenerate {
-                term,
-                name: term_name(cycles, *poly_degree, term),
-            })?;
+            let (coef, r) = least_squares(cols, samples.to_vec())
+                .map_err(|term| PartialError::Degenerate { term, name: term_name(cycles, *poly_degree, term) })?;
             Kind::LeastSquares { cycles: cycles.clone(), degree: *poly_degree, coef, r }
         }
     };
@@ -389,10 +387,16 @@ mod tests {
 
     #[test]
     fn least_squares_recovers_its_own_model_exactly() {
-        let f = |x: f64| 0.001 - 0.002 * x / 90.0 + 3e-7 * x * x + 0.028 * (6.0 * x + 20.0).to_radians().sin() + 0.006 * (72.0 * x).to_radians().sin();
+        let f = |x: f64| {
+            0.001 - 0.002 * x / 90.0
+                + 3e-7 * x * x
+                + 0.028 * (6.0 * x + 20.0).to_radians().sin()
+                + 0.006 * (72.0 * x).to_radians().sin()
+        };
         let xs = grid(ELEV, 201);
         let y: Vec<f64> = xs.iter().map(|&x| f(x)).collect();
-        let fit = fit_partial(ELEV, &y, &PartialMethod::LeastSquares { cycles: vec![6.0, 72.0], poly_degree: 2 }).unwrap();
+        let fit =
+            fit_partial(ELEV, &y, &PartialMethod::LeastSquares { cycles: vec![6.0, 72.0], poly_degree: 2 }).unwrap();
         assert!(fit.residual_rms_deg() < 1e-15);
         for x in [-10.0, -3.3, 0.0, 44.4, 89.99, 90.0] {
             assert!((fit.eval(x) - f(x)).abs() < 1e-14, "{x}");
@@ -436,14 +440,29 @@ mod tests {
     fn bad_inputs_are_named() {
         let ls = |c: Vec<f64>, d| PartialMethod::LeastSquares { cycles: c, poly_degree: d };
         let y = vec![0.0; 50];
-        assert!(matches!(fit_partial(Span { start_deg: 10.0, end_deg: 10.0 }, &y, &PartialMethod::Cubic), Err(PartialError::BadSpan { .. })));
-        assert!(matches!(fit_partial(Span { start_deg: 0.0, end_deg: 360.0 }, &y, &PartialMethod::Cubic), Err(PartialError::BadSpan { .. })));
-        assert!(matches!(fit_partial(ELEV, &y[..3], &PartialMethod::Cubic), Err(PartialError::TooFewSamples { need: 4, .. })));
-        assert!(matches!(fit_partial(ELEV, &y[..5], &ls(vec![6.0], 2)), Err(PartialError::TooFewSamples { need: 6, .. })));
+        assert!(matches!(
+            fit_partial(Span { start_deg: 10.0, end_deg: 10.0 }, &y, &PartialMethod::Cubic),
+            Err(PartialError::BadSpan { .. })
+        ));
+        assert!(matches!(
+            fit_partial(Span { start_deg: 0.0, end_deg: 360.0 }, &y, &PartialMethod::Cubic),
+            Err(PartialError::BadSpan { .. })
+        ));
+        assert!(matches!(
+            fit_partial(ELEV, &y[..3], &PartialMethod::Cubic),
+            Err(PartialError::TooFewSamples { need: 4, .. })
+        ));
+        assert!(matches!(
+            fit_partial(ELEV, &y[..5], &ls(vec![6.0], 2)),
+            Err(PartialError::TooFewSamples { need: 6, .. })
+        ));
         assert!(matches!(fit_partial(ELEV, &y, &ls(vec![-1.0], 2)), Err(PartialError::BadFrequency(_))));
         let mut nan = y.clone();
         nan[7] = f64::NAN;
-        assert!(matches!(fit_partial(ELEV, &nan, &PartialMethod::Cubic), Err(PartialError::NotFinite { index: 7, .. })));
+        assert!(matches!(
+            fit_partial(ELEV, &nan, &PartialMethod::Cubic),
+            Err(PartialError::NotFinite { index: 7, .. })
+        ));
         // A very slow sinusoid over a short span is a polynomial already.
         let short = Span { start_deg: 0.0, end_deg: 1.0 };
         let e = fit_partial(short, &y, &ls(vec![0.01], 6)).unwrap_err();

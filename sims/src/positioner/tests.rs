@@ -39,11 +39,18 @@ async fn rest_readout_is_the_target_and_the_error_is_the_models() {
     let model = without_noise(&fig8());
     let (_c, mut p) = sim(PositionerConfig::new(model.clone()));
     let b = model.backlash_deg();
-    let targets: Vec<f64> = (0..=12).map(|i| i as f64 * 27.5).chain((0..12).rev().map(|i| i as f64 * 27.5 + 3.3)).collect();
+    let targets: Vec<f64> =
+        (0..=12).map(|i| i as f64 * 27.5).chain((0..12).rev().map(|i| i as f64 * 27.5 + 3.3)).collect();
     let mut last = 0.0;
     for t in targets {
         let (r, a) = go(&mut p, t).await;
-        let dir = if t > last { Direction::Forward } else if t < last { Direction::Reverse } else { p.direction() };
+        let dir = if t > last {
+            Direction::Forward
+        } else if t < last {
+            Direction::Reverse
+        } else {
+            p.direction()
+        };
         last = t;
         assert_eq!(p.direction(), dir);
         assert_eq!(r, t, "readout at rest equals the target");
