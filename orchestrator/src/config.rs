@@ -25,7 +25,7 @@
 //! Unknown keys are errors, so a misspelt setting never silently falls back
 //! to a default.
 
-use crate::cli::ReferenceKind;
+use crate::engine::ReferenceKind;
 use crate::engine::Timing;
 use serde::{Deserialize, Serialize};
 use std::path::Path;

@@ -19,6 +19,26 @@ use survey_drivers::{
 use survey_processing::geometry::{AxisFit, GeometryError, fit_axis};
 use survey_processing::{Direction, Sample};
 
+/// The reference instrument that measures the actual angle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ReferenceKind {
+    /// A tracking laser measuring an SMR on an arm (the axis is located first).
+    Tracker,
+    /// An autocollimator on a polygon: the targets are the faces.
+    Autocollimator,
+}
+
+impl ReferenceKind {
+    /// `tracker` or `autocollimator`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ReferenceKind::Tracker => "tracker",
+            ReferenceKind::Autocollimator => "autocollimator",
+        }
+    }
+}
+
 /// The independent instrument that measures the actual angle.
 #[derive(Debug)]
 pub enum Reference {

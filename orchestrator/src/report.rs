@@ -2,34 +2,24 @@
 //! no scripts, no external files) with the survey's error map, its spectrum,
 //! the named error sources and the ISO 230-2 figures.
 
-use crate::cli::{Failure, ReportArgs};
-use crate::commands::{classify, open_existing};
-use anyhow::Context as _;
+use crate::error::{bad_input, path_error};
+use crate::survey::SurveyRecord;
 use plotters::prelude::*;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use survey_processing::Sample;
 use survey_processing::analysis::{Analysis, AnalysisOptions, analyse};
 use survey_processing::errormap::ErrorMap;
 use survey_processing::iso230::iso230_2;
-use survey_processing::model::Model;
 
-/// Run the command.
-pub async fn command(db: &Path, args: ReportArgs) -> Result<(), Failure> {
-    let store = open_existing(db).await?;
-    let row = store.resolve(args.survey).await.map_err(classify)?;
-    let samples: Vec<Sample> =
-        store.samples(row.id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
-    store.close().await;
+/// The report of `survey` with its `samples`, as one HTML page.
+pub fn html(survey: &SurveyRecord, samples: &[Sample]) -> anyhow::Result<String> {
     if samples.is_empty() {
-        return Err(Failure::usage(anyhow::anyhow!("survey {} holds no samples yet", row.id)));
+        return Err(bad_input(format!("survey {} holds no samples yet", survey.id)));
     }
-    let design = match &row.model_toml {
-        Some(text) => Model::parse(text, &format!("survey {} model", row.id)).map(|m| m.design).unwrap_or_default(),
-        None => Default::default(),
-    };
-    let map = ErrorMap::from_samples(&samples).ok();
-    let analysis = analyse(&samples, &design, &AnalysisOptions::default()).ok();
+    let design = survey.model.as_ref().map(|m| m.design.clone()).unwrap_or_default();
+    let map = ErrorMap::from_samples(samples).ok();
+    let analysis = analyse(samples, &design, &AnalysisOptions::default()).ok();
     let mut html = String::new();
     let _ = write!(
         html,
@@ -38,22 +28,22 @@ pub async fn command(db: &Path, args: ReportArgs) -> Result<(), Failure> {
          table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}\
          th{{background:#f4f4f4}}td.l{{text-align:left}}</style></head><body>\n\
          <h1>Survey {id}</h1>\n<p>{source}, status {status}, created {created}; {n} samples, {points} targets x {runs} runs, {dir}.</p>\n",
-        id = row.id,
-        source = escape(&row.source),
-        status = row.status,
-        created = escape(&row.created_at),
+        id = survey.id,
+        source = escape(&survey.source.to_string()),
+        status = survey.status,
+        created = escape(&survey.created_at),
         n = samples.len(),
-        points = row.points.map(|p| p.to_string()).unwrap_or_else(|| "?".into()),
-        runs = row.runs.map(|p| p.to_string()).unwrap_or_else(|| "?".into()),
-        dir = if row.bidirectional { "bidirectional" } else { "unidirectional" },
+        points = survey.points.map(|p| p.to_string()).unwrap_or_else(|| "?".into()),
+        runs = survey.runs.map(|p| p.to_string()).unwrap_or_else(|| "?".into()),
+        dir = if survey.bidirectional { "bidirectional" } else { "unidirectional" },
     );
     html += "<h2>Error map</h2>\n<p>Readout error (readout - actual), mean over the runs per target and direction, degrees.</p>\n";
     match &map {
-        Some(map) => html += &error_plot(map).map_err(Failure::runtime)?,
+        Some(map) => html += &error_plot(map)?,
         None => html += "<p>The error map needs every run at every target.</p>\n",
     }
     html += "<h2>ISO 230-2</h2>\n";
-    match iso230_2(&samples) {
+    match iso230_2(samples) {
         Ok(iso) => {
             html += "<table><tr><th></th><th>axis</th><th>forward</th><th>reverse</th></tr>\n";
             let f = |v: Option<f64>| v.map(|x| format!("{x:.6}")).unwrap_or_else(|| "-".into());
@@ -82,21 +72,21 @@ pub async fn command(db: &Path, args: ReportArgs) -> Result<(), Failure> {
     html += "<h2>Spectrum and error sources</h2>\n";
     match &analysis {
         Some(a) => {
-            html += &spectrum_plot(a).map_err(Failure::runtime)?;
+            html += &spectrum_plot(a)?;
             html += &lines_table(a);
         }
         None => html += "<p>No spectral analysis for this survey (it needs a complete error map).</p>\n",
     }
     html += "</body></html>\n";
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create the folder {}", args.out.display()))
-        .map_err(Failure::usage)?;
-    let path = args.out.join("index.html");
-    std::fs::write(&path, html)
-        .with_context(|| format!("cannot write {}", path.display()))
-        .map_err(Failure::runtime)?;
-    crate::cli::emit(&format!("{}\n", path.display()));
-    Ok(())
+    Ok(html)
+}
+
+/// Write `html` as `index.html` into the folder `out` (created if missing); returns the file's path.
+pub fn write(out: &Path, html: &str) -> anyhow::Result<PathBuf> {
+    std::fs::create_dir_all(out).map_err(|e| path_error(e, format!("cannot create the folder {}", out.display())))?;
+    let path = out.join("index.html");
+    std::fs::write(&path, html).map_err(|e| path_error(e, format!("cannot write {}", path.display())))?;
+    Ok(path)
 }
 
 fn escape(s: &str) -> String {

@@ -13,6 +13,7 @@ pub mod geometry;
 pub mod iso230;
 pub mod model;
 pub mod modelgap;
+pub mod pipeline;
 pub mod recipe;
 pub mod resample;
 mod special;

@@ -10,7 +10,8 @@ use survey_drivers::{Clock, VirtualClock};
 use survey_orchestrator::engine::{Engine, Reference, Timing};
 use survey_orchestrator::plan::SurveyPlan;
 use survey_orchestrator::record::{MemorySink, RawReading};
-use survey_orchestrator::store::{NewSurvey, Store, StoreSink, SurveyStatus};
+use survey_orchestrator::store::{Store, StoreSink};
+use survey_orchestrator::survey::{NewSurvey, SurveyStatus};
 use survey_processing::geometry::AxisFit;
 use survey_processing::iso230::iso230_2;
 use survey_processing::model::Model;
@@ -49,7 +50,7 @@ async fn a_bidirectional_multi_run_survey_lands_in_sqlite() {
     let id = store
         .create_survey(&NewSurvey {
             status: SurveyStatus::Running,
-            source: "simulated".into(),
+            source: survey_orchestrator::survey::SurveySource::Simulated,
             points: Some(90),
             runs: Some(3),
             bidirectional: true,
@@ -64,7 +65,7 @@ async fn a_bidirectional_multi_run_survey_lands_in_sqlite() {
     assert_eq!(outcome.samples_recorded, 540);
 
     // Read back from the database (a second connection would see the same: WAL, committed).
-    let stored = store.samples(id).await.unwrap();
+    let stored = store.recorded_samples(id).await.unwrap();
     assert_eq!(stored.len(), 540);
     assert!(stored.iter().enumerate().all(|(i, r)| r.seq == i as u64), "seq dense from 0");
     assert!(stored.iter().all(|r| matches!(r.raw, RawReading::Smr(_))), "raw SMR readings kept");
@@ -80,7 +81,7 @@ async fn a_bidirectional_multi_run_survey_lands_in_sqlite() {
     assert!(times[539] > 3600.0 * 0.3, "a 540-target survey stands for a good part of an hour: {}", times[539]);
     assert_eq!(store.locate_points(id).await.unwrap().len(), Timing::default().locate_points as usize);
     let row = store.survey(id).await.unwrap();
-    let axis: AxisFit = serde_json::from_str(row.axis_json.as_deref().expect("axis stored")).unwrap();
+    let axis: AxisFit = row.axis.expect("axis stored");
     assert!((axis.radius_mm - 1000.0).abs() < 0.1);
     assert_eq!(row.sample_count, 540);
 

@@ -2,7 +2,8 @@
 //! its last stored sample: no sample lost, none duplicated.
 
 use std::process::{Command, Stdio};
-use survey_orchestrator::store::{Store, SurveyStatus};
+use survey_orchestrator::store::Store;
+use survey_orchestrator::survey::SurveyStatus;
 
 #[tokio::test]
 async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
@@ -24,7 +25,7 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     let store = Store::open_existing(&db).await.unwrap();
     let before = store.survey(1).await.unwrap();
     assert_eq!(before.status, SurveyStatus::Running, "a killed survey is left running");
-    let kept = store.samples(1).await.unwrap();
+    let kept = store.recorded_samples(1).await.unwrap();
     // Batches of 256 and the end of the first pass (1800) were committed
     // before the crash; the samples in the last unfinished batch are lost, as
     // in a power loss, and are measured again by the resume.
@@ -40,7 +41,7 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
     let store = Store::open_existing(&db).await.unwrap();
     let after = store.survey(1).await.unwrap();
     assert_eq!(after.status, SurveyStatus::Complete);
-    let all = store.samples(1).await.unwrap();
+    let all = store.recorded_samples(1).await.unwrap();
     assert_eq!(all.len(), 10800, "1800 targets x 3 runs x 2 directions");
     assert!(all.iter().enumerate().all(|(i, r)| r.seq == i as u64), "every step exactly once");
     // What was stored before the kill is unchanged.

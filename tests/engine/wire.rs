@@ -4,9 +4,9 @@
 
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
+use survey_orchestrator::bench::instruments::{Instruments, ReferenceInstrument};
 use survey_orchestrator::config::SurveyConfig;
 use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::instruments::{Instruments, ReferenceInstrument};
 use survey_orchestrator::plan::SurveyPlan;
 use survey_orchestrator::record::MemorySink;
 use survey_processing::iso230::{Iso230, iso230_2};

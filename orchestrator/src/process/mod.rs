@@ -6,10 +6,10 @@
 //! survey was simulated with; else an empty design, said on stderr), and the
 //! processing recipe (`--recipe FILE` replays one; else a new one is derived
 //! from this survey's analysis, [`Recipe::from_analysis`]). Then, all pure
-//! ([`pipeline`]): the spectral analysis, the recipe's decisions, the table,
+//! ([`survey_processing::pipeline`]): the spectral analysis, the recipe's decisions, the table,
 //! the predicted accuracy (native and corrected peak, ISO 230-2 `A`, the
 //! repeatability floor), the paper's Figure 6 interpolation comparison. Last,
-//! the files ([`files`]): the table CSV (`--table-out`, default
+//! the files ([`outputs`]): the table CSV (`--table-out`, default
 //! `table-<id>.csv`), and beside it, named from its stem, the LinuxCNC
 //! `COMP_FILE`s `<stem>.comp0` and `<stem>.comp1`, the binary table
 //! `<stem>.bin` and the recipe used, `<stem>.recipe.toml`.
@@ -19,19 +19,17 @@
 //! database is only read.
 //!
 //! `survey run` ends with the same processing: it calls [`process_survey`]
-//! and prints [`ProcessOutcome::summary`] or embeds [`ProcessOutcome::json`].
+//! and prints [`ProcessOutcome::text`] or embeds [`ProcessOutcome::json`].
 
-pub mod files;
-pub mod pipeline;
-pub mod report;
+pub mod outputs;
+mod summary;
 
-use crate::cli::{Failure, ProcessArgs};
-use crate::store::Store;
-use anyhow::{Context as _, anyhow};
-use pipeline::Processed;
-use std::path::{Path, PathBuf};
+use crate::survey::SurveyRecord;
+use anyhow::Context as _;
+use std::path::PathBuf;
 use survey_processing::Sample;
 use survey_processing::model::{Design, Model};
+use survey_processing::pipeline::{Processed, Replay};
 use survey_processing::recipe::Recipe;
 
 /// What to process with; every field optional.
@@ -71,55 +69,36 @@ pub struct ProcessOutcome {
     /// The recipe file replayed, if any.
     pub recipe_from: Option<PathBuf>,
     /// The files written.
-    pub files: files::OutputPaths,
+    pub files: outputs::OutputPaths,
 }
 
 impl ProcessOutcome {
     /// The `survey process --json` document (the contract's keys and more).
     pub fn json(&self) -> serde_json::Value {
-        report::json(self)
+        summary::json(self)
     }
 
-    /// The human summary.
-    pub fn summary(&self) -> String {
-        report::text(self)
+    /// The summary for people.
+    pub fn text(&self) -> String {
+        summary::text(self)
     }
 }
 
-/// `survey process`: process and print.
-pub async fn command(db: &Path, args: ProcessArgs) -> Result<(), Failure> {
-    let store = crate::commands::open_existing(db).await?;
-    let survey = store.resolve(args.survey).await.map_err(crate::commands::classify)?;
-    let opts = ProcessOptions { design: args.design, recipe: args.recipe, table_out: args.table_out };
-    let outcome = process_survey(&store, survey.id, opts).await;
-    store.close().await;
-    let outcome = outcome?;
-    if args.json {
-        crate::cli::emit(&format!("{}\n", outcome.json()));
-    } else {
-        crate::cli::emit(&outcome.summary());
-    }
-    Ok(())
-}
-
-/// Process survey `id` of `store` and write its files (see the module
-/// documentation). Notes (the design used, recipe entries that meant
+/// Process `samples` of the survey `survey` and write its files (see the
+/// module documentation). Notes (the design used, recipe entries that meant
 /// something else on this survey) go to stderr. Bad input (a design or recipe
 /// file, samples that cannot make a table, a path that cannot be created)
-/// is [`Failure::Usage`]; a disk failure while writing is [`Failure::Runtime`].
-pub async fn process_survey(store: &Store, id: i64, opts: ProcessOptions) -> Result<ProcessOutcome, Failure> {
-    let survey = store.survey(id).await.map_err(crate::commands::classify)?;
+/// is a bad-input error; a disk failure while writing is a run-time failure.
+pub fn process_survey(
+    survey: &SurveyRecord,
+    samples: &[Sample],
+    opts: ProcessOptions,
+) -> anyhow::Result<ProcessOutcome> {
+    let id = survey.id;
     let (design, design_source) = match &opts.design {
-        Some(path) => {
-            let model = Model::from_file(path).map_err(Failure::usage)?;
-            (model.design, format!("--design {}", path.display()))
-        }
-        None => match &survey.model_toml {
-            Some(text) => {
-                let model = Model::parse(text, &format!("survey {id}'s stored model"))
-                    .map_err(|e| Failure::runtime(anyhow!("{e}")))?;
-                (model.design, "the survey's stored model".to_string())
-            }
+        Some(path) => (Model::from_file(path)?.design, format!("--design {}", path.display())),
+        None => match &survey.model {
+            Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
                 eprintln!(
                     "note: survey {id} has no stored model and no --design was given: lines are named without a design \
@@ -131,26 +110,22 @@ pub async fn process_survey(store: &Store, id: i64, opts: ProcessOptions) -> Res
     };
     let recipe = match &opts.recipe {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("{}: cannot read the recipe file", path.display()))
-                .map_err(Failure::usage)?;
             let name = path.display().to_string();
-            let recipe = Recipe::parse(&text, &name).map_err(Failure::usage)?;
-            Some((recipe, text, name))
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| crate::error::path_error(e, format!("{name}: cannot read the recipe file")))?;
+            Some((Recipe::parse(&text, &name)?, text, name))
         }
         None => None,
     };
-    let samples: Vec<Sample> =
-        store.samples(id).await.map_err(Failure::runtime)?.into_iter().map(|r| r.sample).collect();
-    let processed =
-        pipeline::process(id, &samples, &design, recipe.as_ref().map(|(r, t, n)| (r, t.as_str(), n.as_str())))
-            .map_err(Failure::usage)?;
+    let replay = recipe.as_ref().map(|(recipe, text, name)| Replay { recipe, text, name });
+    let processed = survey_processing::pipeline::process(samples, &design, replay)
+        .with_context(|| format!("survey {id} cannot be processed"))?;
     for n in &processed.notes {
         eprintln!("note: {n}");
     }
     let table_out = opts.table_out.clone().unwrap_or_else(|| PathBuf::from(format!("table-{id}.csv")));
-    let paths = files::OutputPaths::beside(&table_out, &processed.recipe.export);
-    files::write_all(&paths, &processed, id)?;
+    let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
+    outputs::write_all(&paths, &processed, id)?;
     let design = DesignSource {
         from: design_source,
         gear_ratios: design.gear_ratios.clone(),

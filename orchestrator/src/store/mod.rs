@@ -36,7 +36,7 @@ mod surveys;
 mod tests;
 
 pub use sink::StoreSink;
-pub use surveys::{EventRow, NewSurvey, SurveyRow, SurveyStatus};
+pub use surveys::EventRow;
 
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};

@@ -2,7 +2,6 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::Context;
 use async_trait::async_trait;
 use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
@@ -128,9 +127,8 @@ impl SampleSink for StoreSink {
     /// the axis again adds its own) and replaces the survey's axis (JSON of
     /// the [`AxisFit`]).
     async fn axis_located(&mut self, points: &[(f64, SmrMeasurement)], fit: &AxisFit) -> anyhow::Result<()> {
-        let json = serde_json::to_string(fit).context("cannot encode the located axis")?;
         self.store.add_locate_points(self.survey_id, points).await?;
-        self.store.set_axis(self.survey_id, &json).await
+        self.store.set_axis(self.survey_id, fit).await
     }
 
     /// Logged at once (not buffered).

@@ -1,145 +1,15 @@
 //! The surveys: creating one, its status, axis, locate points and event log,
 //! and looking surveys up.
 
-use std::fmt;
-use std::str::FromStr;
-
-use anyhow::{Context, anyhow};
-use serde::{Deserialize, Serialize};
+use anyhow::Context;
+use serde::Serialize;
 use sqlx::sqlite::{SqliteConnection, SqliteRow};
 use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::SmrMeasurement;
+use survey_processing::geometry::AxisFit;
 
 use super::{CHUNK_ROWS, NotFound, Store, real};
-
-/// Where a survey stands.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SurveyStatus {
-    /// Acquisition is under way (or the process died without saying otherwise:
-    /// `survey resume` treats a `running` survey like an interrupted one).
-    Running,
-    /// Acquisition stopped before the plan was complete; `survey resume` continues it.
-    Interrupted,
-    /// Every planned sample is stored.
-    Complete,
-    /// Acquisition gave up on an error.
-    Failed,
-    /// Data imported from a CSV file.
-    Imported,
-}
-
-impl SurveyStatus {
-    /// The name stored in the database and shown to users.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SurveyStatus::Running => "running",
-            SurveyStatus::Interrupted => "interrupted",
-            SurveyStatus::Complete => "complete",
-            SurveyStatus::Failed => "failed",
-            SurveyStatus::Imported => "imported",
-        }
-    }
-}
-
-impl fmt::Display for SurveyStatus {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-impl FromStr for SurveyStatus {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "running" => Ok(SurveyStatus::Running),
-            "interrupted" => Ok(SurveyStatus::Interrupted),
-            "complete" => Ok(SurveyStatus::Complete),
-            "failed" => Ok(SurveyStatus::Failed),
-            "imported" => Ok(SurveyStatus::Imported),
-            other => Err(format!(
-                "unknown survey status '{other}' (expected running, interrupted, complete, failed or imported)"
-            )),
-        }
-    }
-}
-
-/// What [`Store::create_survey`] and [`Store::import`] store about a new survey.
-#[derive(Debug, Clone, PartialEq)]
-pub struct NewSurvey {
-    /// `Running` for an acquisition, `Imported` for an import.
-    pub status: SurveyStatus,
-    /// `simulated`, `instruments` or `import:<file>`.
-    pub source: String,
-    /// Target positions per revolution, when known.
-    pub points: Option<u32>,
-    /// Runs in the plan, when known.
-    pub runs: Option<u32>,
-    /// Runs go both ways (forward then reverse).
-    pub bidirectional: bool,
-    /// The full survey configuration and plan, JSON.
-    pub config_json: String,
-    /// The simulated positioner model (TOML), when simulated.
-    pub model_toml: Option<String>,
-    /// The names of the instrument drivers, JSON.
-    pub instruments_json: String,
-    /// How many samples the plan holds, when known.
-    pub planned_samples: Option<u64>,
-}
-
-impl Default for NewSurvey {
-    /// A running survey with no configuration (`{}`) and no instruments (`[]`).
-    fn default() -> Self {
-        NewSurvey {
-            status: SurveyStatus::Running,
-            source: String::new(),
-            points: None,
-            runs: None,
-            bidirectional: false,
-            config_json: "{}".to_string(),
-            model_toml: None,
-            instruments_json: "[]".to_string(),
-            planned_samples: None,
-        }
-    }
-}
-
-/// A stored survey, with the number of samples stored for it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SurveyRow {
-    /// The survey id (`--survey ID`).
-    pub id: i64,
-    /// UTC ISO-8601, e.g. `2025-03-01T14:02:11Z`.
-    pub created_at: String,
-    /// UTC ISO-8601: the last change of status or axis.
-    pub updated_at: String,
-    /// Where the survey stands.
-    pub status: SurveyStatus,
-    /// `simulated`, `instruments` or `import:<file>`.
-    pub source: String,
-    /// Target positions per revolution, when known.
-    pub points: Option<u32>,
-    /// Runs in the plan, when known.
-    pub runs: Option<u32>,
-    /// Runs go both ways.
-    pub bidirectional: bool,
-    /// The full survey configuration and plan, JSON.
-    pub config_json: String,
-    /// The simulated positioner model (TOML), when simulated.
-    pub model_toml: Option<String>,
-    /// The names of the instrument drivers, JSON.
-    pub instruments_json: String,
-    /// The located axis, JSON, once located.
-    pub axis_json: Option<String>,
-    /// Instrument time when acquisition started, seconds (see [`Store::set_started`]).
-    pub started_at_s: Option<f64>,
-    /// Instrument time when acquisition ended, seconds.
-    pub ended_at_s: Option<f64>,
-    /// How many samples the plan holds, when known.
-    pub planned_samples: Option<u64>,
-    /// Samples stored for this survey.
-    pub sample_count: u64,
-}
+use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyStatus};
 
 /// One entry of a survey's event log.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -204,8 +74,9 @@ impl Store {
         Ok(())
     }
 
-    /// Store the located axis (JSON).
-    pub async fn set_axis(&self, id: i64, axis_json: &str) -> anyhow::Result<()> {
+    /// Store the located axis.
+    pub async fn set_axis(&self, id: i64, axis: &AxisFit) -> anyhow::Result<()> {
+        let axis_json = serde_json::to_string(axis).context("cannot encode the located axis")?;
         let done = sqlx::query(
             "UPDATE surveys SET axis_json = ?, \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
@@ -317,12 +188,12 @@ impl Store {
 
     /// One survey. A [`NotFound`] error (`no survey with id 7 in survey.db`)
     /// when there is none with that id.
-    pub async fn survey(&self, id: i64) -> anyhow::Result<SurveyRow> {
+    pub async fn survey(&self, id: i64) -> anyhow::Result<SurveyRecord> {
         let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(SURVEY_COLUMNS);
         qb.push(" WHERE s.id = ").push_bind(id);
         let row = qb.build().fetch_optional(&self.pool).await?;
         match row {
-            Some(row) => survey_from_row(&row),
+            Some(row) => self.record(&row),
             None => Err(self.no_survey(id).into()),
         }
     }
@@ -335,7 +206,7 @@ impl Store {
 
     /// The survey `id`, or the latest one when `id` is `None`. A [`NotFound`]
     /// error when that survey does not exist or the database holds none.
-    pub async fn resolve(&self, id: Option<i64>) -> anyhow::Result<SurveyRow> {
+    pub async fn resolve(&self, id: Option<i64>) -> anyhow::Result<SurveyRecord> {
         match id {
             Some(id) => self.survey(id).await,
             None => match self.latest_survey_id().await? {
@@ -350,11 +221,18 @@ impl Store {
     }
 
     /// Every survey, oldest first.
-    pub async fn list(&self) -> anyhow::Result<Vec<SurveyRow>> {
+    pub async fn list(&self) -> anyhow::Result<Vec<SurveyRecord>> {
         let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(SURVEY_COLUMNS);
         qb.push(" ORDER BY s.id");
         let rows = qb.build().fetch_all(&self.pool).await?;
-        rows.iter().map(survey_from_row).collect()
+        rows.iter().map(|r| self.record(r)).collect()
+    }
+
+    /// A survey row, typed (see [`crate::survey`]): a column that does not
+    /// parse is a [`crate::survey::Damaged`] error.
+    fn record(&self, row: &SqliteRow) -> anyhow::Result<SurveyRecord> {
+        let columns = columns_from_row(row)?;
+        Ok(SurveyRecord::parse(columns, &self.path.display().to_string())?)
     }
 }
 
@@ -365,33 +243,33 @@ pub(super) async fn insert_survey(conn: &mut SqliteConnection, s: &NewSurvey) ->
          model_toml, instruments_json, planned_samples) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
     )
     .bind(s.status.as_str())
-    .bind(s.source.as_str())
+    .bind(s.source.to_column())
     .bind(s.points.map(i64::from))
     .bind(s.runs.map(i64::from))
     .bind(s.bidirectional)
-    .bind(s.config_json.as_str())
-    .bind(s.model_toml.as_deref())
-    .bind(s.instruments_json.as_str())
+    .bind(s.setup.to_column())
+    .bind(s.model.as_ref().map(|m| m.to_toml()))
+    .bind(s.instruments_column())
     .bind(planned)
     .execute(&mut *conn)
     .await?;
     Ok(done.last_insert_rowid())
 }
 
-fn survey_from_row(row: &SqliteRow) -> anyhow::Result<SurveyRow> {
+/// The stored columns of a survey, unparsed (see [`SurveyRecord::parse`]).
+fn columns_from_row(row: &SqliteRow) -> anyhow::Result<StoredColumns> {
     let id: i64 = row.try_get("id")?;
-    let status: String = row.try_get("status")?;
     let small = |col: &str| -> anyhow::Result<Option<u32>> {
         let v: Option<i64> = row.try_get(col)?;
         v.map(|v| u32::try_from(v).with_context(|| format!("survey {id}: bad {col} {v}"))).transpose()
     };
     let planned: Option<i64> = row.try_get("planned_samples")?;
     let count: i64 = row.try_get("sample_count")?;
-    Ok(SurveyRow {
+    Ok(StoredColumns {
         id,
         created_at: row.try_get("created_at")?,
         updated_at: row.try_get("updated_at")?,
-        status: SurveyStatus::from_str(&status).map_err(|e| anyhow!("survey {id}: {e}"))?,
+        status: row.try_get("status")?,
         source: row.try_get("source")?,
         points: small("points")?,
         runs: small("runs")?,

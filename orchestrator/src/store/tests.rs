@@ -9,17 +9,20 @@ use survey_processing::{Direction, Sample};
 
 use super::*;
 use crate::record::{RawReading, RecordedSample, SampleSink};
+use crate::survey::{NewSurvey, Setup, SurveySource, SurveyStatus};
+use survey_processing::model::Model;
 
 fn new_survey() -> NewSurvey {
     NewSurvey {
         status: SurveyStatus::Running,
-        source: "simulated".into(),
+        source: SurveySource::Simulated,
         points: Some(36),
         runs: Some(2),
         bidirectional: true,
-        config_json: r#"{"points":36}"#.into(),
-        model_toml: Some("[design]\n".into()),
-        instruments_json: r#"["sim-positioner","sim-tracker"]"#.into(),
+        setup: Setup::Unrecorded,
+        model: Some(Model::parse("[design]\ngear_ratios = [12]\n", "m.toml").unwrap()),
+        instruments: serde_json::json!({"positioner": "sim-positioner", "reference": "sim-tracker"}),
+        verification: None,
         planned_samples: Some(144),
     }
 }
@@ -51,6 +54,20 @@ fn recorded(seq: u64) -> RecordedSample {
             timestamp_s: if seq.is_multiple_of(5) { None } else { Some(f * 1.25) },
         },
         raw,
+    }
+}
+
+fn axis_fit() -> AxisFit {
+    AxisFit {
+        center_mm: [0.0, 0.0, 0.0],
+        normal: [0.0, 0.0, 1.0],
+        u: [1.0, 0.0, 0.0],
+        v: [0.0, 1.0, 0.0],
+        radius_mm: 250.0,
+        zero_offset_deg: 0.5,
+        plane_rms_mm: 0.001,
+        circle_rms_mm: 0.002,
+        points: 3,
     }
 }
 
@@ -96,14 +113,34 @@ async fn append_in_chunks_and_read_back() {
     // 5000 rows x 8 values = 40000 > 32766: must be chunked
     store.append(id, &samples[..4500]).await.unwrap();
     store.append(id, &samples[4500..]).await.unwrap();
-    let back = store.samples(id).await.unwrap();
+    let back = store.recorded_samples(id).await.unwrap();
     assert_same(&back, &samples);
+    // The compact load gives the same samples, bit for bit, in the same order.
+    let compact = store.samples(id).await.unwrap();
+    assert_eq!(compact.len(), samples.len());
+    for (c, r) in compact.iter().zip(&samples) {
+        let bits = |s: &Sample| {
+            (
+                s.run,
+                s.direction,
+                s.target_deg.to_bits(),
+                s.readout_deg.to_bits(),
+                s.actual_deg.to_bits(),
+                s.timestamp_s.map(f64::to_bits),
+            )
+        };
+        assert_eq!(bits(c), bits(&r.sample));
+    }
+    let latest = samples.iter().filter_map(|r| r.sample.timestamp_s).fold(f64::MIN, f64::max);
+    assert_eq!(store.last_sample_time(id).await.unwrap(), Some(latest));
     assert_eq!(store.last_seq(id).await.unwrap(), Some(4999));
     assert_eq!(store.survey(id).await.unwrap().sample_count, 5000);
     // another survey is independent
     let other = store.create_survey(&new_survey()).await.unwrap();
+    assert!(store.recorded_samples(other).await.unwrap().is_empty());
     assert!(store.samples(other).await.unwrap().is_empty());
     assert_eq!(store.last_seq(other).await.unwrap(), None);
+    assert_eq!(store.last_sample_time(other).await.unwrap(), None);
     store.close().await;
 }
 
@@ -121,7 +158,7 @@ async fn duplicate_seq_fails_and_stores_nothing_of_the_batch() {
     let e = store.append(id, &batch).await.unwrap_err();
     assert!(!is_not_found(&e));
     assert!(format!("{e:#}").contains("UNIQUE constraint failed"), "{e:#}");
-    assert_same(&store.samples(id).await.unwrap(), &first);
+    assert_same(&store.recorded_samples(id).await.unwrap(), &first);
     // unknown survey: a NotFound
     let e = store.append(999, &first).await.unwrap_err();
     assert!(is_not_found(&e), "{e:#}");
@@ -138,7 +175,7 @@ async fn negative_zero_and_extremes_survive_the_database() {
     s.sample.actual_deg = f64::MAX;
     s.sample.timestamp_s = Some(f64::MIN_POSITIVE);
     store.append(id, &[s]).await.unwrap();
-    let back = store.samples(id).await.unwrap();
+    let back = store.recorded_samples(id).await.unwrap();
     assert_eq!(back[0].sample.target_deg.to_bits(), (-0.0f64).to_bits());
     assert_same(&back, &[s]);
     let mut nan = recorded(2);
@@ -155,7 +192,12 @@ async fn import_is_atomic() {
     // a CHECK violation (run 0) at the end
     let mut bad = good.clone();
     bad[999].run = 0;
-    let s = NewSurvey { status: SurveyStatus::Imported, source: "import:data.csv".into(), ..NewSurvey::default() };
+    let s = NewSurvey {
+        status: SurveyStatus::Imported,
+        source: SurveySource::Import { file: "data.csv".into() },
+        setup: Setup::Imported { file: "data.csv".into() },
+        ..NewSurvey::default()
+    };
     assert!(store.import(&s, &bad).await.is_err());
     assert!(store.list().await.unwrap().is_empty());
     // a failure inside SQLite in the third chunk
@@ -176,11 +218,10 @@ async fn import_is_atomic() {
     let id = store.import(&s, &good).await.unwrap();
     let row = store.survey(id).await.unwrap();
     assert_eq!(row.status, SurveyStatus::Imported);
-    assert_eq!(row.source, "import:data.csv");
+    assert_eq!(row.source, SurveySource::Import { file: "data.csv".into() });
     assert_eq!(row.sample_count, 1000);
-    let back: Vec<Sample> = store.samples(id).await.unwrap().iter().map(|r| r.sample).collect();
-    assert_eq!(back, good);
-    assert!(store.samples(id).await.unwrap().iter().all(|r| r.raw == RawReading::None));
+    assert_eq!(store.samples(id).await.unwrap(), good);
+    assert!(store.recorded_samples(id).await.unwrap().iter().all(|r| r.raw == RawReading::None));
     store.close().await;
 }
 
@@ -200,7 +241,7 @@ async fn resolve_latest_and_not_found() {
     assert!(e.downcast_ref::<NotFound>().is_some());
     assert_eq!(e.to_string(), format!("no survey with id 7 in {}", dir.path().join("survey.db").display()));
     assert!(is_not_found(&store.set_status(7, SurveyStatus::Failed, None).await.unwrap_err()));
-    assert!(is_not_found(&store.set_axis(7, "{}").await.unwrap_err()));
+    assert!(is_not_found(&store.set_axis(7, &axis_fit()).await.unwrap_err()));
     assert!(is_not_found(&store.log_event(7, 0.0, "info", "x").await.unwrap_err()));
     let list = store.list().await.unwrap();
     assert_eq!(list.iter().map(|r| r.id).collect::<Vec<_>>(), vec![a, b]);
@@ -217,21 +258,21 @@ async fn survey_fields_status_axis_events_locate_points() {
     assert_eq!(row.runs, Some(2));
     assert!(row.bidirectional);
     assert_eq!(row.planned_samples, Some(144));
-    assert_eq!(row.model_toml.as_deref(), Some("[design]\n"));
-    assert_eq!(row.axis_json, None);
+    assert_eq!(row.model.as_ref().map(|m| m.design.gear_ratios.clone()), Some(vec![12.0]));
+    assert_eq!(row.axis, None);
     assert_eq!(row.ended_at_s, None);
     assert_eq!(row.sample_count, 0);
     assert!(row.created_at.ends_with('Z') && row.created_at.contains('T'), "{}", row.created_at);
 
     store.set_started(id, 0.5).await.unwrap();
-    store.set_axis(id, r#"{"center":[0,0,0]}"#).await.unwrap();
+    store.set_axis(id, &axis_fit()).await.unwrap();
     store.set_status(id, SurveyStatus::Interrupted, None).await.unwrap();
     store.set_status(id, SurveyStatus::Complete, Some(3600.25)).await.unwrap();
     let row = store.survey(id).await.unwrap();
     assert_eq!(row.status, SurveyStatus::Complete);
     assert_eq!(row.started_at_s, Some(0.5));
     assert_eq!(row.ended_at_s, Some(3600.25));
-    assert_eq!(row.axis_json.as_deref(), Some(r#"{"center":[0,0,0]}"#));
+    assert_eq!(row.axis, Some(axis_fit()));
 
     store.log_event(id, 12.0, "warn", "beam broken, reacquired").await.unwrap();
     store.log_event(id, 13.0, "info", "resumed at seq 40").await.unwrap();
@@ -259,7 +300,7 @@ async fn survey_fields_status_axis_events_locate_points() {
         SurveyStatus::Failed,
         SurveyStatus::Imported,
     ] {
-        assert_eq!(st.as_str().parse::<SurveyStatus>().unwrap(), st);
+        assert_eq!(SurveyStatus::from_column(st.as_str()), Some(st));
     }
     store.close().await;
 }
@@ -308,7 +349,7 @@ async fn store_sink_flushes_by_batch_and_on_flush() {
     assert_eq!(store.last_seq(id).await.unwrap(), Some(12));
     sink.flush().await.unwrap(); // nothing to write
     let expected: Vec<RecordedSample> = (0..13).map(recorded).collect();
-    assert_same(&store.samples(id).await.unwrap(), &expected);
+    assert_same(&store.recorded_samples(id).await.unwrap(), &expected);
     store.close().await;
 }
 
@@ -332,22 +373,11 @@ async fn store_sink_flushes_by_age_and_keeps_failed_batches() {
     // events and the located axis go straight to the store
     sink.event(4.5, "warn", "beam broken").await.unwrap();
     let m = SmrMeasurement { x_mm: 1.0, y_mm: 2.0, z_mm: 3.0, std_dev_mm: [0.01; 3], measurement_time_s: 2.0 };
-    let fit = AxisFit {
-        center_mm: [0.0, 0.0, 0.0],
-        normal: [0.0, 0.0, 1.0],
-        u: [1.0, 0.0, 0.0],
-        v: [0.0, 1.0, 0.0],
-        radius_mm: 250.0,
-        zero_offset_deg: 0.5,
-        plane_rms_mm: 0.001,
-        circle_rms_mm: 0.002,
-        points: 3,
-    };
+    let fit = axis_fit();
     let pts = [(0.0, m), (120.0, m), (240.0, m)];
     sink.axis_located(&pts, &fit).await.unwrap();
     assert_eq!(store.locate_points(id).await.unwrap(), pts.to_vec());
-    let axis: AxisFit = serde_json::from_str(&store.survey(id).await.unwrap().axis_json.unwrap()).unwrap();
-    assert_eq!(axis, fit);
+    assert_eq!(store.survey(id).await.unwrap().axis, Some(fit));
     assert_eq!(store.events(id).await.unwrap()[0].message, "beam broken");
 
     // a failing write keeps the samples for the next try

@@ -127,14 +127,14 @@ impl Instruments {
             timeout: timing.call_timeout,
         }) as Box<dyn Connect<dyn Positioner>>);
         let reference = match cfg.reference() {
-            crate::cli::ReferenceKind::Tracker => {
+            crate::engine::ReferenceKind::Tracker => {
                 let tracker = cfg.tracker.clone().expect("checked when the configuration was read");
                 ReferenceInstrument::Tracker(Reconnecting::new(Box::new(TrackerConnector {
                     config: tracker,
                     timeout: timing.measure_timeout,
                 }) as Box<dyn Connect<dyn Tracker>>))
             }
-            crate::cli::ReferenceKind::Autocollimator => {
+            crate::engine::ReferenceKind::Autocollimator => {
                 let ac = cfg.autocollimator.clone().expect("checked when the configuration was read");
                 let polygon = cfg.polygon.clone().expect("checked when the configuration was read");
                 let certificate_arcsec = if polygon.certificate_arcsec.is_empty() {

@@ -1,16 +1,50 @@
-//! The processing itself, from samples to a table and its predicted accuracy:
-//! pure functions, no files and no database.
+//! The whole processing of one survey, from samples to a table and its
+//! predicted accuracy (what `survey process` and the end of `survey run` do):
+//! the spectral analysis, the recipe's decisions (replayed or derived), the
+//! table, the predicted native and corrected accuracy beside the
+//! repeatability floor, the paper's Figure 6 interpolation comparison and the
+//! LinuxCNC decimation. Pure: the caller reads the samples and writes the files.
 
-use anyhow::{Context as _, anyhow};
-use survey_processing::Sample;
-use survey_processing::analysis::{Analysis, analyse};
-use survey_processing::correction::{Prediction, predict_accuracy};
-use survey_processing::errormap::Coverage;
-use survey_processing::iso230::{Iso230, iso230_2};
-use survey_processing::model::Design;
-use survey_processing::recipe::{ApplyError, BuiltTable, Decisions, Recipe};
-use survey_processing::resample::{MethodScore, Resampler, compare_interpolation};
-use survey_processing::table::CorrectionTable;
+use crate::Sample;
+use crate::analysis::{Analysis, AnalysisError, analyse};
+use crate::correction::{CorrectionError, Prediction, predict_accuracy};
+use crate::errormap::Coverage;
+use crate::iso230::{Iso230, iso230_2};
+use crate::model::Design;
+use crate::recipe::{ApplyError, BuiltTable, Decisions, Recipe};
+use crate::resample::{MethodScore, Resampler, compare_interpolation};
+use crate::table::CorrectionTable;
+
+/// Why a survey cannot be processed. Every variant is about the data or the
+/// recipe given, never about the machine.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PipelineError {
+    /// There is nothing to process.
+    #[error("there are no samples to process")]
+    NoSamples,
+    /// The samples cannot be analysed (an incomplete error map, say).
+    #[error("the samples cannot be analysed: {0}")]
+    Analysis(#[from] AnalysisError),
+    /// The recipe cannot be applied to these samples; the text names the
+    /// recipe file and line when it was replayed from one.
+    #[error("{0}")]
+    Recipe(String),
+    /// The accuracy cannot be predicted from these samples.
+    #[error("predicting the corrected accuracy: {0}")]
+    Prediction(#[from] CorrectionError),
+}
+
+/// A recipe replayed from a file: the recipe, its text and its name (for
+/// errors that point at a line of the file).
+#[derive(Debug, Clone, Copy)]
+pub struct Replay<'a> {
+    /// The parsed recipe.
+    pub recipe: &'a Recipe,
+    /// The file's text.
+    pub text: &'a str,
+    /// The file's name, as errors show it.
+    pub name: &'a str,
+}
 
 /// The repeatability floor no correction can beat.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -77,39 +111,32 @@ fn close_circle(samples: &[Sample]) -> (Vec<Sample>, Option<String>) {
     }
 }
 
-fn recipe_error(e: ApplyError, file: Option<(&str, &str)>) -> anyhow::Error {
-    match (e, file) {
-        (ApplyError::Choice(c), Some((text, name))) => anyhow!("{}", c.in_file(text, name)),
-        (ApplyError::Choice(c), None) => anyhow!("the derived recipe: {c}"),
-        (other, _) => anyhow!("{other}"),
-    }
+fn recipe_error(e: ApplyError, replay: Option<Replay<'_>>) -> PipelineError {
+    PipelineError::Recipe(match (e, replay) {
+        (ApplyError::Choice(c), Some(r)) => c.in_file(r.text, r.name).to_string(),
+        (ApplyError::Choice(c), None) => format!("the derived recipe: {c}"),
+        (other, _) => other.to_string(),
+    })
 }
 
-/// Process `samples` of survey `id` with `design` and, when given, a replayed
-/// recipe `(recipe, its text, its file name)`; derive a recipe otherwise.
-pub fn process(
-    id: i64,
-    samples: &[Sample],
-    design: &Design,
-    replay: Option<(&Recipe, &str, &str)>,
-) -> anyhow::Result<Processed> {
+/// Process `samples` with `design` and, when given, a replayed recipe;
+/// derive a recipe from the samples otherwise.
+pub fn process(samples: &[Sample], design: &Design, replay: Option<Replay<'_>>) -> Result<Processed, PipelineError> {
     if samples.is_empty() {
-        return Err(anyhow!("survey {id} has no samples to process"));
+        return Err(PipelineError::NoSamples);
     }
     let mut notes = Vec::new();
     let (samples, note) = close_circle(samples);
     notes.extend(note);
-    let base = replay.map(|(r, _, _)| r.clone()).unwrap_or_default();
-    let analysis =
-        analyse(&samples, design, &base.analysis).with_context(|| format!("survey {id} cannot be processed"))?;
+    let base = replay.map(|r| r.recipe.clone()).unwrap_or_default();
+    let analysis = analyse(&samples, design, &base.analysis)?;
     let recipe = match replay {
-        Some((r, _, _)) => r.clone(),
+        Some(r) => r.recipe.clone(),
         None => Recipe::from_analysis(&analysis, &base),
     };
-    let file = replay.map(|(_, text, name)| (text, name));
-    let decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), file))?;
+    let decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
     notes.extend(decisions.notes.iter().cloned());
-    let built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, file))?;
+    let built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
     notes.extend(built.notes.iter().cloned());
     let iso = iso230_2(&samples).ok();
     let floor = match &iso {
@@ -124,8 +151,7 @@ pub fn process(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))
-        .with_context(|| format!("survey {id}: predicting the corrected accuracy"))?;
+    let prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?;
     let single = match analysis.error_map.coverage {
         Coverage::FullCircle { .. } => analysis
             .error_map
@@ -190,8 +216,8 @@ pub fn comp_table(analysis: &Analysis, table: &CorrectionTable, points: usize, s
                 (0..points).map(|i| start + (end - start) * i as f64 / (points - 1) as f64).collect();
             let read = |d| nominal.iter().map(|&a| table.error_at(a, d)).collect();
             CompTable {
-                forward_deg: read(survey_processing::Direction::Forward),
-                reverse_deg: read(survey_processing::Direction::Reverse),
+                forward_deg: read(crate::Direction::Forward),
+                reverse_deg: read(crate::Direction::Reverse),
                 nominal_deg: nominal,
                 prediction: None,
             }
@@ -202,7 +228,7 @@ pub fn comp_table(analysis: &Analysis, table: &CorrectionTable, points: usize, s
 #[cfg(test)]
 mod tests {
     use super::*;
-    use survey_processing::Direction;
+    use crate::Direction;
 
     fn samples(points: usize, with_360: bool) -> Vec<Sample> {
         let mut out = Vec::new();
@@ -226,7 +252,7 @@ mod tests {
 
     #[test]
     fn a_closed_circle_is_opened_and_processed() {
-        let p = process(1, &samples(90, true), &Design { gear_ratios: vec![20.0], ..Design::default() }, None).unwrap();
+        let p = process(&samples(90, true), &Design { gear_ratios: vec![20.0], ..Design::default() }, None).unwrap();
         assert!(p.notes.iter().any(|n| n.contains("same angle")), "{:?}", p.notes);
         assert_eq!(p.analysis.error_map.coverage, Coverage::FullCircle { n: 90 });
         assert!(p.decisions.kept_cycles.contains(&20.0));
@@ -236,7 +262,7 @@ mod tests {
         assert_eq!((comp.nominal_deg[0], comp.nominal_deg[255]), (0.0, 360.0));
         assert_eq!(comp.forward_deg[0], comp.forward_deg[255]);
         assert!(comp.prediction.as_ref().unwrap().corrected_peak_deg < p.prediction.native_peak_deg / 10.0);
-        assert!(process(1, &[], &Design::default(), None).unwrap_err().to_string().contains("no samples"));
+        assert_eq!(process(&[], &Design::default(), None).unwrap_err(), PipelineError::NoSamples);
     }
 
     #[test]
@@ -246,7 +272,7 @@ mod tests {
             (0..4096).map(|i| 0.001 * (216.0 * i as f64 * 360.0 / 4096.0).to_radians().sin() + 0.002).collect(),
         )
         .unwrap();
-        let p = process(1, &samples(90, false), &Design::default(), None).unwrap();
+        let p = process(&samples(90, false), &Design::default(), None).unwrap();
         let comp = comp_table(&p.analysis, &table, 256, &samples(90, false));
         for v in &comp.forward_deg {
             assert!((v - 0.002).abs() < 1e-12, "{v}");

@@ -30,12 +30,11 @@
 //! written to temporary files first and renamed into place at the end, so a
 //! failed command leaves the previous files as they were.
 
-use super::pipeline::{CompTable, Processed};
-use crate::cli::Failure;
-use anyhow::Context as _;
+use crate::error::path_error;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use survey_processing::corrector;
+use survey_processing::pipeline::{CompTable, Processed};
 use survey_processing::recipe::ExportChoices;
 use survey_processing::table::CorrectionTable;
 
@@ -121,23 +120,21 @@ impl Drop for Staged {
     }
 }
 
-fn stage(path: &Path, bytes: &[u8]) -> Result<Staged, Failure> {
+fn stage(path: &Path, bytes: &[u8]) -> anyhow::Result<Staged> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
     let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
     let staged = Staged { tmp, path: path.to_path_buf(), done: false };
-    let mut file = std::fs::File::create(&staged.tmp)
-        .with_context(|| format!("cannot create {}", path.display()))
-        .map_err(Failure::usage)?;
+    let mut file =
+        std::fs::File::create(&staged.tmp).map_err(|e| path_error(e, format!("cannot create {}", path.display())))?;
     use std::io::Write as _;
     file.write_all(bytes)
         .and_then(|()| file.sync_all())
-        .with_context(|| format!("cannot write {}", path.display()))
-        .map_err(Failure::runtime)?;
+        .map_err(|e| anyhow::Error::new(e).context(format!("cannot write {}", path.display())))?;
     Ok(staged)
 }
 
 /// Write every file of `paths` from `processed` (see the module documentation).
-pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> Result<(), Failure> {
+pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> anyhow::Result<()> {
     let table = &processed.built.table;
     let mut outputs: Vec<(&Path, Vec<u8>)> = vec![(paths.table_csv.as_path(), table_csv(table).into_bytes())];
     if let (Some(comp), Some(p0), Some(p1)) = (&processed.comp, &paths.linuxcnc_type0, &paths.linuxcnc_type1) {
@@ -155,9 +152,7 @@ pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> 
     outputs.push((paths.recipe.as_path(), recipe.into_bytes()));
     let staged = outputs.iter().map(|(p, b)| stage(p, b)).collect::<Result<Vec<_>, _>>()?;
     for mut s in staged {
-        std::fs::rename(&s.tmp, &s.path)
-            .with_context(|| format!("cannot write {}", s.path.display()))
-            .map_err(Failure::runtime)?;
+        std::fs::rename(&s.tmp, &s.path).map_err(|e| path_error(e, format!("cannot write {}", s.path.display())))?;
         s.done = true;
     }
     Ok(())
@@ -206,7 +201,7 @@ mod tests {
     fn a_failed_write_leaves_no_temporary_file() {
         let dir = tempfile::tempdir().unwrap();
         let err = stage(&dir.path().join("missing/t.csv"), b"x");
-        assert!(matches!(err, Err(Failure::Usage(_))));
+        assert_eq!(crate::error::exit_status(&err.err().unwrap()), 2);
         let ok = stage(&dir.path().join("t.csv"), b"x").unwrap();
         let tmp = ok.tmp.clone();
         assert!(tmp.exists());

@@ -12,49 +12,61 @@
 //! what an error in locating the axis looks like: the report says how large
 //! that error is expected to be, from the stored axis fit.
 
-use crate::cli::{Failure, ModelGapArgs};
-use crate::commands::{classify, open_existing};
+use super::support::{emit, load_survey};
+use crate::error::{bad_input, path_error};
 use anyhow::Context as _;
-use std::path::Path;
-use survey_processing::Sample;
+use clap::Args;
+use std::path::{Path, PathBuf};
 use survey_processing::geometry::AxisFit;
 use survey_processing::model::Model;
-use survey_processing::modelgap::{ModelGap, ModelGapOptions, model_gap};
+use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 
-/// Run the command.
-pub async fn command(db: &Path, args: ModelGapArgs) -> Result<(), Failure> {
-    let model = Model::from_file(&args.model).map_err(Failure::usage)?;
-    let store = open_existing(db).await?;
-    let survey = store.resolve(args.survey).await.map_err(classify)?;
-    let mut records = store.samples(survey.id).await.map_err(Failure::runtime)?;
-    store.close().await;
-    records.sort_by_key(|r| r.seq);
-    let samples: Vec<Sample> = records.into_iter().map(|r| r.sample).collect();
-    let mut gap = model_gap(&samples, &model, &ModelGapOptions::default())
-        .with_context(|| format!("survey {} cannot be compared with the model {}", survey.id, args.model.display()))
-        .map_err(Failure::usage)?;
-    if let Some(axis) = survey.axis_json.as_deref().and_then(|j| serde_json::from_str::<AxisFit>(j).ok()) {
-        tracker_note(&mut gap, &axis);
+#[derive(Debug, Args)]
+pub struct ModelGapArgs {
+    /// The positioner model file (TOML) to compare with the survey.
+    #[arg(long, value_name = "FILE")]
+    pub model: PathBuf,
+    /// Survey id (default: the latest).
+    #[arg(long, value_name = "ID")]
+    pub survey: Option<i64>,
+    /// Write the improved model file (the model with the effects added and adjusted) here.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
+    let model = Model::from_file(&args.model)?;
+    // Samples come in acquisition order (by seq): drift has a time axis even without timestamps.
+    let (survey, samples) = load_survey(db, args.survey).await?;
+    let mut gap =
+        survey_processing::modelgap::model_gap(&samples, &model, &ModelGapOptions::default()).map_err(|e| {
+            bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, args.model.display()))
+        })?;
+    if let Some(axis) = &survey.axis {
+        tracker_note(&mut gap, axis);
     }
     if let Some(out) = &args.out {
         write_model(out, &gap, &args.model, survey.id)?;
         eprintln!("wrote the improved model to {}", out.display());
     }
     if args.json {
-        let mut doc = serde_json::to_value(&gap).context("the report does not serialise").map_err(Failure::runtime)?;
+        let mut doc = serde_json::to_value(&gap).context("the model-gap document does not serialise")?;
         if let Some(o) = doc.as_object_mut() {
             o.insert("survey_id".into(), survey.id.into());
             o.insert("model".into(), args.model.display().to_string().into());
             o.insert("model_out".into(), args.out.as_ref().map(|p| p.display().to_string()).into());
         }
-        crate::cli::emit(&format!("{doc}\n"));
+        emit(&format!("{doc}\n"));
     } else {
         let mut text = format!("survey {}, model {}\n", survey.id, args.model.display());
         text += &gap.to_text();
         if let Some(out) = &args.out {
             text += &format!("improved model written to {}\n", out.display());
         }
-        crate::cli::emit(&text);
+        emit(&text);
     }
     Ok(())
 }
@@ -84,7 +96,7 @@ fn tracker_note(gap: &mut ModelGap, axis: &AxisFit) {
 
 /// Write the improved model: a header comment and the model file, through a
 /// temporary file renamed over `out`.
-fn write_model(out: &Path, gap: &ModelGap, given: &Path, survey_id: i64) -> Result<(), Failure> {
+fn write_model(out: &Path, gap: &ModelGap, given: &Path, survey_id: i64) -> anyhow::Result<()> {
     let mut text = format!(
         "# Improved by `survey model-gap` from {} on survey {survey_id}: {} effect(s) added, {} adjusted;\n\
          # residual RMS {:.3e} -> {:.3e} deg, noise floor {:.3e} deg.\n",
@@ -106,9 +118,9 @@ fn write_model(out: &Path, gap: &ModelGap, given: &Path, survey_id: i64) -> Resu
     text += &gap.model.to_toml();
     let name = out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "model".into());
     let tmp = out.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    std::fs::write(&tmp, &text).with_context(|| format!("cannot write {}", out.display())).map_err(Failure::usage)?;
-    std::fs::rename(&tmp, out).with_context(|| format!("cannot write {}", out.display())).map_err(|e| {
+    std::fs::write(&tmp, &text).map_err(|e| path_error(e, format!("cannot write {}", out.display())))?;
+    std::fs::rename(&tmp, out).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        Failure::usage(e)
+        path_error(e, format!("cannot write {}", out.display()))
     })
 }

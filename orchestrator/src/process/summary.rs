@@ -1,4 +1,4 @@
-//! The `survey process` JSON document and human summary.
+//! The `survey process` JSON document and the summary for people.
 //!
 //! The JSON holds the contract's keys (`survey_id`; `peaks` with
 //! `cycles_per_rev`, `amplitude_deg`, `source`, `repeatable`; `aliases` with

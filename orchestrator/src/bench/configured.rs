@@ -1,0 +1,90 @@
+//! The bench of a configuration file: real instruments (or anything that
+//! speaks their protocols, such as `survey sim`), on the system clock.
+
+use super::{Bench, DEFAULT_RUNS};
+use crate::bench::instruments::Instruments;
+use crate::config::SurveyConfig;
+use crate::engine::{Engine, ReferenceKind};
+use crate::error::bad_input;
+use crate::plan::SurveyPlan;
+use crate::survey::{ConfiguredSetup, Setup, SurveySource};
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+use survey_drivers::{Clock, SystemClock};
+
+/// Plan settings from the command line, over the configuration's `[survey]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PlanOverrides {
+    /// `--points`.
+    pub points: Option<u32>,
+    /// `--runs`.
+    pub runs: Option<u32>,
+    /// `--bidirectional` (it can only turn the reverse pass on).
+    pub bidirectional: bool,
+}
+
+impl Bench {
+    /// The bench of the configuration file at `path`, checked before anything is stored.
+    pub fn configured(path: &Path, overrides: PlanOverrides) -> anyhow::Result<Bench> {
+        let cfg = SurveyConfig::from_file(path)?;
+        let points = overrides.points.or(cfg.survey.points).ok_or_else(|| {
+            bad_input(format!("--points N is required (or `points` in the [survey] section of {})", path.display()))
+        })?;
+        let runs = overrides.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
+        let bidirectional = overrides.bidirectional || cfg.survey.bidirectional.unwrap_or(false);
+        let mut plan = match cfg.survey.travel_deg {
+            Some([lo, hi]) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional)?,
+            None => SurveyPlan::full_circle(points, runs, bidirectional)?,
+        };
+        if let Some(overrun) = cfg.survey.overrun_deg {
+            plan.overrun_deg = overrun;
+        }
+        if let Some([lo, hi]) = cfg.survey.travel_deg {
+            plan.check_travel(lo, hi)?;
+        }
+        let setup = ConfiguredSetup { config: cfg, plan };
+        let mut bench = on_clock(&setup, Arc::new(SystemClock::new()));
+        if let Some(obj) = bench.instruments.as_object_mut() {
+            obj.insert("config_file".into(), path.display().to_string().into());
+        }
+        Ok(bench)
+    }
+}
+
+fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
+    let cfg = &setup.config;
+    let engine = configured_engine(cfg, clock.clone());
+    let instruments = serde_json::json!({
+        "positioner": engine.positioner_name(),
+        "reference": engine.reference_name(),
+    });
+    let t = cfg.timing();
+    let measure =
+        if cfg.reference() == ReferenceKind::Tracker { Duration::from_secs(1) } else { Duration::from_millis(200) };
+    let per_target = t.dwell + measure + t.poll_interval;
+    Bench {
+        engine,
+        clock,
+        estimate: setup.plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target),
+        plan: setup.plan.clone(),
+        setup: Setup::Configured(setup.clone()),
+        model: None,
+        source: SurveySource::Instruments,
+        instruments,
+    }
+}
+
+/// The engine on the configured instruments.
+pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
+    let mut engine = Instruments::from_config(cfg).into_engine(clock, cfg);
+    if let Some(arm) = &cfg.arm {
+        engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
+    }
+    engine
+}
+
+/// The configured bench of a stored survey, its clock going on from `resume_at`.
+pub(super) fn resume(setup: &ConfiguredSetup, resume_at: Duration) -> Bench {
+    on_clock(setup, Arc::new(SystemClock::starting_at(resume_at)))
+}

@@ -1,0 +1,143 @@
+//! The simulated bench (the embedded default): one of the paper's
+//! positioners, or a model file, with a tracker or an autocollimator, on a
+//! virtual clock.
+
+use super::Bench;
+use crate::engine::{Engine, Reference, ReferenceKind, Timing};
+use crate::error::bad_input;
+use crate::plan::SurveyPlan;
+use crate::survey::{Setup, SimulatedSetup, SurveySource};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+use survey_drivers::{Clock, VirtualClock};
+use survey_processing::model::Model;
+use survey_sims::autocollimator::AutocollimatorConfig;
+use survey_sims::{Preset, SimBench};
+
+/// Runs when neither the command line nor the configuration says: ISO 230-2's five.
+pub const DEFAULT_RUNS: u32 = 5;
+
+/// What the user asked of the simulated bench.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulatedRequest {
+    /// Targets per revolution (or over the travel).
+    pub points: Option<u32>,
+    /// Runs (default [`DEFAULT_RUNS`]).
+    pub runs: Option<u32>,
+    /// Measure the reverse pass too.
+    pub bidirectional: bool,
+    /// The preset (`fig1`, `fig4`, `fig8`).
+    pub preset: String,
+    /// A model file to simulate instead of the preset's model.
+    pub model_file: Option<PathBuf>,
+    /// The reference instrument.
+    pub reference: ReferenceKind,
+    /// The seed of every random draw.
+    pub seed: u64,
+}
+
+/// The stationary measurement time of each simulated reference.
+fn measurement_time(reference: ReferenceKind) -> Duration {
+    match reference {
+        ReferenceKind::Tracker => Duration::from_secs(1),
+        ReferenceKind::Autocollimator => Duration::from_millis(200),
+    }
+}
+
+impl Bench {
+    /// The simulated bench of a request, checked before anything is stored.
+    pub fn simulated(req: &SimulatedRequest) -> anyhow::Result<Bench> {
+        let points = req.points.ok_or_else(|| bad_input("--points N is required"))?;
+        let runs = req.runs.unwrap_or(DEFAULT_RUNS);
+        let preset =
+            Preset::by_name(&req.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", req.preset)))?;
+        let model = match &req.model_file {
+            Some(path) => Model::from_file(path)?,
+            None => preset.model.clone(),
+        };
+        let plan = match (req.reference, preset.travel) {
+            (ReferenceKind::Autocollimator, Some((lo, hi))) => {
+                return Err(bad_input(format!(
+                    "the autocollimator reference needs a full revolution, but preset {} travels {lo}..{hi} deg",
+                    preset.name
+                )));
+            }
+            (_, None) => SurveyPlan::full_circle(points, runs, req.bidirectional)?,
+            (_, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, req.bidirectional)?,
+        };
+        let timing =
+            Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
+        let per_target = preset.settle + timing.dwell + measurement_time(req.reference) + timing.poll_interval;
+        let run_period = plan.estimate_run_duration(timing.velocity_deg_s, timing.accel_deg_s2, per_target);
+        let setup = SimulatedSetup {
+            preset: preset.name.to_string(),
+            model_file: req.model_file.as_ref().map(|p| p.display().to_string()),
+            reference: req.reference,
+            seed: req.seed,
+            plan,
+            timing,
+            run_period_s: run_period.as_secs_f64(),
+        };
+        Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
+    }
+}
+
+/// The bench of `setup` on `clock`.
+fn on_clock(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<VirtualClock>) -> Bench {
+    let engine = simulated_engine(setup, preset, model.clone(), clock.clone());
+    let instruments = serde_json::json!({
+        "positioner": format!("simulated {}", preset.name),
+        "reference": format!("simulated {}", setup.reference.as_str()),
+    });
+    Bench {
+        engine,
+        clock,
+        plan: setup.plan.clone(),
+        estimate: Duration::from_secs_f64(setup.run_period_s * setup.plan.runs as f64),
+        setup: Setup::Simulated(setup.clone()),
+        model: Some(model),
+        source: SurveySource::Simulated,
+        instruments,
+    }
+}
+
+/// Build the simulated instruments of a setup on `clock`.
+pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<VirtualClock>) -> Engine {
+    let dyn_clock: Arc<dyn Clock> = clock;
+    let mut builder = SimBench::builder(preset, setup.seed, dyn_clock.clone())
+        .model(model)
+        .drift_run_period(Duration::from_secs_f64(setup.run_period_s));
+    if setup.reference == ReferenceKind::Autocollimator {
+        let faces = setup.plan.targets_deg.len() as u32;
+        builder = builder.autocollimator(AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3)));
+    }
+    let bench = builder.build();
+    let reference = match setup.reference {
+        ReferenceKind::Tracker => Reference::Tracker(Box::new(bench.tracker)),
+        ReferenceKind::Autocollimator => Reference::Autocollimator {
+            faces: bench.autocollimator.faces(),
+            certificate_arcsec: bench.autocollimator.certificate_arcsec().to_vec(),
+            instrument: Box::new(bench.autocollimator),
+        },
+    };
+    Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
+}
+
+/// The simulated bench of a stored survey, continued at step `next_seq`.
+pub(super) fn resume(
+    setup: &SimulatedSetup,
+    model: Option<Model>,
+    resume_at: Duration,
+    next_seq: u64,
+) -> anyhow::Result<Bench> {
+    let preset =
+        Preset::by_name(&setup.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", setup.preset)))?;
+    let model = model.unwrap_or_else(|| preset.model.clone());
+    let mut resumed = setup.clone();
+    resumed.seed = survey_sims::derive_seed(setup.seed, 0x5e5u64 + next_seq);
+    let mut bench = on_clock(&resumed, &preset, model, Arc::new(VirtualClock::starting_at(resume_at)));
+    // What is stored stays the original setup (its seed included).
+    bench.setup = Setup::Simulated(setup.clone());
+    Ok(bench)
+}

@@ -1,0 +1,28 @@
+//! `survey export --csv FILE`: write a survey in the import format.
+
+use super::support::load_survey;
+use crate::csvio::write_survey_csv;
+use crate::error::path_error;
+use anyhow::Context as _;
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// Where to write the CSV.
+    #[arg(long, value_name = "FILE")]
+    pub csv: PathBuf,
+    /// Survey id (default: the latest).
+    #[arg(long, value_name = "ID")]
+    pub survey: Option<i64>,
+}
+
+pub async fn export(db: &Path, args: ExportArgs) -> anyhow::Result<()> {
+    let (survey, samples) = load_survey(db, args.survey).await?;
+    let out =
+        std::fs::File::create(&args.csv).map_err(|e| path_error(e, format!("cannot create {}", args.csv.display())))?;
+    write_survey_csv(std::io::BufWriter::new(out), &samples)
+        .with_context(|| format!("cannot write {}", args.csv.display()))?;
+    eprintln!("wrote {} samples of survey {} to {}", samples.len(), survey.id, args.csv.display());
+    Ok(())
+}

@@ -1,0 +1,117 @@
+//! `survey run`: acquire a survey on the simulated bench (the embedded
+//! default) or on the instruments of `--config`, then the statistics, the
+//! processing and, with `--verify`, the corrected accuracy.
+
+use super::support::emit;
+use crate::bench::{Bench, PlanOverrides, SimulatedRequest};
+use crate::conclude::{ConcludeOptions, conclude};
+use crate::engine::ReferenceKind;
+use crate::output::human;
+use crate::session::{AcquireOptions, acquire};
+use crate::store::Store;
+use clap::{Args, ValueEnum};
+use std::path::{Path, PathBuf};
+
+/// The reference instrument of the simulated bench.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ReferenceArg {
+    /// A tracking laser measuring an SMR on an arm (the axis is located first).
+    Tracker,
+    /// An autocollimator on a polygon: the targets are the faces (--points = faces).
+    Autocollimator,
+}
+
+impl From<ReferenceArg> for ReferenceKind {
+    fn from(r: ReferenceArg) -> Self {
+        match r {
+            ReferenceArg::Tracker => ReferenceKind::Tracker,
+            ReferenceArg::Autocollimator => ReferenceKind::Autocollimator,
+        }
+    }
+}
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Targets per revolution (or over the travel of a partial-range axis);
+    /// with an autocollimator, the polygon's faces.
+    #[arg(long, value_name = "N")]
+    pub points: Option<u32>,
+    /// Measure the reverse pass too (needed for hysteresis and the reversal value).
+    #[arg(long)]
+    pub bidirectional: bool,
+    /// Runs [default: 5, as ISO 230-2 asks].
+    #[arg(long, value_name = "R")]
+    pub runs: Option<u32>,
+    /// Survey real instruments described in this configuration file (TOML).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["model", "preset", "reference", "seed"])]
+    pub config: Option<PathBuf>,
+    /// Positioner model file (TOML) for the simulated positioner, instead of the preset's.
+    #[arg(long, value_name = "FILE")]
+    pub model: Option<PathBuf>,
+    /// Simulated positioner: one of the paper's positioners.
+    #[arg(long, value_name = "NAME", default_value = "fig8", value_parser = ["fig1", "fig4", "fig8"])]
+    pub preset: String,
+    /// Reference instrument of the simulated bench.
+    #[arg(long, value_enum, default_value_t = ReferenceArg::Tracker)]
+    pub reference: ReferenceArg,
+    /// Seed of every random draw of the simulated instruments.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print the summary as one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Process with this recipe (TOML) at the end, as the last calibration did.
+    #[arg(long, value_name = "FILE")]
+    pub recipe: Option<PathBuf>,
+    /// After processing, load the table into the positioner, apply it in the
+    /// feedback path and measure the corrected accuracy with a new survey.
+    #[arg(long)]
+    pub verify: bool,
+    /// Fault injection for tests: the process aborts (like a power loss)
+    /// once N samples have been measured on the simulated bench.
+    #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]
+    pub sim_crash_after: Option<u64>,
+}
+
+pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
+    // A bad recipe is found before hours of measuring, not after.
+    if let Some(path) = &args.recipe {
+        survey_processing::recipe::Recipe::from_file(path)?;
+    }
+    let mut bench = match &args.config {
+        Some(path) => Bench::configured(
+            path,
+            PlanOverrides { points: args.points, runs: args.runs, bidirectional: args.bidirectional },
+        )?,
+        None => Bench::simulated(&SimulatedRequest {
+            points: args.points,
+            runs: args.runs,
+            bidirectional: args.bidirectional,
+            preset: args.preset.clone(),
+            model_file: args.model.clone(),
+            reference: args.reference.into(),
+            seed: args.seed,
+        })?,
+    };
+    let store = Store::open(db).await?;
+    let id = store.create_survey(&bench.new_survey()).await?;
+    store.set_started(id, bench.clock.now().as_secs_f64()).await?;
+    let plan = bench.plan.clone();
+    tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
+    eprintln!(
+        "survey {id}: {} targets x {} runs{}, {}: about {} of instrument time",
+        plan.targets_deg.len(),
+        plan.runs,
+        if plan.bidirectional { " bidirectional" } else { "" },
+        bench.describe(),
+        human(bench.estimate)
+    );
+    let options = AcquireOptions { progress: !args.json, crash_after: args.sim_crash_after };
+    let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options).await?;
+    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify: args.verify, acquire: options };
+    let concluded = conclude(&store, id, &mut bench.engine, &plan, &acquired, db, finish).await;
+    store.close().await;
+    let concluded = concluded?;
+    emit(&concluded.output.render(args.json));
+    concluded.result
+}

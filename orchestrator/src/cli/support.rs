@@ -1,0 +1,46 @@
+//! What every command shares: logging, printing, opening the database.
+
+use crate::store::Store;
+use crate::survey::SurveyRecord;
+use std::path::Path;
+use survey_processing::Sample;
+
+/// Logs go to stderr through `tracing`; `RUST_LOG` sets the level (default:
+/// warnings, and sqlx's statement logs only at debug).
+pub fn init_logging() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,sqlx=error"));
+    use std::io::IsTerminal as _;
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .try_init();
+}
+
+/// Write command output to stdout. A closed pipe (`survey stats | head`) is
+/// not an error worth a panic: the reader has what it wanted.
+pub fn emit(text: &str) {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
+}
+
+/// Open an existing database for a command that reads: a missing file is bad input.
+pub async fn open_existing(db: &Path) -> anyhow::Result<Store> {
+    Store::open_existing(db).await
+}
+
+/// Open the database at `db`, read survey `id` (the latest when `None`) and
+/// its samples, and close it: what the commands that only read need.
+pub async fn load_survey(db: &Path, id: Option<i64>) -> anyhow::Result<(SurveyRecord, Vec<Sample>)> {
+    let store = open_existing(db).await?;
+    let loaded = async {
+        let survey = store.resolve(id).await?;
+        let samples = store.samples(survey.id).await?;
+        anyhow::Ok((survey, samples))
+    }
+    .await;
+    store.close().await;
+    loaded
+}

@@ -1,0 +1,95 @@
+//! What follows an acquisition, like the paper's full process: the ISO 230-2
+//! statistics, then the processing (a recipe replayed when given), then with
+//! `--verify` the corrected accuracy measured with the table applied. The
+//! survey's samples are read once, here, for all three.
+
+use crate::engine::Engine;
+use crate::output::{Output, human, iso_json, iso_text};
+use crate::plan::SurveyPlan;
+use crate::process::{ProcessOptions, process_survey};
+use crate::session::{AcquireOptions, Acquired};
+use crate::store::Store;
+use anyhow::Context as _;
+use std::path::{Path, PathBuf};
+use survey_processing::iso230::iso230_2;
+
+/// What to do after the acquisition.
+#[derive(Debug, Clone, Default)]
+pub struct ConcludeOptions {
+    /// Replay this recipe in the processing.
+    pub recipe: Option<PathBuf>,
+    /// Verify the table in the loop.
+    pub verify: bool,
+    /// How the verification's acquisition shows itself.
+    pub acquire: AcquireOptions,
+}
+
+/// The output, and whether everything after the acquisition succeeded: the
+/// output is worth printing even when the processing or the verification failed.
+#[derive(Debug)]
+pub struct Concluded {
+    /// What to print.
+    pub output: Output,
+    /// The processing's or the verification's failure, if any.
+    pub result: anyhow::Result<()>,
+}
+
+/// Statistics, processing and verification of survey `id`, just acquired
+/// with `engine` (see the module documentation). `db` names the database in
+/// the output.
+pub async fn conclude(
+    store: &Store,
+    id: i64,
+    engine: &mut Engine,
+    plan: &SurveyPlan,
+    acquired: &Acquired,
+    db: &Path,
+    options: ConcludeOptions,
+) -> anyhow::Result<Concluded> {
+    let record = store.survey(id).await?;
+    let samples = store.samples(id).await?;
+    let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;
+    let outcome = &acquired.outcome;
+    let mut doc = iso_json(id, &iso);
+    doc["status"] = record.status.as_str().into();
+    doc["samples"] = samples.len().into();
+    doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
+    doc["real_time_s"] = acquired.real.as_secs_f64().into();
+    doc["faults_survived"] = outcome.faults_survived.into();
+    doc["db"] = db.display().to_string().into();
+    let mut text = format!(
+        "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}\n",
+        samples.len(),
+        human(outcome.instrument_time),
+        acquired.real.as_secs_f64(),
+        if outcome.faults_survived > 0 {
+            format!(", {} faults survived", outcome.faults_survived)
+        } else {
+            String::new()
+        }
+    );
+    text += &iso_text(id, &iso);
+    text +=
+        &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
+
+    let processing = ProcessOptions { recipe: options.recipe.clone(), design: None, table_out: None };
+    let processed = match process_survey(&record, &samples, processing) {
+        Ok(p) => p,
+        Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+    };
+    doc["process"] = processed.json();
+    text += "\n";
+    text += &processed.text();
+    let mut result = Ok(());
+    if options.verify {
+        match crate::verify::verify(engine, store, &record, &samples, plan, &processed, options.acquire).await {
+            Ok(v) => {
+                doc["verify"] = v.doc;
+                text += "\n";
+                text += &v.text;
+            }
+            Err(e) => result = Err(e),
+        }
+    }
+    Ok(Concluded { output: Output { doc, text }, result })
+}

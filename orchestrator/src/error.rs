@@ -1,0 +1,82 @@
+//! What an error means for the user, decided in one place.
+//!
+//! Every layer returns [`anyhow::Error`]s that carry a typed cause. An error
+//! is *bad input* (exit status 2: a flag, a file, a database or a survey id
+//! the user gave is wrong, and nothing stored was changed) when a cause in its
+//! chain is one of the input error types listed in [`is_bad_input`];
+//! everything else is a *run-time failure* (exit status 1: an instrument, the
+//! disk). The command line turns the error into the exit status with
+//! [`exit_status`] and nowhere else.
+
+use crate::config::ConfigError;
+use crate::csvio::CsvError;
+use crate::plan::PlanError;
+use crate::store::NotFound;
+use crate::survey::Damaged;
+use survey_processing::model::ModelError;
+use survey_processing::pipeline::PipelineError;
+use survey_processing::recipe::RecipeError;
+
+/// Bad input that has no type of its own: a missing flag, a path that cannot
+/// be created, a survey that cannot do what was asked.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct BadInput(pub String);
+
+/// A [`BadInput`] error.
+pub fn bad_input(message: impl Into<String>) -> anyhow::Error {
+    BadInput(message.into()).into()
+}
+
+/// Whether the user's input caused `err`: some cause in its chain is an input
+/// error ([`BadInput`], the store's [`NotFound`], a [`Damaged`] survey record,
+/// a defect of a configuration, model, recipe or CSV file, a plan that cannot
+/// be made, data that cannot be processed).
+pub fn is_bad_input(err: &anyhow::Error) -> bool {
+    err.chain().any(|c| {
+        c.is::<BadInput>()
+            || c.is::<NotFound>()
+            || c.is::<Damaged>()
+            || c.is::<ConfigError>()
+            || c.is::<CsvError>()
+            || c.is::<ModelError>()
+            || c.is::<RecipeError>()
+            || c.is::<PlanError>()
+            || c.is::<PipelineError>()
+    })
+}
+
+/// The exit status of a failed command: 2 for bad input, 1 for a run-time failure.
+pub fn exit_status(err: &anyhow::Error) -> u8 {
+    if is_bad_input(err) { 2 } else { 1 }
+}
+
+/// An I/O error on a path the user gave: a path that cannot exist or be
+/// reached (missing folder, permission, a folder where a file belongs) is bad
+/// input; anything else (a full disk, a device error) is a run-time failure.
+pub fn path_error(e: std::io::Error, what: String) -> anyhow::Error {
+    use std::io::ErrorKind::*;
+    match e.kind() {
+        NotFound | PermissionDenied | IsADirectory | NotADirectory | InvalidInput | InvalidFilename
+        | ReadOnlyFilesystem | AlreadyExists => anyhow::Error::new(BadInput(format!("{what}: {e}"))),
+        _ => anyhow::Error::new(e).context(what),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use anyhow::Context as _;
+
+    #[test]
+    fn the_chain_decides() {
+        let e = Err::<(), _>(NotFound("no survey with id 7".into())).context("reading").unwrap_err();
+        assert_eq!(exit_status(&e), 2);
+        assert_eq!(exit_status(&anyhow::anyhow!("the disk is full")), 1);
+        assert_eq!(exit_status(&bad_input("--points N is required").context("survey run")), 2);
+        let io = std::io::Error::from(std::io::ErrorKind::NotFound);
+        assert_eq!(exit_status(&path_error(io, "cannot create out/t.csv".into())), 2);
+        let io = std::io::Error::from(std::io::ErrorKind::StorageFull);
+        assert_eq!(exit_status(&path_error(io, "cannot write out/t.csv".into())), 1);
+    }
+}

@@ -1,0 +1,129 @@
+//! The closed loop of `survey run --verify`: load the correction table into
+//! the positioner through the driver trait, apply it in the feedback path,
+//! and measure the corrected accuracy with a new survey of the same plan
+//! (source `verification`; it stores the table it applied, so an
+//! interrupted verification resumes with the same table).
+
+use crate::engine::{Engine, Timing};
+use crate::output::{Output, iso_json, iso_text};
+use crate::plan::SurveyPlan;
+use crate::process::ProcessOutcome;
+use crate::session::{AcquireOptions, acquire};
+use crate::store::Store;
+use crate::survey::{NewSurvey, SurveyRecord, SurveySource, VerificationOf};
+use anyhow::Context as _;
+use survey_drivers::clock::with_timeout;
+use survey_processing::Sample;
+use survey_processing::correction::ErrorFigures;
+use survey_processing::iso230::iso230_2;
+use survey_processing::table::CorrectionTable;
+
+/// Load `table` into the engine's positioner and apply it in the feedback path.
+pub async fn apply_correction(engine: &mut Engine, table: &CorrectionTable) -> anyhow::Result<()> {
+    let clock = engine.clock().clone();
+    let name = engine.positioner_name().to_string();
+    let timing = Timing::default();
+    let p = engine.positioner_mut();
+    with_timeout(&*clock, timing.call_timeout * 30, &name, "load correction table", p.load_correction_table(table))
+        .await?;
+    with_timeout(&*clock, timing.call_timeout, &name, "enable correction", p.enable_correction(true)).await?;
+    Ok(())
+}
+
+/// Peak of `|error - mean error|` over every sample: the "+/-" figure of the
+/// paper, as processing's prediction computes it.
+fn peak_deg(samples: &[Sample]) -> f64 {
+    let errors: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
+    ErrorFigures::of(&errors, None).peak_deg
+}
+
+/// Peak of the systematic error: the mean error per target and direction over
+/// the runs, less the overall mean (the noise averages down by sqrt(runs)).
+fn systematic_peak_deg(samples: &[Sample]) -> f64 {
+    let mut groups: std::collections::BTreeMap<(u64, survey_processing::Direction), (f64, usize)> = Default::default();
+    for s in samples {
+        let g = groups.entry((s.target_deg.to_bits(), s.direction)).or_default();
+        g.0 += s.error_deg();
+        g.1 += 1;
+    }
+    let means: Vec<f64> = groups.values().map(|(sum, n)| sum / *n as f64).collect();
+    let mean = means.iter().sum::<f64>() / means.len().max(1) as f64;
+    means.iter().map(|m| (m - mean).abs()).fold(0.0, f64::max)
+}
+
+/// Verify the table of `processed` (made from `native` and its `native_samples`):
+/// apply it and measure `plan` again as a new survey.
+pub async fn verify(
+    engine: &mut Engine,
+    store: &Store,
+    native: &SurveyRecord,
+    native_samples: &[Sample],
+    plan: &SurveyPlan,
+    processed: &ProcessOutcome,
+    options: AcquireOptions,
+) -> anyhow::Result<Output> {
+    let table = &processed.processed.built.table;
+    apply_correction(engine, table).await?;
+    let id = store
+        .create_survey(&NewSurvey {
+            source: SurveySource::Verification,
+            points: native.points,
+            runs: native.runs,
+            bidirectional: native.bidirectional,
+            setup: native.setup.clone(),
+            model: native.model.clone(),
+            instruments: serde_json::json!({
+                "rows": table.len(),
+                "directional": table.is_directional(),
+            }),
+            verification: Some(VerificationOf {
+                verifies_survey: native.id,
+                table: processed.files.table_csv.display().to_string(),
+                correction: Some(table.clone()),
+            }),
+            planned_samples: Some(plan.total_steps()),
+            ..NewSurvey::default()
+        })
+        .await?;
+    eprintln!("survey {id}: verifying the correction table of survey {} in the positioner's feedback path", native.id);
+    acquire(store, id, engine, plan, 0, options).await?;
+    let corrected = store.samples(id).await?;
+    let predicted = processed.processed.prediction.corrected_peak_deg;
+    figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional())
+}
+
+/// The verification's figures: native against corrected.
+pub fn figures(
+    id: i64,
+    native_id: i64,
+    native: &[Sample],
+    corrected: &[Sample],
+    predicted: Option<f64>,
+    directional: bool,
+) -> anyhow::Result<Output> {
+    let iso = iso230_2(corrected).context("ISO 230-2 statistics of the verification")?;
+    let (native_peak, corrected_peak) = (peak_deg(native), peak_deg(corrected));
+    let doc = serde_json::json!({
+        "survey_id": id,
+        "verifies_survey": native_id,
+        "native_peak_deg": native_peak,
+        "corrected_peak_deg": corrected_peak,
+        "predicted_corrected_peak_deg": predicted,
+        "improvement": native_peak / corrected_peak,
+        "native_systematic_peak_deg": systematic_peak_deg(native),
+        "corrected_systematic_peak_deg": systematic_peak_deg(corrected),
+        "directional": directional,
+        "iso230_2": iso_json(id, &iso)["iso230_2"].clone(),
+    });
+    let predicted = predicted.map(|p| format!(" (predicted +/-{p:.5})")).unwrap_or_default();
+    let text = format!(
+        "verification (survey {id}): measured with the table applied in the feedback path\n  \
+         native peak +/-{native_peak:.5} deg, corrected +/-{corrected_peak:.5} deg{predicted}, {:.1}x better\n  \
+         systematic part (mean over the runs): native +/-{:.5} deg, corrected +/-{:.5} deg\n{}",
+        native_peak / corrected_peak,
+        systematic_peak_deg(native),
+        systematic_peak_deg(corrected),
+        iso_text(id, &iso)
+    );
+    Ok(Output { doc, text })
+}
