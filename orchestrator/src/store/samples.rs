@@ -57,30 +57,22 @@ impl Store {
     }
 
     /// The samples of a survey in acquisition order (by seq): only the six
-    /// columns processing needs, streamed from SQLite into a compact vector
-    /// (about 48 bytes a sample; no raw readings, no join).
+    /// columns processing needs, read into a compact vector (48 bytes a
+    /// sample; no raw readings, no join).
+    ///
+    /// This is the bulk read every command makes, so it does not go through
+    /// sqlx: sqlx's SQLite driver hands each row from its worker thread over
+    /// a channel, copying every value under SQLite's global mutex, which made
+    /// loading cost twenty times the processing. It reads on a blocking thread
+    /// through a read-only rusqlite connection to the same bundled SQLite
+    /// (both link `libsqlite3-sys`), which sees every committed transaction
+    /// (WAL) and writes nothing.
     pub async fn samples(&self, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
-        let expected: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples WHERE survey_id = ?")
-            .bind(survey_id)
-            .fetch_one(&self.pool)
+        let path = self.path.clone();
+        tokio::task::spawn_blocking(move || read_samples(&path, survey_id))
             .await
-            .with_context(|| format!("cannot read the samples of survey {survey_id}"))?;
-        let mut out = Vec::with_capacity(usize::try_from(expected).unwrap_or(0));
-        let mut rows = sqlx::query(
-            "SELECT seq, run, direction, target_deg, readout_deg, actual_deg, timestamp_s \
-             FROM samples WHERE survey_id = ? ORDER BY seq",
-        )
-        .bind(survey_id)
-        .fetch(&self.pool);
-        while let Some(row) =
-            rows.try_next().await.with_context(|| format!("cannot read the samples of survey {survey_id}"))?
-        {
-            out.push(
-                compact_from_row(&row)
-                    .with_context(|| format!("survey {survey_id} in {} holds a bad sample", self.path.display()))?,
-            );
-        }
-        Ok(out)
+            .context("the sample reader stopped")?
+            .with_context(|| format!("cannot read the samples of survey {survey_id}"))
     }
 
     /// The samples of a survey, ordered by seq, with their raw readings and
@@ -219,22 +211,39 @@ async fn insert_samples(conn: &mut SqliteConnection, survey_id: i64, samples: &[
     Ok(())
 }
 
-/// A sample from the six columns of [`Store::samples`].
-fn compact_from_row(row: &SqliteRow) -> anyhow::Result<Sample> {
-    let direction = match row.try_get::<&str, _>(2)? {
-        "forward" => Direction::Forward,
-        "reverse" => Direction::Reverse,
-        other => bail!("seq {}: direction '{other}'", row.try_get::<i64, _>(0)?),
-    };
-    let run: i64 = row.try_get(1)?;
-    Ok(Sample {
-        run: u32::try_from(run).with_context(|| format!("bad run {run}"))?,
-        direction,
-        target_deg: row.try_get(3)?,
-        readout_deg: row.try_get(4)?,
-        actual_deg: row.try_get(5)?,
-        timestamp_s: row.try_get(6)?,
-    })
+/// [`Store::samples`], on the calling thread.
+fn read_samples(path: &std::path::Path, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
+    use rusqlite::OpenFlags;
+    let conn = rusqlite::Connection::open_with_flags(
+        path,
+        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX | OpenFlags::SQLITE_OPEN_URI,
+    )?;
+    conn.busy_timeout(super::BUSY_TIMEOUT)?;
+    let count: i64 = conn.query_row("SELECT COUNT(*) FROM samples WHERE survey_id = ?1", [survey_id], |r| r.get(0))?;
+    let mut out = Vec::with_capacity(usize::try_from(count).unwrap_or(0));
+    let mut stmt = conn.prepare(
+        "SELECT seq, run, direction, target_deg, readout_deg, actual_deg, timestamp_s \
+         FROM samples WHERE survey_id = ?1 ORDER BY seq",
+    )?;
+    let mut rows = stmt.query([survey_id])?;
+    while let Some(row) = rows.next()? {
+        let seq: i64 = row.get(0)?;
+        let direction = match row.get_ref(2)?.as_str()? {
+            "forward" => Direction::Forward,
+            "reverse" => Direction::Reverse,
+            other => bail!("sample seq {seq}: direction '{other}'"),
+        };
+        let run: i64 = row.get(1)?;
+        out.push(Sample {
+            run: u32::try_from(run).with_context(|| format!("sample seq {seq}: bad run {run}"))?,
+            direction,
+            target_deg: row.get(3)?,
+            readout_deg: row.get(4)?,
+            actual_deg: row.get(5)?,
+            timestamp_s: row.get(6)?,
+        });
+    }
+    Ok(out)
 }
 
 fn sample_from_row(row: &SqliteRow) -> anyhow::Result<RecordedSample> {
