@@ -24,8 +24,9 @@
 //! ```
 //!
 //! which is the contract's reading of the table (linear interpolation between
-//! rows, wrapping at 360) and agrees with [`CorrectionTable::error_at`] to
-//! rounding (property-tested below). A direction-aware table holds a second
+//! rows, wrapping at 360) and gives the same bits as
+//! [`CorrectionTable::error_at`], the one reading of a table (both place the
+//! readout with `table::row_position`; property-tested below). A direction-aware table holds a second
 //! column for reverse motion; [`DirectionTracker`] derives the direction from
 //! successive readouts the way LinuxCNC's compensation does (moving up uses
 //! the forward column, moving down the reverse one, standing still keeps the
@@ -82,12 +83,9 @@ fn pairs(col: &[f64]) -> Vec<[f64; 2]> {
 
 #[inline(always)]
 fn lookup(col: &[[f64; 2]], rows: usize, rows_f: f64, scale: f64, inv_rows: f64, readout_deg: f64) -> f64 {
-    let p = readout_deg * scale;
-    let p = p - rows_f * (p * inv_rows).floor();
-    // `as usize` saturates (negative or NaN give 0), so no input can index out of range.
-    let i = (p as usize).min(rows - 1);
+    let (i, frac) = crate::table::row_position(readout_deg, rows, rows_f, scale, inv_rows);
     let [value, slope] = col[i];
-    value + slope * (p - i as f64)
+    value + slope * frac
 }
 
 impl Corrector {
@@ -384,8 +382,8 @@ mod tests {
             for d in [Direction::Forward, Direction::Reverse] {
                 let a = c.error(r, d);
                 let b = t.error_at(r, d);
-                assert!((a - b).abs() < 1e-12, "{r} {d}: {a} vs {b}");
-                assert!((c.correct(r, d) - t.correct(r, d)).abs() < 1e-9);
+                assert_eq!(a.to_bits(), b.to_bits(), "{r} {d}: {a} vs {b}");
+                assert_eq!(c.correct(r, d).to_bits(), t.correct(r, d).to_bits());
             }
         }
         // Exactly on a row: the row's value; half way: the mean of two rows.
@@ -523,7 +521,7 @@ mod tests {
             let c = Corrector::new(&t);
             for r in readouts {
                 for d in [Direction::Forward, Direction::Reverse] {
-                    prop_assert!((c.error(r, d) - t.error_at(r, d)).abs() < 1e-12);
+                    prop_assert_eq!(c.error(r, d).to_bits(), t.error_at(r, d).to_bits());
                 }
             }
         }

@@ -11,6 +11,7 @@ pub mod corrector;
 pub mod errormap;
 pub mod geometry;
 pub mod iso230;
+pub mod lstsq;
 pub mod model;
 pub mod modelgap;
 pub mod pipeline;

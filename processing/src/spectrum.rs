@@ -66,6 +66,7 @@
 //! odd and even `N`); the transform sign is `rustfft`'s forward `e^(-2 pi i jk/N)`,
 //! which the tests below check through the phase convention.
 
+use crate::lstsq::Qr;
 use crate::types::wrap_360;
 use realfft::RealFftPlanner;
 use serde::{Deserialize, Serialize};
@@ -411,11 +412,7 @@ pub fn fit_sinusoids(theta_deg: &[f64], y: &[f64], freqs: &[f64]) -> Result<Sinu
 #[derive(Debug, Clone)]
 pub struct SinusoidBasis {
     freqs: Vec<f64>,
-    rows: usize,
-    /// Householder vectors, `v[j]` acting on rows `j..`.
-    v: Vec<Vec<f64>>,
-    /// `R`, upper triangular, row-major `p x p`.
-    r: Vec<f64>,
+    qr: Qr,
     /// `(A^T A)^-1` diagonal.
     unit_var: Vec<f64>,
 }
@@ -437,55 +434,24 @@ impl SinusoidBasis {
         if n < p {
             return Err(SpectrumError::TooFewPoints { points: n, min: p });
         }
-        // Column-major design matrix.
-        let mut a = vec![0.0; n * p];
+        let mut columns = vec![vec![0.0; n]; p];
         for (i, &t) in theta_deg.iter().enumerate() {
-            a[i] = 1.0;
+            columns[0][i] = 1.0;
             for (j, &f) in freqs.iter().enumerate() {
                 let (sn, cs) = (f * t).to_radians().sin_cos();
-                a[(1 + 2 * j) * n + i] = sn;
-                a[(2 + 2 * j) * n + i] = cs;
+                columns[1 + 2 * j][i] = sn;
+                columns[2 + 2 * j][i] = cs;
             }
         }
-        let name = |col: usize| if col == 0 { 0.0 } else { freqs[(col - 1) / 2] };
-        let mut v = Vec::with_capacity(p);
-        let mut r = vec![0.0; p * p];
         // Every entry is at most 1 and the constant column has norm sqrt(n): a
         // column whose part independent of the earlier ones is below 1e-9 of
         // that scale cannot be resolved.
-        let scale = (n as f64).sqrt();
-        for j in 0..p {
-            let x = &a[j * n + j..(j + 1) * n];
-            let norm = x.iter().map(|x| x * x).sum::<f64>().sqrt();
-            if norm <= 1e-9 * scale {
-                return Err(SpectrumError::Unresolvable { cycles_per_rev: name(j) });
-            }
-            let alpha = if x[0] > 0.0 { -norm } else { norm };
-            let mut h = x.to_vec();
-            h[0] -= alpha;
-            let hh: f64 = h.iter().map(|x| x * x).sum();
-            // Apply I - 2 h h^T / (h^T h) to columns j.. (column j becomes alpha e_0).
-            for c in j..p {
-                let col = &mut a[c * n + j..(c + 1) * n];
-                let dot: f64 = col.iter().zip(&h).map(|(a, b)| a * b).sum();
-                let f = 2.0 * dot / hh;
-                col.iter_mut().zip(&h).for_each(|(a, b)| *a -= f * b);
-                r[j * p + c] = col[0];
-            }
-            r[j * p + j] = alpha;
-            v.push(h);
-        }
-        // (A^T A)^-1 = R^-1 R^-T: its diagonal is the squared row norms of R^-1.
-        let mut rinv = vec![0.0; p * p];
-        for c in 0..p {
-            for i in (0..=c).rev() {
-                let e = if i == c { 1.0 } else { 0.0 };
-                let s: f64 = (i + 1..=c).map(|k| r[i * p + k] * rinv[k * p + c]).sum();
-                rinv[i * p + c] = (e - s) / r[i * p + i];
-            }
-        }
-        let unit_var = (0..p).map(|i| (i..p).map(|c| rinv[i * p + c].powi(2)).sum()).collect();
-        Ok(SinusoidBasis { freqs: freqs.to_vec(), rows: n, v, r, unit_var })
+        let floor = 1e-9 * (n as f64).sqrt();
+        let qr = Qr::new(columns, |_| floor).map_err(|col| SpectrumError::Unresolvable {
+            cycles_per_rev: if col == 0 { 0.0 } else { freqs[(col - 1) / 2] },
+        })?;
+        let unit_var = qr.unit_var();
+        Ok(SinusoidBasis { freqs: freqs.to_vec(), qr, unit_var })
     }
 
     /// The frequencies, in the order given.
@@ -495,24 +461,12 @@ impl SinusoidBasis {
 
     /// Fit the values `y` (one per angle given to [`SinusoidBasis::new`]).
     pub fn fit(&self, y: &[f64]) -> Result<SinusoidFit, SpectrumError> {
-        if y.len() != self.rows {
-            return Err(SpectrumError::LengthMismatch { angles: self.rows, values: y.len() });
+        if y.len() != self.qr.rows() {
+            return Err(SpectrumError::LengthMismatch { angles: self.qr.rows(), values: y.len() });
         }
         check_finite("sample", y)?;
-        let (n, p) = (self.rows, self.v.len());
-        let mut qy = y.to_vec();
-        for (j, h) in self.v.iter().enumerate() {
-            let hh: f64 = h.iter().map(|x| x * x).sum();
-            let seg = &mut qy[j..];
-            let f = 2.0 * seg.iter().zip(h).map(|(a, b)| a * b).sum::<f64>() / hh;
-            seg.iter_mut().zip(h).for_each(|(a, b)| *a -= f * b);
-        }
-        let mut x = vec![0.0; p];
-        for i in (0..p).rev() {
-            let s: f64 = (i + 1..p).map(|k| self.r[i * p + k] * x[k]).sum();
-            x[i] = (qy[i] - s) / self.r[i * p + i];
-        }
-        let residual_ss: f64 = qy[p..].iter().map(|v| v * v).sum();
+        let (n, p) = (self.qr.rows(), self.qr.cols());
+        let (x, residual_ss) = self.qr.solve(y);
         let terms = self
             .freqs
             .iter()

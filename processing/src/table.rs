@@ -4,7 +4,7 @@
 //! at 360 and is read with linear interpolation (the contract's table format).
 //! The corrected angle is `readout - error(readout)`.
 
-use crate::types::{Direction, wrap_360};
+use crate::types::Direction;
 use serde::{Deserialize, Serialize};
 
 /// A correction table. `reverse` is present for a direction-aware table, in
@@ -80,24 +80,39 @@ impl CorrectionTable {
 
     /// The error at `readout_deg` for an approach in `direction`, read with
     /// linear interpolation between rows and wrapping at 360. Constant time.
+    /// This is the one reading of a table: the real-time
+    /// [`crate::corrector::Corrector`] precomputes the same slopes and gives
+    /// the same bits.
     pub fn error_at(&self, readout_deg: f64, direction: Direction) -> f64 {
         let col = match (direction, &self.reverse) {
             (Direction::Reverse, Some(r)) => r.as_slice(),
             _ => self.forward.as_slice(),
         };
         let n = col.len();
-        let pos = wrap_360(readout_deg) / 360.0 * n as f64;
-        let i = (pos.floor() as usize).min(n - 1);
-        let frac = pos - i as f64;
+        let (i, frac) = row_position(readout_deg, n, n as f64, n as f64 / 360.0, 1.0 / n as f64);
         let a = col[i];
-        let b = col[(i + 1) % n];
-        a + (b - a) * frac
+        a + (col[(i + 1) % n] - a) * frac
     }
 
     /// The corrected angle `readout - error(readout)`.
     pub fn correct(&self, readout_deg: f64, direction: Direction) -> f64 {
         readout_deg - self.error_at(readout_deg, direction)
     }
+}
+
+/// Where `readout_deg` falls in a table of `rows` rows: the row below it and
+/// the fraction of the way to the next (wrapping at 360, any turn), with
+/// `rows_f = rows`, `scale = rows / 360` and `inv_rows = 1 / rows` passed in
+/// so that the real-time corrector computes them once. No division and no
+/// branch on the table size; `as usize` saturates (a negative or NaN position
+/// gives row 0), so no input can index out of range.
+#[inline(always)]
+pub(crate) fn row_position(readout_deg: f64, rows: usize, rows_f: f64, scale: f64, inv_rows: f64) -> (usize, f64) {
+    let p = readout_deg * scale;
+    let p = p - rows_f * (p * inv_rows).floor();
+    // Rounding can give p == rows: clamped to the last row, fraction 1.
+    let i = (p as usize).min(rows - 1);
+    (i, p - i as f64)
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@
 //! only for the pre-test of run-to-run offsets, where a few per cent do not
 //! matter).
 
+use crate::lstsq::{Qr, column_norms};
 pub(crate) use crate::special::erfc;
 
 /// `P(|Z| > z)` for a standard normal `Z`.
@@ -93,57 +94,18 @@ pub(crate) struct Lsq {
     pub unit_var: Vec<f64>,
 }
 
-/// Solve `min |A x - y|` by Householder QR, `A` given by its columns. A column
-/// whose part independent of the earlier columns is below `1e-6` of its own
-/// norm cannot be resolved: its index is the error.
+/// Solve `min |A x - y|` (the crate's [`Qr`]), `A` given by its columns. A
+/// column whose part independent of the earlier columns is below `1e-6` of its
+/// own norm cannot be resolved: its index is the error.
 pub(crate) fn least_squares(columns: &[Vec<f64>], y: &[f64]) -> Result<Lsq, usize> {
     let p = columns.len();
-    let n = y.len();
-    if n < p {
+    if y.len() < p {
         return Err(p.saturating_sub(1));
     }
-    let norms: Vec<f64> = columns.iter().map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt()).collect();
-    let mut a: Vec<Vec<f64>> = columns.to_vec();
-    let mut qy = y.to_vec();
-    let mut r = vec![0.0; p * p];
-    for j in 0..p {
-        let norm = a[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
-        if norm.is_nan() || norm <= 1e-6 * norms[j] {
-            return Err(j);
-        }
-        let alpha = if a[j][j] > 0.0 { -norm } else { norm };
-        let mut h = a[j][j..].to_vec();
-        h[0] -= alpha;
-        let hh: f64 = h.iter().map(|v| v * v).sum();
-        for col in a.iter_mut().skip(j) {
-            let seg = &mut col[j..];
-            let f = 2.0 * seg.iter().zip(&h).map(|(x, v)| x * v).sum::<f64>() / hh;
-            seg.iter_mut().zip(&h).for_each(|(x, v)| *x -= f * v);
-        }
-        let seg = &mut qy[j..];
-        let f = 2.0 * seg.iter().zip(&h).map(|(x, v)| x * v).sum::<f64>() / hh;
-        seg.iter_mut().zip(&h).for_each(|(x, v)| *x -= f * v);
-        for c in j..p {
-            r[j * p + c] = a[c][j];
-        }
-        r[j * p + j] = alpha;
-    }
-    let mut coef = vec![0.0; p];
-    for i in (0..p).rev() {
-        let s: f64 = (i + 1..p).map(|k| r[i * p + k] * coef[k]).sum();
-        coef[i] = (qy[i] - s) / r[i * p + i];
-    }
-    // (A^T A)^-1 = R^-1 R^-T: its diagonal is the squared row norms of R^-1.
-    let mut rinv = vec![0.0; p * p];
-    for c in 0..p {
-        for i in (0..=c).rev() {
-            let e = if i == c { 1.0 } else { 0.0 };
-            let s: f64 = (i + 1..=c).map(|k| r[i * p + k] * rinv[k * p + c]).sum();
-            rinv[i * p + c] = (e - s) / r[i * p + i];
-        }
-    }
-    let unit_var = (0..p).map(|i| (i..p).map(|c| rinv[i * p + c].powi(2)).sum()).collect();
-    Ok(Lsq { coef, unit_var })
+    let norms = column_norms(columns);
+    let qr = Qr::new(columns.to_vec(), |j| 1e-6 * norms[j])?;
+    let (coef, _) = qr.solve(y);
+    Ok(Lsq { coef, unit_var: qr.unit_var() })
 }
 
 #[cfg(test)]
@@ -172,20 +134,5 @@ mod tests {
         // Chi-square upper points: 3 dof 1 % 11.345; 10 dof 5 % 18.307 (Wilson-Hilferty within 1 %).
         assert!((chi2_isf(0.01, 3) / 11.345 - 1.0).abs() < 0.01);
         assert!((chi2_isf(0.05, 10) / 18.307 - 1.0).abs() < 0.01);
-    }
-
-    #[test]
-    fn least_squares_solves_and_detects_collinear_columns() {
-        let x: Vec<f64> = (0..50).map(|i| i as f64 / 10.0).collect();
-        let ones = vec![1.0; 50];
-        let sq: Vec<f64> = x.iter().map(|v| v * v).collect();
-        let y: Vec<f64> = x.iter().map(|v| 2.0 - 0.5 * v + 0.25 * v * v).collect();
-        let s = least_squares(&[ones.clone(), x.clone(), sq], &y).unwrap();
-        assert!((s.coef[0] - 2.0).abs() < 1e-12 && (s.coef[1] + 0.5).abs() < 1e-12 && (s.coef[2] - 0.25).abs() < 1e-12);
-        // Variance of the mean of n samples: 1/n.
-        let m = least_squares(std::slice::from_ref(&ones), &y).unwrap();
-        assert!((m.unit_var[0] - 1.0 / 50.0).abs() < 1e-15);
-        let twice: Vec<f64> = x.iter().map(|v| 2.0 * v).collect();
-        assert_eq!(least_squares(&[ones, x, twice], &y).unwrap_err(), 2);
     }
 }

@@ -33,6 +33,7 @@
 //! end the fit's tangent at that end, so that linear interpolation between the
 //! last row inside and the first outside still follows the fit up to the end.
 
+use crate::lstsq::{Qr, column_norms};
 use crate::types::wrap_360;
 use serde::{Deserialize, Serialize};
 
@@ -139,7 +140,7 @@ pub enum PartialError {
 #[derive(Debug, Clone, PartialEq)]
 enum Kind {
     Cubic { samples: Vec<f64> },
-    LeastSquares { cycles: Vec<f64>, degree: usize, coef: Vec<f64>, r: Vec<Vec<f64>> },
+    LeastSquares { cycles: Vec<f64>, degree: usize, coef: Vec<f64>, qr: Qr },
 }
 
 /// A map over a partial span, as a function of the angle.
@@ -183,9 +184,13 @@ pub fn fit_partial(span: Span, samples: &[f64], method: &PartialMethod) -> Resul
                     col.push(*b);
                 }
             }
-            let (coef, r) = least_squares(cols, samples.to_vec())
+            // A column whose independent part is below 1e-10 of the largest
+            // column's norm cannot be resolved.
+            let scale = column_norms(&cols).into_iter().fold(0.0, f64::max);
+            let qr = Qr::new(cols, |_| 1e-10 * scale)
                 .map_err(|term| PartialError::Degenerate { term, name: term_name(cycles, *poly_degree, term) })?;
-            Kind::LeastSquares { cycles: cycles.clone(), degree: *poly_degree, coef, r }
+            let (coef, _) = qr.solve(samples);
+            Kind::LeastSquares { cycles: cycles.clone(), degree: *poly_degree, coef, qr }
         }
     };
     let mut fit = PartialFit { span, step_deg, kind, residual_rms_deg: 0.0 };
@@ -225,16 +230,10 @@ impl PartialFit {
                 let (_, w) = cubic_stencil(samples.len(), (x - self.span.start_deg) / self.step_deg);
                 w.iter().map(|v| v * v).sum::<f64>().sqrt()
             }
-            Kind::LeastSquares { cycles, degree, r, .. } => {
-                let mut a = vec![0.0; r.len()];
+            Kind::LeastSquares { cycles, degree, qr, .. } => {
+                let mut a = vec![0.0; qr.cols()];
                 fill_basis(&self.span, cycles, *degree, x, &mut a);
-                // Solve R' z = a (forward substitution); leverage = |z|.
-                let mut z = vec![0.0; a.len()];
-                for i in 0..a.len() {
-                    let s: f64 = (0..i).map(|k| r[k][i] * z[k]).sum();
-                    z[i] = (a[i] - s) / r[i][i];
-                }
-                z.iter().map(|v| v * v).sum::<f64>().sqrt()
+                qr.leverage(&a)
             }
         }
     }
@@ -321,48 +320,6 @@ fn term_name(cycles: &[f64], degree: usize, term: usize) -> String {
         let part = if (term - degree - 1).is_multiple_of(2) { "sine" } else { "cosine" };
         format!("{part} at {} cycles/rev", cycles[i])
     }
-}
-
-/// Least squares by Householder QR of the columns `cols` (each of length m).
-/// Returns the coefficients and R (p x p, upper triangular, R[i][j] for j >= i),
-/// or the index of the first column that is numerically dependent on the others.
-fn least_squares(mut cols: Vec<Vec<f64>>, mut y: Vec<f64>) -> Result<(Vec<f64>, Vec<Vec<f64>>), usize> {
-    let p = cols.len();
-    let m = y.len();
-    let scale = cols.iter().map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt()).fold(0.0, f64::max);
-    for j in 0..p {
-        let norm = cols[j][j..].iter().map(|v| v * v).sum::<f64>().sqrt();
-        if norm <= 1e-10 * scale {
-            return Err(j);
-        }
-        let alpha = if cols[j][j] > 0.0 { -norm } else { norm };
-        // v = x - alpha e1, stored in place of column j's lower part.
-        let mut v = cols[j][j..].to_vec();
-        v[0] -= alpha;
-        let vnorm2: f64 = v.iter().map(|a| a * a).sum();
-        let reflect = |target: &mut [f64]| {
-            let dot: f64 = v.iter().zip(&target[j..]).map(|(a, b)| a * b).sum();
-            let f = 2.0 * dot / vnorm2;
-            for (t, a) in target[j..].iter_mut().zip(&v) {
-                *t -= f * a;
-            }
-        };
-        for col in cols.iter_mut().skip(j + 1) {
-            reflect(col);
-        }
-        reflect(&mut y);
-        cols[j][j] = alpha;
-        for v in cols[j][j + 1..m].iter_mut() {
-            *v = 0.0;
-        }
-    }
-    let r: Vec<Vec<f64>> = (0..p).map(|i| (0..p).map(|j| if j >= i { cols[j][i] } else { 0.0 }).collect()).collect();
-    let mut coef = vec![0.0; p];
-    for i in (0..p).rev() {
-        let s: f64 = (i + 1..p).map(|k| r[i][k] * coef[k]).sum();
-        coef[i] = (y[i] - s) / r[i][i];
-    }
-    Ok((coef, r))
 }
 
 #[cfg(test)]
