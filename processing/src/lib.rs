@@ -9,6 +9,7 @@ pub mod analysis;
 pub mod correction;
 pub mod corrector;
 pub mod errormap;
+pub mod export;
 pub mod geometry;
 pub mod iso230;
 pub mod lstsq;

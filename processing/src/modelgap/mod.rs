@@ -107,13 +107,13 @@
 
 mod explain;
 mod fit;
-mod report;
 mod stats;
 mod survey;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
 mod tests_cases;
+mod text;
 mod views;
 
 pub use survey::Timebase;

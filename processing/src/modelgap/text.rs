@@ -1,4 +1,4 @@
-//! The model-gap report as text: the gap before, the steps as a table, what
+//! The model-gap findings as text: the gap before, the steps as a table, what
 //! was added and adjusted, and the gap after.
 
 use super::explain::num;
