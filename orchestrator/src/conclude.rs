@@ -8,7 +8,9 @@ use crate::output::{Output, human, iso_json, iso_text};
 use crate::plan::SurveyPlan;
 use crate::process::{ProcessOptions, process_survey};
 use crate::session::{AcquireOptions, Acquired};
+use crate::stop::{Stop, Stopped};
 use crate::store::Store;
+use crate::survey::SurveyStatus;
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use survey_processing::iso230::iso230_2;
@@ -22,6 +24,8 @@ pub struct ConcludeOptions {
     pub verify: bool,
     /// How the verification's acquisition shows itself.
     pub acquire: AcquireOptions,
+    /// A stop request (a signal) ends the conclusion between its phases.
+    pub stop: Stop,
 }
 
 /// The output, and whether everything after the acquisition succeeded: the
@@ -72,6 +76,9 @@ pub async fn conclude(
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
 
+    if let Err(why) = options.stop.check() {
+        return stopped(store, id, why, Output { doc, text }).await;
+    }
     let processing = ProcessOptions { recipe: options.recipe.clone(), design: None, table_out: None };
     let processed = match process_survey(&record, &samples, processing) {
         Ok(p) => p,
@@ -80,6 +87,9 @@ pub async fn conclude(
     doc["process"] = processed.json();
     text += "\n";
     text += &processed.text();
+    if let Err(why) = options.stop.check() {
+        return stopped(store, id, why, Output { doc, text }).await;
+    }
     let mut result = Ok(());
     if options.verify {
         match crate::verify::verify(engine, store, &record, &samples, plan, &processed, options.acquire).await {
@@ -92,4 +102,16 @@ pub async fn conclude(
         }
     }
     Ok(Concluded { output: Output { doc, text }, result })
+}
+
+/// A stop request arrived after the acquisition: the survey (all of its
+/// samples stored) is marked interrupted, so `survey resume` finishes it.
+async fn stopped(store: &Store, id: i64, why: Stopped, mut output: Output) -> anyhow::Result<Concluded> {
+    let now = store.last_sample_time(id).await?.unwrap_or(f64::NAN);
+    let message = format!("{why} while processing; every sample is stored, `survey resume` finishes it");
+    store.log_event(id, now, "warn", &message).await?;
+    store.set_status(id, SurveyStatus::Interrupted, None).await?;
+    output.doc["status"] = SurveyStatus::Interrupted.as_str().into();
+    eprintln!("survey {id} {message}");
+    Ok(Concluded { output, result: Err(why.into()) })
 }

@@ -7,9 +7,16 @@
 //! a broken tracker beam is re-acquired) up to `Timing::max_retries` times, bad
 //! usage stops the survey at once. When the engine gives up, what was recorded
 //! stays recorded and the survey can be resumed from its next step.
+//!
+//! A stop request ([`Stop`], from a signal) is raced against the moves and
+//! reads of a step, never against a write to the sink: the engine drops the
+//! step it was measuring, stops the axis, and returns [`EngineError::Stopped`]
+//! after the sink was flushed, so the stored samples are exactly those
+//! measured, each once.
 
 use crate::plan::{SurveyPlan, move_time};
 use crate::record::{RawReading, RecordedSample, SampleSink};
+use crate::stop::{Stop, Stopped};
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::clock::with_timeout;
@@ -116,6 +123,9 @@ pub enum EngineError {
     /// The plan does not fit the reference instrument.
     #[error("{0}")]
     Plan(String),
+    /// A stop was requested (a signal): the axis was stopped.
+    #[error("{0}")]
+    Stopped(#[from] Stopped),
 }
 
 /// Where the survey is, for progress displays.
@@ -150,11 +160,51 @@ pub struct Engine {
     /// is approached.
     commanded: Option<f64>,
     faults_survived: u32,
+    stop: Stop,
 }
 
 impl Engine {
     pub fn new(clock: Arc<dyn Clock>, positioner: Box<dyn Positioner>, reference: Reference, timing: Timing) -> Self {
-        Self { clock, positioner, reference, timing, axis: None, arm_check: None, commanded: None, faults_survived: 0 }
+        Self {
+            clock,
+            positioner,
+            reference,
+            timing,
+            axis: None,
+            arm_check: None,
+            commanded: None,
+            faults_survived: 0,
+            stop: Stop::never(),
+        }
+    }
+
+    /// Stop (between writes, see the module documentation) when `stop` fires.
+    pub fn with_stop(mut self, stop: Stop) -> Self {
+        self.stop = stop;
+        self
+    }
+
+    /// The stop request the engine obeys.
+    pub fn stop(&self) -> &Stop {
+        &self.stop
+    }
+
+    /// [`Engine::with_stop`] on an engine in place.
+    pub fn set_stop(&mut self, stop: Stop) {
+        self.stop = stop;
+    }
+
+    /// Stop the axis after a stop request, and say why the survey stopped.
+    async fn halt(&mut self, why: Stopped) -> EngineError {
+        let clock = self.clock.clone();
+        let name = self.positioner.name().to_string();
+        tracing::warn!(%why, "stopping the axis");
+        if let Err(e) = with_timeout(&*clock, self.timing.call_timeout, &name, "stop", self.positioner.stop()).await {
+            tracing::warn!(%e, "stopping the axis failed");
+        }
+        // The axis stopped wherever it was: approach the next target afresh.
+        self.commanded = None;
+        EngineError::Stopped(why)
     }
 
     /// Refuse a located axis whose radius differs from the arm's `radius_mm`
@@ -263,7 +313,18 @@ impl Engine {
         }
         let faults_before = self.faults_survived;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
-            self.locate_axis(plan, sink).await?;
+            let mut stop = self.stop.clone();
+            let located = tokio::select! {
+                biased;
+                why = stop.wait() => Err(why),
+                r = self.locate_axis(plan, sink) => Ok(r),
+            };
+            match located {
+                Ok(r) => {
+                    r?;
+                }
+                Err(why) => return Err(self.halt(why).await),
+            }
         }
         let steps = plan.steps();
         let total = steps.len() as u64;
@@ -274,8 +335,21 @@ impl Engine {
                 sink.flush().await.map_err(EngineError::Sink)?;
             }
             previous = Some((step.run, step.direction));
-            self.approach(step.target_deg, step.direction, plan.overrun_deg, sink).await?;
-            let (readout, raw) = self.read_pair(sink).await?;
+            if let Err(why) = self.stop.check() {
+                return Err(self.halt(why).await);
+            }
+            // The moves and reads of a step race the stop request; the write
+            // of its sample below does not.
+            let mut stop = self.stop.clone();
+            let measured = tokio::select! {
+                biased;
+                why = stop.wait() => Err(why),
+                r = self.measure(step.target_deg, step.direction, plan.overrun_deg, sink) => Ok(r),
+            };
+            let (readout, raw) = match measured {
+                Ok(r) => r?,
+                Err(why) => return Err(self.halt(why).await),
+            };
             let actual = self.actual_deg(step.target_deg, &raw)?;
             let sample = Sample {
                 run: step.run,
@@ -319,6 +393,18 @@ impl Engine {
             }
             _ => Err(EngineError::Plan("reading does not match the reference instrument".into())),
         }
+    }
+
+    /// Approach `target` and read the pair there.
+    async fn measure(
+        &mut self,
+        target: f64,
+        direction: Direction,
+        overrun: f64,
+        sink: &mut dyn SampleSink,
+    ) -> Result<(f64, RawReading), EngineError> {
+        self.approach(target, direction, overrun, sink).await?;
+        self.read_pair(sink).await
     }
 
     /// Bring the axis to `target` approaching in `direction`: when the axis is

@@ -837,3 +837,32 @@ async fn the_within_travel_plan_on_a_limited_axis_completes() {
     assert_steps(&sink.samples, &plan, 0);
     assert_eq!(outcome.faults_survived, 0, "{:?}", sink.events);
 }
+
+#[tokio::test]
+async fn a_stop_request_ends_the_survey_between_samples_and_stops_the_axis() {
+    let preset = fig8();
+    let plan = plan12();
+    let mut rig = tracker_rig(builder(&preset, 4, &new_clock()));
+    let (tx, stop) = crate::stop::Stop::channel();
+    rig.engine.set_stop(stop);
+    let mut sink = MemorySink::default();
+    // Asked to stop when step 5 is recorded: the engine sees it before step 6,
+    // so it keeps every sample measured before the stop, and no other.
+    let result = rig
+        .engine
+        .run(&plan, 0, &mut sink, &mut |p| {
+            if p.done == 6 {
+                tx.stop("SIGTERM");
+            }
+        })
+        .await;
+    assert!(matches!(result, Err(EngineError::Stopped(crate::stop::Stopped("SIGTERM")))), "{result:?}");
+    assert_step_range(&sink.samples, &plan, 0, 6);
+    assert_eq!(rig.calls().last(), Some(&Call::Stop), "the axis was stopped last");
+    // A resume on the same engine re-approaches the next target afresh.
+    let (_tx, never) = crate::stop::Stop::channel();
+    rig.engine.set_stop(never);
+    let mut rest = MemorySink::default();
+    rig.engine.run(&plan, 6, &mut rest, &mut |_| {}).await.unwrap();
+    assert_steps(&rest.samples, &plan, 6);
+}

@@ -22,6 +22,64 @@ pub mod process;
 pub mod record;
 pub mod report;
 pub mod session;
+pub mod stop;
 pub mod store;
 pub mod survey;
 pub mod verify;
+
+#[cfg(test)]
+mod architecture {
+    //! ARCHITECTURE.md's claims that a test can check: the CLI is the roof,
+    //! and every path in the code map exists.
+
+    use std::path::{Path, PathBuf};
+
+    fn root() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("the workspace root").to_path_buf()
+    }
+
+    fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("a source folder") {
+            let path = entry.expect("an entry").path();
+            if path.is_dir() {
+                rust_files(&path, out);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+
+    #[test]
+    fn nothing_below_the_cli_imports_it() {
+        let src = root().join("orchestrator/src");
+        let mut files = Vec::new();
+        rust_files(&src, &mut files);
+        let offenders: Vec<_> = files
+            .iter()
+            // lib.rs only declares the modules (and holds this test's own strings).
+            .filter(|f| !f.starts_with(src.join("cli")) && **f != src.join("lib.rs"))
+            .filter(|f| std::fs::read_to_string(f).expect("readable").contains("crate::cli"))
+            .collect();
+        assert!(files.len() > 20, "the source tree was found");
+        assert!(offenders.is_empty(), "modules below the CLI import it: {offenders:?}");
+    }
+
+    #[test]
+    fn every_path_in_the_code_map_exists() {
+        let text = std::fs::read_to_string(root().join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+        let mut checked = 0;
+        for quoted in text.split('`').skip(1).step_by(2) {
+            let looks_like_a_path =
+                ["processing/", "drivers/", "sims/", "orchestrator/", "src/", "tests/", "migrations/"]
+                    .iter()
+                    .any(|p| quoted.starts_with(p))
+                    || [".ci/run", ".cargo/config.toml", "Cargo.toml", "scripts/", "examples/config/"]
+                        .contains(&quoted);
+            if looks_like_a_path && !quoted.contains('<') && !quoted.contains(' ') {
+                assert!(root().join(quoted).exists(), "ARCHITECTURE.md names `{quoted}`, which does not exist");
+                checked += 1;
+            }
+        }
+        assert!(checked > 15, "only {checked} paths were found in the code map");
+    }
+}

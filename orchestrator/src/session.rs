@@ -1,16 +1,16 @@
 //! One acquisition session: the engine runs the plan (or what is left of
-//! it) into the store, with a progress bar, stopping cleanly on Ctrl-C or
-//! SIGTERM, and the survey is marked complete or interrupted. `survey run`,
-//! `survey resume` and the verification of `survey run --verify` all acquire
-//! through [`acquire`].
+//! it) into the store, with a progress bar, and the survey is marked complete
+//! or interrupted. A signal reaches the engine through its [`crate::stop::Stop`]:
+//! it stops the axis between writes, the measured samples are committed, the
+//! survey is marked interrupted with the reason "stopped by signal", and the
+//! command ends with exit status 1. `survey run`, `survey resume` and the
+//! verification of `survey run --verify` all acquire through [`acquire`].
 
-use crate::engine::{Engine, Outcome, Progress};
+use crate::engine::{Engine, EngineError, Outcome, Progress};
 use crate::output::human;
 use crate::plan::SurveyPlan;
-use crate::record::SampleSink as _;
 use crate::store::{Store, StoreSink};
 use crate::survey::SurveyStatus;
-use anyhow::Context as _;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::time::{Duration, Instant};
 
@@ -22,6 +22,9 @@ pub struct AcquireOptions {
     /// Abort the process (like a power loss: no flush, no status update) once
     /// this many steps are done. For crash tests of the simulated bench.
     pub crash_after: Option<u64>,
+    /// Send this process SIGTERM once this many steps are done (a stop
+    /// request through the real signal path, at a known step). For tests.
+    pub signal_after: Option<u64>,
 }
 
 /// What an acquisition did.
@@ -47,27 +50,53 @@ pub async fn acquire(
     let started = Instant::now();
     let mut sink = StoreSink::new(store.clone(), id);
     let outcome = run_engine(engine, plan, from_seq, &mut sink, options).await;
+    if options.signal_after.is_some_and(|n| n <= plan.total_steps()) {
+        // The test hook raised SIGTERM: do not go on before the stop request
+        // is seen, so what follows is the same on every run.
+        engine.stop().clone().wait().await;
+    }
     let now = engine.clock().now();
     let status = if outcome.is_ok() { SurveyStatus::Complete } else { SurveyStatus::Interrupted };
     if let Err(e) = &outcome {
-        let _ = store.log_event(id, now.as_secs_f64(), "error", &format!("{e:#}")).await;
-        eprintln!(
-            "survey {id} stopped: {e:#}\nwhat was measured is stored; continue with `survey resume --survey {id}`"
-        );
+        let level = if matches!(e, EngineError::Stopped(_)) { "warn" } else { "error" };
+        let _ = store.log_event(id, now.as_secs_f64(), level, &format!("{e:#}")).await;
+        let stored = store
+            .sample_count(id)
+            .await
+            .map(|n| format!("{n} samples are stored"))
+            .unwrap_or_else(|e| format!("the samples stored could not be counted ({e:#})"));
+        eprintln!("survey {id} stopped: {e:#}\n{stored}; continue with `survey resume --survey {id}`");
     }
     store.set_status(id, status, Some(now.as_secs_f64())).await?;
-    Ok(Acquired { outcome: outcome?, real: started.elapsed() })
+    let outcome = outcome.map_err(|e| match e {
+        EngineError::Stopped(why) => anyhow::Error::new(why),
+        other => anyhow::Error::new(other),
+    })?;
+    Ok(Acquired { outcome, real: started.elapsed() })
 }
 
-/// Run the engine with a progress bar; Ctrl-C and SIGTERM stop it cleanly
-/// (what was measured is flushed and the survey can be resumed).
+/// The `--json` document of an acquisition that stopped before its end: the
+/// survey, its status as stored, the samples stored of those planned, and why.
+pub async fn stopped_doc(store: &Store, id: i64, error: &anyhow::Error) -> serde_json::Value {
+    let record = store.survey(id).await.ok();
+    serde_json::json!({
+        "survey_id": id,
+        "status": record.as_ref().map_or("interrupted", |r| r.status.as_str()),
+        "samples": record.as_ref().map(|r| r.sample_count),
+        "planned_samples": record.as_ref().and_then(|r| r.planned_samples),
+        "reason": format!("{error:#}"),
+    })
+}
+
+/// Run the engine with a progress bar. The engine flushes the sink before it
+/// returns, also when it stopped or failed (a failed flush is its error).
 async fn run_engine(
     engine: &mut Engine,
     plan: &SurveyPlan,
     from_seq: u64,
     sink: &mut StoreSink,
     options: AcquireOptions,
-) -> anyhow::Result<Outcome> {
+) -> Result<Outcome, EngineError> {
     let bar = ProgressBar::with_draw_target(Some(plan.total_steps()), ProgressDrawTarget::stderr());
     if !options.progress {
         bar.set_draw_target(ProgressDrawTarget::hidden());
@@ -77,40 +106,22 @@ async fn run_engine(
     );
     bar.set_position(from_seq);
     let crash_after = options.crash_after;
+    let mut signal_after = options.signal_after;
     let mut on_progress = |p: &Progress| {
         if crash_after.is_some_and(|n| p.done >= n) {
             // A simulated power loss: no flush, no status update, no cleanup.
             std::process::abort();
         }
+        if signal_after.is_some_and(|n| p.done >= n) {
+            signal_after = None;
+            if let Err(e) = nix::sys::signal::raise(nix::sys::signal::Signal::SIGTERM) {
+                tracing::error!(%e, "could not raise SIGTERM");
+            }
+        }
         bar.set_position(p.done);
         bar.set_message(format!("run {} {} · instrument time {}", p.run, p.direction, human(p.instrument_time)));
     };
-    let result = tokio::select! {
-        r = engine.run(plan, from_seq, sink, &mut on_progress) => r.map_err(anyhow::Error::from),
-        _ = tokio::signal::ctrl_c() => Err(anyhow::anyhow!("interrupted (Ctrl-C)")),
-        _ = terminated() => Err(anyhow::anyhow!("terminated (SIGTERM)")),
-    };
+    let result = engine.run(plan, from_seq, sink, &mut on_progress).await;
     bar.finish_and_clear();
-    if result.is_err() {
-        // Keep what was measured: the engine flushes on its own paths, but an
-        // interrupted future may have left samples in the buffer.
-        sink.flush().await.context("saving the samples measured before the failure")?;
-    }
     result
-}
-
-/// Resolves when the process is asked to terminate (SIGTERM on Unix).
-async fn terminated() {
-    #[cfg(unix)]
-    {
-        use tokio::signal::unix::{SignalKind, signal};
-        match signal(SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    }
-    #[cfg(not(unix))]
-    std::future::pending::<()>().await
 }

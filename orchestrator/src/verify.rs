@@ -64,8 +64,8 @@ pub async fn verify(
 ) -> anyhow::Result<Output> {
     let table = &processed.processed.built.table;
     apply_correction(engine, table).await?;
-    let id = store
-        .create_survey(&NewSurvey {
+    let (id, _lock) = store
+        .create_acquired_survey(&NewSurvey {
             source: SurveySource::Verification,
             points: native.points,
             runs: native.runs,

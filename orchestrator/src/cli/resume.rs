@@ -1,10 +1,19 @@
 //! `survey resume`: continue an interrupted survey from its first missing step.
+//!
+//! The survey's acquisition lock is taken first ([`AcquirerLock`]): a survey
+//! a live process is acquiring is refused at once, naming that process; a
+//! lock left by a dead one is taken over. A survey whose samples are all
+//! stored but whose status is not complete (stopped while it was processed)
+//! is finished: statistics and processing, exit status 0.
 
 use super::support::{emit, open_existing};
 use crate::bench::Bench;
 use crate::conclude::{ConcludeOptions, conclude};
+use crate::engine::Outcome;
 use crate::error::bad_input;
-use crate::session::{AcquireOptions, acquire};
+use crate::session::{AcquireOptions, Acquired, acquire, stopped_doc};
+use crate::stop::Stop;
+use crate::store::AcquirerLock;
 use crate::survey::{SurveySource, SurveyStatus};
 use clap::Args;
 use std::path::Path;
@@ -22,8 +31,15 @@ pub struct ResumeArgs {
 
 pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let store = open_existing(db).await?;
-    let record = store.resolve(args.survey).await?;
-    let id = record.id;
+    let id = store.resolve(args.survey).await?.id;
+    // One acquirer per survey: refused at once while a live process holds it.
+    let lock = AcquirerLock::acquire(store.path(), id)?;
+    if let Some(previous) = &lock.took_over {
+        eprintln!("survey {id}: its last acquirer ({previous}) is gone; taking over");
+    }
+    let stop = Stop::on_signals();
+    // Read under the lock: the survey may have changed while it was held.
+    let record = store.survey(id).await?;
     match record.status {
         SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Failed => {}
         SurveyStatus::Complete => {
@@ -43,25 +59,43 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     // Instrument time goes on from where the survey stopped (drift continues).
     let last_time = store.last_sample_time(id).await?.unwrap_or(0.0).max(record.started_at_s.unwrap_or(0.0));
     let mut bench = Bench::resume(&record, Duration::from_secs_f64(last_time.max(0.0)), next)?;
+    bench.engine.set_stop(stop.clone());
     let plan = bench.plan.clone();
-    if next >= plan.total_steps() {
+    let options = AcquireOptions { progress: !args.json, crash_after: None, signal_after: None };
+    let acquired = if next >= plan.total_steps() {
+        // Every sample is stored (the survey stopped after its acquisition):
+        // finish it, statistics and processing.
+        let message = format!("all {next} samples are stored: finishing (statistics and processing)");
+        store.log_event(id, last_time, "info", &message).await?;
         store.set_status(id, SurveyStatus::Complete, None).await?;
-        return Err(bad_input(format!("survey {id} already holds all {next} samples: marked complete")));
-    }
-    if record.source == SurveySource::Verification {
-        let table = record.verification.as_ref().and_then(|v| v.correction.as_ref()).ok_or_else(|| {
-            bad_input(format!("survey {id} verifies a table that was not stored with it: it cannot be resumed"))
-        })?;
-        crate::verify::apply_correction(&mut bench.engine, table).await?;
-    }
-    store.set_status(id, SurveyStatus::Running, None).await?;
-    let message = format!("resumed at step {next} of {}", plan.total_steps());
-    store.log_event(id, last_time, "info", &message).await?;
-    eprintln!("survey {id}: {message}");
-    let options = AcquireOptions { progress: !args.json, crash_after: None };
-    let acquired = acquire(&store, id, &mut bench.engine, &plan, next, options).await?;
-    let finish = ConcludeOptions { recipe: None, verify: false, acquire: options };
+        eprintln!("survey {id}: {message}");
+        let instrument_time = Duration::from_secs_f64(last_time.max(0.0));
+        Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO }
+    } else {
+        if record.source == SurveySource::Verification {
+            let table = record.verification.as_ref().and_then(|v| v.correction.as_ref()).ok_or_else(|| {
+                bad_input(format!("survey {id} verifies a table that was not stored with it: it cannot be resumed"))
+            })?;
+            crate::verify::apply_correction(&mut bench.engine, table).await?;
+        }
+        store.set_status(id, SurveyStatus::Running, None).await?;
+        let message = format!("resumed at step {next} of {}", plan.total_steps());
+        store.log_event(id, last_time, "info", &message).await?;
+        eprintln!("survey {id}: {message}");
+        match acquire(&store, id, &mut bench.engine, &plan, next, options).await {
+            Ok(a) => a,
+            Err(e) => {
+                if args.json {
+                    emit(&format!("{}\n", stopped_doc(&store, id, &e).await));
+                }
+                store.close().await;
+                return Err(e);
+            }
+        }
+    };
+    let finish = ConcludeOptions { recipe: None, verify: false, acquire: options, stop };
     let concluded = conclude(&store, id, &mut bench.engine, &plan, &acquired, db, finish).await;
+    drop(lock);
     store.close().await;
     let concluded = concluded?;
     emit(&concluded.output.render(args.json));

@@ -7,7 +7,8 @@ use crate::bench::{Bench, PlanOverrides, SimulatedRequest};
 use crate::conclude::{ConcludeOptions, conclude};
 use crate::engine::ReferenceKind;
 use crate::output::human;
-use crate::session::{AcquireOptions, acquire};
+use crate::session::{AcquireOptions, acquire, stopped_doc};
+use crate::stop::Stop;
 use crate::store::Store;
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
@@ -71,6 +72,10 @@ pub struct RunArgs {
     /// once N samples have been measured on the simulated bench.
     #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]
     pub sim_crash_after: Option<u64>,
+    /// For tests: the process sends itself SIGTERM once N samples have been
+    /// measured (N = all of them: while it processes).
+    #[arg(long, value_name = "N", hide = true)]
+    pub sim_signal_after: Option<u64>,
 }
 
 pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
@@ -93,8 +98,11 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             seed: args.seed,
         })?,
     };
+    // From here on a signal stops the survey cleanly instead of killing the process.
+    let stop = Stop::on_signals();
+    bench.engine.set_stop(stop.clone());
     let store = Store::open(db).await?;
-    let id = store.create_survey(&bench.new_survey()).await?;
+    let (id, lock) = store.create_acquired_survey(&bench.new_survey()).await?;
     store.set_started(id, bench.clock.now().as_secs_f64()).await?;
     let plan = bench.plan.clone();
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
@@ -106,10 +114,21 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         bench.describe(),
         human(bench.estimate)
     );
-    let options = AcquireOptions { progress: !args.json, crash_after: args.sim_crash_after };
-    let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options).await?;
-    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify: args.verify, acquire: options };
+    let options =
+        AcquireOptions { progress: !args.json, crash_after: args.sim_crash_after, signal_after: args.sim_signal_after };
+    let acquired = match acquire(&store, id, &mut bench.engine, &plan, 0, options).await {
+        Ok(a) => a,
+        Err(e) => {
+            if args.json {
+                emit(&format!("{}\n", stopped_doc(&store, id, &e).await));
+            }
+            store.close().await;
+            return Err(e);
+        }
+    };
+    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify: args.verify, acquire: options, stop };
     let concluded = conclude(&store, id, &mut bench.engine, &plan, &acquired, db, finish).await;
+    drop(lock);
     store.close().await;
     let concluded = concluded?;
     emit(&concluded.output.render(args.json));

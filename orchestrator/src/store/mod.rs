@@ -29,12 +29,14 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod lock;
 mod samples;
 mod sink;
 mod surveys;
 #[cfg(test)]
 mod tests;
 
+pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
 pub use sink::StoreSink;
 pub use surveys::EventRow;
 
@@ -45,7 +47,7 @@ use std::time::Duration;
 use anyhow::{Context, anyhow};
 use sqlx::migrate::{Migration, MigrationType, Migrator};
 use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous};
-use sqlx::{Row, SqlSafeStr, SqlitePool};
+use sqlx::{ConnectOptions as _, Row, SqlSafeStr, SqlitePool};
 
 #[cfg(doc)]
 use crate::record::SampleSink;
@@ -138,7 +140,10 @@ impl Store {
             .busy_timeout(BUSY_TIMEOUT)
             .journal_mode(SqliteJournalMode::Wal)
             .synchronous(SqliteSynchronous::Full)
-            .foreign_keys(true);
+            .foreign_keys(true)
+            // A long import or load is expected: sqlx's slow-statement notice
+            // (with the full SQL) stays at debug, not on every user's stderr.
+            .log_slow_statements(log::LevelFilter::Debug, Duration::from_secs(1));
         let pool = SqlitePoolOptions::new()
             .max_connections(1)
             .min_connections(0)

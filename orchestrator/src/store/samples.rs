@@ -111,6 +111,15 @@ impl Store {
         Ok(t)
     }
 
+    /// How many samples of a survey are stored (committed: what a reader sees).
+    pub async fn sample_count(&self, id: i64) -> anyhow::Result<u64> {
+        let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples WHERE survey_id = ?")
+            .bind(id)
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(u64::try_from(n).unwrap_or(0))
+    }
+
     /// The highest seq stored for a survey (`None` when it has no sample yet).
     /// Samples are stored in plan order, so a resume continues at `last + 1`.
     pub async fn last_seq(&self, id: i64) -> anyhow::Result<Option<u64>> {

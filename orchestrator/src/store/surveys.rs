@@ -8,7 +8,7 @@ use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
-use super::{CHUNK_ROWS, NotFound, Store, real};
+use super::{AcquirerLock, CHUNK_ROWS, NotFound, Store, real};
 use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyStatus};
 
 /// One entry of a survey's event log.
@@ -38,6 +38,20 @@ impl Store {
             .await
             .with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
         Ok(id)
+    }
+
+    /// Store a new survey to be acquired by this process, and take its
+    /// acquisition lock before the survey is visible to any other connection
+    /// (the lock is taken inside the transaction that inserts it), so no
+    /// `resume` can ever see the survey unlocked while this process acquires it.
+    pub async fn create_acquired_survey(&self, s: &NewSurvey) -> anyhow::Result<(i64, AcquirerLock)> {
+        let mut tx = self.pool.begin().await?;
+        let id = insert_survey(&mut tx, s)
+            .await
+            .with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
+        let lock = AcquirerLock::acquire(&self.path, id)?;
+        tx.commit().await.with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
+        Ok((id, lock))
     }
 
     /// Set a survey's status and, when given, the instrument time it ended.
