@@ -67,7 +67,18 @@ pub async fn acquire(
             .unwrap_or_else(|e| format!("the samples stored could not be counted ({e:#})"));
         eprintln!("survey {id} stopped: {e:#}\n{stored}; continue with `survey resume --survey {id}`");
     }
-    store.set_status(id, status, Some(now.as_secs_f64())).await?;
+    let marked = store.set_status(id, status, Some(now.as_secs_f64())).await;
+    if let Err(e) = &marked {
+        // A full disk refuses the status too; the samples on disk are what
+        // `resume` goes by, so the survey stays resumable.
+        tracing::error!(error = %format!("{e:#}"), "the survey's status could not be stored");
+        eprintln!(
+            "survey {id}: its status could not be stored ({e:#}); `survey resume --survey {id}` works all the same"
+        );
+    }
+    if outcome.is_ok() {
+        marked?;
+    }
     let outcome = outcome.map_err(|e| match e {
         EngineError::Stopped(why) => anyhow::Error::new(why),
         other => anyhow::Error::new(other),

@@ -23,11 +23,13 @@ fn survey(db: &Path, args: &[&str]) -> Output {
         .expect("the binary starts")
 }
 
+/// The exit status, stdout (its first 2000 characters) and stderr, for messages.
 fn text(out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout: String = stdout.chars().take(2000).collect();
     format!(
-        "exit {:?}\n--- stdout ---\n{}\n--- stderr ---\n{}",
+        "exit {:?}\n--- stdout ---\n{stdout}\n--- stderr ---\n{}",
         out.status.code(),
-        String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     )
 }
@@ -201,4 +203,31 @@ async fn stats_says_how_much_of_an_incomplete_survey_is_there() {
     assert_eq!(survey(&db, &["resume"]).status.code(), Some(0));
     let doc: serde_json::Value = serde_json::from_slice(&survey(&db, &["stats", "--json"]).stdout).unwrap();
     assert_eq!((doc["complete"].as_bool(), doc["runs_complete"].as_u64()), (Some(true), Some(4)));
+}
+
+#[tokio::test]
+async fn a_full_disk_stops_the_survey_claims_only_what_is_stored_and_resume_remeasures_the_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    // The database may hold 40 pages (SQLite's max_page_count: the same
+    // SQLITE_FULL as a full disk): the survey (360 x 2 x 2 = 1440 steps) fills it.
+    let args = ["run", "--points", "360", "--runs", "2", "--bidirectional", "--json", "--sim-db-max-pages", "40"];
+    let out = survey(&db, &args);
+    let all = text(&out);
+    assert_eq!(out.status.code(), Some(1), "a failed commit stops the acquisition: {all}");
+    assert!(all.contains("database or disk is full"), "{all}");
+    let (status, kept, _) = dense_prefix(&db).await;
+    assert!(kept > 0 && kept < 1440, "{kept}");
+    // What is claimed stored is what is on disk.
+    assert!(all.contains(&format!("{kept} samples are stored")), "{all}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    assert_eq!(doc["samples"], kept as u64, "{all}");
+    // The status could not be written on a full database either, or was: both resume.
+    assert!(matches!(status, SurveyStatus::Running | SurveyStatus::Interrupted), "{status:?}");
+
+    let out = survey(&db, &["resume", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("resumed at step {kept}")));
+    let (status, n, _) = dense_prefix(&db).await;
+    assert_eq!((status, n), (SurveyStatus::Complete, 1440), "exactly what was lost was measured again");
 }

@@ -76,6 +76,10 @@ pub struct RunArgs {
     /// measured (N = all of them: while it processes).
     #[arg(long, value_name = "N", hide = true)]
     pub sim_signal_after: Option<u64>,
+    /// For tests: limit the database to N pages (SQLite's max_page_count), so
+    /// writes fail as on a full disk.
+    #[arg(long, value_name = "N", hide = true)]
+    pub sim_db_max_pages: Option<u32>,
 }
 
 pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
@@ -101,7 +105,10 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     // From here on a signal stops the survey cleanly instead of killing the process.
     let stop = Stop::on_signals();
     bench.engine.set_stop(stop.clone());
-    let store = Store::open(db).await?;
+    let store = match args.sim_db_max_pages {
+        Some(n) => Store::open_limited(db, n).await?,
+        None => Store::open(db).await?,
+    };
     let (id, lock) = store.create_acquired_survey(&bench.new_survey()).await?;
     store.set_started(id, bench.clock.now().as_secs_f64()).await?;
     let plan = bench.plan.clone();

@@ -35,6 +35,7 @@ mod sink;
 mod surveys;
 #[cfg(test)]
 mod tests;
+mod tx;
 
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
 pub use sink::StoreSink;
@@ -106,7 +107,14 @@ impl Store {
     /// up to date. WAL journal, `synchronous = FULL` (a committed transaction
     /// survives power loss), busy timeout 5 s, foreign keys enforced.
     pub async fn open(path: &Path) -> anyhow::Result<Store> {
-        Self::connect(path, true).await
+        Self::connect(path, true, None).await
+    }
+
+    /// [`Store::open`] with the database limited to `max_pages` pages
+    /// (SQLite's `max_page_count`): when it is reached, a write fails with
+    /// the same `SQLITE_FULL` a full disk gives. For tests of a full disk.
+    pub async fn open_limited(path: &Path, max_pages: u32) -> anyhow::Result<Store> {
+        Self::connect(path, true, Some(max_pages)).await
     }
 
     /// Open an existing database (for the commands that only read). Fails with a
@@ -128,10 +136,10 @@ impl Store {
                 return Err(anyhow!(e).context(format!("cannot open the database {}", path.display())));
             }
         }
-        Self::connect(path, false).await
+        Self::connect(path, false, None).await
     }
 
-    async fn connect(path: &Path, create: bool) -> anyhow::Result<Store> {
+    async fn connect(path: &Path, create: bool, max_pages: Option<u32>) -> anyhow::Result<Store> {
         // busy_timeout is applied when the connection is made, before the
         // pragmas (so the switch to WAL waits for a lock instead of failing).
         let options = SqliteConnectOptions::new()
@@ -144,6 +152,10 @@ impl Store {
             // A long import or load is expected: sqlx's slow-statement notice
             // (with the full SQL) stays at debug, not on every user's stderr.
             .log_slow_statements(log::LevelFilter::Debug, Duration::from_secs(1));
+        let options = match max_pages {
+            Some(n) => options.pragma("max_page_count", n.to_string()),
+            None => options,
+        };
         let pool = SqlitePoolOptions::new()
             .max_connections(1)
             .min_connections(0)

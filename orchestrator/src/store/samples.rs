@@ -11,6 +11,7 @@ use survey_drivers::{AcReading, SmrMeasurement};
 use survey_processing::{Direction, Sample};
 
 use super::surveys::insert_survey;
+use super::tx::WriteTx;
 use super::{CHUNK_ROWS, NotFound, Store, is_foreign_key_error, real};
 use crate::record::{RawReading, RecordedSample};
 use crate::survey::NewSurvey;
@@ -24,16 +25,19 @@ impl Store {
         if samples.is_empty() {
             return Ok(());
         }
-        let mut tx = self.pool.begin().await?;
-        insert_samples(&mut tx, survey_id, samples).await.with_context(|| {
-            format!(
+        let mut tx = WriteTx::begin(&self.pool)
+            .await
+            .with_context(|| format!("cannot store samples of survey {survey_id} in {}", self.path.display()))?;
+        if let Err(e) = insert_samples(tx.conn(), survey_id, samples).await {
+            tx.abort().await;
+            return Err(e.context(format!(
                 "cannot store samples {}..={} of survey {} in {}",
                 samples[0].seq,
                 samples[samples.len() - 1].seq,
                 survey_id,
                 self.path.display()
-            )
-        })?;
+            )));
+        }
         tx.commit()
             .await
             .with_context(|| format!("cannot commit samples of survey {survey_id} in {}", self.path.display()))?;
@@ -49,11 +53,21 @@ impl Store {
             .enumerate()
             .map(|(i, sample)| RecordedSample { seq: i as u64, sample: *sample, raw: RawReading::None })
             .collect();
-        let mut tx = self.pool.begin().await?;
-        let id = insert_survey(&mut tx, s).await?;
-        insert_samples(&mut tx, id, &recorded).await?;
-        tx.commit().await?;
-        Ok(id)
+        let mut tx = WriteTx::begin(&self.pool).await?;
+        let inserted = match insert_survey(tx.conn(), s).await {
+            Ok(id) => insert_samples(tx.conn(), id, &recorded).await.map(|()| id),
+            Err(e) => Err(e),
+        };
+        match inserted {
+            Ok(id) => {
+                tx.commit().await?;
+                Ok(id)
+            }
+            Err(e) => {
+                tx.abort().await;
+                Err(e)
+            }
+        }
     }
 
     /// The samples of a survey in acquisition order (by seq): only the six

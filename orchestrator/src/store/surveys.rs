@@ -8,6 +8,7 @@ use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
+use super::tx::WriteTx;
 use super::{AcquirerLock, CHUNK_ROWS, NotFound, Store, real};
 use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyStatus};
 
@@ -45,8 +46,8 @@ impl Store {
     /// (the lock is taken inside the transaction that inserts it), so no
     /// `resume` can ever see the survey unlocked while this process acquires it.
     pub async fn create_acquired_survey(&self, s: &NewSurvey) -> anyhow::Result<(i64, AcquirerLock)> {
-        let mut tx = self.pool.begin().await?;
-        let id = insert_survey(&mut tx, s)
+        let mut tx = WriteTx::begin(&self.pool).await?;
+        let id = insert_survey(tx.conn(), s)
             .await
             .with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
         let lock = AcquirerLock::acquire(&self.path, id)?;
@@ -111,10 +112,10 @@ impl Store {
         if points.is_empty() {
             return Ok(());
         }
-        let mut tx = self.pool.begin().await?;
+        let mut tx = WriteTx::begin(&self.pool).await?;
         let next: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(idx) + 1, 0) FROM locate_points WHERE survey_id = ?")
             .bind(id)
-            .fetch_one(&mut *tx)
+            .fetch_one(tx.conn())
             .await?;
         for (chunk_no, chunk) in points.chunks(CHUNK_ROWS).enumerate() {
             let base = next + (chunk_no * CHUNK_ROWS) as i64;
@@ -134,7 +135,7 @@ impl Store {
                     .push_bind(m.std_dev_mm[2])
                     .push_bind(m.measurement_time_s);
             });
-            qb.build().execute(&mut *tx).await.map_err(|e| {
+            qb.build().execute(tx.conn()).await.map_err(|e| {
                 self.fk_to_not_found(id, e).context(format!("cannot store the locate points of survey {id}"))
             })?;
         }

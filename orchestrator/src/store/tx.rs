@@ -1,0 +1,74 @@
+//! [`WriteTx`]: a write transaction that cannot outlive its failure.
+//!
+//! After a failed `COMMIT` (a full disk: `SQLITE_FULL`, `SQLITE_IOERR`)
+//! SQLite may keep the transaction open; SQLite's documentation asks the
+//! application to issue `ROLLBACK` itself. sqlx's `Transaction` did not on
+//! that path: the next write on the same connection then ran inside the
+//! transaction that never commits and reported success (seen on a full
+//! tmpfs: the store claimed 4400 samples, the disk held 4300). So every
+//! write transaction of the store goes through this guard: `BEGIN IMMEDIATE`
+//! (the write lock is taken at once, and waited for up to the busy timeout),
+//! the statements, `COMMIT`; on any failure an explicit `ROLLBACK`, and the
+//! connection is closed instead of going back to the pool, so nothing of a
+//! failed transaction can reach a later write.
+
+use sqlx::pool::PoolConnection;
+use sqlx::{Sqlite, SqliteConnection, SqlitePool};
+
+/// An open write transaction on a connection of its own.
+#[derive(Debug)]
+pub(super) struct WriteTx {
+    conn: PoolConnection<Sqlite>,
+    open: bool,
+}
+
+impl WriteTx {
+    /// `BEGIN IMMEDIATE` on a connection from `pool`.
+    pub(super) async fn begin(pool: &SqlitePool) -> Result<WriteTx, sqlx::Error> {
+        let mut conn = pool.acquire().await?;
+        if let Err(e) = sqlx::query("BEGIN IMMEDIATE").execute(&mut *conn).await {
+            conn.close_on_drop();
+            return Err(e);
+        }
+        Ok(WriteTx { conn, open: true })
+    }
+
+    /// The connection, to run the transaction's statements on.
+    pub(super) fn conn(&mut self) -> &mut SqliteConnection {
+        &mut self.conn
+    }
+
+    /// `COMMIT`; on failure, roll back and retire the connection.
+    pub(super) async fn commit(mut self) -> Result<(), sqlx::Error> {
+        match sqlx::query("COMMIT").execute(&mut *self.conn).await {
+            Ok(_) => {
+                self.open = false;
+                Ok(())
+            }
+            Err(e) => {
+                self.abort().await;
+                Err(e)
+            }
+        }
+    }
+
+    /// Roll back explicitly and retire the connection.
+    pub(super) async fn abort(mut self) {
+        if let Err(e) = sqlx::query("ROLLBACK").execute(&mut *self.conn).await {
+            // Often SQLite rolled back already ("no transaction is active").
+            tracing::debug!(%e, "ROLLBACK after a failed write failed; the connection is closed");
+        }
+        self.open = false;
+        self.conn.close_on_drop();
+    }
+}
+
+impl Drop for WriteTx {
+    /// Dropped open (an error path returned early, or the future was
+    /// cancelled): closing the connection rolls the transaction back.
+    fn drop(&mut self) {
+        if self.open {
+            self.conn.close_on_drop();
+        }
+    }
+}
