@@ -56,6 +56,21 @@ use crate::record::SampleSink;
 /// How long a statement waits for another connection's lock before it fails.
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
 
+/// Limits of a store's connection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StoreLimits {
+    /// How long one statement waits for another connection's write lock.
+    pub busy_timeout: Duration,
+    /// SQLite's `max_page_count` (tests of a full disk); `None`: no limit.
+    pub max_pages: Option<u32>,
+}
+
+impl Default for StoreLimits {
+    fn default() -> Self {
+        StoreLimits { busy_timeout: BUSY_TIMEOUT, max_pages: None }
+    }
+}
+
 /// Rows per multi-row `INSERT`: the widest row (a raw reading) binds 12 values,
 /// so a statement binds at most 4 800, far under SQLite's limit of 32 766.
 const CHUNK_ROWS: usize = 400;
@@ -107,14 +122,19 @@ impl Store {
     /// up to date. WAL journal, `synchronous = FULL` (a committed transaction
     /// survives power loss), busy timeout 5 s, foreign keys enforced.
     pub async fn open(path: &Path) -> anyhow::Result<Store> {
-        Self::connect(path, true, None).await
+        Self::connect(path, true, StoreLimits::default()).await
     }
 
     /// [`Store::open`] with the database limited to `max_pages` pages
     /// (SQLite's `max_page_count`): when it is reached, a write fails with
     /// the same `SQLITE_FULL` a full disk gives. For tests of a full disk.
     pub async fn open_limited(path: &Path, max_pages: u32) -> anyhow::Result<Store> {
-        Self::connect(path, true, Some(max_pages)).await
+        Self::connect(path, true, StoreLimits { max_pages: Some(max_pages), ..StoreLimits::default() }).await
+    }
+
+    /// [`Store::open`] with other limits (tests: a short busy timeout).
+    pub async fn open_with(path: &Path, limits: StoreLimits) -> anyhow::Result<Store> {
+        Self::connect(path, true, limits).await
     }
 
     /// Open an existing database (for the commands that only read). Fails with a
@@ -136,23 +156,23 @@ impl Store {
                 return Err(anyhow!(e).context(format!("cannot open the database {}", path.display())));
             }
         }
-        Self::connect(path, false, None).await
+        Self::connect(path, false, StoreLimits::default()).await
     }
 
-    async fn connect(path: &Path, create: bool, max_pages: Option<u32>) -> anyhow::Result<Store> {
+    async fn connect(path: &Path, create: bool, limits: StoreLimits) -> anyhow::Result<Store> {
         // busy_timeout is applied when the connection is made, before the
         // pragmas (so the switch to WAL waits for a lock instead of failing).
         let options = SqliteConnectOptions::new()
             .filename(path)
             .create_if_missing(create)
-            .busy_timeout(BUSY_TIMEOUT)
+            .busy_timeout(limits.busy_timeout)
             .journal_mode(SqliteJournalMode::Wal)
             .synchronous(SqliteSynchronous::Full)
             .foreign_keys(true)
             // A long import or load is expected: sqlx's slow-statement notice
             // (with the full SQL) stays at debug, not on every user's stderr.
             .log_slow_statements(log::LevelFilter::Debug, Duration::from_secs(1));
-        let options = match max_pages {
+        let options = match limits.max_pages {
             Some(n) => options.pragma("max_page_count", n.to_string()),
             None => options,
         };
@@ -197,6 +217,18 @@ impl Store {
     fn fk_to_not_found(&self, id: i64, e: sqlx::Error) -> anyhow::Error {
         if is_foreign_key_error(&e) { self.no_survey(id).into() } else { e.into() }
     }
+}
+
+/// The database was locked by another writer longer than the busy timeout
+/// (`SQLITE_BUSY`, `SQLITE_LOCKED` and their extended codes), anywhere in the
+/// error's chain: worth waiting for, not a failure of this process.
+pub fn is_busy(e: &anyhow::Error) -> bool {
+    e.chain().filter_map(|c| c.downcast_ref::<sqlx::Error>()).any(|e| {
+        e.as_database_error()
+            .and_then(|d| d.code())
+            .and_then(|c| c.parse::<u32>().ok())
+            .is_some_and(|c| matches!(c & 0xff, 5 | 6))
+    })
 }
 
 fn is_foreign_key_error(e: &sqlx::Error) -> bool {

@@ -6,7 +6,7 @@ use async_trait::async_trait;
 use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
-use super::Store;
+use super::{Store, is_busy};
 use crate::record::{RecordedSample, SampleSink};
 
 /// A [`SampleSink`] that writes to the store in batches.
@@ -28,6 +28,12 @@ use crate::record::{RecordedSample, SampleSink};
 ///
 /// When a write fails, the samples stay in the buffer (the transaction rolled
 /// back, nothing of them is stored) and the next flush tries again.
+///
+/// Another writer holding the database (an import, another survey's
+/// acquisition) never stops this one: a write that finds the database locked
+/// beyond the busy timeout is retried, each wait logged, for up to
+/// `busy_wait` (default 10 minutes) before it is an error. Readers never
+/// block a write (WAL).
 #[derive(Debug)]
 pub struct StoreSink {
     store: Store,
@@ -38,11 +44,14 @@ pub struct StoreSink {
     oldest: Option<Instant>,
     last_record: Option<Instant>,
     acknowledged: Option<u64>,
+    busy_wait: Duration,
 }
 
 impl StoreSink {
     /// Default number of samples per write.
     pub const DEFAULT_BATCH: usize = 256;
+    /// Default longest wait for another writer's lock.
+    pub const DEFAULT_BUSY_WAIT: Duration = Duration::from_secs(600);
     /// Default longest time a sample waits in the buffer.
     pub const DEFAULT_MAX_AGE: Duration = Duration::from_secs(1);
 
@@ -57,6 +66,7 @@ impl StoreSink {
             oldest: None,
             last_record: None,
             acknowledged: None,
+            busy_wait: Self::DEFAULT_BUSY_WAIT,
         }
     }
 
@@ -69,6 +79,12 @@ impl StoreSink {
     /// Write when the oldest buffered sample has waited `max_age`.
     pub fn with_max_age(mut self, max_age: Duration) -> Self {
         self.max_age = max_age;
+        self
+    }
+
+    /// Wait up to `busy_wait` for another writer's lock before a write fails.
+    pub fn with_busy_wait(mut self, busy_wait: Duration) -> Self {
+        self.busy_wait = busy_wait;
         self
     }
 
@@ -96,7 +112,25 @@ impl StoreSink {
         if self.buffer.is_empty() {
             return Ok(());
         }
-        self.store.append(self.survey_id, &self.buffer).await?;
+        let started = Instant::now();
+        let mut attempt = 0u32;
+        loop {
+            match self.store.append(self.survey_id, &self.buffer).await {
+                Ok(()) => break,
+                Err(e) if is_busy(&e) && started.elapsed() < self.busy_wait => {
+                    attempt += 1;
+                    tracing::warn!(
+                        survey = self.survey_id,
+                        attempt,
+                        waited_s = started.elapsed().as_secs_f64(),
+                        pending = self.buffer.len(),
+                        "the database is locked by another writer: the samples wait in memory, retrying"
+                    );
+                    tokio::time::sleep(Duration::from_millis(200)).await;
+                }
+                Err(e) => return Err(e),
+            }
+        }
         let top = self.buffer.iter().map(|r| r.seq).max();
         self.acknowledged = self.acknowledged.max(top);
         self.buffer.clear();

@@ -469,3 +469,44 @@ async fn a_full_file_system_fails_every_write_and_claims_only_what_is_on_disk() 
         let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
     }
 }
+
+#[tokio::test]
+async fn another_writer_holding_the_lock_delays_a_write_but_never_fails_it_within_the_bounded_wait() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("busy.db");
+    let limits = StoreLimits { busy_timeout: Duration::from_millis(50), max_pages: None };
+    let store = Store::open_with(&path, limits).await.unwrap();
+    let id = store.create_survey(&new_survey()).await.unwrap();
+
+    // Another process's long write (an import): it holds the write lock for
+    // 300 ms, six times this store's busy timeout.
+    let hold = |ms: u64| {
+        let other = rusqlite::Connection::open(&path).unwrap();
+        other.execute_batch("BEGIN IMMEDIATE").unwrap();
+        std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(ms));
+            other.execute_batch("COMMIT").unwrap();
+        })
+    };
+    let holder = hold(300);
+    let mut sink = StoreSink::new(store.clone(), id).with_batch(1000);
+    for seq in 0..10 {
+        sink.record(recorded(seq)).await.unwrap();
+    }
+    sink.flush().await.expect("the write waits for the lock instead of failing");
+    assert_eq!(store.sample_count(id).await.unwrap(), 10);
+    holder.join().unwrap();
+
+    // The wait is bounded: a sink allowed 100 ms gives up on a 500 ms lock, with
+    // the busy error, and keeps its samples for the next try.
+    let holder = hold(500);
+    let mut impatient = StoreSink::new(store.clone(), id).with_batch(1000).with_busy_wait(Duration::from_millis(100));
+    impatient.record(recorded(10)).await.unwrap();
+    let e = impatient.flush().await.unwrap_err();
+    assert!(is_busy(&e), "{e:#}");
+    assert_eq!(impatient.pending(), 1);
+    holder.join().unwrap();
+    impatient.flush().await.unwrap();
+    assert_eq!(store.sample_count(id).await.unwrap(), 11);
+    store.close().await;
+}
