@@ -231,3 +231,81 @@ async fn a_full_disk_stops_the_survey_claims_only_what_is_stored_and_resume_reme
     let (status, n, _) = dense_prefix(&db).await;
     assert_eq!((status, n), (SurveyStatus::Complete, 1440), "exactly what was lost was measured again");
 }
+
+fn sha(path: &Path) -> Vec<u8> {
+    std::fs::read(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display()))
+}
+
+#[tokio::test]
+async fn read_only_commands_never_write_and_refuse_foreign_damaged_or_newer_files_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    assert_eq!(survey(&db, &["run", "--points", "36", "--runs", "2", "--bidirectional"]).status.code(), Some(0));
+    let before = sha(&db);
+    let model = dir.path().join("m.toml");
+    std::fs::write(&model, "[[effect]]\nkind = \"noise\"\nsigma_deg = 0.001\n").unwrap();
+    let out_dir = dir.path().join("report");
+    let (csv, table) = (dir.path().join("e.csv"), dir.path().join("t.csv"));
+    let m = model.to_str().unwrap();
+    let commands: [Vec<&str>; 5] = [
+        vec!["stats", "--json"],
+        vec!["export", "--csv", csv.to_str().unwrap()],
+        vec!["process", "--table-out", table.to_str().unwrap()],
+        vec!["report", "--out", out_dir.to_str().unwrap()],
+        vec!["model-gap", "--model", m],
+    ];
+    for args in &commands {
+        let out = survey(&db, args);
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+        assert!(sha(&db) == before, "`survey {}` changed the database file", args.join(" "));
+    }
+
+    // Another application's SQLite file: refused, and not touched.
+    let foreign = dir.path().join("app.sqlite");
+    make_foreign(&foreign);
+    let foreign_before = sha(&foreign);
+    for args in &commands {
+        let out = survey(&foreign, args);
+        let all = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{all}");
+        assert!(all.contains("app.sqlite is not a survey database"), "{all}");
+        assert!(sha(&foreign) == foreign_before, "`survey {}` changed another application's file", args.join(" "));
+        assert!(!dir.path().join("app.sqlite-wal").exists(), "no WAL was made beside it");
+    }
+
+    // A damaged database (pages overwritten) and one from a newer version.
+    let damaged = dir.path().join("damaged.db");
+    let mut bytes = before.clone();
+    for b in bytes.iter_mut().skip(4096).take(4096 * 3) {
+        *b = 0xff;
+    }
+    std::fs::write(&damaged, &bytes).unwrap();
+    let out = survey(&damaged, &["stats"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("damaged.db is damaged"), "{}", text(&out));
+
+    let newer = dir.path().join("newer.db");
+    std::fs::copy(&db, &newer).unwrap();
+    let store = Store::open(&newer).await.unwrap();
+    store.close().await;
+    bump_schema(&newer);
+    let out = survey(&newer, &["stats"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("newer.db was written by a newer version of survey"), "{}", text(&out));
+}
+
+/// An SQLite file of another application: one table of its own.
+fn make_foreign(path: &Path) {
+    let c = rusqlite::Connection::open(path).unwrap();
+    c.execute_batch("CREATE TABLE notes (x); INSERT INTO notes VALUES (1);").unwrap();
+}
+
+/// Record a schema version this build does not know.
+fn bump_schema(path: &Path) {
+    let c = rusqlite::Connection::open(path).unwrap();
+    c.execute_batch(
+        "INSERT INTO _sqlx_migrations (version, description, installed_on, success, checksum, execution_time) \
+         VALUES (99, 'future', 0, 1, x'00', 0)",
+    )
+    .unwrap();
+}

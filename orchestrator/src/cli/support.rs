@@ -26,15 +26,22 @@ pub fn emit(text: &str) {
     let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
 }
 
-/// Open an existing database for a command that reads: a missing file is bad input.
+/// Open an existing database for a command that writes to it (`resume`): a
+/// missing file is bad input.
 pub async fn open_existing(db: &Path) -> anyhow::Result<Store> {
     Store::open_existing(db).await
+}
+
+/// Open an existing database for a command that only reads: never written
+/// ([`Store::open_read_only`]).
+pub async fn open_read_only(db: &Path) -> anyhow::Result<Store> {
+    Store::open_read_only(db).await
 }
 
 /// Open the database at `db`, read survey `id` (the latest when `None`) and
 /// its samples, and close it: what the commands that only read need.
 pub async fn load_survey(db: &Path, id: Option<i64>) -> anyhow::Result<(SurveyRecord, Vec<Sample>)> {
-    let store = open_existing(db).await?;
+    let store = open_read_only(db).await?;
     let loaded = async {
         let survey = store.resolve(id).await?;
         let samples = store.samples(survey.id).await?;

@@ -115,6 +115,8 @@ pub fn is_not_found(err: &anyhow::Error) -> bool {
 pub struct Store {
     pool: SqlitePool,
     path: PathBuf,
+    /// Opened `immutable` (read-only media): the bulk reader must be too.
+    immutable: bool,
 }
 
 impl Store {
@@ -140,23 +142,87 @@ impl Store {
     /// Open an existing database (for the commands that only read). Fails with a
     /// [`NotFound`] when there is no file at `path`, and does not create one.
     pub async fn open_existing(path: &Path) -> anyhow::Result<Store> {
-        match std::fs::metadata(path) {
-            Ok(m) if m.is_file() => {}
-            Ok(_) => {
-                return Err(NotFound(format!("{} is not a survey database (it is not a file)", path.display())).into());
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                return Err(NotFound(format!(
-                    "no survey database at {}: run `survey run` or `survey import` first",
-                    path.display()
-                ))
-                .into());
-            }
-            Err(e) => {
-                return Err(anyhow!(e).context(format!("cannot open the database {}", path.display())));
-            }
-        }
+        existing_file(path)?;
         Self::connect(path, false, StoreLimits::default()).await
+    }
+
+    /// Open an existing survey database for a command that only reads. It
+    /// never writes: the connection is read-only, no migration runs, the
+    /// journal mode is left as it is, and on read-only media (where SQLite
+    /// cannot make the WAL's shared-memory file) the file is opened as
+    /// immutable. A file that is not a survey database (another
+    /// application's SQLite file, or not SQLite at all), a damaged one, or one
+    /// written by a newer version of `survey` is refused with one message form
+    /// naming the file ([`NotFound`]: bad input, exit status 2).
+    pub async fn open_read_only(path: &Path) -> anyhow::Result<Store> {
+        existing_file(path)?;
+        let options = SqliteConnectOptions::new()
+            .filename(path)
+            .read_only(true)
+            .busy_timeout(BUSY_TIMEOUT)
+            .log_slow_statements(log::LevelFilter::Debug, Duration::from_secs(1));
+        // Connect and read the schema once: in WAL mode SQLite only finds out
+        // at the first read that it cannot make the shared-memory file.
+        let connect = |options: SqliteConnectOptions| async move {
+            let pool = SqlitePoolOptions::new().max_connections(1).min_connections(0).connect_with(options).await?;
+            match sqlx::query("SELECT 1 FROM sqlite_master LIMIT 1").fetch_optional(&pool).await {
+                Ok(_) => Ok(pool),
+                Err(e) => {
+                    pool.close().await;
+                    Err(e)
+                }
+            }
+        };
+        let (pool, immutable) = match connect(options.clone()).await {
+            Ok(pool) => (pool, false),
+            Err(e) if sqlite_code(&e).is_some_and(|c| matches!(c & 0xff, 8 | 14)) => {
+                // SQLITE_READONLY / SQLITE_CANTOPEN: read-only media.
+                let pool = connect(options.immutable(true)).await.map_err(|e| open_error(path, e))?;
+                (pool, true)
+            }
+            Err(e) => return Err(open_error(path, e)),
+        };
+        let store = Store { pool, path: path.to_path_buf(), immutable };
+        if let Err(e) = store.check_schema().await {
+            store.close().await;
+            return Err(e);
+        }
+        Ok(store)
+    }
+
+    /// The file is a survey database of a schema this version reads.
+    async fn check_schema(&self) -> anyhow::Result<()> {
+        let path = self.path.display();
+        let tables: Vec<String> = sqlx::query_scalar(
+            "SELECT name FROM sqlite_master WHERE type = 'table' AND name IN ('_sqlx_migrations', 'surveys', 'samples')",
+        )
+        .fetch_all(&self.pool)
+        .await
+        .map_err(|e| open_error(&self.path, e))?;
+        if tables.len() < 3 {
+            return Err(NotFound(format!(
+                "{path} is not a survey database (it is an SQLite file without the survey tables)"
+            ))
+            .into());
+        }
+        let version: Option<i64> = sqlx::query_scalar("SELECT MAX(version) FROM _sqlx_migrations WHERE success")
+            .fetch_one(&self.pool)
+            .await
+            .map_err(|e| open_error(&self.path, e))?;
+        let known = MIGRATIONS.last().map_or(0, |m| m.0);
+        match version {
+            Some(v) if v > known => Err(NotFound(format!(
+                "{path} was written by a newer version of survey (schema {v}; this version reads up to {known})"
+            ))
+            .into()),
+            Some(v) if v < known => Err(NotFound(format!(
+                "{path} has an older schema ({v}; this version reads {known}): any command that writes \
+                 (`survey resume`, `survey import`) upgrades it"
+            ))
+            .into()),
+            Some(_) => Ok(()),
+            None => Err(NotFound(format!("{path} is not a survey database (its schema was never set up)")).into()),
+        }
     }
 
     async fn connect(path: &Path, create: bool, limits: StoreLimits) -> anyhow::Result<Store> {
@@ -190,7 +256,7 @@ impl Store {
                 other => anyhow!(other),
             })
             .with_context(|| format!("cannot set up the survey database {}", path.display()))?;
-        Ok(Store { pool, path: path.to_path_buf() })
+        Ok(Store { pool, path: path.to_path_buf(), immutable: false })
     }
 
     /// The database file.
@@ -235,14 +301,47 @@ fn is_foreign_key_error(e: &sqlx::Error) -> bool {
     e.as_database_error().is_some_and(|d| d.is_foreign_key_violation())
 }
 
-/// An error opening `path`: "file is not a database" (SQLITE_NOTADB, 26) is a
-/// user error, anything else a run-time failure; both name the path.
+/// SQLite's (extended) result code of a database error.
+fn sqlite_code(e: &sqlx::Error) -> Option<u32> {
+    e.as_database_error().and_then(|d| d.code()).and_then(|c| c.parse().ok())
+}
+
+/// The file at `path` exists and is a file ([`NotFound`] otherwise).
+fn existing_file(path: &Path) -> anyhow::Result<()> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => {}
+        Ok(_) => {
+            return Err(NotFound(format!("{} is not a survey database (it is not a file)", path.display())).into());
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Err(NotFound(format!(
+                "no survey database at {}: run `survey run` or `survey import` first",
+                path.display()
+            ))
+            .into());
+        }
+        Err(e) => {
+            return Err(anyhow!(e).context(format!("cannot open the database {}", path.display())));
+        }
+    }
+    Ok(())
+}
+
+/// An error opening `path`: "file is not a database" (SQLITE_NOTADB, 26) and
+/// "database disk image is malformed" (SQLITE_CORRUPT, 11) are the user's
+/// (a wrong or damaged file: bad input), anything else a run-time failure;
+/// all name the path.
 fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
-    let not_a_db = e.as_database_error().and_then(|d| d.code()).is_some_and(|c| c == "26");
-    if not_a_db {
-        NotFound(format!("{} is not a survey database (SQLite: file is not a database)", path.display())).into()
-    } else {
-        anyhow::Error::new(e).context(format!("cannot open the database {}", path.display()))
+    match sqlite_code(&e).map(|c| c & 0xff) {
+        Some(26) => {
+            NotFound(format!("{} is not a survey database (SQLite: file is not a database)", path.display())).into()
+        }
+        Some(11) => NotFound(format!(
+            "{} is damaged (SQLite: database disk image is malformed); restore it from a backup",
+            path.display()
+        ))
+        .into(),
+        _ => anyhow::Error::new(e).context(format!("cannot open the database {}", path.display())),
     }
 }
 

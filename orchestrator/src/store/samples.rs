@@ -82,8 +82,8 @@ impl Store {
     /// (both link `libsqlite3-sys`), which sees every committed transaction
     /// (WAL) and writes nothing.
     pub async fn samples(&self, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
-        let path = self.path.clone();
-        tokio::task::spawn_blocking(move || read_samples(&path, survey_id))
+        let (path, immutable) = (self.path.clone(), self.immutable);
+        tokio::task::spawn_blocking(move || read_samples(&path, immutable, survey_id))
             .await
             .context("the sample reader stopped")?
             .with_context(|| format!("cannot read the samples of survey {survey_id}"))
@@ -235,12 +235,24 @@ async fn insert_samples(conn: &mut SqliteConnection, survey_id: i64, samples: &[
 }
 
 /// [`Store::samples`], on the calling thread.
-fn read_samples(path: &std::path::Path, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
+fn read_samples(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
     use rusqlite::OpenFlags;
-    let conn = rusqlite::Connection::open_with_flags(
-        path,
-        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX | OpenFlags::SQLITE_OPEN_URI,
-    )?;
+    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    let conn = if immutable {
+        // Read-only media: a URI with `immutable=1` (the characters a URI
+        // reserves are escaped in the path).
+        let mut uri = String::from("file:");
+        for c in path.to_string_lossy().chars() {
+            match c {
+                '%' | '?' | '#' => uri.push_str(&format!("%{:02X}", c as u32)),
+                c => uri.push(c),
+            }
+        }
+        uri.push_str("?immutable=1");
+        rusqlite::Connection::open_with_flags(uri, flags | OpenFlags::SQLITE_OPEN_URI)?
+    } else {
+        rusqlite::Connection::open_with_flags(path, flags)?
+    };
     conn.busy_timeout(super::BUSY_TIMEOUT)?;
     let count: i64 = conn.query_row("SELECT COUNT(*) FROM samples WHERE survey_id = ?1", [survey_id], |r| r.get(0))?;
     let mut out = Vec::with_capacity(usize::try_from(count).unwrap_or(0));
