@@ -219,6 +219,19 @@ impl SurveyConfig {
     /// Parse and check configuration text; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
         let err = |message: String| ConfigError { file: file.to_string(), message };
+        // TOML has nan and inf; no setting is either (stored as JSON, they
+        // would come back as null and the survey could never resume).
+        if let Ok(table) = text.parse::<toml::Table>()
+            && let Some(key) = non_finite(&table, "")
+        {
+            let last = key.rsplit(['.', '[']).next().unwrap_or(&key).trim_end_matches(']');
+            let line = text.lines().position(|l| {
+                let l = l.trim_start();
+                l.starts_with(last) && (l.contains("nan") || l.contains("inf"))
+            });
+            let at = line.map(|l| format!("line {}: ", l + 1)).unwrap_or_default();
+            return Err(err(format!("{at}{key} is not a finite number")));
+        }
         let cfg: SurveyConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
             let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1));
             match line {
@@ -270,32 +283,58 @@ impl SurveyConfig {
         {
             return Err(format!("survey.travel_deg = [{lo}, {hi}] is not an increasing pair of finite angles"));
         }
+        if let Some(v) = self.survey.overrun_deg {
+            within("survey.overrun_deg", v, Range::Above(0.0), 10.0, "deg")?;
+        }
+        if let Some([lo, hi]) = self.survey.travel_deg {
+            within("survey.travel_deg[0]", lo, Range::From(-3600.0), 3600.0, "deg")?;
+            within("survey.travel_deg[1]", hi, Range::From(-3600.0), 3600.0, "deg")?;
+        }
+        // Stated physical ranges: a value outside is a unit or typing error,
+        // and a time beyond an hour would overflow the clock's arithmetic or
+        // stall a survey for ever.
         let t = &self.timing;
-        for (key, value) in [
-            ("call_timeout_s", t.call_timeout_s),
-            ("measure_timeout_s", t.measure_timeout_s),
-            ("move_margin_s", t.move_margin_s),
-            ("poll_interval_s", t.poll_interval_s),
-            ("dwell_s", t.dwell_s),
-            ("retry_backoff_s", t.retry_backoff_s),
-            ("velocity_deg_s", t.velocity_deg_s),
-            ("accel_deg_s2", t.accel_deg_s2),
+        for (key, value, range, max, unit) in [
+            ("call_timeout_s", t.call_timeout_s, Range::Above(0.0), 3600.0, "s"),
+            ("measure_timeout_s", t.measure_timeout_s, Range::Above(0.0), 3600.0, "s"),
+            ("move_margin_s", t.move_margin_s, Range::From(0.0), 3600.0, "s"),
+            ("poll_interval_s", t.poll_interval_s, Range::Above(0.0), 60.0, "s"),
+            ("dwell_s", t.dwell_s, Range::From(0.0), 3600.0, "s"),
+            ("retry_backoff_s", t.retry_backoff_s, Range::From(0.0), 3600.0, "s"),
+            ("velocity_deg_s", t.velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
+            ("accel_deg_s2", t.accel_deg_s2, Range::Above(0.0), 1.0e6, "deg/s^2"),
         ] {
-            if let Some(v) = value
-                && !(v.is_finite() && v >= 0.0)
-            {
-                return Err(format!("timing.{key} must be a non-negative number of seconds (or deg/s), got {v}"));
+            if let Some(v) = value {
+                within(&format!("timing.{key}"), v, range, max, unit)?;
             }
         }
-        for (key, value) in [("velocity_deg_s", t.velocity_deg_s), ("accel_deg_s2", t.accel_deg_s2)] {
-            if value == Some(0.0) {
-                return Err(format!("timing.{key} must be positive"));
-            }
-        }
-        if let Some(arm) = &self.arm
-            && !(arm.radius_mm.is_finite() && arm.radius_mm > 0.0 && arm.radius_tolerance_mm > 0.0)
+        if let Some(n) = t.max_retries
+            && n > 1000
         {
-            return Err("arm.radius_mm and arm.radius_tolerance_mm must be positive".into());
+            return Err(format!("timing.max_retries = {n} is outside 0..=1000"));
+        }
+        if let Some(n) = t.locate_points
+            && !(3..=10_000).contains(&n)
+        {
+            return Err(format!("timing.locate_points = {n} is outside 3..=10000 (a circle needs 3 points)"));
+        }
+        if let Some(arm) = &self.arm {
+            within("arm.radius_mm", arm.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
+            within("arm.radius_tolerance_mm", arm.radius_tolerance_mm, Range::Above(0.0), arm.radius_mm, "mm")?;
+        }
+        if let Some(p) = &self.polygon {
+            if p.faces > 3600 {
+                return Err(format!("polygon.faces = {} is outside 2..=3600", p.faces));
+            }
+            for (i, c) in p.certificate_arcsec.iter().enumerate() {
+                within(&format!("polygon.certificate_arcsec[{i}]"), *c, Range::From(-3600.0), 3600.0, "arcsec")?;
+            }
+        }
+        if let PositionerConfig::Canopen { drive, .. } = &self.positioner {
+            within("positioner.counts_per_degree", drive.counts_per_degree, Range::Above(0.0), 1.0e9, "counts/deg")?;
+        }
+        if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
+            within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
         }
         Ok(())
     }
@@ -318,6 +357,39 @@ impl SurveyConfig {
             accel_deg_s2: t.accel_deg_s2.unwrap_or(d.accel_deg_s2),
         }
     }
+}
+
+/// The lower end of a range: inclusive or not.
+#[derive(Debug, Clone, Copy)]
+enum Range {
+    From(f64),
+    Above(f64),
+}
+
+/// `value` lies in the range, else the key, the value and the range.
+fn within(key: &str, value: f64, low: Range, max: f64, unit: &str) -> Result<(), String> {
+    let (ok, low_text) = match low {
+        Range::From(lo) => (value >= lo, format!("{lo}")),
+        Range::Above(lo) => (value > lo, format!("above {lo}")),
+    };
+    if value.is_finite() && ok && value <= max {
+        Ok(())
+    } else {
+        Err(format!("{key} = {value} is outside its range ({low_text} to {max} {unit})"))
+    }
+}
+
+/// The key of the first float in `table` that is NaN or infinite.
+fn non_finite(table: &toml::Table, prefix: &str) -> Option<String> {
+    fn walk(value: &toml::Value, key: String) -> Option<String> {
+        match value {
+            toml::Value::Float(f) if !f.is_finite() => Some(key),
+            toml::Value::Table(t) => t.iter().find_map(|(k, v)| walk(v, format!("{key}.{k}"))),
+            toml::Value::Array(a) => a.iter().enumerate().find_map(|(i, v)| walk(v, format!("{key}[{i}]"))),
+            _ => None,
+        }
+    }
+    table.iter().find_map(|(k, v)| walk(v, if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") }))
 }
 
 #[cfg(test)]
@@ -351,6 +423,42 @@ mod tests {
 
     fn error_of(text: &str) -> String {
         SurveyConfig::parse(text, "c.toml").unwrap_err().to_string()
+    }
+
+    const TRACKER_BENCH: &str = "[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n\
+        [tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\n";
+
+    #[test]
+    fn every_number_is_finite_and_within_its_stated_range() {
+        assert!(SurveyConfig::parse(TRACKER_BENCH, "c.toml").is_ok());
+        for (extra, key) in [
+            ("[timing]\ncall_timeout_s = 1e19\n", "timing.call_timeout_s = 10000000000000000000 is outside"),
+            ("[timing]\nretry_backoff_s = 2e19\n", "timing.retry_backoff_s"),
+            ("[timing]\ndwell_s = 1e19\n", "timing.dwell_s"),
+            ("[timing]\npoll_interval_s = 0\n", "timing.poll_interval_s = 0 is outside its range (above 0"),
+            ("[timing]\nmax_retries = 4000000000\n", "timing.max_retries"),
+            ("[timing]\nlocate_points = 2\n", "timing.locate_points"),
+            ("[survey]\noverrun_deg = 45.0\n", "survey.overrun_deg = 45 is outside"),
+            ("[survey]\ntravel_deg = [-1e9, 90.0]\n", "survey.travel_deg[0]"),
+            ("[arm]\nradius_mm = 500.0\nradius_tolerance_mm = 600.0\n", "arm.radius_tolerance_mm"),
+        ] {
+            let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
+            assert!(e.starts_with("c.toml: ") && e.contains(key), "{extra}: {e}");
+        }
+        // nan and inf anywhere, with the key and the line.
+        for (extra, want) in [
+            ("[survey]\noverrun_deg = nan\n", "line 8: survey.overrun_deg is not a finite number"),
+            ("[timing]\ndwell_s = inf\n", "line 8: timing.dwell_s is not a finite number"),
+            ("[timing]\ndwell_s = -inf\n", "timing.dwell_s is not a finite number"),
+            ("[arm]\nradius_mm = nan\n", "arm.radius_mm is not a finite number"),
+        ] {
+            let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
+            assert!(e.contains(want), "{extra}: {e}");
+        }
+        let e = error_of(
+            &TRACKER_BENCH.replace("address = \"h:700\"\n", "address = \"h:700\"\napprox_distance_mm = nan\n"),
+        );
+        assert!(e.contains("tracker.approx_distance_mm is not a finite number"), "{e}");
     }
 
     #[test]

@@ -117,13 +117,20 @@ fn check_header(header: &csv::StringRecord) -> Result<bool, String> {
     Ok(names.len() == REQUIRED_COLUMNS.len() + 1)
 }
 
+/// The largest angle a survey CSV may hold, in magnitude, degrees.
+pub const MAX_ABS_ANGLE_DEG: f64 = 1.0e6;
+/// The largest timestamp, in magnitude, seconds.
+pub const MAX_ABS_TIME_S: f64 = 1.0e12;
+/// The highest run number.
+pub const MAX_RUN: u32 = 10_000;
+
 fn parse_row(rec: &csv::StringRecord, has_timestamp: bool) -> Result<Sample, String> {
     let cell = |i: usize| rec.get(i).unwrap_or("");
     let run_text = cell(0);
     let run = match run_text.parse::<u32>() {
-        Ok(r) if r >= 1 => r,
+        Ok(r) if (1..=MAX_RUN).contains(&r) => r,
         _ => {
-            return Err(format!("column 'run': '{run_text}' is not a run number (an integer from 1)"));
+            return Err(format!("column 'run': '{run_text}' is not a run number (an integer from 1 to {MAX_RUN})"));
         }
     };
     let direction = cell(1).parse::<Direction>().map_err(|e| format!("column 'direction': {e}"))?;
@@ -133,8 +140,13 @@ fn parse_row(rec: &csv::StringRecord, has_timestamp: bool) -> Result<Sample, Str
         if text.is_empty() {
             return Err(format!("column '{name}' is empty"));
         }
+        // Angles within a million degrees (about 2800 turns) and times within
+        // 1e12 s (Unix time fits): beyond that a value is a unit or typing
+        // error, and its squares would overflow the statistics.
+        let limit = if name == TIMESTAMP_COLUMN { MAX_ABS_TIME_S } else { MAX_ABS_ANGLE_DEG };
         match text.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
+            Ok(v) if v.is_finite() && v.abs() <= limit => Ok(v),
+            Ok(v) if v.is_finite() => Err(format!("column '{name}': {text} is outside -{limit:e}..={limit:e}")),
             Ok(_) => Err(format!("column '{name}': '{text}' is not a finite number")),
             Err(_) => Err(format!("column '{name}': '{text}' is not a number")),
         }
@@ -236,6 +248,17 @@ mod tests {
             s.actual_deg.to_bits(),
             s.timestamp_s.map(f64::to_bits),
         )
+    }
+
+    #[test]
+    fn numbers_outside_their_physical_range_are_refused_with_the_line() {
+        let e = err(&format!("{HEADER}\n1,forward,0,0,0.001\n1,forward,180,180,1e308\n"));
+        assert_eq!(e, "data.csv:3: column 'actual_deg': 1e308 is outside -1e6..=1e6");
+        let e = err(&format!("{HEADER}\n99999,forward,0,0,0.001\n"));
+        assert!(e.starts_with("data.csv:2: column 'run'") && e.contains("1 to 10000"), "{e}");
+        let e = err(&format!("{HEADER},timestamp_s\n1,forward,0,0,0.001,1e13\n"));
+        assert!(e.starts_with("data.csv:2: column 'timestamp_s': 1e13 is outside"), "{e}");
+        assert!(parse_survey_csv(&format!("{HEADER},timestamp_s\n1,forward,-999999,0,0.001,1.7e9\n"), "d").is_ok());
     }
 
     fn assert_bit_equal(a: &[Sample], b: &[Sample]) {
@@ -344,7 +367,7 @@ mod tests {
             let text = format!("{HEADER}\n1,forward,0,0,0\n1,forward,0,0,0\n{bad},forward,0,0,0\n");
             assert_eq!(
                 err(&text),
-                format!("data.csv:4: column 'run': '{bad}' is not a run number (an integer from 1)")
+                format!("data.csv:4: column 'run': '{bad}' is not a run number (an integer from 1 to 10000)")
             );
         }
     }
@@ -424,7 +447,7 @@ mod tests {
                 direction: Direction::Reverse,
                 target_deg: 359.99999999999994,
                 readout_deg: 1e-300,
-                actual_deg: f64::MAX,
+                actual_deg: -MAX_ABS_ANGLE_DEG,
                 timestamp_s: None,
             },
         ];
@@ -442,21 +465,22 @@ mod tests {
         assert_bit_equal(&parse_survey_csv(&text, "x").unwrap(), &samples);
     }
 
+    /// Any value a survey CSV may hold: every bit pattern of the range.
     fn finite() -> impl Strategy<Value = f64> {
         prop_oneof![
-            any::<f64>().prop_filter("finite", |v| v.is_finite()),
+            any::<f64>().prop_filter("within the range", |v| v.is_finite() && v.abs() <= MAX_ABS_ANGLE_DEG),
             -720.0..720.0f64,
             Just(0.0),
             Just(-0.0),
             Just(f64::MIN_POSITIVE),
             Just(5e-324),
-            Just(f64::MAX),
-            Just(f64::MIN),
+            Just(MAX_ABS_ANGLE_DEG),
+            Just(-MAX_ABS_ANGLE_DEG),
         ]
     }
 
     fn sample() -> impl Strategy<Value = Sample> {
-        (1..=u32::MAX, any::<bool>(), finite(), finite(), finite(), proptest::option::of(finite())).prop_map(
+        (1..=MAX_RUN, any::<bool>(), finite(), finite(), finite(), proptest::option::of(finite())).prop_map(
             |(run, fwd, target_deg, readout_deg, actual_deg, timestamp_s)| Sample {
                 run,
                 direction: if fwd { Direction::Forward } else { Direction::Reverse },

@@ -28,6 +28,9 @@ pub mod survey;
 pub mod verify;
 
 #[cfg(test)]
+mod fuzz_tests;
+
+#[cfg(test)]
 mod architecture {
     //! ARCHITECTURE.md's claims that a test can check: the CLI is the roof,
     //! and every path in the code map exists.

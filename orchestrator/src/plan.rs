@@ -34,6 +34,11 @@ pub struct Step {
     pub target_deg: f64,
 }
 
+/// The most steps a plan may hold (counted both ways): 4 million, about 93
+/// days of instrument time at 2 s a step. A survey beyond it is a typing
+/// error, and the plan (a few dozen bytes a step) must fit in memory.
+pub const MAX_STEPS: u64 = 4_000_000;
+
 /// Why a plan is not valid.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PlanError {
@@ -41,6 +46,13 @@ pub enum PlanError {
     TooFewPoints(u32),
     #[error("--runs must be at least 2 (repeatability needs two runs; ISO 230-2 asks for 5), got {0}")]
     TooFewRuns(u32),
+    #[error(
+        "--points {points} x --runs {runs} makes {steps} steps, more than the {max} a survey may hold (at about 2 s a \
+         step that is {days:.0} days of instrument time)",
+        max = MAX_STEPS,
+        days = *steps as f64 * 2.0 / 86400.0
+    )]
+    TooManySteps { points: u32, runs: u32, steps: u64 },
     #[error("the range {start}..{end} deg is empty or not finite")]
     BadRange { start: f64, end: f64 },
     #[error("the overrun must be positive and finite, got {0} deg")]
@@ -84,6 +96,11 @@ impl SurveyPlan {
         }
         if runs < 2 {
             return Err(PlanError::TooFewRuns(runs));
+        }
+        // Counted as if bidirectional: the bound does not depend on the flag.
+        let steps = u64::from(points) * u64::from(runs) * 2;
+        if steps > MAX_STEPS {
+            return Err(PlanError::TooManySteps { points, runs, steps });
         }
         Ok(())
     }

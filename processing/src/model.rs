@@ -307,8 +307,15 @@ fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
                 let arr = value.as_array().ok_or((at(key), "design.gear_ratios must be an array of numbers".into()))?;
                 for v in arr {
                     match number(v) {
-                        Some(r) if r > 0.0 && r.is_finite() => d.gear_ratios.push(r),
-                        _ => return Err((at(key), format!("design.gear_ratios: {v} is not a positive number"))),
+                        Some(r) if r > 0.0 && r <= 100_000.0 => d.gear_ratios.push(r),
+                        _ => {
+                            return Err((
+                                at(key),
+                                format!(
+                                    "design.gear_ratios: {v} is not a gear ratio (a number from above 0 to 100000)"
+                                ),
+                            ));
+                        }
                     }
                 }
             }
@@ -317,8 +324,13 @@ fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
                     value.as_array().ok_or((at(key), "design.tooth_counts must be an array of integers".into()))?;
                 for v in arr {
                     match v.as_integer() {
-                        Some(n) if n > 0 && n <= u32::MAX as i64 => d.tooth_counts.push(n as u32),
-                        _ => return Err((at(key), format!("design.tooth_counts: {v} is not a positive integer"))),
+                        Some(n) if (1..=100_000).contains(&n) => d.tooth_counts.push(n as u32),
+                        _ => {
+                            return Err((
+                                at(key),
+                                format!("design.tooth_counts: {v} is not a tooth count (an integer from 1 to 100000)"),
+                            ));
+                        }
                     }
                 }
             }
@@ -340,6 +352,22 @@ fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
         }
     }
     Ok(d)
+}
+
+/// The range a model value must lie in to describe a positioner this
+/// calibrates, and why: the paper's errors are hundredths of a degree, so an
+/// amplitude of degrees is a unit or typing error (arcseconds, radians), not a
+/// positioner. Signs are checked where they are parsed.
+fn physical_range(key: &str) -> Option<(f64, f64, &'static str)> {
+    const ANGLE: &str = "an error of a degree or more is not one a table corrects (the paper's are hundredths \
+                         of a degree): is the value in arcseconds or radians?";
+    match key {
+        "amplitude_deg" | "sigma_deg" => Some((-1.0, 1.0, ANGLE)),
+        "rate_deg_per_run" => Some((-1.0, 1.0, ANGLE)),
+        "cycles_per_rev" => Some((0.0, 100_000.0, "no positioner error repeats more than 100000 times a turn")),
+        "phase_deg" => Some((-1.0e6, 1.0e6, "a phase is an angle (it wraps at 360)")),
+        _ => None,
+    }
 }
 
 fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, Fail> {
@@ -371,7 +399,12 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
     let get = |key: &str| -> Result<f64, Fail> {
         let v = t.get(key).ok_or((header, format!("effect[{n}] ({kind}): missing key '{key}'")))?;
         match number(v) {
-            Some(x) if x.is_finite() => Ok(x),
+            Some(x) if x.is_finite() => match physical_range(key) {
+                Some((lo, hi, why)) if !(lo..=hi).contains(&x) => {
+                    Err((at(key), format!("effect[{n}] ({kind}).{key} = {x} is outside {lo}..={hi}: {why}")))
+                }
+                _ => Ok(x),
+            },
             _ => Err((at(key), format!("effect[{n}] ({kind}).{key} must be a finite number, got {v}"))),
         }
     };
