@@ -6,7 +6,7 @@
 use crate::engine::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
 use crate::plan::SurveyPlan;
-use crate::process::{ProcessOptions, process_survey};
+use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
 use crate::stop::{Stop, Stopped};
 use crate::store::Store;
@@ -79,7 +79,8 @@ pub async fn conclude(
     if let Err(why) = options.stop.check() {
         return stopped(store, id, why, Output { doc, text }).await;
     }
-    let processing = ProcessOptions { recipe: options.recipe.clone(), design: None, table_out: None };
+    let table_out = Some(default_table_path(db, id));
+    let processing = ProcessOptions { recipe: options.recipe.clone(), design: None, table_out };
     let processed = match process_survey(&record, &samples, processing) {
         Ok(p) => p,
         Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),

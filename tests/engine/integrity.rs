@@ -309,3 +309,62 @@ fn bump_schema(path: &Path) {
     )
     .unwrap();
 }
+
+#[test]
+fn default_table_names_never_collide_across_databases() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["a.db", "b.db", "survey.db"] {
+        let out = survey(&dir.path().join(name), &["run", "--points", "36", "--runs", "2", "--json"]);
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    }
+    // `--db survey.db` (the default) keeps table-<id>.csv in the current
+    // folder; any other database gets its own name beside it.
+    let a = std::fs::read_to_string(dir.path().join("a.db.table-1.csv")).expect("a's table");
+    let b = std::fs::read_to_string(dir.path().join("b.db.table-1.csv")).expect("b's table");
+    assert!(a.starts_with("readout_deg,") && b.starts_with("readout_deg,"));
+    assert!(dir.path().join("a.db.table-1.recipe.toml").exists() && dir.path().join("b.db.table-1.bin").exists());
+    // survey() passes --db as an absolute path: that is another database than
+    // the default `survey.db` of the current folder, so it is named too.
+    assert!(dir.path().join(format!("{}.table-1.csv", dir.path().join("survey.db").display())).exists());
+}
+
+#[test]
+fn table_out_follows_links_writes_into_devices_and_pipes_and_never_replaces_them() {
+    use std::os::unix::fs::FileTypeExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    assert_eq!(survey(&db, &["run", "--points", "36", "--runs", "2"]).status.code(), Some(0));
+
+    // A full device: the write fails, exit status 1, the device stays a device.
+    let out = survey(&db, &["process", "--table-out", "/dev/full"]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(text(&out).contains("cannot write /dev/full"), "{}", text(&out));
+    assert!(std::fs::metadata("/dev/full").unwrap().file_type().is_char_device());
+
+    // A symbolic link is followed: the file it names gets the table.
+    let real = dir.path().join("real.csv");
+    let link = dir.path().join("link.csv");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let out = survey(&db, &["process", "--table-out", link.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink(), "the link is still a link");
+    assert!(std::fs::read_to_string(&real).unwrap().starts_with("readout_deg,"));
+
+    // A named pipe is written into (a reader takes the table), and stays a pipe.
+    let fifo = dir.path().join("table.fifo");
+    nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::from_bits_truncate(0o600)).unwrap();
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+    };
+    let out = survey(&db, &["process", "--table-out", fifo.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(reader.join().unwrap().starts_with("readout_deg,"), "the reader got the table");
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+    assert!(!dir.path().join("table.fifo.recipe.toml").exists(), "no side files beside a pipe");
+
+    // A folder is not a file: bad usage.
+    let out = survey(&db, &["process", "--table-out", dir.path().to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("is a folder"), "{}", text(&out));
+}

@@ -31,7 +31,7 @@ use std::process::ExitCode;
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100)]
 pub struct Cli {
     /// The SQLite database that holds the surveys.
-    #[arg(long, global = true, value_name = "PATH", default_value = "survey.db", env = "SURVEY_DB")]
+    #[arg(long, global = true, value_name = "PATH", default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
     pub db: PathBuf,
 
     #[command(subcommand)]

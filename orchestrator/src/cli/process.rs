@@ -1,7 +1,7 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
 
 use super::support::{emit, load_survey};
-use crate::process::{ProcessOptions, process_survey};
+use crate::process::{ProcessOptions, default_table_path, process_survey};
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -28,7 +28,8 @@ pub struct ProcessArgs {
 
 pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     let (survey, samples) = load_survey(db, args.survey).await?;
-    let opts = ProcessOptions { design: args.design, recipe: args.recipe, table_out: args.table_out };
+    let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
+    let opts = ProcessOptions { design: args.design, recipe: args.recipe, table_out: Some(table_out) };
     let outcome = process_survey(&survey, &samples, opts)?;
     emit(&if args.json { format!("{}\n", outcome.json()) } else { outcome.text() });
     Ok(())

@@ -26,11 +26,29 @@ mod summary;
 
 use crate::survey::SurveyRecord;
 use anyhow::Context as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use survey_processing::Sample;
 use survey_processing::model::{Design, Model};
 use survey_processing::pipeline::{Processed, Replay};
 use survey_processing::recipe::Recipe;
+
+/// The database `survey` uses when `--db` is not given.
+pub const DEFAULT_DB: &str = "survey.db";
+
+/// Where the table of survey `id` of the database `db` goes when
+/// `--table-out` is not given: `table-<id>.csv` in the current folder for the
+/// default database (`survey.db`), else `<db>.table-<id>.csv` beside the
+/// database, so surveys of different databases never overwrite each other's
+/// tables.
+pub fn default_table_path(db: &Path, id: i64) -> PathBuf {
+    if db == Path::new(DEFAULT_DB) {
+        PathBuf::from(format!("table-{id}.csv"))
+    } else {
+        let mut s = db.as_os_str().to_os_string();
+        s.push(format!(".table-{id}.csv"));
+        PathBuf::from(s)
+    }
+}
 
 /// What to process with; every field optional.
 #[derive(Debug, Clone, Default)]
@@ -123,7 +141,7 @@ pub fn process_survey(
     for n in &processed.notes {
         eprintln!("note: {n}");
     }
-    let table_out = opts.table_out.clone().unwrap_or_else(|| PathBuf::from(format!("table-{id}.csv")));
+    let table_out = opts.table_out.clone().unwrap_or_else(|| default_table_path(Path::new(DEFAULT_DB), id));
     let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
     outputs::write_all(&paths, &processed, id)?;
     let design = DesignSource {

@@ -14,7 +14,7 @@
 //! written to temporary files first and renamed into place at the end, so a
 //! failed command leaves the previous files as they were.
 
-use crate::error::path_error;
+use crate::error::{bad_input, path_error};
 use std::path::{Path, PathBuf};
 use survey_processing::corrector;
 use survey_processing::export::{linuxcnc, table_csv};
@@ -32,13 +32,24 @@ pub struct OutputPaths {
     pub linuxcnc_type1: Option<PathBuf>,
     /// The binary table.
     pub binary: Option<PathBuf>,
-    /// The recipe used.
-    pub recipe: PathBuf,
+    /// The recipe used (none when the table goes to a device or a pipe).
+    pub recipe: Option<PathBuf>,
 }
 
 impl OutputPaths {
-    /// The files beside `table_csv` that `export` asks for.
+    /// The files beside `table_csv` that `export` asks for. When `table_csv`
+    /// is a device or a pipe (`/dev/stdout`, a FIFO) there is no "beside":
+    /// the table alone is written there.
     pub fn beside(table_csv: &Path, export: &ExportChoices) -> Self {
+        if matches!(target(table_csv), Ok(Target::Stream(_))) {
+            return Self {
+                table_csv: table_csv.to_path_buf(),
+                linuxcnc_type0: None,
+                linuxcnc_type1: None,
+                binary: None,
+                recipe: None,
+            };
+        }
         let stem = match table_csv.extension() {
             Some(e) if e.eq_ignore_ascii_case("csv") => table_csv.with_extension(""),
             _ => table_csv.to_path_buf(),
@@ -53,12 +64,49 @@ impl OutputPaths {
             linuxcnc_type0: export.linuxcnc.then(|| with(".comp0")),
             linuxcnc_type1: export.linuxcnc.then(|| with(".comp1")),
             binary: export.binary.then(|| with(".bin")),
-            recipe: with(".recipe.toml"),
+            recipe: Some(with(".recipe.toml")),
         }
     }
 }
 
-/// A temporary file next to `path`, removed when dropped unless renamed.
+/// Where a file goes, and how.
+#[derive(Debug, Clone, PartialEq)]
+enum Target {
+    /// A regular file, or none yet: written to a temporary file in the same
+    /// folder and renamed over it (atomic: the old file or the new, never half).
+    Replace(PathBuf),
+    /// A device or a pipe: written to in place (it cannot be replaced, and
+    /// must not be by a regular file).
+    Stream(PathBuf),
+}
+
+/// The target of `path`, following symbolic links (a link is never replaced
+/// by a file: the file it names is written).
+fn target(path: &Path) -> anyhow::Result<Target> {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        match std::fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let link =
+                    std::fs::read_link(&p).map_err(|e| path_error(e, format!("cannot follow {}", p.display())))?;
+                p = match p.parent() {
+                    Some(dir) if link.is_relative() => dir.join(link),
+                    _ => link,
+                };
+            }
+            Ok(m) if m.is_file() => return Ok(Target::Replace(p)),
+            Ok(m) if m.is_dir() => {
+                return Err(bad_input(format!("{} is a folder: name a file to write", path.display())));
+            }
+            Ok(_) => return Ok(Target::Stream(p)),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Target::Replace(p)),
+            Err(e) => return Err(path_error(e, format!("cannot write {}", path.display()))),
+        }
+    }
+    Err(bad_input(format!("{}: too many levels of symbolic links", path.display())))
+}
+
+/// A temporary file next to its target, removed when dropped unless renamed.
 struct Staged {
     tmp: PathBuf,
     path: PathBuf,
@@ -73,20 +121,37 @@ impl Drop for Staged {
     }
 }
 
-fn stage(path: &Path, bytes: &[u8]) -> anyhow::Result<Staged> {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let staged = Staged { tmp, path: path.to_path_buf(), done: false };
+/// Write `bytes` to a temporary file beside `target` (named for `shown`).
+fn stage(target: &Path, shown: &Path, bytes: &[u8]) -> anyhow::Result<Staged> {
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let tmp = target.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let staged = Staged { tmp, path: target.to_path_buf(), done: false };
     let mut file =
-        std::fs::File::create(&staged.tmp).map_err(|e| path_error(e, format!("cannot create {}", path.display())))?;
+        std::fs::File::create(&staged.tmp).map_err(|e| path_error(e, format!("cannot create {}", shown.display())))?;
     use std::io::Write as _;
     file.write_all(bytes)
         .and_then(|()| file.sync_all())
-        .map_err(|e| anyhow::Error::new(e).context(format!("cannot write {}", path.display())))?;
+        .map_err(|e| path_error(e, format!("cannot write {}", shown.display())))?;
     Ok(staged)
 }
 
-/// Write every file of `paths` from `processed` (see the module documentation).
+/// Write `bytes` into a device or pipe. A write error (a full device) is a
+/// run-time failure, exit status 1.
+fn stream(target: &Path, shown: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    use std::io::Write as _;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(target)
+        .map_err(|e| path_error(e, format!("cannot open {}", shown.display())))?;
+    // The path was fine (it opened): whatever the write meets is a run-time failure.
+    file.write_all(bytes)
+        .and_then(|()| file.flush())
+        .map_err(|e| anyhow::Error::new(e).context(format!("cannot write {}", shown.display())))
+}
+
+/// Write every file of `paths` from `processed` (see the module
+/// documentation): regular files are staged and renamed into place only when
+/// every file was written, so a failure leaves the previous files as they were.
 pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> anyhow::Result<()> {
     let table = &processed.built.table;
     let mut outputs: Vec<(&Path, Vec<u8>)> = vec![(paths.table_csv.as_path(), table_csv(table).into_bytes())];
@@ -97,13 +162,25 @@ pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> 
     if let Some(p) = &paths.binary {
         outputs.push((p, corrector::to_bytes(table, processed.recipe.export.binary_format)));
     }
-    let recipe = format!(
-        "# Made by `survey process` from survey {survey_id}{}.\n{}",
-        if processed.replayed { " by replaying a recipe" } else { "" },
-        processed.recipe.to_toml()
-    );
-    outputs.push((paths.recipe.as_path(), recipe.into_bytes()));
-    let staged = outputs.iter().map(|(p, b)| stage(p, b)).collect::<Result<Vec<_>, _>>()?;
+    if let Some(p) = &paths.recipe {
+        let recipe = format!(
+            "# Made by `survey process` from survey {survey_id}{}.\n{}",
+            if processed.replayed { " by replaying a recipe" } else { "" },
+            processed.recipe.to_toml()
+        );
+        outputs.push((p.as_path(), recipe.into_bytes()));
+    }
+    let mut staged = Vec::new();
+    let mut streams = Vec::new();
+    for (shown, bytes) in &outputs {
+        match target(shown)? {
+            Target::Replace(t) => staged.push(stage(&t, shown, bytes)?),
+            Target::Stream(t) => streams.push((t, *shown, bytes)),
+        }
+    }
+    for (t, shown, bytes) in streams {
+        stream(&t, shown, bytes)?;
+    }
     for mut s in staged {
         std::fs::rename(&s.tmp, &s.path).map_err(|e| path_error(e, format!("cannot write {}", s.path.display())))?;
         s.done = true;
@@ -121,18 +198,20 @@ mod tests {
         assert_eq!(p.linuxcnc_type0.as_deref(), Some(Path::new("out/t.comp0")));
         assert_eq!(p.linuxcnc_type1.as_deref(), Some(Path::new("out/t.comp1")));
         assert_eq!(p.binary.as_deref(), Some(Path::new("out/t.bin")));
-        assert_eq!(p.recipe, Path::new("out/t.recipe.toml"));
+        assert_eq!(p.recipe.as_deref(), Some(Path::new("out/t.recipe.toml")));
         let none = ExportChoices { linuxcnc: false, binary: false, ..ExportChoices::default() };
         let q = OutputPaths::beside(Path::new("table"), &none);
-        assert_eq!((q.linuxcnc_type0, q.binary, q.recipe), (None, None, PathBuf::from("table.recipe.toml")));
+        assert_eq!((q.linuxcnc_type0, q.binary, q.recipe), (None, None, Some(PathBuf::from("table.recipe.toml"))));
     }
 
     #[test]
     fn a_failed_write_leaves_no_temporary_file() {
         let dir = tempfile::tempdir().unwrap();
-        let err = stage(&dir.path().join("missing/t.csv"), b"x");
+        let missing = dir.path().join("missing/t.csv");
+        let err = stage(&missing, &missing, b"x");
         assert_eq!(crate::error::exit_status(&err.err().unwrap()), 2);
-        let ok = stage(&dir.path().join("t.csv"), b"x").unwrap();
+        let t = dir.path().join("t.csv");
+        let ok = stage(&t, &t, b"x").unwrap();
         let tmp = ok.tmp.clone();
         assert!(tmp.exists());
         drop(ok);

@@ -101,7 +101,7 @@ pub fn json(o: &ProcessOutcome) -> Value {
         "points_per_rev": a.points_per_rev,
         "design": o.design,
         "recipe": {
-            "path": o.files.recipe.display().to_string(),
+            "path": o.files.recipe.as_ref().map(|p| p.display().to_string()),
             "replayed": p.replayed,
             "from": path(&o.recipe_from),
             "lines_keep": p.recipe.lines.keep,
@@ -235,6 +235,8 @@ pub fn text(o: &ProcessOutcome) -> String {
             let _ = writeln!(s, "  {what:<15} {}", p.display());
         }
     }
-    let _ = writeln!(s, "  recipe          {} (replay with --recipe)", f.recipe.display());
+    if let Some(recipe) = &f.recipe {
+        let _ = writeln!(s, "  recipe          {} (replay with --recipe)", recipe.display());
+    }
     s
 }
