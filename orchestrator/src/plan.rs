@@ -53,6 +53,16 @@ pub enum PlanError {
         days = *steps as f64 * 2.0 / 86400.0
     )]
     TooManySteps { points: u32, runs: u32, steps: u64 },
+    #[error(
+        "with an autocollimator the targets are the faces of the {faces}-face polygon: --points must be {faces}, got \
+         {points}"
+    )]
+    NotTheFaces { points: u32, faces: u32 },
+    #[error(
+        "the travel {min}..{max} deg holds {found} of the {faces} polygon faces (every {pitch} deg) with room to \
+         approach them from both sides; at least 2 are needed"
+    )]
+    TooFewFaces { min: f64, max: f64, faces: u32, pitch: f64, found: usize },
     #[error("the range {start}..{end} deg is empty or not finite")]
     BadRange { start: f64, end: f64 },
     #[error("the overrun must be positive and finite, got {0} deg")]
@@ -88,6 +98,39 @@ impl SurveyPlan {
         let mut plan = Self::range(min + overrun, max - overrun, points, runs, bidirectional)?;
         plan.overrun_deg = overrun;
         Ok(plan)
+    }
+
+    /// The plan of a survey against an N-face polygon: the targets are the
+    /// faces (`k * 360 / faces`). `points` must be the face count. On a
+    /// travel-limited axis, the faces that lie one overrun inside each end of
+    /// the travel (an elevation axis of -10..90 deg and a 36-face polygon:
+    /// 0, 10, ..., 80 deg).
+    pub fn polygon(
+        faces: u32,
+        points: u32,
+        travel: Option<(f64, f64)>,
+        runs: u32,
+        bidirectional: bool,
+    ) -> Result<Self, PlanError> {
+        if points != faces {
+            return Err(PlanError::NotTheFaces { points, faces });
+        }
+        let Some((min, max)) = travel else {
+            return Self::full_circle(faces, runs, bidirectional);
+        };
+        Self::check_counts(faces, runs)?;
+        if !(min.is_finite() && max.is_finite() && max > min) {
+            return Err(PlanError::BadRange { start: min, end: max });
+        }
+        let pitch = 360.0 / f64::from(faces);
+        let overrun = default_overrun(faces, 360.0);
+        let first = ((min + overrun) / pitch).ceil() as i64;
+        let last = ((max - overrun) / pitch).floor() as i64;
+        let targets_deg: Vec<f64> = (first..=last).map(|k| k as f64 * pitch).collect();
+        if targets_deg.len() < 2 {
+            return Err(PlanError::TooFewFaces { min, max, faces, pitch, found: targets_deg.len() });
+        }
+        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: overrun })
     }
 
     fn check_counts(points: u32, runs: u32) -> Result<(), PlanError> {
@@ -195,6 +238,16 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_polygon_plan_on_an_elevation_axis_measures_the_faces_inside_the_travel() {
+        let plan = SurveyPlan::polygon(36, 36, Some((-10.0, 90.0)), 5, true).unwrap();
+        assert_eq!(plan.targets_deg, (0..=8).map(|k| f64::from(k) * 10.0).collect::<Vec<_>>());
+        assert_eq!(plan.overrun_deg, 1.0);
+        plan.check_travel(-10.0, 90.0).unwrap();
+        let full = SurveyPlan::polygon(24, 24, None, 2, false).unwrap();
+        assert_eq!(full, SurveyPlan::full_circle(24, 2, false).unwrap());
+    }
+
+    #[test]
     fn full_circle_steps_go_forward_then_reverse_each_run() {
         let plan = SurveyPlan::full_circle(4, 2, true).unwrap();
         assert_eq!(plan.targets_deg, vec![0.0, 90.0, 180.0, 270.0]);
@@ -232,6 +285,11 @@ mod tests {
     #[test]
     fn rejects_too_few_points_or_runs() {
         assert_eq!(SurveyPlan::full_circle(1, 5, true), Err(PlanError::TooFewPoints(1)));
+        assert_eq!(SurveyPlan::polygon(36, 24, None, 5, true), Err(PlanError::NotTheFaces { points: 24, faces: 36 }));
+        assert!(matches!(
+            SurveyPlan::polygon(4, 4, Some((-10.0, 90.0)), 2, true),
+            Err(PlanError::TooFewFaces { found: 1, .. })
+        ));
         assert_eq!(SurveyPlan::full_circle(10, 1, true), Err(PlanError::TooFewRuns(1)));
         assert!(SurveyPlan::range(5.0, 5.0, 3, 2, false).is_err());
     }

@@ -33,10 +33,15 @@ impl Bench {
         })?;
         let runs = overrides.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
         let bidirectional = overrides.bidirectional || cfg.survey.bidirectional.unwrap_or(false);
-        let mut plan = match cfg.survey.travel_deg {
-            Some([lo, hi]) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional)?,
-            None => SurveyPlan::full_circle(points, runs, bidirectional)?,
+        let travel = cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi));
+        let plan = match (cfg.reference(), &cfg.polygon, travel) {
+            (ReferenceKind::Autocollimator, Some(polygon), travel) => {
+                SurveyPlan::polygon(polygon.faces, points, travel, runs, bidirectional)
+            }
+            (_, _, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional),
+            (_, _, None) => SurveyPlan::full_circle(points, runs, bidirectional),
         };
+        let mut plan = plan.map_err(|e| bad_input(format!("{}: {e}", path.display())))?;
         if let Some(overrun) = cfg.survey.overrun_deg {
             plan.overrun_deg = overrun;
         }
@@ -87,4 +92,36 @@ pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
 /// The configured bench of a stored survey, its clock going on from `resume_at`.
 pub(super) fn resume(setup: &ConfiguredSetup, resume_at: Duration) -> Bench {
     on_clock(setup, Arc::new(SystemClock::starting_at(resume_at)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every shipped example sets up a bench: its plan fits its reference
+    /// and its travel, checked before anything is stored (the elevation
+    /// example once planned 36 points over 100 deg against a 36-face polygon,
+    /// which no face matched: every run stored an empty interrupted survey).
+    #[test]
+    fn every_example_configuration_sets_up_a_bench() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config");
+        let mut seen = 0;
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let bench = Bench::configured(&path, PlanOverrides::default())
+                    .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+                assert!(bench.plan.targets_deg.len() >= 2, "{}", path.display());
+                seen += 1;
+            }
+        }
+        assert!(seen >= 5);
+        let elevation = Path::new(dir).join("scpi-serial-elevation.toml");
+        let bench = Bench::configured(&elevation, PlanOverrides::default()).unwrap();
+        assert_eq!(bench.plan.targets_deg, (0..=8).map(|k| f64::from(k) * 10.0).collect::<Vec<_>>());
+        let wrong = PlanOverrides { points: Some(24), ..PlanOverrides::default() };
+        let e = Bench::configured(&elevation, wrong).unwrap_err();
+        assert_eq!(crate::error::exit_status(&e), 2);
+        assert!(e.to_string().contains("--points must be 36"), "{e:#}");
+    }
 }
