@@ -15,6 +15,7 @@
 
 mod files;
 mod instruments;
+mod list;
 mod modelgap;
 mod process;
 mod report;
@@ -434,7 +435,7 @@ fn assert_bidirectional_relations(doc: &Value) {
 fn help_lists_the_commands_and_exits_0() {
     let b = Bench::new();
     let out = b.survey(&["--help"]).success();
-    for cmd in ["run", "import", "export", "stats", "--db"] {
+    for cmd in ["run", "import", "export", "stats", "list", "show", "--db"] {
         assert!(out.stdout.contains(cmd), "--help should mention {cmd}\n{out}");
     }
     let out = b.survey(&["run", "--help"]).success();

@@ -8,6 +8,7 @@
 mod check;
 mod export;
 mod import;
+mod list;
 mod model_gap;
 mod process;
 mod report;
@@ -59,6 +60,10 @@ pub enum Command {
     ModelGap(model_gap::ModelGapArgs),
     /// The paper's DSP processing: spectrum, lines, aliases, the correction table and its exports.
     Process(process::ProcessArgs),
+    /// Every survey in the database: id, status, source, plan, samples stored of planned, dates.
+    List(list::ListArgs),
+    /// One survey in full: plan, instruments, located axis, model and event log.
+    Show(list::ShowArgs),
 }
 
 /// Parse the arguments, run the command, map the outcome to the exit status.
@@ -94,5 +99,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Stats(args) => stats::stats(db, args).await,
         Command::ModelGap(args) => model_gap::model_gap(db, args).await,
         Command::Process(args) => process::process(db, args).await,
+        Command::List(args) => list::list(db, args).await,
+        Command::Show(args) => list::show(db, args).await,
     }
 }
