@@ -64,6 +64,42 @@ impl Clock for SystemClock {
     }
 }
 
+/// The wall clock sped up `scale` times: `now()` is the real time elapsed
+/// times `scale`, and `sleep(d)` waits `d / scale` of real time. What
+/// `survey sim --time-scale X` runs its simulators on, so a client in another
+/// process (on the wall clock) rehearses a survey in a fraction of its time.
+#[derive(Debug, Clone)]
+pub struct ScaledClock {
+    epoch: Instant,
+    scale: f64,
+}
+
+impl ScaledClock {
+    /// A clock running `scale` times faster than the wall clock (`scale`
+    /// finite and positive; 1 is the wall clock).
+    pub fn new(scale: f64) -> Self {
+        assert!(scale.is_finite() && scale > 0.0, "a time scale is finite and positive, got {scale}");
+        Self { epoch: Instant::now(), scale }
+    }
+
+    /// How many times faster than the wall clock.
+    pub fn scale(&self) -> f64 {
+        self.scale
+    }
+}
+
+impl Clock for ScaledClock {
+    fn now(&self) -> Duration {
+        self.epoch.elapsed().mul_f64(self.scale)
+    }
+    fn sleep(&self, d: Duration) -> Sleep<'_> {
+        Box::pin(tokio::time::sleep(d.div_f64(self.scale)))
+    }
+    fn is_virtual(&self) -> bool {
+        false
+    }
+}
+
 /// Simulated time. `sleep(d)` reads the time when it is first polled, yields
 /// once, then advances the clock to at least that time plus `d`. Sequential
 /// sleeps add up; sleeps that run concurrently (`join!`) overlap, so two

@@ -17,6 +17,6 @@ pub mod scpi;
 mod stream;
 pub mod traits;
 
-pub use clock::{Clock, SystemClock, VirtualClock};
+pub use clock::{Clock, ScaledClock, SystemClock, VirtualClock};
 pub use error::{DriverError, ErrorKind, Result};
 pub use traits::*;

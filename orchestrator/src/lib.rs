@@ -22,6 +22,7 @@ pub mod process;
 pub mod record;
 pub mod report;
 pub mod session;
+pub mod sim;
 pub mod stop;
 pub mod store;
 pub mod survey;

@@ -14,6 +14,7 @@ mod process;
 mod report;
 mod resume;
 mod run;
+mod sim;
 mod stats;
 mod support;
 
@@ -64,6 +65,8 @@ pub enum Command {
     List(list::ListArgs),
     /// One survey in full: plan, instruments, located axis, model and event log.
     Show(list::ShowArgs),
+    /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
+    Sim(sim::SimArgs),
 }
 
 /// Parse the arguments, run the command, map the outcome to the exit status.
@@ -101,5 +104,6 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Process(args) => process::process(db, args).await,
         Command::List(args) => list::list(db, args).await,
         Command::Show(args) => list::show(db, args).await,
+        Command::Sim(args) => sim::sim(args).await,
     }
 }

@@ -66,8 +66,8 @@ use survey_drivers::error::{DriverError, ErrorKind};
 use survey_drivers::scpi::{Decoder, bits};
 use survey_drivers::traits::{DeviceFault, Limit, Positioner};
 use survey_processing::table::CorrectionTable;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::net::TcpListener;
 
 /// Fastest velocity `VEL:COMM` accepts, degrees per second.
 pub const MAX_VELOCITY_DEG_S: f64 = 100.0;
@@ -137,11 +137,20 @@ impl ScpiFaults {
 /// Serve the controller on `listener`, one client at a time, until the task
 /// running this future is dropped or aborted.
 pub async fn serve_tcp(listener: TcpListener, positioner: SimPositioner, faults: ScpiFaults) {
+    serve_tcp_at(listener, positioner, faults, (1, 1)).await;
+}
+
+/// [`serve_tcp`] for the axis at `(controller, axis)` (`CONT<c>:AXIS(<a>)`):
+/// requests to any other address are answered with error -114, as to an
+/// axis the controller does not have.
+pub async fn serve_tcp_at(listener: TcpListener, positioner: SimPositioner, faults: ScpiFaults, address: (u32, u32)) {
     let mut controller = Controller::new(positioner, faults);
+    controller.address = address;
     loop {
         match listener.accept().await {
             Ok((stream, peer)) => {
                 tracing::debug!(%peer, "scpi simulator: client connected");
+                stream.set_nodelay(true).ok();
                 controller.serve(stream).await;
                 tracing::debug!(%peer, "scpi simulator: client gone");
             }
@@ -151,6 +160,17 @@ pub async fn serve_tcp(listener: TcpListener, positioner: SimPositioner, faults:
             }
         }
     }
+}
+
+/// Serve the controller's axis at `(controller, axis)` on one byte stream (a
+/// serial line: a pty's master end) until the stream closes.
+pub async fn serve_stream<S>(stream: S, positioner: SimPositioner, faults: ScpiFaults, address: (u32, u32))
+where
+    S: AsyncRead + AsyncWrite + Unpin,
+{
+    let mut controller = Controller::new(positioner, faults);
+    controller.address = address;
+    controller.serve(stream).await;
 }
 
 /// What to do after a request.
@@ -176,6 +196,8 @@ enum ReplyFault {
 }
 
 struct Controller {
+    /// The `(controller, axis)` this simulator is (default `(1, 1)`).
+    address: (u32, u32),
     sim: SimPositioner,
     faults: ScpiFaults,
     commanded: f64,
@@ -197,6 +219,7 @@ impl Controller {
         };
         let velocity = sim.config().velocity_deg_s;
         Self {
+            address: (1, 1),
             sim,
             faults,
             commanded,
@@ -222,8 +245,7 @@ impl Controller {
     }
 
     /// Serve one connection until it closes (or a fault closes it).
-    async fn serve(&mut self, mut stream: TcpStream) {
-        stream.set_nodelay(true).ok();
+    async fn serve<S: AsyncRead + AsyncWrite + Unpin>(&mut self, mut stream: S) {
         let mut decoder = Decoder::new(MAX_REQUEST_LINE);
         let mut buf = vec![0u8; 4096];
         loop {
@@ -248,7 +270,7 @@ impl Controller {
     }
 
     /// Send the outcome, applying the armed reply faults. False: close.
-    async fn respond(&mut self, stream: &mut TcpStream, outcome: Outcome) -> bool {
+    async fn respond<S: AsyncWrite + Unpin>(&mut self, stream: &mut S, outcome: Outcome) -> bool {
         let (bytes, close_after) = match outcome {
             Outcome::Nothing | Outcome::Lost => return true,
             Outcome::Close => return false,
@@ -343,7 +365,7 @@ impl Controller {
             self.push_error(-113, format!("Undefined header;{header}"));
             return Outcome::Nothing;
         };
-        if (controller, axis) != (1, 1) {
+        if (controller, axis) != self.address {
             self.push_error(-114, format!("Header suffix out of range;no controller {controller} axis {axis}"));
             return Outcome::Nothing;
         }

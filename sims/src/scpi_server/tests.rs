@@ -1,4 +1,5 @@
 use super::*;
+use tokio::net::TcpStream;
 use crate::positioner::{PositionerConfig, PositionerFaults};
 use crate::presets::{Preset, without_noise};
 use crate::turntable::Turntable;

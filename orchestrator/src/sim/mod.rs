@@ -1,0 +1,312 @@
+//! `survey sim`: the simulated instruments of a configuration file, served
+//! over their real protocols on the configured addresses, so `survey run
+//! --config` and `survey check --config` (or pymodbus, or an integrator's own
+//! software) talk to them as to the hardware, from another process.
+//!
+//! - TCP instruments (`scpi-tcp`, `modbus-tcp`, `emscon`) listen on their
+//!   configured address, which must be on loopback (port 0 takes a free port;
+//!   the ready line says which).
+//! - Serial instruments (`scpi-serial`, `modbus-rtu`, `elcomat`) get a
+//!   pseudo-terminal whose slave is linked at the configured `port` path (a
+//!   symbolic link made here and removed on exit; an existing file there is
+//!   never replaced).
+//! - CAN (`canopen`) is served on the configured SocketCAN interface, which
+//!   must exist (a `vcan` interface on a machine with AF_CAN).
+//!
+//! The simulators run on a [`ScaledClock`]: `--time-scale X` makes every move,
+//! settle and measurement X times faster than on the hardware. Faults at
+//! `--faults RATE`: that fraction of replies meets a link fault (dropped,
+//! garbled, cut, stalled past the client's timeout: [`relay`]), and the same
+//! rate of moves trips the drive and of measurements breaks the beam (the
+//! instruments' own device faults).
+
+pub mod relay;
+
+use crate::config::{AutocollimatorConfig as AcConfig, PositionerConfig, SurveyConfig, TrackerConfig};
+use crate::error::bad_input;
+use relay::{Counts, LinkFaults, relay};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use survey_drivers::{Clock, ScaledClock};
+use survey_processing::model::Model;
+use survey_sims::autocollimator::AutocollimatorConfig;
+use survey_sims::elcomat_server::{self, ElcomatFaults, pty_pair};
+use survey_sims::emscon_server::{self, EmsconFaults};
+use survey_sims::modbus_server::{ModbusDevice, ModbusFaults};
+use survey_sims::scpi_server::{self, ScpiFaults};
+use survey_sims::tracker::ArmGeometry;
+use survey_sims::{PositionerFaults, Preset, SimBench, derive_seed};
+use tokio::net::TcpListener;
+use tokio::task::JoinHandle;
+
+/// How to serve.
+#[derive(Debug, Clone)]
+pub struct SimOptions {
+    /// The positioner preset (`fig1`, `fig4`, `fig8`).
+    pub preset: String,
+    /// A model file instead of the preset's model.
+    pub model: Option<Model>,
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// Fraction of replies, moves and measurements that meet a fault.
+    pub faults: f64,
+    /// How many times faster than the hardware.
+    pub time_scale: f64,
+}
+
+/// The instruments being served; dropping it stops them and removes the links.
+#[derive(Debug)]
+pub struct Served {
+    /// Where each instrument answers (`positioner`, `tracker`,
+    /// `autocollimator`: an address or a path).
+    pub instruments: serde_json::Map<String, serde_json::Value>,
+    /// What the link-fault relays did.
+    pub counts: Arc<Counts>,
+    tasks: Vec<JoinHandle<()>>,
+    links: Vec<PathBuf>,
+    /// The pty slave ends, kept open so the masters never read EIO while no
+    /// client has the port open.
+    _slaves: Vec<tokio_serial::SerialStream>,
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        for t in &self.tasks {
+            t.abort();
+        }
+        for l in &self.links {
+            let _ = std::fs::remove_file(l);
+        }
+    }
+}
+
+/// A loopback listener at `address` (`host:port`; port 0 takes a free one).
+async fn listen(what: &str, address: &str) -> anyhow::Result<TcpListener> {
+    let addr: SocketAddr = tokio::net::lookup_host(address)
+        .await
+        .ok()
+        .and_then(|mut a| a.next())
+        .ok_or_else(|| bad_input(format!("{what}: '{address}' is not a host:port address")))?;
+    if !addr.ip().is_loopback() {
+        return Err(bad_input(format!(
+            "{what}: survey sim serves on loopback only, and {address} is not a loopback address \
+             (use 127.0.0.1:PORT in the configuration you rehearse with)"
+        )));
+    }
+    TcpListener::bind(addr)
+        .await
+        .map_err(|e| crate::error::path_error(e, format!("{what}: cannot listen on {address}")).context("survey sim"))
+}
+
+/// A pty whose slave is linked at `port`; returns the master and the slave.
+fn pty_at(what: &str, port: &str) -> anyhow::Result<(tokio_serial::SerialStream, tokio_serial::SerialStream)> {
+    let path = Path::new(port);
+    if std::fs::symlink_metadata(path).is_ok() {
+        return Err(bad_input(format!(
+            "{what}: {port} exists; survey sim links its pseudo-terminal there and never replaces a file \
+             (name a free path, e.g. /tmp/survey-{what}, in the configuration you rehearse with)"
+        )));
+    }
+    let (master, slave) = pty_pair().map_err(|e| anyhow::anyhow!("{what}: cannot open a pseudo-terminal: {e}"))?;
+    let slave_path = tokio_serial::SerialPort::name(&slave)
+        .ok_or_else(|| anyhow::anyhow!("{what}: the pseudo-terminal has no path"))?;
+    std::os::unix::fs::symlink(&slave_path, path)
+        .map_err(|e| crate::error::path_error(e, format!("{what}: cannot link {port} to {slave_path}")))?;
+    Ok((master, slave))
+}
+
+/// Serve the simulated instruments of `cfg`.
+pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Served> {
+    if !(opts.time_scale.is_finite() && opts.time_scale > 0.0 && opts.time_scale <= 10_000.0) {
+        return Err(bad_input(format!("--time-scale must be above 0 and at most 10000, got {}", opts.time_scale)));
+    }
+    if !(0.0..=0.5).contains(&opts.faults) {
+        return Err(bad_input(format!("--faults is a fraction of requests from 0 to 0.5, got {}", opts.faults)));
+    }
+    let preset = Preset::by_name(&opts.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", opts.preset)))?;
+    let clock: Arc<dyn Clock> = Arc::new(ScaledClock::new(opts.time_scale));
+    let mut builder = SimBench::builder(&preset, opts.seed, clock.clone())
+        .travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)).or(preset.travel))
+        .faults(PositionerFaults { fault_probability_per_move: opts.faults, ..PositionerFaults::default() })
+        .beam_break_probability(opts.faults);
+    if let Some(model) = &opts.model {
+        builder = builder.model(model.clone());
+    }
+    if let Some(arm) = &cfg.arm {
+        builder = builder.arm(ArmGeometry { radius_mm: arm.radius_mm, ..ArmGeometry::default() });
+    }
+    if let Some(polygon) = &cfg.polygon {
+        // The simulated polygon is the configured one: its faces and, when
+        // given, its certificate (the engine corrects with the same).
+        let mut ac = AutocollimatorConfig::seeded(polygon.faces, derive_seed(opts.seed, 3));
+        if !polygon.certificate_arcsec.is_empty() {
+            ac.certificate_arcsec = polygon.certificate_arcsec.clone();
+        }
+        builder = builder.autocollimator(ac);
+    }
+    let bench = builder.build();
+    // A stalled reply is held twice the client's call timeout (real time).
+    let call_timeout = cfg.timing().call_timeout;
+    let link = if opts.faults > 0.0 { LinkFaults::at_rate(opts.faults, call_timeout * 2) } else { LinkFaults::NONE };
+    let counts = Arc::new(Counts::default());
+    let mut served = Served {
+        instruments: serde_json::Map::new(),
+        counts: counts.clone(),
+        tasks: Vec::new(),
+        links: Vec::new(),
+        _slaves: Vec::new(),
+    };
+    let mut seeds = (1u64..).map(|k| derive_seed(opts.seed, 100 + k));
+
+    // The positioner.
+    match &cfg.positioner {
+        PositionerConfig::ScpiTcp { address, controller, axis } => {
+            let listener = listen("positioner", address).await?;
+            let public = listener.local_addr()?.to_string();
+            let listener = front(listener, link, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            let at = (*controller, *axis);
+            served.tasks.push(tokio::spawn(scpi_server::serve_tcp_at(
+                listener,
+                bench.positioner,
+                ScpiFaults::new(),
+                at,
+            )));
+            served.instruments.insert("positioner".into(), public.into());
+        }
+        PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
+            let (master, slave) = pty_at("positioner", port)?;
+            served.links.push(PathBuf::from(port));
+            served._slaves.push(slave);
+            let positioner = bench.positioner;
+            let (device, device_slave) = through_relay(link, master, seeds.next().unwrap_or(1), &counts, &mut served)?;
+            served._slaves.extend(device_slave);
+            let at = (*controller, *axis);
+            served.tasks.push(tokio::spawn(async move {
+                scpi_server::serve_stream(device, positioner, ScpiFaults::new(), at).await;
+            }));
+            served.instruments.insert("positioner".into(), port.clone().into());
+        }
+        PositionerConfig::ModbusTcp { address, map, .. } => {
+            let listener = listen("positioner", address).await?;
+            let public = listener.local_addr()?.to_string();
+            let server = ModbusDevice::new(bench.positioner, map.clone())
+                .map_err(|e| bad_input(format!("positioner.map: {e}")))?;
+            let listener = front(listener, link, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            served.tasks.push(tokio::spawn(async move {
+                if let Err(e) = server.serve_tcp(listener, ModbusFaults::new()).await {
+                    tracing::error!(%e, "modbus simulator stopped");
+                }
+            }));
+            served.instruments.insert("positioner".into(), public.into());
+        }
+        PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
+            let (master, slave) = pty_at("positioner", port)?;
+            served.links.push(PathBuf::from(port));
+            served._slaves.push(slave);
+            // On a serial line the slave address is the unit (as the driver does).
+            let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
+            let server =
+                ModbusDevice::new(bench.positioner, map).map_err(|e| bad_input(format!("positioner.map: {e}")))?;
+            let (device, device_slave) = through_relay(link, master, seeds.next().unwrap_or(1), &counts, &mut served)?;
+            served._slaves.extend(device_slave);
+            served.tasks.push(tokio::spawn(async move {
+                server.serve_rtu(device, ModbusFaults::new()).await;
+            }));
+            served.instruments.insert("positioner".into(), port.clone().into());
+        }
+        PositionerConfig::Canopen { interface, drive } => {
+            let bus = survey_drivers::canopen::SocketCanBus::open(interface).map_err(|e| {
+                anyhow::anyhow!(
+                    "positioner: cannot open the SocketCAN interface {interface} ({e}); survey sim serves a \
+                     CANopen drive on an existing interface (ip link add dev {interface} type vcan; ip link set up \
+                     {interface})"
+                )
+            })?;
+            let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
+            node.counts_per_degree = drive.counts_per_degree;
+            let positioner = bench.positioner;
+            served.tasks.push(tokio::spawn(async move {
+                survey_sims::canopen_node::serve(bus, positioner, node, Default::default()).await;
+            }));
+            served.instruments.insert("positioner".into(), format!("{interface} node {}", drive.node_id).into());
+        }
+    }
+
+    // The reference instruments (both may be configured; each is served).
+    if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {
+        let listener = listen("tracker", address).await?;
+        let public = listener.local_addr()?.to_string();
+        let listener = front(listener, link, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+        served.tasks.push(tokio::spawn(emscon_server::serve_tcp(listener, bench.tracker, EmsconFaults::new())));
+        served.instruments.insert("tracker".into(), public.into());
+    }
+    if let Some(AcConfig::Elcomat { port, .. }) = &cfg.autocollimator {
+        let (master, slave) = pty_at("autocollimator", port)?;
+        served.links.push(PathBuf::from(port));
+        served._slaves.push(slave);
+        let instrument = bench.autocollimator;
+        let (device, device_slave) = through_relay(link, master, seeds.next().unwrap_or(1), &counts, &mut served)?;
+        served._slaves.extend(device_slave);
+        served.tasks.push(tokio::spawn(async move {
+            elcomat_server::serve(device, instrument, ElcomatFaults::default()).await;
+        }));
+        served.instruments.insert("autocollimator".into(), port.clone().into());
+    }
+    Ok(served)
+}
+
+/// For a serial instrument: the stream the simulator serves on. Without
+/// faults, the client's pty master itself; with faults, the master of a
+/// second pty whose slave a relay joins to the client's master. Returns the
+/// simulator's stream and the slave to keep open, if any.
+fn through_relay(
+    link: LinkFaults,
+    client_master: tokio_serial::SerialStream,
+    seed: u64,
+    counts: &Arc<Counts>,
+    served: &mut Served,
+) -> anyhow::Result<(tokio_serial::SerialStream, Option<tokio_serial::SerialStream>)> {
+    if link == LinkFaults::NONE {
+        return Ok((client_master, None));
+    }
+    let (device_master, device_slave) = pty_pair()?;
+    served.tasks.push(tokio::spawn(relay(client_master, device_slave, link, seed, counts.clone())));
+    Ok((device_master, None))
+}
+
+/// For a TCP instrument: the listener the simulator serves on. Without
+/// faults, the public one itself; with faults, an inner one on a free
+/// loopback port, the public one relaying to it.
+async fn front(
+    public: TcpListener,
+    link: LinkFaults,
+    seed: u64,
+    counts: &Arc<Counts>,
+    served: &mut Served,
+) -> anyhow::Result<TcpListener> {
+    if link == LinkFaults::NONE {
+        return Ok(public);
+    }
+    let inner = TcpListener::bind("127.0.0.1:0").await?;
+    let inner_addr = inner.local_addr()?;
+    served.tasks.push(tokio::spawn(relay_tcp(public, inner_addr, link, seed, counts.clone())));
+    Ok(inner)
+}
+
+/// Accept clients on `listener` and relay each to the simulator at `inner`.
+async fn relay_tcp(listener: TcpListener, inner: SocketAddr, link: LinkFaults, seed: u64, counts: Arc<Counts>) {
+    let mut k = 0u64;
+    loop {
+        let Ok((client, _)) = listener.accept().await else {
+            tokio::task::yield_now().await;
+            continue;
+        };
+        client.set_nodelay(true).ok();
+        let Ok(device) = tokio::net::TcpStream::connect(inner).await else { continue };
+        device.set_nodelay(true).ok();
+        k += 1;
+        // One client at a time, like the instruments.
+        relay(client, device, link, derive_seed(seed, k), counts.clone()).await;
+    }
+}
