@@ -19,6 +19,9 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use peakmem_alloc::{INSTRUMENTED_SYSTEM, PeakMemAlloc, PeakMemAllocTrait};
+use rand::{Rng as _, SeedableRng as _};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 use std::alloc::System;
 use std::path::Path;
 use survey_orchestrator::process::{ProcessOptions, process_survey};
@@ -31,24 +34,6 @@ use survey_processing::{Direction, Sample};
 #[global_allocator]
 static ALLOCATOR: &PeakMemAlloc<System> = &INSTRUMENTED_SYSTEM;
 
-/// SplitMix64 and Box-Muller: seeded normal deviates without a dependency.
-struct Normal(u64);
-
-impl Normal {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        (((z ^ (z >> 31)) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn sample(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-    }
-}
-
 fn fig8() -> Model {
     Model::parse(include_str!("../../sims/presets/fig8.toml"), "fig8.toml").expect("the preset parses")
 }
@@ -56,7 +41,7 @@ fn fig8() -> Model {
 /// `points` x 5 bidirectional runs of the Figure 8 positioner, with noise.
 fn samples(model: &Model, points: u32) -> Vec<Sample> {
     let sigma = model.noise_sigma_deg();
-    let mut rng = Normal(u64::from(points));
+    let mut rng = ChaCha8Rng::seed_from_u64(u64::from(points));
     let step = 360.0 / f64::from(points);
     let mut out = Vec::with_capacity(points as usize * 10);
     let mut t = 0.0;
@@ -65,7 +50,7 @@ fn samples(model: &Model, points: u32) -> Vec<Sample> {
             for j in 0..points {
                 let k = if direction == Direction::Forward { j } else { points - 1 - j };
                 let target = f64::from(k) * step;
-                let e = model.repeatable_error_deg(target, direction) + sigma * rng.sample();
+                let e = model.repeatable_error_deg(target, direction) + sigma * rng.sample::<f64, _>(StandardNormal);
                 t += 2.0;
                 out.push(Sample {
                     run,

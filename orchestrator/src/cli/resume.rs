@@ -6,12 +6,12 @@
 //! stored but whose status is not complete (stopped while it was processed)
 //! is finished: statistics and processing, exit status 0.
 
-use super::support::{emit, open_existing};
+use super::support::{conclude_and_print, open_existing};
 use crate::bench::Bench;
-use crate::conclude::{ConcludeOptions, conclude};
+use crate::conclude::ConcludeOptions;
 use crate::engine::Outcome;
 use crate::error::bad_input;
-use crate::session::{AcquireOptions, Acquired, acquire, stopped_doc};
+use crate::session::{AcquireOptions, Acquired, acquire};
 use crate::stop::Stop;
 use crate::store::AcquirerLock;
 use crate::survey::{SurveySource, SurveyStatus};
@@ -70,7 +70,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         store.set_status(id, SurveyStatus::Complete, None).await?;
         eprintln!("survey {id}: {message}");
         let instrument_time = Duration::from_secs_f64(last_time.max(0.0));
-        Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO }
+        Ok(Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO })
     } else {
         if record.source == SurveySource::Verification {
             let table = record.verification.as_ref().and_then(|v| v.correction.as_ref()).ok_or_else(|| {
@@ -82,22 +82,10 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         let message = format!("resumed at step {next} of {}", plan.total_steps());
         store.log_event(id, last_time, "info", &message).await?;
         eprintln!("survey {id}: {message}");
-        match acquire(&store, id, &mut bench.engine, &plan, next, options).await {
-            Ok(a) => a,
-            Err(e) => {
-                if args.json {
-                    emit(&format!("{}\n", stopped_doc(&store, id, &e).await));
-                }
-                store.close().await;
-                return Err(e);
-            }
-        }
+        acquire(&store, id, &mut bench.engine, &plan, next, options).await
     };
     let finish = ConcludeOptions { recipe: None, verify: false, acquire: options, stop };
-    let concluded = conclude(&store, id, &mut bench.engine, &plan, &acquired, db, finish).await;
+    let done = conclude_and_print(store, id, &mut bench.engine, &plan, acquired, (finish, db, args.json)).await;
     drop(lock);
-    store.close().await;
-    let concluded = concluded?;
-    emit(&concluded.output.render(args.json));
-    concluded.result
+    done
 }

@@ -2,12 +2,12 @@
 //! default) or on the instruments of `--config`, then the statistics, the
 //! processing and, with `--verify`, the corrected accuracy.
 
-use super::support::emit;
+use super::support::conclude_and_print;
 use crate::bench::{Bench, PlanOverrides, SimulatedRequest};
-use crate::conclude::{ConcludeOptions, conclude};
+use crate::conclude::ConcludeOptions;
 use crate::engine::ReferenceKind;
 use crate::output::human;
-use crate::session::{AcquireOptions, acquire, stopped_doc};
+use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;
 use crate::store::Store;
 use clap::{Args, ValueEnum};
@@ -123,21 +123,9 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     );
     let options =
         AcquireOptions { progress: !args.json, crash_after: args.sim_crash_after, signal_after: args.sim_signal_after };
-    let acquired = match acquire(&store, id, &mut bench.engine, &plan, 0, options).await {
-        Ok(a) => a,
-        Err(e) => {
-            if args.json {
-                emit(&format!("{}\n", stopped_doc(&store, id, &e).await));
-            }
-            store.close().await;
-            return Err(e);
-        }
-    };
+    let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options).await;
     let finish = ConcludeOptions { recipe: args.recipe.clone(), verify: args.verify, acquire: options, stop };
-    let concluded = conclude(&store, id, &mut bench.engine, &plan, &acquired, db, finish).await;
+    let done = conclude_and_print(store, id, &mut bench.engine, &plan, acquired, (finish, db, args.json)).await;
     drop(lock);
-    store.close().await;
-    let concluded = concluded?;
-    emit(&concluded.output.render(args.json));
-    concluded.result
+    done
 }

@@ -1,5 +1,9 @@
 //! What every command shares: logging, printing, opening the database.
 
+use crate::conclude::{ConcludeOptions, conclude};
+use crate::engine::Engine;
+use crate::plan::SurveyPlan;
+use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
 use crate::survey::SurveyRecord;
 use std::path::Path;
@@ -50,4 +54,34 @@ pub async fn load_survey(db: &Path, id: Option<i64>) -> anyhow::Result<(SurveyRe
     .await;
     store.close().await;
     loaded
+}
+
+/// What `run` and `resume` do after acquiring (or failing to): on a stopped
+/// or failed acquisition, print the `--json` document of what is stored and
+/// return the error; else the statistics, processing and verification, then
+/// the output. The store is closed either way.
+pub async fn conclude_and_print(
+    store: Store,
+    id: i64,
+    engine: &mut Engine,
+    plan: &SurveyPlan,
+    acquired: anyhow::Result<Acquired>,
+    finish: (ConcludeOptions, &Path, bool),
+) -> anyhow::Result<()> {
+    let (options, db, json) = finish;
+    let acquired = match acquired {
+        Ok(a) => a,
+        Err(e) => {
+            if json {
+                emit(&format!("{}\n", stopped_doc(&store, id, &e).await));
+            }
+            store.close().await;
+            return Err(e);
+        }
+    };
+    let concluded = conclude(&store, id, engine, plan, &acquired, db, options).await;
+    store.close().await;
+    let concluded = concluded?;
+    emit(&concluded.output.render(json));
+    concluded.result
 }

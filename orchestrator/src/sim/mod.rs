@@ -70,6 +70,29 @@ pub struct Served {
     _slaves: Vec<tokio_serial::SerialStream>,
 }
 
+impl Served {
+    /// A serial instrument's line: a pty whose slave is linked at `port`;
+    /// returns the stream the simulator serves on (the pty's master, or with
+    /// faults the master of a second pty that a relay joins to it).
+    fn serial(
+        &mut self,
+        what: &str,
+        port: &str,
+        link: LinkFaults,
+        seed: u64,
+    ) -> anyhow::Result<tokio_serial::SerialStream> {
+        let (master, slave) = pty_at(what, port)?;
+        self.links.push(PathBuf::from(port));
+        self._slaves.push(slave);
+        if link == LinkFaults::NONE {
+            return Ok(master);
+        }
+        let (device_master, device_slave) = pty_pair()?;
+        self.tasks.push(tokio::spawn(relay(master, device_slave, link, seed, self.counts.clone())));
+        Ok(device_master)
+    }
+}
+
 impl Drop for Served {
     fn drop(&mut self) {
         for t in &self.tasks {
@@ -175,12 +198,8 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             served.instruments.insert("positioner".into(), public.into());
         }
         PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
-            let (master, slave) = pty_at("positioner", port)?;
-            served.links.push(PathBuf::from(port));
-            served._slaves.push(slave);
+            let device = served.serial("positioner", port, link, seeds.next().unwrap_or(1))?;
             let positioner = bench.positioner;
-            let (device, device_slave) = through_relay(link, master, seeds.next().unwrap_or(1), &counts, &mut served)?;
-            served._slaves.extend(device_slave);
             let at = (*controller, *axis);
             served.tasks.push(tokio::spawn(async move {
                 scpi_server::serve_stream(device, positioner, ScpiFaults::new(), at).await;
@@ -201,15 +220,11 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             served.instruments.insert("positioner".into(), public.into());
         }
         PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
-            let (master, slave) = pty_at("positioner", port)?;
-            served.links.push(PathBuf::from(port));
-            served._slaves.push(slave);
+            let device = served.serial("positioner", port, link, seeds.next().unwrap_or(1))?;
             // On a serial line the slave address is the unit (as the driver does).
             let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
             let server =
                 ModbusDevice::new(bench.positioner, map).map_err(|e| bad_input(format!("positioner.map: {e}")))?;
-            let (device, device_slave) = through_relay(link, master, seeds.next().unwrap_or(1), &counts, &mut served)?;
-            served._slaves.extend(device_slave);
             served.tasks.push(tokio::spawn(async move {
                 server.serve_rtu(device, ModbusFaults::new()).await;
             }));
@@ -242,37 +257,14 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         served.instruments.insert("tracker".into(), public.into());
     }
     if let Some(AcConfig::Elcomat { port, .. }) = &cfg.autocollimator {
-        let (master, slave) = pty_at("autocollimator", port)?;
-        served.links.push(PathBuf::from(port));
-        served._slaves.push(slave);
+        let device = served.serial("autocollimator", port, link, seeds.next().unwrap_or(1))?;
         let instrument = bench.autocollimator;
-        let (device, device_slave) = through_relay(link, master, seeds.next().unwrap_or(1), &counts, &mut served)?;
-        served._slaves.extend(device_slave);
         served.tasks.push(tokio::spawn(async move {
             elcomat_server::serve(device, instrument, ElcomatFaults::default()).await;
         }));
         served.instruments.insert("autocollimator".into(), port.clone().into());
     }
     Ok(served)
-}
-
-/// For a serial instrument: the stream the simulator serves on. Without
-/// faults, the client's pty master itself; with faults, the master of a
-/// second pty whose slave a relay joins to the client's master. Returns the
-/// simulator's stream and the slave to keep open, if any.
-fn through_relay(
-    link: LinkFaults,
-    client_master: tokio_serial::SerialStream,
-    seed: u64,
-    counts: &Arc<Counts>,
-    served: &mut Served,
-) -> anyhow::Result<(tokio_serial::SerialStream, Option<tokio_serial::SerialStream>)> {
-    if link == LinkFaults::NONE {
-        return Ok((client_master, None));
-    }
-    let (device_master, device_slave) = pty_pair()?;
-    served.tasks.push(tokio::spawn(relay(client_master, device_slave, link, seed, counts.clone())));
-    Ok((device_master, None))
 }
 
 /// For a TCP instrument: the listener the simulator serves on. Without

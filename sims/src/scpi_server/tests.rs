@@ -1,5 +1,4 @@
 use super::*;
-use tokio::net::TcpStream;
 use crate::positioner::{PositionerConfig, PositionerFaults};
 use crate::presets::{Preset, without_noise};
 use crate::turntable::Turntable;
@@ -12,6 +11,7 @@ use survey_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
 use survey_drivers::traits::PositionerStatus;
 use survey_processing::Direction;
 use survey_processing::model::Model;
+use tokio::net::TcpStream;
 use tokio::task::JoinHandle;
 
 const TIMEOUTS: ScpiTimeouts = ScpiTimeouts {
