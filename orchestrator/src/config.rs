@@ -33,6 +33,7 @@ use std::time::Duration;
 use survey_drivers::canopen::CanopenConfig;
 use survey_drivers::emscon::EmsconConfig;
 use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
+use survey_drivers::scpi::ErrorQueryForm;
 
 /// A whole configuration file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -82,6 +83,16 @@ pub enum PositionerConfig {
         controller: u32,
         #[serde(default = "one")]
         axis: u32,
+        /// At rest within this of the commanded position is in position, deg.
+        #[serde(default = "in_position_window")]
+        in_position_window_deg: f64,
+        /// `"all"` (`SYST:ERR:ALL?`, default) or `"next"` (`SYST:ERR?`).
+        #[serde(default)]
+        error_query: ErrorQueryForm,
+        /// Send `VEL:COMM`, `FAUL:CLE` and the `CORR:` subsystem, which the
+        /// public record does not show (default false).
+        #[serde(default)]
+        unverified_commands: bool,
     },
     /// The same controller over a serial port.
     ScpiSerial {
@@ -92,6 +103,12 @@ pub enum PositionerConfig {
         controller: u32,
         #[serde(default = "one")]
         axis: u32,
+        #[serde(default = "in_position_window")]
+        in_position_window_deg: f64,
+        #[serde(default)]
+        error_query: ErrorQueryForm,
+        #[serde(default)]
+        unverified_commands: bool,
     },
     /// A servo drive over Modbus TCP, with its register map.
     ModbusTcp {
@@ -194,6 +211,9 @@ fn one_u8() -> u8 {
 }
 fn baud_9600() -> u32 {
     9600
+}
+fn in_position_window() -> f64 {
+    0.01
 }
 fn radius_tolerance() -> f64 {
     5.0
@@ -329,6 +349,11 @@ impl SurveyConfig {
             for (i, c) in p.certificate_arcsec.iter().enumerate() {
                 within(&format!("polygon.certificate_arcsec[{i}]"), *c, Range::From(-3600.0), 3600.0, "arcsec")?;
             }
+        }
+        if let PositionerConfig::ScpiTcp { in_position_window_deg: w, .. }
+        | PositionerConfig::ScpiSerial { in_position_window_deg: w, .. } = &self.positioner
+        {
+            within("positioner.in_position_window_deg", *w, Range::Above(0.0), 1.0, "deg")?;
         }
         if let PositionerConfig::Canopen { drive, .. } = &self.positioner {
             within("positioner.counts_per_degree", drive.counts_per_degree, Range::Above(0.0), 1.0e9, "counts/deg")?;
@@ -495,7 +520,16 @@ mod tests {
         assert_eq!(t.call_timeout, Timing::default().call_timeout);
         assert_eq!(
             cfg.positioner,
-            PositionerConfig::ScpiSerial { port: "/dev/ttyUSB0".into(), baud: 9600, controller: 1, axis: 1 }
+            PositionerConfig::ScpiSerial {
+                port: "/dev/ttyUSB0".into(),
+                baud: 9600,
+                controller: 1,
+                axis: 1,
+                in_position_window_deg: 0.01,
+                error_query: ErrorQueryForm::All,
+                unverified_commands: false,
+            },
+            "the defaults: only the publicly recorded commands, SYST:ERR:ALL?"
         );
     }
 }

@@ -104,6 +104,49 @@ impl ErrorEntry {
         format!("{},\"{}\"", self.code, text.replace('"', "\"\""))
     }
 
+    /// Parse a `SYST:ERR:ALL?` reply: one or more entries `<code>, "<text>"`
+    /// separated by commas (`0, "No error"` when the queue is empty).
+    pub fn parse_list(line: &str) -> Result<Vec<Self>, CodecError> {
+        let bad = || CodecError::unparsable("error entries <code>,\"<text>\"[,<code>,\"<text>\"...]", line);
+        let mut entries = Vec::new();
+        let mut rest = line.trim();
+        while !rest.is_empty() {
+            // The code, up to its comma; then the quoted text, quotes doubled inside.
+            let (code, after) = rest.split_once(',').ok_or_else(bad)?;
+            let after = after.trim_start();
+            let body = after.strip_prefix('"').ok_or_else(bad)?;
+            let mut end = None;
+            let bytes = body.as_bytes();
+            let mut i = 0;
+            while i < bytes.len() {
+                if bytes[i] == b'"' {
+                    if bytes.get(i + 1) == Some(&b'"') {
+                        i += 2;
+                        continue;
+                    }
+                    end = Some(i);
+                    break;
+                }
+                i += 1;
+            }
+            let end = end.ok_or_else(bad)?;
+            entries.push(Self::parse(&format!("{},\"{}\"", code.trim(), &body[..end]))?);
+            rest = body[end + 1..].trim_start();
+            if let Some(r) = rest.strip_prefix(',') {
+                rest = r.trim_start();
+                if rest.is_empty() {
+                    return Err(bad());
+                }
+            } else if !rest.is_empty() {
+                return Err(bad());
+            }
+        }
+        if entries.is_empty() {
+            return Err(bad());
+        }
+        Ok(entries)
+    }
+
     /// Parse a `SYST:ERR?` reply.
     pub fn parse(line: &str) -> Result<Self, CodecError> {
         let bad = || CodecError::unparsable("an error entry <code>,\"<text>\"", line);
@@ -207,8 +250,12 @@ pub enum Command {
     SetCorrection(bool),
     /// `CORR:STAT?`
     CorrectionQuery,
-    /// `SYST:ERR?`
+    /// `SYST:ERR?` (one entry; SCPI-99, not shown for MI controllers)
     ErrorQuery,
+    /// `SYST:ERR:ALL?` (every entry; what public code sends to MI controllers)
+    ErrorQueryAll,
+    /// `UNIT:POS?` (the axis's position units; 6 = degree)
+    UnitsQuery,
     /// `*CLS`
     ClearStatus,
     /// `*IDN?`
@@ -224,7 +271,7 @@ pub struct Parsed {
 }
 
 /// Short and long forms of the mnemonics below `CONT<c>:AXIS(<a>)`.
-const MNEMONICS: [(&str, &str); 15] = [
+const MNEMONICS: [(&str, &str); 16] = [
     ("POS", "POSITION"),
     ("COMM", "COMMAND"),
     ("CURR", "CURRENT"),
@@ -240,6 +287,7 @@ const MNEMONICS: [(&str, &str); 15] = [
     ("POIN", "POINTS"),
     ("LOAD", "LOAD"),
     ("REV", "REVERSE"),
+    ("UNIT", "UNIT"),
 ];
 
 impl Command {
@@ -254,13 +302,15 @@ impl Command {
                 | Command::TablePointsQuery(_)
                 | Command::CorrectionQuery
                 | Command::ErrorQuery
+                | Command::ErrorQueryAll
+                | Command::UnitsQuery
                 | Command::Identify
         )
     }
 
     /// Whether the command addresses an axis (`CONT<c>:AXIS(<a>):...`).
     pub fn is_axis_command(&self) -> bool {
-        !matches!(self, Command::ErrorQuery | Command::ClearStatus | Command::Identify)
+        !matches!(self, Command::ErrorQuery | Command::ErrorQueryAll | Command::ClearStatus | Command::Identify)
     }
 
     /// The line for `address`, without terminator.
@@ -290,6 +340,8 @@ impl Command {
             Command::SetCorrection(on) => axis(if *on { "CORR:STAT ON" } else { "CORR:STAT OFF" }),
             Command::CorrectionQuery => axis("CORR:STAT?"),
             Command::ErrorQuery => "SYST:ERR?".into(),
+            Command::ErrorQueryAll => "SYST:ERR:ALL?".into(),
+            Command::UnitsQuery => axis("UNIT:POS?"),
             Command::ClearStatus => "*CLS".into(),
             Command::Identify => "*IDN?".into(),
         }
@@ -325,6 +377,7 @@ impl Command {
             ("SYST:ERR" | "SYSTEM:ERROR" | "SYST:ERR:NEXT" | "SYSTEM:ERROR:NEXT", true) => {
                 return system(no_params(Command::ErrorQuery)?);
             }
+            ("SYST:ERR:ALL" | "SYSTEM:ERROR:ALL", true) => return system(no_params(Command::ErrorQueryAll)?),
             _ => {}
         }
         let mut nodes = header.split(':');
@@ -354,6 +407,7 @@ impl Command {
             ("CORR:TABL:LOAD", false) => no_params(Command::TableLoad)?,
             ("CORR:STAT", false) => Command::SetCorrection(parse_bool(params).map_err(|_| bad())?),
             ("CORR:STAT", true) => no_params(Command::CorrectionQuery)?,
+            ("UNIT:POS", true) => no_params(Command::UnitsQuery)?,
             _ => return Err(bad()),
         };
         Ok(Parsed { address: Some(Address { controller, axis }), command })

@@ -73,10 +73,9 @@ pub mod bits {
     pub const PROPERTY_CHANGED: u16 = 1 << 11;
     /// Bit 12: status changed.
     pub const STATUS_CHANGED: u16 = 1 << 12;
-    /// Bit 13 (chosen): in position.
-    pub const IN_POSITION: u16 = 1 << 13;
-    /// Bit 14 (chosen): correction table applied.
-    pub const CORRECTION: u16 = 1 << 14;
+    /// Bits 13-15 are unused (MI-4192 manual p. 3-42, as reproduced in public
+    /// code): nothing here reads them.
+    pub const UNUSED: u16 = 0b111 << 13;
     /// The bits that mean a fault.
     pub const FAULT: u16 = PAU_FAULT | ERROR_LIMIT;
 }
@@ -92,15 +91,9 @@ impl StatusWord {
     pub fn moving(self) -> bool {
         self.has(bits::IN_MOTION)
     }
-    pub fn in_position(self) -> bool {
-        self.has(bits::IN_POSITION)
-    }
     /// A fault bit (PAU fault or error limit) is set.
     pub fn fault(self) -> bool {
         self.has(bits::FAULT)
-    }
-    pub fn correction_enabled(self) -> bool {
-        self.has(bits::CORRECTION)
     }
     /// The active limit switch (reverse = lower wins if both are set).
     pub fn limit(self) -> Option<Limit> {
@@ -125,37 +118,17 @@ impl StatusWord {
         names.join(", ")
     }
 
-    /// The status, with `fault` (learned from `SYST:ERR?`) as its fault.
-    pub fn to_status(self, fault: Option<DeviceFault>) -> PositionerStatus {
-        PositionerStatus {
-            moving: self.moving(),
-            in_position: self.in_position(),
-            fault,
-            limit: self.limit(),
-            correction_enabled: self.correction_enabled(),
-        }
-    }
-
-    /// The word a controller in `status` shows: active, indexed, enabled unless
-    /// faulted, a fault as a PAU fault.
-    pub fn from_status(status: &PositionerStatus) -> Self {
-        let mut w = bits::ACTIVE | bits::INDEXED;
-        w |= if status.fault.is_some() { bits::PAU_FAULT } else { bits::ENABLED };
-        if status.moving {
-            w |= bits::IN_MOTION;
-        }
-        if status.in_position {
-            w |= bits::IN_POSITION;
-        }
-        if status.correction_enabled {
-            w |= bits::CORRECTION;
-        }
-        w |= match status.limit {
-            Some(Limit::Lower) => bits::REVERSE_LIMIT,
-            Some(Limit::Upper) => bits::FORWARD_LIMIT,
-            None => 0,
-        };
-        StatusWord(w)
+    /// The status, with `fault` (learned from the error queue) as its fault,
+    /// `in_position` as the driver decided it (bit 7 clear and the position
+    /// within the window of the commanded one) and `correction_enabled` as
+    /// the driver set it: the word has no bit for either.
+    pub fn to_status(
+        self,
+        fault: Option<DeviceFault>,
+        in_position: bool,
+        correction_enabled: bool,
+    ) -> PositionerStatus {
+        PositionerStatus { moving: self.moving(), in_position, fault, limit: self.limit(), correction_enabled }
     }
 
     /// Parse a `STAT?` reply: a decimal integer 0..=65535.

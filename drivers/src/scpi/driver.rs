@@ -34,8 +34,33 @@ impl Default for ScpiTimeouts {
     }
 }
 
+/// Which query reads the controller's error queue.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ErrorQueryForm {
+    /// `SYST:ERR:ALL?`: every entry in one reply, `0, "No error"` when empty
+    /// (what public code sends to MI-4190/4192 controllers). The default.
+    #[default]
+    All,
+    /// `SYST:ERR?`: the oldest entry (SCPI-99; not shown for MI controllers).
+    Next,
+}
+
+impl ErrorQueryForm {
+    fn command(self) -> Command {
+        match self {
+            ErrorQueryForm::All => Command::ErrorQueryAll,
+            ErrorQueryForm::Next => Command::ErrorQuery,
+        }
+    }
+}
+
+/// `UNIT:POS?` of an axis in degrees (public code: 0 encoder counts, 1 m,
+/// 2 cm, 3 mm, 4 in, 5 ft, 6 degree, 7 radian, 8 revolution).
+pub const UNITS_DEGREE: i64 = 6;
+
 /// Configuration of a [`ScpiPositioner`].
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ScpiConfig {
     /// Controller and axis addressed. Default `CONT1:AXIS(1)`.
     pub address: Address,
@@ -44,6 +69,15 @@ pub struct ScpiConfig {
     pub table_chunk: usize,
     /// Longest reply line accepted. Default [`Decoder::DEFAULT_MAX_LINE`].
     pub max_line: usize,
+    /// How far from the commanded position the axis may be, at rest, to be in
+    /// position, degrees. Default 0.01.
+    pub in_position_window_deg: f64,
+    /// The error query. Default [`ErrorQueryForm::All`].
+    pub error_query: ErrorQueryForm,
+    /// Send the commands the public record does not show (`VEL:COMM`,
+    /// `FAUL:CLE`, the `CORR:` subsystem). Default false: they are refused
+    /// with a usage error that says what to do instead.
+    pub unverified_commands: bool,
 }
 
 impl Default for ScpiConfig {
@@ -53,6 +87,9 @@ impl Default for ScpiConfig {
             timeouts: ScpiTimeouts::default(),
             table_chunk: 32,
             max_line: Decoder::DEFAULT_MAX_LINE,
+            in_position_window_deg: 0.01,
+            error_query: ErrorQueryForm::All,
+            unverified_commands: false,
         }
     }
 }
@@ -71,6 +108,12 @@ pub struct ScpiPositioner<T> {
     last_fault: Option<DeviceFault>,
     /// A request timed out: its reply may still come.
     resync: bool,
+    /// The last commanded position (in position is decided against it).
+    target: Option<f64>,
+    /// `UNIT:POS?` was checked on this connection.
+    units_checked: bool,
+    /// What the driver last set with `CORR:STAT`.
+    correction_on: bool,
 }
 
 impl<T> fmt::Debug for ScpiPositioner<T> {
@@ -138,7 +181,71 @@ where
             cfg,
             last_fault: None,
             resync: false,
+            target: None,
+            units_checked: false,
+            correction_on: false,
         }
+    }
+
+    /// Check once per connection that the axis reports positions in degrees:
+    /// any other unit would be a silent scale error.
+    async fn check_units(&mut self) -> Result<()> {
+        if self.units_checked {
+            return Ok(());
+        }
+        let what = "position units (UNIT:POS?)";
+        let line = match self.query(&[], Command::UnitsQuery, what).await {
+            Ok(line) => line,
+            Err(e) if e.kind == ErrorKind::Timeout => {
+                // A query the controller refused has no reply: its error queue says why
+                // (an axis it does not have: -114).
+                let entries = self.errors(&[], what).await?;
+                return Err(match entries.into_iter().find(ErrorEntry::is_error) {
+                    Some(entry) => self.rejected(entry, what),
+                    None => e,
+                });
+            }
+            Err(e) => return Err(e),
+        };
+        let units: i64 =
+            line.trim().parse().map_err(|_| self.garbled(what, CodecError::unparsable("a unit code", &line)))?;
+        if units != UNITS_DEGREE {
+            let name = match units {
+                0 => "encoder counts",
+                1 => "metres",
+                2 => "centimetres",
+                3 => "millimetres",
+                4 => "inches",
+                5 => "feet",
+                7 => "radians",
+                8 => "revolutions",
+                _ => "an unknown unit",
+            };
+            return Err(DriverError::usage(
+                &self.name,
+                format!(
+                    "axis {} reports its positions in {name} (UNIT:POS? = {units}), not degrees ({UNITS_DEGREE}): set \
+                     the axis's position units to degrees on the controller",
+                    self.cfg.address.axis
+                ),
+            ));
+        }
+        self.units_checked = true;
+        Ok(())
+    }
+
+    /// Refuse a command the public record does not show, unless enabled.
+    fn unverified(&self, command: &str, instead: &str) -> Result<()> {
+        if self.cfg.unverified_commands {
+            return Ok(());
+        }
+        Err(DriverError::usage(
+            &self.name,
+            format!(
+                "{command} is not in the public record of MI-4190/4192 controllers and is not sent unless \
+                 `unverified_commands = true` is set for the positioner; {instead}"
+            ),
+        ))
     }
 
     /// Set the name used in logs and errors.
@@ -155,6 +262,12 @@ where
 
     pub fn config(&self) -> &ScpiConfig {
         &self.cfg
+    }
+
+    /// The configuration, to change (the in-position window, the error
+    /// query, the unverified commands).
+    pub fn config_mut(&mut self) -> &mut ScpiConfig {
+        &mut self.cfg
     }
 
     /// Whether the stream is still open (false after a `Disconnected`).
@@ -224,6 +337,7 @@ where
     /// Mark the link dead.
     fn close(&mut self, what: &str, why: impl fmt::Display) -> DriverError {
         self.io = None;
+        self.units_checked = false;
         self.decoder.clear();
         tracing::warn!(instrument = %self.name, what, %why, "connection lost");
         self.disconnected(what, why)
@@ -296,20 +410,25 @@ where
         line.ok_or_else(|| self.garbled(what, CodecError::unparsable("a reply", "")))
     }
 
-    /// Read one entry of the error queue.
-    async fn next_error(&mut self, before: &[Command], what: &str) -> Result<ErrorEntry> {
-        let line = self.query(before, Command::ErrorQuery, what).await?;
-        ErrorEntry::parse(&line).map_err(|e| self.garbled(what, e))
+    /// Read the error queue (its oldest entry, or all of them, as
+    /// configured); `0, "No error"` when it is empty.
+    async fn errors(&mut self, before: &[Command], what: &str) -> Result<Vec<ErrorEntry>> {
+        let form = self.cfg.error_query;
+        let line = self.query(before, form.command(), what).await?;
+        match form {
+            ErrorQueryForm::All => ErrorEntry::parse_list(&line).map_err(|e| self.garbled(what, e)),
+            ErrorQueryForm::Next => ErrorEntry::parse(&line).map(|e| vec![e]).map_err(|e| self.garbled(what, e)),
+        }
     }
 
-    /// `*CLS`, the commands, `SYST:ERR?`: a non-zero entry is the commands'
-    /// refusal.
+    /// `*CLS`, the commands, the error query: an entry other than 0 is the
+    /// commands' refusal (the first such entry is reported).
     async fn command(&mut self, commands: &[Command], what: &str) -> Result<()> {
         let mut lines = Vec::with_capacity(commands.len() + 1);
         lines.push(Command::ClearStatus);
         lines.extend_from_slice(commands);
-        let entry = self.next_error(&lines, what).await?;
-        if entry.is_error() {
+        let entries = self.errors(&lines, what).await?;
+        if let Some(entry) = entries.into_iter().find(ErrorEntry::is_error) {
             tracing::debug!(instrument = %self.name, what, %entry, "command refused");
             return Err(self.rejected(entry, what));
         }
@@ -319,12 +438,19 @@ where
     /// The fault behind a fault bit: the newest device-class entry of the
     /// error queue, else the one remembered, else a generic one.
     async fn fault_detail(&mut self, word: StatusWord) -> Result<DeviceFault> {
-        for _ in 0..MAX_ERROR_READS {
-            let entry = self.next_error(&[], "status (SYST:ERR? after a fault bit)").await?;
-            match entry.kind() {
-                None => break,
-                Some(ErrorKind::Device) => self.last_fault = Some(DeviceFault { code: entry.code, text: entry.text }),
-                Some(_) => tracing::warn!(instrument = %self.name, %entry, "stale command error in the queue"),
+        'reads: for _ in 0..MAX_ERROR_READS {
+            let entries = self.errors(&[], "status (error query after a fault bit)").await?;
+            for entry in entries {
+                match entry.kind() {
+                    None => break 'reads,
+                    Some(ErrorKind::Device) => {
+                        self.last_fault = Some(DeviceFault { code: entry.code, text: entry.text })
+                    }
+                    Some(_) => tracing::warn!(instrument = %self.name, %entry, "stale command error in the queue"),
+                }
+            }
+            if self.cfg.error_query == ErrorQueryForm::All {
+                break;
             }
         }
         Ok(self.last_fault.clone().unwrap_or_else(|| DeviceFault {
@@ -351,16 +477,26 @@ where
         if !target_deg.is_finite() {
             return Err(DriverError::usage(&self.name, format!("target {target_deg} deg is not a finite angle")));
         }
+        self.check_units().await?;
         self.command(&[Command::SetTarget(target_deg)], "move_to (POS:COMM)").await?;
-        self.command(&[Command::Start], "move_to (MOT:STAR)").await
+        self.command(&[Command::Start], "move_to (MOT:STAR)").await?;
+        self.target = Some(target_deg);
+        Ok(())
     }
 
     async fn readout(&mut self) -> Result<f64> {
+        self.check_units().await?;
         let line = self.query(&[], Command::PositionQuery, "readout (POS:CURR?)").await?;
         parse_number(&line).map_err(|e| self.garbled("readout (POS:CURR?)", e))
     }
 
+    /// `STAT?`; at rest (bit 7 clear, no fault) also `POS:CURR?`: the axis is
+    /// in position when it is within [`ScpiConfig::in_position_window_deg`]
+    /// of the position last commanded (with none commanded yet, at rest is in
+    /// position). The status word has no in-position bit: bits 13-15 are
+    /// unused.
     async fn status(&mut self) -> Result<PositionerStatus> {
+        self.check_units().await?;
         let line = self.query(&[], Command::StatusQuery, "status (STAT?)").await?;
         let word = StatusWord::parse(&line).map_err(|e| self.garbled("status (STAT?)", e))?;
         let fault = if word.fault() {
@@ -369,27 +505,57 @@ where
             self.last_fault = None;
             None
         };
-        Ok(word.to_status(fault))
+        let in_position = if word.moving() || fault.is_some() {
+            false
+        } else {
+            match self.target {
+                Some(target) => {
+                    let what = "status (POS:CURR? at rest)";
+                    let line = self.query(&[], Command::PositionQuery, what).await?;
+                    let at = parse_number(&line).map_err(|e| self.garbled(what, e))?;
+                    (at - target).abs() <= self.cfg.in_position_window_deg
+                }
+                None => true,
+            }
+        };
+        Ok(word.to_status(fault, in_position, self.correction_on))
     }
 
+    /// `MOT:STOP`: the axis halts where it is, which is then its position
+    /// (at rest is in position).
     async fn stop(&mut self) -> Result<()> {
-        self.command(&[Command::Stop], "stop (MOT:STOP)").await
+        self.command(&[Command::Stop], "stop (MOT:STOP)").await?;
+        self.target = None;
+        Ok(())
     }
 
     async fn set_velocity(&mut self, deg_per_s: f64) -> Result<()> {
         if !deg_per_s.is_finite() {
             return Err(DriverError::usage(&self.name, format!("velocity {deg_per_s} deg/s is not a finite number")));
         }
+        self.unverified("VEL:COMM", "set the velocity on the controller")?;
         self.command(&[Command::SetVelocity(deg_per_s)], "set_velocity (VEL:COMM)").await
     }
 
+    /// `FAUL:CLE` when unverified commands are enabled; otherwise only `*CLS`
+    /// (the public record shows no fault-clear command: a latched drive fault
+    /// is cleared at the controller, and the next move says whether it was).
     async fn clear_fault(&mut self) -> Result<()> {
-        self.command(&[Command::ClearFault], "clear_fault (FAUL:CLE)").await?;
+        if self.cfg.unverified_commands {
+            self.command(&[Command::ClearFault], "clear_fault (FAUL:CLE)").await?;
+        } else {
+            self.request(&[Command::ClearStatus], "clear_fault (*CLS)").await?;
+            tracing::warn!(instrument = %self.name, "no public fault-clear command: only the error queue was cleared");
+        }
         self.last_fault = None;
         Ok(())
     }
 
     async fn load_correction_table(&mut self, table: &CorrectionTable) -> Result<()> {
+        self.unverified(
+            "the correction-table subsystem (CORR:TABL)",
+            "load the table the controller's own way, from the files `survey process` writes",
+        )?;
         let chunk = self.cfg.table_chunk.max(1);
         let mut lines = vec![Command::TableClear];
         let mut columns = vec![(Column::Forward, &table.forward)];
@@ -421,6 +587,9 @@ where
     }
 
     async fn enable_correction(&mut self, enabled: bool) -> Result<()> {
-        self.command(&[Command::SetCorrection(enabled)], "enable_correction (CORR:STAT)").await
+        self.unverified("CORR:STAT", "switch the correction on at the controller")?;
+        self.command(&[Command::SetCorrection(enabled)], "enable_correction (CORR:STAT)").await?;
+        self.correction_on = enabled;
+        Ok(())
     }
 }

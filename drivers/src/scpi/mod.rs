@@ -19,9 +19,10 @@
 //! | `CONT<c>:AXIS(<a>):MOT:STOP` | none | stop the axis | looked up |
 //! | `CONT<c>:AXIS(<a>):POS:CURR?` | `<deg>` | current position (the readout) | looked up |
 //! | `CONT<c>:AXIS(<a>):VEL:CURR?` | `<deg/s>` | current velocity (0 at rest) | looked up |
-//! | `CONT<c>:AXIS(<a>):STAT?` | `<integer>` | the axis status word (bits below) | looked up (bits 13, 14 chosen) |
-//! | `CONT<c>:AXIS(<a>):VEL:COMM <deg/s>` | none | velocity of the following moves | chosen |
-//! | `CONT<c>:AXIS(<a>):FAUL:CLE` | none | clear a latched axis fault | chosen |
+//! | `CONT<c>:AXIS(<a>):STAT?` | `<integer>` | the axis status word (bits below) | looked up |
+//! | `CONT<c>:AXIS(<a>):UNIT:POS?` | `<code>` | position units (6 = degree; checked once per connection) | looked up |
+//! | `CONT<c>:AXIS(<a>):VEL:COMM <deg/s>` | none | velocity of the following moves | chosen (unverified) |
+//! | `CONT<c>:AXIS(<a>):FAUL:CLE` | none | clear a latched axis fault | chosen (unverified) |
 //! | `CONT<c>:AXIS(<a>):CORR:TABL:CLE` | none | empty the table being loaded | chosen |
 //! | `CONT<c>:AXIS(<a>):CORR:TABL <n>,<v>,<v>...` | none | write forward-column values from row `n` (0-based) on | chosen |
 //! | `CONT<c>:AXIS(<a>):CORR:TABL:REV <n>,<v>...` | none | the same for the reverse column of a directional table | chosen |
@@ -29,7 +30,8 @@
 //! | `CONT<c>:AXIS(<a>):CORR:TABL:LOAD` | none | install the rows as the correction table (not yet applied) | chosen |
 //! | `CONT<c>:AXIS(<a>):CORR:STAT ON\|OFF` | none | apply (or stop applying) the table in the feedback path | chosen |
 //! | `CONT<c>:AXIS(<a>):CORR:STAT?` | `1\|0` | whether the table is applied | chosen |
-//! | `SYST:ERR?` | `<code>,"<text>"` | pop the oldest entry of the error queue; `0,"No error"` when empty | SCPI-99 |
+//! | `SYST:ERR:ALL?` | `<code>, "<text>"[, ...]` | every entry of the error queue; `0, "No error"` when empty (the default error query) | looked up |
+//! | `SYST:ERR?` | `<code>,"<text>"` | pop the oldest entry of the error queue (`error_query = "next"`) | SCPI-99 |
 //! | `*CLS` | none | clear the error queue | IEEE 488.2, seen in use |
 //! | `*IDN?` | `<maker>,<model>,<serial>,<firmware>` | identification | IEEE 488.2, seen in use |
 //!
@@ -55,19 +57,35 @@
 //! | 10 | position trigger active | no | looked up |
 //! | 11 | property changed | no | looked up |
 //! | 12 | status changed | no | looked up |
-//! | 13 | in position: settled in the window at the commanded position | `in_position` | chosen (listed unused) |
-//! | 14 | correction table applied | `correction_enabled` | chosen (listed unused) |
-//! | 15 | unused | no | looked up |
+//! | 13-15 | unused | no | looked up |
 //!
-//! A controller that leaves bits 13 and 14 at 0 never reports `in_position`;
-//! those two bits are this project's extension and the simulator implements
-//! them.
+//! The word has no in-position bit (an earlier version of this driver read
+//! bit 13, which the manual lists as unused: every move on a real controller
+//! would have timed out). The driver decides: in position when bit 7 (in
+//! motion) is clear, no fault bit is set, and `POS:CURR?` is within
+//! [`ScpiConfig::in_position_window_deg`] (0.01 deg by default) of the
+//! position last commanded; after `MOT:STOP`, or before any move, at rest is
+//! in position. Public code waits for `VEL:CURR?` = 0 instead; both end a move
+//! at the same moment on the simulator. `correction_enabled` is what the
+//! driver last set with `CORR:STAT`.
+//!
+//! ## Commands the public record does not show
+//!
+//! `VEL:COMM`, `FAUL:CLE` and the `CORR:` subsystem are this project's
+//! guesses, implemented by the simulator and unverified on hardware. They
+//! are sent only with [`ScpiConfig::unverified_commands`] (configuration key
+//! `unverified_commands = true`); otherwise `set_velocity`,
+//! `load_correction_table` and `enable_correction` are usage errors that say
+//! what to do instead (load the table the controller's own way from the files
+//! `survey process` writes), and `clear_fault` only sends `*CLS`.
 //!
 //! ## Errors
 //!
-//! Commands have no reply, so after every command the driver asks
-//! `SYST:ERR?`. It sends `*CLS` in the same write before the command, so the
-//! entry read back is the command's own and never a stale one. A non-zero code
+//! Commands have no reply, so after every command the driver asks the error
+//! query (`SYST:ERR:ALL?` by default, as public code for MI controllers does;
+//! `SYST:ERR?` with `error_query = "next"`). It sends `*CLS` in the same write
+//! before the command, so the entries read back are the command's own and
+//! never stale ones. A non-zero code
 //! becomes a [`DriverError`] carrying the code, with the controller's text as
 //! the message. The class follows the SCPI-99 code ranges:
 //!
@@ -81,8 +99,8 @@
 //!   `-24x` hardware errors, `-3xx` device-specific errors and the
 //!   controller's own positive codes (drive faults).
 //!
-//! When `STAT?` shows a fault bit (4 or 6), the driver reads `SYST:ERR?` until
-//! it answers 0 and reports the newest device-class entry as
+//! When `STAT?` shows a fault bit (4 or 6), the driver reads the error queue
+//! until it answers 0 and reports the newest device-class entry as
 //! [`PositionerStatus::fault`]. The entry is remembered while the fault bit
 //! stays set, because the queue gives each entry out only once; if it was
 //! never seen (another client read it), the fault carries code
@@ -138,10 +156,17 @@
 //!   standard codes -100 to -350 used here; also as listed by the `scpi`
 //!   crate's `ErrorCode` on docs.rs).
 //!
-//! Chosen (no public documentation found, designed in the same style):
-//! `VEL:COMM`, `FAUL:CLE`, the whole `CORR:` subsystem, status bits 13 and 14,
-//! LF as the terminator sent, which codes mean usage, and the
-//! drain/`*CLS`/`SYST:ERR?` discipline above.
+//! - `github.com/csun-rf-lab/antennameasure`, `+MotionController/MI4190.m`:
+//!   the status-bit table "from page 3-42 of the MI-4192 manual" (bits 13-15
+//!   unused), `UNIT:POS?` (6 = degree), `SYST:ERR:ALL?` answered
+//!   `0, "No error"`, `SYST:ERR:COUN`, `*CLS`, `VEL:CURR?`, `MOT:STOP`,
+//!   `CONT1:ABORT` (the recorded-exchange test
+//!   `the_public_record_parses_as_our_codec_reads_it` replays them).
+//!
+//! Chosen (no public documentation found, designed in the same style, sent
+//! only with `unverified_commands`): `VEL:COMM`, `FAUL:CLE`, the whole `CORR:`
+//! subsystem; also LF as the terminator sent, which codes mean usage, and the
+//! drain/`*CLS`/error-query discipline above.
 //!
 //! # Layout
 //!

@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::error::ErrorKind;
-use crate::traits::{DeviceFault, Limit, Positioner, PositionerStatus};
+use crate::traits::{Limit, Positioner};
 use proptest::prelude::*;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
@@ -91,18 +91,54 @@ fn replies_parse_and_refuse_garbage() {
     assert!(parse_count("-1").is_err());
 }
 
+/// Exchanges seen in public code that drives real MI-4190/4192 controllers:
+/// `csun-rf-lab/antennameasure`, `+MotionController/MI4190.m` (the commands,
+/// `UNIT:POS?` with 6 = degree, `SYST:ERR:ALL?` answered `0, "No error"`),
+/// and `Ugikie/PositionControl`, `Docs/testcomms.txt`
+/// (`CONT1:AXIS(1):POS:COMM -90.000000`).
+#[test]
+fn the_public_record_parses_as_our_codec_reads_it() {
+    let seen = Command::parse("CONT1:AXIS(1):POS:COMM -90.000000").unwrap();
+    assert_eq!(seen.command, Command::SetTarget(-90.0));
+    for (line, command) in [
+        ("CONT1:AXIS(2):MOT:STAR", Command::Start),
+        ("CONT1:AXIS(2):MOT:STOP", Command::Stop),
+        ("CONT1:AXIS(2):POS:CURR?", Command::PositionQuery),
+        ("CONT1:AXIS(2):VEL:CURR?", Command::VelocityQuery),
+        ("CONT1:AXIS(2):STAT?", Command::StatusQuery),
+        ("CONT1:AXIS(2):UNIT:POS?", Command::UnitsQuery),
+    ] {
+        let parsed = Command::parse(line).unwrap();
+        assert_eq!(parsed.command, command, "{line}");
+        assert_eq!(parsed.command.to_line(Address { controller: 1, axis: 2 }), line, "we send what they send");
+    }
+    assert_eq!(Command::parse("SYST:ERR:ALL?").unwrap().command, Command::ErrorQueryAll);
+    assert_eq!(Command::ErrorQueryAll.to_line(Address::default()), "SYST:ERR:ALL?");
+    assert_eq!(ErrorEntry::parse_list("0, \"No error\"").unwrap(), vec![ErrorEntry::new(0, "No error")]);
+    let two = ErrorEntry::parse_list("-222, \"Data out of range\", -113,\"Undefined header;say \"\"hi\"\"\"").unwrap();
+    assert_eq!(
+        two,
+        vec![ErrorEntry::new(-222, "Data out of range"), ErrorEntry::new(-113, "Undefined header;say \"hi\"")]
+    );
+    for bad in ["", "0", "0, \"No error\",", "0, \"a\" x", "0 \"a\""] {
+        assert!(ErrorEntry::parse_list(bad).is_err(), "{bad:?}");
+    }
+}
+
 #[test]
 fn status_bits_as_documented() {
     // The logged MI-4192 at rest: latch, active, indexed, status changed.
     let w = StatusWord(4865);
-    assert!(!w.moving() && !w.fault() && !w.in_position() && w.limit().is_none());
-    let s = StatusWord(bits::IN_MOTION | bits::FORWARD_LIMIT | bits::CORRECTION).to_status(None);
+    assert!(!w.moving() && !w.fault() && w.limit().is_none());
+    // The word carries no in-position or correction bit: the driver decides those.
+    let s = StatusWord(bits::IN_MOTION | bits::FORWARD_LIMIT | bits::UNUSED).to_status(None, false, true);
     assert!(s.moving && s.correction_enabled && !s.in_position);
     assert_eq!(s.limit, Some(Limit::Upper));
     assert_eq!(StatusWord(bits::REVERSE_LIMIT).limit(), Some(Limit::Lower));
     assert!(StatusWord(1 << 4).fault() && StatusWord(1 << 6).fault());
+    assert!(!StatusWord(bits::UNUSED).fault() && !StatusWord(bits::UNUSED).moving());
     assert_eq!(StatusWord(bits::ERROR_LIMIT).fault_names(), "error limit active");
-    assert_eq!(bits::IN_POSITION, 1 << 13);
+    assert_eq!(bits::UNUSED, 0xE000, "bits 13-15");
 }
 
 #[test]
@@ -158,12 +194,18 @@ async fn driver_over_an_in_memory_stream() {
         let mut d = Decoder::default();
         let mut buf = [0u8; 256];
         let mut seen = Vec::new();
-        while seen.len() < 2 {
+        while seen.len() < 3 {
             let n = theirs.read(&mut buf).await.unwrap();
             d.push(&buf[..n]);
             while let Some(l) = d.next_line() {
                 let l = l.unwrap();
-                let reply = if l.ends_with("POS:CURR?") { "12.5\n1234\n" } else { "8992\n" };
+                let reply = if l.ends_with("UNIT:POS?") {
+                    "6\n"
+                } else if l.ends_with("POS:CURR?") {
+                    "12.5\n1234\n"
+                } else {
+                    "8992\n"
+                };
                 theirs.write_all(reply.as_bytes()).await.unwrap();
                 seen.push(l);
             }
@@ -176,7 +218,8 @@ async fn driver_over_an_in_memory_stream() {
     let s = p.status().await.unwrap();
     assert!(s.in_position && !s.correction_enabled && !s.moving && s.fault.is_none(), "{s:?}");
     let seen = peer.await.unwrap();
-    assert_eq!(seen, vec!["CONT1:AXIS(1):POS:CURR?", "CONT1:AXIS(1):STAT?"]);
+    // The units are checked once, before the first request that uses a position.
+    assert_eq!(seen, vec!["CONT1:AXIS(1):UNIT:POS?", "CONT1:AXIS(1):POS:CURR?", "CONT1:AXIS(1):STAT?"]);
     // The peer is gone: end of stream.
     let e = p.readout().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
@@ -202,6 +245,8 @@ fn arb_command() -> impl Strategy<Value = Command> {
         Just(Command::StatusQuery),
         arb_f64().prop_map(Command::SetVelocity),
         Just(Command::VelocityQuery),
+        Just(Command::UnitsQuery),
+        Just(Command::ErrorQueryAll),
         Just(Command::ClearFault),
         Just(Command::TableClear),
         (column.clone(), 0usize..100_000, proptest::collection::vec(arb_f64(), 0..40))
@@ -245,18 +290,10 @@ proptest! {
     }
 
     #[test]
-    fn status_round_trip(moving: bool, in_position: bool, fault: bool, correction: bool, limit in 0u8..3) {
-        let status = PositionerStatus {
-            moving,
-            in_position,
-            fault: fault.then(|| DeviceFault { code: 1, text: "f".into() }),
-            limit: [None, Some(Limit::Lower), Some(Limit::Upper)][limit as usize],
-            correction_enabled: correction,
-        };
-        let w = StatusWord::from_status(&status);
-        prop_assert_eq!(StatusWord::parse(&w.to_string()).unwrap(), w);
-        prop_assert_eq!(w.fault(), fault);
-        prop_assert_eq!(w.to_status(status.fault.clone()), status);
+    fn error_lists_round_trip(entries in proptest::collection::vec((any::<i32>(), "[ -~]{0,40}"), 1..5)) {
+        let entries: Vec<ErrorEntry> = entries.into_iter().map(|(c, t)| ErrorEntry::new(c as i64, t)).collect();
+        let line = entries.iter().map(ErrorEntry::to_line).collect::<Vec<_>>().join(", ");
+        prop_assert_eq!(ErrorEntry::parse_list(&line).unwrap(), entries);
     }
 
     #[test]
@@ -294,6 +331,7 @@ proptest! {
             let _ = parse_number(&line);
             let _ = StatusWord::parse(&line);
             let _ = ErrorEntry::parse(&line);
+            let _ = ErrorEntry::parse_list(&line);
         }
     }
 }

@@ -27,12 +27,33 @@ impl Connect<dyn Positioner> for PositionerConnector {
     async fn connect(&self) -> survey_drivers::Result<Box<dyn Positioner>> {
         let timeouts = ScpiTimeouts { request: self.timeout, ..ScpiTimeouts::default() };
         match &self.config {
-            PositionerConfig::ScpiTcp { address, controller, axis } => {
-                let d = ScpiPositioner::connect_tcp(address.as_str(), timeouts).await?;
+            PositionerConfig::ScpiTcp {
+                address,
+                controller,
+                axis,
+                in_position_window_deg,
+                error_query,
+                unverified_commands,
+            } => {
+                let mut d = ScpiPositioner::connect_tcp(address.as_str(), timeouts).await?;
+                let c = d.config_mut();
+                (c.in_position_window_deg, c.error_query, c.unverified_commands) =
+                    (*in_position_window_deg, *error_query, *unverified_commands);
                 Ok(Box::new(d.with_address(Address { controller: *controller, axis: *axis })))
             }
-            PositionerConfig::ScpiSerial { port, baud, controller, axis } => {
-                let d = ScpiPositioner::open_serial(port, *baud, timeouts)?;
+            PositionerConfig::ScpiSerial {
+                port,
+                baud,
+                controller,
+                axis,
+                in_position_window_deg,
+                error_query,
+                unverified_commands,
+            } => {
+                let mut d = ScpiPositioner::open_serial(port, *baud, timeouts)?;
+                let c = d.config_mut();
+                (c.in_position_window_deg, c.error_query, c.unverified_commands) =
+                    (*in_position_window_deg, *error_query, *unverified_commands);
                 Ok(Box::new(d.with_address(Address { controller: *controller, axis: *axis })))
             }
             PositionerConfig::ModbusTcp { address, map, timeouts } => {

@@ -184,7 +184,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
 
     // The positioner.
     match &cfg.positioner {
-        PositionerConfig::ScpiTcp { address, controller, axis } => {
+        PositionerConfig::ScpiTcp { address, controller, axis, .. } => {
             let listener = listen("positioner", address).await?;
             let public = listener.local_addr()?.to_string();
             let listener = front(listener, link, seeds.next().unwrap_or(1), &counts, &mut served).await?;

@@ -24,12 +24,20 @@
 //!   a sim `Usage` refusal (loading or switching the table while moving, no
 //!   table) is `-221`; a sim device refusal (a move while a fault is latched)
 //!   carries the fault's code and text.
-//! - `STAT?` follows the driver's bit table. A latched fault sets bit 6 (error
-//!   limit) for the sim's following error
-//!   ([`FAULT_FOLLOWING_ERROR`]) and
-//!   bit 4 (PAU fault) for any other code, clears bit 5 (enabled) and bit 13
-//!   (in position), and the first `STAT?` that shows a newly latched fault
-//!   pushes its code and text on the error queue.
+//! - `STAT?` sets only the bits the MI-4192 manual documents (p. 3-42, as
+//!   reproduced in public code: bits 0-12; 13-15 unused), from this module's
+//!   own table ([`status`]), not the driver's: active, indexed, enabled, in
+//!   motion (bit 7), the limit switches, and a latched fault as bit 6 (error
+//!   limit) for the sim's following error ([`FAULT_FOLLOWING_ERROR`]) or
+//!   bit 4 (PAU fault) for any other code, with bit 5 (enabled) cleared. The
+//!   first `STAT?` that shows a newly latched fault pushes its code and text
+//!   on the error queue. There is no in-position bit: a client decides from
+//!   bit 7 and `POS:CURR?` (or `VEL:CURR?` = 0, as public code does).
+//! - `SYST:ERR:ALL?` answers every queued entry, `<code>, "<text>"` joined by
+//!   commas, and empties the queue (`0, "No error"` when empty, as public code
+//!   shows); `SYST:ERR:COUN?` the number queued; `SYST:ERR?` the oldest.
+//! - `UNIT:POS?` answers 6 (degree; public code's table), or what
+//!   [`ScpiFaults::report_position_units`] set.
 //! - A sim call that fails with a link fault of its own
 //!   ([`PositionerFaults`](crate::positioner::PositionerFaults)) becomes the
 //!   same fault on the wire: `Timeout` = no reply, `Disconnected` = the
@@ -63,7 +71,29 @@ use crate::faults::{Countdown, FaultPlan};
 use crate::positioner::{FAULT_FOLLOWING_ERROR, SimPositioner};
 use std::collections::VecDeque;
 use survey_drivers::error::{DriverError, ErrorKind};
-use survey_drivers::scpi::{Decoder, bits};
+use survey_drivers::scpi::Decoder;
+
+/// The `STAT?` bits, from the MI-4192 manual's table (p. 3-42) as public code
+/// reproduces it (`csun-rf-lab/antennameasure`, `MI4190.m`). Bits 13-15 are
+/// unused and never set here.
+pub mod status {
+    /// Bit 2: reverse limit active.
+    pub const REVERSE_LIMIT: u16 = 1 << 2;
+    /// Bit 3: forward limit active.
+    pub const FORWARD_LIMIT: u16 = 1 << 3;
+    /// Bit 4: PAU fault.
+    pub const PAU_FAULT: u16 = 1 << 4;
+    /// Bit 5: axis enabled.
+    pub const ENABLED: u16 = 1 << 5;
+    /// Bit 6: error limit active.
+    pub const ERROR_LIMIT: u16 = 1 << 6;
+    /// Bit 7: axis in motion.
+    pub const IN_MOTION: u16 = 1 << 7;
+    /// Bit 8: axis is active.
+    pub const ACTIVE: u16 = 1 << 8;
+    /// Bit 9: axis is indexed.
+    pub const INDEXED: u16 = 1 << 9;
+}
 use survey_drivers::traits::{DeviceFault, Limit, Positioner};
 use survey_processing::table::CorrectionTable;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
@@ -95,6 +125,7 @@ struct Plan {
     stale_line: Option<String>,
     reject: VecDeque<(i64, String)>,
     trip: Option<DeviceFault>,
+    units: Option<i64>,
 }
 
 impl ScpiFaults {
@@ -126,6 +157,11 @@ impl ScpiFaults {
     /// Refuse the next axis command with `code` and `text`.
     pub fn reject_next_command(&self, code: i64, text: impl Into<String>) {
         self.plan.lock().reject.push_back((code, text.into()));
+    }
+
+    /// Answer `UNIT:POS?` with `code` (default 6, degree).
+    pub fn report_position_units(&self, code: i64) {
+        self.plan.lock().units = Some(code);
     }
 
     /// Latch a device fault at the next request.
@@ -359,6 +395,14 @@ impl Controller {
                 let (code, text) = self.queue.pop_front().unwrap_or((0, "No error".into()));
                 return Outcome::Reply(error_line(code, &text));
             }
+            "SYST:ERR:ALL?" => {
+                if self.queue.is_empty() {
+                    return Outcome::Reply("0, \"No error\"".into());
+                }
+                let all: Vec<String> = self.queue.drain(..).map(|(code, text)| error_line(code, &text)).collect();
+                return Outcome::Reply(all.join(", "));
+            }
+            "SYST:ERR:COUN?" | "SYST:ERR:COUN" => return Outcome::Reply(self.queue.len().to_string()),
             _ => {}
         }
         let Some((controller, axis, tail)) = axis_header(&header) else {
@@ -403,6 +447,7 @@ impl Controller {
                 Outcome::Nothing
             }
             "POS:COMM?" => Outcome::Reply(format!("{}", self.commanded)),
+            "UNIT:POS?" => Outcome::Reply(self.faults.plan.lock().units.unwrap_or(6).to_string()),
             "MOT:STAR" => {
                 if let Some(f) = &self.injected {
                     let (code, text) = (f.code, format!("{} (clear the fault first)", f.text));
@@ -570,24 +615,18 @@ impl Controller {
     async fn status_word(&mut self) -> Result<u16, DriverError> {
         let s = self.sim.status().await?;
         let fault = self.injected.clone().or(s.fault.clone());
-        let mut w = bits::ACTIVE | bits::INDEXED;
+        let mut w = status::ACTIVE | status::INDEXED;
         match &fault {
-            None => w |= bits::ENABLED,
-            Some(f) if f.code == FAULT_FOLLOWING_ERROR => w |= bits::ERROR_LIMIT,
-            Some(_) => w |= bits::PAU_FAULT,
+            None => w |= status::ENABLED,
+            Some(f) if f.code == FAULT_FOLLOWING_ERROR => w |= status::ERROR_LIMIT,
+            Some(_) => w |= status::PAU_FAULT,
         }
         if s.moving {
-            w |= bits::IN_MOTION;
-        }
-        if s.in_position && fault.is_none() {
-            w |= bits::IN_POSITION;
-        }
-        if s.correction_enabled {
-            w |= bits::CORRECTION;
+            w |= status::IN_MOTION;
         }
         w |= match s.limit {
-            Some(Limit::Lower) => bits::REVERSE_LIMIT,
-            Some(Limit::Upper) => bits::FORWARD_LIMIT,
+            Some(Limit::Lower) => status::REVERSE_LIMIT,
+            Some(Limit::Upper) => status::FORWARD_LIMIT,
             None => 0,
         };
         if fault != self.reported {

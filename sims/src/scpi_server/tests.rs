@@ -53,7 +53,18 @@ impl Rig {
         Rig { clock, truth, faults, addr, server }
     }
 
+    /// The driver with the commands the public record does not show
+    /// enabled (`VEL:COMM`, `FAUL:CLE`, `CORR:`), which this simulator
+    /// implements as the project's extension.
     async fn connect(&self) -> Wire {
+        let mut p = ScpiPositioner::connect_tcp(self.addr, TIMEOUTS).await.unwrap();
+        p.config_mut().unverified_commands = true;
+        p
+    }
+
+    /// The driver as it talks to a real controller by default: only the
+    /// commands the public record shows.
+    async fn connect_verified(&self) -> Wire {
         ScpiPositioner::connect_tcp(self.addr, TIMEOUTS).await.unwrap()
     }
 
@@ -252,7 +263,8 @@ async fn the_documented_protocol_on_a_raw_socket() {
     .await;
     let expect_prefix = [
         "0",
-        "8992",
+        // Active, indexed, enabled: bits 8, 9, 5; nothing in the unused bits 13-15.
+        "800",
         "-113,\"Undefined header",
         "-222,\"Data out of range;rows from 5",
         "-104,\"Data type error",
@@ -392,4 +404,65 @@ async fn a_rejected_command_carries_code_and_text() {
     p.move_to(20.0).await.unwrap();
     assert!(settle(&mut p, &rig.clock).await.in_position);
     assert_eq!(p.readout().await.unwrap(), 20.0);
+}
+
+/// The driver as it is sent to real controllers: only the commands the
+/// public record shows. In position comes from bit 7 and `POS:CURR?`, faults
+/// from `SYST:ERR:ALL?`, the units are checked, and the unverified commands
+/// are refused with what to do instead.
+#[tokio::test]
+async fn the_driver_works_with_only_the_publicly_recorded_commands() {
+    let rig = Rig::new(PositionerConfig::new(fig8())).await;
+    let mut p = rig.connect_verified().await;
+    p.move_to(30.0).await.unwrap();
+    let s = settle(&mut p, &rig.clock).await;
+    assert!(s.in_position && !s.moving, "{s:?}");
+    assert_eq!(p.readout().await.unwrap(), 30.0);
+    // A fault latched on the controller: read from SYST:ERR:ALL?.
+    rig.faults.trip(305, "PAU fault");
+    let s = p.status().await.unwrap();
+    assert_eq!(s.fault.as_ref().map(|f| f.code), Some(305), "{s:?}");
+    assert!(!s.in_position);
+    // No public fault-clear command: only the queue is cleared, the fault stays.
+    p.clear_fault().await.unwrap();
+    assert!(p.status().await.unwrap().fault.is_some());
+    for e in [
+        p.load_correction_table(&CorrectionTable::new(vec![0.0; 4]).unwrap()).await.unwrap_err(),
+        p.enable_correction(true).await.unwrap_err(),
+        p.set_velocity(5.0).await.unwrap_err(),
+    ] {
+        assert_eq!(e.kind, ErrorKind::Usage, "{e}");
+        assert!(e.message.contains("public record") && e.message.contains("unverified_commands"), "{e}");
+    }
+}
+
+#[tokio::test]
+async fn an_axis_in_other_units_is_refused_before_any_move() {
+    let rig = Rig::new(PositionerConfig::new(fig8())).await;
+    rig.faults.report_position_units(7);
+    let mut p = rig.connect_verified().await;
+    let e = p.move_to(10.0).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Usage, "{e}");
+    assert!(e.message.contains("radians (UNIT:POS? = 7), not degrees"), "{e}");
+    assert_eq!(p.commanded_position().await.unwrap(), 0.0, "nothing was commanded");
+}
+
+#[tokio::test]
+async fn the_status_word_uses_only_the_documented_bits_and_the_queue_answers_all_at_once() {
+    let rig = Rig::new(PositionerConfig::new(fig8())).await;
+    let word = |r: &str| r.parse::<u16>().unwrap();
+    let at_rest = raw(rig.addr, &[b"CONT1:AXIS(1):STAT?"]).await;
+    let moving =
+        raw(rig.addr, &[b"CONT1:AXIS(1):POS:COMM 90", b"CONT1:AXIS(1):MOT:STAR", b"CONT1:AXIS(1):STAT?"]).await;
+    rig.faults.trip(305, "PAU fault");
+    let faulted = raw(rig.addr, &[b"CONT1:AXIS(1):STAT?"]).await;
+    for (what, w) in [("at rest", word(&at_rest[0])), ("moving", word(&moving[0])), ("faulted", word(&faulted[0]))] {
+        assert_eq!(w & 0xE000, 0, "{what}: bits 13-15 are unused, got {w:#06x}");
+    }
+    assert_ne!(word(&moving[0]) & (1 << 7), 0, "bit 7: in motion");
+    assert_ne!(word(&faulted[0]) & (1 << 4), 0, "bit 4: PAU fault");
+    let replies = raw(rig.addr, &[b"FOO", b"BAR", b"SYST:ERR:COUN?", b"SYST:ERR:ALL?", b"SYST:ERR:ALL?"]).await;
+    assert_eq!(replies[0], "3", "{replies:?}");
+    assert_eq!(replies[1], "305,\"PAU fault\", -113,\"Undefined header;FOO\", -113,\"Undefined header;BAR\"");
+    assert_eq!(replies[2], "0, \"No error\"");
 }
