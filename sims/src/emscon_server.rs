@@ -77,12 +77,12 @@ use crate::tracker::{CODE_BEAM_BROKEN, SimTracker};
 use std::collections::VecDeque;
 use survey_drivers::emscon::codes::{
     adm_status, command as cmd, coordinate_system, laser_status, length_unit, meas_mode,
-    measurement_status_info as msi, pressure_unit, status, status_change, temperature_unit, tracker_processor_status,
-    weather_monitor_status,
+    measurement_status_info as msi, pressure_unit, statistic_mode, status, status_change, temperature_unit,
+    tracker_processor_status, weather_monitor_status,
 };
 use survey_drivers::emscon::packets::{
-    Answer, AnswerBody, MeasurementStatusInfo, Reply, Request, RequestDecoder, SingleMeasResult, StationaryModeData,
-    SystemStatus, SystemUnits,
+    Answer, AnswerBody, MeasurementStatusInfo, Reply, Request, RequestDecoder, SingleMeasResult, SingleMeasResult2,
+    StationaryModeData, SystemStatus, SystemUnits,
 };
 use survey_drivers::traits::{SmrMeasurement, Tracker, TrackerState};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -134,6 +134,7 @@ struct Plan {
     status_changes: VecDeque<i32>,
     reject: VecDeque<(i32, Refusal)>,
     requests: Vec<Request>,
+    extended_from_start: bool,
 }
 
 impl EmsconFaults {
@@ -169,6 +170,13 @@ impl EmsconFaults {
         self.plan.lock().reject.push_back((code, how));
     }
 
+    /// The tracker was left in extended statistic mode by other software:
+    /// it answers measurements with `SingleMeasResult2T` until a client sets
+    /// the mode (applies when the server starts).
+    pub fn leave_in_extended_statistic_mode(&self) {
+        self.plan.lock().extended_from_start = true;
+    }
+
     /// The commands received so far, in order (also the refused ones).
     pub fn requests(&self) -> Vec<Request> {
         self.plan.lock().requests.clone()
@@ -179,6 +187,9 @@ impl EmsconFaults {
 /// running this future is dropped or aborted.
 pub async fn serve_tcp(listener: TcpListener, tracker: SimTracker, faults: EmsconFaults) {
     let mut server = Server::new(tracker, faults);
+    if std::mem::take(&mut server.faults.plan.lock().extended_from_start) {
+        server.statistic_mode = statistic_mode::EXTENDED;
+    }
     let mut refused = JoinSet::new();
     loop {
         let (stream, peer) = match listener.accept().await {
@@ -255,6 +266,10 @@ struct Server {
     locked: bool,
     last_point: bool,
     last_status: i32,
+    /// `ES_StatisticMode` of stationary measurements: standard answers
+    /// `SingleMeasResultT`, extended `SingleMeasResult2T` (per
+    /// `ES_C_API_Def.h`). Survives reconnections, like the tracker's.
+    statistic_mode: i32,
 }
 
 fn ok(command: i32) -> Reply {
@@ -273,6 +288,7 @@ impl Server {
             locked: true,
             last_point: false,
             last_status: status::ALL_OK,
+            statistic_mode: statistic_mode::STANDARD,
         }
     }
 
@@ -432,10 +448,22 @@ impl Server {
                 fail(status::PARAMETER1_OUT_OF_RANGE_NOK)
             }
             Request::FindReflector { .. } => self.relock(c, &mut events).await,
+            Request::SetStatisticMode { stationary, continuous } => {
+                let valid = |m: i32| m == statistic_mode::STANDARD || m == statistic_mode::EXTENDED;
+                if !valid(stationary) {
+                    fail(status::WRONG_PARAMETER1)
+                } else if !valid(continuous) {
+                    fail(status::WRONG_PARAMETER)
+                } else {
+                    self.statistic_mode = stationary;
+                    ok(c)
+                }
+            }
         };
         self.last_status = match &answer {
             Reply::Answer(a) => a.status,
             Reply::SingleMeas(m) => m.status,
+            Reply::SingleMeas2(m) => m.status,
             Reply::Error { status, .. } => *status,
             Reply::StatusChange(_) | Reply::Other { .. } => status::ALL_OK,
         };
@@ -449,7 +477,12 @@ impl Server {
             Ok(m) => {
                 self.last_point = true;
                 self.locked = true;
-                Reply::SingleMeas(self.result(&m))
+                let standard = self.result(&m);
+                if self.statistic_mode == statistic_mode::EXTENDED {
+                    Reply::SingleMeas2(extended(standard))
+                } else {
+                    Reply::SingleMeas(standard)
+                }
             }
             Err(e) if e.code == Some(CODE_BEAM_BROKEN) => {
                 let broke_now = self.sim.measurements() > before;
@@ -523,6 +556,28 @@ impl Server {
             pressure: SIM_PRESSURE_MBAR * per_mbar(self.units.pressure),
             humidity: SIM_HUMIDITY_RH,
         }
+    }
+}
+
+/// The extended result of a stationary measurement: the standard one with
+/// its covariances (the simulated tracker's coordinate errors are
+/// independent: zero covariance).
+fn extended(m: SingleMeasResult) -> SingleMeasResult2 {
+    SingleMeasResult2 {
+        status: m.status,
+        meas_mode: m.meas_mode,
+        is_try_mode: m.is_try_mode,
+        val: m.val,
+        std: m.std,
+        std_total: m.std_total,
+        covar: [0.0; 3],
+        pointing_error: m.pointing_error,
+        apriori_std: m.apriori_std,
+        apriori_std_total: m.apriori_std_total,
+        apriori_covar: [0.0; 3],
+        temperature: m.temperature,
+        pressure: m.pressure,
+        humidity: m.humidity,
     }
 }
 
@@ -648,6 +703,7 @@ mod tests {
             Request::SetUnits(SystemUnits::SURVEY),
             Request::SetCoordinateSystemType(coordinate_system::RHR),
             Request::SetMeasurementMode(meas_mode::STATIONARY),
+            Request::SetStatisticMode { stationary: 0, continuous: 0 },
             Request::SetStationaryModeParams(params),
         ];
         assert_eq!(rig.faults.requests(), setup);
@@ -664,6 +720,45 @@ mod tests {
         let r = *t.last_result().unwrap();
         assert_eq!((r.temperature, r.pressure, r.humidity), (20.0, 1013.25, 50.0));
         assert!((r.std_total - r.std[0] * 3f64.sqrt()).abs() < 1e-15);
+    }
+
+    /// A tracker left in extended statistic mode by other software answers
+    /// `SingleMeasResult2T` (204 bytes, type 9, the covariances after
+    /// `dStdTotal`: offsets from `ES_C_API_Def.h`); the driver decodes it, and
+    /// its set-up (`SetStatisticMode` standard) brings back `SingleMeasResultT`.
+    #[tokio::test]
+    async fn a_tracker_left_in_extended_statistic_mode() {
+        let clock = VirtualClock::new();
+        let cfg = sim_cfg(5, None);
+        let sim = SimTracker::new(cfg, Arc::new(clock.clone()), Turntable::new(ANGLE));
+        let faults = EmsconFaults::new();
+        faults.leave_in_extended_statistic_mode();
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let server = tokio::spawn(serve_tcp(listener, sim, faults.clone()));
+        let le = |w: &[i32]| w.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>();
+        let mut s = TcpStream::connect(addr).await.unwrap();
+        async fn ask(s: &mut TcpStream, bytes: &[u8]) -> Vec<u8> {
+            s.write_all(bytes).await.unwrap();
+            let mut size = [0u8; 4];
+            s.read_exact(&mut size).await.unwrap();
+            let mut rest = vec![0u8; i32::from_le_bytes(size) as usize - 4];
+            s.read_exact(&mut rest).await.unwrap();
+            [size.to_vec(), rest].concat()
+        }
+        assert_eq!(ask(&mut s, &le(&[12, 0, 7])).await, le(&[16, 0, 7, 0]));
+        let m = ask(&mut s, &le(&[12, 0, 49])).await;
+        assert_eq!((m.len(), &m[..8]), (204, &le(&[204, 9])[..]), "SingleMeasResult2T");
+        let decoded = Reply::decode(&m).unwrap();
+        assert!(matches!(decoded, Reply::SingleMeas2(r) if r.status == 0 && r.covar == [0.0; 3]), "{decoded:?}");
+        // SetStatisticModeCT {stationary standard, continuous standard}: 20 bytes, command 80.
+        assert_eq!(ask(&mut s, &le(&[20, 0, 80, 0, 0])).await, le(&[16, 0, 80, 0]));
+        let m = ask(&mut s, &le(&[12, 0, 49])).await;
+        assert_eq!((m.len(), &m[..8]), (156, &le(&[156, 2])[..]), "SingleMeasResultT again");
+        // A mode outside the enum: ES_RS_WrongParameter1.
+        assert_eq!(ask(&mut s, &le(&[20, 0, 80, 7, 0])).await, le(&[16, 0, 80, 4]));
+        drop(s);
+        server.abort();
     }
 
     /// Hand-built packets, offsets from the header, independent of the codec.

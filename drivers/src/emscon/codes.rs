@@ -54,6 +54,8 @@ pub mod command {
     pub const UNKNOWN: i32 = 64;
     /// `ES_C_GetMeasurementStatusInfo`.
     pub const GET_MEASUREMENT_STATUS_INFO: i32 = 122;
+    /// `ES_C_SetStatisticMode`: standard or extended statistics of results.
+    pub const SET_STATISTIC_MODE: i32 = 80;
 
     /// Whether `c` is a value of `enum ES_Command` in the V3.6 header
     /// (0..=140 without 50, and 142).
@@ -75,6 +77,7 @@ pub mod command {
             FIND_REFLECTOR => "ES_C_FindReflector",
             UNKNOWN => "ES_C_Unknown",
             GET_MEASUREMENT_STATUS_INFO => "ES_C_GetMeasurementStatusInfo",
+            SET_STATISTIC_MODE => "ES_C_SetStatisticMode",
             _ => return None,
         })
     }
@@ -83,6 +86,14 @@ pub mod command {
     pub fn describe(c: i32) -> String {
         name(c).map_or_else(|| format!("ES_Command {c}"), str::to_string)
     }
+}
+
+/// `enum ES_StatisticMode`.
+pub mod statistic_mode {
+    /// `ES_SM_Standard`: a stationary measurement answers `SingleMeasResultT`.
+    pub const STANDARD: i32 = 0;
+    /// `ES_SM_Extended`: it answers `SingleMeasResult2T` (covariances too).
+    pub const EXTENDED: i32 = 1;
 }
 
 /// `enum ES_ResultStatus`: the `status` of answers and results.

@@ -1,8 +1,8 @@
 //! [`EmsconTracker`]: the [`Tracker`] driver over any async byte stream.
 
 use super::codes::{
-    command, coordinate_system, laser_status, meas_mode, measurement_status_info as msi, status, status_change,
-    tracker_processor_status,
+    command, coordinate_system, laser_status, meas_mode, measurement_status_info as msi, statistic_mode, status,
+    status_change, tracker_processor_status,
 };
 use super::packets::{
     Answer, AnswerBody, DecodeError, MeasurementStatusInfo, Reply, ReplyDecoder, Request, SingleMeasResult,
@@ -227,7 +227,8 @@ where
 
     /// `Initialize` (if configured), `SetUnits` (mm, degrees, Celsius, mbar,
     /// %RH), `SetCoordinateSystemType` (`ES_CS_RHR`), `SetMeasurementMode`
-    /// (`ES_MM_Stationary`), `SetStationaryModeParams` (the configured time).
+    /// (`ES_MM_Stationary`), `SetStatisticMode` (standard, both), and
+    /// `SetStationaryModeParams` (the configured time).
     pub async fn setup(&mut self) -> Result<()> {
         let meas_time_ms = i32::try_from(self.cfg.measurement_time_ms).ok().filter(|t| *t > 0).ok_or_else(|| {
             DriverError::usage(
@@ -247,6 +248,11 @@ where
         self.command(Request::SetUnits(SystemUnits::SURVEY)).await?;
         self.command(Request::SetCoordinateSystemType(coordinate_system::RHR)).await?;
         self.command(Request::SetMeasurementMode(meas_mode::STATIONARY)).await?;
+        // Standard statistics, so a stationary measurement answers the
+        // SingleMeasResultT decoded here (another program may have left the
+        // tracker in extended mode; SingleMeasResult2T is decoded too).
+        let standard = statistic_mode::STANDARD;
+        self.command(Request::SetStatisticMode { stationary: standard, continuous: standard }).await?;
         let params = StationaryModeData { meas_time_ms, use_adm: self.cfg.use_adm };
         self.command(Request::SetStationaryModeParams(params)).await?;
         tracing::info!(instrument = %self.name, meas_time_ms, "emScon tracker set up: mm, RHR, stationary");
@@ -413,6 +419,11 @@ where
                 Err(self.refused(want, m.status))
             } else {
                 Ok(Got::Measurement(m))
+            }),
+            Ok(Reply::SingleMeas2(m)) if measuring => Some(if m.status != status::ALL_OK {
+                Err(self.refused(want, m.status))
+            } else {
+                Ok(Got::Measurement(m.into()))
             }),
             Ok(Reply::Other { data_type, body }) => {
                 tracing::debug!(instrument = %self.name, data_type, len = body.len(), "skipped a packet of an unused type");

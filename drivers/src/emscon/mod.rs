@@ -21,7 +21,8 @@
 //! | `ES_C_SetCoordinateSystemType` (26) | `SetCoordinateSystemTypeCT` | `...RT` | 16 / 16 |
 //! | `ES_C_SetMeasurementMode` (24) | `SetMeasurementModeCT` (`ES_MM_Stationary`) | `...RT` | 16 / 16 |
 //! | `ES_C_SetStationaryModeParams` (28) | `...CT` (`StationaryModeDataT { long lMeasTime; ES_BOOL bUseADM; }`) | `...RT` | 20 / 16 |
-//! | `ES_C_StartMeasurement` (49) | `StartMeasurementCT` | `SingleMeasResultT` (type `ES_DT_SingleMeasResult`) | 12 / 156 |
+//! | `ES_C_SetStatisticMode` (80) | `...CT` (`enum ES_StatisticMode stationaryMeasurements, continuousMeasurements`) | `...RT` | 20 / 16 |
+//! | `ES_C_StartMeasurement` (49) | `StartMeasurementCT` | `SingleMeasResultT` (type `ES_DT_SingleMeasResult`), or `SingleMeasResult2T` (type `ES_DT_SingleMeasResult2`) in extended statistic mode | 12 / 156 or 204 |
 //! | `ES_C_GetSystemStatus` (1) | `GetSystemStatusCT` | `GetSystemStatusRT` | 12 / 56 |
 //! | `ES_C_GetMeasurementStatusInfo` (122) | `...CT` | `...RT` (`lastResultStatus`, `lMeasurementStatusInfo`) | 12 / 24 |
 //! | `ES_C_GoLastMeasuredPoint` (62) | `GoLastMeasuredPointCT` | `...RT` | 12 / 16 |
@@ -44,9 +45,12 @@
 //!   [`EmsconTracker::setup`]): `Initialize` (unless
 //!   [`EmsconConfig::initialize`] is false), `SetUnits` (mm, degree, Celsius,
 //!   mbar, %RH), `SetCoordinateSystemType` (`ES_CS_RHR`, so `dVal1..3` are
-//!   x, y, z), `SetMeasurementMode` (`ES_MM_Stationary`),
+//!   x, y, z), `SetMeasurementMode` (`ES_MM_Stationary`), `SetStatisticMode`
+//!   (`ES_SM_Standard` for both modes, so the answer is the standard result),
 //!   `SetStationaryModeParams` (`lMeasTime` = [`EmsconConfig::measurement_time_ms`]).
-//! - `measure`: `StartMeasurement`; the answer is the `SingleMeasResultT`. An
+//! - `measure`: `StartMeasurement`; the answer is the `SingleMeasResultT`, or
+//!   the `SingleMeasResult2T` a tracker left in extended mode by other
+//!   software sends (its covariances are dropped). An
 //!   `ES_DT_Command` answer to `StartMeasurement` with `ES_RS_AllOK` (what a
 //!   server sends in continuous mode) is taken as an acknowledgement and the
 //!   result still awaited.
@@ -131,5 +135,5 @@ mod tests;
 pub use driver::{DEFAULT_PORT, EmsconConfig, EmsconConnector, EmsconTimeouts, EmsconTracker};
 pub use packets::{
     Answer, AnswerBody, DecodeError, Framer, MeasurementStatusInfo, Reply, ReplyDecoder, Request, RequestDecoder,
-    SingleMeasResult, StationaryModeData, SystemStatus, SystemUnits,
+    SingleMeasResult, SingleMeasResult2, StationaryModeData, SystemStatus, SystemUnits,
 };

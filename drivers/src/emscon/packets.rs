@@ -27,6 +27,11 @@ pub const RETURN_DATA_LEN: usize = 12;
 /// `sizeof(struct SingleMeasResultT)`: `ReturnDataT`, `measMode`,
 /// `bIsTryMode`, 17 doubles.
 pub const SINGLE_MEAS_RESULT_LEN: usize = RETURN_DATA_LEN + 8 + 17 * 8;
+/// `sizeof(struct SingleMeasResult2T)`: `ReturnDataT`, `measMode`,
+/// `bIsTryMode`, 23 doubles (204 bytes).
+pub const SINGLE_MEAS_RESULT2_LEN: usize = RETURN_DATA_LEN + 8 + 23 * 8;
+/// `sizeof(struct SetStatisticModeCT)`: `BasicCommandCT` + two enums.
+pub const SET_STATISTIC_MODE_CT_LEN: usize = BASIC_COMMAND_CT_LEN + 8;
 /// `sizeof(struct SetUnitsCT)`: `BasicCommandCT` + `SystemUnitsDataT` (5 enums).
 pub const SET_UNITS_CT_LEN: usize = BASIC_COMMAND_CT_LEN + 20;
 /// `sizeof(struct SetCoordinateSystemTypeCT)` and `SetMeasurementModeCT`:
@@ -139,6 +144,14 @@ pub enum Request {
         /// Approximate distance to the reflector.
         approx_distance: f64,
     },
+    /// `SetStatisticModeCT`: `enum ES_StatisticMode` for stationary and for
+    /// continuous measurements.
+    SetStatisticMode {
+        /// `stationaryMeasurements`.
+        stationary: i32,
+        /// `continuousMeasurements`.
+        continuous: i32,
+    },
 }
 
 /// `GetSystemStatusRT` after its `BasicCommandRT`.
@@ -225,6 +238,60 @@ pub struct SingleMeasResult {
     pub humidity: f64,
 }
 
+/// `struct SingleMeasResult2T`: the extended stationary result a tracker
+/// in `ES_SM_Extended` statistic mode sends.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SingleMeasResult2 {
+    /// `packetInfo.status`.
+    pub status: i32,
+    /// `enum ES_MeasMode measMode`.
+    pub meas_mode: i32,
+    /// `ES_BOOL bIsTryMode`.
+    pub is_try_mode: bool,
+    /// `dVal1..3`.
+    pub val: [f64; 3],
+    /// `dStd1..3`.
+    pub std: [f64; 3],
+    /// `dStdTotal`.
+    pub std_total: f64,
+    /// `dCovar12`, `dCovar13`, `dCovar23`.
+    pub covar: [f64; 3],
+    /// `dPointingErrorH`, `dPointingErrorV`, `dPointingErrorD`.
+    pub pointing_error: [f64; 3],
+    /// `dAprioriStd1..3`.
+    pub apriori_std: [f64; 3],
+    /// `dAprioriStdTotal`.
+    pub apriori_std_total: f64,
+    /// `dAprioriCovar12`, `dAprioriCovar13`, `dAprioriCovar23`.
+    pub apriori_covar: [f64; 3],
+    /// `dTemperature`.
+    pub temperature: f64,
+    /// `dPressure`.
+    pub pressure: f64,
+    /// `dHumidity`.
+    pub humidity: f64,
+}
+
+impl From<SingleMeasResult2> for SingleMeasResult {
+    /// The standard result inside an extended one (the covariances dropped).
+    fn from(m: SingleMeasResult2) -> Self {
+        SingleMeasResult {
+            status: m.status,
+            meas_mode: m.meas_mode,
+            is_try_mode: m.is_try_mode,
+            val: m.val,
+            std: m.std,
+            std_total: m.std_total,
+            pointing_error: m.pointing_error,
+            apriori_std: m.apriori_std,
+            apriori_std_total: m.apriori_std_total,
+            temperature: m.temperature,
+            pressure: m.pressure,
+            humidity: m.humidity,
+        }
+    }
+}
+
 /// A packet from the server.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {
@@ -239,6 +306,8 @@ pub enum Reply {
     },
     /// `ES_DT_SingleMeasResult`.
     SingleMeas(SingleMeasResult),
+    /// `ES_DT_SingleMeasResult2` (extended statistic mode).
+    SingleMeas2(SingleMeasResult2),
     /// `ES_DT_SystemStatusChange`: `enum ES_SystemStatusChange`.
     StatusChange(i32),
     /// Any other `ES_DataType` (reflector position, nivel, multi-measurement,
@@ -342,6 +411,7 @@ impl Request {
             Request::GetMeasurementStatusInfo => cmd::GET_MEASUREMENT_STATUS_INFO,
             Request::GoLastMeasuredPoint => cmd::GO_LAST_MEASURED_POINT,
             Request::FindReflector { .. } => cmd::FIND_REFLECTOR,
+            Request::SetStatisticMode { .. } => cmd::SET_STATISTIC_MODE,
         }
     }
 
@@ -361,6 +431,10 @@ impl Request {
                 w.i32(i32::from(p.use_adm));
             }
             Request::FindReflector { approx_distance } => w.f64(approx_distance),
+            Request::SetStatisticMode { stationary, continuous } => {
+                w.i32(stationary);
+                w.i32(continuous);
+            }
             Request::Initialize
             | Request::StartMeasurement
             | Request::GetSystemStatus
@@ -423,6 +497,10 @@ impl Request {
             cmd::FIND_REFLECTOR => {
                 expect_len("FindReflectorCT", frame, FIND_REFLECTOR_CT_LEN)?;
                 Ok(Request::FindReflector { approx_distance: r.f64() })
+            }
+            cmd::SET_STATISTIC_MODE => {
+                expect_len("SetStatisticModeCT", frame, SET_STATISTIC_MODE_CT_LEN)?;
+                Ok(Request::SetStatisticMode { stationary: r.i32(), continuous: r.i32() })
             }
             _ => Err(DecodeError::UnsupportedCommand { command }),
         }
@@ -487,6 +565,18 @@ impl Reply {
                 }
                 w.finish()
             }
+            Reply::SingleMeas2(m) => {
+                let mut w = Writer::new(dt::SINGLE_MEAS_RESULT2);
+                w.i32(m.status);
+                w.i32(m.meas_mode);
+                w.i32(i32::from(m.is_try_mode));
+                let doubles = m.val.iter().chain(&m.std).chain([&m.std_total]).chain(&m.covar).chain(&m.pointing_error);
+                let doubles = doubles.chain(&m.apriori_std).chain([&m.apriori_std_total]).chain(&m.apriori_covar);
+                for v in doubles.chain([&m.temperature, &m.pressure, &m.humidity]) {
+                    w.f64(*v);
+                }
+                w.finish()
+            }
             Reply::StatusChange(e) => {
                 let mut w = Writer::new(dt::SYSTEM_STATUS_CHANGE);
                 w.i32(*e);
@@ -534,7 +624,29 @@ impl Reply {
                     humidity: r.f64(),
                 }))
             }
-            3..=7 | 9..=11 => Ok(Reply::Other { data_type, body: frame[PACKET_HEADER_LEN..].to_vec() }),
+            dt::SINGLE_MEAS_RESULT2 => {
+                expect_len("SingleMeasResult2T", frame, SINGLE_MEAS_RESULT2_LEN)?;
+                let status = r.i32();
+                let meas_mode = r.i32();
+                let is_try_mode = r.i32() != 0;
+                Ok(Reply::SingleMeas2(SingleMeasResult2 {
+                    status,
+                    meas_mode,
+                    is_try_mode,
+                    val: r.f64x3(),
+                    std: r.f64x3(),
+                    std_total: r.f64(),
+                    covar: r.f64x3(),
+                    pointing_error: r.f64x3(),
+                    apriori_std: r.f64x3(),
+                    apriori_std_total: r.f64(),
+                    apriori_covar: r.f64x3(),
+                    temperature: r.f64(),
+                    pressure: r.f64(),
+                    humidity: r.f64(),
+                }))
+            }
+            3..=7 | 10..=11 => Ok(Reply::Other { data_type, body: frame[PACKET_HEADER_LEN..].to_vec() }),
             _ => Err(DecodeError::UnknownType { data_type }),
         }
     }

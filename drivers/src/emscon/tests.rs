@@ -152,6 +152,8 @@ fn arb_request() -> impl Strategy<Value = Request> {
         Just(Request::GetMeasurementStatusInfo),
         Just(Request::GoLastMeasuredPoint),
         finite().prop_map(|approx_distance| Request::FindReflector { approx_distance }),
+        (any::<i32>(), any::<i32>())
+            .prop_map(|(stationary, continuous)| Request::SetStatisticMode { stationary, continuous }),
     ]
 }
 
@@ -181,6 +183,28 @@ fn arb_result() -> impl Strategy<Value = SingleMeasResult> {
             pressure: e[3],
             humidity: e[4],
         })
+}
+
+/// An extended result: a standard one with drawn covariances.
+fn arb_result2() -> impl Strategy<Value = SingleMeasResult2> {
+    (arb_result(), [finite(), finite(), finite()], [finite(), finite(), finite()]).prop_map(|(m, covar, apriori)| {
+        SingleMeasResult2 {
+            status: m.status,
+            meas_mode: m.meas_mode,
+            is_try_mode: m.is_try_mode,
+            val: m.val,
+            std: m.std,
+            std_total: m.std_total,
+            covar,
+            pointing_error: m.pointing_error,
+            apriori_std: m.apriori_std,
+            apriori_std_total: m.apriori_std_total,
+            apriori_covar: apriori,
+            temperature: m.temperature,
+            pressure: m.pressure,
+            humidity: m.humidity,
+        }
+    })
 }
 
 fn arb_answer() -> impl Strategy<Value = Answer> {
@@ -227,8 +251,9 @@ fn arb_reply() -> impl Strategy<Value = Reply> {
         arb_answer().prop_map(Reply::Answer),
         (any::<i32>(), any::<i32>()).prop_map(|(command, status)| Reply::Error { command, status }),
         arb_result().prop_map(Reply::SingleMeas),
+        arb_result2().prop_map(Reply::SingleMeas2),
         any::<i32>().prop_map(Reply::StatusChange),
-        (prop_oneof![3..=7i32, 9..=11i32], proptest::collection::vec(any::<u8>(), 4..200))
+        (prop_oneof![3..=7i32, 10..=11i32], proptest::collection::vec(any::<u8>(), 4..200))
             .prop_map(|(data_type, body)| Reply::Other { data_type, body }),
     ]
 }
@@ -360,7 +385,7 @@ async fn set_up() -> (EmsconTracker<DuplexStream>, DuplexStream, RequestDecoder)
     let peer = tokio::spawn(async move {
         let mut d = RequestDecoder::new();
         let mut seen = Vec::new();
-        for _ in 0..5 {
+        for _ in 0..6 {
             let r = next_request(&mut theirs, &mut d).await.unwrap();
             theirs.write_all(&Reply::answer(r.command(), 0).encode()).await.unwrap();
             seen.push(r);
@@ -375,6 +400,7 @@ async fn set_up() -> (EmsconTracker<DuplexStream>, DuplexStream, RequestDecoder)
         Request::SetUnits(SystemUnits::SURVEY),
         Request::SetCoordinateSystemType(0),
         Request::SetMeasurementMode(0),
+        Request::SetStatisticMode { stationary: 0, continuous: 0 },
         Request::SetStationaryModeParams(params),
     ];
     assert_eq!(seen, want);
@@ -468,4 +494,44 @@ fn config_from_pairs() -> EmsconConfig {
     use serde::de::value::{Error, MapDeserializer};
     let pairs = vec![("measurement_time_ms", 500u32)];
     EmsconConfig::deserialize(MapDeserializer::<_, Error>::new(pairs.into_iter())).unwrap()
+}
+
+/// A tracker that answers a stationary measurement with the extended result
+/// (left in `ES_SM_Extended` by other software): decoded, the standard fields
+/// kept.
+#[tokio::test]
+async fn an_extended_result_is_decoded_like_a_standard_one() {
+    let (mut t, mut peer, mut d) = set_up().await;
+    let standard = result(0, 1500.25);
+    let extended = SingleMeasResult2 {
+        status: 0,
+        meas_mode: standard.meas_mode,
+        is_try_mode: false,
+        val: standard.val,
+        std: standard.std,
+        std_total: standard.std_total,
+        covar: [1e-6, -2e-6, 3e-6],
+        pointing_error: standard.pointing_error,
+        apriori_std: standard.apriori_std,
+        apriori_std_total: standard.apriori_std_total,
+        apriori_covar: [0.0; 3],
+        temperature: standard.temperature,
+        pressure: standard.pressure,
+        humidity: standard.humidity,
+    };
+    let bytes = Reply::SingleMeas2(extended).encode();
+    assert_eq!(bytes.len(), SINGLE_MEAS_RESULT2_LEN);
+    let f = |at: usize| f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+    // dVal1 at 20, dCovar12 after dStdTotal (20 + 7 * 8), dTemperature at 20 + 20 * 8.
+    assert_eq!((f(20), f(76), f(180)), (1500.25, 1e-6, standard.temperature));
+    let script = tokio::spawn(async move {
+        let r = next_request(&mut peer, &mut d).await.unwrap();
+        assert_eq!(r, Request::StartMeasurement);
+        peer.write_all(&bytes).await.unwrap();
+        peer
+    });
+    let got = t.measure_result().await.unwrap();
+    assert_eq!(got, SingleMeasResult::from(extended));
+    assert_eq!(got.val, standard.val);
+    script.await.unwrap();
 }
