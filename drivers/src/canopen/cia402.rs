@@ -29,6 +29,9 @@ pub const CW_OPERATE: u16 = cw::ENABLE_OPERATION_CMD | cw::CHANGE_SET_IMMEDIATEL
 /// slack for transient states).
 const MAX_ENABLE_STEPS: usize = 6;
 
+/// Between two statusword reads while a transition is awaited.
+const TRANSITION_POLL: Duration = Duration::from_millis(2);
+
 /// Configuration of a [`Cia402Positioner`] (serde: all fields optional).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -46,6 +49,11 @@ pub struct CanopenConfig {
     /// Statusword reads to wait for the set-point acknowledge (bit 12) after
     /// a new set-point. Default 10.
     pub set_point_polls: u32,
+    /// How long one state transition (a controlword step of the enable
+    /// sequence, a fault reset) and the switch of the mode of operation
+    /// (0x6061 showing 0x6060) may take, milliseconds. Default 500 (the
+    /// reference client, python-canopen's `p402`, allows about 0.4 s).
+    pub transition_timeout_ms: u64,
     /// Object holding the fault's text (visible string), read when the drive
     /// reports a fault; the standard text of 0x603F is used when it is `None`
     /// or the node aborts the read. Default `Some(0x2102)`.
@@ -60,6 +68,7 @@ impl Default for CanopenConfig {
             sdo_timeout_ms: 500,
             resync_grace_ms: 20,
             set_point_polls: 10,
+            transition_timeout_ms: 500,
             fault_text_index: Some(index::FAULT_TEXT),
         }
     }
@@ -193,13 +202,57 @@ impl<B: CanBus> Cia402Positioner<B> {
     }
 
     /// Start the node (NMT), select profile position mode (0x6060 = 1) and
-    /// walk the state machine to "operation enabled" (shutdown 0x06, switch
-    /// on 0x07, enable operation 0x2F), checking the statusword after each
-    /// step. A drive in fault is a [`ErrorKind::Device`] error with its code.
+    /// wait until the drive shows it (0x6061), then walk the state machine to
+    /// "operation enabled" (shutdown 0x06, switch on 0x07, enable operation
+    /// 0x2F), waiting after each step until the statusword shows the next
+    /// state, each within [`CanopenConfig::transition_timeout_ms`]. A drive in
+    /// fault is a [`ErrorKind::Device`] error with its code.
     pub async fn enable(&mut self) -> Result<()> {
         self.nmt(NmtCommand::Start).await?;
         self.download(index::MODES_OF_OPERATION, 0, &PROFILE_POSITION_MODE.to_le_bytes()).await?;
+        let deadline = tokio::time::Instant::now() + self.transition_timeout();
+        loop {
+            let [shown] = self.read_fixed::<1>(index::MODES_OF_OPERATION_DISPLAY).await?;
+            if shown as i8 == PROFILE_POSITION_MODE {
+                break;
+            }
+            if tokio::time::Instant::now() >= deadline {
+                let e = DriverError::new(
+                    ErrorKind::Device,
+                    &self.name,
+                    format!(
+                        "the drive did not switch to profile position mode: 0x6061 shows {} {:?} after writing \
+                         0x6060 = {PROFILE_POSITION_MODE}",
+                        shown as i8,
+                        self.transition_timeout()
+                    ),
+                );
+                tracing::warn!(instrument = %self.name, error = %e, "enable failed");
+                return Err(e);
+            }
+            tokio::time::sleep(TRANSITION_POLL).await;
+        }
         self.enable_state_machine().await
+    }
+
+    fn transition_timeout(&self) -> Duration {
+        Duration::from_millis(self.cfg.transition_timeout_ms)
+    }
+
+    /// Read the statusword until `done` holds or the transition timeout
+    /// passes; returns the last word read.
+    async fn await_statusword(&mut self, done: impl Fn(Statusword) -> bool) -> Result<(Statusword, bool)> {
+        let deadline = tokio::time::Instant::now() + self.transition_timeout();
+        loop {
+            let word = self.statusword().await?;
+            if done(word) {
+                return Ok((word, true));
+            }
+            if tokio::time::Instant::now() >= deadline {
+                return Ok((word, false));
+            }
+            tokio::time::sleep(TRANSITION_POLL).await;
+        }
     }
 
     async fn enable_state_machine(&mut self) -> Result<()> {
@@ -213,14 +266,31 @@ impl<B: CanBus> Cia402Positioner<B> {
                 Some(DriveState::SwitchOnDisabled) => Some(cw::SHUTDOWN),
                 Some(DriveState::ReadyToSwitchOn) => Some(cw::SWITCH_ON_CMD),
                 Some(DriveState::SwitchedOn | DriveState::QuickStopActive) => Some(CW_OPERATE),
-                // Transient (initialising) or not a valid state: look again.
+                // Transient (initialising) or not a valid state: wait for a state.
                 Some(DriveState::NotReadyToSwitchOn) | None => None,
             };
+            let from = word.state();
             if let Some(c) = next {
                 tracing::debug!(instrument = %self.name, %word, controlword = format_args!("0x{c:04X}"), "enabling");
                 self.write_controlword(c).await?;
             }
-            word = self.statusword().await?;
+            // Wait for the drive to leave the state the step was written in.
+            let (now, moved) = self.await_statusword(|w| w.state() != from || w.fault()).await?;
+            if !moved {
+                let e = DriverError::new(
+                    ErrorKind::Device,
+                    &self.name,
+                    format!(
+                        "the drive stayed in {} for {:?} after controlword {} (statusword {now})",
+                        from.map_or_else(|| "no valid state".to_string(), |s| s.to_string()),
+                        self.transition_timeout(),
+                        next.map_or_else(|| "none".to_string(), |c| format!("0x{c:04X}")),
+                    ),
+                );
+                tracing::warn!(instrument = %self.name, error = %e, "enable failed");
+                return Err(e);
+            }
+            word = now;
         }
         let e = DriverError::new(
             ErrorKind::Device,
@@ -416,8 +486,8 @@ impl<B: CanBus> Positioner for Cia402Positioner<B> {
             self.write_controlword(cw::DISABLE_VOLTAGE).await?;
         }
         self.write_controlword(cw::FAULT_RESET).await?;
-        let word = self.statusword().await?;
-        if word.fault() {
+        let (word, cleared) = self.await_statusword(|w| !w.fault()).await?;
+        if !cleared {
             return Err(self.fault_error(word, "fault reset did not clear the fault").await);
         }
         self.enable_state_machine().await
@@ -491,6 +561,8 @@ mod tests {
         let mut m = HashMap::new();
         m.insert(index::STATUSWORD, statusword.to_le_bytes().to_vec());
         m.insert(index::CORRECTION_ENABLE, vec![0]);
+        // The scripted drive shows profile position mode at once.
+        m.insert(index::MODES_OF_OPERATION_DISPLAY, vec![1]);
         Arc::new(Mutex::new(m))
     }
 
@@ -499,6 +571,7 @@ mod tests {
         let c = CanopenConfig::default();
         assert_eq!((c.node_id, c.counts_per_degree, c.sdo_timeout_ms), (1, 100_000.0, 500));
         assert_eq!((c.resync_grace_ms, c.set_point_polls, c.fault_text_index), (20, 10, Some(0x2102)));
+        assert_eq!(c.transition_timeout_ms, 500);
         assert_eq!(c.sdo_timeouts().response, Duration::from_millis(500));
         let bus = MemoryBus::new();
         for bad in [
@@ -521,12 +594,12 @@ mod tests {
         let bus = MemoryBus::new();
         let objs = objects(0x0250);
         let _node = scripted(&bus, 3, objs.clone(), false);
-        let e = Cia402Positioner::connect(bus.endpoint(), cfg()).await.unwrap_err();
+        let quick = CanopenConfig { transition_timeout_ms: 30, ..cfg() };
+        let started = std::time::Instant::now();
+        let e = Cia402Positioner::connect(bus.endpoint(), quick).await.unwrap_err();
         assert_eq!(e.kind, ErrorKind::Device, "{e}");
-        assert!(
-            e.message.contains("did not reach operation enabled") && e.message.contains("switch on disabled"),
-            "{e}"
-        );
+        assert!(e.message.contains("stayed in switch on disabled for 30ms after controlword 0x0006"), "{e}");
+        assert!(started.elapsed() >= Duration::from_millis(30), "it waited the transition timeout");
         // It was asked: profile position mode, then shutdown.
         assert_eq!(objs.lock().unwrap()[&index::MODES_OF_OPERATION], [1]);
         assert_eq!(objs.lock().unwrap()[&index::CONTROLWORD], cw::SHUTDOWN.to_le_bytes());

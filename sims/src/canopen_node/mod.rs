@@ -31,7 +31,12 @@
 //! - Drive state machine (CiA 402): starts in switch on disabled; shutdown,
 //!   switch on, enable operation (3 + 4 from ready to switch on in one
 //!   write), disable operation, disable voltage, quick stop, and fault reset
-//!   on the rising edge of bit 7. Entering operation enabled needs NMT
+//!   on the rising edge of bit 7. Each transition is carried out
+//!   [`NodeConfig::transition_time`] after the controlword asks for it (20 ms
+//!   by default, real time), as a drive takes time: the statusword shows the
+//!   old state until then, and a command meanwhile applies to the state the
+//!   drive is going to. A mode written to 0x6060 shows in 0x6061 after the
+//!   same time. Entering operation enabled needs NMT
 //!   operational (else abort `0x0800_0022`). Leaving operation enabled, or a
 //!   rising halt bit 8, stops the sim.
 //! - Profile position: the rising edge of controlword bit 4 starts a move to
@@ -104,7 +109,18 @@ pub struct NodeConfig {
     pub device_name: String,
     /// Fastest profile velocity accepted (default [`MAX_VELOCITY_DEG_S`]).
     pub max_velocity_deg_s: f64,
+    /// How long the drive takes, in real time, to carry out a state
+    /// transition the controlword asks for (and to show a new mode of
+    /// operation in 0x6061). Default [`TRANSITION_TIME`].
+    pub transition_time: std::time::Duration,
 }
+
+/// Default time of one drive state transition: 20 ms. Our own choice (real
+/// drives take milliseconds to tens of milliseconds; the reference client
+/// python-canopen allows about 0.4 s per transition): long enough that a
+/// client that polls the statusword a few times at once, instead of waiting,
+/// fails the way it would on hardware.
+pub const TRANSITION_TIME: std::time::Duration = std::time::Duration::from_millis(20);
 
 impl NodeConfig {
     /// Defaults for node `node_id`.
@@ -114,6 +130,7 @@ impl NodeConfig {
             counts_per_degree: DEFAULT_COUNTS_PER_DEGREE,
             device_name: DEVICE_NAME.into(),
             max_velocity_deg_s: MAX_VELOCITY_DEG_S,
+            transition_time: TRANSITION_TIME,
         }
     }
 }
@@ -233,8 +250,13 @@ struct Node<B> {
     faults: NodeFaults,
     nmt: NmtState,
     drive: DriveState,
+    /// A transition asked for and not yet carried out: the state, and when.
+    pending: Option<(DriveState, tokio::time::Instant)>,
     controlword: u16,
     mode: i8,
+    /// 0x6061: the mode the drive runs in (0x6060 after the transition time).
+    mode_display: i8,
+    mode_due: Option<tokio::time::Instant>,
     target: i32,
     velocity: u32,
     ack: bool,
@@ -259,8 +281,11 @@ pub async fn serve<B: CanBus>(bus: B, sim: SimPositioner, cfg: NodeConfig, fault
         faults,
         nmt: NmtState::PreOperational,
         drive: DriveState::SwitchOnDisabled,
+        pending: None,
         controlword: 0,
         mode: 0,
+        mode_display: 0,
+        mode_due: None,
         target: 0,
         velocity,
         ack: false,
@@ -342,8 +367,11 @@ impl<B: CanBus> Node<B> {
                         let _ = self.sim.stop().await;
                     }
                     self.drive = if self.fault.is_some() { DriveState::Fault } else { DriveState::SwitchOnDisabled };
+                    self.pending = None;
                     self.controlword = 0;
                     self.mode = 0;
+                    self.mode_display = 0;
+                    self.mode_due = None;
                     self.ack = false;
                 }
                 self.nmt = NmtState::PreOperational;
@@ -578,6 +606,7 @@ impl<B: CanBus> Node<B> {
     fn latch(&mut self, fault: DeviceFault) {
         tracing::debug!(?fault, "CANopen node: drive fault");
         self.drive = DriveState::Fault;
+        self.pending = None;
         self.ack = false;
         self.fault = Some(fault);
     }
@@ -597,7 +626,51 @@ impl<B: CanBus> Node<B> {
         }
     }
 
+    /// Carry out the transitions whose time has come.
+    fn settle(&mut self) {
+        let now = tokio::time::Instant::now();
+        if let Some((state, due)) = self.pending
+            && now >= due
+        {
+            tracing::debug!(from = %self.drive, to = %state, "CANopen node: drive state");
+            self.drive = state;
+            self.pending = None;
+        }
+        if self.mode_due.is_some_and(|due| now >= due) {
+            self.mode_display = self.mode;
+            self.mode_due = None;
+        }
+    }
+
+    /// Ask for a transition to `state`, carried out after the transition time.
+    fn schedule(&mut self, state: DriveState) {
+        let t = self.cfg.transition_time;
+        if t.is_zero() {
+            self.drive = state;
+            self.pending = None;
+        } else {
+            self.pending = Some((state, tokio::time::Instant::now() + t));
+        }
+    }
+
+    /// 0x6061, the mode of operation the drive runs in.
+    pub(super) fn mode_display(&mut self) -> i8 {
+        self.settle();
+        self.mode_display
+    }
+
+    /// A write of 0x6060: shown in 0x6061 after the transition time.
+    pub(super) fn set_mode(&mut self, mode: i8) {
+        self.mode = mode;
+        if self.cfg.transition_time.is_zero() {
+            self.mode_display = mode;
+        } else {
+            self.mode_due = Some(tokio::time::Instant::now() + self.cfg.transition_time);
+        }
+    }
+
     async fn statusword(&mut self) -> Result<u16, Refusal> {
+        self.settle();
         let s = self.poll().await?;
         let mut w = self.drive.statusword_bits() | sw::REMOTE;
         if s.in_position {
@@ -625,8 +698,10 @@ impl<B: CanBus> Node<B> {
         degrees_to_counts(deg, self.cfg.counts_per_degree).ok_or(Refusal::Abort(abort::CANNOT_STORE))
     }
 
-    /// A controlword write: the state machine, halt and the set-point.
+    /// A controlword write: the state machine (each transition carried out
+    /// after the transition time), halt and the set-point.
     async fn controlword(&mut self, new: u16) -> Result<(), Refusal> {
+        self.settle();
         let old = self.controlword;
         let cmd = DriveCommand::of(new);
         if self.drive == DriveState::Fault {
@@ -634,15 +709,17 @@ impl<B: CanBus> Node<B> {
                 self.sim.clear_fault().await.map_err(link)?;
                 if self.sim.status().await.map_err(link)?.fault.is_none() {
                     tracing::debug!("CANopen node: fault reset");
-                    self.drive = DriveState::SwitchOnDisabled;
                     self.fault = None;
+                    self.schedule(DriveState::SwitchOnDisabled);
                 }
             }
             self.controlword = new;
             return Ok(());
         }
         use DriveState as S;
-        let next = match (self.drive, cmd) {
+        // A command while a transition is under way applies to where it goes.
+        let base = self.pending.map_or(self.drive, |(state, _)| state);
+        let next = match (base, cmd) {
             (S::SwitchOnDisabled, DriveCommand::Shutdown) => S::ReadyToSwitchOn,
             (S::ReadyToSwitchOn, DriveCommand::SwitchOn) => S::SwitchedOn,
             (S::ReadyToSwitchOn | S::SwitchedOn | S::QuickStopActive, DriveCommand::EnableOperation) => {
@@ -658,26 +735,27 @@ impl<B: CanBus> Node<B> {
             ) => S::SwitchOnDisabled,
             (s, _) => s,
         };
-        if next == S::OperationEnabled && self.drive != S::OperationEnabled && self.nmt != NmtState::Operational {
+        if next == S::OperationEnabled && base != S::OperationEnabled && self.nmt != NmtState::Operational {
             return Err(abort::DEVICE_STATE.into());
         }
+        let enabled = self.drive == S::OperationEnabled && next == S::OperationEnabled;
         let set_point = new & cw::NEW_SET_POINT != 0 && old & cw::NEW_SET_POINT == 0;
         let halt = new & cw::HALT != 0;
-        if set_point && (next != S::OperationEnabled || halt || self.mode != PROFILE_POSITION_MODE) {
+        if set_point && (!enabled || halt || self.mode != PROFILE_POSITION_MODE) {
             return Err(abort::DEVICE_STATE.into());
         }
         if self.drive == S::OperationEnabled && next != S::OperationEnabled {
+            // Leaving operation: the axis stops at once.
             self.sim.stop().await.map_err(link)?;
         }
-        if self.drive != next {
-            tracing::debug!(from = %self.drive, to = %next, "CANopen node: drive state");
+        if next != base {
+            self.schedule(next);
         }
-        self.drive = next;
         self.controlword = new;
         if new & cw::NEW_SET_POINT == 0 {
             self.ack = false;
         }
-        if next != S::OperationEnabled {
+        if !enabled {
             return Ok(());
         }
         if halt && old & cw::HALT == 0 {

@@ -124,7 +124,8 @@ impl<B: CanBus> Node<B> {
             }
             index::CONTROLWORD => self.controlword.to_le_bytes().to_vec(),
             index::STATUSWORD => self.statusword().await?.to_le_bytes().to_vec(),
-            index::MODES_OF_OPERATION | index::MODES_OF_OPERATION_DISPLAY => self.mode.to_le_bytes().to_vec(),
+            index::MODES_OF_OPERATION => self.mode.to_le_bytes().to_vec(),
+            index::MODES_OF_OPERATION_DISPLAY => self.mode_display().to_le_bytes().to_vec(),
             index::POSITION_ACTUAL => self.position().await?.to_le_bytes().to_vec(),
             index::TARGET_POSITION => self.target.to_le_bytes().to_vec(),
             index::PROFILE_VELOCITY => self.velocity.to_le_bytes().to_vec(),
@@ -144,7 +145,7 @@ impl<B: CanBus> Node<B> {
                 if m as i8 != PROFILE_POSITION_MODE {
                     return Err(abort::VALUE_RANGE.into());
                 }
-                self.mode = m as i8;
+                self.set_mode(m as i8);
                 Ok(())
             }
             index::TARGET_POSITION => {

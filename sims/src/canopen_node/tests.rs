@@ -56,13 +56,26 @@ impl Drop for Rig {
 
 impl Rig {
     fn new(cfg: PositionerConfig) -> Rig {
+        Rig::with_node(cfg, NodeConfig::new(NODE))
+    }
+
+    /// A node that carries out a transition at once: for the tests of the
+    /// state logic itself, step by step.
+    fn instant() -> Rig {
+        Rig::with_node(
+            PositionerConfig::new(fig8()),
+            NodeConfig { transition_time: Duration::ZERO, ..NodeConfig::new(NODE) },
+        )
+    }
+
+    fn with_node(cfg: PositionerConfig, node_cfg: NodeConfig) -> Rig {
         let clock = VirtualClock::new();
         let sim = SimPositioner::new(cfg, Arc::new(clock.clone()));
         let truth = sim.truth();
         let bus = MemoryBus::new();
         let monitor = bus.endpoint();
         let faults = NodeFaults::new();
-        let node = tokio::spawn(serve(bus.endpoint(), sim, NodeConfig::new(NODE), faults.clone()));
+        let node = tokio::spawn(serve(bus.endpoint(), sim, node_cfg, faults.clone()));
         Rig { clock, truth, faults, bus, monitor, node: Some(node) }
     }
 
@@ -135,7 +148,7 @@ fn assert_error(r: survey_drivers::Result<impl std::fmt::Debug>, kind: ErrorKind
 
 #[tokio::test]
 async fn nmt_start_stop_reset_and_heartbeats_on_the_wire() {
-    let mut rig = Rig::fig8();
+    let mut rig = Rig::instant();
     let mut d = rig.driver();
     // Pre-operational after boot-up: SDO works, enabling operation does not.
     assert_eq!(d.statusword().await.unwrap().state(), Some(DriveState::SwitchOnDisabled));
@@ -185,7 +198,7 @@ async fn expedited_and_segmented_uploads() {
 
 #[tokio::test]
 async fn controlword_sequence_and_refused_set_points() {
-    let rig = Rig::fig8();
+    let rig = Rig::instant();
     let mut d = rig.driver();
     d.nmt(NmtCommand::Start).await.unwrap();
     let state = |w: Statusword| w.state().unwrap();
@@ -248,7 +261,7 @@ async fn a_move_with_new_set_point_until_target_reached() {
 
 #[tokio::test]
 async fn stop_halts_the_axis_where_it_is() {
-    let rig = Rig::fig8();
+    let rig = Rig::instant();
     let mut d = rig.connected().await;
     d.move_to(90.0).await.unwrap();
     rig.clock.advance(Duration::from_secs(3));
@@ -588,4 +601,51 @@ async fn the_driver_and_the_node_over_socketcan_vcan0() {
     assert!(s.in_position, "{s:?}");
     assert_eq!(d.readout().await.unwrap(), 12.5);
     node.abort();
+}
+
+/// The drive takes its time per transition (20 ms by default): a client that
+/// reads the statusword a few times at once after each controlword, as the
+/// driver once did, never sees operation enabled; the driver, which waits for
+/// each transition (up to 0.5 s), does, and waits for 0x6061 to show the mode.
+#[tokio::test]
+async fn each_transition_takes_time_and_the_driver_waits_for_it() {
+    let rig = Rig::fig8();
+    let mut hasty = rig.driver();
+    hasty.nmt(NmtCommand::Start).await.unwrap();
+    hasty.download(index::MODES_OF_OPERATION, 0, &[1]).await.unwrap();
+    assert_eq!(hasty.upload(index::MODES_OF_OPERATION_DISPLAY, 0).await.unwrap(), [0], "not yet shown");
+    let mut state = hasty.statusword().await.unwrap().state();
+    for _ in 0..6 {
+        let c = match state {
+            Some(DriveState::SwitchOnDisabled) => cw::SHUTDOWN,
+            Some(DriveState::ReadyToSwitchOn) => cw::SWITCH_ON_CMD,
+            _ => CW_OPERATE,
+        };
+        hasty.write_controlword(c).await.unwrap();
+        state = hasty.statusword().await.unwrap().state();
+    }
+    assert_ne!(state, Some(DriveState::OperationEnabled), "six immediate polls are not enough");
+    drop(hasty);
+
+    let started = std::time::Instant::now();
+    let mut d = rig.connected().await;
+    assert!(d.statusword().await.unwrap().operation_enabled());
+    assert_eq!(d.upload(index::MODES_OF_OPERATION_DISPLAY, 0).await.unwrap(), [1]);
+    assert!(started.elapsed() >= 3 * crate::canopen_node::TRANSITION_TIME, "the driver waited for the transitions");
+    d.move_to(20.0).await.unwrap();
+    assert!(settle(&mut d, &rig.clock).await.in_position);
+}
+
+/// A drive too slow for the driver's transition timeout: a clear device
+/// error naming the state it stayed in.
+#[tokio::test]
+async fn a_drive_slower_than_the_transition_timeout_is_a_clear_error() {
+    let rig = Rig::with_node(
+        PositionerConfig::new(fig8()),
+        NodeConfig { transition_time: Duration::from_millis(300), ..NodeConfig::new(NODE) },
+    );
+    let cfg = CanopenConfig { transition_timeout_ms: 50, ..driver_cfg() };
+    let e = Cia402Positioner::connect(rig.bus.endpoint(), cfg).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Device, "{e}");
+    assert!(e.message.contains("did not switch to profile position mode: 0x6061 shows 0"), "{e}");
 }
