@@ -167,6 +167,7 @@ pub mod memory_bus;
 pub mod nmt;
 pub mod objects;
 pub mod sdo;
+pub mod slcan;
 pub mod socketcan_bus;
 
 pub use cia402::{CW_OPERATE, CanopenConfig, Cia402Positioner, DEFAULT_COUNTS_PER_DEGREE};
