@@ -131,13 +131,91 @@ pub enum PositionerConfig {
         #[serde(default)]
         timeouts: ModbusTimeouts,
     },
-    /// A CiA 402 drive over CANopen on a SocketCAN interface.
+    /// A CiA 402 drive over CANopen, on a SocketCAN interface or through a
+    /// USB-CAN adapter speaking SLCAN on a serial port.
     Canopen {
-        /// The SocketCAN interface (`can0`).
-        interface: String,
+        /// `"socketcan"` (default) or `"slcan"`.
+        #[serde(default)]
+        transport: CanTransport,
+        /// The SocketCAN interface (`can0`), with `transport = "socketcan"`.
+        #[serde(default)]
+        interface: Option<String>,
+        /// The adapter's serial port (`/dev/ttyACM0`), with `transport = "slcan"`.
+        #[serde(default)]
+        port: Option<String>,
+        /// The CAN bitrate, bit/s, with `transport = "slcan"` (default 500000).
+        #[serde(default)]
+        bitrate: Option<u32>,
         #[serde(flatten)]
         drive: CanopenConfig,
     },
+}
+
+/// How a CANopen drive is reached.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CanTransport {
+    /// A SocketCAN interface (Linux).
+    #[default]
+    Socketcan,
+    /// A serial-line CAN adapter (SLCAN / Lawicel: CANable, USBtin...).
+    Slcan,
+}
+
+/// Where a CANopen drive is, resolved from the configuration.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CanLink {
+    /// SocketCAN interface name.
+    SocketCan(String),
+    /// SLCAN adapter: serial port and bitrate.
+    Slcan { port: String, bitrate: u32 },
+}
+
+/// Default SLCAN bitrate, bit/s (CANopen's most common).
+pub const DEFAULT_CAN_BITRATE: u32 = 500_000;
+
+impl PositionerConfig {
+    /// The CAN link of a CANopen positioner (`None` for other drivers), or
+    /// what is missing.
+    pub fn can_link(&self) -> Option<Result<CanLink, String>> {
+        let PositionerConfig::Canopen { transport, interface, port, bitrate, .. } = self else { return None };
+        Some(match (transport, interface, port) {
+            (CanTransport::Socketcan, Some(i), None) => Ok(CanLink::SocketCan(i.clone())),
+            (CanTransport::Socketcan, None, _) => {
+                Err("positioner: a CANopen drive on SocketCAN needs `interface` (e.g. \"can0\")".into())
+            }
+            (CanTransport::Socketcan, Some(_), Some(_)) => {
+                Err("positioner: `port` is for transport = \"slcan\"; on SocketCAN name the `interface` only".into())
+            }
+            (CanTransport::Slcan, _, None) => Err(
+                "positioner: transport = \"slcan\" needs `port`, the adapter's serial device (e.g. \"/dev/ttyACM0\")"
+                    .into(),
+            ),
+            (CanTransport::Slcan, Some(_), Some(_)) => {
+                Err("positioner: `interface` is for SocketCAN; with transport = \"slcan\" name the `port` only".into())
+            }
+            (CanTransport::Slcan, None, Some(p)) => {
+                let bitrate = bitrate.unwrap_or(DEFAULT_CAN_BITRATE);
+                match survey_drivers::canopen::slcan::bitrate_code(bitrate) {
+                    Some(_) => Ok(CanLink::Slcan { port: p.clone(), bitrate }),
+                    None => Err(format!(
+                        "positioner.bitrate = {bitrate} has no SLCAN command (10000, 20000, 50000, 100000, 125000, \
+                         250000, 500000, 750000, 800000 or 1000000)"
+                    )),
+                }
+            }
+        })
+    }
+
+    /// A short description (`canopen slcan /dev/ttyACM0 node 5`).
+    pub fn can_describe(&self) -> Option<String> {
+        let PositionerConfig::Canopen { drive, .. } = self else { return None };
+        Some(match self.can_link()? {
+            Ok(CanLink::SocketCan(i)) => format!("canopen {i} node {}", drive.node_id),
+            Ok(CanLink::Slcan { port, .. }) => format!("canopen slcan {port} node {}", drive.node_id),
+            Err(_) => format!("canopen node {}", drive.node_id),
+        })
+    }
 }
 
 /// `[tracker]`: the tracking laser.
@@ -355,6 +433,9 @@ impl SurveyConfig {
         {
             within("positioner.in_position_window_deg", *w, Range::Above(0.0), 1.0, "deg")?;
         }
+        if let Some(Err(e)) = self.positioner.can_link() {
+            return Err(e);
+        }
         if let PositionerConfig::Canopen { drive, .. } = &self.positioner {
             within("positioner.counts_per_degree", drive.counts_per_degree, Range::Above(0.0), 1.0e9, "counts/deg")?;
         }
@@ -546,8 +627,27 @@ mod driver_tests {
             "c.toml",
         )
         .unwrap();
-        let PositionerConfig::Canopen { interface, drive } = &cfg.positioner else { panic!() };
-        assert_eq!((interface.as_str(), drive.node_id), ("can0", 5));
+        let PositionerConfig::Canopen { drive, .. } = &cfg.positioner else { panic!() };
+        assert_eq!(cfg.positioner.can_link(), Some(Ok(CanLink::SocketCan("can0".into()))));
+        assert_eq!(drive.node_id, 5);
+        let slcan = SurveyConfig::parse(
+            &format!("[positioner]\ndriver = \"canopen\"\ntransport = \"slcan\"\nport = \"/dev/ttyACM0\"\nnode_id = 5\n{tracker}"),
+            "c.toml",
+        )
+        .unwrap();
+        let link = CanLink::Slcan { port: "/dev/ttyACM0".into(), bitrate: DEFAULT_CAN_BITRATE };
+        assert_eq!(slcan.positioner.can_link(), Some(Ok(link)));
+        for (bad, why) in [
+            ("transport = \"slcan\"\n", "needs `port`"),
+            ("transport = \"slcan\"\nport = \"/dev/x\"\nbitrate = 12345\n", "no SLCAN command"),
+            ("", "needs `interface`"),
+            ("interface = \"can0\"\nport = \"/dev/x\"\n", "`port` is for transport"),
+        ] {
+            let e = SurveyConfig::parse(&format!("[positioner]\ndriver = \"canopen\"\n{bad}{tracker}"), "c.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
         let Some(TrackerConfig::Emscon { settings, .. }) = &cfg.tracker else { panic!() };
         assert_eq!(settings.measurement_time_ms, 500);
         for bad in [

@@ -144,7 +144,7 @@ impl Message {
         };
         Ok(match first {
             0x07 if rest.is_empty() => Message::Error,
-            b'S' if rest.len() == 1 && (b'0'..=b'9').contains(&rest[0]) => Message::Bitrate(rest[0] - b'0'),
+            b'S' if rest.len() == 1 && rest[0].is_ascii_digit() => Message::Bitrate(rest[0] - b'0'),
             b'O' if rest.is_empty() => Message::Open,
             b'L' if rest.is_empty() => Message::ListenOnly,
             b'C' if rest.is_empty() => Message::Close,

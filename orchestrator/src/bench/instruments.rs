@@ -1,11 +1,12 @@
 //! Real instruments from a configuration: one connector per driver, every
 //! driver behind [`Reconnecting`], and `survey check`.
 
-use crate::config::{AutocollimatorConfig, PositionerConfig, SurveyConfig, TrackerConfig};
+use crate::config::{AutocollimatorConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
 use crate::engine::{Engine, Reference};
 use async_trait::async_trait;
 use std::sync::Arc;
 use std::time::Duration;
+use survey_drivers::canopen::slcan::SlcanBus;
 use survey_drivers::canopen::{Cia402Positioner, SocketCanBus};
 use survey_drivers::clock::with_timeout;
 use survey_drivers::elcomat::ElcomatDriver;
@@ -62,9 +63,19 @@ impl Connect<dyn Positioner> for PositionerConnector {
             PositionerConfig::ModbusRtu { port, baud, slave, map, timeouts } => {
                 Ok(Box::new(ModbusPositioner::connect_rtu(port, *baud, *slave, map.clone(), *timeouts).await?))
             }
-            PositionerConfig::Canopen { interface, drive } => {
-                let bus = SocketCanBus::open(interface)?;
-                Ok(Box::new(Cia402Positioner::connect(bus, drive.clone()).await?))
+            PositionerConfig::Canopen { drive, .. } => {
+                let link = self.config.can_link().transpose().map_err(|e| DriverError::usage("canopen", e))?;
+                match link {
+                    Some(CanLink::Slcan { port, bitrate }) => {
+                        let bus = SlcanBus::open_port(&port, bitrate, self.timeout).await?;
+                        Ok(Box::new(Cia402Positioner::connect(bus, drive.clone()).await?))
+                    }
+                    Some(CanLink::SocketCan(interface)) => {
+                        let bus = SocketCanBus::open(&interface)?;
+                        Ok(Box::new(Cia402Positioner::connect(bus, drive.clone()).await?))
+                    }
+                    None => unreachable!("a CANopen configuration has a CAN link"),
+                }
             }
         }
     }
@@ -74,7 +85,7 @@ impl Connect<dyn Positioner> for PositionerConnector {
             PositionerConfig::ScpiSerial { port, .. } => format!("scpi-serial {port}"),
             PositionerConfig::ModbusTcp { address, .. } => format!("modbus-tcp {address}"),
             PositionerConfig::ModbusRtu { port, slave, .. } => format!("modbus-rtu {port} slave {slave}"),
-            PositionerConfig::Canopen { interface, drive } => format!("canopen {interface} node {}", drive.node_id),
+            PositionerConfig::Canopen { .. } => self.config.can_describe().unwrap_or_default(),
         }
     }
 }

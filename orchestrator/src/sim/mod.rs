@@ -22,7 +22,7 @@
 
 pub mod relay;
 
-use crate::config::{AutocollimatorConfig as AcConfig, PositionerConfig, SurveyConfig, TrackerConfig};
+use crate::config::{AutocollimatorConfig as AcConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
 use crate::error::bad_input;
 use relay::{Counts, LinkFaults, relay};
 use std::net::SocketAddr;
@@ -230,21 +230,44 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             }));
             served.instruments.insert("positioner".into(), port.clone().into());
         }
-        PositionerConfig::Canopen { interface, drive } => {
-            let bus = survey_drivers::canopen::SocketCanBus::open(interface).map_err(|e| {
-                anyhow::anyhow!(
-                    "positioner: cannot open the SocketCAN interface {interface} ({e}); survey sim serves a \
-                     CANopen drive on an existing interface (ip link add dev {interface} type vcan; ip link set up \
-                     {interface})"
-                )
-            })?;
+        PositionerConfig::Canopen { drive, .. } => {
             let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
             node.counts_per_degree = drive.counts_per_degree;
             let positioner = bench.positioner;
-            served.tasks.push(tokio::spawn(async move {
-                survey_sims::canopen_node::serve(bus, positioner, node, Default::default()).await;
-            }));
-            served.instruments.insert("positioner".into(), format!("{interface} node {}", drive.node_id).into());
+            match cfg.positioner.can_link() {
+                Some(Ok(CanLink::Slcan { port, .. })) => {
+                    // A CiA 402 drive behind a simulated USB-CAN adapter, on a
+                    // pty linked at the port (link faults on the serial line).
+                    let device = served.serial("positioner", &port, link, seeds.next().unwrap_or(1))?;
+                    let bus = survey_drivers::canopen::MemoryBus::new();
+                    let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
+                    served.tasks.push(tokio::spawn(async move {
+                        survey_sims::canopen_node::serve(drive_end, positioner, node, Default::default()).await;
+                    }));
+                    served.tasks.push(tokio::spawn(async move {
+                        survey_sims::slcan_adapter::serve_adapter(device, adapter_end).await;
+                        drop(bus);
+                    }));
+                    served.instruments.insert("positioner".into(), port.clone().into());
+                }
+                Some(Ok(CanLink::SocketCan(interface))) => {
+                    let bus = survey_drivers::canopen::SocketCanBus::open(&interface).map_err(|e| {
+                        anyhow::anyhow!(
+                            "positioner: cannot open the SocketCAN interface {interface} ({e}); survey sim serves a \
+                             CANopen drive on an existing interface (ip link add dev {interface} type vcan; ip link \
+                             set up {interface}), or behind a simulated USB-CAN adapter with transport = \"slcan\""
+                        )
+                    })?;
+                    served.tasks.push(tokio::spawn(async move {
+                        survey_sims::canopen_node::serve(bus, positioner, node, Default::default()).await;
+                    }));
+                    served
+                        .instruments
+                        .insert("positioner".into(), format!("{interface} node {}", drive.node_id).into());
+                }
+                Some(Err(e)) => return Err(bad_input(e)),
+                None => unreachable!("a CANopen configuration has a CAN link"),
+            }
         }
     }
 
