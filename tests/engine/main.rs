@@ -3,6 +3,7 @@
 
 mod examples;
 mod integrity;
+mod interop_canopen;
 mod modelgap;
 mod resume;
 mod wire;

@@ -56,7 +56,7 @@ const fn rw(index: u16, kind: Kind) -> Entry {
 }
 
 /// The object dictionary.
-pub(super) const OD: [Entry; 15] = [
+pub(super) const OD: [Entry; 16] = [
     ro(index::DEVICE_TYPE, Kind::U32),
     ro(index::ERROR_REGISTER, Kind::U8),
     ro(index::DEVICE_NAME, Kind::Text),
@@ -72,7 +72,13 @@ pub(super) const OD: [Entry; 15] = [
     rw(index::TARGET_POSITION, Kind::I32),
     rw(index::PROFILE_VELOCITY, Kind::U32),
     ro(index::DIGITAL_INPUTS, Kind::U32),
+    // 0x6502 supported drive modes (CiA 402): bit 0, profile position, only.
+    ro(SUPPORTED_DRIVE_MODES, Kind::U32),
 ];
+
+/// 0x6502 "Supported drive modes" (CiA 402), read by CiA 402 clients such as
+/// python-canopen's `BaseNode402` before they switch the mode.
+pub(super) const SUPPORTED_DRIVE_MODES: u16 = 0x6502;
 
 /// The entry of `index:subindex`, or the abort code for a missing one.
 pub(super) fn entry(index: u16, subindex: u8) -> Result<Entry, Refusal> {
@@ -130,6 +136,7 @@ impl<B: CanBus> Node<B> {
             index::TARGET_POSITION => self.target.to_le_bytes().to_vec(),
             index::PROFILE_VELOCITY => self.velocity.to_le_bytes().to_vec(),
             index::DIGITAL_INPUTS => self.digital_inputs().await?.to_le_bytes().to_vec(),
+            SUPPORTED_DRIVE_MODES => 1u32.to_le_bytes().to_vec(),
             _ => return Err(abort::NO_OBJECT.into()),
         })
     }
