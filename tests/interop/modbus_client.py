@@ -18,13 +18,17 @@ Used by sims/src/modbus_server/interop.rs: the test starts the simulator on
 and prints one JSON line with what it saw.
 
 Usage: modbus_client.py <port> <target_deg> <velocity_deg_s> <bad_target_deg>
+
+<port> is a TCP port on 127.0.0.1, or rtu:<serial device> for Modbus RTU
+(19200 8N1) on a serial line (the test gives a pty).
 """
 
 import json
 import struct
 import sys
 
-from pymodbus.client import ModbusTcpClient
+from pymodbus import FramerType
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 
 COUNTS_PER_DEGREE = 100000
 UNIT = 1
@@ -49,13 +53,16 @@ def check(response, what):
 
 
 def main():
-    port = int(sys.argv[1])
+    where = sys.argv[1]
     target = float(sys.argv[2])
     velocity = float(sys.argv[3])
     bad_target = float(sys.argv[4])
-    client = ModbusTcpClient("127.0.0.1", port=port, timeout=3, retries=0)
+    if where.startswith("rtu:"):
+        client = ModbusSerialClient(where[4:], framer=FramerType.RTU, baudrate=19200, timeout=3, retries=0)
+    else:
+        client = ModbusTcpClient("127.0.0.1", port=int(where), timeout=3, retries=0)
     if not client.connect():
-        raise SystemExit(f"cannot connect to 127.0.0.1:{port}")
+        raise SystemExit(f"cannot connect to {where}")
     try:
         check(client.write_registers(2, i32_words(round(velocity * COUNTS_PER_DEGREE)), device_id=UNIT), "velocity")
         check(client.write_registers(0, i32_words(round(target * COUNTS_PER_DEGREE)), device_id=UNIT), "target")

@@ -278,3 +278,27 @@ async fn opening_a_missing_port_is_a_disconnection() {
     let e = ElcomatDriver::open_serial("/dev/does-not-exist-elcomat", 9600).unwrap_err();
     assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
 }
+
+/// Exchanges seen in public code that drives real ELCOMAT 3000s
+/// (`dls-controls/elcomat3000`: `elcomat3000App/src/elcomat3000.cpp` writes
+/// `a` (absolute) with LF and reads up to CR; its serial simulator
+/// `etc/simulations/elcomat3000.py` answers `4 003 %f %f` CR to `a` and
+/// `2 103 %f %f` CR to `r`; the status's last digit is 1 X valid, 2 Y valid,
+/// 3 both). Our codec reads them as that code does.
+#[test]
+fn the_public_record_decodes_as_the_epics_driver_reads_it() {
+    let mut d = Decoder::new();
+    d.push(b"4 003 4.500000 2.300000\r2 103 4.500000 2.300000\r4 001 12.000000 0.000000\r");
+    let abs = d.next_reply().unwrap().unwrap();
+    assert_eq!((abs.kind, abs.reading()), (ReplyKind::Absolute, Some(AcReading { x_arcsec: 4.5, y_arcsec: 2.3 })));
+    let rel = d.next_reply().unwrap().unwrap();
+    assert_eq!((rel.kind, rel.reading()), (ReplyKind::Relative, Some(AcReading { x_arcsec: 4.5, y_arcsec: 2.3 })));
+    let partial = d.next_reply().unwrap().unwrap();
+    assert_eq!((partial.validity(), partial.reading()), (1, None), "only X valid: no reading");
+    assert_eq!(partial.validity_text(), "only X valid");
+    // We send what that code sends: the letter, then a line end it accepts (LF ends it).
+    let a = encode_command(Command::Absolute);
+    assert_eq!(a.first(), Some(&b'a'));
+    assert_eq!(a.last(), Some(&b'\n'));
+    assert_eq!(decode_command(b"a"), Ok(Command::Absolute));
+}

@@ -211,6 +211,42 @@ async fn a_pymodbus_client_against_our_simulator() {
     assert_eq!(device.holding_register(4).await, 1);
 }
 
+/// The same pymodbus client in Modbus RTU over a pty: our simulator's RTU
+/// framing (CRC, timing-free framing by length) read by an implementation no
+/// one here wrote.
+#[tokio::test]
+async fn a_pymodbus_rtu_client_against_our_simulator_on_a_pty() {
+    if let Some(why) = pymodbus_missing() {
+        println!("skipped: {why}");
+        return;
+    }
+    let mut cfg = super::tests::config();
+    cfg.accel_deg_s2 = 1000.0;
+    cfg.settle = Duration::from_millis(20);
+    cfg.link_latency = Duration::from_millis(10);
+    let sim = SimPositioner::new(cfg, Arc::new(VirtualClock::new()));
+    let device = ModbusDevice::new(sim, RegisterMap::default()).unwrap();
+    let (master, slave) = crate::elcomat_server::pty_pair().unwrap();
+    let path = tokio_serial::SerialPort::name(&slave).unwrap();
+    let serving = device.clone();
+    let server = tokio::spawn(async move { serving.serve_rtu(master, ModbusFaults::new()).await });
+    let target = format!("rtu:{path}");
+    let run = tokio::task::spawn_blocking(move || {
+        Command::new("python3").arg(CLIENT_SCRIPT).args([target.as_str(), "-7.25", "100", "200"]).output()
+    });
+    let out =
+        tokio::time::timeout(SCRIPT_LIMIT, run).await.expect("the client finishes").unwrap().expect("python3 runs");
+    drop(slave);
+    server.abort();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "client failed: {stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    let got = parse_flat_json(stdout.lines().last().unwrap_or("")).expect("one JSON line");
+    assert_eq!(got["final_status"].num() as u16 & 0b111, 0b010, "in position, no fault: {got:?}");
+    assert_eq!(got["actual_counts"].num(), -725_000.0);
+    assert_eq!(got["bad_move_exception"].num(), 3.0, "illegal data value over RTU too: {got:?}");
+    assert_eq!(got["unmapped_exception"].num(), 2.0, "illegal data address over RTU too: {got:?}");
+}
+
 #[test]
 fn the_flat_json_reader() {
     let j = parse_flat_json(r#"{"port": 4242, "x": -1.5e-3, "ok": true, "no": false, "h": [1, 2, 65535], "e": []}"#)
