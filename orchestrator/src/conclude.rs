@@ -60,6 +60,14 @@ pub async fn conclude(
     doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
     doc["faults_survived"] = outcome.faults_survived.into();
+    // What the engine met and survived. `injected` is what a simulator injected
+    // where that is known to this process; a separate `survey sim` prints its own.
+    doc["faults"] = serde_json::json!({
+        "injected": null,
+        "met": outcome.faults_met.total(),
+        "recovered": outcome.faults_survived,
+        "by_kind": outcome.faults_met,
+    });
     doc["db"] = db.display().to_string().into();
     let mut text = format!(
         "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}\n",

@@ -138,11 +138,52 @@ pub struct Progress {
     pub instrument_time: Duration,
 }
 
+/// Instrument faults met, by kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct FaultCounts {
+    pub timeout: u32,
+    pub disconnected: u32,
+    pub garbled: u32,
+    pub device: u32,
+    pub usage: u32,
+}
+
+impl FaultCounts {
+    fn add(&mut self, kind: ErrorKind) {
+        let n = match kind {
+            ErrorKind::Timeout => &mut self.timeout,
+            ErrorKind::Disconnected => &mut self.disconnected,
+            ErrorKind::Garbled => &mut self.garbled,
+            ErrorKind::Device => &mut self.device,
+            ErrorKind::Usage => &mut self.usage,
+        };
+        *n += 1;
+    }
+
+    /// Every fault counted.
+    pub fn total(&self) -> u32 {
+        self.timeout + self.disconnected + self.garbled + self.device + self.usage
+    }
+
+    fn since(&self, before: &FaultCounts) -> FaultCounts {
+        FaultCounts {
+            timeout: self.timeout - before.timeout,
+            disconnected: self.disconnected - before.disconnected,
+            garbled: self.garbled - before.garbled,
+            device: self.device - before.device,
+            usage: self.usage - before.usage,
+        }
+    }
+}
+
 /// What a finished (or stopped) pass of the engine did.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Outcome {
     pub samples_recorded: u64,
+    /// Faults met and retried successfully (recovered).
     pub faults_survived: u32,
+    /// Every fault met (recovered or not), by kind.
+    pub faults_met: FaultCounts,
     pub instrument_time: Duration,
 }
 
@@ -160,6 +201,7 @@ pub struct Engine {
     /// is approached.
     commanded: Option<f64>,
     faults_survived: u32,
+    faults_met: FaultCounts,
     stop: Stop,
 }
 
@@ -174,6 +216,7 @@ impl Engine {
             arm_check: None,
             commanded: None,
             faults_survived: 0,
+            faults_met: FaultCounts::default(),
             stop: Stop::never(),
         }
     }
@@ -312,6 +355,7 @@ impl Engine {
             check_polygon_plan(plan, *faces)?;
         }
         let faults_before = self.faults_survived;
+        let met_before = self.faults_met;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
             let mut stop = self.stop.clone();
             let located = tokio::select! {
@@ -370,6 +414,7 @@ impl Engine {
             });
         }
         outcome.faults_survived = self.faults_survived - faults_before;
+        outcome.faults_met = self.faults_met.since(&met_before);
         outcome.instrument_time = self.clock.now();
         Ok(outcome)
     }
@@ -513,6 +558,7 @@ impl Engine {
         sink: &mut dyn SampleSink,
     ) -> Result<(), EngineError> {
         let now = self.clock.now().as_secs_f64();
+        self.faults_met.add(error.kind);
         let give_up = error.kind == ErrorKind::Usage || attempt > self.timing.max_retries;
         if give_up {
             tracing::error!(%error, attempt, what, "giving up");

@@ -151,6 +151,15 @@ fn run_json_prints_one_document_with_the_statistics() {
     for key in ISO_KEYS {
         iso_figure(&doc, key);
     }
+    // The contract's run keys beside the statistics.
+    assert_eq!(doc["status"], "complete", "{out}");
+    assert_eq!(doc["samples"].as_u64(), Some(72), "{out}");
+    assert!(doc["instrument_time_s"].as_f64().is_some_and(|t| t > 0.0), "{out}");
+    let faults = &doc["faults"];
+    assert!(faults.get("injected").is_some() && faults["recovered"].as_u64() == Some(0), "{out}");
+    for kind in ["timeout", "disconnected", "garbled", "device", "usage"] {
+        assert_eq!(faults["by_kind"][kind].as_u64(), Some(0), "{kind}: {out}");
+    }
 }
 
 #[test]

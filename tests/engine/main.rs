@@ -6,6 +6,7 @@ mod integrity;
 mod interop_canopen;
 mod modelgap;
 mod resume;
+mod soak;
 mod wire;
 
 use std::sync::Arc;

@@ -1,0 +1,170 @@
+//! The soak (issue 10): `survey sim` serves a Modbus TCP positioner and an
+//! emScon tracker with faults on 1 in 100 replies, moves and measurements
+//! (time-scaled); `survey run --config` against it, in another process, is
+//! SIGKILLed at seeded random moments five times and resumed each time. The
+//! survey ends with every planned sample exactly once, and its ISO 230-2
+//! accuracy within the seed-to-seed spread of fault-free runs.
+
+use nix::sys::signal::{Signal, kill};
+use nix::unistd::Pid;
+use std::io::{BufRead as _, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use survey_orchestrator::store::Store;
+use survey_orchestrator::survey::SurveyStatus;
+
+const BIN: &str = env!("CARGO_BIN_EXE_survey");
+
+/// A `survey sim` process and the configuration a client uses to reach it.
+struct Sim {
+    child: Child,
+    config: PathBuf,
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = kill(Pid::from_raw(self.child.id() as i32), Signal::SIGTERM);
+        let _ = self.child.wait();
+    }
+}
+
+fn start_sim(dir: &Path, name: &str, faults: &str, seed: &str) -> Sim {
+    let base = "[survey]\nreference = \"tracker\"\n[positioner]\ndriver = \"modbus-tcp\"\naddress = \"ADDR_P\"\n\
+                [tracker]\ndriver = \"emscon\"\naddress = \"ADDR_T\"\nmeasurement_time_ms = 500\n\
+                [timing]\ndwell_s = 0.01\ncall_timeout_s = 0.3\nmeasure_timeout_s = 2.0\nmax_retries = 8\n\
+                retry_backoff_s = 0.02\n";
+    let sim_cfg = dir.join(format!("{name}.sim.toml"));
+    std::fs::write(&sim_cfg, base.replace("ADDR_P", "127.0.0.1:0").replace("ADDR_T", "127.0.0.1:0")).unwrap();
+    let mut child = Command::new(BIN)
+        .args(["sim", "--config", sim_cfg.to_str().unwrap(), "--time-scale", "200", "--faults", faults])
+        .args(["--seed", seed])
+        .env_remove("RUST_LOG")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
+    let ready: serde_json::Value = serde_json::from_str(&line).expect("the ready line");
+    let at = |k: &str| ready["instruments"][k].as_str().unwrap().to_string();
+    let config = dir.join(format!("{name}.run.toml"));
+    std::fs::write(&config, base.replace("ADDR_P", &at("positioner")).replace("ADDR_T", &at("tracker"))).unwrap();
+    Sim { child, config }
+}
+
+fn survey(db: &Path, args: &[&str]) -> Child {
+    Command::new(BIN)
+        .arg("--db")
+        .arg(db)
+        .args(args)
+        .env_remove("RUST_LOG")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+const PLAN: [&str; 5] = ["--points", "12", "--runs", "2", "--bidirectional"];
+
+async fn stored(db: &Path) -> u64 {
+    if !db.exists() {
+        return 0;
+    }
+    match Store::open_read_only(db).await {
+        Ok(store) => {
+            let n = store.sample_count(1).await.unwrap_or(0);
+            store.close().await;
+            n
+        }
+        Err(_) => 0,
+    }
+}
+
+async fn complete(db: &Path) -> bool {
+    let store = Store::open_read_only(db).await.unwrap();
+    let done = store.survey(1).await.unwrap().status == SurveyStatus::Complete;
+    store.close().await;
+    done
+}
+
+async fn accuracy(db: &Path) -> f64 {
+    let out = Command::new(BIN).arg("--db").arg(db).args(["stats", "--json"]).output().unwrap();
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    doc["iso230_2"]["A"].as_f64().unwrap()
+}
+
+/// A fault-free survey of the same plan on a fresh simulator with `seed`.
+async fn fault_free(dir: &Path, seed: &str) -> f64 {
+    let sim = start_sim(dir, &format!("clean{seed}"), "0", seed);
+    let db = dir.join(format!("clean{seed}.db"));
+    let mut args = vec!["run", "--config", sim.config.to_str().unwrap()];
+    args.extend(PLAN);
+    assert!(survey(&db, &args).wait().unwrap().success());
+    accuracy(&db).await
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_faulty_bench_killed_five_times_loses_and_repeats_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = start_sim(dir.path(), "soak", "0.01", "11");
+    let db = dir.path().join("soak.db");
+    let mut run_args = vec!["run", "--config", sim.config.to_str().unwrap()];
+    run_args.extend(PLAN);
+    // Seeded kill points: after 3 to 10 more samples each time.
+    let mut lcg: u64 = 20_261_124;
+    let mut next_gap = || {
+        lcg = lcg.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        3 + (lcg >> 33) % 8
+    };
+    let (mut kills, mut attempts) = (0, 0);
+    let deadline = Instant::now() + Duration::from_secs(240);
+    loop {
+        attempts += 1;
+        assert!(attempts < 30, "too many attempts");
+        let mut child = if attempts == 1 { survey(&db, &run_args) } else { survey(&db, &["resume"]) };
+        let kill_at = stored(&db).await + next_gap();
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break Some(status);
+            }
+            if kills < 5 && stored(&db).await >= kill_at {
+                kill(Pid::from_raw(child.id() as i32), Signal::SIGKILL).unwrap();
+                child.wait().unwrap();
+                kills += 1;
+                break None;
+            }
+            assert!(Instant::now() < deadline, "the soak took more than 240 s");
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        };
+        if let Some(status) = status {
+            // Exit 1 is a survey that gave up on a fault burst (resumable);
+            // exit 2 a resume of a survey whose acquisition had completed
+            // before the last kill (it was killed while processing).
+            if status.success() || (status.code() == Some(2) && complete(&db).await) {
+                break;
+            }
+            assert_eq!(status.code(), Some(1), "a run or resume ended with {status}");
+        }
+    }
+    assert!(kills >= 5, "{kills} kills");
+    let store = Store::open_read_only(&db).await.unwrap();
+    let record = store.survey(1).await.unwrap();
+    let samples = store.recorded_samples(1).await.unwrap();
+    let events = store.events(1).await.unwrap();
+    store.close().await;
+    assert_eq!(record.status, SurveyStatus::Complete);
+    assert_eq!(samples.len(), 48, "12 targets x 2 runs x 2 directions");
+    assert!(samples.iter().enumerate().all(|(i, r)| r.seq == i as u64), "every step exactly once, none lost");
+    let resumes = events.iter().filter(|e| e.message.contains("resumed at step")).count();
+    let faults = events.iter().filter(|e| e.level == "warn" && e.message.contains("retrying")).count();
+    eprintln!("soak: {kills} kills, {resumes} resumes, {faults} faults survived, {} samples", samples.len());
+    assert!(resumes >= 5);
+
+    // Its accuracy is the bench's, within the spread of fault-free seeds.
+    let a = accuracy(&db).await;
+    let (a1, a2) = (fault_free(dir.path(), "11").await, fault_free(dir.path(), "12").await);
+    let spread = (a1 - a2).abs().max(2e-4);
+    eprintln!("soak: A = {a:.6} deg; fault-free A = {a1:.6} and {a2:.6} deg");
+    assert!((a - a1).abs() <= 3.0 * spread, "A {a} against fault-free {a1} / {a2}");
+}
