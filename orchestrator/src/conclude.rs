@@ -89,12 +89,19 @@ pub async fn conclude(
     }
     let table_out = Some(default_table_path(db, id));
     let processing = ProcessOptions { recipe: options.recipe.clone(), design: None, table_out };
-    let processed = match process_survey(&record, &samples, processing) {
+    // With a tracker, the table is made around the axis fitted from every SMR position.
+    let refit = crate::refit::refit_survey(store, &record).await?;
+    let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
+    let processed = match process_survey(&record, to_process, processing) {
         Ok(p) => p,
         Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
     };
     doc["process"] = processed.json();
     text += "\n";
+    if let Some((_, r)) = &refit {
+        doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
+        text += &r.text();
+    }
     text += &processed.text();
     if let Err(why) = options.stop.check() {
         return stopped(store, id, why, Output { doc, text }).await;

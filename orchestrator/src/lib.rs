@@ -20,6 +20,7 @@ pub mod output;
 pub mod plan;
 pub mod process;
 pub mod record;
+pub mod refit;
 pub mod report;
 pub mod session;
 pub mod sim;

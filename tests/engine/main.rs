@@ -1,6 +1,7 @@
 //! End-to-end tests of the survey engine on the simulated instruments, into
 //! SQLite, checked against the truth the simulators know.
 
+mod axis_refit;
 mod examples;
 mod integrity;
 mod interop_canopen;

@@ -1,7 +1,8 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
 
-use super::support::{emit, load_survey};
+use super::support::{emit, open_read_only};
 use crate::process::{ProcessOptions, default_table_path, process_survey};
+use crate::refit::refit_survey;
 use clap::Args;
 use std::path::{Path, PathBuf};
 
@@ -21,16 +22,44 @@ pub struct ProcessArgs {
     /// used (<stem>.recipe.toml) go beside it.
     #[arg(long, value_name = "FILE")]
     pub table_out: Option<PathBuf>,
+    /// Process the actual angles as stored, around the axis located before the
+    /// runs, instead of around the axis fitted again from every SMR position
+    /// (tracker surveys; for comparison).
+    #[arg(long)]
+    pub located_axis: bool,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
 pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
-    let (survey, samples) = load_survey(db, args.survey).await?;
+    let store = open_read_only(db).await?;
+    let loaded = async {
+        let survey = store.resolve(args.survey).await?;
+        let refit = if args.located_axis { None } else { refit_survey(&store, &survey).await? };
+        let samples = match &refit {
+            Some(_) => Vec::new(),
+            None => store.samples(survey.id).await?,
+        };
+        anyhow::Ok((survey, samples, refit))
+    }
+    .await;
+    store.close().await;
+    let (survey, samples, refit) = loaded?;
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
     let opts = ProcessOptions { design: args.design, recipe: args.recipe, table_out: Some(table_out) };
-    let outcome = process_survey(&survey, &samples, opts)?;
-    emit(&if args.json { format!("{}\n", outcome.json()) } else { outcome.text() });
+    let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
+    let outcome = process_survey(&survey, to_process, opts)?;
+    let out = match &refit {
+        Some((_, r)) if args.json => {
+            let mut doc = outcome.json();
+            doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
+            format!("{doc}\n")
+        }
+        Some((_, r)) => format!("{}{}", r.text(), outcome.text()),
+        None if args.json => format!("{}\n", outcome.json()),
+        None => outcome.text(),
+    };
+    emit(&out);
     Ok(())
 }

@@ -1,0 +1,108 @@
+//! The axis from the whole survey: after a tracker survey (and on `survey
+//! process`), the axis is fitted again from every stored SMR position (the
+//! points that located it before the runs and every sample's), and the actual
+//! angles are recomputed from the raw readings around it
+//! ([`survey_processing::geometry::refit_axis`]). The stored samples are not
+//! changed (the originals are kept); what is processed is the recomputed
+//! survey, and the refit is reported with it.
+//!
+//! Why: the dozen positions that locate the axis before the runs leave an
+//! error in its centre, and every actual angle computed around a wrong centre
+//! carries a once-per-revolution error that the table would then "correct"
+//! into the positioner. The survey's thousands of positions know the centre
+//! far better.
+
+use crate::record::RawReading;
+use crate::store::Store;
+use crate::survey::SurveyRecord;
+use survey_processing::Sample;
+use survey_processing::geometry::{AxisFit, Refit, refit_axis};
+
+/// The refit and what it changed, for the output.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct AxisRefit {
+    /// SMR positions fitted (locate points and samples).
+    pub points: usize,
+    /// Positions left out as outliers.
+    pub dropped: usize,
+    /// The refitted circle's radius, mm.
+    pub radius_mm: f64,
+    /// How far the centre moved from the located one, in the plane, mm.
+    pub center_shift_mm: f64,
+    /// The once-per-revolution angle error the located centre carried, deg
+    /// (`center_shift_mm / radius`): what the refit removed from the table.
+    pub located_once_per_rev_deg: f64,
+    /// Standard error of the refitted centre, mm.
+    pub center_se_mm: f64,
+    /// The once-per-revolution angle uncertainty left, deg (standard error).
+    pub once_per_rev_se_deg: f64,
+}
+
+/// The shift between two centres, in the plane of `fit`.
+fn in_plane_shift(fit: &AxisFit, other: &AxisFit) -> f64 {
+    let d: Vec<f64> = (0..3).map(|i| fit.center_mm[i] - other.center_mm[i]).collect();
+    let h: f64 = (0..3).map(|i| d[i] * fit.normal[i]).sum();
+    (0..3).map(|i| (d[i] - h * fit.normal[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// The survey's samples with their actual angles recomputed around the axis
+/// fitted from all its SMR positions, and the refit; `None` for a survey
+/// without a located axis (an autocollimator survey, an import).
+pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Result<Option<(Vec<Sample>, AxisRefit)>> {
+    let Some(located) = &survey.axis else { return Ok(None) };
+    let recorded = store.recorded_samples(survey.id).await?;
+    let locate = store.locate_points(survey.id).await?;
+    let mut points = Vec::with_capacity(recorded.len() + locate.len());
+    let mut readouts = Vec::with_capacity(points.capacity());
+    for (readout, m) in &locate {
+        points.push(m.xyz());
+        readouts.push(*readout);
+    }
+    for r in &recorded {
+        if let RawReading::Smr(m) = &r.raw {
+            points.push(m.xyz());
+            readouts.push(r.sample.readout_deg);
+        }
+    }
+    if points.len() < 3 {
+        return Ok(None);
+    }
+    let Refit { fit, dropped, center_se_mm, once_per_rev_se_deg } = refit_axis(&points, &readouts).map_err(|e| {
+        anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
+    })?;
+    let samples = recorded
+        .iter()
+        .map(|r| match &r.raw {
+            RawReading::Smr(m) => Sample { actual_deg: fit.angle_deg(m.xyz(), r.sample.target_deg), ..r.sample },
+            _ => r.sample,
+        })
+        .collect();
+    let center_shift_mm = in_plane_shift(&fit, located);
+    let refit = AxisRefit {
+        points: points.len(),
+        dropped,
+        radius_mm: fit.radius_mm,
+        center_shift_mm,
+        located_once_per_rev_deg: (center_shift_mm / fit.radius_mm).to_degrees(),
+        center_se_mm,
+        once_per_rev_se_deg,
+    };
+    tracing::info!(survey = survey.id, ?refit, "axis fitted again from the survey's SMR positions");
+    Ok(Some((samples, refit)))
+}
+
+impl AxisRefit {
+    /// One line for people.
+    pub fn text(&self) -> String {
+        format!(
+            "axis fitted again from {} SMR positions ({} left out): the centre moved {:.4} mm, a once-per-revolution \
+             error of {:.6} deg removed; the centre is now known to {:.5} mm ({:.7} deg once per revolution, 1 sigma)\n",
+            self.points,
+            self.dropped,
+            self.center_shift_mm,
+            self.located_once_per_rev_deg,
+            self.center_se_mm,
+            self.once_per_rev_se_deg
+        )
+    }
+}

@@ -1,0 +1,87 @@
+//! The axis from the whole survey (issue 14): on the default bench (the
+//! paper's Figure 8 positioner, a tracker, 1800 points, 5 runs, both
+//! directions) over three seeds, the table made around the axis fitted again
+//! from every SMR position carries the positioner's true once-per-revolution
+//! error, where the axis located from 12 positions before the runs left up to
+//! 6.5e-4 deg of false eccentricity in it.
+
+use std::path::Path;
+use std::process::Command;
+use survey_processing::Direction;
+use survey_processing::model::Model;
+
+const BIN: &str = env!("CARGO_BIN_EXE_survey");
+
+fn survey(db: &Path, args: &[&str]) -> serde_json::Value {
+    let out = Command::new(BIN).arg("--db").arg(db).args(args).env_remove("RUST_LOG").output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("one JSON document")
+}
+
+/// The table's once-per-revolution line against the truth (|difference of
+/// the phasors|, deg), and the table's residual rms against the model's
+/// error (deg, mean removed: a constant is the zero reference).
+fn against_truth(doc: &serde_json::Value, table: &Path, model: &Model) -> (f64, f64) {
+    let line = doc["peaks"].as_array().unwrap().iter().find(|p| p["cycles_per_rev"] == 1.0).cloned();
+    let (a, ph) = line.map_or((0.0, 0.0), |p| (p["amplitude_deg"].as_f64().unwrap(), p["phase_deg"].as_f64().unwrap()));
+    let (ta, tph) = (0.0015f64, 110f64); // fig8's eccentricity
+    let d = (a * ph.to_radians().cos() - ta * tph.to_radians().cos())
+        .hypot(a * ph.to_radians().sin() - ta * tph.to_radians().sin());
+    let text = std::fs::read_to_string(table).unwrap();
+    let mut res = Vec::new();
+    for line in text.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let cols: Vec<(Direction, f64)> = if v.len() == 3 {
+            vec![(Direction::Forward, v[1]), (Direction::Reverse, v[2])]
+        } else {
+            vec![(Direction::Forward, v[1])]
+        };
+        for (dir, e) in cols {
+            let actual = v[0] - e;
+            let truth = if v.len() == 3 {
+                model.repeatable_error_deg(actual, dir)
+            } else {
+                (model.repeatable_error_deg(actual, Direction::Forward)
+                    + model.repeatable_error_deg(actual, Direction::Reverse))
+                    / 2.0
+            };
+            res.push(e - truth);
+        }
+    }
+    let mean = res.iter().sum::<f64>() / res.len() as f64;
+    let rms = (res.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / res.len() as f64).sqrt();
+    (d, rms)
+}
+
+#[test]
+fn the_refitted_axis_keeps_the_located_axis_error_out_of_the_table() {
+    let model = Model::parse(include_str!("../../sims/presets/fig8.toml"), "fig8.toml").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut worst = (0.0f64, 0.0f64, 0.0f64);
+    for seed in ["1", "2", "3"] {
+        let db = dir.path().join(format!("s{seed}.db"));
+        survey(&db, &["run", "--points", "1800", "--bidirectional", "--seed", seed, "--json"]);
+        let t = dir.path().join(format!("t{seed}.csv"));
+        let refit = survey(&db, &["process", "--table-out", t.to_str().unwrap(), "--json"]);
+        let (line, rms) = against_truth(&refit, &t, &model);
+        let located = survey(&db, &["process", "--located-axis", "--table-out", t.to_str().unwrap(), "--json"]);
+        let (located_line, located_rms) = against_truth(&located, &t, &model);
+        eprintln!(
+            "seed {seed}: once-per-rev error {line:.2e} deg (located {located_line:.2e}), true residual rms {rms:.2e} \
+             (located {located_rms:.2e}); {}",
+            refit["axis_refit"]
+        );
+        let r = &refit["axis_refit"];
+        assert!(r["points"].as_u64().unwrap() >= 18_000, "{r}");
+        // The refit's own estimate of what it removed is the line's change.
+        assert!(r["located_once_per_rev_deg"].as_f64().unwrap() > 0.0, "{r}");
+        worst = (worst.0.max(line), worst.1.max(rms), worst.2.max(located_line));
+    }
+    // Goal 4e-5 deg on the once-per-revolution line (measured 0.4 to 3.4e-5;
+    // the located axis gave up to 6.5e-4), and a true residual rms within
+    // 4e-5 deg (goal 3e-5; measured 2.9 to 3.3e-5, the tracker's noise
+    // through the kept lines; the located axis gave up to 4.6e-4).
+    assert!(worst.0 < 4e-5, "once-per-revolution line off the truth by {:.2e} deg", worst.0);
+    assert!(worst.1 < 4e-5, "true residual rms {:.2e} deg", worst.1);
+    assert!(worst.2 > 1e-4, "the located axis's error shows without the refit ({:.2e})", worst.2);
+}
