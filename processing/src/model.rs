@@ -54,12 +54,42 @@ impl PeriodicKind {
     }
 }
 
+/// How a drift grows (the contract's `shape`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DriftShape {
+    /// Linearly in time, `rate_deg_per_run` over one run's duration (the default).
+    #[default]
+    Ramp,
+    /// Constant within a run, jumping by `rate_deg_per_run` between runs
+    /// (re-homing, a reference set up again each run).
+    Step,
+}
+
+impl DriftShape {
+    /// `"ramp"` or `"step"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DriftShape::Ramp => "ramp",
+            DriftShape::Step => "step",
+        }
+    }
+
+    /// The drift, in runs of `rate`, after `runs_elapsed` runs (fractional
+    /// within a run): the time itself for a ramp, the runs completed for a step.
+    pub fn runs(self, runs_elapsed: f64) -> f64 {
+        match self {
+            DriftShape::Ramp => runs_elapsed,
+            DriftShape::Step => runs_elapsed.floor(),
+        }
+    }
+}
+
 /// One error effect of the model file.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Effect {
     Periodic { kind: PeriodicKind, cycles_per_rev: f64, amplitude_deg: f64, phase_deg: f64 },
     Backlash { amplitude_deg: f64 },
-    Drift { rate_deg_per_run: f64 },
+    Drift { rate_deg_per_run: f64, shape: DriftShape },
     Noise { sigma_deg: f64 },
 }
 
@@ -178,8 +208,11 @@ impl Model {
                 Effect::Backlash { amplitude_deg } => {
                     let _ = writeln!(s, "amplitude_deg = {}", fmt_num(*amplitude_deg));
                 }
-                Effect::Drift { rate_deg_per_run } => {
+                Effect::Drift { rate_deg_per_run, shape } => {
                     let _ = writeln!(s, "rate_deg_per_run = {}", fmt_num(*rate_deg_per_run));
+                    if *shape == DriftShape::Step {
+                        let _ = writeln!(s, "shape = \"step\"");
+                    }
                 }
                 Effect::Noise { sigma_deg } => {
                     let _ = writeln!(s, "sigma_deg = {}", fmt_num(*sigma_deg));
@@ -203,7 +236,7 @@ impl Model {
     pub fn drift_deg_per_run(&self) -> f64 {
         self.effects
             .iter()
-            .map(|e| if let Effect::Drift { rate_deg_per_run } = e { *rate_deg_per_run } else { 0.0 })
+            .map(|e| if let Effect::Drift { rate_deg_per_run, .. } = e { *rate_deg_per_run } else { 0.0 })
             .sum()
     }
 
@@ -225,7 +258,19 @@ impl Model {
     /// The systematic readout error (everything but noise) after `runs_elapsed`
     /// runs (0 during the first run; fractional values for drift within a run).
     pub fn systematic_error_deg(&self, theta_deg: f64, direction: Direction, runs_elapsed: f64) -> f64 {
-        self.repeatable_error_deg(theta_deg, direction) + self.drift_deg_per_run() * runs_elapsed
+        self.repeatable_error_deg(theta_deg, direction) + self.drift_deg(runs_elapsed)
+    }
+
+    /// The drift after `runs_elapsed` runs (fractional within a run), each
+    /// drift effect by its shape.
+    pub fn drift_deg(&self, runs_elapsed: f64) -> f64 {
+        self.effects
+            .iter()
+            .map(|e| match e {
+                Effect::Drift { rate_deg_per_run, shape } => rate_deg_per_run * shape.runs(runs_elapsed),
+                _ => 0.0,
+            })
+            .sum()
     }
 
     /// The periodic effects, in file order.
@@ -384,7 +429,7 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
             &["kind", "cycles_per_rev", "amplitude_deg", "phase_deg"]
         }
         "backlash" => &["kind", "amplitude_deg"],
-        "drift" => &["kind", "rate_deg_per_run"],
+        "drift" => &["kind", "rate_deg_per_run", "shape"],
         "noise" => &["kind", "sigma_deg"],
         other => return Err((at("kind"), format!("effect[{n}]: unknown kind '{other}' (one of {KINDS})"))),
     };
@@ -445,7 +490,20 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
         "tooth_mesh" => periodic(PeriodicKind::ToothMesh),
         "harmonic" => periodic(PeriodicKind::Harmonic),
         "backlash" => Ok(Effect::Backlash { amplitude_deg: non_negative("amplitude_deg", get("amplitude_deg")?)? }),
-        "drift" => Ok(Effect::Drift { rate_deg_per_run: get("rate_deg_per_run")? }),
+        "drift" => {
+            let shape = match t.get("shape") {
+                None => DriftShape::Ramp,
+                Some(toml::Value::String(v)) if v == "ramp" => DriftShape::Ramp,
+                Some(toml::Value::String(v)) if v == "step" => DriftShape::Step,
+                Some(v) => {
+                    return Err((
+                        at("shape"),
+                        format!("effect[{n}] (drift).shape must be \"ramp\" or \"step\", got {v}"),
+                    ));
+                }
+            };
+            Ok(Effect::Drift { rate_deg_per_run: get("rate_deg_per_run")?, shape })
+        }
         "noise" => Ok(Effect::Noise { sigma_deg: non_negative("sigma_deg", get("sigma_deg")?)? }),
         _ => unreachable!("kind checked above"),
     }
@@ -551,5 +609,23 @@ sigma_deg = 0.0005
         let syntax = error_of("[design\n");
         assert_eq!(syntax.line, Some(1));
         assert!(error_of("[[effect]]\namplitude_deg = 1\n").message.contains("missing key 'kind'"));
+    }
+
+    #[test]
+    fn drift_shapes_parse_write_back_and_evaluate() {
+        let m =
+            Model::parse("[[effect]]\nkind = \"drift\"\nrate_deg_per_run = 0.002\nshape = \"step\"\n", "d").unwrap();
+        assert_eq!(m.effects, vec![Effect::Drift { rate_deg_per_run: 0.002, shape: DriftShape::Step }]);
+        assert!(m.to_toml().contains("shape = \"step\""));
+        assert_eq!(Model::parse(&m.to_toml(), "again").unwrap(), m);
+        // A step holds within a run and jumps between runs; a ramp grows within one.
+        assert_eq!(m.drift_deg(0.9), 0.0);
+        assert_eq!(m.drift_deg(2.5), 0.004);
+        let ramp = Model::parse("[[effect]]\nkind = \"drift\"\nrate_deg_per_run = 0.002\n", "d").unwrap();
+        assert!((ramp.drift_deg(2.5) - 0.005).abs() < 1e-15);
+        assert!(!ramp.to_toml().contains("shape"), "the default shape is not written");
+        let e =
+            Model::parse("[[effect]]\nkind = \"drift\"\nrate_deg_per_run = 0.1\nshape = \"saw\"\n", "d").unwrap_err();
+        assert!(e.to_string().contains("must be \"ramp\" or \"step\""), "{e}");
     }
 }

@@ -22,7 +22,7 @@ use survey_orchestrator::plan::SurveyPlan;
 use survey_orchestrator::record::MemorySink;
 use survey_processing::Sample;
 use survey_processing::geometry::AxisFit;
-use survey_processing::model::{Design, Effect, Model, PeriodicKind};
+use survey_processing::model::{Design, DriftShape, Effect, Model, PeriodicKind};
 use survey_processing::modelgap::{FoundEffect, ModelGap, ModelGapOptions, model_gap};
 use survey_processing::spectrum::{Phasor, fit_sinusoids};
 use survey_sims::SimBench;
@@ -147,7 +147,7 @@ async fn hidden_case(truth: &Model, hidden: &Effect, points: u32, runs: u32, see
         Effect::Backlash { amplitude_deg } => *amplitude_deg,
         // The simulator drifts per period of clock time; the data drift per
         // run by the rate times the run's measured duration over that period.
-        Effect::Drift { rate_deg_per_run } => rate_deg_per_run * g.survey.run_duration_s.unwrap() / a.period_s,
+        Effect::Drift { rate_deg_per_run, .. } => rate_deg_per_run * g.survey.run_duration_s.unwrap() / a.period_s,
         Effect::Noise { .. } => unreachable!(),
     };
     let f = assert_found(&g, hidden, value, sigma(truth, 0.05));
@@ -177,7 +177,7 @@ async fn engine_backlash() {
 
 #[tokio::test]
 async fn engine_drift_across_runs() {
-    let drift = Effect::Drift { rate_deg_per_run: 0.0003 };
+    let drift = Effect::Drift { rate_deg_per_run: 0.0003, shape: DriftShape::Ramp };
     let (g, _) = hidden_case(&fig8_like(vec![drift.clone()]), &drift, 90, 5, 23).await;
     // The engine's run takes about the plan's estimate.
     assert!(g.survey.run_duration_s.is_some());
@@ -224,7 +224,10 @@ async fn engine_a_periodic_error_that_matches_no_part_of_the_design() {
 /// Nothing missing: nothing named; the model is returned as given.
 #[tokio::test]
 async fn engine_control_names_nothing() {
-    let truth = fig8_like(vec![periodic(Eccentricity, 1.0, 0.0012, 110.0), Effect::Drift { rate_deg_per_run: 0.0002 }]);
+    let truth = fig8_like(vec![
+        periodic(Eccentricity, 1.0, 0.0012, 110.0),
+        Effect::Drift { rate_deg_per_run: 0.0002, shape: DriftShape::Ramp },
+    ]);
     for (points, runs, bidirectional, seed) in [(180, 3, true, 26), (120, 4, false, 27)] {
         let a = acquire(&truth, points, runs, bidirectional, seed, 0.05).await;
         let mut given = truth.clone();
@@ -232,7 +235,7 @@ async fn engine_control_names_nothing() {
         let g0 = model_gap(&a.samples, &truth, &ModelGapOptions::default()).unwrap();
         let scale = g0.survey.run_duration_s.unwrap() / a.period_s;
         for e in given.effects.iter_mut() {
-            if let Effect::Drift { rate_deg_per_run } = e {
+            if let Effect::Drift { rate_deg_per_run, .. } = e {
                 *rate_deg_per_run *= scale;
             }
         }

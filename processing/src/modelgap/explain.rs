@@ -4,7 +4,7 @@
 use super::views::{Ctx, Views};
 use super::{AdjustedEffect, FoundEffect, NoiseFloor, Significance};
 use crate::analysis::Analysis;
-use crate::model::{Effect, Model, PeriodicKind};
+use crate::model::{DriftShape, Effect, Model, PeriodicKind};
 
 /// A frequency or ratio: whole numbers without decimals.
 pub(crate) fn num(v: f64) -> String {
@@ -38,7 +38,7 @@ pub(crate) fn amplitude_phase(e: &Effect) -> (f64, Option<f64>) {
     match e {
         Effect::Periodic { amplitude_deg, phase_deg, .. } => (*amplitude_deg, Some(*phase_deg)),
         Effect::Backlash { amplitude_deg } => (*amplitude_deg, None),
-        Effect::Drift { rate_deg_per_run } => (*rate_deg_per_run, None),
+        Effect::Drift { rate_deg_per_run, .. } => (*rate_deg_per_run, None),
         Effect::Noise { sigma_deg } => (*sigma_deg, None),
     }
 }
@@ -130,10 +130,17 @@ pub(crate) fn finish(
                 amplitude_deg / 2.0,
                 amplitude_deg / 2.0
             ),
-            (Effect::Drift { rate_deg_per_run }, _) => format!(
-                "the error changes by {:+.3e} deg per run ({:+.3e} deg from the first run to the last of {runs}): a \
-                 thermal drift of the axis or of the reference; let both warm up before measuring, or measure the \
-                 drift and recalibrate more often",
+            (Effect::Drift { rate_deg_per_run, shape: DriftShape::Ramp }, _) => format!(
+                "the error changes by {:+.3e} deg per run ({:+.3e} deg from the first run to the last of {runs}), \
+                 steadily in time (a ramp): a thermal drift of the axis or of the reference; let both warm up before \
+                 measuring, or measure the drift and recalibrate more often",
+                rate_deg_per_run,
+                rate_deg_per_run * (runs.max(1) - 1) as f64
+            ),
+            (Effect::Drift { rate_deg_per_run, shape: DriftShape::Step }, _) => format!(
+                "the error jumps by {:+.3e} deg from one run to the next and holds within a run (a step; {:+.3e} deg \
+                 from the first run to the last of {runs}): the axis re-homed, or the reference was set up again, \
+                 between runs; keep the set-up between runs, or reference each run to a fixed target",
                 rate_deg_per_run,
                 rate_deg_per_run * (runs.max(1) - 1) as f64
             ),

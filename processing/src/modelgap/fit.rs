@@ -22,7 +22,7 @@ fn zeroed(e: &Effect) -> Effect {
             Effect::Periodic { kind: *kind, cycles_per_rev: *cycles_per_rev, amplitude_deg: 0.0, phase_deg: 0.0 }
         }
         Effect::Backlash { .. } => Effect::Backlash { amplitude_deg: 0.0 },
-        Effect::Drift { .. } => Effect::Drift { rate_deg_per_run: 0.0 },
+        Effect::Drift { shape, .. } => Effect::Drift { rate_deg_per_run: 0.0, shape: *shape },
         Effect::Noise { sigma_deg } => Effect::Noise { sigma_deg: *sigma_deg },
     }
 }
@@ -54,8 +54,8 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
                 columns.push((0..n).map(|j| survey.direction(j).sign() / 2.0).collect());
                 owner.push(k);
             }
-            Effect::Drift { .. } => {
-                columns.push(survey.tau.clone());
+            Effect::Drift { shape, .. } => {
+                columns.push(survey.tau.iter().map(|&t| shape.runs(t)).collect());
                 owner.push(k);
             }
             Effect::Noise { .. } => unreachable!("noise is never fitted"),
@@ -78,7 +78,7 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
                 standard_error.push(sigma * fit.unit_var[col].sqrt());
                 col += 1;
             }
-            Effect::Drift { rate_deg_per_run } => {
+            Effect::Drift { rate_deg_per_run, .. } => {
                 *rate_deg_per_run = fit.coef[col];
                 standard_error.push(sigma * fit.unit_var[col].sqrt());
                 col += 1;

@@ -121,7 +121,7 @@ pub use views::{AngleRange, AngleView, DirectionView, FrequencyView, GapLine, Ru
 
 use crate::analysis::{AnalysisError, AnalysisOptions, Method};
 use crate::errormap::{Coverage, ErrorMapError};
-use crate::model::{Effect, Model};
+use crate::model::{DriftShape, Effect, Model};
 use crate::types::Sample;
 use serde::Serialize;
 use stats::normal_two_sided_isf;
@@ -452,6 +452,28 @@ impl Gap<'_> {
         Ok(())
     }
 
+    /// Sum of squared residuals of the data against the model and offset.
+    fn rss(&self) -> f64 {
+        let p = self.ctx.survey.predict(&self.model);
+        self.ctx.survey.y.iter().zip(&p).map(|(y, p)| (y - p - self.offset).powi(2)).sum()
+    }
+
+    /// A drift just added as a ramp: fit it as a step too and keep the shape
+    /// that leaves the smaller residual. A ramp moves the error forward
+    /// against reverse within a run (their times differ); a step does not, so
+    /// step data fitted as a ramp would leave a false backlash for the next
+    /// step to "find".
+    fn choose_drift_shape(&mut self, index: usize) {
+        let ramp = (self.model.clone(), self.offset, self.se.clone(), self.rss());
+        if let Effect::Drift { shape, .. } = &mut self.model.effects[index] {
+            *shape = DriftShape::Step;
+        }
+        let better = self.refit().is_ok() && self.rss() < ramp.3;
+        if !better {
+            (self.model, self.offset, self.se) = (ramp.0, ramp.1, ramp.2);
+        }
+    }
+
     fn se_of(&self, index: usize) -> f64 {
         self.touched.iter().position(|&i| i == index).map_or(0.0, |k| self.se[k])
     }
@@ -464,7 +486,7 @@ impl Gap<'_> {
             Candidate::Drift => match find(|e| matches!(e, Effect::Drift { .. })) {
                 Some(i) => (Action::Adjusted, i, None),
                 None => {
-                    self.model.effects.push(Effect::Drift { rate_deg_per_run: 0.0 });
+                    self.model.effects.push(Effect::Drift { rate_deg_per_run: 0.0, shape: DriftShape::Ramp });
                     (Action::Added, self.model.effects.len() - 1, None)
                 }
             },
@@ -513,6 +535,9 @@ impl Gap<'_> {
             self.touched.pop();
             let _ = self.refit();
             return None;
+        }
+        if matches!(cand, Candidate::Drift) && action == Action::Added {
+            self.choose_drift_shape(index);
         }
         if let Effect::Backlash { amplitude_deg } = self.model.effects[index]
             && amplitude_deg < 0.0

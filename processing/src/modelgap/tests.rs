@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::analysis::testutil::Normal;
-use crate::model::{Effect, Model, PeriodicKind};
+use crate::model::{DriftShape, Effect, Model, PeriodicKind};
 use crate::types::{Direction, Sample};
 
 /// A survey simulated as the simulators make one: in acquisition order (each
@@ -124,7 +124,11 @@ fn the_contract_keys_serialise() {
 /// them, from the acquisition order; both give the same drift.
 #[test]
 fn the_time_axis_from_timestamps_and_from_the_order() {
-    let m = model(&[], &[], vec![Effect::Drift { rate_deg_per_run: 0.001 }, Effect::Noise { sigma_deg: 1e-5 }]);
+    let m = model(
+        &[],
+        &[],
+        vec![Effect::Drift { rate_deg_per_run: 0.001, shape: DriftShape::Ramp }, Effect::Noise { sigma_deg: 1e-5 }],
+    );
     let s = simulate(&m, &circle(36), 4, true, 0.0, 2);
     let with = survey::Survey::prepare(&s).unwrap();
     assert_eq!(with.timebase, Timebase::Timestamps);
@@ -154,7 +158,7 @@ fn the_noise_floor_leaves_out_repeatable_errors_offsets_and_drift() {
         vec![
             periodic(PeriodicKind::GearPass, 12.0, 0.01, 0.0),
             Effect::Backlash { amplitude_deg: 0.005 },
-            Effect::Drift { rate_deg_per_run: 0.002 },
+            Effect::Drift { rate_deg_per_run: 0.002, shape: DriftShape::Ramp },
             Effect::Noise { sigma_deg: sigma },
         ],
     );

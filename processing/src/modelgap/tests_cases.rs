@@ -25,7 +25,7 @@
 
 use super::tests::{circle, lacking, model, periodic, simulate};
 use super::*;
-use crate::model::{Effect, Model, PeriodicKind};
+use crate::model::{DriftShape, Effect, Model, PeriodicKind};
 use crate::spectrum::Phasor;
 use crate::types::{Direction, Sample};
 use PeriodicKind::{Eccentricity, GearPass, Harmonic, ToothMesh};
@@ -47,7 +47,7 @@ fn effect_peak_to_peak(e: &Effect, runs: u32) -> f64 {
     match e {
         Effect::Periodic { amplitude_deg, .. } => 2.0 * amplitude_deg,
         Effect::Backlash { amplitude_deg } => *amplitude_deg,
-        Effect::Drift { rate_deg_per_run } => rate_deg_per_run.abs() * runs as f64,
+        Effect::Drift { rate_deg_per_run, .. } => rate_deg_per_run.abs() * runs as f64,
         Effect::Noise { .. } => 0.0,
     }
 }
@@ -181,7 +181,7 @@ fn backlash_under_a_larger_gear_error() {
 
 #[test]
 fn drift_across_runs() {
-    let drift = Effect::Drift { rate_deg_per_run: 0.0003 };
+    let drift = Effect::Drift { rate_deg_per_run: 0.0003, shape: DriftShape::Ramp };
     let (g, _) = hidden_case(&fig8_like(vec![drift.clone()]), &drift, 180, 5, true, 13);
     let t = g.before.time.as_ref().unwrap();
     assert!(t.significant && t.test == TrendTest::NoiseFloor);
@@ -192,7 +192,7 @@ fn drift_across_runs() {
 /// its harmonics must not be named as lines; the drift is.
 #[test]
 fn drift_in_a_one_way_survey_is_drift_not_lines() {
-    let drift = Effect::Drift { rate_deg_per_run: -0.0005 };
+    let drift = Effect::Drift { rate_deg_per_run: -0.0005, shape: DriftShape::Ramp };
     let truth = model(
         &[20.0],
         &[],
@@ -313,7 +313,10 @@ fn a_partial_range_elevation_axis() {
 /// Nothing missing: nothing named, nothing adjusted, no step.
 #[test]
 fn control_nothing_missing_names_nothing() {
-    let truth = fig8_like(vec![periodic(Eccentricity, 1.0, 0.0012, 110.0), Effect::Drift { rate_deg_per_run: 0.0002 }]);
+    let truth = fig8_like(vec![
+        periodic(Eccentricity, 1.0, 0.0012, 110.0),
+        Effect::Drift { rate_deg_per_run: 0.0002, shape: DriftShape::Ramp },
+    ]);
     for (points, runs, bidirectional, seed) in [(360, 3, true, 17), (180, 5, false, 18), (720, 2, true, 19)] {
         let s = simulate(&truth, &circle(points), runs, bidirectional, 0.0002, seed);
         let g = model_gap(&s, &truth, &ModelGapOptions::default()).unwrap();
@@ -526,7 +529,10 @@ proptest! {
                 periodic(Harmonic, f, size * lim.periodic, phase)
             }
             Hidden::Backlash => Effect::Backlash { amplitude_deg: size * lim.backlash },
-            Hidden::Drift => Effect::Drift { rate_deg_per_run: if phase < 180.0 { size } else { -size } * lim.drift },
+            Hidden::Drift => Effect::Drift {
+                rate_deg_per_run: if phase < 180.0 { size } else { -size } * lim.drift,
+                shape: DriftShape::Ramp,
+            },
         };
         // Skip draws where the hidden frequency is not one thing: where it lands
         // on the bin of an effect the base model has (that is an adjustment), of
@@ -558,4 +564,33 @@ proptest! {
             prop_assert!(other.amplitude_deg.abs() < limit, "a false alarm above the detection limit: {:?}\n{}", other, text);
         }
     }
+}
+
+/// Runs offset from each other in steps (re-homing, a reference set up again
+/// each run): the drift is found as a step, fitted as one, and no backlash is
+/// named (a ramp would move forward against reverse within a run; a step does
+/// not). Cases of our own: two rates, two seeds, a bidirectional survey.
+#[test]
+fn a_step_drift_is_a_step_not_a_ramp_and_no_false_backlash() {
+    for (rate, seed) in [(0.0006, 21), (-0.0004, 22)] {
+        let step = Effect::Drift { rate_deg_per_run: rate, shape: DriftShape::Step };
+        let (g, _) = hidden_case(&fig8_like(vec![step.clone()]), &step, 180, 5, true, seed);
+        assert!(g.effects_added.iter().all(|e| e.kind != "backlash"), "{:?}", g.effects_added);
+        let drift = g
+            .model
+            .effects
+            .iter()
+            .find_map(|e| match *e {
+                Effect::Drift { rate_deg_per_run, shape } => Some((rate_deg_per_run, shape)),
+                _ => None,
+            })
+            .expect("a drift in the improved model");
+        assert_eq!(drift.1, DriftShape::Step, "rate {rate}");
+        assert!((drift.0 - rate).abs() < 0.1 * rate.abs(), "fitted {} against {rate}", drift.0);
+        assert!(g.model.to_toml().contains("shape = \"step\""));
+    }
+    // A ramp stays a ramp.
+    let ramp = Effect::Drift { rate_deg_per_run: 0.0005, shape: DriftShape::Ramp };
+    let (g, _) = hidden_case(&fig8_like(vec![ramp.clone()]), &ramp, 180, 5, true, 23);
+    assert!(g.model.effects.iter().any(|e| matches!(e, Effect::Drift { shape: DriftShape::Ramp, .. })));
 }

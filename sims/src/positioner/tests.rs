@@ -2,7 +2,7 @@ use super::*;
 use crate::presets::{Preset, without_noise};
 use survey_drivers::VirtualClock;
 use survey_drivers::clock::with_timeout;
-use survey_processing::model::Effect;
+use survey_processing::model::{DriftShape, Effect};
 
 fn sim(cfg: PositionerConfig) -> (VirtualClock, SimPositioner) {
     let clock = VirtualClock::new();
@@ -147,7 +147,7 @@ async fn velocity_changes_the_timing_and_bad_values_are_refused() {
 async fn drift_grows_by_the_rate_per_run_period() {
     let rate = 0.002;
     let mut model = without_noise(&fig8());
-    model.effects.push(Effect::Drift { rate_deg_per_run: rate });
+    model.effects.push(Effect::Drift { rate_deg_per_run: rate, shape: DriftShape::Ramp });
     let period = Duration::from_secs(600);
     let cfg = PositionerConfig { drift_run_period: Some(period), ..PositionerConfig::new(model.clone()) };
     let (clock, mut p) = sim(cfg);
