@@ -203,6 +203,8 @@ pub struct Engine {
     faults_survived: u32,
     faults_met: FaultCounts,
     stop: Stop,
+    /// The axis's travel limits, degrees: every commanded move is checked.
+    travel: Option<(f64, f64)>,
 }
 
 impl Engine {
@@ -218,6 +220,7 @@ impl Engine {
             faults_survived: 0,
             faults_met: FaultCounts::default(),
             stop: Stop::never(),
+            travel: None,
         }
     }
 
@@ -225,6 +228,42 @@ impl Engine {
     pub fn with_stop(mut self, stop: Stop) -> Self {
         self.stop = stop;
         self
+    }
+
+    /// Enforce travel limits (degrees): a plan whose targets, overrun
+    /// included, or locate points leave them is refused before the first
+    /// move, and every move the engine commands is checked against them.
+    pub fn with_travel(mut self, travel: Option<(f64, f64)>) -> Self {
+        self.travel = travel;
+        self
+    }
+
+    /// [`Engine::with_travel`] on an engine in place.
+    pub fn set_travel(&mut self, travel: Option<(f64, f64)>) {
+        self.travel = travel;
+    }
+
+    /// The plan's moves (targets with their overruns, and the locate points
+    /// when the axis is to be located) within the travel, or why not.
+    fn check_plan_travel(&self, plan: &SurveyPlan) -> Result<(), EngineError> {
+        let Some((lo, hi)) = self.travel else { return Ok(()) };
+        let first = plan.targets_deg.first().copied().unwrap_or(0.0) - plan.overrun_deg;
+        let last = plan.targets_deg.last().copied().unwrap_or(0.0) + plan.overrun_deg;
+        if first < lo || last > hi {
+            return Err(EngineError::Plan(format!(
+                "the plan moves from {first} to {last} deg (targets and overrun), outside the travel {lo}..{hi} deg: \
+                 refused before the first move"
+            )));
+        }
+        if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
+            let locate = locate_readouts(plan, self.timing.locate_points);
+            if let Some(bad) = locate.iter().find(|r| **r < lo || **r > hi) {
+                return Err(EngineError::Plan(format!(
+                    "locating the axis would move to {bad} deg, outside the travel {lo}..{hi} deg"
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// The stop request the engine obeys.
@@ -354,6 +393,7 @@ impl Engine {
         if let Reference::Autocollimator { faces, .. } = &self.reference {
             check_polygon_plan(plan, *faces)?;
         }
+        self.check_plan_travel(plan)?;
         let faults_before = self.faults_survived;
         let met_before = self.faults_met;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
@@ -488,6 +528,14 @@ impl Engine {
     }
 
     async fn try_move(&mut self, target: f64) -> Result<(), DriverError> {
+        if let Some((lo, hi)) = self.travel
+            && !(lo..=hi).contains(&target)
+        {
+            return Err(DriverError::usage(
+                self.positioner.name(),
+                format!("a move to {target} deg would leave the travel {lo}..{hi} deg: not commanded"),
+            ));
+        }
         let clock = self.clock.clone();
         let t = &self.timing;
         let name = self.positioner.name().to_string();

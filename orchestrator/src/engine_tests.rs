@@ -866,3 +866,22 @@ async fn a_stop_request_ends_the_survey_between_samples_and_stops_the_axis() {
     rig.engine.run(&plan, 6, &mut rest, &mut |_| {}).await.unwrap();
     assert_steps(&rest.samples, &plan, 6);
 }
+
+/// Travel limits from the configuration are the engine's own: a plan that
+/// would leave them (targets with their overrun, or the locate points) is
+/// refused before the first move, and a move outside them is never commanded.
+#[tokio::test]
+async fn travel_limits_are_enforced_by_the_engine_before_any_move() {
+    let preset = fig1();
+    let mut rig = tracker_rig(builder(&preset, 31, &new_clock()));
+    rig.engine.set_travel(Some((-10.0, 90.0)));
+    let mut sink = MemorySink::default();
+    let err = run_all(&mut rig, &plan12(), 0, &mut sink).await.unwrap_err();
+    assert!(matches!(&err, EngineError::Plan(m) if m.contains("outside the travel -10..90 deg")), "{err:?}");
+    assert!(!rig.calls().iter().any(|c| matches!(c, Call::MoveTo(_))), "no move was commanded: {:?}", rig.calls());
+    // A plan inside the travel runs.
+    let inside = SurveyPlan::within_travel(-10.0, 90.0, 6, 2, true).unwrap();
+    let mut sink = MemorySink::default();
+    run_all(&mut rig, &inside, 0, &mut sink).await.unwrap();
+    assert!(rig.calls().iter().all(|c| !matches!(c, Call::MoveTo(t) if !(-10.0..=90.0).contains(t))));
+}

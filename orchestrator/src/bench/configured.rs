@@ -82,7 +82,9 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
 
 /// The engine on the configured instruments.
 pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
-    let mut engine = Instruments::from_config(cfg).into_engine(clock, cfg);
+    let mut engine = Instruments::from_config(cfg)
+        .into_engine(clock, cfg)
+        .with_travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)));
     if let Some(arm) = &cfg.arm {
         engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
     }

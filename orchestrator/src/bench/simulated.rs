@@ -121,7 +121,8 @@ pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, c
             instrument: Box::new(bench.autocollimator),
         },
     };
-    Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
+    let travel = bench.positioner.config().travel;
+    Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone()).with_travel(travel)
 }
 
 /// The simulated bench of a stored survey, continued at step `next_seq`.
