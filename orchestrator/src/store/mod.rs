@@ -242,21 +242,51 @@ impl Store {
             Some(n) => options.pragma("max_page_count", n.to_string()),
             None => options,
         };
-        let pool = SqlitePoolOptions::new()
-            .max_connections(1)
-            .min_connections(0)
-            .connect_with(options)
-            .await
-            .map_err(|e| open_error(path, e))?;
-        migrator()
-            .run(&pool)
-            .await
-            .map_err(|e| match e {
+        // Two processes opening a new database at the same moment race to
+        // switch it to WAL (SQLite answers SQLITE_BUSY at once rather than
+        // wait, to avoid a deadlock) and to apply migration 1 (the loser's
+        // transaction fails with "table surveys already exists" and leaves
+        // nothing behind). Either way the loser opens again, and then finds
+        // the database set up; a few tries, a short pause between them.
+        const TRIES: u32 = 10;
+        let mut tries = 0;
+        loop {
+            tries += 1;
+            let e: sqlx::migrate::MigrateError = match SqlitePoolOptions::new()
+                .max_connections(1)
+                .min_connections(0)
+                .connect_with(options.clone())
+                .await
+            {
+                Ok(pool) => match migrator().run(&pool).await {
+                    Ok(()) => return Ok(Store { pool, path: path.to_path_buf(), immutable: false }),
+                    Err(e) => {
+                        pool.close().await;
+                        e
+                    }
+                },
+                Err(e) => sqlx::migrate::MigrateError::Execute(e),
+            };
+            let raced = match &e {
+                sqlx::migrate::MigrateError::Execute(inner)
+                | sqlx::migrate::MigrateError::ExecuteMigration(inner, _) => {
+                    inner.as_database_error().is_some_and(|d| d.message().contains("already exists"))
+                        || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
+                }
+                _ => false,
+            };
+            if raced && tries < TRIES {
+                tracing::debug!(path = %path.display(), tries, "another process is setting the database up; again");
+                tokio::time::sleep(Duration::from_millis(20 * u64::from(tries))).await;
+                continue;
+            }
+            return Err(match e {
                 sqlx::migrate::MigrateError::Execute(inner) => open_error(path, inner),
+                sqlx::migrate::MigrateError::ExecuteMigration(inner, _) => open_error(path, inner),
                 other => anyhow!(other),
             })
-            .with_context(|| format!("cannot set up the survey database {}", path.display()))?;
-        Ok(Store { pool, path: path.to_path_buf(), immutable: false })
+            .with_context(|| format!("cannot set up the survey database {}", path.display()));
+        }
     }
 
     /// The database file.
