@@ -108,7 +108,7 @@ pub async fn conclude(
     }
     let mut result = Ok(());
     if options.verify {
-        match crate::verify::verify(engine, store, &record, &samples, plan, &processed, options.acquire).await {
+        match crate::verify::verify(engine, store, &record, &samples, plan, &processed, options.acquire.clone()).await {
             Ok(v) => {
                 doc["verify"] = v.doc;
                 text += "\n";

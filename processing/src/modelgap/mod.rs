@@ -363,7 +363,7 @@ pub struct ModelGap {
 /// The model's systematic error at every sample, as model-gap simulates it
 /// (before the offset is fitted). Samples in acquisition order.
 pub fn simulated_errors(samples: &[Sample], model: &Model) -> Result<Vec<f64>, ModelGapError> {
-    Ok(Survey::prepare(samples)?.predict(model))
+    Ok(Survey::prepare_for(samples, model)?.predict(model))
 }
 
 /// What a candidate disagreement is.
@@ -670,7 +670,7 @@ impl Ctx<'_> {
 /// what the model lacks, and close the gap. See the module documentation.
 pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -> Result<ModelGap, ModelGapError> {
     validate(options)?;
-    let survey = Survey::prepare(samples)?;
+    let survey = Survey::prepare_for(samples, model)?;
     let runs = survey.runs();
     let spectral_alpha = if runs >= 2 { options.false_alarm_rate } else { options.false_alarm_rate / 2.0 };
     let analysis = AnalysisOptions {
