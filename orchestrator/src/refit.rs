@@ -32,10 +32,17 @@ pub struct AxisRefit {
     /// The once-per-revolution angle error the located centre carried, deg
     /// (`center_shift_mm / radius`): what the refit removed from the table.
     pub located_once_per_rev_deg: f64,
-    /// Standard error of the refitted centre, mm.
+    /// Standard error of the refitted centre in its worst-known direction, mm.
     pub center_se_mm: f64,
-    /// The once-per-revolution angle uncertainty left, deg (standard error).
+    /// The once-per-revolution angle uncertainty left, deg (standard error;
+    /// what the centre's uncertainty costs on a full circle).
     pub once_per_rev_se_deg: f64,
+    /// The arc the SMR positions cover, deg (360 on a full circle).
+    pub arc_deg: f64,
+    /// What the centre's uncertainty costs over the measured arc, deg
+    /// (standard error, its mean over the arc removed): how far the arc
+    /// allows the axis to be known.
+    pub over_arc_se_deg: f64,
 }
 
 /// The shift between two centres, in the plane of `fit`.
@@ -67,9 +74,10 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
     if points.len() < 3 {
         return Ok(None);
     }
-    let Refit { fit, dropped, center_se_mm, once_per_rev_se_deg } = refit_axis(&points, &readouts).map_err(|e| {
-        anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
-    })?;
+    let Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. } =
+        refit_axis(&points, &readouts).map_err(|e| {
+            anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
+        })?;
     let samples = recorded
         .iter()
         .map(|r| match &r.raw {
@@ -86,23 +94,33 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         located_once_per_rev_deg: (center_shift_mm / fit.radius_mm).to_degrees(),
         center_se_mm,
         once_per_rev_se_deg,
+        arc_deg,
+        over_arc_se_deg,
     };
     tracing::info!(survey = survey.id, ?refit, "axis fitted again from the survey's SMR positions");
     Ok(Some((samples, refit)))
 }
 
 impl AxisRefit {
-    /// One line for people.
+    /// Two lines for people.
     pub fn text(&self) -> String {
-        format!(
+        let mut s = format!(
             "axis fitted again from {} SMR positions ({} left out): the centre moved {:.4} mm, a once-per-revolution \
-             error of {:.6} deg removed; the centre is now known to {:.5} mm ({:.7} deg once per revolution, 1 sigma)\n",
+             error of {:.6} deg removed; the centre is now known to {:.5} mm ({:.2e} deg once per revolution, 1 sigma)\n",
             self.points,
             self.dropped,
             self.center_shift_mm,
             self.located_once_per_rev_deg,
             self.center_se_mm,
             self.once_per_rev_se_deg
-        )
+        );
+        if self.arc_deg < 359.0 {
+            s += &format!(
+                "the positions cover {:.1} deg of arc: over it the axis location costs {:.2e} deg (1 sigma), all this \
+                 arc allows\n",
+                self.arc_deg, self.over_arc_se_deg
+            );
+        }
+        s
     }
 }

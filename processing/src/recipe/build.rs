@@ -3,7 +3,7 @@
 
 use super::{ApplyError, ChoiceError, Decisions, Directional, Recipe};
 use crate::analysis::Analysis;
-use crate::correction::{CorrectionError, TableBuilder, build_partial_directional_table, build_partial_table};
+use crate::correction::{CorrectionError, TableBuilder, true_angle};
 use crate::errormap::{Coverage, Series};
 use crate::resample::{Complex64, PartialError, PartialMethod, Resampler, Series as Spectrum, Span, fit_partial};
 use crate::table::CorrectionTable;
@@ -173,11 +173,12 @@ impl Recipe {
                 let mut builder = TableBuilder::new(dense, rows);
                 let mut rs = Resampler::new();
                 let start = map.targets_deg[0];
+                let targets: Vec<f64> = (0..n).map(|j| start + 360.0 * j as f64 / n as f64).collect();
                 let cols = columns
                     .iter()
                     .map(|c| {
-                        let s = rotate(builder.edited_series(c, &decisions.edit)?, start);
-                        Ok(rs.synthesize(&s, rows))
+                        let edit = |m: &[f64]| Ok(rotate(builder.edited_series(m, &decisions.edit)?, start));
+                        true_angle::full_circle_column(c, &targets, edit, rows, &mut rs)
                     })
                     .collect::<Result<Vec<_>, CorrectionError>>()?;
                 (cols, TableMethod::Spectral { dense_points: dense })
@@ -208,11 +209,10 @@ impl Recipe {
                         }
                     }
                 };
-                let table = match columns.as_slice() {
-                    [f, r] => build_partial_directional_table(span, f, r, &fit, rows)?,
-                    _ => build_partial_table(span, single, &fit, rows)?,
-                };
-                let cols = std::iter::once(table.forward).chain(table.reverse).collect();
+                let cols = columns
+                    .iter()
+                    .map(|c| true_angle::partial_column(span, c, &fit, rows).map_err(CorrectionError::from))
+                    .collect::<Result<Vec<_>, CorrectionError>>()?;
                 (cols, TableMethod::Partial { fit })
             }
         };
