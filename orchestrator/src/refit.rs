@@ -12,11 +12,13 @@
 //! into the positioner. The survey's thousands of positions know the centre
 //! far better.
 
+use crate::engine::ReferenceKind;
 use crate::record::RawReading;
 use crate::store::Store;
-use crate::survey::SurveyRecord;
+use crate::survey::{Setup, SurveyRecord};
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit, refit_axis};
+use survey_processing::modelgap::ReferenceInfo;
 
 /// The refit and what it changed, for the output.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -122,5 +124,52 @@ impl AxisRefit {
             );
         }
         s
+    }
+}
+
+/// How well the axis located before the runs is known: the same fit from
+/// its dozen locate points alone, with their stated uncertainty (`None`
+/// without a located axis or its points).
+pub async fn located_axis_knowledge(store: &Store, survey: &SurveyRecord) -> anyhow::Result<Option<Refit>> {
+    if survey.axis.is_none() {
+        return Ok(None);
+    }
+    let locate = store.locate_points(survey.id).await?;
+    if locate.len() < 4 {
+        return Ok(None);
+    }
+    let points: Vec<[f64; 3]> = locate.iter().map(|(_, m)| m.xyz()).collect();
+    let readouts: Vec<f64> = locate.iter().map(|(r, _)| *r).collect();
+    Ok(refit_axis(&points, &readouts).ok())
+}
+
+/// What model-gap is told of the survey's reference: a tracker with the axis
+/// fitted again (`refit`) or located before the runs (`located`), an
+/// autocollimator, or unknown (an import).
+pub fn reference_info(survey: &SurveyRecord, refit: Option<&AxisRefit>, located: Option<&Refit>) -> ReferenceInfo {
+    if let Some(r) = refit {
+        return ReferenceInfo::Tracker {
+            radius_mm: r.radius_mm,
+            points: r.points,
+            axis_se_deg: r.over_arc_se_deg,
+            refitted: true,
+        };
+    }
+    if let Some(axis) = &survey.axis {
+        return ReferenceInfo::Tracker {
+            radius_mm: axis.radius_mm,
+            points: axis.points,
+            axis_se_deg: located.map_or(0.0, |l| l.over_arc_se_deg),
+            refitted: false,
+        };
+    }
+    let kind = match &survey.setup {
+        Setup::Simulated(s) => Some(s.reference),
+        Setup::Configured(c) => Some(c.config.reference()),
+        _ => None,
+    };
+    match kind {
+        Some(ReferenceKind::Autocollimator) => ReferenceInfo::Autocollimator,
+        _ => ReferenceInfo::Unknown,
     }
 }

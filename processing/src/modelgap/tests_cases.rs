@@ -446,26 +446,35 @@ fn false_alarms_are_rare() {
         ],
     );
     let surveys: u64 = std::env::var("MODELGAP_FALSE_ALARM_SURVEYS").ok().and_then(|v| v.parse().ok()).unwrap_or(100);
-    let count = |alpha: f64, offset: u64, surveys: u64| -> (usize, usize) {
+    let count = |alpha: f64, offset: u64, surveys: u64| -> (usize, usize, usize) {
         let o = ModelGapOptions { false_alarm_rate: alpha, ..ModelGapOptions::default() };
-        let (mut named, mut with) = (0, 0);
+        let (mut named, mut with, mut rejected) = (0, 0, 0);
         for seed in 0..surveys {
             let s = simulate(&truth, &circle(128), 3, true, 0.0, offset + seed);
             let g = model_gap(&s, &truth, &o).unwrap();
             let k = g.effects_added.len() + g.effects_adjusted.len();
             named += k;
             with += usize::from(k > 0);
+            rejected += usize::from(!g.verdict.explained);
         }
-        (named, with)
+        (named, with, rejected)
     };
-    let (named, with) = count(0.01, 10_000, surveys);
-    eprintln!("alpha 0.01: {named} effects named in {with} of {surveys} control surveys");
+    let (named, with, rejected) = count(0.01, 10_000, surveys);
+    eprintln!(
+        "alpha 0.01: {named} effects named in {with} of {surveys} control surveys; the verdict \"not explained\" in \
+         {rejected}"
+    );
     assert!(
         named as f64 <= 0.01 * surveys as f64 + 4.5 * (0.01 * surveys as f64).sqrt().max(1.0),
         "{named} in {surveys}"
     );
+    // The verdict's stated rate: at most alpha.
+    assert!(
+        rejected as f64 <= 0.01 * surveys as f64 + 4.5 * (0.01 * surveys as f64).sqrt().max(1.0),
+        "{rejected} in {surveys}"
+    );
     let few = surveys * 2 / 5;
-    let (named, with) = count(1.0, 90_000, few);
+    let (named, with, _) = count(1.0, 90_000, few);
     eprintln!("alpha 1: {named} effects named in {with} of {few} control surveys");
     assert!(named as f64 > few as f64 / 3.0 && (named as f64) < 1.5 * few as f64, "{named} in {few}");
 }
