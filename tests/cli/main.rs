@@ -20,6 +20,7 @@ mod modelgap;
 mod process;
 mod report;
 mod runs;
+mod tables;
 mod verify;
 
 use serde_json::Value;
