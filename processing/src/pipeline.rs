@@ -176,9 +176,6 @@ pub fn process_with(
     };
     let controllers = crate::export::controllers::build(&built.table, full_circle, measured, &samples, &recipe.export)
         .map_err(|e| if export.is_some() { PipelineError::Export(e) } else { recipe_error(e.into(), replay) })?;
-    for c in &controllers {
-        notes.extend(c.notes.iter().map(|n| format!("{}: {n}", c.controller.as_str())));
-    }
     Ok(Processed {
         analysis,
         recipe,

@@ -3,6 +3,7 @@
 use super::support::{emit, open_read_only};
 use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
+use crate::progress::{self, Progress};
 use crate::refit::refit_survey;
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
@@ -156,6 +157,7 @@ impl From<TableArgs> for ExportOverrides {
 }
 
 pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
+    let progress = Progress::spinner("loading the survey", progress::visible(args.json));
     let store = open_read_only(db).await?;
     let loaded = async {
         let survey = store.resolve(args.survey).await?;
@@ -177,7 +179,9 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         export: args.tables.into(),
     };
     let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
+    progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
     let outcome = process_survey(&survey, to_process, opts)?;
+    drop(progress);
     let out = match &refit {
         Some((_, r)) if args.json => {
             let mut doc = outcome.json();

@@ -225,7 +225,13 @@ pub fn text(o: &ProcessOutcome) -> String {
             let _ = writeln!(s, "\ninterpolation of the survey decimated by 2 (paper Figure 6), deg:");
             for m in scores {
                 let mark = if m.method == p.recipe.table.interpolation { " *" } else { "" };
-                let _ = writeln!(s, "  {:<10} rms {:.2e}  peak {:.2e}{mark}", m.method.as_str(), m.rms_deg, m.peak_deg);
+                let _ = writeln!(
+                    s,
+                    "  {:<10} rms {:.2e} deg  peak {:.2e} deg{mark}",
+                    m.method.as_str(),
+                    m.rms_deg,
+                    m.peak_deg
+                );
             }
         }
         Err(why) => {
@@ -245,7 +251,7 @@ pub fn text(o: &ProcessOutcome) -> String {
     let pr = &p.prediction;
     let _ = writeln!(
         s,
-        "predicted: native +/-{:.5} deg (ISO A {}) -> corrected +/-{:.5} deg (ISO A {}); RMS {:.5} -> {:.5}",
+        "predicted: native +/-{:.5} deg (ISO A {} deg) -> corrected +/-{:.5} deg (ISO A {} deg); RMS {:.5} deg -> {:.5} deg",
         pr.native_peak_deg,
         opt(pr.native.iso230_a_deg),
         pr.corrected_peak_deg,
@@ -272,6 +278,9 @@ pub fn text(o: &ProcessOutcome) -> String {
             if c.modulo { ", modulo 360" } else { "" },
             c.corrected_peak_deg.map_or_else(|| "-".to_string(), |v| format!("+/-{v:.5} deg")),
         );
+        for n in &c.notes {
+            let _ = writeln!(s, "  note: {n}");
+        }
         if c.controller == Controller::Fanuc {
             let params: Vec<String> = c.parameters.iter().map(|(n, v, _)| format!("{n}={v}")).collect();
             let _ = writeln!(s, "  parameters: {}", params.join(" "));
