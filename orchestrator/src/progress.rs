@@ -1,6 +1,7 @@
 //! Progress on stderr for the commands that can take more than a second on a
-//! large survey (`import`, `export`, `process`, `model-gap`, `report`; `run`
-//! and `resume` draw their own bar of targets in `session`). Drawn only when
+//! large survey (`import`, `export`, `process`, `model-gap`, `report`) or
+//! on an instrument that does not answer (`check`); `run` and `resume` draw
+//! their own bar of targets in `session`. Drawn only when
 //! stderr is a terminal and the command was not asked for `--json`, so
 //! scripts, pipes and tests see nothing; cleared when the work ends or fails.
 
