@@ -88,7 +88,8 @@ pub async fn conclude(
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let table_out = Some(default_table_path(db, id));
-    let processing = ProcessOptions { recipe: options.recipe.clone(), design: None, table_out };
+    let processing =
+        ProcessOptions { recipe: options.recipe.clone(), design: None, table_out, ..ProcessOptions::default() };
     // With a tracker, the table is made around the axis fitted from every SMR position.
     let refit = crate::refit::refit_survey(store, &record).await?;
     let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);

@@ -19,6 +19,7 @@ pub mod error;
 pub mod output;
 pub mod plan;
 pub mod process;
+pub mod progress;
 pub mod record;
 pub mod refit;
 pub mod report;

@@ -15,9 +15,11 @@ pub struct ReportArgs {
 }
 
 pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
+    let progress = crate::progress::Progress::spinner("writing the report", crate::progress::visible(false));
     let (survey, samples) = load_survey(db, args.survey).await?;
     let html = crate::report::html(&survey, &samples)?;
     let path = crate::report::write(&args.out, &html)?;
+    drop(progress);
     emit(&format!("{}\n", path.display()));
     Ok(())
 }

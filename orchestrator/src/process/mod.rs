@@ -10,9 +10,12 @@
 //! the predicted accuracy (native and corrected peak, ISO 230-2 `A`, the
 //! repeatability floor), the paper's Figure 6 interpolation comparison. Last,
 //! the files ([`outputs`]): the table CSV (`--table-out`, default
-//! `table-<id>.csv`), and beside it, named from its stem, the LinuxCNC
-//! `COMP_FILE`s `<stem>.comp0` and `<stem>.comp1`, the binary table
-//! `<stem>.bin` and the recipe used, `<stem>.recipe.toml`.
+//! `table-<id>.csv`), and beside it, named from its stem, the controller
+//! files the recipe's `[export]` asks for (with the command line's choices
+//! laid over it, [`overrides`]): LinuxCNC `<stem>.comp0` and `<stem>.comp1`,
+//! Siemens 840D `<stem>.840d.ini`, Fanuc `<stem>.fanuc.txt`, the generic
+//! `<stem>.generic.csv`; the binary table `<stem>.bin` and the recipe used,
+//! `<stem>.recipe.toml`.
 //!
 //! A failure writes nothing: every check and every computation comes first,
 //! the files are written to temporary names and renamed at the end. The
@@ -22,6 +25,7 @@
 //! and prints [`ProcessOutcome::text`] or embeds [`ProcessOutcome::json`].
 
 pub mod outputs;
+pub mod overrides;
 mod summary;
 
 use crate::survey::SurveyRecord;
@@ -29,7 +33,7 @@ use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use survey_processing::Sample;
 use survey_processing::model::{Design, Model};
-use survey_processing::pipeline::{Processed, Replay};
+use survey_processing::pipeline::{PipelineError, Processed, Replay};
 use survey_processing::recipe::Recipe;
 
 /// The database `survey` uses when `--db` is not given.
@@ -60,6 +64,8 @@ pub struct ProcessOptions {
     /// The table CSV (default `table-<id>.csv` in the current folder); the
     /// other files go beside it.
     pub table_out: Option<PathBuf>,
+    /// Export choices laid over the recipe's `[export]` (the command line's).
+    pub export: overrides::ExportOverrides,
 }
 
 /// Where the design came from.
@@ -136,8 +142,16 @@ pub fn process_survey(
         None => None,
     };
     let replay = recipe.as_ref().map(|(recipe, text, name)| Replay { recipe, text, name });
-    let processed = survey_processing::pipeline::process(samples, &design, replay)
-        .with_context(|| format!("survey {id} cannot be processed"))?;
+    let export = if opts.export.is_empty() {
+        None
+    } else {
+        let base = recipe.as_ref().map(|(r, _, _)| r.export.clone()).unwrap_or_default();
+        Some(opts.export.resolve(&base)?)
+    };
+    let processed = match survey_processing::pipeline::process_with(samples, &design, replay, export.as_ref()) {
+        Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
+        other => other.with_context(|| format!("survey {id} cannot be processed"))?,
+    };
     for n in &processed.notes {
         eprintln!("note: {n}");
     }
