@@ -222,6 +222,58 @@ mod tests {
     }
 
     #[test]
+    fn a_configured_survey_states_its_certificate_section_and_flags_override_it() {
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config/modbus-emscon.toml"))
+                .unwrap();
+        let config = crate::config::SurveyConfig::parse(&text, "modbus-emscon.toml").unwrap();
+        let setup = crate::survey::ConfiguredSetup {
+            config,
+            plan: crate::plan::SurveyPlan::full_circle(360, 5, true).unwrap(),
+        };
+        let columns = crate::survey::StoredColumns {
+            id: 4,
+            created_at: "t".into(),
+            updated_at: "t".into(),
+            status: "complete".into(),
+            source: "instruments".into(),
+            points: Some(360),
+            runs: Some(5),
+            bidirectional: true,
+            config_json: serde_json::to_string(&setup).unwrap(),
+            model_toml: None,
+            instruments_json:
+                r#"{"positioner": "modbus-tcp 192.168.1.40:502", "reference": "emscon 192.168.1.30:700"}"#.into(),
+            axis_json: None,
+            started_at_s: None,
+            ended_at_s: None,
+            planned_samples: None,
+            sample_count: 0,
+        };
+        let survey = SurveyRecord::parse(columns, "x.db").unwrap();
+        let cert = Certificate::of(&survey, &CertificateFlags::default());
+        let positioner = cert.positioner.as_ref().unwrap();
+        assert_eq!(
+            (positioner.value.as_str(), positioner.from),
+            ("ACME AZ-200 azimuth positioner, serial 1042", CONFIG)
+        );
+        assert_eq!(cert.reference_uncertainty_deg.as_ref().map(|u| u.value), Some(0.0005));
+        assert_eq!(cert.temperature_c.as_ref().map(|t| t.value), Some(20.3));
+        let flags = CertificateFlags { operator: Some("K. Lee".into()), ..CertificateFlags::default() };
+        let cert = Certificate::of(&survey, &flags);
+        assert_eq!(cert.operator.as_ref().unwrap().value, "K. Lee");
+        assert_eq!(cert.positioner_name(&survey), "ACME AZ-200 azimuth positioner, serial 1042");
+        // Without a [certificate]: the configured instruments, as described.
+        let mut bare = survey.clone();
+        if let Setup::Configured(c) = &mut bare.setup {
+            c.config.certificate = None;
+        }
+        let cert = Certificate::of(&bare, &CertificateFlags::default());
+        assert_eq!(cert.reference.unwrap().value, "emscon 192.168.1.30:700");
+        assert_eq!(cert.reference_uncertainty_deg, None);
+    }
+
+    #[test]
     fn a_flag_wins_over_the_configuration_which_wins_over_the_bench() {
         let flag = Some("A".to_string());
         assert_eq!(pick(&flag, Some(&"B".to_string()), Some("C".into())).unwrap().from, FLAG);
