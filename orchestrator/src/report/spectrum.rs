@@ -8,7 +8,7 @@ use super::plot::{self, BLUE, GREY, INK, ORANGE, PURPLE, VERMILLION, WIDTH, axes
 use super::units::Units;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use survey_processing::analysis::Line;
+use survey_processing::analysis::{Line, Method};
 use survey_processing::pipeline::Processed;
 use survey_processing::recipe::{AliasOutcome, LineAction};
 
@@ -130,7 +130,7 @@ pub fn x_max(stems_at: impl IntoIterator<Item = f64>) -> f64 {
         return 10.0;
     }
     let tick = nice_ceil(top / 10.0);
-    ((top * 1.06 + tick * 0.5) / tick).ceil() * tick
+    ((top * 1.04 + tick * 0.2) / tick).ceil() * tick
 }
 
 /// Labels at least `gap` pixels apart and inside `left..=right`, each as
@@ -155,7 +155,7 @@ fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
     let mut stems = stems(p);
     stems.sort_by(|x, y| x.cycles.total_cmp(&y.cycles));
     let right = x_max(stems.iter().map(|s| s.cycles));
-    let nyquist = a.spectra.as_ref().map(|_| a.points_per_rev / 2.0);
+    let nyquist = (a.method == Method::Dft).then_some(a.points_per_rev / 2.0);
     let bins: Vec<(f64, f64)> = a
         .spectra
         .as_ref()
@@ -262,14 +262,18 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         entries.push((hex(PURPLE), Key::Dashed, "the same, where it belongs (relocated)".to_string()));
         entries.push((hex(GREY), Key::Dashed, "where it belongs (nulled: not in the table)".to_string()));
     }
-    let method = match a.spectra {
-        Some(_) => format!(
+    let method = match (a.method, &a.spectra) {
+        (Method::Dft, _) => format!(
             "the DFT of the mean error over the runs ({} points per revolution; shaded: above half of it, where a \
              line is only seen as an alias)",
             num(a.points_per_rev)
         ),
-        None => "a least-squares fit of sinusoids at the design's frequencies (a partial range has no periodic \
-                 spectrum)"
+        (Method::LeastSquares, Some(_)) => "the lines from a least-squares fit of sinusoids at the design's \
+             frequencies (a partial range is not periodic); grey: the windowed DFT of the measured span, whose bins \
+             are 360/span apart and leak into their neighbours"
+            .to_string(),
+        (Method::LeastSquares, None) => "the lines from a least-squares fit of sinusoids at the design's \
+             frequencies (a partial range is not periodic)"
             .to_string(),
     };
     let caption = format!(
