@@ -5,7 +5,6 @@
 
 use crate::engine::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
-use crate::plan::SurveyPlan;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
 use crate::stop::{Stop, Stopped};
@@ -20,8 +19,9 @@ use survey_processing::iso230::iso230_2;
 pub struct ConcludeOptions {
     /// Replay this recipe in the processing.
     pub recipe: Option<PathBuf>,
-    /// Verify the table in the loop.
-    pub verify: bool,
+    /// Verify the table in the loop, measuring this plan (see
+    /// [`crate::verify::VerifyPlan`]).
+    pub verify: Option<crate::verify::VerifyPlan>,
     /// How the verification's acquisition shows itself.
     pub acquire: AcquireOptions,
     /// A stop request (a signal) ends the conclusion between its phases.
@@ -45,7 +45,6 @@ pub async fn conclude(
     store: &Store,
     id: i64,
     engine: &mut Engine,
-    plan: &SurveyPlan,
     acquired: &Acquired,
     db: &Path,
     options: ConcludeOptions,
@@ -108,8 +107,8 @@ pub async fn conclude(
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let mut result = Ok(());
-    if options.verify {
-        match crate::verify::verify(engine, store, &record, &samples, plan, &processed, options.acquire).await {
+    if let Some(verify_plan) = &options.verify {
+        match crate::verify::verify(engine, store, &record, &samples, verify_plan, &processed, options.acquire).await {
             Ok(v) => {
                 doc["verify"] = v.doc;
                 text += "\n";

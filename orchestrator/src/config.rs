@@ -54,6 +54,29 @@ pub struct SurveyConfig {
     pub polygon: Option<PolygonSection>,
     #[serde(default)]
     pub timing: TimingSection,
+    /// What the report's header states (`survey report` flags override it).
+    #[serde(default)]
+    pub certificate: Option<CertificateSection>,
+}
+
+/// `[certificate]`: what a calibration certificate states that no instrument
+/// reports. Every key optional; stored with the survey, shown in the report's
+/// header (the flags of `survey report` override each).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CertificateSection {
+    /// The positioner calibrated: make, model, serial number.
+    pub positioner: Option<String>,
+    /// The reference instrument: make, model, serial number, its calibration.
+    pub reference: Option<String>,
+    /// The reference's stated standard uncertainty of one angle, degrees.
+    pub reference_uncertainty_deg: Option<f64>,
+    /// Who measured.
+    pub operator: Option<String>,
+    /// For whom.
+    pub customer: Option<String>,
+    /// The air temperature during the survey, degrees Celsius.
+    pub temperature_c: Option<f64>,
 }
 
 /// `[survey]`: the plan; command-line flags override these.
@@ -416,6 +439,14 @@ impl SurveyConfig {
         {
             return Err(format!("timing.locate_points = {n} is outside 3..=10000 (a circle needs 3 points)"));
         }
+        if let Some(c) = &self.certificate {
+            if let Some(u) = c.reference_uncertainty_deg {
+                within("certificate.reference_uncertainty_deg", u, Range::Above(0.0), 1.0, "deg")?;
+            }
+            if let Some(t) = c.temperature_c {
+                within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
+            }
+        }
         if let Some(arm) = &self.arm {
             within("arm.radius_mm", arm.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
             within("arm.radius_tolerance_mm", arm.radius_tolerance_mm, Range::Above(0.0), arm.radius_mm, "mm")?;
@@ -547,6 +578,8 @@ mod tests {
             ("[survey]\noverrun_deg = 45.0\n", "survey.overrun_deg = 45 is outside"),
             ("[survey]\ntravel_deg = [-1e9, 90.0]\n", "survey.travel_deg[0]"),
             ("[arm]\nradius_mm = 500.0\nradius_tolerance_mm = 600.0\n", "arm.radius_tolerance_mm"),
+            ("[certificate]\ntemperature_c = 293.15\n", "certificate.temperature_c = 293.15 is outside"),
+            ("[certificate]\nreference_uncertainty_deg = 0\n", "certificate.reference_uncertainty_deg = 0 is outside"),
         ] {
             let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
             assert!(e.starts_with("c.toml: ") && e.contains(key), "{extra}: {e}");

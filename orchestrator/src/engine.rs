@@ -314,6 +314,14 @@ impl Engine {
         self.reference.name()
     }
 
+    /// Which kind of reference measures the actual angle.
+    pub fn reference_kind(&self) -> ReferenceKind {
+        match self.reference {
+            Reference::Tracker(_) => ReferenceKind::Tracker,
+            Reference::Autocollimator { .. } => ReferenceKind::Autocollimator,
+        }
+    }
+
     pub fn positioner_mut(&mut self) -> &mut dyn Positioner {
         self.positioner.as_mut()
     }

@@ -105,7 +105,7 @@ mod decide;
 mod tests;
 
 pub use build::{BuiltTable, Hysteresis, TableMethod, hysteresis};
-pub use decide::{AliasDecision, Decisions, LineAction, LineDecision};
+pub use decide::{AliasDecision, AliasOutcome, Decisions, LineAction, LineDecision};
 
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};

@@ -10,6 +10,7 @@ use crate::output::human;
 use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;
 use crate::store::Store;
+use crate::verify::VerifyPlan;
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 
@@ -65,9 +66,16 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub recipe: Option<PathBuf>,
     /// After processing, load the table into the positioner, apply it in the
-    /// feedback path and measure the corrected accuracy with a new survey.
+    /// feedback path and measure the corrected accuracy with a new survey,
+    /// half a step from the calibration targets (between them, where the table
+    /// interpolates).
     #[arg(long)]
     pub verify: bool,
+    /// With --verify: measure at N targets evenly over the span, offset by half
+    /// their own step (none may fall on a calibration target) [default: one
+    /// between each pair of calibration targets].
+    #[arg(long, value_name = "N", requires = "verify")]
+    pub verify_points: Option<u32>,
     /// Fault injection for tests: the process aborts (like a power loss)
     /// once N samples have been measured on the simulated bench.
     #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]
@@ -102,6 +110,11 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             seed: args.seed,
         })?,
     };
+    // A verification that cannot be measured is refused before the survey.
+    let verify = match args.verify {
+        true => Some(VerifyPlan::new(&bench.plan, bench.engine.reference_kind(), args.verify_points)?),
+        false => None,
+    };
     // From here on a signal stops the survey cleanly instead of killing the process.
     let stop = Stop::on_signals();
     bench.engine.set_stop(stop.clone());
@@ -124,8 +137,8 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     let options =
         AcquireOptions { progress: !args.json, crash_after: args.sim_crash_after, signal_after: args.sim_signal_after };
     let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options).await;
-    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify: args.verify, acquire: options, stop };
-    let done = conclude_and_print(store, id, &mut bench.engine, &plan, acquired, (finish, db, args.json)).await;
+    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify, acquire: options, stop };
+    let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done
 }

@@ -2,7 +2,6 @@
 
 use crate::conclude::{ConcludeOptions, conclude};
 use crate::engine::Engine;
-use crate::plan::SurveyPlan;
 use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
 use crate::survey::SurveyRecord;
@@ -64,7 +63,6 @@ pub async fn conclude_and_print(
     store: Store,
     id: i64,
     engine: &mut Engine,
-    plan: &SurveyPlan,
     acquired: anyhow::Result<Acquired>,
     finish: (ConcludeOptions, &Path, bool),
 ) -> anyhow::Result<()> {
@@ -79,7 +77,7 @@ pub async fn conclude_and_print(
             return Err(e);
         }
     };
-    let concluded = conclude(&store, id, engine, plan, &acquired, db, options).await;
+    let concluded = conclude(&store, id, engine, &acquired, db, options).await;
     store.close().await;
     let concluded = concluded?;
     emit(&concluded.output.render(json));

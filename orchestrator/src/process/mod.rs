@@ -119,6 +119,22 @@ pub fn process_survey(
     opts: ProcessOptions,
 ) -> anyhow::Result<ProcessOutcome> {
     let id = survey.id;
+    let (processed, design) = compute(survey, samples, &opts)?;
+    let table_out = opts.table_out.clone().unwrap_or_else(|| default_table_path(Path::new(DEFAULT_DB), id));
+    let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
+    outputs::write_all(&paths, &processed, id)?;
+    Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths })
+}
+
+/// The processing of `samples` of `survey` without writing anything: the
+/// design and the recipe of `opts` resolved as [`process_survey`] resolves
+/// them, then the pure pipeline (what `survey report` shows).
+pub fn compute(
+    survey: &SurveyRecord,
+    samples: &[Sample],
+    opts: &ProcessOptions,
+) -> anyhow::Result<(Processed, DesignSource)> {
+    let id = survey.id;
     let (design, design_source) = match &opts.design {
         Some(path) => (Model::from_file(path)?.design, format!("--design {}", path.display())),
         None => match &survey.model {
@@ -155,14 +171,11 @@ pub fn process_survey(
     for n in &processed.notes {
         eprintln!("note: {n}");
     }
-    let table_out = opts.table_out.clone().unwrap_or_else(|| default_table_path(Path::new(DEFAULT_DB), id));
-    let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
-    outputs::write_all(&paths, &processed, id)?;
     let design = DesignSource {
         from: design_source,
         gear_ratios: design.gear_ratios.clone(),
         tooth_counts: design.tooth_counts.clone(),
         encoder_heads: design.encoder_heads,
     };
-    Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths })
+    Ok((processed, design))
 }
