@@ -170,3 +170,7 @@ impl Engine {
         why
     }
 }
+
+#[cfg(test)]
+#[path = "suspend_tests.rs"]
+mod tests;
