@@ -5,7 +5,8 @@
 //! moves; a survey of hours then mixes the positioner's error with its
 //! drift. With `[drift_control] every_steps = K` the engine goes to the
 //! reference target (`reference_deg`, approached forward, like the first pass)
-//! before step 0 and before every K-th step, and measures the pair there as
+//! before step 0, before every K-th step and after the last step of a pass
+//! (so every sample lies between two), and measures the pair there as
 //! at any target. The reference's readout error `e_ref(t) = readout - actual`
 //! changes only by the drift (the target, the approach and so the systematic
 //! error are the same every time), so `drift(t) = e_ref(t) - e_ref(t0)`,

@@ -497,6 +497,8 @@ impl Engine {
                 instrument_time: self.clock.now(),
             });
         }
+        // Drift control closes the pass with a last reference measurement.
+        self.drift_closing(total, from_seq, plan.overrun_deg, sink).await?;
         outcome.faults_survived = self.faults_survived - faults_before;
         outcome.faults_met = self.faults_met.since(&met_before);
         outcome.instrument_time = self.clock.now();

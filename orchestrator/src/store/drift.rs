@@ -56,3 +56,70 @@ impl Store {
         Ok(drift_points(&self.drift_measurements(id).await?))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::{MIGRATIONS, Store};
+    use crate::drift::DriftMeasurement;
+    use sqlx::migrate::{Migration, MigrationType, Migrator};
+    use sqlx::sqlite::{SqliteConnectOptions, SqlitePoolOptions};
+    use sqlx::{Row, SqlSafeStr};
+    use std::borrow::Cow;
+
+    /// A database of the first schema, as the previous version wrote it, with one survey.
+    async fn schema_1_database(path: &std::path::Path) {
+        let options = SqliteConnectOptions::new().filename(path).create_if_missing(true);
+        let pool = SqlitePoolOptions::new().max_connections(1).connect_with(options).await.unwrap();
+        let (version, description, sql) = MIGRATIONS[0];
+        let first =
+            Migration::new(version, Cow::Borrowed(description), MigrationType::Simple, sql.into_sql_str(), false);
+        Migrator::with_migrations(vec![first]).run(&pool).await.unwrap();
+        sqlx::query("INSERT INTO surveys (status, source) VALUES ('interrupted', 'simulated')")
+            .execute(&pool)
+            .await
+            .unwrap();
+        pool.close().await;
+    }
+
+    #[tokio::test]
+    async fn a_database_of_schema_1_opens_upgraded_with_its_surveys_and_stores_drift() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.db");
+        schema_1_database(&path).await;
+        // Read-only commands say it needs an upgrade, and leave it as it is.
+        let e = Store::open_read_only(&path).await.unwrap_err();
+        assert!(format!("{e:#}").contains("older schema (1; this version reads 2)"), "{e:#}");
+        // A command that writes upgrades it; the survey is still there.
+        let store = Store::open(&path).await.unwrap();
+        let versions: Vec<i64> = sqlx::query("SELECT version FROM _sqlx_migrations ORDER BY version")
+            .fetch_all(&store.pool)
+            .await
+            .unwrap()
+            .iter()
+            .map(|r| r.get(0))
+            .collect();
+        assert_eq!(versions, [1, 2]);
+        assert_eq!(store.survey(1).await.unwrap().id, 1);
+        assert!(store.drift_points(1).await.unwrap().is_empty());
+        let m = |seq, at_s, actual_deg| DriftMeasurement {
+            before_seq: seq,
+            at_s,
+            reference_deg: 0.0,
+            readout_deg: 0.0,
+            actual_deg,
+        };
+        store.add_drift_measurement(1, &m(0, 10.0, -0.001)).await.unwrap();
+        store.add_drift_measurement(1, &m(6, 70.0, -0.004)).await.unwrap();
+        assert_eq!(store.drift_measurements(1).await.unwrap(), [m(0, 10.0, -0.001), m(6, 70.0, -0.004)]);
+        let points = store.drift_points(1).await.unwrap();
+        assert_eq!(points.len(), 2);
+        assert!((points[1].drift_deg - 0.003).abs() < 1e-15 && points[1].at_s == 70.0);
+        // A drift point of a survey that does not exist is refused.
+        assert!(store.add_drift_measurement(9, &m(0, 1.0, 0.0)).await.is_err());
+        store.close().await;
+        // Now read-only commands read it.
+        let reader = Store::open_read_only(&path).await.unwrap();
+        assert_eq!(reader.drift_points(1).await.unwrap(), points);
+        reader.close().await;
+    }
+}
