@@ -50,7 +50,8 @@ pub async fn conclude(
     options: ConcludeOptions,
 ) -> anyhow::Result<Concluded> {
     let record = store.survey(id).await?;
-    let samples = store.samples(id).await?;
+    let drift = store.drift_points(id).await?;
+    let samples = crate::drift::for_analysis(&record, store.samples(id).await?, &drift);
     let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;
     let outcome = &acquired.outcome;
     let mut doc = iso_json(id, &iso);
@@ -59,14 +60,24 @@ pub async fn conclude(
     doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
     doc["faults_survived"] = outcome.faults_survived.into();
-    // What the engine met and survived. `injected` is what a simulator injected
-    // where that is known to this process; a separate `survey sim` prints its own.
+    // What the engine met and survived. `injected` is what the simulators
+    // injected where they run in this process (null on other instruments; a
+    // separate `survey sim` prints its own counts when it stops).
+    let injected = engine.injected().map(|i| {
+        let by_kind: serde_json::Map<String, serde_json::Value> =
+            i.by_kind().into_iter().map(|(k, n)| (k.to_string(), n.into())).collect();
+        (i.total(), by_kind)
+    });
     doc["faults"] = serde_json::json!({
-        "injected": null,
+        "injected": injected.as_ref().map(|(n, _)| *n),
+        "injected_by_kind": injected.map(|(_, k)| k),
         "met": outcome.faults_met.total(),
         "recovered": outcome.faults_survived,
         "by_kind": outcome.faults_met,
     });
+    if !drift.is_empty() {
+        doc["drift"] = crate::drift::json(&record, &drift);
+    }
     doc["db"] = db.display().to_string().into();
     let mut text = format!(
         "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}\n",
@@ -90,7 +101,9 @@ pub async fn conclude(
     let processing =
         ProcessOptions { recipe: options.recipe.clone(), design: None, table_out, ..ProcessOptions::default() };
     // With a tracker, the table is made around the axis fitted from every SMR position.
-    let refit = crate::refit::refit_survey(store, &record).await?;
+    let refit = crate::refit::refit_survey(store, &record)
+        .await?
+        .map(|(s, r)| (crate::drift::for_analysis(&record, s, &drift), r));
     let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
     let processed = match process_survey(&record, to_process, processing) {
         Ok(p) => p,

@@ -57,6 +57,9 @@ pub struct SurveyConfig {
     /// What the report's header states (`survey report` flags override it).
     #[serde(default)]
     pub certificate: Option<CertificateSection>,
+    /// Drift control: a reference target re-measured every K steps (off by default).
+    #[serde(default)]
+    pub drift_control: Option<crate::drift::DriftControl>,
 }
 
 /// `[certificate]`: what a calibration certificate states that no instrument
@@ -302,6 +305,10 @@ pub struct TimingSection {
     pub locate_points: Option<u32>,
     pub velocity_deg_s: Option<f64>,
     pub accel_deg_s2: Option<f64>,
+    /// How long a survey suspended on a lost beam waits for it, s.
+    pub beam_wait_s: Option<f64>,
+    /// Wait between attempts to re-acquire a lost beam, s.
+    pub beam_retry_s: Option<f64>,
 }
 
 fn one() -> u32 {
@@ -424,6 +431,8 @@ impl SurveyConfig {
             ("retry_backoff_s", t.retry_backoff_s, Range::From(0.0), 3600.0, "s"),
             ("velocity_deg_s", t.velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
             ("accel_deg_s2", t.accel_deg_s2, Range::Above(0.0), 1.0e6, "deg/s^2"),
+            ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
+            ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
         ] {
             if let Some(v) = value {
                 within(&format!("timing.{key}"), v, range, max, unit)?;
@@ -473,6 +482,17 @@ impl SurveyConfig {
         if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
             within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
         }
+        if let Some(d) = &self.drift_control {
+            d.check()?;
+            if let Some([lo, hi]) = self.survey.travel_deg
+                && !(lo..=hi).contains(&d.reference_deg)
+            {
+                return Err(format!(
+                    "drift_control.reference_deg = {} is outside the travel {lo}..{hi} deg",
+                    d.reference_deg
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -492,6 +512,8 @@ impl SurveyConfig {
             locate_points: t.locate_points.unwrap_or(d.locate_points),
             velocity_deg_s: t.velocity_deg_s.unwrap_or(d.velocity_deg_s),
             accel_deg_s2: t.accel_deg_s2.unwrap_or(d.accel_deg_s2),
+            beam_wait: secs(t.beam_wait_s, d.beam_wait),
+            beam_retry: secs(t.beam_retry_s, d.beam_retry),
         }
     }
 }

@@ -14,6 +14,7 @@ pub mod cli;
 pub mod conclude;
 pub mod config;
 pub mod csvio;
+pub mod drift;
 pub mod engine;
 pub mod error;
 pub mod output;

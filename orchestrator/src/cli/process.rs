@@ -166,6 +166,10 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
             Some(_) => Vec::new(),
             None => store.samples(survey.id).await?,
         };
+        // Corrected for the drift when the survey asked for it.
+        let drift = store.drift_points(survey.id).await?;
+        let samples = crate::drift::for_analysis(&survey, samples, &drift);
+        let refit = refit.map(|(s, r)| (crate::drift::for_analysis(&survey, s, &drift), r));
         anyhow::Ok((survey, samples, refit))
     }
     .await;

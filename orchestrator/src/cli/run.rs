@@ -45,7 +45,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "R")]
     pub runs: Option<u32>,
     /// Survey real instruments described in this configuration file (TOML).
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["model", "preset", "reference", "seed"])]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["model", "preset", "reference", "seed", "fault_rates"])]
     pub config: Option<PathBuf>,
     /// Positioner model file (TOML) for the simulated positioner, instead of the preset's.
     #[arg(long, value_name = "FILE")]
@@ -59,6 +59,11 @@ pub struct RunArgs {
     /// Seed of every random draw of the simulated instruments.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Faults the simulated instruments inject, per kind: `kind=rate,...`
+    /// (timeout, garbled, disconnect, device, move, beam; beam_hold_s=S).
+    /// A stall needs a wire: `survey sim --fault-rates`.
+    #[arg(long, value_name = "SPEC")]
+    pub fault_rates: Option<String>,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -108,6 +113,14 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             model_file: args.model.clone(),
             reference: args.reference.into(),
             seed: args.seed,
+            faults: match &args.fault_rates {
+                Some(spec) => Some(
+                    survey_sims::faults::FaultRates::default()
+                        .parse_over(spec)
+                        .map_err(|e| crate::error::bad_input(format!("--fault-rates: {e}")))?,
+                ),
+                None => None,
+            },
         })?,
     };
     // A verification that cannot be measured is refused before the survey.

@@ -55,6 +55,26 @@ pub async fn load_survey(db: &Path, id: Option<i64>) -> anyhow::Result<(SurveyRe
     loaded
 }
 
+/// [`load_survey`] for the statistics and the processing: the samples
+/// corrected for the drift when the survey asked for it ([`crate::drift`]),
+/// and the drift points.
+pub async fn load_survey_for_analysis(
+    db: &Path,
+    id: Option<i64>,
+) -> anyhow::Result<(SurveyRecord, Vec<Sample>, Vec<crate::drift::DriftPoint>)> {
+    let store = open_read_only(db).await?;
+    let loaded = async {
+        let survey = store.resolve(id).await?;
+        let samples = store.samples(survey.id).await?;
+        let points = store.drift_points(survey.id).await?;
+        let samples = crate::drift::for_analysis(&survey, samples, &points);
+        anyhow::Ok((survey, samples, points))
+    }
+    .await;
+    store.close().await;
+    loaded
+}
+
 /// What `run` and `resume` do after acquiring (or failing to): on a stopped
 /// or failed acquisition, print the `--json` document of what is stored and
 /// return the error; else the statistics, processing and verification, then
