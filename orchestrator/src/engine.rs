@@ -89,6 +89,13 @@ pub struct Timing {
     /// Axis velocity and acceleration used to predict move times, deg/s and deg/s².
     pub velocity_deg_s: f64,
     pub accel_deg_s2: f64,
+    /// How long a survey suspended on a lost beam waits for it (see
+    /// [`suspend`]) before it ends interrupted.
+    #[serde(default = "suspend::default_beam_wait")]
+    pub beam_wait: Duration,
+    /// Wait between two attempts to re-acquire a lost beam.
+    #[serde(default = "suspend::default_beam_retry")]
+    pub beam_retry: Duration,
 }
 
 impl Default for Timing {
@@ -104,6 +111,8 @@ impl Default for Timing {
             locate_points: 12,
             velocity_deg_s: 10.0,
             accel_deg_s2: 20.0,
+            beam_wait: suspend::default_beam_wait(),
+            beam_retry: suspend::default_beam_retry(),
         }
     }
 }
@@ -126,6 +135,11 @@ pub enum EngineError {
     /// A stop was requested (a signal): the axis was stopped.
     #[error("{0}")]
     Stopped(#[from] Stopped),
+    /// The survey was suspended and could not go on (the beam stayed lost
+    /// past `beam_wait`, the axis met a limit or a fault it could not clear):
+    /// the axis holds or was stopped, and the survey is resumable.
+    #[error("{0}")]
+    Suspended(String),
 }
 
 /// Where the survey is, for progress displays.
@@ -205,6 +219,10 @@ pub struct Engine {
     stop: Stop,
     /// The axis's travel limits, degrees: every commanded move is checked.
     travel: Option<(f64, f64)>,
+    /// Drift control: the reference target re-measured every K steps.
+    drift: Option<crate::drift::DriftControl>,
+    /// What simulated instruments in this process injected, when they are.
+    injected: Option<survey_sims::faults::Injected>,
 }
 
 impl Engine {
@@ -221,7 +239,25 @@ impl Engine {
             faults_met: FaultCounts::default(),
             stop: Stop::never(),
             travel: None,
+            drift: None,
+            injected: None,
         }
+    }
+
+    /// The count of faults that in-process simulated instruments inject.
+    pub fn set_injected(&mut self, injected: Option<survey_sims::faults::Injected>) {
+        self.injected = injected;
+    }
+
+    /// What the in-process simulated instruments injected so far (`None` on
+    /// instruments this process does not simulate).
+    pub fn injected(&self) -> Option<&survey_sims::faults::Injected> {
+        self.injected.as_ref()
+    }
+
+    /// Re-measure the reference target every K steps ([`crate::drift`]).
+    pub fn set_drift_control(&mut self, drift: Option<crate::drift::DriftControl>) {
+        self.drift = drift;
     }
 
     /// Stop (between writes, see the module documentation) when `stop` fires.
@@ -255,6 +291,7 @@ impl Engine {
                  refused before the first move"
             )));
         }
+        self.check_drift_travel(lo, hi, plan.overrun_deg)?;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
             let locate = locate_readouts(plan, self.timing.locate_points);
             if let Some(bad) = locate.iter().find(|r| **r < lo || **r > hi) {
@@ -312,6 +349,14 @@ impl Engine {
 
     pub fn reference_name(&self) -> &str {
         self.reference.name()
+    }
+
+    /// Which kind of reference measures the actual angle.
+    pub fn reference_kind(&self) -> ReferenceKind {
+        match self.reference {
+            Reference::Tracker(_) => ReferenceKind::Tracker,
+            Reference::Autocollimator { .. } => ReferenceKind::Autocollimator,
+        }
     }
 
     pub fn positioner_mut(&mut self) -> &mut dyn Positioner {
@@ -428,12 +473,19 @@ impl Engine {
             let measured = tokio::select! {
                 biased;
                 why = stop.wait() => Err(why),
-                r = self.measure(step.target_deg, step.direction, plan.overrun_deg, sink) => Ok(r),
+                r = async {
+                    let drift = self.drift_reference(step.seq, from_seq, plan.overrun_deg, sink).await?;
+                    let pair = self.measure(step.target_deg, step.direction, plan.overrun_deg, sink).await?;
+                    Ok::<_, EngineError>((drift, pair))
+                } => Ok(r),
             };
-            let (readout, raw) = match measured {
+            let (drift, (readout, raw)) = match measured {
                 Ok(r) => r?,
                 Err(why) => return Err(self.halt(why).await),
             };
+            if let Some(m) = drift {
+                sink.drift_measured(&m).await.map_err(EngineError::Sink)?;
+            }
             let actual = self.actual_deg(step.target_deg, &raw)?;
             let sample = Sample {
                 run: step.run,
@@ -453,6 +505,8 @@ impl Engine {
                 instrument_time: self.clock.now(),
             });
         }
+        // Drift control closes the pass with a last reference measurement.
+        self.drift_closing(total, from_seq, plan.overrun_deg, sink).await?;
         outcome.faults_survived = self.faults_survived - faults_before;
         outcome.faults_met = self.faults_met.since(&met_before);
         outcome.instrument_time = self.clock.now();
@@ -520,8 +574,15 @@ impl Engine {
                     return Ok(());
                 }
                 Err(e) => {
+                    if suspend::is_limit(&e) {
+                        return Err(self.stop_axis(e, &format!("move to {target} deg"), sink).await);
+                    }
                     attempt += 1;
-                    self.survive(e, Failed::Positioner, attempt, &format!("move to {target} deg"), sink).await?;
+                    if let Err(gave_up) =
+                        self.survive(e, Failed::Positioner, attempt, &format!("move to {target} deg"), sink).await
+                    {
+                        return Err(self.stop_axis_after(gave_up).await);
+                    }
                 }
             }
         }
@@ -559,11 +620,7 @@ impl Engine {
                 // A limit switch is reported at a target on the end of the
                 // travel too, so it only explains a move that never arrived.
                 if let Some(limit) = status.limit {
-                    return Err(DriverError::new(
-                        ErrorKind::Device,
-                        name,
-                        format!("the move to {target} deg stopped at the {limit:?} limit switch"),
-                    ));
+                    return Err(suspend::limit_error(name, target, limit));
                 }
                 return Err(DriverError::new(
                     ErrorKind::Timeout,
@@ -590,6 +647,12 @@ impl Engine {
                 (Err(e), _) => (e, Failed::Positioner),
                 (Ok(_), Err(e)) => (e, Failed::Reference),
             };
+            // A lost beam suspends the survey until it is back (not a retry).
+            if failed == Failed::Reference && self.beam_lost(&error).await {
+                self.suspend_for_beam(error, sink).await?;
+                continue;
+            }
+            let error = self.name_the_face(error, failed);
             attempt += 1;
             self.survive(error, failed, attempt, "reading", sink).await?;
         }
@@ -712,6 +775,12 @@ fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> 
     }
     Ok(())
 }
+
+#[path = "suspend.rs"]
+pub mod suspend;
+
+#[path = "engine_drift.rs"]
+mod engine_drift;
 
 #[cfg(test)]
 #[path = "engine_tests.rs"]

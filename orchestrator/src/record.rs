@@ -40,6 +40,10 @@ pub trait SampleSink: Send {
     async fn event(&mut self, _at_s: f64, _level: &str, _message: &str) -> anyhow::Result<()> {
         Ok(())
     }
+    /// The drift-control reference target was measured ([`crate::drift`]).
+    async fn drift_measured(&mut self, _m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+        Ok(())
+    }
 }
 
 /// A sink that keeps samples in memory (tests, dry runs).
@@ -50,6 +54,8 @@ pub struct MemorySink {
     pub locate_points: Vec<(f64, SmrMeasurement)>,
     /// (instrument time, level, message)
     pub events: Vec<(f64, String, String)>,
+    /// The drift-control reference measurements.
+    pub drift: Vec<crate::drift::DriftMeasurement>,
 }
 
 #[async_trait]
@@ -68,6 +74,10 @@ impl SampleSink for MemorySink {
     }
     async fn event(&mut self, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
         self.events.push((at_s, level.to_string(), message.to_string()));
+        Ok(())
+    }
+    async fn drift_measured(&mut self, m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+        self.drift.push(*m);
         Ok(())
     }
 }

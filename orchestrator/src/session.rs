@@ -127,6 +127,7 @@ async fn run_engine(
     if let Some(next) = &plan_progress {
         next.set_next_step(from_seq);
     }
+    let stop = engine.stop().clone();
     let mut on_progress = |p: &Progress| {
         if let Some(next) = &plan_progress {
             next.set_next_step(p.done);
@@ -139,6 +140,13 @@ async fn run_engine(
             signal_after = None;
             if let Err(e) = nix::sys::signal::raise(nix::sys::signal::Signal::SIGTERM) {
                 tracing::error!(%e, "could not raise SIGTERM");
+            }
+            // The listener runs on a worker thread (the command runs on the
+            // main one): hold this step until it has seen the signal, so the
+            // stop lands after the same step on every machine.
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+            while stop.requested().is_none() && std::time::Instant::now() < deadline {
+                std::thread::sleep(std::time::Duration::from_millis(1));
             }
         }
         bar.set_position(p.done);

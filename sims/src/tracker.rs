@@ -32,7 +32,12 @@
 //! [`CODE_BEAM_BROKEN`], the state becomes `BeamBroken` and every measurement
 //! fails at once with that code until `reacquire()` (which takes
 //! `reacquire_time`). `status()` and a locked `reacquire()` cost the link latency.
+//! A broken beam stays blocked for `beam_hold` after the break (someone
+//! standing in it): a `reacquire()` before then searches for `reacquire_time`
+//! and fails with [`CODE_BEAM_BROKEN`], the beam still broken. Each break is
+//! counted by the [`Injected`] handle given with [`SimTracker::count_injected`].
 
+use crate::faults::{FaultKind, Injected};
 use crate::turntable::Turntable;
 use crate::{FAULT_STREAM, LINK_LATENCY, NOISE_STREAM, seeded_rng};
 use async_trait::async_trait;
@@ -141,6 +146,9 @@ pub struct TrackerConfig {
     pub beam_break_probability: f64,
     /// Time to find the SMR again after a break (default 5 s).
     pub reacquire_time: Duration,
+    /// How long the beam stays blocked after a break (default 0: it can be
+    /// re-acquired at once).
+    pub beam_hold: Duration,
     /// Seed of the noise and beam-break streams.
     pub seed: u64,
     /// Break the beam on this measurement (1-based), for tests.
@@ -157,6 +165,7 @@ impl Default for TrackerConfig {
             measurement_time: Duration::from_secs(1),
             beam_break_probability: 0.0,
             reacquire_time: Duration::from_secs(5),
+            beam_hold: Duration::ZERO,
             seed: 0,
             break_on_measurement: None,
             noise_scale: 1.0,
@@ -174,6 +183,9 @@ pub struct SimTracker {
     measurements: usize,
     noise_rng: ChaCha8Rng,
     fault_rng: ChaCha8Rng,
+    /// The beam cannot be re-acquired before this clock time.
+    blocked_until: Duration,
+    injected: Option<Injected>,
 }
 
 impl SimTracker {
@@ -187,7 +199,14 @@ impl SimTracker {
             turntable,
             state: TrackerState::TargetLocked,
             measurements: 0,
+            blocked_until: Duration::ZERO,
+            injected: None,
         }
+    }
+
+    /// Count every beam break in `injected`.
+    pub fn count_injected(&mut self, injected: Injected) {
+        self.injected = Some(injected);
     }
 
     /// The configuration (the designed geometry, for tests).
@@ -223,6 +242,10 @@ impl Tracker for SimTracker {
         self.clock.sleep(self.cfg.measurement_time).await;
         if breaks {
             self.state = TrackerState::BeamBroken;
+            self.blocked_until = self.clock.now() + self.cfg.beam_hold;
+            if let Some(i) = &self.injected {
+                i.add(FaultKind::Beam);
+            }
             tracing::debug!(measurement = self.measurements, "simulated tracker beam break");
             return Err(DriverError::device(
                 INSTRUMENT,
@@ -257,6 +280,13 @@ impl Tracker for SimTracker {
             return Ok(());
         }
         self.clock.sleep(self.cfg.reacquire_time).await;
+        if self.clock.now() < self.blocked_until {
+            return Err(DriverError::device(
+                INSTRUMENT,
+                CODE_BEAM_BROKEN,
+                "no reflector found: the beam is still blocked (simulated)",
+            ));
+        }
         self.state = TrackerState::TargetLocked;
         Ok(())
     }

@@ -35,6 +35,8 @@ pub struct SimulatedRequest {
     pub reference: ReferenceKind,
     /// The seed of every random draw.
     pub seed: u64,
+    /// Faults the simulated instruments inject.
+    pub faults: Option<survey_sims::faults::FaultRates>,
 }
 
 /// The stationary measurement time of each simulated reference.
@@ -78,6 +80,7 @@ impl Bench {
             plan,
             timing,
             run_period_s: run_period.as_secs_f64(),
+            faults: req.faults,
         };
         Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
     }
@@ -131,7 +134,11 @@ pub fn simulated_engine(
         let faces = setup.plan.targets_deg.len() as u32;
         builder = builder.autocollimator(AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3)));
     }
+    if let Some(rates) = &setup.faults {
+        builder = builder.fault_rates(rates);
+    }
     let bench = builder.build();
+    let injected = bench.injected.clone();
     let reference = match setup.reference {
         ReferenceKind::Tracker => Reference::Tracker(Box::new(bench.tracker)),
         ReferenceKind::Autocollimator => Reference::Autocollimator {
@@ -141,7 +148,10 @@ pub fn simulated_engine(
         },
     };
     let travel = bench.positioner.config().travel;
-    Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone()).with_travel(travel)
+    let mut engine =
+        Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone()).with_travel(travel);
+    engine.set_injected(Some(injected));
+    engine
 }
 
 /// The simulated bench of a stored survey, continued at step `next_seq`.

@@ -19,6 +19,7 @@
 
 use super::support::{emit, open_read_only};
 use crate::error::{bad_input, path_error};
+use crate::progress::{self, Progress};
 use crate::refit::{located_axis_knowledge, reference_info, refit_survey};
 use anyhow::Context as _;
 use clap::Args;
@@ -49,6 +50,7 @@ pub struct ModelGapArgs {
 
 pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
     let model = Model::from_file(&args.model)?;
+    let progress = Progress::spinner("loading the survey", progress::visible(args.json));
     // Samples come in acquisition order (by seq): drift has a time axis even without timestamps.
     let store = open_read_only(db).await?;
     let loaded = async {
@@ -69,9 +71,16 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
         ..ModelGapOptions::default()
     };
     let compared = refit.as_ref().map_or(&samples, |(s, _)| s);
+    progress.stage(format!(
+        "comparing survey {} ({} samples) with {}",
+        survey.id,
+        compared.len(),
+        args.model.display()
+    ));
     let gap = survey_processing::modelgap::model_gap(compared, &model, &options).map_err(|e| {
         bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, args.model.display()))
     })?;
+    drop(progress);
     if let Some(out) = &args.out {
         write_model(out, &gap, &args.model, survey.id)?;
         eprintln!("wrote the improved model to {}", out.display());

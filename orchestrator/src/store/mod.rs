@@ -29,6 +29,7 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod drift;
 mod lock;
 mod samples;
 mod sink;
@@ -77,7 +78,10 @@ const CHUNK_ROWS: usize = 400;
 
 /// The schema migrations, embedded in the binary (the same versions,
 /// descriptions and checksums `sqlx::migrate!("../migrations")` would give).
-const MIGRATIONS: &[(i64, &str, &str)] = &[(1, "init", include_str!("../../../migrations/0001_init.sql"))];
+const MIGRATIONS: &[(i64, &str, &str)] = &[
+    (1, "init", include_str!("../../../migrations/0001_init.sql")),
+    (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
+];
 
 fn migrator() -> Migrator {
     Migrator::with_migrations(
