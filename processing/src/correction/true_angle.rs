@@ -53,61 +53,101 @@ fn interp(grid: &[f64], theta_deg: f64) -> f64 {
 }
 
 /// The table `T_g` at `readouts` for `g` given on a grid (its mean removed
-/// for the change of variable).
-fn through_true_angle(grid: &[f64], readouts: &[f64]) -> Vec<f64> {
+/// for the change of variable), in a frame `offset` degrees from `g`'s
+/// (a directional column's half backlash: its true angle is `r - g - offset`).
+fn through_true_angle(grid: &[f64], readouts: &[f64], offset: f64) -> Vec<f64> {
     let mean = grid.iter().sum::<f64>() / grid.len() as f64;
     readouts
         .iter()
         .map(|&r| {
-            let mut theta = r;
+            let mut theta = r - offset;
             for _ in 0..THETA_ITERATIONS {
-                theta = r - (interp(grid, theta) - mean);
+                theta = r - offset - (interp(grid, theta) - mean);
             }
             interp(grid, theta)
         })
         .collect()
 }
 
-/// A full-circle column of `rows` rows. `map` is the measured column at the
-/// survey's `targets` (readouts), `edit` the processing's spectral edit of a
-/// map at those targets (kept lines, aliases relocated or nulled; the series
-/// in absolute angle). `g` is corrected until the edit of `T_g` sampled at
-/// the targets equals the edit of the map: the products of the lines alias
-/// at the targets as they did in the survey, so a product that lands on a
-/// kept bin is not taken for a line.
+/// The lines of the true angle behind a measured column: `g` (no mean) and
+/// the column's mean.
+pub(crate) struct TrueLines {
+    g: Series,
+    mean: f64,
+}
+
+impl TrueLines {
+    /// `g` for `map`, the measured column at the survey's `targets`
+    /// (readouts), `edit` the processing's spectral edit of a map at those
+    /// targets (kept lines, aliases relocated or nulled; the series in
+    /// absolute angle). `g` is corrected until the edit of `T_g` sampled at
+    /// the targets equals the edit of the map: the products of the lines
+    /// alias at the targets as they did in the survey, so a product that
+    /// lands on a kept bin is not taken for a line.
+    pub(crate) fn fit<E>(
+        map: &[f64],
+        targets: &[f64],
+        mut edit: E,
+        rows: usize,
+        rs: &mut Resampler,
+    ) -> Result<Self, crate::correction::CorrectionError>
+    where
+        E: FnMut(&[f64]) -> Result<Series, crate::correction::CorrectionError>,
+    {
+        let edited = edit(map)?;
+        let mean = edited.amplitude(0);
+        let kept: Vec<usize> =
+            (1..edited.bins().min(rows.div_ceil(2))).filter(|&k| edited.coeff(k) != Complex64::default()).collect();
+        let mut g = edited.clone();
+        g.set_coeff(0, Complex64::default());
+        g.truncate(rows.div_ceil(2) - 1);
+        if kept.is_empty() {
+            return Ok(Self { g, mean });
+        }
+        for _ in 0..PASSES {
+            let grid = rs.synthesize(&g, GRID_FACTOR * rows);
+            let got = edit(&through_true_angle(&grid, targets, 0.0))?;
+            for &k in &kept {
+                g.set_coeff(k, g.coeff(k) + edited.coeff(k) - got.coeff(k));
+            }
+        }
+        Ok(Self { g, mean })
+    }
+
+    /// The column of `rows` rows these lines make, plus `extra` (lines of
+    /// the true angle, no mean) and `offset` degrees (a constant that moves
+    /// the frame of the true angle too): its mean is the measured column's
+    /// plus `offset`.
+    pub(crate) fn column(&self, extra: Option<&Series>, offset: f64, rows: usize, rs: &mut Resampler) -> Vec<f64> {
+        let mut g = self.g.clone();
+        if let Some(x) = extra {
+            for k in 1..x.bins() {
+                g.set_coeff(k, g.coeff(k) + x.coeff(k));
+            }
+        }
+        g.truncate(rows.div_ceil(2) - 1);
+        let readouts: Vec<f64> = (0..rows).map(|i| 360.0 * i as f64 / rows as f64).collect();
+        let grid = rs.synthesize(&g, GRID_FACTOR * rows);
+        let mut table = through_true_angle(&grid, &readouts, offset);
+        let shift = self.mean + offset - mean(&table);
+        table.iter_mut().for_each(|v| *v += shift);
+        table
+    }
+}
+
+/// A full-circle column of `rows` rows from the measured column `map` at
+/// the survey's `targets` ([`TrueLines::fit`], then its column).
 pub(crate) fn full_circle_column<E>(
     map: &[f64],
     targets: &[f64],
-    mut edit: E,
+    edit: E,
     rows: usize,
     rs: &mut Resampler,
 ) -> Result<Vec<f64>, crate::correction::CorrectionError>
 where
     E: FnMut(&[f64]) -> Result<Series, crate::correction::CorrectionError>,
 {
-    let edited = edit(map)?;
-    let measured = rs.synthesize(&edited, rows);
-    let kept: Vec<usize> =
-        (1..edited.bins().min(rows.div_ceil(2))).filter(|&k| edited.coeff(k) != Complex64::default()).collect();
-    if kept.is_empty() {
-        return Ok(measured);
-    }
-    let mut g = edited.clone();
-    g.set_coeff(0, Complex64::default());
-    g.truncate(rows.div_ceil(2) - 1);
-    for _ in 0..PASSES {
-        let grid = rs.synthesize(&g, GRID_FACTOR * rows);
-        let got = edit(&through_true_angle(&grid, targets))?;
-        for &k in &kept {
-            g.set_coeff(k, g.coeff(k) + edited.coeff(k) - got.coeff(k));
-        }
-    }
-    let readouts: Vec<f64> = (0..rows).map(|i| 360.0 * i as f64 / rows as f64).collect();
-    let grid = rs.synthesize(&g, GRID_FACTOR * rows);
-    let mut table = through_true_angle(&grid, &readouts);
-    let shift = mean(&measured) - mean(&table);
-    table.iter_mut().for_each(|v| *v += shift);
-    Ok(table)
+    Ok(TrueLines::fit(map, targets, edit, rows, rs)?.column(None, 0.0, rows, rs))
 }
 
 fn mean(v: &[f64]) -> f64 {
