@@ -19,6 +19,7 @@ use crate::survey::{Setup, SurveyRecord};
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit, refit_axis};
 use survey_processing::modelgap::ReferenceInfo;
+use survey_processing::uncertainty::UncertaintyInputs;
 
 /// The refit and what it changed, for the output.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -172,4 +173,24 @@ pub fn reference_info(survey: &SurveyRecord, refit: Option<&AxisRefit>, located:
         Some(ReferenceKind::Autocollimator) => ReferenceInfo::Autocollimator,
         _ => ReferenceInfo::Unknown,
     }
+}
+
+/// What the uncertainty budget of a survey's table needs beyond its samples:
+/// the reference instrument's stated standard uncertainty of one angle (as
+/// the report's header states it: the configuration's `[certificate]`, or
+/// the simulated bench's), and the once-per-revolution standard error of the
+/// axis the angles were computed around over the measured arc (fitted again,
+/// `refit`, or located before the runs, `located`).
+pub fn uncertainty_inputs(
+    survey: &SurveyRecord,
+    refit: Option<&AxisRefit>,
+    located: Option<&Refit>,
+) -> UncertaintyInputs {
+    let cert = crate::report::header::Certificate::of(survey, &Default::default());
+    let axis_u_deg = match (refit, located) {
+        (Some(r), _) => Some(r.over_arc_se_deg),
+        (None, Some(l)) => Some(l.over_arc_se_deg),
+        (None, None) => None,
+    };
+    UncertaintyInputs { reference_u_deg: cert.reference_uncertainty_deg.map(|u| u.value), axis_u_deg }
 }
