@@ -213,7 +213,7 @@ impl Uncertainty {
     /// Lines for people.
     pub fn text(&self) -> String {
         let mut s = format!(
-            "uncertainty of the table: u = {:.2e} deg, U = {:.2e} deg (k = {})\n",
+            "table uncertainty (GUM): u = {:.2e} deg, U = {:.2e} deg (k = {})\n",
             self.table_u_deg, self.expanded_deg, self.k
         );
         for c in &self.budget {
