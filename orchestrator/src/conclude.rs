@@ -98,12 +98,18 @@ pub async fn conclude(
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let table_out = Some(default_table_path(db, id));
-    let processing =
-        ProcessOptions { recipe: options.recipe.clone(), design: None, table_out, ..ProcessOptions::default() };
     // With a tracker, the table is made around the axis fitted from every SMR position.
     let refit = crate::refit::refit_survey(store, &record)
         .await?
         .map(|(s, r)| (crate::drift::for_analysis(&record, s, &drift), r));
+    let uncertainty = crate::refit::uncertainty_inputs(&record, refit.as_ref().map(|(_, r)| r), None);
+    let processing = ProcessOptions {
+        recipe: options.recipe.clone(),
+        design: None,
+        table_out,
+        uncertainty,
+        ..ProcessOptions::default()
+    };
     let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
     let processed = match process_survey(&record, to_process, processing) {
         Ok(p) => p,
@@ -121,7 +127,9 @@ pub async fn conclude(
     }
     let mut result = Ok(());
     if let Some(verify_plan) = &options.verify {
-        match crate::verify::verify(engine, store, &record, &samples, verify_plan, &processed, options.acquire).await {
+        match crate::verify::verify(engine, store, &record, &samples, verify_plan, &processed, options.acquire.clone())
+            .await
+        {
             Ok(v) => {
                 doc["verify"] = v.doc;
                 text += "\n";

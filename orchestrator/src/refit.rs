@@ -12,11 +12,14 @@
 //! into the positioner. The survey's thousands of positions know the centre
 //! far better.
 
+use crate::engine::ReferenceKind;
 use crate::record::RawReading;
 use crate::store::Store;
-use crate::survey::SurveyRecord;
+use crate::survey::{Setup, SurveyRecord};
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit, refit_axis};
+use survey_processing::modelgap::ReferenceInfo;
+use survey_processing::uncertainty::UncertaintyInputs;
 
 /// The refit and what it changed, for the output.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -32,10 +35,17 @@ pub struct AxisRefit {
     /// The once-per-revolution angle error the located centre carried, deg
     /// (`center_shift_mm / radius`): what the refit removed from the table.
     pub located_once_per_rev_deg: f64,
-    /// Standard error of the refitted centre, mm.
+    /// Standard error of the refitted centre in its worst-known direction, mm.
     pub center_se_mm: f64,
-    /// The once-per-revolution angle uncertainty left, deg (standard error).
+    /// The once-per-revolution angle uncertainty left, deg (standard error;
+    /// what the centre's uncertainty costs on a full circle).
     pub once_per_rev_se_deg: f64,
+    /// The arc the SMR positions cover, deg (360 on a full circle).
+    pub arc_deg: f64,
+    /// What the centre's uncertainty costs over the measured arc, deg
+    /// (standard error, its mean over the arc removed): how far the arc
+    /// allows the axis to be known.
+    pub over_arc_se_deg: f64,
 }
 
 /// The shift between two centres, in the plane of `fit`.
@@ -67,9 +77,10 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
     if points.len() < 3 {
         return Ok(None);
     }
-    let Refit { fit, dropped, center_se_mm, once_per_rev_se_deg } = refit_axis(&points, &readouts).map_err(|e| {
-        anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
-    })?;
+    let Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. } =
+        refit_axis(&points, &readouts).map_err(|e| {
+            anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
+        })?;
     let samples = recorded
         .iter()
         .map(|r| match &r.raw {
@@ -86,23 +97,100 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         located_once_per_rev_deg: (center_shift_mm / fit.radius_mm).to_degrees(),
         center_se_mm,
         once_per_rev_se_deg,
+        arc_deg,
+        over_arc_se_deg,
     };
     tracing::info!(survey = survey.id, ?refit, "axis fitted again from the survey's SMR positions");
     Ok(Some((samples, refit)))
 }
 
 impl AxisRefit {
-    /// One line for people.
+    /// Two lines for people.
     pub fn text(&self) -> String {
-        format!(
+        let mut s = format!(
             "axis fitted again from {} SMR positions ({} left out): the centre moved {:.4} mm, a once-per-revolution \
-             error of {:.6} deg removed; the centre is now known to {:.5} mm ({:.7} deg once per revolution, 1 sigma)\n",
+             error of {:.6} deg removed; the centre is now known to {:.5} mm ({:.2e} deg once per revolution, 1 sigma)\n",
             self.points,
             self.dropped,
             self.center_shift_mm,
             self.located_once_per_rev_deg,
             self.center_se_mm,
             self.once_per_rev_se_deg
-        )
+        );
+        if self.arc_deg < 359.0 {
+            s += &format!(
+                "the positions cover {:.1} deg of arc: over it the axis location costs {:.2e} deg (1 sigma), all this \
+                 arc allows\n",
+                self.arc_deg, self.over_arc_se_deg
+            );
+        }
+        s
     }
+}
+
+/// How well the axis located before the runs is known: the same fit from
+/// its dozen locate points alone, with their stated uncertainty (`None`
+/// without a located axis or its points).
+pub async fn located_axis_knowledge(store: &Store, survey: &SurveyRecord) -> anyhow::Result<Option<Refit>> {
+    if survey.axis.is_none() {
+        return Ok(None);
+    }
+    let locate = store.locate_points(survey.id).await?;
+    if locate.len() < 4 {
+        return Ok(None);
+    }
+    let points: Vec<[f64; 3]> = locate.iter().map(|(_, m)| m.xyz()).collect();
+    let readouts: Vec<f64> = locate.iter().map(|(r, _)| *r).collect();
+    Ok(refit_axis(&points, &readouts).ok())
+}
+
+/// What model-gap is told of the survey's reference: a tracker with the axis
+/// fitted again (`refit`) or located before the runs (`located`), an
+/// autocollimator, or unknown (an import).
+pub fn reference_info(survey: &SurveyRecord, refit: Option<&AxisRefit>, located: Option<&Refit>) -> ReferenceInfo {
+    if let Some(r) = refit {
+        return ReferenceInfo::Tracker {
+            radius_mm: r.radius_mm,
+            points: r.points,
+            axis_se_deg: r.over_arc_se_deg,
+            refitted: true,
+        };
+    }
+    if let Some(axis) = &survey.axis {
+        return ReferenceInfo::Tracker {
+            radius_mm: axis.radius_mm,
+            points: axis.points,
+            axis_se_deg: located.map_or(0.0, |l| l.over_arc_se_deg),
+            refitted: false,
+        };
+    }
+    let kind = match &survey.setup {
+        Setup::Simulated(s) => Some(s.reference),
+        Setup::Configured(c) => Some(c.config.reference()),
+        _ => None,
+    };
+    match kind {
+        Some(ReferenceKind::Autocollimator) => ReferenceInfo::Autocollimator,
+        _ => ReferenceInfo::Unknown,
+    }
+}
+
+/// What the uncertainty budget of a survey's table needs beyond its samples:
+/// the reference instrument's stated standard uncertainty of one angle (as
+/// the report's header states it: the configuration's `[certificate]`, or
+/// the simulated bench's), and the once-per-revolution standard error of the
+/// axis the angles were computed around over the measured arc (fitted again,
+/// `refit`, or located before the runs, `located`).
+pub fn uncertainty_inputs(
+    survey: &SurveyRecord,
+    refit: Option<&AxisRefit>,
+    located: Option<&Refit>,
+) -> UncertaintyInputs {
+    let cert = crate::report::header::Certificate::of(survey, &Default::default());
+    let axis_u_deg = match (refit, located) {
+        (Some(r), _) => Some(r.over_arc_se_deg),
+        (None, Some(l)) => Some(l.over_arc_se_deg),
+        (None, None) => None,
+    };
+    UncertaintyInputs { reference_u_deg: cert.reference_uncertainty_deg.map(|u| u.value), axis_u_deg }
 }

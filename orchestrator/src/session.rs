@@ -13,9 +13,11 @@ use crate::store::{Store, StoreSink};
 use crate::survey::SurveyStatus;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::time::{Duration, Instant};
+use survey_sims::PlanProgress;
 
-/// How an acquisition shows itself, and the simulated power loss of tests.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// How an acquisition shows itself, the simulated bench's drift clock, and
+/// the simulated power loss of tests.
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct AcquireOptions {
     /// Draw a progress bar on stderr.
     pub progress: bool,
@@ -25,6 +27,9 @@ pub struct AcquireOptions {
     /// Send this process SIGTERM once this many steps are done (a stop
     /// request through the real signal path, at a known step). For tests.
     pub signal_after: Option<u64>,
+    /// The simulated positioner's drift clock ([`Bench::plan_progress`](crate::bench::Bench)):
+    /// set to the next step before each step's moves.
+    pub plan_progress: Option<PlanProgress>,
 }
 
 /// What an acquisition did.
@@ -49,7 +54,7 @@ pub async fn acquire(
 ) -> anyhow::Result<Acquired> {
     let started = Instant::now();
     let mut sink = StoreSink::new(store.clone(), id);
-    let outcome = run_engine(engine, plan, from_seq, &mut sink, options).await;
+    let outcome = run_engine(engine, plan, from_seq, &mut sink, &options).await;
     if options.signal_after.is_some_and(|n| n <= plan.total_steps()) {
         // The test hook raised SIGTERM: do not go on before the stop request
         // is seen, so what follows is the same on every run.
@@ -106,7 +111,7 @@ async fn run_engine(
     plan: &SurveyPlan,
     from_seq: u64,
     sink: &mut StoreSink,
-    options: AcquireOptions,
+    options: &AcquireOptions,
 ) -> Result<Outcome, EngineError> {
     let bar = ProgressBar::with_draw_target(Some(plan.total_steps()), ProgressDrawTarget::stderr());
     if !options.progress {
@@ -118,8 +123,15 @@ async fn run_engine(
     bar.set_position(from_seq);
     let crash_after = options.crash_after;
     let mut signal_after = options.signal_after;
+    let plan_progress = options.plan_progress.clone();
+    if let Some(next) = &plan_progress {
+        next.set_next_step(from_seq);
+    }
     let stop = engine.stop().clone();
     let mut on_progress = |p: &Progress| {
+        if let Some(next) = &plan_progress {
+            next.set_next_step(p.done);
+        }
         if crash_after.is_some_and(|n| p.done >= n) {
             // A simulated power loss: no flush, no status update, no cleanup.
             std::process::abort();

@@ -22,6 +22,7 @@ mod special;
 pub mod spectrum;
 pub mod table;
 pub mod types;
+pub mod uncertainty;
 pub mod vdi3441;
 
 pub use types::{Direction, Sample};

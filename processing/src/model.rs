@@ -77,10 +77,33 @@ impl DriftShape {
     /// The drift, in runs of `rate`, after `runs_elapsed` runs (fractional
     /// within a run): the time itself for a ramp, the runs completed for a step.
     pub fn runs(self, runs_elapsed: f64) -> f64 {
+        self.runs_at(DriftTime::elapsed(runs_elapsed))
+    }
+
+    /// The drift, in runs of `rate`, at `t`: `t.runs_elapsed` for a ramp,
+    /// `t.run_index` for a step.
+    pub fn runs_at(self, t: DriftTime) -> f64 {
         match self {
-            DriftShape::Ramp => runs_elapsed,
-            DriftShape::Step => runs_elapsed.floor(),
+            DriftShape::Ramp => t.runs_elapsed,
+            DriftShape::Step => t.run_index,
         }
+    }
+}
+
+/// When a sample was taken, as the drift sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriftTime {
+    /// Runs elapsed since the first sample (fractional within a run): the time of a ramp.
+    pub runs_elapsed: f64,
+    /// Runs completed before this sample's run (0 in the first run): the time of a step.
+    pub run_index: f64,
+}
+
+impl DriftTime {
+    /// A time given in runs elapsed only: the run index is its whole part
+    /// (the simulators' clock, where run `k` starts at exactly `k` runs).
+    pub fn elapsed(runs_elapsed: f64) -> Self {
+        Self { runs_elapsed, run_index: runs_elapsed.floor() }
     }
 }
 
@@ -264,13 +287,25 @@ impl Model {
     /// The drift after `runs_elapsed` runs (fractional within a run), each
     /// drift effect by its shape.
     pub fn drift_deg(&self, runs_elapsed: f64) -> f64 {
+        self.drift_deg_at(DriftTime::elapsed(runs_elapsed))
+    }
+
+    /// The drift at `t`, each drift effect by its shape.
+    pub fn drift_deg_at(&self, t: DriftTime) -> f64 {
         self.effects
             .iter()
             .map(|e| match e {
-                Effect::Drift { rate_deg_per_run, shape } => rate_deg_per_run * shape.runs(runs_elapsed),
+                Effect::Drift { rate_deg_per_run, shape } => rate_deg_per_run * shape.runs_at(t),
                 _ => 0.0,
             })
             .sum()
+    }
+
+    /// The systematic readout error at `t` (a ramp by the time, a step by
+    /// the run): what model-gap compares with a survey whose run boundaries
+    /// it knows.
+    pub fn systematic_error_at(&self, theta_deg: f64, direction: Direction, t: DriftTime) -> f64 {
+        self.repeatable_error_deg(theta_deg, direction) + self.drift_deg_at(t)
     }
 
     /// The periodic effects, in file order.

@@ -101,11 +101,15 @@
 
 mod build;
 mod decide;
+mod direction;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_direction;
 
 pub use build::{BuiltTable, Hysteresis, TableMethod, hysteresis};
 pub use decide::{AliasDecision, AliasOutcome, Decisions, LineAction, LineDecision};
+pub use direction::DirectionModel;
 
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};

@@ -20,7 +20,7 @@
 use crate::autocollimator::{AutocollimatorConfig, SimAutocollimator};
 use crate::derive_seed;
 use crate::faults::{FaultRates, Injected};
-use crate::positioner::{PositionerConfig, PositionerFaults, SimPositioner};
+use crate::positioner::{PlanProgress, PositionerConfig, PositionerFaults, SimPositioner};
 use crate::presets::{Preset, without_noise};
 use crate::tracker::{ArmGeometry, SimTracker, TrackerConfig};
 use crate::turntable::Turntable;
@@ -95,9 +95,18 @@ impl SimBenchBuilder {
         self
     }
 
-    /// Apply the model's drift over time: one run takes `period` of clock time.
+    /// Apply the model's drift over time: one run takes `period` of clock time
+    /// (when no [`SimBenchBuilder::drift_progress`] is given).
     pub fn drift_run_period(mut self, period: Duration) -> Self {
         self.positioner.drift_run_period = Some(period);
+        self
+    }
+
+    /// Apply the model's drift by the survey's place in its plan (see
+    /// [`crate::positioner`]): whoever runs the plan sets `progress` to the
+    /// next step before that step's moves.
+    pub fn drift_progress(mut self, progress: PlanProgress) -> Self {
+        self.positioner.drift_progress = Some(progress);
         self
     }
 

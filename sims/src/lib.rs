@@ -53,7 +53,7 @@ pub mod turntable;
 
 pub use autocollimator::{AutocollimatorConfig, SimAutocollimator};
 pub use bench::{SimBench, SimBenchBuilder};
-pub use positioner::{PositionerConfig, PositionerFaults, SimPositioner};
+pub use positioner::{PlanProgress, PositionerConfig, PositionerFaults, SimPositioner};
 pub use presets::Preset;
 pub use tracker::{ArmGeometry, SimTracker, TrackerConfig};
 pub use turntable::Turntable;

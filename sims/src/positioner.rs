@@ -14,9 +14,33 @@
 //! - `n ~ Normal(0, model.noise_sigma_deg())` is drawn once per accepted move:
 //!   it is where the servo came to rest, so reading a stationary axis again
 //!   returns the same value.
-//! - `runs_elapsed = t / drift_run_period` with `t` the clock time the axis
-//!   came to rest (the end of the move's profile); with no period, 0 (no drift).
-//!   The drift is frozen while the axis rests: only moves pick up new drift.
+//! - `runs_elapsed` is the time of the drift in runs (see below) of the move
+//!   that brought the axis to rest. The drift is frozen while the axis rests:
+//!   only moves pick up new drift.
+//!
+//! # The time of the drift
+//!
+//! The model's drift is `rate_deg_per_run` from one run to the next: a ramp
+//! grows linearly through a run, a step holds within a run and jumps between
+//! runs ([`survey_processing::model::DriftShape`]). The simulator measures
+//! the time in runs by one of two clocks, the first that is configured:
+//!
+//! - [`PlanProgress`] (what the simulated bench uses): the survey's place in
+//!   its plan, set by whoever runs the plan to the index of the next step
+//!   before that step's moves. Step `j` of run `k` (both from 0, `n` steps a
+//!   run) is at `runs_elapsed = k + j / n`: exactly `k` runs at the first
+//!   step of each run, whatever the engine does between steps (locating the
+//!   axis, overrun moves, faults and retries, a resume). A ramp is then
+//!   exactly `rate` from one run to the next and linear in the plan's steps
+//!   within a run (linear in time as far as the steps take equal time); a
+//!   step is exactly `rate x k`. Moves before the first step (locating the
+//!   axis) are at step 0.
+//! - `drift_run_period` (a bare positioner, with no plan): `runs_elapsed = t /
+//!   drift_run_period`, `t` the clock time the axis comes to rest (the end of
+//!   the move's profile).
+//!
+//! With neither, there is no drift. This is our own design (a simulator
+//! needs a definition of "one run"); no public document describes it.
 //!
 //! The displayed readout is `raw`, or `raw - table.error_at(raw, direction)`
 //! when a correction table is enabled (the paper's real-time correction in the
@@ -54,6 +78,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 use survey_drivers::clock::Clock;
 use survey_drivers::error::{DriverError, ErrorKind, Result};
@@ -111,8 +136,12 @@ pub struct PositionerConfig {
     /// Travel limits `(lower, upper)`, readout degrees; `None` = continuous rotation.
     pub travel: Option<(f64, f64)>,
     /// Clock time one survey run takes: turns the model's drift per run into
-    /// drift over time (`runs_elapsed = t / period`). `None` = no drift.
+    /// drift over time (`runs_elapsed = t / period`) when there is no
+    /// [`PositionerConfig::drift_progress`]. `None` = no drift by time.
     pub drift_run_period: Option<Duration>,
+    /// The survey's place in its plan: the drift's time in runs (see the
+    /// module documentation). Takes precedence over `drift_run_period`.
+    pub drift_progress: Option<PlanProgress>,
     /// Seed of the noise and fault streams.
     pub seed: u64,
     /// Faults to inject.
@@ -132,10 +161,56 @@ impl PositionerConfig {
             settle: Duration::from_millis(300),
             travel: None,
             drift_run_period: None,
+            drift_progress: None,
             seed: 0,
             faults: PositionerFaults::default(),
             link_latency: LINK_LATENCY,
         }
+    }
+}
+
+/// A survey's place in its plan, shared between the one who runs the plan
+/// (it sets the next step before that step's moves) and the simulated
+/// positioner (it reads the drift's time from it): step `j` of run `k` is at
+/// `k + j / steps_per_run` runs. Clones share the same place.
+#[derive(Debug, Clone)]
+pub struct PlanProgress {
+    next: Arc<AtomicU64>,
+    steps_per_run: u64,
+}
+
+impl PlanProgress {
+    /// A plan of `steps_per_run` steps a run (at least 1), at step 0.
+    pub fn new(steps_per_run: u64) -> Self {
+        Self { next: Arc::new(AtomicU64::new(0)), steps_per_run: steps_per_run.max(1) }
+    }
+
+    /// The next step to be measured is `seq` (from 0, counted over the whole plan).
+    pub fn set_next_step(&self, seq: u64) {
+        self.next.store(seq, Ordering::Relaxed);
+    }
+
+    /// The next step to be measured.
+    pub fn next_step(&self) -> u64 {
+        self.next.load(Ordering::Relaxed)
+    }
+
+    /// Steps a run.
+    pub fn steps_per_run(&self) -> u64 {
+        self.steps_per_run
+    }
+
+    /// Runs elapsed at the next step: `k + j / steps_per_run` for step `j` of run `k`.
+    pub fn runs_elapsed(&self) -> f64 {
+        let seq = self.next_step();
+        (seq / self.steps_per_run) as f64 + (seq % self.steps_per_run) as f64 / self.steps_per_run as f64
+    }
+}
+
+impl PartialEq for PlanProgress {
+    /// The same shared place.
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.next, &other.next) && self.steps_per_run == other.steps_per_run
     }
 }
 
@@ -244,7 +319,8 @@ impl SimPositioner {
         self.cfg.model.systematic_error_deg(theta_deg, direction, runs_elapsed)
     }
 
-    /// Runs elapsed at clock time `t` for the drift (0 without a drift period).
+    /// Runs elapsed for the drift of a move commanded at clock time `t` (see
+    /// the module documentation; 0 without a plan progress or a drift period).
     pub fn runs_elapsed_at(&self, t: Duration) -> f64 {
         self.runs_at(t)
     }
@@ -270,6 +346,9 @@ impl SimPositioner {
     }
 
     fn runs_at(&self, t: Duration) -> f64 {
+        if let Some(p) = &self.cfg.drift_progress {
+            return p.runs_elapsed();
+        }
         match self.cfg.drift_run_period {
             Some(p) if !p.is_zero() => t.as_secs_f64() / p.as_secs_f64(),
             _ => 0.0,

@@ -36,6 +36,11 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     for id in ALWAYS {
         assert!(html.contains(&format!("id=\"{id}\"")), "the page should hold {id}");
     }
+    // The table's uncertainty budget (issue 14), with the tracker's axis location in it.
+    assert!(html.contains("id=\"tbl-uncertainty\""), "the page should hold the uncertainty budget");
+    for source in ["reference instrument", "axis location", "direction model", "expanded uncertainty U = k u (k = 2)"] {
+        assert!(html.contains(source), "the budget should name {source:?}");
+    }
     // Nothing without a verification, a model or drift data.
     for id in ["fig-native", "fig-corrected", "fig-modelgap", "fig-drift"] {
         assert!(!html.contains(&format!("id=\"{id}\"")), "{id} has no data");

@@ -78,10 +78,12 @@ fn the_refitted_axis_keeps_the_located_axis_error_out_of_the_table() {
         worst = (worst.0.max(line), worst.1.max(rms), worst.2.max(located_line));
     }
     // Goal 4e-5 deg on the once-per-revolution line (measured 0.4 to 3.4e-5;
-    // the located axis gave up to 6.5e-4), and a true residual rms within
-    // 4e-5 deg (goal 3e-5; measured 2.9 to 3.3e-5, the tracker's noise
-    // through the kept lines; the located axis gave up to 4.6e-4).
+    // the located axis gave up to 6.5e-4), and the goal of a true residual
+    // rms of at most 3e-5 deg (measured 1.97 to 2.97e-5 on these seeds, 1.34
+    // to 2.97e-5 on seeds 1-6: the tracker's noise through the three kept
+    // lines; the located axis gave up to 4.6e-4, and each direction's lines
+    // fitted on their own, before the direction model, up to 3.2e-5).
     assert!(worst.0 < 4e-5, "once-per-revolution line off the truth by {:.2e} deg", worst.0);
-    assert!(worst.1 < 4e-5, "true residual rms {:.2e} deg", worst.1);
+    assert!(worst.1 <= 3e-5, "true residual rms {:.2e} deg", worst.1);
     assert!(worst.2 > 1e-4, "the located axis's error shows without the refit ({:.2e})", worst.2);
 }

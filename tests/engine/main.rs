@@ -8,6 +8,7 @@ mod interop_canopen;
 mod modelgap;
 mod resume;
 mod soak;
+mod uncertainty;
 mod wire;
 
 use std::sync::Arc;

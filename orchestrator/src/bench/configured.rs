@@ -77,6 +77,7 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
         model: None,
         source: SurveySource::Instruments,
         instruments,
+        plan_progress: None,
     }
 }
 

@@ -20,6 +20,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::Clock;
 use survey_processing::model::Model;
+use survey_sims::PlanProgress;
 
 /// An engine ready to acquire a plan, and what the survey stores about it.
 #[derive(Debug)]
@@ -40,6 +41,9 @@ pub struct Bench {
     pub instruments: serde_json::Value,
     /// The expected instrument time of the whole plan.
     pub estimate: Duration,
+    /// The simulated positioner's drift clock (the simulated bench): the
+    /// acquisition sets it to the next step of the plan before each step.
+    pub plan_progress: Option<PlanProgress>,
 }
 
 impl Bench {

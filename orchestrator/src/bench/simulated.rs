@@ -13,7 +13,7 @@ use std::time::Duration;
 use survey_drivers::{Clock, VirtualClock};
 use survey_processing::model::Model;
 use survey_sims::autocollimator::AutocollimatorConfig;
-use survey_sims::{Preset, SimBench};
+use survey_sims::{PlanProgress, Preset, SimBench};
 
 /// Runs when neither the command line nor the configuration says: ISO 230-2's five.
 pub const DEFAULT_RUNS: u32 = 5;
@@ -88,7 +88,8 @@ impl Bench {
 
 /// The bench of `setup` on `clock`.
 fn on_clock(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<VirtualClock>) -> Bench {
-    let engine = simulated_engine(setup, preset, model.clone(), clock.clone());
+    let progress = plan_progress(&setup.plan);
+    let engine = simulated_engine(setup, preset, model.clone(), clock.clone(), Some(progress.clone()));
     let instruments = serde_json::json!({
         "positioner": format!("simulated {}", preset.name),
         "reference": format!("simulated {}", setup.reference.as_str()),
@@ -102,15 +103,33 @@ fn on_clock(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<Vi
         model: Some(model),
         source: SurveySource::Simulated,
         instruments,
+        plan_progress: Some(progress),
     }
 }
 
-/// Build the simulated instruments of a setup on `clock`.
-pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<VirtualClock>) -> Engine {
+/// The drift clock of a plan: its steps a run.
+fn plan_progress(plan: &SurveyPlan) -> PlanProgress {
+    PlanProgress::new(plan.targets_deg.len() as u64 * plan.directions().len() as u64)
+}
+
+/// Build the simulated instruments of a setup on `clock`. The model's drift
+/// goes by the plan's `progress` when given (the acquisition sets it to the
+/// next step: [`crate::session::AcquireOptions::plan_progress`]), else by
+/// clock time over the setup's run period.
+pub fn simulated_engine(
+    setup: &SimulatedSetup,
+    preset: &Preset,
+    model: Model,
+    clock: Arc<VirtualClock>,
+    progress: Option<PlanProgress>,
+) -> Engine {
     let dyn_clock: Arc<dyn Clock> = clock;
     let mut builder = SimBench::builder(preset, setup.seed, dyn_clock.clone())
         .model(model)
         .drift_run_period(Duration::from_secs_f64(setup.run_period_s));
+    if let Some(p) = progress {
+        builder = builder.drift_progress(p);
+    }
     if setup.reference == ReferenceKind::Autocollimator {
         let faces = setup.plan.targets_deg.len() as u32;
         builder = builder.autocollimator(AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3)));

@@ -8,17 +8,22 @@
 //! is a survey that cannot be compared (an incomplete error map). `--out` is
 //! written only when the comparison succeeded, through a temporary file in the
 //! same folder renamed over the target, so a failed command leaves no half
-//! file. With a tracker reference, a once-per-revolution error found is also
-//! what an error in locating the axis looks like: the report says how large
-//! that error is expected to be, from the stored axis fit.
+//! file.
+//!
+//! With a tracker reference, the survey compared is the one `survey process`
+//! processes: its actual angles recomputed around the axis fitted again from
+//! every SMR position ([`crate::refit`]); `--located-axis` compares the angles
+//! as stored, around the axis located before the runs. Model-gap is told the
+//! reference and how well its axis is known, so what of the gap is the axis
+//! location is named as the reference's, with its size.
 
-use super::support::{emit, load_survey};
+use super::support::{emit, open_read_only};
 use crate::error::{bad_input, path_error};
 use crate::progress::{self, Progress};
+use crate::refit::{located_axis_knowledge, reference_info, refit_survey};
 use anyhow::Context as _;
 use clap::Args;
 use std::path::{Path, PathBuf};
-use survey_processing::geometry::AxisFit;
 use survey_processing::model::Model;
 use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 
@@ -33,6 +38,11 @@ pub struct ModelGapArgs {
     /// Write the improved model file (the model with the effects added and adjusted) here.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// Compare the actual angles as stored, around the axis located before
+    /// the runs, instead of around the axis fitted again from every SMR
+    /// position (tracker surveys).
+    #[arg(long)]
+    pub located_axis: bool,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -42,16 +52,35 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
     let model = Model::from_file(&args.model)?;
     let progress = Progress::spinner("loading the survey", progress::visible(args.json));
     // Samples come in acquisition order (by seq): drift has a time axis even without timestamps.
-    let (survey, samples) = load_survey(db, args.survey).await?;
-    progress.stage(format!("comparing survey {} ({} samples) with {}", survey.id, samples.len(), args.model.display()));
-    let mut gap =
-        survey_processing::modelgap::model_gap(&samples, &model, &ModelGapOptions::default()).map_err(|e| {
-            bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, args.model.display()))
-        })?;
-    drop(progress);
-    if let Some(axis) = &survey.axis {
-        tracker_note(&mut gap, axis);
+    let store = open_read_only(db).await?;
+    let loaded = async {
+        let survey = store.resolve(args.survey).await?;
+        let refit = if args.located_axis { None } else { refit_survey(&store, &survey).await? };
+        let located = if refit.is_none() { located_axis_knowledge(&store, &survey).await? } else { None };
+        let samples = match &refit {
+            Some(_) => Vec::new(),
+            None => store.samples(survey.id).await?,
+        };
+        anyhow::Ok((survey, samples, refit, located))
     }
+    .await;
+    store.close().await;
+    let (survey, samples, refit, located) = loaded?;
+    let options = ModelGapOptions {
+        reference: reference_info(&survey, refit.as_ref().map(|(_, r)| r), located.as_ref()),
+        ..ModelGapOptions::default()
+    };
+    let compared = refit.as_ref().map_or(&samples, |(s, _)| s);
+    progress.stage(format!(
+        "comparing survey {} ({} samples) with {}",
+        survey.id,
+        compared.len(),
+        args.model.display()
+    ));
+    let gap = survey_processing::modelgap::model_gap(compared, &model, &options).map_err(|e| {
+        bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, args.model.display()))
+    })?;
+    drop(progress);
     if let Some(out) = &args.out {
         write_model(out, &gap, &args.model, survey.id)?;
         eprintln!("wrote the improved model to {}", out.display());
@@ -60,12 +89,16 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
         let mut doc = serde_json::to_value(&gap).context("the model-gap document does not serialise")?;
         if let Some(o) = doc.as_object_mut() {
             o.insert("survey_id".into(), survey.id.into());
+            o.insert("axis_refit".into(), serde_json::to_value(refit.as_ref().map(|(_, r)| r))?);
             o.insert("model".into(), args.model.display().to_string().into());
             o.insert("model_out".into(), args.out.as_ref().map(|p| p.display().to_string()).into());
         }
         emit(&format!("{doc}\n"));
     } else {
         let mut text = format!("survey {}, model {}\n", survey.id, args.model.display());
+        if let Some((_, r)) = &refit {
+            text += &r.text();
+        }
         text += &gap.to_text();
         if let Some(out) = &args.out {
             text += &format!("improved model written to {}\n", out.display());
@@ -73,29 +106,6 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
         emit(&text);
     }
     Ok(())
-}
-
-/// With a tracker, an eccentricity found may be the axis fit's error.
-fn tracker_note(gap: &mut ModelGap, axis: &AxisFit) {
-    let found = gap.effects_added.iter().any(|e| e.kind == "eccentricity")
-        || gap.effects_adjusted.iter().any(|e| e.kind == "eccentricity");
-    if !found {
-        return;
-    }
-    if axis.points == 0 || axis.radius_mm <= 0.0 {
-        return;
-    }
-    // The centre of a circle fitted to m points with in-plane scatter s is
-    // known to about s sqrt(2 / m) per axis; off-centre by d, the angles are
-    // off by d / radius once per revolution.
-    let expected = (axis.circle_rms_mm * (2.0 / axis.points as f64).sqrt() / axis.radius_mm).to_degrees();
-    gap.notes.push(format!(
-        "the reference is a tracker whose axis was located from {} SMR positions (circle fit RMS {:.4} mm on a \
-         {:.1} mm radius): an error in that location also reads as a once-per-revolution error, of about {expected:.1e} \
-         deg here; an eccentricity not much larger than that may be the reference's, not the positioner's (locate the \
-         axis from more points to tell them apart)",
-        axis.points, axis.circle_rms_mm, axis.radius_mm
-    ));
 }
 
 /// Write the improved model: a header comment and the model file, through a

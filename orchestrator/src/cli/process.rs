@@ -4,7 +4,7 @@ use super::support::{emit, open_read_only};
 use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::progress::{self, Progress};
-use crate::refit::refit_survey;
+use crate::refit::{located_axis_knowledge, refit_survey, uncertainty_inputs};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 use survey_processing::export::controllers::{Controller, Directions};
@@ -170,17 +170,20 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         let drift = store.drift_points(survey.id).await?;
         let samples = crate::drift::for_analysis(&survey, samples, &drift);
         let refit = refit.map(|(s, r)| (crate::drift::for_analysis(&survey, s, &drift), r));
-        anyhow::Ok((survey, samples, refit))
+        let located = if refit.is_none() { located_axis_knowledge(&store, &survey).await? } else { None };
+        anyhow::Ok((survey, samples, refit, located))
     }
     .await;
     store.close().await;
-    let (survey, samples, refit) = loaded?;
+    let (survey, samples, refit, located) = loaded?;
+    let uncertainty = uncertainty_inputs(&survey, refit.as_ref().map(|(_, r)| r), located.as_ref());
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
     let opts = ProcessOptions {
         design: args.design,
         recipe: args.recipe,
         table_out: Some(table_out),
         export: args.tables.into(),
+        uncertainty,
     };
     let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));

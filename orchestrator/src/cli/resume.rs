@@ -61,7 +61,12 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let mut bench = Bench::resume(&record, Duration::from_secs_f64(last_time.max(0.0)), next)?;
     bench.engine.set_stop(stop.clone());
     let plan = bench.plan.clone();
-    let options = AcquireOptions { progress: !args.json, crash_after: None, signal_after: None };
+    let options = AcquireOptions {
+        progress: !args.json,
+        crash_after: None,
+        signal_after: None,
+        plan_progress: bench.plan_progress.clone(),
+    };
     let acquired = if next >= plan.total_steps() {
         // Every sample is stored (the survey stopped after its acquisition):
         // finish it, statistics and processing.
@@ -82,7 +87,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         let message = format!("resumed at step {next} of {}", plan.total_steps());
         store.log_event(id, last_time, "info", &message).await?;
         eprintln!("survey {id}: {message}");
-        acquire(&store, id, &mut bench.engine, &plan, next, options).await
+        acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
     };
     let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;

@@ -147,9 +147,13 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         bench.describe(),
         human(bench.estimate)
     );
-    let options =
-        AcquireOptions { progress: !args.json, crash_after: args.sim_crash_after, signal_after: args.sim_signal_after };
-    let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options).await;
+    let options = AcquireOptions {
+        progress: !args.json,
+        crash_after: args.sim_crash_after,
+        signal_after: args.sim_signal_after,
+        plan_progress: bench.plan_progress.clone(),
+    };
+    let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options.clone()).await;
     let finish = ConcludeOptions { recipe: args.recipe.clone(), verify, acquire: options, stop };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);

@@ -35,6 +35,7 @@ use survey_processing::Sample;
 use survey_processing::model::{Design, Model};
 use survey_processing::pipeline::{PipelineError, Processed, Replay};
 use survey_processing::recipe::Recipe;
+use survey_processing::uncertainty::{Uncertainty, UncertaintyInputs};
 
 /// The database `survey` uses when `--db` is not given.
 pub const DEFAULT_DB: &str = "survey.db";
@@ -66,6 +67,9 @@ pub struct ProcessOptions {
     pub table_out: Option<PathBuf>,
     /// Export choices laid over the recipe's `[export]` (the command line's).
     pub export: overrides::ExportOverrides,
+    /// What the uncertainty budget needs beyond the samples (the reference
+    /// instrument's noise, the axis fit's standard error).
+    pub uncertainty: UncertaintyInputs,
 }
 
 /// Where the design came from.
@@ -94,6 +98,8 @@ pub struct ProcessOutcome {
     pub recipe_from: Option<PathBuf>,
     /// The files written.
     pub files: outputs::OutputPaths,
+    /// The table's uncertainty budget.
+    pub uncertainty: Uncertainty,
 }
 
 impl ProcessOutcome {
@@ -123,7 +129,8 @@ pub fn process_survey(
     let table_out = opts.table_out.clone().unwrap_or_else(|| default_table_path(Path::new(DEFAULT_DB), id));
     let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
     outputs::write_all(&paths, &processed, id)?;
-    Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths })
+    let uncertainty = survey_processing::uncertainty::uncertainty(&processed, samples, &opts.uncertainty);
+    Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths, uncertainty })
 }
 
 /// The processing of `samples` of `survey` without writing anything: the

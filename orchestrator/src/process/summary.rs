@@ -145,6 +145,7 @@ pub fn json(o: &ProcessOutcome) -> Value {
         "files": o.files,
         "controllers": controllers_json(o),
         "notes": a.notes.iter().chain(&p.notes).collect::<Vec<_>>(),
+        "uncertainty": o.uncertainty,
     })
 }
 
@@ -307,5 +308,6 @@ pub fn text(o: &ProcessOutcome) -> String {
     if let Some(recipe) = &f.recipe {
         let _ = writeln!(s, "  recipe          {} (replay with --recipe)", recipe.display());
     }
+    s += &o.uncertainty.text();
     s
 }

@@ -1,7 +1,6 @@
 //! Drift over time, when it was measured: re-measurements of a reference
-//! position during the survey, as (instrument time, drift) points. The store
-//! keeps no such points yet (drift control is another part of the work);
-//! this section renders them once it does.
+//! position during the survey (drift control, `[drift_control]`), as
+//! (instrument time, drift) points from the store.
 
 use super::page::{Key, escape, figure, legend, table};
 use super::plot::{self, BLUE, HEIGHT, WIDTH, axes, extent, hex, padded, render};

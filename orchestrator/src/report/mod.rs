@@ -82,7 +82,7 @@ pub struct ReportData {
     pub verification: Option<Verification>,
     /// The model-gap steps and the model's name, with `--model`.
     pub model_gap: Option<(String, ModelGap)>,
-    /// Re-measurements of a reference position over time (none stored yet).
+    /// Re-measurements of a reference position over time (drift control).
     pub drift: Vec<drift::DriftPoint>,
     /// The table's uncertainty budget, when the processing gives one.
     pub uncertainty: Option<uncertainty::UncertaintyBudget>,
@@ -97,10 +97,18 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
     if stored.is_empty() {
         return Err(bad_input(format!("survey {} holds no samples yet", survey.id)));
     }
-    let samples = match crate::refit::refit_survey(store, &survey).await? {
-        Some((refitted, _)) => refitted,
-        None => stored.clone(),
+    let refit = crate::refit::refit_survey(store, &survey).await?;
+    let located = match &refit {
+        Some(_) => None,
+        None => crate::refit::located_axis_knowledge(store, &survey).await?,
     };
+    let drift_points = store.drift_points(survey.id).await?;
+    let (samples, refit) = match refit {
+        Some((refitted, r)) => (refitted, Some(r)),
+        None => (stored.clone(), None),
+    };
+    // Corrected for the drift when the survey asked for it, as `survey process` does.
+    let analysed = crate::drift::for_analysis(&survey, samples.clone(), &drift_points);
     let verification = find_verification(store, &survey, &stored, &samples).await?;
     let process_opts = ProcessOptions {
         design: opts.design.clone(),
@@ -108,7 +116,7 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
         table_out: None,
         ..Default::default()
     };
-    let processed = match crate::process::compute(&survey, &samples, &process_opts) {
+    let processed = match crate::process::compute(&survey, &analysed, &process_opts) {
         Ok((p, _)) => Ok(p),
         Err(e) if e.downcast_ref::<PipelineError>().is_some() => Err(format!("{e:#}")),
         Err(e) => return Err(e),
@@ -116,22 +124,37 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
     let model_gap = match &opts.model {
         Some(path) => {
             let model = Model::from_file(path)?;
-            let gap =
-                survey_processing::modelgap::model_gap(&stored, &model, &ModelGapOptions::default()).map_err(|e| {
-                    bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, path.display()))
-                })?;
+            // As `survey model-gap` compares it: around the refitted axis, told the reference.
+            let reference = crate::refit::reference_info(&survey, refit.as_ref(), located.as_ref());
+            let options = ModelGapOptions { reference, ..ModelGapOptions::default() };
+            let gap = survey_processing::modelgap::model_gap(&samples, &model, &options).map_err(|e| {
+                bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, path.display()))
+            })?;
             Some((path.display().to_string(), gap))
         }
         None => None,
     };
+    let inputs = crate::refit::uncertainty_inputs(&survey, refit.as_ref(), located.as_ref());
+    let uncertainty = processed.as_ref().ok().map(|p| {
+        let u = survey_processing::uncertainty::uncertainty(p, &analysed, &inputs);
+        uncertainty::UncertaintyBudget {
+            k: u.k,
+            table_u_deg: u.table_u_deg,
+            budget: u
+                .budget
+                .into_iter()
+                .map(|c| uncertainty::BudgetEntry { source: c.source, u_deg: c.u_deg })
+                .collect(),
+        }
+    });
     Ok(ReportData {
         survey,
         samples,
         processed,
         verification,
         model_gap,
-        drift: Vec::new(),
-        uncertainty: None,
+        drift: drift_points.iter().map(|p| (p.at_s, p.drift_deg)).collect(),
+        uncertainty,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
     })
 }

@@ -92,6 +92,33 @@ pub(crate) fn survey(
     out
 }
 
+/// The true angle `theta` at which a positioner whose error at the true angle
+/// is `error(theta)` reads `readout` (`theta + error(theta) = readout`, the
+/// contract's convention), by fixed-point iteration.
+pub(crate) fn true_angle(readout: f64, error: impl Fn(f64) -> f64) -> f64 {
+    let mut theta = readout;
+    for _ in 0..60 {
+        theta = readout - error(theta);
+    }
+    theta
+}
+
+/// [`survey`] with the contract's convention: `error(run, direction, theta)`
+/// is a function of the TRUE angle, and the sample at target `t` carries it at
+/// the `theta` where the positioner reads `t` ([`true_angle`]): the error as
+/// a function of the readout then holds the products of the lines, as a
+/// simulated or a real positioner's does.
+pub(crate) fn survey_at_true_angle(
+    targets: &[f64],
+    runs: u32,
+    directions: &[Direction],
+    sigma: f64,
+    seed: u64,
+    error: impl Fn(u32, Direction, f64) -> f64,
+) -> Vec<Sample> {
+    survey(targets, runs, directions, sigma, seed, |run, d, t| error(run, d, true_angle(t, |th| error(run, d, th))))
+}
+
 #[test]
 fn normal_generator_has_unit_moments() {
     let mut g = Normal::new(42);

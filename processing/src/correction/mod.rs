@@ -7,10 +7,14 @@
 //! `error = readout - actual`, at `N` uniform angles `360 j / N` over a full
 //! revolution. A survey stops the axis where the readout equals the target, so
 //! the map is already indexed by the readout angle: exactly what the contract's
-//! table stores (`corrected = readout - error(readout)`). No change of variable
-//! is needed; the error as a function of the *true* angle would differ by
-//! about `error * slope`, which the tests against the simulators' convention
-//! (`readout = actual + e(actual)`) confirm is absent here.
+//! table stores (`corrected = readout - error(readout)`), and at the targets
+//! its values need no change of variable. Between them, the processing's
+//! tables (the recipe's, [`crate::recipe`]) take the kept lines as lines of
+//! the TRUE angle, where a positioner's errors are sparse, and make the table
+//! through the change of variable, so the products of the lines (`e e'`,
+//! below any test's threshold, and dropped by a table that keeps only the
+//! significant lines of the readout map) are in it (`true_angle`). The
+//! [`TableBuilder`] here resamples a map as it is (the paper's method).
 //!
 //! [`TableBuilder`] (and the one-shot [`build_table`]) follow the paper: the map
 //! is taken to the spectral domain ([`Resampler`]), the [`SpectralEdit`] is
@@ -66,6 +70,7 @@ use crate::table::{CorrectionTable, TableError};
 use crate::types::Sample;
 use serde::Serialize;
 
+pub(crate) mod true_angle;
 #[cfg(test)]
 mod truth_tests;
 

@@ -268,3 +268,27 @@ pub(crate) fn closing_notes(notes: &mut Vec<String>, after: &Views, noise: &Nois
         ));
     }
 }
+
+/// With a tracker, an eccentricity found may be the reference's axis location.
+pub(crate) fn reference_note(
+    notes: &mut Vec<String>,
+    added: &[FoundEffect],
+    adjusted: &[AdjustedEffect],
+    reference: &super::ReferenceInfo,
+) {
+    let found = added.iter().any(|e| e.kind == "eccentricity") || adjusted.iter().any(|e| e.kind == "eccentricity");
+    let super::ReferenceInfo::Tracker { radius_mm, points, axis_se_deg, refitted } = reference else { return };
+    if !found {
+        return;
+    }
+    let how = if *refitted {
+        format!("fitted again from {points} SMR positions")
+    } else {
+        format!("located from {points} SMR positions before the runs")
+    };
+    notes.push(format!(
+        "the reference is a tracker whose axis was {how} ({radius_mm:.1} mm arm): an error in that location also reads \
+         as a once-per-revolution error, {axis_se_deg:.1e} deg here (1 sigma); an eccentricity change not much larger \
+         than that may be the reference's, not the positioner's"
+    ));
+}

@@ -45,7 +45,7 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
         match &model.effects[i] {
             Effect::Periodic { cycles_per_rev, .. } => {
                 let (s, c): (Vec<f64>, Vec<f64>) =
-                    survey.samples.iter().map(|x| (cycles_per_rev * x.actual_deg).to_radians().sin_cos()).unzip();
+                    survey.angle_deg.iter().map(|a| (cycles_per_rev * a).to_radians().sin_cos()).unzip();
                 columns.push(s);
                 columns.push(c);
                 owner.extend([k, k]);
@@ -55,7 +55,7 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
                 owner.push(k);
             }
             Effect::Drift { shape, .. } => {
-                columns.push(survey.tau.iter().map(|&t| shape.runs(t)).collect());
+                columns.push((0..n).map(|j| shape.runs_at(survey.drift_time(j))).collect());
                 owner.push(k);
             }
             Effect::Noise { .. } => unreachable!("noise is never fitted"),

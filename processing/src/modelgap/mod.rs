@@ -113,10 +113,14 @@ mod survey;
 mod tests;
 #[cfg(test)]
 mod tests_cases;
+#[cfg(test)]
+mod tests_verdict;
 mod text;
+mod verdict;
 mod views;
 
 pub use survey::Timebase;
+pub use verdict::{ReferenceFinding, ReferenceInfo, RepeatableTest, Verdict};
 pub use views::{AngleRange, AngleView, DirectionView, FrequencyView, GapLine, RunMean, TimeView, TrendTest, Views};
 
 use crate::analysis::{AnalysisError, AnalysisOptions, Method};
@@ -139,11 +143,18 @@ pub struct ModelGapOptions {
     /// How lines are named from the design (harmonic orders, sidebands); its
     /// `false_alarm_rate` and `series` are set by model-gap.
     pub analysis: AnalysisOptions,
+    /// The reference instrument, for what of the gap is its own (default: unknown).
+    pub reference: ReferenceInfo,
 }
 
 impl Default for ModelGapOptions {
     fn default() -> Self {
-        ModelGapOptions { false_alarm_rate: 0.01, max_steps: 40, analysis: AnalysisOptions::default() }
+        ModelGapOptions {
+            false_alarm_rate: 0.01,
+            max_steps: 40,
+            analysis: AnalysisOptions::default(),
+            reference: ReferenceInfo::default(),
+        }
     }
 }
 
@@ -353,6 +364,9 @@ pub struct ModelGap {
     pub before: Views,
     /// The gap after, four ways.
     pub after: Views,
+    /// Whether the improved model explains the data (stated tests), and what
+    /// of the reference explains part of the gap.
+    pub verdict: Verdict,
     /// Remarks: what could not be added, where the data and the model still differ.
     pub notes: Vec<String>,
     /// The improved model (the model given with the effects added and adjusted).
@@ -363,7 +377,7 @@ pub struct ModelGap {
 /// The model's systematic error at every sample, as model-gap simulates it
 /// (before the offset is fitted). Samples in acquisition order.
 pub fn simulated_errors(samples: &[Sample], model: &Model) -> Result<Vec<f64>, ModelGapError> {
-    Ok(Survey::prepare(samples)?.predict(model))
+    Ok(Survey::prepare_for(samples, model)?.predict(model))
 }
 
 /// What a candidate disagreement is.
@@ -670,7 +684,7 @@ impl Ctx<'_> {
 /// what the model lacks, and close the gap. See the module documentation.
 pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -> Result<ModelGap, ModelGapError> {
     validate(options)?;
-    let survey = Survey::prepare(samples)?;
+    let survey = Survey::prepare_for(samples, model)?;
     let runs = survey.runs();
     let spectral_alpha = if runs >= 2 { options.false_alarm_rate } else { options.false_alarm_rate / 2.0 };
     let analysis = AnalysisOptions {
@@ -751,13 +765,14 @@ pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -
         gap.notes.push(format!("stopped after {} steps with disagreements left", options.max_steps));
     }
     gap.prune(line_factor)?;
+    let (residual_after, offset_after) = survey.residual(&gap.model);
     let after = if gap.steps.is_empty() {
         before.clone()
     } else {
-        let (residual, offset) = survey.residual(&gap.model);
-        gap.offset = offset;
-        views::views(&ctx, &gap.model, &residual)?.0
+        gap.offset = offset_after;
+        views::views(&ctx, &gap.model, &residual_after)?.0
     };
+    let verdict = verdict::verdict(&ctx, &residual_after, noise.dof, &options.reference);
     explain::finish(&mut gap.added, &mut gap.adjusted, &gap.model, &gap.touched, &gap.se, &ctx);
     let significance = explain::significance(&ctx, &first, &before, line_factor);
     let detection_limits = DetectionLimits {
@@ -767,6 +782,7 @@ pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -
     };
     let mut notes = gap.notes;
     explain::closing_notes(&mut notes, &after, &noise, ctx.sigma, &first);
+    explain::reference_note(&mut notes, &gap.added, &gap.adjusted, &options.reference);
     Ok(ModelGap {
         effects_added: gap.added,
         effects_adjusted: gap.adjusted,
@@ -790,6 +806,7 @@ pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -
         offset_deg: gap.offset,
         before,
         after,
+        verdict,
         notes,
         model: gap.model,
     })

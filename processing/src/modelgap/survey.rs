@@ -3,7 +3,7 @@
 
 use super::ModelGapError;
 use crate::errormap::ErrorMap;
-use crate::model::Model;
+use crate::model::{DriftTime, Model};
 use crate::types::{Direction, Sample};
 use serde::Serialize;
 
@@ -32,8 +32,16 @@ pub(crate) struct Survey {
     pub dir: Vec<usize>,
     /// The measured directions (forward first).
     pub dirs: Vec<Direction>,
-    /// Per sample: runs elapsed since the first sample.
+    /// Per sample: runs elapsed since the first sample (the time of a ramp).
     pub tau: Vec<f64>,
+    /// Per sample: the run's place among the survey's runs, from 0 (the time of a step).
+    pub run_index: Vec<f64>,
+    /// Per sample: the axis angle the model is evaluated at, degrees: the
+    /// measured actual angle plus [`Survey::angle_shift_deg`].
+    pub angle_deg: Vec<f64>,
+    /// The reference's zero against the model's axis angle, degrees (see
+    /// [`Survey::set_angle_shift`]).
+    pub angle_shift_deg: f64,
     /// Per sample: the measured error `readout - actual`.
     pub y: Vec<f64>,
     pub timebase: Timebase,
@@ -54,7 +62,58 @@ impl Survey {
             samples.iter().map(|s| dirs.iter().position(|d| *d == s.direction).expect("measured")).collect();
         let y: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
         let (tau, timebase, run_duration_s) = time_in_runs(samples, &run, map.runs.len());
-        Ok(Survey { samples: samples.to_vec(), map, target, run, dir, dirs, tau, y, timebase, run_duration_s })
+        let run_index = run.iter().map(|&r| r as f64).collect();
+        let angle_deg = samples.iter().map(|s| s.actual_deg).collect();
+        Ok(Survey {
+            samples: samples.to_vec(),
+            map,
+            target,
+            run,
+            dir,
+            dirs,
+            tau,
+            run_index,
+            angle_deg,
+            angle_shift_deg: 0.0,
+            y,
+            timebase,
+            run_duration_s,
+        })
+    }
+
+    /// The zero reference is an angle as well as a constant: a reference whose
+    /// zero sits `c` degrees from the positioner's own zero measures `actual =
+    /// theta + c` and an error `y = e(theta) - c`, so the constant fitted
+    /// between model and data (`offset = -c`) also says where the model's
+    /// angle is: `theta = actual + offset`. The model is evaluated there.
+    /// (With a tracker, the engine sets the zero so the mean error at the
+    /// locate points is 0; they are all approached forward, so `c` is about
+    /// half the backlash, 0.004 deg on the Figure 8 positioner: evaluated at
+    /// the measured angle, its 20-cycle gear pass would show a false phase
+    /// change of 20 x 0.004 deg, 1.1e-5 deg, which model-gap names on a survey
+    /// of 36000 points.)
+    pub fn set_angle_shift(&mut self, shift_deg: f64) {
+        self.angle_shift_deg = shift_deg;
+        for (a, s) in self.angle_deg.iter_mut().zip(&self.samples) {
+            *a = s.actual_deg + shift_deg;
+        }
+    }
+
+    /// [`Survey::prepare`], with the zero reference's angle found against
+    /// `model` (two passes: the second changes it by the model's slope times
+    /// the first's change, far below anything measurable).
+    pub fn prepare_for(samples: &[Sample], model: &Model) -> Result<Self, ModelGapError> {
+        let mut s = Survey::prepare(samples)?;
+        for _ in 0..2 {
+            let (_, offset) = s.residual(model);
+            s.set_angle_shift(offset);
+        }
+        Ok(s)
+    }
+
+    /// Sample `i`'s time for the drift.
+    pub fn drift_time(&self, i: usize) -> DriftTime {
+        DriftTime { runs_elapsed: self.tau[i], run_index: self.run_index[i] }
     }
 
     pub fn len(&self) -> usize {
@@ -77,12 +136,13 @@ impl Survey {
         self.dirs[self.dir[i]]
     }
 
-    /// The model's systematic error at every sample: at the actual angle (the
-    /// simulators' convention `readout = actual + e(actual)`), in the sample's
-    /// direction, after `tau` runs.
+    /// The model's systematic error at every sample: at the axis angle (the
+    /// simulators' convention `readout = actual + e(actual)`; the measured
+    /// actual angle with the zero reference's shift), in the sample's
+    /// direction, at its time (a ramp by `tau`, a step by the run).
     pub fn predict(&self, model: &Model) -> Vec<f64> {
         (0..self.len())
-            .map(|i| model.systematic_error_deg(self.samples[i].actual_deg, self.direction(i), self.tau[i]))
+            .map(|i| model.systematic_error_at(self.angle_deg[i], self.direction(i), self.drift_time(i)))
             .collect()
     }
 

@@ -68,8 +68,10 @@ impl ModelGap {
                 st.step, st.added, st.amplitude_deg, st.rms_deg, st.mean_peak_deg
             );
         }
-        if self.effects_added.is_empty() {
+        if self.effects_added.is_empty() && self.verdict.explained && self.verdict.reference.is_empty() {
             let _ = writeln!(s, "\neffects added: none (the model explains the data down to the noise floor)");
+        } else if self.effects_added.is_empty() {
+            let _ = writeln!(s, "\neffects added: none (see the verdict)");
         } else {
             let _ = writeln!(s, "\neffects added:");
             for f in &self.effects_added {
@@ -100,6 +102,7 @@ impl ModelGap {
             "residual rms {:.3e} -> {:.3e} deg (noise floor {:.3e} deg); zero-reference offset {:+.3e} deg",
             self.rms_before_deg, self.rms_after_deg, self.noise_floor_deg, self.offset_deg
         );
+        let _ = writeln!(s, "verdict: {}", self.verdict.statement);
         for n in &self.notes {
             let _ = writeln!(s, "note: {n}");
         }

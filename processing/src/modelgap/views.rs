@@ -124,8 +124,8 @@ pub(crate) struct Part {
 pub struct DirectionView {
     /// Mean over targets and runs of forward minus reverse, degrees.
     pub forward_minus_reverse_deg: f64,
-    /// The backlash the model lacks (least squares with the offset and the
-    /// drift), degrees: forward reads `+change/2`, reverse `-change/2`.
+    /// The backlash the model lacks (least squares with the offset and a
+    /// drift of either shape), degrees: forward reads `+change/2`, reverse `-change/2`.
     pub backlash_change_deg: f64,
     /// Its standard error, degrees.
     pub standard_error_deg: f64,
@@ -373,8 +373,13 @@ fn direction_view(ctx: &Ctx, residual: &[f64]) -> Option<DirectionView> {
     let n = s.len();
     let half_sign: Vec<f64> = (0..n).map(|i| s.direction(i).sign() / 2.0).collect();
     let ones = vec![1.0; n];
-    let with_drift = least_squares(&[ones.clone(), half_sign.clone(), s.tau.clone()], residual);
-    let fit = with_drift.or_else(|_| least_squares(&[ones, half_sign], residual)).ok()?;
+    // A drift of either shape is a nuisance here: a ramp moves forward against
+    // reverse within a run, and a step fitted as a ramp would too.
+    let both = least_squares(&[ones.clone(), half_sign.clone(), s.tau.clone(), s.run_index.clone()], residual);
+    let fit = both
+        .or_else(|_| least_squares(&[ones.clone(), half_sign.clone(), s.tau.clone()], residual))
+        .or_else(|_| least_squares(&[ones, half_sign], residual))
+        .ok()?;
     let se = ctx.sigma * fit.unit_var[1].sqrt();
     let threshold = normal_two_sided_isf(ctx.alpha * SCALAR_SHARE) * se;
     // Per target: forward mean minus reverse mean.

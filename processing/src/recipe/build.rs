@@ -1,9 +1,10 @@
 //! Building the table a recipe decided: the direction question, the spectral
 //! path of a full circle and the fitted path of a partial range.
 
+use super::direction::{DirectionModel, direction_model};
 use super::{ApplyError, ChoiceError, Decisions, Directional, Recipe};
 use crate::analysis::Analysis;
-use crate::correction::{CorrectionError, TableBuilder, build_partial_directional_table, build_partial_table};
+use crate::correction::{CorrectionError, TableBuilder, true_angle};
 use crate::errormap::{Coverage, Series};
 use crate::resample::{Complex64, PartialError, PartialMethod, Resampler, Series as Spectrum, Span, fit_partial};
 use crate::table::CorrectionTable;
@@ -94,6 +95,8 @@ pub struct BuiltTable {
     pub hysteresis: Option<Hysteresis>,
     /// How the rows were made.
     pub method: TableMethod,
+    /// The forward - reverse model of a full-circle directional table.
+    pub direction_model: Option<DirectionModel>,
     /// Remarks.
     pub notes: Vec<String>,
 }
@@ -160,6 +163,16 @@ impl Recipe {
         };
         let rows = self.table.rows;
         let mut notes = Vec::new();
+        let mut rs = Resampler::new();
+        let model = match (map.coverage, columns.as_slice(), &hysteresis) {
+            (Coverage::FullCircle { .. }, [f, r], Some(h)) => {
+                let (dm, half) = direction_model(f, r, h.noise_deg, analysis.noise.false_alarm_rate, &mut rs);
+                notes.push(dm.text());
+                let mean: Vec<f64> = f.iter().zip(r.iter()).map(|(a, b)| (a + b) / 2.0).collect();
+                Some((dm, half, mean))
+            }
+            _ => None,
+        };
         let (mut cols, method) = match map.coverage {
             Coverage::FullCircle { n } => {
                 let dense = self.table.dense_points;
@@ -171,15 +184,26 @@ impl Recipe {
                     .into());
                 }
                 let mut builder = TableBuilder::new(dense, rows);
-                let mut rs = Resampler::new();
                 let start = map.targets_deg[0];
-                let cols = columns
-                    .iter()
-                    .map(|c| {
-                        let s = rotate(builder.edited_series(c, &decisions.edit)?, start);
-                        Ok(rs.synthesize(&s, rows))
-                    })
-                    .collect::<Result<Vec<_>, CorrectionError>>()?;
+                let targets: Vec<f64> = (0..n).map(|j| start + 360.0 * j as f64 / n as f64).collect();
+                let edit = |m: &[f64]| Ok(rotate(builder.edited_series(m, &decisions.edit)?, start));
+                let cols = match &model {
+                    Some((dm, half, mean)) => {
+                        let lines = true_angle::TrueLines::fit(mean, &targets, edit, rows, &mut rs)?;
+                        let minus = Spectrum::from_coeffs(half.coeffs().iter().map(|c| -c).collect());
+                        vec![
+                            lines.column(Some(half), dm.mean_deg / 2.0, rows, &mut rs),
+                            lines.column(Some(&minus), -dm.mean_deg / 2.0, rows, &mut rs),
+                        ]
+                    }
+                    None => columns
+                        .iter()
+                        .map(|c| {
+                            let edit = |m: &[f64]| Ok(rotate(builder.edited_series(m, &decisions.edit)?, start));
+                            true_angle::full_circle_column(c, &targets, edit, rows, &mut rs)
+                        })
+                        .collect::<Result<Vec<_>, CorrectionError>>()?,
+                };
                 (cols, TableMethod::Spectral { dense_points: dense })
             }
             Coverage::Partial { start, end, .. } => {
@@ -208,11 +232,10 @@ impl Recipe {
                         }
                     }
                 };
-                let table = match columns.as_slice() {
-                    [f, r] => build_partial_directional_table(span, f, r, &fit, rows)?,
-                    _ => build_partial_table(span, single, &fit, rows)?,
-                };
-                let cols = std::iter::once(table.forward).chain(table.reverse).collect();
+                let cols = columns
+                    .iter()
+                    .map(|c| true_angle::partial_column(span, c, &fit, rows).map_err(CorrectionError::from))
+                    .collect::<Result<Vec<_>, CorrectionError>>()?;
                 (cols, TableMethod::Partial { fit })
             }
         };
@@ -229,6 +252,14 @@ impl Recipe {
             CorrectionTable::new(cols.pop().expect("one column"))
         }
         .map_err(CorrectionError::from)?;
-        Ok(BuiltTable { directional: table.is_directional(), table, directional_reason, hysteresis, method, notes })
+        Ok(BuiltTable {
+            directional: table.is_directional(),
+            table,
+            directional_reason,
+            hysteresis,
+            method,
+            direction_model: model.map(|(dm, _, _)| dm),
+            notes,
+        })
     }
 }

@@ -170,6 +170,38 @@ async fn drift_grows_by_the_rate_per_run_period() {
     assert!(drift_part(&still, r, a).abs() < 1e-9);
 }
 
+/// With a plan progress, the drift is the model's rate per run exactly:
+/// step `j` of run `k` (of `n` steps a run) is at `k + j / n` runs for a
+/// ramp and `k` for a step, whatever the clock says (a long wait changes
+/// nothing), and it takes precedence over a drift period.
+#[tokio::test]
+async fn drift_by_plan_progress_is_the_rate_per_run_exactly() {
+    let rate = 0.002;
+    for shape in [DriftShape::Ramp, DriftShape::Step] {
+        let mut model = without_noise(&fig8());
+        model.effects.push(Effect::Drift { rate_deg_per_run: rate, shape });
+        let progress = PlanProgress::new(8);
+        let cfg = PositionerConfig {
+            drift_run_period: Some(Duration::from_secs(1)),
+            drift_progress: Some(progress.clone()),
+            ..PositionerConfig::new(model.clone())
+        };
+        let (clock, mut p) = sim(cfg);
+        let drift_part = |p: &SimPositioner, r: f64, a: f64| r - a - model.repeatable_error_deg(a, p.direction());
+        for (seq, target) in [(0u64, 10.0), (3, 20.0), (8, 10.0), (13, 30.0), (37, 5.0)] {
+            progress.set_next_step(seq);
+            clock.advance(Duration::from_secs(5000));
+            let (r, a) = go(&mut p, target).await;
+            let (k, j) = ((seq / 8) as f64, (seq % 8) as f64);
+            let want = match shape {
+                DriftShape::Ramp => rate * (k + j / 8.0),
+                DriftShape::Step => rate * k,
+            };
+            assert!((drift_part(&p, r, a) - want).abs() < 1e-12, "{shape:?} step {seq}: {}", drift_part(&p, r, a));
+        }
+    }
+}
+
 #[tokio::test]
 async fn correction_in_the_feedback_path_puts_the_axis_on_target() {
     let model = without_noise(&fig8());

@@ -1,0 +1,224 @@
+//! The uncertainty of a correction table's values: a budget in the manner of
+//! the GUM (JCGM 100: each source a standard uncertainty, combined as the
+//! root sum of squares of independent contributions, expanded with a
+//! coverage factor `k = 2`), its sources those ISO/TR 230-9 lists for a
+//! machine-tool measurement (the reference instrument, its set-up, the
+//! repeatability, the model of what is measured, the environment, here the
+//! drift).
+//!
+//! What is stated: the standard uncertainty of the table's value at any
+//! angle, as an error of the positioner, relative to its zero reference (a
+//! constant common to the whole table is the zero reference's choice, not
+//! an error of the table). It is the uncertainty of the table the
+//! processing made, from this survey:
+//!
+//! - **reference instrument**: the reference's random error of one angle
+//!   (`reference_u_deg`, stated by the bench or the configuration) through
+//!   the fit: a table of `p` fitted terms (two per kept line of a full
+//!   circle; the polynomial and the lines of a partial range) from `N`
+//!   readings carries `p u^2 / N` of it at an angle, on average.
+//! - **repeatability over the runs**: what the survey's own scatter from run
+//!   to run puts into the fitted terms (Type A: for a full circle, each kept
+//!   line's quadrature components have the standard deviation the spread of
+//!   the run spectra gives, `line_sd_mean`; `K` lines make `K line_sd_mean^2`
+//!   at an angle), less the reference's share above (the scatter holds both).
+//! - **axis location** (a tracker): the once-per-revolution error of the
+//!   angles computed around the fitted axis, from the axis fit's own standard
+//!   error over the measured arc.
+//! - **direction model**: a directional table's forward - reverse part (the
+//!   noise of the difference's mean and of its kept lines, halved in each
+//!   column); a table of one column for a bidirectional survey carries half
+//!   the mean hysteresis as an error of each direction.
+//! - **table resolution and interpolation**: the table is read between its
+//!   rows by linear interpolation: a line of amplitude `A` and angular
+//!   frequency `w` (rad/deg) leaves `A w^2 h^2 / sqrt(240)` rms between rows
+//!   `h` deg apart.
+//! - **drift**: a ramp over the survey (the slope of the run means per run,
+//!   and its standard error) is not in the model of the table: within a run
+//!   of one direction it is a sawtooth over the circle whose lines at the
+//!   kept frequencies (`D / (pi k)`) the table takes in; in a bidirectional
+//!   survey the two passes cancel it in the mean, and it biases the
+//!   difference of the directions by about half a run's drift (a quarter in
+//!   each column). Its estimate and its standard error are both counted.
+//!
+//! - **a line below the detection threshold** (the model of the table): the
+//!   table holds the lines the analysis found; one it could not find is at
+//!   most about the threshold of its test (`coherent_threshold_deg`). One
+//!   such line, its amplitude rectangular between 0 and the threshold `T`, at
+//!   any phase: `T / sqrt(6)`.
+//!
+//! What is not: the reference's calibration (a scale error of the reference
+//! instrument: it has no stated value here), more than one line missed.
+
+use crate::errormap::{Coverage, Series};
+use crate::pipeline::Processed;
+use crate::types::{Direction, Sample};
+use serde::Serialize;
+
+/// What the processing does not know from the samples.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct UncertaintyInputs {
+    /// The reference instrument's standard uncertainty of one angle
+    /// (random), degrees; `None` when not stated.
+    pub reference_u_deg: Option<f64>,
+    /// The axis location's once-per-revolution standard error over the
+    /// measured arc (a tracker), degrees; `None` without a fitted axis.
+    pub axis_u_deg: Option<f64>,
+}
+
+/// One source and its standard uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Contribution {
+    /// The source, in words.
+    pub source: String,
+    /// Its standard uncertainty at an angle of the table, degrees.
+    pub u_deg: f64,
+}
+
+/// The budget and the table's uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Uncertainty {
+    /// The coverage factor of the expanded uncertainty.
+    pub k: f64,
+    /// The combined standard uncertainty of the table's values, degrees.
+    pub table_u_deg: f64,
+    /// The expanded uncertainty `k table_u_deg`, degrees.
+    pub expanded_deg: f64,
+    /// The contributions.
+    pub budget: Vec<Contribution>,
+    /// How it was estimated, in words.
+    pub method: String,
+}
+
+/// The coverage factor stated (about 95 % for a normal distribution).
+pub const K: f64 = 2.0;
+
+/// The slope of the run means per run and its standard error, per
+/// direction measured (`None` with fewer than three runs).
+fn drift_per_run(samples: &[Sample]) -> Option<(f64, f64)> {
+    let runs = samples.iter().map(|s| s.run).max()? as usize + 1;
+    if runs < 3 {
+        return None;
+    }
+    let mut sum = vec![0.0; runs];
+    let mut count = vec![0usize; runs];
+    for s in samples {
+        sum[s.run as usize] += s.error_deg();
+        count[s.run as usize] += 1;
+    }
+    let pts: Vec<(f64, f64)> =
+        (0..runs).filter(|&r| count[r] > 0).map(|r| (r as f64, sum[r] / count[r] as f64)).collect();
+    let n = pts.len() as f64;
+    if n < 3.0 {
+        return None;
+    }
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
+    let rss: f64 = pts.iter().map(|p| (p.1 - my - slope * (p.0 - mx)).powi(2)).sum();
+    Some((slope, (rss / (n - 2.0) / sxx).sqrt()))
+}
+
+/// The budget of `processed`, the table made from `samples`.
+pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &UncertaintyInputs) -> Uncertainty {
+    let a = &processed.analysis;
+    let map = &a.error_map;
+    let n = map.targets_deg.len().max(1);
+    let runs = a.runs.max(1);
+    let kept = &processed.decisions.kept_cycles;
+    let (params, in_range) = match map.coverage {
+        Coverage::FullCircle { .. } => (2 * kept.len(), kept.len()),
+        Coverage::Partial { start, end, .. } => {
+            let width = end - start;
+            let lines = kept.iter().filter(|f| *f * width / 360.0 >= 0.5).count();
+            (3 + 2 * lines, lines)
+        }
+    };
+    let p = params as f64;
+    // The analysed series: one value per target and run (the mean of the two
+    // directions of a bidirectional survey), `sample_sd` each.
+    let series_var = a.noise.sample_sd_deg.powi(2);
+    let random_var = match map.coverage {
+        Coverage::FullCircle { .. } => in_range as f64 * a.noise.line_sd_mean_deg.powi(2),
+        Coverage::Partial { .. } => p * series_var / (n * runs) as f64,
+    };
+    let readings = samples.len().max(1) as f64;
+    let reference_var = inputs.reference_u_deg.map(|u| p * u * u / readings);
+    let mut budget = Vec::new();
+    if let Some(v) = reference_var {
+        budget.push(Contribution { source: "reference instrument".into(), u_deg: v.sqrt() });
+    }
+    budget.push(Contribution {
+        source: "repeatability over the runs".into(),
+        u_deg: (random_var - reference_var.unwrap_or(0.0)).max(0.0).sqrt(),
+    });
+    if let Some(u) = inputs.axis_u_deg {
+        budget.push(Contribution { source: "axis location".into(), u_deg: u });
+    }
+    let bidirectional = map.forward.is_some() && map.reverse.is_some();
+    let built = &processed.built;
+    let direction_var = match (&built.direction_model, built.directional, &built.hysteresis) {
+        (Some(dm), _, _) => dm.noise_deg.powi(2) / (4.0 * dm.targets as f64) * (1.0 + 2.0 * dm.lines.len() as f64),
+        // Each direction's terms fitted from its own half of the data.
+        (None, true, _) => p * series_var / (n * runs) as f64,
+        (None, false, Some(h)) if bidirectional && a.series == Series::Bidirectional => (h.mean_deg / 2.0).powi(2),
+        _ => 0.0,
+    };
+    if bidirectional {
+        budget.push(Contribution { source: "direction model".into(), u_deg: direction_var.sqrt() });
+    }
+    // Linear interpolation between rows `h` apart.
+    let h = built.table.spacing_deg();
+    let interp_var: f64 = a
+        .lines
+        .iter()
+        .filter(|l| kept.iter().any(|k| (k - l.true_cycles_per_rev).abs() < 1e-9))
+        .map(|l| {
+            let w = (l.true_cycles_per_rev * std::f64::consts::TAU / 360.0).powi(2);
+            (l.amplitude_deg * w * h * h).powi(2) / 240.0
+        })
+        .sum();
+    budget.push(Contribution { source: "table resolution and interpolation".into(), u_deg: interp_var.sqrt() });
+    let drift_var = match drift_per_run(samples) {
+        Some((d, se)) => {
+            let d = d.abs() + se;
+            if bidirectional && a.series == Series::Bidirectional {
+                (d / 4.0).powi(2)
+            } else {
+                kept.iter().map(|k| (d / (std::f64::consts::PI * k)).powi(2) / 2.0).sum()
+            }
+        }
+        None => 0.0,
+    };
+    budget.push(Contribution { source: "drift".into(), u_deg: drift_var.sqrt() });
+    // A line below the detection threshold is left out of the table: one
+    // such line, its amplitude anywhere from 0 to the threshold (rectangular),
+    // at a random phase: `T / sqrt(3)` amplitude, `1 / sqrt(2)` of it rms.
+    let threshold = a.noise.coherent_threshold_deg;
+    budget.push(Contribution { source: "a line below the detection threshold".into(), u_deg: threshold / 6f64.sqrt() });
+    let table_u_deg = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
+    let method = format!(
+        "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
+         expanded with k = {K}; the table's value at an angle relative to its zero reference, {} fitted terms from \
+         {} readings{}",
+        params,
+        samples.len(),
+        if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
+    );
+    Uncertainty { k: K, table_u_deg, expanded_deg: K * table_u_deg, budget, method }
+}
+
+impl Uncertainty {
+    /// Lines for people.
+    pub fn text(&self) -> String {
+        let mut s = format!(
+            "table uncertainty (GUM): u = {:.2e} deg, U = {:.2e} deg (k = {})\n",
+            self.table_u_deg, self.expanded_deg, self.k
+        );
+        for c in &self.budget {
+            s += &format!("  {:<36} {:.2e} deg\n", c.source, c.u_deg);
+        }
+        s
+    }
+}
