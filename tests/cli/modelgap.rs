@@ -211,11 +211,15 @@ fn model_gap_bad_input_exits_2_and_changes_nothing() {
 fn model_gap_on_a_partial_arc_names_the_axis_location_and_is_never_falsely_content() {
     let bench = Bench::new();
     let preset = concat!(env!("CARGO_MANIFEST_DIR"), "/sims/presets/fig1.toml");
-    // Without the Fanuc file: main's derived recipe refuses this partial
-    // range's table interval for it (not a whole number of 0.001 deg units).
-    bench.write("r.toml", "version = 1\n[export]\nfanuc = false\n");
-    let run = ["run", "--preset", "fig1", "--points", "720", "--bidirectional", "--seed", "1", "--recipe", "r.toml"];
+    let run = ["run", "--preset", "fig1", "--points", "720", "--bidirectional", "--seed", "1"];
     bench.survey(&run).success();
+    // Every controller's table of the partial range, Fanuc's on whole degrees
+    // inside the measured arc (its spacing counts whole detection units).
+    let fanuc = bench.read("table-1.fanuc.txt");
+    let interval = fanuc
+        .lines()
+        .find_map(|l| l.split_whitespace().collect::<Vec<_>>().starts_with(&["3624", "1000"]).then_some(l));
+    assert!(interval.is_some(), "parameter 3624 = 1000 units of 0.001 deg\n{fanuc}");
     let out = bench.survey(&["model-gap", "--model", preset, "--located-axis", "--json"]).success();
     let doc = out.json();
     let found = &doc["verdict"]["reference"][0];

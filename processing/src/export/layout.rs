@@ -51,8 +51,9 @@ pub enum DefaultSpacing {
     /// full circle, a whole number of points per revolution when one fits, so
     /// every turn holds the same values.
     FinestWithin(usize),
-    /// About this spacing (exactly, when the range is a whole number of it;
-    /// else the nearest spacing that divides the range).
+    /// About this spacing: exactly, when the range is a whole number of it or
+    /// is a measured range the user left open (then the multiples of the
+    /// spacing inside it); else the nearest spacing that divides the range.
     Interval(f64),
 }
 
@@ -185,8 +186,20 @@ pub fn resolve(choice: &RangeChoice, span: Span, default: DefaultSpacing) -> Res
                 }
             }
             DefaultSpacing::Interval(d) => {
-                let n = (span_deg / d).round().max(1.0) as usize;
-                grid(span_deg / n as f64, n + 1)
+                // A measured range the user did not bound is laid on the
+                // multiples of the spacing inside it (-9.86..89.86 every 1
+                // deg: -9..89), so the spacing stays exact: a controller that
+                // counts in detection units (Fanuc) takes it, and the points
+                // are the round positions an operator expects.
+                let (first, last) = ((start / d - WHOLE).ceil(), (end / d + WHOLE).floor());
+                let unbounded = choice.start_deg.is_none() && choice.end_deg.is_none();
+                if matches!(span, Span::Measured { .. }) && unbounded && last > first {
+                    let n = (last - first) as usize;
+                    Grid { start_deg: first * d, interval_deg: d, points: n + 1 }
+                } else {
+                    let n = (span_deg / d).round().max(1.0) as usize;
+                    grid(span_deg / n as f64, n + 1)
+                }
             }
         }),
     }
@@ -281,6 +294,15 @@ mod tests {
         )
         .unwrap();
         assert_eq!((m.points, m.start_deg, m.end_deg()), (256, -10.0, 90.0));
+        // A measured range left open: the whole degrees inside it, the
+        // spacing exact (Fanuc counts it in detection units).
+        let span = Span::Measured { start: -9.861_111, end: 89.861_111 };
+        let m = resolve(&RangeChoice::default(), span, DefaultSpacing::Interval(1.0)).unwrap();
+        assert_eq!((m.points, m.start_deg, m.interval_deg, m.end_deg()), (99, -9.0, 1.0, 89.0));
+        // Ends the user gave are kept: the spacing is stretched to divide them.
+        let c = RangeChoice { start_deg: Some(-9.5), end_deg: Some(89.5), ..RangeChoice::default() };
+        let m = resolve(&c, span, DefaultSpacing::Interval(1.0)).unwrap();
+        assert_eq!((m.points, m.start_deg, m.end_deg()), (100, -9.5, 89.5));
     }
 
     #[test]
