@@ -84,7 +84,7 @@ impl ModelGap {
                 };
                 let _ = writeln!(
                     s,
-                    "  {}{at}: {:.3e} deg{unit}{phase} (+/- {:.1e}): {}",
+                    "  {}{at}: {:.3e} +/- {:.1e} deg{unit}{phase}: {}",
                     f.kind, f.amplitude_deg, f.standard_error_deg, f.explanation
                 );
             }
@@ -121,7 +121,7 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
     if a.ranges_total == 0 {
         let _ = writeln!(
             s,
-            "  in angle:     every target's mean residual inside +/-{:.2e} deg (largest {:+.2e} at {} deg)",
+            "  in angle:     every target's mean residual inside +/-{:.2e} deg (largest {:+.2e} deg at {} deg)",
             a.band_deg,
             a.mean_peak_deg,
             num(a.peak_at_deg)
@@ -132,7 +132,13 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
             .iter()
             .take(6)
             .map(|r| {
-                format!("{}..{} deg (peak {:+.2e} at {})", num(r.start_deg), num(r.end_deg), r.peak_deg, num(r.at_deg))
+                format!(
+                    "{}..{} deg (peak {:+.2e} deg at {} deg)",
+                    num(r.start_deg),
+                    num(r.end_deg),
+                    r.peak_deg,
+                    num(r.at_deg)
+                )
             })
             .collect();
         let _ = writeln!(
@@ -181,7 +187,7 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
                 d.backlash_change_deg,
                 d.standard_error_deg,
                 if d.significant {
-                    format!("significant (above {:.2e})", d.threshold_deg)
+                    format!("significant (above {:.2e} deg)", d.threshold_deg)
                 } else {
                     "not significant".into()
                 }
@@ -200,7 +206,7 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
                 t.standard_error_deg_per_run,
                 t.run_means.len(),
                 if t.significant {
-                    format!("significant (above {:.2e})", t.threshold_deg_per_run)
+                    format!("significant (above {:.2e} deg per run)", t.threshold_deg_per_run)
                 } else {
                     "not significant".into()
                 }

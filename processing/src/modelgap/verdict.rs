@@ -289,7 +289,7 @@ fn axis_location(
         format!("located from {points} SMR positions before the runs")
     };
     let mut explanation = format!(
-        "the reference: axis location, a once-per-revolution error of {amplitude:.2e} deg (+/- {se:.1e}){}: what \
+        "the reference: axis location, a once-per-revolution error of {amplitude:.2e} +/- {se:.1e} deg{}: what \
          every actual angle carries when the axis around which it is taken is off centre",
         offset_mm.map(|d| format!(", an axis centre {d:.4} mm off on the {radius_mm:.0} mm arm")).unwrap_or_default()
     );
