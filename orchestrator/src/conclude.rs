@@ -120,6 +120,12 @@ pub async fn conclude(
     if let Some((_, r)) = &refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
         text += &r.text();
+        // Recorded with the survey (`survey show` lists it); a failed write
+        // loses only this line, the refit is made again from the raw readings.
+        let at = engine.clock().now().as_secs_f64();
+        if let Err(e) = store.log_event(id, at, "info", &r.text().trim_end().replace('\n', "; ")).await {
+            tracing::warn!(error = %format!("{e:#}"), "the axis refit could not be recorded");
+        }
     }
     text += &processed.text();
     if let Err(why) = options.stop.check() {

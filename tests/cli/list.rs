@@ -36,6 +36,9 @@ fn list_names_every_survey_with_its_status_source_plan_and_samples() {
     assert_eq!(show["plan"]["targets"].as_u64(), Some(36));
     assert!(show["axis"]["radius_mm"].as_f64().is_some_and(|r| r > 0.0), "{show}");
     assert!(show["events"].is_array());
+    // The axis fitted again from every SMR position is recorded with the survey.
+    let events = show["events"].as_array().unwrap();
+    assert!(events.iter().any(|e| e.to_string().contains("axis fitted again from")), "{show}");
     let text = bench.survey(&["show"]).success().stdout;
     assert!(text.starts_with(&format!("survey {imported} (imported)")), "{text}");
 
