@@ -22,7 +22,9 @@
 //! simulator by the relay: a Modbus exception 4, SDO abort 0x08000022, SCPI
 //! error -310, emScon `ES_RS_SensorNotStable`; the ELCOMAT answers "no
 //! reflection"), moves trip the drive and measurements break the beam (for
-//! `beam_hold_s`). [`Served::injected`] counts every kind.
+//! `beam_hold_s`). [`Served::injected`] counts every kind. A model that
+//! drifts drifts by its rate per run of the configuration's plan at the
+//! simulated hardware's pace ([`Served::drift_run_s`]; `points` required).
 
 pub mod relay;
 
@@ -66,6 +68,9 @@ pub struct Served {
     /// Where each instrument answers (`positioner`, `tracker`,
     /// `autocollimator`: an address or a path).
     pub instruments: serde_json::Map<String, serde_json::Value>,
+    /// With a model that drifts: the simulator's time of one run, seconds
+    /// (the drift grows by the model's rate per this much instrument time).
+    pub drift_run_s: Option<f64>,
     /// What the link-fault relays did.
     pub counts: Arc<Counts>,
     /// What the simulated instruments injected themselves (moves tripped,
@@ -196,6 +201,10 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     if let Some(arm) = &cfg.arm {
         builder = builder.arm(ArmGeometry { radius_mm: arm.radius_mm, ..ArmGeometry::default() });
     }
+    let drift_run = drift_run_period(cfg, &preset, &builder)?;
+    if let Some(period) = drift_run {
+        builder = builder.drift_run_period(period);
+    }
     if let Some(polygon) = &cfg.polygon {
         // The simulated polygon is the configured one: its faces and, when
         // given, its certificate (the engine corrects with the same).
@@ -224,6 +233,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     let counts = Arc::new(Counts::default());
     let mut served = Served {
         instruments: serde_json::Map::new(),
+        drift_run_s: drift_run.map(|p| p.as_secs_f64()),
         counts: counts.clone(),
         sims: bench.injected.clone(),
         tasks: Vec::new(),
@@ -350,6 +360,39 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         served.instruments.insert("autocollimator".into(), port.clone().into());
     }
     Ok(served)
+}
+
+/// The instrument time of one run when the model drifts (the contract's
+/// drift grows by its rate from one run to the next): the configuration's
+/// plan at the simulated hardware's pace (the preset's moves and settle, the
+/// configured dwell and poll, the reference's measurement), as the simulated
+/// bench of `survey run` estimates it. `None` without a drift. Under
+/// `--time-scale` a client's own waits (dwell, polling, round trips) are real
+/// time, so a run then takes longer in the simulator's time than this.
+fn drift_run_period(
+    cfg: &SurveyConfig,
+    preset: &Preset,
+    builder: &survey_sims::SimBenchBuilder,
+) -> anyhow::Result<Option<std::time::Duration>> {
+    let rate = builder.positioner.model.drift_deg_per_run();
+    if rate == 0.0 {
+        return Ok(None);
+    }
+    if cfg.survey.points.is_none() {
+        return Err(bad_input(format!(
+            "the model drifts {rate} deg per run, and survey sim needs the length of a run: set `points` (and \
+             `runs`) in the [survey] section of the configuration"
+        )));
+    }
+    let plan =
+        crate::bench::configured_plan(cfg, crate::bench::PlanOverrides::default(), Path::new("the configuration"))?;
+    let t = cfg.timing();
+    let measure = match cfg.reference() {
+        crate::engine::ReferenceKind::Tracker => builder.tracker.measurement_time,
+        crate::engine::ReferenceKind::Autocollimator => builder.autocollimator.read_time,
+    };
+    let per_target = preset.settle + t.dwell + measure + t.poll_interval;
+    Ok(Some(plan.estimate_run_duration(preset.velocity_deg_s, preset.accel_deg_s2, per_target)))
 }
 
 /// For a TCP instrument: the listener the simulator serves on. Without
