@@ -9,6 +9,7 @@ mod modelgap;
 mod resume;
 mod soak;
 mod wire;
+mod wire_faults;
 
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};

@@ -54,7 +54,8 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     let faults = FaultRates::uniform(args.faults)
         .parse_over(args.fault_rates.as_deref().unwrap_or(""))
         .map_err(|e| bad_input(format!("--fault-rates: {e}")))?;
-    let opts = SimOptions { preset: args.preset, model, seed: args.seed, faults, time_scale: args.time_scale };
+    let opts =
+        SimOptions { preset: args.preset, model, seed: args.seed, faults, time_scale: args.time_scale, only: None };
     let mut stop = Stop::on_signals();
     let served = serve(&cfg, &opts).await?;
     let mut ready = serde_json::json!({"ready": true, "instruments": served.instruments});
