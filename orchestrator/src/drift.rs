@@ -18,7 +18,12 @@
 //! `survey process`, and those at the end of `run` and `resume`) use samples
 //! corrected for it: `actual' = actual + drift(t)`, so `error' = error -
 //! drift(t)`, `drift(t)` interpolated linearly in time between the reference
-//! measurements (held at the ends). The stored samples stay as measured;
+//! measurements (held at the ends). What one reference cannot remove: at a
+//! fixed readout a drift `D` changes the readout error by `D / (1 + P')`, `P'`
+//! the error's slope there, so a target whose slope differs from the
+//! reference's keeps `D (P'_ref - P'(r))` to first order (at most
+//! `2 max|P'|` of the drift; measured and bounded in `engine_drift::tests`).
+//! The stored samples stay as measured;
 //! `survey export` and `survey model-gap` see them as measured (model-gap
 //! names a drift as an effect of the model).
 

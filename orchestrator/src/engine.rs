@@ -383,7 +383,7 @@ impl Engine {
         let mut points = Vec::with_capacity(readouts.len());
         for &target in &readouts {
             self.approach(target, Direction::Forward, plan.overrun_deg, sink).await?;
-            let (readout, raw) = self.read_pair(sink).await?;
+            let (readout, raw) = self.read_pair(target, Direction::Forward, plan.overrun_deg, sink).await?;
             let RawReading::Smr(m) = raw else { unreachable!("tracker reference gives SMR readings") };
             points.push((readout, m));
         }
@@ -543,7 +543,7 @@ impl Engine {
         sink: &mut dyn SampleSink,
     ) -> Result<(f64, RawReading), EngineError> {
         self.approach(target, direction, overrun, sink).await?;
-        self.read_pair(sink).await
+        self.read_pair(target, direction, overrun, sink).await
     }
 
     /// Bring the axis to `target` approaching in `direction`: when the axis is
@@ -632,15 +632,28 @@ impl Engine {
         }
     }
 
-    /// Read the readout and the reference at the same time, retrying faults.
-    async fn read_pair(&mut self, sink: &mut dyn SampleSink) -> Result<(f64, RawReading), EngineError> {
+    /// Read the readout and the reference at `target` (approached in
+    /// `direction`) at the same time, retrying faults. A positioner fault
+    /// recovered on the way (the fault cleared: the axis may have moved) has
+    /// the target approached afresh before the next reading; the reference is
+    /// read at the target (an autocollimator's face is the target's).
+    async fn read_pair(
+        &mut self,
+        target: f64,
+        direction: Direction,
+        overrun: f64,
+        sink: &mut dyn SampleSink,
+    ) -> Result<(f64, RawReading), EngineError> {
         let mut attempt = 0;
         loop {
+            if self.commanded.is_none() {
+                self.approach(target, direction, overrun, sink).await?;
+            }
             let clock = self.clock.clone();
             let t = self.timing.clone();
             let pos_name = self.positioner.name().to_string();
             let readout = with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout());
-            let reference = read_reference(&*clock, &t, &mut self.reference, self.commanded.unwrap_or(0.0));
+            let reference = read_reference(&*clock, &t, &mut self.reference, target);
             let (readout, reference) = tokio::join!(readout, reference);
             let (error, failed) = match (readout, reference) {
                 (Ok(r), Ok(raw)) => return Ok((r, raw)),

@@ -37,7 +37,8 @@ mod fuzz_tests;
 #[cfg(test)]
 mod architecture {
     //! ARCHITECTURE.md's claims that a test can check: the CLI is the roof,
-    //! and every path in the code map exists.
+    //! every store write goes through `WriteTx`, and every path in the code
+    //! map exists.
 
     use std::path::{Path, PathBuf};
 
@@ -69,6 +70,27 @@ mod architecture {
             .collect();
         assert!(files.len() > 20, "the source tree was found");
         assert!(offenders.is_empty(), "modules below the CLI import it: {offenders:?}");
+    }
+
+    #[test]
+    fn every_store_write_goes_through_write_tx() {
+        // A write outside `store::tx::WriteTx` runs on a pooled connection
+        // with no explicit rollback: a statement executed on the pool itself,
+        // a connection taken from it, or sqlx's own transaction.
+        let store = root().join("orchestrator/src/store");
+        let mut files = Vec::new();
+        rust_files(&store, &mut files);
+        let mut checked = 0;
+        for f in files.iter().filter(|f| !f.ends_with("tx.rs") && !f.ends_with("tests.rs")) {
+            let text = std::fs::read_to_string(f).expect("readable");
+            // The code before its unit tests (their fixtures build databases by hand).
+            let code = text.split("#[cfg(test)]").next().unwrap_or_default();
+            for bad in [".execute(&self.pool", "pool.acquire()", ".begin()", "execute(&mut *self.pool"] {
+                assert!(!code.contains(bad), "{} writes outside WriteTx (`{bad}`)", f.display());
+            }
+            checked += code.matches("WriteTx::begin").count();
+        }
+        assert!(checked >= 10, "only {checked} write transactions found: the store moved?");
     }
 
     #[test]

@@ -38,6 +38,14 @@
 //!   `ES_RS_NoLastMeasuredPoint` (28). `FindReflector` re-acquires it (a
 //!   distance that is not a positive number: `ES_RS_Parameter1OutOfRangeNOK`).
 //!   Both send `ES_SSC_MeasStatus_Ready` first when the lock comes back.
+//!   When the beam is still blocked and no reflector is found, both answer
+//!   `ES_RS_MeasurementStatusNotReady` (10004). Our choice: the public V3.6
+//!   header defines no "reflector not found" status and no public document
+//!   says what a failed search answers; 10004 is the header's status for a
+//!   tracker whose measurement status is not ready (no reflector locked, the
+//!   state `ES_SSC_MeasStatus_NotReady` announced), the one this server
+//!   already answers to a measurement while the beam stays broken, so a
+//!   client reads both the same way.
 //! - `GetSystemStatus`: `ES_TPS_Initialized` once initialised (else
 //!   `ES_TPS_CompensationSet`), laser ready, ADM ready, version 3.6.0, serial
 //!   [`SIM_SERIAL_NUMBER`], and the status of the previous command.
@@ -509,6 +517,12 @@ impl Server {
                 }
                 ok(c)
             }
+            Err(e) if e.code == Some(CODE_BEAM_BROKEN) => {
+                // No reflector found: the tracker stays not ready to measure.
+                tracing::info!(error = %e, "emscon simulator: no reflector found, the beam is still broken");
+                self.locked = false;
+                Reply::answer(c, status::MEASUREMENT_STATUS_NOT_READY)
+            }
             Err(e) => {
                 tracing::warn!(error = %e, "emscon simulator: re-acquisition failed");
                 Reply::answer(c, status::UNKNOWN)
@@ -842,6 +856,32 @@ mod tests {
         assert_eq!(tail, [Request::GoLastMeasuredPoint, find, Request::GetMeasurementStatusInfo]);
         t.measure().await.unwrap();
         assert_eq!(t.state(), TrackerState::TargetLocked);
+    }
+
+    /// A beam held blocked: both re-acquisition commands answer
+    /// `ES_RS_MeasurementStatusNotReady`, which the driver takes for a device
+    /// fault of a broken beam (the suspend path), never a link fault.
+    #[tokio::test]
+    async fn a_failed_reacquisition_answers_measurement_status_not_ready() {
+        let cfg = TrackerConfig { beam_hold: Duration::from_secs(60), ..sim_cfg(13, Some(2)) };
+        let rig = Rig::new(cfg).await;
+        let mut t = rig.connect().await;
+        t.measure().await.unwrap();
+        assert_eq!(t.measure().await.unwrap_err().code, Some(i64::from(status::NO_STATIONARY_RESULT)));
+        let before = rig.faults.requests().len();
+        let e = t.reacquire().await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(i64::from(status::MEASUREMENT_STATUS_NOT_READY))), "{e}");
+        assert!(e.message.contains("ES_RS_MeasurementStatusNotReady") && e.message.contains("FindReflector"), "{e}");
+        let tail = rig.faults.requests()[before..].to_vec();
+        assert_eq!(tail[0], Request::GoLastMeasuredPoint);
+        assert!(matches!(tail[1], Request::FindReflector { .. }), "{tail:?}");
+        assert_eq!(t.state(), TrackerState::BeamBroken);
+        assert_eq!(t.status().await.unwrap(), TrackerState::BeamBroken, "what the engine asks before suspending");
+        // Once the hold is over, the same commands find it.
+        rig.clock.sleep(Duration::from_secs(60)).await;
+        t.reacquire().await.unwrap();
+        assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+        t.measure().await.unwrap();
     }
 
     #[tokio::test]

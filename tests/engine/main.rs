@@ -10,6 +10,7 @@ mod resume;
 mod soak;
 mod uncertainty;
 mod wire;
+mod wire_faults;
 
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};

@@ -28,26 +28,7 @@ impl Bench {
     /// The bench of the configuration file at `path`, checked before anything is stored.
     pub fn configured(path: &Path, overrides: PlanOverrides) -> anyhow::Result<Bench> {
         let cfg = SurveyConfig::from_file(path)?;
-        let points = overrides.points.or(cfg.survey.points).ok_or_else(|| {
-            bad_input(format!("--points N is required (or `points` in the [survey] section of {})", path.display()))
-        })?;
-        let runs = overrides.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
-        let bidirectional = overrides.bidirectional || cfg.survey.bidirectional.unwrap_or(false);
-        let travel = cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi));
-        let plan = match (cfg.reference(), &cfg.polygon, travel) {
-            (ReferenceKind::Autocollimator, Some(polygon), travel) => {
-                SurveyPlan::polygon(polygon.faces, points, travel, runs, bidirectional)
-            }
-            (_, _, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional),
-            (_, _, None) => SurveyPlan::full_circle(points, runs, bidirectional),
-        };
-        let mut plan = plan.map_err(|e| bad_input(format!("{}: {e}", path.display())))?;
-        if let Some(overrun) = cfg.survey.overrun_deg {
-            plan.overrun_deg = overrun;
-        }
-        if let Some([lo, hi]) = cfg.survey.travel_deg {
-            plan.check_travel(lo, hi)?;
-        }
+        let plan = configured_plan(&cfg, overrides, path)?;
         let setup = ConfiguredSetup { config: cfg, plan };
         let mut bench = on_clock(&setup, Arc::new(SystemClock::new()));
         if let Some(obj) = bench.instruments.as_object_mut() {
@@ -55,6 +36,32 @@ impl Bench {
         }
         Ok(bench)
     }
+}
+
+/// The plan of a configuration (its `[survey]` under the command line's
+/// overrides), checked against its travel; errors name `path`.
+pub fn configured_plan(cfg: &SurveyConfig, overrides: PlanOverrides, path: &Path) -> anyhow::Result<SurveyPlan> {
+    let points = overrides.points.or(cfg.survey.points).ok_or_else(|| {
+        bad_input(format!("--points N is required (or `points` in the [survey] section of {})", path.display()))
+    })?;
+    let runs = overrides.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
+    let bidirectional = overrides.bidirectional || cfg.survey.bidirectional.unwrap_or(false);
+    let travel = cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi));
+    let plan = match (cfg.reference(), &cfg.polygon, travel) {
+        (ReferenceKind::Autocollimator, Some(polygon), travel) => {
+            SurveyPlan::polygon(polygon.faces, points, travel, runs, bidirectional)
+        }
+        (_, _, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional),
+        (_, _, None) => SurveyPlan::full_circle(points, runs, bidirectional),
+    };
+    let mut plan = plan.map_err(|e| bad_input(format!("{}: {e}", path.display())))?;
+    if let Some(overrun) = cfg.survey.overrun_deg {
+        plan.overrun_deg = overrun;
+    }
+    if let Some([lo, hi]) = cfg.survey.travel_deg {
+        plan.check_travel(lo, hi)?;
+    }
+    Ok(plan)
 }
 
 fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {

@@ -2,7 +2,8 @@
 //! [--faults RATE] [--fault-rates SPEC] [--time-scale X]`: serve the simulated instruments of a
 //! configuration over their real protocols (see [`crate::sim`]), print one
 //! JSON line `{"ready": true, "instruments": {...}}` on stdout when every
-//! instrument listens, serve until SIGINT or SIGTERM, then print what was
+//! instrument listens (with `"drift_run_s"` when the model drifts: the
+//! simulator's run length), serve until SIGINT or SIGTERM, then print what was
 //! served (`{"stopped": true, "faults": {"replies", "injected", "by_kind",
 //! ...}}`) and exit 0.
 
@@ -53,10 +54,15 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     let faults = FaultRates::uniform(args.faults)
         .parse_over(args.fault_rates.as_deref().unwrap_or(""))
         .map_err(|e| bad_input(format!("--fault-rates: {e}")))?;
-    let opts = SimOptions { preset: args.preset, model, seed: args.seed, faults, time_scale: args.time_scale };
+    let opts =
+        SimOptions { preset: args.preset, model, seed: args.seed, faults, time_scale: args.time_scale, only: None };
     let mut stop = Stop::on_signals();
     let served = serve(&cfg, &opts).await?;
-    let ready = serde_json::json!({"ready": true, "instruments": served.instruments});
+    let mut ready = serde_json::json!({"ready": true, "instruments": served.instruments});
+    if let Some(run_s) = served.drift_run_s {
+        // The model drifts: its rate per run is per this much simulator time.
+        ready["drift_run_s"] = run_s.into();
+    }
     emit(&format!("{ready}\n"));
     eprintln!(
         "survey sim: serving {} ({}x real time, faults {:?}); stop with Ctrl-C or SIGTERM",

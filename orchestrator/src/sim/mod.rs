@@ -19,10 +19,12 @@
 //! kinds and gives it to each device kind): replies meet link faults
 //! (dropped, garbled, cut, stalled past the client's timeout: [`relay`]),
 //! requests are refused with the instrument's own code (armed in the
-//! simulator by the relay: a Modbus exception 4, SDO abort 0x08000022, SCPI
+//! simulator by the relay: a Modbus exception 4, SDO abort 0x06060000, SCPI
 //! error -310, emScon `ES_RS_SensorNotStable`; the ELCOMAT answers "no
 //! reflection"), moves trip the drive and measurements break the beam (for
-//! `beam_hold_s`). [`Served::injected`] counts every kind.
+//! `beam_hold_s`). [`Served::injected`] counts every kind. A model that
+//! drifts drifts by its rate per run of the configuration's plan at the
+//! simulated hardware's pace ([`Served::drift_run_s`]; `points` required).
 
 pub mod relay;
 
@@ -58,6 +60,10 @@ pub struct SimOptions {
     pub faults: FaultRates,
     /// How many times faster than the hardware.
     pub time_scale: f64,
+    /// Only this instrument's wire (`positioner`, `tracker`,
+    /// `autocollimator`) meets link and device faults; `None`: every wire
+    /// (what `survey sim` does). For tests that single out a wire.
+    pub only: Option<String>,
 }
 
 /// The instruments being served; dropping it stops them and removes the links.
@@ -66,6 +72,9 @@ pub struct Served {
     /// Where each instrument answers (`positioner`, `tracker`,
     /// `autocollimator`: an address or a path).
     pub instruments: serde_json::Map<String, serde_json::Value>,
+    /// With a model that drifts: the simulator's time of one run, seconds
+    /// (the drift grows by the model's rate per this much instrument time).
+    pub drift_run_s: Option<f64>,
     /// What the link-fault relays did.
     pub counts: Arc<Counts>,
     /// What the simulated instruments injected themselves (moves tripped,
@@ -97,7 +106,9 @@ impl Served {
             return Ok(master);
         }
         let (device_master, device_slave) = pty_pair()?;
-        self.tasks.push(tokio::spawn(relay_with(master, device_slave, link, arm, seed, self.counts.clone())));
+        let counts = self.counts.clone();
+        let port = PathBuf::from(port);
+        self.tasks.push(tokio::spawn(serial_relay(master, device_slave, link, arm, seed, counts, port)));
         Ok(device_master)
     }
 
@@ -186,15 +197,16 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     let preset = Preset::by_name(&opts.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", opts.preset)))?;
     let clock: Arc<dyn Clock> = Arc::new(ScaledClock::new(opts.time_scale));
     let mut builder = SimBench::builder(&preset, opts.seed, clock.clone())
-        .travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)).or(preset.travel))
-        // The link faults are the relays'; the simulators inject their own
-        // device faults (drive trips, beam breaks, a blocked autocollimator).
-        .fault_rates(&FaultRates { timeout: 0.0, garbled: 0.0, disconnect: 0.0, stall: 0.0, ..opts.faults });
+        .travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)).or(preset.travel));
     if let Some(model) = &opts.model {
         builder = builder.model(model.clone());
     }
     if let Some(arm) = &cfg.arm {
         builder = builder.arm(ArmGeometry { radius_mm: arm.radius_mm, ..ArmGeometry::default() });
+    }
+    let drift_run = drift_run_period(cfg, &preset, &builder)?;
+    if let Some(period) = drift_run {
+        builder = builder.drift_run_period(period);
     }
     if let Some(polygon) = &cfg.polygon {
         // The simulated polygon is the configured one: its faces and, when
@@ -205,11 +217,24 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         }
         builder = builder.autocollimator(ac);
     }
+    // The link faults are the relays'; the simulators inject their own
+    // device faults (drive trips, beam breaks, a blocked autocollimator),
+    // set last so that no configuration above replaces them.
+    let wired = |what: &str| opts.only.as_deref().is_none_or(|o| o == what);
+    let blocked = if wired("autocollimator") { opts.faults.device } else { 0.0 };
+    builder = builder.fault_rates(&FaultRates {
+        timeout: 0.0,
+        garbled: 0.0,
+        disconnect: 0.0,
+        stall: 0.0,
+        device: blocked,
+        ..opts.faults
+    });
     let bench = builder.build();
     // A stalled reply is held twice the client's call timeout (real time).
     let call_timeout = cfg.timing().call_timeout;
     let f = &opts.faults;
-    let link = if f.any_link() {
+    let link_all = if f.any_link() {
         LinkFaults {
             drop: f.timeout,
             garble: f.garbled,
@@ -220,10 +245,21 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     } else {
         LinkFaults::NONE
     };
-    let arm = |rate: f64, arm: Arc<dyn Fn() + Send + Sync>| (rate > 0.0).then_some(DeviceArm { rate, arm });
+    // A reference instrument's measurement is bounded by measure_timeout_s:
+    // its stalled reply is held twice the longer of the two deadlines.
+    let measure_timeout = cfg.timing().measure_timeout;
+    let link = |what: &str| match (wired(what), what) {
+        (false, _) => LinkFaults::NONE,
+        (true, "positioner") => link_all,
+        (true, _) => LinkFaults { stall_for: link_all.stall_for.max(measure_timeout * 2), ..link_all },
+    };
+    let arm = |what: &str, rate: f64, arm: Arc<dyn Fn() + Send + Sync>| {
+        (rate > 0.0 && wired(what)).then_some(DeviceArm { rate, arm })
+    };
     let counts = Arc::new(Counts::default());
     let mut served = Served {
         instruments: serde_json::Map::new(),
+        drift_run_s: drift_run.map(|p| p.as_secs_f64()),
         counts: counts.clone(),
         sims: bench.injected.clone(),
         tasks: Vec::new(),
@@ -238,16 +274,17 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             let listener = listen("positioner", address).await?;
             let public = listener.local_addr()?.to_string();
             let faults = ScpiFaults::new();
-            let armed = arm(f.device, scpi_arm(&faults));
-            let listener = front(listener, link, armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            let armed = arm("positioner", f.device, scpi_arm(&faults));
+            let listener =
+                front(listener, link("positioner"), armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
             let at = (*controller, *axis);
             served.tasks.push(tokio::spawn(scpi_server::serve_tcp_at(listener, bench.positioner, faults, at)));
             served.instruments.insert("positioner".into(), public.into());
         }
         PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
             let faults = ScpiFaults::new();
-            let armed = arm(f.device, scpi_arm(&faults));
-            let device = served.serial("positioner", port, link, armed, seeds.next().unwrap_or(1))?;
+            let armed = arm("positioner", f.device, scpi_arm(&faults));
+            let device = served.serial("positioner", port, link("positioner"), armed, seeds.next().unwrap_or(1))?;
             let positioner = bench.positioner;
             let at = (*controller, *axis);
             served.tasks.push(tokio::spawn(async move {
@@ -261,8 +298,9 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             let server = ModbusDevice::new(bench.positioner, map.clone())
                 .map_err(|e| bad_input(format!("positioner.map: {e}")))?;
             let faults = ModbusFaults::new();
-            let armed = arm(f.device, modbus_arm(&faults));
-            let listener = front(listener, link, armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            let armed = arm("positioner", f.device, modbus_arm(&faults));
+            let listener =
+                front(listener, link("positioner"), armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
             served.tasks.push(tokio::spawn(async move {
                 if let Err(e) = server.serve_tcp(listener, faults).await {
                     tracing::error!(%e, "modbus simulator stopped");
@@ -272,8 +310,8 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         }
         PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
             let faults = ModbusFaults::new();
-            let armed = arm(f.device, modbus_arm(&faults));
-            let device = served.serial("positioner", port, link, armed, seeds.next().unwrap_or(1))?;
+            let armed = arm("positioner", f.device, modbus_arm(&faults));
+            let device = served.serial("positioner", port, link("positioner"), armed, seeds.next().unwrap_or(1))?;
             // On a serial line the slave address is the unit (as the driver does).
             let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
             let server =
@@ -288,12 +326,13 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             node.counts_per_degree = drive.counts_per_degree;
             let positioner = bench.positioner;
             let faults = survey_sims::canopen_node::NodeFaults::new();
-            let armed = arm(f.device, canopen_arm(&faults));
+            let armed = arm("positioner", f.device, canopen_arm(&faults));
             match cfg.positioner.can_link() {
                 Some(Ok(CanLink::Slcan { port, .. })) => {
                     // A CiA 402 drive behind a simulated USB-CAN adapter, on a
                     // pty linked at the port (link faults on the serial line).
-                    let device = served.serial("positioner", &port, link, armed, seeds.next().unwrap_or(1))?;
+                    let device =
+                        served.serial("positioner", &port, link("positioner"), armed, seeds.next().unwrap_or(1))?;
                     let bus = survey_drivers::canopen::MemoryBus::new();
                     let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
                     served.tasks.push(tokio::spawn(async move {
@@ -334,15 +373,15 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         let listener = listen("tracker", address).await?;
         let public = listener.local_addr()?.to_string();
         let faults = EmsconFaults::new();
-        let armed = arm(f.device, emscon_arm(&faults));
-        let listener = front(listener, link, armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+        let armed = arm("tracker", f.device, emscon_arm(&faults));
+        let listener = front(listener, link("tracker"), armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
         served.tasks.push(tokio::spawn(emscon_server::serve_tcp(listener, bench.tracker, faults)));
         served.instruments.insert("tracker".into(), public.into());
     }
     if let Some(AcConfig::Elcomat { port, .. }) = &cfg.autocollimator {
         // Its device fault is the simulated autocollimator's: a blocked view,
         // answered "no reflection".
-        let device = served.serial("autocollimator", port, link, None, seeds.next().unwrap_or(1))?;
+        let device = served.serial("autocollimator", port, link("autocollimator"), None, seeds.next().unwrap_or(1))?;
         let instrument = bench.autocollimator;
         served.tasks.push(tokio::spawn(async move {
             elcomat_server::serve(device, instrument, ElcomatFaults::default()).await;
@@ -350,6 +389,74 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         served.instruments.insert("autocollimator".into(), port.clone().into());
     }
     Ok(served)
+}
+
+/// The instrument time of one run when the model drifts (the contract's
+/// drift grows by its rate from one run to the next): the configuration's
+/// plan at the simulated hardware's pace (the preset's moves and settle, the
+/// configured dwell and poll, the reference's measurement), as the simulated
+/// bench of `survey run` estimates it. `None` without a drift. Under
+/// `--time-scale` a client's own waits (dwell, polling, round trips) are real
+/// time, so a run then takes longer in the simulator's time than this.
+fn drift_run_period(
+    cfg: &SurveyConfig,
+    preset: &Preset,
+    builder: &survey_sims::SimBenchBuilder,
+) -> anyhow::Result<Option<std::time::Duration>> {
+    let rate = builder.positioner.model.drift_deg_per_run();
+    if rate == 0.0 {
+        return Ok(None);
+    }
+    if cfg.survey.points.is_none() {
+        return Err(bad_input(format!(
+            "the model drifts {rate} deg per run, and survey sim needs the length of a run: set `points` (and \
+             `runs`) in the [survey] section of the configuration"
+        )));
+    }
+    let plan =
+        crate::bench::configured_plan(cfg, crate::bench::PlanOverrides::default(), Path::new("the configuration"))?;
+    let t = cfg.timing();
+    let measure = match cfg.reference() {
+        crate::engine::ReferenceKind::Tracker => builder.tracker.measurement_time,
+        crate::engine::ReferenceKind::Autocollimator => builder.autocollimator.read_time,
+    };
+    let per_target = preset.settle + t.dwell + measure + t.poll_interval;
+    Ok(Some(plan.estimate_run_duration(preset.velocity_deg_s, preset.accel_deg_s2, per_target)))
+}
+
+/// A serial line's relay. A serial line has no connection to close, so an
+/// injected disconnect is the line unplugged and plugged in again, as a USB
+/// adapter is: the client's pty is closed (its reads fail: the port is gone)
+/// and a new pty is linked at the same path, which the client's reconnect
+/// opens. The simulator behind it keeps its own line. Our own design.
+async fn serial_relay(
+    mut master: tokio_serial::SerialStream,
+    mut device: tokio_serial::SerialStream,
+    link: LinkFaults,
+    arm: Option<DeviceArm>,
+    seed: u64,
+    counts: Arc<Counts>,
+    port: PathBuf,
+) {
+    // The slave end of the current pty, kept open (see `Served::_slaves`).
+    let mut _slave = None;
+    for k in 0u64.. {
+        let seed = if k == 0 { seed } else { derive_seed(seed, k) };
+        if relay_with(master, &mut device, link, arm.clone(), seed, counts.clone()).await != relay::Ended::Disconnect {
+            return;
+        }
+        // Unplugged (the old master is closed); plugged in again.
+        let Ok((m, s)) = pty_pair() else { return };
+        let Some(path) = tokio_serial::SerialPort::name(&s) else { return };
+        let _ = std::fs::remove_file(&port);
+        if let Err(e) = std::os::unix::fs::symlink(&path, &port) {
+            tracing::error!(%e, port = %port.display(), "sim: cannot link the serial line again");
+            return;
+        }
+        tracing::info!(port = %port.display(), "sim: the serial line is back after a disconnect");
+        master = m;
+        _slave = Some(s);
+    }
 }
 
 /// For a TCP instrument: the listener the simulator serves on. Without
@@ -386,11 +493,13 @@ fn modbus_arm(faults: &ModbusFaults) -> Arc<dyn Fn() + Send + Sync> {
     Arc::new(move || f.reject_next_request(survey_drivers::modbus::ExceptionCode::ServerDeviceFailure))
 }
 
-/// The CANopen drive aborts the next SDO request with 0x08000022 (data
-/// cannot be transferred because of the present device state).
+/// The CANopen drive aborts the next SDO request with 0x06060000 (CiA 301:
+/// access failed due to a hardware error), the SDO counterpart of Modbus
+/// exception 4. Not 0x08000022 (refused in the present device state): the
+/// driver reads that as a wrong request (`Usage`), which is never retried.
 fn canopen_arm(faults: &survey_sims::canopen_node::NodeFaults) -> Arc<dyn Fn() + Send + Sync> {
     let f = faults.clone();
-    Arc::new(move || f.abort_next_request(0x0800_0022))
+    Arc::new(move || f.abort_next_request(0x0606_0000))
 }
 
 /// The emScon server refuses the next command with `ES_RS_SensorNotStable`.

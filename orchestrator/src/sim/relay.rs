@@ -101,15 +101,24 @@ impl Counts {
     }
 }
 
+/// Why a relay ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ended {
+    /// A disconnect was injected: the client's link was closed.
+    Disconnect,
+    /// One side closed (or failed).
+    Closed,
+}
+
 /// Relay bytes between `client` and `device` until either side closes or a
 /// disconnect is injected. Requests go to the device unchanged; each chunk
 /// the device sends (a reply) meets the faults.
-pub async fn relay<C, D>(client: C, device: D, faults: LinkFaults, seed: u64, counts: Arc<Counts>)
+pub async fn relay<C, D>(client: C, device: D, faults: LinkFaults, seed: u64, counts: Arc<Counts>) -> Ended
 where
     C: AsyncRead + AsyncWrite + Unpin + Send,
     D: AsyncRead + AsyncWrite + Unpin + Send,
 {
-    relay_with(client, device, faults, None, seed, counts).await;
+    relay_with(client, device, faults, None, seed, counts).await
 }
 
 /// [`relay`], with device faults armed at a rate per request.
@@ -120,7 +129,8 @@ pub async fn relay_with<C, D>(
     arm: Option<DeviceArm>,
     seed: u64,
     counts: Arc<Counts>,
-) where
+) -> Ended
+where
     C: AsyncRead + AsyncWrite + Unpin + Send,
     D: AsyncRead + AsyncWrite + Unpin + Send,
 {
@@ -131,7 +141,7 @@ pub async fn relay_with<C, D>(
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xdead_beef);
         loop {
             match client_rx.read(&mut buf).await {
-                Ok(0) | Err(_) => return,
+                Ok(0) | Err(_) => return Ended::Closed,
                 Ok(n) => {
                     if let Some(a) = &arm
                         && rng.random::<f64>() < a.rate
@@ -141,7 +151,7 @@ pub async fn relay_with<C, D>(
                         tracing::info!("sim: the next request is refused with the instrument's fault code");
                     }
                     if device_tx.write_all(&buf[..n]).await.is_err() {
-                        return;
+                        return Ended::Closed;
                     }
                 }
             }
@@ -152,7 +162,7 @@ pub async fn relay_with<C, D>(
         let mut buf = vec![0u8; 4096];
         loop {
             let n = match device_rx.read(&mut buf).await {
-                Ok(0) | Err(_) => return,
+                Ok(0) | Err(_) => return Ended::Closed,
                 Ok(n) => n,
             };
             counts.replies.fetch_add(1, Ordering::Relaxed);
@@ -175,7 +185,7 @@ pub async fn relay_with<C, D>(
                     let _ = client_tx.write_all(&chunk[..chunk.len() / 2]).await;
                     counts.disconnects.fetch_add(1, Ordering::Relaxed);
                     tracing::info!("sim: closed the link halfway through a reply");
-                    return;
+                    return Ended::Disconnect;
                 } else if x < edge + faults.disconnect + faults.stall {
                     counts.stalls.fetch_add(1, Ordering::Relaxed);
                     tracing::info!(after = ?faults.stall_for, "sim: holding a reply past the client's timeout");
@@ -183,15 +193,16 @@ pub async fn relay_with<C, D>(
                 }
             }
             if client_tx.write_all(chunk).await.is_err() {
-                return;
+                return Ended::Closed;
             }
         }
     };
-    tokio::select! {
-        () = requests => {}
-        () = replies => {}
-    }
+    let ended = tokio::select! {
+        e = requests => e,
+        e = replies => e,
+    };
     let _ = client_tx.shutdown().await;
+    ended
 }
 
 #[cfg(test)]

@@ -34,10 +34,11 @@ const SURVEY_COLUMNS: &str = "SELECT s.id, s.created_at, s.updated_at, s.status,
 impl Store {
     /// Store a new survey; returns its id.
     pub async fn create_survey(&self, s: &NewSurvey) -> anyhow::Result<i64> {
-        let mut conn = self.pool.acquire().await?;
-        let id = insert_survey(&mut conn, s)
+        let mut tx = WriteTx::begin(&self.pool).await?;
+        let id = insert_survey(tx.conn(), s)
             .await
             .with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
+        tx.commit().await.with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
         Ok(id)
     }
 
@@ -58,6 +59,7 @@ impl Store {
     /// Set a survey's status and, when given, the instrument time it ended.
     /// A [`NotFound`] error when there is no such survey.
     pub async fn set_status(&self, id: i64, status: SurveyStatus, ended_at_s: Option<f64>) -> anyhow::Result<()> {
+        let mut tx = WriteTx::begin(&self.pool).await?;
         let done = sqlx::query(
             "UPDATE surveys SET status = ?, ended_at_s = COALESCE(?, ended_at_s), \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
@@ -65,44 +67,52 @@ impl Store {
         .bind(status.as_str())
         .bind(ended_at_s)
         .bind(id)
-        .execute(&self.pool)
+        .execute(tx.conn())
         .await?;
         if done.rows_affected() == 0 {
+            tx.abort().await;
             return Err(self.no_survey(id).into());
         }
+        tx.commit().await?;
         Ok(())
     }
 
     /// Set the instrument time at which acquisition started.
     pub async fn set_started(&self, id: i64, started_at_s: f64) -> anyhow::Result<()> {
+        let mut tx = WriteTx::begin(&self.pool).await?;
         let done = sqlx::query(
             "UPDATE surveys SET started_at_s = ?, \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
         )
         .bind(started_at_s)
         .bind(id)
-        .execute(&self.pool)
+        .execute(tx.conn())
         .await?;
         if done.rows_affected() == 0 {
+            tx.abort().await;
             return Err(self.no_survey(id).into());
         }
+        tx.commit().await?;
         Ok(())
     }
 
     /// Store the located axis.
     pub async fn set_axis(&self, id: i64, axis: &AxisFit) -> anyhow::Result<()> {
         let axis_json = serde_json::to_string(axis).context("cannot encode the located axis")?;
+        let mut tx = WriteTx::begin(&self.pool).await?;
         let done = sqlx::query(
             "UPDATE surveys SET axis_json = ?, \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
         )
         .bind(axis_json)
         .bind(id)
-        .execute(&self.pool)
+        .execute(tx.conn())
         .await?;
         if done.rows_affected() == 0 {
+            tx.abort().await;
             return Err(self.no_survey(id).into());
         }
+        tx.commit().await?;
         Ok(())
     }
 
@@ -172,14 +182,17 @@ impl Store {
     /// Log an event (a fault survived, a resume) at instrument time `at_s`.
     /// `level` is free text; the engine uses `info`, `warn` and `error`.
     pub async fn log_event(&self, id: i64, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
+        let context = || format!("cannot log an event of survey {id}");
+        let mut tx = WriteTx::begin(&self.pool).await.with_context(context)?;
         sqlx::query("INSERT INTO events (survey_id, at_s, level, message) VALUES (?, ?, ?, ?)")
             .bind(id)
             .bind(at_s)
             .bind(level)
             .bind(message)
-            .execute(&self.pool)
+            .execute(tx.conn())
             .await
-            .map_err(|e| self.fk_to_not_found(id, e).context(format!("cannot log an event of survey {id}")))?;
+            .map_err(|e| self.fk_to_not_found(id, e).context(context()))?;
+        tx.commit().await.with_context(context)?;
         Ok(())
     }
 

@@ -428,6 +428,23 @@ async fn fill_until_full(path: &std::path::Path, store: Store, free_space: impl 
         let expected = sink.last_acknowledged().map_or(0, |s| s + 1);
         assert_eq!(disk, expected, "acknowledged means on disk (flush returned {flushed:?})");
     }
+    // The other writes go through the same guarded transaction: an event too
+    // big for the space left fails, and is nowhere, not even in a transaction
+    // left open on a pooled connection that a later write would commit.
+    let events_before = store.events(id).await.unwrap().len();
+    let big = "x".repeat(512 * 1024);
+    let e = store.log_event(id, 1.0, "warn", &big).await.unwrap_err();
+    assert!(format!("{e:#}").contains("full") && format!("{e:#}").contains("event"), "{e:#}");
+    for _ in 0..4 {
+        // Each either fails or is stored; none commits the failed event.
+        let _ = store.log_event(id, 2.0, "info", "small").await;
+        let _ = store.set_status(id, SurveyStatus::Interrupted, Some(3.0)).await;
+    }
+    let other = Store::open_existing(path).await.unwrap();
+    let seen = other.events(id).await.unwrap();
+    other.close().await;
+    assert!(seen.iter().all(|ev| ev.message != big), "the failed event is not stored");
+    assert!(seen.len() >= events_before && seen.len() <= events_before + 4, "{} events", seen.len());
     let stored = on_disk(path, id).await;
     store.close().await;
     drop(sink);
@@ -438,6 +455,8 @@ async fn fill_until_full(path: &std::path::Path, store: Store, free_space: impl 
     let rest: Vec<RecordedSample> = (stored..failed_at + 1).map(recorded).collect();
     store.append(id, &rest).await.unwrap();
     assert_eq!(on_disk(path, id).await, failed_at + 1);
+    store.log_event(id, 4.0, "info", "space freed").await.unwrap();
+    assert_eq!(store.events(id).await.unwrap().last().unwrap().message, "space freed");
     store.close().await;
 }
 
