@@ -166,6 +166,17 @@ fn drift_control_against_survey_sim_is_the_simulators_drift_in_show_and_stats() 
         t[8] - t[0]
     );
     assert!(a < total / 5.0, "A {a} deg with the drift {total} deg corrected");
+
+    // The report draws the drift over time and states its range: the last
+    // point's drift, printed with the report's digits.
+    let out_dir = dir.path().join("report");
+    let (code, _, err) = survey(&db, &["report", "--out", out_dir.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let html = std::fs::read_to_string(out_dir.join("index.html")).unwrap();
+    for id in ["<section id=\"drift\"", "<figure id=\"fig-drift\">", "<table id=\"tbl-drift\">"] {
+        assert!(html.contains(id), "{id} missing from the report");
+    }
+    assert!(html.contains("9 re-measurements of the reference position"), "the caption counts the 9 points");
 }
 
 #[test]
