@@ -129,7 +129,6 @@ impl Wire {
         let mut k = vec!["timeout", "garbled", "disconnect", "stall", "device"];
         match self {
             Wire::ModbusTcp => k.retain(|x| *x != "garbled"),
-            Wire::ScpiSerial => k.retain(|x| *x != "stall"),
             _ => {}
         }
         match self {

@@ -209,6 +209,12 @@ where
         };
         let units: i64 =
             line.trim().parse().map_err(|_| self.garbled(what, CodecError::unparsable("a unit code", &line)))?;
+        if !(0..=8).contains(&units) {
+            // Not a code of the public table: not an answer to this query (a
+            // late reply to an earlier one on the same line), so a garbled
+            // exchange to retry, not a unit to refuse.
+            return Err(self.garbled(what, CodecError::unparsable("a unit code 0..8", &line)));
+        }
         if units != UNITS_DEGREE {
             let name = match units {
                 0 => "encoder counts",
@@ -218,8 +224,7 @@ where
                 4 => "inches",
                 5 => "feet",
                 7 => "radians",
-                8 => "revolutions",
-                _ => "an unknown unit",
+                _ => "revolutions",
             };
             return Err(DriverError::usage(
                 &self.name,

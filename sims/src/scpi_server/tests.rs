@@ -447,6 +447,21 @@ async fn an_axis_in_other_units_is_refused_before_any_move() {
     assert_eq!(p.commanded_position().await.unwrap(), 0.0, "nothing was commanded");
 }
 
+/// A unit code outside the public table is no answer to `UNIT:POS?` (a late
+/// reply to an earlier query on the same line): a garbled exchange the
+/// reconnect layer retries, never a unit refused as bad usage.
+#[tokio::test]
+async fn a_unit_code_outside_the_table_is_a_garbled_reply() {
+    let rig = Rig::new(PositionerConfig::new(fig8())).await;
+    rig.faults.report_position_units(800);
+    let mut p = rig.connect_verified().await;
+    let e = p.move_to(10.0).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
+    assert!(e.message.contains("800"), "{e}");
+    rig.faults.report_position_units(6);
+    p.move_to(10.0).await.unwrap();
+}
+
 #[tokio::test]
 async fn the_status_word_uses_only_the_documented_bits_and_the_queue_answers_all_at_once() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
