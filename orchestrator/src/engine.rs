@@ -14,8 +14,10 @@
 //! after the sink was flushed, so the stored samples are exactly those
 //! measured, each once.
 
+use crate::budget::{Component, Ledger};
 use crate::plan::{SurveyPlan, move_time};
 use crate::record::{RawReading, RecordedSample, SampleSink};
+use crate::settle::{SettleMode, SettleModel, SettleSpec, SettleStats, TypicalStd, Wait};
 use crate::stop::{Stop, Stopped};
 use std::sync::Arc;
 use std::time::Duration;
@@ -78,7 +80,7 @@ pub struct Timing {
     pub move_margin: Duration,
     /// How often the status is polled while waiting for in-position.
     pub poll_interval: Duration,
-    /// Wait after in-position before reading (the axis comes to rest).
+    /// Wait after the axis is at rest before reading (default 0; see [`SettleSpec`]).
     pub dwell: Duration,
     /// Retries of one operation before the engine gives up.
     pub max_retries: u32,
@@ -89,6 +91,12 @@ pub struct Timing {
     /// Axis velocity and acceleration used to predict move times, deg/s and deg/s².
     pub velocity_deg_s: f64,
     pub accel_deg_s2: f64,
+    /// How the engine decides the axis is at rest ([`crate::settle`]).
+    #[serde(default)]
+    pub settle: SettleSpec,
+    /// The continuous scan's rates ([`crate::scan`]).
+    #[serde(default)]
+    pub scan: crate::scan::ScanTiming,
 }
 
 impl Default for Timing {
@@ -98,12 +106,14 @@ impl Default for Timing {
             measure_timeout: Duration::from_secs(10),
             move_margin: Duration::from_secs(10),
             poll_interval: Duration::from_millis(100),
-            dwell: Duration::from_millis(500),
+            dwell: Duration::ZERO,
             max_retries: 3,
             retry_backoff: Duration::from_secs(1),
             locate_points: 12,
             velocity_deg_s: 10.0,
             accel_deg_s2: 20.0,
+            settle: SettleSpec::default(),
+            scan: crate::scan::ScanTiming::default(),
         }
     }
 }
@@ -190,21 +200,33 @@ pub struct Outcome {
 /// The survey engine.
 #[derive(Debug)]
 pub struct Engine {
-    clock: Arc<dyn Clock>,
-    positioner: Box<dyn Positioner>,
-    reference: Reference,
-    timing: Timing,
-    axis: Option<AxisFit>,
+    pub(crate) clock: Arc<dyn Clock>,
+    pub(crate) positioner: Box<dyn Positioner>,
+    pub(crate) reference: Reference,
+    pub(crate) timing: Timing,
+    pub(crate) axis: Option<AxisFit>,
     /// The arm's nominal radius and tolerance, mm, to check the located axis.
     arm_check: Option<(f64, f64)>,
     /// The last commanded position, to know from which side the next target
     /// is approached.
-    commanded: Option<f64>,
+    pub(crate) commanded: Option<f64>,
     faults_survived: u32,
     faults_met: FaultCounts,
-    stop: Stop,
+    pub(crate) stop: Stop,
     /// The axis's travel limits, degrees: every commanded move is checked.
     travel: Option<(f64, f64)>,
+    /// Where the instrument time goes ([`crate::budget`]).
+    pub(crate) ledger: Ledger,
+    /// The settling the axis needs, for the bound.
+    settle_model: SettleModel,
+    /// The reference's integration time per sample, for the bound.
+    integration: Option<Duration>,
+    /// Settling observed after measured moves (adaptive mode).
+    pub(crate) settled: SettleStats,
+    /// The typical standard deviation of the tracker's measurements.
+    typical_std: TypicalStd,
+    /// The continuous scan's state ([`crate::scan`]).
+    pub(crate) scan: crate::scan::ScanState,
 }
 
 impl Engine {
@@ -221,7 +243,51 @@ impl Engine {
             faults_met: FaultCounts::default(),
             stop: Stop::never(),
             travel: None,
+            ledger: Ledger::default(),
+            settle_model: SettleModel::Unknown,
+            integration: None,
+            settled: SettleStats::default(),
+            typical_std: TypicalStd::default(),
+            scan: crate::scan::ScanState::default(),
         }
+    }
+
+    /// The settling the axis needs and the reference's integration time per
+    /// sample, for the plan's lower bound ([`crate::budget`]).
+    pub fn with_physics(mut self, settle: SettleModel, integration: Option<Duration>) -> Self {
+        self.settle_model = settle;
+        self.integration = integration;
+        self
+    }
+
+    /// A continuous survey goes on with the latency its first runs measured.
+    pub fn set_scan_latency(&mut self, latency: Option<crate::scan::Latency>) {
+        self.scan.latency = latency;
+    }
+
+    /// The settling model the bound uses.
+    pub fn settle_model(&self) -> &SettleModel {
+        &self.settle_model
+    }
+
+    /// The reference's integration time per sample, when known.
+    pub fn integration(&self) -> Option<Duration> {
+        self.integration
+    }
+
+    /// The timing.
+    pub fn timing(&self) -> &Timing {
+        &self.timing
+    }
+
+    /// The instrument time spent so far, by component.
+    pub fn spent(&self) -> crate::budget::Spent {
+        self.ledger.spent(self.clock.now())
+    }
+
+    /// The settling observed after measured moves.
+    pub fn settle_stats(&self) -> SettleStats {
+        self.settled
     }
 
     /// Stop (between writes, see the module documentation) when `stop` fires.
@@ -236,6 +302,11 @@ impl Engine {
     pub fn with_travel(mut self, travel: Option<(f64, f64)>) -> Self {
         self.travel = travel;
         self
+    }
+
+    /// The travel limits enforced, degrees.
+    pub fn travel(&self) -> Option<(f64, f64)> {
+        self.travel
     }
 
     /// [`Engine::with_travel`] on an engine in place.
@@ -277,7 +348,7 @@ impl Engine {
     }
 
     /// Stop the axis after a stop request, and say why the survey stopped.
-    async fn halt(&mut self, why: Stopped) -> EngineError {
+    pub(crate) async fn halt(&mut self, why: Stopped) -> EngineError {
         let clock = self.clock.clone();
         let name = self.positioner.name().to_string();
         tracing::warn!(%why, "stopping the axis");
@@ -336,12 +407,34 @@ impl Engine {
         }
         let readouts = locate_readouts(plan, self.timing.locate_points);
         let mut points = Vec::with_capacity(readouts.len());
+        self.ledger.hold(self.clock.now(), Component::Locate);
         for &target in &readouts {
-            self.approach(target, Direction::Forward, plan.overrun_deg, sink).await?;
-            let (readout, raw) = self.read_pair(sink).await?;
+            if let Err(e) = self.approach(target, Direction::Forward, plan.overrun_deg, sink).await {
+                self.ledger.release(self.clock.now());
+                return Err(e);
+            }
+            let read = self.read_pair(sink).await;
+            let (readout, raw) = match read {
+                Ok(r) => r,
+                Err(e) => {
+                    self.ledger.release(self.clock.now());
+                    return Err(e);
+                }
+            };
             let RawReading::Smr(m) = raw else { unreachable!("tracker reference gives SMR readings") };
             points.push((readout, m));
         }
+        // The way to the plan's first approach belongs to the locate too.
+        let t = &self.timing;
+        let start = crate::scan::start_deg(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
+        if self.commanded.is_some_and(|c| c != start) {
+            let back = self.move_to(start, false, sink).await;
+            if let Err(e) = back {
+                self.ledger.release(self.clock.now());
+                return Err(e);
+            }
+        }
+        self.ledger.release(self.clock.now());
         let xyz: Vec<[f64; 3]> = points.iter().map(|(_, m)| m.xyz()).collect();
         let ro: Vec<f64> = points.iter().map(|(r, _)| *r).collect();
         let fit = fit_axis(&xyz, &ro)?;
@@ -394,6 +487,7 @@ impl Engine {
             check_polygon_plan(plan, *faces)?;
         }
         self.check_plan_travel(plan)?;
+        self.ledger.start(self.clock.now());
         let faults_before = self.faults_survived;
         let met_before = self.faults_met;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
@@ -409,6 +503,13 @@ impl Engine {
                 }
                 Err(why) => return Err(self.halt(why).await),
             }
+        }
+        if plan.continuous() {
+            let mut outcome = crate::scan::run(self, plan, from_seq, sink, progress).await?;
+            outcome.faults_survived = self.faults_survived - faults_before;
+            outcome.faults_met = self.faults_met.since(&met_before);
+            outcome.instrument_time = self.clock.now();
+            return Ok(outcome);
         }
         let steps = plan.steps();
         let total = steps.len() as u64;
@@ -503,18 +604,27 @@ impl Engine {
     ) -> Result<(), EngineError> {
         let wrong_side = self.commanded.is_none_or(|c| (target - c) * direction.sign() <= 0.0);
         if wrong_side {
-            self.move_to(target - direction.sign() * overrun, sink).await?;
+            self.move_to(target - direction.sign() * overrun, false, sink).await?;
         }
-        self.move_to(target, sink).await?;
-        self.clock.sleep(self.timing.dwell).await;
+        self.move_to(target, true, sink).await?;
+        if !self.timing.dwell.is_zero() {
+            self.ledger.switch(self.clock.now(), Component::Dwell);
+            self.clock.sleep(self.timing.dwell).await;
+        }
         Ok(())
     }
 
-    /// Move and wait for in-position, retrying faults.
-    async fn move_to(&mut self, target: f64, sink: &mut dyn SampleSink) -> Result<(), EngineError> {
+    /// Move and wait until the axis is at rest (`measured`: a sample is
+    /// taken there, so it must have settled), retrying faults.
+    pub(crate) async fn move_to(
+        &mut self,
+        target: f64,
+        measured: bool,
+        sink: &mut dyn SampleSink,
+    ) -> Result<(), EngineError> {
         let mut attempt = 0;
         loop {
-            match self.try_move(target).await {
+            match self.try_move(target, measured).await {
                 Ok(()) => {
                     self.commanded = Some(target);
                     return Ok(());
@@ -527,7 +637,7 @@ impl Engine {
         }
     }
 
-    async fn try_move(&mut self, target: f64) -> Result<(), DriverError> {
+    async fn try_move(&mut self, target: f64, measured: bool) -> Result<(), DriverError> {
         if let Some((lo, hi)) = self.travel
             && !(lo..=hi).contains(&target)
         {
@@ -544,49 +654,81 @@ impl Engine {
             Some(c) => c,
             None => with_timeout(&*clock, t.call_timeout, &name, "readout", self.positioner.readout()).await?,
         };
+        self.ledger.switch(clock.now(), Component::CommandLatency);
         with_timeout(&*clock, t.call_timeout, &name, "move command", self.positioner.move_to(target)).await?;
+        let started = clock.now();
+        self.ledger.switch(started, Component::Move);
         let expected = Duration::from_secs_f64(move_time(target - from, t.velocity_deg_s, t.accel_deg_s2));
-        let deadline = clock.now() + expected + t.move_margin;
-        loop {
-            let status = with_timeout(&*clock, t.call_timeout, &name, "status", self.positioner.status()).await?;
-            if let Some(f) = status.fault {
-                return Err(DriverError::device(name, f.code, f.text));
-            }
-            if status.in_position && !status.moving {
-                return Ok(());
-            }
-            if clock.now() > deadline {
-                // A limit switch is reported at a target on the end of the
-                // travel too, so it only explains a move that never arrived.
-                if let Some(limit) = status.limit {
-                    return Err(DriverError::new(
-                        ErrorKind::Device,
-                        name,
-                        format!("the move to {target} deg stopped at the {limit:?} limit switch"),
-                    ));
-                }
-                return Err(DriverError::new(
-                    ErrorKind::Timeout,
-                    name,
-                    format!("the move to {target} deg did not reach in-position within {:?}", expected + t.move_margin),
-                ));
-            }
-            clock.sleep(t.poll_interval).await;
+        let wait = Wait {
+            positioner: self.positioner.as_mut(),
+            clock: &*clock,
+            timing: t,
+            ledger: &mut self.ledger,
+            target,
+            end: started + expected,
+            deadline: started + expected + t.move_margin,
+            measured,
+        };
+        if let Some(settled) = wait.run().await? {
+            self.settled.add(settled.as_secs_f64());
         }
+        Ok(())
     }
 
     /// Read the readout and the reference at the same time, retrying faults.
+    /// In adaptive settling the readout is read again when the reference is
+    /// done, and the pair is measured again while either shows the axis
+    /// moving ([`crate::settle`]).
     async fn read_pair(&mut self, sink: &mut dyn SampleSink) -> Result<(f64, RawReading), EngineError> {
         let mut attempt = 0;
+        let mut unsteady = 0;
         loop {
             let clock = self.clock.clone();
             let t = self.timing.clone();
             let pos_name = self.positioner.name().to_string();
+            let near = self.commanded.unwrap_or(0.0);
+            self.ledger.switch(clock.now(), Component::Measure);
             let readout = with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout());
-            let reference = read_reference(&*clock, &t, &mut self.reference, self.commanded.unwrap_or(0.0));
+            let reference = read_reference(&*clock, &t, &mut self.reference, near);
             let (readout, reference) = tokio::join!(readout, reference);
             let (error, failed) = match (readout, reference) {
-                (Ok(r), Ok(raw)) => return Ok((r, raw)),
+                (Ok(r), Ok(raw)) if t.settle.mode == SettleMode::InPosition => return Ok((r, raw)),
+                (Ok(r0), Ok(raw)) => {
+                    self.ledger.switch(clock.now(), Component::CommandLatency);
+                    let end =
+                        with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout()).await;
+                    match end {
+                        Ok(r1) => {
+                            let w = t.settle.window_deg;
+                            let still = (r1 - near).abs() <= w && (r1 - r0).abs() <= w;
+                            let std = match raw {
+                                RawReading::Smr(m) => m.std_dev_mm.iter().copied().fold(0.0, f64::max),
+                                _ => f64::NAN,
+                            };
+                            let steady = std.is_nan() || self.typical_std.accepts(std, t.settle.reference_std_ratio);
+                            if (still && steady) || unsteady >= t.settle.max_remeasure {
+                                if !(still && steady) {
+                                    let message = format!(
+                                        "the axis did not keep still at {near} deg over {} measurements \
+                                         (readouts {r0}, {r1}; deviation {std} mm): the last one is kept",
+                                        unsteady + 1
+                                    );
+                                    tracing::warn!(%message);
+                                    let now = clock.now().as_secs_f64();
+                                    sink.event(now, "warn", &message).await.map_err(EngineError::Sink)?;
+                                }
+                                if !std.is_nan() {
+                                    self.typical_std.add(std);
+                                }
+                                return Ok((r1, raw));
+                            }
+                            unsteady += 1;
+                            tracing::debug!(r0, r1, std, "not yet still: measuring again");
+                            continue;
+                        }
+                        Err(e) => (e, Failed::Positioner),
+                    }
+                }
                 (Err(e), _) => (e, Failed::Positioner),
                 (Ok(_), Err(e)) => (e, Failed::Reference),
             };
@@ -597,7 +739,7 @@ impl Engine {
 
     /// Handle a failed operation: log it, record it, recover the instrument,
     /// and say whether to retry (Ok) or give up (Err).
-    async fn survive(
+    pub(crate) async fn survive(
         &mut self,
         error: DriverError,
         failed: Failed,
@@ -618,6 +760,7 @@ impl Engine {
             .await
             .map_err(EngineError::Sink)?;
         self.faults_survived += 1;
+        self.ledger.switch(self.clock.now(), Component::Recovery);
         self.clock.sleep(self.timing.retry_backoff).await;
         if error.kind == ErrorKind::Device {
             self.recover_device(failed).await;
@@ -656,7 +799,7 @@ impl Engine {
 
 /// Which instrument an operation failed on: decides the recovery.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Failed {
+pub(crate) enum Failed {
     Positioner,
     Reference,
 }

@@ -31,6 +31,7 @@
 
 mod lock;
 mod samples;
+mod scan;
 mod sink;
 mod surveys;
 #[cfg(test)]
@@ -38,6 +39,7 @@ mod tests;
 mod tx;
 
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
+pub use scan::StoredPass;
 pub use sink::StoreSink;
 pub use surveys::EventRow;
 
@@ -77,7 +79,10 @@ const CHUNK_ROWS: usize = 400;
 
 /// The schema migrations, embedded in the binary (the same versions,
 /// descriptions and checksums `sqlx::migrate!("../migrations")` would give).
-const MIGRATIONS: &[(i64, &str, &str)] = &[(1, "init", include_str!("../../../migrations/0001_init.sql"))];
+const MIGRATIONS: &[(i64, &str, &str)] = &[
+    (1, "init", include_str!("../../../migrations/0001_init.sql")),
+    (2, "instrument time", include_str!("../../../migrations/0002_instrument_time.sql")),
+];
 
 fn migrator() -> Migrator {
     Migrator::with_migrations(
