@@ -81,7 +81,7 @@ const CHUNK_ROWS: usize = 400;
 /// descriptions and checksums `sqlx::migrate!("../migrations")` would give).
 const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
-    (2, "instrument time", include_str!("../../../migrations/0002_instrument_time.sql")),
+    (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
 ];
 
 fn migrator() -> Migrator {
