@@ -11,6 +11,7 @@ pub mod clock;
 pub mod elcomat;
 pub mod emscon;
 pub mod error;
+pub mod fuzz_targets;
 pub mod modbus;
 pub mod reconnect;
 pub mod scpi;

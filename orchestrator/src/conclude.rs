@@ -20,8 +20,9 @@ use survey_processing::iso230::iso230_2;
 pub struct ConcludeOptions {
     /// Replay this recipe in the processing.
     pub recipe: Option<PathBuf>,
-    /// Verify the table in the loop.
-    pub verify: bool,
+    /// Verify the table in the loop, measuring this plan (see
+    /// [`crate::verify::VerifyPlan`]).
+    pub verify: Option<crate::verify::VerifyPlan>,
     /// How the verification's acquisition shows itself.
     pub acquire: AcquireOptions,
     /// A stop request (a signal) ends the conclusion between its phases.
@@ -45,13 +46,13 @@ pub async fn conclude(
     store: &Store,
     id: i64,
     engine: &mut Engine,
-    plan: &SurveyPlan,
     acquired: &Acquired,
     db: &Path,
     options: ConcludeOptions,
 ) -> anyhow::Result<Concluded> {
     let record = store.survey(id).await?;
-    let samples = store.samples(id).await?;
+    let drift = store.drift_points(id).await?;
+    let samples = crate::drift::for_analysis(&record, store.samples(id).await?, &drift);
     let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;
     let outcome = &acquired.outcome;
     let mut doc = iso_json(id, &iso);
@@ -60,15 +61,24 @@ pub async fn conclude(
     doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
     doc["faults_survived"] = outcome.faults_survived.into();
-    // What the engine met and survived. `injected` is what a simulator injected
-    // where that is known to this process; a separate `survey sim` prints its own.
+    // What the engine met and survived. `injected` is what the simulators
+    // injected where they run in this process (null on other instruments; a
+    // separate `survey sim` prints its own counts when it stops).
+    let injected = engine.injected().map(|i| {
+        let by_kind: serde_json::Map<String, serde_json::Value> =
+            i.by_kind().into_iter().map(|(k, n)| (k.to_string(), n.into())).collect();
+        (i.total(), by_kind)
+    });
     doc["faults"] = serde_json::json!({
-        "injected": null,
+        "injected": injected.as_ref().map(|(n, _)| *n),
+        "injected_by_kind": injected.map(|(_, k)| k),
         "met": outcome.faults_met.total(),
         "recovered": outcome.faults_survived,
         "by_kind": outcome.faults_met,
     });
-    let budget = budget(store, id, engine, plan, outcome.instrument_time).await;
+    // An acquired survey always has its plan stored.
+    let plan = record.plan().cloned().with_context(|| format!("survey {id} has no stored plan"))?;
+    let budget = budget(store, id, engine, &plan, outcome.instrument_time).await;
     doc["bound_s"] = budget.bound.total().into();
     doc["time_budget"] = budget.json();
     if plan.continuous() {
@@ -78,6 +88,9 @@ pub async fn conclude(
             "latency_se_s": engine.scan.latency.map(|l| l.se_s),
             "this_acquisition": &engine.scan.report,
         });
+    }
+    if !drift.is_empty() {
+        doc["drift"] = crate::drift::json(&record, &drift);
     }
     doc["db"] = db.display().to_string().into();
     let mut text = format!(
@@ -107,9 +120,12 @@ pub async fn conclude(
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let table_out = Some(default_table_path(db, id));
-    let processing = ProcessOptions { recipe: options.recipe.clone(), design: None, table_out };
+    let processing =
+        ProcessOptions { recipe: options.recipe.clone(), design: None, table_out, ..ProcessOptions::default() };
     // With a tracker, the table is made around the axis fitted from every SMR position.
-    let refit = crate::refit::refit_survey(store, &record).await?;
+    let refit = crate::refit::refit_survey(store, &record)
+        .await?
+        .map(|(s, r)| (crate::drift::for_analysis(&record, s, &drift), r));
     let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
     let processed = match process_survey(&record, to_process, processing) {
         Ok(p) => p,
@@ -126,8 +142,8 @@ pub async fn conclude(
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let mut result = Ok(());
-    if options.verify {
-        match crate::verify::verify(engine, store, &record, &samples, plan, &processed, options.acquire).await {
+    if let Some(verify_plan) = &options.verify {
+        match crate::verify::verify(engine, store, &record, &samples, verify_plan, &processed, options.acquire).await {
             Ok(v) => {
                 doc["verify"] = v.doc;
                 text += "\n";

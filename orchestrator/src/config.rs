@@ -54,6 +54,32 @@ pub struct SurveyConfig {
     pub polygon: Option<PolygonSection>,
     #[serde(default)]
     pub timing: TimingSection,
+    /// What the report's header states (`survey report` flags override it).
+    #[serde(default)]
+    pub certificate: Option<CertificateSection>,
+    /// Drift control: a reference target re-measured every K steps (off by default).
+    #[serde(default)]
+    pub drift_control: Option<crate::drift::DriftControl>,
+}
+
+/// `[certificate]`: what a calibration certificate states that no instrument
+/// reports. Every key optional; stored with the survey, shown in the report's
+/// header (the flags of `survey report` override each).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CertificateSection {
+    /// The positioner calibrated: make, model, serial number.
+    pub positioner: Option<String>,
+    /// The reference instrument: make, model, serial number, its calibration.
+    pub reference: Option<String>,
+    /// The reference's stated standard uncertainty of one angle, degrees.
+    pub reference_uncertainty_deg: Option<f64>,
+    /// Who measured.
+    pub operator: Option<String>,
+    /// For whom.
+    pub customer: Option<String>,
+    /// The air temperature during the survey, degrees Celsius.
+    pub temperature_c: Option<f64>,
 }
 
 /// `[survey]`: the plan; command-line flags override these.
@@ -303,6 +329,10 @@ pub struct TimingSection {
     pub stream_period_s: Option<f64>,
     /// Continuous scan: how often both streams are read, seconds.
     pub fetch_interval_s: Option<f64>,
+    /// How long a survey suspended on a lost beam waits for it, s.
+    pub beam_wait_s: Option<f64>,
+    /// Wait between attempts to re-acquire a lost beam, s.
+    pub beam_retry_s: Option<f64>,
 }
 
 fn one() -> u32 {
@@ -434,6 +464,8 @@ impl SurveyConfig {
             ("capture_period_s", t.capture_period_s, Range::Above(0.0), 1.0, "s"),
             ("stream_period_s", t.stream_period_s, Range::Above(0.0), 1.0, "s"),
             ("fetch_interval_s", t.fetch_interval_s, Range::Above(0.0), 10.0, "s"),
+            ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
+            ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
         ] {
             if let Some(v) = value {
                 within(&format!("timing.{key}"), v, range, max, unit)?;
@@ -448,6 +480,14 @@ impl SurveyConfig {
             && !(3..=10_000).contains(&n)
         {
             return Err(format!("timing.locate_points = {n} is outside 3..=10000 (a circle needs 3 points)"));
+        }
+        if let Some(c) = &self.certificate {
+            if let Some(u) = c.reference_uncertainty_deg {
+                within("certificate.reference_uncertainty_deg", u, Range::Above(0.0), 1.0, "deg")?;
+            }
+            if let Some(t) = c.temperature_c {
+                within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
+            }
         }
         if let Some(arm) = &self.arm {
             within("arm.radius_mm", arm.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
@@ -474,6 +514,17 @@ impl SurveyConfig {
         }
         if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
             within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
+        }
+        if let Some(d) = &self.drift_control {
+            d.check()?;
+            if let Some([lo, hi]) = self.survey.travel_deg
+                && !(lo..=hi).contains(&d.reference_deg)
+            {
+                return Err(format!(
+                    "drift_control.reference_deg = {} is outside the travel {lo}..{hi} deg",
+                    d.reference_deg
+                ));
+            }
         }
         Ok(())
     }
@@ -518,6 +569,8 @@ impl SurveyConfig {
             locate_points: t.locate_points.unwrap_or(d.locate_points),
             velocity_deg_s: t.velocity_deg_s.unwrap_or(d.velocity_deg_s),
             accel_deg_s2: t.accel_deg_s2.unwrap_or(d.accel_deg_s2),
+            beam_wait: secs(t.beam_wait_s, d.beam_wait),
+            beam_retry: secs(t.beam_retry_s, d.beam_retry),
             settle,
             scan,
         }
@@ -614,6 +667,8 @@ mod tests {
             ("[survey]\noverrun_deg = 45.0\n", "survey.overrun_deg = 45 is outside"),
             ("[survey]\ntravel_deg = [-1e9, 90.0]\n", "survey.travel_deg[0]"),
             ("[arm]\nradius_mm = 500.0\nradius_tolerance_mm = 600.0\n", "arm.radius_tolerance_mm"),
+            ("[certificate]\ntemperature_c = 293.15\n", "certificate.temperature_c = 293.15 is outside"),
+            ("[certificate]\nreference_uncertainty_deg = 0\n", "certificate.reference_uncertainty_deg = 0 is outside"),
         ] {
             let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
             assert!(e.starts_with("c.toml: ") && e.contains(key), "{extra}: {e}");

@@ -17,7 +17,7 @@
 use crate::budget::{Component, Ledger};
 use crate::plan::{SurveyPlan, move_time};
 use crate::record::{RawReading, RecordedSample, SampleSink};
-use crate::settle::{SettleMode, SettleModel, SettleSpec, SettleStats, TypicalStd, Wait};
+use crate::settle::{SettleModel, SettleSpec, SettleStats, TypicalStd, Wait};
 use crate::stop::{Stop, Stopped};
 use std::sync::Arc;
 use std::time::Duration;
@@ -97,6 +97,13 @@ pub struct Timing {
     /// The continuous scan's rates ([`crate::scan`]).
     #[serde(default)]
     pub scan: crate::scan::ScanTiming,
+    /// How long a survey suspended on a lost beam waits for it (see
+    /// [`suspend`]) before it ends interrupted.
+    #[serde(default = "suspend::default_beam_wait")]
+    pub beam_wait: Duration,
+    /// Wait between two attempts to re-acquire a lost beam.
+    #[serde(default = "suspend::default_beam_retry")]
+    pub beam_retry: Duration,
 }
 
 impl Default for Timing {
@@ -114,6 +121,8 @@ impl Default for Timing {
             accel_deg_s2: 20.0,
             settle: SettleSpec::default(),
             scan: crate::scan::ScanTiming::default(),
+            beam_wait: suspend::default_beam_wait(),
+            beam_retry: suspend::default_beam_retry(),
         }
     }
 }
@@ -136,6 +145,11 @@ pub enum EngineError {
     /// A stop was requested (a signal): the axis was stopped.
     #[error("{0}")]
     Stopped(#[from] Stopped),
+    /// The survey was suspended and could not go on (the beam stayed lost
+    /// past `beam_wait`, the axis met a limit or a fault it could not clear):
+    /// the axis holds or was stopped, and the survey is resumable.
+    #[error("{0}")]
+    Suspended(String),
 }
 
 /// Where the survey is, for progress displays.
@@ -227,6 +241,10 @@ pub struct Engine {
     typical_std: TypicalStd,
     /// The continuous scan's state ([`crate::scan`]).
     pub(crate) scan: crate::scan::ScanState,
+    /// Drift control: the reference target re-measured every K steps.
+    drift: Option<crate::drift::DriftControl>,
+    /// What simulated instruments in this process injected, when they are.
+    injected: Option<survey_sims::faults::Injected>,
 }
 
 impl Engine {
@@ -249,6 +267,8 @@ impl Engine {
             settled: SettleStats::default(),
             typical_std: TypicalStd::default(),
             scan: crate::scan::ScanState::default(),
+            drift: None,
+            injected: None,
         }
     }
 
@@ -290,6 +310,22 @@ impl Engine {
         self.settled
     }
 
+    /// The count of faults that in-process simulated instruments inject.
+    pub fn set_injected(&mut self, injected: Option<survey_sims::faults::Injected>) {
+        self.injected = injected;
+    }
+
+    /// What the in-process simulated instruments injected so far (`None` on
+    /// instruments this process does not simulate).
+    pub fn injected(&self) -> Option<&survey_sims::faults::Injected> {
+        self.injected.as_ref()
+    }
+
+    /// Re-measure the reference target every K steps ([`crate::drift`]).
+    pub fn set_drift_control(&mut self, drift: Option<crate::drift::DriftControl>) {
+        self.drift = drift;
+    }
+
     /// Stop (between writes, see the module documentation) when `stop` fires.
     pub fn with_stop(mut self, stop: Stop) -> Self {
         self.stop = stop;
@@ -326,6 +362,7 @@ impl Engine {
                  refused before the first move"
             )));
         }
+        self.check_drift_travel(lo, hi, plan.overrun_deg)?;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
             let locate = locate_readouts(plan, self.timing.locate_points);
             if let Some(bad) = locate.iter().find(|r| **r < lo || **r > hi) {
@@ -383,6 +420,14 @@ impl Engine {
 
     pub fn reference_name(&self) -> &str {
         self.reference.name()
+    }
+
+    /// Which kind of reference measures the actual angle.
+    pub fn reference_kind(&self) -> ReferenceKind {
+        match self.reference {
+            Reference::Tracker(_) => ReferenceKind::Tracker,
+            Reference::Autocollimator { .. } => ReferenceKind::Autocollimator,
+        }
     }
 
     pub fn positioner_mut(&mut self) -> &mut dyn Positioner {
@@ -487,6 +532,13 @@ impl Engine {
             check_polygon_plan(plan, *faces)?;
         }
         self.check_plan_travel(plan)?;
+        if plan.continuous() && self.drift.is_some() {
+            return Err(EngineError::Plan(
+                "drift control measures its reference target between the steps of a step scan; a continuous scan \
+                 has none (its passes are short): remove [drift_control] or use --scan step"
+                    .into(),
+            ));
+        }
         self.ledger.start(self.clock.now());
         let faults_before = self.faults_survived;
         let met_before = self.faults_met;
@@ -529,12 +581,19 @@ impl Engine {
             let measured = tokio::select! {
                 biased;
                 why = stop.wait() => Err(why),
-                r = self.measure(step.target_deg, step.direction, plan.overrun_deg, sink) => Ok(r),
+                r = async {
+                    let drift = self.drift_reference(step.seq, from_seq, plan.overrun_deg, sink).await?;
+                    let pair = self.measure(step.target_deg, step.direction, plan.overrun_deg, sink).await?;
+                    Ok::<_, EngineError>((drift, pair))
+                } => Ok(r),
             };
-            let (readout, raw) = match measured {
+            let (drift, (readout, raw)) = match measured {
                 Ok(r) => r?,
                 Err(why) => return Err(self.halt(why).await),
             };
+            if let Some(m) = drift {
+                sink.drift_measured(&m).await.map_err(EngineError::Sink)?;
+            }
             let actual = self.actual_deg(step.target_deg, &raw)?;
             let sample = Sample {
                 run: step.run,
@@ -554,6 +613,8 @@ impl Engine {
                 instrument_time: self.clock.now(),
             });
         }
+        // Drift control closes the pass with a last reference measurement.
+        self.drift_closing(total, from_seq, plan.overrun_deg, sink).await?;
         outcome.faults_survived = self.faults_survived - faults_before;
         outcome.faults_met = self.faults_met.since(&met_before);
         outcome.instrument_time = self.clock.now();
@@ -630,8 +691,15 @@ impl Engine {
                     return Ok(());
                 }
                 Err(e) => {
+                    if suspend::is_limit(&e) {
+                        return Err(self.stop_axis(e, &format!("move to {target} deg"), sink).await);
+                    }
                     attempt += 1;
-                    self.survive(e, Failed::Positioner, attempt, &format!("move to {target} deg"), sink).await?;
+                    if let Err(gave_up) =
+                        self.survive(e, Failed::Positioner, attempt, &format!("move to {target} deg"), sink).await
+                    {
+                        return Err(self.stop_axis_after(gave_up).await);
+                    }
                 }
             }
         }
@@ -673,68 +741,6 @@ impl Engine {
             self.settled.add(settled.as_secs_f64());
         }
         Ok(())
-    }
-
-    /// Read the readout and the reference at the same time, retrying faults.
-    /// In adaptive settling the readout is read again when the reference is
-    /// done, and the pair is measured again while either shows the axis
-    /// moving ([`crate::settle`]).
-    async fn read_pair(&mut self, sink: &mut dyn SampleSink) -> Result<(f64, RawReading), EngineError> {
-        let mut attempt = 0;
-        let mut unsteady = 0;
-        loop {
-            let clock = self.clock.clone();
-            let t = self.timing.clone();
-            let pos_name = self.positioner.name().to_string();
-            let near = self.commanded.unwrap_or(0.0);
-            self.ledger.switch(clock.now(), Component::Measure);
-            let readout = with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout());
-            let reference = read_reference(&*clock, &t, &mut self.reference, near);
-            let (readout, reference) = tokio::join!(readout, reference);
-            let (error, failed) = match (readout, reference) {
-                (Ok(r), Ok(raw)) if t.settle.mode == SettleMode::InPosition => return Ok((r, raw)),
-                (Ok(r0), Ok(raw)) => {
-                    self.ledger.switch(clock.now(), Component::CommandLatency);
-                    let end =
-                        with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout()).await;
-                    match end {
-                        Ok(r1) => {
-                            let w = t.settle.window_deg;
-                            let still = (r1 - near).abs() <= w && (r1 - r0).abs() <= w;
-                            let std = match raw {
-                                RawReading::Smr(m) => m.std_dev_mm.iter().copied().fold(0.0, f64::max),
-                                _ => f64::NAN,
-                            };
-                            let steady = std.is_nan() || self.typical_std.accepts(std, t.settle.reference_std_ratio);
-                            if (still && steady) || unsteady >= t.settle.max_remeasure {
-                                if !(still && steady) {
-                                    let message = format!(
-                                        "the axis did not keep still at {near} deg over {} measurements \
-                                         (readouts {r0}, {r1}; deviation {std} mm): the last one is kept",
-                                        unsteady + 1
-                                    );
-                                    tracing::warn!(%message);
-                                    let now = clock.now().as_secs_f64();
-                                    sink.event(now, "warn", &message).await.map_err(EngineError::Sink)?;
-                                }
-                                if !std.is_nan() {
-                                    self.typical_std.add(std);
-                                }
-                                return Ok((r1, raw));
-                            }
-                            unsteady += 1;
-                            tracing::debug!(r0, r1, std, "not yet still: measuring again");
-                            continue;
-                        }
-                        Err(e) => (e, Failed::Positioner),
-                    }
-                }
-                (Err(e), _) => (e, Failed::Positioner),
-                (Ok(_), Err(e)) => (e, Failed::Reference),
-            };
-            attempt += 1;
-            self.survive(error, failed, attempt, "reading", sink).await?;
-        }
     }
 
     /// Handle a failed operation: log it, record it, recover the instrument,
@@ -855,6 +861,15 @@ fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> 
     }
     Ok(())
 }
+
+#[path = "suspend.rs"]
+pub mod suspend;
+
+#[path = "engine_drift.rs"]
+mod engine_drift;
+
+#[path = "engine_read.rs"]
+mod engine_read;
 
 #[cfg(test)]
 #[path = "engine_tests.rs"]

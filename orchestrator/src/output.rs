@@ -49,12 +49,12 @@ pub fn iso_text(survey_id: i64, iso: &Iso230) -> String {
         ("E  systematic deviation", Some(iso.e), iso.e_up, iso.e_down),
     ];
     for (name, all, up, down) in rows {
-        let _ = writeln!(s, "  {name:<28}{} {} {}", fmt_opt(all), fmt_opt(up), fmt_opt(down));
+        let _ = writeln!(s, "  {name:<28}{} {} {} deg", fmt_opt(all), fmt_opt(up), fmt_opt(down));
     }
     if bidirectional {
-        let _ = writeln!(s, "  {:<28}{}", "B  reversal value", fmt_opt(iso.b));
-        let _ = writeln!(s, "  {:<28}{}", "B  mean reversal", fmt_opt(iso.b_mean));
-        let _ = writeln!(s, "  {:<28}{}", "M  mean bidirectional dev.", fmt_opt(iso.m));
+        let _ = writeln!(s, "  {:<28}{} deg", "B  reversal value", fmt_opt(iso.b));
+        let _ = writeln!(s, "  {:<28}{} deg", "B  mean reversal", fmt_opt(iso.b_mean));
+        let _ = writeln!(s, "  {:<28}{} deg", "M  mean bidirectional dev.", fmt_opt(iso.m));
     }
     s
 }

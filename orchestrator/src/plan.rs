@@ -9,6 +9,7 @@
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 use survey_processing::Direction;
+use survey_processing::errormap::Coverage;
 
 /// What to measure.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -94,6 +95,12 @@ pub enum PlanError {
     BadOverrun(f64),
     #[error("targets {first}..{last} deg with {overrun} deg of overrun leave the travel {min}..{max} deg")]
     OutsideTravel { first: f64, last: f64, overrun: f64, min: f64, max: f64 },
+    #[error(
+        "--verify-points {points}: the verification target {target} deg falls on a calibration target, where the \
+         table needs no interpolation; choose a count whose targets all fall between them (a multiple of the \
+         {calibration} calibration targets always does)"
+    )]
+    VerificationOnTarget { points: u32, target: f64, calibration: usize },
 }
 
 impl SurveyPlan {
@@ -162,6 +169,62 @@ impl SurveyPlan {
             return Err(PlanError::TooFewFaces { min, max, faces, pitch, found: targets_deg.len() });
         }
         Ok(Self { targets_deg, runs, bidirectional, overrun_deg: overrun, scan: ScanMode::Step })
+    }
+
+    /// The plan that verifies a table made from a survey of this plan: the
+    /// same runs, directions and overrun, at targets *between* this plan's
+    /// targets, so that what the table interpolates is measured. By default
+    /// (`points = None`) half a step from each target: over a full circle the
+    /// `n` points `first + (k + 1/2) 360/n`, over a partial range the `n - 1`
+    /// midpoints of consecutive targets. With `points = Some(N)`, `N` targets
+    /// evenly over the same span, offset by half their own step; a count that
+    /// puts one of them on a calibration target is refused. Every target lies
+    /// within the span of this plan's targets, so the travel this plan kept
+    /// is kept.
+    pub fn between_targets(&self, points: Option<u32>) -> Result<Self, PlanError> {
+        let n = self.targets_deg.len();
+        let first = self.targets_deg[0];
+        let last = *self.targets_deg.last().expect("a plan has targets");
+        let full_circle = matches!(Coverage::of_targets(&self.targets_deg).0, Coverage::FullCircle { .. });
+        let (span, count) = match (full_circle, points) {
+            (true, None) => (360.0, n),
+            (false, None) => (last - first, n - 1),
+            (true, Some(p)) => (360.0, p as usize),
+            (false, Some(p)) => (last - first, p as usize),
+        };
+        let count_u32 = u32::try_from(count).unwrap_or(u32::MAX);
+        // Half a step needs no count check (a partial range of 2 targets has
+        // one midpoint); a count asked for does.
+        if points.is_some() {
+            Self::check_counts(count_u32, self.runs)?;
+        }
+        let step = span / count as f64;
+        let mut targets_deg: Vec<f64> = (0..count)
+            .map(|k| {
+                let t = first + (k as f64 + 0.5) * step;
+                if full_circle && t >= 360.0 { t - 360.0 } else { t }
+            })
+            .collect();
+        targets_deg.sort_by(f64::total_cmp);
+        // Closer than this to a calibration target is on it (the targets are
+        // computed in floating point from the same numbers).
+        const ON_TARGET_DEG: f64 = 1e-6;
+        for &t in &targets_deg {
+            let on = self.targets_deg.iter().any(|c| {
+                let d = (t - c).abs();
+                d < ON_TARGET_DEG || (full_circle && (360.0 - d).abs() < ON_TARGET_DEG)
+            });
+            if on {
+                return Err(PlanError::VerificationOnTarget { points: count_u32, target: t, calibration: n });
+            }
+        }
+        Ok(Self {
+            targets_deg,
+            runs: self.runs,
+            bidirectional: self.bidirectional,
+            overrun_deg: self.overrun_deg,
+            scan: ScanMode::Step,
+        })
     }
 
     fn check_counts(points: u32, runs: u32) -> Result<(), PlanError> {
@@ -328,6 +391,34 @@ mod tests {
         ));
         assert_eq!(SurveyPlan::full_circle(10, 1, true), Err(PlanError::TooFewRuns(1)));
         assert!(SurveyPlan::range(5.0, 5.0, 3, 2, false).is_err());
+    }
+
+    #[test]
+    fn the_verification_plan_measures_between_the_calibration_targets() {
+        let plan = SurveyPlan::full_circle(8, 3, true).unwrap();
+        let v = plan.between_targets(None).unwrap();
+        assert_eq!(v.targets_deg, (0..8).map(|k| 22.5 + 45.0 * k as f64).collect::<Vec<_>>());
+        assert_eq!((v.runs, v.bidirectional, v.overrun_deg), (3, true, plan.overrun_deg));
+        // Denser: 16 points, offset by half their own step (11.25 deg), none on a target.
+        let dense = plan.between_targets(Some(16)).unwrap();
+        assert_eq!(dense.targets_deg.len(), 16);
+        assert!((dense.targets_deg[0] - 11.25).abs() < 1e-12 && (dense.targets_deg[15] - 348.75).abs() < 1e-12);
+        // 4 points at 45, 135, ... are calibration targets: refused.
+        assert!(matches!(
+            plan.between_targets(Some(4)),
+            Err(PlanError::VerificationOnTarget { points: 4, calibration: 8, .. })
+        ));
+        assert_eq!(plan.between_targets(Some(1)), Err(PlanError::TooFewPoints(1)));
+        // A partial range: the midpoints, inside the span (so inside the travel).
+        let partial = SurveyPlan::within_travel(-10.0, 90.0, 11, 2, true).unwrap();
+        let v = partial.between_targets(None).unwrap();
+        assert_eq!(v.targets_deg.len(), 10);
+        let step = partial.targets_deg[1] - partial.targets_deg[0];
+        assert!((v.targets_deg[0] - (partial.targets_deg[0] + step / 2.0)).abs() < 1e-9);
+        v.check_travel(-10.0, 90.0).unwrap();
+        let dense = partial.between_targets(Some(40)).unwrap();
+        dense.check_travel(-10.0, 90.0).unwrap();
+        assert!(dense.targets_deg.iter().all(|t| *t > partial.targets_deg[0] && *t < partial.targets_deg[10]));
     }
 
     #[test]

@@ -83,6 +83,10 @@ pub trait SampleSink: Send {
     async fn event(&mut self, _at_s: f64, _level: &str, _message: &str) -> anyhow::Result<()> {
         Ok(())
     }
+    /// The drift-control reference target was measured ([`crate::drift`]).
+    async fn drift_measured(&mut self, _m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+        Ok(())
+    }
 }
 
 /// A sink that keeps samples in memory (tests, dry runs).
@@ -95,6 +99,8 @@ pub struct MemorySink {
     pub locate_points: Vec<(f64, SmrMeasurement)>,
     /// (instrument time, level, message)
     pub events: Vec<(f64, String, String)>,
+    /// The drift-control reference measurements.
+    pub drift: Vec<crate::drift::DriftMeasurement>,
 }
 
 #[async_trait]
@@ -118,6 +124,10 @@ impl SampleSink for MemorySink {
     async fn record_pass(&mut self, mut pass: ScanPassRecord) -> anyhow::Result<()> {
         self.samples.append(&mut pass.samples);
         self.passes.push(pass);
+        Ok(())
+    }
+    async fn drift_measured(&mut self, m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+        self.drift.push(*m);
         Ok(())
     }
 }

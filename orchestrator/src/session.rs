@@ -122,6 +122,7 @@ async fn run_engine(
     bar.set_position(from_seq);
     let crash_after = options.crash_after;
     let mut signal_after = options.signal_after;
+    let stop = engine.stop().clone();
     let mut on_progress = |p: &Progress| {
         if crash_after.is_some_and(|n| p.done >= n) {
             // A simulated power loss: no flush, no status update, no cleanup.
@@ -131,6 +132,13 @@ async fn run_engine(
             signal_after = None;
             if let Err(e) = nix::sys::signal::raise(nix::sys::signal::Signal::SIGTERM) {
                 tracing::error!(%e, "could not raise SIGTERM");
+            }
+            // The listener runs on a worker thread (the command runs on the
+            // main one): hold this step until it has seen the signal, so the
+            // stop lands after the same step on every machine.
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+            while stop.requested().is_none() && std::time::Instant::now() < deadline {
+                std::thread::sleep(std::time::Duration::from_millis(1));
             }
         }
         bar.set_position(p.done);

@@ -275,7 +275,9 @@ impl Wait<'_> {
                     if let Some(f) = s.fault {
                         return Err(DriverError::device(name, f.code, f.text));
                     }
-                    if stable && !s.moving {
+                    // A limit switch without in-position is a move stopped
+                    // short (the deadline names it), whatever the readout says.
+                    if stable && !s.moving && (s.limit.is_none() || s.in_position) {
                         let f = settled_at.expect("stable").min(at);
                         ledger.switch(f, Component::PollLag);
                         return Ok(Some(f.saturating_sub(end)));
@@ -286,7 +288,11 @@ impl Wait<'_> {
                 if let Some(f) = s.fault {
                     return Err(DriverError::device(name, f.code, f.text));
                 }
-                let done = if adaptive { !s.moving } else { s.in_position && !s.moving };
+                let done = if adaptive {
+                    !s.moving && (s.limit.is_none() || s.in_position)
+                } else {
+                    s.in_position && !s.moving
+                };
                 if done {
                     ledger.switch(asked, Component::PollLag);
                     return Ok(None);
@@ -297,11 +303,7 @@ impl Wait<'_> {
                 // A limit switch is reported at a target on the end of the
                 // travel too, so it only explains a move that never arrived.
                 if let Some(limit) = s.limit {
-                    return Err(DriverError::new(
-                        ErrorKind::Device,
-                        name,
-                        format!("the move to {target} deg stopped at the {limit:?} limit switch"),
-                    ));
+                    return Err(crate::engine::suspend::limit_error(name, target, limit));
                 }
                 let what = if adaptive && measured {
                     format!("did not settle within {w} deg")

@@ -96,6 +96,9 @@ pub struct SimulatedSetup {
     pub timing: Timing,
     /// Instrument time of one run, which turns the model's drift per run into drift over time.
     pub run_period_s: f64,
+    /// The faults the simulated instruments inject (`run --fault-rates`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub faults: Option<survey_sims::faults::FaultRates>,
 }
 
 /// What a survey of real instruments was made from, stored with it.

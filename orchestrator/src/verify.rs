@@ -1,22 +1,76 @@
 //! The closed loop of `survey run --verify`: load the correction table into
 //! the positioner through the driver trait, apply it in the feedback path,
-//! and measure the corrected accuracy with a new survey of the same plan
-//! (source `verification`; it stores the table it applied, so an
-//! interrupted verification resumes with the same table).
+//! and measure the corrected accuracy with a new survey (source
+//! `verification`; it stores the table it applied and its own plan, so an
+//! interrupted verification resumes with the same table at the same targets).
+//!
+//! The verification measures *between* the calibration targets
+//! ([`SurveyPlan::between_targets`]): half a step from each by default, or
+//! `--verify-points N` targets evenly over the same span. At the calibration
+//! targets themselves the table holds what was measured there, so the error
+//! it makes interpolating between them would never show. With an
+//! autocollimator the only angles measured are the polygon's faces: the
+//! verification stays at the faces and says so.
 
-use crate::engine::{Engine, Timing};
+use crate::engine::{Engine, ReferenceKind, Timing};
+use crate::error::bad_input;
 use crate::output::{Output, iso_json, iso_text};
 use crate::plan::SurveyPlan;
 use crate::process::ProcessOutcome;
 use crate::session::{AcquireOptions, acquire};
 use crate::store::Store;
-use crate::survey::{NewSurvey, SurveyRecord, SurveySource, VerificationOf};
+use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, VerificationOf};
 use anyhow::Context as _;
 use survey_drivers::clock::with_timeout;
 use survey_processing::Sample;
 use survey_processing::correction::ErrorFigures;
 use survey_processing::iso230::iso230_2;
 use survey_processing::table::CorrectionTable;
+
+/// Where a verification measures, decided before the calibration survey
+/// starts (a bad `--verify-points` is refused before hours of measuring).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VerifyPlan {
+    /// The verification's plan.
+    pub plan: SurveyPlan,
+    /// Whether its targets lie between the calibration targets (`false`: at
+    /// them, the polygon's faces).
+    pub between: bool,
+    /// The smallest distance from a verification target to a calibration
+    /// target, degrees (0 at the faces).
+    pub offset_deg: f64,
+}
+
+impl VerifyPlan {
+    /// The verification of a survey of `plan` measured with `reference`:
+    /// half a step from the targets (`points = None`) or `points` targets
+    /// between them; at the faces with an autocollimator (where `points` is
+    /// refused, a bad-input error).
+    pub fn new(plan: &SurveyPlan, reference: ReferenceKind, points: Option<u32>) -> anyhow::Result<Self> {
+        if reference == ReferenceKind::Autocollimator {
+            if let Some(n) = points {
+                return Err(bad_input(format!(
+                    "--verify-points {n}: an autocollimator measures only at the polygon's faces, so the verification \
+                     measures at the faces (leave --verify-points out)"
+                )));
+            }
+            return Ok(VerifyPlan { plan: plan.clone(), between: false, offset_deg: 0.0 });
+        }
+        let verification = plan.between_targets(points)?;
+        let offset_deg = verification
+            .targets_deg
+            .iter()
+            .map(|t| plan.targets_deg.iter().map(|c| circular_distance(*t, *c)).fold(f64::INFINITY, f64::min))
+            .fold(f64::INFINITY, f64::min);
+        Ok(VerifyPlan { plan: verification, between: true, offset_deg })
+    }
+}
+
+/// The distance between two angles around the circle, degrees.
+fn circular_distance(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(360.0);
+    d.min(360.0 - d)
+}
 
 /// Load `table` into the engine's positioner and apply it in the feedback path.
 pub async fn apply_correction(engine: &mut Engine, table: &CorrectionTable) -> anyhow::Result<()> {
@@ -52,25 +106,38 @@ fn systematic_peak_deg(samples: &[Sample]) -> f64 {
 }
 
 /// Verify the table of `processed` (made from `native` and its `native_samples`):
-/// apply it and measure `plan` again as a new survey.
+/// apply it and measure `verify_plan` as a new survey.
 pub async fn verify(
     engine: &mut Engine,
     store: &Store,
     native: &SurveyRecord,
     native_samples: &[Sample],
-    plan: &SurveyPlan,
+    verify_plan: &VerifyPlan,
     processed: &ProcessOutcome,
     options: AcquireOptions,
 ) -> anyhow::Result<Output> {
     let table = &processed.processed.built.table;
+    let plan = &verify_plan.plan;
     apply_correction(engine, table).await?;
+    // The verification's own plan is stored with it (a resume measures it).
+    let setup = match native.setup.clone() {
+        Setup::Simulated(mut s) => {
+            s.plan = plan.clone();
+            Setup::Simulated(s)
+        }
+        Setup::Configured(mut c) => {
+            c.plan = plan.clone();
+            Setup::Configured(c)
+        }
+        other => other,
+    };
     let (id, _lock) = store
         .create_acquired_survey(&NewSurvey {
             source: SurveySource::Verification,
-            points: native.points,
-            runs: native.runs,
-            bidirectional: native.bidirectional,
-            setup: native.setup.clone(),
+            points: Some(plan.targets_deg.len() as u32),
+            runs: Some(plan.runs),
+            bidirectional: plan.bidirectional,
+            setup,
             model: native.model.clone(),
             instruments: serde_json::json!({
                 "rows": table.len(),
@@ -85,11 +152,36 @@ pub async fn verify(
             ..NewSurvey::default()
         })
         .await?;
-    eprintln!("survey {id}: verifying the correction table of survey {} in the positioner's feedback path", native.id);
+    eprintln!(
+        "survey {id}: verifying the correction table of survey {} in the positioner's feedback path, {}",
+        native.id,
+        placement(verify_plan)
+    );
     acquire(store, id, engine, plan, 0, options).await?;
     let corrected = store.samples(id).await?;
     let predicted = processed.processed.prediction.corrected_peak_deg;
-    figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional())
+    let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional())?;
+    out.doc["targets"] = plan.targets_deg.len().into();
+    out.doc["between_targets"] = verify_plan.between.into();
+    out.doc["offset_deg"] = verify_plan.offset_deg.into();
+    out.text = format!("{}\n{}", placement(verify_plan), out.text);
+    Ok(out)
+}
+
+/// Where the verification measured, in words.
+fn placement(v: &VerifyPlan) -> String {
+    if v.between {
+        format!(
+            "at {} targets between the calibration targets (at least {:.4} deg from each)",
+            v.plan.targets_deg.len(),
+            v.offset_deg
+        )
+    } else {
+        format!(
+            "at the {} calibration targets (the polygon's faces: an autocollimator measures nowhere else)",
+            v.plan.targets_deg.len()
+        )
+    }
 }
 
 /// The verification's figures: native against corrected.

@@ -22,5 +22,6 @@ mod special;
 pub mod spectrum;
 pub mod table;
 pub mod types;
+pub mod vdi3441;
 
 pub use types::{Direction, Sample};

@@ -3,17 +3,17 @@
 //! the spectral analysis, the recipe's decisions (replayed or derived), the
 //! table, the predicted native and corrected accuracy beside the
 //! repeatability floor, the paper's Figure 6 interpolation comparison and the
-//! LinuxCNC decimation. Pure: the caller reads the samples and writes the files.
+//! controller files ([`crate::export::controllers`]). Pure: the caller reads the samples and writes the files.
 
 use crate::Sample;
 use crate::analysis::{Analysis, AnalysisError, analyse};
 use crate::correction::{CorrectionError, Prediction, predict_accuracy};
 use crate::errormap::Coverage;
+use crate::export::controllers::ControllerExport;
 use crate::iso230::{Iso230, iso230_2};
 use crate::model::Design;
-use crate::recipe::{ApplyError, BuiltTable, Decisions, Recipe};
-use crate::resample::{MethodScore, Resampler, compare_interpolation};
-use crate::table::CorrectionTable;
+use crate::recipe::{ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe};
+use crate::resample::{MethodScore, compare_interpolation};
 
 /// Why a survey cannot be processed. Every variant is about the data or the
 /// recipe given, never about the machine.
@@ -32,6 +32,10 @@ pub enum PipelineError {
     /// The accuracy cannot be predicted from these samples.
     #[error("predicting the corrected accuracy: {0}")]
     Prediction(#[from] CorrectionError),
+    /// The export choices given apart from a recipe file (on the command
+    /// line) cannot be honoured; the key names the `[export]` choice.
+    #[error("{0}")]
+    Export(ChoiceError),
 }
 
 /// A recipe replayed from a file: the recipe, its text and its name (for
@@ -55,19 +59,6 @@ pub struct Floor {
     pub what: String,
 }
 
-/// The LinuxCNC export: the table decimated to the controller's points.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CompTable {
-    /// Nominal (readout) angles, ascending, degrees.
-    pub nominal_deg: Vec<f64>,
-    /// Error for forward motion at each nominal, degrees.
-    pub forward_deg: Vec<f64>,
-    /// Error for reverse motion (equal to forward for a one-column table).
-    pub reverse_deg: Vec<f64>,
-    /// The accuracy predicted with the decimated table (full circle only).
-    pub prediction: Option<Prediction>,
-}
-
 /// Everything the processing of one survey produced.
 #[derive(Debug)]
 pub struct Processed {
@@ -89,8 +80,8 @@ pub struct Processed {
     pub iso: Option<Iso230>,
     /// The paper's Figure 6 comparison (or why it could not be made).
     pub interpolation: Result<Vec<MethodScore>, String>,
-    /// The LinuxCNC export, when the recipe asks for it.
-    pub comp: Option<CompTable>,
+    /// The controller files the recipe asks for (`[export]`), with their predicted accuracy.
+    pub controllers: Vec<ControllerExport>,
     /// Remarks for the operator.
     pub notes: Vec<String>,
 }
@@ -122,6 +113,17 @@ fn recipe_error(e: ApplyError, replay: Option<Replay<'_>>) -> PipelineError {
 /// Process `samples` with `design` and, when given, a replayed recipe;
 /// derive a recipe from the samples otherwise.
 pub fn process(samples: &[Sample], design: &Design, replay: Option<Replay<'_>>) -> Result<Processed, PipelineError> {
+    process_with(samples, design, replay, None)
+}
+
+/// [`process`], the recipe's `[export]` replaced by `export` when given (the
+/// command line's choices; a choice it cannot honour is [`PipelineError::Export`]).
+pub fn process_with(
+    samples: &[Sample],
+    design: &Design,
+    replay: Option<Replay<'_>>,
+    export: Option<&ExportChoices>,
+) -> Result<Processed, PipelineError> {
     if samples.is_empty() {
         return Err(PipelineError::NoSamples);
     }
@@ -130,10 +132,13 @@ pub fn process(samples: &[Sample], design: &Design, replay: Option<Replay<'_>>) 
     notes.extend(note);
     let base = replay.map(|r| r.recipe.clone()).unwrap_or_default();
     let analysis = analyse(&samples, design, &base.analysis)?;
-    let recipe = match replay {
+    let mut recipe = match replay {
         Some(r) => r.recipe.clone(),
         None => Recipe::from_analysis(&analysis, &base),
     };
+    if let Some(export) = export {
+        recipe.export = export.clone();
+    }
     let decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
     notes.extend(decisions.notes.iter().cloned());
     let built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
@@ -165,8 +170,12 @@ pub fn process(samples: &[Sample], design: &Design, replay: Option<Replay<'_>>) 
         Some(map) => compare_interpolation(map).map_err(|e| e.to_string()),
         None => Err("a partial range has no periodic map to resample".to_string()),
     };
-    let comp =
-        recipe.export.linuxcnc.then(|| comp_table(&analysis, &built.table, recipe.export.linuxcnc_points, &samples));
+    let (full_circle, measured) = match analysis.error_map.coverage {
+        Coverage::FullCircle { .. } => (true, (0.0, 360.0)),
+        Coverage::Partial { start, end, .. } => (false, (start, end)),
+    };
+    let controllers = crate::export::controllers::build(&built.table, full_circle, measured, &samples, &recipe.export)
+        .map_err(|e| if export.is_some() { PipelineError::Export(e) } else { recipe_error(e.into(), replay) })?;
     Ok(Processed {
         analysis,
         recipe,
@@ -177,52 +186,9 @@ pub fn process(samples: &[Sample], design: &Design, replay: Option<Replay<'_>>) 
         floor,
         iso,
         interpolation,
-        comp,
+        controllers,
         notes,
     })
-}
-
-/// The table at `points` nominal angles for LinuxCNC: over a full circle,
-/// `points - 1` rows from 0 up to `360 - 360 / (points - 1)` low-passed by
-/// spectral decimation (a line the coarse table cannot hold is dropped, not
-/// aliased) and the row at 0 repeated at 360, so the joint is covered over the
-/// whole revolution; over a partial range, `points` angles from the first
-/// target to the last, read from the table.
-pub fn comp_table(analysis: &Analysis, table: &CorrectionTable, points: usize, samples: &[Sample]) -> CompTable {
-    let reverse_col = table.reverse.as_ref().unwrap_or(&table.forward);
-    match analysis.error_map.coverage {
-        Coverage::FullCircle { .. } => {
-            let m = points - 1;
-            let mut rs = Resampler::new();
-            let f = rs.resample(&table.forward, m);
-            let r = rs.resample(reverse_col, m);
-            let coarse = if table.is_directional() {
-                CorrectionTable::directional(f.clone(), r.clone())
-            } else {
-                CorrectionTable::new(f.clone())
-            }
-            .expect("at least two finite rows");
-            let prediction = predict_accuracy(samples, &coarse, 0.0).ok();
-            let close = |c: &[f64]| c.iter().copied().chain(std::iter::once(c[0])).collect::<Vec<f64>>();
-            CompTable {
-                nominal_deg: (0..=m).map(|i| i as f64 * 360.0 / m as f64).collect(),
-                forward_deg: close(&f),
-                reverse_deg: close(&r),
-                prediction,
-            }
-        }
-        Coverage::Partial { start, end, .. } => {
-            let nominal: Vec<f64> =
-                (0..points).map(|i| start + (end - start) * i as f64 / (points - 1) as f64).collect();
-            let read = |d| nominal.iter().map(|&a| table.error_at(a, d)).collect();
-            CompTable {
-                forward_deg: read(crate::Direction::Forward),
-                reverse_deg: read(crate::Direction::Reverse),
-                nominal_deg: nominal,
-                prediction: None,
-            }
-        }
-    }
 }
 
 #[cfg(test)]
@@ -257,25 +223,12 @@ mod tests {
         assert_eq!(p.analysis.error_map.coverage, Coverage::FullCircle { n: 90 });
         assert!(p.decisions.kept_cycles.contains(&20.0));
         assert!(p.prediction.corrected_peak_deg < p.prediction.native_peak_deg / 10.0, "{:?}", p.prediction);
-        let comp = p.comp.as_ref().unwrap();
-        assert_eq!(comp.nominal_deg.len(), 256);
-        assert_eq!((comp.nominal_deg[0], comp.nominal_deg[255]), (0.0, 360.0));
-        assert_eq!(comp.forward_deg[0], comp.forward_deg[255]);
-        assert!(comp.prediction.as_ref().unwrap().corrected_peak_deg < p.prediction.native_peak_deg / 10.0);
+        let linuxcnc = &p.controllers[0];
+        assert_eq!(linuxcnc.controller, crate::export::controllers::Controller::LinuxCnc);
+        assert_eq!((linuxcnc.grid.points, linuxcnc.grid.start_deg, linuxcnc.grid.end_deg()), (256, 0.0, 360.0));
+        assert!(linuxcnc.corrected_peak_deg.unwrap() < p.prediction.native_peak_deg / 10.0);
+        let names: Vec<&str> = p.controllers.iter().map(|c| c.controller.as_str()).collect();
+        assert_eq!(names, ["linuxcnc", "840d", "fanuc"]);
         assert_eq!(process(&[], &Design::default(), None).unwrap_err(), PipelineError::NoSamples);
-    }
-
-    #[test]
-    fn linuxcnc_decimation_drops_what_it_cannot_hold() {
-        // A 216-cycle line cannot live in 255 rows: removed, not aliased to 39.
-        let table = CorrectionTable::new(
-            (0..4096).map(|i| 0.001 * (216.0 * i as f64 * 360.0 / 4096.0).to_radians().sin() + 0.002).collect(),
-        )
-        .unwrap();
-        let p = process(&samples(90, false), &Design::default(), None).unwrap();
-        let comp = comp_table(&p.analysis, &table, 256, &samples(90, false));
-        for v in &comp.forward_deg {
-            assert!((v - 0.002).abs() < 1e-12, "{v}");
-        }
     }
 }

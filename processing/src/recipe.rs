@@ -34,11 +34,27 @@
 //! interpolation = "spectral"  # the method the report compares the others with (Figure 6)
 //! # partial_method = { method = "least_squares", cycles = [6, 72], poly_degree = 3 }
 //!
-//! [export]
+//! [export]                    # crate::export::controllers
 //! linuxcnc = true             # <stem>.comp0 and <stem>.comp1 (COMP_FILE_TYPE 0 and 1)
 //! linuxcnc_points = 256       # at most 256 (LinuxCNC's EMCMOT_COMP_SIZE)
+//! sinumerik_840d = true       # <stem>.840d.ini
+//! fanuc = true                # <stem>.fanuc.txt
+//! generic = false             # <stem>.generic.csv
 //! binary = true               # <stem>.bin for crate::corrector
 //! binary_format = "f64"       # or "f32"
+//! # start_deg = -720.0        # the controller tables' range (default 0..360,
+//! # end_deg = 720.0           # or the measured range of a partial survey)
+//! # interval_deg = 1.0        # or points = 361 (default: each format's)
+//! directions = "auto"         # "combined" or "separate" forward/reverse values
+//! # reference_deg = 0.0       # the reference point (default 0, or the point nearest it)
+//! zero_at_reference = false   # zero the LinuxCNC, 840D and generic values there
+//! sign = "error"              # generic table: "error" (readout - actual) or "correction"
+//! values = "absolute"         # generic table: or "incremental"
+//! sinumerik_axis = "C1"       # 840D machine axis name
+//! sinumerik_measuring_system = 0
+//! fanuc_unit_deg = 0.001      # Fanuc detection unit
+//! fanuc_magnification = 1     # parameter 3623
+//! # fanuc_reference_number = 0  # parameter 3620
 //! ```
 //!
 //! Every section and key is optional (the defaults above); unknown keys are
@@ -89,11 +105,13 @@ mod decide;
 mod tests;
 
 pub use build::{BuiltTable, Hysteresis, TableMethod, hysteresis};
-pub use decide::{AliasDecision, Decisions, LineAction, LineDecision};
+pub use decide::{AliasDecision, AliasOutcome, Decisions, LineAction, LineDecision};
 
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};
 use crate::corrector::ValueFormat;
+use crate::export::controllers::Directions;
+use crate::export::generic::{Sign, Values};
 use crate::resample::{Method as Interpolation, PartialMethod};
 use serde::{Deserialize, Serialize, Serializer};
 use std::path::Path;
@@ -101,7 +119,7 @@ use std::path::Path;
 /// The recipe format version.
 pub const RECIPE_VERSION: u32 = 1;
 /// The most rows LinuxCNC's joint compensation holds (`EMCMOT_COMP_SIZE`).
-pub const LINUXCNC_MAX_POINTS: usize = 256;
+pub const LINUXCNC_MAX_POINTS: usize = crate::export::linuxcnc::MAX_POINTS;
 /// The largest dense grid or table a recipe may ask for (2^24 points).
 pub const MAX_POINTS: usize = 1 << 24;
 
@@ -269,23 +287,86 @@ impl Default for TableChoices {
     }
 }
 
-/// The `[export]` section (the CSV is always written).
+/// The `[export]` section (the CSV is always written). See
+/// [`crate::export::controllers`] for what each key does to the controller files.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ExportChoices {
     /// Write LinuxCNC `COMP_FILE`s (types 0 and 1).
     pub linuxcnc: bool,
-    /// Lines of the LinuxCNC files (2 to 256).
+    /// The most points of the LinuxCNC files (2 to 256), the limit of their default spacing.
     pub linuxcnc_points: usize,
+    /// Write the Siemens 840D EEC file.
+    pub sinumerik_840d: bool,
+    /// Write the Fanuc pitch-error file.
+    pub fanuc: bool,
+    /// Write the generic table.
+    pub generic: bool,
     /// Write the binary table of [`crate::corrector`].
     pub binary: bool,
     /// Values of the binary table: `f64` or `f32`.
     pub binary_format: ValueFormat,
+    /// First position of the controller tables, degrees (default: 0, or the first measured target).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_deg: Option<f64>,
+    /// Last position, degrees (default: 360, or the last measured target).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub end_deg: Option<f64>,
+    /// Spacing, degrees (or `points`; default: each format's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interval_deg: Option<f64>,
+    /// Number of points (or `interval_deg`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub points: Option<usize>,
+    /// `auto`, `combined` or `separate` forward and reverse values.
+    pub directions: Directions,
+    /// The reference point, degrees (default: 0, or the table's point nearest 0).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_deg: Option<f64>,
+    /// Zero the LinuxCNC, 840D and generic values at the reference point (Fanuc always is).
+    pub zero_at_reference: bool,
+    /// The generic table's sign: `error` (readout - actual) or `correction`.
+    pub sign: Sign,
+    /// The generic table's values: `absolute` or `incremental`.
+    pub values: Values,
+    /// The 840D machine axis name.
+    pub sinumerik_axis: String,
+    /// The 840D measuring system, 0 or 1.
+    pub sinumerik_measuring_system: u8,
+    /// Fanuc detection unit, degrees.
+    pub fanuc_unit_deg: f64,
+    /// Fanuc magnification (parameter 3623).
+    pub fanuc_magnification: u32,
+    /// Fanuc reference point's compensation number (parameter 3620; default: see the writer).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fanuc_reference_number: Option<u32>,
 }
 
 impl Default for ExportChoices {
     fn default() -> Self {
-        Self { linuxcnc: true, linuxcnc_points: LINUXCNC_MAX_POINTS, binary: true, binary_format: ValueFormat::F64 }
+        Self {
+            linuxcnc: true,
+            linuxcnc_points: LINUXCNC_MAX_POINTS,
+            sinumerik_840d: true,
+            fanuc: true,
+            generic: false,
+            binary: true,
+            binary_format: ValueFormat::F64,
+            start_deg: None,
+            end_deg: None,
+            interval_deg: None,
+            points: None,
+            directions: Directions::Auto,
+            reference_deg: None,
+            zero_at_reference: false,
+            sign: Sign::Error,
+            values: Values::Absolute,
+            sinumerik_axis: crate::export::sinumerik::DEFAULT_AXIS.to_string(),
+            sinumerik_measuring_system: 0,
+            fanuc_unit_deg: 0.001,
+            fanuc_magnification: 1,
+            fanuc_reference_number: None,
+        }
     }
 }
 
@@ -446,6 +527,54 @@ impl Recipe {
             if *poly_degree > 20 {
                 return bad("table.partial_method", format!("poly_degree {poly_degree} is above 20"));
             }
+        }
+        let x = &self.export;
+        for (key, v) in [
+            ("export.start_deg", x.start_deg),
+            ("export.end_deg", x.end_deg),
+            ("export.reference_deg", x.reference_deg),
+        ] {
+            if let Some(v) = v
+                && !v.is_finite()
+            {
+                return bad(key, format!("must be a finite angle, got {v}"));
+            }
+        }
+        if let (Some(a), Some(b)) = (x.start_deg, x.end_deg)
+            && b <= a
+        {
+            return bad("export.end_deg", format!("must be above export.start_deg ({a}), got {b}"));
+        }
+        if let Some(d) = x.interval_deg
+            && !(d.is_finite() && d > 0.0)
+        {
+            return bad("export.interval_deg", format!("must be a positive number of degrees, got {d}"));
+        }
+        if let Some(p) = x.points {
+            if x.interval_deg.is_some() {
+                return bad("export.points", "give export.interval_deg or export.points, not both".into());
+            }
+            if p < 2 {
+                return bad("export.points", format!("must be at least 2, got {p}"));
+            }
+        }
+        if let Err(e) = crate::export::sinumerik::check_axis(&x.sinumerik_axis) {
+            return bad("export.sinumerik_axis", e.to_string());
+        }
+        if x.sinumerik_measuring_system > 1 {
+            return bad(
+                "export.sinumerik_measuring_system",
+                format!("must be 0 or 1, got {}", x.sinumerik_measuring_system),
+            );
+        }
+        if !(x.fanuc_unit_deg.is_finite() && x.fanuc_unit_deg > 0.0) {
+            return bad(
+                "export.fanuc_unit_deg",
+                format!("must be a positive number of degrees, got {}", x.fanuc_unit_deg),
+            );
+        }
+        if !(1..=100).contains(&x.fanuc_magnification) {
+            return bad("export.fanuc_magnification", format!("must be from 1 to 100, got {}", x.fanuc_magnification));
         }
         if !(2..=LINUXCNC_MAX_POINTS).contains(&self.export.linuxcnc_points) {
             return bad(

@@ -18,9 +18,15 @@
 //!
 //! `read()` takes `read_time` of clock time and samples the angle at its start;
 //! `status()` takes the link latency.
+//!
+//! With `blocked_probability`, that fraction of reads finds no reflection
+//! although the face is in range (the view blocked for that read: an injected
+//! device fault, counted by the [`Injected`] handle given with
+//! [`SimAutocollimator::count_injected`]); the next read sees the face again.
 
+use crate::faults::{FaultKind, Injected};
 use crate::turntable::Turntable;
-use crate::{LINK_LATENCY, NOISE_STREAM, seeded_rng};
+use crate::{FAULT_STREAM, LINK_LATENCY, NOISE_STREAM, seeded_rng};
 use async_trait::async_trait;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -58,6 +64,9 @@ pub struct AutocollimatorConfig {
     pub read_time: Duration,
     /// Seed of the noise stream (and of the seeded certificate).
     pub seed: u64,
+    /// Probability that a read finds no reflection although the face is in
+    /// range (default 0).
+    pub blocked_probability: f64,
 }
 
 impl AutocollimatorConfig {
@@ -77,6 +86,7 @@ impl AutocollimatorConfig {
             range_arcsec: 1000.0,
             read_time: Duration::from_millis(200),
             seed,
+            blocked_probability: 0.0,
         }
     }
 
@@ -107,6 +117,8 @@ pub struct SimAutocollimator {
     cfg: AutocollimatorConfig,
     turntable: Turntable,
     noise_rng: ChaCha8Rng,
+    fault_rng: ChaCha8Rng,
+    injected: Option<Injected>,
 }
 
 impl SimAutocollimator {
@@ -120,7 +132,19 @@ impl SimAutocollimator {
         let n = cfg.faces as usize;
         assert_eq!(cfg.certificate_arcsec.len(), n, "one certificate entry per face");
         assert_eq!(cfg.pyramidal_arcsec.len(), n, "one pyramidal entry per face");
-        Self { noise_rng: seeded_rng(cfg.seed, NOISE_STREAM), clock, cfg, turntable }
+        Self {
+            noise_rng: seeded_rng(cfg.seed, NOISE_STREAM),
+            fault_rng: seeded_rng(cfg.seed, FAULT_STREAM),
+            clock,
+            cfg,
+            turntable,
+            injected: None,
+        }
+    }
+
+    /// Count every fault this instrument injects in `injected`.
+    pub fn count_injected(&mut self, injected: Injected) {
+        self.injected = Some(injected);
     }
 
     /// The polygon certificate: face deviations from nominal, arcsec.
@@ -153,6 +177,18 @@ impl Autocollimator for SimAutocollimator {
         let theta = self.turntable.actual_deg(self.clock.now());
         self.clock.sleep(self.cfg.read_time).await;
         let (k, offset) = self.cfg.face_in_view(theta);
+        let blocked =
+            self.cfg.blocked_probability > 0.0 && self.fault_rng.random::<f64>() < self.cfg.blocked_probability;
+        if blocked {
+            if let Some(i) = &self.injected {
+                i.add(FaultKind::Device);
+            }
+            return Err(DriverError::device(
+                INSTRUMENT,
+                CODE_NO_REFLECTION,
+                format!("no reflection from face {k}: the view is blocked (simulated)"),
+            ));
+        }
         if !self.in_range(offset) {
             return Err(DriverError::device(
                 INSTRUMENT,
@@ -251,6 +287,29 @@ mod tests {
         table.place(15.0 + 999.0 / 3600.0);
         assert_eq!(ac.status().await.unwrap(), AcState::InRange);
         assert!(ac.read().await.is_ok());
+    }
+
+    #[tokio::test]
+    async fn blocked_reads_find_no_reflection_at_their_rate_and_are_counted() {
+        let clock = VirtualClock::new();
+        let table = Turntable::new(0.0);
+        let cfg = AutocollimatorConfig { blocked_probability: 0.1, ..AutocollimatorConfig::seeded(24, 4) };
+        let mut ac = SimAutocollimator::new(cfg, Arc::new(clock), table.clone());
+        let injected = Injected::new();
+        ac.count_injected(injected.clone());
+        table.place(30.0);
+        let n = 2000;
+        let mut blocked = 0;
+        for _ in 0..n {
+            if let Err(e) = ac.read().await {
+                assert_eq!(e.code, Some(CODE_NO_REFLECTION));
+                assert!(e.message.contains("face 2"), "{e}");
+                blocked += 1;
+            }
+        }
+        assert_eq!(injected.get(FaultKind::Device), blocked);
+        // Binomial(2000, 0.1): mean 200, sd 13.4; 4 sd.
+        assert!((blocked as f64 - 200.0).abs() < 54.0, "{blocked} blocked");
     }
 
     #[tokio::test]

@@ -19,6 +19,7 @@
 
 use crate::autocollimator::{AutocollimatorConfig, SimAutocollimator};
 use crate::derive_seed;
+use crate::faults::{FaultRates, Injected};
 use crate::positioner::{PositionerConfig, PositionerFaults, SimPositioner};
 use crate::presets::{Preset, without_noise};
 use crate::tracker::{ArmGeometry, SimTracker, TrackerConfig};
@@ -41,6 +42,8 @@ pub struct SimBench {
     pub tracker: SimTracker,
     /// The autocollimator on the polygon.
     pub autocollimator: SimAutocollimator,
+    /// The faults the three instruments injected, by kind.
+    pub injected: Injected,
 }
 
 impl SimBench {
@@ -124,6 +127,23 @@ impl SimBenchBuilder {
         self
     }
 
+    /// Inject faults at `rates` in process (no wire): the positioner's calls
+    /// time out, disconnect or come back garbled at the link rates (a stall
+    /// needs a wire: see `survey sim`), its moves trip at `move`; the tracker's
+    /// beam breaks at `beam` and stays broken `beam_hold_s`; the
+    /// autocollimator's reads find no reflection at `device`.
+    pub fn fault_rates(mut self, rates: &FaultRates) -> Self {
+        let f = &mut self.positioner.faults;
+        f.timeout_probability_per_call = rates.timeout;
+        f.disconnect_probability_per_call = rates.disconnect;
+        f.garbled_probability_per_call = rates.garbled;
+        f.fault_probability_per_move = rates.r#move;
+        self.tracker.beam_break_probability = rates.beam;
+        self.tracker.beam_hold = Duration::from_secs_f64(rates.beam_hold_s);
+        self.autocollimator.blocked_probability = rates.device;
+        self
+    }
+
     /// Replace the autocollimator configuration (e.g. another polygon).
     pub fn autocollimator(mut self, cfg: AutocollimatorConfig) -> Self {
         self.autocollimator = cfg;
@@ -142,10 +162,14 @@ impl SimBenchBuilder {
     /// Build the instruments on one new turntable.
     pub fn build(self) -> SimBench {
         let turntable = Turntable::new(0.0);
-        let positioner = SimPositioner::with_turntable(self.positioner, self.clock.clone(), turntable.clone());
-        let tracker = SimTracker::new(self.tracker, self.clock.clone(), turntable.clone());
-        let autocollimator = SimAutocollimator::new(self.autocollimator, self.clock.clone(), turntable.clone());
-        SimBench { clock: self.clock, turntable, positioner, tracker, autocollimator }
+        let injected = Injected::new();
+        let mut positioner = SimPositioner::with_turntable(self.positioner, self.clock.clone(), turntable.clone());
+        let mut tracker = SimTracker::new(self.tracker, self.clock.clone(), turntable.clone());
+        let mut autocollimator = SimAutocollimator::new(self.autocollimator, self.clock.clone(), turntable.clone());
+        positioner.count_injected(injected.clone());
+        tracker.count_injected(injected.clone());
+        autocollimator.count_injected(injected.clone());
+        SimBench { clock: self.clock, turntable, positioner, tracker, autocollimator, injected }
     }
 }
 

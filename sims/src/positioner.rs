@@ -46,6 +46,7 @@
 //! stays false, and moves are refused with that device error until
 //! `clear_fault()`; after clearing, the axis must be commanded again.
 
+use crate::faults::{FaultKind, Injected};
 use crate::servo::{DeviceClock, Response, Servo};
 use crate::turntable::{AxisPath, Profile, Turntable};
 use crate::{FAULT_STREAM, LINK_LATENCY, NOISE_STREAM, fixed_point, seeded_rng};
@@ -199,9 +200,21 @@ pub struct SimPositioner {
     calls: usize,
     noise_rng: ChaCha8Rng,
     fault_rng: ChaCha8Rng,
+    injected: Option<Injected>,
 }
 
 impl SimPositioner {
+    /// Count every fault this positioner injects in `injected`.
+    pub fn count_injected(&mut self, injected: Injected) {
+        self.injected = Some(injected);
+    }
+
+    fn injected(&self, kind: FaultKind) {
+        if let Some(i) = &self.injected {
+            i.add(kind);
+        }
+    }
+
     /// A positioner driving a new turntable, at rest at readout 0 (or at the
     /// lower travel limit when 0 is outside the travel).
     pub fn new(cfg: PositionerConfig, clock: Arc<dyn Clock>) -> Self {
@@ -235,6 +248,7 @@ impl SimPositioner {
             fault: None,
             moves: 0,
             calls: 0,
+            injected: None,
             cfg,
         };
         let actual = sim.actual_for_raw(start, sim.runs_at(now));
@@ -357,6 +371,7 @@ impl SimPositioner {
         // Always three draws per call, so the fault stream stays aligned.
         let (d, t, g): (f64, f64, f64) = (self.fault_rng.random(), self.fault_rng.random(), self.fault_rng.random());
         if f.disconnect_on_call == n || d < f.disconnect_probability_per_call {
+            self.injected(FaultKind::Disconnect);
             return Err(DriverError::new(
                 ErrorKind::Disconnected,
                 INSTRUMENT,
@@ -364,11 +379,13 @@ impl SimPositioner {
             ));
         }
         if f.timeout_on_call == n || t < f.timeout_probability_per_call {
+            self.injected(FaultKind::Timeout);
             self.clock.sleep(INJECTED_TIMEOUT).await;
             return Err(DriverError::timeout(INSTRUMENT, what, INJECTED_TIMEOUT));
         }
         self.clock.sleep(self.cfg.link_latency).await;
         if g < f.garbled_probability_per_call {
+            self.injected(FaultKind::Garbled);
             return Err(DriverError::new(
                 ErrorKind::Garbled,
                 INSTRUMENT,
@@ -419,6 +436,7 @@ impl SimPositioner {
         self.settle_until = end + self.cfg.settle;
         self.on_target = true;
         if trips {
+            self.injected(FaultKind::Move);
             let at = profile.start + Duration::from_secs_f64(profile.duration_s / 2.0);
             self.halt(at, true);
             self.fault = Some(Latched {

@@ -37,7 +37,12 @@
 //! [`CODE_BEAM_BROKEN`], the state becomes `BeamBroken` and every measurement
 //! fails at once with that code until `reacquire()` (which takes
 //! `reacquire_time`). `status()` and a locked `reacquire()` cost the link latency.
+//! A broken beam stays blocked for `beam_hold` after the break (someone
+//! standing in it): a `reacquire()` before then searches for `reacquire_time`
+//! and fails with [`CODE_BEAM_BROKEN`], the beam still broken. Each break is
+//! counted by the [`Injected`] handle given with [`SimTracker::count_injected`].
 
+use crate::faults::{FaultKind, Injected};
 use crate::turntable::Turntable;
 use crate::{FAULT_STREAM, LINK_LATENCY, NOISE_STREAM, seeded_rng};
 use async_trait::async_trait;
@@ -146,6 +151,9 @@ pub struct TrackerConfig {
     pub beam_break_probability: f64,
     /// Time to find the SMR again after a break (default 5 s).
     pub reacquire_time: Duration,
+    /// How long the beam stays blocked after a break (default 0: it can be
+    /// re-acquired at once).
+    pub beam_hold: Duration,
     /// Seed of the noise and beam-break streams.
     pub seed: u64,
     /// Break the beam on this measurement (1-based), for tests.
@@ -164,6 +172,7 @@ impl Default for TrackerConfig {
             measurement_time: Duration::from_secs(1),
             beam_break_probability: 0.0,
             reacquire_time: Duration::from_secs(5),
+            beam_hold: Duration::ZERO,
             seed: 0,
             break_on_measurement: None,
             noise_scale: 1.0,
@@ -184,6 +193,9 @@ pub struct SimTracker {
     fault_rng: ChaCha8Rng,
     /// The continuous measurement, while it runs.
     streaming: Option<stream::Streaming>,
+    /// The beam cannot be re-acquired before this clock time.
+    blocked_until: Duration,
+    injected: Option<Injected>,
 }
 
 impl SimTracker {
@@ -198,7 +210,14 @@ impl SimTracker {
             state: TrackerState::TargetLocked,
             measurements: 0,
             streaming: None,
+            blocked_until: Duration::ZERO,
+            injected: None,
         }
+    }
+
+    /// Count every beam break in `injected`.
+    pub fn count_injected(&mut self, injected: Injected) {
+        self.injected = Some(injected);
     }
 
     /// The configuration (the designed geometry, for tests).
@@ -246,6 +265,10 @@ impl Tracker for SimTracker {
         let theta = self.turntable.mean_actual_deg(t0, t1);
         if breaks {
             self.state = TrackerState::BeamBroken;
+            self.blocked_until = self.clock.now() + self.cfg.beam_hold;
+            if let Some(i) = &self.injected {
+                i.add(FaultKind::Beam);
+            }
             tracing::debug!(measurement = self.measurements, "simulated tracker beam break");
             return Err(DriverError::device(
                 INSTRUMENT,
@@ -282,6 +305,13 @@ impl Tracker for SimTracker {
             return Ok(());
         }
         self.clock.sleep(self.cfg.reacquire_time).await;
+        if self.clock.now() < self.blocked_until {
+            return Err(DriverError::device(
+                INSTRUMENT,
+                CODE_BEAM_BROKEN,
+                "no reflector found: the beam is still blocked (simulated)",
+            ));
+        }
         self.state = TrackerState::TargetLocked;
         Ok(())
     }

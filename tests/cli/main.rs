@@ -13,6 +13,8 @@
 //! the first that does not exist); a failed command must leave that list equal,
 //! and the next valid import must get the next id.
 
+mod browser;
+mod everyday;
 mod files;
 mod instruments;
 mod list;
@@ -20,6 +22,7 @@ mod modelgap;
 mod process;
 mod report;
 mod runs;
+mod tables;
 mod verify;
 
 use serde_json::Value;

@@ -1,9 +1,30 @@
-//! `survey report --out DIR`, from outside.
+//! `survey report --out DIR`, from outside: the page's sections, figures and
+//! tables, its units, its header and where the header's fields come from,
+//! and bad input. `tests/cli/browser.rs` opens the page in a real browser.
 
-use super::Bench;
+use super::{Bench, CONTRACT_MODEL};
+
+/// The ids of the figures and tables every processed survey's report holds.
+pub const ALWAYS: [&str; 15] = [
+    "tbl-header",
+    "tbl-summary",
+    "fig-error",
+    "fig-hysteresis",
+    "fig-spectrum",
+    "tbl-lines",
+    "fig-interpolation",
+    "tbl-interpolation",
+    "fig-table",
+    "tbl-table",
+    "tbl-iso-axis",
+    "tbl-vdi",
+    "vdi-definitions",
+    "tbl-iso-targets",
+    "iso230-targets",
+];
 
 #[test]
-fn report_writes_a_self_contained_page_with_plots_and_figures() {
+fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     let bench = Bench::new();
     bench.survey(&["report", "--out", "r"]).bad_input(&["survey.db"]);
     assert!(!bench.exists("r/index.html"));
@@ -12,14 +33,105 @@ fn report_writes_a_self_contained_page_with_plots_and_figures() {
     assert!(out.stdout.trim().ends_with("index.html"), "{out}");
     let html = bench.read("r/index.html");
     assert!(html.starts_with("<!doctype html>"));
-    assert_eq!(html.matches("<svg").count(), 2, "the error map and the spectrum");
-    for words in ["Error map", "ISO 230-2", "A accuracy", "gear_pass", "forward", "reverse"] {
-        assert!(html.contains(words), "the page should show {words:?}");
+    for id in ALWAYS {
+        assert!(html.contains(&format!("id=\"{id}\"")), "the page should hold {id}");
     }
+    // Nothing without a verification, a model or drift data.
+    for id in ["fig-native", "fig-corrected", "fig-modelgap", "fig-drift"] {
+        assert!(!html.contains(&format!("id=\"{id}\"")), "{id} has no data");
+    }
+    // The title names the positioner and the survey.
+    assert!(html.contains("<title>simulated fig8 positioner: calibration survey 1</title>"), "title");
+    // The simulated default's header: the preset, the tracker's noise (8.8e-4 deg).
+    for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.00088 deg", "survey 0.1.0"] {
+        assert!(html.contains(words), "the header should say {words:?}");
+    }
+    assert!(html.contains("No public text of VDI/DGQ 3441 was found"));
     assert!(
         !html.contains("<script") && !html.contains("src=") && !html.contains("href="),
         "self-contained: no scripts, no links"
     );
+    assert!(html.contains("default-src 'none'"), "the page forbids every fetch");
     bench.survey(&["report", "--out", "r", "--survey", "9"]).bad_input(&["9"]);
     bench.survey(&["report"]).bad_input(&["--out"]);
+}
+
+#[test]
+fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
+    let bench = Bench::new();
+    // An autocollimator survey: no axis to refit, so the report's figures are
+    // the stored survey's exactly.
+    bench
+        .survey(&["run", "--points", "24", "--runs", "2", "--bidirectional", "--reference", "autocollimator"])
+        .success();
+    bench.write("model.toml", CONTRACT_MODEL);
+    let a_deg = bench.stats_json(None)["iso230_2"]["A"].as_f64().unwrap();
+    bench
+        .survey(&[
+            "report",
+            "--out",
+            "r",
+            "--units",
+            "arcsec",
+            "--operator",
+            "J. Smith",
+            "--temperature",
+            "20.5",
+            "--positioner",
+            "ACME AZ-200 <serial 7>",
+            "--model",
+            "model.toml",
+        ])
+        .success();
+    let html = bench.read("r/index.html");
+    // ISO A in the axis table, in arcsec with 2 decimals.
+    let shown = html.split("A, accuracy</td><td>").nth(1).and_then(|s| s.split('<').next()).expect("A");
+    assert_eq!(shown, format!("{:.2}", a_deg * 3600.0), "A in arcsec against stats' {a_deg} deg");
+    for words in [
+        "error (readout − actual), arcsec",
+        "J. Smith",
+        "20.5 °C",
+        "ACME AZ-200 &lt;serial 7&gt;",
+        "(survey report flag)",
+        "simulated autocollimator",
+        "0.10 arcsec (standard uncertainty of one angle)",
+    ] {
+        assert!(html.contains(words), "the page should show {words:?}");
+    }
+    assert!(html.contains("<title>ACME AZ-200 &lt;serial 7&gt;: calibration survey 1</title>"));
+    assert!(html.contains("id=\"fig-modelgap\""), "the model-gap section");
+    // Bad input: exit 2, nothing written.
+    for (args, words) in [
+        (vec!["--units", "furlong"], vec!["furlong"]),
+        (vec!["--temperature", "500"], vec!["--temperature"]),
+        (vec!["--reference-uncertainty", "-1"], vec!["--reference-uncertainty"]),
+        (vec!["--model", "missing.toml"], vec!["missing.toml"]),
+    ] {
+        let mut all = vec!["report", "--out", "bad"];
+        all.extend(args);
+        bench.survey(&all).bad_input(&words);
+        assert!(!bench.exists("bad/index.html"), "{all:?} wrote a page");
+    }
+}
+
+#[test]
+fn a_verified_survey_shows_native_and_corrected_on_one_scale() {
+    let bench = Bench::new();
+    bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--verify", "--json"]).success();
+    for (id, title) in [("1", "calibration survey 1"), ("2", "verification (survey 2) of the table of survey 1")] {
+        let dir = format!("r{id}");
+        bench.survey(&["report", "--survey", id, "--out", &dir]).success();
+        let html = bench.read(&format!("{dir}/index.html"));
+        assert!(html.contains(&format!("<title>simulated fig8 positioner: {title}</title>")), "{id}");
+        for fig in ["fig-native", "fig-corrected", "tbl-verification"] {
+            assert!(html.contains(&format!("id=\"{fig}\"")), "report of survey {id} should hold {fig}");
+        }
+        assert!(html.contains("Every verification target lies between the calibration targets"), "{id}");
+        // One vertical scale: the two figures' y ticks are the same.
+        let ticks = |fig: &str| {
+            let part = html.split(&format!("<figure id=\"{fig}\">")).nth(1).unwrap().split("</figure>").next().unwrap();
+            part.matches("<text").count()
+        };
+        assert_eq!(ticks("fig-native"), ticks("fig-corrected"), "{id}");
+    }
 }

@@ -180,3 +180,53 @@ fn autocollimator_reference_runs() {
     let doc = b.stats_json(Some(id));
     assert!(number(&doc, "R") > 0.0);
 }
+
+#[test]
+fn run_json_counts_the_faults_the_simulators_injected_by_kind() {
+    let b = Bench::new();
+    let clean = b.survey(&["run", "--points", "12", "--runs", "2", "--json"]).success().json();
+    assert_eq!(clean["faults"]["injected"], 0, "the in-process simulators' count, not null: {clean}");
+    let args = [
+        "--db",
+        "faulty.db",
+        "run",
+        "--points",
+        "12",
+        "--runs",
+        "2",
+        "--bidirectional",
+        "--fault-rates",
+        "timeout=0.0005,garbled=0.0005,disconnect=0.0005,move=0.05,beam=0.05,beam_hold_s=20",
+        "--json",
+    ];
+    let doc = b.survey(&args).success().json();
+    assert_eq!(doc["status"], "complete", "{doc}");
+    let f = &doc["faults"];
+    let injected = f["injected"].as_u64().unwrap_or_else(|| panic!("injected is a count: {doc}"));
+    let by_kind = &f["injected_by_kind"];
+    let sum: u64 = ["timeout", "garbled", "disconnect", "stall", "device", "move", "beam"]
+        .iter()
+        .map(|k| by_kind[*k].as_u64().unwrap_or_else(|| panic!("{k} counted: {doc}")))
+        .sum();
+    assert_eq!(sum, injected, "{doc}");
+    assert!(by_kind["move"].as_u64().unwrap() >= 1 && by_kind["beam"].as_u64().unwrap() >= 1, "{doc}");
+    // Every injected fault was met and recovered (the survey completed).
+    assert!(f["recovered"].as_u64().unwrap() >= 1, "{doc}");
+    // The events say so.
+    let show = b.survey(&["--db", "faulty.db", "show", "--json"]).success().json();
+    let events = show["events"].as_array().unwrap();
+    assert!(events.iter().any(|e| e["message"].as_str().unwrap().contains("survey suspended")), "{show}");
+}
+
+#[test]
+fn a_bad_fault_rate_spec_exits_2_naming_the_item() {
+    let b = Bench::new();
+    b.survey(&["run", "--points", "12", "--fault-rates", "lightning=0.1"]).bad_input(&["--fault-rates", "lightning"]);
+    assert!(!b.exists("survey.db"), "nothing stored");
+    b.write(
+        "c.toml",
+        "[positioner]\ndriver = \"modbus-tcp\"\naddress = \"127.0.0.1:0\"\n\
+         [tracker]\ndriver = \"emscon\"\naddress = \"127.0.0.1:0\"\n",
+    );
+    b.survey(&["sim", "--config", "c.toml", "--fault-rates", "stall=0.9"]).bad_input(&["stall=0.9", "0 to 0.5"]);
+}

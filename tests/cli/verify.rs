@@ -1,6 +1,7 @@
 //! The closed loop of the paper, end to end through the binary: survey the
 //! Figure 8 positioner, process, load the table into the simulated
-//! positioner's feedback path through the driver trait, survey again.
+//! positioner's feedback path through the driver trait, survey again between
+//! the calibration targets (where the table interpolates).
 
 use super::Bench;
 use serde_json::Value;
@@ -14,6 +15,17 @@ fn the_fig8_correction_measured_in_the_loop_beats_native_and_the_hysteresis_floo
     let v = &doc["verify"];
     let num = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("verify.{k} missing: {v}"));
     assert_eq!(v["survey_id"], 2);
+    // Measured half a step (0.5 deg) from every calibration target.
+    assert_eq!((v["targets"].as_u64(), v["between_targets"].as_bool()), (Some(360), Some(true)), "{v}");
+    assert!((num("offset_deg") - 0.5).abs() < 1e-9, "{v}");
+    bench.survey(&["export", "--csv", "v.csv", "--survey", "2"]).success();
+    let targets = targets_of(&bench.read("v.csv"));
+    assert_eq!(targets.len(), 360);
+    assert!(targets.iter().enumerate().all(|(k, t)| (t - (k as f64 + 0.5)).abs() < 1e-9), "{targets:?}");
+    // Its own plan is stored with it, so a resume measures the same targets.
+    let shown = bench.survey(&["show", "2", "--json"]).success().json();
+    assert_eq!(shown["plan"]["targets_deg"][0].as_f64(), Some(0.5), "{shown}");
+    assert_eq!(shown["points"].as_u64(), Some(360), "{shown}");
     assert_eq!(v["directional"], true, "fig8's 0.008 deg backlash makes the table direction-aware");
     // The paper: +/-0.015 -> +/-0.005, a factor of 3, limited by hysteresis.
     // Here every sample also carries the tracker's ~0.0009 deg and the
@@ -31,7 +43,9 @@ fn the_fig8_correction_measured_in_the_loop_beats_native_and_the_hysteresis_floo
     let native_b = doc["iso230_2"]["B_mean"].as_f64().unwrap();
     assert!((native_b + 0.008).abs() < 5e-4, "native B_mean {native_b}");
     assert!(b_mean.abs() < 5.0 * 3.3e-5 + 2e-4, "corrected B_mean {b_mean}");
-    // The prediction made before the table was applied is borne out.
+    // The prediction made before the table was applied (on the samples at the
+    // table's own points) is borne out between them: the table's
+    // interpolation adds nothing the noise does not hide.
     assert!((num("corrected_peak_deg") - num("predicted_corrected_peak_deg")).abs() < 0.002, "{v}");
     assert!(bench.exists("table-1.csv") && bench.exists("table-1.recipe.toml"));
 }
@@ -63,4 +77,58 @@ fn run_replays_a_recipe_and_refuses_a_bad_one_before_measuring() {
     assert_eq!(bad.code, 2, "{bad}");
     assert!(bad.stderr.contains("bad.toml") && bad.stderr.contains("rows"), "{bad}");
     assert!(!bench.exists("other.db"), "nothing measured, nothing stored");
+}
+
+/// The distinct targets of an exported survey CSV, ascending.
+fn targets_of(csv: &str) -> Vec<f64> {
+    let mut t: Vec<f64> = csv.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().parse::<f64>().unwrap()).collect();
+    t.sort_by(f64::total_cmp);
+    t.dedup();
+    t
+}
+
+#[test]
+fn verify_points_measures_a_denser_set_between_the_targets_and_refuses_one_on_them() {
+    let bench = Bench::new();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "--points", "36", "--runs", "2", "--bidirectional", "--verify", "--json"];
+        args.extend_from_slice(extra);
+        bench.survey(&args)
+    };
+    // 72 targets every 5 deg from 2.5: the calibration targets are every 10 deg.
+    let out = run(&["--verify-points", "72"]).success();
+    let v = &out.json()["verify"];
+    assert_eq!((v["targets"].as_u64(), v["between_targets"].as_bool()), (Some(72), Some(true)), "{v}");
+    assert!((v["offset_deg"].as_f64().unwrap() - 2.5).abs() < 1e-9, "{v}");
+    bench.survey(&["export", "--csv", "v.csv", "--survey", "2"]).success();
+    let targets = targets_of(&bench.read("v.csv"));
+    assert_eq!(targets, (0..72).map(|k| 2.5 + 5.0 * k as f64).collect::<Vec<_>>());
+    // 18 targets every 20 deg from 10 deg fall on the calibration targets:
+    // refused before anything is measured or stored.
+    let before = bench.stored();
+    run(&["--verify-points", "18"]).bad_input(&["--verify-points 18", "calibration target"]);
+    assert_eq!(bench.stored(), before, "nothing stored");
+    // With an autocollimator the faces are all there is to measure.
+    run(&["--reference", "autocollimator", "--verify-points", "72"]).bad_input(&["autocollimator", "faces"]);
+    assert_eq!(bench.stored(), before, "nothing stored");
+    bench.survey(&["run", "--points", "36", "--runs", "2", "--verify-points", "72"]).bad_input(&["--verify"]);
+}
+
+#[test]
+fn with_an_autocollimator_the_verification_stays_at_the_faces_and_says_so() {
+    let bench = Bench::new();
+    let out = bench
+        .survey(&[
+            "run",
+            "--points",
+            "24",
+            "--runs",
+            "2",
+            "--bidirectional",
+            "--reference",
+            "autocollimator",
+            "--verify",
+        ])
+        .success();
+    assert!(out.stdout.contains("at the 24 calibration targets (the polygon's faces"), "{out}");
 }

@@ -1,9 +1,12 @@
 //! The soak (issue 10): `survey sim` serves a Modbus TCP positioner and an
-//! emScon tracker with faults on 1 in 100 replies, moves and measurements
-//! (time-scaled); `survey run --config` against it, in another process, is
-//! SIGKILLed at seeded random moments five times and resumed each time. The
-//! survey ends with every planned sample exactly once, and its ISO 230-2
-//! accuracy within the seed-to-seed spread of fault-free runs.
+//! emScon tracker with faults on 12 in 100 moves, 8 in 100 measurements, 1 in
+//! 100 requests (refused in the instrument's own code) and 4 in 100 replies (a
+//! dropped, garbled, cut or stalled reply, 1 in 100 each), time-scaled; `survey run
+//! --config` against it, in another process, is SIGKILLed at seeded random
+//! moments five times and resumed each time. The survey ends with every
+//! planned sample exactly once, and its ISO 230-2 accuracy within the
+//! seed-to-seed spread of fault-free runs. `survey sim` prints what it
+//! injected when it stops: every link kind was injected and survived.
 
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
@@ -29,6 +32,23 @@ impl Drop for Sim {
     }
 }
 
+/// The soak's fault rates over `--faults 0.01`: each link kind at 0.01,
+/// moves tripped at 0.12 and beams broken at 0.08 (so a survey of 96 samples
+/// meets several of each: about 900 replies, 60 moves, 110 measurements).
+const LINK_RATES: &str = "timeout=0.01,garbled=0.01,disconnect=0.01,stall=0.01,move=0.12,beam=0.08";
+
+impl Sim {
+    /// Stop `survey sim` with SIGTERM and read what it prints when it stops.
+    fn stop(&mut self) -> serde_json::Value {
+        kill(Pid::from_raw(self.child.id() as i32), Signal::SIGTERM).unwrap();
+        let mut out = String::new();
+        std::io::Read::read_to_string(self.child.stdout.as_mut().unwrap(), &mut out).unwrap();
+        self.child.wait().unwrap();
+        let line = out.lines().find(|l| l.contains("\"stopped\"")).expect("the stopped line");
+        serde_json::from_str(line).unwrap()
+    }
+}
+
 fn start_sim(dir: &Path, name: &str, faults: &str, seed: &str) -> Sim {
     let base = "[survey]\nreference = \"tracker\"\n[positioner]\ndriver = \"modbus-tcp\"\naddress = \"ADDR_P\"\n\
                 [tracker]\ndriver = \"emscon\"\naddress = \"ADDR_T\"\nmeasurement_time_ms = 500\n\
@@ -38,6 +58,7 @@ fn start_sim(dir: &Path, name: &str, faults: &str, seed: &str) -> Sim {
     std::fs::write(&sim_cfg, base.replace("ADDR_P", "127.0.0.1:0").replace("ADDR_T", "127.0.0.1:0")).unwrap();
     let mut child = Command::new(BIN)
         .args(["sim", "--config", sim_cfg.to_str().unwrap(), "--time-scale", "200", "--faults", faults])
+        .args(if faults == "0" { vec![] } else { vec!["--fault-rates", LINK_RATES] })
         .args(["--seed", seed])
         .env_remove("RUST_LOG")
         .stdout(Stdio::piped())
@@ -126,7 +147,7 @@ async fn a_faulty_bench_killed_five_times_loses_and_repeats_nothing() {
     let dir = tempfile::tempdir().unwrap();
     // The fault-free surveys the soak is compared with run beside it.
     let clean = [FaultFree::start(dir.path(), "11"), FaultFree::start(dir.path(), "12")];
-    let sim = start_sim(dir.path(), "soak", "0.01", "11");
+    let mut sim = start_sim(dir.path(), "soak", "0.01", "11");
     let db = dir.path().join("soak.db");
     let mut run_args = vec!["run", "--config", sim.config.to_str().unwrap()];
     run_args.extend(PLAN);
@@ -187,6 +208,24 @@ async fn a_faulty_bench_killed_five_times_loses_and_repeats_nothing() {
         .count();
     let faults = events.iter().filter(|e| e.level == "warn" && e.message.contains("retrying")).count();
     eprintln!("soak: {kills} kills, {resumes} resumes, {faults} faults survived, {} samples", samples.len());
+    // What the simulators injected, as `survey sim` prints it when it stops.
+    let stopped = sim.stop();
+    let f = &stopped["faults"];
+    let by_kind = &f["by_kind"];
+    eprintln!(
+        "soak: {} requests relayed, {} faults injected {by_kind}; {faults} recoveries logged, {kills} kills, \
+         {} of {PLANNED} samples, 0 lost, 0 duplicated",
+        f["replies"],
+        f["injected"],
+        samples.len()
+    );
+    for kind in ["timeout", "garbled", "disconnect", "stall", "device", "move", "beam"] {
+        assert!(by_kind[kind].as_u64().unwrap() >= 1, "no {kind} fault was injected: {stopped}");
+    }
+    // Every kind was injected, and the survey completed with every sample
+    // once (above): each fault was survived, or ended a process that a resume
+    // continued.
+    assert!(faults >= 1, "{faults} recoveries logged: {stopped}");
     // Every kill is followed by a resume, and a process is killed only after it
     // stored a sample (so after a resume had logged itself).
     assert!(resumes >= kills, "{resumes} resumes after {kills} kills");

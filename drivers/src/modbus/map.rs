@@ -75,6 +75,10 @@ impl Default for PositionEncoding {
     }
 }
 
+/// The counts per degree a map may have: from one count per 1000 degrees to
+/// 1e9 per degree (a 32-bit encoder per revolution has about 1.2e7).
+pub const COUNTS_PER_DEGREE_RANGE: (f64, f64) = (1e-3, 1e9);
+
 /// Counts per degree of the default map: 1e-5 degrees (0.036 arcsec) per
 /// count, a range of +/-21474 degrees.
 pub const DEFAULT_COUNTS_PER_DEGREE: f64 = 100_000.0;
@@ -416,10 +420,16 @@ impl RegisterMap {
     /// chunk rows in `1..=60`, items inside the address space and not
     /// overlapping.
     pub fn validate(&self) -> Result<(), MapError> {
+        // A scale outside this range is no encoder (found by fuzzing: a
+        // subnormal scale passed as "positive and finite" and every decoded
+        // position became infinite).
         if let PositionEncoding::Counts { counts_per_degree } = self.position_encoding
-            && !(counts_per_degree.is_finite() && counts_per_degree > 0.0)
+            && !(COUNTS_PER_DEGREE_RANGE.0..=COUNTS_PER_DEGREE_RANGE.1).contains(&counts_per_degree)
         {
-            return Err(MapError(format!("counts_per_degree {counts_per_degree} is not a positive finite number")));
+            return Err(MapError(format!(
+                "counts_per_degree {counts_per_degree} is not within {} to {} counts per degree",
+                COUNTS_PER_DEGREE_RANGE.0, COUNTS_PER_DEGREE_RANGE.1
+            )));
         }
         let bits = self.status_bits.all();
         for (i, &(name, b)) in bits.iter().enumerate() {

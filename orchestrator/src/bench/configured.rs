@@ -118,6 +118,7 @@ pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
     if let Some(arm) = &cfg.arm {
         engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
     }
+    engine.set_drift_control(cfg.drift_control.clone());
     engine
 }
 

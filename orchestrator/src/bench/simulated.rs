@@ -40,6 +40,8 @@ pub struct SimulatedRequest {
     pub seed: u64,
     /// Step or continuous scan.
     pub scan: ScanMode,
+    /// Faults the simulated instruments inject.
+    pub faults: Option<survey_sims::faults::FaultRates>,
 }
 
 /// The simulated bench's losses: the fraction of streamed tracker points
@@ -121,6 +123,7 @@ impl Bench {
             plan,
             timing,
             run_period_s: run_period.as_secs_f64(),
+            faults: req.faults,
         };
         Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
     }
@@ -157,7 +160,11 @@ pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, c
         let faces = setup.plan.targets_deg.len() as u32;
         builder = builder.autocollimator(AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3)));
     }
+    if let Some(rates) = &setup.faults {
+        builder = builder.fault_rates(rates);
+    }
     let bench = builder.build();
+    let injected = bench.injected.clone();
     let reference = match setup.reference {
         ReferenceKind::Tracker => Reference::Tracker(Box::new(bench.tracker)),
         ReferenceKind::Autocollimator => Reference::Autocollimator {
@@ -167,9 +174,11 @@ pub fn simulated_engine(setup: &SimulatedSetup, preset: &Preset, model: Model, c
         },
     };
     let travel = bench.positioner.config().travel;
-    Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
+    let mut engine = Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
         .with_travel(travel)
-        .with_physics(settle_model(&setup.timing), Some(measurement_time(setup.reference)))
+        .with_physics(settle_model(&setup.timing), Some(measurement_time(setup.reference)));
+    engine.set_injected(Some(injected));
+    engine
 }
 
 /// The simulated bench of a stored survey, continued at step `next_seq`.

@@ -20,7 +20,13 @@ pub struct CheckArgs {
 pub async fn check(args: CheckArgs) -> anyhow::Result<()> {
     let cfg = SurveyConfig::from_file(&args.config)?;
     let clock = SystemClock::new();
+    // An instrument that does not answer takes its timeout: say what is being waited for.
+    let progress = crate::progress::Progress::spinner(
+        format!("connecting to the instruments of {}", args.config.display()),
+        crate::progress::visible(args.json),
+    );
     let lines = crate::bench::instruments::check(&cfg, &clock).await;
+    drop(progress);
     let failed = lines.iter().filter(|l| !l.ok).count();
     // What a continuous scan would be on these instruments (from the
     // configuration: it does not change whether the check passes).

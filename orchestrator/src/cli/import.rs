@@ -2,6 +2,7 @@
 
 use super::support::emit;
 use crate::csvio::read_survey_csv;
+use crate::progress::{self, Progress};
 use crate::store::Store;
 use crate::survey::{NewSurvey, Setup, SurveySource, SurveyStatus};
 use clap::Args;
@@ -18,7 +19,9 @@ pub struct ImportArgs {
 
 pub async fn import(db: &Path, args: ImportArgs) -> anyhow::Result<()> {
     let name = args.file.display().to_string();
+    let progress = Progress::spinner(format!("reading {name}"), progress::visible(false));
     let samples = read_survey_csv(&args.file)?;
+    progress.stage(format!("storing {} samples", samples.len()));
     let runs = samples.iter().map(|s| s.run).max().unwrap_or(0);
     let bidirectional = samples.iter().any(|s| s.direction == Direction::Reverse);
     let targets = distinct_targets(&samples);
@@ -35,6 +38,7 @@ pub async fn import(db: &Path, args: ImportArgs) -> anyhow::Result<()> {
     };
     let id = store.import(&survey, &samples).await;
     store.close().await;
+    drop(progress);
     let id = id?;
     emit(&format!("{id}\n"));
     if let Err(e) = iso230_2(&samples) {

@@ -103,11 +103,12 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     let shown = async {
         let r = store.resolve(args.survey).await?;
         let events = store.events(r.id).await?;
-        anyhow::Ok((r, events))
+        let drift = store.drift_points(r.id).await?;
+        anyhow::Ok((r, events, drift))
     }
     .await;
     store.close().await;
-    let (r, events) = shown?;
+    let (r, events, drift) = shown?;
     let plan = r.setup.plan();
     let mut doc = summary(&r);
     doc["plan"] = json!(plan.map(|p| json!({
@@ -131,6 +132,7 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     doc["events"] = json!(
         events.iter().map(|e| json!({"at_s": e.at_s, "level": e.level, "message": e.message})).collect::<Vec<_>>()
     );
+    doc["drift"] = crate::drift::json(&r, &drift);
     if args.json {
         emit(&format!("{doc}\n"));
         return Ok(());
@@ -172,6 +174,9 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     }
     if let Some(v) = &r.verification {
         let _ = writeln!(s, "  verifies     survey {} (table {})", v.verifies_survey, v.table);
+    }
+    for line in crate::drift::text(&drift).lines() {
+        let _ = writeln!(s, "  {line}");
     }
     if !events.is_empty() {
         let _ = writeln!(s, "  events");

@@ -6,6 +6,7 @@
 //! stores nothing. Nothing below this module imports it.
 
 mod check;
+mod docs;
 mod export;
 mod import;
 mod list;
@@ -30,7 +31,7 @@ use std::process::ExitCode;
 /// statistics. Without `--config`, `survey run` uses the built-in simulated
 /// instruments (the paper's Figure 8 positioner and a tracking laser).
 #[derive(Debug, Parser)]
-#[command(name = "survey", version, propagate_version = true, max_term_width = 100)]
+#[command(name = "survey", version, propagate_version = true, max_term_width = 100, after_help = EXAMPLES)]
 pub struct Cli {
     /// The SQLite database that holds the surveys.
     #[arg(long, global = true, value_name = "PATH", default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
@@ -40,33 +41,108 @@ pub struct Cli {
     pub command: Command,
 }
 
+const EXAMPLES: &str = "\
+Examples:
+  survey run --points 360 --bidirectional     # a survey on the simulated bench, processed
+  survey stats                                # ISO 230-2 figures of the latest survey
+  survey process --table-start -720 --table-end 720
+  survey report --out report/
+  survey help process                         # every option of one command";
+
 /// The commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Acquire a survey (the simulated instruments unless --config is given).
+    #[command(after_help = "\
+Examples:
+  survey run --points 360 --bidirectional                 # simulated Figure 8 bench, 5 runs
+  survey run --points 720 --runs 3 --bidirectional --preset fig4 --json
+  survey run --points 24 --reference autocollimator       # a 24-face polygon
+  survey run --config bench.toml --points 360 --bidirectional --verify")]
     Run(run::RunArgs),
     /// Connect to every configured instrument and say plainly what is wrong.
+    #[command(after_help = "\
+Examples:
+  survey check --config bench.toml
+  survey check --config bench.toml --json")]
     Check(check::CheckArgs),
     /// Continue an interrupted survey from its last stored sample.
+    #[command(after_help = "\
+Examples:
+  survey resume                   # the latest survey
+  survey resume --survey 3 --json")]
     Resume(resume::ResumeArgs),
     /// Write the survey's report (a self-contained HTML page with its plots and tables) into DIR.
+    #[command(after_help = "\
+Examples:
+  survey report --out report/               # report/index.html of the latest survey
+  survey report --survey 3 --out survey-3/")]
     Report(report::ReportArgs),
     /// Store measured data from a CSV file as a new survey; prints its id.
+    #[command(after_help = "\
+Examples:
+  survey import measured.csv
+  survey --db lab.db import measured.csv && survey --db lab.db stats")]
     Import(import::ImportArgs),
     /// Write a survey in the import CSV format.
+    #[command(after_help = "\
+Examples:
+  survey export --csv survey.csv              # the latest survey
+  survey export --csv survey-3.csv --survey 3")]
     Export(export::ExportArgs),
     /// ISO 230-2 statistics across runs.
+    #[command(after_help = "\
+Examples:
+  survey stats
+  survey stats --survey 3 --json")]
     Stats(stats::StatsArgs),
     /// Find where a model and the measured data disagree, name what the model lacks, and close the gap.
+    #[command(after_help = "\
+Examples:
+  survey model-gap --model positioner.toml
+  survey model-gap --model positioner.toml --out improved.toml --json")]
     ModelGap(model_gap::ModelGapArgs),
     /// The paper's DSP processing: spectrum, lines, aliases, the correction table and its exports.
+    #[command(after_help = "\
+Examples:
+  survey process --design positioner.toml          # name the lines from the design
+  survey process --recipe table-1.recipe.toml      # a recalibration, processed as the last one
+  survey process --controller linuxcnc --table-start -720 --table-end 720
+  survey process --controller 840d --sinumerik-axis A1 --table-zero-at-reference
+  survey process --controller fanuc --table-interval 5 --table-directions separate
+  survey process --controller generic --table-sign correction --table-values incremental")]
     Process(process::ProcessArgs),
     /// Every survey in the database: id, status, source, plan, samples stored of planned, dates.
+    #[command(after_help = "\
+Examples:
+  survey list
+  survey --db lab.db list --json")]
     List(list::ListArgs),
     /// One survey in full: plan, instruments, located axis, model and event log.
+    #[command(after_help = "\
+Examples:
+  survey show          # the latest survey
+  survey show 3 --json")]
     Show(list::ShowArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
+    #[command(after_help = "\
+Examples:
+  survey sim --config examples/config/modbus-emscon.toml --time-scale 100
+  survey sim --config examples/config/scpi-elcomat.toml --preset fig4 --faults 0.01")]
     Sim(sim::SimArgs),
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell) on stdout.
+    #[command(after_help = "\
+Examples:
+  survey completions bash > ~/.local/share/bash-completion/completions/survey
+  survey completions zsh > ~/.zfunc/_survey        # with fpath+=(~/.zfunc) in ~/.zshrc
+  survey completions fish > ~/.config/fish/completions/survey.fish")]
+    Completions(docs::CompletionsArgs),
+    /// Print the manual page (roff) on stdout, or write one page per command into DIR.
+    #[command(after_help = "\
+Examples:
+  survey man > survey.1 && man ./survey.1
+  survey man --out /usr/local/share/man/man1")]
+    Man(docs::ManArgs),
 }
 
 /// Parse the arguments, run the command, map the outcome to the exit status.
@@ -105,5 +181,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::List(args) => list::list(db, args).await,
         Command::Show(args) => list::show(db, args).await,
         Command::Sim(args) => sim::sim(args).await,
+        Command::Completions(args) => docs::completions(args),
+        Command::Man(args) => docs::man(args),
     }
 }

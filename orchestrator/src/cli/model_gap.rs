@@ -14,6 +14,7 @@
 
 use super::support::{emit, load_survey};
 use crate::error::{bad_input, path_error};
+use crate::progress::{self, Progress};
 use anyhow::Context as _;
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -39,12 +40,15 @@ pub struct ModelGapArgs {
 
 pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
     let model = Model::from_file(&args.model)?;
+    let progress = Progress::spinner("loading the survey", progress::visible(args.json));
     // Samples come in acquisition order (by seq): drift has a time axis even without timestamps.
     let (survey, samples) = load_survey(db, args.survey).await?;
+    progress.stage(format!("comparing survey {} ({} samples) with {}", survey.id, samples.len(), args.model.display()));
     let mut gap =
         survey_processing::modelgap::model_gap(&samples, &model, &ModelGapOptions::default()).map_err(|e| {
             bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, args.model.display()))
         })?;
+    drop(progress);
     if let Some(axis) = &survey.axis {
         tracker_note(&mut gap, axis);
     }

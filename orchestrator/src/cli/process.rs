@@ -1,10 +1,14 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
 
 use super::support::{emit, open_read_only};
+use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
+use crate::progress::{self, Progress};
 use crate::refit::refit_survey;
-use clap::Args;
+use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
+use survey_processing::export::controllers::{Controller, Directions};
+use survey_processing::export::generic::{Sign, Values};
 
 #[derive(Debug, Args)]
 pub struct ProcessArgs {
@@ -17,11 +21,13 @@ pub struct ProcessArgs {
     /// Replay this processing recipe (TOML) instead of deriving one from the survey.
     #[arg(long, value_name = "FILE")]
     pub recipe: Option<PathBuf>,
-    /// The correction table CSV [default: table-<ID>.csv]; the LinuxCNC files
-    /// (<stem>.comp0, <stem>.comp1), the binary table (<stem>.bin) and the recipe
-    /// used (<stem>.recipe.toml) go beside it.
+    /// The correction table CSV [default: table-<ID>.csv]; the controller files
+    /// (<stem>.comp0, <stem>.comp1, <stem>.840d.ini, <stem>.fanuc.txt), the binary
+    /// table (<stem>.bin) and the recipe used (<stem>.recipe.toml) go beside it.
     #[arg(long, value_name = "FILE")]
     pub table_out: Option<PathBuf>,
+    #[command(flatten)]
+    pub tables: TableArgs,
     /// Process the actual angles as stored, around the axis located before the
     /// runs, instead of around the axis fitted again from every SMR position
     /// (tracker surveys; for comparison).
@@ -32,7 +38,126 @@ pub struct ProcessArgs {
     pub json: bool,
 }
 
+/// The controller tables' choices (kept in the recipe written beside the
+/// table, so a recalibration replaying it writes the same files).
+#[derive(Debug, Args)]
+#[command(next_help_heading = "Controller tables")]
+pub struct TableArgs {
+    /// Controller files to write, comma-separated: linuxcnc, 840d, fanuc, generic
+    /// [default: the recipe's; a new recipe: linuxcnc,840d,fanuc].
+    #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = parse_controller)]
+    pub controller: Option<Vec<Controller>>,
+    /// First axis position the tables cover, deg [default: 0, or the first target of a
+    /// partial survey]. LinuxCNC never wraps a rotary joint: give the joint's whole range.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub table_start: Option<f64>,
+    /// Last axis position the tables cover, deg [default: 360, or the last target].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub table_end: Option<f64>,
+    /// Spacing of the table points, deg [default: LinuxCNC the finest within 256
+    /// points, the others 1 deg].
+    #[arg(long, value_name = "DEG", conflicts_with = "table_points")]
+    pub table_interval: Option<f64>,
+    /// Number of table points over the range (instead of --table-interval).
+    #[arg(long, value_name = "N")]
+    pub table_points: Option<usize>,
+    /// Forward and reverse values: separate (direction-aware), combined (their mean),
+    /// or auto (separate when the table is direction-aware) [default: auto].
+    #[arg(long, value_enum, value_name = "HOW")]
+    pub table_directions: Option<DirectionsArg>,
+    /// The reference point, deg [default: 0, or the table point nearest 0].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub table_reference: Option<f64>,
+    /// Zero the LinuxCNC, 840D and generic values at the reference point (Fanuc always is).
+    #[arg(long)]
+    pub table_zero_at_reference: bool,
+    /// Generic table: error (readout - actual) or correction (actual - readout) [default: error].
+    #[arg(long, value_enum, value_name = "SIGN")]
+    pub table_sign: Option<SignArg>,
+    /// Generic table: absolute values or increments [default: absolute].
+    #[arg(long, value_enum, value_name = "HOW")]
+    pub table_values: Option<ValuesArg>,
+    /// Siemens 840D machine axis name [default: C1].
+    #[arg(long, value_name = "NAME")]
+    pub sinumerik_axis: Option<String>,
+    /// Fanuc detection unit, deg [default: 0.001].
+    #[arg(long, value_name = "DEG")]
+    pub fanuc_unit: Option<f64>,
+    /// Fanuc magnification, parameter 3623 (1-100) [default: 1].
+    #[arg(long, value_name = "M")]
+    pub fanuc_magnification: Option<u32>,
+    /// Fanuc reference point's compensation number, parameter 3620 [default: 0 for
+    /// one revolution; else the smallest that numbers every point from 0].
+    #[arg(long, value_name = "N")]
+    pub fanuc_reference_number: Option<u32>,
+}
+
+fn parse_controller(s: &str) -> Result<Controller, String> {
+    s.parse()
+}
+
+/// `--table-directions`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DirectionsArg {
+    /// Separate when the table is direction-aware.
+    Auto,
+    /// One set of values: the mean of forward and reverse.
+    Combined,
+    /// Forward and reverse values.
+    Separate,
+}
+
+/// `--table-sign`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SignArg {
+    /// readout - actual.
+    Error,
+    /// actual - readout.
+    Correction,
+}
+
+/// `--table-values`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ValuesArg {
+    /// The value at each point.
+    Absolute,
+    /// The change from the point before (the first absolute).
+    Incremental,
+}
+
+impl From<TableArgs> for ExportOverrides {
+    fn from(a: TableArgs) -> Self {
+        ExportOverrides {
+            controllers: a.controller,
+            start_deg: a.table_start,
+            end_deg: a.table_end,
+            interval_deg: a.table_interval,
+            points: a.table_points,
+            directions: a.table_directions.map(|d| match d {
+                DirectionsArg::Auto => Directions::Auto,
+                DirectionsArg::Combined => Directions::Combined,
+                DirectionsArg::Separate => Directions::Separate,
+            }),
+            reference_deg: a.table_reference,
+            zero_at_reference: a.table_zero_at_reference,
+            sign: a.table_sign.map(|s| match s {
+                SignArg::Error => Sign::Error,
+                SignArg::Correction => Sign::Correction,
+            }),
+            values: a.table_values.map(|v| match v {
+                ValuesArg::Absolute => Values::Absolute,
+                ValuesArg::Incremental => Values::Incremental,
+            }),
+            sinumerik_axis: a.sinumerik_axis,
+            fanuc_unit_deg: a.fanuc_unit,
+            fanuc_magnification: a.fanuc_magnification,
+            fanuc_reference_number: a.fanuc_reference_number,
+        }
+    }
+}
+
 pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
+    let progress = Progress::spinner("loading the survey", progress::visible(args.json));
     let store = open_read_only(db).await?;
     let loaded = async {
         let survey = store.resolve(args.survey).await?;
@@ -41,15 +166,26 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
             Some(_) => Vec::new(),
             None => store.samples(survey.id).await?,
         };
+        // Corrected for the drift when the survey asked for it.
+        let drift = store.drift_points(survey.id).await?;
+        let samples = crate::drift::for_analysis(&survey, samples, &drift);
+        let refit = refit.map(|(s, r)| (crate::drift::for_analysis(&survey, s, &drift), r));
         anyhow::Ok((survey, samples, refit))
     }
     .await;
     store.close().await;
     let (survey, samples, refit) = loaded?;
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
-    let opts = ProcessOptions { design: args.design, recipe: args.recipe, table_out: Some(table_out) };
+    let opts = ProcessOptions {
+        design: args.design,
+        recipe: args.recipe,
+        table_out: Some(table_out),
+        export: args.tables.into(),
+    };
     let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
+    progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
     let outcome = process_survey(&survey, to_process, opts)?;
+    drop(progress);
     let out = match &refit {
         Some((_, r)) if args.json => {
             let mut doc = outcome.json();

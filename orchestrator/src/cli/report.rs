@@ -1,8 +1,21 @@
 //! `survey report --out DIR`: the survey's report as one HTML page.
 
-use super::support::{emit, load_survey};
-use clap::Args;
+use super::support::{emit, open_read_only};
+use crate::report::header::CertificateFlags;
+use crate::report::{ReportOptions, Units};
+use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
+
+/// The unit of every error in the report.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum UnitsArg {
+    /// Degrees.
+    Deg,
+    /// Arcseconds.
+    Arcsec,
+    /// Microradians.
+    Urad,
+}
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -12,12 +25,74 @@ pub struct ReportArgs {
     /// The folder to write index.html into (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// The unit of every error, figure and table.
+    #[arg(long, value_enum, default_value_t = UnitsArg::Deg)]
+    pub units: UnitsArg,
+    /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
+    #[arg(long, value_name = "FILE")]
+    pub design: Option<PathBuf>,
+    /// Replay this processing recipe (TOML), as `survey process --recipe` did.
+    #[arg(long, value_name = "FILE")]
+    pub recipe: Option<PathBuf>,
+    /// Compare the survey with this positioner model (model-gap) and show the steps.
+    #[arg(long, value_name = "FILE")]
+    pub model: Option<PathBuf>,
+    /// The positioner calibrated (make, model, serial) [default: [certificate] of the configuration, or the bench].
+    #[arg(long, value_name = "TEXT")]
+    pub positioner: Option<String>,
+    /// The reference instrument (make, model, serial) [default: [certificate], or the bench].
+    #[arg(long, value_name = "TEXT")]
+    pub reference_instrument: Option<String>,
+    /// The reference's stated standard uncertainty of one angle, degrees [default: [certificate], or the simulated instrument's noise].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub reference_uncertainty: Option<f64>,
+    /// Who measured [default: [certificate] of the configuration].
+    #[arg(long, value_name = "NAME")]
+    pub operator: Option<String>,
+    /// For whom [default: [certificate] of the configuration].
+    #[arg(long, value_name = "NAME")]
+    pub customer: Option<String>,
+    /// The air temperature during the survey, degrees Celsius [default: [certificate] of the configuration].
+    #[arg(long, value_name = "C", allow_negative_numbers = true)]
+    pub temperature: Option<f64>,
 }
 
 pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
-    let (survey, samples) = load_survey(db, args.survey).await?;
-    let html = crate::report::html(&survey, &samples)?;
+    if let Some(t) = args.temperature
+        && !(t.is_finite() && (-50.0..=100.0).contains(&t))
+    {
+        return Err(crate::error::bad_input(format!("--temperature {t}: outside -50 to 100 °C")));
+    }
+    if let Some(u) = args.reference_uncertainty
+        && !(u.is_finite() && u > 0.0 && u <= 1.0)
+    {
+        return Err(crate::error::bad_input(format!("--reference-uncertainty {u}: must be above 0 and at most 1 deg")));
+    }
+    let opts = ReportOptions {
+        units: match args.units {
+            UnitsArg::Deg => Units::Deg,
+            UnitsArg::Arcsec => Units::Arcsec,
+            UnitsArg::Urad => Units::Urad,
+        },
+        flags: CertificateFlags {
+            positioner: args.positioner,
+            reference: args.reference_instrument,
+            reference_uncertainty_deg: args.reference_uncertainty,
+            operator: args.operator,
+            customer: args.customer,
+            temperature_c: args.temperature,
+        },
+        design: args.design,
+        recipe: args.recipe,
+        model: args.model,
+    };
+    let progress = crate::progress::Progress::spinner("writing the report", crate::progress::visible(false));
+    let store = open_read_only(db).await?;
+    let data = crate::report::gather(&store, args.survey, &opts).await;
+    store.close().await;
+    let html = crate::report::html(&data?, &opts)?;
     let path = crate::report::write(&args.out, &html)?;
+    drop(progress);
     emit(&format!("{}\n", path.display()));
     Ok(())
 }

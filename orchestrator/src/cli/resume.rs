@@ -88,8 +88,8 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         eprintln!("survey {id}: {message}");
         acquire(&store, id, &mut bench.engine, &plan, next, options).await
     };
-    let finish = ConcludeOptions { recipe: None, verify: false, acquire: options, stop };
-    let done = conclude_and_print(store, id, &mut bench.engine, &plan, acquired, (finish, db, args.json)).await;
+    let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop };
+    let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done
 }

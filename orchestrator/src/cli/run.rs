@@ -11,6 +11,7 @@ use crate::plan::ScanMode;
 use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;
 use crate::store::Store;
+use crate::verify::VerifyPlan;
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 
@@ -63,7 +64,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "R")]
     pub runs: Option<u32>,
     /// Survey real instruments described in this configuration file (TOML).
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["model", "preset", "reference", "seed"])]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["model", "preset", "reference", "seed", "fault_rates"])]
     pub config: Option<PathBuf>,
     /// Positioner model file (TOML) for the simulated positioner, instead of the preset's.
     #[arg(long, value_name = "FILE")]
@@ -82,6 +83,11 @@ pub struct RunArgs {
     /// configuration's [survey]].
     #[arg(long, value_enum, value_name = "MODE")]
     pub scan: Option<ScanArg>,
+    /// Faults the simulated instruments inject, per kind: `kind=rate,...`
+    /// (timeout, garbled, disconnect, device, move, beam; beam_hold_s=S).
+    /// A stall needs a wire: `survey sim --fault-rates`.
+    #[arg(long, value_name = "SPEC")]
+    pub fault_rates: Option<String>,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -89,9 +95,16 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub recipe: Option<PathBuf>,
     /// After processing, load the table into the positioner, apply it in the
-    /// feedback path and measure the corrected accuracy with a new survey.
+    /// feedback path and measure the corrected accuracy with a new survey,
+    /// half a step from the calibration targets (between them, where the table
+    /// interpolates).
     #[arg(long)]
     pub verify: bool,
+    /// With --verify: measure at N targets evenly over the span, offset by half
+    /// their own step (none may fall on a calibration target) [default: one
+    /// between each pair of calibration targets].
+    #[arg(long, value_name = "N", requires = "verify")]
+    pub verify_points: Option<u32>,
     /// Fault injection for tests: the process aborts (like a power loss)
     /// once N samples have been measured on the simulated bench.
     #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]
@@ -130,7 +143,20 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             reference: args.reference.into(),
             seed: args.seed,
             scan: args.scan.map_or(ScanMode::Step, Into::into),
+            faults: match &args.fault_rates {
+                Some(spec) => Some(
+                    survey_sims::faults::FaultRates::default()
+                        .parse_over(spec)
+                        .map_err(|e| crate::error::bad_input(format!("--fault-rates: {e}")))?,
+                ),
+                None => None,
+            },
         })?,
+    };
+    // A verification that cannot be measured is refused before the survey.
+    let verify = match args.verify {
+        true => Some(VerifyPlan::new(&bench.plan, bench.engine.reference_kind(), args.verify_points)?),
+        false => None,
     };
     // From here on a signal stops the survey cleanly instead of killing the process.
     let stop = Stop::on_signals();
@@ -155,8 +181,8 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     let options =
         AcquireOptions { progress: !args.json, crash_after: args.sim_crash_after, signal_after: args.sim_signal_after };
     let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options).await;
-    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify: args.verify, acquire: options, stop };
-    let done = conclude_and_print(store, id, &mut bench.engine, &plan, acquired, (finish, db, args.json)).await;
+    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify, acquire: options, stop };
+    let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done
 }

@@ -1,17 +1,20 @@
 //! `survey sim --config FILE [--preset NAME | --model FILE] [--seed S]
-//! [--faults RATE] [--time-scale X]`: serve the simulated instruments of a
+//! [--faults RATE] [--fault-rates SPEC] [--time-scale X]`: serve the simulated instruments of a
 //! configuration over their real protocols (see [`crate::sim`]), print one
 //! JSON line `{"ready": true, "instruments": {...}}` on stdout when every
 //! instrument listens, serve until SIGINT or SIGTERM, then print what was
-//! served (`{"stopped": true, "faults": {...}}`) and exit 0.
+//! served (`{"stopped": true, "faults": {"replies", "injected", "by_kind",
+//! ...}}`) and exit 0.
 
 use super::support::emit;
 use crate::config::SurveyConfig;
+use crate::error::bad_input;
 use crate::sim::{SimOptions, serve};
 use crate::stop::Stop;
 use clap::Args;
 use std::path::PathBuf;
 use survey_processing::model::Model;
+use survey_sims::faults::FaultRates;
 
 #[derive(Debug, Args)]
 pub struct SimArgs {
@@ -27,9 +30,15 @@ pub struct SimArgs {
     /// Seed of every random draw.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Fraction of replies, moves and measurements that meet a fault (0 to 0.5).
+    /// Fraction of replies, moves and measurements that meet a fault (0 to
+    /// 0.5): RATE/4 for each link kind, RATE for each device kind.
     #[arg(long, value_name = "RATE", default_value_t = 0.0)]
     pub faults: f64,
+    /// Rates per kind over those of --faults: `kind=rate,...` with kinds
+    /// timeout, garbled, disconnect, stall, device, move, beam, and
+    /// beam_hold_s=S (how long a broken beam stays broken).
+    #[arg(long, value_name = "SPEC")]
+    pub fault_rates: Option<String>,
     /// Run the instruments this many times faster than the hardware.
     #[arg(long, value_name = "X", default_value_t = 1.0)]
     pub time_scale: f64,
@@ -38,20 +47,25 @@ pub struct SimArgs {
 pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     let cfg = SurveyConfig::from_file(&args.config)?;
     let model = args.model.as_deref().map(Model::from_file).transpose()?;
-    let opts =
-        SimOptions { preset: args.preset, model, seed: args.seed, faults: args.faults, time_scale: args.time_scale };
+    if !(0.0..=0.5).contains(&args.faults) {
+        return Err(bad_input(format!("--faults is a fraction of requests from 0 to 0.5, got {}", args.faults)));
+    }
+    let faults = FaultRates::uniform(args.faults)
+        .parse_over(args.fault_rates.as_deref().unwrap_or(""))
+        .map_err(|e| bad_input(format!("--fault-rates: {e}")))?;
+    let opts = SimOptions { preset: args.preset, model, seed: args.seed, faults, time_scale: args.time_scale };
     let mut stop = Stop::on_signals();
     let served = serve(&cfg, &opts).await?;
     let ready = serde_json::json!({"ready": true, "instruments": served.instruments});
     emit(&format!("{ready}\n"));
     eprintln!(
-        "survey sim: serving {} ({}x real time, faults {}); stop with Ctrl-C or SIGTERM",
+        "survey sim: serving {} ({}x real time, faults {:?}); stop with Ctrl-C or SIGTERM",
         args.config.display(),
         opts.time_scale,
         opts.faults
     );
     let why = stop.wait().await;
-    let summary = serde_json::json!({"stopped": true, "signal": why.0, "faults": served.counts.json()});
+    let summary = serde_json::json!({"stopped": true, "signal": why.0, "faults": served.counts_json()});
     drop(served);
     emit(&format!("{summary}\n"));
     Ok(())

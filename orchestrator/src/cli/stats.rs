@@ -5,7 +5,7 @@
 //! its statistics are those of its complete runs only: a run cut short would
 //! weigh its targets unevenly.
 
-use super::support::{emit, load_survey};
+use super::support::{emit, load_survey_for_analysis};
 use crate::error::bad_input;
 use crate::output::{iso_json, iso_text};
 use crate::survey::{SurveyRecord, SurveyStatus};
@@ -60,7 +60,7 @@ fn completion(survey: &SurveyRecord, samples: &[Sample]) -> Option<Completion> {
 }
 
 pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
-    let (survey, samples) = load_survey(db, args.survey).await?;
+    let (survey, samples, drift) = load_survey_for_analysis(db, args.survey).await?;
     let id = survey.id;
     let completion = completion(&survey, &samples);
     let incomplete = completion.as_ref().filter(|c| !c.complete);
@@ -82,6 +82,9 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
             doc["runs_complete"] = c.runs_complete().into();
             doc["runs_planned"] = c.runs_planned.into();
         }
+        if !drift.is_empty() {
+            doc["drift"] = crate::drift::json(&survey, &drift);
+        }
         emit(&format!("{doc}\n"));
     } else {
         let mut text = String::new();
@@ -95,6 +98,10 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
             );
         }
         text += &iso_text(id, &iso);
+        text += &crate::drift::text(&drift);
+        if crate::drift::correction_asked(&survey) && !drift.is_empty() {
+            text += "the statistics above are of the samples corrected for this drift (drift_control.correct)\n";
+        }
         emit(&text);
     }
     Ok(())

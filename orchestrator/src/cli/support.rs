@@ -2,7 +2,6 @@
 
 use crate::conclude::{ConcludeOptions, conclude};
 use crate::engine::Engine;
-use crate::plan::SurveyPlan;
 use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
 use crate::survey::SurveyRecord;
@@ -56,6 +55,26 @@ pub async fn load_survey(db: &Path, id: Option<i64>) -> anyhow::Result<(SurveyRe
     loaded
 }
 
+/// [`load_survey`] for the statistics and the processing: the samples
+/// corrected for the drift when the survey asked for it ([`crate::drift`]),
+/// and the drift points.
+pub async fn load_survey_for_analysis(
+    db: &Path,
+    id: Option<i64>,
+) -> anyhow::Result<(SurveyRecord, Vec<Sample>, Vec<crate::drift::DriftPoint>)> {
+    let store = open_read_only(db).await?;
+    let loaded = async {
+        let survey = store.resolve(id).await?;
+        let samples = store.samples(survey.id).await?;
+        let points = store.drift_points(survey.id).await?;
+        let samples = crate::drift::for_analysis(&survey, samples, &points);
+        anyhow::Ok((survey, samples, points))
+    }
+    .await;
+    store.close().await;
+    loaded
+}
+
 /// What `run` and `resume` do after acquiring (or failing to): on a stopped
 /// or failed acquisition, print the `--json` document of what is stored and
 /// return the error; else the statistics, processing and verification, then
@@ -64,7 +83,6 @@ pub async fn conclude_and_print(
     store: Store,
     id: i64,
     engine: &mut Engine,
-    plan: &SurveyPlan,
     acquired: anyhow::Result<Acquired>,
     finish: (ConcludeOptions, &Path, bool),
 ) -> anyhow::Result<()> {
@@ -79,7 +97,7 @@ pub async fn conclude_and_print(
             return Err(e);
         }
     };
-    let concluded = conclude(&store, id, engine, plan, &acquired, db, options).await;
+    let concluded = conclude(&store, id, engine, &acquired, db, options).await;
     store.close().await;
     let concluded = concluded?;
     emit(&concluded.output.render(json));

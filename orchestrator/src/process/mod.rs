@@ -10,9 +10,12 @@
 //! the predicted accuracy (native and corrected peak, ISO 230-2 `A`, the
 //! repeatability floor), the paper's Figure 6 interpolation comparison. Last,
 //! the files ([`outputs`]): the table CSV (`--table-out`, default
-//! `table-<id>.csv`), and beside it, named from its stem, the LinuxCNC
-//! `COMP_FILE`s `<stem>.comp0` and `<stem>.comp1`, the binary table
-//! `<stem>.bin` and the recipe used, `<stem>.recipe.toml`.
+//! `table-<id>.csv`), and beside it, named from its stem, the controller
+//! files the recipe's `[export]` asks for (with the command line's choices
+//! laid over it, [`overrides`]): LinuxCNC `<stem>.comp0` and `<stem>.comp1`,
+//! Siemens 840D `<stem>.840d.ini`, Fanuc `<stem>.fanuc.txt`, the generic
+//! `<stem>.generic.csv`; the binary table `<stem>.bin` and the recipe used,
+//! `<stem>.recipe.toml`.
 //!
 //! A failure writes nothing: every check and every computation comes first,
 //! the files are written to temporary names and renamed at the end. The
@@ -22,6 +25,7 @@
 //! and prints [`ProcessOutcome::text`] or embeds [`ProcessOutcome::json`].
 
 pub mod outputs;
+pub mod overrides;
 mod summary;
 
 use crate::survey::SurveyRecord;
@@ -29,7 +33,7 @@ use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use survey_processing::Sample;
 use survey_processing::model::{Design, Model};
-use survey_processing::pipeline::{Processed, Replay};
+use survey_processing::pipeline::{PipelineError, Processed, Replay};
 use survey_processing::recipe::Recipe;
 
 /// The database `survey` uses when `--db` is not given.
@@ -60,6 +64,8 @@ pub struct ProcessOptions {
     /// The table CSV (default `table-<id>.csv` in the current folder); the
     /// other files go beside it.
     pub table_out: Option<PathBuf>,
+    /// Export choices laid over the recipe's `[export]` (the command line's).
+    pub export: overrides::ExportOverrides,
 }
 
 /// Where the design came from.
@@ -113,6 +119,22 @@ pub fn process_survey(
     opts: ProcessOptions,
 ) -> anyhow::Result<ProcessOutcome> {
     let id = survey.id;
+    let (processed, design) = compute(survey, samples, &opts)?;
+    let table_out = opts.table_out.clone().unwrap_or_else(|| default_table_path(Path::new(DEFAULT_DB), id));
+    let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
+    outputs::write_all(&paths, &processed, id)?;
+    Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths })
+}
+
+/// The processing of `samples` of `survey` without writing anything: the
+/// design and the recipe of `opts` resolved as [`process_survey`] resolves
+/// them, then the pure pipeline (what `survey report` shows).
+pub fn compute(
+    survey: &SurveyRecord,
+    samples: &[Sample],
+    opts: &ProcessOptions,
+) -> anyhow::Result<(Processed, DesignSource)> {
+    let id = survey.id;
     let (design, design_source) = match &opts.design {
         Some(path) => (Model::from_file(path)?.design, format!("--design {}", path.display())),
         None => match &survey.model {
@@ -136,19 +158,24 @@ pub fn process_survey(
         None => None,
     };
     let replay = recipe.as_ref().map(|(recipe, text, name)| Replay { recipe, text, name });
-    let processed = survey_processing::pipeline::process(samples, &design, replay)
-        .with_context(|| format!("survey {id} cannot be processed"))?;
+    let export = if opts.export.is_empty() {
+        None
+    } else {
+        let base = recipe.as_ref().map(|(r, _, _)| r.export.clone()).unwrap_or_default();
+        Some(opts.export.resolve(&base)?)
+    };
+    let processed = match survey_processing::pipeline::process_with(samples, &design, replay, export.as_ref()) {
+        Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
+        other => other.with_context(|| format!("survey {id} cannot be processed"))?,
+    };
     for n in &processed.notes {
         eprintln!("note: {n}");
     }
-    let table_out = opts.table_out.clone().unwrap_or_else(|| default_table_path(Path::new(DEFAULT_DB), id));
-    let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
-    outputs::write_all(&paths, &processed, id)?;
     let design = DesignSource {
         from: design_source,
         gear_ratios: design.gear_ratios.clone(),
         tooth_counts: design.tooth_counts.clone(),
         encoder_heads: design.encoder_heads,
     };
-    Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths })
+    Ok((processed, design))
 }

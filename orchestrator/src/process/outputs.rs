@@ -2,8 +2,11 @@
 //!
 //! - `<table>.csv`: the contract's correction table.
 //! - `<stem>.comp0` and `<stem>.comp1`: LinuxCNC joint compensation files
-//!   (`COMP_FILE_TYPE = 0` and `1`), at most `export.linuxcnc_points` lines;
-//!   over a full circle the nominals run from 0 to 360 inclusive.
+//!   (`COMP_FILE_TYPE = 0` and `1`), at most 256 lines over the joint range
+//!   (default 0 to 360 inclusive).
+//! - `<stem>.840d.ini`: Siemens 840D measuring-system error compensation.
+//! - `<stem>.fanuc.txt`: Fanuc pitch-error compensation values and parameters.
+//! - `<stem>.generic.csv`: the generic table (when asked for).
 //! - `<stem>.bin`: the binary table of `survey_processing::corrector`.
 //! - `<stem>.recipe.toml`: the recipe used; `--recipe` replays it.
 //!
@@ -17,7 +20,7 @@
 use crate::error::{bad_input, path_error};
 use std::path::{Path, PathBuf};
 use survey_processing::corrector;
-use survey_processing::export::{linuxcnc, table_csv};
+use survey_processing::export::table_csv;
 use survey_processing::pipeline::Processed;
 use survey_processing::recipe::ExportChoices;
 
@@ -30,6 +33,12 @@ pub struct OutputPaths {
     pub linuxcnc_type0: Option<PathBuf>,
     /// LinuxCNC `COMP_FILE_TYPE = 1` file.
     pub linuxcnc_type1: Option<PathBuf>,
+    /// Siemens 840D EEC file.
+    pub sinumerik_840d: Option<PathBuf>,
+    /// Fanuc pitch-error file.
+    pub fanuc: Option<PathBuf>,
+    /// The generic table.
+    pub generic: Option<PathBuf>,
     /// The binary table.
     pub binary: Option<PathBuf>,
     /// The recipe used (none when the table goes to a device or a pipe).
@@ -46,6 +55,9 @@ impl OutputPaths {
                 table_csv: table_csv.to_path_buf(),
                 linuxcnc_type0: None,
                 linuxcnc_type1: None,
+                sinumerik_840d: None,
+                fanuc: None,
+                generic: None,
                 binary: None,
                 recipe: None,
             };
@@ -63,8 +75,23 @@ impl OutputPaths {
             table_csv: table_csv.to_path_buf(),
             linuxcnc_type0: export.linuxcnc.then(|| with(".comp0")),
             linuxcnc_type1: export.linuxcnc.then(|| with(".comp1")),
+            sinumerik_840d: export.sinumerik_840d.then(|| with(".840d.ini")),
+            fanuc: export.fanuc.then(|| with(".fanuc.txt")),
+            generic: export.generic.then(|| with(".generic.csv")),
             binary: export.binary.then(|| with(".bin")),
             recipe: Some(with(".recipe.toml")),
+        }
+    }
+
+    /// The path of a controller file of `kind` (`linuxcnc_type0`, `sinumerik_840d`...).
+    pub fn of_kind(&self, kind: &str) -> Option<&Path> {
+        match kind {
+            "linuxcnc_type0" => self.linuxcnc_type0.as_deref(),
+            "linuxcnc_type1" => self.linuxcnc_type1.as_deref(),
+            "sinumerik_840d" => self.sinumerik_840d.as_deref(),
+            "fanuc" => self.fanuc.as_deref(),
+            "generic" => self.generic.as_deref(),
+            _ => None,
         }
     }
 }
@@ -155,9 +182,10 @@ fn stream(target: &Path, shown: &Path, bytes: &[u8]) -> anyhow::Result<()> {
 pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> anyhow::Result<()> {
     let table = &processed.built.table;
     let mut outputs: Vec<(&Path, Vec<u8>)> = vec![(paths.table_csv.as_path(), table_csv(table).into_bytes())];
-    if let (Some(comp), Some(p0), Some(p1)) = (&processed.comp, &paths.linuxcnc_type0, &paths.linuxcnc_type1) {
-        outputs.push((p0, linuxcnc(comp, 0).into_bytes()));
-        outputs.push((p1, linuxcnc(comp, 1).into_bytes()));
+    for file in processed.controllers.iter().flat_map(|c| &c.files) {
+        if let Some(p) = paths.of_kind(file.kind) {
+            outputs.push((p, file.text.clone().into_bytes()));
+        }
     }
     if let Some(p) = &paths.binary {
         outputs.push((p, corrector::to_bytes(table, processed.recipe.export.binary_format)));
@@ -198,8 +226,17 @@ mod tests {
         assert_eq!(p.linuxcnc_type0.as_deref(), Some(Path::new("out/t.comp0")));
         assert_eq!(p.linuxcnc_type1.as_deref(), Some(Path::new("out/t.comp1")));
         assert_eq!(p.binary.as_deref(), Some(Path::new("out/t.bin")));
+        assert_eq!(p.sinumerik_840d.as_deref(), Some(Path::new("out/t.840d.ini")));
+        assert_eq!(p.fanuc.as_deref(), Some(Path::new("out/t.fanuc.txt")));
+        assert_eq!((p.generic.as_deref(), p.of_kind("fanuc")), (None, Some(Path::new("out/t.fanuc.txt"))));
         assert_eq!(p.recipe.as_deref(), Some(Path::new("out/t.recipe.toml")));
-        let none = ExportChoices { linuxcnc: false, binary: false, ..ExportChoices::default() };
+        let none = ExportChoices {
+            linuxcnc: false,
+            sinumerik_840d: false,
+            fanuc: false,
+            binary: false,
+            ..ExportChoices::default()
+        };
         let q = OutputPaths::beside(Path::new("table"), &none);
         assert_eq!((q.linuxcnc_type0, q.binary, q.recipe), (None, None, Some(PathBuf::from("table.recipe.toml"))));
     }

@@ -9,7 +9,10 @@
 //! reason; the table's method, kept lines and hysteresis test; the predicted
 //! RMS and ISO 230-2 `A`, the repeatability floor and the LinuxCNC file's
 //! predicted peak; the Figure 6 interpolation comparison; the noise floor;
-//! the points needed; the design and recipe used; every file written; notes.
+//! the points needed; the design and recipe used; every file written
+//! (`files`), and `controllers`: per controller file written, its format,
+//! paths, points, range, spacing, directions, modulo, reference, predicted
+//! corrected peak, parameters (Fanuc) and notes.
 //! `peaks` lists the significant lines of the survey; `cycles_per_rev` is
 //! where the spectrum shows the line (the alias bin of an aliased line,
 //! whose true frequency is `true_cycles_per_rev`).
@@ -17,7 +20,39 @@
 use super::ProcessOutcome;
 use serde_json::{Value, json};
 use std::fmt::Write as _;
+use survey_processing::export::controllers::{Controller, ControllerExport};
 use survey_processing::recipe::LineAction;
+
+/// The controller files written (none when the table went to a device or a pipe).
+fn written(o: &ProcessOutcome) -> impl Iterator<Item = (&ControllerExport, Vec<String>)> {
+    o.processed.controllers.iter().filter_map(|c| {
+        let files: Vec<String> =
+            c.files.iter().filter_map(|f| o.files.of_kind(f.kind)).map(|p| p.display().to_string()).collect();
+        (!files.is_empty()).then_some((c, files))
+    })
+}
+
+fn controllers_json(o: &ProcessOutcome) -> Value {
+    written(o)
+        .map(|(c, files)| {
+            json!({
+                "controller": c.controller,
+                "files": files,
+                "points": c.grid.points,
+                "start_deg": c.grid.start_deg,
+                "end_deg": c.grid.end_deg(),
+                "interval_deg": c.grid.interval_deg,
+                "directional": c.directional,
+                "modulo": c.modulo,
+                "reference_deg": c.reference_deg,
+                "zero_at_reference": c.zero_at_reference,
+                "corrected_peak_deg": c.corrected_peak_deg,
+                "parameters": c.parameters.iter().map(|(n, v, m)| json!({"number": n, "value": v, "meaning": m})).collect::<Vec<_>>(),
+                "notes": c.notes,
+            })
+        })
+        .collect()
+}
 
 fn path(p: &Option<std::path::PathBuf>) -> Value {
     p.as_ref().map_or(Value::Null, |p| Value::String(p.display().to_string()))
@@ -91,7 +126,7 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "corrected_iso230_a_deg": pr.corrected.iso230_a_deg,
             "floor_deg": p.floor.deg,
             "floor": p.floor.what,
-            "linuxcnc_corrected_peak_deg": p.comp.as_ref().and_then(|c| c.prediction.as_ref()).map(|c| c.corrected_peak_deg),
+            "linuxcnc_corrected_peak_deg": p.controllers.iter().find(|c| c.controller == Controller::LinuxCnc).and_then(|c| c.corrected_peak_deg),
             "samples": pr.samples,
         },
         "interpolation": p.interpolation.as_ref().ok(),
@@ -108,6 +143,7 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "lines_remove": p.recipe.lines.remove,
         },
         "files": o.files,
+        "controllers": controllers_json(o),
         "notes": a.notes.iter().chain(&p.notes).collect::<Vec<_>>(),
     })
 }
@@ -189,7 +225,13 @@ pub fn text(o: &ProcessOutcome) -> String {
             let _ = writeln!(s, "\ninterpolation of the survey decimated by 2 (paper Figure 6), deg:");
             for m in scores {
                 let mark = if m.method == p.recipe.table.interpolation { " *" } else { "" };
-                let _ = writeln!(s, "  {:<10} rms {:.2e}  peak {:.2e}{mark}", m.method.as_str(), m.rms_deg, m.peak_deg);
+                let _ = writeln!(
+                    s,
+                    "  {:<10} rms {:.2e} deg  peak {:.2e} deg{mark}",
+                    m.method.as_str(),
+                    m.rms_deg,
+                    m.peak_deg
+                );
             }
         }
         Err(why) => {
@@ -209,7 +251,7 @@ pub fn text(o: &ProcessOutcome) -> String {
     let pr = &p.prediction;
     let _ = writeln!(
         s,
-        "predicted: native +/-{:.5} deg (ISO A {}) -> corrected +/-{:.5} deg (ISO A {}); RMS {:.5} -> {:.5}",
+        "predicted: native +/-{:.5} deg (ISO A {} deg) -> corrected +/-{:.5} deg (ISO A {} deg); RMS {:.5} deg -> {:.5} deg",
         pr.native_peak_deg,
         opt(pr.native.iso230_a_deg),
         pr.corrected_peak_deg,
@@ -218,9 +260,31 @@ pub fn text(o: &ProcessOutcome) -> String {
         pr.corrected.rms_deg
     );
     let _ = writeln!(s, "repeatability floor: {} deg ({})", opt(p.floor.deg), p.floor.what);
-    if let Some(c) = p.comp.as_ref().and_then(|c| c.prediction.as_ref()) {
-        let n = p.comp.as_ref().map_or(0, |c| c.nominal_deg.len());
-        let _ = writeln!(s, "LinuxCNC file ({n} points): corrected +/-{:.5} deg", c.corrected_peak_deg);
+    for (c, _) in written(o) {
+        let _ = writeln!(
+            s,
+            "{} table: {} points, {:.4}..{:.4} deg every {:.6} deg{}{}: corrected {}",
+            match c.controller {
+                Controller::LinuxCnc => "LinuxCNC",
+                Controller::Sinumerik840d => "Siemens 840D",
+                Controller::Fanuc => "Fanuc",
+                Controller::Generic => "generic",
+            },
+            c.grid.points,
+            c.grid.start_deg,
+            c.grid.end_deg(),
+            c.grid.interval_deg,
+            if c.directional { ", forward and reverse" } else { "" },
+            if c.modulo { ", modulo 360" } else { "" },
+            c.corrected_peak_deg.map_or_else(|| "-".to_string(), |v| format!("+/-{v:.5} deg")),
+        );
+        for n in &c.notes {
+            let _ = writeln!(s, "  note: {n}");
+        }
+        if c.controller == Controller::Fanuc {
+            let params: Vec<String> = c.parameters.iter().map(|(n, v, _)| format!("{n}={v}")).collect();
+            let _ = writeln!(s, "  parameters: {}", params.join(" "));
+        }
     }
     if let Some(n) = &a.points_needed {
         let _ = writeln!(s, "points: {}", n.note);
@@ -228,9 +292,14 @@ pub fn text(o: &ProcessOutcome) -> String {
     let _ = writeln!(s, "\nfiles:");
     let f = &o.files;
     let _ = writeln!(s, "  table           {}", f.table_csv.display());
-    for (what, p) in
-        [("LinuxCNC type 0", &f.linuxcnc_type0), ("LinuxCNC type 1", &f.linuxcnc_type1), ("binary", &f.binary)]
-    {
+    for (what, p) in [
+        ("LinuxCNC type 0", &f.linuxcnc_type0),
+        ("LinuxCNC type 1", &f.linuxcnc_type1),
+        ("Siemens 840D", &f.sinumerik_840d),
+        ("Fanuc", &f.fanuc),
+        ("generic", &f.generic),
+        ("binary", &f.binary),
+    ] {
         if let Some(p) = p {
             let _ = writeln!(s, "  {what:<15} {}", p.display());
         }

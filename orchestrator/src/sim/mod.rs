@@ -14,17 +14,21 @@
 //!   must exist (a `vcan` interface on a machine with AF_CAN).
 //!
 //! The simulators run on a [`ScaledClock`]: `--time-scale X` makes every move,
-//! settle and measurement X times faster than on the hardware. Faults at
-//! `--faults RATE`: that fraction of replies meets a link fault (dropped,
-//! garbled, cut, stalled past the client's timeout: [`relay`]), and the same
-//! rate of moves trips the drive and of measurements breaks the beam (the
-//! instruments' own device faults).
+//! settle and measurement X times faster than on the hardware. Faults at a
+//! rate per kind ([`FaultRates`]; `--faults RATE` shares RATE among the link
+//! kinds and gives it to each device kind): replies meet link faults
+//! (dropped, garbled, cut, stalled past the client's timeout: [`relay`]),
+//! requests are refused with the instrument's own code (armed in the
+//! simulator by the relay: a Modbus exception 4, SDO abort 0x08000022, SCPI
+//! error -310, emScon `ES_RS_SensorNotStable`; the ELCOMAT answers "no
+//! reflection"), moves trip the drive and measurements break the beam (for
+//! `beam_hold_s`). [`Served::injected`] counts every kind.
 
 pub mod relay;
 
 use crate::config::{AutocollimatorConfig as AcConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
 use crate::error::bad_input;
-use relay::{Counts, LinkFaults, relay};
+use relay::{Counts, DeviceArm, LinkFaults, relay_with};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -33,10 +37,11 @@ use survey_processing::model::Model;
 use survey_sims::autocollimator::AutocollimatorConfig;
 use survey_sims::elcomat_server::{self, ElcomatFaults, pty_pair};
 use survey_sims::emscon_server::{self, EmsconFaults};
+use survey_sims::faults::{FaultKind, FaultRates, Injected};
 use survey_sims::modbus_server::{ModbusDevice, ModbusFaults};
 use survey_sims::scpi_server::{self, ScpiFaults};
 use survey_sims::tracker::ArmGeometry;
-use survey_sims::{PositionerFaults, Preset, SimBench, derive_seed};
+use survey_sims::{Preset, SimBench, derive_seed};
 use tokio::net::TcpListener;
 use tokio::task::JoinHandle;
 
@@ -49,8 +54,8 @@ pub struct SimOptions {
     pub model: Option<Model>,
     /// Seed of every random draw.
     pub seed: u64,
-    /// Fraction of replies, moves and measurements that meet a fault.
-    pub faults: f64,
+    /// Faults per kind.
+    pub faults: FaultRates,
     /// How many times faster than the hardware.
     pub time_scale: f64,
 }
@@ -63,6 +68,9 @@ pub struct Served {
     pub instruments: serde_json::Map<String, serde_json::Value>,
     /// What the link-fault relays did.
     pub counts: Arc<Counts>,
+    /// What the simulated instruments injected themselves (moves tripped,
+    /// beams broken, autocollimator reads blocked).
+    pub sims: Injected,
     tasks: Vec<JoinHandle<()>>,
     links: Vec<PathBuf>,
     /// The pty slave ends, kept open so the masters never read EIO while no
@@ -79,17 +87,47 @@ impl Served {
         what: &str,
         port: &str,
         link: LinkFaults,
+        arm: Option<DeviceArm>,
         seed: u64,
     ) -> anyhow::Result<tokio_serial::SerialStream> {
         let (master, slave) = pty_at(what, port)?;
         self.links.push(PathBuf::from(port));
         self._slaves.push(slave);
-        if link == LinkFaults::NONE {
+        if link == LinkFaults::NONE && arm.is_none() {
             return Ok(master);
         }
         let (device_master, device_slave) = pty_pair()?;
-        self.tasks.push(tokio::spawn(relay(master, device_slave, link, seed, self.counts.clone())));
+        self.tasks.push(tokio::spawn(relay_with(master, device_slave, link, arm, seed, self.counts.clone())));
         Ok(device_master)
+    }
+
+    /// Every fault injected so far, by kind (`timeout`, `garbled`,
+    /// `disconnect`, `stall`, `device`, `move`, `beam`), and their total.
+    pub fn injected(&self) -> (u64, serde_json::Map<String, serde_json::Value>) {
+        let get = |c: &std::sync::atomic::AtomicU64| c.load(std::sync::atomic::Ordering::Relaxed);
+        let c = &self.counts;
+        let by_kind: Vec<(&str, u64)> = vec![
+            ("timeout", get(&c.dropped)),
+            ("garbled", get(&c.garbled)),
+            ("disconnect", get(&c.disconnects)),
+            ("stall", get(&c.stalls)),
+            ("device", get(&c.device) + self.sims.get(FaultKind::Device)),
+            ("move", self.sims.get(FaultKind::Move)),
+            ("beam", self.sims.get(FaultKind::Beam)),
+        ];
+        let total = by_kind.iter().map(|(_, n)| n).sum();
+        (total, by_kind.into_iter().map(|(k, n)| (k.to_string(), n.into())).collect())
+    }
+
+    /// What `survey sim` prints when it stops: requests relayed, faults
+    /// injected by kind and in all (`{"replies", "injected", "by_kind", ...}`
+    /// with the relays' own counts beside them).
+    pub fn counts_json(&self) -> serde_json::Value {
+        let (total, by_kind) = self.injected();
+        let mut doc = self.counts.json();
+        doc["injected"] = total.into();
+        doc["by_kind"] = by_kind.into();
+        doc
     }
 }
 
@@ -144,15 +182,14 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     if !(opts.time_scale.is_finite() && opts.time_scale > 0.0 && opts.time_scale <= 10_000.0) {
         return Err(bad_input(format!("--time-scale must be above 0 and at most 10000, got {}", opts.time_scale)));
     }
-    if !(0.0..=0.5).contains(&opts.faults) {
-        return Err(bad_input(format!("--faults is a fraction of requests from 0 to 0.5, got {}", opts.faults)));
-    }
+
     let preset = Preset::by_name(&opts.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", opts.preset)))?;
     let clock: Arc<dyn Clock> = Arc::new(ScaledClock::new(opts.time_scale));
     let mut builder = SimBench::builder(&preset, opts.seed, clock.clone())
         .travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)).or(preset.travel))
-        .faults(PositionerFaults { fault_probability_per_move: opts.faults, ..PositionerFaults::default() })
-        .beam_break_probability(opts.faults);
+        // The link faults are the relays'; the simulators inject their own
+        // device faults (drive trips, beam breaks, a blocked autocollimator).
+        .fault_rates(&FaultRates { timeout: 0.0, garbled: 0.0, disconnect: 0.0, stall: 0.0, ..opts.faults });
     if let Some(model) = &opts.model {
         builder = builder.model(model.clone());
     }
@@ -171,11 +208,24 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     let bench = builder.build();
     // A stalled reply is held twice the client's call timeout (real time).
     let call_timeout = cfg.timing().call_timeout;
-    let link = if opts.faults > 0.0 { LinkFaults::at_rate(opts.faults, call_timeout * 2) } else { LinkFaults::NONE };
+    let f = &opts.faults;
+    let link = if f.any_link() {
+        LinkFaults {
+            drop: f.timeout,
+            garble: f.garbled,
+            disconnect: f.disconnect,
+            stall: f.stall,
+            stall_for: call_timeout * 2,
+        }
+    } else {
+        LinkFaults::NONE
+    };
+    let arm = |rate: f64, arm: Arc<dyn Fn() + Send + Sync>| (rate > 0.0).then_some(DeviceArm { rate, arm });
     let counts = Arc::new(Counts::default());
     let mut served = Served {
         instruments: serde_json::Map::new(),
         counts: counts.clone(),
+        sims: bench.injected.clone(),
         tasks: Vec::new(),
         links: Vec::new(),
         _slaves: Vec::new(),
@@ -187,22 +237,21 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         PositionerConfig::ScpiTcp { address, controller, axis, .. } => {
             let listener = listen("positioner", address).await?;
             let public = listener.local_addr()?.to_string();
-            let listener = front(listener, link, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            let faults = ScpiFaults::new();
+            let armed = arm(f.device, scpi_arm(&faults));
+            let listener = front(listener, link, armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
             let at = (*controller, *axis);
-            served.tasks.push(tokio::spawn(scpi_server::serve_tcp_at(
-                listener,
-                bench.positioner,
-                ScpiFaults::new(),
-                at,
-            )));
+            served.tasks.push(tokio::spawn(scpi_server::serve_tcp_at(listener, bench.positioner, faults, at)));
             served.instruments.insert("positioner".into(), public.into());
         }
         PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
-            let device = served.serial("positioner", port, link, seeds.next().unwrap_or(1))?;
+            let faults = ScpiFaults::new();
+            let armed = arm(f.device, scpi_arm(&faults));
+            let device = served.serial("positioner", port, link, armed, seeds.next().unwrap_or(1))?;
             let positioner = bench.positioner;
             let at = (*controller, *axis);
             served.tasks.push(tokio::spawn(async move {
-                scpi_server::serve_stream(device, positioner, ScpiFaults::new(), at).await;
+                scpi_server::serve_stream(device, positioner, faults, at).await;
             }));
             served.instruments.insert("positioner".into(), port.clone().into());
         }
@@ -211,22 +260,26 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             let public = listener.local_addr()?.to_string();
             let server = ModbusDevice::new(bench.positioner, map.clone())
                 .map_err(|e| bad_input(format!("positioner.map: {e}")))?;
-            let listener = front(listener, link, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            let faults = ModbusFaults::new();
+            let armed = arm(f.device, modbus_arm(&faults));
+            let listener = front(listener, link, armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
             served.tasks.push(tokio::spawn(async move {
-                if let Err(e) = server.serve_tcp(listener, ModbusFaults::new()).await {
+                if let Err(e) = server.serve_tcp(listener, faults).await {
                     tracing::error!(%e, "modbus simulator stopped");
                 }
             }));
             served.instruments.insert("positioner".into(), public.into());
         }
         PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
-            let device = served.serial("positioner", port, link, seeds.next().unwrap_or(1))?;
+            let faults = ModbusFaults::new();
+            let armed = arm(f.device, modbus_arm(&faults));
+            let device = served.serial("positioner", port, link, armed, seeds.next().unwrap_or(1))?;
             // On a serial line the slave address is the unit (as the driver does).
             let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
             let server =
                 ModbusDevice::new(bench.positioner, map).map_err(|e| bad_input(format!("positioner.map: {e}")))?;
             served.tasks.push(tokio::spawn(async move {
-                server.serve_rtu(device, ModbusFaults::new()).await;
+                server.serve_rtu(device, faults).await;
             }));
             served.instruments.insert("positioner".into(), port.clone().into());
         }
@@ -234,15 +287,17 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
             node.counts_per_degree = drive.counts_per_degree;
             let positioner = bench.positioner;
+            let faults = survey_sims::canopen_node::NodeFaults::new();
+            let armed = arm(f.device, canopen_arm(&faults));
             match cfg.positioner.can_link() {
                 Some(Ok(CanLink::Slcan { port, .. })) => {
                     // A CiA 402 drive behind a simulated USB-CAN adapter, on a
                     // pty linked at the port (link faults on the serial line).
-                    let device = served.serial("positioner", &port, link, seeds.next().unwrap_or(1))?;
+                    let device = served.serial("positioner", &port, link, armed, seeds.next().unwrap_or(1))?;
                     let bus = survey_drivers::canopen::MemoryBus::new();
                     let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
                     served.tasks.push(tokio::spawn(async move {
-                        survey_sims::canopen_node::serve(drive_end, positioner, node, Default::default()).await;
+                        survey_sims::canopen_node::serve(drive_end, positioner, node, faults).await;
                     }));
                     served.tasks.push(tokio::spawn(async move {
                         survey_sims::slcan_adapter::serve_adapter(device, adapter_end).await;
@@ -259,7 +314,10 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
                         )
                     })?;
                     served.tasks.push(tokio::spawn(async move {
-                        survey_sims::canopen_node::serve(bus, positioner, node, Default::default()).await;
+                        // No relay on the kernel's bus: link and armed device
+                        // faults reach a CANopen drive on its SLCAN line only
+                        // (its drive trips are the simulator's, here too).
+                        survey_sims::canopen_node::serve(bus, positioner, node, faults).await;
                     }));
                     served
                         .instruments
@@ -275,12 +333,16 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {
         let listener = listen("tracker", address).await?;
         let public = listener.local_addr()?.to_string();
-        let listener = front(listener, link, seeds.next().unwrap_or(1), &counts, &mut served).await?;
-        served.tasks.push(tokio::spawn(emscon_server::serve_tcp(listener, bench.tracker, EmsconFaults::new())));
+        let faults = EmsconFaults::new();
+        let armed = arm(f.device, emscon_arm(&faults));
+        let listener = front(listener, link, armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+        served.tasks.push(tokio::spawn(emscon_server::serve_tcp(listener, bench.tracker, faults)));
         served.instruments.insert("tracker".into(), public.into());
     }
     if let Some(AcConfig::Elcomat { port, .. }) = &cfg.autocollimator {
-        let device = served.serial("autocollimator", port, link, seeds.next().unwrap_or(1))?;
+        // Its device fault is the simulated autocollimator's: a blocked view,
+        // answered "no reflection".
+        let device = served.serial("autocollimator", port, link, None, seeds.next().unwrap_or(1))?;
         let instrument = bench.autocollimator;
         served.tasks.push(tokio::spawn(async move {
             elcomat_server::serve(device, instrument, ElcomatFaults::default()).await;
@@ -296,21 +358,61 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
 async fn front(
     public: TcpListener,
     link: LinkFaults,
+    arm: Option<DeviceArm>,
     seed: u64,
     counts: &Arc<Counts>,
     served: &mut Served,
 ) -> anyhow::Result<TcpListener> {
-    if link == LinkFaults::NONE {
+    if link == LinkFaults::NONE && arm.is_none() {
         return Ok(public);
     }
     let inner = TcpListener::bind("127.0.0.1:0").await?;
     let inner_addr = inner.local_addr()?;
-    served.tasks.push(tokio::spawn(relay_tcp(public, inner_addr, link, seed, counts.clone())));
+    served.tasks.push(tokio::spawn(relay_tcp(public, inner_addr, link, arm, seed, counts.clone())));
     Ok(inner)
 }
 
+/// The SCPI controller refuses the next axis command with -310 (a
+/// device-specific error of SCPI-99's -300 class).
+fn scpi_arm(faults: &ScpiFaults) -> Arc<dyn Fn() + Send + Sync> {
+    let f = faults.clone();
+    Arc::new(move || f.reject_next_command(-310, "System error; simulated device fault"))
+}
+
+/// The Modbus device answers the next request with exception 4 (server
+/// device failure).
+fn modbus_arm(faults: &ModbusFaults) -> Arc<dyn Fn() + Send + Sync> {
+    let f = faults.clone();
+    Arc::new(move || f.reject_next_request(survey_drivers::modbus::ExceptionCode::ServerDeviceFailure))
+}
+
+/// The CANopen drive aborts the next SDO request with 0x08000022 (data
+/// cannot be transferred because of the present device state).
+fn canopen_arm(faults: &survey_sims::canopen_node::NodeFaults) -> Arc<dyn Fn() + Send + Sync> {
+    let f = faults.clone();
+    Arc::new(move || f.abort_next_request(0x0800_0022))
+}
+
+/// The emScon server refuses the next command with `ES_RS_SensorNotStable`.
+fn emscon_arm(faults: &EmsconFaults) -> Arc<dyn Fn() + Send + Sync> {
+    let f = faults.clone();
+    Arc::new(move || {
+        f.reject_next_command(
+            survey_drivers::emscon::codes::status::SENSOR_NOT_STABLE,
+            emscon_server::Refusal::CommandAnswer,
+        )
+    })
+}
+
 /// Accept clients on `listener` and relay each to the simulator at `inner`.
-async fn relay_tcp(listener: TcpListener, inner: SocketAddr, link: LinkFaults, seed: u64, counts: Arc<Counts>) {
+async fn relay_tcp(
+    listener: TcpListener,
+    inner: SocketAddr,
+    link: LinkFaults,
+    arm: Option<DeviceArm>,
+    seed: u64,
+    counts: Arc<Counts>,
+) {
     let mut k = 0u64;
     loop {
         let Ok((client, _)) = listener.accept().await else {
@@ -322,6 +424,6 @@ async fn relay_tcp(listener: TcpListener, inner: SocketAddr, link: LinkFaults, s
         device.set_nodelay(true).ok();
         k += 1;
         // One client at a time, like the instruments.
-        relay(client, device, link, derive_seed(seed, k), counts.clone()).await;
+        relay_with(client, device, link, arm.clone(), derive_seed(seed, k), counts.clone()).await;
     }
 }

@@ -6,9 +6,12 @@
 //! the next request's).
 //!
 //! Protocol-agnostic, so every instrument gets the same four link faults
-//! whatever it speaks; the device faults in the instruments' own codes (a
-//! drive fault mid-move, a broken beam) are the simulators' (see
-//! [`super::Served`]). Our own design, not from an instrument's
+//! whatever it speaks. A device fault in the instrument's own code is armed
+//! through a [`DeviceArm`]: at its rate per request, the relay asks the
+//! simulator behind it to refuse the next request with its own code (a
+//! Modbus exception, an SDO abort, an SCPI error, an emScon result status);
+//! the drive tripping mid-move and the broken beam are the simulators' own
+//! (see [`super::Served`]). Our own design, not from an instrument's
 //! documentation: a link fault looks the same on every wire.
 
 use rand::{Rng as _, SeedableRng as _};
@@ -49,6 +52,23 @@ impl LinkFaults {
     }
 }
 
+/// Arms a device fault in the simulator behind a relay: at `rate` per
+/// request, `arm` is called before the request is passed on (it makes the
+/// simulator refuse that request with its own fault code).
+#[derive(Clone)]
+pub struct DeviceArm {
+    /// Probability per request.
+    pub rate: f64,
+    /// Arms the fault.
+    pub arm: Arc<dyn Fn() + Send + Sync>,
+}
+
+impl std::fmt::Debug for DeviceArm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DeviceArm").field("rate", &self.rate).finish_non_exhaustive()
+    }
+}
+
 /// Counts of what the relays did, shared by all of them.
 #[derive(Debug, Default)]
 pub struct Counts {
@@ -62,10 +82,12 @@ pub struct Counts {
     pub disconnects: AtomicU64,
     /// Replies stalled.
     pub stalls: AtomicU64,
+    /// Device faults armed (requests refused with the instrument's code).
+    pub device: AtomicU64,
 }
 
 impl Counts {
-    /// The counts as JSON (`{"replies", "dropped", "garbled", "disconnects", "stalls"}`).
+    /// The counts as JSON (`{"replies", "dropped", "garbled", "disconnects", "stalls", "device"}`).
     pub fn json(&self) -> serde_json::Value {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         serde_json::json!({
@@ -74,6 +96,7 @@ impl Counts {
             "garbled": get(&self.garbled),
             "disconnects": get(&self.disconnects),
             "stalls": get(&self.stalls),
+            "device": get(&self.device),
         })
     }
 }
@@ -86,14 +109,37 @@ where
     C: AsyncRead + AsyncWrite + Unpin + Send,
     D: AsyncRead + AsyncWrite + Unpin + Send,
 {
+    relay_with(client, device, faults, None, seed, counts).await;
+}
+
+/// [`relay`], with device faults armed at a rate per request.
+pub async fn relay_with<C, D>(
+    client: C,
+    device: D,
+    faults: LinkFaults,
+    arm: Option<DeviceArm>,
+    seed: u64,
+    counts: Arc<Counts>,
+) where
+    C: AsyncRead + AsyncWrite + Unpin + Send,
+    D: AsyncRead + AsyncWrite + Unpin + Send,
+{
     let (mut client_rx, mut client_tx) = tokio::io::split(client);
     let (mut device_rx, mut device_tx) = tokio::io::split(device);
     let requests = async {
         let mut buf = vec![0u8; 4096];
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xdead_beef);
         loop {
             match client_rx.read(&mut buf).await {
                 Ok(0) | Err(_) => return,
                 Ok(n) => {
+                    if let Some(a) = &arm
+                        && rng.random::<f64>() < a.rate
+                    {
+                        (a.arm)();
+                        counts.device.fetch_add(1, Ordering::Relaxed);
+                        tracing::info!("sim: the next request is refused with the instrument's fault code");
+                    }
                     if device_tx.write_all(&buf[..n]).await.is_err() {
                         return;
                     }

@@ -29,6 +29,7 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod drift;
 mod lock;
 mod samples;
 mod scan;
@@ -81,6 +82,7 @@ const CHUNK_ROWS: usize = 400;
 /// descriptions and checksums `sqlx::migrate!("../migrations")` would give).
 const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
+    (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
 ];
 

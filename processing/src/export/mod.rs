@@ -1,30 +1,42 @@
 //! Table files as bytes: pure writers, no file system (the caller stages and
-//! renames them into place).
+//! renames them into place). One module per format:
 //!
-//! - [`table_csv`]: the contract's correction table. Header `readout_deg,error_deg`
-//!   (or `readout_deg,error_forward_deg,error_reverse_deg`), one row per table
-//!   row at `360 i / n` degrees from 0 up to `360 - 360/n`, numbers in Rust's
-//!   shortest round-trip form.
-//! - [`linuxcnc`]: LinuxCNC joint compensation files, for `[JOINT_n] COMP_FILE = ...`
-//!   with `COMP_FILE_TYPE = 0` and `1`. Looked up in LinuxCNC's source
-//!   (LinuxCNC/linuxcnc: `src/emc/ini/inijoint.cc` reads `COMP_FILE_TYPE`,
-//!   default 0; `usrmotLoadComp` in `src/emc/motion/usrmotintf.cc` reads one
-//!   `nominal forward reverse` triplet per line with `sscanf("%lf %lf %lf")`
-//!   and stops at the first line that is not one, so there is no header line;
-//!   type 0 holds positions and is turned into trims as `nominal - forward`,
-//!   type 1 holds the trims `forward_trim reverse_trim` directly;
-//!   `EMCMOT_SET_JOINT_COMP` in `command.c` refuses more than
-//!   `EMCMOT_COMP_SIZE` = 256 entries and nominals that do not increase; and
-//!   `control.c` adds the forward trim to the motor command while moving up,
-//!   the reverse trim while moving down, interpolating linearly between
-//!   entries). The motor position is our readout and the trim that puts the
-//!   axis on the commanded angle is our error `readout - actual`, so a line is
-//!   `nominal  nominal-error_fwd  nominal-error_rev` (type 0: the actual
-//!   angles the axis reaches) or `nominal  error_fwd  error_rev` (type 1),
-//!   ascending nominals, at most 256 lines, 10 decimals.
+//! - [`table_csv`] (here): the contract's correction table. Header
+//!   `readout_deg,error_deg` (or `readout_deg,error_forward_deg,error_reverse_deg`),
+//!   one row per table row at `360 i / n` degrees from 0 up to `360 - 360/n`,
+//!   numbers in Rust's shortest round-trip form.
+//! - [`linuxcnc`]: LinuxCNC `COMP_FILE`s (types 0 and 1) over a joint range,
+//!   several turns included, at most 256 points.
+//! - [`sinumerik`]: Siemens SINUMERIK 840D measuring-system error compensation
+//!   (`%_N_AX_EEC_INI`).
+//! - [`fanuc`]: Fanuc stored pitch-error compensation, the values and the
+//!   parameters 3620-3627.
+//! - [`generic`]: a CSV with the sign, absolute/incremental and direction
+//!   choices of commercial calibration software, for any other controller.
+//! - [`layout`]: where the points of a controller table fall (range, interval
+//!   or point count) and the table read there, low-passed to what the spacing holds.
+//! - [`controllers`]: the recipe's `[export]` choices turned into the files of
+//!   each controller asked for, with the accuracy each is predicted to give.
 //! - The binary table is [`crate::corrector::to_bytes`].
+//!
+//! Heidenhain's nonlinear axis-error compensation is not written: its sign,
+//! header and field formats are not public.
+//!
+//! Every controller table is a function of the readout (the position the
+//! control knows); the error is `readout - actual` (the contract), and each
+//! writer turns it into its format's sign.
 
-use crate::pipeline::CompTable;
+pub mod controllers;
+pub mod fanuc;
+pub mod generic;
+pub mod layout;
+pub mod linuxcnc;
+pub mod sinumerik;
+#[cfg(test)]
+mod tests;
+
+use crate::Direction;
+use crate::correction::ErrorFigures;
 use crate::table::CorrectionTable;
 use std::fmt::Write as _;
 
@@ -48,22 +60,62 @@ pub fn table_csv(table: &CorrectionTable) -> String {
     s
 }
 
-/// A LinuxCNC `COMP_FILE` of `COMP_FILE_TYPE` 0 (positions) or 1 (trims).
-pub fn linuxcnc(comp: &CompTable, file_type: u8) -> String {
-    let mut s = String::with_capacity(comp.nominal_deg.len() * 48);
-    for ((n, f), r) in comp.nominal_deg.iter().zip(&comp.forward_deg).zip(&comp.reverse_deg) {
-        let (a, b) = if file_type == 0 { (n - f, n - r) } else { (*f, *r) };
-        let _ = writeln!(s, "{n:.10} {a:.10} {b:.10}");
+/// How a controller applies its table, for predicting what it leaves: the
+/// error it removes at a position (the corrected error is `e - removed`).
+pub trait Applied {
+    /// The error removed at `position_deg` for motion in `direction`, degrees.
+    fn removed_deg(&self, position_deg: f64, direction: Direction) -> f64;
+    /// The positions the table covers (infinite for a modulo table).
+    fn range_deg(&self) -> (f64, f64);
+}
+
+/// Linear interpolation in `ys` over ascending `xs`, the end values held
+/// outside (LinuxCNC's `control.c` and a non-modulo 840D table).
+pub(crate) fn interpolate_held(xs: &[f64], ys: &[f64], p: f64) -> f64 {
+    let n = xs.len();
+    if p <= xs[0] {
+        return ys[0];
     }
-    s
+    if p >= xs[n - 1] {
+        return ys[n - 1];
+    }
+    let i = xs.partition_point(|&x| x <= p) - 1;
+    ys[i] + (ys[i + 1] - ys[i]) * (p - xs[i]) / (xs[i + 1] - xs[i])
+}
+
+/// The corrected peak error (`max |e - removed - mean|`) a controller's table
+/// is predicted to leave on `samples`, on every turn it covers: a periodic
+/// (full-circle) survey is moved by whole turns onto each turn of the table's
+/// range, and the worst turn is returned. `None` when no sample falls inside.
+pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, periodic: bool) -> Option<f64> {
+    let (lo, hi) = table.range_deg();
+    let turns: Vec<i64> = if periodic && lo.is_finite() && hi.is_finite() {
+        ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1).collect()
+    } else {
+        vec![0]
+    };
+    let tol = 1e-9;
+    turns
+        .into_iter()
+        .filter_map(|k| {
+            let e: Vec<f64> = samples
+                .iter()
+                .filter_map(|s| {
+                    let p = s.readout_deg + 360.0 * k as f64;
+                    (p >= lo - tol && p <= hi + tol).then(|| s.error_deg() - table.removed_deg(p, s.direction))
+                })
+                .collect();
+            (!e.is_empty()).then(|| ErrorFigures::of(&e, None).peak_deg)
+        })
+        .reduce(f64::max)
 }
 
 #[cfg(test)]
-mod tests {
+mod csv_tests {
     use super::*;
 
     #[test]
-    fn csv_and_linuxcnc_formats() {
+    fn csv_format() {
         let t =
             CorrectionTable::directional(vec![0.001, 0.002, 0.003, 0.004], vec![-0.001, 0.0, 0.001, 0.002]).unwrap();
         assert_eq!(
@@ -72,16 +124,16 @@ mod tests {
         );
         let one = CorrectionTable::new(vec![0.5, -0.25]).unwrap();
         assert_eq!(table_csv(&one), "readout_deg,error_deg\n0,0.5\n180,-0.25\n");
-        let comp = CompTable {
-            nominal_deg: vec![0.0, 180.0, 360.0],
-            forward_deg: vec![0.001, 0.002, 0.001],
-            reverse_deg: vec![-0.001, 0.0, -0.001],
-            prediction: None,
-        };
-        assert_eq!(
-            linuxcnc(&comp, 0),
-            "0.0000000000 -0.0010000000 0.0010000000\n180.0000000000 179.9980000000 180.0000000000\n360.0000000000 359.9990000000 360.0010000000\n"
-        );
-        assert_eq!(linuxcnc(&comp, 1).lines().next(), Some("0.0000000000 0.0010000000 -0.0010000000"));
+    }
+
+    #[test]
+    fn held_interpolation_is_control_c() {
+        let xs = [0.0, 10.0, 20.0];
+        let ys = [1.0, 3.0, -1.0];
+        assert_eq!(interpolate_held(&xs, &ys, -5.0), 1.0);
+        assert_eq!(interpolate_held(&xs, &ys, 5.0), 2.0);
+        assert_eq!(interpolate_held(&xs, &ys, 10.0), 3.0);
+        assert_eq!(interpolate_held(&xs, &ys, 15.0), 1.0);
+        assert_eq!(interpolate_held(&xs, &ys, 25.0), -1.0);
     }
 }

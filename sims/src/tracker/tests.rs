@@ -144,3 +144,27 @@ async fn beam_breaks_do_not_change_the_noise_of_good_measurements() {
     assert!(some > 5, "{some} breaks");
     assert_eq!(clean, faulty);
 }
+
+#[tokio::test]
+async fn a_beam_held_broken_cannot_be_reacquired_until_it_clears() {
+    let cfg =
+        TrackerConfig { break_on_measurement: Some(1), beam_hold: Duration::from_secs(60), ..TrackerConfig::default() };
+    let (clock, table, mut t) = setup(cfg);
+    let injected = crate::faults::Injected::new();
+    t.count_injected(injected.clone());
+    table.place(10.0);
+    let broke_at = clock.now() + Duration::from_secs(1);
+    assert_eq!(t.measure().await.unwrap_err().code, Some(CODE_BEAM_BROKEN));
+    assert_eq!(injected.get(crate::faults::FaultKind::Beam), 1);
+    // Each search takes the re-acquisition time and fails while the beam is blocked.
+    let mut searches = 0;
+    while t.reacquire().await.is_err() {
+        searches += 1;
+        assert_eq!(t.status().await.unwrap(), TrackerState::BeamBroken);
+    }
+    // Searches of 5 s from the break: the first that ends at or after 60 s succeeds.
+    assert_eq!(searches, 11);
+    assert!(clock.now() >= broke_at + Duration::from_secs(60));
+    assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+    assert!(t.measure().await.is_ok());
+}

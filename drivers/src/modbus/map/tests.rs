@@ -52,6 +52,11 @@ fn bad_maps_are_refused() {
     assert!(bad(&|m| m.status = Location::input(1)).0.contains("overlaps"));
     bad(&|m| m.position_encoding = PositionEncoding::Counts { counts_per_degree: 0.0 });
     bad(&|m| m.position_encoding = PositionEncoding::Counts { counts_per_degree: f64::NAN });
+    // Found by fuzzing: a subnormal scale is positive and finite, and every
+    // position it decoded was infinite.
+    let e = bad(&|m| m.position_encoding = PositionEncoding::Counts { counts_per_degree: 1e-310 });
+    assert!(e.0.contains("not within 0.001 to 1000000000"), "{e:?}");
+    bad(&|m| m.position_encoding = PositionEncoding::Counts { counts_per_degree: 1e12 });
     bad(&|m| m.status_bits.fault = 16);
     bad(&|m| m.status_bits.fault = m.status_bits.moving);
     bad(&|m| m.command_codes.stop = 0);

@@ -1,0 +1,4 @@
+//! cargo-fuzz harness: [`survey_drivers::fuzz_targets::emscon`] on every input.
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| survey_drivers::fuzz_targets::emscon(data));

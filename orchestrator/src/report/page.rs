@@ -1,0 +1,144 @@
+//! The page around the figures: the HTML skeleton, the stylesheet (screen
+//! and print), a figure with its caption and legend, and small helpers.
+//!
+//! The page loads nothing: its Content-Security-Policy forbids every fetch
+//! (`default-src 'none'`), so a browser refuses, and reports, anything that
+//! is not inline. Print: A4, one section a page, no figure or table row cut
+//! across pages, SVG scaled to the page width.
+
+use std::fmt::Write as _;
+
+/// The stylesheet, screen and print.
+const STYLE: &str = "\
+body{font-family:'DejaVu Sans',Arial,Helvetica,sans-serif;font-size:15px;line-height:1.45;max-width:1040px;\
+margin:1.5em auto;padding:0 1em;color:#1a1a1a;background:#fff}\
+h1{font-size:1.6em;margin:0 0 .2em}h2{font-size:1.25em;border-bottom:1px solid #999;padding-bottom:.15em;margin-top:1.8em}\
+h3{font-size:1.05em;margin:1.2em 0 .3em}\
+figure{margin:1em 0}figure svg.plot{width:100%;height:auto;display:block}\
+figcaption{font-size:.92em;color:#333;margin-top:.3em}\
+ul.legend{list-style:none;padding:0;margin:.4em 0 0;display:flex;flex-wrap:wrap;gap:.3em 1.4em;font-size:.92em}\
+ul.legend svg{width:30px;height:12px;vertical-align:middle;margin-right:.35em}\
+table{border-collapse:collapse;margin:.6em 0;font-size:.9em}td,th{border:1px solid #bbb;padding:2px 7px;text-align:right}\
+th{background:#eee}td.l,th.l{text-align:left}\
+table.header td{text-align:left;border:none;padding:1px 12px 1px 0;vertical-align:top}table.header td:first-child{font-weight:bold;white-space:nowrap}\
+p.note,ul.note{color:#444;font-size:.92em}.subtitle{color:#444;margin:0 0 1em}\
+@page{size:A4;margin:14mm}\
+@media print{body{max-width:none;margin:0;padding:0;font-size:10pt}\
+section.page{break-before:page}figure,tr,table.header,ul.legend{break-inside:avoid}h2,h3{break-after:avoid}\
+thead{display:table-header-group}}";
+
+/// Escape text for HTML.
+pub fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// The whole page: `title`, then `body` (already HTML).
+pub fn document(title: &str, body: &str) -> String {
+    format!(
+        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n\
+         <meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'\">\n\
+         <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
+         <title>{}</title>\n<style>{STYLE}</style></head><body>\n{body}</body></html>\n",
+        escape(title)
+    )
+}
+
+/// How a legend entry is drawn: a line (solid or dashed), a band or a marker.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Key {
+    Line,
+    Thin,
+    Dashed,
+    Band,
+    Dot,
+    Ring,
+}
+
+/// One legend entry: colour (`#rrggbb`), how it is drawn, what it is.
+pub type LegendEntry = (String, Key, String);
+
+/// A legend below a figure (never over the data).
+pub fn legend(entries: &[LegendEntry]) -> String {
+    let mut s = String::from("<ul class=\"legend\">");
+    for (colour, key, label) in entries {
+        let mark = match key {
+            Key::Line => format!("<line x1=\"1\" y1=\"6\" x2=\"29\" y2=\"6\" stroke=\"{colour}\" stroke-width=\"3\"/>"),
+            Key::Thin => format!(
+                "<line x1=\"1\" y1=\"6\" x2=\"29\" y2=\"6\" stroke=\"{colour}\" stroke-opacity=\"0.5\" stroke-width=\"1.5\"/>"
+            ),
+            Key::Dashed => format!(
+                "<line x1=\"1\" y1=\"6\" x2=\"29\" y2=\"6\" stroke=\"{colour}\" stroke-width=\"2\" stroke-dasharray=\"5 3\"/>"
+            ),
+            Key::Band => {
+                format!("<rect x=\"1\" y=\"1\" width=\"28\" height=\"10\" fill=\"{colour}\" fill-opacity=\"0.3\"/>")
+            }
+            Key::Dot => format!("<circle cx=\"15\" cy=\"6\" r=\"4\" fill=\"{colour}\"/>"),
+            Key::Ring => {
+                format!("<circle cx=\"15\" cy=\"6\" r=\"4\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\"/>")
+            }
+        };
+        let _ = write!(s, "<li><svg viewBox=\"0 0 30 12\" aria-hidden=\"true\">{mark}</svg>{}</li>", escape(label));
+    }
+    s + "</ul>"
+}
+
+/// A figure: its SVG, legend and caption, with `id` for the page's index
+/// (and the browser test).
+pub fn figure(id: &str, svg: &str, legend_html: &str, caption: &str) -> String {
+    let svg = svg.replacen("<svg ", "<svg class=\"plot\" role=\"img\" ", 1);
+    format!("<figure id=\"{id}\">\n{svg}\n{legend_html}<figcaption>{caption}</figcaption></figure>\n")
+}
+
+/// A table with `id`: header cells (the first left-aligned) and rows of
+/// cells already escaped or formatted.
+pub fn table(id: &str, head: &[&str], rows: &[Vec<String>]) -> String {
+    table_left(id, head, rows, &[])
+}
+
+/// [`table`] with the columns `left` (besides the first) aligned left (text).
+pub fn table_left(id: &str, head: &[&str], rows: &[Vec<String>], left: &[usize]) -> String {
+    let class = |i: usize| if i == 0 || left.contains(&i) { " class=\"l\"" } else { "" };
+    let mut s = format!("<table id=\"{id}\"><thead><tr>");
+    for (i, h) in head.iter().enumerate() {
+        let _ = write!(s, "<th{}>{h}</th>", class(i));
+    }
+    s += "</tr></thead><tbody>\n";
+    for row in rows {
+        s += "<tr>";
+        for (i, c) in row.iter().enumerate() {
+            let _ = write!(s, "<td{}>{c}</td>", class(i));
+        }
+        s += "</tr>\n";
+    }
+    s + "</tbody></table>\n"
+}
+
+/// A section of the page; `page` starts it on a new printed page.
+pub fn section(id: &str, title: &str, page: bool, body: &str) -> String {
+    format!(
+        "<section id=\"{id}\"{}>\n<h2>{}</h2>\n{body}</section>\n",
+        if page { " class=\"page\"" } else { "" },
+        escape(title)
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_page_forbids_every_fetch_and_escapes_its_title() {
+        let page = document("a <b> & c", "<p>x</p>");
+        assert!(page.contains("default-src 'none'") && page.contains("<title>a &lt;b&gt; &amp; c</title>"));
+        assert!(page.contains("@media print") && page.contains("break-before:page"));
+        assert!(!page.contains("src=") && !page.contains("href="));
+    }
+
+    #[test]
+    fn a_legend_sits_outside_the_plot_and_a_figure_carries_its_id() {
+        let l = legend(&[("#0072b2".into(), Key::Line, "forward <mean>".into())]);
+        assert!(l.starts_with("<ul class=\"legend\">") && l.contains("forward &lt;mean&gt;"));
+        let f = figure("fig-x", "<svg width=\"1\">", &l, "cap");
+        assert!(f.contains("<figure id=\"fig-x\">") && f.contains("<svg class=\"plot\""));
+    }
+}

@@ -1,0 +1,279 @@
+//! The recipe's `[export]` choices turned into controller files: which
+//! controllers, over which range and spacing, which directions, zeroed at the
+//! reference point or not; each file's text and the accuracy it is predicted to
+//! give (the survey's samples corrected the way that controller applies its
+//! table, on every turn the table covers).
+//!
+//! Defaults: LinuxCNC the finest spacing that keeps `linuxcnc_points` (256)
+//! points over the range (a whole number of points per turn when one fits);
+//! 840D, Fanuc and the generic table 1 deg. Range: a full circle 0..360 (so
+//! 840D is modulo and Fanuc rotary type), a partial survey its measured range.
+//! A choice that cannot be honoured is a [`ChoiceError`] naming the `export.`
+//! key.
+
+use super::fanuc::{FanucOptions, FanucTable};
+use super::generic::GenericTable;
+use super::layout::{DefaultSpacing, Grid, RangeChoice, Reader, Span, resolve};
+use super::linuxcnc::LinuxCncTable;
+use super::sinumerik::{Sinumerik840d, SinumerikOptions};
+use super::{Applied, predicted_peak_deg};
+use crate::recipe::{ChoiceError, ExportChoices};
+use crate::table::CorrectionTable;
+use crate::{Direction, Sample};
+use serde::{Deserialize, Serialize};
+
+/// A controller format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum Controller {
+    /// LinuxCNC `COMP_FILE` types 0 and 1 (`<stem>.comp0`, `<stem>.comp1`).
+    #[serde(rename = "linuxcnc")]
+    LinuxCnc,
+    /// Siemens SINUMERIK 840D EEC (`<stem>.840d.ini`).
+    #[serde(rename = "840d")]
+    Sinumerik840d,
+    /// Fanuc stored pitch-error compensation (`<stem>.fanuc.txt`).
+    #[serde(rename = "fanuc")]
+    Fanuc,
+    /// The generic table (`<stem>.generic.csv`).
+    #[serde(rename = "generic")]
+    Generic,
+}
+
+impl Controller {
+    /// Every format, in the order files are listed.
+    pub const ALL: [Controller; 4] =
+        [Controller::LinuxCnc, Controller::Sinumerik840d, Controller::Fanuc, Controller::Generic];
+
+    /// The name used on the command line and in JSON.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Controller::LinuxCnc => "linuxcnc",
+            Controller::Sinumerik840d => "840d",
+            Controller::Fanuc => "fanuc",
+            Controller::Generic => "generic",
+        }
+    }
+}
+
+impl std::str::FromStr for Controller {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Controller::ALL.into_iter().find(|c| c.as_str().eq_ignore_ascii_case(s.trim())).ok_or_else(|| {
+            format!("unknown controller '{s}' (expected {})", Controller::ALL.map(Controller::as_str).join(", "))
+        })
+    }
+}
+
+/// Which directions a controller table holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Directions {
+    /// Forward and reverse when the table is direction-aware, else one.
+    #[default]
+    Auto,
+    /// One set of values for both directions (the mean of a direction-aware table).
+    Combined,
+    /// Forward and reverse (equal for a one-column table).
+    Separate,
+}
+
+/// One file of a controller.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControllerFile {
+    /// What it is (`linuxcnc_type0`, `linuxcnc_type1`, `sinumerik_840d`, `fanuc`, `generic`).
+    pub kind: &'static str,
+    /// Appended to the table's stem (`.comp0`, `.840d.ini`).
+    pub suffix: &'static str,
+    /// The contents.
+    pub text: String,
+}
+
+/// A controller's export: its files and what they hold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControllerExport {
+    /// The format.
+    pub controller: Controller,
+    /// Its files.
+    pub files: Vec<ControllerFile>,
+    /// The points.
+    pub grid: Grid,
+    /// Whether forward and reverse values differ in the file.
+    pub directional: bool,
+    /// 840D modulo, Fanuc rotary type.
+    pub modulo: bool,
+    /// The reference point, degrees.
+    pub reference_deg: f64,
+    /// Whether the values are zero at the reference point.
+    pub zero_at_reference: bool,
+    /// The corrected peak error predicted on the survey, degrees (every turn covered; the worst).
+    pub corrected_peak_deg: Option<f64>,
+    /// Format parameters to set beside the file (Fanuc's 3620-3627): number, value, meaning.
+    pub parameters: Vec<(String, String, String)>,
+    /// Remarks (what the format cannot hold, limits exceeded).
+    pub notes: Vec<String>,
+}
+
+fn choice(key: &str, message: impl Into<String>) -> ChoiceError {
+    ChoiceError::new(format!("export.{key}"), message)
+}
+
+/// The default reference point on a grid: 0 when it is a point of it, else
+/// the point nearest 0.
+fn default_reference(grid: &Grid) -> f64 {
+    let k = ((0.0 - grid.start_deg) / grid.interval_deg).round().clamp(0.0, (grid.points - 1) as f64);
+    grid.position(k as usize)
+}
+
+/// The controllers `export` asks for, in [`Controller::ALL`] order.
+pub fn chosen(export: &ExportChoices) -> Vec<Controller> {
+    Controller::ALL
+        .into_iter()
+        .filter(|c| match c {
+            Controller::LinuxCnc => export.linuxcnc,
+            Controller::Sinumerik840d => export.sinumerik_840d,
+            Controller::Fanuc => export.fanuc,
+            Controller::Generic => export.generic,
+        })
+        .collect()
+}
+
+/// Every controller file `export` asks for, from `table` (full circle when
+/// `full_circle`, else the measured range `measured`), with its predicted
+/// accuracy on `samples`.
+pub fn build(
+    table: &CorrectionTable,
+    full_circle: bool,
+    measured: (f64, f64),
+    samples: &[Sample],
+    export: &ExportChoices,
+) -> Result<Vec<ControllerExport>, ChoiceError> {
+    let span = if full_circle { Span::FullCircle } else { Span::Measured { start: measured.0, end: measured.1 } };
+    let range = RangeChoice {
+        start_deg: export.start_deg,
+        end_deg: export.end_deg,
+        interval_deg: export.interval_deg,
+        points: export.points,
+    };
+    let separate = match export.directions {
+        Directions::Auto => table.is_directional(),
+        Directions::Combined => false,
+        Directions::Separate => true,
+    };
+    let mut out = Vec::new();
+    for controller in chosen(export) {
+        let default = match controller {
+            Controller::LinuxCnc => DefaultSpacing::FinestWithin(export.linuxcnc_points),
+            _ => DefaultSpacing::Interval(1.0),
+        };
+        let grid = resolve(&range, span, default).map_err(|e| choice(e.key, e.message))?;
+        // 840D EEC is one table for both directions (see its module).
+        let one_table = controller == Controller::Sinumerik840d;
+        let reader = Reader::new(table, full_circle, grid.interval_deg, separate && !one_table);
+        let reference_deg = export.reference_deg.unwrap_or_else(|| default_reference(&grid));
+        if !reference_deg.is_finite() {
+            return Err(choice("reference_deg", format!("must be a finite angle, got {reference_deg}")));
+        }
+        if !full_circle && !(grid.start_deg - 1e-9..=grid.end_deg() + 1e-9).contains(&reference_deg) {
+            return Err(choice(
+                "reference_deg",
+                format!("{reference_deg} deg is outside the table's range {}..{} deg", grid.start_deg, grid.end_deg()),
+            ));
+        }
+        let offset = if export.zero_at_reference { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
+        let mut notes = Vec::new();
+        let predict = |t: &dyn Applied| predicted_peak_deg(samples, t, full_circle);
+        let mut e = ControllerExport {
+            controller,
+            files: Vec::new(),
+            grid,
+            directional: reader.is_separate(),
+            modulo: false,
+            reference_deg,
+            zero_at_reference: export.zero_at_reference,
+            corrected_peak_deg: None,
+            parameters: Vec::new(),
+            notes: Vec::new(),
+        };
+        match controller {
+            Controller::LinuxCnc => {
+                let t = LinuxCncTable::new(&reader, &grid, offset).map_err(|err| {
+                    choice(
+                        if export.interval_deg.is_some() { "interval_deg" } else { "points" },
+                        format!(
+                            "{err} over {}..{} deg: give a coarser spacing (at least {:.6} deg), or leave LinuxCNC out of the controllers",
+                            grid.start_deg,
+                            grid.end_deg(),
+                            grid.span_deg() / (super::linuxcnc::MAX_POINTS - 1) as f64
+                        ),
+                    )
+                })?;
+                if full_circle && grid.span_deg() <= 360.0 + 1e-9 {
+                    notes.push(format!(
+                        "the LinuxCNC table covers {}..{} deg only: LinuxCNC holds the end values outside its table and never wraps a rotary joint, so give the joint's whole range (--table-start, --table-end)",
+                        grid.start_deg,
+                        grid.end_deg()
+                    ));
+                }
+                e.corrected_peak_deg = predict(&t);
+                e.files = vec![
+                    ControllerFile { kind: "linuxcnc_type0", suffix: ".comp0", text: t.text(0) },
+                    ControllerFile { kind: "linuxcnc_type1", suffix: ".comp1", text: t.text(1) },
+                ];
+            }
+            Controller::Sinumerik840d => {
+                let options = SinumerikOptions {
+                    axis: export.sinumerik_axis.clone(),
+                    measuring_system: export.sinumerik_measuring_system,
+                };
+                let t = Sinumerik840d::new(&reader, &grid, offset, options).map_err(|err| match err {
+                    super::sinumerik::SinumerikError::BadAxis(_) => choice("sinumerik_axis", err.to_string()),
+                    super::sinumerik::SinumerikError::BadMeasuringSystem(_) => {
+                        choice("sinumerik_measuring_system", err.to_string())
+                    }
+                })?;
+                if separate && table.is_directional() {
+                    notes.push(
+                        "840D measuring-system error compensation is one table for both directions: the mean of forward and reverse was written (set the reversal with the backlash compensation)".into(),
+                    );
+                }
+                if full_circle && !t.modulo {
+                    notes.push(format!(
+                        "the 840D table is not modulo (its range {}..{} deg is not 0..360): the end values hold outside it",
+                        grid.start_deg,
+                        grid.end_deg()
+                    ));
+                }
+                notes.push(format!(
+                    "MD38000 $MA_MM_ENC_COMP_MAX_POINTS must reserve at least {} points; load the file while MD32700 is 0",
+                    grid.points
+                ));
+                e.modulo = t.modulo;
+                e.corrected_peak_deg = predict(&t);
+                e.files = vec![ControllerFile { kind: "sinumerik_840d", suffix: ".840d.ini", text: t.text() }];
+            }
+            Controller::Fanuc => {
+                let options = FanucOptions {
+                    unit_deg: export.fanuc_unit_deg,
+                    magnification: export.fanuc_magnification,
+                    reference_number: export.fanuc_reference_number,
+                    reference_deg,
+                };
+                let t = FanucTable::new(&reader, &grid, options).map_err(|err| choice(err.key, err.message))?;
+                notes.extend(t.warnings.iter().cloned());
+                e.grid = t.grid;
+                e.modulo = t.rotary;
+                e.zero_at_reference = true;
+                e.corrected_peak_deg = predict(&t);
+                e.parameters = t.parameters().into_iter().map(|(n, v, w)| (n.to_string(), v, w)).collect();
+                e.files = vec![ControllerFile { kind: "fanuc", suffix: ".fanuc.txt", text: t.text() }];
+            }
+            Controller::Generic => {
+                let t = GenericTable::new(&reader, &grid, offset, export.sign, export.values);
+                e.files = vec![ControllerFile { kind: "generic", suffix: ".generic.csv", text: t.text() }];
+            }
+        }
+        e.notes = notes;
+        out.push(e);
+    }
+    Ok(out)
+}

@@ -1,0 +1,256 @@
+//! The report in a real browser: Debian's `chromium`, headless, opens the
+//! page `survey report` wrote (a verified survey with a model-gap, so every
+//! section is there) and the test asserts that every figure and table is
+//! present and rendered, that the page fetched nothing and logged no error,
+//! and keeps a screenshot and a printed PDF (their paths are printed).
+//!
+//! How errors are read, with nothing but the browser: the test copies the
+//! page with a small collector script first in its `<head>` (and lets inline
+//! script run in its Content-Security-Policy, which otherwise forbids every
+//! script and fetch). The collector records uncaught errors, failed loads,
+//! `console.error`, and every fetch the policy refused; after the load it
+//! writes them, the ids on the page, each figure's rendered size and every
+//! resource fetched into the DOM, which `--dump-dom` prints. The browser's
+//! own log (stderr) is searched for uncaught errors and refusals too. A page
+//! with a deliberate error proves the check fails on one.
+//!
+//! Where `chromium` is absent the tests say they skipped and why; CI
+//! installs it (`.ci/run`). `SURVEY_CHROMIUM` names another binary.
+
+use super::Bench;
+use super::report::ALWAYS;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Flags that keep Chromium from reaching for the network or a display
+/// (without them it hangs on a closed network).
+const FLAGS: [&str; 9] = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--hide-scrollbars",
+];
+
+/// A generous bound on one browser run (it takes 1-3 s here).
+const BROWSER_TIMEOUT: Duration = Duration::from_secs(120);
+
+const COLLECTOR: &str = r#"<script>
+window.__errors = [];
+const __rec = (kind, msg) => window.__errors.push(kind + ': ' + msg);
+window.addEventListener('error', e => {
+  const t = e.target;
+  if (t && t !== window && (t.src || t.href)) __rec('failed load', t.tagName + ' ' + (t.src || t.href));
+  else __rec('uncaught error', e.message);
+}, true);
+window.addEventListener('unhandledrejection', e => __rec('unhandled rejection', String(e.reason)));
+document.addEventListener('securitypolicyviolation', e => __rec('refused fetch', e.violatedDirective + ' ' + e.blockedURI));
+const __ce = console.error.bind(console);
+console.error = (...a) => { __rec('console.error', a.join(' ')); __ce(...a); };
+window.addEventListener('load', () => setTimeout(() => {
+  const out = document.createElement('pre');
+  out.id = '__report_check';
+  out.textContent = JSON.stringify({
+    errors: window.__errors,
+    ids: [...document.querySelectorAll('[id]')].map(e => e.id),
+    figures: [...document.querySelectorAll('figure')].map(f => {
+      const s = f.querySelector('svg.plot'); const r = s ? s.getBoundingClientRect() : {width: 0, height: 0};
+      return {id: f.id, width: r.width, height: r.height};
+    }),
+    fetched: performance.getEntriesByType('resource').map(r => r.name),
+  });
+  document.body.appendChild(out);
+}, 200));
+</script>"#;
+
+/// The browser, or why there is none.
+fn chromium() -> Result<PathBuf, String> {
+    if let Ok(path) = std::env::var("SURVEY_CHROMIUM") {
+        return Ok(PathBuf::from(path));
+    }
+    for name in ["chromium", "chromium-browser"] {
+        for dir in std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default()) {
+            let candidate = dir.join(name);
+            if candidate.is_file() {
+                return Ok(candidate);
+            }
+        }
+    }
+    Err("no `chromium` on PATH (Debian: apt-get install chromium; CI installs it)".into())
+}
+
+/// Run the browser with `args` on `url` in a new empty profile; its stdout and stderr.
+fn run(browser: &Path, profile: &Path, args: &[String], url: &str) -> (String, String) {
+    let mut cmd = Command::new(browser);
+    cmd.args(FLAGS).arg(format!("--user-data-dir={}", profile.display())).args(args).arg(url);
+    cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+    let child = cmd.spawn().unwrap_or_else(|e| panic!("start {}: {e}", browser.display()));
+    let id = child.id();
+    // The output is read on another thread so that a hung browser is killed
+    // at the bound instead of blocking the test for ever.
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    let started = Instant::now();
+    match rx.recv_timeout(BROWSER_TIMEOUT) {
+        Ok(out) => {
+            let out = out.expect("the browser ran");
+            assert!(
+                out.status.success(),
+                "{} exited {:?}: {}",
+                browser.display(),
+                out.status,
+                String::from_utf8_lossy(&out.stderr)
+            );
+            (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+        }
+        Err(_) => {
+            let _ = Command::new("kill").arg("-9").arg(id.to_string()).status();
+            panic!("{} did not finish within {:?} ({:?})", browser.display(), BROWSER_TIMEOUT, started.elapsed());
+        }
+    }
+}
+
+/// What the collector saw on the page at `html`, and the browser's log lines
+/// that report an error.
+fn check(browser: &Path, work: &Path, html: &str) -> (Value, Vec<String>) {
+    let page = html.replacen("<head>", &format!("<head>{COLLECTOR}"), 1).replacen(
+        "default-src 'none'",
+        "default-src 'none'; script-src 'unsafe-inline'",
+        1,
+    );
+    let file = work.join("checked.html");
+    std::fs::write(&file, page).expect("write the instrumented page");
+    let profile = tempfile::tempdir().expect("a browser profile");
+    let args = vec![
+        "--dump-dom".to_string(),
+        "--virtual-time-budget=5000".to_string(),
+        "--enable-logging=stderr".into(),
+        "--v=0".into(),
+    ];
+    let (dom, log) = run(browser, profile.path(), &args, &format!("file://{}", file.display()));
+    let found = dom
+        .split("<pre id=\"__report_check\">")
+        .nth(1)
+        .and_then(|s| s.split("</pre>").next())
+        .unwrap_or_else(|| panic!("the collector wrote nothing: the page did not load\n{log}"));
+    let text = found.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", "\"").replace("&amp;", "&");
+    let seen: Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("the collector's JSON: {e}\n{text}"));
+    let logged = log
+        .lines()
+        .filter(|l| {
+            l.contains("CONSOLE")
+                && (l.contains("Uncaught") || l.contains("Refused to") || l.contains("Failed to load"))
+        })
+        .map(str::to_string)
+        .collect();
+    (seen, logged)
+}
+
+/// The errors of a check: the collector's and the log's.
+fn errors(seen: &Value, logged: &[String]) -> Vec<String> {
+    let mut all: Vec<String> =
+        seen["errors"].as_array().unwrap().iter().map(|e| e.as_str().unwrap_or("").to_string()).collect();
+    all.extend(seen["fetched"].as_array().unwrap().iter().map(|f| format!("fetched {f}")));
+    all.extend(logged.iter().cloned());
+    all
+}
+
+#[test]
+fn the_report_opens_in_chromium_with_every_figure_and_no_error() {
+    let browser = match chromium() {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let bench = Bench::new();
+    bench.write("model.toml", super::CONTRACT_MODEL);
+    bench.survey(&["run", "--points", "72", "--runs", "3", "--bidirectional", "--verify", "--json"]).success();
+    bench.survey(&["report", "--survey", "1", "--out", "r", "--model", "model.toml", "--units", "arcsec"]).success();
+    let html = bench.read("r/index.html");
+    let artifacts = Path::new(env!("CARGO_TARGET_TMPDIR")).join("report-browser");
+    std::fs::create_dir_all(&artifacts).unwrap();
+    std::fs::write(artifacts.join("index.html"), &html).unwrap();
+
+    let (seen, logged) = check(&browser, &artifacts, &html);
+    let errs = errors(&seen, &logged);
+    assert!(errs.is_empty(), "the page logged errors: {errs:#?}");
+    let ids: Vec<&str> = seen["ids"].as_array().unwrap().iter().filter_map(|v| v.as_str()).collect();
+    let expected = ALWAYS.iter().copied().chain([
+        "fig-native",
+        "fig-corrected",
+        "tbl-verification",
+        "fig-modelgap",
+        "tbl-modelgap",
+    ]);
+    for id in expected {
+        assert!(ids.contains(&id), "the page in the browser lacks {id}: {ids:?}");
+    }
+    // Every figure is drawn at a readable size (not collapsed, not overflowing).
+    let figures = seen["figures"].as_array().unwrap();
+    assert!(figures.len() >= 8, "{figures:?}");
+    for f in figures {
+        let (w, h) = (f["width"].as_f64().unwrap(), f["height"].as_f64().unwrap());
+        assert!(w > 600.0 && h > 200.0 && w <= 1040.0, "figure {} is {w} x {h} px", f["id"]);
+    }
+
+    // The artifacts: a screenshot of the page and the certificate printed to PDF.
+    let profile = tempfile::tempdir().unwrap();
+    let url = format!("file://{}", artifacts.join("index.html").display());
+    let shot = artifacts.join("report.png");
+    let pdf = artifacts.join("report.pdf");
+    let _ = std::fs::remove_file(&shot);
+    let _ = std::fs::remove_file(&pdf);
+    run(
+        &browser,
+        profile.path(),
+        &[format!("--screenshot={}", shot.display()), "--window-size=1100,2400".into()],
+        &url,
+    );
+    let profile = tempfile::tempdir().unwrap();
+    run(
+        &browser,
+        profile.path(),
+        &[format!("--print-to-pdf={}", pdf.display()), "--no-pdf-header-footer".into()],
+        &url,
+    );
+    let png = std::fs::read(&shot).expect("the screenshot");
+    assert!(png.starts_with(b"\x89PNG") && png.len() > 50_000, "a screenshot of the page ({} bytes)", png.len());
+    let printed = std::fs::read(&pdf).expect("the PDF");
+    let pages = printed.windows(10).filter(|w| w == b"/Type /Pag").count();
+    // A section a page: header, errors, hysteresis, spectrum, interpolation,
+    // table, verification, model-gap, ISO, ISO per target.
+    assert!(printed.starts_with(b"%PDF") && pages >= 10, "the printed report has {pages} page objects");
+    println!("report in the browser: screenshot {}, printed {}", shot.display(), pdf.display());
+}
+
+#[test]
+fn a_page_with_an_error_fails_the_check() {
+    let browser = match chromium() {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let work = tempfile::tempdir().unwrap();
+    let page = "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+        <meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'\">\
+        <title>broken</title></head><body><p>x</p><img alt=\"\" src=\"missing.png\">\
+        <script>console.error('deliberate console error'); throw new Error('deliberate');</script></body></html>";
+    let (seen, logged) = check(&browser, work.path(), page);
+    let errs = errors(&seen, &logged).join("\n");
+    println!("the deliberate errors, as caught:\n{errs}");
+    assert!(errs.contains("deliberate console error"), "console.error is caught:\n{errs}");
+    assert!(errs.contains("Error: deliberate") || errs.contains("Uncaught"), "an uncaught error is caught:\n{errs}");
+    assert!(errs.contains("missing.png"), "a refused or failed load is caught:\n{errs}");
+}
