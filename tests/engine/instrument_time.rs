@@ -48,6 +48,13 @@ fn the_default_plan_scanned_continuously_takes_20_times_less_instrument_time_for
             let table = dir.path().join(format!("{scan}{seed}.csv"));
             let processed = survey(&db, &["process", "--table-out", table.to_str().unwrap(), "--json"]);
             let (_, residual) = against_truth(&processed, &table, &model);
+            // The reversal: fig8's backlash is 0.008 deg. A latency left in
+            // the continuous scan would add twice velocity x latency to it
+            // (0.05 deg at 5 deg/s and 5 ms), which a non-directional table
+            // averages away: so it is checked here, within 2e-4 deg
+            // (measured -0.00802 step, -0.00799 continuous on seed 1).
+            let b_mean = run["iso230_2"]["B_mean"].as_f64().unwrap();
+            assert!((b_mean + 0.008).abs() < 2e-4, "{scan} seed {seed}: mean reversal {b_mean} deg");
             measured.push((time, bound, residual));
         }
         let ((step_t, step_b, step_r), (cont_t, cont_b, cont_r)) = (measured[0], measured[1]);
