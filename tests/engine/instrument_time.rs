@@ -142,3 +142,35 @@ async fn adaptive_settling_costs_no_accuracy_against_a_long_dwell_and_a_short_wa
     // swings: the error shows, at least five times the adaptive one.
     assert!(s_rms > 5.0 * a_rms.max(1e-6), "a too short wait shows ({s_rms:.2e} against {a_rms:.2e} deg)");
 }
+
+#[tokio::test]
+async fn a_continuous_survey_stopped_after_a_pass_resumes_with_its_latency_and_every_sample_once() {
+    use super::integrity::{dense_prefix, survey as run_binary, text};
+    use survey_orchestrator::survey::SurveyStatus;
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    // 360 targets x 3 runs x 2 directions: 6 passes of 360 samples. The
+    // first two runs (4 passes) are stored together once the latency is
+    // known; the signal is raised after the fifth pass (1800 samples).
+    let plan = ["run", "--points", "360", "--runs", "3", "--bidirectional", "--scan", "continuous", "--json"];
+    let mut args = plan.to_vec();
+    args.extend(["--sim-signal-after", "1800"]);
+    let out = run_binary(&db, &args);
+    assert_eq!(out.status.code(), Some(1), "a stop is a run-time end: {}", text(&out));
+    let (status, kept, _) = dense_prefix(&db).await;
+    assert_eq!(status, SurveyStatus::Interrupted);
+    // Whole passes only: the stop is seen before the sixth pass or during it
+    // (then that pass is dropped, never half-stored).
+    assert_eq!(kept, 1800, "{}", text(&out));
+    let out = run_binary(&db, &["resume", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (status, n, _) = dense_prefix(&db).await;
+    assert_eq!((status, n), (SurveyStatus::Complete, 2160));
+    // The resume goes on with the latency the first runs measured (read back
+    // from the stored passes), so the last pass is paired as the others.
+    let latency = doc["scan"]["latency_s"].as_f64().expect("the latency after a resume");
+    assert!((latency - 0.005).abs() < 1e-4, "latency {latency} s (5.000 ms measured on the whole survey)");
+    let b_mean = doc["iso230_2"]["B_mean"].as_f64().unwrap();
+    assert!((b_mean + 0.008).abs() < 5e-4, "mean reversal {b_mean} deg (fig8's backlash 0.008)");
+}
