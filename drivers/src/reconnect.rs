@@ -9,12 +9,14 @@
 
 use crate::error::{DriverError, Result};
 use crate::traits::{
-    AcReading, AcState, Autocollimator, Positioner, PositionerStatus, SmrMeasurement, Tracker, TrackerState,
+    AcReading, AcState, Autocollimator, CapturedReadout, Positioner, PositionerStatus, SmrMeasurement, StreamedPoint,
+    Tracker, TrackerState,
 };
 use async_trait::async_trait;
 use std::fmt;
 use std::future::Future;
 use std::pin::Pin;
+use std::time::Duration;
 use survey_processing::table::CorrectionTable;
 
 /// Opens a connection to one instrument.
@@ -133,6 +135,19 @@ impl Positioner for Reconnecting<dyn Positioner> {
     async fn enable_correction(&mut self, enabled: bool) -> Result<()> {
         self.call(|d| d.enable_correction(enabled)).await
     }
+    /// The connected driver's (false before the first connection).
+    fn can_capture(&self) -> bool {
+        self.current.as_ref().is_some_and(|d| d.can_capture())
+    }
+    async fn start_capture(&mut self, period: Duration) -> Result<()> {
+        self.call(|d| d.start_capture(period)).await
+    }
+    async fn read_capture(&mut self) -> Result<Vec<CapturedReadout>> {
+        self.call(|d| d.read_capture()).await
+    }
+    async fn stop_capture(&mut self) -> Result<()> {
+        self.call(|d| d.stop_capture()).await
+    }
 }
 
 #[async_trait]
@@ -148,6 +163,19 @@ impl Tracker for Reconnecting<dyn Tracker> {
     }
     async fn reacquire(&mut self) -> Result<()> {
         self.call(|d| d.reacquire()).await
+    }
+    /// The connected driver's (false before the first connection).
+    fn can_stream(&self) -> bool {
+        self.current.as_ref().is_some_and(|d| d.can_stream())
+    }
+    async fn start_stream(&mut self, period: Duration) -> Result<()> {
+        self.call(|d| d.start_stream(period)).await
+    }
+    async fn read_stream(&mut self) -> Result<Vec<StreamedPoint>> {
+        self.call(|d| d.read_stream()).await
+    }
+    async fn stop_stream(&mut self) -> Result<()> {
+        self.call(|d| d.stop_stream()).await
     }
 }
 

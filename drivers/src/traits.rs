@@ -4,10 +4,11 @@
 //! call in [`crate::clock::with_timeout`], and a driver that talks over a wire
 //! also bounds its own reads.
 
-use crate::error::Result;
+use crate::error::{DriverError, Result};
 use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 use std::fmt::Debug;
+use std::time::Duration;
 use survey_processing::table::CorrectionTable;
 
 /// A fault the instrument itself reports, with its own code and text.
@@ -39,6 +40,28 @@ pub struct PositionerStatus {
     pub correction_enabled: bool,
 }
 
+/// One readout a controller captured while the axis turned, stamped by the
+/// controller's own clock.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CapturedReadout {
+    /// The controller's time of the readout, seconds (its own epoch).
+    pub device_time_s: f64,
+    /// The readout, degrees.
+    pub readout_deg: f64,
+}
+
+/// One point of a tracker's continuous measurement, stamped by the
+/// tracker's own clock.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StreamedPoint {
+    /// The tracker's time of the point, seconds (its own epoch).
+    pub device_time_s: f64,
+    /// The SMR position, mm, tracker frame.
+    pub xyz_mm: [f64; 3],
+    /// The point's status (emScon's `ES_MeasurementStatus`: 0 all OK).
+    pub status: i32,
+}
+
 /// A positioner controller: one axis.
 #[async_trait]
 pub trait Positioner: Send + Debug {
@@ -61,6 +84,25 @@ pub trait Positioner: Send + Debug {
     async fn load_correction_table(&mut self, table: &CorrectionTable) -> Result<()>;
     /// Apply (or stop applying) the loaded table in the feedback path.
     async fn enable_correction(&mut self, enabled: bool) -> Result<()>;
+    /// Whether the controller records its readout at a fixed rate with its
+    /// own time stamps (a position capture). Without one, a continuous scan
+    /// polls [`Positioner::readout`] at a fixed rate and stamps each reading
+    /// with the host's clock.
+    fn can_capture(&self) -> bool {
+        false
+    }
+    /// Start recording the readout every `period`.
+    async fn start_capture(&mut self, _period: Duration) -> Result<()> {
+        Err(DriverError::usage(self.name(), "this controller has no position capture"))
+    }
+    /// The readouts recorded since the previous read, in time order.
+    async fn read_capture(&mut self) -> Result<Vec<CapturedReadout>> {
+        Err(DriverError::usage(self.name(), "this controller has no position capture"))
+    }
+    /// Stop recording.
+    async fn stop_capture(&mut self) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// One stationary measurement of the SMR, in the tracker's frame.
@@ -101,6 +143,23 @@ pub trait Tracker: Send + Debug {
     async fn status(&mut self) -> Result<TrackerState>;
     /// Find the reflector again after a beam break.
     async fn reacquire(&mut self) -> Result<()>;
+    /// Whether the tracker measures continuously (a time-triggered stream
+    /// of stamped points), as a continuous scan needs.
+    fn can_stream(&self) -> bool {
+        false
+    }
+    /// Start measuring one point every `period` until [`Tracker::stop_stream`].
+    async fn start_stream(&mut self, _period: Duration) -> Result<()> {
+        Err(DriverError::usage(self.name(), "this tracker does not measure continuously"))
+    }
+    /// The points measured since the previous read, in time order (may be empty).
+    async fn read_stream(&mut self) -> Result<Vec<StreamedPoint>> {
+        Err(DriverError::usage(self.name(), "this tracker does not measure continuously"))
+    }
+    /// Stop measuring continuously (stationary measurements work again).
+    async fn stop_stream(&mut self) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// One autocollimator reading, arcseconds.

@@ -5,6 +5,7 @@
 
 use crate::engine::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
+use crate::plan::SurveyPlan;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
 use crate::stop::{Stop, Stopped};
@@ -75,6 +76,19 @@ pub async fn conclude(
         "recovered": outcome.faults_survived,
         "by_kind": outcome.faults_met,
     });
+    // An acquired survey always has its plan stored.
+    let plan = record.plan().cloned().with_context(|| format!("survey {id} has no stored plan"))?;
+    let budget = budget(store, id, engine, &plan, outcome.instrument_time).await;
+    doc["bound_s"] = budget.bound.total().into();
+    doc["time_budget"] = budget.json();
+    if plan.continuous() {
+        doc["scan"] = serde_json::json!({
+            "mode": plan.scan.as_str(),
+            "latency_s": engine.scan.latency.map(|l| l.delta_s),
+            "latency_se_s": engine.scan.latency.map(|l| l.se_s),
+            "this_acquisition": &engine.scan.report,
+        });
+    }
     if !drift.is_empty() {
         doc["drift"] = crate::drift::json(&record, &drift);
     }
@@ -90,6 +104,14 @@ pub async fn conclude(
             String::new()
         }
     );
+    text += &budget.text();
+    if let Some(l) = engine.scan.latency.filter(|_| plan.continuous()) {
+        text += &format!(
+            "latency between the instruments: {:.3} ms (+/- {:.3} ms), removed from every sample\n",
+            l.delta_s * 1e3,
+            l.se_s * 1e3
+        );
+    }
     text += &iso_text(id, &iso);
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
@@ -145,6 +167,35 @@ pub async fn conclude(
         }
     }
     Ok(Concluded { output: Output { doc, text }, result })
+}
+
+/// The survey's instrument time beside its plan's bound.
+async fn budget(
+    store: &Store,
+    id: i64,
+    engine: &Engine,
+    plan: &SurveyPlan,
+    instrument_time: std::time::Duration,
+) -> crate::budget::Budget {
+    let t = engine.timing();
+    let tracker = matches!(engine.reference, crate::engine::Reference::Tracker(_));
+    let d = crate::budget::Dynamics {
+        velocity_deg_s: t.velocity_deg_s,
+        accel_deg_s2: t.accel_deg_s2,
+        integration_s: engine.integration().map_or(0.0, |i| i.as_secs_f64()),
+        locate_points: if tracker { t.locate_points } else { 0 },
+    };
+    let spent = store.survey_time(id).await.unwrap_or_else(|e| {
+        tracing::warn!(error = %format!("{e:#}"), "the stored instrument time could not be read");
+        crate::budget::Spent::default()
+    });
+    crate::budget::Budget {
+        instrument_time_s: instrument_time.as_secs_f64(),
+        bound: crate::budget::plan_bound(plan, &d, engine.settle_model(), &t.scan),
+        spent,
+        settle_observed: engine.settle_stats().summary(),
+        scan: plan.scan.as_str(),
+    }
 }
 
 /// A stop request arrived after the acquisition: the survey (all of its

@@ -95,6 +95,8 @@ pub struct SurveySection {
     pub travel_deg: Option<[f64; 2]>,
     /// Distance past a target before approaching it from the other side, degrees.
     pub overrun_deg: Option<f64>,
+    /// `"step"` (default) or `"continuous"` (`--scan` overrides it).
+    pub scan: Option<crate::plan::ScanMode>,
 }
 
 /// `[positioner]`: the controller and how to reach it.
@@ -305,6 +307,28 @@ pub struct TimingSection {
     pub locate_points: Option<u32>,
     pub velocity_deg_s: Option<f64>,
     pub accel_deg_s2: Option<f64>,
+    /// `"adaptive"` (default) or `"in-position"` (the default when `dwell_s` is given).
+    pub settle: Option<crate::settle::SettleMode>,
+    /// Adaptive settling: the readout stays this close to the target, degrees ...
+    pub settle_window_deg: Option<f64>,
+    /// ... for this long, seconds,
+    pub settle_stable_s: Option<f64>,
+    /// ... read this often, seconds.
+    pub settle_poll_s: Option<f64>,
+    /// The settling the axis needs after a move (the drive's data), seconds:
+    /// what the lower bound counts. Without it the bound counts none.
+    pub settle_time_s: Option<f64>,
+    /// Continuous scan: velocity of the survey's passes, deg/s (default half `velocity_deg_s`).
+    pub scan_velocity_deg_s: Option<f64>,
+    /// Continuous scan: velocity of the first run, which calibrates the
+    /// latency, deg/s (default `velocity_deg_s`).
+    pub calibration_velocity_deg_s: Option<f64>,
+    /// Continuous scan: the readout's capture (or polling) period, seconds.
+    pub capture_period_s: Option<f64>,
+    /// Continuous scan: the tracker's point period, seconds.
+    pub stream_period_s: Option<f64>,
+    /// Continuous scan: how often both streams are read, seconds.
+    pub fetch_interval_s: Option<f64>,
     /// How long a survey suspended on a lost beam waits for it, s.
     pub beam_wait_s: Option<f64>,
     /// Wait between attempts to re-acquire a lost beam, s.
@@ -431,6 +455,15 @@ impl SurveyConfig {
             ("retry_backoff_s", t.retry_backoff_s, Range::From(0.0), 3600.0, "s"),
             ("velocity_deg_s", t.velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
             ("accel_deg_s2", t.accel_deg_s2, Range::Above(0.0), 1.0e6, "deg/s^2"),
+            ("settle_window_deg", t.settle_window_deg, Range::Above(0.0), 1.0, "deg"),
+            ("settle_stable_s", t.settle_stable_s, Range::From(0.0), 60.0, "s"),
+            ("settle_poll_s", t.settle_poll_s, Range::Above(0.0), 60.0, "s"),
+            ("settle_time_s", t.settle_time_s, Range::From(0.0), 3600.0, "s"),
+            ("scan_velocity_deg_s", t.scan_velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
+            ("calibration_velocity_deg_s", t.calibration_velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
+            ("capture_period_s", t.capture_period_s, Range::Above(0.0), 1.0, "s"),
+            ("stream_period_s", t.stream_period_s, Range::Above(0.0), 1.0, "s"),
+            ("fetch_interval_s", t.fetch_interval_s, Range::Above(0.0), 10.0, "s"),
             ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
             ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
         ] {
@@ -501,6 +534,30 @@ impl SurveyConfig {
         let t = &self.timing;
         let d = Timing::default();
         let secs = |v: Option<f64>, default: Duration| v.map(Duration::from_secs_f64).unwrap_or(default);
+        let ds = d.settle;
+        // An instrument that needs a fixed dwell gets the in-position wait
+        // it was configured for, unless adaptive settling is asked as well.
+        let mode = t.settle.unwrap_or(if t.dwell_s.is_some() {
+            crate::settle::SettleMode::InPosition
+        } else {
+            crate::settle::SettleMode::Adaptive
+        });
+        let settle = crate::settle::SettleSpec {
+            mode,
+            window_deg: t.settle_window_deg.unwrap_or(crate::settle::default_window_deg(self.reference())),
+            stable_for: secs(t.settle_stable_s, ds.stable_for),
+            poll: secs(t.settle_poll_s, ds.poll),
+            ..ds
+        };
+        let dsc = d.scan;
+        let scan = crate::scan::ScanTiming {
+            velocity_deg_s: t.scan_velocity_deg_s,
+            calibration_velocity_deg_s: t.calibration_velocity_deg_s,
+            capture_period: secs(t.capture_period_s, dsc.capture_period),
+            stream_period: secs(t.stream_period_s, dsc.stream_period),
+            fetch_interval: secs(t.fetch_interval_s, dsc.fetch_interval),
+            ..dsc
+        };
         Timing {
             call_timeout: secs(t.call_timeout_s, d.call_timeout),
             measure_timeout: secs(t.measure_timeout_s, d.measure_timeout),
@@ -514,6 +571,16 @@ impl SurveyConfig {
             accel_deg_s2: t.accel_deg_s2.unwrap_or(d.accel_deg_s2),
             beam_wait: secs(t.beam_wait_s, d.beam_wait),
             beam_retry: secs(t.beam_retry_s, d.beam_retry),
+            settle,
+            scan,
+        }
+    }
+
+    /// The settling the configured axis needs, for the bound (`settle_time_s`).
+    pub fn settle_model(&self) -> crate::settle::SettleModel {
+        match self.timing.settle_time_s {
+            Some(s) => crate::settle::SettleModel::Fixed(Duration::from_secs_f64(s)),
+            None => crate::settle::SettleModel::Unknown,
         }
     }
 }

@@ -14,8 +14,10 @@
 //! after the sink was flushed, so the stored samples are exactly those
 //! measured, each once.
 
+use crate::budget::{Component, Ledger};
 use crate::plan::{SurveyPlan, move_time};
 use crate::record::{RawReading, RecordedSample, SampleSink};
+use crate::settle::{SettleModel, SettleSpec, SettleStats, TypicalStd, Wait};
 use crate::stop::{Stop, Stopped};
 use std::sync::Arc;
 use std::time::Duration;
@@ -78,7 +80,7 @@ pub struct Timing {
     pub move_margin: Duration,
     /// How often the status is polled while waiting for in-position.
     pub poll_interval: Duration,
-    /// Wait after in-position before reading (the axis comes to rest).
+    /// Wait after the axis is at rest before reading (default 0; see [`SettleSpec`]).
     pub dwell: Duration,
     /// Retries of one operation before the engine gives up.
     pub max_retries: u32,
@@ -89,6 +91,12 @@ pub struct Timing {
     /// Axis velocity and acceleration used to predict move times, deg/s and deg/s².
     pub velocity_deg_s: f64,
     pub accel_deg_s2: f64,
+    /// How the engine decides the axis is at rest ([`crate::settle`]).
+    #[serde(default)]
+    pub settle: SettleSpec,
+    /// The continuous scan's rates ([`crate::scan`]).
+    #[serde(default)]
+    pub scan: crate::scan::ScanTiming,
     /// How long a survey suspended on a lost beam waits for it (see
     /// [`suspend`]) before it ends interrupted.
     #[serde(default = "suspend::default_beam_wait")]
@@ -105,12 +113,14 @@ impl Default for Timing {
             measure_timeout: Duration::from_secs(10),
             move_margin: Duration::from_secs(10),
             poll_interval: Duration::from_millis(100),
-            dwell: Duration::from_millis(500),
+            dwell: Duration::ZERO,
             max_retries: 3,
             retry_backoff: Duration::from_secs(1),
             locate_points: 12,
             velocity_deg_s: 10.0,
             accel_deg_s2: 20.0,
+            settle: SettleSpec::default(),
+            scan: crate::scan::ScanTiming::default(),
             beam_wait: suspend::default_beam_wait(),
             beam_retry: suspend::default_beam_retry(),
         }
@@ -204,21 +214,33 @@ pub struct Outcome {
 /// The survey engine.
 #[derive(Debug)]
 pub struct Engine {
-    clock: Arc<dyn Clock>,
-    positioner: Box<dyn Positioner>,
-    reference: Reference,
-    timing: Timing,
-    axis: Option<AxisFit>,
+    pub(crate) clock: Arc<dyn Clock>,
+    pub(crate) positioner: Box<dyn Positioner>,
+    pub(crate) reference: Reference,
+    pub(crate) timing: Timing,
+    pub(crate) axis: Option<AxisFit>,
     /// The arm's nominal radius and tolerance, mm, to check the located axis.
     arm_check: Option<(f64, f64)>,
     /// The last commanded position, to know from which side the next target
     /// is approached.
-    commanded: Option<f64>,
+    pub(crate) commanded: Option<f64>,
     faults_survived: u32,
     faults_met: FaultCounts,
-    stop: Stop,
+    pub(crate) stop: Stop,
     /// The axis's travel limits, degrees: every commanded move is checked.
     travel: Option<(f64, f64)>,
+    /// Where the instrument time goes ([`crate::budget`]).
+    pub(crate) ledger: Ledger,
+    /// The settling the axis needs, for the bound.
+    settle_model: SettleModel,
+    /// The reference's integration time per sample, for the bound.
+    integration: Option<Duration>,
+    /// Settling observed after measured moves (adaptive mode).
+    pub(crate) settled: SettleStats,
+    /// The typical standard deviation of the tracker's measurements.
+    typical_std: TypicalStd,
+    /// The continuous scan's state ([`crate::scan`]).
+    pub(crate) scan: crate::scan::ScanState,
     /// Drift control: the reference target re-measured every K steps.
     drift: Option<crate::drift::DriftControl>,
     /// What simulated instruments in this process injected, when they are.
@@ -239,9 +261,53 @@ impl Engine {
             faults_met: FaultCounts::default(),
             stop: Stop::never(),
             travel: None,
+            ledger: Ledger::default(),
+            settle_model: SettleModel::Unknown,
+            integration: None,
+            settled: SettleStats::default(),
+            typical_std: TypicalStd::default(),
+            scan: crate::scan::ScanState::default(),
             drift: None,
             injected: None,
         }
+    }
+
+    /// The settling the axis needs and the reference's integration time per
+    /// sample, for the plan's lower bound ([`crate::budget`]).
+    pub fn with_physics(mut self, settle: SettleModel, integration: Option<Duration>) -> Self {
+        self.settle_model = settle;
+        self.integration = integration;
+        self
+    }
+
+    /// A continuous survey goes on with the latency its first runs measured.
+    pub fn set_scan_latency(&mut self, latency: Option<crate::scan::Latency>) {
+        self.scan.latency = latency;
+    }
+
+    /// The settling model the bound uses.
+    pub fn settle_model(&self) -> &SettleModel {
+        &self.settle_model
+    }
+
+    /// The reference's integration time per sample, when known.
+    pub fn integration(&self) -> Option<Duration> {
+        self.integration
+    }
+
+    /// The timing.
+    pub fn timing(&self) -> &Timing {
+        &self.timing
+    }
+
+    /// The instrument time spent so far, by component.
+    pub fn spent(&self) -> crate::budget::Spent {
+        self.ledger.spent(self.clock.now())
+    }
+
+    /// The settling observed after measured moves.
+    pub fn settle_stats(&self) -> SettleStats {
+        self.settled
     }
 
     /// The count of faults that in-process simulated instruments inject.
@@ -272,6 +338,11 @@ impl Engine {
     pub fn with_travel(mut self, travel: Option<(f64, f64)>) -> Self {
         self.travel = travel;
         self
+    }
+
+    /// The travel limits enforced, degrees.
+    pub fn travel(&self) -> Option<(f64, f64)> {
+        self.travel
     }
 
     /// [`Engine::with_travel`] on an engine in place.
@@ -314,7 +385,7 @@ impl Engine {
     }
 
     /// Stop the axis after a stop request, and say why the survey stopped.
-    async fn halt(&mut self, why: Stopped) -> EngineError {
+    pub(crate) async fn halt(&mut self, why: Stopped) -> EngineError {
         let clock = self.clock.clone();
         let name = self.positioner.name().to_string();
         tracing::warn!(%why, "stopping the axis");
@@ -381,12 +452,34 @@ impl Engine {
         }
         let readouts = locate_readouts(plan, self.timing.locate_points);
         let mut points = Vec::with_capacity(readouts.len());
+        self.ledger.hold(self.clock.now(), Component::Locate);
         for &target in &readouts {
-            self.approach(target, Direction::Forward, plan.overrun_deg, sink).await?;
-            let (readout, raw) = self.read_pair(target, Direction::Forward, plan.overrun_deg, sink).await?;
+            if let Err(e) = self.approach(target, Direction::Forward, plan.overrun_deg, sink).await {
+                self.ledger.release(self.clock.now());
+                return Err(e);
+            }
+            let read = self.read_pair(target, Direction::Forward, plan.overrun_deg, sink).await;
+            let (readout, raw) = match read {
+                Ok(r) => r,
+                Err(e) => {
+                    self.ledger.release(self.clock.now());
+                    return Err(e);
+                }
+            };
             let RawReading::Smr(m) = raw else { unreachable!("tracker reference gives SMR readings") };
             points.push((readout, m));
         }
+        // The way to the plan's first approach belongs to the locate too.
+        let t = &self.timing;
+        let start = crate::scan::start_deg(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
+        if self.commanded.is_some_and(|c| c != start) {
+            let back = self.move_to(start, false, sink).await;
+            if let Err(e) = back {
+                self.ledger.release(self.clock.now());
+                return Err(e);
+            }
+        }
+        self.ledger.release(self.clock.now());
         let xyz: Vec<[f64; 3]> = points.iter().map(|(_, m)| m.xyz()).collect();
         let ro: Vec<f64> = points.iter().map(|(r, _)| *r).collect();
         let fit = fit_axis(&xyz, &ro)?;
@@ -439,6 +532,14 @@ impl Engine {
             check_polygon_plan(plan, *faces)?;
         }
         self.check_plan_travel(plan)?;
+        if plan.continuous() && self.drift.is_some() {
+            return Err(EngineError::Plan(
+                "drift control measures its reference target between the steps of a step scan; a continuous scan \
+                 has none (its passes are short): remove [drift_control] or use --scan step"
+                    .into(),
+            ));
+        }
+        self.ledger.start(self.clock.now());
         let faults_before = self.faults_survived;
         let met_before = self.faults_met;
         if matches!(self.reference, Reference::Tracker(_)) && self.axis.is_none() {
@@ -454,6 +555,13 @@ impl Engine {
                 }
                 Err(why) => return Err(self.halt(why).await),
             }
+        }
+        if plan.continuous() {
+            let mut outcome = crate::scan::run(self, plan, from_seq, sink, progress).await?;
+            outcome.faults_survived = self.faults_survived - faults_before;
+            outcome.faults_met = self.faults_met.since(&met_before);
+            outcome.instrument_time = self.clock.now();
+            return Ok(outcome);
         }
         let steps = plan.steps();
         let total = steps.len() as u64;
@@ -557,18 +665,27 @@ impl Engine {
     ) -> Result<(), EngineError> {
         let wrong_side = self.commanded.is_none_or(|c| (target - c) * direction.sign() <= 0.0);
         if wrong_side {
-            self.move_to(target - direction.sign() * overrun, sink).await?;
+            self.move_to(target - direction.sign() * overrun, false, sink).await?;
         }
-        self.move_to(target, sink).await?;
-        self.clock.sleep(self.timing.dwell).await;
+        self.move_to(target, true, sink).await?;
+        if !self.timing.dwell.is_zero() {
+            self.ledger.switch(self.clock.now(), Component::Dwell);
+            self.clock.sleep(self.timing.dwell).await;
+        }
         Ok(())
     }
 
-    /// Move and wait for in-position, retrying faults.
-    async fn move_to(&mut self, target: f64, sink: &mut dyn SampleSink) -> Result<(), EngineError> {
+    /// Move and wait until the axis is at rest (`measured`: a sample is
+    /// taken there, so it must have settled), retrying faults.
+    pub(crate) async fn move_to(
+        &mut self,
+        target: f64,
+        measured: bool,
+        sink: &mut dyn SampleSink,
+    ) -> Result<(), EngineError> {
         let mut attempt = 0;
         loop {
-            match self.try_move(target).await {
+            match self.try_move(target, measured).await {
                 Ok(()) => {
                     self.commanded = Some(target);
                     return Ok(());
@@ -588,7 +705,7 @@ impl Engine {
         }
     }
 
-    async fn try_move(&mut self, target: f64) -> Result<(), DriverError> {
+    async fn try_move(&mut self, target: f64, measured: bool) -> Result<(), DriverError> {
         if let Some((lo, hi)) = self.travel
             && !(lo..=hi).contains(&target)
         {
@@ -605,75 +722,30 @@ impl Engine {
             Some(c) => c,
             None => with_timeout(&*clock, t.call_timeout, &name, "readout", self.positioner.readout()).await?,
         };
+        self.ledger.switch(clock.now(), Component::CommandLatency);
         with_timeout(&*clock, t.call_timeout, &name, "move command", self.positioner.move_to(target)).await?;
+        let started = clock.now();
+        self.ledger.switch(started, Component::Move);
         let expected = Duration::from_secs_f64(move_time(target - from, t.velocity_deg_s, t.accel_deg_s2));
-        let deadline = clock.now() + expected + t.move_margin;
-        loop {
-            let status = with_timeout(&*clock, t.call_timeout, &name, "status", self.positioner.status()).await?;
-            if let Some(f) = status.fault {
-                return Err(DriverError::device(name, f.code, f.text));
-            }
-            if status.in_position && !status.moving {
-                return Ok(());
-            }
-            if clock.now() > deadline {
-                // A limit switch is reported at a target on the end of the
-                // travel too, so it only explains a move that never arrived.
-                if let Some(limit) = status.limit {
-                    return Err(suspend::limit_error(name, target, limit));
-                }
-                return Err(DriverError::new(
-                    ErrorKind::Timeout,
-                    name,
-                    format!("the move to {target} deg did not reach in-position within {:?}", expected + t.move_margin),
-                ));
-            }
-            clock.sleep(t.poll_interval).await;
+        let wait = Wait {
+            positioner: self.positioner.as_mut(),
+            clock: &*clock,
+            timing: t,
+            ledger: &mut self.ledger,
+            target,
+            end: started + expected,
+            deadline: started + expected + t.move_margin,
+            measured,
+        };
+        if let Some(settled) = wait.run().await? {
+            self.settled.add(settled.as_secs_f64());
         }
-    }
-
-    /// Read the readout and the reference at `target` (approached in
-    /// `direction`) at the same time, retrying faults. A positioner fault
-    /// recovered on the way (the fault cleared: the axis may have moved) has
-    /// the target approached afresh before the next reading; the reference is
-    /// read at the target (an autocollimator's face is the target's).
-    async fn read_pair(
-        &mut self,
-        target: f64,
-        direction: Direction,
-        overrun: f64,
-        sink: &mut dyn SampleSink,
-    ) -> Result<(f64, RawReading), EngineError> {
-        let mut attempt = 0;
-        loop {
-            if self.commanded.is_none() {
-                self.approach(target, direction, overrun, sink).await?;
-            }
-            let clock = self.clock.clone();
-            let t = self.timing.clone();
-            let pos_name = self.positioner.name().to_string();
-            let readout = with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout());
-            let reference = read_reference(&*clock, &t, &mut self.reference, target);
-            let (readout, reference) = tokio::join!(readout, reference);
-            let (error, failed) = match (readout, reference) {
-                (Ok(r), Ok(raw)) => return Ok((r, raw)),
-                (Err(e), _) => (e, Failed::Positioner),
-                (Ok(_), Err(e)) => (e, Failed::Reference),
-            };
-            // A lost beam suspends the survey until it is back (not a retry).
-            if failed == Failed::Reference && self.beam_lost(&error).await {
-                self.suspend_for_beam(error, sink).await?;
-                continue;
-            }
-            let error = self.name_the_face(error, failed);
-            attempt += 1;
-            self.survive(error, failed, attempt, "reading", sink).await?;
-        }
+        Ok(())
     }
 
     /// Handle a failed operation: log it, record it, recover the instrument,
     /// and say whether to retry (Ok) or give up (Err).
-    async fn survive(
+    pub(crate) async fn survive(
         &mut self,
         error: DriverError,
         failed: Failed,
@@ -694,6 +766,7 @@ impl Engine {
             .await
             .map_err(EngineError::Sink)?;
         self.faults_survived += 1;
+        self.ledger.switch(self.clock.now(), Component::Recovery);
         self.clock.sleep(self.timing.retry_backoff).await;
         if error.kind == ErrorKind::Device {
             self.recover_device(failed).await;
@@ -732,7 +805,7 @@ impl Engine {
 
 /// Which instrument an operation failed on: decides the recovery.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Failed {
+pub(crate) enum Failed {
     Positioner,
     Reference,
 }
@@ -794,6 +867,9 @@ pub mod suspend;
 
 #[path = "engine_drift.rs"]
 mod engine_drift;
+
+#[path = "engine_read.rs"]
+mod engine_read;
 
 #[cfg(test)]
 #[path = "engine_tests.rs"]

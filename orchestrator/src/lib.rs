@@ -10,6 +10,7 @@
 //! `survey-sims` crates.
 
 pub mod bench;
+pub mod budget;
 pub mod cli;
 pub mod conclude;
 pub mod config;
@@ -24,7 +25,9 @@ pub mod progress;
 pub mod record;
 pub mod refit;
 pub mod report;
+pub mod scan;
 pub mod session;
+pub mod settle;
 pub mod sim;
 pub mod stop;
 pub mod store;

@@ -23,6 +23,31 @@ pub struct SurveyPlan {
     /// How far past a target the axis goes before approaching it from the
     /// other side, degrees (takes up backlash before the first target of a pass).
     pub overrun_deg: f64,
+    /// Stop at every target (`step`, the default) or turn steadily through
+    /// them (`continuous`: one pass per run and direction, `points` samples each).
+    #[serde(default)]
+    pub scan: ScanMode,
+}
+
+/// How a plan is acquired.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScanMode {
+    /// Stop at every target and measure at rest.
+    #[default]
+    Step,
+    /// Turn steadily while both instruments stream; pair the streams by time.
+    Continuous,
+}
+
+impl ScanMode {
+    /// `step` or `continuous`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ScanMode::Step => "step",
+            ScanMode::Continuous => "continuous",
+        }
+    }
 }
 
 /// One step of the plan: measure `target_deg` approached in `direction` during `run`.
@@ -83,7 +108,7 @@ impl SurveyPlan {
     pub fn full_circle(points: u32, runs: u32, bidirectional: bool) -> Result<Self, PlanError> {
         Self::check_counts(points, runs)?;
         let targets_deg = (0..points).map(|k| k as f64 * 360.0 / points as f64).collect();
-        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: default_overrun(points, 360.0) })
+        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: default_overrun(points, 360.0), scan: ScanMode::Step })
     }
 
     /// `points` targets evenly from `start` to `end` inclusive (a partial-range axis).
@@ -94,7 +119,13 @@ impl SurveyPlan {
         }
         let step = (end - start) / (points - 1) as f64;
         let targets_deg = (0..points).map(|k| start + k as f64 * step).collect();
-        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: default_overrun(points, end - start) })
+        Ok(Self {
+            targets_deg,
+            runs,
+            bidirectional,
+            overrun_deg: default_overrun(points, end - start),
+            scan: ScanMode::Step,
+        })
     }
 
     /// A plan for a travel-limited axis: targets spread over the travel,
@@ -137,7 +168,7 @@ impl SurveyPlan {
         if targets_deg.len() < 2 {
             return Err(PlanError::TooFewFaces { min, max, faces, pitch, found: targets_deg.len() });
         }
-        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: overrun })
+        Ok(Self { targets_deg, runs, bidirectional, overrun_deg: overrun, scan: ScanMode::Step })
     }
 
     /// The plan that verifies a table made from a survey of this plan: the
@@ -187,7 +218,13 @@ impl SurveyPlan {
                 return Err(PlanError::VerificationOnTarget { points: count_u32, target: t, calibration: n });
             }
         }
-        Ok(Self { targets_deg, runs: self.runs, bidirectional: self.bidirectional, overrun_deg: self.overrun_deg })
+        Ok(Self {
+            targets_deg,
+            runs: self.runs,
+            bidirectional: self.bidirectional,
+            overrun_deg: self.overrun_deg,
+            scan: ScanMode::Step,
+        })
     }
 
     fn check_counts(points: u32, runs: u32) -> Result<(), PlanError> {
@@ -217,6 +254,11 @@ impl SurveyPlan {
             return Err(PlanError::OutsideTravel { first, last, overrun: self.overrun_deg, min, max });
         }
         Ok(())
+    }
+
+    /// Whether the plan is acquired by a continuous scan.
+    pub fn continuous(&self) -> bool {
+        self.scan == ScanMode::Continuous
     }
 
     /// The directions measured in each run, in order.

@@ -55,6 +55,10 @@ pub async fn acquire(
     let started = Instant::now();
     let mut sink = StoreSink::new(store.clone(), id);
     let outcome = run_engine(engine, plan, from_seq, &mut sink, &options).await;
+    // Where this acquisition's instrument time went, added to the survey's.
+    if let Err(e) = store.add_survey_time(id, &engine.spent()).await {
+        tracing::warn!(error = %format!("{e:#}"), "the instrument time by component could not be stored");
+    }
     if options.signal_after.is_some_and(|n| n <= plan.total_steps()) {
         // The test hook raised SIGTERM: do not go on before the stop request
         // is seen, so what follows is the same on every run.

@@ -2,7 +2,10 @@
 //!
 //! The paper's budget (section 5): a position update rate of 20 kHz, so one
 //! correction must fit in 50 us, and any delay costs accuracy (at 6 deg/s a
-//! 50 us delay is 0.0003 deg). `cargo bench -p survey-processing --bench corrector`.
+//! 50 us delay is 0.0003 deg). One readout corrected again and again is the
+//! cached case; a new random readout each time, and 4096 scattered ones,
+//! meet the table's rows at random.
+//! `cargo bench -p survey-processing --bench corrector`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
@@ -39,6 +42,20 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("corrector");
     g.bench_function("one correction (16384 rows, directional)", |b| {
         b.iter(|| corrector.correct(black_box(123.456_789), black_box(Direction::Reverse)))
+    });
+    // The case above corrects the same readout every time: its rows stay in
+    // the cache and the branch predictor learns the path (the cached case).
+    // Here every correction gets a new readout (a multiplicative hash of a
+    // counter, over several turns): the table's rows are met at random.
+    let mut k = 0u64;
+    g.bench_function("one correction, a new random readout each time", |b| {
+        b.iter(|| {
+            k = k.wrapping_add(1);
+            let h = k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 11;
+            let r = (h as f64 / (1u64 << 53) as f64) * 1440.0 - 720.0;
+            let d = if k & 1 == 0 { Direction::Forward } else { Direction::Reverse };
+            corrector.correct(black_box(r), d)
+        })
     });
     g.throughput(Throughput::Elements(readouts.len() as u64));
     g.bench_function("4096 corrections, scattered readouts", |b| {

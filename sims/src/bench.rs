@@ -116,6 +116,20 @@ impl SimBenchBuilder {
         self
     }
 
+    /// The positioner's servo rings and ripples ([`crate::servo`]).
+    pub fn servo(mut self, servo: crate::servo::Servo) -> Self {
+        self.positioner.servo = Some(servo);
+        self
+    }
+
+    /// Lose this fraction of the tracker's streamed points and of the
+    /// positioner's captured readouts.
+    pub fn stream_losses(mut self, tracker: f64, positioner: f64) -> Self {
+        self.tracker.stream.drop_probability = tracker;
+        self.positioner.capture.drop_probability = positioner;
+        self
+    }
+
     /// Beam-break probability per tracker measurement.
     pub fn beam_break_probability(mut self, p: f64) -> Self {
         self.tracker.beam_break_probability = p;

@@ -21,8 +21,9 @@
 //!   metres (`ES_LU_Meter`, the enum's first value) until `SetUnits`.
 //!   All length, temperature and pressure units of `Enum.h` are honoured;
 //!   an out-of-range unit is `ES_RS_WrongParameter1..5` for the offending field.
-//! - Only `ES_CS_RHR` and `ES_MM_Stationary` are implemented (other defined
-//!   values: `ES_RS_NotImplemented`; undefined ones: `ES_RS_WrongParameter1`).
+//! - Only `ES_CS_RHR`, `ES_MM_Stationary` and `ES_MM_ContinuousTime` (see
+//!   [`continuous`]) are implemented (other defined values:
+//!   `ES_RS_NotImplemented`; undefined ones: `ES_RS_WrongParameter1`).
 //!   `lMeasTime` must be at least 1 ms (`ES_RS_Parameter1OutOfRangeNOK`); it is
 //!   kept, but a simulated measurement always takes the [`SimTracker`]'s own
 //!   configured measurement time (its API has no setter).
@@ -96,6 +97,8 @@ use survey_drivers::traits::{SmrMeasurement, Tracker, TrackerState};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::task::JoinSet;
+
+mod continuous;
 
 /// `dTemperature` of every result, °C.
 pub const SIM_TEMPERATURE_C: f64 = 20.0;
@@ -278,6 +281,9 @@ struct Server {
     /// `SingleMeasResultT`, extended `SingleMeasResult2T` (per
     /// `ES_C_API_Def.h`). Survives reconnections, like the tracker's.
     statistic_mode: i32,
+    /// The measurement mode set, and the continuous mode's state ([`continuous`]).
+    mode: i32,
+    continuous: continuous::Continuous,
 }
 
 fn ok(command: i32) -> Reply {
@@ -297,6 +303,8 @@ impl Server {
             last_point: false,
             last_status: status::ALL_OK,
             statistic_mode: statistic_mode::STANDARD,
+            mode: meas_mode::STATIONARY,
+            continuous: continuous::Continuous::default(),
         }
     }
 
@@ -306,7 +314,16 @@ impl Server {
         let mut decoder = RequestDecoder::new();
         let mut buf = vec![0u8; 4096];
         loop {
-            let n = match stream.read(&mut buf).await {
+            let read = tokio::select! {
+                r = stream.read(&mut buf) => r,
+                () = self.continuous.tick(), if self.continuous.pushes() => {
+                    if !self.push_points(&mut stream).await {
+                        return;
+                    }
+                    continue;
+                }
+            };
+            let n = match read {
                 Ok(0) | Err(_) => return,
                 Ok(n) => n,
             };
@@ -354,7 +371,7 @@ impl Server {
             };
             (plan.status_changes.pop_front(), fault)
         };
-        let mut bytes = Vec::new();
+        let mut bytes = self.stream_packets().await;
         for event in response.events.iter().chain(&extra) {
             bytes.extend(Reply::StatusChange(*event).encode());
         }
@@ -409,7 +426,13 @@ impl Server {
                 _ => fail(status::WRONG_PARAMETER1),
             },
             Request::SetMeasurementMode(m) => match m {
-                meas_mode::STATIONARY => ok(c),
+                meas_mode::STATIONARY | meas_mode::CONTINUOUS_TIME if self.continuous.running() => {
+                    fail(status::SERVER_BUSY)
+                }
+                meas_mode::STATIONARY | meas_mode::CONTINUOUS_TIME => {
+                    self.mode = m;
+                    ok(c)
+                }
                 1..=meas_mode::LAST => fail(status::NOT_IMPLEMENTED),
                 _ => fail(status::WRONG_PARAMETER1),
             },
@@ -448,7 +471,10 @@ impl Server {
                 let m = MeasurementStatusInfo { last_result_status: self.last_status, info };
                 Reply::Answer(Answer { command: c, status: status::ALL_OK, body: AnswerBody::MeasurementStatusInfo(m) })
             }
+            Request::SetContinuousTimeModeParams(p) => self.continuous_params(p),
+            Request::StopMeasurement => self.stop_stream().await,
             _ if !self.initialized => fail(status::TRACKER_NOT_INITIALIZED),
+            Request::StartMeasurement if self.mode == meas_mode::CONTINUOUS_TIME => self.start_stream().await,
             Request::StartMeasurement => self.measure(&mut events).await,
             Request::GoLastMeasuredPoint if !self.last_point => fail(status::NO_LAST_MEASURED_POINT),
             Request::GoLastMeasuredPoint => self.relock(c, &mut events).await,
@@ -473,7 +499,7 @@ impl Server {
             Reply::SingleMeas(m) => m.status,
             Reply::SingleMeas2(m) => m.status,
             Reply::Error { status, .. } => *status,
-            Reply::StatusChange(_) | Reply::Other { .. } => status::ALL_OK,
+            Reply::StatusChange(_) | Reply::Other { .. } | Reply::MultiMeas(_) => status::ALL_OK,
         };
         Response { events, answer }
     }

@@ -47,6 +47,7 @@ pub mod modbus_server;
 pub mod positioner;
 pub mod presets;
 pub mod scpi_server;
+pub mod servo;
 pub mod slcan_adapter;
 pub mod tracker;
 pub mod turntable;

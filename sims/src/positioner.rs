@@ -71,6 +71,7 @@
 //! `clear_fault()`; after clearing, the axis must be commanded again.
 
 use crate::faults::{FaultKind, Injected};
+use crate::servo::{DeviceClock, Response, Servo};
 use crate::turntable::{AxisPath, Profile, Turntable};
 use crate::{FAULT_STREAM, LINK_LATENCY, NOISE_STREAM, fixed_point, seeded_rng};
 use async_trait::async_trait;
@@ -82,7 +83,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 use survey_drivers::clock::Clock;
 use survey_drivers::error::{DriverError, ErrorKind, Result};
-use survey_drivers::traits::{DeviceFault, Limit, Positioner, PositionerStatus};
+use survey_drivers::traits::{CapturedReadout, DeviceFault, Limit, Positioner, PositionerStatus};
 use survey_processing::Direction;
 use survey_processing::model::Model;
 use survey_processing::table::CorrectionTable;
@@ -148,6 +149,27 @@ pub struct PositionerConfig {
     pub faults: PositionerFaults,
     /// Link latency of every call (default [`LINK_LATENCY`], 2 ms).
     pub link_latency: Duration,
+    /// The servo's ringing and ripple ([`crate::servo`]); `None` (the
+    /// default): the axis rests on its target when the profile ends and is
+    /// in position after `settle`.
+    pub servo: Option<Servo>,
+    /// The position capture ([`Positioner::start_capture`]).
+    pub capture: CaptureSim,
+}
+
+/// How the simulated controller's position capture stamps and loses readouts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CaptureSim {
+    /// The controller's clock (default: 123.4 s ahead, 30 ppm fast).
+    pub clock: DeviceClock,
+    /// Probability that a captured readout is lost (default 0).
+    pub drop_probability: f64,
+}
+
+impl Default for CaptureSim {
+    fn default() -> Self {
+        Self { clock: DeviceClock { offset_s: 123.4, rate_ppm: 30.0 }, drop_probability: 0.0 }
+    }
 }
 
 impl PositionerConfig {
@@ -165,6 +187,8 @@ impl PositionerConfig {
             seed: 0,
             faults: PositionerFaults::default(),
             link_latency: LINK_LATENCY,
+            servo: None,
+            capture: CaptureSim::default(),
         }
     }
 }
@@ -240,8 +264,12 @@ pub struct SimPositioner {
     settle_until: Duration,
     /// Whether the rest position is the commanded target (false after a trip).
     on_target: bool,
-    table: Option<CorrectionTable>,
+    table: Option<Arc<CorrectionTable>>,
     correction: bool,
+    /// The servo's response to the current move ([`motion`]).
+    response: Option<Response>,
+    /// The position capture, while it runs ([`capture`]).
+    capture: Option<capture::Capture>,
     fault: Option<Latched>,
     moves: usize,
     calls: usize,
@@ -290,6 +318,8 @@ impl SimPositioner {
             on_target: true,
             table: None,
             correction: false,
+            response: None,
+            capture: None,
             fault: None,
             moves: 0,
             calls: 0,
@@ -387,7 +417,10 @@ impl SimPositioner {
 
     /// Halt the axis where it is at `now` (stop, or a trip that happens now).
     fn halt(&mut self, now: Duration, tripped: bool) {
-        let actual = self.axis.value(now);
+        // A trip is planned when its move starts (along the move's plain
+        // path); a stop finds the axis where the turntable has it.
+        let actual = if tripped { self.axis.value(now) } else { self.turntable.actual_deg(now) };
+        self.response = None;
         let raw = actual + self.error_at(actual, self.runs_at(now)) + self.noise_deg;
         self.raw_rest = raw;
         let shown = self.displayed_of_raw(raw);
@@ -459,8 +492,9 @@ impl SimPositioner {
     /// Start a move to `target` at `now` (all checks done).
     fn start_move(&mut self, now: Duration, target: f64) {
         self.moves += 1;
-        let from_display = self.display.value(now);
-        let from_actual = self.axis.value(now);
+        self.capture_until(now);
+        let from_display = self.display_at(now);
+        let from_actual = self.turntable.actual_deg(now);
         if target > from_display {
             self.direction = Direction::Forward;
         } else if target < from_display {
@@ -492,8 +526,10 @@ impl SimPositioner {
                 },
             });
             tracing::debug!(target, ?at, "simulated positioner trips");
+            self.turntable.set_path(self.axis);
+        } else {
+            self.follow_move(profile, target, actual);
         }
-        self.turntable.set_path(self.axis);
     }
 
     /// Recompute the displayed readout at rest after the table or its use changed.
@@ -524,7 +560,7 @@ impl Positioner for SimPositioner {
 
     async fn readout(&mut self) -> Result<f64> {
         self.link("readout").await?;
-        Ok(self.display.value(self.clock.now()))
+        Ok(self.display_at(self.clock.now()))
     }
 
     async fn status(&mut self) -> Result<PositionerStatus> {
@@ -589,7 +625,7 @@ impl Positioner for SimPositioner {
         if self.display.is_moving(now) {
             return Err(DriverError::usage(INSTRUMENT, "cannot load a correction table while the axis is moving"));
         }
-        self.table = Some(table.clone());
+        self.table = Some(Arc::new(table.clone()));
         self.refresh_display(now);
         Ok(())
     }
@@ -607,7 +643,29 @@ impl Positioner for SimPositioner {
         self.refresh_display(now);
         Ok(())
     }
+
+    fn can_capture(&self) -> bool {
+        true
+    }
+
+    async fn start_capture(&mut self, period: Duration) -> Result<()> {
+        self.link("start_capture").await?;
+        self.begin_capture(period)
+    }
+
+    async fn read_capture(&mut self) -> Result<Vec<CapturedReadout>> {
+        self.link("read_capture").await?;
+        self.take_capture()
+    }
+
+    async fn stop_capture(&mut self) -> Result<()> {
+        self.link("stop_capture").await?;
+        self.capture = None;
+        Ok(())
+    }
 }
 
+mod capture;
+mod motion;
 #[cfg(test)]
 mod tests;

@@ -25,8 +25,13 @@
 //!
 //! # Timing and faults
 //!
-//! `measure()` reads the true angle at the start of the measurement, then takes
-//! `measurement_time` of clock time. With `beam_break_probability` per
+//! `measure()` takes `measurement_time` of clock time and measures the SMR at
+//! the mean true angle over that time (a stationary measurement integrates:
+//! an axis still ringing when it starts is seen at its average position), and
+//! reports as its standard deviation the instrument's sigma combined with the
+//! spread of the SMR's positions over the measurement (a moving SMR shows as a
+//! larger deviation). A continuous measurement ([`Tracker::start_stream`]) is
+//! described in [`stream`]. With `beam_break_probability` per
 //! measurement (or on the scheduled measurement `break_on_measurement`,
 //! 1-based) the beam breaks: that measurement fails with the device code
 //! [`CODE_BEAM_BROKEN`], the state becomes `BeamBroken` and every measurement
@@ -48,7 +53,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::clock::Clock;
 use survey_drivers::error::{DriverError, Result};
-use survey_drivers::traits::{SmrMeasurement, Tracker, TrackerState};
+use survey_drivers::traits::{SmrMeasurement, StreamedPoint, Tracker, TrackerState};
 
 const INSTRUMENT: &str = "tracker";
 
@@ -156,6 +161,8 @@ pub struct TrackerConfig {
     /// Multiplies the noise (1 = the instrument's; 0 = exact positions, for
     /// tests). The reported `std_dev_mm` is always the instrument's sigma.
     pub noise_scale: f64,
+    /// The continuous measurement's clock, latency and losses.
+    pub stream: stream::StreamSim,
 }
 
 impl Default for TrackerConfig {
@@ -169,6 +176,7 @@ impl Default for TrackerConfig {
             seed: 0,
             break_on_measurement: None,
             noise_scale: 1.0,
+            stream: stream::StreamSim::default(),
         }
     }
 }
@@ -183,6 +191,8 @@ pub struct SimTracker {
     measurements: usize,
     noise_rng: ChaCha8Rng,
     fault_rng: ChaCha8Rng,
+    /// The continuous measurement, while it runs.
+    streaming: Option<stream::Streaming>,
     /// The beam cannot be re-acquired before this clock time.
     blocked_until: Duration,
     injected: Option<Injected>,
@@ -199,6 +209,7 @@ impl SimTracker {
             turntable,
             state: TrackerState::TargetLocked,
             measurements: 0,
+            streaming: None,
             blocked_until: Duration::ZERO,
             injected: None,
         }
@@ -212,6 +223,12 @@ impl SimTracker {
     /// The configuration (the designed geometry, for tests).
     pub fn config(&self) -> &TrackerConfig {
         &self.cfg
+    }
+
+    /// Whether the tracker runs on a virtual clock (a server pushing its
+    /// streamed points on a timer must not on one).
+    pub fn clock_is_virtual(&self) -> bool {
+        self.clock.is_virtual()
     }
 
     /// Measurements attempted so far (broken ones included).
@@ -235,11 +252,17 @@ impl Tracker for SimTracker {
             self.clock.sleep(LINK_LATENCY).await;
             return Err(self.broken());
         }
+        if self.streaming.is_some() {
+            self.clock.sleep(LINK_LATENCY).await;
+            return Err(DriverError::usage(INSTRUMENT, "measuring continuously: stop the stream first"));
+        }
         self.measurements += 1;
-        let theta = self.turntable.actual_deg(self.clock.now());
+        let t0 = self.clock.now();
         let draw: f64 = self.fault_rng.random();
         let breaks = self.cfg.break_on_measurement == Some(self.measurements) || draw < self.cfg.beam_break_probability;
         self.clock.sleep(self.cfg.measurement_time).await;
+        let t1 = t0 + self.cfg.measurement_time;
+        let theta = self.turntable.mean_actual_deg(t0, t1);
         if breaks {
             self.state = TrackerState::BeamBroken;
             self.blocked_until = self.clock.now() + self.cfg.beam_hold;
@@ -255,6 +278,8 @@ impl Tracker for SimTracker {
         }
         let p = self.cfg.arm.smr_position_mm(theta);
         let sigma = sigma_mm(dot(p, p).sqrt());
+        let spread = self.motion_spread_mm(t0, t1, theta);
+        let reported = (sigma * sigma + spread * spread).sqrt();
         let mut noisy = [0.0; 3];
         for (out, x) in noisy.iter_mut().zip(p) {
             let z: f64 = StandardNormal.sample(&mut self.noise_rng);
@@ -264,7 +289,7 @@ impl Tracker for SimTracker {
             x_mm: noisy[0],
             y_mm: noisy[1],
             z_mm: noisy[2],
-            std_dev_mm: [sigma; 3],
+            std_dev_mm: [reported; 3],
             measurement_time_s: self.cfg.measurement_time.as_secs_f64(),
         })
     }
@@ -290,7 +315,31 @@ impl Tracker for SimTracker {
         self.state = TrackerState::TargetLocked;
         Ok(())
     }
+
+    fn can_stream(&self) -> bool {
+        true
+    }
+
+    async fn start_stream(&mut self, period: Duration) -> Result<()> {
+        self.clock.sleep(LINK_LATENCY).await;
+        if self.state != TrackerState::TargetLocked {
+            return Err(self.broken());
+        }
+        self.begin_stream(period)
+    }
+
+    async fn read_stream(&mut self) -> Result<Vec<StreamedPoint>> {
+        self.clock.sleep(LINK_LATENCY).await;
+        self.take_stream()
+    }
+
+    async fn stop_stream(&mut self) -> Result<()> {
+        self.clock.sleep(LINK_LATENCY).await;
+        self.streaming = None;
+        Ok(())
+    }
 }
 
+pub mod stream;
 #[cfg(test)]
 mod tests;

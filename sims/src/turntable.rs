@@ -122,19 +122,55 @@ impl AxisPath {
     }
 }
 
+/// A true axis angle over time that is not a plain [`AxisPath`]: the
+/// positioner installs one for each move (the servo's motion, the angle that
+/// makes the encoder read the displayed readout).
+pub trait TruthPath: Send + Sync + std::fmt::Debug {
+    /// The true axis angle at clock time `t`, degrees.
+    fn actual_deg(&self, t: Duration) -> f64;
+    /// From this clock time on the angle no longer changes.
+    fn still_from(&self) -> Duration;
+}
+
+/// What the turntable follows.
+#[derive(Debug, Clone)]
+enum Truth {
+    Path(AxisPath),
+    Custom(Arc<dyn TruthPath>),
+}
+
+impl Truth {
+    fn value(&self, t: Duration) -> f64 {
+        match self {
+            Truth::Path(p) => p.value(t),
+            Truth::Custom(c) => c.actual_deg(t),
+        }
+    }
+    fn still_from(&self) -> Duration {
+        match self {
+            Truth::Path(p) => p.halt_at,
+            Truth::Custom(c) => c.still_from(),
+        }
+    }
+}
+
 /// The turntable: a shared handle to the true axis angle (clones share it).
 #[derive(Debug, Clone)]
 pub struct Turntable {
-    path: Arc<Mutex<AxisPath>>,
+    path: Arc<Mutex<Truth>>,
 }
+
+/// Sub-intervals of the Simpson rule that averages the angle over a
+/// measurement during which the axis moves (an even number).
+const MEAN_INTERVALS: usize = 32;
 
 impl Turntable {
     /// A turntable at rest at `initial_deg`.
     pub fn new(initial_deg: f64) -> Self {
-        Self { path: Arc::new(Mutex::new(AxisPath::at_rest(initial_deg, Duration::ZERO))) }
+        Self { path: Arc::new(Mutex::new(Truth::Path(AxisPath::at_rest(initial_deg, Duration::ZERO)))) }
     }
 
-    fn lock(&self) -> MutexGuard<'_, AxisPath> {
+    fn lock(&self) -> MutexGuard<'_, Truth> {
         self.path.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
@@ -144,21 +180,50 @@ impl Turntable {
         self.lock().value(now)
     }
 
+    /// The mean true angle over `[from, to]` (what an instrument that
+    /// integrates over that time sees), degrees: the angle itself when the
+    /// axis does not move in it, else Simpson's rule over 32 intervals.
+    pub fn mean_actual_deg(&self, from: Duration, to: Duration) -> f64 {
+        let truth = self.lock().clone();
+        if from >= truth.still_from() || to <= from {
+            return truth.value(from);
+        }
+        let (a, b) = (from.as_secs_f64(), to.as_secs_f64());
+        let h = (b - a) / MEAN_INTERVALS as f64;
+        let mut sum = 0.0;
+        for i in 0..=MEAN_INTERVALS {
+            let w = if i == 0 || i == MEAN_INTERVALS {
+                1.0
+            } else if i % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            sum += w * truth.value(Duration::from_secs_f64(a + h * i as f64));
+        }
+        sum * h / 3.0 / (b - a)
+    }
+
     /// Whether the axis is moving at `now`.
     pub fn is_moving(&self, now: Duration) -> bool {
-        self.lock().is_moving(now)
+        now < self.lock().still_from()
     }
 
     /// Put the axis at rest at `deg` at once. For testing the tracker or the
     /// autocollimator without a positioner: a positioner driving this turntable
     /// is not told, and overwrites it on its next move.
     pub fn place(&self, deg: f64) {
-        *self.lock() = AxisPath::at_rest(deg, Duration::ZERO);
+        *self.lock() = Truth::Path(AxisPath::at_rest(deg, Duration::ZERO));
     }
 
     /// Replace the path (the positioner does this when a move starts or halts).
     pub(crate) fn set_path(&self, path: AxisPath) {
-        *self.lock() = path;
+        *self.lock() = Truth::Path(path);
+    }
+
+    /// Follow `truth` from now on (the positioner does this when a move starts).
+    pub(crate) fn set_truth(&self, truth: Arc<dyn TruthPath>) {
+        *self.lock() = Truth::Custom(truth);
     }
 }
 

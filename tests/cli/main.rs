@@ -14,6 +14,7 @@
 //! and the next valid import must get the next id.
 
 mod browser;
+mod budget;
 mod drift;
 mod everyday;
 mod files;

@@ -12,7 +12,7 @@ use survey_processing::model::Model;
 
 const BIN: &str = env!("CARGO_BIN_EXE_survey");
 
-fn survey(db: &Path, args: &[&str]) -> serde_json::Value {
+pub(crate) fn survey(db: &Path, args: &[&str]) -> serde_json::Value {
     let out = Command::new(BIN).arg("--db").arg(db).args(args).env_remove("RUST_LOG").output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).expect("one JSON document")
@@ -21,7 +21,7 @@ fn survey(db: &Path, args: &[&str]) -> serde_json::Value {
 /// The table's once-per-revolution line against the truth (|difference of
 /// the phasors|, deg), and the table's residual rms against the model's
 /// error (deg, mean removed: a constant is the zero reference).
-fn against_truth(doc: &serde_json::Value, table: &Path, model: &Model) -> (f64, f64) {
+pub(crate) fn against_truth(doc: &serde_json::Value, table: &Path, model: &Model) -> (f64, f64) {
     let line = doc["peaks"].as_array().unwrap().iter().find(|p| p["cycles_per_rev"] == 1.0).cloned();
     let (a, ph) = line.map_or((0.0, 0.0), |p| (p["amplitude_deg"].as_f64().unwrap(), p["phase_deg"].as_f64().unwrap()));
     let (ta, tph) = (0.0015f64, 110f64); // fig8's eccentricity

@@ -12,7 +12,7 @@ use survey_orchestrator::survey::SurveyStatus;
 
 const BIN: &str = env!("CARGO_BIN_EXE_survey");
 
-fn survey(db: &Path, args: &[&str]) -> Output {
+pub(crate) fn survey(db: &Path, args: &[&str]) -> Output {
     Command::new(BIN)
         .current_dir(db.parent().unwrap())
         .env_remove("RUST_LOG")
@@ -24,7 +24,7 @@ fn survey(db: &Path, args: &[&str]) -> Output {
 }
 
 /// The exit status, stdout (its first 2000 characters) and stderr, for messages.
-fn text(out: &Output) -> String {
+pub(crate) fn text(out: &Output) -> String {
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stdout: String = stdout.chars().take(2000).collect();
     format!(
@@ -35,7 +35,7 @@ fn text(out: &Output) -> String {
 }
 
 /// Every stored sample of survey 1 is step `seq` of the plan, each once, from 0.
-async fn dense_prefix(db: &Path) -> (SurveyStatus, usize, Vec<String>) {
+pub(crate) async fn dense_prefix(db: &Path) -> (SurveyStatus, usize, Vec<String>) {
     let store = Store::open_existing(db).await.unwrap();
     let record = store.survey(1).await.unwrap();
     let samples = store.recorded_samples(1).await.unwrap();

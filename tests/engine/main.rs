@@ -3,6 +3,7 @@
 
 mod axis_refit;
 mod examples;
+mod instrument_time;
 mod integrity;
 mod interop_canopen;
 mod modelgap;

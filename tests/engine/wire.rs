@@ -181,3 +181,54 @@ async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
     );
     assert!((wire.e - local.e).abs() < 2.0 * tol, "E {} vs {}", wire.e, local.e);
 }
+
+/// emScon's continuous time mode over TCP (issue 12): the driver sets the
+/// mode and the time separation, starts, and collects the `MultiMeasResultT`
+/// points the simulated server sends with its answers; the points come every
+/// period on the tracker's own clock, at the SMR's position; stopping goes
+/// back to stationary measurements.
+#[tokio::test]
+async fn the_emscon_driver_streams_in_continuous_time_mode_and_goes_back_to_stationary() {
+    use survey_drivers::Tracker as _;
+    use survey_drivers::emscon::{EmsconConfig, EmsconTracker};
+    use survey_sims::emscon_server::{EmsconFaults, serve_tcp};
+    use survey_sims::tracker::{SimTracker, TrackerConfig};
+    let clock = VirtualClock::new();
+    let turntable = survey_sims::Turntable::new(0.0);
+    turntable.place(30.0);
+    let cfg = TrackerConfig { measurement_time: std::time::Duration::from_millis(50), ..TrackerConfig::default() };
+    let arm = cfg.arm.clone();
+    let sim = SimTracker::new(cfg, Arc::new(clock.clone()), turntable);
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let server = tokio::spawn(serve_tcp(listener, sim, EmsconFaults::new()));
+    let mut t = EmsconTracker::connect(addr, EmsconConfig { measurement_time_ms: 50, ..EmsconConfig::default() })
+        .await
+        .unwrap();
+    assert!(t.can_stream());
+    t.start_stream(std::time::Duration::from_millis(5)).await.unwrap();
+    clock.sleep(std::time::Duration::from_millis(200)).await;
+    let points = t.read_stream().await.unwrap();
+    t.stop_stream().await.unwrap();
+    // 200 ms at 5 ms: 40 points (one either way for where the read lands).
+    assert!((39..=42).contains(&points.len()), "{} points", points.len());
+    let truth = arm.smr_position_mm(30.0);
+    for w in points.windows(2) {
+        // The tracker's clock runs 20 ppm slow against the clock.
+        let dt = w[1].device_time_s - w[0].device_time_s;
+        assert!((dt - 0.005).abs() < 2e-6, "points {dt} s apart");
+    }
+    for p in &points {
+        assert_eq!(p.status, 0, "{p:?}");
+        // The tracker's clock is 5000 s ahead of the clock (the simulator's
+        // default), stamped in microseconds.
+        assert!(p.device_time_s > 5000.0 && p.device_time_s < 5000.5, "{p:?}");
+        let d = (0..3).map(|i| (p.xyz_mm[i] - truth[i]).powi(2)).sum::<f64>().sqrt();
+        assert!(d < 0.1, "a point {d} mm off the SMR (noise: about 0.01 mm)");
+    }
+    // Stationary again.
+    let m = t.measure().await.unwrap();
+    let d = ((m.x_mm - truth[0]).powi(2) + (m.y_mm - truth[1]).powi(2) + (m.z_mm - truth[2]).powi(2)).sqrt();
+    assert!(d < 0.1, "the stationary measurement after the stream is {d} mm off");
+    server.abort();
+}

@@ -44,6 +44,10 @@ pub mod command {
     pub const SET_COORDINATE_SYSTEM_TYPE: i32 = 26;
     /// `ES_C_SetStationaryModeParams`.
     pub const SET_STATIONARY_MODE_PARAMS: i32 = 28;
+    /// `ES_C_SetContinuousTimeModeParams`.
+    pub const SET_CONTINUOUS_TIME_MODE_PARAMS: i32 = 30;
+    /// `ES_C_StopMeasurement`.
+    pub const STOP_MEASUREMENT: i32 = 52;
     /// `ES_C_StartMeasurement`.
     pub const START_MEASUREMENT: i32 = 49;
     /// `ES_C_GoLastMeasuredPoint`.
@@ -72,6 +76,8 @@ pub mod command {
             SET_MEASUREMENT_MODE => "ES_C_SetMeasurementMode",
             SET_COORDINATE_SYSTEM_TYPE => "ES_C_SetCoordinateSystemType",
             SET_STATIONARY_MODE_PARAMS => "ES_C_SetStationaryModeParams",
+            SET_CONTINUOUS_TIME_MODE_PARAMS => "ES_C_SetContinuousTimeModeParams",
+            STOP_MEASUREMENT => "ES_C_StopMeasurement",
             START_MEASUREMENT => "ES_C_StartMeasurement",
             GO_LAST_MEASURED_POINT => "ES_C_GoLastMeasuredPoint",
             FIND_REFLECTOR => "ES_C_FindReflector",
@@ -100,6 +106,8 @@ pub mod statistic_mode {
 pub mod status {
     /// `ES_RS_AllOK`.
     pub const ALL_OK: i32 = 0;
+    /// `ES_RS_ServerBusy`: "a pending command" (the header's comment).
+    pub const SERVER_BUSY: i32 = 1;
     /// `ES_RS_NotImplemented`.
     pub const NOT_IMPLEMENTED: i32 = 2;
     /// `ES_RS_WrongParameter`.
@@ -464,8 +472,24 @@ pub mod coordinate_system {
 pub mod meas_mode {
     /// `ES_MM_Stationary`.
     pub const STATIONARY: i32 = 0;
+    /// `ES_MM_ContinuousTime`: a point every `lTimeSeparation`.
+    pub const CONTINUOUS_TIME: i32 = 1;
     /// `ES_MM_6DCircleCenter`: the last value.
     pub const LAST: i32 = 11;
+}
+
+/// `enum ES_MeasurementStatus`: each point of a continuous measurement.
+pub mod measurement_status {
+    /// `ES_MS_AllOK`.
+    pub const ALL_OK: i32 = 0;
+    /// `ES_MS_TriggerTimeViolation`: the last value.
+    pub const LAST: i32 = 4;
+}
+
+/// `enum ES_RegionType`.
+pub mod region_type {
+    /// `ES_RT_Sphere`.
+    pub const SPHERE: i32 = 0;
 }
 
 /// `enum ES_TrackerProcessorStatus`.

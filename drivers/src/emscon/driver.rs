@@ -11,7 +11,7 @@ use super::packets::{
 use crate::error::{DriverError, ErrorKind, Result};
 use crate::reconnect::Connect;
 use crate::stream::Drain;
-use crate::traits::{SmrMeasurement, Tracker, TrackerState};
+use crate::traits::{SmrMeasurement, StreamedPoint, Tracker, TrackerState};
 use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -120,6 +120,8 @@ pub struct EmsconTracker<T> {
     status_changes: u64,
     last_result: Option<SingleMeasResult>,
     resync: Option<Resync>,
+    /// While measuring continuously: the points received, not yet read.
+    streamed: Option<Vec<super::stream::MeasValue>>,
 }
 
 impl<T> fmt::Debug for EmsconTracker<T> {
@@ -177,6 +179,7 @@ where
             status_changes: 0,
             last_result: None,
             resync: None,
+            streamed: None,
         }
     }
 
@@ -390,7 +393,9 @@ where
     /// Handle one packet while `request` waits: `Some` ends the wait.
     fn on_reply(&mut self, item: Result<Reply, DecodeError>, request: &Request) -> Option<Result<Got>> {
         let want = request.command();
-        let measuring = matches!(request, Request::StartMeasurement);
+        // A StartMeasurement in continuous mode is answered by its
+        // acknowledgement; in stationary mode by the result.
+        let measuring = matches!(request, Request::StartMeasurement) && self.streamed.is_none();
         match item {
             Err(e) => {
                 if e.loses_framing() {
@@ -401,6 +406,10 @@ where
             }
             Ok(Reply::StatusChange(event)) => {
                 self.apply_status_change(event);
+                None
+            }
+            Ok(Reply::MultiMeas(m)) => {
+                self.take_points(m);
                 None
             }
             Ok(Reply::Error { command: c, status: s }) if c == want => Some(Err(self.refused(c, s))),
@@ -496,6 +505,7 @@ where
         while let Some(item) = self.decoder.next_reply() {
             match item {
                 Ok(Reply::StatusChange(event)) => self.apply_status_change(event),
+                Ok(Reply::MultiMeas(m)) => self.take_points(m),
                 Ok(Reply::Other { .. }) => {}
                 Ok(stale) => {
                     tracing::debug!(instrument = %self.name, ?stale, "stale packet dropped");
@@ -635,6 +645,9 @@ where
     /// point (or the configured one). Still no reflector: a device fault with
     /// `ES_RS_MeasurementStatusNotReady`.
     async fn reacquire(&mut self) -> Result<()> {
+        if self.streamed.is_some() {
+            return Err(DriverError::usage(&self.name, "measuring continuously: stop the stream before re-acquiring"));
+        }
         match self.command(Request::GoLastMeasuredPoint).await {
             Ok(_) => {
                 if self.reflector_locked().await? {
@@ -668,4 +681,23 @@ where
             Err(e)
         }
     }
+
+    fn can_stream(&self) -> bool {
+        true
+    }
+
+    /// Continuous time mode, one point every `period` ([`continuous`]).
+    async fn start_stream(&mut self, period: Duration) -> Result<()> {
+        self.start_continuous(period).await
+    }
+
+    async fn read_stream(&mut self) -> Result<Vec<StreamedPoint>> {
+        self.read_continuous().await
+    }
+
+    async fn stop_stream(&mut self) -> Result<()> {
+        self.stop_continuous().await
+    }
 }
+
+mod continuous;

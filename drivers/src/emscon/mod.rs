@@ -128,6 +128,7 @@
 pub mod codes;
 mod driver;
 pub mod packets;
+pub mod stream;
 
 #[cfg(test)]
 mod tests;

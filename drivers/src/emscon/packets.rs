@@ -10,6 +10,7 @@
 //! packet, header included.
 
 use super::codes::{command as cmd, data_type as dt, status};
+use super::stream::{self, ContinuousTimeModeData, MultiMeasResult};
 use std::collections::VecDeque;
 
 /// `sizeof(struct PacketHeaderT)`: `long lPacketSize; enum ES_DataType type;`.
@@ -52,8 +53,10 @@ pub const GET_MEASUREMENT_STATUS_INFO_RT_LEN: usize = BASIC_COMMAND_RT_LEN + 8;
 /// The smallest packet of the protocol (`BasicCommandCT`, `SystemStatusChangeT`).
 pub const MIN_PACKET_LEN: usize = 12;
 /// The largest `lPacketSize` accepted. The packets this driver reads are at
-/// most 204 bytes (`SingleMeasResult2T`); a size field above this limit (or
-/// below [`MIN_PACKET_LEN`]) is taken for garbage, not waited for.
+/// most 204 bytes (`SingleMeasResult2T`), or a `MultiMeasResultT` of at most
+/// 112 points (4080 bytes, [`stream::MAX_POINTS_PER_PACKET`]); a size field
+/// above this limit (or below [`MIN_PACKET_LEN`]) is taken for garbage, not
+/// waited for.
 pub const MAX_PACKET_LEN: usize = 4096;
 
 /// Why bytes did not decode.
@@ -152,6 +155,10 @@ pub enum Request {
         /// `continuousMeasurements`.
         continuous: i32,
     },
+    /// `SetContinuousTimeModeParamsCT` ([`stream`]).
+    SetContinuousTimeModeParams(ContinuousTimeModeData),
+    /// `StopMeasurementCT`: ends a continuous measurement.
+    StopMeasurement,
 }
 
 /// `GetSystemStatusRT` after its `BasicCommandRT`.
@@ -310,6 +317,8 @@ pub enum Reply {
     SingleMeas2(SingleMeasResult2),
     /// `ES_DT_SystemStatusChange`: `enum ES_SystemStatusChange`.
     StatusChange(i32),
+    /// `ES_DT_MultiMeasResult`: points of a continuous measurement ([`stream`]).
+    MultiMeas(MultiMeasResult),
     /// Any other `ES_DataType` (reflector position, nivel, multi-measurement,
     /// probe results): not used here; kept raw so it can be skipped.
     Other {
@@ -412,6 +421,8 @@ impl Request {
             Request::GoLastMeasuredPoint => cmd::GO_LAST_MEASURED_POINT,
             Request::FindReflector { .. } => cmd::FIND_REFLECTOR,
             Request::SetStatisticMode { .. } => cmd::SET_STATISTIC_MODE,
+            Request::SetContinuousTimeModeParams(_) => cmd::SET_CONTINUOUS_TIME_MODE_PARAMS,
+            Request::StopMeasurement => cmd::STOP_MEASUREMENT,
         }
     }
 
@@ -435,7 +446,9 @@ impl Request {
                 w.i32(stationary);
                 w.i32(continuous);
             }
-            Request::Initialize
+            Request::SetContinuousTimeModeParams(p) => stream::encode_params(&p, &mut w.0),
+            Request::StopMeasurement
+            | Request::Initialize
             | Request::StartMeasurement
             | Request::GetSystemStatus
             | Request::GetMeasurementStatusInfo
@@ -469,6 +482,10 @@ impl Request {
             cmd::GET_SYSTEM_STATUS => bare(Request::GetSystemStatus, "GetSystemStatusCT"),
             cmd::GET_MEASUREMENT_STATUS_INFO => bare(Request::GetMeasurementStatusInfo, "GetMeasurementStatusInfoCT"),
             cmd::GO_LAST_MEASURED_POINT => bare(Request::GoLastMeasuredPoint, "GoLastMeasuredPointCT"),
+            cmd::STOP_MEASUREMENT => bare(Request::StopMeasurement, "StopMeasurementCT"),
+            cmd::SET_CONTINUOUS_TIME_MODE_PARAMS => {
+                stream::decode_params(frame).map(Request::SetContinuousTimeModeParams)
+            }
             cmd::SET_UNITS => {
                 expect_len("SetUnitsCT", frame, SET_UNITS_CT_LEN)?;
                 let u = SystemUnits {
@@ -582,6 +599,11 @@ impl Reply {
                 w.i32(*e);
                 w.finish()
             }
+            Reply::MultiMeas(m) => {
+                let mut w = Writer::new(dt::MULTI_MEAS_RESULT);
+                stream::encode_multi(m, &mut w.0);
+                w.finish()
+            }
             Reply::Other { data_type, body } => {
                 let mut w = Writer::new(*data_type);
                 w.0.extend_from_slice(body);
@@ -646,7 +668,8 @@ impl Reply {
                     humidity: r.f64(),
                 }))
             }
-            3..=7 | 10..=11 => Ok(Reply::Other { data_type, body: frame[PACKET_HEADER_LEN..].to_vec() }),
+            dt::MULTI_MEAS_RESULT => stream::decode_multi(frame).map(Reply::MultiMeas),
+            4..=7 | 10..=11 => Ok(Reply::Other { data_type, body: frame[PACKET_HEADER_LEN..].to_vec() }),
             _ => Err(DecodeError::UnknownType { data_type }),
         }
     }
@@ -690,6 +713,8 @@ fn decode_answer(frame: &[u8]) -> Result<Reply, DecodeError> {
         | cmd::SET_STATIONARY_MODE_PARAMS
         | cmd::START_MEASUREMENT
         | cmd::GO_LAST_MEASURED_POINT
+        | cmd::SET_CONTINUOUS_TIME_MODE_PARAMS
+        | cmd::STOP_MEASUREMENT
         | cmd::FIND_REFLECTOR => {
             expect_len("BasicCommandRT", frame, BASIC_COMMAND_RT_LEN)?;
             AnswerBody::Empty

@@ -1,5 +1,6 @@
 use super::codes::{command as cmd, data_type as dt, status, status_change};
 use super::packets::*;
+use super::stream::{ContinuousTimeModeData, MAX_POINTS_PER_PACKET, MeasValue, MultiMeasResult};
 use super::*;
 use crate::error::ErrorKind;
 use crate::traits::{Tracker, TrackerState};
@@ -154,7 +155,39 @@ fn arb_request() -> impl Strategy<Value = Request> {
         finite().prop_map(|approx_distance| Request::FindReflector { approx_distance }),
         (any::<i32>(), any::<i32>())
             .prop_map(|(stationary, continuous)| Request::SetStatisticMode { stationary, continuous }),
+        (any::<i32>(), any::<i32>(), any::<bool>(), any::<i32>()).prop_map(
+            |(time_separation_ms, number_of_points, use_region, region_type)| {
+                Request::SetContinuousTimeModeParams(ContinuousTimeModeData {
+                    time_separation_ms,
+                    number_of_points,
+                    use_region,
+                    region_type,
+                })
+            }
+        ),
+        Just(Request::StopMeasurement),
     ]
+}
+
+fn arb_multi() -> impl Strategy<Value = MultiMeasResult> {
+    let point = (any::<i32>(), any::<i32>(), any::<i32>(), [finite(), finite(), finite()])
+        .prop_map(|(status, time1, time2, val)| MeasValue { status, time1, time2, val });
+    (
+        any::<i32>(),
+        any::<i32>(),
+        any::<bool>(),
+        [finite(), finite(), finite()],
+        proptest::collection::vec(point, 0..=MAX_POINTS_PER_PACKET),
+    )
+        .prop_map(|(status, meas_mode, is_try_mode, env, points)| MultiMeasResult {
+            status,
+            meas_mode,
+            is_try_mode,
+            temperature: env[0],
+            pressure: env[1],
+            humidity: env[2],
+            points,
+        })
 }
 
 fn arb_result() -> impl Strategy<Value = SingleMeasResult> {
@@ -208,7 +241,8 @@ fn arb_result2() -> impl Strategy<Value = SingleMeasResult2> {
 }
 
 fn arb_answer() -> impl Strategy<Value = Answer> {
-    let bare_cmd = prop_oneof![Just(7), Just(5), Just(24), Just(26), Just(28), Just(49), Just(62), Just(63)];
+    let bare_cmd =
+        prop_oneof![Just(7), Just(5), Just(24), Just(26), Just(28), Just(49), Just(62), Just(63), Just(30), Just(52)];
     let status_body =
         (any::<i32>(), any::<i32>(), any::<[i32; 3]>(), any::<[i32; 5]>()).prop_map(|(a, b, version, r)| {
             SystemStatus {
@@ -222,8 +256,9 @@ fn arb_answer() -> impl Strategy<Value = Answer> {
                 tracker_serial_number: r[4],
             }
         });
-    let other_cmd = (0..=142i32)
-        .prop_filter("unmodelled", |c| cmd::is_known(*c) && ![1, 5, 7, 24, 26, 28, 49, 62, 63, 122].contains(c));
+    let other_cmd = (0..=142i32).prop_filter("unmodelled", |c| {
+        cmd::is_known(*c) && ![1, 5, 7, 24, 26, 28, 49, 62, 63, 30, 52, 122].contains(c)
+    });
     prop_oneof![
         (bare_cmd, any::<i32>()).prop_map(|(command, status)| Answer { command, status, body: AnswerBody::Empty }),
         (any::<i32>(), status_body).prop_map(|(status, s)| Answer {
@@ -253,7 +288,8 @@ fn arb_reply() -> impl Strategy<Value = Reply> {
         arb_result().prop_map(Reply::SingleMeas),
         arb_result2().prop_map(Reply::SingleMeas2),
         any::<i32>().prop_map(Reply::StatusChange),
-        (prop_oneof![3..=7i32, 10..=11i32], proptest::collection::vec(any::<u8>(), 4..200))
+        arb_multi().prop_map(Reply::MultiMeas),
+        (prop_oneof![4..=7i32, 10..=11i32], proptest::collection::vec(any::<u8>(), 4..200))
             .prop_map(|(data_type, body)| Reply::Other { data_type, body }),
     ]
 }

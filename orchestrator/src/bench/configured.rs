@@ -22,6 +22,8 @@ pub struct PlanOverrides {
     pub runs: Option<u32>,
     /// `--bidirectional` (it can only turn the reverse pass on).
     pub bidirectional: bool,
+    /// `--scan` (over `[survey] scan`).
+    pub scan: Option<crate::plan::ScanMode>,
 }
 
 impl Bench {
@@ -61,6 +63,12 @@ pub fn configured_plan(cfg: &SurveyConfig, overrides: PlanOverrides, path: &Path
     if let Some([lo, hi]) = cfg.survey.travel_deg {
         plan.check_travel(lo, hi)?;
     }
+    plan.scan = overrides.scan.or(cfg.survey.scan).unwrap_or_default();
+    if plan.continuous()
+        && let Err(why) = crate::bench::instruments::continuous_support(cfg)
+    {
+        return Err(bad_input(format!("{}: --scan continuous is not possible: {why}", path.display())));
+    }
     Ok(plan)
 }
 
@@ -72,13 +80,23 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
         "reference": engine.reference_name(),
     });
     let t = cfg.timing();
-    let measure =
-        if cfg.reference() == ReferenceKind::Tracker { Duration::from_secs(1) } else { Duration::from_millis(200) };
+    let measure = integration(cfg).unwrap_or(Duration::from_millis(200));
     let per_target = t.dwell + measure + t.poll_interval;
+    let estimate = if setup.plan.continuous() {
+        let d = crate::budget::Dynamics {
+            velocity_deg_s: t.velocity_deg_s,
+            accel_deg_s2: t.accel_deg_s2,
+            integration_s: measure.as_secs_f64(),
+            locate_points: t.locate_points,
+        };
+        Duration::from_secs_f64(crate::scan::bound(&setup.plan, &d, &cfg.settle_model(), &t.scan).total())
+    } else {
+        setup.plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target)
+    };
     Bench {
         engine,
         clock,
-        estimate: setup.plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target),
+        estimate,
         plan: setup.plan.clone(),
         setup: Setup::Configured(setup.clone()),
         model: None,
@@ -88,11 +106,23 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
     }
 }
 
+/// The reference's integration time per sample, when the configuration
+/// says it (a tracker's measurement time).
+fn integration(cfg: &SurveyConfig) -> Option<Duration> {
+    match (&cfg.tracker, cfg.reference()) {
+        (Some(crate::config::TrackerConfig::Emscon { settings, .. }), ReferenceKind::Tracker) => {
+            Some(Duration::from_millis(u64::from(settings.measurement_time_ms)))
+        }
+        _ => None,
+    }
+}
+
 /// The engine on the configured instruments.
 pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
     let mut engine = Instruments::from_config(cfg)
         .into_engine(clock, cfg)
-        .with_travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)));
+        .with_travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)))
+        .with_physics(cfg.settle_model(), integration(cfg));
     if let Some(arm) = &cfg.arm {
         engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
     }

@@ -199,6 +199,49 @@ impl Instruments {
     }
 }
 
+/// Whether a continuous scan (`--scan continuous`) is possible on the
+/// configured instruments: how it would stream, or why not. From the
+/// configuration alone, before anything is connected.
+pub fn continuous_support(cfg: &SurveyConfig) -> Result<String, String> {
+    let timing = cfg.timing();
+    let capture_ms = timing.scan.capture_period.as_secs_f64() * 1e3;
+    let stream_ms = timing.scan.stream_period.as_secs_f64() * 1e3;
+    let tracker = match (cfg.reference(), &cfg.tracker) {
+        (crate::engine::ReferenceKind::Autocollimator, _) => {
+            return Err("the reference is an autocollimator (ELCOMAT), which reads a polygon face only while the \
+                        axis rests on it; a continuous scan needs a tracker that measures while the axis turns"
+                .into());
+        }
+        (_, Some(TrackerConfig::Emscon { .. })) => {
+            format!("the emScon tracker measures in continuous time mode every {stream_ms} ms")
+        }
+        (_, None) => return Err("there is no [tracker] section".into()),
+    };
+    let positioner = match &cfg.positioner {
+        PositionerConfig::ScpiTcp { unverified_commands, .. }
+        | PositionerConfig::ScpiSerial { unverified_commands, .. } => {
+            if !unverified_commands {
+                return Err("the MI-4190-style controller's velocity command (VEL:COMM) is not in the public record, \
+                            and a scan must set the velocity (two velocities calibrate the latency): set \
+                            unverified_commands = true in [positioner] to send it. Its position-trigger output \
+                            (STAT? bit 10) has no public set-up commands either, so the readout would be polled \
+                            (POS:CURR?)"
+                    .into());
+            }
+            format!(
+                "the SCPI controller's readout is polled (POS:CURR?) every {capture_ms} ms and stamped by this computer"
+            )
+        }
+        PositionerConfig::ModbusTcp { .. } | PositionerConfig::ModbusRtu { .. } => {
+            format!("the Modbus drive's position register is read every {capture_ms} ms and stamped by this computer")
+        }
+        PositionerConfig::Canopen { .. } => format!(
+            "the CiA 402 drive's position actual value (0x6064) is read by SDO every {capture_ms} ms and stamped by this computer"
+        ),
+    };
+    Ok(format!("{tracker}; {positioner}"))
+}
+
 /// What `survey check` found about one instrument.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct CheckLine {

@@ -3,9 +3,11 @@
 //! virtual clock.
 
 use super::Bench;
+use crate::budget::{Dynamics, plan_bound};
 use crate::engine::{Engine, Reference, ReferenceKind, Timing};
 use crate::error::bad_input;
-use crate::plan::SurveyPlan;
+use crate::plan::{ScanMode, SurveyPlan};
+use crate::settle::{SettleMode, SettleModel};
 use crate::survey::{Setup, SimulatedSetup, SurveySource};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -13,6 +15,7 @@ use std::time::Duration;
 use survey_drivers::{Clock, VirtualClock};
 use survey_processing::model::Model;
 use survey_sims::autocollimator::AutocollimatorConfig;
+use survey_sims::servo::Servo;
 use survey_sims::{PlanProgress, Preset, SimBench};
 
 /// Runs when neither the command line nor the configuration says: ISO 230-2's five.
@@ -35,8 +38,40 @@ pub struct SimulatedRequest {
     pub reference: ReferenceKind,
     /// The seed of every random draw.
     pub seed: u64,
+    /// Step or continuous scan.
+    pub scan: ScanMode,
     /// Faults the simulated instruments inject.
     pub faults: Option<survey_sims::faults::FaultRates>,
+}
+
+/// The simulated bench's losses: the fraction of streamed tracker points
+/// and of captured readouts that never arrive.
+pub const TRACKER_STREAM_LOSS: f64 = 0.002;
+/// See [`TRACKER_STREAM_LOSS`].
+pub const CAPTURE_LOSS: f64 = 0.001;
+
+/// The settling the simulated axis needs, for the bound.
+pub fn settle_model(timing: &Timing) -> SettleModel {
+    SettleModel::Servo { servo: Servo::default(), window_deg: timing.settle.window_deg }
+}
+
+/// The instrument time a plan is expected to take on the simulated bench:
+/// its bound, plus what polling and commands add (3 % measured on the
+/// default bench), plus any fixed dwell.
+pub fn expected_time(plan: &SurveyPlan, timing: &Timing, integration: Duration, tracker: bool) -> Duration {
+    let d = Dynamics {
+        velocity_deg_s: timing.velocity_deg_s,
+        accel_deg_s2: timing.accel_deg_s2,
+        integration_s: integration.as_secs_f64(),
+        locate_points: if tracker { timing.locate_points } else { 0 },
+    };
+    let bound = plan_bound(plan, &d, &settle_model(timing), &timing.scan).total();
+    let steps = plan.total_steps() as f64;
+    let waits = match timing.settle.mode {
+        SettleMode::Adaptive => timing.dwell.as_secs_f64() * steps,
+        SettleMode::InPosition => (timing.dwell + timing.poll_interval).as_secs_f64() * steps,
+    };
+    Duration::from_secs_f64(bound * 1.03 + if plan.continuous() { 0.0 } else { waits })
 }
 
 /// The stationary measurement time of each simulated reference.
@@ -68,10 +103,18 @@ impl Bench {
             (_, None) => SurveyPlan::full_circle(points, runs, req.bidirectional)?,
             (_, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, req.bidirectional)?,
         };
-        let timing =
+        let mut plan = plan;
+        plan.scan = req.scan;
+        if plan.continuous() && req.reference == ReferenceKind::Autocollimator {
+            return Err(bad_input(
+                "--scan continuous needs a tracker that measures continuously: the autocollimator reads the                  polygon's faces only at rest (use --reference tracker, or --scan step)",
+            ));
+        }
+        let mut timing =
             Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
-        let per_target = preset.settle + timing.dwell + measurement_time(req.reference) + timing.poll_interval;
-        let run_period = plan.estimate_run_duration(timing.velocity_deg_s, timing.accel_deg_s2, per_target);
+        timing.settle.window_deg = crate::settle::default_window_deg(req.reference);
+        let tracker = req.reference == ReferenceKind::Tracker;
+        let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker) / runs;
         let setup = SimulatedSetup {
             preset: preset.name.to_string(),
             model_file: req.model_file.as_ref().map(|p| p.display().to_string()),
@@ -126,7 +169,9 @@ pub fn simulated_engine(
     let dyn_clock: Arc<dyn Clock> = clock;
     let mut builder = SimBench::builder(preset, setup.seed, dyn_clock.clone())
         .model(model)
-        .drift_run_period(Duration::from_secs_f64(setup.run_period_s));
+        .drift_run_period(Duration::from_secs_f64(setup.run_period_s))
+        .servo(Servo::default())
+        .stream_losses(TRACKER_STREAM_LOSS, CAPTURE_LOSS);
     if let Some(p) = progress {
         builder = builder.drift_progress(p);
     }
@@ -148,8 +193,9 @@ pub fn simulated_engine(
         },
     };
     let travel = bench.positioner.config().travel;
-    let mut engine =
-        Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone()).with_travel(travel);
+    let mut engine = Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
+        .with_travel(travel)
+        .with_physics(settle_model(&setup.timing), Some(measurement_time(setup.reference)));
     engine.set_injected(Some(injected));
     engine
 }

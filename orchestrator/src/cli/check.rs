@@ -28,14 +28,28 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<()> {
     let lines = crate::bench::instruments::check(&cfg, &clock).await;
     drop(progress);
     let failed = lines.iter().filter(|l| !l.ok).count();
+    // What a continuous scan would be on these instruments (from the
+    // configuration: it does not change whether the check passes).
+    let continuous = crate::bench::instruments::continuous_support(&cfg);
     if args.json {
-        let doc = serde_json::json!({ "ok": failed == 0, "instruments": lines });
+        let doc = serde_json::json!({
+            "ok": failed == 0,
+            "instruments": lines,
+            "continuous_scan": match &continuous {
+                Ok(how) => serde_json::json!({"possible": true, "detail": how}),
+                Err(why) => serde_json::json!({"possible": false, "detail": why}),
+            },
+        });
         emit(&format!("{doc}\n"));
     } else {
         let mut text = String::new();
         for l in &lines {
             text += &format!("{:<15} {:<28} {:<20} {}\n", l.instrument, l.address, l.verdict, l.detail);
         }
+        text += &match &continuous {
+            Ok(how) => format!("continuous scan: possible ({how})\n"),
+            Err(why) => format!("continuous scan: not possible: {why}\n"),
+        };
         emit(&text);
     }
     if failed > 0 {

@@ -61,6 +61,10 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let mut bench = Bench::resume(&record, Duration::from_secs_f64(last_time.max(0.0)), next)?;
     bench.engine.set_stop(stop.clone());
     let plan = bench.plan.clone();
+    if plan.continuous() {
+        // The latency between the instruments, measured by the first runs.
+        bench.engine.set_scan_latency(store.scan_latency(id).await?);
+    }
     let options = AcquireOptions {
         progress: !args.json,
         crash_after: None,

@@ -7,6 +7,7 @@ use crate::bench::{Bench, PlanOverrides, SimulatedRequest};
 use crate::conclude::ConcludeOptions;
 use crate::engine::ReferenceKind;
 use crate::output::human;
+use crate::plan::ScanMode;
 use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;
 use crate::store::Store;
@@ -28,6 +29,24 @@ impl From<ReferenceArg> for ReferenceKind {
         match r {
             ReferenceArg::Tracker => ReferenceKind::Tracker,
             ReferenceArg::Autocollimator => ReferenceKind::Autocollimator,
+        }
+    }
+}
+
+/// How the plan is acquired.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ScanArg {
+    /// Stop at every target and measure at rest.
+    Step,
+    /// Turn steadily while the reference streams; pair samples by time.
+    Continuous,
+}
+
+impl From<ScanArg> for ScanMode {
+    fn from(s: ScanArg) -> Self {
+        match s {
+            ScanArg::Step => ScanMode::Step,
+            ScanArg::Continuous => ScanMode::Continuous,
         }
     }
 }
@@ -59,6 +78,11 @@ pub struct RunArgs {
     /// Seed of every random draw of the simulated instruments.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Stop at every target (step, the default) or turn steadily while the
+    /// reference streams (continuous) [default: step, or `scan` in the
+    /// configuration's [survey]].
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub scan: Option<ScanArg>,
     /// Faults the simulated instruments inject, per kind: `kind=rate,...`
     /// (timeout, garbled, disconnect, device, move, beam; beam_hold_s=S).
     /// A stall needs a wire: `survey sim --fault-rates`.
@@ -103,7 +127,12 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     let mut bench = match &args.config {
         Some(path) => Bench::configured(
             path,
-            PlanOverrides { points: args.points, runs: args.runs, bidirectional: args.bidirectional },
+            PlanOverrides {
+                points: args.points,
+                runs: args.runs,
+                bidirectional: args.bidirectional,
+                scan: args.scan.map(Into::into),
+            },
         )?,
         None => Bench::simulated(&SimulatedRequest {
             points: args.points,
@@ -113,6 +142,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             model_file: args.model.clone(),
             reference: args.reference.into(),
             seed: args.seed,
+            scan: args.scan.map_or(ScanMode::Step, Into::into),
             faults: match &args.fault_rates {
                 Some(spec) => Some(
                     survey_sims::faults::FaultRates::default()
@@ -140,10 +170,11 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     let plan = bench.plan.clone();
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
     eprintln!(
-        "survey {id}: {} targets x {} runs{}, {}: about {} of instrument time",
+        "survey {id}: {} targets x {} runs{}, {} scan, {}: about {} of instrument time",
         plan.targets_deg.len(),
         plan.runs,
         if plan.bidirectional { " bidirectional" } else { "" },
+        plan.scan.as_str(),
         bench.describe(),
         human(bench.estimate)
     );

@@ -32,6 +32,7 @@
 mod drift;
 mod lock;
 mod samples;
+mod scan;
 mod sink;
 mod surveys;
 #[cfg(test)]
@@ -39,6 +40,7 @@ mod tests;
 mod tx;
 
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
+pub use scan::StoredPass;
 pub use sink::StoreSink;
 pub use surveys::EventRow;
 
@@ -81,6 +83,7 @@ const CHUNK_ROWS: usize = 400;
 const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
+    (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
 ];
 
 fn migrator() -> Migrator {

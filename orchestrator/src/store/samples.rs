@@ -166,7 +166,11 @@ fn check_sample(r: &RecordedSample) -> anyhow::Result<()> {
     Ok(())
 }
 
-async fn insert_samples(conn: &mut SqliteConnection, survey_id: i64, samples: &[RecordedSample]) -> anyhow::Result<()> {
+pub(super) async fn insert_samples(
+    conn: &mut SqliteConnection,
+    survey_id: i64,
+    samples: &[RecordedSample],
+) -> anyhow::Result<()> {
     // Checked up front so that the database is not touched by a bad batch.
     for r in samples {
         check_sample(r)?;

@@ -7,7 +7,7 @@ use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
 use super::{Store, is_busy};
-use crate::record::{RecordedSample, SampleSink};
+use crate::record::{RecordedSample, SampleSink, ScanPassRecord};
 
 /// A [`SampleSink`] that writes to the store in batches.
 ///
@@ -163,6 +163,31 @@ impl SampleSink for StoreSink {
     async fn axis_located(&mut self, points: &[(f64, SmrMeasurement)], fit: &AxisFit) -> anyhow::Result<()> {
         self.store.add_locate_points(self.survey_id, points).await?;
         self.store.set_axis(self.survey_id, fit).await
+    }
+
+    /// The buffer is written first; then the pass, its samples and its
+    /// streams in one transaction (retried while another writer holds the
+    /// database, like every write).
+    async fn record_pass(&mut self, pass: ScanPassRecord) -> anyhow::Result<()> {
+        self.write().await?;
+        let started = Instant::now();
+        loop {
+            match self.store.append_pass(self.survey_id, &pass).await {
+                Ok(()) => break,
+                Err(e) if is_busy(&e) && started.elapsed() < self.busy_wait => {
+                    tracing::warn!(
+                        survey = self.survey_id,
+                        pass = pass.pass,
+                        "the database is locked: retrying the pass"
+                    );
+                    tokio::time::sleep(Duration::from_millis(200)).await;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let top = pass.samples.iter().map(|r| r.seq).max();
+        self.acknowledged = self.acknowledged.max(top);
+        Ok(())
     }
 
     /// Logged at once (not buffered).

@@ -1,0 +1,398 @@
+//! The continuous scan (`survey run --scan continuous`).
+//!
+//! Each run and direction of the plan is one pass: the axis is brought to a
+//! run-up point before the pass's first target (far enough to reach the
+//! pass's velocity), set to the velocity, and turned steadily past the last
+//! target to a run-out point, while the controller captures its readout at a
+//! fixed rate with its own time stamps (or, for a controller without a
+//! capture, the engine polls the readout at that rate and stamps each
+//! reading with the host's clock) and the tracker measures continuously
+//! (emScon's continuous time mode), one point every `stream_period`, stamped
+//! by the tracker's clock. Both streams are read every `fetch_interval`,
+//! each read noting the host time of its answer.
+//!
+//! A pass is then paired ([`pass::pair`]): each stream's clock is mapped to
+//! the host's ([`pair::ClockMap`]); for every target, the time the readout
+//! passed it ([`pair::crossing_time`]); the SMR position at that time
+//! ([`pair::position_at`]), the tracker's stamps taken at the middle of each
+//! point's integration (half a period before the stamp, which marks its end)
+//! and shifted by the latency between the two instruments; the actual angle
+//! around the located axis. The sample is stored at the target: readout =
+//! target, actual, the fitted SMR position as its raw reading, the crossing
+//! time as its timestamp. So the plan's `points` samples come out of every
+//! pass, whatever the two streams' rates, their lost items (a gap longer
+//! than `max_gap_periods` of a stream around a target makes the pass scanned
+//! again), or the velocity's ripple (both streams are read at the same
+//! moment, and the position is a quadratic fit in time).
+//!
+//! The latency ([`latency`]) is measured, not assumed: the first run turns
+//! at the calibration velocity (the configured one), the others at the scan
+//! velocity (half of it), and the velocity-dependent backlash between the
+//! two gives it. The first two runs are held in memory until it is known,
+//! then paired with it and stored, pass by pass; later passes are paired
+//! and stored as they end.
+//!
+//! # Storage and resume
+//!
+//! A pass is stored whole in one transaction: its samples, its raw streams
+//! and how they were paired (`scan_passes`, `scan_streams`). So a survey
+//! stopped or killed during a pass has stored the passes before it, and
+//! `survey resume` scans again from the first pass not stored (pass
+//! granularity; during the first two runs, from the first run, since they
+//! are stored together once the latency is known). The latency is read back
+//! from the stored passes.
+
+pub mod latency;
+pub mod pair;
+mod pass;
+
+pub use latency::Latency;
+
+use crate::budget::{Bound, Dynamics, locate_bound};
+use crate::engine::{Engine, EngineError, Failed, Outcome, Progress, Reference};
+use crate::plan::{SurveyPlan, move_time};
+use crate::record::SampleSink;
+use crate::settle::SettleModel;
+use serde::{Deserialize, Serialize};
+use std::time::Duration;
+use survey_processing::Direction;
+
+/// The continuous scan's velocities and rates (part of [`crate::engine::Timing`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ScanTiming {
+    /// Velocity of the survey's passes (the runs after the first), deg/s
+    /// (default: half the configured velocity).
+    pub velocity_deg_s: Option<f64>,
+    /// Velocity of the first run, which calibrates the latency, deg/s
+    /// (default: the configured velocity).
+    pub calibration_velocity_deg_s: Option<f64>,
+    /// The readout's capture (or polling) period.
+    pub capture_period: Duration,
+    /// The tracker's point period (emScon's time separation).
+    pub stream_period: Duration,
+    /// How often both streams are read.
+    pub fetch_interval: Duration,
+    /// The longest gap, in periods of a stream, bridged around a target.
+    pub max_gap_periods: f64,
+    /// Half-width of the tracker fit around a target, in periods.
+    pub fit_half_width_periods: f64,
+}
+
+impl Default for ScanTiming {
+    fn default() -> Self {
+        Self {
+            velocity_deg_s: None,
+            calibration_velocity_deg_s: None,
+            capture_period: Duration::from_millis(5),
+            stream_period: Duration::from_millis(5),
+            fetch_interval: Duration::from_millis(50),
+            max_gap_periods: 6.0,
+            fit_half_width_periods: 2.5,
+        }
+    }
+}
+
+impl ScanTiming {
+    /// `(calibration velocity, scan velocity)` for a configured velocity.
+    pub fn speeds(&self, configured: f64) -> (f64, f64) {
+        (self.calibration_velocity_deg_s.unwrap_or(configured), self.velocity_deg_s.unwrap_or(configured / 2.0))
+    }
+
+    /// Distance before the first target (and after the last) of a pass at
+    /// `speed`: the acceleration ramp, plus room for the fits, the gaps and
+    /// a latency of up to 50 ms.
+    pub fn runup_deg(&self, speed: f64, accel: f64) -> f64 {
+        let margin = self.fit_half_width_periods * self.stream_period.as_secs_f64()
+            + self.max_gap_periods * self.stream_period.as_secs_f64().max(self.capture_period.as_secs_f64())
+            + 0.05;
+        speed * speed / (2.0 * accel) + speed * margin + 0.01
+    }
+}
+
+/// What the continuous scan did, for the survey's report.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct ScanReport {
+    pub passes: u32,
+    /// Passes scanned again (a fault, a stream gap).
+    pub rescans: u32,
+    pub readouts: u64,
+    pub points: u64,
+    /// Whether the controller captured the readout (else it was polled).
+    pub readouts_captured: Option<bool>,
+    pub velocity_deg_s: f64,
+    pub calibration_velocity_deg_s: f64,
+}
+
+/// The engine's continuous-scan state.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ScanState {
+    /// The latency, once known (estimated, or read back on a resume).
+    pub latency: Option<Latency>,
+    pub report: ScanReport,
+}
+
+/// One pass of a plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PassPlan {
+    pub index: u32,
+    pub run: u32,
+    pub direction: Direction,
+    /// Unsigned velocity, deg/s.
+    pub speed: f64,
+    /// Where the axis starts and ends the pass, degrees.
+    pub start: f64,
+    pub end: f64,
+    /// `(seq, target)` in the order the pass meets them.
+    pub targets: Vec<(u64, f64)>,
+}
+
+/// Where a plan's acquisition starts: the first approach's start (step),
+/// or the first pass's run-up point (continuous).
+pub fn start_deg(plan: &SurveyPlan, velocity: f64, accel: f64, t: &ScanTiming) -> f64 {
+    if plan.continuous() {
+        passes(plan, velocity, accel, t).first().map_or(plan.targets_deg[0], |p| p.start)
+    } else {
+        plan.targets_deg[0] - plan.overrun_deg
+    }
+}
+
+/// The passes of a plan on an axis of `velocity` and `accel`.
+pub fn passes(plan: &SurveyPlan, velocity: f64, accel: f64, t: &ScanTiming) -> Vec<PassPlan> {
+    let (cal, scan) = t.speeds(velocity);
+    let steps = plan.steps();
+    let n = plan.targets_deg.len();
+    steps
+        .chunks(n)
+        .enumerate()
+        .map(|(i, chunk)| {
+            let (run, direction) = (chunk[0].run, chunk[0].direction);
+            let speed = if run == 1 { cal } else { scan };
+            let sign = direction.sign();
+            let runup = t.runup_deg(speed, accel);
+            let first = chunk[0].target_deg;
+            let last = chunk[n - 1].target_deg;
+            PassPlan {
+                index: i as u32,
+                run,
+                direction,
+                speed,
+                start: first - sign * runup,
+                end: last + sign * runup,
+                targets: chunk.iter().map(|s| (s.seq, s.target_deg)).collect(),
+            }
+        })
+        .collect()
+}
+
+/// The lower bound of a continuous plan: the locate, the moves to the
+/// first pass's start and between passes, and every pass at its velocity
+/// over its targets plus the acceleration ramps (no margins).
+pub fn bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel, t: &ScanTiming) -> Bound {
+    let all = passes(plan, d.velocity_deg_s, d.accel_deg_s2, t);
+    let mut b = Bound::default();
+    let mut pos = all.first().map_or(0.0, |p| p.start);
+    b.locate_s = locate_bound(plan, d, settle, pos);
+    for p in all {
+        let ramp = p.speed * p.speed / (2.0 * d.accel_deg_s2);
+        let sign = p.direction.sign();
+        let (first, last) = (p.targets[0].1, p.targets[p.targets.len() - 1].1);
+        let start = first - sign * ramp;
+        b.move_s += move_time(start - pos, d.velocity_deg_s, d.accel_deg_s2);
+        b.scan_s += move_time(last - first + sign * 2.0 * ramp, p.speed, d.accel_deg_s2);
+        pos = last + sign * ramp;
+    }
+    b
+}
+
+/// Acquire `plan` (continuous) from step `from_seq` (a pass boundary).
+pub(crate) async fn run(
+    engine: &mut Engine,
+    plan: &SurveyPlan,
+    from_seq: u64,
+    sink: &mut dyn SampleSink,
+    progress: &mut (dyn FnMut(&Progress) + Send),
+) -> Result<Outcome, EngineError> {
+    if !matches!(engine.reference, Reference::Tracker(_)) {
+        return Err(EngineError::Plan(
+            "a continuous scan needs a tracker that measures continuously: an autocollimator sees the polygon's \
+             faces only at rest (use --scan step)"
+                .into(),
+        ));
+    }
+    let n = plan.targets_deg.len() as u64;
+    if !from_seq.is_multiple_of(n) {
+        return Err(EngineError::Plan(format!(
+            "a continuous survey goes on from a pass's first step; step {from_seq} is inside a pass of {n}"
+        )));
+    }
+    let t = engine.timing.clone();
+    let (cal, scan) = t.scan.speeds(t.velocity_deg_s);
+    if (cal - scan).abs() < 1e-9 || cal <= 0.0 || scan <= 0.0 {
+        return Err(EngineError::Plan(format!(
+            "the calibration run and the scan need two different positive velocities, got {cal} and {scan} deg/s"
+        )));
+    }
+    let all = passes(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
+    if let Some((lo, hi)) = engine.travel()
+        && let Some(p) = all.iter().find(|p| p.start.min(p.end) < lo || p.start.max(p.end) > hi)
+    {
+        return Err(EngineError::Plan(format!(
+            "pass {} turns from {} to {} deg (with its run-up), outside the travel {lo}..{hi} deg",
+            p.index, p.start, p.end
+        )));
+    }
+    let dirs = plan.directions().len();
+    let first = (from_seq / n) as usize;
+    if engine.scan.latency.is_none() && first >= 2 * dirs {
+        return Err(EngineError::Plan(
+            "the survey's latency between its instruments is not stored: it cannot go on from here".into(),
+        ));
+    }
+    engine.scan.report.velocity_deg_s = scan;
+    engine.scan.report.calibration_velocity_deg_s = cal;
+    let axis = engine.axis.clone().ok_or_else(|| EngineError::Plan("the axis has not been located".into()))?;
+    let total = plan.total_steps();
+    let mut outcome = Outcome::default();
+    let mut held: Vec<(usize, pass::RawPass)> = Vec::new();
+    for (i, p) in all.iter().enumerate().skip(first) {
+        if let Err(why) = engine.stop.check() {
+            return Err(engine.halt(why).await);
+        }
+        let raw = acquire(engine, p, &axis, sink).await?;
+        engine.scan.report.readouts_captured = Some(raw.captured);
+        match engine.scan.latency {
+            Some(l) => {
+                store(engine, p, &raw, &axis, l, sink).await?;
+                outcome.samples_recorded += n;
+                report_progress(engine, p, total, progress);
+            }
+            None => {
+                held.push((i, raw));
+                if i + 1 == 2 * dirs {
+                    let l = calibrate(&all, &held, &axis, &t.scan)?;
+                    tracing::info!(delta_s = l.delta_s, se_s = l.se_s, "latency between the instruments");
+                    engine.scan.latency = Some(l);
+                    for (j, raw) in std::mem::take(&mut held) {
+                        store(engine, &all[j], &raw, &axis, l, sink).await?;
+                        outcome.samples_recorded += n;
+                        report_progress(engine, &all[j], total, progress);
+                    }
+                }
+            }
+        }
+    }
+    Ok(outcome)
+}
+
+fn report_progress(engine: &Engine, p: &PassPlan, total: u64, progress: &mut (dyn FnMut(&Progress) + Send)) {
+    let last = p.targets.last().map_or(0, |(seq, _)| *seq);
+    progress(&Progress {
+        done: last + 1,
+        total,
+        run: p.run,
+        direction: p.direction,
+        instrument_time: engine.clock.now(),
+    });
+}
+
+/// The latency from the first two runs' passes, paired without one.
+fn calibrate(
+    all: &[PassPlan],
+    held: &[(usize, pass::RawPass)],
+    axis: &survey_processing::geometry::AxisFit,
+    t: &ScanTiming,
+) -> Result<Latency, EngineError> {
+    let mut errors = Vec::new();
+    for (j, raw) in held {
+        let paired = pass::pair(raw, &all[*j], axis, t, 0.0).map_err(|e| EngineError::Plan(e.to_string()))?;
+        let mut by_target = paired.errors;
+        if all[*j].direction == Direction::Reverse {
+            by_target.reverse();
+        }
+        errors.push((
+            all[*j].run,
+            all[*j].direction,
+            latency::PassErrors { speed_deg_s: all[*j].speed, errors: by_target },
+        ));
+    }
+    let get = |run: u32, d: Direction| errors.iter().find(|e| e.0 == run && e.1 == d).map(|e| &e.2);
+    let (f1, f2) = (get(1, Direction::Forward), get(2, Direction::Forward));
+    let reverse = get(1, Direction::Reverse).zip(get(2, Direction::Reverse));
+    f1.zip(f2)
+        .and_then(|(f1, f2)| latency::estimate(f1, f2, reverse))
+        .ok_or_else(|| EngineError::Plan("the latency could not be estimated from the first two runs".into()))
+}
+
+/// Pair a pass with the latency and store it.
+async fn store(
+    engine: &mut Engine,
+    p: &PassPlan,
+    raw: &pass::RawPass,
+    axis: &survey_processing::geometry::AxisFit,
+    l: Latency,
+    sink: &mut dyn SampleSink,
+) -> Result<(), EngineError> {
+    let paired = pass::pair(raw, p, axis, &engine.timing.scan, l.delta_s)
+        .map_err(|e| EngineError::Plan(format!("pass {}: {e}", p.index)))?;
+    let record = pass::record(p, raw, paired, (l.delta_s, l.se_s));
+    engine.scan.report.passes += 1;
+    engine.scan.report.readouts += raw.readouts.len() as u64;
+    engine.scan.report.points += raw.points.len() as u64;
+    sink.record_pass(record).await.map_err(EngineError::Sink)
+}
+
+/// Scan one pass, again after a fault or a gap that leaves a target
+/// unpaired, up to the retry limit; a stop request ends it.
+async fn acquire(
+    engine: &mut Engine,
+    p: &PassPlan,
+    axis: &survey_processing::geometry::AxisFit,
+    sink: &mut dyn SampleSink,
+) -> Result<pass::RawPass, EngineError> {
+    let mut attempt = 0;
+    loop {
+        let mut stop = engine.stop.clone();
+        let positioned = tokio::select! {
+            biased;
+            why = stop.wait() => Err(why),
+            r = engine.move_to(p.start, false, sink) => Ok(r),
+        };
+        match positioned {
+            Err(why) => return Err(engine.halt(why).await),
+            Ok(r) => r?,
+        }
+        let mut stop = engine.stop.clone();
+        let scanned = tokio::select! {
+            biased;
+            why = stop.wait() => Err(why),
+            r = pass::acquire(engine, p) => Ok(r),
+        };
+        let failure = match scanned {
+            Err(why) => {
+                pass::abandon(engine).await;
+                return Err(engine.halt(why).await);
+            }
+            Ok(Ok(raw)) => {
+                let delta = engine.scan.latency.map_or(0.0, |l| l.delta_s);
+                match pass::pair(&raw, p, axis, &engine.timing.scan, delta) {
+                    Ok(_) => return Ok(raw),
+                    Err(e) => (
+                        survey_drivers::DriverError::device(
+                            engine.reference.name(),
+                            0,
+                            format!("pass {} could not be paired: {e}", p.index),
+                        ),
+                        Failed::Reference,
+                    ),
+                }
+            }
+            Ok(Err(failure)) => failure,
+        };
+        pass::abandon(engine).await;
+        engine.scan.report.rescans += 1;
+        attempt += 1;
+        let (error, failed) = failure;
+        engine.survive(error, failed, attempt, &format!("scan pass {}", p.index), sink).await?;
+    }
+}

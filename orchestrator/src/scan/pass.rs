@@ -1,0 +1,280 @@
+//! One pass of a continuous scan on the instruments: the axis set to the
+//! pass's velocity, the readout captured (or polled) and the tracker
+//! streaming while the axis turns from the pass's start to its end, every
+//! read noted with the host time of its answer; and its pairing.
+
+use super::pair::{ClockMap, PairError, crossing_time, position_at};
+use super::{PassPlan, ScanTiming};
+use crate::budget::Component;
+use crate::engine::{Engine, Failed, Reference};
+use crate::plan::move_time;
+use crate::record::{RawReading, RecordedSample, ScanPassRecord};
+use std::time::Duration;
+use survey_drivers::clock::with_timeout;
+use survey_drivers::{DriverError, ErrorKind, SmrMeasurement, StreamedPoint, Tracker};
+use survey_processing::Sample;
+use survey_processing::geometry::AxisFit;
+
+/// What one pass gathered.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RawPass {
+    /// `(stamp, readout)`: the controller's stamps when captured, the
+    /// host's (middle of the request) when polled.
+    pub readouts: Vec<(f64, f64)>,
+    pub captured: bool,
+    /// `(stamp of the newest readout, host time of the answer)` per capture read.
+    pub readout_fetches: Vec<(f64, f64)>,
+    pub points: Vec<StreamedPoint>,
+    /// `(stamp of the newest point, host time of the answer)` per stream read.
+    pub point_fetches: Vec<(f64, f64)>,
+    /// Instrument time the move was commanded and seen to end.
+    pub started_s: f64,
+    pub ended_s: f64,
+}
+
+/// How often the status is read during a pass, in reads of the streams.
+const STATUS_EVERY: u32 = 4;
+
+fn tracker(engine: &mut Engine) -> Result<&mut Box<dyn Tracker>, (DriverError, Failed)> {
+    match &mut engine.reference {
+        Reference::Tracker(t) => Ok(t),
+        Reference::Autocollimator { instrument, .. } => Err((
+            DriverError::usage(instrument.name(), "a continuous scan needs a tracker that streams"),
+            Failed::Reference,
+        )),
+    }
+}
+
+/// Scan pass `p` from where the axis is (its start).
+pub(crate) async fn acquire(engine: &mut Engine, p: &PassPlan) -> Result<RawPass, (DriverError, Failed)> {
+    let clock = engine.clock.clone();
+    let t = engine.timing.clone();
+    let pos = |e: DriverError| (e, Failed::Positioner);
+    let refe = |e: DriverError| (e, Failed::Reference);
+    let pname = engine.positioner.name().to_string();
+    let tname = tracker(engine)?.name().to_string();
+    engine.ledger.switch(clock.now(), Component::CommandLatency);
+    with_timeout(&*clock, t.call_timeout, &pname, "set velocity", engine.positioner.set_velocity(p.speed))
+        .await
+        .map_err(pos)?;
+    let captured = engine.positioner.can_capture();
+    if captured {
+        let start = engine.positioner.start_capture(t.scan.capture_period);
+        with_timeout(&*clock, t.call_timeout, &pname, "start capture", start).await.map_err(pos)?;
+    }
+    let start = tracker(engine)?.start_stream(t.scan.stream_period);
+    with_timeout(&*clock, t.measure_timeout, &tname, "start stream", start).await.map_err(refe)?;
+    with_timeout(&*clock, t.call_timeout, &pname, "move command", engine.positioner.move_to(p.end))
+        .await
+        .map_err(pos)?;
+    let started = clock.now();
+    engine.commanded = None;
+    engine.ledger.switch(started, Component::Scan);
+    let expected = Duration::from_secs_f64(move_time(p.end - p.start, p.speed, t.accel_deg_s2));
+    let deadline = started + expected + t.move_margin;
+    let mut raw = RawPass {
+        readouts: Vec::new(),
+        captured,
+        readout_fetches: Vec::new(),
+        points: Vec::new(),
+        point_fetches: Vec::new(),
+        started_s: started.as_secs_f64(),
+        ended_s: f64::NAN,
+    };
+    let mut reads = 0u32;
+    let mut over = false;
+    loop {
+        let tick = clock.now();
+        if captured {
+            let got = with_timeout(&*clock, t.call_timeout, &pname, "read capture", engine.positioner.read_capture())
+                .await
+                .map_err(pos)?;
+            if let Some(last) = got.last() {
+                raw.readout_fetches.push((last.device_time_s, clock.now().as_secs_f64()));
+            }
+            raw.readouts.extend(got.iter().map(|r| (r.device_time_s, r.readout_deg)));
+        } else {
+            // Poll the readout at a fixed rate for one fetch interval.
+            loop {
+                let asked = clock.now();
+                let r = with_timeout(&*clock, t.call_timeout, &pname, "readout", engine.positioner.readout())
+                    .await
+                    .map_err(pos)?;
+                let answered = clock.now();
+                raw.readouts.push(((asked.as_secs_f64() + answered.as_secs_f64()) / 2.0, r));
+                if answered - tick + t.scan.capture_period > t.scan.fetch_interval {
+                    break;
+                }
+                clock.sleep(t.scan.capture_period.saturating_sub(answered - asked)).await;
+            }
+        }
+        let got = with_timeout(&*clock, t.call_timeout, &tname, "read stream", tracker(engine)?.read_stream())
+            .await
+            .map_err(refe)?;
+        if let Some(last) = got.last() {
+            raw.point_fetches.push((last.device_time_s, clock.now().as_secs_f64()));
+        }
+        raw.points.extend(got);
+        if over {
+            break;
+        }
+        reads += 1;
+        if reads.is_multiple_of(STATUS_EVERY) || clock.now() >= started + expected {
+            let s = with_timeout(&*clock, t.call_timeout, &pname, "status", engine.positioner.status())
+                .await
+                .map_err(pos)?;
+            if let Some(f) = s.fault {
+                return Err(pos(DriverError::device(pname, f.code, f.text)));
+            }
+            if !s.moving && clock.now() >= started + expected {
+                raw.ended_s = clock.now().as_secs_f64();
+                // One more read of each stream: what was measured up to the end.
+                over = true;
+                continue;
+            }
+        }
+        if clock.now() > deadline {
+            return Err(pos(DriverError::new(
+                ErrorKind::Timeout,
+                pname,
+                format!("the scan to {} deg did not end within {:?}", p.end, expected + t.move_margin),
+            )));
+        }
+        if captured {
+            clock.sleep(t.scan.fetch_interval.saturating_sub(clock.now() - tick)).await;
+        }
+    }
+    engine.ledger.switch(clock.now(), Component::CommandLatency);
+    if captured {
+        with_timeout(&*clock, t.call_timeout, &pname, "stop capture", engine.positioner.stop_capture())
+            .await
+            .map_err(pos)?;
+    }
+    let stop = tracker(engine)?.stop_stream();
+    with_timeout(&*clock, t.call_timeout, &tname, "stop stream", stop).await.map_err(refe)?;
+    let restore = engine.positioner.set_velocity(t.velocity_deg_s);
+    with_timeout(&*clock, t.call_timeout, &pname, "set velocity", restore).await.map_err(pos)?;
+    engine.commanded = Some(p.end);
+    Ok(raw)
+}
+
+/// After a failed or stopped pass: stop the axis and both streams, set the
+/// velocity back (each as far as it goes; failures are logged).
+pub(crate) async fn abandon(engine: &mut Engine) {
+    let clock = engine.clock.clone();
+    let t = engine.timing.clone();
+    let pname = engine.positioner.name().to_string();
+    let steps: [(&str, Result<(), DriverError>); 1] =
+        [("stop", with_timeout(&*clock, t.call_timeout, &pname, "stop", engine.positioner.stop()).await)];
+    for (what, r) in steps {
+        if let Err(e) = r {
+            tracing::warn!(%e, what, "after a failed pass");
+        }
+    }
+    if let Err(e) =
+        with_timeout(&*clock, t.call_timeout, &pname, "stop capture", engine.positioner.stop_capture()).await
+    {
+        tracing::debug!(%e, "stopping the capture after a failed pass");
+    }
+    if let Ok(tr) = tracker(engine) {
+        let name = tr.name().to_string();
+        if let Err(e) = with_timeout(&*clock, t.call_timeout, &name, "stop stream", tr.stop_stream()).await {
+            tracing::debug!(%e, "stopping the stream after a failed pass");
+        }
+    }
+    let restore = engine.positioner.set_velocity(t.velocity_deg_s);
+    if let Err(e) = with_timeout(&*clock, t.call_timeout, &pname, "set velocity", restore).await {
+        tracing::warn!(%e, "setting the velocity back after a failed pass");
+    }
+    engine.commanded = None;
+}
+
+/// A pass paired: its samples, each target's error, and the clock maps.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Paired {
+    pub samples: Vec<RecordedSample>,
+    pub errors: Vec<f64>,
+    pub readout_clock: ClockMap,
+    pub tracker_clock: ClockMap,
+}
+
+/// Pair pass `p` with the latency `delta_s` removed (see the module documentation of [`super`]).
+pub(crate) fn pair(
+    raw: &RawPass,
+    p: &PassPlan,
+    axis: &AxisFit,
+    t: &ScanTiming,
+    delta_s: f64,
+) -> Result<Paired, PairError> {
+    let readout_clock = if raw.captured {
+        ClockMap::fit(&raw.readout_fetches).ok_or(PairError::NoClock { stream: "readout" })?
+    } else {
+        ClockMap::HOST
+    };
+    let tracker_clock = ClockMap::fit(&raw.point_fetches).ok_or(PairError::NoClock { stream: "tracker" })?;
+    let mut readouts: Vec<(f64, f64)> = raw.readouts.iter().map(|(s, r)| (readout_clock.host(*s), *r)).collect();
+    readouts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (rt, rv): (Vec<f64>, Vec<f64>) = readouts.into_iter().unzip();
+    let mut points: Vec<(f64, [f64; 3])> =
+        raw.points.iter().filter(|q| q.status == 0).map(|q| (tracker_clock.host(q.device_time_s), q.xyz_mm)).collect();
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (pt, pxyz): (Vec<f64>, Vec<[f64; 3]>) = points.into_iter().unzip();
+    let period = t.stream_period.as_secs_f64();
+    let readout_gap = t.max_gap_periods * t.capture_period.as_secs_f64();
+    let point_gap = t.max_gap_periods * period;
+    let half_width = t.fit_half_width_periods * period;
+    let sign = p.direction.sign();
+    let mut samples = Vec::with_capacity(p.targets.len());
+    let mut errors = Vec::with_capacity(p.targets.len());
+    for &(seq, target) in &p.targets {
+        let at = crossing_time(&rt, &rv, target, sign, readout_gap)?;
+        // A point stamped at the end of its integration shows the middle of it.
+        let stamp = at + period / 2.0 + delta_s;
+        let xyz = position_at(&pt, &pxyz, stamp, half_width, point_gap, target)?;
+        let actual = axis.angle_deg(xyz, target);
+        errors.push(target - actual);
+        let sample = Sample {
+            run: p.run,
+            direction: p.direction,
+            target_deg: target,
+            readout_deg: target,
+            actual_deg: actual,
+            timestamp_s: Some(at),
+        };
+        let raw = RawReading::Smr(SmrMeasurement {
+            x_mm: xyz[0],
+            y_mm: xyz[1],
+            z_mm: xyz[2],
+            std_dev_mm: [f64::NAN; 3],
+            measurement_time_s: period,
+        });
+        samples.push(RecordedSample { seq, sample, raw });
+    }
+    Ok(Paired { samples, errors, readout_clock, tracker_clock })
+}
+
+/// What the store keeps of a pass.
+pub(crate) fn record(p: &PassPlan, raw: &RawPass, paired: Paired, latency: (f64, f64)) -> ScanPassRecord {
+    ScanPassRecord {
+        pass: p.index,
+        run: p.run,
+        direction: p.direction,
+        velocity_deg_s: p.speed,
+        latency_s: latency.0,
+        latency_se_s: latency.1,
+        readout_clock: (paired.readout_clock.offset_s, paired.readout_clock.rate),
+        tracker_clock: (paired.tracker_clock.offset_s, paired.tracker_clock.rate),
+        readout_captured: raw.captured,
+        started_at_s: raw.started_s,
+        ended_at_s: raw.ended_s,
+        samples: paired.samples,
+        readouts: raw.readouts.iter().map(|(s, r)| [*s, *r]).collect(),
+        readout_fetches: raw.readout_fetches.iter().map(|(d, h)| [*d, *h]).collect(),
+        points: raw
+            .points
+            .iter()
+            .map(|q| [q.device_time_s, q.xyz_mm[0], q.xyz_mm[1], q.xyz_mm[2], f64::from(q.status)])
+            .collect(),
+        point_fetches: raw.point_fetches.iter().map(|(d, h)| [*d, *h]).collect(),
+    }
+}
