@@ -80,10 +80,11 @@ pub struct Contribution {
 pub struct Uncertainty {
     /// The coverage factor of the expanded uncertainty.
     pub k: f64,
-    /// The combined standard uncertainty of the table's values, degrees.
+    /// The expanded uncertainty of the table's values, `k combined_u_deg`,
+    /// degrees: what a certificate states (about 95 % coverage).
     pub table_u_deg: f64,
-    /// The expanded uncertainty `k table_u_deg`, degrees.
-    pub expanded_deg: f64,
+    /// The combined standard uncertainty of the table's values, degrees.
+    pub combined_u_deg: f64,
     /// The contributions.
     pub budget: Vec<Contribution>,
     /// How it was estimated, in words.
@@ -197,7 +198,7 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     // at a random phase: `T / sqrt(3)` amplitude, `1 / sqrt(2)` of it rms.
     let threshold = a.noise.coherent_threshold_deg;
     budget.push(Contribution { source: "a line below the detection threshold".into(), u_deg: threshold / 6f64.sqrt() });
-    let table_u_deg = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
+    let combined_u_deg = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
         "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
          expanded with k = {K}; the table's value at an angle relative to its zero reference, {} fitted terms from \
@@ -206,7 +207,7 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         samples.len(),
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
-    Uncertainty { k: K, table_u_deg, expanded_deg: K * table_u_deg, budget, method }
+    Uncertainty { k: K, table_u_deg: K * combined_u_deg, combined_u_deg, budget, method }
 }
 
 impl Uncertainty {
@@ -214,7 +215,7 @@ impl Uncertainty {
     pub fn text(&self) -> String {
         let mut s = format!(
             "table uncertainty (GUM): u = {:.2e} deg, U = {:.2e} deg (k = {})\n",
-            self.table_u_deg, self.expanded_deg, self.k
+            self.combined_u_deg, self.table_u_deg, self.k
         );
         for c in &self.budget {
             s += &format!("  {:<36} {:.2e} deg\n", c.source, c.u_deg);

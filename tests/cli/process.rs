@@ -75,14 +75,17 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
             .any(|a| a["observed_cycles"] == 144.0 && a["true_cycles"] == 216.0 && a["action"] == "relocated"),
         "{aliases:#?}"
     );
-    // The table's uncertainty (issue 14): k = 2, the combined standard
-    // uncertainty, and a budget of named sources whose squares sum to it.
+    // The table's uncertainty (issue 14): k = 2, the expanded uncertainty
+    // `table_u_deg` = k u, u the combined standard uncertainty of a budget of
+    // named sources whose squares sum to u^2.
     let u = &doc["uncertainty"];
     assert_eq!(u["k"], 2.0, "{u}");
     let table_u = num(&u["table_u_deg"], "table_u_deg");
+    let combined = num(&u["combined_u_deg"], "combined_u_deg");
     let budget = u["budget"].as_array().expect("budget is an array");
     let sum: f64 = budget.iter().map(|b| num(&b["u_deg"], "u_deg").powi(2)).sum();
-    assert!(table_u > 0.0 && (sum.sqrt() / table_u - 1.0).abs() < 1e-9, "{u}");
+    assert!(combined > 0.0 && (sum.sqrt() / combined - 1.0).abs() < 1e-9, "{u}");
+    assert!((table_u / (2.0 * combined) - 1.0).abs() < 1e-12, "{u}");
     for source in ["reference instrument", "repeatability over the runs", "direction model", "drift"] {
         assert!(budget.iter().any(|b| b["source"] == source), "{source} missing: {u}");
     }

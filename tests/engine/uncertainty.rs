@@ -53,7 +53,10 @@ fn the_stated_uncertainty_covers_the_tables_true_residuals_and_is_not_inflated()
         let doc = survey(&db, &["process", "--table-out", t.to_str().unwrap(), "--json"]);
         let u = &doc["uncertainty"];
         assert_eq!(u["k"], 2.0, "{u}");
-        let big_u = u["k"].as_f64().unwrap() * u["table_u_deg"].as_f64().unwrap();
+        // `table_u_deg` is the expanded uncertainty U = k u.
+        let big_u = u["table_u_deg"].as_f64().unwrap();
+        let combined = u["combined_u_deg"].as_f64().unwrap();
+        assert!((big_u / (u["k"].as_f64().unwrap() * combined) - 1.0).abs() < 1e-12, "{u}");
         let sources: Vec<&str> =
             u["budget"].as_array().unwrap().iter().map(|b| b["source"].as_str().unwrap()).collect();
         for s in ["reference instrument", "axis location", "repeatability over the runs", "direction model"] {

@@ -140,6 +140,7 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
         uncertainty::UncertaintyBudget {
             k: u.k,
             table_u_deg: u.table_u_deg,
+            combined_u_deg: u.combined_u_deg,
             budget: u
                 .budget
                 .into_iter()

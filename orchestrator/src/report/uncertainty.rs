@@ -1,6 +1,7 @@
 //! The uncertainty budget of the correction table, when the processing
-//! reports one (`uncertainty` in the processing summary: `{"k", "table_u_deg",
-//! "budget": [{"source", "u_deg"}]}`).
+//! reports one (`uncertainty` in the processing summary: `{"k", "table_u_deg"
+//! (the expanded uncertainty U), "combined_u_deg" (u), "budget": [{"source",
+//! "u_deg"}]}`).
 
 use super::page::{escape, table};
 use super::units::Units;
@@ -13,12 +14,14 @@ pub struct BudgetEntry {
     pub u_deg: f64,
 }
 
-/// The budget: the contributions, the combined standard uncertainty of the
-/// table and the coverage factor of the expanded uncertainty.
+/// The budget: the contributions, the expanded uncertainty of the table
+/// (`table_u_deg`, U = k u), its combined standard uncertainty and the
+/// coverage factor.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 pub struct UncertaintyBudget {
     pub k: f64,
     pub table_u_deg: f64,
+    pub combined_u_deg: f64,
     pub budget: Vec<BudgetEntry>,
 }
 
@@ -35,12 +38,8 @@ pub fn section(b: &UncertaintyBudget, units: Units) -> String {
             vec![escape(&e.source), units.num(e.u_deg), format!("{share:.1} %")]
         })
         .collect();
-    rows.push(vec!["combined standard uncertainty u".into(), units.num(b.table_u_deg), String::new()]);
-    rows.push(vec![
-        format!("expanded uncertainty U = k u (k = {})", b.k),
-        units.num(b.k * b.table_u_deg),
-        String::new(),
-    ]);
+    rows.push(vec!["combined standard uncertainty u".into(), units.num(b.combined_u_deg), String::new()]);
+    rows.push(vec![format!("expanded uncertainty U = k u (k = {})", b.k), units.num(b.table_u_deg), String::new()]);
     let mut html = table("tbl-uncertainty", &["source", &format!("standard uncertainty, {u}"), "share of u²"], &rows);
     html += "<p class=\"note\">Each contribution is a standard uncertainty (k = 1); the shares are of the sum of \
              their squares.</p>\n";
@@ -54,11 +53,11 @@ mod tests {
     #[test]
     fn a_budget_renders_with_its_shares_and_expanded_uncertainty() {
         let b: UncertaintyBudget = serde_json::from_str(
-            r#"{"k": 2, "table_u_deg": 0.0005, "budget": [{"source": "noise", "u_deg": 0.0003}, {"source": "axis", "u_deg": 0.0004}]}"#,
+            r#"{"k": 2, "table_u_deg": 0.0010, "combined_u_deg": 0.0005, "budget": [{"source": "noise", "u_deg": 0.0003}, {"source": "axis", "u_deg": 0.0004}]}"#,
         )
         .unwrap();
         let html = section(&b, Units::Deg);
         assert!(html.contains("36.0 %") && html.contains("64.0 %"), "{html}");
-        assert!(html.contains("0.00100"), "U = 2 x 0.0005: {html}");
+        assert!(html.contains("0.00050") && html.contains("0.00100"), "u = 0.0005, U = 2 x 0.0005: {html}");
     }
 }
