@@ -128,6 +128,20 @@ impl Survey {
         self.map.targets_deg.len()
     }
 
+    /// The mean of `residual` (one value per sample) at each target, and how
+    /// many samples each mean holds (a target without samples: NaN, 0).
+    pub fn target_means(&self, residual: &[f64]) -> (Vec<f64>, Vec<usize>) {
+        let t = self.targets();
+        let mut sum = vec![0.0; t];
+        let mut count = vec![0usize; t];
+        for (i, r) in residual.iter().enumerate() {
+            sum[self.target[i]] += r;
+            count[self.target[i]] += 1;
+        }
+        let mean = sum.iter().zip(&count).map(|(a, c)| a / *c as f64).collect();
+        (mean, count)
+    }
+
     pub fn bidirectional(&self) -> bool {
         self.dirs.len() == 2
     }

@@ -151,19 +151,14 @@ pub(crate) fn repeatable_test(ctx: &Ctx, residual: &[f64]) -> Option<RepeatableT
 fn outside_band(ctx: &Ctx, residual: &[f64], dof: Option<usize>) -> (usize, f64) {
     let s = ctx.survey;
     let t = s.targets();
-    let mut sum = vec![0.0; t];
-    let mut count = vec![0usize; t];
-    for (i, r) in residual.iter().enumerate() {
-        sum[s.target[i]] += r;
-        count[s.target[i]] += 1;
-    }
+    let (mean, count) = s.target_means(residual);
     let p = ctx.alpha / t as f64;
     let z = match dof {
         Some(d) if d > 0 => t_two_sided_isf(p, d),
         _ => normal_two_sided_isf(p),
     };
     let band = z * ctx.sigma / ((s.runs() * s.dirs.len()) as f64).sqrt();
-    let outside = sum.iter().zip(&count).filter(|(a, n)| **n > 0 && (**a / **n as f64).abs() > band).count();
+    let outside = mean.iter().zip(&count).filter(|(m, n)| **n > 0 && m.abs() > band).count();
     (outside, band)
 }
 

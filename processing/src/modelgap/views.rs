@@ -227,13 +227,7 @@ pub(crate) fn views(ctx: &Ctx, model: &Model, residual: &[f64]) -> Result<(Views
 fn angle_view(ctx: &Ctx, residual: &[f64]) -> AngleView {
     let s = ctx.survey;
     let t = s.targets();
-    let mut sum = vec![0.0; t];
-    let mut count = vec![0usize; t];
-    for (i, r) in residual.iter().enumerate() {
-        sum[s.target[i]] += r;
-        count[s.target[i]] += 1;
-    }
-    let mean: Vec<f64> = sum.iter().zip(&count).map(|(a, c)| a / *c as f64).collect();
+    let (mean, _) = s.target_means(residual);
     let per_target = (s.runs() * s.dirs.len()) as f64;
     let band = normal_two_sided_isf(ctx.alpha / t as f64) * ctx.sigma / per_target.sqrt();
     let targets = &s.map.targets_deg;
