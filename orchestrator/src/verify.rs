@@ -157,6 +157,10 @@ pub async fn verify(
         native.id,
         placement(verify_plan)
     );
+    if let Some(progress) = &options.plan_progress {
+        // A simulated drift goes on growing through the verification.
+        progress.continue_with(plan.targets_deg.len() as u64 * plan.directions().len() as u64);
+    }
     acquire(store, id, engine, plan, 0, options).await?;
     let corrected = store.samples(id).await?;
     let predicted = processed.processed.prediction.corrected_peak_deg;

@@ -196,45 +196,72 @@ impl PositionerConfig {
 /// A survey's place in its plan, shared between the one who runs the plan
 /// (it sets the next step before that step's moves) and the simulated
 /// positioner (it reads the drift's time from it): step `j` of run `k` is at
-/// `k + j / steps_per_run` runs. Clones share the same place.
+/// `k + j / steps_per_run` runs, counted on from the runs of the plans before
+/// it on the same bench ([`PlanProgress::continue_with`]: a verification after
+/// the calibration's runs). Clones share the same place.
 #[derive(Debug, Clone)]
 pub struct PlanProgress {
-    next: Arc<AtomicU64>,
-    steps_per_run: u64,
+    place: Arc<Place>,
+}
+
+#[derive(Debug)]
+struct Place {
+    next: AtomicU64,
+    steps_per_run: AtomicU64,
+    /// Runs of the plans before this one, as f64 bits.
+    before_runs: AtomicU64,
 }
 
 impl PlanProgress {
     /// A plan of `steps_per_run` steps a run (at least 1), at step 0.
     pub fn new(steps_per_run: u64) -> Self {
-        Self { next: Arc::new(AtomicU64::new(0)), steps_per_run: steps_per_run.max(1) }
+        Self {
+            place: Arc::new(Place {
+                next: AtomicU64::new(0),
+                steps_per_run: AtomicU64::new(steps_per_run.max(1)),
+                before_runs: AtomicU64::new(0f64.to_bits()),
+            }),
+        }
     }
 
     /// The next step to be measured is `seq` (from 0, counted over the whole plan).
     pub fn set_next_step(&self, seq: u64) {
-        self.next.store(seq, Ordering::Relaxed);
+        self.place.next.store(seq, Ordering::Relaxed);
     }
 
     /// The next step to be measured.
     pub fn next_step(&self) -> u64 {
-        self.next.load(Ordering::Relaxed)
+        self.place.next.load(Ordering::Relaxed)
     }
 
     /// Steps a run.
     pub fn steps_per_run(&self) -> u64 {
-        self.steps_per_run
+        self.place.steps_per_run.load(Ordering::Relaxed)
     }
 
-    /// Runs elapsed at the next step: `k + j / steps_per_run` for step `j` of run `k`.
+    /// Runs elapsed at the next step: the runs before this plan, plus `k + j
+    /// / steps_per_run` for step `j` of run `k`.
     pub fn runs_elapsed(&self) -> f64 {
-        let seq = self.next_step();
-        (seq / self.steps_per_run) as f64 + (seq % self.steps_per_run) as f64 / self.steps_per_run as f64
+        let (seq, n) = (self.next_step(), self.steps_per_run());
+        let before = f64::from_bits(self.place.before_runs.load(Ordering::Relaxed));
+        before + (seq / n) as f64 + (seq % n) as f64 / n as f64
+    }
+
+    /// A new plan of `steps_per_run` steps a run on the same bench, from its
+    /// step 0: time goes on from where the plan before it got to (its runs
+    /// elapsed at its next step), so a drift keeps growing.
+    pub fn continue_with(&self, steps_per_run: u64) {
+        let elapsed = self.runs_elapsed();
+        self.place.before_runs.store(elapsed.to_bits(), Ordering::Relaxed);
+        self.place.steps_per_run.store(steps_per_run.max(1), Ordering::Relaxed);
+        self.set_next_step(0);
     }
 }
 
 impl PartialEq for PlanProgress {
     /// The same shared place.
     fn eq(&self, other: &Self) -> bool {
-        Arc::ptr_eq(&self.next, &other.next) && self.steps_per_run == other.steps_per_run
+        Arc::ptr_eq(&self.place, &other.place)
     }
 }
 

@@ -199,6 +199,19 @@ async fn drift_by_plan_progress_is_the_rate_per_run_exactly() {
             };
             assert!((drift_part(&p, r, a) - want).abs() < 1e-12, "{shape:?} step {seq}: {}", drift_part(&p, r, a));
         }
+        // A verification after the plan: 6 steps a run, its time counted on
+        // from the calibration's next step (37 of 8 a run: 4.625 runs).
+        progress.continue_with(6);
+        for (seq, target) in [(0u64, 12.0), (3, 40.0), (9, 15.0)] {
+            progress.set_next_step(seq);
+            let (r, a) = go(&mut p, target).await;
+            let runs = 4.625 + (seq / 6) as f64 + (seq % 6) as f64 / 6.0;
+            let want = match shape {
+                DriftShape::Ramp => rate * runs,
+                DriftShape::Step => rate * runs.floor(),
+            };
+            assert!((drift_part(&p, r, a) - want).abs() < 1e-12, "{shape:?} verification step {seq}");
+        }
     }
 }
 
