@@ -287,6 +287,18 @@ fn check(wire: Wire, f: &Faulted) {
                 _ => &[": garbled frame: ", ": timeout: "],
             };
             assert!(expected.iter().any(|x| said(x)), "expected one of {expected:?}: {}", context());
+            // On the SLCAN line the relay faults replies only (the adapter's
+            // transmit acknowledgements and the drive's heartbeats pass: the
+            // host awaits neither), so every reply dropped was awaited, and
+            // each is met as a timeout of its own.
+            if wire == Wire::CanopenSlcan && f.kind == "timeout" {
+                assert!(
+                    u64::from(f.met.timeout) >= f.injected,
+                    "a dropped reply went unnoticed: {:?}: {}",
+                    f.met,
+                    context()
+                );
+            }
         }
         "device" => match wire.device_code() {
             Some(code) => assert!(said(&format!(": device fault (code {code}): ")), "{}", context()),
