@@ -67,8 +67,9 @@
 //! - [`drop_next_answers`](EmsconFaults::drop_next_answers): commands are
 //!   executed but not answered (status changes are still sent);
 //! - [`garble_next_answer`](EmsconFaults::garble_next_answer): the answer's
-//!   type is made unknown, its last 4 bytes are cut (size field patched), or
-//!   its size field made absurd ([`Garble`]);
+//!   type is made unknown, its last 4 bytes are cut (size field patched), its
+//!   size field made absurd, or its result status made one the header does
+//!   not define ([`Garble`]);
 //! - [`close_during_next_answer`](EmsconFaults::close_during_next_answer):
 //!   the first half of the answer, then the connection is closed;
 //! - [`status_change_before_next_answer`](EmsconFaults::status_change_before_next_answer):
@@ -85,7 +86,7 @@ use crate::faults::{Countdown, FaultPlan};
 use crate::tracker::{CODE_BEAM_BROKEN, SimTracker};
 use std::collections::VecDeque;
 use survey_drivers::emscon::codes::{
-    adm_status, command as cmd, coordinate_system, laser_status, length_unit, meas_mode,
+    adm_status, command as cmd, coordinate_system, data_type, laser_status, length_unit, meas_mode,
     measurement_status_info as msi, pressure_unit, statistic_mode, status, status_change, temperature_unit,
     tracker_processor_status, weather_monitor_status,
 };
@@ -119,6 +120,10 @@ pub enum Garble {
     WrongLength,
     /// `lPacketSize` becomes absurd (1 GiB): the framing is lost.
     AbsurdSize,
+    /// The second byte of the `enum ES_ResultStatus` field is changed (XOR
+    /// 0x5a, as the relay of `survey sim` garbles a byte): `ES_RS_AllOK`
+    /// reads 23040, a status the header does not define.
+    Status,
 }
 
 /// How [`EmsconFaults::reject_next_command`] answers.
@@ -662,6 +667,13 @@ fn garble(mut packet: Vec<u8>, how: Garble) -> Vec<u8> {
             packet[..4].copy_from_slice(&n.to_le_bytes());
         }
         Garble::AbsurdSize => packet[..4].copy_from_slice(&(1i32 << 30).to_le_bytes()),
+        Garble::Status => {
+            // After the header: `command` then `status` in `BasicCommandRT`
+            // and `ErrorResponseT`; `status` first in `ReturnDataT`.
+            let data_type = i32::from_le_bytes([packet[4], packet[5], packet[6], packet[7]]);
+            let at = if matches!(data_type, data_type::COMMAND | data_type::ERROR) { 12 } else { 8 };
+            packet[at + 1] ^= 0x5a;
+        }
     }
     tracing::debug!(?how, "emscon simulator: answer garbled (injected)");
     packet
@@ -957,6 +969,29 @@ mod tests {
             t.measure().await.unwrap();
             assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
         }
+    }
+
+    /// A result status changed into one the header does not define, in a
+    /// measurement result and in a command's answer: a garbled packet, not
+    /// the tracker's fault; the next requests are answered as before.
+    #[tokio::test]
+    async fn an_undefined_result_status_is_a_garbled_packet() {
+        let rig = Rig::new(sim_cfg(3, None)).await;
+        let mut t = rig.connect().await;
+        rig.faults.garble_next_answer(Garble::Status);
+        let e = t.measure().await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Garbled, None), "{e}");
+        assert!(e.message.contains("ES_ResultStatus 23040 is no status of the emScon header"), "{e}");
+        t.measure().await.unwrap();
+        rig.faults.garble_next_answer(Garble::Status);
+        let e = t.status().await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Garbled, None), "{e}");
+        assert!(e.message.contains("ES_ResultStatus 23040") && e.message.contains("ES_C_GetSystemStatus"), "{e}");
+        assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+        // A defined status refusing the command stays a device fault.
+        rig.faults.reject_next_command(status::SENSOR_NOT_STABLE, Refusal::CommandAnswer);
+        let e = t.measure().await.unwrap_err();
+        assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_013)), "{e}");
     }
 
     #[tokio::test]
