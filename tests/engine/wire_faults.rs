@@ -264,8 +264,10 @@ fn check(wire: Wire, f: &Faulted) {
         "timeout" | "garbled" | "disconnect" | "stall" => {
             // A link fault is never taken for the instrument's own, nor for
             // a wrong request. (A garbled byte can be: on a protocol without
-            // a checksum a changed status field reads as a status, e.g.
-            // emScon's "ES_ResultStatus 23040", a device fault retried.)
+            // a checksum a status field changed into a defined status reads
+            // as that status, e.g. emScon's ES_RS_AllOK with its low byte
+            // changed, a device fault retried; one the header does not
+            // define, "ES_ResultStatus 23040", is a garbled frame.)
             assert_eq!(f.met.usage, 0, "a link fault classified as bad usage: {}", context());
             // Nor, on a TCP wire, a late reply (a stall), which a reconnect
             // leaves behind; on a serial line the late reply arrives on the
@@ -287,6 +289,18 @@ fn check(wire: Wire, f: &Faulted) {
                 _ => &[": garbled frame: ", ": timeout: "],
             };
             assert!(expected.iter().any(|x| said(x)), "expected one of {expected:?}: {}", context());
+            // On the SLCAN line the relay faults replies only (the adapter's
+            // transmit acknowledgements and the drive's heartbeats pass: the
+            // host awaits neither), so every reply dropped was awaited, and
+            // each is met as a timeout of its own.
+            if wire == Wire::CanopenSlcan && f.kind == "timeout" {
+                assert!(
+                    u64::from(f.met.timeout) >= f.injected,
+                    "a dropped reply went unnoticed: {:?}: {}",
+                    f.met,
+                    context()
+                );
+            }
         }
         "device" => match wire.device_code() {
             Some(code) => assert!(said(&format!(": device fault (code {code}): ")), "{}", context()),

@@ -275,6 +275,16 @@ pub mod status {
         }
     }
 
+    /// Whether the V3.6 header defines the result status `s`. A status it
+    /// does not define is no answer of the tracker but a changed byte of
+    /// the status field (emScon's packets carry no checksum): a garbled
+    /// packet, not the instrument's fault. A defined status stays the
+    /// instrument's word, even when a changed byte made it (`ES_RS_AllOK`
+    /// with its low byte changed by 0x5a reads `ES_RS_ProblemReadingCompensationDb`).
+    pub fn is_defined(s: i32) -> bool {
+        short_name(s).is_some()
+    }
+
     /// `ES_RS_<name>`, or `ES_ResultStatus <n>` for an undefined value.
     pub fn describe(s: i32) -> String {
         short_name(s).map_or_else(|| format!("ES_ResultStatus {s}"), |n| format!("ES_RS_{n}"))

@@ -545,8 +545,17 @@ where
     }
 
     /// A result status other than `ES_RS_AllOK`: a device fault with the
-    /// status as its code and its header name in the text.
+    /// status as its code and its header name in the text; a status the
+    /// header does not define is a garbled packet ([`status::is_defined`]).
     fn refused(&mut self, cmd: i32, code: i32) -> DriverError {
+        if !status::is_defined(code) {
+            let e = self.garbled(
+                cmd,
+                format!("{} is no status of the emScon header: a garbled status field", status::describe(code)),
+            );
+            tracing::warn!(instrument = %self.name, error = %e, "undefined result status");
+            return e;
+        }
         match code {
             status::MEASUREMENT_STATUS_NOT_READY | status::NO_STATIONARY_RESULT => {
                 self.state = TrackerState::BeamBroken

@@ -77,6 +77,11 @@
 //!   a `SingleMeasResultT`) -> [`ErrorKind::Device`](crate::ErrorKind::Device)
 //!   with the `ES_ResultStatus` value as the code and its header name in the
 //!   text (`ES_RS_SensorNotWarmedUp (10012) in answer to ES_C_StartMeasurement`).
+//!   A status the V3.6 header does not define (`ES_ResultStatus 23040`) is no
+//!   answer of the tracker but a changed byte of the field (the packets carry
+//!   no checksum) -> `Garbled` ([`codes::status::is_defined`]). A newer
+//!   server's own statuses beyond the V3.6 header would read the same way: a
+//!   link fault, retried under the same bound, its value named in the text.
 //! - No answer within the request's deadline ([`EmsconTimeouts`]; a
 //!   measurement gets `lMeasTime` + a margin) -> `Timeout`; the next request
 //!   first reads for [`EmsconTimeouts::resync_grace_ms`] and drops a late answer.

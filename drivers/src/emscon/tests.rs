@@ -128,6 +128,32 @@ fn codes_are_named_as_in_the_header() {
     assert!(cmd::is_known(142) && !cmd::is_known(141) && !cmd::is_known(50));
 }
 
+/// The status field of an answer with one byte changed as the simulator's
+/// relay changes it (XOR 0x5a): the header defines 0..=99 and
+/// 10001..=10021, so a change of the status's second, third or fourth byte
+/// reads as no status at all (`ES_RS_AllOK` becomes 23040, 5898240,
+/// 1509949440), while its first byte reads as another defined status.
+#[test]
+fn a_garbled_status_field_is_no_status_of_the_header() {
+    for code in [0, 1, 3, 36, 99, 10_001, 10_013, 10_021] {
+        assert!(status::is_defined(code), "{code}");
+    }
+    for code in [-1, 100, 9_999, 10_000, 10_022, 23_040, i32::MIN, i32::MAX] {
+        assert!(!status::is_defined(code), "{code}");
+    }
+    let frame = Reply::answer(cmd::START_MEASUREMENT, status::ALL_OK).encode();
+    let at = 12; // header (8), command (4), then `enum ES_ResultStatus status`
+    let mut read = Vec::new();
+    for byte in 0..4 {
+        let mut garbled = frame.clone();
+        garbled[at + byte] ^= 0x5a;
+        let Ok(Reply::Answer(a)) = Reply::decode(&garbled) else { panic!("byte {byte}: still an answer") };
+        read.push((a.status, status::is_defined(a.status)));
+    }
+    assert_eq!(read, [(90, true), (23_040, false), (5_898_240, false), (1_509_949_440, false)]);
+    assert_eq!(status::describe(23_040), "ES_ResultStatus 23040");
+}
+
 // ---------------------------------------------------------------------------
 // Property tests
 // ---------------------------------------------------------------------------
@@ -504,6 +530,43 @@ async fn absurd_size_is_garbled_and_the_next_request_resynchronises() {
     assert_eq!(t.status().await.unwrap_err().kind, ErrorKind::Disconnected);
     assert!(started.elapsed() < Duration::from_millis(100));
     assert!(!t.is_connected());
+}
+
+/// A status the header does not define, in an answer, an error packet or a
+/// measurement result, is a garbled packet (a link fault: the connection is
+/// rebuilt); a defined one stays the tracker's device fault with its code.
+#[tokio::test]
+async fn an_undefined_status_is_a_garbled_packet_and_a_defined_one_a_device_fault() {
+    let (mut t, mut peer, mut d) = set_up().await;
+    let script = tokio::spawn(async move {
+        let r = next_request(&mut peer, &mut d).await.unwrap();
+        peer.write_all(&Reply::answer(r.command(), 23_040).encode()).await.unwrap();
+        let r = next_request(&mut peer, &mut d).await.unwrap();
+        peer.write_all(&Reply::Error { command: r.command(), status: 10_000 }.encode()).await.unwrap();
+        assert_eq!(next_request(&mut peer, &mut d).await, Some(Request::StartMeasurement));
+        peer.write_all(&Reply::SingleMeas(result(-7, 1.0)).encode()).await.unwrap();
+        assert_eq!(next_request(&mut peer, &mut d).await, Some(Request::StartMeasurement));
+        peer.write_all(&Reply::SingleMeas(result(status::SENSOR_NOT_STABLE, 1.0)).encode()).await.unwrap();
+        assert_eq!(next_request(&mut peer, &mut d).await, Some(Request::StartMeasurement));
+        peer.write_all(&Reply::SingleMeas(result(0, 2.0)).encode()).await.unwrap();
+        peer
+    });
+    let before = t.state();
+    let e = t.measurement_status_info().await.unwrap_err();
+    assert_eq!((e.kind, e.code), (ErrorKind::Garbled, None), "{e}");
+    assert!(e.message.contains("ES_ResultStatus 23040 is no status of the emScon header"), "{e}");
+    let e = t.measurement_status_info().await.unwrap_err();
+    assert_eq!((e.kind, e.code), (ErrorKind::Garbled, None), "{e}");
+    assert!(e.message.contains("ES_ResultStatus 10000"), "{e}");
+    let e = t.measure().await.unwrap_err();
+    assert_eq!((e.kind, e.code), (ErrorKind::Garbled, None), "{e}");
+    assert!(e.message.contains("ES_ResultStatus -7"), "{e}");
+    assert_eq!(t.state(), before, "a garbled status says nothing of the tracker");
+    let e = t.measure().await.unwrap_err();
+    assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_013)), "{e}");
+    assert!(e.message.contains("ES_RS_SensorNotStable"), "{e}");
+    assert_eq!(t.measure().await.unwrap().x_mm, 2.0);
+    drop(script.await.unwrap());
 }
 
 #[tokio::test]

@@ -6,8 +6,9 @@ use crate::engine::{Engine, Reference};
 use async_trait::async_trait;
 use std::sync::Arc;
 use std::time::Duration;
+use survey_drivers::canopen::frame::CanBus;
 use survey_drivers::canopen::slcan::SlcanBus;
-use survey_drivers::canopen::{Cia402Positioner, SocketCanBus};
+use survey_drivers::canopen::{CanopenConfig, Cia402Positioner, SocketCanBus};
 use survey_drivers::clock::with_timeout;
 use survey_drivers::elcomat::ElcomatDriver;
 use survey_drivers::emscon::EmsconConnector;
@@ -68,11 +69,11 @@ impl Connect<dyn Positioner> for PositionerConnector {
                 match link {
                     Some(CanLink::Slcan { port, bitrate }) => {
                         let bus = SlcanBus::open_port(&port, bitrate, self.timeout).await?;
-                        Ok(Box::new(Cia402Positioner::connect(bus, drive.clone()).await?))
+                        self.cia402(bus, drive).await
                     }
                     Some(CanLink::SocketCan(interface)) => {
                         let bus = SocketCanBus::open(&interface)?;
-                        Ok(Box::new(Cia402Positioner::connect(bus, drive.clone()).await?))
+                        self.cia402(bus, drive).await
                     }
                     None => unreachable!("a CANopen configuration has a CAN link"),
                 }
@@ -87,6 +88,22 @@ impl Connect<dyn Positioner> for PositionerConnector {
             PositionerConfig::ModbusRtu { port, slave, .. } => format!("modbus-rtu {port} slave {slave}"),
             PositionerConfig::Canopen { .. } => self.config.can_describe().unwrap_or_default(),
         }
+    }
+}
+
+impl PositionerConnector {
+    /// A CiA 402 drive on `bus`, enabled, its errors naming it as every
+    /// other call through the connector does (`canopen slcan PATH node N`),
+    /// not by the bus (`canopen node N on slcan PATH`): the events of a
+    /// survey name one instrument one way.
+    async fn cia402<B: CanBus + 'static>(
+        &self,
+        bus: B,
+        drive: &CanopenConfig,
+    ) -> survey_drivers::Result<Box<dyn Positioner>> {
+        let mut d = Cia402Positioner::new(bus, drive.clone())?.named(self.describe());
+        d.enable().await?;
+        Ok(Box::new(d))
     }
 }
 

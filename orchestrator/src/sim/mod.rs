@@ -30,7 +30,7 @@ pub mod relay;
 
 use crate::config::{AutocollimatorConfig as AcConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
 use crate::error::bad_input;
-use relay::{Counts, DeviceArm, LinkFaults, relay_with};
+use relay::{Counts, DeviceArm, Framing, LinkFaults, relay_with};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -102,7 +102,7 @@ impl Served {
         let (master, slave) = pty_at(what, port)?;
         self.links.push(PathBuf::from(port));
         self._slaves.push(slave);
-        if link == LinkFaults::NONE && arm.is_none() {
+        if !link.any() && arm.is_none() {
             return Ok(master);
         }
         let (device_master, device_slave) = pty_pair()?;
@@ -241,6 +241,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             disconnect: f.disconnect,
             stall: f.stall,
             stall_for: call_timeout * 2,
+            framing: Framing::Chunks,
         }
     } else {
         LinkFaults::NONE
@@ -330,9 +331,10 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             match cfg.positioner.can_link() {
                 Some(Ok(CanLink::Slcan { port, .. })) => {
                     // A CiA 402 drive behind a simulated USB-CAN adapter, on a
-                    // pty linked at the port (link faults on the serial line).
-                    let device =
-                        served.serial("positioner", &port, link("positioner"), armed, seeds.next().unwrap_or(1))?;
+                    // pty linked at the port (link faults on the serial line,
+                    // on the replies among the adapter's messages).
+                    let link = LinkFaults { framing: Framing::SlcanCanopen, ..link("positioner") };
+                    let device = served.serial("positioner", &port, link, armed, seeds.next().unwrap_or(1))?;
                     let bus = survey_drivers::canopen::MemoryBus::new();
                     let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
                     served.tasks.push(tokio::spawn(async move {

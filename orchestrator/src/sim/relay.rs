@@ -13,6 +13,16 @@
 //! the drive tripping mid-move and the broken beam are the simulators' own
 //! (see [`super::Served`]). Our own design, not from an instrument's
 //! documentation: a link fault looks the same on every wire.
+//!
+//! A fault lands on a *reply*: by default each chunk the instrument writes
+//! (a request-reply instrument writes each reply at once). A wire whose
+//! instrument also writes what no request waits for says so with its
+//! [`Framing`]: an SLCAN adapter acknowledges every transmitted frame (`z`)
+//! and passes unsolicited CAN frames (a CANopen node's heartbeat), which the
+//! host never awaits; a fault there would be injected and counted, yet reach
+//! nothing (a dropped acknowledgement is no timeout), so those messages pass
+//! unfaulted and uncounted, and each reply meets one draw whatever chunks
+//! the stream arrives in.
 
 use rand::{Rng as _, SeedableRng as _};
 use rand_chacha::ChaCha8Rng;
@@ -34,21 +44,87 @@ pub struct LinkFaults {
     pub stall: f64,
     /// How long a stalled reply is held, real time.
     pub stall_for: Duration,
+    /// Where the replies are in the instrument's byte stream.
+    pub framing: Framing,
 }
 
 impl LinkFaults {
     /// No faults.
-    pub const NONE: LinkFaults =
-        LinkFaults { drop: 0.0, garble: 0.0, disconnect: 0.0, stall: 0.0, stall_for: Duration::ZERO };
+    pub const NONE: LinkFaults = LinkFaults {
+        drop: 0.0,
+        garble: 0.0,
+        disconnect: 0.0,
+        stall: 0.0,
+        stall_for: Duration::ZERO,
+        framing: Framing::Chunks,
+    };
 
     /// `rate` of all replies faulted, shared evenly among the four kinds.
     pub fn at_rate(rate: f64, stall_for: Duration) -> LinkFaults {
         let each = rate / 4.0;
-        LinkFaults { drop: each, garble: each, disconnect: each, stall: each, stall_for }
+        LinkFaults { drop: each, garble: each, disconnect: each, stall: each, stall_for, framing: Framing::Chunks }
     }
 
-    fn any(&self) -> bool {
+    /// Whether any reply is faulted.
+    pub fn any(&self) -> bool {
         self.drop + self.garble + self.disconnect + self.stall > 0.0
+    }
+}
+
+/// Where the replies are in what an instrument writes: what a link fault
+/// lands on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Framing {
+    /// Each chunk read from the instrument is one reply.
+    #[default]
+    Chunks,
+    /// An SLCAN adapter with CANopen nodes behind it: messages end at CR or
+    /// BEL. The replies are the adapter's answers to the host's commands (CR,
+    /// BEL, `V`/`N`/`F` lines) and the received frames that answer a request
+    /// (SDO responses, COB-IDs 0x581..=0x5FF, CiA 301). The transmit
+    /// acknowledgement (`z`, `Z`) and unsolicited frames (heartbeats,
+    /// emergencies, PDOs, 29-bit and remote frames) are no reply.
+    SlcanCanopen,
+}
+
+/// The longest message [`Framing::SlcanCanopen`] waits for its terminator
+/// before passing what it holds on as one reply (an SLCAN line is at most
+/// 32 bytes and its CR).
+const MAX_MESSAGE: usize = 64;
+
+impl Framing {
+    /// Cut `pending` into whole messages, each with whether it is a reply;
+    /// an incomplete message stays in `pending`.
+    fn take(self, pending: &mut Vec<u8>) -> Vec<(Vec<u8>, bool)> {
+        match self {
+            Framing::Chunks => vec![(std::mem::take(pending), true)],
+            Framing::SlcanCanopen => {
+                let mut out = Vec::new();
+                while let Some(end) = pending.iter().position(|&b| b == b'\r' || b == 0x07) {
+                    let message: Vec<u8> = pending.drain(..=end).collect();
+                    let reply = slcan_reply(&message);
+                    out.push((message, reply));
+                }
+                if pending.len() > MAX_MESSAGE {
+                    out.push((std::mem::take(pending), true));
+                }
+                out
+            }
+        }
+    }
+}
+
+/// Whether an SLCAN message (its terminator included) answers a request of
+/// the host: see [`Framing::SlcanCanopen`].
+fn slcan_reply(message: &[u8]) -> bool {
+    use survey_drivers::canopen::slcan::Message;
+    let line = message.strip_suffix(b"\r").unwrap_or(message);
+    match Message::parse(line) {
+        Ok(Message::TransmitAck | Message::OtherFrame) => false,
+        Ok(Message::Frame(f)) => (0x581..=0x5FF).contains(&f.id()),
+        // CR, BEL, the answers to V, N, F; and what does not parse (a host
+        // waiting for an answer meets it).
+        _ => true,
     }
 }
 
@@ -160,39 +236,54 @@ where
     let replies = async {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut buf = vec![0u8; 4096];
+        let mut pending = Vec::new();
         loop {
             let n = match device_rx.read(&mut buf).await {
                 Ok(0) | Err(_) => return Ended::Closed,
                 Ok(n) => n,
             };
-            counts.replies.fetch_add(1, Ordering::Relaxed);
-            let chunk = &mut buf[..n];
-            if faults.any() {
-                let x: f64 = rng.random();
-                let mut edge = faults.drop;
-                if x < edge {
-                    counts.dropped.fetch_add(1, Ordering::Relaxed);
-                    tracing::info!("sim: dropped a reply");
+            pending.extend_from_slice(&buf[..n]);
+            // What goes to the client, in order, written at once (or before
+            // a stall holds the rest).
+            let mut out = Vec::new();
+            for (mut message, reply) in faults.framing.take(&mut pending) {
+                if !reply {
+                    out.extend_from_slice(&message);
                     continue;
                 }
-                edge += faults.garble;
-                if x < edge {
-                    let i = rng.random_range(0..chunk.len());
-                    chunk[i] ^= 0x5a;
-                    counts.garbled.fetch_add(1, Ordering::Relaxed);
-                    tracing::info!("sim: garbled a reply");
-                } else if x < edge + faults.disconnect {
-                    let _ = client_tx.write_all(&chunk[..chunk.len() / 2]).await;
-                    counts.disconnects.fetch_add(1, Ordering::Relaxed);
-                    tracing::info!("sim: closed the link halfway through a reply");
-                    return Ended::Disconnect;
-                } else if x < edge + faults.disconnect + faults.stall {
-                    counts.stalls.fetch_add(1, Ordering::Relaxed);
-                    tracing::info!(after = ?faults.stall_for, "sim: holding a reply past the client's timeout");
-                    tokio::time::sleep(faults.stall_for).await;
+                counts.replies.fetch_add(1, Ordering::Relaxed);
+                if faults.any() {
+                    let x: f64 = rng.random();
+                    let mut edge = faults.drop;
+                    if x < edge {
+                        counts.dropped.fetch_add(1, Ordering::Relaxed);
+                        tracing::info!("sim: dropped a reply");
+                        continue;
+                    }
+                    edge += faults.garble;
+                    if x < edge {
+                        let i = rng.random_range(0..message.len());
+                        message[i] ^= 0x5a;
+                        counts.garbled.fetch_add(1, Ordering::Relaxed);
+                        tracing::info!("sim: garbled a reply");
+                    } else if x < edge + faults.disconnect {
+                        out.extend_from_slice(&message[..message.len() / 2]);
+                        let _ = client_tx.write_all(&out).await;
+                        counts.disconnects.fetch_add(1, Ordering::Relaxed);
+                        tracing::info!("sim: closed the link halfway through a reply");
+                        return Ended::Disconnect;
+                    } else if x < edge + faults.disconnect + faults.stall {
+                        counts.stalls.fetch_add(1, Ordering::Relaxed);
+                        tracing::info!(after = ?faults.stall_for, "sim: holding a reply past the client's timeout");
+                        if !out.is_empty() && client_tx.write_all(&std::mem::take(&mut out)).await.is_err() {
+                            return Ended::Closed;
+                        }
+                        tokio::time::sleep(faults.stall_for).await;
+                    }
                 }
+                out.extend_from_slice(&message);
             }
-            if client_tx.write_all(chunk).await.is_err() {
+            if !out.is_empty() && client_tx.write_all(&out).await.is_err() {
                 return Ended::Closed;
             }
         }
@@ -290,5 +381,65 @@ mod tests {
             (c["garbled"].as_u64(), c["disconnects"].as_u64(), c["stalls"].as_u64()),
             (Some(1), Some(1), Some(1))
         );
+    }
+    /// An SLCAN adapter's stream: at a drop rate of 1, every reply (command
+    /// answers, SDO responses) is dropped and counted, while transmit
+    /// acknowledgements and a heartbeat pass, however the stream is cut
+    /// into chunks; a garble lands in a reply, never in an acknowledgement.
+    #[tokio::test]
+    async fn slcan_framing_faults_the_replies_only() {
+        let stream: &[u8] = b"\rz\rt58584B41600037120000\rt705105\r\x07V1013\rz\r";
+        for cut in [1usize, 5, 17, stream.len()] {
+            let (mut client, relay_client) = duplex(256);
+            let (relay_device, mut device) = duplex(256);
+            let counts = Arc::new(Counts::default());
+            let drops = LinkFaults { drop: 1.0, framing: Framing::SlcanCanopen, ..LinkFaults::NONE };
+            tokio::spawn(relay(relay_client, relay_device, drops, 6, counts.clone()));
+            for part in stream.chunks(cut) {
+                device.write_all(part).await.unwrap();
+                device.flush().await.unwrap();
+                tokio::task::yield_now().await;
+            }
+            drop(device);
+            let mut got = Vec::new();
+            client.read_to_end(&mut got).await.unwrap();
+            assert_eq!(got, b"z\rt705105\rz\r", "cut every {cut} bytes");
+            let c = counts.json();
+            assert_eq!((c["replies"].as_u64(), c["dropped"].as_u64()), (Some(4), Some(4)), "cut every {cut} bytes");
+        }
+
+        let (mut client, relay_client) = duplex(256);
+        let (relay_device, mut device) = duplex(256);
+        let counts = Arc::new(Counts::default());
+        let garbles = LinkFaults { garble: 1.0, framing: Framing::SlcanCanopen, ..LinkFaults::NONE };
+        tokio::spawn(relay(relay_client, relay_device, garbles, 7, counts.clone()));
+        device.write_all(b"z\rt58580000000000000000\rz\r").await.unwrap();
+        drop(device);
+        let mut got = Vec::new();
+        client.read_to_end(&mut got).await.unwrap();
+        assert_eq!(got.len(), 26);
+        assert_eq!((&got[..2], &got[24..]), (&b"z\r"[..], &b"z\r"[..]), "the acknowledgements pass");
+        assert_ne!(&got[2..24], b"t58580000000000000000\r", "the SDO response is garbled");
+        assert_eq!(counts.json()["garbled"], 1);
+    }
+
+    #[test]
+    fn slcan_replies_are_answers_and_sdo_responses() {
+        for (message, reply) in [
+            (&b"\r"[..], true),
+            (b"\x07", true),
+            (b"V1013\r", true),
+            (b"t58586000000000000000\r", true),
+            (b"t58186000000000000000\r", true),
+            (b"t58086000000000000000\r", false),
+            (b"z\r", false),
+            (b"Z\r", false),
+            (b"t705105\r", false),
+            (b"t08580000000000000000\r", false),
+            (b"T123456781AB\r", false),
+            (b"?#\r", true),
+        ] {
+            assert_eq!(slcan_reply(message), reply, "{:?}", String::from_utf8_lossy(message));
+        }
     }
 }
