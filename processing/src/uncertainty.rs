@@ -218,7 +218,7 @@ impl Uncertainty {
             self.combined_u_deg, self.table_u_deg, self.k
         );
         for c in &self.budget {
-            s += &format!("  {:<36} {:.2e} deg\n", c.source, c.u_deg);
+            s += &format!("  {:<38} {:.2e} deg\n", c.source, c.u_deg);
         }
         s
     }
