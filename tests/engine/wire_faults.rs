@@ -57,7 +57,7 @@ impl Wire {
             Wire::ModbusRtu => format!("driver = \"modbus-rtu\"\nport = \"{}\"\n", port("rtu")),
             Wire::CanopenSlcan => format!(
                 "driver = \"canopen\"\ntransport = \"slcan\"\nport = \"{}\"\nnode_id = 5\n\
-                 counts_per_degree = 100000.0\nsdo_timeout_ms = 200\n",
+                 counts_per_degree = 100000.0\n",
                 port("slcan")
             ),
             // FAUL:CLE is sent (`unverified_commands`): without it a drive
