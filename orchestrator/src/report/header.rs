@@ -13,16 +13,9 @@ use crate::engine::ReferenceKind;
 use crate::survey::{Setup, SurveyRecord};
 use std::fmt::Write as _;
 
-/// What `survey report`'s flags say (each overrides the stored value).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct CertificateFlags {
-    pub positioner: Option<String>,
-    pub reference: Option<String>,
-    pub reference_uncertainty_deg: Option<f64>,
-    pub operator: Option<String>,
-    pub customer: Option<String>,
-    pub temperature_c: Option<f64>,
-}
+/// What `survey report`'s flags say (each overrides the stored value): the
+/// same fields as the configuration's `[certificate]`.
+pub type CertificateFlags = crate::config::CertificateSection;
 
 /// A value and where it came from.
 #[derive(Debug, Clone, PartialEq)]
