@@ -25,6 +25,7 @@ pub mod progress;
 pub mod record;
 pub mod refit;
 pub mod report;
+pub mod runtime;
 pub mod scan;
 pub mod session;
 pub mod settle;

@@ -386,3 +386,34 @@ fn stats_of_a_survey_too_small_for_iso230_2_exits_2() {
     let out = b.survey(&["stats", "--json"]).bad_input(&["ISO 230-2", &id.to_string()]);
     assert!(out.stdout.is_empty(), "{out}");
 }
+
+/// A background task that spins without yielding (as sqlx-core 0.9.0's pool
+/// reaper can, sqlx issue 3645) holds a worker thread for good: the command
+/// still ends once its work and writes are done, with its usual status and
+/// everything stored. Without the bounded shutdown the process never exits
+/// and the deadline below fails the test.
+#[test]
+fn a_command_exits_while_a_spawned_task_spins() {
+    use std::time::{Duration, Instant};
+    let bench = Bench::new();
+    let args = ["run", "--points", "36", "--runs", "2", "--bidirectional", "--json"];
+    let mut cmd = bench.command(&args);
+    cmd.env("SURVEY_TEST_WEDGE_AT_EXIT", "1").stdout(std::process::Stdio::null()).stderr(std::process::Stdio::null());
+    let mut child = cmd.spawn().expect("start the survey binary");
+    // A liveness bound, not a timing claim: the survey takes well under a
+    // second; two minutes only separates "exits" from "never exits".
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for the binary") {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("`survey run` did not exit while a spawned task spun");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert_eq!(status.code(), Some(0), "{status:?}");
+    let stats = bench.stats_json(Some(1));
+    assert!(stats["iso230_2"]["A"].as_f64().is_some_and(|a| a > 0.0), "{stats}");
+}

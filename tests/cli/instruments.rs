@@ -66,37 +66,40 @@ fn check_says_when_the_device_speaks_another_protocol() {
     assert!(positioner.contains("wrong protocol"), "{out}");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn check_passes_against_simulators_speaking_the_protocols() {
-    let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
-    let preset = Preset::by_name("fig8").unwrap();
-    let sims = SimBench::builder(&preset, 3, clock).autocollimator(AutocollimatorConfig::seeded(24, 4)).build();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let address = listener.local_addr().unwrap().to_string();
-    let server = tokio::spawn(serve_tcp(listener, sims.positioner, ScpiFaults::new()));
-    let (master, slave) = pty_pair().unwrap();
-    let port = slave.name().expect("the pty has a path");
-    let bench = Bench::new();
-    bench.write("c.toml", config(&address, &port));
-    // Keep our slave open until the survey binary has opened the port, so the
-    // master does not read EIO; the binary's open is not exclusive of ours.
-    let elcomat = tokio::spawn(serve(master, sims.autocollimator, ElcomatFaults::default()));
-    let out = tokio::task::spawn_blocking(move || {
-        let out = bench.survey(&["check", "--config", "c.toml", "--json"]);
-        drop(slave);
-        out
+#[test]
+fn check_passes_against_simulators_speaking_the_protocols() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
+        let preset = Preset::by_name("fig8").unwrap();
+        let sims = SimBench::builder(&preset, 3, clock).autocollimator(AutocollimatorConfig::seeded(24, 4)).build();
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let address = listener.local_addr().unwrap().to_string();
+        let server = tokio::spawn(serve_tcp(listener, sims.positioner, ScpiFaults::new()));
+        let (master, slave) = pty_pair().unwrap();
+        let port = slave.name().expect("the pty has a path");
+        let bench = Bench::new();
+        bench.write("c.toml", config(&address, &port));
+        // Keep our slave open until the survey binary has opened the port, so the
+        // master does not read EIO; the binary's open is not exclusive of ours.
+        let elcomat = tokio::spawn(serve(master, sims.autocollimator, ElcomatFaults::default()));
+        let out = tokio::task::spawn_blocking(move || {
+            let out = bench.survey(&["check", "--config", "c.toml", "--json"]);
+            drop(slave);
+            out
+        })
+        .await
+        .unwrap();
+        server.abort();
+        elcomat.abort();
+        assert_eq!(out.code, 0, "{out}");
+        let doc: Value = serde_json::from_str(&out.stdout).unwrap();
+        assert_eq!(doc["ok"], true, "{out}");
+        let lines = doc["instruments"].as_array().unwrap();
+        assert_eq!(lines[0]["instrument"], "positioner");
+        assert!(lines[0]["detail"].as_str().unwrap().contains("readout 0 deg"), "{out}");
+        assert_eq!(lines[1]["verdict"], "ok");
     })
-    .await
-    .unwrap();
-    server.abort();
-    elcomat.abort();
-    assert_eq!(out.code, 0, "{out}");
-    let doc: Value = serde_json::from_str(&out.stdout).unwrap();
-    assert_eq!(doc["ok"], true, "{out}");
-    let lines = doc["instruments"].as_array().unwrap();
-    assert_eq!(lines[0]["instrument"], "positioner");
-    assert!(lines[0]["detail"].as_str().unwrap().contains("readout 0 deg"), "{out}");
-    assert_eq!(lines[1]["verdict"], "ok");
+    .expect("a runtime");
 }
 
 #[test]

@@ -142,99 +142,102 @@ impl FaultFree {
     }
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_faulty_bench_killed_five_times_loses_and_repeats_nothing() {
-    let dir = tempfile::tempdir().unwrap();
-    // The fault-free surveys the soak is compared with run beside it.
-    let clean = [FaultFree::start(dir.path(), "11"), FaultFree::start(dir.path(), "12")];
-    let mut sim = start_sim(dir.path(), "soak", "0.01", "11");
-    let db = dir.path().join("soak.db");
-    let mut run_args = vec!["run", "--config", sim.config.to_str().unwrap()];
-    run_args.extend(PLAN);
-    // Seeded kill points: after 3 to 10 more samples each time.
-    let mut lcg: u64 = 20_261_124;
-    let mut next_gap = || {
-        lcg = lcg.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-        3 + (lcg >> 33) % 8
-    };
-    let (mut kills, mut attempts) = (0, 0);
-    let deadline = Instant::now() + Duration::from_secs(240);
-    loop {
-        attempts += 1;
-        assert!(attempts < 30, "too many attempts");
-        let mut child = if attempts == 1 { survey(&db, &run_args) } else { survey(&db, &["resume"]) };
-        let kill_at = stored(&db).await + next_gap();
-        let status = loop {
-            if let Some(status) = child.try_wait().unwrap() {
-                break Some(status);
-            }
-            // A kill counts when it leaves the survey unfinished: one that
-            // lands after the acquisition completed needs no resume.
-            if kills < 5 && stored(&db).await >= kill_at {
-                kill(Pid::from_raw(child.id() as i32), Signal::SIGKILL).unwrap();
-                child.wait().unwrap();
-                if !complete(&db).await {
-                    kills += 1;
-                }
-                break None;
-            }
-            assert!(Instant::now() < deadline, "the soak took more than 240 s");
-            tokio::time::sleep(Duration::from_millis(20)).await;
+#[test]
+fn a_faulty_bench_killed_five_times_loses_and_repeats_nothing() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        let dir = tempfile::tempdir().unwrap();
+        // The fault-free surveys the soak is compared with run beside it.
+        let clean = [FaultFree::start(dir.path(), "11"), FaultFree::start(dir.path(), "12")];
+        let mut sim = start_sim(dir.path(), "soak", "0.01", "11");
+        let db = dir.path().join("soak.db");
+        let mut run_args = vec!["run", "--config", sim.config.to_str().unwrap()];
+        run_args.extend(PLAN);
+        // Seeded kill points: after 3 to 10 more samples each time.
+        let mut lcg: u64 = 20_261_124;
+        let mut next_gap = || {
+            lcg = lcg.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            3 + (lcg >> 33) % 8
         };
-        if let Some(status) = status {
-            // Exit 1 is a survey that gave up on a fault burst (resumable);
-            // exit 2 a resume of a survey whose acquisition had completed
-            // before the last kill (it was killed while processing).
-            if status.success() || (status.code() == Some(2) && complete(&db).await) {
-                break;
+        let (mut kills, mut attempts) = (0, 0);
+        let deadline = Instant::now() + Duration::from_secs(240);
+        loop {
+            attempts += 1;
+            assert!(attempts < 30, "too many attempts");
+            let mut child = if attempts == 1 { survey(&db, &run_args) } else { survey(&db, &["resume"]) };
+            let kill_at = stored(&db).await + next_gap();
+            let status = loop {
+                if let Some(status) = child.try_wait().unwrap() {
+                    break Some(status);
+                }
+                // A kill counts when it leaves the survey unfinished: one that
+                // lands after the acquisition completed needs no resume.
+                if kills < 5 && stored(&db).await >= kill_at {
+                    kill(Pid::from_raw(child.id() as i32), Signal::SIGKILL).unwrap();
+                    child.wait().unwrap();
+                    if !complete(&db).await {
+                        kills += 1;
+                    }
+                    break None;
+                }
+                assert!(Instant::now() < deadline, "the soak took more than 240 s");
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            };
+            if let Some(status) = status {
+                // Exit 1 is a survey that gave up on a fault burst (resumable);
+                // exit 2 a resume of a survey whose acquisition had completed
+                // before the last kill (it was killed while processing).
+                if status.success() || (status.code() == Some(2) && complete(&db).await) {
+                    break;
+                }
+                assert_eq!(status.code(), Some(1), "a run or resume ended with {status}");
             }
-            assert_eq!(status.code(), Some(1), "a run or resume ended with {status}");
         }
-    }
-    assert!(kills >= 5, "{kills} kills");
-    let store = Store::open_read_only(&db).await.unwrap();
-    let record = store.survey(1).await.unwrap();
-    let samples = store.recorded_samples(1).await.unwrap();
-    let events = store.events(1).await.unwrap();
-    store.close().await;
-    assert_eq!(record.status, SurveyStatus::Complete);
-    assert_eq!(samples.len(), PLANNED, "24 targets x 2 runs x 2 directions");
-    assert!(samples.iter().enumerate().all(|(i, r)| r.seq == i as u64), "every step exactly once, none lost");
-    // A resume continues the acquisition, or finishes a survey killed while it
-    // was processing (every sample already stored).
-    let resumes = events
-        .iter()
-        .filter(|e| e.message.contains("resumed at step") || e.message.contains("are stored: finishing"))
-        .count();
-    let faults = events.iter().filter(|e| e.level == "warn" && e.message.contains("retrying")).count();
-    eprintln!("soak: {kills} kills, {resumes} resumes, {faults} faults survived, {} samples", samples.len());
-    // What the simulators injected, as `survey sim` prints it when it stops.
-    let stopped = sim.stop();
-    let f = &stopped["faults"];
-    let by_kind = &f["by_kind"];
-    eprintln!(
-        "soak: {} requests relayed, {} faults injected {by_kind}; {faults} recoveries logged, {kills} kills, \
-         {} of {PLANNED} samples, 0 lost, 0 duplicated",
-        f["replies"],
-        f["injected"],
-        samples.len()
-    );
-    for kind in ["timeout", "garbled", "disconnect", "stall", "device", "move", "beam"] {
-        assert!(by_kind[kind].as_u64().unwrap() >= 1, "no {kind} fault was injected: {stopped}");
-    }
-    // Every kind was injected, and the survey completed with every sample
-    // once (above): each fault was survived, or ended a process that a resume
-    // continued.
-    assert!(faults >= 1, "{faults} recoveries logged: {stopped}");
-    // Every kill is followed by a resume, and a process is killed only after it
-    // stored a sample (so after a resume had logged itself).
-    assert!(resumes >= kills, "{resumes} resumes after {kills} kills");
+        assert!(kills >= 5, "{kills} kills");
+        let store = Store::open_read_only(&db).await.unwrap();
+        let record = store.survey(1).await.unwrap();
+        let samples = store.recorded_samples(1).await.unwrap();
+        let events = store.events(1).await.unwrap();
+        store.close().await;
+        assert_eq!(record.status, SurveyStatus::Complete);
+        assert_eq!(samples.len(), PLANNED, "24 targets x 2 runs x 2 directions");
+        assert!(samples.iter().enumerate().all(|(i, r)| r.seq == i as u64), "every step exactly once, none lost");
+        // A resume continues the acquisition, or finishes a survey killed while it
+        // was processing (every sample already stored).
+        let resumes = events
+            .iter()
+            .filter(|e| e.message.contains("resumed at step") || e.message.contains("are stored: finishing"))
+            .count();
+        let faults = events.iter().filter(|e| e.level == "warn" && e.message.contains("retrying")).count();
+        eprintln!("soak: {kills} kills, {resumes} resumes, {faults} faults survived, {} samples", samples.len());
+        // What the simulators injected, as `survey sim` prints it when it stops.
+        let stopped = sim.stop();
+        let f = &stopped["faults"];
+        let by_kind = &f["by_kind"];
+        eprintln!(
+            "soak: {} requests relayed, {} faults injected {by_kind}; {faults} recoveries logged, {kills} kills, \
+             {} of {PLANNED} samples, 0 lost, 0 duplicated",
+            f["replies"],
+            f["injected"],
+            samples.len()
+        );
+        for kind in ["timeout", "garbled", "disconnect", "stall", "device", "move", "beam"] {
+            assert!(by_kind[kind].as_u64().unwrap() >= 1, "no {kind} fault was injected: {stopped}");
+        }
+        // Every kind was injected, and the survey completed with every sample
+        // once (above): each fault was survived, or ended a process that a resume
+        // continued.
+        assert!(faults >= 1, "{faults} recoveries logged: {stopped}");
+        // Every kill is followed by a resume, and a process is killed only after it
+        // stored a sample (so after a resume had logged itself).
+        assert!(resumes >= kills, "{resumes} resumes after {kills} kills");
 
-    // Its accuracy is the bench's, within the spread of fault-free seeds.
-    let a = accuracy(&db).await;
-    let [c1, c2] = clean;
-    let (a1, a2) = (c1.accuracy().await, c2.accuracy().await);
-    let spread = (a1 - a2).abs().max(2e-4);
-    eprintln!("soak: A = {a:.6} deg; fault-free A = {a1:.6} and {a2:.6} deg");
-    assert!((a - a1).abs() <= 3.0 * spread, "A {a} against fault-free {a1} / {a2}");
+        // Its accuracy is the bench's, within the spread of fault-free seeds.
+        let a = accuracy(&db).await;
+        let [c1, c2] = clean;
+        let (a1, a2) = (c1.accuracy().await, c2.accuracy().await);
+        let spread = (a1 - a2).abs().max(2e-4);
+        eprintln!("soak: A = {a:.6} deg; fault-free A = {a1:.6} and {a2:.6} deg");
+        assert!((a - a1).abs() <= 3.0 * spread, "A {a} against fault-free {a1} / {a2}");
+    })
+    .expect("a runtime");
 }

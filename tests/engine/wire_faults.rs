@@ -331,37 +331,58 @@ fn check(wire: Wire, f: &Faulted) {
     }
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn modbus_tcp() {
-    every_kind_on(Wire::ModbusTcp, 100).await;
+#[test]
+fn modbus_tcp() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        every_kind_on(Wire::ModbusTcp, 100).await;
+    })
+    .expect("a runtime");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn modbus_rtu() {
-    every_kind_on(Wire::ModbusRtu, 200).await;
+#[test]
+fn modbus_rtu() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        every_kind_on(Wire::ModbusRtu, 200).await;
+    })
+    .expect("a runtime");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn canopen_slcan() {
-    every_kind_on(Wire::CanopenSlcan, 300).await;
+#[test]
+fn canopen_slcan() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        every_kind_on(Wire::CanopenSlcan, 300).await;
+    })
+    .expect("a runtime");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn scpi_tcp() {
-    every_kind_on(Wire::ScpiTcp, 400).await;
+#[test]
+fn scpi_tcp() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        every_kind_on(Wire::ScpiTcp, 400).await;
+    })
+    .expect("a runtime");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn scpi_serial() {
-    every_kind_on(Wire::ScpiSerial, 500).await;
+#[test]
+fn scpi_serial() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        every_kind_on(Wire::ScpiSerial, 500).await;
+    })
+    .expect("a runtime");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn emscon() {
-    every_kind_on(Wire::Emscon, 600).await;
+#[test]
+fn emscon() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        every_kind_on(Wire::Emscon, 600).await;
+    })
+    .expect("a runtime");
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn elcomat() {
-    every_kind_on(Wire::Elcomat, 700).await;
+#[test]
+fn elcomat() {
+    survey_orchestrator::runtime::block_on_bounded(2, async {
+        every_kind_on(Wire::Elcomat, 700).await;
+    })
+    .expect("a runtime");
 }

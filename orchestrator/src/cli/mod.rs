@@ -149,20 +149,39 @@ Examples:
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     support::init_logging();
-    let runtime = match tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build() {
-        Ok(rt) => rt,
-        Err(e) => {
-            eprintln!("error: cannot start the async runtime: {e}");
-            return ExitCode::from(1);
+    // The command awaits its work and every write; a background task that
+    // never yields cannot keep the process alive (`crate::runtime`).
+    let outcome = crate::runtime::block_on_bounded(2, async {
+        if std::env::var_os(WEDGE_AT_EXIT).is_some() {
+            wedge_a_worker();
         }
-    };
-    match runtime.block_on(dispatch(cli)) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
+        dispatch(cli).await
+    });
+    match outcome {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(e)) => {
             eprintln!("error: {e:#}");
             ExitCode::from(crate::error::exit_status(&e))
         }
+        Err(e) => {
+            eprintln!("error: cannot start the async runtime: {e}");
+            ExitCode::from(1)
+        }
     }
+}
+
+/// For tests only: with this variable set, a task that spins without ever
+/// yielding occupies a worker thread, as sqlx's wedged reaper does, and the
+/// process must still exit once its command is done.
+const WEDGE_AT_EXIT: &str = "SURVEY_TEST_WEDGE_AT_EXIT";
+
+fn wedge_a_worker() {
+    tracing::debug!("{WEDGE_AT_EXIT} is set: a task spins on a worker thread until the process ends");
+    tokio::spawn(async {
+        loop {
+            std::hint::spin_loop();
+        }
+    });
 }
 
 /// Run the command.

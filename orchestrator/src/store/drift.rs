@@ -59,17 +59,17 @@ impl Store {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{MIGRATIONS, Store};
+    use super::super::{MIGRATIONS, Store, single_connection_pool};
     use crate::drift::DriftMeasurement;
     use sqlx::migrate::{Migration, MigrationType, Migrator};
-    use sqlx::sqlite::{SqliteConnectOptions, SqlitePoolOptions};
+    use sqlx::sqlite::SqliteConnectOptions;
     use sqlx::{Row, SqlSafeStr};
     use std::borrow::Cow;
 
     /// A database of the first schema, as the previous version wrote it, with one survey.
     async fn schema_1_database(path: &std::path::Path) {
         let options = SqliteConnectOptions::new().filename(path).create_if_missing(true);
-        let pool = SqlitePoolOptions::new().max_connections(1).connect_with(options).await.unwrap();
+        let pool = single_connection_pool().connect_with(options).await.unwrap();
         let (version, description, sql) = MIGRATIONS[0];
         let first =
             Migration::new(version, Cow::Borrowed(description), MigrationType::Simple, sql.into_sql_str(), false);

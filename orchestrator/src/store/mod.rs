@@ -74,6 +74,16 @@ impl Default for StoreLimits {
     }
 }
 
+/// The one way this project builds an SQLite pool: one connection, and no
+/// maintenance task. sqlx-core 0.9.0's reaper (spawned when an idle timeout or
+/// a maximum lifetime is set, and sqlx sets both by default) can spin at 100 %
+/// CPU forever after a `num_idle` underflow (sqlx issue 3645, fixed by pull
+/// request 4289, not in 0.9.0), and a process whose runtime waits for it never
+/// exits. A single connection kept for the store's life has nothing to reap.
+pub(crate) fn single_connection_pool() -> SqlitePoolOptions {
+    SqlitePoolOptions::new().max_connections(1).min_connections(0).idle_timeout(None).max_lifetime(None)
+}
+
 /// Rows per multi-row `INSERT`: the widest row (a raw reading) binds 12 values,
 /// so a statement binds at most 4 800, far under SQLite's limit of 32 766.
 const CHUNK_ROWS: usize = 400;
@@ -171,7 +181,7 @@ impl Store {
         // Connect and read the schema once: in WAL mode SQLite only finds out
         // at the first read that it cannot make the shared-memory file.
         let connect = |options: SqliteConnectOptions| async move {
-            let pool = SqlitePoolOptions::new().max_connections(1).min_connections(0).connect_with(options).await?;
+            let pool = single_connection_pool().connect_with(options).await?;
             match sqlx::query("SELECT 1 FROM sqlite_master LIMIT 1").fetch_optional(&pool).await {
                 Ok(_) => Ok(pool),
                 Err(e) => {
@@ -259,12 +269,7 @@ impl Store {
         let mut tries = 0;
         loop {
             tries += 1;
-            let e: sqlx::migrate::MigrateError = match SqlitePoolOptions::new()
-                .max_connections(1)
-                .min_connections(0)
-                .connect_with(options.clone())
-                .await
-            {
+            let e: sqlx::migrate::MigrateError = match single_connection_pool().connect_with(options.clone()).await {
                 Ok(pool) => match migrator().run(&pool).await {
                     Ok(()) => return Ok(Store { pool, path: path.to_path_buf(), immutable: false }),
                     Err(e) => {

@@ -533,20 +533,23 @@ async fn another_writer_holding_the_lock_delays_a_write_but_never_fails_it_withi
 /// Processes that open a new database at the same moment (a `run` beside an
 /// `import`) each find it without a schema: every one of them ends with the
 /// schema set up once, none fails with "table surveys already exists".
-#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
-async fn many_openers_of_a_new_database_set_its_schema_up_once() {
-    for round in 0..20 {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join(format!("race{round}.db"));
-        let opens = (0..6).map(|_| {
-            let path = path.clone();
-            tokio::spawn(async move { Store::open(&path).await })
-        });
-        for open in futures_util::future::join_all(opens).await {
-            let store = open.unwrap().unwrap_or_else(|e| panic!("round {round}: {e:#}"));
+#[test]
+fn many_openers_of_a_new_database_set_its_schema_up_once() {
+    crate::runtime::block_on_bounded(4, async {
+        for round in 0..20 {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join(format!("race{round}.db"));
+            let opens = (0..6).map(|_| {
+                let path = path.clone();
+                tokio::spawn(async move { Store::open(&path).await })
+            });
+            for open in futures_util::future::join_all(opens).await {
+                let store = open.unwrap().unwrap_or_else(|e| panic!("round {round}: {e:#}"));
+                store.close().await;
+            }
+            let store = Store::open_read_only(&path).await.unwrap();
             store.close().await;
         }
-        let store = Store::open_read_only(&path).await.unwrap();
-        store.close().await;
-    }
+    })
+    .expect("a runtime");
 }
