@@ -15,6 +15,7 @@
 
 mod browser;
 mod budget;
+mod docs;
 mod drift;
 mod everyday;
 mod files;

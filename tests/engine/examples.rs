@@ -146,3 +146,47 @@ fn survey_sim_serves_on_loopback_only_and_never_replaces_a_file() {
         assert_eq!(out.status.code(), Some(2), "{bad:?}: {}", String::from_utf8_lossy(&out.stderr));
     }
 }
+
+/// The examples page's copy of each example: the fenced `toml` block under
+/// each heading "## `examples/config/NAME`", by name.
+fn shown_examples(page: &str) -> std::collections::BTreeMap<String, String> {
+    let mut shown = std::collections::BTreeMap::new();
+    let mut lines = page.lines();
+    while let Some(line) = lines.next() {
+        let Some(name) = line.strip_prefix("## `examples/config/").and_then(|l| l.strip_suffix('`')) else { continue };
+        assert!(lines.by_ref().any(|l| l == "```toml"), "docs/examples.md: no ```toml block under {name}");
+        let block: Vec<&str> = lines.by_ref().take_while(|l| *l != "```").collect();
+        let previous = shown.insert(name.to_string(), block.iter().map(|l| format!("{l}\n")).collect());
+        assert!(previous.is_none(), "docs/examples.md shows {name} twice");
+    }
+    shown
+}
+
+#[test]
+fn the_examples_page_shows_every_example_verbatim() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let page = std::fs::read_to_string(root.join("docs/examples.md")).expect("docs/examples.md");
+    let mut shown = shown_examples(&page);
+    let mut files: Vec<_> =
+        std::fs::read_dir(root.join("examples/config")).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    for path in &files {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        let text = std::fs::read_to_string(path).unwrap();
+        let copy =
+            shown.remove(&name).unwrap_or_else(|| panic!("docs/examples.md does not show examples/config/{name}"));
+        assert_eq!(copy, text, "docs/examples.md does not show examples/config/{name} as it is");
+    }
+    assert!(files.len() >= 5, "at least one example per driver");
+    assert!(shown.is_empty(), "docs/examples.md shows files that examples/config/ does not hold: {:?}", shown.keys());
+}
+
+#[test]
+fn the_examples_page_is_read_block_by_block_to_the_byte() {
+    let page = "## `examples/config/a.toml`\n\nWords.\n\n```toml\n[survey]\n\npoints = 24\n```\n\n\
+                ## `examples/config/b.toml`\n\n```toml\n# b\n```\n";
+    let shown = shown_examples(page);
+    assert_eq!(shown.len(), 2);
+    assert_eq!(shown["a.toml"], "[survey]\n\npoints = 24\n");
+    assert_eq!(shown["b.toml"], "# b\n");
+}
