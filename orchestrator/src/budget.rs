@@ -5,7 +5,7 @@
 //! exactly one [`Component`] (it switches components as it goes, so the
 //! components add up to the acquisition's instrument time). The bound
 //! ([`Bound`]) is what the plan needs at least: every move at the configured
-//! velocity and acceleration ([`crate::plan::move_time`]), the settling the
+//! velocity and acceleration ([`survey_processing::plan::move_time`]), the settling the
 //! axis needs after each move that ends at a measuring position (from its
 //! [`SettleModel`]), the reference's integration time at every sample, and
 //! the locate (its moves, settling and measurements, and the way back to the
@@ -14,11 +14,11 @@
 //! dwells and recoveries cost instrument time but are not physics: they are
 //! the gap between the two.
 
-use crate::plan::{SurveyPlan, move_time};
 use crate::settle::SettleModel;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::time::Duration;
+use survey_processing::plan::{SurveyPlan, move_time};
 
 /// What instrument time is spent on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -252,7 +252,7 @@ pub fn locate_bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel, start
     if d.locate_points == 0 {
         return 0.0;
     }
-    let readouts = crate::engine::locate_readouts(plan, d.locate_points);
+    let readouts = survey_processing::plan::locate_readouts(plan, d.locate_points);
     let (v, a) = (d.velocity_deg_s, d.accel_deg_s2);
     let mut total = move_time(plan.overrun_deg, v, a) + settle.needed_s(plan.overrun_deg, v, a);
     for w in readouts.windows(2) {

@@ -5,7 +5,6 @@
 
 use crate::engine::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
-use crate::plan::SurveyPlan;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
 use crate::stop::{Stop, Stopped};
@@ -14,6 +13,7 @@ use crate::survey::SurveyStatus;
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use survey_processing::iso230::iso230_2;
+use survey_processing::plan::SurveyPlan;
 
 /// What to do after the acquisition.
 #[derive(Debug, Clone, Default)]

@@ -96,7 +96,7 @@ pub struct SurveySection {
     /// Distance past a target before approaching it from the other side, degrees.
     pub overrun_deg: Option<f64>,
     /// `"step"` (default) or `"continuous"` (`--scan` overrides it).
-    pub scan: Option<crate::plan::ScanMode>,
+    pub scan: Option<survey_processing::plan::ScanMode>,
 }
 
 /// `[positioner]`: the controller and how to reach it.

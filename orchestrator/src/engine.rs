@@ -15,7 +15,6 @@
 //! measured, each once.
 
 use crate::budget::{Component, Ledger};
-use crate::plan::{SurveyPlan, move_time};
 use crate::record::{RawReading, RecordedSample, SampleSink};
 use crate::settle::{SettleModel, SettleSpec, SettleStats, TypicalStd, Wait};
 use crate::stop::{Stop, Stopped};
@@ -26,6 +25,7 @@ use survey_drivers::{
     AcReading, Autocollimator, Clock, DriverError, ErrorKind, Positioner, SmrMeasurement, Tracker, TrackerState,
 };
 use survey_processing::geometry::{AxisFit, GeometryError, fit_axis};
+use survey_processing::plan::{SurveyPlan, locate_readouts, move_time};
 use survey_processing::{Direction, Sample};
 
 /// The reference instrument that measures the actual angle.
@@ -831,20 +831,6 @@ async fn read_reference(
             let face = (near_deg / 360.0 * *faces as f64).round().rem_euclid(*faces as f64) as u32;
             Ok(RawReading::Autocollimator { face, reading })
         }
-    }
-}
-
-/// The readouts at which the SMR is measured to locate the axis.
-pub fn locate_readouts(plan: &SurveyPlan, points: u32) -> Vec<f64> {
-    let points = points.max(3);
-    let first = plan.targets_deg[0];
-    let last = *plan.targets_deg.last().expect("a plan has targets");
-    let spacing = if plan.targets_deg.len() > 1 { plan.targets_deg[1] - first } else { 0.0 };
-    let full_circle = (last - first + spacing - 360.0).abs() < 1e-6;
-    if full_circle {
-        (0..points).map(|k| first + k as f64 * 360.0 / points as f64).collect()
-    } else {
-        (0..points).map(|k| first + k as f64 * (last - first) / (points - 1) as f64).collect()
     }
 }
 

@@ -19,7 +19,6 @@ pub mod drift;
 pub mod engine;
 pub mod error;
 pub mod output;
-pub mod plan;
 pub mod process;
 pub mod progress;
 pub mod record;

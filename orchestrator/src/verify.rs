@@ -15,7 +15,6 @@
 use crate::engine::{Engine, ReferenceKind, Timing};
 use crate::error::bad_input;
 use crate::output::{Output, iso_json, iso_text};
-use crate::plan::SurveyPlan;
 use crate::process::ProcessOutcome;
 use crate::session::{AcquireOptions, acquire};
 use crate::store::Store;
@@ -25,6 +24,7 @@ use survey_drivers::clock::with_timeout;
 use survey_processing::Sample;
 use survey_processing::correction::ErrorFigures;
 use survey_processing::iso230::iso230_2;
+use survey_processing::plan::SurveyPlan;
 use survey_processing::table::CorrectionTable;
 
 /// Where a verification measures, decided before the calibration survey

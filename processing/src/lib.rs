@@ -16,6 +16,7 @@ pub mod lstsq;
 pub mod model;
 pub mod modelgap;
 pub mod pipeline;
+pub mod plan;
 pub mod recipe;
 pub mod resample;
 mod special;

@@ -6,12 +6,12 @@ use crate::bench::instruments::Instruments;
 use crate::config::SurveyConfig;
 use crate::engine::{Engine, ReferenceKind};
 use crate::error::bad_input;
-use crate::plan::SurveyPlan;
 use crate::survey::{ConfiguredSetup, Setup, SurveySource};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::{Clock, SystemClock};
+use survey_processing::plan::SurveyPlan;
 
 /// Plan settings from the command line, over the configuration's `[survey]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -23,7 +23,7 @@ pub struct PlanOverrides {
     /// `--bidirectional` (it can only turn the reverse pass on).
     pub bidirectional: bool,
     /// `--scan` (over `[survey] scan`).
-    pub scan: Option<crate::plan::ScanMode>,
+    pub scan: Option<survey_processing::plan::ScanMode>,
 }
 
 impl Bench {

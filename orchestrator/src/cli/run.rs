@@ -7,13 +7,13 @@ use crate::bench::{Bench, PlanOverrides, SimulatedRequest};
 use crate::conclude::ConcludeOptions;
 use crate::engine::ReferenceKind;
 use crate::output::human;
-use crate::plan::ScanMode;
 use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;
 use crate::store::Store;
 use crate::verify::VerifyPlan;
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
+use survey_processing::plan::ScanMode;
 
 /// The reference instrument of the simulated bench.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

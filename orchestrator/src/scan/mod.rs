@@ -50,12 +50,12 @@ pub use latency::Latency;
 
 use crate::budget::{Bound, Dynamics, locate_bound};
 use crate::engine::{Engine, EngineError, Failed, Outcome, Progress, Reference};
-use crate::plan::{SurveyPlan, move_time};
 use crate::record::SampleSink;
 use crate::settle::SettleModel;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 use survey_processing::Direction;
+use survey_processing::plan::{SurveyPlan, move_time};
 
 /// The continuous scan's velocities and rates (part of [`crate::engine::Timing`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
