@@ -176,10 +176,10 @@ async fn budget(
     engine: &Engine,
     plan: &SurveyPlan,
     instrument_time: std::time::Duration,
-) -> crate::budget::Budget {
+) -> crate::output::Budget {
     let t = engine.timing();
     let tracker = matches!(engine.reference, crate::engine::Reference::Tracker(_));
-    let d = crate::budget::Dynamics {
+    let d = survey_processing::budget::Dynamics {
         velocity_deg_s: t.velocity_deg_s,
         accel_deg_s2: t.accel_deg_s2,
         integration_s: engine.integration().map_or(0.0, |i| i.as_secs_f64()),
@@ -187,11 +187,11 @@ async fn budget(
     };
     let spent = store.survey_time(id).await.unwrap_or_else(|e| {
         tracing::warn!(error = %format!("{e:#}"), "the stored instrument time could not be read");
-        crate::budget::Spent::default()
+        survey_processing::budget::Spent::default()
     });
-    crate::budget::Budget {
+    crate::output::Budget {
         instrument_time_s: instrument_time.as_secs_f64(),
-        bound: crate::budget::plan_bound(plan, &d, engine.settle_model(), &t.scan),
+        bound: survey_processing::budget::plan_bound(plan, &d, engine.settle_model(), &t.scan),
         spent,
         settle_observed: engine.settle_stats().summary(),
         scan: plan.scan.as_str(),

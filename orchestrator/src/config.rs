@@ -550,7 +550,7 @@ impl SurveyConfig {
             ..ds
         };
         let dsc = d.scan;
-        let scan = crate::scan::ScanTiming {
+        let scan = survey_processing::plan::ScanTiming {
             velocity_deg_s: t.scan_velocity_deg_s,
             calibration_velocity_deg_s: t.calibration_velocity_deg_s,
             capture_period: secs(t.capture_period_s, dsc.capture_period),

@@ -14,7 +14,6 @@
 //! after the sink was flushed, so the stored samples are exactly those
 //! measured, each once.
 
-use crate::budget::{Component, Ledger};
 use crate::record::{RawReading, RecordedSample, SampleSink};
 use crate::settle::{SettleModel, SettleSpec, SettleStats, TypicalStd, Wait};
 use crate::stop::{Stop, Stopped};
@@ -24,6 +23,7 @@ use survey_drivers::clock::with_timeout;
 use survey_drivers::{
     AcReading, Autocollimator, Clock, DriverError, ErrorKind, Positioner, SmrMeasurement, Tracker, TrackerState,
 };
+use survey_processing::budget::{Component, Ledger};
 use survey_processing::geometry::{AxisFit, GeometryError, fit_axis};
 use survey_processing::plan::{SurveyPlan, locate_readouts, move_time};
 use survey_processing::{Direction, Sample};
@@ -96,7 +96,7 @@ pub struct Timing {
     pub settle: SettleSpec,
     /// The continuous scan's rates ([`crate::scan`]).
     #[serde(default)]
-    pub scan: crate::scan::ScanTiming,
+    pub scan: survey_processing::plan::ScanTiming,
     /// How long a survey suspended on a lost beam waits for it (see
     /// [`suspend`]) before it ends interrupted.
     #[serde(default = "suspend::default_beam_wait")]
@@ -120,7 +120,7 @@ impl Default for Timing {
             velocity_deg_s: 10.0,
             accel_deg_s2: 20.0,
             settle: SettleSpec::default(),
-            scan: crate::scan::ScanTiming::default(),
+            scan: survey_processing::plan::ScanTiming::default(),
             beam_wait: suspend::default_beam_wait(),
             beam_retry: suspend::default_beam_retry(),
         }
@@ -301,7 +301,7 @@ impl Engine {
     }
 
     /// The instrument time spent so far, by component.
-    pub fn spent(&self) -> crate::budget::Spent {
+    pub fn spent(&self) -> survey_processing::budget::Spent {
         self.ledger.spent(self.clock.now())
     }
 
@@ -471,7 +471,7 @@ impl Engine {
         }
         // The way to the plan's first approach belongs to the locate too.
         let t = &self.timing;
-        let start = crate::scan::start_deg(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
+        let start = survey_processing::plan::start_deg(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
         if self.commanded.is_some_and(|c| c != start) {
             let back = self.move_to(start, false, sink).await;
             if let Err(e) = back {

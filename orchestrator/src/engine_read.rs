@@ -3,11 +3,11 @@
 //! ([`crate::settle`]) and the recovery of faults.
 
 use super::{Engine, EngineError, Failed, read_reference};
-use crate::budget::Component;
 use crate::record::{RawReading, SampleSink};
 use crate::settle::SettleMode;
 use survey_drivers::clock::with_timeout;
 use survey_processing::Direction;
+use survey_processing::budget::Component;
 
 impl Engine {
     /// Read the readout and the reference at `target` (approached in

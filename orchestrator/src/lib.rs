@@ -10,7 +10,6 @@
 //! `survey-sims` crates.
 
 pub mod bench;
-pub mod budget;
 pub mod cli;
 pub mod conclude;
 pub mod config;

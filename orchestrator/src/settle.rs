@@ -32,11 +32,11 @@
 //! ([`default_window_deg`]): 1e-4 deg with a tracker (about 1e-3 deg of
 //! noise on a 1 m arm), 3e-6 deg with an autocollimator (0.1 arcsec).
 
-use crate::budget::{Component, Ledger};
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 use survey_drivers::clock::with_timeout;
 use survey_drivers::{Clock, DriverError, ErrorKind, Positioner};
+use survey_processing::budget::{Component, Ledger, Settling};
 
 /// How the engine decides the axis is at rest.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -110,9 +110,9 @@ pub enum SettleModel {
     Unknown,
 }
 
-impl SettleModel {
+impl Settling for SettleModel {
     /// Seconds of settling a move of `distance` degrees needs.
-    pub fn needed_s(&self, distance: f64, velocity: f64, accel: f64) -> f64 {
+    fn needed_s(&self, distance: f64, velocity: f64, accel: f64) -> f64 {
         match self {
             SettleModel::Servo { servo, window_deg } => {
                 if distance == 0.0 {

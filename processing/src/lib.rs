@@ -6,6 +6,7 @@
 //! measured data.
 
 pub mod analysis;
+pub mod budget;
 pub mod correction;
 pub mod corrector;
 pub mod errormap;

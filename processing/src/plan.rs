@@ -6,6 +6,10 @@
 //! densely from 0 (`seq`): a stored sample is identified by its step, which is
 //! how an interrupted survey resumes without losing or duplicating a sample.
 
+mod passes;
+
+pub use passes::{PassPlan, ScanTiming, passes, start_deg};
+
 use crate::Direction;
 use crate::errormap::Coverage;
 use serde::{Deserialize, Serialize};

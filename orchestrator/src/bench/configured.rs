@@ -83,13 +83,15 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
     let measure = integration(cfg).unwrap_or(Duration::from_millis(200));
     let per_target = t.dwell + measure + t.poll_interval;
     let estimate = if setup.plan.continuous() {
-        let d = crate::budget::Dynamics {
+        let d = survey_processing::budget::Dynamics {
             velocity_deg_s: t.velocity_deg_s,
             accel_deg_s2: t.accel_deg_s2,
             integration_s: measure.as_secs_f64(),
             locate_points: t.locate_points,
         };
-        Duration::from_secs_f64(crate::scan::bound(&setup.plan, &d, &cfg.settle_model(), &t.scan).total())
+        Duration::from_secs_f64(
+            survey_processing::budget::scan_bound(&setup.plan, &d, &cfg.settle_model(), &t.scan).total(),
+        )
     } else {
         setup.plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target)
     };

@@ -3,7 +3,6 @@
 //! virtual clock.
 
 use super::Bench;
-use crate::budget::{Dynamics, plan_bound};
 use crate::engine::{Engine, Reference, ReferenceKind, Timing};
 use crate::error::bad_input;
 use crate::settle::{SettleMode, SettleModel};
@@ -12,6 +11,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::{Clock, VirtualClock};
+use survey_processing::budget::{Dynamics, plan_bound};
 use survey_processing::model::Model;
 use survey_processing::plan::{ScanMode, SurveyPlan};
 use survey_sims::autocollimator::AutocollimatorConfig;

@@ -4,16 +4,15 @@
 //! read noted with the host time of its answer; and its pairing.
 
 use super::pair::{ClockMap, PairError, crossing_time, position_at};
-use super::{PassPlan, ScanTiming};
-use crate::budget::Component;
 use crate::engine::{Engine, Failed, Reference};
 use crate::record::{RawReading, RecordedSample, ScanPassRecord};
 use std::time::Duration;
 use survey_drivers::clock::with_timeout;
 use survey_drivers::{DriverError, ErrorKind, SmrMeasurement, StreamedPoint, Tracker};
 use survey_processing::Sample;
+use survey_processing::budget::Component;
 use survey_processing::geometry::AxisFit;
-use survey_processing::plan::move_time;
+use survey_processing::plan::{PassPlan, ScanTiming, move_time};
 
 /// What one pass gathered.
 #[derive(Debug, Clone, PartialEq)]
