@@ -281,7 +281,7 @@ impl Engine {
     }
 
     /// A continuous survey goes on with the latency its first runs measured.
-    pub fn set_scan_latency(&mut self, latency: Option<crate::scan::Latency>) {
+    pub fn set_scan_latency(&mut self, latency: Option<survey_processing::pairing::Latency>) {
         self.scan.latency = latency;
     }
 

@@ -16,6 +16,7 @@ pub mod iso230;
 pub mod lstsq;
 pub mod model;
 pub mod modelgap;
+pub mod pairing;
 pub mod pipeline;
 pub mod plan;
 pub mod recipe;

@@ -12,9 +12,9 @@
 //! each read noting the host time of its answer.
 //!
 //! A pass is then paired ([`pass::pair`]): each stream's clock is mapped to
-//! the host's ([`pair::ClockMap`]); for every target, the time the readout
-//! passed it ([`pair::crossing_time`]); the SMR position at that time
-//! ([`pair::position_at`]), the tracker's stamps taken at the middle of each
+//! the host's ([`survey_processing::pairing::ClockMap`]); for every target, the time the readout
+//! passed it ([`survey_processing::pairing::crossing_time`]); the SMR position at that time
+//! ([`survey_processing::pairing::position_at`]), the tracker's stamps taken at the middle of each
 //! point's integration (half a period before the stamp, which marks its end)
 //! and shifted by the latency between the two instruments; the actual angle
 //! around the located axis. The sample is stored at the target: readout =
@@ -25,7 +25,7 @@
 //! again), or the velocity's ripple (both streams are read at the same
 //! moment, and the position is a quadratic fit in time).
 //!
-//! The latency ([`latency`]) is measured, not assumed: the first run turns
+//! The latency ([`survey_processing::pairing::latency`]) is measured, not assumed: the first run turns
 //! at the calibration velocity (the configured one), the others at the scan
 //! velocity (half of it), and the velocity-dependent backlash between the
 //! two gives it. The first two runs are held in memory until it is known,
@@ -42,16 +42,14 @@
 //! are stored together once the latency is known). The latency is read back
 //! from the stored passes.
 
-pub mod latency;
-pub mod pair;
 mod pass;
-
-pub use latency::Latency;
 
 use crate::engine::{Engine, EngineError, Failed, Outcome, Progress, Reference};
 use crate::record::SampleSink;
 use serde::Serialize;
 use survey_processing::Direction;
+use survey_processing::pairing::Latency;
+use survey_processing::pairing::latency::{self, PassErrors};
 use survey_processing::plan::{PassPlan, ScanTiming, SurveyPlan, passes};
 
 /// What the continuous scan did, for the survey's report.
@@ -181,11 +179,7 @@ fn calibrate(
         if all[*j].direction == Direction::Reverse {
             by_target.reverse();
         }
-        errors.push((
-            all[*j].run,
-            all[*j].direction,
-            latency::PassErrors { speed_deg_s: all[*j].speed, errors: by_target },
-        ));
+        errors.push((all[*j].run, all[*j].direction, PassErrors { speed_deg_s: all[*j].speed, errors: by_target }));
     }
     let get = |run: u32, d: Direction| errors.iter().find(|e| e.0 == run && e.1 == d).map(|e| &e.2);
     let (f1, f2) = (get(1, Direction::Forward), get(2, Direction::Forward));

@@ -3,7 +3,6 @@
 //! streaming while the axis turns from the pass's start to its end, every
 //! read noted with the host time of its answer; and its pairing.
 
-use super::pair::{ClockMap, PairError, crossing_time, position_at};
 use crate::engine::{Engine, Failed, Reference};
 use crate::record::{RawReading, RecordedSample, ScanPassRecord};
 use std::time::Duration;
@@ -12,6 +11,7 @@ use survey_drivers::{DriverError, ErrorKind, SmrMeasurement, StreamedPoint, Trac
 use survey_processing::Sample;
 use survey_processing::budget::Component;
 use survey_processing::geometry::AxisFit;
+use survey_processing::pairing::{ClockMap, PairError, crossing_time, position_at};
 use survey_processing::plan::{PassPlan, ScanTiming, move_time};
 
 /// What one pass gathered.

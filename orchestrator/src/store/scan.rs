@@ -9,8 +9,8 @@ use super::samples::insert_samples;
 use super::tx::WriteTx;
 use super::{Store, real};
 use crate::record::ScanPassRecord;
-use crate::scan::Latency;
 use survey_processing::budget::{Component, Spent};
+use survey_processing::pairing::Latency;
 
 /// Records per stored chunk of a stream.
 const CHUNK_RECORDS: usize = 16_384;
