@@ -59,7 +59,7 @@ pub struct SurveyConfig {
     pub certificate: Option<CertificateSection>,
     /// Drift control: a reference target re-measured every K steps (off by default).
     #[serde(default)]
-    pub drift_control: Option<crate::drift::DriftControl>,
+    pub drift_control: Option<survey_processing::drift::DriftControl>,
 }
 
 /// `[certificate]`: what a calibration certificate states that no instrument

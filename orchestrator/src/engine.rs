@@ -242,7 +242,7 @@ pub struct Engine {
     /// The continuous scan's state ([`crate::scan`]).
     pub(crate) scan: crate::scan::ScanState,
     /// Drift control: the reference target re-measured every K steps.
-    drift: Option<crate::drift::DriftControl>,
+    drift: Option<survey_processing::drift::DriftControl>,
     /// What simulated instruments in this process injected, when they are.
     injected: Option<survey_sims::faults::Injected>,
 }
@@ -321,8 +321,8 @@ impl Engine {
         self.injected.as_ref()
     }
 
-    /// Re-measure the reference target every K steps ([`crate::drift`]).
-    pub fn set_drift_control(&mut self, drift: Option<crate::drift::DriftControl>) {
+    /// Re-measure the reference target every K steps ([`survey_processing::drift`]).
+    pub fn set_drift_control(&mut self, drift: Option<survey_processing::drift::DriftControl>) {
         self.drift = drift;
     }
 

@@ -194,7 +194,7 @@ impl SampleSink for StoreSink {
     async fn event(&mut self, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
         self.store.log_event(self.survey_id, at_s, level, message).await
     }
-    async fn drift_measured(&mut self, m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+    async fn drift_measured(&mut self, m: &survey_processing::drift::DriftMeasurement) -> anyhow::Result<()> {
         self.store.add_drift_measurement(self.survey_id, m).await
     }
 }
