@@ -3,7 +3,7 @@
 //! `--verify` the corrected accuracy measured with the table applied. The
 //! survey's samples are read once, here, for all three.
 
-use crate::engine::Engine;
+use crate::acquire::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
@@ -84,9 +84,9 @@ pub async fn conclude(
     if plan.continuous() {
         doc["scan"] = serde_json::json!({
             "mode": plan.scan.as_str(),
-            "latency_s": engine.scan.latency.map(|l| l.delta_s),
-            "latency_se_s": engine.scan.latency.map(|l| l.se_s),
-            "this_acquisition": &engine.scan.report,
+            "latency_s": engine.scan_latency().map(|l| l.delta_s),
+            "latency_se_s": engine.scan_latency().map(|l| l.se_s),
+            "this_acquisition": engine.scan_report(),
         });
     }
     if !drift.is_empty() {
@@ -105,7 +105,7 @@ pub async fn conclude(
         }
     );
     text += &budget.text();
-    if let Some(l) = engine.scan.latency.filter(|_| plan.continuous()) {
+    if let Some(l) = engine.scan_latency().filter(|_| plan.continuous()) {
         text += &format!(
             "latency between the instruments: {:.3} ms (+/- {:.3} ms), removed from every sample\n",
             l.delta_s * 1e3,
@@ -178,7 +178,7 @@ async fn budget(
     instrument_time: std::time::Duration,
 ) -> crate::output::Budget {
     let t = engine.timing();
-    let tracker = matches!(engine.reference, crate::engine::Reference::Tracker(_));
+    let tracker = engine.reference_kind() == crate::acquire::ReferenceKind::Tracker;
     let d = survey_processing::budget::Dynamics {
         velocity_deg_s: t.velocity_deg_s,
         accel_deg_s2: t.accel_deg_s2,

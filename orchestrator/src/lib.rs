@@ -9,24 +9,21 @@
 //! `output`, `error` -> the `survey-processing`, `survey-drivers` and
 //! `survey-sims` crates.
 
+pub mod acquire;
 pub mod bench;
 pub mod cli;
 pub mod conclude;
 pub mod config;
 pub mod csvio;
 pub mod drift;
-pub mod engine;
 pub mod error;
 pub mod output;
 pub mod process;
 pub mod progress;
-pub mod record;
 pub mod refit;
 pub mod report;
 pub mod runtime;
-pub mod scan;
 pub mod session;
-pub mod settle;
 pub mod sim;
 pub mod stop;
 pub mod store;

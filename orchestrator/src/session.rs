@@ -6,7 +6,7 @@
 //! command ends with exit status 1. `survey run`, `survey resume` and the
 //! verification of `survey run --verify` all acquire through [`acquire`].
 
-use crate::engine::{Engine, EngineError, Outcome, Progress};
+use crate::acquire::{Engine, EngineError, Outcome, Progress};
 use crate::output::human;
 use crate::store::{Store, StoreSink};
 use crate::survey::SurveyStatus;

@@ -15,8 +15,8 @@
 //! setup of the survey it verifies), `{"imported_from": ...}` for an import,
 //! or `{}` when nothing was recorded.
 
+use crate::acquire::{ReferenceKind, Timing};
 use crate::config::SurveyConfig;
-use crate::engine::{ReferenceKind, Timing};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use survey_processing::geometry::AxisFit;

@@ -12,7 +12,7 @@
 //! autocollimator the only angles measured are the polygon's faces: the
 //! verification stays at the faces and says so.
 
-use crate::engine::{Engine, ReferenceKind, Timing};
+use crate::acquire::{Engine, ReferenceKind, Timing};
 use crate::error::bad_input;
 use crate::output::{Output, iso_json, iso_text};
 use crate::process::ProcessOutcome;

@@ -15,8 +15,8 @@ mod wire_faults;
 
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
-use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::record::{MemorySink, RawReading};
+use survey_orchestrator::acquire::{Engine, Reference, Timing};
+use survey_orchestrator::acquire::{MemorySink, RawReading};
 use survey_orchestrator::store::{Store, StoreSink};
 use survey_orchestrator::survey::{NewSurvey, SurveyStatus};
 use survey_processing::geometry::AxisFit;

@@ -16,8 +16,8 @@
 
 use super::{fig8, virtual_clock};
 use PeriodicKind::{Eccentricity, GearPass, Harmonic, ToothMesh};
-use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::record::MemorySink;
+use survey_orchestrator::acquire::MemorySink;
+use survey_orchestrator::acquire::{Engine, Reference, Timing};
 use survey_processing::Sample;
 use survey_processing::geometry::AxisFit;
 use survey_processing::model::{Design, DriftShape, Effect, Model, PeriodicKind};

@@ -4,10 +4,10 @@
 
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
+use survey_orchestrator::acquire::MemorySink;
+use survey_orchestrator::acquire::{Engine, Reference, Timing};
 use survey_orchestrator::bench::instruments::{Instruments, ReferenceInstrument};
 use survey_orchestrator::config::SurveyConfig;
-use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::record::MemorySink;
 use survey_processing::iso230::{Iso230, iso230_2};
 use survey_processing::plan::SurveyPlan;
 use survey_processing::{Direction, Sample};

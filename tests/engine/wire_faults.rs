@@ -16,10 +16,10 @@
 use std::path::Path;
 use std::sync::Arc;
 use survey_drivers::{Clock, SystemClock};
+use survey_orchestrator::acquire::FaultCounts;
+use survey_orchestrator::acquire::MemorySink;
 use survey_orchestrator::bench::{PlanOverrides, configured_engine, configured_plan};
 use survey_orchestrator::config::SurveyConfig;
-use survey_orchestrator::engine::FaultCounts;
-use survey_orchestrator::record::MemorySink;
 use survey_orchestrator::sim::{SimOptions, serve};
 use survey_processing::Direction;
 use survey_sims::Preset;

@@ -2,9 +2,9 @@
 //! speaks their protocols, such as `survey sim`), on the system clock.
 
 use super::{Bench, DEFAULT_RUNS};
+use crate::acquire::{Engine, ReferenceKind};
 use crate::bench::instruments::Instruments;
 use crate::config::SurveyConfig;
-use crate::engine::{Engine, ReferenceKind};
 use crate::error::bad_input;
 use crate::survey::{ConfiguredSetup, Setup, SurveySource};
 use std::path::Path;

@@ -13,7 +13,7 @@ mod simulated;
 pub use configured::{PlanOverrides, configured_engine, configured_plan};
 pub use simulated::{DEFAULT_RUNS, SimulatedRequest, simulated_engine};
 
-use crate::engine::Engine;
+use crate::acquire::Engine;
 use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus};
 use std::sync::Arc;
 use std::time::Duration;

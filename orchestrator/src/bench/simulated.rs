@@ -3,9 +3,9 @@
 //! virtual clock.
 
 use super::Bench;
-use crate::engine::{Engine, Reference, ReferenceKind, Timing};
+use crate::acquire::{Engine, Reference, ReferenceKind, Timing};
+use crate::acquire::{SettleMode, SettleModel};
 use crate::error::bad_input;
-use crate::settle::{SettleMode, SettleModel};
 use crate::survey::{Setup, SimulatedSetup, SurveySource};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -112,7 +112,7 @@ impl Bench {
         }
         let mut timing =
             Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
-        timing.settle.window_deg = crate::settle::default_window_deg(req.reference);
+        timing.settle.window_deg = crate::acquire::default_window_deg(req.reference);
         let tracker = req.reference == ReferenceKind::Tracker;
         let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker) / runs;
         let setup = SimulatedSetup {

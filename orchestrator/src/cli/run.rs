@@ -3,9 +3,9 @@
 //! processing and, with `--verify`, the corrected accuracy.
 
 use super::support::conclude_and_print;
+use crate::acquire::ReferenceKind;
 use crate::bench::{Bench, PlanOverrides, SimulatedRequest};
 use crate::conclude::ConcludeOptions;
-use crate::engine::ReferenceKind;
 use crate::output::human;
 use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;

@@ -1,7 +1,7 @@
 //! What every command shares: logging, printing, opening the database.
 
+use crate::acquire::Engine;
 use crate::conclude::{ConcludeOptions, conclude};
-use crate::engine::Engine;
 use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
 use crate::survey::SurveyRecord;

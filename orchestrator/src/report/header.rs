@@ -8,8 +8,8 @@
 
 use super::page::escape;
 use super::units::Units;
+use crate::acquire::ReferenceKind;
 use crate::config::CertificateSection;
-use crate::engine::ReferenceKind;
 use crate::survey::{Setup, SurveyRecord};
 use std::fmt::Write as _;
 

@@ -8,7 +8,7 @@ use survey_processing::Direction;
 use super::samples::insert_samples;
 use super::tx::WriteTx;
 use super::{Store, real};
-use crate::record::ScanPassRecord;
+use crate::acquire::ScanPassRecord;
 use survey_processing::budget::{Component, Spent};
 use survey_processing::pairing::Latency;
 

@@ -7,7 +7,7 @@ use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
 use super::{Store, is_busy};
-use crate::record::{RecordedSample, SampleSink, ScanPassRecord};
+use crate::acquire::{RecordedSample, SampleSink, ScanPassRecord};
 
 /// A [`SampleSink`] that writes to the store in batches.
 ///

@@ -44,8 +44,8 @@
 
 mod pass;
 
-use crate::engine::{Engine, EngineError, Failed, Outcome, Progress, Reference};
-use crate::record::SampleSink;
+use super::{Engine, EngineError, Failed, Outcome, Progress, Reference};
+use crate::acquire::record::SampleSink;
 use serde::Serialize;
 use survey_processing::Direction;
 use survey_processing::pairing::Latency;
@@ -75,7 +75,7 @@ pub struct ScanState {
 }
 
 /// Acquire `plan` (continuous) from step `from_seq` (a pass boundary).
-pub(crate) async fn run(
+pub(super) async fn run(
     engine: &mut Engine,
     plan: &SurveyPlan,
     from_seq: u64,

@@ -6,7 +6,7 @@
 //! like a step's, and their faults are survived the same way.
 
 use super::{Engine, EngineError};
-use crate::record::SampleSink;
+use crate::acquire::record::SampleSink;
 use survey_processing::Direction;
 use survey_processing::drift::DriftMeasurement;
 
@@ -85,7 +85,7 @@ impl Engine {
 #[cfg(test)]
 mod tests {
     use super::super::*;
-    use crate::record::{MemorySink, RawReading};
+    use crate::acquire::record::{MemorySink, RawReading};
     use survey_drivers::VirtualClock;
     use survey_processing::drift::{DriftControl, correct, drift_points};
     use survey_processing::model::Model;
