@@ -4,10 +4,12 @@
 //! Layers, from the roof down (a module only uses those below it):
 //! `cli` (the command line) -> `conclude`, `verify`, `session`, `process`,
 //! `report` (what the commands do) -> `bench` (the simulated or configured
-//! instruments, set up) -> `engine` (acquisition) -> `store` (SQLite) and
-//! `survey` (typed survey records) -> `config`, `plan`, `record`, `csvio`,
-//! `output`, `error` -> the `survey-processing`, `survey-drivers` and
-//! `survey-sims` crates.
+//! instruments, set up) -> `acquire` (the acquisition core, through its one
+//! door) -> `store` (SQLite) and `survey` (typed survey records) -> `config`,
+//! `csvio`, `output`, `error` -> the `survey-processing` (plans, bounds,
+//! pairing, drift: the pure steps), `survey-drivers` and `survey-sims`
+//! crates. No files of a crate import each other in a circle (a test,
+//! `import_circles_tests`, checks every crate).
 
 pub mod acquire;
 pub mod bench;
@@ -32,6 +34,9 @@ pub mod verify;
 
 #[cfg(test)]
 mod fuzz_tests;
+
+#[cfg(test)]
+mod import_circles_tests;
 
 #[cfg(test)]
 mod architecture {
