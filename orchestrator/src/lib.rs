@@ -4,12 +4,13 @@
 //! Layers, from the roof down (a module only uses those below it):
 //! `cli` (the command line) -> `conclude`, `verify`, `session`, `process`,
 //! `report` (what the commands do) -> `bench` (the simulated or configured
-//! instruments, set up) -> `acquire` (the acquisition core, through its one
-//! door) -> `store` (SQLite) and `survey` (typed survey records) -> `config`,
-//! `csvio`, `output`, `error` -> the `survey-processing` (plans, bounds,
-//! pairing, drift: the pure steps), `survey-drivers` and `survey-sims`
-//! crates. No files of a crate import each other in a circle (a test,
-//! `import_circles_tests`, checks every crate).
+//! instruments, set up) -> `store` (SQLite) and `survey` (typed survey
+//! records) -> `config`, `csvio`, `output`, `error` -> `acquire` (the
+//! acquisition core, used through its one door: the engine, its settings,
+//! the sink it writes into) and `stop` -> the `survey-processing` (plans,
+//! bounds, pairing, drift: the pure steps), `survey-drivers` and
+//! `survey-sims` crates. No files of a crate import each other in a circle
+//! (a test, `import_circles_tests`, checks every crate).
 
 pub mod acquire;
 pub mod bench;
