@@ -420,4 +420,3 @@ fn the_rules_read_paths_as_the_tool_does() {
     assert_eq!(found.len(), 1);
     assert_eq!(found[0].iter().collect::<BTreeSet<_>>(), [m("a"), m("b")].iter().collect());
 }
-

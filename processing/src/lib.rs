@@ -28,5 +28,6 @@ pub mod table;
 pub mod types;
 pub mod uncertainty;
 pub mod vdi3441;
+pub mod verification;
 
 pub use types::{Direction, Sample};
