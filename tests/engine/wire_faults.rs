@@ -62,7 +62,7 @@ impl Wire {
             ),
             // FAUL:CLE is sent (`unverified_commands`): without it a drive
             // trip cannot be cleared over SCPI and ends the survey (tested in
-            // `orchestrator/src/suspend_tests.rs`: an uncured fault stops the axis).
+            // `orchestrator/src/acquire/engine/suspend/tests.rs`: an uncured fault stops the axis).
             Wire::ScpiTcp | Wire::Elcomat => {
                 "driver = \"scpi-tcp\"\naddress = \"127.0.0.1:0\"\nunverified_commands = true\n".to_string()
             }
