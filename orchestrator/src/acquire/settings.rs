@@ -9,7 +9,7 @@ use survey_processing::budget::Settling;
 use survey_processing::plan::ScanTiming;
 
 /// The reference instrument that measures the actual angle.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ReferenceKind {
     /// A tracking laser measuring an SMR on an arm (the axis is located first).
@@ -29,7 +29,7 @@ impl ReferenceKind {
 }
 
 /// Deadlines, waits and retry limits.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Timing {
     /// Deadline of a short request (status, readout, command).
     pub call_timeout: Duration,
@@ -89,12 +89,12 @@ impl Default for Timing {
 }
 
 /// The default of `Timing::beam_wait`: 10 minutes.
-pub fn default_beam_wait() -> Duration {
+fn default_beam_wait() -> Duration {
     Duration::from_secs(600)
 }
 
 /// The default of `Timing::beam_retry`: 10 s.
-pub fn default_beam_retry() -> Duration {
+fn default_beam_retry() -> Duration {
     Duration::from_secs(10)
 }
 
