@@ -16,12 +16,12 @@
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use std::time::Duration;
+use survey_orchestrator::acquire::ReferenceKind;
+use survey_orchestrator::acquire::{MemorySink, RawReading, RecordedSample, SampleSink};
 use survey_orchestrator::bench::{Bench, SimulatedRequest};
-use survey_orchestrator::engine::ReferenceKind;
-use survey_orchestrator::plan::ScanMode;
-use survey_orchestrator::record::{MemorySink, RawReading, RecordedSample, SampleSink};
 use survey_orchestrator::store::{Store, StoreSink};
 use survey_orchestrator::survey::{NewSurvey, SurveySource, SurveyStatus};
+use survey_processing::plan::ScanMode;
 use survey_processing::{Direction, Sample};
 
 const POINTS: u32 = 360;

@@ -3,9 +3,8 @@
 //! `--verify` the corrected accuracy measured with the table applied. The
 //! survey's samples are read once, here, for all three.
 
-use crate::engine::Engine;
+use crate::acquire::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
-use crate::plan::SurveyPlan;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
 use crate::stop::{Stop, Stopped};
@@ -14,6 +13,7 @@ use crate::survey::SurveyStatus;
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use survey_processing::iso230::iso230_2;
+use survey_processing::plan::SurveyPlan;
 
 /// What to do after the acquisition.
 #[derive(Debug, Clone, Default)]
@@ -84,9 +84,9 @@ pub async fn conclude(
     if plan.continuous() {
         doc["scan"] = serde_json::json!({
             "mode": plan.scan.as_str(),
-            "latency_s": engine.scan.latency.map(|l| l.delta_s),
-            "latency_se_s": engine.scan.latency.map(|l| l.se_s),
-            "this_acquisition": &engine.scan.report,
+            "latency_s": engine.scan_latency().map(|l| l.delta_s),
+            "latency_se_s": engine.scan_latency().map(|l| l.se_s),
+            "this_acquisition": engine.scan_report(),
         });
     }
     if !drift.is_empty() {
@@ -105,7 +105,7 @@ pub async fn conclude(
         }
     );
     text += &budget.text();
-    if let Some(l) = engine.scan.latency.filter(|_| plan.continuous()) {
+    if let Some(l) = engine.scan_latency().filter(|_| plan.continuous()) {
         text += &format!(
             "latency between the instruments: {:.3} ms (+/- {:.3} ms), removed from every sample\n",
             l.delta_s * 1e3,
@@ -176,10 +176,10 @@ async fn budget(
     engine: &Engine,
     plan: &SurveyPlan,
     instrument_time: std::time::Duration,
-) -> crate::budget::Budget {
+) -> crate::output::Budget {
     let t = engine.timing();
-    let tracker = matches!(engine.reference, crate::engine::Reference::Tracker(_));
-    let d = crate::budget::Dynamics {
+    let tracker = engine.reference_kind() == crate::acquire::ReferenceKind::Tracker;
+    let d = survey_processing::budget::Dynamics {
         velocity_deg_s: t.velocity_deg_s,
         accel_deg_s2: t.accel_deg_s2,
         integration_s: engine.integration().map_or(0.0, |i| i.as_secs_f64()),
@@ -187,11 +187,11 @@ async fn budget(
     };
     let spent = store.survey_time(id).await.unwrap_or_else(|e| {
         tracing::warn!(error = %format!("{e:#}"), "the stored instrument time could not be read");
-        crate::budget::Spent::default()
+        survey_processing::budget::Spent::default()
     });
-    crate::budget::Budget {
+    crate::output::Budget {
         instrument_time_s: instrument_time.as_secs_f64(),
-        bound: crate::budget::plan_bound(plan, &d, engine.settle_model(), &t.scan),
+        bound: survey_processing::budget::plan_bound(plan, &d, engine.settle_model(), &t.scan),
         spent,
         settle_observed: engine.settle_stats().summary(),
         scan: plan.scan.as_str(),

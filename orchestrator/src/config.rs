@@ -25,8 +25,7 @@
 //! Unknown keys are errors, so a misspelt setting never silently falls back
 //! to a default.
 
-use crate::engine::ReferenceKind;
-use crate::engine::Timing;
+use crate::acquire::{ReferenceKind, SettleMode, SettleModel, SettleSpec, Timing, default_window_deg};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Duration;
@@ -59,7 +58,7 @@ pub struct SurveyConfig {
     pub certificate: Option<CertificateSection>,
     /// Drift control: a reference target re-measured every K steps (off by default).
     #[serde(default)]
-    pub drift_control: Option<crate::drift::DriftControl>,
+    pub drift_control: Option<survey_processing::drift::DriftControl>,
 }
 
 /// `[certificate]`: what a calibration certificate states that no instrument
@@ -96,7 +95,7 @@ pub struct SurveySection {
     /// Distance past a target before approaching it from the other side, degrees.
     pub overrun_deg: Option<f64>,
     /// `"step"` (default) or `"continuous"` (`--scan` overrides it).
-    pub scan: Option<crate::plan::ScanMode>,
+    pub scan: Option<survey_processing::plan::ScanMode>,
 }
 
 /// `[positioner]`: the controller and how to reach it.
@@ -308,7 +307,7 @@ pub struct TimingSection {
     pub velocity_deg_s: Option<f64>,
     pub accel_deg_s2: Option<f64>,
     /// `"adaptive"` (default) or `"in-position"` (the default when `dwell_s` is given).
-    pub settle: Option<crate::settle::SettleMode>,
+    pub settle: Option<SettleMode>,
     /// Adaptive settling: the readout stays this close to the target, degrees ...
     pub settle_window_deg: Option<f64>,
     /// ... for this long, seconds,
@@ -537,20 +536,16 @@ impl SurveyConfig {
         let ds = d.settle;
         // An instrument that needs a fixed dwell gets the in-position wait
         // it was configured for, unless adaptive settling is asked as well.
-        let mode = t.settle.unwrap_or(if t.dwell_s.is_some() {
-            crate::settle::SettleMode::InPosition
-        } else {
-            crate::settle::SettleMode::Adaptive
-        });
-        let settle = crate::settle::SettleSpec {
+        let mode = t.settle.unwrap_or(if t.dwell_s.is_some() { SettleMode::InPosition } else { SettleMode::Adaptive });
+        let settle = SettleSpec {
             mode,
-            window_deg: t.settle_window_deg.unwrap_or(crate::settle::default_window_deg(self.reference())),
+            window_deg: t.settle_window_deg.unwrap_or(default_window_deg(self.reference())),
             stable_for: secs(t.settle_stable_s, ds.stable_for),
             poll: secs(t.settle_poll_s, ds.poll),
             ..ds
         };
         let dsc = d.scan;
-        let scan = crate::scan::ScanTiming {
+        let scan = survey_processing::plan::ScanTiming {
             velocity_deg_s: t.scan_velocity_deg_s,
             calibration_velocity_deg_s: t.calibration_velocity_deg_s,
             capture_period: secs(t.capture_period_s, dsc.capture_period),
@@ -577,10 +572,10 @@ impl SurveyConfig {
     }
 
     /// The settling the configured axis needs, for the bound (`settle_time_s`).
-    pub fn settle_model(&self) -> crate::settle::SettleModel {
+    pub fn settle_model(&self) -> SettleModel {
         match self.timing.settle_time_s {
-            Some(s) => crate::settle::SettleModel::Fixed(Duration::from_secs_f64(s)),
-            None => crate::settle::SettleModel::Unknown,
+            Some(s) => SettleModel::Fixed(Duration::from_secs_f64(s)),
+            None => SettleModel::Unknown,
         }
     }
 }

@@ -10,11 +10,11 @@
 
 use crate::config::ConfigError;
 use crate::csvio::CsvError;
-use crate::plan::PlanError;
 use crate::store::NotFound;
 use crate::survey::Damaged;
 use survey_processing::model::ModelError;
 use survey_processing::pipeline::PipelineError;
+use survey_processing::plan::PlanError;
 use survey_processing::recipe::RecipeError;
 
 /// Bad input that has no type of its own: a missing flag, a path that cannot

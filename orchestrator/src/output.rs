@@ -1,8 +1,10 @@
 //! What a command prints: one JSON document (`--json`) or text, and the
-//! pieces several commands share (the ISO 230-2 figures, durations).
+//! pieces several commands share (the ISO 230-2 figures, durations, the
+//! time budget of an acquisition).
 
 use std::fmt::Write as _;
 use std::time::Duration;
+use survey_processing::budget::{Bound, Component, Spent};
 use survey_processing::iso230::Iso230;
 
 /// A command's result for the user: the JSON document and the text, built
@@ -68,6 +70,78 @@ pub fn human(d: Duration) -> String {
         format!("{}m {:02}s", s / 60, s % 60)
     } else {
         format!("{:.1} s", d.as_secs_f64())
+    }
+}
+
+/// The survey's time beside its bound, per component: what `survey run` reports.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Budget {
+    /// The survey's duration on the instruments' clock, seconds.
+    pub instrument_time_s: f64,
+    /// Its plan's lower bound.
+    pub bound: Bound,
+    /// Where the time went (the acquisitions of this survey that were accounted).
+    pub spent: Spent,
+    /// The settling observed after measured moves: how many, mean and
+    /// largest time from the profile's end until within the window, seconds.
+    pub settle_observed: Option<(u64, f64, f64)>,
+    /// The scan mode (`step` or `continuous`).
+    pub scan: &'static str,
+}
+
+impl Budget {
+    /// The `time_budget` document of `run --json`.
+    pub fn json(&self) -> serde_json::Value {
+        let unaccounted = self.instrument_time_s - self.spent.total();
+        let mut components: Vec<serde_json::Value> = Component::ALL
+            .into_iter()
+            .filter(|c| self.spent.get(*c) != 0.0 || self.bound.of(*c) != 0.0)
+            .map(|c| serde_json::json!({"component": c.as_str(), "time_s": self.spent.get(c), "bound_s": self.bound.of(c)}))
+            .collect();
+        if unaccounted.abs() > 1e-6 {
+            components.push(serde_json::json!({"component": "unaccounted", "time_s": unaccounted, "bound_s": 0.0}));
+        }
+        let total = self.bound.total();
+        serde_json::json!({
+            "scan": self.scan,
+            "instrument_time_s": self.instrument_time_s,
+            "bound_s": total,
+            "ratio": if total > 0.0 { self.instrument_time_s / total } else { f64::NAN },
+            "components": components,
+            "settle_observed": self.settle_observed.map(|(n, mean, max)| serde_json::json!({
+                "moves": n, "mean_s": mean, "max_s": max,
+            })),
+        })
+    }
+
+    /// The lines of the text summary.
+    pub fn text(&self) -> String {
+        let total = self.bound.total();
+        let mut s = format!(
+            "instrument time {} ({:.0} s) against a bound of {} ({:.0} s) for this plan ({}): {:.3} x\n",
+            human(Duration::from_secs_f64(self.instrument_time_s.max(0.0))),
+            self.instrument_time_s,
+            human(Duration::from_secs_f64(total.max(0.0))),
+            total,
+            self.scan,
+            if total > 0.0 { self.instrument_time_s / total } else { f64::NAN },
+        );
+        let _ = writeln!(s, "  {:<18}{:>12} {:>12}", "component", "time s", "bound s");
+        for c in Component::ALL {
+            let (t, b) = (self.spent.get(c), self.bound.of(c));
+            if t != 0.0 || b != 0.0 {
+                let _ = writeln!(s, "  {:<18}{t:>12.1} {b:>12.1}", c.as_str());
+            }
+        }
+        let unaccounted = self.instrument_time_s - self.spent.total();
+        if unaccounted.abs() > 0.05 {
+            let _ = writeln!(s, "  {:<18}{unaccounted:>12.1} {:>12}", "unaccounted", "");
+        }
+        if let Some((n, mean, max)) = self.settle_observed {
+            let _ =
+                writeln!(s, "  settling seen after {n} moves: mean {:.0} ms, largest {:.0} ms", mean * 1e3, max * 1e3);
+        }
+        s
     }
 }
 

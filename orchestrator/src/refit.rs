@@ -12,8 +12,8 @@
 //! into the positioner. The survey's thousands of positions know the centre
 //! far better.
 
-use crate::engine::ReferenceKind;
-use crate::record::RawReading;
+use crate::acquire::RawReading;
+use crate::acquire::ReferenceKind;
 use crate::store::Store;
 use crate::survey::{Setup, SurveyRecord};
 use survey_processing::Sample;

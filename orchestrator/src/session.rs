@@ -6,13 +6,13 @@
 //! command ends with exit status 1. `survey run`, `survey resume` and the
 //! verification of `survey run --verify` all acquire through [`acquire`].
 
-use crate::engine::{Engine, EngineError, Outcome, Progress};
+use crate::acquire::{Engine, EngineError, Outcome, Progress};
 use crate::output::human;
-use crate::plan::SurveyPlan;
 use crate::store::{Store, StoreSink};
 use crate::survey::SurveyStatus;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::time::{Duration, Instant};
+use survey_processing::plan::SurveyPlan;
 use survey_sims::PlanProgress;
 
 /// How an acquisition shows itself, the simulated bench's drift clock, and

@@ -15,13 +15,13 @@
 //! setup of the survey it verifies), `{"imported_from": ...}` for an import,
 //! or `{}` when nothing was recorded.
 
+use crate::acquire::{ReferenceKind, Timing};
 use crate::config::SurveyConfig;
-use crate::engine::{ReferenceKind, Timing};
-use crate::plan::SurveyPlan;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use survey_processing::geometry::AxisFit;
 use survey_processing::model::Model;
+use survey_processing::plan::SurveyPlan;
 use survey_processing::table::CorrectionTable;
 
 /// Where a survey's samples came from.

@@ -12,10 +12,9 @@
 //! autocollimator the only angles measured are the polygon's faces: the
 //! verification stays at the faces and says so.
 
-use crate::engine::{Engine, ReferenceKind, Timing};
+use crate::acquire::{Engine, ReferenceKind, Timing};
 use crate::error::bad_input;
 use crate::output::{Output, iso_json, iso_text};
-use crate::plan::SurveyPlan;
 use crate::process::ProcessOutcome;
 use crate::session::{AcquireOptions, acquire};
 use crate::store::Store;
@@ -23,9 +22,10 @@ use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, VerificationOf
 use anyhow::Context as _;
 use survey_drivers::clock::with_timeout;
 use survey_processing::Sample;
-use survey_processing::correction::ErrorFigures;
 use survey_processing::iso230::iso230_2;
+use survey_processing::plan::SurveyPlan;
 use survey_processing::table::CorrectionTable;
+use survey_processing::verification::{offset_deg, peak_deg, systematic_peak_deg};
 
 /// Where a verification measures, decided before the calibration survey
 /// starts (a bad `--verify-points` is refused before hours of measuring).
@@ -57,19 +57,9 @@ impl VerifyPlan {
             return Ok(VerifyPlan { plan: plan.clone(), between: false, offset_deg: 0.0 });
         }
         let verification = plan.between_targets(points)?;
-        let offset_deg = verification
-            .targets_deg
-            .iter()
-            .map(|t| plan.targets_deg.iter().map(|c| circular_distance(*t, *c)).fold(f64::INFINITY, f64::min))
-            .fold(f64::INFINITY, f64::min);
+        let offset_deg = offset_deg(&verification.targets_deg, &plan.targets_deg);
         Ok(VerifyPlan { plan: verification, between: true, offset_deg })
     }
-}
-
-/// The distance between two angles around the circle, degrees.
-fn circular_distance(a: f64, b: f64) -> f64 {
-    let d = (a - b).rem_euclid(360.0);
-    d.min(360.0 - d)
 }
 
 /// Load `table` into the engine's positioner and apply it in the feedback path.
@@ -82,27 +72,6 @@ pub async fn apply_correction(engine: &mut Engine, table: &CorrectionTable) -> a
         .await?;
     with_timeout(&*clock, timing.call_timeout, &name, "enable correction", p.enable_correction(true)).await?;
     Ok(())
-}
-
-/// Peak of `|error - mean error|` over every sample: the "+/-" figure of the
-/// paper, as processing's prediction computes it.
-fn peak_deg(samples: &[Sample]) -> f64 {
-    let errors: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
-    ErrorFigures::of(&errors, None).peak_deg
-}
-
-/// Peak of the systematic error: the mean error per target and direction over
-/// the runs, less the overall mean (the noise averages down by sqrt(runs)).
-fn systematic_peak_deg(samples: &[Sample]) -> f64 {
-    let mut groups: std::collections::BTreeMap<(u64, survey_processing::Direction), (f64, usize)> = Default::default();
-    for s in samples {
-        let g = groups.entry((s.target_deg.to_bits(), s.direction)).or_default();
-        g.0 += s.error_deg();
-        g.1 += 1;
-    }
-    let means: Vec<f64> = groups.values().map(|(sum, n)| sum / *n as f64).collect();
-    let mean = means.iter().sum::<f64>() / means.len().max(1) as f64;
-    means.iter().map(|m| (m - mean).abs()).fold(0.0, f64::max)
 }
 
 /// Verify the table of `processed` (made from `native` and its `native_samples`):

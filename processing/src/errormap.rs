@@ -280,6 +280,38 @@ impl ErrorMap {
     }
 }
 
+/// Hysteresis run by run: forward minus reverse error per run (rows in the
+/// order of [`ErrorMap::runs`]) and target, its mean over the runs and its
+/// standard deviation over the runs (`None` with one run).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunHysteresis {
+    pub runs_deg: Vec<Vec<f64>>,
+    pub mean_deg: Vec<f64>,
+    pub sd_deg: Option<Vec<f64>>,
+}
+
+impl ErrorMap {
+    /// The hysteresis of every run; `None` unless both directions were measured.
+    pub fn run_hysteresis(&self) -> Option<RunHysteresis> {
+        let (f, r) = (self.forward.as_ref()?, self.reverse.as_ref()?);
+        let runs: Vec<Vec<f64>> = f
+            .errors_deg
+            .iter()
+            .zip(&r.errors_deg)
+            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect())
+            .collect();
+        let n = runs.len() as f64;
+        let targets = self.targets_deg.len();
+        let mean: Vec<f64> = (0..targets).map(|i| runs.iter().map(|run| run[i]).sum::<f64>() / n).collect();
+        let sd = (runs.len() > 1).then(|| {
+            (0..targets)
+                .map(|i| (runs.iter().map(|run| (run[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt())
+                .collect()
+        });
+        Some(RunHysteresis { runs_deg: runs, mean_deg: mean, sd_deg: sd })
+    }
+}
+
 /// Which error series of a run the spectral analysis reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -346,6 +378,20 @@ mod tests {
         }
         v.reverse();
         v
+    }
+
+    #[test]
+    fn run_hysteresis_is_forward_minus_reverse_run_by_run() {
+        let m = ErrorMap::from_samples(&case()).unwrap();
+        let h = m.run_hysteresis().unwrap();
+        assert_eq!(h.runs_deg, vec![vec![1.0, 2.0, 3.0], vec![1.0, 2.0, 3.0]]);
+        assert_eq!(h.mean_deg, vec![1.0, 2.0, 3.0]);
+        assert_eq!(h.sd_deg, Some(vec![0.0, 0.0, 0.0]));
+        let forward: Vec<Sample> = case().into_iter().filter(|s| s.direction == Forward).collect();
+        assert_eq!(ErrorMap::from_samples(&forward).unwrap().run_hysteresis(), None);
+        let one_run: Vec<Sample> = case().into_iter().filter(|s| s.run == 2).collect();
+        let h = ErrorMap::from_samples(&one_run).unwrap().run_hysteresis().unwrap();
+        assert_eq!((h.mean_deg, h.sd_deg), (vec![1.0, 2.0, 3.0], None));
     }
 
     #[test]

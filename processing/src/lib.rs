@@ -6,8 +6,10 @@
 //! measured data.
 
 pub mod analysis;
+pub mod budget;
 pub mod correction;
 pub mod corrector;
+pub mod drift;
 pub mod errormap;
 pub mod export;
 pub mod geometry;
@@ -15,7 +17,9 @@ pub mod iso230;
 pub mod lstsq;
 pub mod model;
 pub mod modelgap;
+pub mod pairing;
 pub mod pipeline;
+pub mod plan;
 pub mod recipe;
 pub mod resample;
 mod special;
@@ -24,5 +28,6 @@ pub mod table;
 pub mod types;
 pub mod uncertainty;
 pub mod vdi3441;
+pub mod verification;
 
 pub use types::{Direction, Sample};

@@ -13,11 +13,11 @@ use super::axis_refit::{against_truth, survey};
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::{Clock, VirtualClock};
-use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::plan::SurveyPlan;
-use survey_orchestrator::record::MemorySink;
-use survey_orchestrator::settle::{SettleMode, SettleModel};
+use survey_orchestrator::acquire::MemorySink;
+use survey_orchestrator::acquire::{Engine, Reference, Timing};
+use survey_orchestrator::acquire::{SettleMode, SettleModel};
 use survey_processing::model::Model;
+use survey_processing::plan::SurveyPlan;
 use survey_sims::servo::Servo;
 use survey_sims::{Preset, SimBench};
 

@@ -15,14 +15,14 @@ mod wire_faults;
 
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
-use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::plan::SurveyPlan;
-use survey_orchestrator::record::{MemorySink, RawReading};
+use survey_orchestrator::acquire::{Engine, Reference, Timing};
+use survey_orchestrator::acquire::{MemorySink, RawReading};
 use survey_orchestrator::store::{Store, StoreSink};
 use survey_orchestrator::survey::{NewSurvey, SurveyStatus};
 use survey_processing::geometry::AxisFit;
 use survey_processing::iso230::iso230_2;
 use survey_processing::model::Model;
+use survey_processing::plan::SurveyPlan;
 use survey_processing::{Direction, Sample};
 use survey_sims::tracker::{ArmGeometry, sigma_mm};
 use survey_sims::{Preset, SimBench, SimBenchBuilder};

@@ -16,13 +16,13 @@
 
 use super::{fig8, virtual_clock};
 use PeriodicKind::{Eccentricity, GearPass, Harmonic, ToothMesh};
-use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::plan::SurveyPlan;
-use survey_orchestrator::record::MemorySink;
+use survey_orchestrator::acquire::MemorySink;
+use survey_orchestrator::acquire::{Engine, Reference, Timing};
 use survey_processing::Sample;
 use survey_processing::geometry::AxisFit;
 use survey_processing::model::{Design, DriftShape, Effect, Model, PeriodicKind};
 use survey_processing::modelgap::{FoundEffect, ModelGap, ModelGapOptions, model_gap};
+use survey_processing::plan::SurveyPlan;
 use survey_processing::spectrum::{Phasor, fit_sinusoids};
 use survey_sims::tracker::ArmGeometry;
 use survey_sims::{PlanProgress, SimBench};

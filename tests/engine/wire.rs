@@ -4,12 +4,12 @@
 
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
+use survey_orchestrator::acquire::MemorySink;
+use survey_orchestrator::acquire::{Engine, Reference, Timing};
 use survey_orchestrator::bench::instruments::{Instruments, ReferenceInstrument};
 use survey_orchestrator::config::SurveyConfig;
-use survey_orchestrator::engine::{Engine, Reference, Timing};
-use survey_orchestrator::plan::SurveyPlan;
-use survey_orchestrator::record::MemorySink;
 use survey_processing::iso230::{Iso230, iso230_2};
+use survey_processing::plan::SurveyPlan;
 use survey_processing::{Direction, Sample};
 use survey_sims::autocollimator::AutocollimatorConfig;
 use survey_sims::elcomat_server::{ElcomatFaults, pty_pair, serve};

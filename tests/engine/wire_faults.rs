@@ -16,10 +16,10 @@
 use std::path::Path;
 use std::sync::Arc;
 use survey_drivers::{Clock, SystemClock};
+use survey_orchestrator::acquire::FaultCounts;
+use survey_orchestrator::acquire::MemorySink;
 use survey_orchestrator::bench::{PlanOverrides, configured_engine, configured_plan};
 use survey_orchestrator::config::SurveyConfig;
-use survey_orchestrator::engine::FaultCounts;
-use survey_orchestrator::record::MemorySink;
 use survey_orchestrator::sim::{SimOptions, serve};
 use survey_processing::Direction;
 use survey_sims::Preset;
@@ -62,7 +62,7 @@ impl Wire {
             ),
             // FAUL:CLE is sent (`unverified_commands`): without it a drive
             // trip cannot be cleared over SCPI and ends the survey (tested in
-            // `orchestrator/src/suspend_tests.rs`: an uncured fault stops the axis).
+            // `orchestrator/src/acquire/engine/suspend/tests.rs`: an uncured fault stops the axis).
             Wire::ScpiTcp | Wire::Elcomat => {
                 "driver = \"scpi-tcp\"\naddress = \"127.0.0.1:0\"\nunverified_commands = true\n".to_string()
             }

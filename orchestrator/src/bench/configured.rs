@@ -2,16 +2,16 @@
 //! speaks their protocols, such as `survey sim`), on the system clock.
 
 use super::{Bench, DEFAULT_RUNS};
+use crate::acquire::{Engine, ReferenceKind};
 use crate::bench::instruments::Instruments;
 use crate::config::SurveyConfig;
-use crate::engine::{Engine, ReferenceKind};
 use crate::error::bad_input;
-use crate::plan::SurveyPlan;
 use crate::survey::{ConfiguredSetup, Setup, SurveySource};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::{Clock, SystemClock};
+use survey_processing::plan::SurveyPlan;
 
 /// Plan settings from the command line, over the configuration's `[survey]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -23,7 +23,7 @@ pub struct PlanOverrides {
     /// `--bidirectional` (it can only turn the reverse pass on).
     pub bidirectional: bool,
     /// `--scan` (over `[survey] scan`).
-    pub scan: Option<crate::plan::ScanMode>,
+    pub scan: Option<survey_processing::plan::ScanMode>,
 }
 
 impl Bench {
@@ -83,13 +83,15 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
     let measure = integration(cfg).unwrap_or(Duration::from_millis(200));
     let per_target = t.dwell + measure + t.poll_interval;
     let estimate = if setup.plan.continuous() {
-        let d = crate::budget::Dynamics {
+        let d = survey_processing::budget::Dynamics {
             velocity_deg_s: t.velocity_deg_s,
             accel_deg_s2: t.accel_deg_s2,
             integration_s: measure.as_secs_f64(),
             locate_points: t.locate_points,
         };
-        Duration::from_secs_f64(crate::scan::bound(&setup.plan, &d, &cfg.settle_model(), &t.scan).total())
+        Duration::from_secs_f64(
+            survey_processing::budget::scan_bound(&setup.plan, &d, &cfg.settle_model(), &t.scan).total(),
+        )
     } else {
         setup.plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target)
     };

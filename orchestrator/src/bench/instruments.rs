@@ -1,8 +1,8 @@
 //! Real instruments from a configuration: one connector per driver, every
 //! driver behind [`Reconnecting`], and `survey check`.
 
+use crate::acquire::{Engine, Reference};
 use crate::config::{AutocollimatorConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
-use crate::engine::{Engine, Reference};
 use async_trait::async_trait;
 use std::sync::Arc;
 use std::time::Duration;
@@ -176,14 +176,14 @@ impl Instruments {
             timeout: timing.call_timeout,
         }) as Box<dyn Connect<dyn Positioner>>);
         let reference = match cfg.reference() {
-            crate::engine::ReferenceKind::Tracker => {
+            crate::acquire::ReferenceKind::Tracker => {
                 let tracker = cfg.tracker.clone().expect("checked when the configuration was read");
                 ReferenceInstrument::Tracker(Reconnecting::new(Box::new(TrackerConnector {
                     config: tracker,
                     timeout: timing.measure_timeout,
                 }) as Box<dyn Connect<dyn Tracker>>))
             }
-            crate::engine::ReferenceKind::Autocollimator => {
+            crate::acquire::ReferenceKind::Autocollimator => {
                 let ac = cfg.autocollimator.clone().expect("checked when the configuration was read");
                 let polygon = cfg.polygon.clone().expect("checked when the configuration was read");
                 let certificate_arcsec = if polygon.certificate_arcsec.is_empty() {
@@ -224,7 +224,7 @@ pub fn continuous_support(cfg: &SurveyConfig) -> Result<String, String> {
     let capture_ms = timing.scan.capture_period.as_secs_f64() * 1e3;
     let stream_ms = timing.scan.stream_period.as_secs_f64() * 1e3;
     let tracker = match (cfg.reference(), &cfg.tracker) {
-        (crate::engine::ReferenceKind::Autocollimator, _) => {
+        (crate::acquire::ReferenceKind::Autocollimator, _) => {
             return Err("the reference is an autocollimator (ELCOMAT), which reads a polygon face only while the \
                         axis rests on it; a continuous scan needs a tracker that measures while the axis turns"
                 .into());

@@ -13,13 +13,13 @@ mod simulated;
 pub use configured::{PlanOverrides, configured_engine, configured_plan};
 pub use simulated::{DEFAULT_RUNS, SimulatedRequest, simulated_engine};
 
-use crate::engine::Engine;
-use crate::plan::SurveyPlan;
+use crate::acquire::Engine;
 use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus};
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::Clock;
 use survey_processing::model::Model;
+use survey_processing::plan::SurveyPlan;
 use survey_sims::PlanProgress;
 
 /// An engine ready to acquire a plan, and what the survey stores about it.

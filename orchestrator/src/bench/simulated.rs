@@ -3,17 +3,17 @@
 //! virtual clock.
 
 use super::Bench;
-use crate::budget::{Dynamics, plan_bound};
-use crate::engine::{Engine, Reference, ReferenceKind, Timing};
+use crate::acquire::{Engine, Reference, ReferenceKind, Timing};
+use crate::acquire::{SettleMode, SettleModel};
 use crate::error::bad_input;
-use crate::plan::{ScanMode, SurveyPlan};
-use crate::settle::{SettleMode, SettleModel};
 use crate::survey::{Setup, SimulatedSetup, SurveySource};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 use survey_drivers::{Clock, VirtualClock};
+use survey_processing::budget::{Dynamics, plan_bound};
 use survey_processing::model::Model;
+use survey_processing::plan::{ScanMode, SurveyPlan};
 use survey_sims::autocollimator::AutocollimatorConfig;
 use survey_sims::servo::Servo;
 use survey_sims::{PlanProgress, Preset, SimBench};
@@ -112,7 +112,7 @@ impl Bench {
         }
         let mut timing =
             Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
-        timing.settle.window_deg = crate::settle::default_window_deg(req.reference);
+        timing.settle.window_deg = crate::acquire::default_window_deg(req.reference);
         let tracker = req.reference == ReferenceKind::Tracker;
         let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker) / runs;
         let setup = SimulatedSetup {

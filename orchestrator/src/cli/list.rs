@@ -175,7 +175,7 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     if let Some(v) = &r.verification {
         let _ = writeln!(s, "  verifies     survey {} (table {})", v.verifies_survey, v.table);
     }
-    for line in crate::drift::text(&drift).lines() {
+    for line in survey_processing::drift::text(&drift).lines() {
         let _ = writeln!(s, "  {line}");
     }
     if !events.is_empty() {

@@ -7,9 +7,9 @@
 //! is finished: statistics and processing, exit status 0.
 
 use super::support::{conclude_and_print, open_existing};
+use crate::acquire::Outcome;
 use crate::bench::Bench;
 use crate::conclude::ConcludeOptions;
-use crate::engine::Outcome;
 use crate::error::bad_input;
 use crate::session::{AcquireOptions, Acquired, acquire};
 use crate::stop::Stop;

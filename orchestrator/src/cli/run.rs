@@ -3,17 +3,17 @@
 //! processing and, with `--verify`, the corrected accuracy.
 
 use super::support::conclude_and_print;
+use crate::acquire::ReferenceKind;
 use crate::bench::{Bench, PlanOverrides, SimulatedRequest};
 use crate::conclude::ConcludeOptions;
-use crate::engine::ReferenceKind;
 use crate::output::human;
-use crate::plan::ScanMode;
 use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;
 use crate::store::Store;
 use crate::verify::VerifyPlan;
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
+use survey_processing::plan::ScanMode;
 
 /// The reference instrument of the simulated bench.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -98,7 +98,7 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
             );
         }
         text += &iso_text(id, &iso);
-        text += &crate::drift::text(&drift);
+        text += &survey_processing::drift::text(&drift);
         if crate::drift::correction_asked(&survey) && !drift.is_empty() {
             text += "the statistics above are of the samples corrected for this drift (drift_control.correct)\n";
         }

@@ -1,7 +1,7 @@
 //! What every command shares: logging, printing, opening the database.
 
+use crate::acquire::Engine;
 use crate::conclude::{ConcludeOptions, conclude};
-use crate::engine::Engine;
 use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
 use crate::survey::SurveyRecord;
@@ -61,7 +61,7 @@ pub async fn load_survey(db: &Path, id: Option<i64>) -> anyhow::Result<(SurveyRe
 pub async fn load_survey_for_analysis(
     db: &Path,
     id: Option<i64>,
-) -> anyhow::Result<(SurveyRecord, Vec<Sample>, Vec<crate::drift::DriftPoint>)> {
+) -> anyhow::Result<(SurveyRecord, Vec<Sample>, Vec<survey_processing::drift::DriftPoint>)> {
     let store = open_read_only(db).await?;
     let loaded = async {
         let survey = store.resolve(id).await?;

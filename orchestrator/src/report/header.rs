@@ -8,8 +8,8 @@
 
 use super::page::escape;
 use super::units::Units;
+use crate::acquire::ReferenceKind;
 use crate::config::CertificateSection;
-use crate::engine::ReferenceKind;
 use crate::survey::{Setup, SurveyRecord};
 use std::fmt::Write as _;
 
@@ -222,7 +222,7 @@ mod tests {
         let config = crate::config::SurveyConfig::parse(&text, "modbus-emscon.toml").unwrap();
         let setup = crate::survey::ConfiguredSetup {
             config,
-            plan: crate::plan::SurveyPlan::full_circle(360, 5, true).unwrap(),
+            plan: survey_processing::plan::SurveyPlan::full_circle(360, 5, true).unwrap(),
         };
         let columns = crate::survey::StoredColumns {
             id: 4,

@@ -6,30 +6,11 @@ use super::page::{Key, escape, figure, legend};
 use super::plot::{self, GREY, HEIGHT, PURPLE, WIDTH, axes, extent, hex, padded, render};
 use super::units::Units;
 use plotters::prelude::*;
-use survey_processing::errormap::ErrorMap;
-
-/// Forward minus reverse: per run (rows) and target, the mean over the runs
-/// and its standard deviation over the runs (`None` with one run).
-type Hysteresis = (Vec<Vec<f64>>, Vec<f64>, Option<Vec<f64>>);
-
-fn per_target(map: &ErrorMap) -> Option<Hysteresis> {
-    let (f, r) = (map.forward.as_ref()?, map.reverse.as_ref()?);
-    let runs: Vec<Vec<f64>> =
-        f.errors_deg.iter().zip(&r.errors_deg).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect()).collect();
-    let n = runs.len() as f64;
-    let targets = map.targets_deg.len();
-    let mean: Vec<f64> = (0..targets).map(|i| runs.iter().map(|run| run[i]).sum::<f64>() / n).collect();
-    let sd = (runs.len() > 1).then(|| {
-        (0..targets)
-            .map(|i| (runs.iter().map(|run| (run[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt())
-            .collect()
-    });
-    Some((runs, mean, sd))
-}
+use survey_processing::errormap::{ErrorMap, RunHysteresis};
 
 /// The section's figure, or a sentence when the survey went one way only.
 pub fn section(map: &ErrorMap, units: Units) -> anyhow::Result<String> {
-    let Some((runs, mean, sd)) = per_target(map) else {
+    let Some(RunHysteresis { runs_deg: runs, mean_deg: mean, sd_deg: sd }) = map.run_hysteresis() else {
         return Ok(
             "<p id=\"fig-hysteresis\" class=\"note\">The survey was measured in one direction: no hysteresis.</p>\n"
                 .into(),

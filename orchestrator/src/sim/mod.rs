@@ -419,8 +419,8 @@ fn drift_run_period(
         crate::bench::configured_plan(cfg, crate::bench::PlanOverrides::default(), Path::new("the configuration"))?;
     let t = cfg.timing();
     let measure = match cfg.reference() {
-        crate::engine::ReferenceKind::Tracker => builder.tracker.measurement_time,
-        crate::engine::ReferenceKind::Autocollimator => builder.autocollimator.read_time,
+        crate::acquire::ReferenceKind::Tracker => builder.tracker.measurement_time,
+        crate::acquire::ReferenceKind::Autocollimator => builder.autocollimator.read_time,
     };
     let per_target = preset.settle + t.dwell + measure + t.poll_interval;
     Ok(Some(plan.estimate_run_duration(preset.velocity_deg_s, preset.accel_deg_s2, per_target)))

@@ -1,10 +1,10 @@
-//! The reference measurements of drift control ([`crate::drift`]), stored
+//! The reference measurements of drift control ([`survey_processing::drift`]), stored
 //! in `drift_points` (migration 2) in measurement order.
 
 use super::Store;
 use super::tx::WriteTx;
-use crate::drift::{DriftMeasurement, DriftPoint, drift_points};
 use sqlx::Row;
+use survey_processing::drift::{DriftMeasurement, DriftPoint, drift_points};
 
 impl Store {
     /// Store one measurement of the reference target after those stored.
@@ -60,11 +60,11 @@ impl Store {
 #[cfg(test)]
 mod tests {
     use super::super::{MIGRATIONS, Store, single_connection_pool};
-    use crate::drift::DriftMeasurement;
     use sqlx::migrate::{Migration, MigrationType, Migrator};
     use sqlx::sqlite::SqliteConnectOptions;
     use sqlx::{Row, SqlSafeStr};
     use std::borrow::Cow;
+    use survey_processing::drift::DriftMeasurement;
 
     /// A database of the first schema, as the previous version wrote it, with one survey.
     async fn schema_1_database(path: &std::path::Path) {

@@ -54,7 +54,7 @@ use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, S
 use sqlx::{ConnectOptions as _, Row, SqlSafeStr, SqlitePool};
 
 #[cfg(doc)]
-use crate::record::SampleSink;
+use crate::acquire::SampleSink;
 
 /// How long a statement waits for another connection's lock before it fails.
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(5);

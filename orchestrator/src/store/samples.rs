@@ -13,7 +13,7 @@ use survey_processing::{Direction, Sample};
 use super::surveys::insert_survey;
 use super::tx::WriteTx;
 use super::{CHUNK_ROWS, NotFound, Store, is_foreign_key_error, real};
-use crate::record::{RawReading, RecordedSample};
+use crate::acquire::{RawReading, RecordedSample};
 use crate::survey::NewSurvey;
 
 impl Store {

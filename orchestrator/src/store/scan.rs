@@ -8,9 +8,9 @@ use survey_processing::Direction;
 use super::samples::insert_samples;
 use super::tx::WriteTx;
 use super::{Store, real};
-use crate::budget::{Component, Spent};
-use crate::record::ScanPassRecord;
-use crate::scan::Latency;
+use crate::acquire::ScanPassRecord;
+use survey_processing::budget::{Component, Spent};
+use survey_processing::pairing::Latency;
 
 /// Records per stored chunk of a stream.
 const CHUNK_RECORDS: usize = 16_384;

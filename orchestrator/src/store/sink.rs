@@ -7,7 +7,7 @@ use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
 use super::{Store, is_busy};
-use crate::record::{RecordedSample, SampleSink, ScanPassRecord};
+use crate::acquire::{RecordedSample, SampleSink, ScanPassRecord};
 
 /// A [`SampleSink`] that writes to the store in batches.
 ///
@@ -194,7 +194,7 @@ impl SampleSink for StoreSink {
     async fn event(&mut self, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
         self.store.log_event(self.survey_id, at_s, level, message).await
     }
-    async fn drift_measured(&mut self, m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+    async fn drift_measured(&mut self, m: &survey_processing::drift::DriftMeasurement) -> anyhow::Result<()> {
         self.store.add_drift_measurement(self.survey_id, m).await
     }
 }

@@ -8,7 +8,7 @@ use survey_processing::geometry::AxisFit;
 use survey_processing::{Direction, Sample};
 
 use super::*;
-use crate::record::{RawReading, RecordedSample, SampleSink};
+use crate::acquire::{RawReading, RecordedSample, SampleSink};
 use crate::survey::{NewSurvey, Setup, SurveySource, SurveyStatus};
 use survey_processing::model::Model;
 

@@ -3,21 +3,20 @@
 //! streaming while the axis turns from the pass's start to its end, every
 //! read noted with the host time of its answer; and its pairing.
 
-use super::pair::{ClockMap, PairError, crossing_time, position_at};
-use super::{PassPlan, ScanTiming};
-use crate::budget::Component;
-use crate::engine::{Engine, Failed, Reference};
-use crate::plan::move_time;
-use crate::record::{RawReading, RecordedSample, ScanPassRecord};
+use super::super::{Engine, Failed, Reference};
+use crate::acquire::record::{RawReading, RecordedSample, ScanPassRecord};
 use std::time::Duration;
 use survey_drivers::clock::with_timeout;
 use survey_drivers::{DriverError, ErrorKind, SmrMeasurement, StreamedPoint, Tracker};
 use survey_processing::Sample;
+use survey_processing::budget::Component;
 use survey_processing::geometry::AxisFit;
+use survey_processing::pairing::{ClockMap, PairError, crossing_time, position_at};
+use survey_processing::plan::{PassPlan, ScanTiming, move_time};
 
 /// What one pass gathered.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct RawPass {
+pub(super) struct RawPass {
     /// `(stamp, readout)`: the controller's stamps when captured, the
     /// host's (middle of the request) when polled.
     pub readouts: Vec<(f64, f64)>,
@@ -46,7 +45,7 @@ fn tracker(engine: &mut Engine) -> Result<&mut Box<dyn Tracker>, (DriverError, F
 }
 
 /// Scan pass `p` from where the axis is (its start).
-pub(crate) async fn acquire(engine: &mut Engine, p: &PassPlan) -> Result<RawPass, (DriverError, Failed)> {
+pub(super) async fn acquire(engine: &mut Engine, p: &PassPlan) -> Result<RawPass, (DriverError, Failed)> {
     let clock = engine.clock.clone();
     let t = engine.timing.clone();
     let pos = |e: DriverError| (e, Failed::Positioner);
@@ -160,7 +159,7 @@ pub(crate) async fn acquire(engine: &mut Engine, p: &PassPlan) -> Result<RawPass
 
 /// After a failed or stopped pass: stop the axis and both streams, set the
 /// velocity back (each as far as it goes; failures are logged).
-pub(crate) async fn abandon(engine: &mut Engine) {
+pub(super) async fn abandon(engine: &mut Engine) {
     let clock = engine.clock.clone();
     let t = engine.timing.clone();
     let pname = engine.positioner.name().to_string();
@@ -191,7 +190,7 @@ pub(crate) async fn abandon(engine: &mut Engine) {
 
 /// A pass paired: its samples, each target's error, and the clock maps.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Paired {
+pub(super) struct Paired {
     pub samples: Vec<RecordedSample>,
     pub errors: Vec<f64>,
     pub readout_clock: ClockMap,
@@ -199,7 +198,7 @@ pub(crate) struct Paired {
 }
 
 /// Pair pass `p` with the latency `delta_s` removed (see the module documentation of [`super`]).
-pub(crate) fn pair(
+pub(super) fn pair(
     raw: &RawPass,
     p: &PassPlan,
     axis: &AxisFit,
@@ -254,7 +253,7 @@ pub(crate) fn pair(
 }
 
 /// What the store keeps of a pass.
-pub(crate) fn record(p: &PassPlan, raw: &RawPass, paired: Paired, latency: (f64, f64)) -> ScanPassRecord {
+pub(super) fn record(p: &PassPlan, raw: &RawPass, paired: Paired, latency: (f64, f64)) -> ScanPassRecord {
     ScanPassRecord {
         pass: p.index,
         run: p.run,

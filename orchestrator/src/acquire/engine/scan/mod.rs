@@ -12,9 +12,9 @@
 //! each read noting the host time of its answer.
 //!
 //! A pass is then paired ([`pass::pair`]): each stream's clock is mapped to
-//! the host's ([`pair::ClockMap`]); for every target, the time the readout
-//! passed it ([`pair::crossing_time`]); the SMR position at that time
-//! ([`pair::position_at`]), the tracker's stamps taken at the middle of each
+//! the host's ([`survey_processing::pairing::ClockMap`]); for every target, the time the readout
+//! passed it ([`survey_processing::pairing::crossing_time`]); the SMR position at that time
+//! ([`survey_processing::pairing::position_at`]), the tracker's stamps taken at the middle of each
 //! point's integration (half a period before the stamp, which marks its end)
 //! and shifted by the latency between the two instruments; the actual angle
 //! around the located axis. The sample is stored at the target: readout =
@@ -25,7 +25,7 @@
 //! again), or the velocity's ripple (both streams are read at the same
 //! moment, and the position is a quadratic fit in time).
 //!
-//! The latency ([`latency`]) is measured, not assumed: the first run turns
+//! The latency ([`survey_processing::pairing::latency`]) is measured, not assumed: the first run turns
 //! at the calibration velocity (the configured one), the others at the scan
 //! velocity (half of it), and the velocity-dependent backlash between the
 //! two gives it. The first two runs are held in memory until it is known,
@@ -42,73 +42,15 @@
 //! are stored together once the latency is known). The latency is read back
 //! from the stored passes.
 
-pub mod latency;
-pub mod pair;
 mod pass;
 
-pub use latency::Latency;
-
-use crate::budget::{Bound, Dynamics, locate_bound};
-use crate::engine::{Engine, EngineError, Failed, Outcome, Progress, Reference};
-use crate::plan::{SurveyPlan, move_time};
-use crate::record::SampleSink;
-use crate::settle::SettleModel;
-use serde::{Deserialize, Serialize};
-use std::time::Duration;
+use super::{Engine, EngineError, Failed, Outcome, Progress, Reference};
+use crate::acquire::record::SampleSink;
+use serde::Serialize;
 use survey_processing::Direction;
-
-/// The continuous scan's velocities and rates (part of [`crate::engine::Timing`]).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct ScanTiming {
-    /// Velocity of the survey's passes (the runs after the first), deg/s
-    /// (default: half the configured velocity).
-    pub velocity_deg_s: Option<f64>,
-    /// Velocity of the first run, which calibrates the latency, deg/s
-    /// (default: the configured velocity).
-    pub calibration_velocity_deg_s: Option<f64>,
-    /// The readout's capture (or polling) period.
-    pub capture_period: Duration,
-    /// The tracker's point period (emScon's time separation).
-    pub stream_period: Duration,
-    /// How often both streams are read.
-    pub fetch_interval: Duration,
-    /// The longest gap, in periods of a stream, bridged around a target.
-    pub max_gap_periods: f64,
-    /// Half-width of the tracker fit around a target, in periods.
-    pub fit_half_width_periods: f64,
-}
-
-impl Default for ScanTiming {
-    fn default() -> Self {
-        Self {
-            velocity_deg_s: None,
-            calibration_velocity_deg_s: None,
-            capture_period: Duration::from_millis(5),
-            stream_period: Duration::from_millis(5),
-            fetch_interval: Duration::from_millis(50),
-            max_gap_periods: 6.0,
-            fit_half_width_periods: 2.5,
-        }
-    }
-}
-
-impl ScanTiming {
-    /// `(calibration velocity, scan velocity)` for a configured velocity.
-    pub fn speeds(&self, configured: f64) -> (f64, f64) {
-        (self.calibration_velocity_deg_s.unwrap_or(configured), self.velocity_deg_s.unwrap_or(configured / 2.0))
-    }
-
-    /// Distance before the first target (and after the last) of a pass at
-    /// `speed`: the acceleration ramp, plus room for the fits, the gaps and
-    /// a latency of up to 50 ms.
-    pub fn runup_deg(&self, speed: f64, accel: f64) -> f64 {
-        let margin = self.fit_half_width_periods * self.stream_period.as_secs_f64()
-            + self.max_gap_periods * self.stream_period.as_secs_f64().max(self.capture_period.as_secs_f64())
-            + 0.05;
-        speed * speed / (2.0 * accel) + speed * margin + 0.01
-    }
-}
+use survey_processing::pairing::Latency;
+use survey_processing::pairing::latency::{self, PassErrors};
+use survey_processing::plan::{PassPlan, ScanTiming, SurveyPlan, passes};
 
 /// What the continuous scan did, for the survey's report.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -132,81 +74,8 @@ pub struct ScanState {
     pub report: ScanReport,
 }
 
-/// One pass of a plan.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PassPlan {
-    pub index: u32,
-    pub run: u32,
-    pub direction: Direction,
-    /// Unsigned velocity, deg/s.
-    pub speed: f64,
-    /// Where the axis starts and ends the pass, degrees.
-    pub start: f64,
-    pub end: f64,
-    /// `(seq, target)` in the order the pass meets them.
-    pub targets: Vec<(u64, f64)>,
-}
-
-/// Where a plan's acquisition starts: the first approach's start (step),
-/// or the first pass's run-up point (continuous).
-pub fn start_deg(plan: &SurveyPlan, velocity: f64, accel: f64, t: &ScanTiming) -> f64 {
-    if plan.continuous() {
-        passes(plan, velocity, accel, t).first().map_or(plan.targets_deg[0], |p| p.start)
-    } else {
-        plan.targets_deg[0] - plan.overrun_deg
-    }
-}
-
-/// The passes of a plan on an axis of `velocity` and `accel`.
-pub fn passes(plan: &SurveyPlan, velocity: f64, accel: f64, t: &ScanTiming) -> Vec<PassPlan> {
-    let (cal, scan) = t.speeds(velocity);
-    let steps = plan.steps();
-    let n = plan.targets_deg.len();
-    steps
-        .chunks(n)
-        .enumerate()
-        .map(|(i, chunk)| {
-            let (run, direction) = (chunk[0].run, chunk[0].direction);
-            let speed = if run == 1 { cal } else { scan };
-            let sign = direction.sign();
-            let runup = t.runup_deg(speed, accel);
-            let first = chunk[0].target_deg;
-            let last = chunk[n - 1].target_deg;
-            PassPlan {
-                index: i as u32,
-                run,
-                direction,
-                speed,
-                start: first - sign * runup,
-                end: last + sign * runup,
-                targets: chunk.iter().map(|s| (s.seq, s.target_deg)).collect(),
-            }
-        })
-        .collect()
-}
-
-/// The lower bound of a continuous plan: the locate, the moves to the
-/// first pass's start and between passes, and every pass at its velocity
-/// over its targets plus the acceleration ramps (no margins).
-pub fn bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel, t: &ScanTiming) -> Bound {
-    let all = passes(plan, d.velocity_deg_s, d.accel_deg_s2, t);
-    let mut b = Bound::default();
-    let mut pos = all.first().map_or(0.0, |p| p.start);
-    b.locate_s = locate_bound(plan, d, settle, pos);
-    for p in all {
-        let ramp = p.speed * p.speed / (2.0 * d.accel_deg_s2);
-        let sign = p.direction.sign();
-        let (first, last) = (p.targets[0].1, p.targets[p.targets.len() - 1].1);
-        let start = first - sign * ramp;
-        b.move_s += move_time(start - pos, d.velocity_deg_s, d.accel_deg_s2);
-        b.scan_s += move_time(last - first + sign * 2.0 * ramp, p.speed, d.accel_deg_s2);
-        pos = last + sign * ramp;
-    }
-    b
-}
-
 /// Acquire `plan` (continuous) from step `from_seq` (a pass boundary).
-pub(crate) async fn run(
+pub(super) async fn run(
     engine: &mut Engine,
     plan: &SurveyPlan,
     from_seq: u64,
@@ -310,11 +179,7 @@ fn calibrate(
         if all[*j].direction == Direction::Reverse {
             by_target.reverse();
         }
-        errors.push((
-            all[*j].run,
-            all[*j].direction,
-            latency::PassErrors { speed_deg_s: all[*j].speed, errors: by_target },
-        ));
+        errors.push((all[*j].run, all[*j].direction, PassErrors { speed_deg_s: all[*j].speed, errors: by_target }));
     }
     let get = |run: u32, d: Direction| errors.iter().find(|e| e.0 == run && e.1 == d).map(|e| &e.2);
     let (f1, f2) = (get(1, Direction::Forward), get(2, Direction::Forward));

@@ -1,6 +1,6 @@
 //! Deciding that the axis is at rest, and measuring there.
 //!
-//! Two ways ([`SettleMode`]):
+//! Two ways ([`SettleMode`], set in [`super::settings::SettleSpec`]):
 //!
 //! - **adaptive** (the default): after a move to a measuring position the
 //!   engine reads the readout every `poll` from the end of the move's
@@ -29,103 +29,14 @@
 //!
 //! The window is stated in the configuration (`settle_window_deg`); by
 //! default a tenth of the reference's noise per reading
-//! ([`default_window_deg`]): 1e-4 deg with a tracker (about 1e-3 deg of
+//! ([`super::settings::default_window_deg`]): 1e-4 deg with a tracker (about 1e-3 deg of
 //! noise on a 1 m arm), 3e-6 deg with an autocollimator (0.1 arcsec).
 
-use crate::budget::{Component, Ledger};
-use serde::{Deserialize, Serialize};
+use super::settings::{SettleMode, Timing};
 use std::time::Duration;
 use survey_drivers::clock::with_timeout;
-use survey_drivers::{Clock, DriverError, ErrorKind, Positioner};
-
-/// How the engine decides the axis is at rest.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SettleMode {
-    /// Readout within the window for a while (see the module documentation).
-    Adaptive,
-    /// The controller's in-position flag, then the fixed dwell.
-    InPosition,
-}
-
-impl SettleMode {
-    /// `adaptive` or `in-position`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SettleMode::Adaptive => "adaptive",
-            SettleMode::InPosition => "in-position",
-        }
-    }
-}
-
-/// The settling settings (part of [`crate::engine::Timing`]).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct SettleSpec {
-    pub mode: SettleMode,
-    /// The readout must stay this close to the target, degrees.
-    pub window_deg: f64,
-    /// ... for this long.
-    pub stable_for: Duration,
-    /// Readout polls while settling.
-    pub poll: Duration,
-    /// A tracker measurement whose standard deviation exceeds this many
-    /// times the survey's typical one is taken again.
-    pub reference_std_ratio: f64,
-    /// Measurements of one sample before the engine takes the last one as it
-    /// is (and logs a warning).
-    pub max_remeasure: u32,
-}
-
-impl Default for SettleSpec {
-    fn default() -> Self {
-        Self {
-            mode: SettleMode::Adaptive,
-            window_deg: 1e-4,
-            stable_for: Duration::from_millis(30),
-            poll: Duration::from_millis(10),
-            reference_std_ratio: 1.5,
-            max_remeasure: 3,
-        }
-    }
-}
-
-/// The default settle window for a reference: a tenth of its noise per
-/// reading, degrees (see the module documentation).
-pub fn default_window_deg(reference: crate::engine::ReferenceKind) -> f64 {
-    match reference {
-        crate::engine::ReferenceKind::Tracker => 1e-4,
-        crate::engine::ReferenceKind::Autocollimator => 3e-6,
-    }
-}
-
-/// The settling an axis needs after a move, for the lower bound of a plan.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum SettleModel {
-    /// A simulated servo: the time its ringing takes to come within the window.
-    Servo { servo: survey_sims::servo::Servo, window_deg: f64 },
-    /// The same settling after every move (`settle_time_s` of a configuration).
-    Fixed(Duration),
-    /// Not known: the bound counts none.
-    Unknown,
-}
-
-impl SettleModel {
-    /// Seconds of settling a move of `distance` degrees needs.
-    pub fn needed_s(&self, distance: f64, velocity: f64, accel: f64) -> f64 {
-        match self {
-            SettleModel::Servo { servo, window_deg } => {
-                if distance == 0.0 {
-                    0.0
-                } else {
-                    servo.move_settle_s(distance, velocity, accel, *window_deg)
-                }
-            }
-            SettleModel::Fixed(d) => d.as_secs_f64(),
-            SettleModel::Unknown => 0.0,
-        }
-    }
-}
+use survey_drivers::{Clock, DriverError, ErrorKind, Limit, Positioner};
+use survey_processing::budget::{Component, Ledger};
 
 /// Settling observed after measured moves.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -201,12 +112,32 @@ impl Ringing {
     }
 }
 
+/// The engine's own code on the error of a move that ended at a limit switch
+/// (no instrument code says it: the status shows the switch).
+pub const CODE_LIMIT_SWITCH: i64 = -(0x4c49_4d54); // "LIMT"
+
+/// The error of a move to `target` that stopped at `limit`.
+pub fn limit_error(instrument: impl Into<String>, target: f64, limit: Limit) -> DriverError {
+    let mut e = DriverError::new(
+        ErrorKind::Device,
+        instrument,
+        format!("the move to {target} deg stopped at the {limit:?} limit switch"),
+    );
+    e.code = Some(CODE_LIMIT_SWITCH);
+    e
+}
+
+/// Whether `e` is a move stopped at a limit switch.
+pub fn is_limit(e: &DriverError) -> bool {
+    e.kind == ErrorKind::Device && e.code == Some(CODE_LIMIT_SWITCH)
+}
+
 /// What waiting for a move needs.
 #[derive(Debug)]
 pub struct Wait<'a> {
     pub positioner: &'a mut dyn Positioner,
     pub clock: &'a dyn Clock,
-    pub timing: &'a crate::engine::Timing,
+    pub timing: &'a Timing,
     pub ledger: &'a mut Ledger,
     pub target: f64,
     /// When the move's profile should end.
@@ -303,7 +234,7 @@ impl Wait<'_> {
                 // A limit switch is reported at a target on the end of the
                 // travel too, so it only explains a move that never arrived.
                 if let Some(limit) = s.limit {
-                    return Err(crate::engine::suspend::limit_error(name, target, limit));
+                    return Err(limit_error(name, target, limit));
                 }
                 let what = if adaptive && measured {
                     format!("did not settle within {w} deg")
@@ -390,15 +321,5 @@ mod tests {
             t.add(s);
         }
         assert!(t.accepts(1.5, 1.5) && !t.accepts(1.51, 1.5));
-    }
-
-    #[test]
-    fn the_settle_model_gives_the_servo_time_to_the_window() {
-        let servo = survey_sims::servo::Servo::default();
-        let m = SettleModel::Servo { servo, window_deg: 1e-4 };
-        assert_eq!(m.needed_s(0.0, 10.0, 20.0), 0.0);
-        let s = m.needed_s(0.2, 10.0, 20.0);
-        assert!((s - servo.settle_time_s(0.004, 1e-4)).abs() < 1e-12 && s > 0.2 && s < 0.4, "{s}");
-        assert_eq!(SettleModel::Fixed(Duration::from_millis(300)).needed_s(5.0, 1.0, 1.0), 0.3);
     }
 }

@@ -6,10 +6,14 @@
 //! densely from 0 (`seq`): a stored sample is identified by its step, which is
 //! how an interrupted survey resumes without losing or duplicating a sample.
 
+mod passes;
+
+pub use passes::{PassPlan, ScanTiming, passes, start_deg};
+
+use crate::Direction;
+use crate::errormap::Coverage;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
-use survey_processing::Direction;
-use survey_processing::errormap::Coverage;
 
 /// What to measure.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -330,6 +334,22 @@ pub fn move_time(distance: f64, velocity: f64, accel: f64) -> f64 {
     }
     let d_ramp = velocity * velocity / accel;
     if d >= d_ramp { d / velocity + velocity / accel } else { 2.0 * (d / accel).sqrt() }
+}
+
+/// The readouts at which the SMR is measured to locate the axis: `points`
+/// (at least 3) evenly over the full circle, or over the plan's targets on
+/// a partial range.
+pub fn locate_readouts(plan: &SurveyPlan, points: u32) -> Vec<f64> {
+    let points = points.max(3);
+    let first = plan.targets_deg[0];
+    let last = *plan.targets_deg.last().expect("a plan has targets");
+    let spacing = if plan.targets_deg.len() > 1 { plan.targets_deg[1] - first } else { 0.0 };
+    let full_circle = (last - first + spacing - 360.0).abs() < 1e-6;
+    if full_circle {
+        (0..points).map(|k| first + k as f64 * 360.0 / points as f64).collect()
+    } else {
+        (0..points).map(|k| first + k as f64 * (last - first) / (points - 1) as f64).collect()
+    }
 }
 
 #[cfg(test)]

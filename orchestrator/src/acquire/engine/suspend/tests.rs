@@ -4,7 +4,7 @@
 //! stopped), an autocollimator out of range (measured again, the face named).
 
 use super::super::*;
-use crate::record::MemorySink;
+use crate::acquire::record::MemorySink;
 use std::sync::Mutex;
 use survey_drivers::{Limit, PositionerStatus, VirtualClock};
 use survey_processing::table::CorrectionTable;

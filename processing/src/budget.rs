@@ -5,7 +5,7 @@
 //! exactly one [`Component`] (it switches components as it goes, so the
 //! components add up to the acquisition's instrument time). The bound
 //! ([`Bound`]) is what the plan needs at least: every move at the configured
-//! velocity and acceleration ([`crate::plan::move_time`]), the settling the
+//! velocity and acceleration ([`survey_processing::plan::move_time`]), the settling the
 //! axis needs after each move that ends at a measuring position (from its
 //! [`SettleModel`]), the reference's integration time at every sample, and
 //! the locate (its moves, settling and measurements, and the way back to the
@@ -14,11 +14,18 @@
 //! dwells and recoveries cost instrument time but are not physics: they are
 //! the gap between the two.
 
-use crate::plan::{SurveyPlan, move_time};
-use crate::settle::SettleModel;
+use crate::plan::{ScanTiming, SurveyPlan, locate_readouts, move_time, passes};
 use serde::Serialize;
-use std::fmt::Write as _;
 use std::time::Duration;
+
+/// The settling an axis needs after a move, for the lower bound of a plan
+/// (the orchestrator's settling model: a simulated servo, a configured
+/// settling time, or none).
+pub trait Settling {
+    /// Seconds of settling a move of `distance` degrees needs at `velocity`
+    /// deg/s and `accel` deg/s^2.
+    fn needed_s(&self, distance: f64, velocity: f64, accel: f64) -> f64;
+}
 
 /// What instrument time is spent on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -248,11 +255,11 @@ fn step_moves(plan: &SurveyPlan) -> Vec<(f64, bool)> {
 /// below it, then every next one, each settled and measured, and the way
 /// to `start_deg`, where the plan starts (the move from wherever the axis
 /// was before is not counted: it is not known).
-pub fn locate_bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel, start_deg: f64) -> f64 {
+pub fn locate_bound(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling, start_deg: f64) -> f64 {
     if d.locate_points == 0 {
         return 0.0;
     }
-    let readouts = crate::engine::locate_readouts(plan, d.locate_points);
+    let readouts = locate_readouts(plan, d.locate_points);
     let (v, a) = (d.velocity_deg_s, d.accel_deg_s2);
     let mut total = move_time(plan.overrun_deg, v, a) + settle.needed_s(plan.overrun_deg, v, a);
     for w in readouts.windows(2) {
@@ -264,7 +271,7 @@ pub fn locate_bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel, start
 }
 
 /// The bound of a step survey (see the module documentation).
-pub fn step_bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel) -> Bound {
+pub fn step_bound(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling) -> Bound {
     let start = plan.targets_deg[0] - plan.overrun_deg;
     let mut b = Bound { locate_s: locate_bound(plan, d, settle, start), ..Bound::default() };
     for (distance, measured) in step_moves(plan) {
@@ -277,86 +284,43 @@ pub fn step_bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel) -> Boun
     b
 }
 
+/// The lower bound of a continuous plan: the locate, the moves to the
+/// first pass's start and between passes, and every pass at its velocity
+/// over its targets plus the acceleration ramps (no margins).
+pub fn scan_bound(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling, t: &ScanTiming) -> Bound {
+    let all = passes(plan, d.velocity_deg_s, d.accel_deg_s2, t);
+    let mut b = Bound::default();
+    let mut pos = all.first().map_or(0.0, |p| p.start);
+    b.locate_s = locate_bound(plan, d, settle, pos);
+    for p in all {
+        let ramp = p.speed * p.speed / (2.0 * d.accel_deg_s2);
+        let sign = p.direction.sign();
+        let (first, last) = (p.targets[0].1, p.targets[p.targets.len() - 1].1);
+        let start = first - sign * ramp;
+        b.move_s += move_time(start - pos, d.velocity_deg_s, d.accel_deg_s2);
+        b.scan_s += move_time(last - first + sign * 2.0 * ramp, p.speed, d.accel_deg_s2);
+        pos = last + sign * ramp;
+    }
+    b
+}
+
 /// The bound of a plan, step or continuous.
-pub fn plan_bound(plan: &SurveyPlan, d: &Dynamics, settle: &SettleModel, scan: &crate::scan::ScanTiming) -> Bound {
-    if plan.continuous() { crate::scan::bound(plan, d, settle, scan) } else { step_bound(plan, d, settle) }
-}
-
-/// The survey's time beside its bound, per component: what `survey run` reports.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Budget {
-    /// The survey's duration on the instruments' clock, seconds.
-    pub instrument_time_s: f64,
-    /// Its plan's lower bound.
-    pub bound: Bound,
-    /// Where the time went (the acquisitions of this survey that were accounted).
-    pub spent: Spent,
-    /// The settling observed after measured moves: how many, mean and
-    /// largest time from the profile's end until within the window, seconds.
-    pub settle_observed: Option<(u64, f64, f64)>,
-    /// The scan mode (`step` or `continuous`).
-    pub scan: &'static str,
-}
-
-impl Budget {
-    /// The `time_budget` document of `run --json`.
-    pub fn json(&self) -> serde_json::Value {
-        let unaccounted = self.instrument_time_s - self.spent.total();
-        let mut components: Vec<serde_json::Value> = Component::ALL
-            .into_iter()
-            .filter(|c| self.spent.get(*c) != 0.0 || self.bound.of(*c) != 0.0)
-            .map(|c| serde_json::json!({"component": c.as_str(), "time_s": self.spent.get(c), "bound_s": self.bound.of(c)}))
-            .collect();
-        if unaccounted.abs() > 1e-6 {
-            components.push(serde_json::json!({"component": "unaccounted", "time_s": unaccounted, "bound_s": 0.0}));
-        }
-        let total = self.bound.total();
-        serde_json::json!({
-            "scan": self.scan,
-            "instrument_time_s": self.instrument_time_s,
-            "bound_s": total,
-            "ratio": if total > 0.0 { self.instrument_time_s / total } else { f64::NAN },
-            "components": components,
-            "settle_observed": self.settle_observed.map(|(n, mean, max)| serde_json::json!({
-                "moves": n, "mean_s": mean, "max_s": max,
-            })),
-        })
-    }
-
-    /// The lines of the text summary.
-    pub fn text(&self) -> String {
-        let total = self.bound.total();
-        let mut s = format!(
-            "instrument time {} ({:.0} s) against a bound of {} ({:.0} s) for this plan ({}): {:.3} x\n",
-            crate::output::human(Duration::from_secs_f64(self.instrument_time_s.max(0.0))),
-            self.instrument_time_s,
-            crate::output::human(Duration::from_secs_f64(total.max(0.0))),
-            total,
-            self.scan,
-            if total > 0.0 { self.instrument_time_s / total } else { f64::NAN },
-        );
-        let _ = writeln!(s, "  {:<18}{:>12} {:>12}", "component", "time s", "bound s");
-        for c in Component::ALL {
-            let (t, b) = (self.spent.get(c), self.bound.of(c));
-            if t != 0.0 || b != 0.0 {
-                let _ = writeln!(s, "  {:<18}{t:>12.1} {b:>12.1}", c.as_str());
-            }
-        }
-        let unaccounted = self.instrument_time_s - self.spent.total();
-        if unaccounted.abs() > 0.05 {
-            let _ = writeln!(s, "  {:<18}{unaccounted:>12.1} {:>12}", "unaccounted", "");
-        }
-        if let Some((n, mean, max)) = self.settle_observed {
-            let _ =
-                writeln!(s, "  settling seen after {n} moves: mean {:.0} ms, largest {:.0} ms", mean * 1e3, max * 1e3);
-        }
-        s
-    }
+pub fn plan_bound(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling, scan: &ScanTiming) -> Bound {
+    if plan.continuous() { scan_bound(plan, d, settle, scan) } else { step_bound(plan, d, settle) }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The same settling after every move, seconds.
+    struct Fixed(f64);
+
+    impl Settling for Fixed {
+        fn needed_s(&self, _distance: f64, _velocity: f64, _accel: f64) -> f64 {
+            self.0
+        }
+    }
 
     #[test]
     fn the_ledger_charges_every_moment_once() {
@@ -386,7 +350,7 @@ mod tests {
         // 4 targets, 2 runs, both directions, overrun 45 deg: by hand.
         let plan = SurveyPlan::full_circle(4, 2, true).unwrap();
         let d = Dynamics { velocity_deg_s: 10.0, accel_deg_s2: 20.0, integration_s: 1.0, locate_points: 0 };
-        let b = step_bound(&plan, &d, &SettleModel::Fixed(Duration::from_millis(300)));
+        let b = step_bound(&plan, &d, &Fixed(0.3));
         let mt = |x: f64| move_time(x, 10.0, 20.0);
         // The overrun is 1 deg. Measured: 4 approaches of 1 deg (the first
         // target from the plan's start, the others after an overrun) and 12

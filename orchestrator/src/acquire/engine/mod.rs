@@ -14,10 +14,9 @@
 //! after the sink was flushed, so the stored samples are exactly those
 //! measured, each once.
 
-use crate::budget::{Component, Ledger};
-use crate::plan::{SurveyPlan, move_time};
-use crate::record::{RawReading, RecordedSample, SampleSink};
-use crate::settle::{SettleModel, SettleSpec, SettleStats, TypicalStd, Wait};
+use super::record::{RawReading, RecordedSample, SampleSink};
+use super::settings::{ReferenceKind, SettleModel, Timing};
+use super::settle::{SettleStats, TypicalStd, Wait, is_limit};
 use crate::stop::{Stop, Stopped};
 use std::sync::Arc;
 use std::time::Duration;
@@ -25,28 +24,10 @@ use survey_drivers::clock::with_timeout;
 use survey_drivers::{
     AcReading, Autocollimator, Clock, DriverError, ErrorKind, Positioner, SmrMeasurement, Tracker, TrackerState,
 };
+use survey_processing::budget::{Component, Ledger};
 use survey_processing::geometry::{AxisFit, GeometryError, fit_axis};
+use survey_processing::plan::{SurveyPlan, locate_readouts, move_time};
 use survey_processing::{Direction, Sample};
-
-/// The reference instrument that measures the actual angle.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ReferenceKind {
-    /// A tracking laser measuring an SMR on an arm (the axis is located first).
-    Tracker,
-    /// An autocollimator on a polygon: the targets are the faces.
-    Autocollimator,
-}
-
-impl ReferenceKind {
-    /// `tracker` or `autocollimator`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            ReferenceKind::Tracker => "tracker",
-            ReferenceKind::Autocollimator => "autocollimator",
-        }
-    }
-}
 
 /// The independent instrument that measures the actual angle.
 #[derive(Debug)]
@@ -63,66 +44,6 @@ impl Reference {
         match self {
             Reference::Tracker(t) => t.name(),
             Reference::Autocollimator { instrument, .. } => instrument.name(),
-        }
-    }
-}
-
-/// Deadlines, waits and retry limits.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Timing {
-    /// Deadline of a short request (status, readout, command).
-    pub call_timeout: Duration,
-    /// Deadline of a reference measurement (a tracker's stationary measurement
-    /// takes about a second).
-    pub measure_timeout: Duration,
-    /// A move may take this much longer than its motion profile predicts
-    /// (settling included) before it counts as stuck.
-    pub move_margin: Duration,
-    /// How often the status is polled while waiting for in-position.
-    pub poll_interval: Duration,
-    /// Wait after the axis is at rest before reading (default 0; see [`SettleSpec`]).
-    pub dwell: Duration,
-    /// Retries of one operation before the engine gives up.
-    pub max_retries: u32,
-    /// Wait before a retry.
-    pub retry_backoff: Duration,
-    /// SMR positions measured to locate the axis.
-    pub locate_points: u32,
-    /// Axis velocity and acceleration used to predict move times, deg/s and deg/s².
-    pub velocity_deg_s: f64,
-    pub accel_deg_s2: f64,
-    /// How the engine decides the axis is at rest ([`crate::settle`]).
-    #[serde(default)]
-    pub settle: SettleSpec,
-    /// The continuous scan's rates ([`crate::scan`]).
-    #[serde(default)]
-    pub scan: crate::scan::ScanTiming,
-    /// How long a survey suspended on a lost beam waits for it (see
-    /// [`suspend`]) before it ends interrupted.
-    #[serde(default = "suspend::default_beam_wait")]
-    pub beam_wait: Duration,
-    /// Wait between two attempts to re-acquire a lost beam.
-    #[serde(default = "suspend::default_beam_retry")]
-    pub beam_retry: Duration,
-}
-
-impl Default for Timing {
-    fn default() -> Self {
-        Self {
-            call_timeout: Duration::from_secs(2),
-            measure_timeout: Duration::from_secs(10),
-            move_margin: Duration::from_secs(10),
-            poll_interval: Duration::from_millis(100),
-            dwell: Duration::ZERO,
-            max_retries: 3,
-            retry_backoff: Duration::from_secs(1),
-            locate_points: 12,
-            velocity_deg_s: 10.0,
-            accel_deg_s2: 20.0,
-            settle: SettleSpec::default(),
-            scan: crate::scan::ScanTiming::default(),
-            beam_wait: suspend::default_beam_wait(),
-            beam_retry: suspend::default_beam_retry(),
         }
     }
 }
@@ -214,35 +135,35 @@ pub struct Outcome {
 /// The survey engine.
 #[derive(Debug)]
 pub struct Engine {
-    pub(crate) clock: Arc<dyn Clock>,
-    pub(crate) positioner: Box<dyn Positioner>,
-    pub(crate) reference: Reference,
-    pub(crate) timing: Timing,
-    pub(crate) axis: Option<AxisFit>,
+    clock: Arc<dyn Clock>,
+    positioner: Box<dyn Positioner>,
+    reference: Reference,
+    timing: Timing,
+    axis: Option<AxisFit>,
     /// The arm's nominal radius and tolerance, mm, to check the located axis.
     arm_check: Option<(f64, f64)>,
     /// The last commanded position, to know from which side the next target
     /// is approached.
-    pub(crate) commanded: Option<f64>,
+    commanded: Option<f64>,
     faults_survived: u32,
     faults_met: FaultCounts,
-    pub(crate) stop: Stop,
+    stop: Stop,
     /// The axis's travel limits, degrees: every commanded move is checked.
     travel: Option<(f64, f64)>,
-    /// Where the instrument time goes ([`crate::budget`]).
-    pub(crate) ledger: Ledger,
+    /// Where the instrument time goes ([`survey_processing::budget`]).
+    ledger: Ledger,
     /// The settling the axis needs, for the bound.
     settle_model: SettleModel,
     /// The reference's integration time per sample, for the bound.
     integration: Option<Duration>,
     /// Settling observed after measured moves (adaptive mode).
-    pub(crate) settled: SettleStats,
+    settled: SettleStats,
     /// The typical standard deviation of the tracker's measurements.
     typical_std: TypicalStd,
-    /// The continuous scan's state ([`crate::scan`]).
-    pub(crate) scan: crate::scan::ScanState,
+    /// The continuous scan's state ([`scan`]).
+    scan: scan::ScanState,
     /// Drift control: the reference target re-measured every K steps.
-    drift: Option<crate::drift::DriftControl>,
+    drift: Option<survey_processing::drift::DriftControl>,
     /// What simulated instruments in this process injected, when they are.
     injected: Option<survey_sims::faults::Injected>,
 }
@@ -266,14 +187,14 @@ impl Engine {
             integration: None,
             settled: SettleStats::default(),
             typical_std: TypicalStd::default(),
-            scan: crate::scan::ScanState::default(),
+            scan: scan::ScanState::default(),
             drift: None,
             injected: None,
         }
     }
 
     /// The settling the axis needs and the reference's integration time per
-    /// sample, for the plan's lower bound ([`crate::budget`]).
+    /// sample, for the plan's lower bound ([`survey_processing::budget`]).
     pub fn with_physics(mut self, settle: SettleModel, integration: Option<Duration>) -> Self {
         self.settle_model = settle;
         self.integration = integration;
@@ -281,8 +202,19 @@ impl Engine {
     }
 
     /// A continuous survey goes on with the latency its first runs measured.
-    pub fn set_scan_latency(&mut self, latency: Option<crate::scan::Latency>) {
+    pub fn set_scan_latency(&mut self, latency: Option<survey_processing::pairing::Latency>) {
         self.scan.latency = latency;
+    }
+
+    /// The latency between the instruments a continuous survey measured
+    /// (or was resumed with).
+    pub fn scan_latency(&self) -> Option<survey_processing::pairing::Latency> {
+        self.scan.latency
+    }
+
+    /// What the continuous scan did in this acquisition.
+    pub fn scan_report(&self) -> &scan::ScanReport {
+        &self.scan.report
     }
 
     /// The settling model the bound uses.
@@ -301,7 +233,7 @@ impl Engine {
     }
 
     /// The instrument time spent so far, by component.
-    pub fn spent(&self) -> crate::budget::Spent {
+    pub fn spent(&self) -> survey_processing::budget::Spent {
         self.ledger.spent(self.clock.now())
     }
 
@@ -321,8 +253,8 @@ impl Engine {
         self.injected.as_ref()
     }
 
-    /// Re-measure the reference target every K steps ([`crate::drift`]).
-    pub fn set_drift_control(&mut self, drift: Option<crate::drift::DriftControl>) {
+    /// Re-measure the reference target every K steps ([`survey_processing::drift`]).
+    pub fn set_drift_control(&mut self, drift: Option<survey_processing::drift::DriftControl>) {
         self.drift = drift;
     }
 
@@ -385,7 +317,7 @@ impl Engine {
     }
 
     /// Stop the axis after a stop request, and say why the survey stopped.
-    pub(crate) async fn halt(&mut self, why: Stopped) -> EngineError {
+    async fn halt(&mut self, why: Stopped) -> EngineError {
         let clock = self.clock.clone();
         let name = self.positioner.name().to_string();
         tracing::warn!(%why, "stopping the axis");
@@ -471,7 +403,7 @@ impl Engine {
         }
         // The way to the plan's first approach belongs to the locate too.
         let t = &self.timing;
-        let start = crate::scan::start_deg(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
+        let start = survey_processing::plan::start_deg(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
         if self.commanded.is_some_and(|c| c != start) {
             let back = self.move_to(start, false, sink).await;
             if let Err(e) = back {
@@ -557,7 +489,7 @@ impl Engine {
             }
         }
         if plan.continuous() {
-            let mut outcome = crate::scan::run(self, plan, from_seq, sink, progress).await?;
+            let mut outcome = scan::run(self, plan, from_seq, sink, progress).await?;
             outcome.faults_survived = self.faults_survived - faults_before;
             outcome.faults_met = self.faults_met.since(&met_before);
             outcome.instrument_time = self.clock.now();
@@ -677,12 +609,7 @@ impl Engine {
 
     /// Move and wait until the axis is at rest (`measured`: a sample is
     /// taken there, so it must have settled), retrying faults.
-    pub(crate) async fn move_to(
-        &mut self,
-        target: f64,
-        measured: bool,
-        sink: &mut dyn SampleSink,
-    ) -> Result<(), EngineError> {
+    async fn move_to(&mut self, target: f64, measured: bool, sink: &mut dyn SampleSink) -> Result<(), EngineError> {
         let mut attempt = 0;
         loop {
             match self.try_move(target, measured).await {
@@ -691,7 +618,7 @@ impl Engine {
                     return Ok(());
                 }
                 Err(e) => {
-                    if suspend::is_limit(&e) {
+                    if is_limit(&e) {
                         return Err(self.stop_axis(e, &format!("move to {target} deg"), sink).await);
                     }
                     attempt += 1;
@@ -745,7 +672,7 @@ impl Engine {
 
     /// Handle a failed operation: log it, record it, recover the instrument,
     /// and say whether to retry (Ok) or give up (Err).
-    pub(crate) async fn survive(
+    async fn survive(
         &mut self,
         error: DriverError,
         failed: Failed,
@@ -805,7 +732,7 @@ impl Engine {
 
 /// Which instrument an operation failed on: decides the recovery.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Failed {
+enum Failed {
     Positioner,
     Reference,
 }
@@ -834,20 +761,6 @@ async fn read_reference(
     }
 }
 
-/// The readouts at which the SMR is measured to locate the axis.
-pub fn locate_readouts(plan: &SurveyPlan, points: u32) -> Vec<f64> {
-    let points = points.max(3);
-    let first = plan.targets_deg[0];
-    let last = *plan.targets_deg.last().expect("a plan has targets");
-    let spacing = if plan.targets_deg.len() > 1 { plan.targets_deg[1] - first } else { 0.0 };
-    let full_circle = (last - first + spacing - 360.0).abs() < 1e-6;
-    if full_circle {
-        (0..points).map(|k| first + k as f64 * 360.0 / points as f64).collect()
-    } else {
-        (0..points).map(|k| first + k as f64 * (last - first) / (points - 1) as f64).collect()
-    }
-}
-
 /// With a polygon reference, every target must be a face.
 fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> {
     let pitch = 360.0 / faces as f64;
@@ -862,15 +775,12 @@ fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> 
     Ok(())
 }
 
-#[path = "suspend.rs"]
-pub mod suspend;
+mod drift;
+mod read;
+mod scan;
+mod suspend;
 
-#[path = "engine_drift.rs"]
-mod engine_drift;
-
-#[path = "engine_read.rs"]
-mod engine_read;
+pub use scan::ScanReport;
 
 #[cfg(test)]
-#[path = "engine_tests.rs"]
 mod tests;

@@ -1,13 +1,13 @@
 //! The engine's read of one sample: the readout and the reference at the
 //! same time, with the stability checks of adaptive settling
-//! ([`crate::settle`]) and the recovery of faults.
+//! ([`crate::acquire::settle`]) and the recovery of faults.
 
 use super::{Engine, EngineError, Failed, read_reference};
-use crate::budget::Component;
-use crate::record::{RawReading, SampleSink};
-use crate::settle::SettleMode;
+use crate::acquire::record::{RawReading, SampleSink};
+use crate::acquire::settings::SettleMode;
 use survey_drivers::clock::with_timeout;
 use survey_processing::Direction;
+use survey_processing::budget::Component;
 
 impl Engine {
     /// Read the readout and the reference at `target` (approached in
@@ -17,7 +17,7 @@ impl Engine {
     /// read at the target (an autocollimator's face is the target's). In
     /// adaptive settling the readout is read again when the reference is
     /// done, and the pair is measured again while either shows the axis
-    /// moving ([`crate::settle`]).
+    /// moving ([`crate::acquire::settle`]).
     pub(super) async fn read_pair(
         &mut self,
         target: f64,

@@ -7,7 +7,7 @@
 //! successful readout, the direction of the last move and the true angle.
 
 use super::*;
-use crate::record::MemorySink;
+use crate::acquire::record::MemorySink;
 use std::sync::Mutex;
 use survey_drivers::{PositionerStatus, VirtualClock};
 use survey_processing::model::{Effect, Model};

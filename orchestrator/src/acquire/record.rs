@@ -83,8 +83,8 @@ pub trait SampleSink: Send {
     async fn event(&mut self, _at_s: f64, _level: &str, _message: &str) -> anyhow::Result<()> {
         Ok(())
     }
-    /// The drift-control reference target was measured ([`crate::drift`]).
-    async fn drift_measured(&mut self, _m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+    /// The drift-control reference target was measured ([`survey_processing::drift`]).
+    async fn drift_measured(&mut self, _m: &survey_processing::drift::DriftMeasurement) -> anyhow::Result<()> {
         Ok(())
     }
 }
@@ -100,7 +100,7 @@ pub struct MemorySink {
     /// (instrument time, level, message)
     pub events: Vec<(f64, String, String)>,
     /// The drift-control reference measurements.
-    pub drift: Vec<crate::drift::DriftMeasurement>,
+    pub drift: Vec<survey_processing::drift::DriftMeasurement>,
 }
 
 #[async_trait]
@@ -126,7 +126,7 @@ impl SampleSink for MemorySink {
         self.passes.push(pass);
         Ok(())
     }
-    async fn drift_measured(&mut self, m: &crate::drift::DriftMeasurement) -> anyhow::Result<()> {
+    async fn drift_measured(&mut self, m: &survey_processing::drift::DriftMeasurement) -> anyhow::Result<()> {
         self.drift.push(*m);
         Ok(())
     }

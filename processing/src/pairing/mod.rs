@@ -1,4 +1,5 @@
-//! Pairing two streams by time (pure: data in, data out).
+//! Pairing two streams by time (pure: data in, data out): what a continuous
+//! scan's passes are paired with.
 //!
 //! - [`ClockMap::fit`]: an instrument stamps its stream with its own clock.
 //!   At every read the engine notes when the answer came (host clock) and
@@ -9,7 +10,7 @@
 //!   supporting at their mean stamp: what minimises the summed gap): the
 //!   offset and the rate of the instrument's clock, up to the shortest delay
 //!   seen, which stays in the residual latency the two-velocity calibration
-//!   removes ([`super::latency`]).
+//!   removes ([`latency`]).
 //! - [`crossing_time`]: when the readout passed a target, by cubic (Catmull-Rom)
 //!   interpolation of the readout against time, solved by bisection; the
 //!   readout stream must have a reading on each side within `max_gap`.
@@ -18,6 +19,10 @@
 //!   (at least four, at least one on each side within `max_gap`): velocity
 //!   ripple bends the path between points, and a straight line through them
 //!   would cut the bend.
+
+pub mod latency;
+
+pub use latency::Latency;
 
 /// `host = offset + rate * device`, seconds.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -21,40 +21,10 @@
 //!   named when it stays out of range.
 
 use super::{Engine, EngineError, Failed, Reference};
-use crate::record::SampleSink;
+use crate::acquire::record::SampleSink;
 use std::time::Duration;
 use survey_drivers::clock::with_timeout;
-use survey_drivers::{DriverError, ErrorKind, Limit, TrackerState};
-
-/// The default of `Timing::beam_wait`: 10 minutes.
-pub fn default_beam_wait() -> Duration {
-    Duration::from_secs(600)
-}
-
-/// The default of `Timing::beam_retry`: 10 s.
-pub fn default_beam_retry() -> Duration {
-    Duration::from_secs(10)
-}
-
-/// The engine's own code on the error of a move that ended at a limit switch
-/// (no instrument code says it: the status shows the switch).
-pub const CODE_LIMIT_SWITCH: i64 = -(0x4c49_4d54); // "LIMT"
-
-/// The error of a move to `target` that stopped at `limit`.
-pub fn limit_error(instrument: impl Into<String>, target: f64, limit: Limit) -> DriverError {
-    let mut e = DriverError::new(
-        ErrorKind::Device,
-        instrument,
-        format!("the move to {target} deg stopped at the {limit:?} limit switch"),
-    );
-    e.code = Some(CODE_LIMIT_SWITCH);
-    e
-}
-
-/// Whether `e` is a move stopped at a limit switch.
-pub fn is_limit(e: &DriverError) -> bool {
-    e.kind == ErrorKind::Device && e.code == Some(CODE_LIMIT_SWITCH)
-}
+use survey_drivers::{DriverError, ErrorKind, TrackerState};
 
 impl Engine {
     /// Whether a failed reference reading means a lost beam: a device fault
@@ -172,5 +142,4 @@ impl Engine {
 }
 
 #[cfg(test)]
-#[path = "suspend_tests.rs"]
 mod tests;

@@ -1,7 +1,7 @@
 //! The latency between the two instruments' clocks, from passes at two
 //! velocities (pure).
 //!
-//! After the clock maps ([`super::pair::ClockMap`]) a constant time offset
+//! After the clock maps ([`super::ClockMap`]) a constant time offset
 //! `delta` is left between the two streams: the shortest delays the maps
 //! could not see, the tracker's stamp latency, whatever part of its
 //! integration the half-integration shift does not cover. A tracker point

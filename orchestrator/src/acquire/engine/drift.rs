@@ -1,4 +1,4 @@
-//! The engine's side of drift control ([`crate::drift`]): before step 0 of
+//! The engine's side of drift control ([`survey_processing::drift`]): before step 0 of
 //! a pass (or the step a resume starts at) and every K-th step, the axis goes
 //! to the reference target (approached forward) and the pair is read there;
 //! the run loop writes the measurement to the sink outside the race with a
@@ -6,9 +6,9 @@
 //! like a step's, and their faults are survived the same way.
 
 use super::{Engine, EngineError};
-use crate::drift::DriftMeasurement;
-use crate::record::SampleSink;
+use crate::acquire::record::SampleSink;
 use survey_processing::Direction;
+use survey_processing::drift::DriftMeasurement;
 
 impl Engine {
     /// Measure the reference target before step `seq` when it is due.
@@ -85,9 +85,9 @@ impl Engine {
 #[cfg(test)]
 mod tests {
     use super::super::*;
-    use crate::drift::{DriftControl, correct, drift_points};
-    use crate::record::{MemorySink, RawReading};
+    use crate::acquire::record::{MemorySink, RawReading};
     use survey_drivers::VirtualClock;
+    use survey_processing::drift::{DriftControl, correct, drift_points};
     use survey_processing::model::Model;
     use survey_processing::types::wrap_180;
     use survey_processing::{Direction, Sample};
