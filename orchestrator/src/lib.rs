@@ -18,6 +18,7 @@ pub mod csvio;
 pub mod drift;
 pub mod engine;
 pub mod error;
+pub mod inputs;
 pub mod output;
 pub mod plan;
 pub mod process;

@@ -19,12 +19,12 @@
 
 use super::support::{emit, open_read_only};
 use crate::error::{bad_input, path_error};
+use crate::inputs::read_model;
 use crate::progress::{self, Progress};
 use crate::refit::{located_axis_knowledge, reference_info, refit_survey};
 use anyhow::Context as _;
 use clap::Args;
 use std::path::{Path, PathBuf};
-use survey_processing::model::Model;
 use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 
 #[derive(Debug, Args)]
@@ -49,7 +49,7 @@ pub struct ModelGapArgs {
 }
 
 pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
-    let model = Model::from_file(&args.model)?;
+    let model = read_model(&args.model)?;
     let progress = Progress::spinner("loading the survey", progress::visible(args.json));
     // Samples come in acquisition order (by seq): drift has a time axis even without timestamps.
     let store = open_read_only(db).await?;

@@ -39,6 +39,7 @@ pub mod units;
 pub mod verification;
 
 use crate::error::{bad_input, path_error};
+use crate::inputs::read_model;
 use crate::process::ProcessOptions;
 use crate::store::Store;
 use crate::survey::{SurveyRecord, SurveySource};
@@ -48,7 +49,6 @@ use std::path::{Path, PathBuf};
 use survey_processing::Sample;
 use survey_processing::errormap::ErrorMap;
 use survey_processing::iso230::iso230_2;
-use survey_processing::model::Model;
 use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 use survey_processing::pipeline::{PipelineError, Processed};
 pub use units::Units;
@@ -123,7 +123,7 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
     };
     let model_gap = match &opts.model {
         Some(path) => {
-            let model = Model::from_file(path)?;
+            let model = read_model(path)?;
             // As `survey model-gap` compares it: around the refitted axis, told the reference.
             let reference = crate::refit::reference_info(&survey, refit.as_ref(), located.as_ref());
             let options = ModelGapOptions { reference, ..ModelGapOptions::default() };
