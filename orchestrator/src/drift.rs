@@ -151,9 +151,13 @@ pub fn correction_asked(survey: &crate::survey::SurveyRecord) -> bool {
 }
 
 /// The samples the statistics and the processing of `survey` use: as
-/// measured, or corrected for the drift when the survey asked for it.
-pub fn for_analysis(survey: &crate::survey::SurveyRecord, samples: Vec<Sample>, points: &[DriftPoint]) -> Vec<Sample> {
-    if correction_asked(survey) && !points.is_empty() { correct(&samples, points) } else { samples }
+/// measured (borrowed), or corrected for the drift when the survey asked for it.
+pub fn for_analysis<'a>(
+    survey: &crate::survey::SurveyRecord,
+    samples: &'a [Sample],
+    points: &[DriftPoint],
+) -> std::borrow::Cow<'a, [Sample]> {
+    if correction_asked(survey) && !points.is_empty() { correct(samples, points).into() } else { samples.into() }
 }
 
 /// The JSON of the drift points (`[{"at_s", "drift_deg", "before_seq"}]`)

@@ -19,6 +19,7 @@ pub mod drift;
 pub mod engine;
 pub mod error;
 pub mod inputs;
+pub mod load;
 pub mod output;
 pub mod plan;
 pub mod process;
