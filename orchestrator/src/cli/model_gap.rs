@@ -18,7 +18,7 @@
 //! location is named as the reference's, with its size.
 
 use super::support::emit;
-use crate::error::{bad_input, path_error};
+use crate::error::path_error;
 use crate::inputs::read_model;
 use crate::load::{Axis, load_read_only};
 use crate::progress::{self, Progress};
@@ -63,9 +63,8 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
         compared.len(),
         args.model.display()
     ));
-    let gap = survey_processing::modelgap::model_gap(compared, &model, &options).map_err(|e| {
-        bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, args.model.display()))
-    })?;
+    let gap = survey_processing::modelgap::model_gap(compared, &model, &options)
+        .with_context(|| format!("survey {} cannot be compared with the model {}", survey.id, args.model.display()))?;
     drop(progress);
     if let Some(out) = &args.out {
         write_model(out, &gap, &args.model, survey.id)?;

@@ -6,10 +6,10 @@
 //! weigh its targets unevenly.
 
 use super::support::emit;
-use crate::error::bad_input;
 use crate::load::{Axis, load_read_only};
 use crate::output::{iso_json, iso_text};
 use crate::survey::{SurveyRecord, SurveyStatus};
+use anyhow::Context as _;
 use clap::Args;
 use std::borrow::Cow;
 use std::path::Path;
@@ -72,11 +72,11 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
         Some(c) => samples.iter().filter(|s| c.complete_runs.contains(&s.run)).copied().collect(),
         None => samples,
     };
-    let iso = iso230_2(&used).map_err(|e| {
+    let iso = iso230_2(&used).with_context(|| {
         let what = incomplete.map_or(String::new(), |c| {
             format!(" (it is {}: {} of {} runs complete)", survey.status.as_str(), c.runs_complete(), c.runs_planned)
         });
-        bad_input(format!("survey {id} cannot give ISO 230-2 statistics{what}: {e}"))
+        format!("survey {id} cannot give ISO 230-2 statistics{what}")
     })?;
     if args.json {
         let mut doc = iso_json(id, &iso);

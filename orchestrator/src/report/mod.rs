@@ -44,6 +44,7 @@ use crate::load::{Axis, Loaded, load};
 use crate::process::ProcessOptions;
 use crate::store::Store;
 use crate::survey::{SurveyRecord, SurveySource};
+use anyhow::Context as _;
 use header::{Certificate, CertificateFlags};
 use page::{escape, section};
 use std::path::{Path, PathBuf};
@@ -136,8 +137,8 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
             let model = read_model(path)?;
             // As `survey model-gap` compares it: around the refitted axis, told the reference.
             let options = ModelGapOptions { reference: loaded.reference_info(), ..ModelGapOptions::default() };
-            let gap = survey_processing::modelgap::model_gap(&loaded.samples, &model, &options).map_err(|e| {
-                bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, path.display()))
+            let gap = survey_processing::modelgap::model_gap(&loaded.samples, &model, &options).with_context(|| {
+                format!("survey {} cannot be compared with the model {}", survey.id, path.display())
             })?;
             Some((path.display().to_string(), gap))
         }
