@@ -20,8 +20,8 @@ use survey_processing::modelgap::ModelGapError;
 use survey_processing::pipeline::PipelineError;
 use survey_processing::recipe::{ChoiceError, RecipeError};
 
-/// Bad input that has no type of its own: a missing flag, a path that cannot
-/// be created, a survey that cannot do what was asked.
+/// Bad input that has no type of its own: a missing flag, a value out of its
+/// range, a survey that cannot do what was asked.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{0}")]
 pub struct BadInput(pub String);
