@@ -114,8 +114,8 @@ pub use direction::DirectionModel;
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};
 use crate::corrector::ValueFormat;
-use crate::export::controllers::Directions;
 use crate::export::generic::{Sign, Values};
+use crate::export::layout::Directions;
 use crate::resample::{Method as Interpolation, PartialMethod};
 use serde::{Deserialize, Serialize, Serializer};
 

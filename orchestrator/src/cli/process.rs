@@ -7,8 +7,9 @@ use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::progress::{self, Progress};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
-use survey_processing::export::controllers::{Controller, Directions};
+use survey_processing::export::controllers::Controller;
 use survey_processing::export::generic::{Sign, Values};
+use survey_processing::export::layout::Directions;
 
 #[derive(Debug, Args)]
 pub struct ProcessArgs {

@@ -3,8 +3,9 @@
 //! in an error. The recipe written beside the table holds the result, so a
 //! recalibration replaying it writes the same controller files.
 
-use survey_processing::export::controllers::{Controller, Directions};
+use survey_processing::export::controllers::Controller;
 use survey_processing::export::generic::{Sign, Values};
+use survey_processing::export::layout::Directions;
 use survey_processing::recipe::{ChoiceError, ExportChoices, Recipe};
 
 /// Every export choice the command line can make; `None` keeps the recipe's.
