@@ -90,7 +90,7 @@ pub async fn conclude(
         });
     }
     if !drift.is_empty() {
-        doc["drift"] = crate::drift::json(&record, &drift);
+        doc["drift"] = crate::drift::json(record, drift);
     }
     doc["db"] = db.display().to_string().into();
     let mut text = format!(
@@ -154,7 +154,7 @@ pub async fn conclude(
     }
     let mut result = Ok(());
     if let Some(verify_plan) = &options.verify {
-        match crate::verify::verify(engine, store, &record, &samples, verify_plan, &processed, options.acquire.clone())
+        match crate::verify::verify(engine, store, record, &samples, verify_plan, &processed, options.acquire.clone())
             .await
         {
             Ok(v) => {
