@@ -190,7 +190,7 @@ fn scpi_line(line: &str) {
     let _ = scpi::parse_number(line);
     let _ = scpi::parse_count(line);
     let _ = scpi::parse_bool(line);
-    let _ = scpi::StatusWord::parse(line);
+    let _ = scpi::parse_status(line);
     if let Ok(list) = scpi::ErrorEntry::parse_list(line) {
         for e in list {
             let _ = (e.kind(), e.to_line());

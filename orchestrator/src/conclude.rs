@@ -50,9 +50,9 @@ pub async fn conclude(
     db: &Path,
     options: ConcludeOptions,
 ) -> anyhow::Result<Concluded> {
-    let record = store.survey(id).await?;
-    let drift = store.drift_points(id).await?;
-    let samples = crate::drift::for_analysis(&record, store.samples(id).await?, &drift);
+    let loaded = crate::load::load(store, Some(id), crate::load::Axis::AsStored).await?;
+    let (record, drift) = (&loaded.survey, &loaded.drift);
+    let samples = loaded.analysed();
     let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;
     let outcome = &acquired.outcome;
     let mut doc = iso_json(id, &iso);
@@ -90,7 +90,7 @@ pub async fn conclude(
         });
     }
     if !drift.is_empty() {
-        doc["drift"] = crate::drift::json(&record, &drift);
+        doc["drift"] = crate::drift::json(record, drift);
     }
     doc["db"] = db.display().to_string().into();
     let mut text = format!(
@@ -121,10 +121,9 @@ pub async fn conclude(
     }
     let table_out = Some(default_table_path(db, id));
     // With a tracker, the table is made around the axis fitted from every SMR position.
-    let refit = crate::refit::refit_survey(store, &record)
-        .await?
-        .map(|(s, r)| (crate::drift::for_analysis(&record, s, &drift), r));
-    let uncertainty = crate::refit::uncertainty_inputs(&record, refit.as_ref().map(|(_, r)| r), None);
+    let refit = crate::refit::refit_survey(store, record).await?;
+    let refitted = refit.as_ref().map(|(s, _)| loaded.corrected(s));
+    let uncertainty = crate::refit::uncertainty_inputs(record, refit.as_ref().map(|(_, r)| r), None);
     let processing = ProcessOptions {
         recipe: options.recipe.clone(),
         design: None,
@@ -132,8 +131,8 @@ pub async fn conclude(
         uncertainty,
         ..ProcessOptions::default()
     };
-    let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
-    let processed = match process_survey(&record, to_process, processing) {
+    let to_process = refitted.as_deref().unwrap_or(&samples);
+    let processed = match process_survey(record, to_process, processing) {
         Ok(p) => p,
         Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
     };
@@ -155,7 +154,7 @@ pub async fn conclude(
     }
     let mut result = Ok(());
     if let Some(verify_plan) = &options.verify {
-        match crate::verify::verify(engine, store, &record, &samples, verify_plan, &processed, options.acquire.clone())
+        match crate::verify::verify(engine, store, record, &samples, verify_plan, &processed, options.acquire.clone())
             .await
         {
             Ok(v) => {

@@ -15,8 +15,12 @@ pub fn correction_asked(survey: &SurveyRecord) -> bool {
 }
 
 /// The samples the statistics and the processing of `survey` use: as
-/// measured, or corrected for the drift when the survey asked for it.
-pub fn for_analysis(survey: &SurveyRecord, samples: Vec<Sample>, points: &[DriftPoint]) -> Vec<Sample> {
+/// measured (borrowed), or corrected for the drift when the survey asked for it.
+pub fn for_analysis<'a>(
+    survey: &SurveyRecord,
+    samples: &'a [Sample],
+    points: &[DriftPoint],
+) -> std::borrow::Cow<'a, [Sample]> {
     survey_processing::drift::for_analysis(correction_asked(survey), samples, points)
 }
 

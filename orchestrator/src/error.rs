@@ -10,15 +10,18 @@
 
 use crate::config::ConfigError;
 use crate::csvio::CsvError;
+use crate::process::overrides::FlagError;
 use crate::store::NotFound;
 use crate::survey::Damaged;
+use survey_processing::iso230::StatsError;
 use survey_processing::model::ModelError;
+use survey_processing::modelgap::ModelGapError;
 use survey_processing::pipeline::PipelineError;
 use survey_processing::plan::PlanError;
-use survey_processing::recipe::RecipeError;
+use survey_processing::recipe::{ChoiceError, RecipeError};
 
-/// Bad input that has no type of its own: a missing flag, a path that cannot
-/// be created, a survey that cannot do what was asked.
+/// Bad input that has no type of its own: a missing flag, a value out of its
+/// range, a survey that cannot do what was asked.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{0}")]
 pub struct BadInput(pub String);
@@ -28,10 +31,43 @@ pub fn bad_input(message: impl Into<String>) -> anyhow::Error {
     BadInput(message.into()).into()
 }
 
+/// An I/O error on a path the user gave: `what` was done to which path.
+/// Whether it is the user's (see [`exit_status`]) depends on its kind.
+#[derive(Debug, thiserror::Error)]
+#[error("{what}: {io}")]
+pub struct PathError {
+    /// What was done, naming the path (`cannot create out/t.csv`).
+    pub what: String,
+    /// The error.
+    pub io: std::io::Error,
+}
+
+impl PathError {
+    /// A path that cannot exist or be reached (missing folder, permission, a
+    /// folder where a file belongs) is the user's; anything else (a full
+    /// disk, a device error) is a run-time failure.
+    fn is_the_users(&self) -> bool {
+        use std::io::ErrorKind::*;
+        matches!(
+            self.io.kind(),
+            NotFound
+                | PermissionDenied
+                | IsADirectory
+                | NotADirectory
+                | InvalidInput
+                | InvalidFilename
+                | ReadOnlyFilesystem
+                | AlreadyExists
+        )
+    }
+}
+
 /// Whether the user's input caused `err`: some cause in its chain is an input
 /// error ([`BadInput`], the store's [`NotFound`], a [`Damaged`] survey record,
 /// a defect of a configuration, model, recipe or CSV file, a plan that cannot
-/// be made, data that cannot be processed).
+/// be made, a path that cannot be used, an export choice that cannot be
+/// honoured, data that cannot be processed, compared with a model or give
+/// ISO 230-2 statistics).
 pub fn is_bad_input(err: &anyhow::Error) -> bool {
     err.chain().any(|c| {
         c.is::<BadInput>()
@@ -42,7 +78,12 @@ pub fn is_bad_input(err: &anyhow::Error) -> bool {
             || c.is::<ModelError>()
             || c.is::<RecipeError>()
             || c.is::<PlanError>()
+            || c.downcast_ref::<PathError>().is_some_and(PathError::is_the_users)
+            || c.is::<ChoiceError>()
+            || c.is::<FlagError>()
             || c.is::<PipelineError>()
+            || c.is::<ModelGapError>()
+            || c.is::<StatsError>()
     })
 }
 
@@ -51,16 +92,9 @@ pub fn exit_status(err: &anyhow::Error) -> u8 {
     if is_bad_input(err) { 2 } else { 1 }
 }
 
-/// An I/O error on a path the user gave: a path that cannot exist or be
-/// reached (missing folder, permission, a folder where a file belongs) is bad
-/// input; anything else (a full disk, a device error) is a run-time failure.
+/// A [`PathError`]: `e` met doing `what`.
 pub fn path_error(e: std::io::Error, what: String) -> anyhow::Error {
-    use std::io::ErrorKind::*;
-    match e.kind() {
-        NotFound | PermissionDenied | IsADirectory | NotADirectory | InvalidInput | InvalidFilename
-        | ReadOnlyFilesystem | AlreadyExists => anyhow::Error::new(BadInput(format!("{what}: {e}"))),
-        _ => anyhow::Error::new(e).context(what),
-    }
+    PathError { what, io: e }.into()
 }
 
 #[cfg(test)]
@@ -78,5 +112,15 @@ mod tests {
         assert_eq!(exit_status(&path_error(io, "cannot create out/t.csv".into())), 2);
         let io = std::io::Error::from(std::io::ErrorKind::StorageFull);
         assert_eq!(exit_status(&path_error(io, "cannot write out/t.csv".into())), 1);
+        // A typed cause decides, under any context.
+        let e = Err::<(), _>(StatsError::NoSamples).context("ISO 230-2 statistics").unwrap_err();
+        assert_eq!((exit_status(&e), format!("{e:#}").matches("no samples").count()), (2, 1));
+    }
+
+    #[test]
+    fn a_path_error_reads_as_before() {
+        let io = std::io::Error::from(std::io::ErrorKind::NotFound);
+        let e = path_error(io, "cannot create out/t.csv".into()).context("survey export");
+        assert_eq!(format!("{e:#}"), "survey export: cannot create out/t.csv: entity not found");
     }
 }

@@ -16,16 +16,6 @@ use std::path::{Path, PathBuf};
 /// A module: its path from the crate root (`[]` for `lib.rs`/`main.rs`).
 type Module = Vec<String>;
 
-/// The circles the "load" helper of issue 18 removes on its own branch
-/// (drivers' emscon and scpi codecs, processing's recipe and controllers),
-/// by exact file pair. This list goes when that branch merges: the test
-/// fails on a listed circle that no longer exists, so it cannot stay behind.
-const NOT_YET_UNTIED: [[&str; 2]; 3] = [
-    ["drivers/src/emscon/packets.rs", "drivers/src/emscon/stream.rs"],
-    ["drivers/src/scpi/codec.rs", "drivers/src/scpi/codes.rs"],
-    ["processing/src/export/controllers.rs", "processing/src/recipe.rs"],
-];
-
 fn is_word(c: char) -> bool {
     c.is_alphanumeric() || c == '_'
 }
@@ -384,12 +374,7 @@ fn no_crate_has_an_import_circle() {
         found.extend(circles_of(&root, &c.join("src")));
     }
     assert!(crates.len() >= 5, "the workspace's crates were found: {crates:?}");
-    let allowed: Vec<Vec<String>> =
-        NOT_YET_UNTIED.iter().map(|pair| pair.iter().map(|f| f.to_string()).collect()).collect();
-    let new: Vec<_> = found.iter().filter(|c| !allowed.contains(c)).collect();
-    assert!(new.is_empty(), "files that import each other in a circle (non-test code): {new:?}");
-    let gone: Vec<_> = allowed.iter().filter(|c| !found.contains(c)).collect();
-    assert!(gone.is_empty(), "these circles are untied: remove them from NOT_YET_UNTIED: {gone:?}");
+    assert!(found.is_empty(), "files that import each other in a circle (non-test code): {found:?}");
 }
 
 /// The rules above on small texts: what counts as naming a module, and

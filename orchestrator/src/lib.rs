@@ -20,6 +20,8 @@ pub mod config;
 pub mod csvio;
 pub mod drift;
 pub mod error;
+pub mod inputs;
+pub mod load;
 pub mod output;
 pub mod process;
 pub mod progress;

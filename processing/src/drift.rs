@@ -146,8 +146,12 @@ pub fn correct(samples: &[Sample], points: &[DriftPoint]) -> Vec<Sample> {
 /// The samples the statistics and the processing use: as measured, or
 /// corrected for the drift when the survey asked for it (`correct`) and
 /// the reference was measured.
-pub fn for_analysis(correct_asked: bool, samples: Vec<Sample>, points: &[DriftPoint]) -> Vec<Sample> {
-    if correct_asked && !points.is_empty() { correct(&samples, points) } else { samples }
+pub fn for_analysis<'a>(
+    correct_asked: bool,
+    samples: &'a [Sample],
+    points: &[DriftPoint],
+) -> std::borrow::Cow<'a, [Sample]> {
+    if correct_asked && !points.is_empty() { correct(samples, points).into() } else { samples.into() }
 }
 
 /// The drift table of `survey show` and `survey stats`.

@@ -31,3 +31,81 @@ pub mod vdi3441;
 pub mod verification;
 
 pub use types::{Direction, Sample};
+
+#[cfg(test)]
+mod purity {
+    //! The crate's promise: data in, data out. Its non-test code names no
+    //! file system, environment, network, clock, async runtime or database.
+
+    use std::path::{Path, PathBuf};
+
+    fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("a source folder") {
+            let path = entry.expect("an entry").path();
+            let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
+            if path.is_dir() {
+                if name != "tests" {
+                    sources(&path, out);
+                }
+            } else if name.ends_with(".rs")
+                && !name.starts_with("tests")
+                && !name.ends_with("tests.rs")
+                && name != "testutil.rs"
+            {
+                out.push(path);
+            }
+        }
+    }
+
+    /// `text` without its `#[cfg(test)] mod name { ... }` blocks.
+    fn without_test_modules(text: &str) -> String {
+        let mut out = String::new();
+        let mut rest = text;
+        while let Some(at) = rest.find("#[cfg(test)]") {
+            out.push_str(&rest[..at]);
+            let after = &rest[at..];
+            let Some(open) = after.find('{').filter(|&o| after[..o].contains("mod ")) else {
+                // `#[cfg(test)] mod name;`: a test file of its own, skipped above.
+                rest = &after["#[cfg(test)]".len()..];
+                continue;
+            };
+            let mut depth = 0usize;
+            let mut end = after.len();
+            for (i, c) in after[open..].char_indices() {
+                match c {
+                    '{' => depth += 1,
+                    '}' => {
+                        depth -= 1;
+                        if depth == 0 {
+                            end = open + i + 1;
+                            break;
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            rest = &after[end..];
+        }
+        out.push_str(rest);
+        out
+    }
+
+    #[test]
+    fn non_test_code_does_no_io() {
+        let mut files = Vec::new();
+        sources(&Path::new(env!("CARGO_MANIFEST_DIR")).join("src"), &mut files);
+        assert!(files.len() > 20, "the source tree was found");
+        let forbidden =
+            ["std::fs", "std::path", "std::env", "std::net", "std::process", "SystemTime", "Instant", "tokio", "sqlx"];
+        let mut offenders = Vec::new();
+        for f in &files {
+            let code = without_test_modules(&std::fs::read_to_string(f).expect("readable"));
+            for word in forbidden {
+                if code.contains(word) {
+                    offenders.push(format!("{}: {word}", f.display()));
+                }
+            }
+        }
+        assert!(offenders.is_empty(), "processing's non-test code does I/O: {offenders:?}");
+    }
+}

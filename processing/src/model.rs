@@ -10,7 +10,6 @@
 
 use crate::types::Direction;
 use std::fmt::Write as _;
-use std::path::Path;
 
 /// What the positioner is built from: the basis for naming spectral lines.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -160,16 +159,6 @@ pub struct ModelError {
 const KINDS: &str = "eccentricity, ellipticity, gear_pass, tooth_mesh, harmonic, backlash, drift, noise";
 
 impl Model {
-    /// Read and validate a model file.
-    pub fn from_file(path: &Path) -> Result<Self, ModelError> {
-        let text = std::fs::read_to_string(path).map_err(|e| ModelError {
-            source_name: path.display().to_string(),
-            line: None,
-            message: format!("cannot read the model file: {e}"),
-        })?;
-        Self::parse(&text, &path.display().to_string())
-    }
-
     /// Parse and validate model-file text; `source_name` names it in errors.
     pub fn parse(text: &str, source_name: &str) -> Result<Self, ModelError> {
         let err =

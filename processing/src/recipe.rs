@@ -114,11 +114,10 @@ pub use direction::DirectionModel;
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};
 use crate::corrector::ValueFormat;
-use crate::export::controllers::Directions;
 use crate::export::generic::{Sign, Values};
+use crate::export::layout::Directions;
 use crate::resample::{Method as Interpolation, PartialMethod};
 use serde::{Deserialize, Serialize, Serializer};
-use std::path::Path;
 
 /// The recipe format version.
 pub const RECIPE_VERSION: u32 = 1;
@@ -417,18 +416,6 @@ pub struct RecipeError {
 }
 
 impl Recipe {
-    /// Read and validate a recipe file.
-    pub fn from_file(path: &Path) -> Result<Self, RecipeError> {
-        let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| RecipeError {
-            source_name: name.clone(),
-            line: None,
-            key: String::new(),
-            message: format!("cannot read the recipe file: {e}"),
-        })?;
-        Self::parse(&text, &name)
-    }
-
     /// Parse and validate recipe text; `source_name` names it in errors.
     pub fn parse(text: &str, source_name: &str) -> Result<Self, RecipeError> {
         let recipe: Recipe = toml::from_str(text).map_err(|e| {

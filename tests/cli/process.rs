@@ -143,7 +143,7 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
         assert_eq!(loaded.forward[j], r[1]);
     }
     // The recipe used is a valid recipe.
-    let recipe = Recipe::from_file(&bench.path("table-1.recipe.toml")).expect("the recipe parses");
+    let recipe = Recipe::parse(&bench.read("table-1.recipe.toml"), "table-1.recipe.toml").expect("the recipe parses");
     assert!(recipe.lines.keep.contains(&12.0));
     assert_eq!(doc["recipe"]["replayed"], false);
 

@@ -230,3 +230,23 @@ fn a_bad_fault_rate_spec_exits_2_naming_the_item() {
     );
     b.survey(&["sim", "--config", "c.toml", "--fault-rates", "stall=0.9"]).bad_input(&["stall=0.9", "0 to 0.5"]);
 }
+
+#[test]
+fn a_survey_that_cannot_give_iso_statistics_is_bad_input_from_resume_as_from_stats() {
+    // Stopped once every step is stored (acquisition over, statistics next):
+    // `resume` only concludes it.
+    let b = Bench::new();
+    let out = b.survey(&["run", "--points", "4", "--runs", "2", "--bidirectional", "--sim-signal-after", "16"]);
+    assert_eq!(out.code, 1, "a stop is a run-time end\n{out}");
+    // A stored sample moved to the other run: run 1 twice at one target.
+    let db = rusqlite::Connection::open(b.path("survey.db")).expect("the database opens");
+    let moved = db
+        .execute("UPDATE samples SET run = 1 WHERE seq = (SELECT MIN(seq) FROM samples WHERE run = 2)", [])
+        .expect("a sample is moved");
+    assert_eq!(moved, 1);
+    drop(db);
+    // The same typed error (ISO 230-2's, a run appearing twice), the same
+    // exit status from both commands.
+    b.survey(&["resume"]).bad_input(&["ISO 230-2 statistics", "run 1 appears 2 times"]);
+    b.survey(&["stats"]).bad_input(&["survey 1 cannot give ISO 230-2 statistics", "run 1 appears 2 times"]);
+}

@@ -4,9 +4,10 @@ use super::codes::{
     command, coordinate_system, laser_status, meas_mode, measurement_status_info as msi, statistic_mode, status,
     status_change, tracker_processor_status,
 };
+use super::frame::DecodeError;
 use super::packets::{
-    Answer, AnswerBody, DecodeError, MeasurementStatusInfo, Reply, ReplyDecoder, Request, SingleMeasResult,
-    StationaryModeData, SystemStatus, SystemUnits,
+    Answer, AnswerBody, MeasurementStatusInfo, Reply, ReplyDecoder, Request, SingleMeasResult, StationaryModeData,
+    SystemStatus, SystemUnits,
 };
 use crate::error::{DriverError, ErrorKind, Result};
 use crate::reconnect::Connect;

@@ -85,7 +85,7 @@
 //! - No answer within the request's deadline ([`EmsconTimeouts`]; a
 //!   measurement gets `lMeasTime` + a margin) -> `Timeout`; the next request
 //!   first reads for [`EmsconTimeouts::resync_grace_ms`] and drops a late answer.
-//! - A size field below 12 or above [`packets::MAX_PACKET_LEN`] -> `Garbled`;
+//! - A size field below 12 or above [`frame::MAX_PACKET_LEN`] -> `Garbled`;
 //!   the framing is lost, so the next request first throws away whatever
 //!   arrives within the resync grace. An unknown `ES_DataType` or
 //!   `ES_Command`, or a packet whose size does not fit its type -> `Garbled`
@@ -132,6 +132,7 @@
 
 pub mod codes;
 mod driver;
+pub mod frame;
 pub mod packets;
 pub mod stream;
 
@@ -139,7 +140,8 @@ pub mod stream;
 mod tests;
 
 pub use driver::{DEFAULT_PORT, EmsconConfig, EmsconConnector, EmsconTimeouts, EmsconTracker};
+pub use frame::DecodeError;
 pub use packets::{
-    Answer, AnswerBody, DecodeError, Framer, MeasurementStatusInfo, Reply, ReplyDecoder, Request, RequestDecoder,
-    SingleMeasResult, SingleMeasResult2, StationaryModeData, SystemStatus, SystemUnits,
+    Answer, AnswerBody, Framer, MeasurementStatusInfo, Reply, ReplyDecoder, Request, RequestDecoder, SingleMeasResult,
+    SingleMeasResult2, StationaryModeData, SystemStatus, SystemUnits,
 };

@@ -16,7 +16,7 @@
 //! ROS client `beckjac/emscon_ros` reads them (`ros::Duration(lTime1,
 //! 1000 * lTime2)`).
 
-use super::packets::{DecodeError, PACKET_HEADER_LEN, RETURN_DATA_LEN};
+use super::frame::{DecodeError, MAX_PACKET_LEN, PACKET_HEADER_LEN, RETURN_DATA_LEN};
 
 /// `sizeof(SetContinuousTimeModeParamsCT)`.
 pub const SET_CONTINUOUS_TIME_MODE_PARAMS_CT_LEN: usize = 12 + 16;
@@ -25,8 +25,8 @@ pub const MULTI_MEAS_HEADER_LEN: usize = RETURN_DATA_LEN + 12 + 24;
 /// `sizeof(MeasValueT)`.
 pub const MEAS_VALUE_LEN: usize = 4 + 4 + 4 + 24;
 /// The most points a `MultiMeasResultT` of at most
-/// [`super::packets::MAX_PACKET_LEN`] bytes holds.
-pub const MAX_POINTS_PER_PACKET: usize = (super::packets::MAX_PACKET_LEN - MULTI_MEAS_HEADER_LEN) / MEAS_VALUE_LEN;
+/// [`MAX_PACKET_LEN`] bytes holds.
+pub const MAX_POINTS_PER_PACKET: usize = (MAX_PACKET_LEN - MULTI_MEAS_HEADER_LEN) / MEAS_VALUE_LEN;
 
 /// `struct ContinuousTimeModeDataT`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,4 +1,5 @@
 use super::codes::{command as cmd, data_type as dt, status, status_change};
+use super::frame::*;
 use super::packets::*;
 use super::stream::{ContinuousTimeModeData, MAX_POINTS_PER_PACKET, MeasValue, MultiMeasResult};
 use super::*;

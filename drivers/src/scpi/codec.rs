@@ -1,7 +1,7 @@
-//! The sans-IO codec: numbers, error queue entries, commands (encode and
-//! parse) and the line [`Decoder`]. Bytes in, lines out: no sockets, no clock.
+//! The sans-IO codec: numbers, the status word, error queue entries, commands
+//! (encode and parse) and the line [`Decoder`]. Bytes in, lines out: no sockets, no clock.
 
-use super::codes::{NO_ERROR, is_usage_code};
+use super::codes::{NO_ERROR, StatusWord, is_usage_code};
 use crate::error::ErrorKind;
 use std::collections::VecDeque;
 use std::fmt;
@@ -64,6 +64,15 @@ pub fn parse_bool(line: &str) -> Result<bool, CodecError> {
         "0" | "OFF" => Ok(false),
         _ => Err(CodecError::unparsable("1, 0, ON or OFF", line)),
     }
+}
+
+/// Parse a `STAT?` reply: a decimal integer 0..=65535.
+pub fn parse_status(line: &str) -> Result<StatusWord, CodecError> {
+    let t = line.trim();
+    if t.is_empty() || t.len() > 5 || !t.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(CodecError::unparsable("a status word (integer 0..=65535)", line));
+    }
+    t.parse::<u16>().map(StatusWord).map_err(|_| CodecError::unparsable("a status word (integer 0..=65535)", line))
 }
 
 /// One entry of the controller's error queue: `<code>,"<text>"`.

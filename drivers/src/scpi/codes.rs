@@ -1,7 +1,6 @@
 //! The controller's error codes (SCPI-99 ranges) and the bits of the `STAT?`
 //! status word (see the module documentation of [`crate::scpi`]).
 
-use super::codec::CodecError;
 #[cfg(doc)]
 use crate::error::ErrorKind;
 use crate::traits::{DeviceFault, Limit, PositionerStatus};
@@ -80,7 +79,7 @@ pub mod bits {
     pub const FAULT: u16 = PAU_FAULT | ERROR_LIMIT;
 }
 
-/// A decoded `STAT?` word.
+/// A decoded `STAT?` word (parsed by [`super::parse_status`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct StatusWord(pub u16);
 
@@ -129,15 +128,6 @@ impl StatusWord {
         correction_enabled: bool,
     ) -> PositionerStatus {
         PositionerStatus { moving: self.moving(), in_position, fault, limit: self.limit(), correction_enabled }
-    }
-
-    /// Parse a `STAT?` reply: a decimal integer 0..=65535.
-    pub fn parse(line: &str) -> Result<Self, CodecError> {
-        let t = line.trim();
-        if t.is_empty() || t.len() > 5 || !t.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(CodecError::unparsable("a status word (integer 0..=65535)", line));
-        }
-        t.parse::<u16>().map(StatusWord).map_err(|_| CodecError::unparsable("a status word (integer 0..=65535)", line))
     }
 }
 

@@ -1,6 +1,8 @@
 //! [`ScpiPositioner`]: the [`Positioner`] driver over any async byte stream.
 
-use super::codec::{Address, CodecError, Column, Command, Decoder, ErrorEntry, parse_count, parse_number};
+use super::codec::{
+    Address, CodecError, Column, Command, Decoder, ErrorEntry, parse_count, parse_number, parse_status,
+};
 use super::codes::{DEVICE_SPECIFIC_ERROR, StatusWord};
 use crate::error::{DriverError, ErrorKind, Result};
 use crate::stream::Drain;
@@ -503,7 +505,7 @@ where
     async fn status(&mut self) -> Result<PositionerStatus> {
         self.check_units().await?;
         let line = self.query(&[], Command::StatusQuery, "status (STAT?)").await?;
-        let word = StatusWord::parse(&line).map_err(|e| self.garbled("status (STAT?)", e))?;
+        let word = parse_status(&line).map_err(|e| self.garbled("status (STAT?)", e))?;
         let fault = if word.fault() {
             Some(self.fault_detail(word).await?)
         } else {

@@ -171,8 +171,8 @@
 //! # Layout
 //!
 //! - `codes`: the controller's error codes and the `STAT?` status word;
-//! - `codec`: the sans-IO codec (numbers, error entries, commands, the line
-//!   [`Decoder`]);
+//! - `codec`: the sans-IO codec (numbers, the status word, error entries,
+//!   commands, the line [`Decoder`]);
 //! - `driver`: [`ScpiPositioner`], the [`Positioner`] driver over a byte
 //!   stream.
 //!

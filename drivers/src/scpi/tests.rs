@@ -73,9 +73,9 @@ fn replies_parse_and_refuse_garbage() {
     for bad in ["", "abc", "inf", "NaN", "1e999", "12,5", "0x10", "1 2"] {
         assert!(parse_number(bad).is_err(), "{bad}");
     }
-    assert_eq!(StatusWord::parse("4865").unwrap(), StatusWord(4865));
+    assert_eq!(parse_status("4865").unwrap(), StatusWord(4865));
     for bad in ["70000", "-1", "12.0", "", "0x10"] {
-        assert!(StatusWord::parse(bad).is_err(), "{bad}");
+        assert!(parse_status(bad).is_err(), "{bad}");
     }
     assert_eq!(ErrorEntry::parse("0,\"No error\"").unwrap(), ErrorEntry::none());
     assert_eq!(
@@ -329,7 +329,7 @@ proptest! {
             prop_assert!(line.len() <= max);
             let _ = Command::parse(&line);
             let _ = parse_number(&line);
-            let _ = StatusWord::parse(&line);
+            let _ = parse_status(&line);
             let _ = ErrorEntry::parse(&line);
             let _ = ErrorEntry::parse_list(&line);
         }

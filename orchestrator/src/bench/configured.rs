@@ -7,6 +7,7 @@ use crate::bench::instruments::Instruments;
 use crate::config::SurveyConfig;
 use crate::error::bad_input;
 use crate::survey::{ConfiguredSetup, Setup, SurveySource};
+use anyhow::Context as _;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
@@ -56,7 +57,7 @@ pub fn configured_plan(cfg: &SurveyConfig, overrides: PlanOverrides, path: &Path
         (_, _, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional),
         (_, _, None) => SurveyPlan::full_circle(points, runs, bidirectional),
     };
-    let mut plan = plan.map_err(|e| bad_input(format!("{}: {e}", path.display())))?;
+    let mut plan = plan.with_context(|| path.display().to_string())?;
     if let Some(overrun) = cfg.survey.overrun_deg {
         plan.overrun_deg = overrun;
     }
@@ -165,6 +166,8 @@ mod tests {
         let wrong = PlanOverrides { points: Some(24), ..PlanOverrides::default() };
         let e = Bench::configured(&elevation, wrong).unwrap_err();
         assert_eq!(crate::error::exit_status(&e), 2);
-        assert!(e.to_string().contains("--points must be 36"), "{e:#}");
+        // The plan's error under the file's name, as the command line prints it.
+        let shown = format!("{e:#}");
+        assert!(shown.contains("scpi-serial-elevation.toml: ") && shown.contains("--points must be 36"), "{shown}");
     }
 }

@@ -90,7 +90,7 @@ impl Bench {
         let preset =
             Preset::by_name(&req.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", req.preset)))?;
         let model = match &req.model_file {
-            Some(path) => Model::from_file(path)?,
+            Some(path) => crate::inputs::read_model(path)?,
             None => preset.model.clone(),
         };
         let plan = match (req.reference, preset.travel) {

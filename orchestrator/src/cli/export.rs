@@ -1,8 +1,8 @@
 //! `survey export --csv FILE`: write a survey in the import format.
 
-use super::support::load_survey;
 use crate::csvio::write_survey_csv;
 use crate::error::path_error;
+use crate::load::{Axis, load_read_only};
 use crate::progress::{self, Progress};
 use anyhow::Context as _;
 use clap::Args;
@@ -20,11 +20,12 @@ pub struct ExportArgs {
 
 pub async fn export(db: &Path, args: ExportArgs) -> anyhow::Result<()> {
     let progress = Progress::spinner("loading the survey", progress::visible(false));
-    let (survey, samples) = load_survey(db, args.survey).await?;
+    let loaded = load_read_only(db, args.survey, Axis::AsStored).await?;
+    let (survey, samples) = (&loaded.survey, &loaded.samples);
     progress.stage(format!("writing {} samples to {}", samples.len(), args.csv.display()));
     let out =
         std::fs::File::create(&args.csv).map_err(|e| path_error(e, format!("cannot create {}", args.csv.display())))?;
-    write_survey_csv(std::io::BufWriter::new(out), &samples)
+    write_survey_csv(std::io::BufWriter::new(out), samples)
         .with_context(|| format!("cannot write {}", args.csv.display()))?;
     drop(progress);
     eprintln!("wrote {} samples of survey {} to {}", samples.len(), survey.id, args.csv.display());

@@ -17,14 +17,14 @@
 //! reference and how well its axis is known, so what of the gap is the axis
 //! location is named as the reference's, with its size.
 
-use super::support::{emit, open_read_only};
-use crate::error::{bad_input, path_error};
+use super::support::emit;
+use crate::error::path_error;
+use crate::inputs::read_model;
+use crate::load::{Axis, load_read_only};
 use crate::progress::{self, Progress};
-use crate::refit::{located_axis_knowledge, reference_info, refit_survey};
 use anyhow::Context as _;
 use clap::Args;
 use std::path::{Path, PathBuf};
-use survey_processing::model::Model;
 use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 
 #[derive(Debug, Args)]
@@ -49,37 +49,22 @@ pub struct ModelGapArgs {
 }
 
 pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
-    let model = Model::from_file(&args.model)?;
+    let model = read_model(&args.model)?;
     let progress = Progress::spinner("loading the survey", progress::visible(args.json));
     // Samples come in acquisition order (by seq): drift has a time axis even without timestamps.
-    let store = open_read_only(db).await?;
-    let loaded = async {
-        let survey = store.resolve(args.survey).await?;
-        let refit = if args.located_axis { None } else { refit_survey(&store, &survey).await? };
-        let located = if refit.is_none() { located_axis_knowledge(&store, &survey).await? } else { None };
-        let samples = match &refit {
-            Some(_) => Vec::new(),
-            None => store.samples(survey.id).await?,
-        };
-        anyhow::Ok((survey, samples, refit, located))
-    }
-    .await;
-    store.close().await;
-    let (survey, samples, refit, located) = loaded?;
-    let options = ModelGapOptions {
-        reference: reference_info(&survey, refit.as_ref().map(|(_, r)| r), located.as_ref()),
-        ..ModelGapOptions::default()
-    };
-    let compared = refit.as_ref().map_or(&samples, |(s, _)| s);
+    let axis = if args.located_axis { Axis::Located } else { Axis::Refitted };
+    let loaded = load_read_only(db, args.survey, axis).await?;
+    let (survey, refit) = (&loaded.survey, &loaded.refit);
+    let options = ModelGapOptions { reference: loaded.reference_info(), ..ModelGapOptions::default() };
+    let compared = &loaded.samples;
     progress.stage(format!(
         "comparing survey {} ({} samples) with {}",
         survey.id,
         compared.len(),
         args.model.display()
     ));
-    let gap = survey_processing::modelgap::model_gap(compared, &model, &options).map_err(|e| {
-        bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, args.model.display()))
-    })?;
+    let gap = survey_processing::modelgap::model_gap(compared, &model, &options)
+        .with_context(|| format!("survey {} cannot be compared with the model {}", survey.id, args.model.display()))?;
     drop(progress);
     if let Some(out) = &args.out {
         write_model(out, &gap, &args.model, survey.id)?;
@@ -89,14 +74,14 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
         let mut doc = serde_json::to_value(&gap).context("the model-gap document does not serialise")?;
         if let Some(o) = doc.as_object_mut() {
             o.insert("survey_id".into(), survey.id.into());
-            o.insert("axis_refit".into(), serde_json::to_value(refit.as_ref().map(|(_, r)| r))?);
+            o.insert("axis_refit".into(), serde_json::to_value(refit)?);
             o.insert("model".into(), args.model.display().to_string().into());
             o.insert("model_out".into(), args.out.as_ref().map(|p| p.display().to_string()).into());
         }
         emit(&format!("{doc}\n"));
     } else {
         let mut text = format!("survey {}, model {}\n", survey.id, args.model.display());
-        if let Some((_, r)) = &refit {
+        if let Some(r) = refit {
             text += &r.text();
         }
         text += &gap.to_text();

@@ -1,14 +1,15 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
 
-use super::support::{emit, open_read_only};
+use super::support::emit;
+use crate::load::{Axis, load_read_only};
 use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::progress::{self, Progress};
-use crate::refit::{located_axis_knowledge, refit_survey, uncertainty_inputs};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
-use survey_processing::export::controllers::{Controller, Directions};
+use survey_processing::export::controllers::Controller;
 use survey_processing::export::generic::{Sign, Values};
+use survey_processing::export::layout::Directions;
 
 #[derive(Debug, Args)]
 pub struct ProcessArgs {
@@ -158,25 +159,10 @@ impl From<TableArgs> for ExportOverrides {
 
 pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     let progress = Progress::spinner("loading the survey", progress::visible(args.json));
-    let store = open_read_only(db).await?;
-    let loaded = async {
-        let survey = store.resolve(args.survey).await?;
-        let refit = if args.located_axis { None } else { refit_survey(&store, &survey).await? };
-        let samples = match &refit {
-            Some(_) => Vec::new(),
-            None => store.samples(survey.id).await?,
-        };
-        // Corrected for the drift when the survey asked for it.
-        let drift = store.drift_points(survey.id).await?;
-        let samples = crate::drift::for_analysis(&survey, samples, &drift);
-        let refit = refit.map(|(s, r)| (crate::drift::for_analysis(&survey, s, &drift), r));
-        let located = if refit.is_none() { located_axis_knowledge(&store, &survey).await? } else { None };
-        anyhow::Ok((survey, samples, refit, located))
-    }
-    .await;
-    store.close().await;
-    let (survey, samples, refit, located) = loaded?;
-    let uncertainty = uncertainty_inputs(&survey, refit.as_ref().map(|(_, r)| r), located.as_ref());
+    let axis = if args.located_axis { Axis::Located } else { Axis::Refitted };
+    let loaded = load_read_only(db, args.survey, axis).await?;
+    let survey = &loaded.survey;
+    let uncertainty = loaded.uncertainty_inputs();
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
     let opts = ProcessOptions {
         design: args.design,
@@ -185,17 +171,18 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         export: args.tables.into(),
         uncertainty,
     };
-    let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
+    // Corrected for the drift when the survey asked for it.
+    let to_process = loaded.analysed();
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
-    let outcome = process_survey(&survey, to_process, opts)?;
+    let outcome = process_survey(survey, &to_process, opts)?;
     drop(progress);
-    let out = match &refit {
-        Some((_, r)) if args.json => {
+    let out = match &loaded.refit {
+        Some(r) if args.json => {
             let mut doc = outcome.json();
             doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
             format!("{doc}\n")
         }
-        Some((_, r)) => format!("{}{}", r.text(), outcome.text()),
+        Some(r) => format!("{}{}", r.text(), outcome.text()),
         None if args.json => format!("{}\n", outcome.json()),
         None => outcome.text(),
     };

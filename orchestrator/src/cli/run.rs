@@ -122,7 +122,7 @@ pub struct RunArgs {
 pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     // A bad recipe is found before hours of measuring, not after.
     if let Some(path) = &args.recipe {
-        survey_processing::recipe::Recipe::from_file(path)?;
+        crate::inputs::read_recipe(path)?;
     }
     let mut bench = match &args.config {
         Some(path) => Bench::configured(

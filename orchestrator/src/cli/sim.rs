@@ -10,11 +10,11 @@
 use super::support::emit;
 use crate::config::SurveyConfig;
 use crate::error::bad_input;
+use crate::inputs::read_model;
 use crate::sim::{SimOptions, serve};
 use crate::stop::Stop;
 use clap::Args;
 use std::path::PathBuf;
-use survey_processing::model::Model;
 use survey_sims::faults::FaultRates;
 
 #[derive(Debug, Args)]
@@ -47,7 +47,7 @@ pub struct SimArgs {
 
 pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     let cfg = SurveyConfig::from_file(&args.config)?;
-    let model = args.model.as_deref().map(Model::from_file).transpose()?;
+    let model = args.model.as_deref().map(read_model).transpose()?;
     if !(0.0..=0.5).contains(&args.faults) {
         return Err(bad_input(format!("--faults is a fraction of requests from 0 to 0.5, got {}", args.faults)));
     }

@@ -5,11 +5,13 @@
 //! its statistics are those of its complete runs only: a run cut short would
 //! weigh its targets unevenly.
 
-use super::support::{emit, load_survey_for_analysis};
-use crate::error::bad_input;
+use super::support::emit;
+use crate::load::{Axis, load_read_only};
 use crate::output::{iso_json, iso_text};
 use crate::survey::{SurveyRecord, SurveyStatus};
+use anyhow::Context as _;
 use clap::Args;
+use std::borrow::Cow;
 use std::path::Path;
 use survey_processing::Sample;
 use survey_processing::iso230::iso230_2;
@@ -60,19 +62,21 @@ fn completion(survey: &SurveyRecord, samples: &[Sample]) -> Option<Completion> {
 }
 
 pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
-    let (survey, samples, drift) = load_survey_for_analysis(db, args.survey).await?;
+    let loaded = load_read_only(db, args.survey, Axis::AsStored).await?;
+    let (survey, drift) = (&loaded.survey, &loaded.drift);
+    let samples = loaded.analysed();
     let id = survey.id;
-    let completion = completion(&survey, &samples);
+    let completion = completion(survey, &samples);
     let incomplete = completion.as_ref().filter(|c| !c.complete);
-    let used: Vec<Sample> = match incomplete {
+    let used: Cow<[Sample]> = match incomplete {
         Some(c) => samples.iter().filter(|s| c.complete_runs.contains(&s.run)).copied().collect(),
         None => samples,
     };
-    let iso = iso230_2(&used).map_err(|e| {
+    let iso = iso230_2(&used).with_context(|| {
         let what = incomplete.map_or(String::new(), |c| {
             format!(" (it is {}: {} of {} runs complete)", survey.status.as_str(), c.runs_complete(), c.runs_planned)
         });
-        bad_input(format!("survey {id} cannot give ISO 230-2 statistics{what}: {e}"))
+        format!("survey {id} cannot give ISO 230-2 statistics{what}")
     })?;
     if args.json {
         let mut doc = iso_json(id, &iso);
@@ -83,7 +87,7 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
             doc["runs_planned"] = c.runs_planned.into();
         }
         if !drift.is_empty() {
-            doc["drift"] = crate::drift::json(&survey, &drift);
+            doc["drift"] = crate::drift::json(survey, drift);
         }
         emit(&format!("{doc}\n"));
     } else {
@@ -98,8 +102,8 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
             );
         }
         text += &iso_text(id, &iso);
-        text += &survey_processing::drift::text(&drift);
-        if crate::drift::correction_asked(&survey) && !drift.is_empty() {
+        text += &survey_processing::drift::text(drift);
+        if crate::drift::correction_asked(survey) && !drift.is_empty() {
             text += "the statistics above are of the samples corrected for this drift (drift_control.correct)\n";
         }
         emit(&text);

@@ -32,7 +32,7 @@ use crate::survey::SurveyRecord;
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use survey_processing::Sample;
-use survey_processing::model::{Design, Model};
+use survey_processing::model::Design;
 use survey_processing::pipeline::{PipelineError, Processed, Replay};
 use survey_processing::recipe::Recipe;
 use survey_processing::uncertainty::{Uncertainty, UncertaintyInputs};
@@ -143,7 +143,7 @@ pub fn compute(
 ) -> anyhow::Result<(Processed, DesignSource)> {
     let id = survey.id;
     let (design, design_source) = match &opts.design {
-        Some(path) => (Model::from_file(path)?.design, format!("--design {}", path.display())),
+        Some(path) => (crate::inputs::read_model(path)?.design, format!("--design {}", path.display())),
         None => match &survey.model {
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {

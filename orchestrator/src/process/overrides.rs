@@ -3,9 +3,9 @@
 //! in an error. The recipe written beside the table holds the result, so a
 //! recalibration replaying it writes the same controller files.
 
-use crate::error::bad_input;
-use survey_processing::export::controllers::{Controller, Directions};
+use survey_processing::export::controllers::Controller;
 use survey_processing::export::generic::{Sign, Values};
+use survey_processing::export::layout::Directions;
 use survey_processing::recipe::{ChoiceError, ExportChoices, Recipe};
 
 /// Every export choice the command line can make; `None` keeps the recipe's.
@@ -121,11 +121,23 @@ pub fn flag_of(key: &str) -> Option<&'static str> {
     })
 }
 
-/// A choice that cannot be honoured, as bad input naming the flag and the recipe key.
+/// An export choice of the command line that cannot be honoured: the flag
+/// and the recipe key it sets.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{flag} ({}): {}", choice.key, choice.message)]
+pub struct FlagError {
+    /// The flag (`--table-points`).
+    pub flag: &'static str,
+    /// What is wrong with the choice it made.
+    pub choice: ChoiceError,
+}
+
+/// A choice that cannot be honoured, naming the flag that made it (else the
+/// recipe key).
 pub fn choice_error(e: &ChoiceError) -> anyhow::Error {
     match flag_of(&e.key) {
-        Some(flag) => bad_input(format!("{flag} ({}): {}", e.key, e.message)),
-        None => bad_input(e.to_string()),
+        Some(flag) => FlagError { flag, choice: e.clone() }.into(),
+        None => e.clone().into(),
     }
 }
 

@@ -39,16 +39,18 @@ pub mod units;
 pub mod verification;
 
 use crate::error::{bad_input, path_error};
+use crate::inputs::read_model;
+use crate::load::{Axis, Loaded, load};
 use crate::process::ProcessOptions;
 use crate::store::Store;
 use crate::survey::{SurveyRecord, SurveySource};
+use anyhow::Context as _;
 use header::{Certificate, CertificateFlags};
 use page::{escape, section};
 use std::path::{Path, PathBuf};
 use survey_processing::Sample;
 use survey_processing::errormap::ErrorMap;
 use survey_processing::iso230::iso230_2;
-use survey_processing::model::Model;
 use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 use survey_processing::pipeline::{PipelineError, Processed};
 pub use units::Units;
@@ -92,49 +94,57 @@ pub struct ReportData {
 
 /// Read what the report of survey `id` (the latest when `None`) shows.
 pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> anyhow::Result<ReportData> {
-    let survey = store.resolve(id).await?;
-    let stored = store.samples(survey.id).await?;
-    if stored.is_empty() {
-        return Err(bad_input(format!("survey {} holds no samples yet", survey.id)));
+    let loaded = load(store, id, Axis::Refitted).await?;
+    if loaded.samples.is_empty() {
+        return Err(bad_input(format!("survey {} holds no samples yet", loaded.survey.id)));
     }
-    let refit = crate::refit::refit_survey(store, &survey).await?;
-    let located = match &refit {
-        Some(_) => None,
-        None => crate::refit::located_axis_knowledge(store, &survey).await?,
-    };
-    let drift_points = store.drift_points(survey.id).await?;
-    let (samples, refit) = match refit {
-        Some((refitted, r)) => (refitted, Some(r)),
-        None => (stored.clone(), None),
-    };
+    let verification = find_verification(store, &loaded).await?;
+    let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
+    let Loaded { survey, samples, drift, .. } = loaded;
+    Ok(ReportData {
+        survey,
+        samples,
+        processed,
+        verification,
+        model_gap,
+        drift: drift.iter().map(|p| (p.at_s, p.drift_deg)).collect(),
+        uncertainty,
+        generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+    })
+}
+
+/// The processing (or why there is none), the model-gap steps with
+/// `--model`, and the table's uncertainty budget of `loaded`.
+type Analysed = (Result<Processed, String>, Option<(String, ModelGap)>, Option<uncertainty::UncertaintyBudget>);
+
+fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
+    let survey = &loaded.survey;
     // Corrected for the drift when the survey asked for it, as `survey process` does.
-    let analysed = crate::drift::for_analysis(&survey, samples.clone(), &drift_points);
-    let verification = find_verification(store, &survey, &stored, &samples).await?;
+    let analysed = loaded.analysed();
     let process_opts = ProcessOptions {
         design: opts.design.clone(),
         recipe: opts.recipe.clone(),
         table_out: None,
         ..Default::default()
     };
-    let processed = match crate::process::compute(&survey, &analysed, &process_opts) {
+    let processed = match crate::process::compute(survey, &analysed, &process_opts) {
         Ok((p, _)) => Ok(p),
         Err(e) if e.downcast_ref::<PipelineError>().is_some() => Err(format!("{e:#}")),
         Err(e) => return Err(e),
     };
     let model_gap = match &opts.model {
         Some(path) => {
-            let model = Model::from_file(path)?;
+            let model = read_model(path)?;
             // As `survey model-gap` compares it: around the refitted axis, told the reference.
-            let reference = crate::refit::reference_info(&survey, refit.as_ref(), located.as_ref());
-            let options = ModelGapOptions { reference, ..ModelGapOptions::default() };
-            let gap = survey_processing::modelgap::model_gap(&samples, &model, &options).map_err(|e| {
-                bad_input(format!("survey {} cannot be compared with the model {}: {e}", survey.id, path.display()))
+            let options = ModelGapOptions { reference: loaded.reference_info(), ..ModelGapOptions::default() };
+            let gap = survey_processing::modelgap::model_gap(&loaded.samples, &model, &options).with_context(|| {
+                format!("survey {} cannot be compared with the model {}", survey.id, path.display())
             })?;
             Some((path.display().to_string(), gap))
         }
         None => None,
     };
-    let inputs = crate::refit::uncertainty_inputs(&survey, refit.as_ref(), located.as_ref());
+    let inputs = loaded.uncertainty_inputs();
     let uncertainty = processed.as_ref().ok().map(|p| {
         let u = survey_processing::uncertainty::uncertainty(p, &analysed, &inputs);
         uncertainty::UncertaintyBudget {
@@ -148,46 +158,36 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
                 .collect(),
         }
     });
-    Ok(ReportData {
-        survey,
-        samples,
-        processed,
-        verification,
-        model_gap,
-        drift: drift_points.iter().map(|p| (p.at_s, p.drift_deg)).collect(),
-        uncertainty,
-        generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-    })
+    Ok((processed, model_gap, uncertainty))
 }
 
-/// The verification pair of `survey`: for a verification survey, the survey
-/// it verifies; otherwise the latest verification of its table. The native
-/// side is processed as the rest of the report is (around the refitted axis
-/// of a tracker survey, `processed`); the corrected side as stored.
-async fn find_verification(
-    store: &Store,
-    survey: &SurveyRecord,
-    stored: &[Sample],
-    processed: &[Sample],
-) -> anyhow::Result<Option<Verification>> {
+/// The verification pair of the survey of `loaded`: for a verification
+/// survey, the survey it verifies; otherwise the latest verification of its
+/// table. The native side is processed as the rest of the report is (around
+/// the refitted axis of a tracker survey); the corrected side as stored. The
+/// report's own samples are one side (see [`Verification`]); the other is
+/// loaded here.
+async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Option<Verification>> {
+    let survey = &loaded.survey;
     let directional = |r: &SurveyRecord| {
         r.verification.as_ref().and_then(|v| v.correction.as_ref()).is_some_and(|t| t.is_directional())
     };
     if survey.source == SurveySource::Verification {
         let Some(of) = &survey.verification else { return Ok(None) };
-        let native_record = store.survey(of.verifies_survey).await?;
-        let native = match crate::refit::refit_survey(store, &native_record).await? {
-            Some((refitted, _)) => refitted,
-            None => store.samples(of.verifies_survey).await?,
-        };
+        let native = load(store, Some(of.verifies_survey), Axis::Refitted).await?.samples;
         if native.is_empty() {
             return Ok(None);
         }
+        // The corrected side as stored: the report's own samples, unless they were refitted.
+        let corrected = match &loaded.refit {
+            Some(_) => Some(store.samples(survey.id).await?),
+            None => None,
+        };
         return Ok(Some(Verification {
             native_id: of.verifies_survey,
-            native,
+            native: Some(native),
             verification_id: survey.id,
-            corrected: stored.to_vec(),
+            corrected,
             directional: directional(survey),
         }));
     }
@@ -199,9 +199,9 @@ async fn find_verification(
     let Some(v) = latest else { return Ok(None) };
     Ok(Some(Verification {
         native_id: survey.id,
-        native: processed.to_vec(),
+        native: None,
         verification_id: v.id,
-        corrected: store.samples(v.id).await?,
+        corrected: Some(store.samples(v.id).await?),
         directional: directional(v),
     }))
 }
@@ -224,7 +224,7 @@ fn summary(d: &ReportData, units: Units) -> String {
         }
     }
     if let Some(v) = &d.verification {
-        let errors: Vec<f64> = v.corrected.iter().map(Sample::error_deg).collect();
+        let errors: Vec<f64> = v.corrected(&d.samples).iter().map(Sample::error_deg).collect();
         let peak = survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg;
         rows.push(vec![format!("corrected peak error ±, measured (survey {})", v.verification_id), units.show(peak)]);
     }
@@ -279,7 +279,12 @@ pub fn html(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
         }
     }
     if let Some(v) = &d.verification {
-        body += &section("verification", "Native and corrected accuracy", true, &verification::section(v, units)?);
+        body += &section(
+            "verification",
+            "Native and corrected accuracy",
+            true,
+            &verification::section(v, &d.samples, units)?,
+        );
     }
     if let Some((model, gap)) = &d.model_gap {
         body += &section("model-gap", "Model and measurement", true, &modelgap::section(gap, model, units)?);

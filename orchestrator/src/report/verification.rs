@@ -9,24 +9,42 @@ use super::units::Units;
 use survey_processing::Sample;
 use survey_processing::errormap::ErrorMap;
 
-/// A calibration survey and the verification of its table.
+/// A calibration survey and the verification of its table. One side is the
+/// survey the report is of: its samples are the report's own (`None` here,
+/// given to [`Verification::native`] and [`Verification::corrected`]).
 #[derive(Debug, Clone)]
 pub struct Verification {
     /// The survey the table was made from.
     pub native_id: i64,
-    /// Its samples.
-    pub native: Vec<Sample>,
+    /// Its samples, or `None`: the report's own.
+    pub native: Option<Vec<Sample>>,
     /// The verification survey.
     pub verification_id: i64,
-    /// Its samples, measured with the table applied.
-    pub corrected: Vec<Sample>,
+    /// Its samples as stored, measured with the table applied, or `None`: the report's own.
+    pub corrected: Option<Vec<Sample>>,
     /// Whether the table had forward and reverse columns.
     pub directional: bool,
 }
 
-/// The section: both error figures over one y range, and the figures side by side.
-pub fn section(v: &Verification, units: Units) -> anyhow::Result<String> {
-    let (Ok(native), Ok(corrected)) = (ErrorMap::from_samples(&v.native), ErrorMap::from_samples(&v.corrected)) else {
+impl Verification {
+    /// The native survey's samples; `own` are the report's.
+    pub fn native<'a>(&'a self, own: &'a [Sample]) -> &'a [Sample] {
+        self.native.as_deref().unwrap_or(own)
+    }
+
+    /// The verification survey's samples; `own` are the report's.
+    pub fn corrected<'a>(&'a self, own: &'a [Sample]) -> &'a [Sample] {
+        self.corrected.as_deref().unwrap_or(own)
+    }
+}
+
+/// The section: both error figures over one y range, and the figures side
+/// by side; `own` are the report's samples.
+pub fn section(v: &Verification, own: &[Sample], units: Units) -> anyhow::Result<String> {
+    let (native_samples, corrected_samples) = (v.native(own), v.corrected(own));
+    let (Ok(native), Ok(corrected)) =
+        (ErrorMap::from_samples(native_samples), ErrorMap::from_samples(corrected_samples))
+    else {
         return Ok(
             "<p class=\"note\">The verification is incomplete (a target or run is missing): no comparison.</p>\n"
                 .into(),
@@ -36,10 +54,12 @@ pub fn section(v: &Verification, units: Units) -> anyhow::Result<String> {
     let y = padded(a.0.min(b.0), a.1.max(b.1), 0.06);
     let (native_svg, legend_html) = errors::svg(&native, units, Some(y.clone()))?;
     let (corrected_svg, _) = errors::svg(&corrected, units, Some(y))?;
-    let doc = crate::verify::figures(v.verification_id, v.native_id, &v.native, &v.corrected, None, v.directional)?.doc;
+    let doc =
+        crate::verify::figures(v.verification_id, v.native_id, native_samples, corrected_samples, None, v.directional)?
+            .doc;
     let f = |k: &str| doc[k].as_f64().unwrap_or(f64::NAN);
     let iso = |k: &str| doc["iso230_2"][k].as_f64();
-    let native_iso = survey_processing::iso230::iso230_2(&v.native).ok();
+    let native_iso = survey_processing::iso230::iso230_2(native_samples).ok();
     let spacing = |m: &ErrorMap| {
         let t = &m.targets_deg;
         if t.len() > 1 { format!("{} targets, {:.4} to {:.4} deg", t.len(), t[0], t[t.len() - 1]) } else { "-".into() }

@@ -13,7 +13,7 @@
 
 use super::fanuc::{FanucOptions, FanucTable};
 use super::generic::GenericTable;
-use super::layout::{DefaultSpacing, Grid, RangeChoice, Reader, Span, resolve};
+use super::layout::{DefaultSpacing, Directions, Grid, RangeChoice, Reader, Span, resolve};
 use super::linuxcnc::LinuxCncTable;
 use super::sinumerik::{Sinumerik840d, SinumerikOptions};
 use super::{Applied, predicted_peak_deg};
@@ -62,19 +62,6 @@ impl std::str::FromStr for Controller {
             format!("unknown controller '{s}' (expected {})", Controller::ALL.map(Controller::as_str).join(", "))
         })
     }
-}
-
-/// Which directions a controller table holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Directions {
-    /// Forward and reverse when the table is direction-aware, else one.
-    #[default]
-    Auto,
-    /// One set of values for both directions (the mean of a direction-aware table).
-    Combined,
-    /// Forward and reverse (equal for a one-column table).
-    Separate,
 }
 
 /// One file of a controller.

@@ -1,6 +1,7 @@
 //! Where a controller table's points fall and what they hold: the range and
-//! spacing the user chose (or each format's default), and the table read at
-//! those points, low-passed to what the spacing can hold.
+//! spacing the user chose (or each format's default), the table read at
+//! those points, low-passed to what the spacing can hold, and which
+//! directions it holds.
 //!
 //! A full-circle table is periodic: it is read at any joint position, several
 //! turns included (a controller that holds its end values and never wraps,
@@ -13,9 +14,23 @@
 use crate::Direction;
 use crate::resample::Resampler;
 use crate::table::CorrectionTable;
+use serde::{Deserialize, Serialize};
 
 /// Relative tolerance on "a whole number of intervals".
 const WHOLE: f64 = 1e-6;
+
+/// Which directions a controller table holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Directions {
+    /// Forward and reverse when the table is direction-aware, else one.
+    #[default]
+    Auto,
+    /// One set of values for both directions (the mean of a direction-aware table).
+    Combined,
+    /// Forward and reverse (equal for a one-column table).
+    Separate,
+}
 
 /// The user's choice of range and spacing; `None` takes the format's default.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

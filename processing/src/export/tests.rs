@@ -2,8 +2,9 @@
 //! its text by a reader written from the format's description (not from the
 //! writer), and applied to a survey the way the controller applies it.
 
-use super::controllers::{Controller, ControllerExport, Directions, build};
+use super::controllers::{Controller, ControllerExport, build};
 use super::generic::{Sign, Values};
+use super::layout::Directions;
 use crate::correction::ErrorFigures;
 use crate::model::Design;
 use crate::pipeline::process;
