@@ -50,7 +50,7 @@ pub async fn conclude(
     db: &Path,
     options: ConcludeOptions,
 ) -> anyhow::Result<Concluded> {
-    let loaded = crate::load::load(store, Some(id), crate::load::Axis::AsStored).await?;
+    let loaded = crate::load::load(store, Some(id.into()), crate::load::Axis::AsStored).await?;
     let (record, drift) = (&loaded.survey, &loaded.drift);
     let samples = loaded.analysed();
     let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;

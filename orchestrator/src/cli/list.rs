@@ -1,7 +1,7 @@
 //! `survey list [--json]` and `survey show ID [--json]`: what a database
 //! holds, read-only.
 //!
-//! `list --json` prints `{"db": ..., "surveys": [{"id", "status", "source",
+//! `list --json` prints `{"db": ..., "surveys": [{"id", "uid", "asset", "status", "source",
 //! "points", "runs", "bidirectional", "samples", "planned_samples",
 //! "created_at", "updated_at"}, ...]}`, oldest first; `show --json` one
 //! survey with its plan, instruments, located axis, model and event log.
@@ -22,9 +22,9 @@ pub struct ListArgs {
 
 #[derive(Debug, Args)]
 pub struct ShowArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(value_name = "ID")]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -34,6 +34,8 @@ pub struct ShowArgs {
 fn summary(r: &SurveyRecord) -> Value {
     json!({
         "id": r.id,
+        "uid": r.uid,
+        "asset": r.asset,
         "status": r.status.as_str(),
         "source": r.source.to_column(),
         "points": r.points,
@@ -138,6 +140,8 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let mut s = format!("survey {} ({})\n", r.id, r.status.as_str());
+    let _ = writeln!(s, "  uid          {}", r.uid);
+    let _ = writeln!(s, "  asset        {}", r.asset);
     let _ = writeln!(s, "  source       {}", r.source.to_column());
     let _ = writeln!(s, "  created      {}, last change {}", r.created_at, r.updated_at);
     let samples = match r.planned_samples {

@@ -19,9 +19,9 @@ pub enum UnitsArg {
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     /// The folder to write index.html into (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,

@@ -21,9 +21,9 @@ use std::time::Duration;
 
 #[derive(Debug, Args)]
 pub struct ResumeArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,

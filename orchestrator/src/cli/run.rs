@@ -88,6 +88,10 @@ pub struct RunArgs {
     /// A stall needs a wire: `survey sim --fault-rates`.
     #[arg(long, value_name = "SPEC")]
     pub fault_rates: Option<String>,
+    /// The asset (the axis measured) the survey belongs to [default: [asset] id
+    /// of the configuration, or sim-PRESET on the simulated bench].
+    #[arg(long, value_name = "ID", value_parser = crate::survey::asset_id)]
+    pub asset: Option<String>,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -165,7 +169,15 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         Some(n) => Store::open_limited(db, n).await?,
         None => Store::open(db).await?,
     };
-    let (id, lock) = store.create_acquired_survey(&bench.new_survey()).await?;
+    let mut new = bench.new_survey();
+    if let Some(asset) = &args.asset {
+        new.asset = asset.clone();
+    } else if new.asset == crate::survey::UNASSIGNED {
+        eprintln!(
+            "note: the survey belongs to no asset (`unassigned`): give [asset] id in the configuration or --asset"
+        );
+    }
+    let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, bench.clock.now().as_secs_f64()).await?;
     let plan = bench.plan.clone();
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");

@@ -43,7 +43,7 @@ use crate::inputs::read_model;
 use crate::load::{Axis, Loaded, load};
 use crate::process::ProcessOptions;
 use crate::store::Store;
-use crate::survey::{SurveyRecord, SurveySource};
+use crate::survey::{SurveyRecord, SurveyRef, SurveySource};
 use anyhow::Context as _;
 use header::{Certificate, CertificateFlags};
 use page::{escape, section};
@@ -93,7 +93,7 @@ pub struct ReportData {
 }
 
 /// Read what the report of survey `id` (the latest when `None`) shows.
-pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> anyhow::Result<ReportData> {
+pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) -> anyhow::Result<ReportData> {
     let loaded = load(store, id, Axis::Refitted).await?;
     if loaded.samples.is_empty() {
         return Err(bad_input(format!("survey {} holds no samples yet", loaded.survey.id)));
@@ -174,7 +174,7 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
     };
     if survey.source == SurveySource::Verification {
         let Some(of) = &survey.verification else { return Ok(None) };
-        let native = load(store, Some(of.verifies_survey), Axis::Refitted).await?.samples;
+        let native = load(store, Some(of.verifies_survey.into()), Axis::Refitted).await?.samples;
         if native.is_empty() {
             return Ok(None);
         }

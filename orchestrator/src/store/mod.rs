@@ -29,6 +29,7 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod checks;
 mod drift;
 mod lock;
 mod samples;
@@ -39,6 +40,7 @@ mod surveys;
 mod tests;
 mod tx;
 
+pub use checks::CheckDecision;
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
 pub use scan::StoredPass;
 pub use sink::StoreSink;
@@ -94,6 +96,7 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
+    (4, "assets", include_str!("../../../migrations/0004_assets.sql")),
 ];
 
 fn migrator() -> Migrator {
@@ -262,8 +265,9 @@ impl Store {
         // Two processes opening a new database at the same moment race to
         // switch it to WAL (SQLite answers SQLITE_BUSY at once rather than
         // wait, to avoid a deadlock) and to apply migration 1 (the loser's
-        // transaction fails with "table surveys already exists" and leaves
-        // nothing behind). Either way the loser opens again, and then finds
+        // transaction fails with "table surveys already exists", or with
+        // "duplicate column name" for a later migration, and leaves nothing
+        // behind). Either way the loser opens again, and then finds
         // the database set up; a few tries, a short pause between them.
         const TRIES: u32 = 10;
         let mut tries = 0;
@@ -282,8 +286,9 @@ impl Store {
             let raced = match &e {
                 sqlx::migrate::MigrateError::Execute(inner)
                 | sqlx::migrate::MigrateError::ExecuteMigration(inner, _) => {
-                    inner.as_database_error().is_some_and(|d| d.message().contains("already exists"))
-                        || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
+                    inner.as_database_error().is_some_and(|d| {
+                        d.message().contains("already exists") || d.message().contains("duplicate column name")
+                    }) || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
                 }
                 _ => false,
             };

@@ -10,7 +10,7 @@ use survey_processing::geometry::AxisFit;
 
 use super::tx::WriteTx;
 use super::{AcquirerLock, CHUNK_ROWS, NotFound, Store, real};
-use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyStatus};
+use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyRef, SurveyStatus};
 
 /// One entry of a survey's event log.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -25,7 +25,7 @@ pub struct EventRow {
     pub message: String,
 }
 
-const SURVEY_COLUMNS: &str = "SELECT s.id, s.created_at, s.updated_at, s.status, s.source, \
+const SURVEY_COLUMNS: &str = "SELECT s.id, s.uid, s.asset, s.check_of, s.created_at, s.updated_at, s.status, s.source, \
      s.points, s.runs, s.bidirectional, s.config_json, s.model_toml, s.instruments_json, \
      s.axis_json, s.started_at_s, s.ended_at_s, s.planned_samples, \
      (SELECT COUNT(*) FROM samples AS c WHERE c.survey_id = s.id) AS sample_count \
@@ -232,11 +232,24 @@ impl Store {
         Ok(id)
     }
 
-    /// The survey `id`, or the latest one when `id` is `None`. A [`NotFound`]
-    /// error when that survey does not exist or the database holds none.
-    pub async fn resolve(&self, id: Option<i64>) -> anyhow::Result<SurveyRecord> {
-        match id {
-            Some(id) => self.survey(id).await,
+    /// The survey with this uid. A [`NotFound`] error when there is none.
+    pub async fn survey_by_uid(&self, uid: &str) -> anyhow::Result<SurveyRecord> {
+        let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(SURVEY_COLUMNS);
+        qb.push(" WHERE s.uid = ").push_bind(uid.to_ascii_lowercase());
+        let row = qb.build().fetch_optional(&self.pool).await?;
+        match row {
+            Some(row) => self.record(&row),
+            None => Err(NotFound(format!("no survey with uid {uid} in {}", self.path.display())).into()),
+        }
+    }
+
+    /// The survey named by `r` (an id or a uid), or the latest one when `r`
+    /// is `None`. A [`NotFound`] error when that survey does not exist or the
+    /// database holds none.
+    pub async fn resolve(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
+        match r {
+            Some(SurveyRef::Id(id)) => self.survey(id).await,
+            Some(SurveyRef::Uid(uid)) => self.survey_by_uid(&uid).await,
             None => match self.latest_survey_id().await? {
                 Some(id) => self.survey(id).await,
                 None => Err(NotFound(format!(
@@ -256,6 +269,14 @@ impl Store {
         rows.iter().map(|r| self.record(r)).collect()
     }
 
+    /// The surveys of an asset, in the order they were made (oldest first).
+    pub async fn surveys_of_asset(&self, asset: &str) -> anyhow::Result<Vec<SurveyRecord>> {
+        let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(SURVEY_COLUMNS);
+        qb.push(" WHERE s.asset = ").push_bind(asset).push(" ORDER BY s.created_at, s.id");
+        let rows = qb.build().fetch_all(&self.pool).await?;
+        rows.iter().map(|r| self.record(r)).collect()
+    }
+
     /// A survey row, typed (see [`crate::survey`]): a column that does not
     /// parse is a [`crate::survey::Damaged`] error.
     fn record(&self, row: &SqliteRow) -> anyhow::Result<SurveyRecord> {
@@ -267,9 +288,12 @@ impl Store {
 pub(super) async fn insert_survey(conn: &mut SqliteConnection, s: &NewSurvey) -> anyhow::Result<i64> {
     let planned = s.planned_samples.map(i64::try_from).transpose().context("planned_samples is too large")?;
     let done = sqlx::query(
-        "INSERT INTO surveys (status, source, points, runs, bidirectional, config_json, \
-         model_toml, instruments_json, planned_samples) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        "INSERT INTO surveys (uid, asset, check_of, status, source, points, runs, bidirectional, config_json, \
+         model_toml, instruments_json, planned_samples) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     )
+    .bind(crate::survey::new_uid())
+    .bind(&s.asset)
+    .bind(&s.check_of)
     .bind(s.status.as_str())
     .bind(s.source.to_column())
     .bind(s.points.map(i64::from))
@@ -295,6 +319,9 @@ fn columns_from_row(row: &SqliteRow) -> anyhow::Result<StoredColumns> {
     let count: i64 = row.try_get("sample_count")?;
     Ok(StoredColumns {
         id,
+        uid: row.try_get("uid")?,
+        asset: row.try_get("asset")?,
+        check_of: row.try_get("check_of")?,
         created_at: row.try_get("created_at")?,
         updated_at: row.try_get("updated_at")?,
         status: row.try_get("status")?,

@@ -24,6 +24,7 @@ fn new_survey() -> NewSurvey {
         instruments: serde_json::json!({"positioner": "sim-positioner", "reference": "sim-tracker"}),
         verification: None,
         planned_samples: Some(144),
+        ..NewSurvey::default()
     }
 }
 
@@ -237,8 +238,8 @@ async fn resolve_latest_and_not_found() {
     let b = store.create_survey(&new_survey()).await.unwrap();
     assert!(b > a);
     assert_eq!(store.resolve(None).await.unwrap().id, b);
-    assert_eq!(store.resolve(Some(a)).await.unwrap().id, a);
-    let e = store.resolve(Some(7)).await.unwrap_err();
+    assert_eq!(store.resolve(Some(a.into())).await.unwrap().id, a);
+    let e = store.resolve(Some(7.into())).await.unwrap_err();
     assert!(is_not_found(&e));
     assert!(e.downcast_ref::<NotFound>().is_some());
     assert_eq!(e.to_string(), format!("no survey with id 7 in {}", dir.path().join("survey.db").display()));
