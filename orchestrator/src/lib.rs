@@ -21,6 +21,7 @@ pub mod csvio;
 pub mod drift;
 pub mod error;
 pub mod inputs;
+pub mod life;
 pub mod load;
 pub mod output;
 pub mod process;

@@ -142,7 +142,7 @@ impl Setup {
     /// id`, else [`UNASSIGNED`].
     pub fn default_asset(&self) -> String {
         match self {
-            Setup::Simulated(s) => format!("sim-{}", s.preset),
+            Setup::Simulated(s) => simulated_asset(&s.preset),
             Setup::Configured(c) => c.config.asset.as_ref().map_or(UNASSIGNED.to_string(), |a| a.id.clone()),
             Setup::Imported { .. } | Setup::Unrecorded => UNASSIGNED.to_string(),
         }
@@ -468,6 +468,11 @@ impl SurveyRecord {
 /// `--asset`, configurations without `[asset] id`, surveys stored before
 /// assets existed (other than simulated ones).
 pub const UNASSIGNED: &str = "unassigned";
+
+/// The asset of a survey on the simulated bench of `preset`: `sim-<preset>`.
+pub fn simulated_asset(preset: &str) -> String {
+    format!("sim-{preset}")
+}
 
 /// Check an asset id: 1-64 characters of letters, digits and `-_./`.
 pub fn asset_id(text: &str) -> Result<String, String> {

@@ -6,8 +6,10 @@
 //! stores nothing. Nothing below this module imports it.
 
 mod check;
+mod compare;
 mod docs;
 mod export;
+mod history;
 mod import;
 mod list;
 mod model_gap;
@@ -124,6 +126,18 @@ Examples:
   survey show          # the latest survey
   survey show 3 --json")]
     Show(list::ShowArgs),
+    /// An asset's surveys in time order, and what changed from each complete survey to the next.
+    #[command(after_help = "\
+Examples:
+  survey history                          # the asset of the latest survey
+  survey history --asset bay-2/az --json")]
+    History(history::HistoryArgs),
+    /// Has the positioner changed from survey A to survey B, and does A's table still hold?
+    #[command(after_help = "\
+Examples:
+  survey compare 3 7
+  survey compare 3 7 --json")]
+    Compare(compare::CompareArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
 Examples:
@@ -160,8 +174,11 @@ pub fn main() -> ExitCode {
     match outcome {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            eprintln!("error: {e:#}");
-            ExitCode::from(crate::error::exit_status(&e))
+            let status = crate::error::exit_status(&e);
+            // A recalibration is what `run --check` reports, not an error.
+            let prefix = if status == crate::error::RECALIBRATED { "" } else { "error: " };
+            eprintln!("{prefix}{e:#}");
+            ExitCode::from(status)
         }
         Err(e) => {
             eprintln!("error: cannot start the async runtime: {e}");
@@ -199,6 +216,8 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Process(args) => process::process(db, args).await,
         Command::List(args) => list::list(db, args).await,
         Command::Show(args) => list::show(db, args).await,
+        Command::History(args) => history::history(db, args).await,
+        Command::Compare(args) => compare::compare(db, args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),
