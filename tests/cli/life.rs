@@ -206,6 +206,20 @@ fn compare_finds_wear_a_disturbed_mounting_and_more_backlash_and_nothing_in_the_
     let text = bench.survey(&["history"]).success().stdout;
     assert!(text.starts_with("asset sim-fig8: 6 surveys\n") && text.contains("2 -> 3: changed"), "{text}");
     bench.survey(&["history", "--asset", "nowhere"]).bad_input(&["no survey of the asset nowhere"]);
+
+    // The report of a survey shows its asset's history up to it; the asset's first survey has none.
+    bench.survey(&["report", "--survey", "5", "--out", "r5"]).success();
+    let html = bench.read("r5/index.html");
+    assert!(
+        html.contains("<section id=\"history\"") && html.contains("id=\"fig-history-lines\""),
+        "no history section"
+    );
+    assert!(html.contains("id=\"fig-history-a\"") && html.contains("5 (this survey)"));
+    assert!(
+        html.contains("20 cycles/rev") && html.contains("From survey 2 to survey 3: the 20 cycles/rev line changed")
+    );
+    bench.survey(&["report", "--survey", "1", "--out", "r1"]).success();
+    assert!(!bench.read("r1/index.html").contains("<section id=\"history\""));
 }
 
 #[test]

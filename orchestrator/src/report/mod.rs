@@ -26,6 +26,7 @@
 pub mod drift;
 pub mod errors;
 pub mod header;
+pub mod history;
 pub mod hysteresis;
 pub mod interpolation;
 pub mod iso;
@@ -90,6 +91,8 @@ pub struct ReportData {
     pub uncertainty: Option<uncertainty::UncertaintyBudget>,
     /// When the report was made (UTC, RFC 3339).
     pub generated: String,
+    /// The asset's history up to this survey, when it has one.
+    pub history: Option<crate::life::history::History>,
 }
 
 /// Read what the report of survey `id` (the latest when `None`) shows.
@@ -99,6 +102,9 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
         return Err(bad_input(format!("survey {} holds no samples yet", loaded.survey.id)));
     }
     let verification = find_verification(store, &loaded).await?;
+    // Its asset's history, up to this survey; a history that cannot be read
+    // does not keep the report from being written.
+    let history = crate::life::history::history(store, &loaded.survey.asset, Some(loaded.survey.id)).await.ok();
     let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
     let Loaded { survey, samples, drift, .. } = loaded;
     Ok(ReportData {
@@ -110,6 +116,7 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
         drift: drift.iter().map(|p| (p.at_s, p.drift_deg)).collect(),
         uncertainty,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        history,
     })
 }
 
@@ -294,6 +301,9 @@ pub fn html(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
     }
     if let Some(b) = &d.uncertainty {
         body += &section("uncertainty", "Uncertainty of the table", true, &uncertainty::section(b, units));
+    }
+    if let Some(history_html) = d.history.as_ref().map(|h| history::section(h, s.id, units)).transpose()?.flatten() {
+        body += &section("history", "The asset's history", true, &history_html);
     }
     match iso230_2(&d.samples) {
         Ok(iso) => {

@@ -80,11 +80,16 @@ fn false_alarms_on_control_pairs() {
     let pairs: u64 = std::env::var("COMPARE_FALSE_ALARM_PAIRS").ok().and_then(|v| v.parse().ok()).unwrap_or(60);
     for (what, second) in [("full", full as fn(&Model, u64) -> Vec<Sample>), ("check", check)] {
         let (mut changed, mut low, mut tests) = (0u64, 0usize, 0usize);
+        // Which test said "changed": a line, the backlash, the map.
+        let mut by = [0usize; 3];
         for seed in 0..pairs {
             let a = full(&truth, 1000 + 2 * seed);
             let b = second(&truth, 1001 + 2 * seed);
             let c = compare(&a, &b, &options()).unwrap();
             changed += u64::from(c.verdict == Verdict::Changed);
+            by[0] += c.lines.iter().filter(|l| l.significant).count();
+            by[1] += usize::from(c.backlash.as_ref().is_some_and(|b| b.significant));
+            by[2] += usize::from(c.map.as_ref().is_some_and(|m| m.significant));
             let p: Vec<f64> = c
                 .lines
                 .iter()
@@ -97,8 +102,12 @@ fn false_alarms_on_control_pairs() {
         }
         let expected = 0.01 * pairs as f64;
         eprintln!(
-            "{what}: {changed} of {pairs} control pairs changed ({:.4}); {low} of {tests} tests with p < 0.1",
-            changed as f64 / pairs as f64
+            "{what}: {changed} of {pairs} control pairs changed ({:.4}: a line {}, the backlash {}, the map {}); {low} of \
+             {tests} tests with p < 0.1",
+            changed as f64 / pairs as f64,
+            by[0],
+            by[1],
+            by[2]
         );
         assert!(changed as f64 <= expected + 4.5 * expected.sqrt().max(1.0), "{what}: {changed} of {pairs}");
         let share = low as f64 / tests as f64;
