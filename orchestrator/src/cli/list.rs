@@ -62,12 +62,13 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
     store.close().await;
     let surveys = surveys?;
     if args.json {
-        let doc = json!({"db": db.display().to_string(), "surveys": surveys.iter().map(summary).collect::<Vec<_>>()});
+        let doc =
+            json!({"db": crate::store::lab::display(db), "surveys": surveys.iter().map(summary).collect::<Vec<_>>()});
         emit(&format!("{doc}\n"));
         return Ok(());
     }
     if surveys.is_empty() {
-        emit(&format!("{} holds no survey yet\n", db.display()));
+        emit(&format!("{} holds no survey yet\n", crate::store::lab::display(db)));
         return Ok(());
     }
     let mut s = format!(

@@ -14,6 +14,7 @@ mod import;
 mod list;
 mod model_gap;
 mod process;
+mod push;
 mod report;
 mod resume;
 mod run;
@@ -35,8 +36,15 @@ use std::process::ExitCode;
 #[derive(Debug, Parser)]
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100, after_help = EXAMPLES)]
 pub struct Cli {
-    /// The SQLite database that holds the surveys.
-    #[arg(long, global = true, value_name = "PATH", default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
+    /// The SQLite database that holds the surveys, or a lab store's postgres:// URL (read commands).
+    #[arg(
+        long,
+        global = true,
+        value_name = "PATH|URL",
+        default_value = crate::process::DEFAULT_DB,
+        env = "SURVEY_DB",
+        hide_env_values = true
+    )]
     pub db: PathBuf,
 
     #[command(subcommand)]
@@ -138,6 +146,12 @@ Examples:
   survey compare 3 7
   survey compare 3 7 --json")]
     Compare(compare::CompareArgs),
+    /// Copy complete surveys from this station's SQLite file to the lab store, each once by its uid.
+    #[command(after_help = "\
+Examples:
+  survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
+  SURVEY_LAB=postgres://... survey push --json        # the latest survey")]
+    Push(push::PushArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
 Examples:
@@ -218,6 +232,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Show(args) => list::show(db, args).await,
         Command::History(args) => history::history(db, args).await,
         Command::Compare(args) => compare::compare(db, args).await,
+        Command::Push(args) => push::push(db, args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),

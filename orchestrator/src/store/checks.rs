@@ -5,8 +5,8 @@
 use serde::Serialize;
 use sqlx::Row;
 
-use super::Store;
 use super::tx::WriteTx;
+use super::{Store, on_pool};
 
 /// A check survey's decision.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -32,7 +32,7 @@ pub struct CheckDecision {
 impl Store {
     /// Store a check survey's decision (before any recalibration).
     pub async fn record_check(&self, d: &CheckDecision) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         sqlx::query(
             "INSERT INTO checks (survey_id, against_uid, verdict, table_holds, recalibrate, reason, \
              recalibration_uid, table_file) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
@@ -54,7 +54,7 @@ impl Store {
 
     /// Record the recalibration a check called for: the new survey and its table file.
     pub async fn set_recalibration(&self, check_id: i64, uid: &str, table_file: Option<&str>) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let done = sqlx::query("UPDATE checks SET recalibration_uid = ?, table_file = ? WHERE survey_id = ?")
             .bind(uid)
             .bind(table_file)
@@ -71,28 +71,30 @@ impl Store {
 
     /// The decisions of the check surveys of `asset`, oldest first.
     pub async fn checks_of_asset(&self, asset: &str) -> anyhow::Result<Vec<CheckDecision>> {
-        let rows = sqlx::query(
-            "SELECT c.survey_id, c.against_uid, c.verdict, c.table_holds, c.recalibrate, c.reason, \
-             c.recalibration_uid, c.table_file FROM checks AS c JOIN surveys AS s ON s.id = c.survey_id \
-             WHERE s.asset = ? ORDER BY c.survey_id",
-        )
-        .bind(asset)
-        .fetch_all(&self.pool)
-        .await?;
-        rows.iter()
-            .map(|r| -> anyhow::Result<CheckDecision> {
-                Ok(CheckDecision {
-                    survey_id: r.try_get("survey_id")?,
-                    against_uid: r.try_get("against_uid")?,
-                    verdict: r.try_get("verdict")?,
-                    table_holds: r.try_get("table_holds")?,
-                    recalibrate: r.try_get("recalibrate")?,
-                    reason: r.try_get("reason")?,
-                    recalibration_uid: r.try_get("recalibration_uid")?,
-                    table_file: r.try_get("table_file")?,
+        on_pool!(self, |pool| {
+            let rows = sqlx::query(
+                "SELECT c.survey_id, c.against_uid, c.verdict, c.table_holds, c.recalibrate, c.reason, \
+                 c.recalibration_uid, c.table_file FROM checks AS c JOIN surveys AS s ON s.id = c.survey_id \
+                 WHERE s.asset = $1 ORDER BY c.survey_id",
+            )
+            .bind(asset)
+            .fetch_all(pool)
+            .await?;
+            rows.iter()
+                .map(|r| -> anyhow::Result<CheckDecision> {
+                    Ok(CheckDecision {
+                        survey_id: r.try_get("survey_id")?,
+                        against_uid: r.try_get("against_uid")?,
+                        verdict: r.try_get("verdict")?,
+                        table_holds: r.try_get("table_holds")?,
+                        recalibrate: r.try_get("recalibrate")?,
+                        reason: r.try_get("reason")?,
+                        recalibration_uid: r.try_get("recalibration_uid")?,
+                        table_file: r.try_get("table_file")?,
+                    })
                 })
-            })
-            .collect()
+                .collect()
+        })
     }
 }
 
@@ -144,7 +146,8 @@ mod tests {
         assert!(format!("{e:#}").contains("older schema (3; this version reads 4)"), "{e:#}");
         let store = Store::open(&path).await.unwrap();
         // (The setups above are cut short: read the columns themselves.)
-        let rows = sqlx::query("SELECT uid, asset FROM surveys ORDER BY id").fetch_all(&store.pool).await.unwrap();
+        let rows =
+            sqlx::query("SELECT uid, asset FROM surveys ORDER BY id").fetch_all(store.sqlite().unwrap()).await.unwrap();
         let (all_uids, assets): (Vec<String>, Vec<String>) =
             rows.iter().map(|r| (r.get::<String, _>(0), r.get::<String, _>(1))).unzip();
         assert_eq!(assets, ["sim-fig4", "unassigned", "unassigned", "bay-2/az", "bay-2/az"]);
@@ -162,7 +165,10 @@ mod tests {
         let id = store.create_survey(&NewSurvey { asset: "lab/new".into(), ..NewSurvey::default() }).await.unwrap();
         let new = store.survey(id).await.unwrap();
         assert!(is_uid(&new.uid) && !uids.contains(&new.uid.as_str()));
-        let dup = sqlx::query("UPDATE surveys SET uid = ? WHERE id = 1").bind(&new.uid).execute(&store.pool).await;
+        let dup = sqlx::query("UPDATE surveys SET uid = ? WHERE id = 1")
+            .bind(&new.uid)
+            .execute(store.sqlite().unwrap())
+            .await;
         assert!(dup.is_err(), "two surveys with one uid");
         assert_eq!(store.surveys_of_asset("lab/new").await.unwrap().iter().map(|r| r.id).collect::<Vec<_>>(), [id]);
         // A check's decision, then its recalibration.

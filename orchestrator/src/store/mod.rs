@@ -31,6 +31,7 @@
 
 mod checks;
 mod drift;
+pub mod lab;
 mod lock;
 mod samples;
 mod scan;
@@ -52,7 +53,7 @@ use std::time::Duration;
 
 use anyhow::{Context, anyhow};
 use sqlx::migrate::{Migration, MigrationType, Migrator};
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous};
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use sqlx::{ConnectOptions as _, Row, SqlSafeStr, SqlitePool};
 
 #[cfg(doc)]
@@ -131,13 +132,41 @@ pub fn is_not_found(err: &anyhow::Error) -> bool {
 /// take turns, waiting up to sqlx's acquire timeout of 30 s). Other processes
 /// can read the file at the same time (WAL); a second writer waits up to
 /// [`BUSY_TIMEOUT`] for the lock.
+///
+/// A station's store is an SQLite file; a laboratory's shared store is a
+/// PostgreSQL database ([`lab`]), opened only to read (`--db postgres://...`)
+/// or by `survey push`: every read works on either, with the same queries
+/// where the dialects agree ([`on_pool`]).
 #[derive(Debug, Clone)]
 pub struct Store {
-    pool: SqlitePool,
+    backend: Backend,
+    /// The file, or the lab store's URL without its password.
     path: PathBuf,
     /// Opened `immutable` (read-only media): the bulk reader must be too.
     immutable: bool,
 }
+
+/// The database behind a [`Store`].
+#[derive(Debug, Clone)]
+enum Backend {
+    /// A station's SQLite file.
+    Sqlite(SqlitePool),
+    /// The lab store.
+    Lab(sqlx::PgPool),
+}
+
+/// Run `$body` with `$pool` bound to the store's pool, SQLite or
+/// PostgreSQL: the same query text on both (`$1`-style parameters, which
+/// SQLite reads too), its rows mapped by the same code.
+macro_rules! on_pool {
+    ($store:expr, |$pool:ident| $body:expr) => {
+        match &$store.backend {
+            $crate::store::Backend::Sqlite($pool) => $body,
+            $crate::store::Backend::Lab($pool) => $body,
+        }
+    };
+}
+use on_pool;
 
 impl Store {
     /// Open the database at `path`, creating it if missing, and bring its schema
@@ -175,6 +204,9 @@ impl Store {
     /// written by a newer version of `survey` is refused with one message form
     /// naming the file ([`NotFound`]: bad input, exit status 2).
     pub async fn open_read_only(path: &Path) -> anyhow::Result<Store> {
+        if let Some(url) = lab::url_of(path) {
+            return lab::open(url, false).await;
+        }
         existing_file(path)?;
         let options = SqliteConnectOptions::new()
             .filename(path)
@@ -202,7 +234,7 @@ impl Store {
             }
             Err(e) => return Err(open_error(path, e)),
         };
-        let store = Store { pool, path: path.to_path_buf(), immutable };
+        let store = Store { backend: Backend::Sqlite(pool), path: path.to_path_buf(), immutable };
         if let Err(e) = store.check_schema().await {
             store.close().await;
             return Err(e);
@@ -213,10 +245,11 @@ impl Store {
     /// The file is a survey database of a schema this version reads.
     async fn check_schema(&self) -> anyhow::Result<()> {
         let path = self.path.display();
+        let pool = self.sqlite()?;
         let tables: Vec<String> = sqlx::query_scalar(
             "SELECT name FROM sqlite_master WHERE type = 'table' AND name IN ('_sqlx_migrations', 'surveys', 'samples')",
         )
-        .fetch_all(&self.pool)
+        .fetch_all(pool)
         .await
         .map_err(|e| open_error(&self.path, e))?;
         if tables.len() < 3 {
@@ -226,7 +259,7 @@ impl Store {
             .into());
         }
         let version: Option<i64> = sqlx::query_scalar("SELECT MAX(version) FROM _sqlx_migrations WHERE success")
-            .fetch_one(&self.pool)
+            .fetch_one(pool)
             .await
             .map_err(|e| open_error(&self.path, e))?;
         let known = MIGRATIONS.last().map_or(0, |m| m.0);
@@ -246,6 +279,7 @@ impl Store {
     }
 
     async fn connect(path: &Path, create: bool, limits: StoreLimits) -> anyhow::Result<Store> {
+        lab::refuse_writes(path)?;
         // busy_timeout is applied when the connection is made, before the
         // pragmas (so the switch to WAL waits for a lock instead of failing).
         let options = SqliteConnectOptions::new()
@@ -275,7 +309,13 @@ impl Store {
             tries += 1;
             let e: sqlx::migrate::MigrateError = match single_connection_pool().connect_with(options.clone()).await {
                 Ok(pool) => match migrator().run(&pool).await {
-                    Ok(()) => return Ok(Store { pool, path: path.to_path_buf(), immutable: false }),
+                    Ok(()) => {
+                        return Ok(Store {
+                            backend: Backend::Sqlite(pool),
+                            path: path.to_path_buf(),
+                            immutable: false,
+                        });
+                    }
                     Err(e) => {
                         pool.close().await;
                         e
@@ -313,13 +353,27 @@ impl Store {
 
     /// The SQLite journal mode in force (`"wal"`).
     pub async fn journal_mode(&self) -> anyhow::Result<String> {
-        let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(&self.pool).await?;
+        let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(self.sqlite()?).await?;
         Ok(mode)
     }
 
     /// Close the connection (this checkpoints the WAL into the database file).
     pub async fn close(self) {
-        self.pool.close().await;
+        on_pool!(self, |pool| pool.close().await)
+    }
+
+    /// The SQLite pool of a station's store: what every write and the
+    /// station-only reads use. The lab store is written only by `survey push`.
+    fn sqlite(&self) -> anyhow::Result<&SqlitePool> {
+        match &self.backend {
+            Backend::Sqlite(pool) => Ok(pool),
+            Backend::Lab(_) => Err(lab::written_by_push(&self.path)),
+        }
+    }
+
+    /// Whether this is the lab store (PostgreSQL).
+    pub fn is_lab(&self) -> bool {
+        matches!(self.backend, Backend::Lab(_))
     }
 
     fn no_survey(&self, id: i64) -> NotFound {
@@ -355,6 +409,7 @@ fn sqlite_code(e: &sqlx::Error) -> Option<u32> {
 
 /// The file at `path` exists and is a file ([`NotFound`] otherwise).
 fn existing_file(path: &Path) -> anyhow::Result<()> {
+    lab::refuse_writes(path)?;
     match std::fs::metadata(path) {
         Ok(m) if m.is_file() => {}
         Ok(_) => {
@@ -393,7 +448,11 @@ fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
 }
 
 /// A nullable REAL column: NULL (how SQLite stores NaN) reads as NaN.
-fn real(row: &SqliteRow, col: &str) -> anyhow::Result<f64> {
+fn real<'r, R: Row>(row: &'r R, col: &str) -> anyhow::Result<f64>
+where
+    Option<f64>: sqlx::Decode<'r, R::Database> + sqlx::Type<R::Database>,
+    for<'c> &'c str: sqlx::ColumnIndex<R>,
+{
     let v: Option<f64> = row.try_get(col)?;
     Ok(v.unwrap_or(f64::NAN))
 }

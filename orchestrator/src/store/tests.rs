@@ -93,9 +93,9 @@ async fn temp_store() -> (tempfile::TempDir, Store) {
 async fn wal_mode_and_reopen() {
     let (dir, store) = temp_store().await;
     assert_eq!(store.journal_mode().await.unwrap(), "wal");
-    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(&store.pool).await.unwrap();
+    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(sync, 2, "synchronous = FULL");
-    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(&store.pool).await.unwrap();
+    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(fk, 1);
     let id = store.create_survey(&new_survey()).await.unwrap();
     store.close().await;
@@ -206,17 +206,17 @@ async fn import_is_atomic() {
         "CREATE TEMP TRIGGER boom BEFORE INSERT ON samples WHEN NEW.seq = 900 \
          BEGIN SELECT RAISE(ABORT, 'boom'); END",
     )
-    .execute(&store.pool)
+    .execute(store.sqlite().unwrap())
     .await
     .unwrap();
     let e = store.import(&s, &good).await.unwrap_err();
     assert!(format!("{e:#}").contains("boom"), "{e:#}");
     assert!(store.list().await.unwrap().is_empty());
-    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples").fetch_one(&store.pool).await.unwrap();
+    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(n, 0);
     // The failed write retired its connection (store::tx), and the temporary
     // trigger went with it: the next connection has none.
-    sqlx::query("DROP TRIGGER IF EXISTS boom").execute(&store.pool).await.unwrap();
+    sqlx::query("DROP TRIGGER IF EXISTS boom").execute(store.sqlite().unwrap()).await.unwrap();
 
     let id = store.import(&s, &good).await.unwrap();
     let row = store.survey(id).await.unwrap();
