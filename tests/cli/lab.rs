@@ -264,3 +264,254 @@ fn read_commands_give_the_same_answers_from_the_lab_store_as_from_the_station() 
     let html = bench.read("lab-report/index.html");
     assert!(html.contains("id=\"verification\"") && html.contains("ISO 230-2"), "the lab's report");
 }
+
+/// The uids `push --json` listed under `key`.
+fn uids(doc: &Value, key: &str) -> Vec<String> {
+    doc[key].as_array().unwrap_or_else(|| panic!("{key} in {doc}")).iter().map(|u| u.as_str().unwrap().into()).collect()
+}
+
+/// `n` small simulated surveys in the bench's database (seeds from `seed`).
+fn small_surveys(bench: &Bench, n: u32, seed: u32) {
+    for k in 0..n {
+        let s = (seed + k).to_string();
+        bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--seed", &s, "--json"]).success();
+    }
+}
+
+#[test]
+fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and_after_a_kill() {
+    let Some(server) = server() else { return };
+    let lab = server.database("exactly_once");
+    let count = || -> usize { server.psql("exactly_once", "SELECT COUNT(*) FROM surveys").trim().parse().unwrap() };
+    let distinct =
+        || -> usize { server.psql("exactly_once", "SELECT COUNT(DISTINCT uid) FROM surveys").trim().parse().unwrap() };
+    let (a, b, c) = (Bench::new(), Bench::new(), Bench::new());
+    small_surveys(&a, 3, 1);
+    // A survey killed during its acquisition: not complete, not pushed.
+    let out = a.command(&["run", "--points", "36", "--runs", "2", "--sim-crash-after", "10"]).output().unwrap();
+    assert!(!out.status.success());
+    let running = a.survey(&["list", "--json"]).success().json()["surveys"][3]["uid"].as_str().unwrap().to_string();
+
+    let first = a.survey(&["push", "--to", &lab, "--all", "--json"]).success().json();
+    assert_eq!((uids(&first, "pushed").len(), uids(&first, "already").len()), (3, 0), "{first}");
+    assert_eq!(uids(&first, "not_complete"), [running.clone()]);
+    // Again: nothing new.
+    let again = a.survey(&["push", "--to", &lab, "--all", "--json"]).success().json();
+    assert_eq!((uids(&again, "pushed").len(), uids(&again, "already")), (0, uids(&first, "pushed")), "{again}");
+    // One survey by its uid; one that is not complete: bad input (so is the
+    // latest survey of this station, which is that one).
+    let one = a.survey(&["push", "--to", &lab, "--survey", &uids(&first, "pushed")[1], "--json"]).success().json();
+    assert_eq!(uids(&one, "already"), [uids(&first, "pushed")[1].clone()], "{one}");
+    a.survey(&["push", "--to", &lab, "--survey", &running])
+        .bad_input(&["is running", "only complete surveys are pushed"]);
+    a.survey(&["push", "--to", &lab]).bad_input(&["survey 4 of survey.db is running"]);
+    assert_eq!(count(), 3);
+
+    // The latest survey by default.
+    small_surveys(&b, 2, 10);
+    let latest = b.survey(&["push", "--to", &lab, "--json"]).success().json();
+    let b_latest = b.survey(&["list", "--json"]).success().json()["surveys"][1]["uid"].clone();
+    assert_eq!(latest["pushed"], serde_json::json!([b_latest]), "{latest}");
+    assert_eq!(count(), 4);
+
+    // Several stations at once, one of them twice: every survey stored once.
+    let push = |bench: &Bench| bench.command(&["push", "--to", &lab, "--all", "--json"]).spawn().unwrap();
+    let children = [push(&a), push(&b), push(&b), push(&a)];
+    for mut child in children {
+        assert!(child.wait().unwrap().success());
+    }
+    assert_eq!((count(), distinct()), (5, 5));
+
+    // A push killed midway (the second survey written, not committed): the
+    // first is stored, nothing of the second; pushed again, all of them once.
+    small_surveys(&c, 3, 20);
+    let killed =
+        c.command(&["push", "--to", &lab, "--all", "--json"]).env("SURVEY_TEST_PUSH_ABORT_AT", "2").output().unwrap();
+    use std::os::unix::process::ExitStatusExt as _;
+    assert_eq!(killed.status.signal(), Some(6), "the push aborted: {killed:?}");
+    assert_eq!(count(), 6);
+    let seq_rows: usize = server
+        .psql("exactly_once", "SELECT COUNT(*) FROM samples WHERE survey_id NOT IN (SELECT id FROM surveys)")
+        .trim()
+        .parse()
+        .unwrap();
+    assert_eq!(seq_rows, 0);
+    let rest = c.survey(&["push", "--to", &lab, "--all", "--json"]).success().json();
+    assert_eq!((uids(&rest, "pushed").len(), uids(&rest, "already").len()), (2, 1), "{rest}");
+    assert_eq!((count(), distinct()), (8, 8));
+    // Every survey whole: its samples as many as the station's.
+    let samples: usize = server.psql("exactly_once", "SELECT COUNT(*) FROM samples").trim().parse().unwrap();
+    assert_eq!(samples, 8 * 144);
+}
+
+#[test]
+fn a_password_never_shows_and_bad_urls_and_unreachable_servers_say_what_is_wrong() {
+    let Some(server) = server() else { return };
+    let lab = server.database("secrets");
+    let bench = Bench::new();
+    small_surveys(&bench, 1, 1);
+    let loud = |args: &[&str]| {
+        let mut cmd = bench.command(args);
+        cmd.env("RUST_LOG", "trace");
+        Bench::output_of(args, cmd)
+    };
+    let clean = |out: &Output| {
+        assert!(!out.stdout.contains(PASSWORD) && !out.stderr.contains(PASSWORD), "the password shows\n{out}");
+    };
+    let out = loud(&["push", "--to", &lab, "--json"]).success();
+    clean(&out);
+    let out = loud(&["--db", &lab, "list", "--json"]).success();
+    clean(&out);
+    let out = loud(&["--db", &lab, "show"]).success();
+    clean(&out);
+    // Stored records hold no password.
+    let dump = server.psql("secrets", "SELECT s::text FROM surveys AS s UNION ALL SELECT e::text FROM events AS e");
+    assert!(!dump.is_empty() && !dump.contains(PASSWORD));
+    // The environment's URL is not shown by --help.
+    let out = bench.survey_with_env(&["--help"], "SURVEY_DB", &lab).success();
+    clean(&out);
+
+    // A wrong password: bad input naming the user and the host, never the password tried.
+    let wrong = lab.replace(PASSWORD, "not-the-pw-42");
+    let out = loud(&["--db", &wrong, "list"]);
+    assert!(!out.stderr.contains("not-the-pw-42") && !out.stdout.contains("not-the-pw-42"), "{out}");
+    let port = lab.rsplit(':').next().unwrap().split('/').next().unwrap().to_string();
+    out.bad_input(&[
+        "refused the connection of survey",
+        &format!("127.0.0.1:{port}"),
+        "password authentication failed",
+    ]);
+    // A URL that is not one: bad input naming it (without its password).
+    let out = bench.survey(&["--db", "postgres://survey:pw-in-url@127.0.0.1:99999/x", "list"]);
+    assert!(!out.stderr.contains("pw-in-url"), "{out}");
+    out.bad_input(&["not a PostgreSQL URL", "postgres://survey@127.0.0.1:99999/x"]);
+    bench.survey(&["push", "--to", "lab.db"]).bad_input(&["--to lab.db", "postgres:// URL"]);
+    // No server there: a run-time failure naming the host.
+    let closed = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let out = bench.survey(&["--db", &format!("postgres://survey:{PASSWORD}@127.0.0.1:{closed}/secrets"), "list"]);
+    assert_eq!(out.code, 1, "{out}");
+    let out = out.stderr_mentions(&[&format!("cannot reach the lab store at 127.0.0.1:{closed}")]);
+    clean(&out);
+    // A database without the survey tables, and acquisition into the lab store: bad input.
+    let empty = server.database("secrets_empty");
+    on_lab(&bench, &empty, &["list"]).bad_input(&["not a survey lab store yet", "survey push --to URL"]);
+    let before = bench.stored();
+    let out = on_lab(&bench, &lab, &["run", "--points", "36", "--runs", "2"]);
+    let out = out.bad_input(&["written only by `survey push", "station's SQLite file"]);
+    clean(&out);
+    bench.write("valid.csv", VALID_CSV);
+    on_lab(&bench, &lab, &["import", "valid.csv"]).bad_input(&["written only by `survey push"]);
+    bench.assert_unchanged(&before, &out);
+}
+
+/// The SQLite schema of `db`: per table, its columns `(name, declared type,
+/// not null, place in the primary key)`, its foreign keys `(column, table)`,
+/// its indexes `(name, unique, columns)`, and the table's SQL.
+type Schema = std::collections::BTreeMap<String, Table>;
+
+#[derive(Debug, Default, PartialEq)]
+struct Table {
+    columns: Vec<(String, String, bool, usize)>,
+    foreign: Vec<(String, String)>,
+    indexes: Vec<(String, bool, String)>,
+}
+
+fn sqlite_schema(db: &Path) -> Schema {
+    let conn = rusqlite::Connection::open(db).unwrap();
+    let mut schema = Schema::new();
+    let mut tables = conn
+        .prepare("SELECT name, sql FROM sqlite_master WHERE type = 'table' AND name NOT LIKE 'sqlite_%' AND name <> '_sqlx_migrations'")
+        .unwrap();
+    let tables: Vec<(String, String)> =
+        tables.query_map([], |r| Ok((r.get(0)?, r.get(1)?))).unwrap().map(Result::unwrap).collect();
+    for (name, sql) in tables {
+        let mut t = Table::default();
+        let mut cols = conn.prepare(&format!("PRAGMA table_info({name})")).unwrap();
+        t.columns = cols
+            .query_map([], |r| {
+                let (col, ty, notnull, pk): (String, String, bool, i64) = (r.get(1)?, r.get(2)?, r.get(3)?, r.get(5)?);
+                // The mapping of types: a 0/1 INTEGER is a boolean, a column of no declared type holds reals.
+                let mapped = match ty.as_str() {
+                    "INTEGER" if sql.contains(&format!("{col} IN (0, 1)")) => "boolean",
+                    "INTEGER" => "bigint",
+                    "REAL" | "" => "double precision",
+                    "TEXT" => "text",
+                    "BLOB" => "bytea",
+                    other => panic!("{name}.{col}: type {other}"),
+                };
+                Ok((col, mapped.to_string(), notnull || pk > 0, pk as usize))
+            })
+            .unwrap()
+            .map(Result::unwrap)
+            .collect();
+        let mut fks = conn.prepare(&format!("PRAGMA foreign_key_list({name})")).unwrap();
+        t.foreign = fks.query_map([], |r| Ok((r.get(3)?, r.get(2)?))).unwrap().map(Result::unwrap).collect();
+        let mut ix = conn.prepare(&format!("PRAGMA index_list({name})")).unwrap();
+        let ix: Vec<(String, bool, String)> =
+            ix.query_map([], |r| Ok((r.get(1)?, r.get(2)?, r.get(3)?))).unwrap().map(Result::unwrap).collect();
+        for (ix_name, unique, _) in ix.into_iter().filter(|i| i.2 == "c") {
+            let mut cols = conn.prepare(&format!("PRAGMA index_info({ix_name})")).unwrap();
+            let cols: Vec<String> = cols.query_map([], |r| r.get(2)).unwrap().map(Result::unwrap).collect();
+            t.indexes.push((ix_name, unique, cols.join(",")));
+        }
+        schema.insert(name, t);
+    }
+    schema
+}
+
+fn postgres_schema(server: &Server, database: &str) -> Schema {
+    let rows = |sql: &str| -> Vec<Vec<String>> {
+        server.psql(database, sql).lines().map(|l| l.split('|').map(str::to_string).collect()).collect()
+    };
+    let mut schema = Schema::new();
+    for r in rows(
+        "SELECT c.table_name, c.column_name, c.data_type, c.is_nullable, COALESCE(k.ordinal_position, 0) \
+         FROM information_schema.columns AS c LEFT JOIN (SELECT kcu.table_name, kcu.column_name, kcu.ordinal_position \
+         FROM information_schema.table_constraints AS tc JOIN information_schema.key_column_usage AS kcu \
+         ON kcu.constraint_name = tc.constraint_name AND kcu.table_name = tc.table_name \
+         WHERE tc.constraint_type = 'PRIMARY KEY' AND tc.table_schema = 'public') AS k \
+         ON k.table_name = c.table_name AND k.column_name = c.column_name \
+         WHERE c.table_schema = 'public' AND c.table_name <> '_sqlx_migrations' ORDER BY c.table_name, c.ordinal_position",
+    ) {
+        let t = schema.entry(r[0].clone()).or_default();
+        t.columns.push((r[1].clone(), r[2].clone(), r[3] == "NO", r[4].parse().unwrap()));
+    }
+    for r in rows(
+        "SELECT tc.table_name, kcu.column_name, ccu.table_name FROM information_schema.table_constraints AS tc \
+         JOIN information_schema.key_column_usage AS kcu ON kcu.constraint_name = tc.constraint_name \
+         JOIN (SELECT DISTINCT constraint_name, table_name FROM information_schema.constraint_column_usage) AS ccu \
+         ON ccu.constraint_name = tc.constraint_name \
+         WHERE tc.constraint_type = 'FOREIGN KEY' AND tc.table_schema = 'public' ORDER BY tc.table_name, kcu.ordinal_position",
+    ) {
+        schema.get_mut(&r[0]).unwrap().foreign.push((r[1].clone(), r[2].clone()));
+    }
+    for r in rows(
+        "SELECT i.tablename, i.indexname, i.indexdef LIKE 'CREATE UNIQUE%', \
+         regexp_replace(substring(i.indexdef from '\\((.*)\\)'), ' ', '', 'g') \
+         FROM pg_indexes AS i WHERE i.schemaname = 'public' AND i.indexname NOT LIKE '%_pkey' \
+         AND i.tablename <> '_sqlx_migrations'",
+    ) {
+        schema.get_mut(&r[0]).unwrap().indexes.push((r[1].clone(), r[2] == "t", r[3].clone()));
+    }
+    schema
+}
+
+#[test]
+fn the_lab_store_s_schema_is_the_station_s_tables_columns_types_and_keys() {
+    let Some(server) = server() else { return };
+    let lab = server.database("schemas");
+    let bench = Bench::new();
+    bench.write("valid.csv", VALID_CSV);
+    bench.import("valid.csv");
+    bench.survey(&["push", "--to", &lab]).success();
+    let (mut station, mut store) = (sqlite_schema(&bench.path("survey.db")), postgres_schema(server, "schemas"));
+    for t in station.values_mut().chain(store.values_mut()) {
+        t.foreign.sort();
+        t.indexes.sort();
+    }
+    assert_eq!(station.keys().collect::<Vec<_>>(), store.keys().collect::<Vec<_>>());
+    assert!(station.len() >= 10, "{:?}", station.keys());
+    for (name, t) in &station {
+        assert_eq!(t, &store[name], "table {name}: SQLite left, PostgreSQL right");
+    }
+}
