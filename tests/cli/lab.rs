@@ -294,7 +294,7 @@ fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and
 
     let first = a.survey(&["push", "--to", &lab, "--all", "--json"]).success().json();
     assert_eq!((uids(&first, "pushed").len(), uids(&first, "already").len()), (3, 0), "{first}");
-    assert_eq!(uids(&first, "not_complete"), [running.clone()]);
+    assert_eq!(uids(&first, "not_complete"), std::slice::from_ref(&running));
     // Again: nothing new.
     let again = a.survey(&["push", "--to", &lab, "--all", "--json"]).success().json();
     assert_eq!((uids(&again, "pushed").len(), uids(&again, "already")), (0, uids(&first, "pushed")), "{again}");
