@@ -132,6 +132,7 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     })));
     doc["model"] = json!(r.model.as_ref().map(|m| m.to_toml()));
     doc["verifies_survey"] = json!(r.verification.as_ref().map(|v| v.verifies_survey));
+    doc["check_of"] = json!(r.check_of);
     doc["events"] = json!(
         events.iter().map(|e| json!({"at_s": e.at_s, "level": e.level, "message": e.message})).collect::<Vec<_>>()
     );
@@ -179,6 +180,9 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     }
     if let Some(v) = &r.verification {
         let _ = writeln!(s, "  verifies     survey {} (table {})", v.verifies_survey, v.table);
+    }
+    if let Some(uid) = &r.check_of {
+        let _ = writeln!(s, "  checks       the calibration {uid}");
     }
     for line in survey_processing::drift::text(&drift).lines() {
         let _ = writeln!(s, "  {line}");

@@ -112,6 +112,11 @@ pub async fn run_check(
              configuration, or --asset ID)",
         ));
     }
+    // A database is made only for a survey that can be made: without one,
+    // the first calibration's bench is checked before the file is created.
+    if !db.exists() {
+        drop(bench(req.size)?);
+    }
     let stop = Stop::on_signals();
     let store = Store::open(db).await?;
     let done = check_with(&store, db, req, asset, bench, &stop).await;
