@@ -156,7 +156,7 @@ pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
         crate::error::bad_input(format!("survey {} cannot be compared with survey {}: {e}", a.survey.id, b.survey.id))
     })?;
     let table_of_a_on_b = match (&a.processed, a.table_u_deg) {
-        (Ok(p), Some(u)) => table_on(&p.built.table, u, &b.samples, FALSE_ALARM_RATE),
+        (Ok(p), Some(u)) => table_on(&p.built.table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
         _ => None,
     };
     let decision = decide(&comparison, table_of_a_on_b.as_ref());
@@ -252,9 +252,11 @@ impl Compared {
         s += &format!("  false-alarm rate {} ({:.2e} per test)\n", c.false_alarm_rate, c.per_test_rate);
         match &self.table_of_a_on_b {
             Some(t) => {
+                let predicted =
+                    t.predicted_peak_deg.map_or(String::new(), |p| format!(" (on survey {}: {p:.2e})", a.survey.id));
                 s += &format!(
-                    "table of survey {} on survey {}: leaves {:.2e} deg at most ({:.2e} rms), stated U {:.2e} deg; \
-                     {} of {} cells outside ({} allowed): {}\n",
+                    "table of survey {} on survey {}: leaves {:.2e} deg at most{predicted}, {:.2e} rms; stated U {:.2e} \
+                     deg; {} of {} cells beyond it ({} allowed): {}\n",
                     a.survey.id,
                     b.survey.id,
                     t.residual_peak_deg,

@@ -36,18 +36,21 @@
 //!
 //! # Does the table in force still hold
 //!
-//! [`table_on`] applies a table (made from the first survey) to the second
-//! survey's samples and takes each cell's mean corrected error, less their
-//! mean (the table's zero reference): the systematic error the table leaves.
-//! The table was stated to leave at most `U` (k = 2) at 95 % of readouts; a
-//! cell is outside when its residual exceeds `U + 2 s / sqrt(n)` (the cell
-//! mean's own noise added: a cell whose true residual is within `U` is then
-//! outside in at most 4.55 % of surveys, whatever that residual), so while
-//! the table holds at most `p0 = 0.05 + 0.95 x 0.0455` of the cells are
-//! outside on average, and the table holds unless more cells are outside
-//! than a binomial count of `p0` allows at the stated rate. It is a test for
-//! a table that fails grossly; a change too small for it is what the tests
-//! of the lines and of the map are for.
+//! [`table_on`] applies a table (made from the first survey) to both
+//! surveys' samples and takes each cell's mean corrected error, less their
+//! mean (the table's zero reference): on the first survey, what the table
+//! was predicted to leave; on the second, what it leaves now. What was
+//! stated is that prediction within `U` (k = 2, at 95 % of readouts): at the
+//! cells both surveys measured, a cell is outside when its corrected error
+//! moved by more than `U + 2 s_d` (`s_d` the noise of the two cell means'
+//! difference: the table itself cancels, so a cell is outside by chance in at
+//! most 4.55 % of surveys while the error moved by less than `U`). The table
+//! holds unless more cells are outside than `p0 = 0.05 + 0.95 x 0.0455` of
+//! them allows (a binomial count at the stated rate). Without common cells,
+//! the second survey's residual itself is held to `U + 2 s / sqrt(n)`. It is
+//! a test of a change that matters against the table's own statement; a
+//! change too small for it is what the tests of the lines and of the map are
+//! for (a change can be significant and still within `U`).
 //!
 //! # The decision
 //!
@@ -350,16 +353,20 @@ fn map_change(common: &[(&fit::Cell, &fit::Cell)], ca: &Cells, cb: &Cells, axis_
 /// A table applied to a survey: does it still correct as stated?
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TableCheck {
-    /// The largest systematic error the table leaves (a cell's mean
-    /// corrected error, less their mean), degrees.
+    /// The largest systematic error the table leaves on the second survey
+    /// (a cell's mean corrected error, less their mean), degrees.
     pub residual_peak_deg: f64,
     /// Its rms over the cells, degrees.
     pub residual_rms_deg: f64,
+    /// The same on the first survey, the one the table was made from (what
+    /// it was predicted to leave), at the cells both measured, degrees.
+    pub predicted_peak_deg: Option<f64>,
     /// The table's stated expanded uncertainty `U` (k = 2), degrees.
     pub stated_u_deg: f64,
-    /// Cells.
+    /// Cells tested: those both surveys measured, else every cell of the second.
     pub cells: usize,
-    /// Cells whose residual exceeds `U` with their own noise added.
+    /// Cells outside: where the error moved by more than `U` (with the cell
+    /// means' noise), or without common cells, where the residual exceeds it.
     pub cells_outside: usize,
     /// The most cells that may be outside while the table holds.
     pub allowed_outside: usize,
@@ -367,25 +374,64 @@ pub struct TableCheck {
     pub holds: bool,
 }
 
-/// Apply `table` (stated to leave at most `stated_u_deg`, k = 2) to
-/// `samples` (see the module documentation); `None` when the survey has
-/// no repeatability (one run).
-pub fn table_on(table: &CorrectionTable, stated_u_deg: f64, samples: &[Sample], alpha: f64) -> Option<TableCheck> {
-    let corrected: Vec<Sample> = samples
-        .iter()
-        .map(|s| Sample { readout_deg: s.readout_deg - table.error_at(s.readout_deg, s.direction), ..*s })
-        .collect();
-    let c = cells(&corrected)?;
-    let mean = c.cells.values().map(|x| x.mean_deg).sum::<f64>() / c.cells.len() as f64;
-    let residual: Vec<(f64, usize)> = c.cells.values().map(|x| (x.mean_deg - mean, x.n)).collect();
-    let outside = residual.iter().filter(|(r, n)| r.abs() > stated_u_deg + 2.0 * (c.var / *n as f64).sqrt()).count();
+/// Apply `table`, made from survey `a` and stated to leave at most
+/// `stated_u_deg` (k = 2), to survey `b` (see the module documentation);
+/// `None` when `b` has no repeatability (one run).
+pub fn table_on(
+    table: &CorrectionTable,
+    stated_u_deg: f64,
+    a: &[Sample],
+    b: &[Sample],
+    alpha: f64,
+) -> Option<TableCheck> {
+    let corrected = |samples: &[Sample]| -> Vec<Sample> {
+        samples
+            .iter()
+            .map(|s| Sample { readout_deg: s.readout_deg - table.error_at(s.readout_deg, s.direction), ..*s })
+            .collect()
+    };
+    let cb = cells(&corrected(b))?;
+    let ca = cells(&corrected(a));
+    let centred = |c: &Cells| {
+        let mean = c.cells.values().map(|x| x.mean_deg).sum::<f64>() / c.cells.len() as f64;
+        c.cells.iter().map(move |(k, x)| (*k, x.mean_deg - mean, x.n)).collect::<Vec<_>>()
+    };
+    let residual = centred(&cb);
+    let peak = |r: &mut dyn Iterator<Item = f64>| r.fold(0.0, |m: f64, v| m.max(v.abs()));
+    let common: Vec<(f64, f64, f64)> = match &ca {
+        // The change of each common cell's corrected mean (the table cancels),
+        // less the mean change, and the noise of that change.
+        Some(ca) => {
+            let pairs: Vec<(f64, f64, f64)> = ca
+                .cells
+                .iter()
+                .filter_map(|(k, x)| {
+                    let y = cb.cells.get(k)?;
+                    Some((x.mean_deg, y.mean_deg, (ca.var / x.n as f64 + cb.var / y.n as f64).sqrt()))
+                })
+                .collect();
+            let (ma, mb) = pairs.iter().fold((0.0, 0.0), |(p, q), (x, y, _)| (p + x, q + y));
+            let n = pairs.len().max(1) as f64;
+            pairs.iter().map(|(x, y, s)| (x - ma / n, (y - mb / n) - (x - ma / n), *s)).collect()
+        }
+        None => Vec::new(),
+    };
+    let (cells_tested, outside, predicted) = if common.len() >= 3 {
+        let outside = common.iter().filter(|(_, d, s)| d.abs() > stated_u_deg + 2.0 * s).count();
+        (common.len(), outside, Some(peak(&mut common.iter().map(|c| c.0))))
+    } else {
+        let outside =
+            residual.iter().filter(|(_, r, n)| r.abs() > stated_u_deg + 2.0 * (cb.var / *n as f64).sqrt()).count();
+        (residual.len(), outside, None)
+    };
     let p0 = 0.05 + 0.95 * normal_two_sided_sf(2.0);
-    let allowed = binomial_isf(residual.len(), p0, alpha);
+    let allowed = binomial_isf(cells_tested, p0, alpha);
     Some(TableCheck {
-        residual_peak_deg: residual.iter().fold(0.0, |m, (r, _)| m.max(r.abs())),
-        residual_rms_deg: (residual.iter().map(|(r, _)| r * r).sum::<f64>() / residual.len() as f64).sqrt(),
+        residual_peak_deg: peak(&mut residual.iter().map(|r| r.1)),
+        residual_rms_deg: (residual.iter().map(|r| r.1 * r.1).sum::<f64>() / residual.len() as f64).sqrt(),
+        predicted_peak_deg: predicted,
         stated_u_deg,
-        cells: residual.len(),
+        cells: cells_tested,
         cells_outside: outside,
         allowed_outside: allowed,
         holds: outside <= allowed,
@@ -441,10 +487,11 @@ pub fn decide(c: &Comparison, table: Option<&TableCheck>) -> Decision {
         ));
     }
     if let Some(t) = table.filter(|t| !t.holds) {
+        let predicted = t.predicted_peak_deg.map_or(String::new(), |p| format!(" where it left {p:.2e} deg"));
         why.push(format!(
-            "the table in force no longer holds: it leaves {:.2e} deg (its stated U {:.2e} deg), {} of {} cells \
-             outside where {} may be",
-            t.residual_peak_deg, t.stated_u_deg, t.cells_outside, t.cells, t.allowed_outside
+            "the table in force no longer holds: it leaves {:.2e} deg{predicted}, {} of {} cells beyond its stated U \
+             {:.2e} deg where {} may be",
+            t.residual_peak_deg, t.cells_outside, t.cells, t.stated_u_deg, t.allowed_outside
         ));
     }
     if why.is_empty() {

@@ -141,10 +141,11 @@ fn the_same_positioner_twice_is_unchanged_and_its_table_holds() {
     let se = sigma * (2.0f64 / 3600.0).sqrt() * 2f64.sqrt();
     assert!((l20.change_u_deg / (3.53 * se) - 1.0).abs() < 0.06, "{} against {}", l20.change_u_deg, 3.53 * se);
 
-    let held = table_on(&table_of(&a, 360), table_u(), &b, 0.01).unwrap();
-    assert!(held.holds && held.cells == 720, "{held:?}");
-    // Stated too small, the same table does not hold.
-    assert!(!table_on(&table_of(&a, 360), table_u() / 10.0, &b, 0.01).unwrap().holds);
+    let held = table_on(&table_of(&a, 360), table_u(), &a, &b, 0.01).unwrap();
+    assert!(held.holds && held.cells == 720 && held.predicted_peak_deg.is_some(), "{held:?}");
+    // On a check survey (its cells a tenth of the calibration's) too.
+    let held = table_on(&table_of(&a, 360), table_u(), &a, &check(&truth, 3), 0.01).unwrap();
+    assert!(held.holds && held.cells == 72, "{held:?}");
     let d = decide(&c, Some(&held));
     assert!(!d.recalibrate && d.reason.starts_with("no change beyond"), "{d:?}");
 }
@@ -201,7 +202,7 @@ fn wear_a_disturbed_mounting_and_more_backlash_are_changes_named_with_their_size
                 assert!(c.lines.iter().all(|l| !l.significant), "{c:#?}");
             }
         }
-        let held = table_on(&table, table_u(), &b, 0.01).unwrap();
+        let held = table_on(&table, table_u(), &a, &b, 0.01).unwrap();
         assert!(!held.holds, "{name}: {held:?}");
         let d = decide(&c, Some(&held));
         let said = match name {
@@ -218,6 +219,36 @@ fn wear_a_disturbed_mounting_and_more_backlash_are_changes_named_with_their_size
         };
         assert!(d.reason.contains(&format!("to {size:.3e} deg")), "{name}: {d:?}");
     }
+}
+
+/// A table that corrects only part of the error (here nothing of the gear
+/// lines, as a sparse survey's table leaves aliased lines) still holds on the
+/// same positioner: what it leaves was its prediction. A change smaller than
+/// the stated `U` is significant, and the table holds all the same.
+#[test]
+fn a_table_holds_against_its_own_prediction_and_within_its_stated_u() {
+    let truth = fig8(|_| {});
+    let a = full(&truth, 1);
+    let only_once = CorrectionTable::new(
+        (0..360).map(|i| 0.0015 * (f64::from(i).to_radians() + 110f64.to_radians()).sin()).collect(),
+    )
+    .unwrap();
+    let held = table_on(&only_once, table_u(), &a, &full(&truth, 2), 0.01).unwrap();
+    assert!(held.holds && held.residual_peak_deg > 0.01, "{held:?}");
+    assert!(held.predicted_peak_deg.is_some_and(|p| (p - held.residual_peak_deg).abs() < 2e-3), "{held:?}");
+    // Without common cells (targets half a degree apart), the residual itself is held to U: it does not hold.
+    let shifted: Vec<f64> = circle(360).iter().map(|t| t + 0.5).collect();
+    let elsewhere = simulate(&truth, &shifted, 5, true, REFERENCE_SIGMA, 3);
+    assert!(!table_on(&only_once, table_u(), &a, &elsewhere, 0.01).unwrap().holds);
+    // The gear line grown by 2e-4 deg: significant, within a stated U of 1e-3 deg.
+    let worn = fig8(|e| e[0] = periodic(PeriodicKind::GearPass, 20.0, 0.0080, 0.0));
+    let b = full(&worn, 4);
+    let c = compare(&a, &b, &options()).unwrap();
+    assert!(line(&c, 20.0).significant, "{c:#?}");
+    let held = table_on(&table_of(&a, 360), 1e-3, &a, &b, 0.01).unwrap();
+    assert!(held.holds, "{held:?}");
+    let d = decide(&c, Some(&held));
+    assert!(d.recalibrate && !d.reason.contains("no longer holds"), "{d:?}");
 }
 
 #[test]
@@ -254,7 +285,7 @@ fn surveys_without_repeatability_cannot_be_compared() {
     let e = compare(&full(&truth, 1), &one_run, &options()).unwrap_err();
     assert_eq!(e, CompareError::NoRepeatability("B"));
     assert!(e.to_string().contains("survey B has no target measured twice"));
-    assert!(table_on(&table_of(&full(&truth, 1), 360), 1e-4, &one_run, 0.01).is_none());
+    assert!(table_on(&table_of(&full(&truth, 1), 360), 1e-4, &full(&truth, 1), &one_run, 0.01).is_none());
 }
 
 #[test]
