@@ -298,6 +298,16 @@ fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and
     // Again: nothing new.
     let again = a.survey(&["push", "--to", &lab, "--all", "--json"]).success().json();
     assert_eq!((uids(&again, "pushed").len(), uids(&again, "already")), (0, uids(&first, "pushed")), "{again}");
+    // Two stations setting a new lab store up at the same moment: one schema, every survey once.
+    let fresh = server.database("exactly_once_fresh");
+    small_surveys(&b, 2, 10);
+    let first_pushes = [&a, &b].map(|s| s.command(&["push", "--to", &fresh, "--all"]).spawn().unwrap());
+    for mut child in first_pushes {
+        assert!(child.wait().unwrap().success());
+    }
+    let fresh_count = server.psql("exactly_once_fresh", "SELECT COUNT(DISTINCT uid) || ' ' || COUNT(*) FROM surveys");
+    assert_eq!(fresh_count.trim(), "5 5");
+
     // One survey by its uid; one that is not complete: bad input (so is the
     // latest survey of this station, which is that one).
     let one = a.survey(&["push", "--to", &lab, "--survey", &uids(&first, "pushed")[1], "--json"]).success().json();
@@ -308,7 +318,6 @@ fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and
     assert_eq!(count(), 3);
 
     // The latest survey by default.
-    small_surveys(&b, 2, 10);
     let latest = b.survey(&["push", "--to", &lab, "--json"]).success().json();
     let b_latest = b.survey(&["list", "--json"]).success().json()["surveys"][1]["uid"].clone();
     assert_eq!(latest["pushed"], serde_json::json!([b_latest]), "{latest}");

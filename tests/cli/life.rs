@@ -323,22 +323,28 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
 /// refitted axis, settling: everything the unit test's model-only surveys
 /// lack): control pairs, the Figure 8 positioner surveyed twice (360
 /// targets, 3 runs, both ways) with different seeds. Two pairs by default,
-/// both "unchanged"; `COMPARE_BENCH_PAIRS=100` counts more and allows the
-/// stated 1 % with a Poisson count's 4.5 standard deviations.
+/// both "unchanged" and the table holding; `COMPARE_BENCH_PAIRS=100`
+/// counts more and allows the stated 1 % of each with a Poisson count's 4.5
+/// standard deviations.
 #[test]
 fn control_pairs_on_the_simulated_bench_are_unchanged_at_the_stated_rate() {
     let pairs: u32 = std::env::var("COMPARE_BENCH_PAIRS").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
     let bench = Bench::new();
-    let mut changed = Vec::new();
+    let (mut changed, mut failed) = (Vec::new(), 0);
     for k in 0..pairs {
         let (a, b) = (full(&bench, 100 + 2 * k, None), full(&bench, 101 + 2 * k, None));
         let doc = bench.survey(&["compare", &a.to_string(), &b.to_string(), "--json"]).success().json();
         if doc["verdict"] == "changed" {
             changed.push(doc["reason"].as_str().unwrap_or_default().to_string());
         }
+        failed += usize::from(doc["table_of_a_on_b"]["holds"] != true);
     }
-    eprintln!("{} of {pairs} control pairs on the simulated bench changed: {changed:#?}", changed.len());
+    eprintln!(
+        "{} of {pairs} control pairs on the simulated bench changed, the table failed in {failed}: {changed:#?}",
+        changed.len()
+    );
     let expected = 0.01 * f64::from(pairs);
     let allowed = if pairs <= 2 { 0.0 } else { expected + 4.5 * expected.sqrt().max(1.0) };
     assert!(changed.len() as f64 <= allowed, "{} of {pairs}: {changed:#?}", changed.len());
+    assert!(failed as f64 <= allowed, "the table failed in {failed} of {pairs}");
 }
