@@ -301,7 +301,8 @@ fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and
     // Two stations setting a new lab store up at the same moment: one schema, every survey once.
     let fresh = server.database("exactly_once_fresh");
     small_surveys(&b, 2, 10);
-    let first_pushes = [&a, &b].map(|s| s.command(&["push", "--to", &fresh, "--all"]).spawn().unwrap());
+    let quiet = |mut c: Command| c.stdout(Stdio::null()).spawn().unwrap();
+    let first_pushes = [&a, &b].map(|s| quiet(s.command(&["push", "--to", &fresh, "--all"])));
     for mut child in first_pushes {
         assert!(child.wait().unwrap().success());
     }
@@ -324,7 +325,7 @@ fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and
     assert_eq!(count(), 4);
 
     // Several stations at once, one of them twice: every survey stored once.
-    let push = |bench: &Bench| bench.command(&["push", "--to", &lab, "--all", "--json"]).spawn().unwrap();
+    let push = |bench: &Bench| quiet(bench.command(&["push", "--to", &lab, "--all", "--json"]));
     let children = [push(&a), push(&b), push(&b), push(&a)];
     for mut child in children {
         assert!(child.wait().unwrap().success());
