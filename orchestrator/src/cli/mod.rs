@@ -18,6 +18,7 @@ mod push;
 mod report;
 mod resume;
 mod run;
+mod serve;
 mod sim;
 mod stats;
 mod support;
@@ -152,6 +153,12 @@ Examples:
   survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
   SURVEY_LAB=postgres://... survey push --json        # the latest survey")]
     Push(push::PushArgs),
+    /// Serve the lab's pages, read-only: assets, live surveys, histories, reports and the JSON documents.
+    #[command(after_help = "\
+Examples:
+  survey --db station.db serve                          # http://127.0.0.1:8080
+  survey --db postgres://viewer@lab-db/surveys serve --listen 127.0.0.1:0")]
+    Serve(serve::ServeArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
 Examples:
@@ -233,6 +240,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::History(args) => history::history(db, args).await,
         Command::Compare(args) => compare::compare(db, args).await,
         Command::Push(args) => push::push(db, args).await,
+        Command::Serve(args) => serve::serve(db, args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),
