@@ -402,7 +402,7 @@ fn a_survey_being_acquired_moves_on_the_open_page_without_a_reload() {
     // Once `/` is served, the station stores 20 more samples; then wait for
     // the page to read /api/live after them.
     let deadline = Instant::now() + Duration::from_secs(60);
-    let mut wait_for = |what: &str| loop {
+    let wait_for = |what: &str| loop {
         let line = server.log.recv_timeout(deadline.saturating_duration_since(Instant::now())).unwrap_or_else(|_| {
             panic!("no request for {what} within the deadline");
         });

@@ -2,7 +2,7 @@
 //! ([`crate::serve`]), until SIGINT or SIGTERM.
 
 use super::support::emit;
-use crate::serve::{ServeOptions, serve as serve_on, signalled};
+use crate::serve::{ServeOptions, on_signals, serve as serve_on};
 use anyhow::Context as _;
 use clap::Args;
 use serde_json::json;
@@ -59,7 +59,8 @@ pub async fn serve(db: &Path, args: ServeArgs) -> anyhow::Result<()> {
         due_after_days: args.due_after,
         refresh_ms: (args.refresh * 1000.0).round() as u64,
     };
+    let signalled = on_signals().context("cannot listen for SIGINT and SIGTERM")?;
     emit(&format!("{}\n", json!({"listening": format!("http://{at}")})));
-    serve_on(listener, options, signalled()).await.context("serving the pages")?;
+    serve_on(listener, options, signalled).await.context("serving the pages")?;
     Ok(())
 }

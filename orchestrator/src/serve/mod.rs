@@ -31,10 +31,21 @@ use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::sync::Arc;
 
-/// The Content-Security-Policy of every response: styles inline, the one
-/// same-origin script, JSON from this server only; nothing else.
-pub const POLICY: &str = "default-src 'none'; style-src 'unsafe-inline'; script-src 'self'; connect-src 'self'; \
-                          img-src 'self' data:; base-uri 'none'; form-action 'none'; frame-ancestors 'none'";
+/// The pages' policy, as a literal (for `concat!`).
+macro_rules! policy {
+    () => {
+        "default-src 'none'; style-src 'unsafe-inline'; script-src 'self'; connect-src 'self'; img-src 'self' data:; \
+         base-uri 'none'; form-action 'none'"
+    };
+}
+
+/// The Content-Security-Policy of the pages (in their `<meta>`): styles
+/// inline, the one same-origin script, JSON from this server only; nothing else.
+pub const POLICY: &str = policy!();
+
+/// The policy of every response's header: [`POLICY`], and no page may frame
+/// these (a directive only a header carries).
+const HEADER_POLICY: &str = concat!(policy!(), "; frame-ancestors 'none'");
 
 /// What the server is told.
 #[derive(Debug, Clone)]
@@ -153,7 +164,7 @@ async fn guard(req: Request, next: Next) -> Response {
         r
     };
     let h = response.headers_mut();
-    h.insert(header::CONTENT_SECURITY_POLICY, HeaderValue::from_static(POLICY));
+    h.insert(header::CONTENT_SECURITY_POLICY, HeaderValue::from_static(HEADER_POLICY));
     h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
     h.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
@@ -171,20 +182,17 @@ pub async fn serve(
     axum::serve(listener, router(options)).with_graceful_shutdown(shutdown).await
 }
 
-/// Resolves on SIGINT or SIGTERM.
-pub async fn signalled() {
+/// A future that resolves on SIGINT or SIGTERM, the handlers installed now
+/// (before the ready line: a signal from then on ends the server gracefully).
+pub fn on_signals() -> std::io::Result<impl Future<Output = ()> + Send + 'static> {
     use tokio::signal::unix::{SignalKind, signal};
-    match signal(SignalKind::terminate()) {
-        Ok(mut term) => {
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {}
-                _ = term.recv() => {}
-            }
+    let (mut interrupt, mut terminate) = (signal(SignalKind::interrupt())?, signal(SignalKind::terminate())?);
+    Ok(async move {
+        tokio::select! {
+            _ = interrupt.recv() => {}
+            _ = terminate.recv() => {}
         }
-        Err(_) => {
-            let _ = tokio::signal::ctrl_c().await;
-        }
-    }
+    })
 }
 
 /// `/api/...`: the commands' `--json` documents, and `/`'s own.
