@@ -384,3 +384,36 @@ fn a_survey_acquired_in_another_process_is_seen_moving_on_the_live_paths() {
     assert!(moving.len() >= 2 && moving.windows(2).all(|w| w[0] < w[1]), "the progress moved: {seen:?}");
     assert_eq!(get(&server.url, "/api/live").json()["surveys"], serde_json::json!([]), "ended: no longer live");
 }
+
+#[test]
+fn the_lab_store_is_served_as_a_station_s_file_is() {
+    let Some(pg) = super::lab::server() else { return };
+    let lab = pg.database("served");
+    let bench = Bench::new();
+    super::lab::small_surveys(&bench, 2, 1);
+    bench.survey(&["push", "--to", &lab, "--all", "--json"]).success();
+    let uid = bench.survey(&["list", "--json"]).success().json()["surveys"][1]["uid"].as_str().unwrap().to_string();
+    let server = Server::on(&bench, &lab, &[]);
+    let on_lab = |args: &[&str]| {
+        let mut all = vec!["--db", lab.as_str()];
+        all.extend(args);
+        bench.survey(&all).success().json()
+    };
+    let listed = get(&server.url, "/api/surveys");
+    assert_eq!(listed.status, 200, "{}", listed.body);
+    assert!(!listed.body.contains(super::lab::PASSWORD));
+    assert_eq!(listed.json(), on_lab(&["list", "--json"]));
+    assert_eq!(get(&server.url, "/api/history/sim-fig8").json(), on_lab(&["history", "--asset", "sim-fig8", "--json"]));
+    let home = get(&server.url, "/");
+    assert_eq!(home.status, 200);
+    assert!(home.body.contains(&format!("/surveys/{uid}")) && !home.body.contains(super::lab::PASSWORD));
+    for path in [format!("/surveys/{uid}"), "/assets/sim-fig8".to_string()] {
+        assert_eq!(get(&server.url, &path).status, 200, "{path}");
+    }
+    assert_eq!(
+        get(&server.url, "/api/live").json(),
+        serde_json::json!({"surveys": []}),
+        "push copies complete surveys"
+    );
+    assert_eq!(server.stop(), Some(0));
+}

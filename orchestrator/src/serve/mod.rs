@@ -121,7 +121,8 @@ fn html_body(page: String) -> ([(header::HeaderName, &'static str); 1], String) 
 /// the body's error mapped to its status.
 macro_rules! read {
     ($app:expr, $api:expr, |$store:ident| $body:expr) => {{
-        let $store = Store::open_read_only(&$app.db).await.map_err(|e| Failure::unavailable(&e, $api))?;
+        let $store =
+            $crate::store::Store::open_read_only(&$app.db).await.map_err(|e| Failure::unavailable(&e, $api))?;
         let result: anyhow::Result<_> = async { $body }.await;
         $store.close().await;
         result.map_err(|e| Failure::of(&e, $api))?
@@ -210,7 +211,6 @@ pub mod api {
     use super::{App, Failure, json_body, survey_ref};
     use crate::documents::{Stats, list_json, shown};
     use crate::load::{Axis, load};
-    use crate::store::Store;
     use axum::Router;
     use axum::extract::{Path as UrlPath, State};
     use axum::response::IntoResponse;

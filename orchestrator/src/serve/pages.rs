@@ -6,7 +6,6 @@ use super::overview::{self, Asset, Live};
 use super::{App, Failure, POLICY, html_body, read, survey_ref};
 use crate::report::page::{document_under, escape, section};
 use crate::report::{ReportOptions, Units};
-use crate::store::Store;
 use axum::extract::{Path as UrlPath, State};
 use axum::http::{StatusCode, header};
 use axum::response::IntoResponse;
