@@ -136,7 +136,7 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     if let Some(uid) = &r.check_of {
         let _ = writeln!(s, "  checks       the calibration {uid}");
     }
-    for line in survey_processing::drift::text(&drift).lines() {
+    for line in survey_processing::drift::text(drift).lines() {
         let _ = writeln!(s, "  {line}");
     }
     if !events.is_empty() {

@@ -221,7 +221,7 @@ mod tests {
         assert_eq!(state(Some(&recent), &[], 365.0, now).0, State::InTolerance);
         assert_eq!(state(Some(&recent), &[], 20.0, now).0, State::Due, "30 days old, interval 20");
         let changed = check("u-cal", "changed", false, None);
-        assert_eq!(state(Some(&recent), &[changed.clone()], 365.0, now).0, State::Changed);
+        assert_eq!(state(Some(&recent), std::slice::from_ref(&changed), 365.0, now).0, State::Changed);
         let unchanged = check("u-cal", "unchanged", false, None);
         assert_eq!(state(Some(&recent), &[changed, unchanged], 365.0, now).0, State::InTolerance, "the last check");
         let called = check("u-cal", "changed", true, None);
