@@ -156,8 +156,9 @@ Examples:
     /// Serve the lab's pages, read-only: assets, live surveys, histories, reports and the JSON documents.
     #[command(after_help = "\
 Examples:
-  survey --db station.db serve                          # http://127.0.0.1:8080
-  survey --db postgres://viewer@lab-db/surveys serve --listen 127.0.0.1:0")]
+  survey serve                                          # survey.db on http://127.0.0.1:8080
+  survey --db lab.db serve --listen 127.0.0.1:0         # any free port: the ready line says which
+  SURVEY_DB=postgres://viewer:PASSWORD@lab-db/surveys survey serve --due-after 180")]
     Serve(serve::ServeArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
