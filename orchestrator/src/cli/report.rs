@@ -90,7 +90,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let data = crate::report::gather(&store, args.survey, &opts).await;
     store.close().await;
-    let html = crate::report::html(&data?, &opts)?;
+    let html = crate::report::html::render(&data?, &opts)?;
     let path = crate::report::write(&args.out, &html)?;
     drop(progress);
     emit(&format!("{}\n", path.display()));

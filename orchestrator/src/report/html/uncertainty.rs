@@ -3,8 +3,9 @@
 //! (the expanded uncertainty U), "combined_u_deg" (u), "budget": [{"source",
 //! "u_deg"}]}`).
 
-use super::page::{escape, table};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{escape, table};
+use crate::report::units::Units;
 use serde::Deserialize;
 
 /// One contribution: its source and its standard uncertainty, degrees.
@@ -44,6 +45,14 @@ pub fn section(b: &UncertaintyBudget, units: Units) -> String {
     html += "<p class=\"note\">Each contribution is a standard uncertainty (k = 1); the shares are of the sum of \
              their squares.</p>\n";
     html
+}
+
+/// The section, when the processing gives a budget.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    Ok(p.d
+        .uncertainty
+        .as_ref()
+        .and_then(|b| Section::page("uncertainty", "Uncertainty of the table", section(b, p.units))))
 }
 
 #[cfg(test)]

@@ -4,9 +4,10 @@
 //! curves over the stretch where linear interpolation misses most, beside
 //! the scores over the whole revolution.
 
-use super::page::{Key, escape, figure, legend, table};
-use super::plot::{self, BLUE, GREEN, HEIGHT, INK, ORANGE, SKY, WIDTH, axes, extent, hex, padded, render};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{Key, escape, figure, legend, table};
+use crate::report::plot::{self, BLUE, GREEN, HEIGHT, INK, ORANGE, SKY, WIDTH, axes, extent, hex, padded, render};
+use crate::report::units::Units;
 use plotters::prelude::*;
 use survey_processing::errormap::Coverage;
 use survey_processing::pipeline::Processed;
@@ -128,4 +129,14 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         Err(why) => html += &format!("<p class=\"note\">No interpolation scores: {}.</p>\n", escape(why)),
     }
     Ok(html)
+}
+
+/// The section, when the survey was processed.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match p.processed() {
+        Some(processed) => {
+            Ok(Section::page("interpolation", "Interpolation between measured points", section(processed, p.units)?))
+        }
+        None => Ok(None),
+    }
 }

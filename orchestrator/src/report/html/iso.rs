@@ -1,8 +1,9 @@
 //! ISO 230-2 figures for the axis and per target, with the VDI/DGQ 3441
 //! figures beside them and the definitions used.
 
-use super::page::{escape, table};
-use super::units::Units;
+use super::{Page, Section, note};
+use crate::report::page::{escape, table};
+use crate::report::units::Units;
 use survey_processing::iso230::Iso230;
 use survey_processing::vdi3441::{Vdi3441, vdi3441};
 
@@ -104,4 +105,21 @@ pub fn targets_section(iso: &Iso230, units: Units) -> String {
         escape("B_i = x̄↑ − x̄↓; x̄_i = (x̄↑ + x̄↓)/2; R_i as above; U_j and Ps_j as in VDI/DGQ 3441 above.")
     );
     html
+}
+
+/// The axis figures, or why there are none.
+pub fn show_axis(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let body = match &p.iso {
+        Ok(iso) => axis_section(iso, p.units),
+        Err(e) => note(&format!("No ISO 230-2 figures: {e}.")),
+    };
+    Ok(Section::page("iso230", "ISO 230-2 and VDI/DGQ 3441", body))
+}
+
+/// The per-target table, an appendix.
+pub fn show_targets(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    Ok(p.iso
+        .as_ref()
+        .ok()
+        .and_then(|iso| Section::page("iso230-targets", "ISO 230-2 per target", targets_section(iso, p.units))))
 }

@@ -3,9 +3,10 @@
 //! where it was observed and, dashed, where it belongs, the frequency axis
 //! sized to the lines (not to half the sampling rate), and the table of lines.
 
-use super::page::{self, Key, escape, figure, legend};
-use super::plot::{self, BLUE, GREY, INK, ORANGE, PURPLE, VERMILLION, WIDTH, axes, hex, nice_ceil, render};
-use super::units::Units;
+use super::{Page, Section, note};
+use crate::report::page::{self, Key, escape, figure, legend};
+use crate::report::plot::{self, BLUE, GREY, INK, ORANGE, PURPLE, VERMILLION, WIDTH, axes, hex, nice_ceil, render};
+use crate::report::units::Units;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use survey_processing::analysis::{Line, Method};
@@ -329,6 +330,19 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         html += &format!("<p class=\"note\">{}</p>\n", escape(&n.note));
     }
     Ok(html)
+}
+
+/// The section, or why the survey could not be processed (which the
+/// interpolation and the table then do not repeat).
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match &p.d.processed {
+        Ok(processed) => Ok(Section::page("spectrum", "Spectrum and error sources", section(processed, p.units)?)),
+        Err(why) => Ok(Section::page(
+            "spectrum",
+            "Spectrum, interpolation and correction table",
+            note(&format!("The survey cannot be processed: {why}.")),
+        )),
+    }
 }
 
 #[cfg(test)]

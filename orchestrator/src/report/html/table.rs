@@ -3,9 +3,10 @@
 //! correction) every few degrees. The full table is in the files `survey
 //! process` writes.
 
-use super::page::{Key, escape, figure, legend, table};
-use super::plot::{self, BLUE, HEIGHT, INK, VERMILLION, WIDTH, axes, extent, hex, padded, render};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{Key, escape, figure, legend, table};
+use crate::report::plot::{self, BLUE, HEIGHT, INK, VERMILLION, WIDTH, axes, extent, hex, padded, render};
+use crate::report::units::Units;
 use plotters::prelude::*;
 use survey_processing::Direction;
 use survey_processing::errormap::Coverage;
@@ -128,4 +129,12 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
     html += "<p class=\"note\">Every row of the table is in the files `survey process` writes beside it (CSV, \
              controller files, the binary table); the correction is the value added to the readout.</p>\n";
     Ok(html)
+}
+
+/// The section, when the survey was processed.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match p.processed() {
+        Some(processed) => Ok(Section::page("correction-table", "Correction table", section(processed, p.units)?)),
+        None => Ok(None),
+    }
 }

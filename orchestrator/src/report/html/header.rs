@@ -6,10 +6,11 @@
 //! (the simulated preset's name and description, the simulated reference's
 //! noise, a configured instrument's driver and address); else "not stated".
 
-use super::page::escape;
-use super::units::Units;
+use super::{Page, Section};
 use crate::config::CertificateSection;
 use crate::engine::ReferenceKind;
+use crate::report::page::escape;
+use crate::report::units::Units;
 use crate::survey::{Setup, SurveyRecord};
 use std::fmt::Write as _;
 
@@ -148,7 +149,7 @@ pub fn plan_text(survey: &SurveyRecord) -> String {
 }
 
 /// The header as an HTML table (`tbl-header`).
-pub fn render(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
+fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
     let not_stated = "<i>not stated</i>".to_string();
     let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
     let text = |v: &Option<Stated<String>>| v.as_ref().map_or(not_stated.clone(), |s| escape(&s.value) + &from(s.from));
@@ -200,6 +201,17 @@ pub fn render(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: 
         let _ = writeln!(html, "<tr><td>{k}</td><td>{v}</td></tr>");
     }
     html + "</tbody></table>\n"
+}
+
+/// The section: the certificate's fields.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let d = p.d;
+    Ok(Some(Section {
+        id: "certificate",
+        title: "Certificate".into(),
+        new_page: false,
+        body: fields(&d.survey, &p.cert, d.samples.len(), p.units, &d.generated),
+    }))
 }
 
 #[cfg(test)]
