@@ -23,6 +23,17 @@ pub const ALWAYS: [&str; 15] = [
     "iso230-targets",
 ];
 
+/// No cell of any table is a row of zeros ("0.00000"): a value is shown by
+/// significance, or is exactly 0.
+pub fn assert_no_zeros(html: &str) {
+    for cell in html.split("<td").skip(1).filter_map(|c| c.split_once('>')).map(|c| c.1.split('<').next().unwrap_or(""))
+    {
+        let digits = cell.trim().trim_start_matches('-');
+        let zeros = digits.contains('.') && digits.chars().all(|c| c == '0' || c == '.');
+        assert!(!zeros, "a cell shows {cell:?}: a value lost to its format");
+    }
+}
+
 #[test]
 fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     let bench = Bench::new();
@@ -48,10 +59,11 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     // The title names the positioner and the survey.
     assert!(html.contains("<title>simulated fig8 positioner: calibration survey 1</title>"), "title");
     // The simulated default's header: the preset, the tracker's noise (8.8e-4 deg).
-    for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.00088 deg", "survey 0.1.0"] {
+    for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.000884 deg", "survey 0.1.0"] {
         assert!(html.contains(words), "the header should say {words:?}");
     }
     assert!(html.contains("No public text of VDI/DGQ 3441 was found"));
+    assert_no_zeros(&html);
     assert!(
         !html.contains("<script") && !html.contains("src=") && !html.contains("href="),
         "self-contained: no scripts, no links"
@@ -89,9 +101,12 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         ])
         .success();
     let html = bench.read("r/index.html");
-    // ISO A in the axis table, in arcsec with 2 decimals.
+    // ISO A in the axis table, in arcsec with 3 significant digits.
     let shown = html.split("A, accuracy</td><td>").nth(1).and_then(|s| s.split('<').next()).expect("A");
-    assert_eq!(shown, format!("{:.2}", a_deg * 3600.0), "A in arcsec against stats' {a_deg} deg");
+    let value: f64 = shown.parse().expect("a number");
+    let digits = shown.trim_start_matches(['-', '0', '.']).replace('.', "");
+    assert_eq!(digits.len(), 3, "3 significant digits: {shown}");
+    assert!((value - a_deg * 3600.0).abs() <= 5e-3 * a_deg * 3600.0, "A in arcsec {shown} against stats' {a_deg} deg");
     for words in [
         "error (readout − actual), arcsec",
         "J. Smith",
@@ -99,12 +114,16 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         "ACME AZ-200 &lt;serial 7&gt;",
         "(survey report flag)",
         "simulated autocollimator",
-        "0.10 arcsec (standard uncertainty of one angle)",
+        "0.100 arcsec (standard uncertainty of one angle)",
     ] {
         assert!(html.contains(words), "the page should show {words:?}");
     }
     assert!(html.contains("<title>ACME AZ-200 &lt;serial 7&gt;: calibration survey 1</title>"));
     assert!(html.contains("id=\"fig-modelgap\""), "the model-gap section");
+    // The processing's sentences take the unit too: the table's caption says why it has two columns.
+    let reason = html.split("Hysteresis max").nth(1).and_then(|s| s.split("(its noise)").next()).expect("the reason");
+    assert!(reason.contains("arcsec") && !reason.contains("deg"), "the table's caption in arcsec: {reason}");
+    assert_no_zeros(&html);
     // Bad input: exit 2, nothing written.
     for (args, words) in [
         (vec!["--units", "furlong"], vec!["furlong"]),

@@ -152,7 +152,13 @@ pub fn plan_text(survey: &SurveyRecord) -> String {
 fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
     let not_stated = "<i>not stated</i>".to_string();
     let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
-    let text = |v: &Option<Stated<String>>| v.as_ref().map_or(not_stated.clone(), |s| escape(&s.value) + &from(s.from));
+    // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as written.
+    let text = |v: &Option<Stated<String>>| {
+        v.as_ref().map_or(not_stated.clone(), |s| {
+            let value = if s.from == BENCH { units.text(&s.value) } else { s.value.clone() };
+            escape(&value) + &from(s.from)
+        })
+    };
     let mut rows: Vec<(&str, String)> = vec![
         ("Positioner", text(&cert.positioner)),
         ("Reference instrument", text(&cert.reference)),

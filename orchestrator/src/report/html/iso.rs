@@ -3,7 +3,7 @@
 
 use super::{Page, Section, note};
 use crate::report::page::{escape, table};
-use crate::report::units::Units;
+use crate::report::units::{Units, angle};
 use survey_processing::iso230::Iso230;
 use survey_processing::vdi3441::{Vdi3441, vdi3441};
 
@@ -68,7 +68,7 @@ pub fn targets_section(iso: &Iso230, units: Units) -> String {
             let d = |x: Option<&survey_processing::iso230::DirStats>,
                      f: fn(&survey_processing::iso230::DirStats) -> f64| { units.opt(x.map(f)) };
             vec![
-                format!("{:.4}", t.target_deg),
+                angle(t.target_deg),
                 d(t.up.as_ref(), |s| s.mean),
                 d(t.up.as_ref(), |s| s.s),
                 d(t.down.as_ref(), |s| s.mean),

@@ -116,7 +116,7 @@ pub fn note(text: &str) -> String {
 /// The processing's notes, when there are any.
 fn notes(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let Some(processed) = p.processed().filter(|x| !x.notes.is_empty()) else { return Ok(None) };
-    let items: String = processed.notes.iter().map(|n| format!("<li>{}</li>", escape(n))).collect();
+    let items: String = processed.notes.iter().map(|n| format!("<li>{}</li>", escape(&p.units.text(n)))).collect();
     Ok(Some(Section {
         id: "notes",
         title: "Processing notes".into(),

@@ -78,7 +78,7 @@ pub fn section(gap: &ModelGap, model_name: &str, units: Units) -> anyhow::Result
         .map(|s| {
             vec![
                 s.step.to_string(),
-                escape(&s.added),
+                escape(&units.text(&s.added)),
                 format!("{:?}", s.action).to_lowercase(),
                 if s.cycles_per_rev > 0.0 { format!("{}", s.cycles_per_rev) } else { "-".into() },
                 units.num(s.amplitude_deg),
@@ -92,7 +92,7 @@ pub fn section(gap: &ModelGap, model_name: &str, units: Units) -> anyhow::Result
         &rows,
     );
     for e in &gap.effects_added {
-        html += &format!("<p class=\"note\">{}: {}</p>\n", escape(&e.kind), escape(&e.explanation));
+        html += &format!("<p class=\"note\">{}: {}</p>\n", escape(&e.kind), escape(&units.text(&e.explanation)));
     }
     Ok(html)
 }

@@ -6,7 +6,7 @@
 use super::{Page, Section, note};
 use crate::report::page::{self, Key, escape, figure, legend};
 use crate::report::plot::{self, BLUE, GREY, INK, ORANGE, PURPLE, VERMILLION, WIDTH, axes, hex, nice_ceil, render};
-use crate::report::units::Units;
+use crate::report::units::{Units, percent};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use survey_processing::analysis::{Line, Method};
@@ -292,9 +292,9 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
                 units.num(l.amplitude_deg),
                 format!("{:.1}", l.phase_deg),
                 if l.repeatable { "yes" } else { "no" }.to_string(),
-                format!("{:.1} %", l.share * 100.0),
+                percent(l.share),
                 fate_word(fate(p, l)).to_string(),
-                escape(&l.source),
+                escape(&units.text(&l.source)),
             ]
         })
         .collect();
@@ -321,13 +321,13 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         };
         html += &format!(
             "<p class=\"note\">Alias: {} at {} cycles/rev is seen at {}; {action}.</p>\n",
-            escape(&alias.source),
+            escape(&units.text(&alias.source)),
             num(alias.true_cycles),
             num(alias.observed_cycles),
         );
     }
     if let Some(n) = &a.points_needed {
-        html += &format!("<p class=\"note\">{}</p>\n", escape(&n.note));
+        html += &format!("<p class=\"note\">{}</p>\n", escape(&units.text(&n.note)));
     }
     Ok(html)
 }

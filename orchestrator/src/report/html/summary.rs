@@ -20,7 +20,7 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
             units.show(p.prediction.corrected_peak_deg),
         ]);
         if let Some(floor) = p.floor.deg {
-            rows.push(vec![format!("floor: {}", escape(&p.floor.what)), units.show(floor)]);
+            rows.push(vec![format!("floor: {}", escape(&units.text(&p.floor.what))), units.show(floor)]);
         }
     }
     if let Some(v) = &d.verification {

@@ -6,7 +6,7 @@
 use super::{Page, Section};
 use crate::report::page::{Key, escape, figure, legend, table};
 use crate::report::plot::{self, BLUE, HEIGHT, INK, VERMILLION, WIDTH, axes, extent, hex, padded, render};
-use crate::report::units::Units;
+use crate::report::units::{Units, angle};
 use plotters::prelude::*;
 use survey_processing::Direction;
 use survey_processing::errormap::Coverage;
@@ -97,8 +97,8 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         t.len(),
         t.spacing_deg(),
         if t.is_directional() { ", a forward and a reverse column" } else { ", one column" },
-        escape(&p.built.method.to_string()),
-        escape(&capitalised(&p.built.directional_reason)),
+        escape(&units.text(&p.built.method.to_string())),
+        escape(&capitalised(&units.text(&p.built.directional_reason))),
     );
     let mut html = figure("fig-table", &svg(p, units)?, &legend(&entries), &caption);
     let (lo, hi) = span(p);
@@ -114,7 +114,7 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
     let rows: Vec<Vec<String>> = (0..count)
         .map(|k| {
             let x = lo + k as f64 * step;
-            let mut row = vec![format!("{x:.3}")];
+            let mut row = vec![angle(x)];
             for (d, _, _) in &cols {
                 let e = t.error_at(x, *d);
                 row.push(units.num(e));

@@ -5,7 +5,7 @@
 
 use super::{Page, Section};
 use crate::report::page::{escape, table};
-use crate::report::units::Units;
+use crate::report::units::{Units, percent};
 use serde::Deserialize;
 
 /// One contribution: its source and its standard uncertainty, degrees.
@@ -35,8 +35,8 @@ pub fn section(b: &UncertaintyBudget, units: Units) -> String {
         .budget
         .iter()
         .map(|e| {
-            let share = if total > 0.0 { e.u_deg * e.u_deg / total * 100.0 } else { 0.0 };
-            vec![escape(&e.source), units.num(e.u_deg), format!("{share:.1} %")]
+            let share = if total > 0.0 { e.u_deg * e.u_deg / total } else { 0.0 };
+            vec![escape(&units.text(&e.source)), units.num(e.u_deg), percent(share)]
         })
         .collect();
     rows.push(vec!["combined standard uncertainty u".into(), units.num(b.combined_u_deg), String::new()]);
