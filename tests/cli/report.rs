@@ -62,7 +62,16 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.000884 deg", "survey 0.1.0"] {
         assert!(html.contains(words), "the header should say {words:?}");
     }
-    assert!(html.contains("No public text of VDI/DGQ 3441 was found"));
+    // A certificate: its number (made from the survey when none was assigned), the
+    // traceability a simulated reference has (none), page x of y in print.
+    assert!(html.contains("id=\"certificate-number\">Calibration certificate 20"), "the number on top");
+    assert!(
+        html.contains("made from the survey&#x27;s date and id") || html.contains("made from the survey's date and id")
+    );
+    assert!(html.contains("not traceable to the SI"), "a simulated reference is not traceable");
+    assert!(html.contains("counter(page) \" of \" counter(pages)"), "page x of y in print");
+    // The definitions the VDI figures use, without a remark about sources to a customer.
+    assert!(!html.contains("No public text") && html.contains("with these definitions"));
     assert_no_zeros(&html);
     assert!(
         !html.contains("<script") && !html.contains("src=") && !html.contains("href="),
@@ -98,6 +107,12 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
             "ACME AZ-200 <serial 7>",
             "--model",
             "model.toml",
+            "--certificate-number",
+            "CAL-2026-0042",
+            "--laboratory",
+            "Metrology Lab \"North\", Bay 3",
+            "--traceability",
+            "Polygon calibrated by PTB, certificate 12345, 2026-01",
         ])
         .success();
     let html = bench.read("r/index.html");
@@ -115,6 +130,11 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         "(survey report flag)",
         "simulated autocollimator",
         "0.100 arcsec (standard uncertainty of one angle)",
+        "Calibration certificate CAL-2026-0042 · Metrology Lab &quot;North&quot;, Bay 3",
+        "Polygon calibrated by PTB, certificate 12345, 2026-01",
+        // The running head and foot of every printed page.
+        "@top-left{content:\"Calibration certificate CAL-2026-0042\"",
+        "@top-right{content:\"Metrology Lab \\\"North\\\", Bay 3\"",
     ] {
         assert!(html.contains(words), "the page should show {words:?}");
     }
@@ -129,6 +149,9 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         (vec!["--units", "furlong"], vec!["furlong"]),
         (vec!["--temperature", "500"], vec!["--temperature"]),
         (vec!["--reference-uncertainty", "-1"], vec!["--reference-uncertainty"]),
+        (vec!["--tolerance", "0"], vec!["--tolerance"]),
+        (vec!["--tolerance", "-0.01"], vec!["--tolerance"]),
+        (vec!["--certificate-number", " "], vec!["--certificate-number"]),
         (vec!["--model", "missing.toml"], vec!["missing.toml"]),
     ] {
         let mut all = vec!["report", "--out", "bad"];

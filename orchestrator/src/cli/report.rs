@@ -55,6 +55,18 @@ pub struct ReportArgs {
     /// The air temperature during the survey, degrees Celsius [default: [certificate] of the configuration].
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     pub temperature: Option<f64>,
+    /// The certificate's number [default: [certificate] number, or made from the survey's date and id].
+    #[arg(long, value_name = "TEXT")]
+    pub certificate_number: Option<String>,
+    /// The calibrating laboratory: name, address, accreditation [default: [certificate] laboratory].
+    #[arg(long, value_name = "TEXT")]
+    pub laboratory: Option<String>,
+    /// The traceability statement: the reference's calibration, by whom, certificate, date [default: [certificate] traceability].
+    #[arg(long, value_name = "TEXT")]
+    pub traceability: Option<String>,
+    /// Judge the ISO 230-2 accuracy A against this tolerance, degrees: pass, fail or not decidable within the uncertainty [default: [certificate] tolerance_deg].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub tolerance: Option<f64>,
 }
 
 pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
@@ -67,6 +79,20 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
         && !(u.is_finite() && u > 0.0 && u <= 1.0)
     {
         return Err(crate::error::bad_input(format!("--reference-uncertainty {u}: must be above 0 and at most 1 deg")));
+    }
+    if let Some(t) = args.tolerance
+        && !(t.is_finite() && t > 0.0 && t <= 360.0)
+    {
+        return Err(crate::error::bad_input(format!("--tolerance {t}: must be above 0 and at most 360 deg")));
+    }
+    for (flag, text) in [
+        ("--certificate-number", &args.certificate_number),
+        ("--laboratory", &args.laboratory),
+        ("--traceability", &args.traceability),
+    ] {
+        if text.as_ref().is_some_and(|t| t.trim().is_empty()) {
+            return Err(crate::error::bad_input(format!("{flag}: empty")));
+        }
     }
     let opts = ReportOptions {
         units: match args.units {
@@ -81,6 +107,10 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             operator: args.operator,
             customer: args.customer,
             temperature_c: args.temperature,
+            number: args.certificate_number,
+            laboratory: args.laboratory,
+            traceability: args.traceability,
+            tolerance_deg: args.tolerance,
         },
         design: args.design,
         recipe: args.recipe,

@@ -1,10 +1,13 @@
 //! The header a calibration certificate needs, and where each field comes
-//! from. In order of precedence: a flag of `survey report` (`--positioner`,
+//! from. In order of precedence: a flag of `survey report` (`--certificate-number`,
+//! `--laboratory`, `--traceability`, `--tolerance`, `--positioner`,
 //! `--reference-instrument`, `--reference-uncertainty`, `--operator`,
 //! `--customer`, `--temperature`); the `[certificate]` section of the
 //! configuration file, stored with the survey; what the bench itself says
 //! (the simulated preset's name and description, the simulated reference's
-//! noise, a configured instrument's driver and address); else "not stated".
+//! noise, a configured instrument's driver and address, a simulated
+//! reference's lack of traceability); the survey (a certificate number made
+//! of its date and id when none was assigned); else "not stated".
 
 use super::{Page, Section};
 use crate::config::CertificateSection;
@@ -28,6 +31,11 @@ pub struct Stated<T> {
 /// Every field of the header.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Certificate {
+    /// Always present: assigned, or made from the survey.
+    pub number: Stated<String>,
+    pub laboratory: Option<Stated<String>>,
+    pub traceability: Option<Stated<String>>,
+    pub tolerance_deg: Option<Stated<f64>>,
     pub positioner: Option<Stated<String>>,
     pub reference: Option<Stated<String>>,
     pub reference_uncertainty_deg: Option<Stated<f64>>,
@@ -39,6 +47,7 @@ pub struct Certificate {
 const FLAG: &str = "survey report flag";
 const CONFIG: &str = "[certificate] of the configuration";
 const BENCH: &str = "the bench";
+const SURVEY: &str = "made from the survey's date and id: no number was assigned";
 
 fn pick<T: Clone>(flag: &Option<T>, config: Option<&T>, bench: Option<T>) -> Option<Stated<T>> {
     flag.clone()
@@ -90,7 +99,21 @@ impl Certificate {
             }
             _ => (described("positioner"), described("reference"), None),
         };
+        let traceability = match &survey.setup {
+            Setup::Simulated(_) => Some(
+                "none: the reference is a simulated instrument, so these figures show the method and are not \
+                 traceable to the SI"
+                    .to_string(),
+            ),
+            _ => None,
+        };
+        let date: String = survey.created_at.chars().filter(char::is_ascii_digit).take(8).collect();
         Certificate {
+            number: pick(&flags.number, stored.number.as_ref(), None)
+                .unwrap_or(Stated { value: format!("{date}-{}", survey.id), from: SURVEY }),
+            laboratory: pick(&flags.laboratory, stored.laboratory.as_ref(), None),
+            traceability: pick(&flags.traceability, stored.traceability.as_ref(), traceability),
+            tolerance_deg: pick(&flags.tolerance_deg, stored.tolerance_deg.as_ref(), None),
             positioner: pick(&flags.positioner, stored.positioner.as_ref(), bench_positioner),
             reference: pick(&flags.reference, stored.reference.as_ref(), bench_reference),
             reference_uncertainty_deg: pick(
@@ -160,6 +183,9 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
         })
     };
     let mut rows: Vec<(&str, String)> = vec![
+        ("Certificate number", text(&Some(cert.number.clone()))),
+        ("Calibrating laboratory", text(&cert.laboratory)),
+        ("Traceability", text(&cert.traceability)),
         ("Positioner", text(&cert.positioner)),
         ("Reference instrument", text(&cert.reference)),
         (

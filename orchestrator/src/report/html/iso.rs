@@ -46,13 +46,14 @@ fn vdi_table(v: &Vdi3441, units: Units) -> String {
         vec!["Ū, mean reversal span".to_string(), units.opt(v.u_mean_deg)],
     ];
     let mut html = table("tbl-vdi", &["VDI/DGQ 3441", &format!("axis, {u}")], &rows);
-    html += "<p class=\"note\" id=\"vdi-definitions\">No public text of VDI/DGQ 3441 was found; these are the \
-             definitions as usually reproduced from it, used here: x̄<sub>j</sub> = (x̄↑<sub>j</sub> + \
+    html += "<p class=\"note\" id=\"vdi-definitions\">The VDI/DGQ 3441 figures are computed from the same per-target \
+             statistics as ISO 230-2, with these definitions: x̄<sub>j</sub> = (x̄↑<sub>j</sub> + \
              x̄↓<sub>j</sub>)/2; U<sub>j</sub> = |x̄↑<sub>j</sub> − x̄↓<sub>j</sub>|; Ps<sub>j</sub> = 6 (s↑<sub>j</sub> \
              + s↓<sub>j</sub>)/2; Pa = max x̄<sub>j</sub> − min x̄<sub>j</sub>; P = max<sub>j</sub> [x̄<sub>j</sub> + \
              (U<sub>j</sub> + Ps<sub>j</sub>)/2] − min<sub>j</sub> [x̄<sub>j</sub> − (U<sub>j</sub> + \
              Ps<sub>j</sub>)/2]; U and Ps the largest over the targets. Measured one way, U is not defined and P \
-             uses U<sub>j</sub> = 0. Note the ±3s of VDI 3441 against ISO 230-2's ±2s.</p>\n";
+             uses U<sub>j</sub> = 0. Note the ±3s of VDI 3441 against ISO 230-2's ±2s, and that VDI's U, a reversal span, \
+             is not the expanded uncertainty U this certificate states.</p>\n";
     html
 }
 

@@ -148,28 +148,35 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
         iso: iso230_2(&d.samples).map_err(|e| e.to_string()),
     };
     let title = title(&p);
+    let number = &p.cert.number.value;
+    let laboratory = p.cert.laboratory.as_ref().map(|l| l.value.clone()).unwrap_or_default();
     let mut body = format!(
-        "<h1>{}</h1>\n<p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and \
-         the accuracy figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
+        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate {}{}</p>\n<h1>{}</h1>\n\
+         <p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and the accuracy \
+         figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
+        escape(number),
+        if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) },
         escape(&title),
         p.units.symbol()
     );
     for show in BODY {
         if let Some(s) = show(&p)? {
-            body += &page::section(s.id, &s.title, s.new_page, &s.body);
+            body += &page::section(s.id, &s.title, if s.new_page { &["page"] } else { &[] }, &s.body);
         }
     }
-    let mut letter = b'A';
-    for show in APPENDIX {
-        if let Some(s) = show(&p)? {
-            body += &page::section(s.id, &format!("Appendix {}: {}", letter as char, s.title), true, &s.body);
-            letter += 1;
-        }
+    for (letter, s) in ('A'..='Z').zip(APPENDIX.iter().map(|show| show(&p)).filter_map(Result::transpose)) {
+        let s = s?;
+        body += &page::section(s.id, &format!("Appendix {letter}: {}", s.title), &["page", "appendix"], &s.body);
     }
     body += &format!(
         "<footer><p class=\"note\">survey {} — report made {}.</p></footer>\n",
         env!("CARGO_PKG_VERSION"),
         escape(&d.generated)
     );
-    Ok(page::document(&title, &body))
+    let running = page::Running {
+        top_left: format!("Calibration certificate {number}"),
+        top_right: laboratory,
+        bottom_left: format!("{}: survey {}", p.cert.positioner_name(&d.survey), d.survey.id),
+    };
+    Ok(page::document(&title, &running, &body))
 }
