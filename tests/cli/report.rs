@@ -182,3 +182,60 @@ fn a_verified_survey_shows_native_and_corrected_on_one_scale() {
         assert_eq!(ticks("fig-native"), ticks("fig-corrected"), "{id}");
     }
 }
+
+/// The verdict of the report of survey 1 (verified by survey 2) against `tolerance` degrees.
+fn verdict(bench: &Bench, tolerance: f64, extra: &[&str]) -> String {
+    let t = tolerance.to_string();
+    let mut args = vec!["report", "--survey", "1", "--out", "v", "--tolerance", &t];
+    args.extend(extra);
+    bench.survey(&args).success();
+    let html = bench.read("v/index.html");
+    assert!(html.contains("id=\"decision-rule\">Decision rule (ISO 14253-1, ILAC-G8"), "the rule is stated");
+    html.split("id=\"verdict\">").nth(1).and_then(|s| s.split("</p>").next()).expect("a verdict").to_string()
+}
+
+#[test]
+fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() {
+    let bench = Bench::new();
+    bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--verify", "--json"]).success();
+    // The corrected A: ISO 230-2 of the verification survey as stored.
+    let a = bench.stats_json(Some(2))["iso230_2"]["A"].as_f64().unwrap();
+    // The simulated tracker's stated 0.000884 deg (and the axis) make U about 0.0018 deg.
+    let pass = verdict(&bench, 10.0 * a, &[]);
+    assert!(pass.starts_with("Verdict against the tolerance") && pass.contains(": PASS. A = "), "{pass}");
+    assert!(pass.contains("the corrected accuracy A per ISO 230-2, measured by verification survey 2"), "{pass}");
+    assert!(pass.contains("(survey report flag)"), "{pass}");
+    let fail = verdict(&bench, a / 10.0, &[]);
+    assert!(fail.contains(": FAIL. ") && fail.contains("A − U = "), "{fail}");
+    let open = verdict(&bench, a, &[]);
+    assert!(open.contains(": NOT DECIDABLE (WITHIN THE UNCERTAINTY). "), "{open}");
+    // U follows the reference's stated uncertainty: twice A passes with the simulated
+    // tracker's, and is within the uncertainty of a reference as uncertain as A itself.
+    assert!(verdict(&bench, 2.0 * a, &[]).contains(": PASS. "));
+    let a_text = a.to_string();
+    let coarse = verdict(&bench, 2.0 * a, &["--reference-uncertainty", &a_text]);
+    assert!(coarse.contains(": NOT DECIDABLE (WITHIN THE UNCERTAINTY). "), "{coarse}");
+    // The figures carry their uncertainties: U beside A, the table's beside the prediction.
+    let html = bench.read("v/index.html");
+    let summary = html.split("id=\"tbl-summary\"").nth(1).unwrap().split("</table>").next().unwrap();
+    assert!(summary.contains("expanded uncertainty U (k = 2)") && summary.contains("(the table's)"), "{summary}");
+    assert!(summary.contains("ISO 230-2 accuracy A, corrected, measured (survey 2)"), "{summary}");
+    // Without a tolerance, no verdict.
+    bench.survey(&["report", "--survey", "1", "--out", "none"]).success();
+    assert!(!bench.read("none/index.html").contains("id=\"verdict\""));
+}
+
+#[test]
+fn without_a_stated_reference_uncertainty_nothing_is_decidable() {
+    let bench = Bench::new();
+    bench.small_survey(true);
+    bench.survey(&["export", "--csv", "s.csv"]).success();
+    let other = Bench::new();
+    other.write("s.csv", &bench.read("s.csv"));
+    other.survey(&["import", "s.csv"]).success();
+    other.survey(&["report", "--out", "v", "--tolerance", "10"]).success();
+    let html = other.read("v/index.html");
+    let verdict = html.split("id=\"verdict\">").nth(1).and_then(|s| s.split("</p>").next()).expect("a verdict");
+    assert!(verdict.contains("NOT DECIDABLE") && verdict.contains("uncertainty is not known"), "{verdict}");
+    assert!(verdict.contains("the native accuracy A per ISO 230-2 of this survey"), "{verdict}");
+}

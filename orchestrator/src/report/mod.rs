@@ -16,6 +16,7 @@
 //! Every error is shown in the unit chosen ([`units::Units`]), by
 //! significance; angles along the axis stay in degrees.
 
+pub mod conformity;
 pub mod html;
 pub mod page;
 pub mod plot;
@@ -68,6 +69,8 @@ pub struct ReportData {
     pub drift: Vec<drift::DriftPoint>,
     /// The table's uncertainty budget, when the processing gives one.
     pub uncertainty: Option<uncertainty::UncertaintyBudget>,
+    /// The axis location's standard uncertainty (a tracker), degrees: a part of a measured figure's.
+    pub axis_u_deg: Option<f64>,
     /// When the report was made (UTC, RFC 3339).
     pub generated: String,
 }
@@ -138,6 +141,7 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
         model_gap,
         drift: drift_points.iter().map(|p| (p.at_s, p.drift_deg)).collect(),
         uncertainty,
+        axis_u_deg: inputs.axis_u_deg,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
     })
 }
