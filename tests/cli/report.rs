@@ -34,6 +34,42 @@ pub fn assert_no_zeros(html: &str) {
     }
 }
 
+/// The spectrum's caption names the band above half the sampling rate
+/// exactly when the figure draws it (`drawn`: whether it should).
+fn assert_shading_as_drawn(html: &str, drawn: bool) {
+    let figure = html.split("<figure id=\"fig-spectrum\">").nth(1).unwrap().split("</figure>").next().unwrap();
+    let band = figure.contains("opacity=\"0.1\" fill=\"#969696\"");
+    let caption = figure.split("<figcaption>").nth(1).unwrap();
+    assert_eq!((band, caption.contains("shaded")), (drawn, drawn), "the band drawn and named: {caption}");
+}
+
+/// The spectrum's labels of the lines in the table of lines: (amplitude as
+/// the table shows it, the label's foot in the figure's pixels).
+fn spectrum_labels(html: &str) -> Vec<(f64, f64)> {
+    let table = html.split("id=\"tbl-lines\"").nth(1).unwrap().split("</table>").next().unwrap();
+    let amplitude: Vec<(String, f64)> = table
+        .split("<tr>")
+        .skip(2)
+        .map(|row| {
+            let cells: Vec<&str> =
+                row.split("<td").skip(1).map(|c| c.split('>').nth(1).unwrap().split('<').next().unwrap()).collect();
+            (cells[0].to_string(), cells[2].parse().unwrap())
+        })
+        .collect();
+    let figure = html.split("<figure id=\"fig-spectrum\">").nth(1).unwrap().split("</svg>").next().unwrap();
+    figure
+        .split("<text ")
+        .skip(1)
+        .filter_map(|t| {
+            let label = t.split('>').nth(1)?.split('<').next()?.trim();
+            let (cycles, _) = label.split_once(" · ")?;
+            let amp = amplitude.iter().find(|(c, _)| c == cycles)?.1;
+            let y: f64 = t.split("y=\"").nth(1)?.split('"').next()?.parse().ok()?;
+            Some((amp, y))
+        })
+        .collect()
+}
+
 #[test]
 fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     let bench = Bench::new();
@@ -72,12 +108,31 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     assert!(html.contains("counter(page) \" of \" counter(pages)"), "page x of y in print");
     // The definitions the VDI figures use, without a remark about sources to a customer.
     assert!(!html.contains("No public text") && html.contains("with these definitions"));
+    // Each line's label stands on its own stem: its height is linear in the line's
+    // amplitude (not every label at the tallest's height).
+    let labels = spectrum_labels(&html);
+    assert!(labels.len() >= 2, "labelled lines: {labels:?}");
+    let (lo, hi) = labels
+        .iter()
+        .fold((labels[0], labels[0]), |(l, h), p| (if p.0 < l.0 { *p } else { l }, if p.0 > h.0 { *p } else { h }));
+    assert!(hi.0 > 1.5 * lo.0 && hi.1 < lo.1 - 20.0, "the taller line's label stands higher: {labels:?}");
+    let slope = (hi.1 - lo.1) / (hi.0 - lo.0);
+    for (amp, y) in &labels {
+        assert!((lo.1 + slope * (amp - lo.0) - y).abs() < 2.0, "a label off its stem's height: {labels:?}");
+    }
+    // The caption names no region the figure does not draw.
+    // 36 points see the 20 and 40 cycles/rev gear pass beyond 18: the band is drawn.
+    assert_shading_as_drawn(&html, true);
     assert_no_zeros(&html);
     assert!(
         !html.contains("<script") && !html.contains("src=") && !html.contains("href="),
         "self-contained: no scripts, no links"
     );
     assert!(html.contains("default-src 'none'"), "the page forbids every fetch");
+    // 180 points resolve every line: no band, and the caption names none.
+    bench.survey(&["run", "--points", "180", "--runs", "2"]).success();
+    bench.survey(&["report", "--out", "r180"]).success();
+    assert_shading_as_drawn(&bench.read("r180/index.html"), false);
     bench.survey(&["report", "--out", "r", "--survey", "9"]).bad_input(&["9"]);
     bench.survey(&["report"]).bad_input(&["--out"]);
 }
@@ -140,6 +195,8 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
     }
     assert!(html.contains("<title>ACME AZ-200 &lt;serial 7&gt;: calibration survey 1</title>"));
     assert!(html.contains("id=\"fig-modelgap\""), "the model-gap section");
+    // 24 faces see the 20 cycles/rev gear pass at 4: its true frequency lies in the shaded band.
+    assert_shading_as_drawn(&html, true);
     // The processing's sentences take the unit too: the table's caption says why it has two columns.
     let reason = html.split("Hysteresis max").nth(1).and_then(|s| s.split("(its noise)").next()).expect("the reason");
     assert!(reason.contains("arcsec") && !reason.contains("deg"), "the table's caption in arcsec: {reason}");
