@@ -296,3 +296,60 @@ fn without_a_stated_reference_uncertainty_nothing_is_decidable() {
     assert!(verdict.contains("NOT DECIDABLE") && verdict.contains("uncertainty is not known"), "{verdict}");
     assert!(verdict.contains("the native accuracy A per ISO 230-2 of this survey"), "{verdict}");
 }
+
+/// The pixel x range of the figure's table curves (polylines 2 px wide) and of its measured means (dots).
+fn x_ranges(figure: &str) -> ((f64, f64), (f64, f64)) {
+    let range = |xs: Vec<f64>| xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+    let attr =
+        |e: &str, key: &str| e.split(&format!("{key}=\"")).nth(1).map(|v| v.split('"').next().unwrap().to_string());
+    let curves = figure
+        .split("<polyline")
+        .filter(|e| e.contains("stroke-width=\"2\""))
+        .filter_map(|e| attr(e, "points"))
+        .flat_map(|p| {
+            p.split_whitespace().map(|xy| xy.split(',').next().unwrap().parse().unwrap()).collect::<Vec<f64>>()
+        })
+        .collect();
+    let dots = figure.split("<circle").skip(1).filter_map(|e| attr(e, "cx")).map(|x| x.parse().unwrap()).collect();
+    (range(curves), range(dots))
+}
+
+#[test]
+fn a_partial_arc_across_zero_shows_the_table_over_the_whole_arc_and_says_what_it_cannot_show() {
+    let bench = Bench::new();
+    // -30 to 90 deg, every 1 deg, 3 runs both ways: a once-per-revolution error and a 12 cycles/rev line.
+    let mut csv = String::from("run,direction,target_deg,readout_deg,actual_deg\n");
+    for run in 1..=3 {
+        for (direction, sign) in [("forward", 1.0), ("reverse", -1.0)] {
+            let mut targets: Vec<f64> = (0..=120).map(|i| -30.0 + i as f64).collect();
+            if sign < 0.0 {
+                targets.reverse();
+            }
+            for t in targets {
+                let th = t.to_radians();
+                let e = 0.004 * (th + 0.3).sin()
+                    + 0.0015 * (12.0 * th + 1.0).sin()
+                    + sign * 0.0005
+                    + 1e-5 * ((run as f64) * 7.0 + t).sin();
+                csv += &format!("{run},{direction},{t},{t},{}\n", t - e);
+            }
+        }
+    }
+    bench.write("arc.csv", csv);
+    bench.survey(&["import", "arc.csv"]).success();
+    bench.survey(&["report", "--out", "r"]).success();
+    let html = bench.read("r/index.html");
+    let figure = html.split("<figure id=\"fig-table\">").nth(1).unwrap().split("</svg>").next().unwrap();
+    // The table's columns are drawn over every measured target, below 0 deg too.
+    let (curves, measured) = x_ranges(figure);
+    assert!(
+        curves.0 <= measured.0 + 1.0 && curves.1 >= measured.1 - 1.0,
+        "curves {curves:?} over the targets {measured:?}"
+    );
+    // What cannot be shown on a partial arc says why.
+    assert!(html.contains("The survey measured a partial arc (-30 to 90 deg), so the comparison cannot be drawn"));
+    for id in ["fig-error", "fig-hysteresis", "fig-spectrum", "fig-table", "tbl-iso-axis", "tbl-iso-targets"] {
+        assert!(html.contains(&format!("id=\"{id}\"")), "{id} on a partial arc");
+    }
+    assert_no_zeros(&html);
+}

@@ -34,10 +34,10 @@ fn columns(p: &Processed) -> Vec<(Direction, RGBColor, &'static str)> {
 fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
     let t = &p.built.table;
     let (lo, hi) = span(p);
-    let rows = t.len();
-    let first = (lo / t.spacing_deg()).floor().max(0.0) as usize;
-    let last = ((hi / t.spacing_deg()).ceil() as usize).min(rows);
-    let stride = ((last - first) / MAX_DRAWN).max(1);
+    // Rows over the measured span, which may start below 0 (the table wraps at 360).
+    let h = t.spacing_deg();
+    let (first, last) = ((lo / h).floor() as i64, (hi / h).ceil() as i64);
+    let stride = (((last - first) as usize) / MAX_DRAWN).max(1);
     let map = &p.analysis.error_map;
     let curves: Vec<(RGBColor, Vec<(f64, f64)>)> = columns(p)
         .into_iter()
@@ -45,7 +45,7 @@ fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
             let pts = (first..=last)
                 .step_by(stride)
                 .map(|i| {
-                    let x = t.readout_at(i);
+                    let x = i as f64 * h;
                     (x, units.of(t.error_at(x, d)))
                 })
                 .collect();
