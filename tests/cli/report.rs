@@ -353,3 +353,38 @@ fn a_partial_arc_across_zero_shows_the_table_over_the_whole_arc_and_says_what_it
     }
     assert_no_zeros(&html);
 }
+
+#[test]
+fn report_pdf_without_a_working_browser_exits_1_says_why_and_keeps_the_page() {
+    let bench = Bench::new();
+    bench.small_survey(true);
+    bench.write("slow.sh", "#!/bin/sh\nsleep 30\n");
+    let slow = bench.path("slow.sh");
+    std::fs::set_permissions(&slow, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let missing = bench.path("no-such-browser");
+    for (browser, timeout, words) in [
+        (missing.to_str().unwrap(), "120", vec!["SURVEY_CHROMIUM=", "no-such-browser", "names no file"]),
+        ("/bin/false", "120", vec!["/bin/false exited with exit status: 1"]),
+        (slow.to_str().unwrap(), "0.5", vec!["slow.sh did not finish within 500ms"]),
+    ] {
+        let _ = std::fs::remove_dir_all(bench.path("r"));
+        let mut cmd = bench.command(&["report", "--out", "r", "--pdf"]);
+        cmd.env("SURVEY_CHROMIUM", browser).env("SURVEY_PDF_TIMEOUT_S", timeout);
+        let started = std::time::Instant::now();
+        let out = Bench::output_of(&["report", "--pdf"], cmd);
+        assert_eq!(out.code, 1, "a browser that cannot print is a run-time failure\n{out}");
+        let out = out.stderr_mentions(&["cannot print", "to PDF (the HTML page is written)"]).stderr_mentions(&words);
+        assert!(started.elapsed() < std::time::Duration::from_secs(20), "bounded: {:?}\n{out}", started.elapsed());
+        assert!(bench.exists("r/index.html") && !bench.exists("r/index.pdf"), "{browser}");
+    }
+    // No browser at all: none named, none on PATH.
+    let mut cmd = bench.command(&["report", "--out", "r", "--pdf"]);
+    cmd.env_remove("SURVEY_CHROMIUM").env("PATH", bench.path("empty"));
+    let out = Bench::output_of(&["report", "--pdf"], cmd);
+    assert_eq!(out.code, 1, "{out}");
+    out.stderr_mentions(&["no Chromium found", "apt-get install chromium", "SURVEY_CHROMIUM"]);
+    bench
+        .survey_with_env(&["report", "--out", "bad", "--pdf"], "SURVEY_PDF_TIMEOUT_S", "soon")
+        .bad_input(&["SURVEY_PDF_TIMEOUT_S"]);
+    assert!(!bench.exists("bad/index.html"), "bad input writes nothing");
+}

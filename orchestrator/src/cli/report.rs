@@ -67,6 +67,9 @@ pub struct ReportArgs {
     /// Judge the ISO 230-2 accuracy A against this tolerance, degrees: pass, fail or not decidable within the uncertainty [default: [certificate] tolerance_deg].
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
+    /// Print the page to DIR/index.pdf with Chromium, headless (SURVEY_CHROMIUM names the browser; else chromium on PATH).
+    #[arg(long)]
+    pub pdf: bool,
 }
 
 pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
@@ -94,6 +97,8 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             return Err(crate::error::bad_input(format!("{flag}: empty")));
         }
     }
+    // Checked before anything is written.
+    let pdf_bound = if args.pdf { Some(crate::report::pdf::timeout()?) } else { None };
     let opts = ReportOptions {
         units: match args.units {
             UnitsArg::Deg => Units::Deg,
@@ -122,7 +127,15 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     store.close().await;
     let html = crate::report::html::render(&data?, &opts)?;
     let path = crate::report::write(&args.out, &html)?;
+    let printed = match pdf_bound {
+        Some(bound) => {
+            let pdf = path.with_extension("pdf");
+            let pages = crate::report::pdf::print(&path, &pdf, bound).await?;
+            format!("{} ({pages} pages)\n", pdf.display())
+        }
+        None => String::new(),
+    };
     drop(progress);
-    emit(&format!("{}\n", path.display()));
+    emit(&format!("{}\n{printed}", path.display()));
     Ok(())
 }

@@ -19,6 +19,7 @@
 pub mod conformity;
 pub mod html;
 pub mod page;
+pub mod pdf;
 pub mod plot;
 pub mod units;
 
