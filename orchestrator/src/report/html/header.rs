@@ -108,9 +108,9 @@ impl Certificate {
             _ => None,
         };
         let date: String = survey.created_at.chars().filter(char::is_ascii_digit).take(8).collect();
+        let made = if date.len() == 8 { format!("{date}-{}", survey.id) } else { survey.id.to_string() };
         Certificate {
-            number: pick(&flags.number, stored.number.as_ref(), None)
-                .unwrap_or(Stated { value: format!("{date}-{}", survey.id), from: SURVEY }),
+            number: pick(&flags.number, stored.number.as_ref(), None).unwrap_or(Stated { value: made, from: SURVEY }),
             laboratory: pick(&flags.laboratory, stored.laboratory.as_ref(), None),
             traceability: pick(&flags.traceability, stored.traceability.as_ref(), traceability),
             tolerance_deg: pick(&flags.tolerance_deg, stored.tolerance_deg.as_ref(), None),
@@ -296,6 +296,12 @@ mod tests {
         );
         assert_eq!(cert.reference_uncertainty_deg.as_ref().map(|u| u.value), Some(0.0005));
         assert_eq!(cert.temperature_c.as_ref().map(|t| t.value), Some(20.3));
+        assert_eq!(cert.laboratory.as_ref().map(|l| l.from), Some(CONFIG));
+        assert!(cert.traceability.as_ref().is_some_and(|t| t.value.contains("certificate 5678")));
+        // No number assigned: made from the survey (its id; `created_at` here has no date).
+        assert_eq!((cert.number.value.as_str(), cert.number.from), ("4", SURVEY));
+        let numbered = CertificateFlags { number: Some("CAL-1".into()), ..CertificateFlags::default() };
+        assert_eq!(Certificate::of(&survey, &numbered).number, Stated { value: "CAL-1".into(), from: FLAG });
         let flags = CertificateFlags { operator: Some("K. Lee".into()), ..CertificateFlags::default() };
         let cert = Certificate::of(&survey, &flags);
         assert_eq!(cert.operator.as_ref().unwrap().value, "K. Lee");
