@@ -288,7 +288,7 @@ fn without_a_stated_reference_uncertainty_nothing_is_decidable() {
     bench.small_survey(true);
     bench.survey(&["export", "--csv", "s.csv"]).success();
     let other = Bench::new();
-    other.write("s.csv", &bench.read("s.csv"));
+    other.write("s.csv", bench.read("s.csv"));
     other.survey(&["import", "s.csv"]).success();
     other.survey(&["report", "--out", "v", "--tolerance", "10"]).success();
     let html = other.read("v/index.html");

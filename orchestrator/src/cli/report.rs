@@ -1,7 +1,7 @@
 //! `survey report --out DIR`: the survey's report as one HTML page.
 
 use super::support::{emit, open_read_only};
-use crate::report::header::CertificateFlags;
+use crate::report::certificate::CertificateFlags;
 use crate::report::{ReportOptions, Units};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};

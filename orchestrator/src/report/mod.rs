@@ -9,13 +9,14 @@
 //! position, as `survey process` does), the processing (computed, nothing
 //! written), the verification survey of its table (or, for a verification,
 //! the survey it verifies), and the model-gap steps when `--model` is given.
-//! [`html`] lays it out, one module per section ([`html::page`] lists them);
+//! [`html`] lays it out, one module per section ([`html::BODY`] lists them);
 //! [`conformity`] decides a tolerance's verdict; [`page`] is the skeleton and
 //! the stylesheet, [`plot`] what every figure shares.
 //!
 //! Every error is shown in the unit chosen ([`units::Units`]), by
 //! significance; angles along the axis stay in degrees.
 
+pub mod certificate;
 pub mod conformity;
 pub mod html;
 pub mod page;
@@ -27,8 +28,7 @@ use crate::error::{bad_input, path_error};
 use crate::process::ProcessOptions;
 use crate::store::Store;
 use crate::survey::{SurveyRecord, SurveySource};
-pub use html::header;
-use html::header::CertificateFlags;
+use certificate::CertificateFlags;
 pub use html::verification::Verification;
 use html::{drift, uncertainty};
 use std::path::{Path, PathBuf};

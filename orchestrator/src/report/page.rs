@@ -22,8 +22,8 @@ figcaption{font-size:.92em;color:#333;margin-top:.3em}\
 ul.legend{list-style:none;padding:0;margin:.4em 0 0;display:flex;flex-wrap:wrap;gap:.3em 1.4em;font-size:.92em}\
 ul.legend svg{width:30px;height:12px;vertical-align:middle;margin-right:.35em}\
 table{border-collapse:collapse;margin:.6em 0;font-size:.9em}td,th{border:1px solid #bbb;padding:2px 7px;text-align:right}\
-th{background:#eee}td.l,th.l{text-align:left}\
-table.header td{text-align:left;border:none;padding:1px 12px 1px 0;vertical-align:top}table.header td:first-child{font-weight:bold;white-space:nowrap}\
+th{background:#eee}td.l,th.l{text-align:left}td{white-space:nowrap}td.l{white-space:normal}\
+table.header td{text-align:left;white-space:normal;border:none;padding:1px 12px 1px 0;vertical-align:top}table.header td:first-child{font-weight:bold;white-space:nowrap}\
 p.note,ul.note{color:#444;font-size:.92em}.subtitle{color:#444;margin:0 0 1em}\
 p.verdict{font-size:1.1em;padding:.4em .7em;border-left:5px solid #999;background:#f4f4f4}\
 p.verdict.pass{border-color:#009e73}p.verdict.fail{border-color:#d55e00}\

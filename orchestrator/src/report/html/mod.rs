@@ -32,11 +32,11 @@ pub mod table;
 pub mod uncertainty;
 pub mod verification;
 
+use crate::report::certificate::Certificate;
 use crate::report::page::{self, escape};
 use crate::report::units::Units;
 use crate::report::{ReportData, ReportOptions};
 use crate::survey::SurveySource;
-use header::Certificate;
 use survey_processing::errormap::ErrorMap;
 use survey_processing::iso230::{Iso230, iso230_2};
 use survey_processing::pipeline::Processed;

@@ -53,16 +53,7 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
             u_of(measured_u),
         ]);
     }
-    let mut body = page::table("tbl-summary", &["figure", "value", "expanded uncertainty U (k = 2)"], &rows);
-    body += &format!(
-        "<p class=\"note\">U of a measured figure: k √(u<sub>ref</sub>² + u<sub>axis</sub>²), the reference \
-         instrument's stated standard uncertainty of one angle{} and, with a tracker, the located axis's{} \
-         (ISO 230-2 Annex A's measuring instrument and set-up); the scatter over the runs is already inside A (its \
-         ±2 s bands), and the environment's contribution is not included (no temperature was measured). U of the \
-         predicted corrected peak is the table's, as a correction (section Uncertainty of the table).</p>\n",
-        reference_u.map_or(" (not stated: no U)".to_string(), |u| format!(" ({})", units.show(u))),
-        d.axis_u_deg.map_or(String::new(), |u| format!(" ({})", units.show(u))),
-    );
+    let mut body = String::new();
     if let Some(tolerance) = &p.cert.tolerance_deg {
         let (what, figure) = match corrected_a {
             Some((v, a)) => (
@@ -80,6 +71,16 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
         };
         body += &verdict(figure, measured_u, tolerance.value, &what, p);
     }
+    body += &page::table("tbl-summary", &["figure", "value", "expanded uncertainty U (k = 2)"], &rows);
+    body += &format!(
+        "<p class=\"note\">U of a measured figure: k √(u<sub>ref</sub>² + u<sub>axis</sub>²), the reference \
+         instrument's stated standard uncertainty of one angle{} and, with a tracker, the located axis's{} \
+         (ISO 230-2 Annex A's measuring instrument and set-up); the scatter over the runs is already inside A (its \
+         ±2 s bands), and the environment's contribution is not included (no temperature was measured). U of the \
+         predicted corrected peak is the table's, as a correction (section Uncertainty of the table).</p>\n",
+        reference_u.map_or(" (not stated: no U)".to_string(), |u| format!(" ({})", units.show(u))),
+        d.axis_u_deg.map_or(String::new(), |u| format!(" ({})", units.show(u))),
+    );
     Ok(Some(Section { id: "summary", title: "Summary".into(), new_page: false, body }))
 }
 
