@@ -277,6 +277,14 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
     let summary = html.split("id=\"tbl-summary\"").nth(1).unwrap().split("</table>").next().unwrap();
     assert!(summary.contains("expanded uncertainty U (k = 2)") && summary.contains("(the table's)"), "{summary}");
     assert!(summary.contains("ISO 230-2 accuracy A, corrected, measured (survey 2)"), "{summary}");
+    let u_in_summary = summary.split("as measured</td><td>").nth(1).unwrap().split("</td><td>").nth(1).unwrap();
+    let u_in_summary = u_in_summary.split('<').next().unwrap();
+    assert!(
+        html.contains(&format!(
+            "The measured figures A, E and M carry the expanded uncertainty U = {u_in_summary} (k = 2)"
+        )),
+        "the ISO figures state the same U as the summary ({u_in_summary})"
+    );
     // Without a tolerance, no verdict.
     bench.survey(&["report", "--survey", "1", "--out", "none"]).success();
     assert!(!bench.read("none/index.html").contains("id=\"verdict\""));
@@ -295,6 +303,7 @@ fn without_a_stated_reference_uncertainty_nothing_is_decidable() {
     let verdict = html.split("id=\"verdict\">").nth(1).and_then(|s| s.split("</p>").next()).expect("a verdict");
     assert!(verdict.contains("NOT DECIDABLE") && verdict.contains("uncertainty is not known"), "{verdict}");
     assert!(verdict.contains("the native accuracy A per ISO 230-2 of this survey"), "{verdict}");
+    assert!(html.contains("The reference's uncertainty is not stated: the figures' uncertainty is not known."));
 }
 
 /// The pixel x range of the figure's table curves (polylines 2 px wide) and of its measured means (dots).

@@ -2,6 +2,7 @@
 //! figures beside them and the definitions used.
 
 use super::{Page, Section, note};
+use crate::report::conformity;
 use crate::report::page::{escape, table};
 use crate::report::units::{Units, angle};
 use survey_processing::iso230::Iso230;
@@ -111,7 +112,18 @@ pub fn targets_section(iso: &Iso230, units: Units) -> String {
 /// The axis figures, or why there are none.
 pub fn show_axis(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let body = match &p.iso {
-        Ok(iso) => axis_section(iso, p.units),
+        Ok(iso) => {
+            let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
+            let u = match conformity::accuracy_u_deg(reference_u, p.d.axis_u_deg) {
+                Some(u) => format!(
+                    "The measured figures A, E and M carry the expanded uncertainty U = {} (k = 2) of the \
+                     measurement (see the summary).",
+                    p.units.show(u)
+                ),
+                None => "The reference's uncertainty is not stated: the figures' uncertainty is not known.".into(),
+            };
+            axis_section(iso, p.units) + &note(&u)
+        }
         Err(e) => note(&format!("No ISO 230-2 figures: {e}.")),
     };
     Ok(Section::page("iso230", "ISO 230-2 and VDI/DGQ 3441", body))
