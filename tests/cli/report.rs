@@ -285,8 +285,19 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
         )),
         "the ISO figures state the same U as the summary ({u_in_summary})"
     );
-    // Without a tolerance, no verdict.
+    // The stated reference uncertainty enters the table's budget too (as the header states it).
+    let budget_u = |dir: &str| {
+        let html = bench.read(&format!("{dir}/index.html"));
+        let row =
+            html.split("<td class=\"l\">reference instrument</td><td>").nth(1).expect("the budget's row").to_string();
+        row.split('<').next().unwrap().parse::<f64>().unwrap()
+    };
+    bench.survey(&["report", "--survey", "1", "--out", "coarse", "--reference-uncertainty", "0.01"]).success();
     bench.survey(&["report", "--survey", "1", "--out", "none"]).success();
+    // The simulated tracker's 0.000884 deg against 0.01 deg: about 11 times the contribution.
+    let ratio = budget_u("coarse") / budget_u("none");
+    assert!((ratio - 0.01 / 0.000_884).abs() < 0.5, "{ratio}");
+    // Without a tolerance, no verdict.
     assert!(!bench.read("none/index.html").contains("id=\"verdict\""));
 }
 

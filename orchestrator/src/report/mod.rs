@@ -120,7 +120,9 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
         }
         None => None,
     };
-    let inputs = crate::refit::uncertainty_inputs(&survey, refit.as_ref(), located.as_ref());
+    let mut inputs = crate::refit::uncertainty_inputs(&survey, refit.as_ref(), located.as_ref());
+    // The reference's uncertainty the certificate states (`--reference-uncertainty` over the stored one).
+    inputs.reference_u_deg = opts.flags.reference_uncertainty_deg.or(inputs.reference_u_deg);
     let uncertainty = processed.as_ref().ok().map(|p| {
         let u = survey_processing::uncertainty::uncertainty(p, &analysed, &inputs);
         uncertainty::UncertaintyBudget {
