@@ -79,6 +79,14 @@ pub struct CertificateSection {
     pub customer: Option<String>,
     /// The air temperature during the survey, degrees Celsius.
     pub temperature_c: Option<f64>,
+    /// The certificate's number, as the laboratory assigns it.
+    pub number: Option<String>,
+    /// The calibrating laboratory: name, address, accreditation.
+    pub laboratory: Option<String>,
+    /// How the measurement is traceable to the SI: the reference's calibration (by whom, certificate, date).
+    pub traceability: Option<String>,
+    /// The tolerance the positioner's ISO 230-2 accuracy A is judged against, degrees.
+    pub tolerance_deg: Option<f64>,
 }
 
 /// `[survey]`: the plan; command-line flags override these.
@@ -487,6 +495,9 @@ impl SurveyConfig {
             if let Some(t) = c.temperature_c {
                 within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
             }
+            if let Some(t) = c.tolerance_deg {
+                within("certificate.tolerance_deg", t, Range::Above(0.0), 360.0, "deg")?;
+            }
         }
         if let Some(arm) = &self.arm {
             within("arm.radius_mm", arm.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
@@ -653,6 +664,7 @@ mod tests {
             ("[arm]\nradius_mm = 500.0\nradius_tolerance_mm = 600.0\n", "arm.radius_tolerance_mm"),
             ("[certificate]\ntemperature_c = 293.15\n", "certificate.temperature_c = 293.15 is outside"),
             ("[certificate]\nreference_uncertainty_deg = 0\n", "certificate.reference_uncertainty_deg = 0 is outside"),
+            ("[certificate]\ntolerance_deg = -0.01\n", "certificate.tolerance_deg = -0.01 is outside"),
         ] {
             let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
             assert!(e.starts_with("c.toml: ") && e.contains(key), "{extra}: {e}");

@@ -186,7 +186,7 @@ pub fn uncertainty_inputs(
     refit: Option<&AxisRefit>,
     located: Option<&Refit>,
 ) -> UncertaintyInputs {
-    let cert = crate::report::header::Certificate::of(survey, &Default::default());
+    let cert = crate::report::certificate::Certificate::of(survey, &Default::default());
     let axis_u_deg = match (refit, located) {
         (Some(r), _) => Some(r.over_arc_se_deg),
         (None, Some(l)) => Some(l.over_arc_se_deg),

@@ -1,7 +1,7 @@
 //! `survey report --out DIR`: the survey's report as one HTML page.
 
 use super::support::{emit, open_read_only};
-use crate::report::header::CertificateFlags;
+use crate::report::certificate::CertificateFlags;
 use crate::report::{ReportOptions, Units};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
@@ -55,6 +55,21 @@ pub struct ReportArgs {
     /// The air temperature during the survey, degrees Celsius [default: [certificate] of the configuration].
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     pub temperature: Option<f64>,
+    /// The certificate's number [default: [certificate] number, or made from the survey's date and id].
+    #[arg(long, value_name = "TEXT")]
+    pub certificate_number: Option<String>,
+    /// The calibrating laboratory: name, address, accreditation [default: [certificate] laboratory].
+    #[arg(long, value_name = "TEXT")]
+    pub laboratory: Option<String>,
+    /// The traceability statement: the reference's calibration, by whom, certificate, date [default: [certificate] traceability].
+    #[arg(long, value_name = "TEXT")]
+    pub traceability: Option<String>,
+    /// Judge the ISO 230-2 accuracy A against this tolerance, degrees: pass, fail or not decidable within the uncertainty [default: [certificate] tolerance_deg].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub tolerance: Option<f64>,
+    /// Print the page to DIR/index.pdf with Chromium, headless (SURVEY_CHROMIUM names the browser; else chromium on PATH).
+    #[arg(long)]
+    pub pdf: bool,
 }
 
 pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
@@ -68,6 +83,22 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     {
         return Err(crate::error::bad_input(format!("--reference-uncertainty {u}: must be above 0 and at most 1 deg")));
     }
+    if let Some(t) = args.tolerance
+        && !(t.is_finite() && t > 0.0 && t <= 360.0)
+    {
+        return Err(crate::error::bad_input(format!("--tolerance {t}: must be above 0 and at most 360 deg")));
+    }
+    for (flag, text) in [
+        ("--certificate-number", &args.certificate_number),
+        ("--laboratory", &args.laboratory),
+        ("--traceability", &args.traceability),
+    ] {
+        if text.as_ref().is_some_and(|t| t.trim().is_empty()) {
+            return Err(crate::error::bad_input(format!("{flag}: empty")));
+        }
+    }
+    // Checked before anything is written.
+    let pdf_bound = if args.pdf { Some(crate::report::pdf::timeout()?) } else { None };
     let opts = ReportOptions {
         units: match args.units {
             UnitsArg::Deg => Units::Deg,
@@ -81,6 +112,10 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             operator: args.operator,
             customer: args.customer,
             temperature_c: args.temperature,
+            number: args.certificate_number,
+            laboratory: args.laboratory,
+            traceability: args.traceability,
+            tolerance_deg: args.tolerance,
         },
         design: args.design,
         recipe: args.recipe,
@@ -90,9 +125,17 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let data = crate::report::gather(&store, args.survey, &opts).await;
     store.close().await;
-    let html = crate::report::html(&data?, &opts)?;
+    let html = crate::report::html::render(&data?, &opts)?;
     let path = crate::report::write(&args.out, &html)?;
+    let printed = match pdf_bound {
+        Some(bound) => {
+            let pdf = path.with_extension("pdf");
+            let pages = crate::report::pdf::print(&path, &pdf, bound).await?;
+            format!("{} ({pages} pages)\n", pdf.display())
+        }
+        None => String::new(),
+    };
     drop(progress);
-    emit(&format!("{}\n", path.display()));
+    emit(&format!("{}\n{printed}", path.display()));
     Ok(())
 }

@@ -39,18 +39,9 @@ impl Units {
         }
     }
 
-    /// Decimals that show a tenth of the tracker's noise (about 1e-4 deg).
-    fn decimals(self) -> usize {
-        match self {
-            Units::Deg => 5,
-            Units::Arcsec => 2,
-            Units::Urad => 2,
-        }
-    }
-
-    /// `deg` converted and printed with the unit's decimals (no symbol).
+    /// `deg` converted and printed by significance ([`significant`]), no symbol.
     pub fn num(self, deg: f64) -> String {
-        format!("{:.*}", self.decimals(), self.of(deg))
+        significant(self.of(deg))
     }
 
     /// `deg` converted and printed with its symbol.
@@ -58,9 +49,74 @@ impl Units {
         format!("{} {}", self.num(deg), self.symbol())
     }
 
+    /// `text` (a sentence of the processing, whose errors are in degrees)
+    /// with each error in this unit: a number below 1 followed by ` deg`
+    /// (an error: angles along the axis, phases and ranges are left as they
+    /// are: a number of 1 or more, or one in a clause about a phase).
+    pub fn text(self, text: &str) -> String {
+        if self == Units::Deg {
+            return text.to_string();
+        }
+        let mut out = String::with_capacity(text.len());
+        let mut rest = text;
+        while let Some(at) = rest.find(" deg") {
+            let (before, after) = rest.split_at(at);
+            let start = before
+                .char_indices()
+                .rev()
+                .take_while(|(_, c)| c.is_ascii_digit() || matches!(c, '.' | 'e' | '-' | '+'))
+                .last()
+                .map_or(before.len(), |(i, _)| i);
+            let (head, number) = before.split_at(start);
+            let word_ends = after[4..].chars().next().is_none_or(|c| !c.is_alphanumeric());
+            let clause = head.rsplit([',', ';', '(']).next().unwrap_or(head);
+            match number.parse::<f64>() {
+                Ok(v) if word_ends && v.abs() < 1.0 && !clause.contains("phase") => {
+                    out += head;
+                    out += &self.show(v);
+                }
+                _ => out += &rest[..at + 4],
+            }
+            rest = &after[4..];
+        }
+        out + rest
+    }
+
     /// An optional figure, `-` when absent.
     pub fn opt(self, deg: Option<f64>) -> String {
         deg.map(|d| self.num(d)).unwrap_or_else(|| "-".into())
+    }
+}
+
+/// `v` with three significant digits: fixed-point from 1e-4 up to 1e6 (so
+/// 0.000884, 0.0344, 121), exponent form outside (2.36e-6), `0` for zero.
+/// Never a row of zeros for a small value, never false precision.
+pub fn significant(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    if !v.is_finite() {
+        return "-".into();
+    }
+    let e = format!("{v:.2e}");
+    let exponent: i32 = e.rsplit('e').next().and_then(|x| x.parse().ok()).unwrap_or(0);
+    if (-4..6).contains(&exponent) { format!("{v:.*}", (2 - exponent).max(0) as usize) } else { e }
+}
+
+/// An angle along the axis, degrees, to 0.0001 deg and no trailing zero
+/// (`0`, `12.5`, `359.0001`): a position, not a measured error.
+pub fn angle(deg: f64) -> String {
+    let r = (deg * 1e4).round() / 1e4;
+    format!("{}", if r == 0.0 { 0.0 } else { r })
+}
+
+/// A fraction as a percentage by significance: `37.5 %`, `0.25 %`, `< 0.1 %` below a thousandth, `0 %`.
+pub fn percent(fraction: f64) -> String {
+    let p = fraction * 100.0;
+    match p {
+        0.0 => "0 %".into(),
+        p if p.abs() < 0.1 => "< 0.1 %".into(),
+        p => format!("{} %", significant(p)),
     }
 }
 
@@ -76,5 +132,43 @@ mod tests {
         assert!((Units::Urad.of(1.0) - 17_453.292_519_943_3).abs() < 1e-6);
         assert_eq!(Units::Arcsec.show(0.001), "3.60 arcsec");
         assert_eq!(Units::Deg.opt(None), "-");
+    }
+
+    #[test]
+    fn numbers_are_shown_by_significance_never_as_zeros() {
+        for (v, shown) in [
+            (0.0344, "0.0344"),
+            (0.000884, "0.000884"),
+            (121.31, "121"),
+            (9.996, "10.0"),
+            (-30.004, "-30.0"),
+            (2.357e-6, "2.36e-6"),
+            (1.0e-4, "0.000100"),
+            (0.0, "0"),
+            (123_456_789.0, "1.23e8"),
+        ] {
+            assert_eq!(significant(v), shown, "{v}");
+        }
+        assert_eq!(Units::Deg.num(2.2e-7), "2.20e-7", "the interpolation's share is not 0.00000");
+        assert_eq!(Units::Arcsec.num(2.2e-7), "0.000792");
+        assert_eq!(
+            (angle(0.0), angle(-0.00001), angle(12.5), angle(359.00012)),
+            ("0".into(), "0".into(), "12.5".into(), "359.0001".into())
+        );
+        assert_eq!(
+            (percent(0.375), percent(0.0025), percent(1e-6), percent(0.0)),
+            ("37.5 %".into(), "0.250 %".into(), "< 0.1 %".into(), "0 %".into())
+        );
+    }
+
+    #[test]
+    fn errors_in_sentences_take_the_unit_and_angles_stay_in_degrees() {
+        let s = "hysteresis max 0.00116 deg > 5 x 7.48e-5 deg (its noise); partial range -10 to 90 deg, phase 0.5 deg";
+        assert_eq!(
+            Units::Arcsec.text(s),
+            "hysteresis max 4.18 arcsec > 5 x 0.269 arcsec (its noise); partial range -10 to 90 deg, phase 0.5 deg"
+        );
+        assert_eq!(Units::Deg.text(s), s);
+        assert_eq!(Units::Arcsec.text("drift 1.0e-3 deg per run, 12 degrees"), "drift 3.60 arcsec per run, 12 degrees");
     }
 }

@@ -3,9 +3,10 @@
 //! positioner with the table applied.
 
 use super::errors;
-use super::page::{escape, figure, table};
-use super::plot::padded;
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{escape, figure, table};
+use crate::report::plot::padded;
+use crate::report::units::Units;
 use survey_processing::Sample;
 use survey_processing::errormap::ErrorMap;
 
@@ -120,5 +121,15 @@ fn placement(native: &ErrorMap, corrected: &ErrorMap) -> String {
              polygon's faces): there the table holds what was measured.",
             corrected.targets_deg.len()
         )
+    }
+}
+
+/// The section, when there is a verification.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match &p.d.verification {
+        Some(v) => {
+            Ok(Section::page("verification", "Native and corrected accuracy", section(v, &p.d.samples, p.units)?))
+        }
+        None => Ok(None),
     }
 }
