@@ -2,7 +2,6 @@
 //! and size, and what reading and writing them does.
 
 use super::{MAX_TABLE_BYTES, Node, Refusal, link};
-use survey_drivers::canopen::frame::CanBus;
 use survey_drivers::canopen::objects::{
     DEVICE_TYPE_SERVO_DRIVE, PROFILE_POSITION_MODE, counts_to_degrees, decode_table, index,
 };
@@ -107,7 +106,7 @@ fn sized<const N: usize>(data: &[u8]) -> Result<[u8; N], Refusal> {
     }
 }
 
-impl<B: CanBus> Node<B> {
+impl Node {
     /// The value of `index:subindex`.
     pub(super) async fn read(&mut self, index: u16, subindex: u8) -> Result<Vec<u8>, Refusal> {
         entry(index, subindex)?;

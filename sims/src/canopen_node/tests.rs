@@ -18,6 +18,7 @@ use survey_drivers::canopen::objects::{
 use survey_drivers::canopen::socketcan_bus::{SocketCanBus, is_can_unavailable};
 use survey_drivers::canopen::{CW_OPERATE, CanopenConfig, Cia402Positioner, MemoryBus, MemoryEndpoint};
 use survey_drivers::clock::Clock;
+use survey_drivers::traits::DeviceFault;
 use survey_processing::Direction;
 use survey_processing::model::Model;
 use survey_processing::table::CorrectionTable;
@@ -36,10 +37,13 @@ fn driver_cfg() -> CanopenConfig {
 
 type Driver = Cia402Positioner<MemoryEndpoint>;
 
+/// The node on a bus of its own behind a relay (its link faults), the
+/// driver and the monitor on the host's bus.
 struct Rig {
     clock: VirtualClock,
     truth: Turntable,
-    faults: NodeFaults,
+    /// Link faults (the relay's) and device faults (the node's).
+    faults: Faults,
     bus: MemoryBus,
     /// Sees every frame on the bus.
     monitor: MemoryEndpoint,
@@ -74,8 +78,17 @@ impl Rig {
         let truth = sim.truth();
         let bus = MemoryBus::new();
         let monitor = bus.endpoint();
-        let faults = NodeFaults::new();
-        let node = tokio::spawn(serve(bus.endpoint(), sim, node_cfg, faults.clone()));
+        let faults = Faults::new();
+        // When the host's bus goes down, the relay ends and takes the
+        // node's bus down with it.
+        let device_bus = MemoryBus::new();
+        let (host, device, node_end) = (bus.endpoint(), device_bus.endpoint(), device_bus.endpoint());
+        let relay = crate::relay::Relay::armed(faults.clone(), crate::relay::Framing::Chunks);
+        tokio::spawn(async move {
+            crate::relay::relay_can(host, device, &relay).await;
+            device_bus.shut_down();
+        });
+        let node = tokio::spawn(serve(node_end, sim, node_cfg, faults.clone()));
         Rig { clock, truth, faults, bus, monitor, node: Some(node) }
     }
 
@@ -411,7 +424,7 @@ async fn abort_codes_become_device_errors_with_code_and_text() {
         Some(abort::LENGTH_MISMATCH),
     );
     // An abort the node sends for its own reasons (injected), then all is well.
-    rig.faults.abort_next_request(0x0606_0000);
+    rig.faults.arm(Fault::Refuse(Some(DeviceFault { code: 0x0606_0000, text: String::new() })));
     let e = assert_error(d.readout().await, ErrorKind::Device, Some(0x0606_0000));
     assert!(e.message.contains("hardware error"), "{e}");
     assert_eq!(d.readout().await.unwrap(), 0.0);
@@ -422,7 +435,7 @@ async fn a_dropped_response_is_a_timeout_and_the_next_request_works() {
     let mut rig = Rig::fig8();
     let mut d = rig.connected().await;
     rig.client_aborts();
-    rig.faults.drop_next_responses(1);
+    rig.faults.arm(Fault::Drop);
     let t0 = tokio::time::Instant::now();
     let e = assert_error(d.readout().await, ErrorKind::Timeout, None);
     assert!(t0.elapsed() >= Duration::from_millis(200) && e.is_link(), "{e}");
@@ -431,7 +444,7 @@ async fn a_dropped_response_is_a_timeout_and_the_next_request_works() {
     assert_eq!(rig.client_aborts(), [abort::TIMEOUT]);
     assert_eq!(d.readout().await.unwrap(), 0.0);
     // A dropped response to a write: the write happened, the driver timed out.
-    rig.faults.drop_next_responses(1);
+    rig.faults.arm(Fault::Drop);
     assert_error(d.set_velocity(5.0).await, ErrorKind::Timeout, None);
     assert_eq!(d.upload(index::PROFILE_VELOCITY, 0).await.unwrap(), 500_000u32.to_le_bytes());
 }
@@ -449,7 +462,7 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
         (Garble::FlipToggle, "toggle"),
     ];
     for (g, says) in cases {
-        rig.faults.garble_next_response(g);
+        rig.faults.arm(garbled(g));
         let e = match g {
             Garble::FlipToggle => d.device_name().await.map(|_| ()),
             _ => d.readout().await.map(|_| ()),
@@ -464,9 +477,9 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
         assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     }
     // A flipped toggle in a download segment response, and a wrong echo of a download.
-    rig.faults.garble_next_response(Garble::FlipToggle);
+    rig.faults.arm(garbled(Garble::FlipToggle));
     assert_error(d.load_correction_table(&table).await, ErrorKind::Garbled, None);
-    rig.faults.garble_next_response(Garble::WrongIndex);
+    rig.faults.arm(garbled(Garble::WrongIndex));
     assert_error(d.load_correction_table(&table).await, ErrorKind::Garbled, None);
     d.load_correction_table(&table).await.unwrap();
     assert_eq!(d.read_correction_table().await.unwrap().len(), 16);
@@ -476,12 +489,15 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
 async fn silence_in_the_middle_of_a_segmented_transfer_times_out_and_recovers() {
     let mut rig = Rig::fig8();
     let mut d = rig.connected().await;
-    rig.faults.silence_after_segments(2);
+    // The initiate response and 2 segment responses, then silence.
+    rig.faults.arm_n(Fault::Pass, 3);
+    rig.faults.arm(Fault::Drop);
     let e = assert_error(d.device_name().await, ErrorKind::Timeout, None);
     assert!(e.message.contains("0x1008:00"), "{e}");
     assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     let table = CorrectionTable::new((0..100).map(|i| f64::from(i) * 1e-4).collect()).unwrap();
-    rig.faults.silence_after_segments(5);
+    rig.faults.arm_n(Fault::Pass, 6);
+    rig.faults.arm(Fault::Drop);
     assert_error(d.load_correction_table(&table).await, ErrorKind::Timeout, None);
     assert_error(d.read_correction_table().await, ErrorKind::Usage, Some(abort::NO_DATA));
     d.load_correction_table(&table).await.unwrap();
@@ -593,7 +609,7 @@ async fn the_driver_and_the_node_over_socketcan_vcan0() {
     let driver_socket = SocketCanBus::open("vcan0").unwrap();
     let clock = VirtualClock::new();
     let sim = SimPositioner::new(PositionerConfig::new(fig8()), Arc::new(clock.clone()));
-    let node = tokio::spawn(serve(node_socket, sim, NodeConfig::new(NODE), NodeFaults::new()));
+    let node = tokio::spawn(serve(node_socket, sim, NodeConfig::new(NODE), Faults::new()));
     let mut d = Cia402Positioner::connect(driver_socket, driver_cfg()).await.unwrap();
     assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     d.move_to(12.5).await.unwrap();
