@@ -82,9 +82,17 @@
 //! | `0x607A` | i32 | target position, counts |
 //! | `0x6081` | u32 | profile velocity, counts per second |
 //! | `0x60FD` | u32 | digital inputs: bit 0 negative, bit 1 positive limit switch |
-//! | `0x2100` | domain | correction table (this project's layout, below) |
-//! | `0x2101` | u8 | correction applied (0/1) |
-//! | `0x2102` | visible string | text of the latched fault |
+//! | `0x2100` | domain | correction table (this project's layout, below), only with [`CanopenConfig::correction_objects`] |
+//! | `0x2101` | u8 | correction applied (0/1), only with [`CanopenConfig::correction_objects`] |
+//! | `0x2102` | visible string | text of the latched fault, when the drive has it ([`CanopenConfig::fault_text_index`]) |
+//!
+//! Status, enable, moves and limits use the CiA 301/402 objects only, which
+//! every CiA 402 drive has. 0x2100-0x2102 are this project's own layout in
+//! the manufacturer-specific range, which a drive may lack or use otherwise
+//! (SDO abort 0x06020000): the correction objects are used only when the
+//! configuration says the drive has them (`correction_objects = true`;
+//! without, loading and switching the correction table is refused as bad
+//! usage), and a missing fault-text object falls back to the code's text.
 //!
 //! Counts per degree are configured ([`CanopenConfig::counts_per_degree`],
 //! default 100 000); velocity units are counts per second.
@@ -103,7 +111,7 @@
 //! `in_position` = target reached; `fault` = bit 3, with the code of 0x603F
 //! and the text of 0x2102 (or the code's standard text); `limit` = bit 11
 //! (internal limit active) refined by 0x60FD bits 0/1; `correction_enabled`
-//! = 0x2101.
+//! = 0x2101 with the correction objects, else false.
 //!
 //! The correction table domain (0x2100): `u16` rows `n` (2..=8192), `u8`
 //! flags (bit 0: a reverse column follows), `u8` 0, then `n` forward values

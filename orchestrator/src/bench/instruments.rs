@@ -293,6 +293,20 @@ fn line(instrument: &str, address: String, result: Result<String, DriverError>) 
     }
 }
 
+/// What the configured positioner cannot do, for `survey check` (empty when
+/// nothing): a CiA 402 drive without this project's correction objects
+/// cannot take the correction table.
+fn unavailable(positioner: &PositionerConfig) -> &'static str {
+    match positioner {
+        PositionerConfig::Canopen { drive, .. } if !drive.correction_objects => {
+            "; unavailable without correction_objects = true (the drive has CiA 402's standard objects only): \
+             loading the correction table into the drive (0x2100/0x2101, this project's own objects), so \
+             survey run --verify cannot apply the table"
+        }
+        _ => "",
+    }
+}
+
 /// Connect to every instrument and read its status, bounded by the
 /// configuration's timeouts.
 pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
@@ -310,7 +324,7 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
         }
         let readout = with_timeout(clock, timing.call_timeout, &name, "readout", p.readout()).await?;
         Ok(format!(
-            "readout {readout} deg, {}{}",
+            "readout {readout} deg, {}{}{}",
             if status.moving {
                 "moving"
             } else if status.in_position {
@@ -318,7 +332,8 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
             } else {
                 "at rest"
             },
-            status.limit.map(|l| format!(", at the {l:?} limit")).unwrap_or_default()
+            status.limit.map(|l| format!(", at the {l:?} limit")).unwrap_or_default(),
+            unavailable(&cfg.positioner)
         ))
     }
     .await;

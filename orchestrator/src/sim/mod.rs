@@ -320,6 +320,9 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         PositionerConfig::Canopen { drive, .. } => {
             let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
             node.counts_per_degree = drive.counts_per_degree;
+            // A drive with this project's own objects when the configuration
+            // says so; else one with the standard objects only.
+            node.correction_objects = drive.correction_objects;
             let positioner = bench.positioner;
             let faults = Faults::counting(injected.clone());
             match cfg.positioner.can_link() {

@@ -53,6 +53,9 @@
 //!   drive goes to fault, 0x603F holds the code (codes above 0xFFFF become
 //!   0xFF00 "device specific", the original in the text), 0x2102 the text,
 //!   0x1001 bit 0 is set. Fault reset calls the sim's `clear_fault`.
+//! - This project's own objects, 0x2100-0x2102, exist only with
+//!   [`NodeConfig::correction_objects`] (else abort `0x0602_0000`, as on a
+//!   drive with the standard objects only).
 //! - Correction: 0x2100 download installs the table in the sim (refused
 //!   while moving with `0x0800_0022`; bad layout with the
 //!   [`TableDomainError`](survey_drivers::canopen::objects::TableDomainError)
@@ -111,6 +114,12 @@ pub struct NodeConfig {
     /// transition the controlword asks for (and to show a new mode of
     /// operation in 0x6061). Default [`TRANSITION_TIME`].
     pub transition_time: std::time::Duration,
+    /// Whether the drive has this project's own objects (0x2100 the
+    /// correction table, 0x2101 correction on/off, 0x2102 the fault's text:
+    /// manufacturer-specific); without them (the default) it has the CiA
+    /// 301/402 objects only and aborts those with 0x06020000, as a standard
+    /// drive does.
+    pub correction_objects: bool,
 }
 
 /// Default time of one drive state transition: 20 ms. Our own choice (real
@@ -129,6 +138,7 @@ impl NodeConfig {
             device_name: DEVICE_NAME.into(),
             max_velocity_deg_s: MAX_VELOCITY_DEG_S,
             transition_time: TRANSITION_TIME,
+            correction_objects: false,
         }
     }
 }
@@ -462,7 +472,7 @@ impl Node {
     }
 
     async fn initiate_download(&mut self, index: u16, subindex: u8, data: InitData) -> Result<SdoResponse, Refusal> {
-        let entry = od::writable(index, subindex)?;
+        let entry = od::writable(index, subindex, self.cfg.correction_objects)?;
         match data {
             InitData::Expedited { data, size_indicated } => {
                 let bytes = match (size_indicated, entry.size()) {

@@ -5,7 +5,7 @@
 //! no deadline is raced.
 
 use super::*;
-use crate::positioner::{PositionerConfig, PositionerFaults};
+use crate::positioner::{FAULT_FOLLOWING_ERROR, PositionerConfig, PositionerFaults};
 use crate::presets::{Preset, without_noise};
 use crate::turntable::Turntable;
 use rand::{Rng, SeedableRng};
@@ -31,8 +31,14 @@ fn fig8() -> Model {
     without_noise(&Preset::by_name("fig8").unwrap().model)
 }
 
+/// The driver for a drive with this project's correction objects.
 fn driver_cfg() -> CanopenConfig {
-    CanopenConfig { node_id: NODE, sdo_timeout_ms: 200, ..CanopenConfig::default() }
+    CanopenConfig { node_id: NODE, sdo_timeout_ms: 200, correction_objects: true, ..CanopenConfig::default() }
+}
+
+/// A node with this project's own objects (0x2100-0x2102).
+fn node_cfg() -> NodeConfig {
+    NodeConfig { correction_objects: true, ..NodeConfig::new(NODE) }
 }
 
 type Driver = Cia402Positioner<MemoryEndpoint>;
@@ -60,16 +66,13 @@ impl Drop for Rig {
 
 impl Rig {
     fn new(cfg: PositionerConfig) -> Rig {
-        Rig::with_node(cfg, NodeConfig::new(NODE))
+        Rig::with_node(cfg, node_cfg())
     }
 
     /// A node that carries out a transition at once: for the tests of the
     /// state logic itself, step by step.
     fn instant() -> Rig {
-        Rig::with_node(
-            PositionerConfig::new(fig8()),
-            NodeConfig { transition_time: Duration::ZERO, ..NodeConfig::new(NODE) },
-        )
+        Rig::with_node(PositionerConfig::new(fig8()), NodeConfig { transition_time: Duration::ZERO, ..node_cfg() })
     }
 
     fn with_node(cfg: PositionerConfig, node_cfg: NodeConfig) -> Rig {
@@ -609,7 +612,7 @@ async fn the_driver_and_the_node_over_socketcan_vcan0() {
     let driver_socket = SocketCanBus::open("vcan0").unwrap();
     let clock = VirtualClock::new();
     let sim = SimPositioner::new(PositionerConfig::new(fig8()), Arc::new(clock.clone()));
-    let node = tokio::spawn(serve(node_socket, sim, NodeConfig::new(NODE), Faults::new()));
+    let node = tokio::spawn(serve(node_socket, sim, node_cfg(), Faults::new()));
     let mut d = Cia402Positioner::connect(driver_socket, driver_cfg()).await.unwrap();
     assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     d.move_to(12.5).await.unwrap();
@@ -658,10 +661,41 @@ async fn each_transition_takes_time_and_the_driver_waits_for_it() {
 async fn a_drive_slower_than_the_transition_timeout_is_a_clear_error() {
     let rig = Rig::with_node(
         PositionerConfig::new(fig8()),
-        NodeConfig { transition_time: Duration::from_millis(300), ..NodeConfig::new(NODE) },
+        NodeConfig { transition_time: Duration::from_millis(300), ..node_cfg() },
     );
     let cfg = CanopenConfig { transition_timeout_ms: 50, ..driver_cfg() };
     let e = Cia402Positioner::connect(rig.bus.endpoint(), cfg).await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Device, "{e}");
     assert!(e.message.contains("did not switch to profile position mode: 0x6061 shows 0"), "{e}");
+}
+
+/// A drive with the CiA 301/402 objects only (`NodeConfig::new`, the
+/// driver's default configuration): enable, move, status, readout and its
+/// fault work on the standard objects; this project's own objects are
+/// absent (abort 0x06020000), so the driver neither reads them for the
+/// status nor sends the table.
+#[tokio::test]
+async fn a_drive_with_only_the_standard_objects() {
+    let faults = PositionerFaults { fault_on_move: Some(2), ..PositionerFaults::default() };
+    let rig = Rig::with_node(PositionerConfig { faults, ..PositionerConfig::new(fig8()) }, NodeConfig::new(NODE));
+    let standard = CanopenConfig { node_id: NODE, sdo_timeout_ms: 200, ..CanopenConfig::default() };
+    let mut d = Cia402Positioner::connect(rig.bus.endpoint(), standard).await.unwrap();
+    for object in [index::CORRECTION_TABLE, index::CORRECTION_ENABLE, index::FAULT_TEXT] {
+        assert_error(d.upload(object, 0).await, ErrorKind::Device, Some(abort::NO_OBJECT));
+    }
+    d.move_to(20.0).await.unwrap();
+    let s = settle(&mut d, &rig.clock).await;
+    assert!(s.in_position && !s.correction_enabled && s.fault.is_none(), "{s:?}");
+    assert_eq!(d.readout().await.unwrap(), 20.0);
+    // The second move trips the drive: the fault's code, and the standard
+    // text of 0x603F in place of 0x2102's.
+    d.move_to(40.0).await.unwrap();
+    let s = settle(&mut d, &rig.clock).await;
+    let f = s.fault.expect("the drive tripped");
+    assert_eq!(f.code, FAULT_FOLLOWING_ERROR);
+    assert!(f.text.to_lowercase().contains("following error"), "{}", f.text);
+    d.clear_fault().await.unwrap();
+    let table = CorrectionTable::new(vec![0.001; 16]).unwrap();
+    assert_error(d.load_correction_table(&table).await, ErrorKind::Usage, None);
+    assert_error(d.enable_correction(true).await, ErrorKind::Usage, None);
 }
