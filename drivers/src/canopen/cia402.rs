@@ -43,8 +43,9 @@ pub struct CanopenConfig {
     pub counts_per_degree: f64,
     /// Deadline of each SDO response, milliseconds. Default 500.
     pub sdo_timeout_ms: u64,
-    /// After a timeout, how long the next transfer waits for late frames to
-    /// drop, milliseconds. Default 20.
+    /// After a timeout, how long the SDO client drains late frames at least,
+    /// milliseconds (it drains half the SDO timeout when that is longer).
+    /// Default 20.
     pub resync_grace_ms: u64,
     /// Statusword reads to wait for the set-point acknowledge (bit 12) after
     /// a new set-point. Default 10.

@@ -10,7 +10,7 @@
 //! | [`sdo`] | SDO frame codec, abort codes, segmenting and reassembly | none (sans-IO) |
 //! | [`nmt`] | NMT node control and heartbeat frames | none (sans-IO) |
 //! | [`objects`] | CiA 402 objects, controlword/statusword, state machine, table domain | none (sans-IO) |
-//! | [`client`] | [`SdoClient`]: upload/download with deadlines, aborts, resync | over [`CanBus`] |
+//! | [`client`] | [`SdoClient`]: upload/download with deadlines, aborts, late frames drained | over [`CanBus`] |
 //! | [`cia402`] | [`Cia402Positioner`]: the `Positioner` trait | over [`CanBus`] |
 //! | [`memory_bus`] | [`MemoryBus`]: a broadcast bus in memory (tests, simulation) | tokio channels |
 //! | [`socketcan_bus`] | [`SocketCanBus`]: Linux SocketCAN | `AF_CAN` socket |
@@ -57,8 +57,9 @@
 //!
 //! | what happens | [`ErrorKind`](crate::error::ErrorKind) | the client also |
 //! |---|---|---|
-//! | no response within [`SdoTimeouts::response`] (default 500 ms) | `Timeout` | sends abort `0x0504_0000`, resyncs next time |
-//! | response not 8 bytes, unknown specifier, wrong kind, wrong index/sub-index echo | `Garbled` | sends abort `0x0504_0001` |
+//! | no response within [`SdoTimeouts::response`] (default 500 ms) | `Timeout` | sends abort `0x0504_0000`, drains late frames for [`SdoTimeouts::late_window`] |
+//! | response not 8 bytes, unknown specifier, wrong kind | `Garbled` | sends abort `0x0504_0001` |
+//! | initiate response or abort naming another object (a late response) | discarded, logged | waits on for its own |
 //! | toggle bit not alternated | `Garbled` | sends abort `0x0503_0000` |
 //! | segments do not add up to the indicated size | `Garbled` | sends abort `0x0607_0012` / `0x0607_0013` |
 //! | abort from the node | `Device` with the code, or `Usage` (see [`sdo::abort_kind`]: value range `0x0609_003x`, device state `0x0800_0022`, no data `0x0800_0024`) | - |

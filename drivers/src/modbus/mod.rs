@@ -179,6 +179,7 @@
 //! row, checksum register, load command), and the exception classes above.
 
 mod driver;
+mod line;
 mod map;
 mod rtu;
 

@@ -226,11 +226,19 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         ..opts.faults
     });
     let bench = builder.build();
-    // A stalled reply is held twice the client's call timeout (real time);
-    // a reference instrument's measurement is bounded by measure_timeout_s:
-    // its stalled reply is held twice the longer of the two deadlines.
+    // A stalled reply is held past its client's deadline (real time): a
+    // positioner driver with a deadline of its own (Modbus, CANopen) drains
+    // late replies after it, and its stalled reply comes a little past the
+    // deadline, a tenth into the drain; a driver whose deadline is the
+    // engine's gets its reply after twice the call timeout; a reference
+    // instrument's measurement is bounded by measure_timeout_s: its stalled
+    // reply is held twice the longer of the two deadlines.
     let call_timeout = cfg.timing().call_timeout;
     let measure_timeout = cfg.timing().measure_timeout;
+    let positioner_stall = match cfg.positioner.own_deadline() {
+        Some((_, own, late)) => own + own / 20 + late / 10,
+        None => call_timeout * 2,
+    };
     let f = &opts.faults;
     let injected = bench.injected.clone();
     let mut seeds = (1u64..).map(|k| derive_seed(opts.seed, 100 + k));
@@ -254,7 +262,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             return None;
         }
         let stall_for =
-            if what == "positioner" { call_timeout * 2 } else { (call_timeout * 2).max(measure_timeout * 2) };
+            if what == "positioner" { positioner_stall } else { (call_timeout * 2).max(measure_timeout * 2) };
         Some(Relay { faults: faults.clone(), rates, stall_for, framing, seed })
     };
     let mut served = Served {

@@ -458,10 +458,9 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
     let mut d = rig.connected().await;
     let table = CorrectionTable::new(vec![0.001; 16]).unwrap();
     rig.client_aborts();
-    let cases: [(Garble, &str); 4] = [
+    let cases: [(Garble, &str); 3] = [
         (Garble::Truncated, "4 data bytes"),
         (Garble::BadSpecifier, "unknown command specifier 7"),
-        (Garble::WrongIndex, "echoing the object"),
         (Garble::FlipToggle, "toggle"),
     ];
     for (g, says) in cases {
@@ -479,11 +478,18 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
         assert_eq!(d.readout().await.unwrap(), 0.0);
         assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     }
-    // A flipped toggle in a download segment response, and a wrong echo of a download.
+    // A flipped toggle in a download segment response.
     rig.faults.arm(garbled(Garble::FlipToggle));
     assert_error(d.load_correction_table(&table).await, ErrorKind::Garbled, None);
+    // A response echoing another object answers another transfer (a late
+    // one): discarded, not taken (it was once taken and failed as garbled);
+    // the transfer times out, and the client says so to the node.
+    rig.client_aborts();
     rig.faults.arm(garbled(Garble::WrongIndex));
-    assert_error(d.load_correction_table(&table).await, ErrorKind::Garbled, None);
+    assert_error(d.readout().await, ErrorKind::Timeout, None);
+    assert_eq!(rig.client_aborts(), [abort::TIMEOUT]);
+    rig.faults.arm(garbled(Garble::WrongIndex));
+    assert_error(d.load_correction_table(&table).await, ErrorKind::Timeout, None);
     d.load_correction_table(&table).await.unwrap();
     assert_eq!(d.read_correction_table().await.unwrap().len(), 16);
 }
@@ -698,4 +704,25 @@ async fn a_drive_with_only_the_standard_objects() {
     let table = CorrectionTable::new(vec![0.001; 16]).unwrap();
     assert_error(d.load_correction_table(&table).await, ErrorKind::Usage, None);
     assert_error(d.enable_correction(true).await, ErrorKind::Usage, None);
+}
+
+/// A response held past the SDO deadline (a stall) and delivered after the
+/// client's drain, in the middle of the next transfer, names its own object:
+/// discarded, and the next transfer takes its own response. One held within
+/// the drain is dropped there.
+#[tokio::test]
+async fn a_late_response_is_never_taken_for_the_next_transfer() {
+    let rig = Rig::fig8();
+    let mut d = rig.connected().await;
+    // Within the drain (200 ms deadline, 100 ms drain).
+    rig.faults.arm(Fault::Stall(Duration::from_millis(250)));
+    let t0 = std::time::Instant::now();
+    assert_error(d.readout().await, ErrorKind::Timeout, None);
+    assert!(t0.elapsed() >= Duration::from_millis(300), "drained: {:?}", t0.elapsed());
+    assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
+    // After the drain: it meets the next transfer.
+    rig.faults.arm(Fault::Stall(Duration::from_millis(450)));
+    assert_error(d.readout().await, ErrorKind::Timeout, None);
+    assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
+    assert_eq!(d.readout().await.unwrap(), 0.0);
 }

@@ -41,6 +41,8 @@ struct Rig {
     /// The relay's address, over TCP.
     tcp: Option<SocketAddr>,
     rtu: Option<JoinHandle<RtuEnd>>,
+    /// The serial line's path, over RTU.
+    path: Option<String>,
     /// The serial relay's end.
     line: Option<JoinHandle<Ended>>,
     _tasks: Tasks,
@@ -77,17 +79,30 @@ async fn tcp_rig(cfg: PositionerConfig, map: RegisterMap) -> Rig {
         let _ = d.serve_tcp(listener, f).await;
     });
     let drv = ModbusPositioner::connect_tcp(addr, map.clone(), TIMEOUTS).await.expect("connect");
-    Rig { clock, device, faults, map, drv, tcp: Some(addr), rtu: None, line: None, _tasks: Tasks(vec![server, relay]) }
+    Rig {
+        clock,
+        device,
+        faults,
+        map,
+        drv,
+        tcp: Some(addr),
+        rtu: None,
+        path: None,
+        line: None,
+        _tasks: Tasks(vec![server, relay]),
+    }
 }
 
 async fn rtu_rig(cfg: PositionerConfig, map: RegisterMap) -> Rig {
     let (clock, device) = device(cfg, &map);
     let faults = Faults::new();
     let (slave, master, line) = pty_relay(Relay::armed(faults.clone(), Framing::ModbusRtu));
+    let path = tokio_serial::SerialPort::name(&slave);
     let (d, f) = (device.clone(), faults.clone());
     let rtu = tokio::spawn(async move { d.serve_rtu(master, f).await });
     let drv = ModbusPositioner::attach_rtu(slave, map.clone(), TIMEOUTS).expect("attach").named("rtu-test");
-    Rig { clock, device, faults, map, drv, tcp: None, rtu: Some(rtu), line: Some(line), _tasks: Tasks(Vec::new()) }
+    let line = Some(line);
+    Rig { clock, device, faults, map, drv, tcp: None, rtu: Some(rtu), path, line, _tasks: Tasks(Vec::new()) }
 }
 
 impl Rig {
@@ -95,6 +110,15 @@ impl Rig {
     async fn reconnect(&mut self) {
         let addr = self.tcp.expect("a TCP rig");
         self.drv = ModbusPositioner::connect_tcp(addr, self.map.clone(), TIMEOUTS).await.expect("reconnect");
+    }
+
+    /// A new driver on the RTU line (after a link fault closed the old
+    /// one), as the reconnect layer opens it: by its path.
+    fn reconnect_rtu(&mut self) {
+        let path = self.path.clone().expect("an RTU rig");
+        let port = tokio_serial::SerialPortBuilderExt::open_native_async(tokio_serial::new(&path, 115_200))
+            .expect("the line opens again");
+        self.drv = ModbusPositioner::attach_rtu(port, self.map.clone(), TIMEOUTS).expect("attach");
     }
 
     /// Let any move end and settle, then read the status.
@@ -404,7 +428,7 @@ async fn rtu_a_dropped_reply_times_out() {
 }
 
 #[tokio::test]
-async fn rtu_exceptions_then_a_garbled_reply() {
+async fn rtu_exceptions_then_replies_that_answer_no_request() {
     let mut rig = rtu_rig(config(), RegisterMap::default()).await;
     rig.faults.arm(exception(ExceptionCode::ServerDeviceFailure));
     let e = rig.drv.readout().await.unwrap_err();
@@ -412,9 +436,59 @@ async fn rtu_exceptions_then_a_garbled_reply() {
     let e = rig.drv.move_to(500.0).await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Usage, Some(3)), "{e}");
     assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+    // A reply with a byte changed fails its CRC: tokio-modbus's framing
+    // drops it byte by byte, never taking it, and the request times out.
+    let flip = |frame: &[u8]| Some([&frame[..3], &[frame[3] ^ 0x5a], &frame[4..]].concat());
+    rig.faults.arm(Fault::Garble(crate::faults::Garble::edit("byte 3 flipped", flip)));
+    let e = rig.drv.readout().await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    // A well-formed reply of another function answers no request of ours
+    // (RTU has no transaction id: it could be a late reply): it is
+    // discarded, never taken (it was once taken and failed as garbled), and
+    // the request times out.
+    rig.reconnect_rtu();
     rig.faults.arm(garbled(true));
     let e = rig.drv.set_velocity(3.0).await.unwrap_err();
-    assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    rig.reconnect_rtu();
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+}
+
+/// A reply held past the request's deadline on RTU (a stall) arrives while
+/// the driver drains the line after the timeout: it is discarded, and the
+/// next request on the line (a read of the same length, whose reply the
+/// late one could pass for) gets its own reply.
+#[tokio::test]
+async fn rtu_a_late_reply_is_drained_not_taken_for_the_next_request() {
+    let mut rig = rtu_rig(config(), RegisterMap::default()).await;
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+    // Due at 250 ms: after the 200 ms deadline, within the 100 ms drain.
+    rig.faults.arm(Fault::Stall(Duration::from_millis(250)));
+    let t0 = Instant::now();
+    let e = rig.drv.readout().await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    assert!(t0.elapsed() >= TIMEOUTS.request + TIMEOUTS.late_window(), "drained: {:?}", t0.elapsed());
+    rig.reconnect_rtu();
+    // Status and fault code: 2 registers, as the position's late reply.
+    let s = rig.drv.status().await.unwrap();
+    assert!(s.in_position && s.fault.is_none(), "{s:?}");
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+}
+
+/// A late reply of another request that comes after the drain, in the
+/// middle of the next request, does not answer it: discarded by its
+/// function code, and the next request's own reply is taken.
+#[tokio::test]
+async fn rtu_a_late_reply_of_another_function_is_discarded() {
+    let mut rig = rtu_rig(config(), RegisterMap::default()).await;
+    // Held 450 ms: past the 200 ms deadline and the 100 ms drain.
+    rig.faults.arm(Fault::Stall(Duration::from_millis(450)));
+    let e = rig.drv.set_velocity(3.0).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    rig.reconnect_rtu();
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+    let s = rig.drv.status().await.unwrap();
+    assert!(s.in_position && s.fault.is_none(), "{s:?}");
 }
 
 #[tokio::test]
