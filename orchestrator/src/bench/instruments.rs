@@ -17,6 +17,20 @@ use survey_drivers::reconnect::{Connect, Reconnecting};
 use survey_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
 use survey_drivers::{Autocollimator, Clock, DriverError, ErrorKind, Positioner, Tracker};
 
+/// The SCPI driver's deadlines under the engine's call timeout: half of it
+/// for a request, so the driver meets a late reply and drains it
+/// ([`ScpiTimeouts::late_window`]) before the engine's deadline.
+pub fn scpi_timeouts(call_timeout: Duration) -> ScpiTimeouts {
+    ScpiTimeouts { request: call_timeout / 2, ..ScpiTimeouts::default() }
+}
+
+/// The ELCOMAT driver's timeout under the engine's measurement timeout:
+/// half of it, so the driver meets a late reading and drains it (a quarter)
+/// before the engine's deadline.
+pub fn elcomat_timeout(measure_timeout: Duration) -> Duration {
+    measure_timeout / 2
+}
+
 /// Opens the configured positioner controller.
 #[derive(Debug, Clone)]
 pub struct PositionerConnector {
@@ -27,7 +41,7 @@ pub struct PositionerConnector {
 #[async_trait]
 impl Connect<dyn Positioner> for PositionerConnector {
     async fn connect(&self) -> survey_drivers::Result<Box<dyn Positioner>> {
-        let timeouts = ScpiTimeouts { request: self.timeout, ..ScpiTimeouts::default() };
+        let timeouts = scpi_timeouts(self.timeout);
         match &self.config {
             PositionerConfig::ScpiTcp {
                 address,
@@ -142,7 +156,7 @@ impl Connect<dyn Autocollimator> for AutocollimatorConnector {
     async fn connect(&self) -> survey_drivers::Result<Box<dyn Autocollimator>> {
         match &self.config {
             AutocollimatorConfig::Elcomat { port, baud } => {
-                Ok(Box::new(ElcomatDriver::open_serial(port, *baud)?.with_timeout(self.timeout)))
+                Ok(Box::new(ElcomatDriver::open_serial(port, *baud)?.with_timeout(elcomat_timeout(self.timeout))))
             }
         }
     }

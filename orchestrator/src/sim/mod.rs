@@ -226,19 +226,25 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         ..opts.faults
     });
     let bench = builder.build();
-    // A stalled reply is held past its client's deadline (real time): a
-    // positioner driver with a deadline of its own (Modbus, CANopen) drains
-    // late replies after it, and its stalled reply comes a little past the
-    // deadline, a tenth into the drain; a driver whose deadline is the
-    // engine's gets its reply after twice the call timeout; a reference
-    // instrument's measurement is bounded by measure_timeout_s: its stalled
-    // reply is held twice the longer of the two deadlines.
+    // A stalled reply is held past its client's deadline (real time): every
+    // driver on a line without transaction id drains late replies after its
+    // own deadline, and its stalled reply comes a little past the deadline,
+    // a tenth into the drain (Modbus and CANopen name their deadline; SCPI's
+    // and the ELCOMAT's are half the engine's); the tracker's connection
+    // (TCP) is closed after a timeout: its stalled reply is held twice the
+    // longer of the engine's deadlines.
     let call_timeout = cfg.timing().call_timeout;
     let measure_timeout = cfg.timing().measure_timeout;
+    let stall = |own: std::time::Duration, late: std::time::Duration| own + own / 20 + late / 10;
     let positioner_stall = match cfg.positioner.own_deadline() {
-        Some((_, own, late)) => own + own / 20 + late / 10,
-        None => call_timeout * 2,
+        Some((_, own, late)) => stall(own, late),
+        None => {
+            let scpi = crate::bench::instruments::scpi_timeouts(call_timeout);
+            stall(scpi.request, scpi.late_window())
+        }
     };
+    let elcomat = crate::bench::instruments::elcomat_timeout(measure_timeout);
+    let elcomat_stall = stall(elcomat, elcomat / 2);
     let f = &opts.faults;
     let injected = bench.injected.clone();
     let mut seeds = (1u64..).map(|k| derive_seed(opts.seed, 100 + k));
@@ -261,8 +267,11 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         if !rates.any() {
             return None;
         }
-        let stall_for =
-            if what == "positioner" { positioner_stall } else { (call_timeout * 2).max(measure_timeout * 2) };
+        let stall_for = match what {
+            "positioner" => positioner_stall,
+            "autocollimator" => elcomat_stall,
+            _ => (call_timeout * 2).max(measure_timeout * 2),
+        };
         Some(Relay { faults: faults.clone(), rates, stall_for, framing, seed })
     };
     let mut served = Served {
