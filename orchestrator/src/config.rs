@@ -242,6 +242,26 @@ impl PositionerConfig {
         })
     }
 
+    /// The positioner driver's own deadline of one request and how long it
+    /// then drains late replies (a line without transaction id: Modbus RTU,
+    /// CANopen SDO), with the key that sets the deadline; `None` for a
+    /// driver whose deadline is the engine's (`scpi-*`).
+    pub fn own_deadline(&self) -> Option<(&'static str, Duration, Duration)> {
+        match self {
+            PositionerConfig::ModbusTcp { timeouts, .. } => {
+                Some(("positioner.timeouts.request_ms", timeouts.request, Duration::ZERO))
+            }
+            PositionerConfig::ModbusRtu { timeouts, .. } => {
+                Some(("positioner.timeouts.request_ms", timeouts.request, timeouts.late_window()))
+            }
+            PositionerConfig::Canopen { drive, .. } => {
+                let t = drive.sdo_timeouts();
+                Some(("positioner.sdo_timeout_ms", t.response, t.late_window()))
+            }
+            PositionerConfig::ScpiTcp { .. } | PositionerConfig::ScpiSerial { .. } => None,
+        }
+    }
+
     /// A short description (`canopen slcan /dev/ttyACM0 node 5`).
     pub fn can_describe(&self) -> Option<String> {
         let PositionerConfig::Canopen { drive, .. } = self else { return None };
@@ -522,6 +542,26 @@ impl SurveyConfig {
         if let PositionerConfig::Canopen { drive, .. } = &self.positioner {
             within("positioner.counts_per_degree", drive.counts_per_degree, Range::Above(0.0), 1.0e9, "counts/deg")?;
         }
+        // The engine's deadline of a call must be longer than the driver's
+        // own (its deadline and the drain of late replies after it): a late
+        // reply is then met, drained and matched by the driver, never left on
+        // the line by a call the engine cancelled.
+        if let Some((key, own, late)) = self.positioner.own_deadline() {
+            let call = self.timing().call_timeout;
+            if call <= own + late {
+                let drain = if late.is_zero() {
+                    String::new()
+                } else {
+                    format!(" and the {} ms it then drains late replies", late.as_millis())
+                };
+                return Err(format!(
+                    "timing.call_timeout_s = {} s must be longer than the positioner's own deadline, {key} = {} \
+                     ms{drain}: raise timing.call_timeout_s or lower {key}",
+                    call.as_secs_f64(),
+                    own.as_millis()
+                ));
+            }
+        }
         if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
             within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
         }
@@ -776,5 +816,32 @@ mod driver_tests {
             let e = SurveyConfig::parse(&bad, "c.toml").unwrap_err().to_string();
             assert!(e.contains("unknown field"), "{bad}\n-> {e}");
         }
+    }
+
+    /// The engine's deadline of a call must be longer than the positioner
+    /// driver's own and the drain of late replies after it: refused when
+    /// read, naming both keys.
+    #[test]
+    fn the_engine_deadline_is_longer_than_the_drivers_own() {
+        let tracker = "[tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\n";
+        let rtu = "[positioner]\ndriver = \"modbus-rtu\"\nport = \"/dev/ttyUSB0\"\n";
+        let can = "[positioner]\ndriver = \"canopen\"\ninterface = \"can0\"\n";
+        let tcp = "[positioner]\ndriver = \"modbus-tcp\"\naddress = \"h:502\"\n";
+        for (positioner, timing, says) in [
+            (rtu, "call_timeout_s = 1.4\n", "positioner.timeouts.request_ms = 1000 ms and the 500 ms it then drains"),
+            (can, "call_timeout_s = 0.75\n", "positioner.sdo_timeout_ms = 500 ms and the 250 ms it then drains"),
+            (tcp, "call_timeout_s = 1.0\n", "positioner.timeouts.request_ms = 1000 ms:"),
+        ] {
+            let e = SurveyConfig::parse(&format!("{positioner}{tracker}[timing]\n{timing}"), "c.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("timing.call_timeout_s = ") && e.contains(says), "{positioner}: {e}");
+        }
+        // The defaults (2 s for a call) are longer than every driver's own.
+        for positioner in [rtu, can, tcp] {
+            SurveyConfig::parse(&format!("{positioner}{tracker}"), "c.toml").unwrap();
+        }
+        let fast = format!("{rtu}timeouts = {{ request_ms = 100 }}\n{tracker}[timing]\ncall_timeout_s = 0.2\n");
+        SurveyConfig::parse(&fast, "c.toml").unwrap();
     }
 }
