@@ -14,7 +14,7 @@ pub struct ExportArgs {
     #[arg(long, value_name = "FILE")]
     pub csv: PathBuf,
     /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
 }
 

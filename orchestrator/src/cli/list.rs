@@ -23,7 +23,7 @@ pub struct ListArgs {
 #[derive(Debug, Args)]
 pub struct ShowArgs {
     /// Survey id (default: the latest).
-    #[arg(value_name = "ID")]
+    #[arg(value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// Print one JSON document on stdout.
     #[arg(long)]

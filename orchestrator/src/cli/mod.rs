@@ -5,6 +5,7 @@
 //! disk), 2 for bad usage or bad input. Every command that fails on its input
 //! stores nothing. Nothing below this module imports it.
 
+mod args;
 mod check;
 mod docs;
 mod export;
@@ -53,7 +54,7 @@ Examples:
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Acquire a survey (the simulated instruments unless --config is given).
-    #[command(after_help = "\
+    #[command(override_usage = run::USAGE, after_help = "\
 Examples:
   survey run --points 360 --bidirectional                 # simulated Figure 8 bench, 5 runs
   survey run --points 720 --runs 3 --bidirectional --preset fig4 --json
@@ -160,7 +161,13 @@ pub fn main() -> ExitCode {
     match outcome {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            eprintln!("error: {e:#}");
+            match e.downcast_ref::<clap::Error>() {
+                // A usage error found after parsing reads as clap's own, usage line and all.
+                Some(usage) => {
+                    let _ = usage.print();
+                }
+                None => eprintln!("error: {e:#}"),
+            }
             ExitCode::from(crate::error::exit_status(&e))
         }
         Err(e) => {

@@ -33,7 +33,7 @@ pub struct ModelGapArgs {
     #[arg(long, value_name = "FILE")]
     pub model: PathBuf,
     /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// Write the improved model file (the model with the effects added and adjusted) here.
     #[arg(long, value_name = "FILE")]

@@ -1,5 +1,6 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
 
+use super::args::whole;
 use super::support::emit;
 use crate::load::{Axis, load_read_only};
 use crate::process::overrides::ExportOverrides;
@@ -14,7 +15,7 @@ use survey_processing::export::layout::Directions;
 #[derive(Debug, Args)]
 pub struct ProcessArgs {
     /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
     #[arg(long, value_name = "FILE")]
@@ -57,10 +58,10 @@ pub struct TableArgs {
     pub table_end: Option<f64>,
     /// Spacing of the table points, deg [default: LinuxCNC the finest within 256
     /// points, the others 1 deg].
-    #[arg(long, value_name = "DEG", conflicts_with = "table_points")]
+    #[arg(long, value_name = "DEG", conflicts_with = "table_points", allow_negative_numbers = true)]
     pub table_interval: Option<f64>,
     /// Number of table points over the range (instead of --table-interval).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = whole::<2, usize>)]
     pub table_points: Option<usize>,
     /// Forward and reverse values: separate (direction-aware), combined (their mean),
     /// or auto (separate when the table is direction-aware) [default: auto].
@@ -82,14 +83,14 @@ pub struct TableArgs {
     #[arg(long, value_name = "NAME")]
     pub sinumerik_axis: Option<String>,
     /// Fanuc detection unit, deg [default: 0.001].
-    #[arg(long, value_name = "DEG")]
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub fanuc_unit: Option<f64>,
     /// Fanuc magnification, parameter 3623 (1-100) [default: 1].
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", allow_negative_numbers = true, value_parser = whole::<1, u32>)]
     pub fanuc_magnification: Option<u32>,
     /// Fanuc reference point's compensation number, parameter 3620 [default: 0 for
     /// one revolution; else the smallest that numbers every point from 0].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = whole::<0, u32>)]
     pub fanuc_reference_number: Option<u32>,
 }
 

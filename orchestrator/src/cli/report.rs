@@ -20,7 +20,7 @@ pub enum UnitsArg {
 #[derive(Debug, Args)]
 pub struct ReportArgs {
     /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// The folder to write index.html into (created if missing).
     #[arg(long, value_name = "DIR")]

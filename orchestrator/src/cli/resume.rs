@@ -22,7 +22,7 @@ use std::time::Duration;
 #[derive(Debug, Args)]
 pub struct ResumeArgs {
     /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]

@@ -7,6 +7,7 @@
 //! served (`{"stopped": true, "faults": {"replies", "injected", "by_kind",
 //! ...}}`) and exit 0.
 
+use super::args::whole;
 use super::support::emit;
 use crate::config::SurveyConfig;
 use crate::error::bad_input;
@@ -29,11 +30,11 @@ pub struct SimArgs {
     #[arg(long, value_name = "FILE")]
     pub model: Option<PathBuf>,
     /// Seed of every random draw.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true, value_parser = whole::<0, u64>)]
     pub seed: u64,
     /// Fraction of replies, moves and measurements that meet a fault (0 to
     /// 0.5): RATE/4 for each link kind, RATE for each device kind.
-    #[arg(long, value_name = "RATE", default_value_t = 0.0)]
+    #[arg(long, value_name = "RATE", default_value_t = 0.0, allow_negative_numbers = true)]
     pub faults: f64,
     /// Rates per kind over those of --faults: `kind=rate,...` with kinds
     /// timeout, garbled, disconnect, stall, device, move, beam, and
@@ -41,7 +42,7 @@ pub struct SimArgs {
     #[arg(long, value_name = "SPEC")]
     pub fault_rates: Option<String>,
     /// Run the instruments this many times faster than the hardware.
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
     pub time_scale: f64,
 }
 

@@ -19,7 +19,7 @@ use survey_processing::iso230::iso230_2;
 #[derive(Debug, Args)]
 pub struct StatsArgs {
     /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// Print one JSON document on stdout.
     #[arg(long)]
