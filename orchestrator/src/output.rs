@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use std::time::Duration;
 use survey_processing::budget::{Bound, Component, Spent};
 use survey_processing::iso230::Iso230;
+use survey_sims::faults::{FaultKind, FaultRates};
 
 /// A command's result for the user: the JSON document and the text, built
 /// together so they never disagree; the command prints one of them.
@@ -59,6 +60,21 @@ pub fn iso_text(survey_id: i64, iso: &Iso230) -> String {
         let _ = writeln!(s, "  {:<28}{} deg", "M  mean bidirectional dev.", fmt_opt(iso.m));
     }
     s
+}
+
+/// Fault rates as a person reads them (and as `--fault-rates` takes them):
+/// `timeout=0.0025, device=0.01, beam_hold_s=5`, the kinds injected only,
+/// or `none`.
+pub fn fault_rates(rates: &FaultRates) -> String {
+    let mut items: Vec<String> = FaultKind::ALL
+        .into_iter()
+        .filter(|k| rates.rate(*k) > 0.0)
+        .map(|k| format!("{}={}", k.name(), rates.rate(k)))
+        .collect();
+    if rates.beam_hold_s > 0.0 {
+        items.push(format!("beam_hold_s={}", rates.beam_hold_s));
+    }
+    if items.is_empty() { "none".into() } else { items.join(", ") }
 }
 
 /// `3h 12m`, `4m 05s`, `12.3 s`.
@@ -148,6 +164,16 @@ impl Budget {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fault_rates_read_as_the_flag_takes_them() {
+        assert_eq!(fault_rates(&FaultRates::default()), "none");
+        let rates = FaultRates::uniform(0.01).parse_over("beam=0,beam_hold_s=5").unwrap();
+        assert_eq!(
+            fault_rates(&rates),
+            "timeout=0.0025, garbled=0.0025, disconnect=0.0025, stall=0.0025, device=0.01, move=0.01, beam_hold_s=5"
+        );
+    }
 
     #[test]
     fn durations_read_as_people_say_them() {

@@ -67,3 +67,50 @@ fn a_negative_count_gets_the_range_not_unexpected_argument() {
     b.small_survey(false);
     b.survey(&["stats", "--survey", "-1"]).bad_input(&["-1"]);
 }
+
+#[test]
+fn sim_and_show_print_what_a_person_reads_and_json_stays_json() {
+    use std::io::{BufRead as _, BufReader};
+    use std::process::Stdio;
+    let b = Bench::new();
+    b.write(
+        "sim.toml",
+        "[positioner]\ndriver = \"modbus-tcp\"\naddress = \"127.0.0.1:0\"\n\
+         [tracker]\ndriver = \"emscon\"\naddress = \"127.0.0.1:0\"\n",
+    );
+    for (faults, shown) in [
+        ("0", "faults injected: none"),
+        ("0.01", "faults injected: timeout=0.0025, garbled=0.0025, disconnect=0.0025, stall=0.0025, device=0.01"),
+    ] {
+        let mut child = b
+            .command(&["sim", "--config", "sim.toml", "--faults", faults, "--time-scale", "100"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start survey sim");
+        let (mut ready, mut serving) = (String::new(), String::new());
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut ready).unwrap();
+        BufReader::new(child.stderr.take().unwrap()).read_line(&mut serving).unwrap();
+        drop(super::drift::Sim(child));
+        assert!(ready.contains("\"ready\":true"), "{ready}");
+        assert!(serving.contains("100x real time") && serving.contains(shown), "{serving}");
+        assert!(!serving.contains("FaultRates") && !serving.contains('{'), "{serving}");
+    }
+
+    // A configured survey's bench, one instrument a line.
+    b.write("polygon.toml", unreachable_polygon_config(""));
+    b.survey(&["--db", "c.db", "run", "--config", "polygon.toml"]);
+    let show = b.survey(&["--db", "c.db", "show"]).success();
+    assert!(show.stdout.contains("bench        configured from polygon.toml"), "{show}");
+    assert!(show.stdout.contains("positioner   scpi-tcp 127.0.0.1:1"), "{show}");
+    assert!(show.stdout.contains("reference    elcomat /nonexistent/tty"), "{show}");
+    assert!(!show.stdout.contains("{\""), "no raw JSON in the text\n{show}");
+    let doc = b.survey(&["--db", "c.db", "show", "--json"]).success().json();
+    assert_eq!(doc["instruments"]["positioner"], "scpi-tcp 127.0.0.1:1", "{doc}");
+
+    // A simulated one: preset, reference, seed and the faults it injected.
+    b.survey(&["run", "--points", "12", "--runs", "2", "--fault-rates", "timeout=0.01,device=0.02"]).success();
+    let show = b.survey(&["show"]).success();
+    assert!(show.stdout.contains("bench        simulated fig8 with a tracker, seed 1"), "{show}");
+    assert!(show.stdout.contains("faults       timeout=0.01, device=0.02"), "{show}");
+}

@@ -98,6 +98,15 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The instruments of a configured survey, one a line (`positioner   scpi-tcp
+/// 192.168.1.20:4000`), as stored: a name's text, any other value as JSON.
+fn instruments_text(s: &mut String, instruments: &Value) {
+    for (role, name) in instruments.as_object().into_iter().flatten().filter(|(k, _)| *k != "config_file") {
+        let name = name.as_str().map_or_else(|| name.to_string(), str::to_string);
+        let _ = writeln!(s, "  {role:<12} {name}");
+    }
+}
+
 pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let shown = async {
@@ -159,10 +168,22 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     }
     match &r.setup {
         Setup::Simulated(sim) => {
-            let _ = writeln!(s, "  bench        simulated {} (seed {})", sim.preset, sim.seed);
+            let model = sim.model_file.as_ref().map(|m| format!(" running {m}")).unwrap_or_default();
+            let _ = writeln!(
+                s,
+                "  bench        simulated {}{model} with a {}, seed {}",
+                sim.preset,
+                sim.reference.as_str(),
+                sim.seed
+            );
+            if let Some(faults) = &sim.faults {
+                let _ = writeln!(s, "  faults       {}", crate::output::fault_rates(faults));
+            }
         }
         Setup::Configured(_) => {
-            let _ = writeln!(s, "  bench        configured instruments: {}", r.instruments);
+            let from = r.instruments.get("config_file").and_then(Value::as_str);
+            let _ = writeln!(s, "  bench        configured{}", from.map(|f| format!(" from {f}")).unwrap_or_default());
+            instruments_text(&mut s, &r.instruments);
         }
         Setup::Imported { file } => {
             let _ = writeln!(s, "  imported     from {file}");

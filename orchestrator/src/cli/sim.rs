@@ -66,10 +66,10 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     }
     emit(&format!("{ready}\n"));
     eprintln!(
-        "survey sim: serving {} ({}x real time, faults {:?}); stop with Ctrl-C or SIGTERM",
+        "survey sim: serving {} ({}x real time, faults injected: {}); stop with Ctrl-C or SIGTERM",
         args.config.display(),
         opts.time_scale,
-        opts.faults
+        crate::output::fault_rates(&opts.faults)
     );
     let why = stop.wait().await;
     let summary = serde_json::json!({"stopped": true, "signal": why.0, "faults": served.counts_json()});
