@@ -114,3 +114,22 @@ fn sim_and_show_print_what_a_person_reads_and_json_stays_json() {
     assert!(show.stdout.contains("bench        simulated fig8 with a tracker, seed 1"), "{show}");
     assert!(show.stdout.contains("faults       timeout=0.01, device=0.02"), "{show}");
 }
+
+#[test]
+fn how_the_table_was_made_is_said_under_verbose_only() {
+    let b = Bench::new();
+    let run = b.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional"]).success();
+    assert!(!run.stderr.contains("direction model"), "{run}");
+    for args in [&["process"][..], &["report", "--out", "r"]] {
+        let out = b.survey(args).success();
+        assert!(!out.stderr.contains("direction model"), "{out}");
+    }
+    let verbose = b.survey(&["-v", "process"]).success();
+    assert!(verbose.stderr.contains("direction model: forward - reverse modelled on its own"), "{verbose}");
+    let logged = b.survey_with_env(&["process"], "RUST_LOG", "info").success();
+    assert!(logged.stderr.contains("direction model"), "{logged}");
+    // The document carries it, and the report's page keeps it among its notes.
+    let doc = b.survey(&["process", "--json"]).success().json();
+    assert!(doc["table"]["direction_model"]["mean_deg"].as_f64().is_some_and(|m| m > 0.0), "{doc}");
+    assert!(b.read("r/index.html").contains("direction model: forward - reverse"));
+}

@@ -38,6 +38,11 @@ pub struct Cli {
     #[arg(long, global = true, value_name = "PATH", default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
     pub db: PathBuf,
 
+    /// Say more on stderr: -v how the work is done (info), -vv debug, -vvv
+    /// everything (RUST_LOG, when set, decides instead).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+
     #[command(subcommand)]
     pub command: Command,
 }
@@ -149,7 +154,7 @@ Examples:
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    support::init_logging();
+    support::init_logging(cli.verbose);
     // The command awaits its work and every write; a background task that
     // never yields cannot keep the process alive (`crate::runtime`).
     let outcome = crate::runtime::block_on_bounded(2, async {

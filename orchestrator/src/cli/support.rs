@@ -6,11 +6,18 @@ use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
 use std::path::Path;
 
-/// Logs go to stderr through `tracing`; `RUST_LOG` sets the level (default:
-/// warnings, and sqlx's statement logs only at debug).
-pub fn init_logging() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,sqlx=error"));
+/// Logs go to stderr through `tracing`: warnings, and more for each
+/// `-v` (info, debug, then trace, sqlx's statements too); `RUST_LOG`, when
+/// set, decides instead.
+pub fn init_logging(verbose: u8) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| {
+        tracing_subscriber::EnvFilter::new(match verbose {
+            0 => "warn,sqlx=error",
+            1 => "info,sqlx=error",
+            2 => "debug,sqlx=error",
+            _ => "trace",
+        })
+    });
     use std::io::IsTerminal as _;
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)

@@ -178,6 +178,10 @@ pub fn compute(
     for n in &processed.notes {
         eprintln!("note: {n}");
     }
+    // How the table was made, not something to act on: under -v or RUST_LOG=info.
+    if let Some(dm) = &processed.built.direction_model {
+        tracing::info!("{}", dm.text());
+    }
     let design = DesignSource {
         from: design_source,
         gear_ratios: design.gear_ratios.clone(),

@@ -6,7 +6,8 @@
 //! `table` with `path`, `points`, `directional`; `predicted` with
 //! `native_peak_deg` and `corrected_peak_deg`) and more: each peak's true
 //! frequency, phase, share and fate in the table; each alias' source and
-//! reason; the table's method, kept lines and hysteresis test; the predicted
+//! reason; the table's method, kept lines, hysteresis test and direction
+//! model (a directional full-circle table's forward - reverse); the predicted
 //! RMS and ISO 230-2 `A`, the repeatability floor and the LinuxCNC file's
 //! predicted peak; the Figure 6 interpolation comparison; the noise floor;
 //! the points needed; the design and recipe used; every file written
@@ -112,6 +113,7 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "spacing_deg": t.spacing_deg(),
             "directional_reason": p.built.directional_reason,
             "hysteresis": p.built.hysteresis,
+            "direction_model": p.built.direction_model,
             "method": p.built.method,
             "method_text": p.built.method.to_string(),
             "kept_cycles": p.decisions.kept_cycles,
