@@ -4,7 +4,7 @@
 //! survey's samples are read once, here, for all three.
 
 use crate::acquire::Engine;
-use crate::output::{Output, human, iso_json, iso_text};
+use crate::output::{Output, Units, human, iso_json, iso_text};
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
 use crate::stop::{Stop, Stopped};
@@ -27,6 +27,8 @@ pub struct ConcludeOptions {
     pub acquire: AcquireOptions,
     /// A stop request (a signal) ends the conclusion between its phases.
     pub stop: Stop,
+    /// The unit of the errors in the text (`--units`; the JSON stays in degrees).
+    pub units: Units,
 }
 
 /// The output, and whether everything after the acquisition succeeded: the
@@ -112,7 +114,7 @@ pub async fn conclude(
             l.se_s * 1e3
         );
     }
-    text += &iso_text(id, &iso);
+    text += &iso_text(id, &iso, options.units);
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
 
@@ -140,7 +142,7 @@ pub async fn conclude(
     text += "\n";
     if let Some((_, r)) = &refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
-        text += &r.text();
+        text += &options.units.text(&r.text());
         // Recorded with the survey (`survey show` lists it); a failed write
         // loses only this line, the refit is made again from the raw readings.
         let at = engine.clock().now().as_secs_f64();
@@ -148,15 +150,23 @@ pub async fn conclude(
             tracing::warn!(error = %format!("{e:#}"), "the axis refit could not be recorded");
         }
     }
-    text += &processed.text();
+    text += &processed.text(options.units);
     if let Err(why) = options.stop.check() {
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let mut result = Ok(());
     if let Some(verify_plan) = &options.verify {
-        match crate::verify::verify(engine, store, record, &samples, verify_plan, &processed, options.acquire.clone())
-            .await
-        {
+        let verified = crate::verify::verify(
+            engine,
+            store,
+            record,
+            &samples,
+            verify_plan,
+            &processed,
+            options.acquire.clone(),
+            options.units,
+        );
+        match verified.await {
             Ok(v) => {
                 doc["verify"] = v.doc;
                 text += "\n";

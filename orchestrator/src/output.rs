@@ -1,11 +1,16 @@
 //! What a command prints: one JSON document (`--json`) or text, and the
 //! pieces several commands share (the ISO 230-2 figures, durations, the
-//! time budget of an acquisition).
+//! time budget of an acquisition, fault rates). Errors in text are printed
+//! in the unit the user chose ([`Units`], the command line's `--units`:
+//! `units.fixed(deg, 6)` in a table's column, `units.show(deg)` in a
+//! sentence, `units.text(sentence)` for the processing's sentences); JSON
+//! documents stay in degrees.
 
 use std::fmt::Write as _;
 use std::time::Duration;
 use survey_processing::budget::{Bound, Component, Spent};
 use survey_processing::iso230::Iso230;
+pub use survey_processing::units::Units;
 use survey_sims::faults::{FaultKind, FaultRates};
 
 /// A command's result for the user: the JSON document and the text, built
@@ -32,19 +37,22 @@ pub fn iso_json(survey_id: i64, iso: &Iso230) -> serde_json::Value {
     serde_json::json!({ "survey_id": survey_id, "iso230_2": figures, "targets": targets })
 }
 
-fn fmt_opt(v: Option<f64>) -> String {
-    v.map(|x| format!("{x:>10.6}")).unwrap_or_else(|| format!("{:>10}", "-"))
+/// A figure in a column of a text table: `units`, to a millionth of a degree's resolution.
+fn fmt_opt(v: Option<f64>, units: Units) -> String {
+    v.map(|x| format!("{:>10}", units.fixed(x, 6))).unwrap_or_else(|| format!("{:>10}", "-"))
 }
 
-/// The ISO 230-2 figures as a small table, degrees.
-pub fn iso_text(survey_id: i64, iso: &Iso230) -> String {
+/// The ISO 230-2 figures as a small table, in `units`.
+pub fn iso_text(survey_id: i64, iso: &Iso230, units: Units) -> String {
     let bidirectional = iso.b.is_some();
     let mut s = format!(
-        "survey {survey_id}: ISO 230-2, {} targets x {} runs, {} (degrees)\n",
+        "survey {survey_id}: ISO 230-2, {} targets x {} runs, {} ({})\n",
         iso.targets.len(),
         iso.runs,
-        if bidirectional { "bidirectional" } else { "unidirectional" }
+        if bidirectional { "bidirectional" } else { "unidirectional" },
+        units.name()
     );
+    let (fmt_opt, unit) = (|v| fmt_opt(v, units), units.symbol());
     let _ = writeln!(s, "  {:<28}{:>10} {:>10} {:>10}", "", "axis", "forward", "reverse");
     let rows = [
         ("A  accuracy", Some(iso.a), iso.a_up, iso.a_down),
@@ -52,12 +60,12 @@ pub fn iso_text(survey_id: i64, iso: &Iso230) -> String {
         ("E  systematic deviation", Some(iso.e), iso.e_up, iso.e_down),
     ];
     for (name, all, up, down) in rows {
-        let _ = writeln!(s, "  {name:<28}{} {} {} deg", fmt_opt(all), fmt_opt(up), fmt_opt(down));
+        let _ = writeln!(s, "  {name:<28}{} {} {} {unit}", fmt_opt(all), fmt_opt(up), fmt_opt(down));
     }
     if bidirectional {
-        let _ = writeln!(s, "  {:<28}{} deg", "B  reversal value", fmt_opt(iso.b));
-        let _ = writeln!(s, "  {:<28}{} deg", "B  mean reversal", fmt_opt(iso.b_mean));
-        let _ = writeln!(s, "  {:<28}{} deg", "M  mean bidirectional dev.", fmt_opt(iso.m));
+        let _ = writeln!(s, "  {:<28}{} {unit}", "B  reversal value", fmt_opt(iso.b));
+        let _ = writeln!(s, "  {:<28}{} {unit}", "B  mean reversal", fmt_opt(iso.b_mean));
+        let _ = writeln!(s, "  {:<28}{} {unit}", "M  mean bidirectional dev.", fmt_opt(iso.m));
     }
     s
 }

@@ -133,3 +133,53 @@ fn how_the_table_was_made_is_said_under_verbose_only() {
     assert!(doc["table"]["direction_model"]["mean_deg"].as_f64().is_some_and(|m| m > 0.0), "{doc}");
     assert!(b.read("r/index.html").contains("direction model: forward - reverse"));
 }
+
+/// The first number after `label` on the line of `text` that starts with it.
+fn figure_after(text: &str, label: &str) -> f64 {
+    let line = text.lines().find(|l| l.trim_start().starts_with(label)).unwrap_or_else(|| panic!("{label}\n{text}"));
+    line.trim_start()[label.len()..]
+        .split_whitespace()
+        .next()
+        .and_then(|w| w.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"))
+}
+
+#[test]
+fn one_units_option_on_every_command_that_prints_errors_and_json_stays_in_degrees() {
+    let b = Bench::new();
+    b.write("gear.toml", "[design]\ngear_ratios = [20]\n\n[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 20\namplitude_deg = 0.006\nphase_deg = 30.0\n");
+    let run = b.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--units", "arcsec"]).success();
+    let a_deg = super::number(&b.stats_json(None), "A");
+    // The figure to a thousandth of an arcsecond in the text, in degrees in the document.
+    assert!((figure_after(&run.stdout, "A  accuracy") - a_deg * 3600.0).abs() < 1e-3, "{run}");
+    assert!(run.stdout.contains("bidirectional (arcseconds)") && run.stdout.contains("predicted: native +/-"), "{run}");
+    for args in
+        [&["stats"][..], &["process"], &["model-gap", "--model", "gear.toml"], &["show"], &["report", "--out", "r"]]
+    {
+        let help = b.survey(&[args[0], "--help"]).success();
+        assert!(help.stdout.contains("--units <UNIT>") && help.stdout.contains("SURVEY_UNITS"), "{help}");
+        let mut with = args.to_vec();
+        with.extend(["--units", "urad"]);
+        let out = b.survey(&with).success();
+        if args[0] != "report" {
+            assert!(out.stdout.contains("µrad"), "{out}");
+            let deg = b.survey(args).success();
+            // Every error moved to µrad; what stays in degrees is along the axis.
+            let shown = |t: &str, unit: &str| t.matches(unit).count();
+            assert!(shown(&deg.stdout, " µrad") == 0, "{deg}");
+            assert_eq!(shown(&deg.stdout, " deg") - shown(&out.stdout, " deg"), shown(&out.stdout, " µrad"), "{out}");
+        }
+    }
+    let stats = b.survey_with_env(&["stats"], "SURVEY_UNITS", "urad").success();
+    let a_urad = figure_after(&stats.stdout, "A  accuracy");
+    assert!((a_urad - a_deg.to_radians() * 1e6).abs() < 0.01, "{stats}");
+    // --json stays in degrees whatever the unit.
+    let json = b.survey(&["stats", "--json", "--units", "arcsec"]).success().json();
+    assert_eq!(super::number(&json, "A"), a_deg);
+    let process = b.survey(&["process", "--json", "--units", "urad"]).success().json();
+    let native = process["predicted"]["native_peak_deg"].as_f64().unwrap();
+    assert!(native > 0.001 && native < 0.1, "degrees: {process}");
+    assert!(b.read("r/index.html").contains("µrad"), "the report's errors in µrad");
+    b.survey(&["stats", "--units", "furlong"]).bad_input(&["furlong", "deg, arcsec, urad"]);
+    b.survey_with_env(&["stats"], "SURVEY_UNITS", "furlong").bad_input(&["furlong"]);
+}

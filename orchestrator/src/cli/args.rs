@@ -1,4 +1,41 @@
-//! What several commands' arguments share: how a whole number is parsed.
+//! What several commands' arguments share: `--units`, and how a whole
+//! number is parsed.
+
+use crate::output::Units;
+use clap::{Args, ValueEnum};
+
+/// `--units deg|arcsec|urad`, the same on every command that prints an
+/// error: flatten it into the command's arguments (`#[command(flatten)]`)
+/// and print through [`UnitsArg::units`]. `SURVEY_UNITS` sets a default;
+/// `--json` documents stay in degrees (the contract's unit).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Args)]
+pub struct UnitsArg {
+    /// The unit of the errors printed (angles along the axis stay in degrees; --json is always degrees).
+    #[arg(long = "units", value_enum, value_name = "UNIT", default_value_t = UnitChoice::Deg, env = "SURVEY_UNITS")]
+    choice: UnitChoice,
+}
+
+/// The units `--units` offers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum UnitChoice {
+    /// Degrees.
+    Deg,
+    /// Arcseconds.
+    Arcsec,
+    /// Microradians.
+    Urad,
+}
+
+impl UnitsArg {
+    /// The unit chosen.
+    pub fn units(self) -> Units {
+        match self.choice {
+            UnitChoice::Deg => Units::Deg,
+            UnitChoice::Arcsec => Units::Arcsec,
+            UnitChoice::Urad => Units::Urad,
+        }
+    }
+}
 
 /// A whole number of at least `MIN` (`--points`, `--runs`, `--seed`, ...).
 /// With the flag's `allow_negative_numbers`, a negative number reaches this

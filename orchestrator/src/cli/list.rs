@@ -6,6 +6,7 @@
 //! "created_at", "updated_at"}, ...]}`, oldest first; `show --json` one
 //! survey with its plan, instruments, located axis, model and event log.
 
+use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
 use crate::survey::{Setup, SurveyRecord};
 use clap::Args;
@@ -25,6 +26,8 @@ pub struct ShowArgs {
     /// Survey id (default: the latest).
     #[arg(value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -196,13 +199,14 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     if let Some(v) = &r.verification {
         let _ = writeln!(s, "  verifies     survey {} (table {})", v.verifies_survey, v.table);
     }
-    for line in survey_processing::drift::text(&drift).lines() {
+    let units = args.units.units();
+    for line in survey_processing::drift::text(&drift, units).lines() {
         let _ = writeln!(s, "  {line}");
     }
     if !events.is_empty() {
         let _ = writeln!(s, "  events");
         for e in &events {
-            let _ = writeln!(s, "    {:>10.1} s  {:<5}  {}", e.at_s, e.level, e.message);
+            let _ = writeln!(s, "    {:>10.1} s  {:<5}  {}", e.at_s, e.level, units.text(&e.message));
         }
     }
     emit(&s);

@@ -17,6 +17,7 @@
 //! reference and how well its axis is known, so what of the gap is the axis
 //! location is named as the reference's, with its size.
 
+use super::args::UnitsArg;
 use super::support::emit;
 use crate::error::path_error;
 use crate::inputs::read_model;
@@ -43,6 +44,8 @@ pub struct ModelGapArgs {
     /// position (tracker surveys).
     #[arg(long)]
     pub located_axis: bool,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -80,11 +83,12 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
         }
         emit(&format!("{doc}\n"));
     } else {
+        let units = args.units.units();
         let mut text = format!("survey {}, model {}\n", survey.id, args.model.display());
         if let Some(r) = refit {
-            text += &r.text();
+            text += &units.text(&r.text());
         }
-        text += &gap.to_text();
+        text += &gap.to_text_in(units);
         if let Some(out) = &args.out {
             text += &format!("improved model written to {}\n", out.display());
         }

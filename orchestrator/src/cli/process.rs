@@ -1,6 +1,6 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
 
-use super::args::whole;
+use super::args::{UnitsArg, whole};
 use super::support::emit;
 use crate::load::{Axis, load_read_only};
 use crate::process::overrides::ExportOverrides;
@@ -35,6 +35,8 @@ pub struct ProcessArgs {
     /// (tracker surveys; for comparison).
     #[arg(long)]
     pub located_axis: bool,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -177,15 +179,16 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
     let outcome = process_survey(survey, &to_process, opts)?;
     drop(progress);
+    let units = args.units.units();
     let out = match &loaded.refit {
         Some(r) if args.json => {
             let mut doc = outcome.json();
             doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
             format!("{doc}\n")
         }
-        Some(r) => format!("{}{}", r.text(), outcome.text()),
+        Some(r) => format!("{}{}", units.text(&r.text()), outcome.text(units)),
         None if args.json => format!("{}\n", outcome.json()),
-        None => outcome.text(),
+        None => outcome.text(units),
     };
     emit(&out);
     Ok(())

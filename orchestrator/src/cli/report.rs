@@ -1,21 +1,11 @@
 //! `survey report --out DIR`: the survey's report as one HTML page.
 
+use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
+use crate::report::ReportOptions;
 use crate::report::certificate::CertificateFlags;
-use crate::report::{ReportOptions, Units};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::path::{Path, PathBuf};
-
-/// The unit of every error in the report.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum UnitsArg {
-    /// Degrees.
-    Deg,
-    /// Arcseconds.
-    Arcsec,
-    /// Microradians.
-    Urad,
-}
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -25,8 +15,7 @@ pub struct ReportArgs {
     /// The folder to write index.html into (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// The unit of every error, figure and table.
-    #[arg(long, value_enum, default_value_t = UnitsArg::Deg)]
+    #[command(flatten)]
     pub units: UnitsArg,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
     #[arg(long, value_name = "FILE")]
@@ -100,11 +89,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     // Checked before anything is written.
     let pdf_bound = if args.pdf { Some(crate::report::pdf::timeout()?) } else { None };
     let opts = ReportOptions {
-        units: match args.units {
-            UnitsArg::Deg => Units::Deg,
-            UnitsArg::Arcsec => Units::Arcsec,
-            UnitsArg::Urad => Units::Urad,
-        },
+        units: args.units.units(),
         flags: CertificateFlags {
             positioner: args.positioner,
             reference: args.reference_instrument,

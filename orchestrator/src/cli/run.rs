@@ -2,7 +2,7 @@
 //! default) or on the instruments of `--config`, then the statistics, the
 //! processing and, with `--verify`, the corrected accuracy.
 
-use super::args::whole;
+use super::args::{UnitsArg, whole};
 use super::support::conclude_and_print;
 use crate::acquire::ReferenceKind;
 use crate::bench::{Bench, PlanOverrides, SimulatedRequest, default_polygon_faces};
@@ -91,6 +91,8 @@ pub struct RunArgs {
     /// A stall needs a wire: `survey sim --fault-rates`.
     #[arg(long, value_name = "SPEC")]
     pub fault_rates: Option<String>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -188,7 +190,8 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         plan_progress: bench.plan_progress.clone(),
     };
     let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options.clone()).await;
-    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify, acquire: options, stop };
+    let finish =
+        ConcludeOptions { recipe: args.recipe.clone(), verify, acquire: options, stop, units: args.units.units() };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done

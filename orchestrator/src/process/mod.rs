@@ -108,9 +108,9 @@ impl ProcessOutcome {
         summary::json(self)
     }
 
-    /// The summary for people.
-    pub fn text(&self) -> String {
-        summary::text(self)
+    /// The summary for people, its errors in `units`.
+    pub fn text(&self, units: crate::output::Units) -> String {
+        summary::text(self, units)
     }
 }
 
