@@ -183,3 +183,39 @@ fn one_units_option_on_every_command_that_prints_errors_and_json_stays_in_degree
     b.survey(&["stats", "--units", "furlong"]).bad_input(&["furlong", "deg, arcsec, urad"]);
     b.survey_with_env(&["stats"], "SURVEY_UNITS", "furlong").bad_input(&["furlong"]);
 }
+
+/// The lines of `script` from the first that contains `start`, `n` of them.
+fn after(script: &str, start: &str, n: usize) -> String {
+    script.lines().skip_while(|l| !l.contains(start)).take(n).collect::<Vec<_>>().join("\n")
+}
+
+#[test]
+fn completions_offer_values_for_choices_folders_for_folders_and_no_file_names_for_numbers() {
+    let b = Bench::new();
+    let bash = b.survey(&["completions", "bash"]).success().stdout;
+    for (flag, values) in [
+        ("--controller)", "linuxcnc 840d fanuc generic"),
+        ("--preset)", "fig1 fig4 fig8"),
+        ("--reference)", "tracker autocollimator"),
+        ("--scan)", "step continuous"),
+        ("--units)", "deg arcsec urad"),
+    ] {
+        let case = after(&bash, flag, 2);
+        assert!(case.contains(&format!("compgen -W \"{values}\"")), "{flag}: {case}");
+    }
+    for flag in ["--points)", "--survey)", "--seed)", "--table-start)"] {
+        assert!(!after(&bash, flag, 2).contains("compgen -f"), "{flag} completes to file names");
+    }
+    let zsh = b.survey(&["completions", "zsh"]).success().stdout;
+    let line = |flag: &str| zsh.lines().find(|l| l.contains(flag)).unwrap_or_else(|| panic!("{flag}")).to_string();
+    assert!(line("--controller=").ends_with(":LIST:(linuxcnc 840d fanuc generic)' \\"), "{}", line("--controller="));
+    assert!(line("'--out=[The folder").contains(":DIR:_files -/"), "a folder completes to folders");
+    assert!(line("'--config=").contains(":FILE:_files"), "a file to files");
+    assert!(
+        line("'--points=").ends_with(":N:' \\") && line("'--survey=").ends_with(":ID:' \\"),
+        "no files for numbers"
+    );
+    let fish = b.survey(&["completions", "fish"]).success().stdout;
+    let controller = fish.lines().find(|l| l.contains("-l controller")).expect("fish completes --controller");
+    assert!(controller.contains("-f -a \"linuxcnc") || controller.contains("linuxcnc\t"), "{controller}");
+}

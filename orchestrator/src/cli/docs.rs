@@ -5,7 +5,7 @@
 use super::Cli;
 use super::support::emit;
 use crate::error::path_error;
-use clap::{Args, CommandFactory, ValueEnum};
+use clap::{Args, CommandFactory, ValueEnum, ValueHint};
 use std::path::{Path, PathBuf};
 
 /// A shell `survey completions` writes for.
@@ -34,7 +34,7 @@ pub struct CompletionsArgs {
 pub struct ManArgs {
     /// Write survey.1 and one page per command (survey-process.1, ...) into DIR
     /// (created if missing) instead of printing survey.1 on stdout.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: Option<PathBuf>,
 }
 
@@ -49,9 +49,24 @@ pub fn completions(args: CompletionsArgs) -> anyhow::Result<()> {
         ShellArg::Powershell => Shell::PowerShell,
     };
     let mut buf = Vec::new();
-    clap_complete::generate(shell, &mut Cli::command(), "survey", &mut buf);
+    clap_complete::generate(shell, &mut no_file_names_but_paths(Cli::command()), "survey", &mut buf);
     emit(&String::from_utf8_lossy(&buf));
     Ok(())
+}
+
+/// `cmd` with every value that is neither a path nor one of a list (a
+/// number, an id, a name) hinted as such, so the shells offer no file name
+/// for it: paths say `ValueHint::FilePath` or `DirPath`, lists their values.
+fn no_file_names_but_paths(cmd: clap::Command) -> clap::Command {
+    let unhinted: Vec<clap::Id> = cmd
+        .get_arguments()
+        .filter(|a| a.get_action().takes_values() && a.get_value_hint() == ValueHint::Unknown)
+        .filter(|a| a.get_possible_values().is_empty())
+        .map(|a| a.get_id().clone())
+        .collect();
+    let subcommands: Vec<String> = cmd.get_subcommands().map(|s| s.get_name().to_string()).collect();
+    let cmd = unhinted.into_iter().fold(cmd, |cmd, id| cmd.mut_arg(id, |a| a.value_hint(ValueHint::Other)));
+    subcommands.into_iter().fold(cmd, |cmd, name| cmd.mut_subcommand(name, no_file_names_but_paths))
 }
 
 /// The manual page of `cmd` (roff).

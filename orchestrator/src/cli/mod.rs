@@ -35,7 +35,7 @@ use std::process::ExitCode;
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100, after_help = EXAMPLES)]
 pub struct Cli {
     /// The SQLite database that holds the surveys.
-    #[arg(long, global = true, value_name = "PATH", default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
+    #[arg(long, global = true, value_name = "PATH", value_hint = clap::ValueHint::FilePath, default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
     pub db: PathBuf,
 
     /// Say more on stderr: -v how the work is done (info), -vv debug, -vvv

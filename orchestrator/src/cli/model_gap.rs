@@ -31,13 +31,13 @@ use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 #[derive(Debug, Args)]
 pub struct ModelGapArgs {
     /// The positioner model file (TOML) to compare with the survey.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: PathBuf,
     /// Survey id (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// Write the improved model file (the model with the effects added and adjusted) here.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub out: Option<PathBuf>,
     /// Compare the actual angles as stored, around the axis located before
     /// the runs, instead of around the axis fitted again from every SMR

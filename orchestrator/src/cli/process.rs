@@ -6,7 +6,9 @@ use crate::load::{Axis, load_read_only};
 use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::progress::{self, Progress};
+use clap::builder::{PossibleValue, TypedValueParser};
 use clap::{Args, ValueEnum};
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use survey_processing::export::controllers::Controller;
 use survey_processing::export::generic::{Sign, Values};
@@ -18,15 +20,15 @@ pub struct ProcessArgs {
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub design: Option<PathBuf>,
     /// Replay this processing recipe (TOML) instead of deriving one from the survey.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub recipe: Option<PathBuf>,
     /// The correction table CSV [default: table-<ID>.csv]; the controller files
     /// (<stem>.comp0, <stem>.comp1, <stem>.840d.ini, <stem>.fanuc.txt), the binary
     /// table (<stem>.bin) and the recipe used (<stem>.recipe.toml) go beside it.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub table_out: Option<PathBuf>,
     #[command(flatten)]
     pub tables: TableArgs,
@@ -49,7 +51,7 @@ pub struct ProcessArgs {
 pub struct TableArgs {
     /// Controller files to write, comma-separated: linuxcnc, 840d, fanuc, generic
     /// [default: the recipe's; a new recipe: linuxcnc,840d,fanuc].
-    #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = parse_controller)]
+    #[arg(long, value_name = "LIST", value_delimiter = ',', value_parser = ControllerNames)]
     pub controller: Option<Vec<Controller>>,
     /// First axis position the tables cover, deg [default: 0, or the first target of a
     /// partial survey]. LinuxCNC never wraps a rotary joint: give the joint's whole range.
@@ -96,8 +98,27 @@ pub struct TableArgs {
     pub fanuc_reference_number: Option<u32>,
 }
 
-fn parse_controller(s: &str) -> Result<Controller, String> {
-    s.parse()
+/// `--controller`'s values: a controller's name (any case, as the recipe's),
+/// which the shells' completions and the help list.
+#[derive(Debug, Clone, Copy)]
+struct ControllerNames;
+
+impl TypedValueParser for ControllerNames {
+    type Value = Controller;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &OsStr,
+    ) -> Result<Controller, clap::Error> {
+        let parse = |s: &str| s.parse::<Controller>();
+        parse.parse_ref(cmd, arg, value)
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
+        Some(Box::new(Controller::ALL.into_iter().map(|c| PossibleValue::new(c.as_str()))))
+    }
 }
 
 /// `--table-directions`.

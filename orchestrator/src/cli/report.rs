@@ -13,18 +13,18 @@ pub struct ReportArgs {
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
     /// The folder to write index.html into (created if missing).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: PathBuf,
     #[command(flatten)]
     pub units: UnitsArg,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub design: Option<PathBuf>,
     /// Replay this processing recipe (TOML), as `survey process --recipe` did.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub recipe: Option<PathBuf>,
     /// Compare the survey with this positioner model (model-gap) and show the steps.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: Option<PathBuf>,
     /// The positioner calibrated (make, model, serial) [default: [certificate] of the configuration, or the bench].
     #[arg(long, value_name = "TEXT")]

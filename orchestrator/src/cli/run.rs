@@ -67,10 +67,10 @@ pub struct RunArgs {
     #[arg(long, value_name = "R", allow_negative_numbers = true, value_parser = whole::<2, u32>)]
     pub runs: Option<u32>,
     /// Survey real instruments described in this configuration file (TOML).
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["model", "preset", "reference", "seed", "fault_rates"])]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath, conflicts_with_all = ["model", "preset", "reference", "seed", "fault_rates"])]
     pub config: Option<PathBuf>,
     /// Positioner model file (TOML) for the simulated positioner, instead of the preset's.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: Option<PathBuf>,
     /// Simulated positioner: one of the paper's positioners.
     #[arg(long, value_name = "NAME", default_value = "fig8", value_parser = ["fig1", "fig4", "fig8"])]
@@ -97,7 +97,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub json: bool,
     /// Process with this recipe (TOML) at the end, as the last calibration did.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub recipe: Option<PathBuf>,
     /// After processing, load the table into the positioner, apply it in the
     /// feedback path and measure the corrected accuracy with a new survey,

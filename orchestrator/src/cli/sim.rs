@@ -21,13 +21,13 @@ use survey_sims::faults::FaultRates;
 #[derive(Debug, Args)]
 pub struct SimArgs {
     /// The configuration file whose instruments to serve (TCP addresses on loopback).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub config: PathBuf,
     /// Simulated positioner: one of the paper's positioners.
     #[arg(long, value_name = "NAME", default_value = "fig8", value_parser = ["fig1", "fig4", "fig8"])]
     pub preset: String,
     /// Positioner model file (TOML), instead of the preset's model.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: Option<PathBuf>,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 1, allow_negative_numbers = true, value_parser = whole::<0, u64>)]
