@@ -219,3 +219,30 @@ fn completions_offer_values_for_choices_folders_for_folders_and_no_file_names_fo
     let controller = fish.lines().find(|l| l.contains("-l controller")).expect("fish completes --controller");
     assert!(controller.contains("-f -a \"linuxcnc") || controller.contains("linuxcnc\t"), "{controller}");
 }
+
+#[test]
+fn man_pages_have_examples_and_see_also_only_pages_that_exist() {
+    let b = Bench::new();
+    b.survey(&["man", "--out", "man"]).success();
+    let pages: Vec<String> = std::fs::read_dir(b.path("man"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(pages.len() > 10 && !pages.iter().any(|p| p.contains("help")), "{pages:?}");
+    for name in &pages {
+        let page = b.read(&format!("man/{name}"));
+        assert!(!page.contains(".SH EXTRA"), "{name}");
+        let examples = page.split(".SH EXAMPLES\n.nf\n").nth(1).unwrap_or_else(|| panic!("{name} has no EXAMPLES"));
+        let examples = examples.split(".fi\n").next().unwrap();
+        assert!(examples.lines().all(|l| l.starts_with("survey ")), "{name}: one example a line, as typed\n{examples}");
+        assert!(page.contains(".SH \"SEE ALSO\"\n"), "{name}");
+        // Every page named (in SEE ALSO and the command list) is written.
+        for (i, _) in page.match_indices("(1)") {
+            let named = page[..i].rsplit([' ', '\n']).next().unwrap();
+            let named = named.trim_start_matches("\\fB").trim_end_matches("\\fR").replace("\\-", "-");
+            assert!(pages.contains(&format!("{named}.1")), "{name} names {named}(1), which is not written");
+        }
+    }
+    let root = b.survey(&["man"]).success().stdout;
+    assert!(root.contains("\\fBsurvey\\-run\\fR(1)") && !root.contains("survey\\-help"), "{root}");
+}
