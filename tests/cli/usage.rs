@@ -246,3 +246,26 @@ fn man_pages_have_examples_and_see_also_only_pages_that_exist() {
     let root = b.survey(&["man"]).success().stdout;
     assert!(root.contains("\\fBsurvey\\-run\\fR(1)") && !root.contains("survey\\-help"), "{root}");
 }
+
+#[test]
+fn model_gap_names_its_columns_for_what_they_measure() {
+    let b = Bench::new();
+    b.small_survey(true);
+    b.write("gear.toml", "[design]\ngear_ratios = [20]\n\n[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 20\namplitude_deg = 0.006\nphase_deg = 30.0\n");
+    let text = b.survey(&["model-gap", "--model", "gear.toml"]).success().stdout;
+    let head = after(&text, "steps (each effect", 3);
+    for name in ["amplitude", "of the effect", "residual RMS", "of all samples", "largest residual", "of a target mean"]
+    {
+        assert!(head.contains(name), "{name:?} in\n{head}");
+    }
+    assert!(!text.contains("peak_deg") && !text.contains("rms_deg"), "{text}");
+    assert!(text.contains("the noise averages out, so it can be below the RMS"), "{text}");
+    // The JSON keeps the contract's keys, and the columns are those figures.
+    let doc = b.survey(&["model-gap", "--model", "gear.toml", "--json"]).success().json();
+    let step = &doc["steps"][0];
+    let row = text.lines().find(|l| l.trim_start().starts_with("1  ")).expect("step 1's row");
+    let cells: Vec<f64> = row.split_whitespace().rev().take(2).map(|c| c.parse().unwrap()).collect();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-3 * b.abs();
+    assert!(close(cells[1], step["rms_deg"].as_f64().unwrap()), "{row}\n{step}");
+    assert!(close(cells[0], step["mean_peak_deg"].as_f64().unwrap()), "{row}\n{step}");
+}

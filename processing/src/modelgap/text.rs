@@ -55,19 +55,22 @@ impl ModelGap {
         let _ = writeln!(s, "\nthe gap with the model given:");
         views_text(&mut s, &self.before, self.noise_floor_deg, units);
 
-        let _ = writeln!(s, "\nsteps (each effect fitted by least squares, the model simulated again):");
+        let _ = writeln!(s, "\nsteps (each effect fitted by least squares, the model simulated again), {u}:");
+        // Two residual figures of different things: every sample's scatter
+        // is in the RMS, a target's mean over its runs averages it out.
         let _ = writeln!(
             s,
-            "  {:>4}  {:<52} {:>14} {:>12} {:>12}",
-            "step",
-            "change",
-            format!("amplitude_{u}"),
-            format!("rms_{u}"),
-            format!("peak_{u}")
+            "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
+            "", "", "amplitude", "residual RMS", "largest residual"
         );
         let _ = writeln!(
             s,
-            "  {:>4}  {:<52} {:>14} {:>12} {:>12}",
+            "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
+            "step", "change", "of the effect", "of all samples", "of a target mean"
+        );
+        let _ = writeln!(
+            s,
+            "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
             0,
             "the model as given",
             "",
@@ -77,7 +80,7 @@ impl ModelGap {
         for st in &self.steps {
             let _ = writeln!(
                 s,
-                "  {:>4}  {:<52} {:>14} {:>12} {:>12}",
+                "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
                 st.step,
                 st.added,
                 e(st.amplitude_deg, 3),
@@ -85,6 +88,12 @@ impl ModelGap {
                 e(st.mean_peak_deg, 3)
             );
         }
+        let _ = writeln!(
+            s,
+            "  (residual RMS: over every sample, its noise included; largest residual of a target mean: the \
+             residual averaged over a target's runs and directions, largest in magnitude over the targets: the \
+             noise averages out, so it can be below the RMS)"
+        );
         if self.effects_added.is_empty() && self.verdict.explained && self.verdict.reference.is_empty() {
             let _ = writeln!(s, "\neffects added: none (the model explains the data down to the noise floor)");
         } else if self.effects_added.is_empty() {
