@@ -104,13 +104,21 @@ pub struct Budget {
     pub instrument_time_s: f64,
     /// Its plan's lower bound.
     pub bound: Bound,
-    /// Where the time went (the acquisitions of this survey that were accounted).
+    /// Where the time went (the acquisitions of this survey that were
+    /// accounted), on the instruments' clock.
     pub spent: Spent,
     /// The settling observed after measured moves: how many, mean and
-    /// largest time from the profile's end until within the window, seconds.
+    /// largest time from the profile's end until within the window, seconds
+    /// on the instruments' clock.
     pub settle_observed: Option<(u64, f64, f64)>,
+    /// How far apart the settling reads are on the instruments' clock,
+    /// seconds: a shorter settling is not seen.
+    pub settle_poll_s: f64,
     /// The scan mode (`step` or `continuous`).
     pub scan: &'static str,
+    /// How many times faster than real time the instruments' clock ran (a
+    /// rehearsal on `survey sim --time-scale X`; 1 on real instruments).
+    pub time_scale: f64,
 }
 
 impl Budget {
@@ -128,6 +136,7 @@ impl Budget {
         let total = self.bound.total();
         serde_json::json!({
             "scan": self.scan,
+            "time_scale": self.time_scale,
             "instrument_time_s": self.instrument_time_s,
             "bound_s": total,
             "ratio": if total > 0.0 { self.instrument_time_s / total } else { f64::NAN },
@@ -142,9 +151,14 @@ impl Budget {
     pub fn text(&self) -> String {
         let total = self.bound.total();
         let mut s = format!(
-            "instrument time {} ({:.0} s) against a bound of {} ({:.0} s) for this plan ({}): {:.3} x\n",
+            "instrument time {} ({:.0} s{}) against a bound of {} ({:.0} s) for this plan ({}): {:.3} x\n",
             human(Duration::from_secs_f64(self.instrument_time_s.max(0.0))),
             self.instrument_time_s,
+            if self.time_scale == 1.0 {
+                String::new()
+            } else {
+                format!(" on the instruments' clock at {}x real time", self.time_scale)
+            },
             human(Duration::from_secs_f64(total.max(0.0))),
             total,
             self.scan,
@@ -161,9 +175,23 @@ impl Budget {
         if unaccounted.abs() > 0.05 {
             let _ = writeln!(s, "  {:<18}{unaccounted:>12.1} {:>12}", "unaccounted", "");
         }
+        if total > 0.0 && self.instrument_time_s < 0.9 * total && self.time_scale == 1.0 {
+            let _ = writeln!(
+                s,
+                "  below the bound: these instruments run faster than the hardware the bound assumes (a rehearsal on \
+                 `survey sim --time-scale X`? `time_scale = X` in the configuration's [timing] reports on their clock)"
+            );
+        }
         if let Some((n, mean, max)) = self.settle_observed {
             let _ =
                 writeln!(s, "  settling seen after {n} moves: mean {:.0} ms, largest {:.0} ms", mean * 1e3, max * 1e3);
+            if self.time_scale != 1.0 {
+                let _ = writeln!(
+                    s,
+                    "  (read every {:.0} ms on the instruments' clock: a shorter settling is not seen)",
+                    self.settle_poll_s * 1e3
+                );
+            }
         }
         s
     }

@@ -269,3 +269,52 @@ fn model_gap_names_its_columns_for_what_they_measure() {
     assert!(close(cells[1], step["rms_deg"].as_f64().unwrap()), "{row}\n{step}");
     assert!(close(cells[0], step["mean_peak_deg"].as_f64().unwrap()), "{row}\n{step}");
 }
+
+#[test]
+fn a_rehearsal_on_a_scaled_sim_reports_instrument_time_on_the_instruments_clock() {
+    use std::io::{BufRead as _, BufReader};
+    use std::process::Stdio;
+    const SCALE: f64 = 500.0;
+    let b = Bench::new();
+    let config = |positioner: &str, tracker: &str, timing: &str| {
+        format!(
+            "[survey]\npoints = 4\nruns = 2\nreference = \"tracker\"\n\
+             [positioner]\ndriver = \"modbus-tcp\"\naddress = \"{positioner}\"\n\
+             [tracker]\ndriver = \"emscon\"\naddress = \"{tracker}\"\n[timing]\ndwell_s = 0.01\nlocate_points = 4\n{timing}"
+        )
+    };
+    b.write("sim.toml", config("127.0.0.1:0", "127.0.0.1:0", ""));
+    let mut child = b
+        .command(&["sim", "--config", "sim.toml", "--time-scale", &SCALE.to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start survey sim");
+    let mut ready = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut ready).unwrap();
+    let sim = super::drift::Sim(child);
+    let ready: serde_json::Value = serde_json::from_str(&ready).expect("the ready line");
+    let at = |k: &str| ready["instruments"][k].as_str().unwrap().to_string();
+
+    // Declared: the time on the instruments' clock, which no survey beats the bound on.
+    b.write("scaled.toml", config(&at("positioner"), &at("tracker"), &format!("time_scale = {SCALE}\n")));
+    let text = b.survey(&["--db", "a.db", "run", "--config", "scaled.toml"]).success();
+    assert!(text.stdout.contains(&format!("on the instruments' clock at {SCALE}x real time")), "{text}");
+    assert!(text.stderr.contains(&format!("at {SCALE}x real time)")), "the estimate in real time too\n{text}");
+    assert!(!text.stdout.contains("below the bound"), "{text}");
+    let doc = b.survey(&["--db", "b.db", "run", "--config", "scaled.toml", "--json"]).success().json();
+    let num = |k: &str| doc[k].as_f64().unwrap_or_else(|| panic!("{k} in {doc}"));
+    assert_eq!(num("time_scale"), SCALE);
+    assert!(num("instrument_time_s") >= num("bound_s"), "{doc}");
+    let real = num("real_time_s");
+    assert!((num("instrument_time_s") / SCALE - real).abs() < 0.1 * real, "{doc}");
+    let components: f64 =
+        doc["time_budget"]["components"].as_array().unwrap().iter().map(|c| c["time_s"].as_f64().unwrap()).sum();
+    assert!((components - num("instrument_time_s")).abs() < 1e-6 * components, "{doc}");
+
+    // Not declared: below the physical bound, and the summary says why and what to do.
+    b.write("plain.toml", config(&at("positioner"), &at("tracker"), ""));
+    let text = b.survey(&["--db", "c.db", "run", "--config", "plain.toml"]).success();
+    drop(sim);
+    assert!(text.stdout.contains("below the bound") && text.stdout.contains("time_scale = X"), "{text}");
+}

@@ -174,14 +174,19 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     store.set_started(id, bench.clock.now().as_secs_f64()).await?;
     let plan = bench.plan.clone();
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
+    let scale = bench.setup.time_scale();
     eprintln!(
-        "survey {id}: {} targets x {} runs{}, {} scan, {}: about {} of instrument time",
+        "survey {id}: {} targets x {} runs{}, {} scan, {}: about {} of instrument time{}",
         plan.targets_deg.len(),
         plan.runs,
         if plan.bidirectional { " bidirectional" } else { "" },
         plan.scan.as_str(),
         bench.describe(),
-        human(bench.estimate)
+        human(bench.estimate),
+        match scale {
+            1.0 => String::new(),
+            x => format!(" (about {} at {x}x real time)", human(bench.estimate.div_f64(x))),
+        }
     );
     let options = AcquireOptions {
         progress: !args.json,
