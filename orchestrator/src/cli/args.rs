@@ -10,19 +10,16 @@ use clap::{Args, ValueEnum};
 /// `--json` documents stay in degrees (the contract's unit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Args)]
 pub struct UnitsArg {
-    /// The unit of the errors printed (angles along the axis stay in degrees; --json is always degrees).
+    /// The unit of the errors printed: degrees, arcseconds or microradians (angles along the axis stay in degrees; --json is always degrees).
     #[arg(long = "units", value_enum, value_name = "UNIT", default_value_t = UnitChoice::Deg, env = "SURVEY_UNITS")]
     choice: UnitChoice,
 }
 
-/// The units `--units` offers.
+/// The units `--units` offers (no doc comment on each: the help lists them on one line).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum UnitChoice {
-    /// Degrees.
     Deg,
-    /// Arcseconds.
     Arcsec,
-    /// Microradians.
     Urad,
 }
 

@@ -38,8 +38,7 @@ pub struct Cli {
     #[arg(long, global = true, value_name = "PATH", value_hint = clap::ValueHint::FilePath, default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
     pub db: PathBuf,
 
-    /// Say more on stderr: -v how the work is done (info), -vv debug, -vvv
-    /// everything (RUST_LOG, when set, decides instead).
+    /// Say more on stderr: -v how the work is done, -vv debug, -vvv trace (RUST_LOG, when set, decides instead).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     pub verbose: u8,
 
@@ -78,7 +77,7 @@ Examples:
   survey resume                   # the latest survey
   survey resume --survey 3 --json")]
     Resume(resume::ResumeArgs),
-    /// Write the survey's report (a self-contained HTML page with its plots and tables) into DIR.
+    /// Write the survey's report, its calibration certificate: one self-contained HTML page into --out DIR.
     #[command(after_help = "\
 Examples:
   survey report --out report/               # report/index.html of the latest survey
