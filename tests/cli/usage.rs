@@ -37,6 +37,10 @@ fn run_shows_its_required_arguments_and_asks_for_points_only_where_nothing_gives
     let out = b.survey(&["--db", "c.db", "run", "--config", "polygon.toml"]);
     assert_eq!(out.code, 1, "the instruments fail, not the plan\n{out}");
     assert!(out.stderr.contains("12 targets x 2 runs"), "{out}");
+    // The failure said once on its line, and the log lines without time or module.
+    let error = out.stderr.lines().find(|l| l.starts_with("error: ")).expect("an error line");
+    assert_eq!(error.matches("cannot connect").count(), 1, "{out}");
+    assert!(!out.stderr.contains("survey_orchestrator::"), "{out}");
     // The configuration's [survey] points comes first (it must be the faces).
     b.write("points.toml", unreachable_polygon_config("points = 10"));
     b.survey(&["--db", "c.db", "run", "--config", "points.toml"]).bad_input(&["points.toml", "10", "12"]);
