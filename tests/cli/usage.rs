@@ -306,6 +306,8 @@ fn a_rehearsal_on_a_scaled_sim_reports_instrument_time_on_the_instruments_clock(
     assert!(text.stdout.contains(&format!("on the instruments' clock at {SCALE}x real time")), "{text}");
     assert!(text.stderr.contains(&format!("at {SCALE}x real time)")), "the estimate in real time too\n{text}");
     assert!(!text.stdout.contains("below the bound"), "{text}");
+    // run has no --design: its note names the commands that have one.
+    assert!(text.stderr.contains("no design was given") && text.stderr.contains("`survey process --design"), "{text}");
     let doc = b.survey(&["--db", "b.db", "run", "--config", "scaled.toml", "--json"]).success().json();
     let num = |k: &str| doc[k].as_f64().unwrap_or_else(|| panic!("{k} in {doc}"));
     assert_eq!(num("time_scale"), SCALE);

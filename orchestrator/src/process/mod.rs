@@ -148,8 +148,9 @@ pub fn compute(
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
                 eprintln!(
-                    "note: survey {id} has no stored model and no --design was given: lines are named without a design \
-                     (pass --design MODEL.toml to name gear and tooth harmonics)"
+                    "note: survey {id} has no stored model and no design was given: lines are named without a design \
+                     (`survey process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth \
+                     harmonics)"
                 );
                 (Design::default(), "none".to_string())
             }
