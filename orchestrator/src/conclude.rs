@@ -4,7 +4,7 @@
 //! survey's samples are read once, here, for all three.
 
 use crate::acquire::Engine;
-use crate::output::{Output, human, iso_json, iso_text};
+use crate::output::{Output, Units, human, iso_json, iso_text};
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::session::{AcquireOptions, Acquired};
 use crate::stop::{Stop, Stopped};
@@ -27,6 +27,8 @@ pub struct ConcludeOptions {
     pub acquire: AcquireOptions,
     /// A stop request (a signal) ends the conclusion between its phases.
     pub stop: Stop,
+    /// The unit of the errors in the text (`--units`; the JSON stays in degrees).
+    pub units: Units,
 }
 
 /// The output, and whether everything after the acquisition succeeded: the
@@ -58,7 +60,6 @@ pub async fn conclude(
     let mut doc = iso_json(id, &iso);
     doc["status"] = record.status.as_str().into();
     doc["samples"] = samples.len().into();
-    doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
     doc["faults_survived"] = outcome.faults_survived.into();
     // What the engine met and survived. `injected` is what the simulators
@@ -78,7 +79,9 @@ pub async fn conclude(
     });
     // An acquired survey always has its plan stored.
     let plan = record.plan().cloned().with_context(|| format!("survey {id} has no stored plan"))?;
-    let budget = budget(store, id, engine, &plan, outcome.instrument_time).await;
+    let budget = budget(store, id, engine, &plan, (outcome.instrument_time, record.setup.time_scale())).await;
+    doc["instrument_time_s"] = budget.instrument_time_s.into();
+    doc["time_scale"] = budget.time_scale.into();
     doc["bound_s"] = budget.bound.total().into();
     doc["time_budget"] = budget.json();
     if plan.continuous() {
@@ -96,7 +99,7 @@ pub async fn conclude(
     let mut text = format!(
         "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}\n",
         samples.len(),
-        human(outcome.instrument_time),
+        human(std::time::Duration::from_secs_f64(budget.instrument_time_s)),
         acquired.real.as_secs_f64(),
         if outcome.faults_survived > 0 {
             format!(", {} faults survived", outcome.faults_survived)
@@ -112,7 +115,7 @@ pub async fn conclude(
             l.se_s * 1e3
         );
     }
-    text += &iso_text(id, &iso);
+    text += &iso_text(id, &iso, options.units);
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
 
@@ -140,7 +143,7 @@ pub async fn conclude(
     text += "\n";
     if let Some((_, r)) = &refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
-        text += &r.text();
+        text += &options.units.text(&r.text());
         // Recorded with the survey (`survey show` lists it); a failed write
         // loses only this line, the refit is made again from the raw readings.
         let at = engine.clock().now().as_secs_f64();
@@ -148,15 +151,23 @@ pub async fn conclude(
             tracing::warn!(error = %format!("{e:#}"), "the axis refit could not be recorded");
         }
     }
-    text += &processed.text();
+    text += &processed.text(options.units);
     if let Err(why) = options.stop.check() {
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let mut result = Ok(());
     if let Some(verify_plan) = &options.verify {
-        match crate::verify::verify(engine, store, record, &samples, verify_plan, &processed, options.acquire.clone())
-            .await
-        {
+        let verified = crate::verify::verify(
+            engine,
+            store,
+            record,
+            &samples,
+            verify_plan,
+            &processed,
+            options.acquire.clone(),
+            options.units,
+        );
+        match verified.await {
             Ok(v) => {
                 doc["verify"] = v.doc;
                 text += "\n";
@@ -168,13 +179,14 @@ pub async fn conclude(
     Ok(Concluded { output: Output { doc, text }, result })
 }
 
-/// The survey's instrument time beside its plan's bound.
+/// The survey's instrument time beside its plan's bound, on the
+/// instruments' clock: what this process measured times `time_scale`.
 async fn budget(
     store: &Store,
     id: i64,
     engine: &Engine,
     plan: &SurveyPlan,
-    instrument_time: std::time::Duration,
+    (instrument_time, time_scale): (std::time::Duration, f64),
 ) -> crate::output::Budget {
     let t = engine.timing();
     let tracker = engine.reference_kind() == crate::acquire::ReferenceKind::Tracker;
@@ -184,16 +196,22 @@ async fn budget(
         integration_s: engine.integration().map_or(0.0, |i| i.as_secs_f64()),
         locate_points: if tracker { t.locate_points } else { 0 },
     };
-    let spent = store.survey_time(id).await.unwrap_or_else(|e| {
+    let measured = store.survey_time(id).await.unwrap_or_else(|e| {
         tracing::warn!(error = %format!("{e:#}"), "the stored instrument time could not be read");
         survey_processing::budget::Spent::default()
     });
+    let mut spent = survey_processing::budget::Spent::default();
+    for (c, s) in measured.entries() {
+        spent.add(c, s * time_scale);
+    }
     crate::output::Budget {
-        instrument_time_s: instrument_time.as_secs_f64(),
+        instrument_time_s: instrument_time.as_secs_f64() * time_scale,
         bound: survey_processing::budget::plan_bound(plan, &d, engine.settle_model(), &t.scan),
         spent,
-        settle_observed: engine.settle_stats().summary(),
+        settle_observed: engine.settle_stats().summary().map(|(n, mean, max)| (n, mean * time_scale, max * time_scale)),
+        settle_poll_s: t.settle.poll.as_secs_f64() * time_scale,
         scan: plan.scan.as_str(),
+        time_scale,
     }
 }
 

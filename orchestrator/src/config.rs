@@ -360,6 +360,11 @@ pub struct TimingSection {
     pub beam_wait_s: Option<f64>,
     /// Wait between attempts to re-acquire a lost beam, s.
     pub beam_retry_s: Option<f64>,
+    /// The instruments run this many times faster than the hardware they
+    /// stand for (a rehearsal on `survey sim --time-scale X`; 1, the default,
+    /// for real instruments): instrument time is reported on their clock,
+    /// the time this process measured times this.
+    pub time_scale: Option<f64>,
 }
 
 fn one() -> u32 {
@@ -493,6 +498,7 @@ impl SurveyConfig {
             ("fetch_interval_s", t.fetch_interval_s, Range::Above(0.0), 10.0, "s"),
             ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
             ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
+            ("time_scale", t.time_scale, Range::Above(0.0), 10_000.0, "x real time"),
         ] {
             if let Some(v) = value {
                 within(&format!("timing.{key}"), v, range, max, unit)?;
@@ -577,6 +583,11 @@ impl SurveyConfig {
             }
         }
         Ok(())
+    }
+
+    /// How many times faster than the hardware the instruments run (`[timing] time_scale`, default 1).
+    pub fn time_scale(&self) -> f64 {
+        self.timing.time_scale.unwrap_or(1.0)
     }
 
     /// The engine timing: the defaults with this file's settings on top.
@@ -699,6 +710,8 @@ mod tests {
             ("[timing]\npoll_interval_s = 0\n", "timing.poll_interval_s = 0 is outside its range (above 0"),
             ("[timing]\nmax_retries = 4000000000\n", "timing.max_retries"),
             ("[timing]\nlocate_points = 2\n", "timing.locate_points"),
+            ("[timing]\ntime_scale = 0\n", "timing.time_scale = 0 is outside its range (above 0"),
+            ("[timing]\ntime_scale = 20000\n", "timing.time_scale = 20000 is outside"),
             ("[survey]\noverrun_deg = 45.0\n", "survey.overrun_deg = 45 is outside"),
             ("[survey]\ntravel_deg = [-1e9, 90.0]\n", "survey.travel_deg[0]"),
             ("[arm]\nradius_mm = 500.0\nradius_tolerance_mm = 600.0\n", "arm.radius_tolerance_mm"),

@@ -128,6 +128,17 @@ pub enum Setup {
 }
 
 impl Setup {
+    /// How many times faster than real time the instruments ran: a
+    /// configuration's `[timing] time_scale` (a rehearsal on `survey sim
+    /// --time-scale X`); 1 for the simulated bench, whose virtual clock is
+    /// its instruments' own.
+    pub fn time_scale(&self) -> f64 {
+        match self {
+            Setup::Configured(c) => c.config.time_scale(),
+            _ => 1.0,
+        }
+    }
+
     /// The plan, when the survey was acquired.
     pub fn plan(&self) -> Option<&SurveyPlan> {
         match self {

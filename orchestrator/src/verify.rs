@@ -14,7 +14,7 @@
 
 use crate::acquire::{Engine, ReferenceKind, Timing};
 use crate::error::bad_input;
-use crate::output::{Output, iso_json, iso_text};
+use crate::output::{Output, Units, iso_json, iso_text};
 use crate::process::ProcessOutcome;
 use crate::session::{AcquireOptions, acquire};
 use crate::store::Store;
@@ -75,7 +75,8 @@ pub async fn apply_correction(engine: &mut Engine, table: &CorrectionTable) -> a
 }
 
 /// Verify the table of `processed` (made from `native` and its `native_samples`):
-/// apply it and measure `verify_plan` as a new survey.
+/// apply it and measure `verify_plan` as a new survey; the text's errors in `units`.
+#[allow(clippy::too_many_arguments)] // what is verified, where, and how it shows: none derives from another
 pub async fn verify(
     engine: &mut Engine,
     store: &Store,
@@ -84,6 +85,7 @@ pub async fn verify(
     verify_plan: &VerifyPlan,
     processed: &ProcessOutcome,
     options: AcquireOptions,
+    units: Units,
 ) -> anyhow::Result<Output> {
     let table = &processed.processed.built.table;
     let plan = &verify_plan.plan;
@@ -133,7 +135,7 @@ pub async fn verify(
     acquire(store, id, engine, plan, 0, options).await?;
     let corrected = store.samples(id).await?;
     let predicted = processed.processed.prediction.corrected_peak_deg;
-    let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional())?;
+    let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
     out.doc["targets"] = plan.targets_deg.len().into();
     out.doc["between_targets"] = verify_plan.between.into();
     out.doc["offset_deg"] = verify_plan.offset_deg.into();
@@ -157,7 +159,7 @@ fn placement(v: &VerifyPlan) -> String {
     }
 }
 
-/// The verification's figures: native against corrected.
+/// The verification's figures: native against corrected, the text's errors in `units`.
 pub fn figures(
     id: i64,
     native_id: i64,
@@ -165,6 +167,7 @@ pub fn figures(
     corrected: &[Sample],
     predicted: Option<f64>,
     directional: bool,
+    units: Units,
 ) -> anyhow::Result<Output> {
     let iso = iso230_2(corrected).context("ISO 230-2 statistics of the verification")?;
     let (native_peak, corrected_peak) = (peak_deg(native), peak_deg(corrected));
@@ -180,15 +183,18 @@ pub fn figures(
         "directional": directional,
         "iso230_2": iso_json(id, &iso)["iso230_2"].clone(),
     });
-    let predicted = predicted.map(|p| format!(" (predicted +/-{p:.5})")).unwrap_or_default();
+    let (e, unit) = (|deg: f64| units.fixed(deg, 5), units.symbol());
+    let predicted = predicted.map(|p| format!(" (predicted +/-{})", e(p))).unwrap_or_default();
     let text = format!(
         "verification (survey {id}): measured with the table applied in the feedback path\n  \
-         native peak +/-{native_peak:.5} deg, corrected +/-{corrected_peak:.5} deg{predicted}, {:.1}x better\n  \
-         systematic part (mean over the runs): native +/-{:.5} deg, corrected +/-{:.5} deg\n{}",
+         native peak +/-{} {unit}, corrected +/-{} {unit}{predicted}, {:.1}x better\n  \
+         systematic part (mean over the runs): native +/-{} {unit}, corrected +/-{} {unit}\n{}",
+        e(native_peak),
+        e(corrected_peak),
         native_peak / corrected_peak,
-        systematic_peak_deg(native),
-        systematic_peak_deg(corrected),
-        iso_text(id, &iso)
+        e(systematic_peak_deg(native)),
+        e(systematic_peak_deg(corrected)),
+        iso_text(id, &iso, units)
     );
     Ok(Output { doc, text })
 }

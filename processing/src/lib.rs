@@ -27,6 +27,7 @@ pub mod spectrum;
 pub mod table;
 pub mod types;
 pub mod uncertainty;
+pub mod units;
 pub mod vdi3441;
 pub mod verification;
 

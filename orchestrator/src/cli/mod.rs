@@ -5,6 +5,7 @@
 //! disk), 2 for bad usage or bad input. Every command that fails on its input
 //! stores nothing. Nothing below this module imports it.
 
+mod args;
 mod check;
 mod docs;
 mod export;
@@ -34,8 +35,12 @@ use std::process::ExitCode;
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100, after_help = EXAMPLES)]
 pub struct Cli {
     /// The SQLite database that holds the surveys.
-    #[arg(long, global = true, value_name = "PATH", default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
+    #[arg(long, global = true, value_name = "PATH", value_hint = clap::ValueHint::FilePath, default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
     pub db: PathBuf,
+
+    /// Say more on stderr: -v how the work is done, -vv debug, -vvv trace (RUST_LOG, when set, decides instead).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
 
     #[command(subcommand)]
     pub command: Command,
@@ -53,7 +58,7 @@ Examples:
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Acquire a survey (the simulated instruments unless --config is given).
-    #[command(after_help = "\
+    #[command(override_usage = run::USAGE, after_help = "\
 Examples:
   survey run --points 360 --bidirectional                 # simulated Figure 8 bench, 5 runs
   survey run --points 720 --runs 3 --bidirectional --preset fig4 --json
@@ -72,7 +77,7 @@ Examples:
   survey resume                   # the latest survey
   survey resume --survey 3 --json")]
     Resume(resume::ResumeArgs),
-    /// Write the survey's report (a self-contained HTML page with its plots and tables) into DIR.
+    /// Write the survey's report, its calibration certificate: one self-contained HTML page into --out DIR.
     #[command(after_help = "\
 Examples:
   survey report --out report/               # report/index.html of the latest survey
@@ -148,7 +153,7 @@ Examples:
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    support::init_logging();
+    support::init_logging(cli.verbose);
     // The command awaits its work and every write; a background task that
     // never yields cannot keep the process alive (`crate::runtime`).
     let outcome = crate::runtime::block_on_bounded(2, async {
@@ -160,7 +165,13 @@ pub fn main() -> ExitCode {
     match outcome {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            eprintln!("error: {e:#}");
+            match e.downcast_ref::<clap::Error>() {
+                // A usage error found after parsing reads as clap's own, usage line and all.
+                Some(usage) => {
+                    let _ = usage.print();
+                }
+                None => eprintln!("error: {e:#}"),
+            }
             ExitCode::from(crate::error::exit_status(&e))
         }
         Err(e) => {

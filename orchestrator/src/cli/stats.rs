@@ -5,6 +5,7 @@
 //! its statistics are those of its complete runs only: a run cut short would
 //! weigh its targets unevenly.
 
+use super::args::UnitsArg;
 use super::support::emit;
 use crate::load::{Axis, load_read_only};
 use crate::output::{iso_json, iso_text};
@@ -19,8 +20,10 @@ use survey_processing::iso230::iso230_2;
 #[derive(Debug, Args)]
 pub struct StatsArgs {
     /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<i64>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -101,8 +104,9 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
                 c.runs_planned
             );
         }
-        text += &iso_text(id, &iso);
-        text += &survey_processing::drift::text(drift);
+        let units = args.units.units();
+        text += &iso_text(id, &iso, units);
+        text += &survey_processing::drift::text(drift, units);
         if crate::drift::correction_asked(survey) && !drift.is_empty() {
             text += "the statistics above are of the samples corrected for this drift (drift_control.correct)\n";
         }

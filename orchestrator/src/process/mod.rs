@@ -108,9 +108,9 @@ impl ProcessOutcome {
         summary::json(self)
     }
 
-    /// The summary for people.
-    pub fn text(&self) -> String {
-        summary::text(self)
+    /// The summary for people, its errors in `units`.
+    pub fn text(&self, units: crate::output::Units) -> String {
+        summary::text(self, units)
     }
 }
 
@@ -148,8 +148,9 @@ pub fn compute(
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
                 eprintln!(
-                    "note: survey {id} has no stored model and no --design was given: lines are named without a design \
-                     (pass --design MODEL.toml to name gear and tooth harmonics)"
+                    "note: survey {id} has no stored model and no design was given: lines are named without a design \
+                     (`survey process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth \
+                     harmonics)"
                 );
                 (Design::default(), "none".to_string())
             }
@@ -177,6 +178,10 @@ pub fn compute(
     };
     for n in &processed.notes {
         eprintln!("note: {n}");
+    }
+    // How the table was made, not something to act on: under -v or RUST_LOG=info.
+    if let Some(dm) = &processed.built.direction_model {
+        tracing::info!("{}", dm.text());
     }
     let design = DesignSource {
         from: design_source,

@@ -22,7 +22,8 @@ pub mod html;
 pub mod page;
 pub mod pdf;
 pub mod plot;
-pub mod units;
+/// The units and numbers of the page (the processing's, shared with every command's text).
+pub use survey_processing::units;
 
 use crate::error::{bad_input, path_error};
 use crate::inputs::read_model;

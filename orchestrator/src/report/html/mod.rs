@@ -113,10 +113,15 @@ pub fn note(text: &str) -> String {
     format!("<p class=\"note\">{}</p>\n", escape(text))
 }
 
-/// The processing's notes, when there are any.
+/// The processing's notes and its direction model, when there are any.
 fn notes(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
-    let Some(processed) = p.processed().filter(|x| !x.notes.is_empty()) else { return Ok(None) };
-    let items: String = processed.notes.iter().map(|n| format!("<li>{}</li>", escape(&p.units.text(n)))).collect();
+    let Some(processed) = p.processed() else { return Ok(None) };
+    let direction = processed.built.direction_model.as_ref().map(|dm| dm.text());
+    let notes: Vec<&String> = processed.notes.iter().chain(&direction).collect();
+    if notes.is_empty() {
+        return Ok(None);
+    }
+    let items: String = notes.iter().map(|n| format!("<li>{}</li>", escape(&p.units.text(n)))).collect();
     Ok(Some(Section {
         id: "notes",
         title: "Processing notes".into(),

@@ -55,9 +55,16 @@ pub fn section(v: &Verification, own: &[Sample], units: Units) -> anyhow::Result
     let y = padded(a.0.min(b.0), a.1.max(b.1), 0.06);
     let (native_svg, legend_html) = errors::svg(&native, units, Some(y.clone()))?;
     let (corrected_svg, _) = errors::svg(&corrected, units, Some(y))?;
-    let doc =
-        crate::verify::figures(v.verification_id, v.native_id, native_samples, corrected_samples, None, v.directional)?
-            .doc;
+    let doc = crate::verify::figures(
+        v.verification_id,
+        v.native_id,
+        native_samples,
+        corrected_samples,
+        None,
+        v.directional,
+        units,
+    )?
+    .doc;
     let f = |k: &str| doc[k].as_f64().unwrap_or(f64::NAN);
     let iso = |k: &str| doc["iso230_2"][k].as_f64();
     let native_iso = survey_processing::iso230::iso230_2(native_samples).ok();
