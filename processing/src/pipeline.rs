@@ -7,6 +7,7 @@
 
 use crate::Sample;
 use crate::analysis::{Analysis, AnalysisError, analyse};
+use crate::correction::left::Left;
 use crate::correction::{CorrectionError, Prediction, predict_accuracy};
 use crate::errormap::Coverage;
 use crate::export::controllers::ControllerExport;
@@ -72,7 +73,11 @@ pub struct Processed {
     pub decisions: Decisions,
     /// The table.
     pub built: BuiltTable,
-    /// Native and corrected accuracy, predicted on the survey's samples.
+    /// What the table leaves uncorrected that the survey saw (nulled lines,
+    /// lines that may be aliases).
+    pub left: Left,
+    /// Native and corrected accuracy, predicted on the survey's samples,
+    /// with what the table leaves between the targets.
     pub prediction: Prediction,
     /// The repeatability floor.
     pub floor: Floor,
@@ -156,7 +161,16 @@ pub fn process_with(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?;
+    let left = Left::of(&analysis, &decisions);
+    let prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?.with_left(&left);
+    notes.extend(left.lines.iter().map(|l| l.why.clone()));
+    if prediction.no_better_than_native() {
+        notes.push(format!(
+            "this table is not expected to improve the axis: corrected peak +/-{:.5} deg predicted (with what it leaves \
+             between the targets) against +/-{:.5} deg native; it is not a result to load",
+            prediction.corrected_peak_deg, prediction.native_peak_deg
+        ));
+    }
     let single = match analysis.error_map.coverage {
         Coverage::FullCircle { .. } => analysis
             .error_map
@@ -182,6 +196,7 @@ pub fn process_with(
         replayed: replay.is_some(),
         decisions,
         built,
+        left,
         prediction,
         floor,
         iso,

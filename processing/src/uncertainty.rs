@@ -47,9 +47,46 @@
 //!   such line, its amplitude rectangular between 0 and the threshold `T`, at
 //!   any phase: `T / sqrt(6)`.
 //!
+//! - **what the table leaves** ([`crate::correction::left`]): a repeatable
+//!   line the survey saw and the table does not carry (nulled: two design
+//!   harmonics alias to its bin; removed), at its measured size, and, when
+//!   the design does not name a line and the spectrum reaches into the top
+//!   half of what the sampling resolves, the risk that the line is the alias
+//!   of a frequency above it (the table then errs by up to twice the line
+//!   between the targets). A line of amplitude `A` left whole contributes
+//!   `A / sqrt(2)` rms; a possible alias, the difference of two lines, `A`.
+//!   Their sizes are known to the noise of each measured phasor (`u_A` per
+//!   component): one size for every readout, a systematic error, so the
+//!   lines are taken at the upper end of that interval, `A + k u_A`, not
+//!   averaged over the readouts like noise. Beside them a normal term: their
+//!   products with the error through the readout, which the table made
+//!   through the true angle carries for the lines it keeps and not for
+//!   these (second order, [`crate::correction::left`]).
+//!
+//! # The coverage interval
+//!
+//! Without anything left, every source is about normal and `U = k u` with
+//! `k = 2` (about 95 %: 95.45 % for a normal distribution). What the table
+//! leaves is not normal: a sinusoid over the readouts has the arcsine
+//! distribution (its 95th percentile `0.997 A`, its rms `0.707 A`), and the
+//! lines of one part are harmonics of each other with fixed relative phases,
+//! so neither quadrature nor an independent-phase convolution describes
+//! their sum. So the distribution is propagated instead of its rms (the
+//! method of GUM Supplement 1, JCGM 101, done exactly rather than by random
+//! draws): what is left, `s(r)`, is evaluated as the function it is at 4096
+//! readouts equidistributed over the table's range, for each hypothesis of
+//! its lines' true frequencies; the normal part (every other source, in
+//! quadrature, `u_n`) is added as a normal of that standard deviation, and
+//! `U` solves `mean_r P(|s(r) + u_n Z| <= U) = 0.9545` (the probability
+//! `k = 2` gives a normal distribution, so `U` is continuous with the normal
+//! case), by bisection. The least favourable hypothesis (the largest `U`)
+//! is stated; `k` is then `U / u`, `u` the combined standard uncertainty
+//! (`u_n` and the rms of what is left, in quadrature).
+//!
 //! What is not: the reference's calibration (a scale error of the reference
 //! instrument: it has no stated value here), more than one line missed.
 
+use crate::correction::left::{Left, LeftKind};
 use crate::errormap::{Coverage, Series};
 use crate::pipeline::Processed;
 use crate::types::{Direction, Sample};
@@ -93,6 +130,41 @@ pub struct Uncertainty {
 
 /// The coverage factor stated (about 95 % for a normal distribution).
 pub const K: f64 = 2.0;
+
+/// The coverage probability of `K` for a normal distribution (95.45 %), the
+/// probability the interval of a non-normal distribution is computed for.
+pub fn coverage_probability() -> f64 {
+    1.0 - crate::special::erfc(K / std::f64::consts::SQRT_2)
+}
+
+/// The `U` with `mean_i P(|s_i + u_n Z| <= U) = p`, `Z` standard normal:
+/// the coverage interval of the readouts' left error `s` plus the normal
+/// part `u_n` (bisection to 1e-12 of the range).
+pub fn coverage_interval(s: &[f64], u_n: f64, p: f64) -> f64 {
+    let peak = s.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let covered = |u: f64| {
+        let inside: f64 = if u_n > 0.0 {
+            let phi = |x: f64| 0.5 * crate::special::erfc(-x / (u_n * std::f64::consts::SQRT_2));
+            s.iter().map(|&v| phi(u - v) - phi(-u - v)).sum()
+        } else {
+            s.iter().filter(|v| v.abs() <= u).count() as f64
+        };
+        inside / s.len().max(1) as f64
+    };
+    let (mut lo, mut hi) = (0.0, peak + 10.0 * u_n);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if covered(mid) >= p {
+            hi = mid
+        } else {
+            lo = mid
+        }
+        if hi - lo <= 1e-12 * (peak + u_n) {
+            break;
+        }
+    }
+    hi
+}
 
 /// The slope of the run means per run and its standard error, per
 /// direction measured (`None` with fewer than three runs).
@@ -198,7 +270,7 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     // at a random phase: `T / sqrt(3)` amplitude, `1 / sqrt(2)` of it rms.
     let threshold = a.noise.coherent_threshold_deg;
     budget.push(Contribution { source: "a line below the detection threshold".into(), u_deg: threshold / 6f64.sqrt() });
-    let combined_u_deg = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
+    let normal_u = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
         "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
          expanded with k = {K}; the table's value at an angle relative to its zero reference, {} fitted terms from \
@@ -207,7 +279,75 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         samples.len(),
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
-    Uncertainty { k: K, table_u_deg: K * combined_u_deg, combined_u_deg, budget, method }
+    let left = &processed.left;
+    if left.is_empty() {
+        return Uncertainty { k: K, table_u_deg: K * normal_u, combined_u_deg: normal_u, budget, method };
+    }
+    with_left(left, normal_u, budget, method)
+}
+
+/// The budget with what the table leaves, and its coverage interval from the
+/// distribution (see the module documentation).
+fn with_left(left: &Left, normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
+    for l in &left.lines {
+        let names: Vec<String> =
+            l.candidates.iter().filter(|&&c| c != l.observed_cycles).map(|c| format!("{c}")).collect();
+        let (source, u_deg) = match l.kind {
+            LeftKind::NotCarried => (
+                format!(
+                    "left by the table: the line at bin {} ({} cycles/rev), not carried",
+                    l.observed_cycles,
+                    l.candidates.iter().map(|c| format!("{c}")).collect::<Vec<_>>().join(" or ")
+                ),
+                l.amplitude_deg / std::f64::consts::SQRT_2,
+            ),
+            LeftKind::MaybeAlias => (
+                format!(
+                    "unknown design: the line at bin {} may be {} cycles/rev",
+                    l.observed_cycles,
+                    names.join(" or ")
+                ),
+                l.amplitude_deg,
+            ),
+        };
+        budget.push(Contribution { source, u_deg });
+    }
+    budget.push(Contribution {
+        source: "the lines left, through the readout (their products with the error, second order)".into(),
+        u_deg: left.second_order_deg,
+    });
+    let normal_u = normal_u.hypot(left.second_order_deg);
+    // Their sizes at the upper end of what the survey allows (systematic: one
+    // size for every readout).
+    let left = &left.at_upper_size(K);
+    let p = coverage_probability();
+    let readouts = Left::readouts();
+    let (table_u_deg, rms, hypothesis) = left
+        .hypotheses()
+        .into_iter()
+        .map(|h| {
+            let s = left.values(&h, &readouts);
+            let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64).sqrt();
+            (coverage_interval(&s, normal_u, p), rms, h)
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .expect("a non-empty left has a hypothesis");
+    let combined_u_deg = normal_u.hypot(rms);
+    let truth: Vec<String> =
+        left.lines.iter().zip(&hypothesis).map(|(l, f)| format!("bin {} at {f}", l.observed_cycles)).collect();
+    let method = format!(
+        "{method}; the table leaves {} line(s) the survey saw: evaluated as functions of the readout at {} readouts \
+         over the table's range for each hypothesis of their true frequencies, the normal part added as a normal \
+         distribution, and the coverage interval of |left + normal| for {:.2} % (what k = {K} gives a normal \
+         distribution) computed from that distribution (GUM Supplement 1, propagated exactly); the least favourable \
+         hypothesis stated ({}): k = U / u = {:.3}",
+        left.lines.len(),
+        readouts.len(),
+        100.0 * p,
+        truth.join(", "),
+        table_u_deg / combined_u_deg
+    );
+    Uncertainty { k: table_u_deg / combined_u_deg, table_u_deg, combined_u_deg, budget, method }
 }
 
 impl Uncertainty {

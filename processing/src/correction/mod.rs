@@ -55,9 +55,17 @@
 //!   replaced by `target + actual - c` (with `readout = target` at rest this is
 //!   `actual + E(readout)`).
 //!
-//! The prediction is in-sample: the table was built from the same runs, so it
-//! has absorbed their mean noise and the corrected figures are slightly
-//! optimistic (by a factor of about `sqrt(1 - 1/runs)` on the noise). The
+//! The prediction is made on the survey's samples, at its targets: the table
+//! was built from the same runs, so it has absorbed their mean noise and the
+//! corrected figures are slightly optimistic (by a factor of about
+//! `sqrt(1 - 1/runs)` on the noise). Between the targets the table may do
+//! worse than at them: a line it does not carry, or one it carries at a bin
+//! that may be the alias of its true frequency ([`left`]), peaks higher
+//! there than the survey saw. [`Prediction::with_left`] adds that: the
+//! contract's `corrected_peak_deg` is the in-sample peak plus how much higher
+//! what the table leaves peaks between the targets than at them (under the
+//! least favourable hypothesis of its lines' true frequencies), so it never
+//! promises better than the table can do. The
 //! repeatability floor (`floor_deg`, passed in: for example half the ISO 230-2
 //! `R`, or the bidirectional repeatability when a single table is used) is
 //! reported beside them: no correction can go below it, and the paper's
@@ -70,6 +78,7 @@ use crate::table::{CorrectionTable, TableError};
 use crate::types::Sample;
 use serde::Serialize;
 
+pub mod left;
 pub(crate) mod true_angle;
 #[cfg(test)]
 mod truth_tests;
@@ -290,8 +299,14 @@ pub struct ErrorFigures {
 pub struct Prediction {
     /// The contract's `native_peak_deg`: `max |e - mean|` without correction.
     pub native_peak_deg: f64,
-    /// The contract's `corrected_peak_deg`: the same after correction.
+    /// The contract's `corrected_peak_deg`: the same after correction, with
+    /// what the table leaves between the targets ([`Prediction::with_left`]).
     pub corrected_peak_deg: f64,
+    /// The corrected peak at the survey's own samples (the targets), degrees.
+    pub in_sample_corrected_peak_deg: f64,
+    /// How much higher what the table leaves peaks between the targets than
+    /// at them, degrees (0 when it leaves nothing the survey saw).
+    pub unseen_between_targets_deg: f64,
     /// All native figures.
     pub native: ErrorFigures,
     /// All corrected figures.
@@ -329,11 +344,31 @@ pub fn predict_accuracy(
     Ok(Prediction {
         native_peak_deg: native.peak_deg,
         corrected_peak_deg: corrected.peak_deg,
+        in_sample_corrected_peak_deg: corrected.peak_deg,
+        unseen_between_targets_deg: 0.0,
         native,
         corrected,
         floor_deg,
         samples: samples.len(),
     })
+}
+
+impl Prediction {
+    /// The prediction with what the table leaves between the targets
+    /// ([`left::Left::unseen_peak_deg`]) added to the corrected peak.
+    pub fn with_left(self, left: &left::Left) -> Self {
+        let unseen = left.unseen_peak_deg();
+        Prediction {
+            corrected_peak_deg: self.in_sample_corrected_peak_deg + unseen,
+            unseen_between_targets_deg: unseen,
+            ..self
+        }
+    }
+
+    /// Whether the corrected axis is predicted no better than the native one.
+    pub fn no_better_than_native(&self) -> bool {
+        self.corrected_peak_deg >= self.native_peak_deg
+    }
 }
 
 impl ErrorFigures {
