@@ -1,7 +1,9 @@
 //! What follows an acquisition, like the paper's full process: the ISO 230-2
 //! statistics, then the processing (a recipe replayed when given), then with
 //! `--verify` the corrected accuracy measured with the table applied. The
-//! survey's samples are read once, here, for all three.
+//! survey's samples are read once, here, for all three: around the refitted
+//! axis of a tracker survey ([`crate::refit::samples_for_analysis`], as every
+//! command), which the output names (`"axis"`).
 
 use crate::acquire::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
@@ -52,11 +54,14 @@ pub async fn conclude(
 ) -> anyhow::Result<Concluded> {
     let record = store.survey(id).await?;
     let drift = store.drift_points(id).await?;
-    let samples = crate::drift::for_analysis(&record, store.samples(id).await?, &drift);
+    // With a tracker, the figures and the table are of the axis fitted from every SMR position.
+    let (samples, refit) = crate::refit::samples_for_analysis(store, &record, &drift, false).await?;
+    let axis = crate::refit::Axis::of(&record, refit.as_ref());
     let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;
     let outcome = &acquired.outcome;
     let mut doc = iso_json(id, &iso);
     doc["status"] = record.status.as_str().into();
+    doc["axis"] = axis.as_str().into();
     doc["samples"] = samples.len().into();
     doc["instrument_time_s"] = outcome.instrument_time.as_secs_f64().into();
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
@@ -113,6 +118,8 @@ pub async fn conclude(
         );
     }
     text += &iso_text(id, &iso);
+    text += axis.text();
+    text += "\n";
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
 
@@ -120,11 +127,7 @@ pub async fn conclude(
         return stopped(store, id, why, Output { doc, text }).await;
     }
     let table_out = Some(default_table_path(db, id));
-    // With a tracker, the table is made around the axis fitted from every SMR position.
-    let refit = crate::refit::refit_survey(store, &record)
-        .await?
-        .map(|(s, r)| (crate::drift::for_analysis(&record, s, &drift), r));
-    let uncertainty = crate::refit::uncertainty_inputs(&record, refit.as_ref().map(|(_, r)| r), None);
+    let uncertainty = crate::refit::uncertainty_inputs(&record, refit.as_ref(), None);
     let processing = ProcessOptions {
         recipe: options.recipe.clone(),
         design: None,
@@ -132,14 +135,14 @@ pub async fn conclude(
         uncertainty,
         ..ProcessOptions::default()
     };
-    let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
-    let processed = match process_survey(&record, to_process, processing) {
+    let processed = match process_survey(&record, &samples, processing) {
         Ok(p) => p,
         Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
     };
     doc["process"] = processed.json();
+    doc["process"]["axis"] = axis.as_str().into();
     text += "\n";
-    if let Some((_, r)) = &refit {
+    if let Some(r) = &refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
         text += &r.text();
         // Recorded with the survey (`survey show` lists it); a failed write
@@ -159,9 +162,20 @@ pub async fn conclude(
             .await
         {
             Ok(v) => {
-                doc["verify"] = v.doc;
+                if !v.confirmed() {
+                    eprintln!(
+                        "warning: survey {}: the verification does not confirm the prediction: {}",
+                        v.id, v.judged.reason
+                    );
+                    result = Err(anyhow::anyhow!(
+                        "the verification (survey {}) does not confirm the table of survey {id}: not a result; the survey \
+                         and the table stay stored",
+                        v.id
+                    ));
+                }
+                doc["verify"] = v.output.doc;
                 text += "\n";
-                text += &v.text;
+                text += &v.output.text;
             }
             Err(e) => result = Err(e),
         }

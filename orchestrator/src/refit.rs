@@ -11,6 +11,15 @@
 //! carries a once-per-revolution error that the table would then "correct"
 //! into the positioner. The survey's thousands of positions know the centre
 //! far better.
+//!
+//! One set of numbers: every command that states a survey's figures
+//! (`stats`, `process`, `report`, the end of `run`) computes them from the
+//! same samples, [`samples_for_analysis`]: around the refitted axis when the
+//! survey has one (a tracker survey with SMR positions), as stored
+//! otherwise, corrected for the drift when the survey asked for it; and says
+//! which axis ([`Axis`]: `"axis": "refitted" | "located" | "none"` in their
+//! JSON). `survey process --located-axis` processes around the located axis
+//! for comparison and says so.
 
 use crate::acquire::RawReading;
 use crate::acquire::ReferenceKind;
@@ -46,6 +55,64 @@ pub struct AxisRefit {
     /// (standard error, its mean over the arc removed): how far the arc
     /// allows the axis to be known.
     pub over_arc_se_deg: f64,
+}
+
+/// Which axis a survey's actual angles were computed around.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Axis {
+    /// Fitted again from every SMR position of the survey.
+    Refitted,
+    /// Located before the runs (as stored).
+    Located,
+    /// No axis: an autocollimator, an import.
+    None,
+}
+
+impl Axis {
+    /// The JSON word.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Axis::Refitted => "refitted",
+            Axis::Located => "located",
+            Axis::None => "none",
+        }
+    }
+
+    /// The axis of `survey` analysed with `refit` (or without one).
+    pub fn of(survey: &SurveyRecord, refit: Option<&AxisRefit>) -> Self {
+        match (refit, &survey.axis) {
+            (Some(_), _) => Axis::Refitted,
+            (None, Some(_)) => Axis::Located,
+            (None, None) => Axis::None,
+        }
+    }
+
+    /// One line for people: which angles the figures are of.
+    pub fn text(self) -> &'static str {
+        match self {
+            Axis::Refitted => "axis: refitted (actual angles around the axis fitted again from every SMR position)",
+            Axis::Located => "axis: located (actual angles as stored, around the axis located before the runs)",
+            Axis::None => "axis: none (the reference measures angles directly)",
+        }
+    }
+}
+
+/// The samples every command's figures are computed from (see the module
+/// documentation), with the refit when there is one: `located` asks for the
+/// stored angles instead (`survey process --located-axis`).
+pub async fn samples_for_analysis(
+    store: &Store,
+    survey: &SurveyRecord,
+    drift: &[survey_processing::drift::DriftPoint],
+    located: bool,
+) -> anyhow::Result<(Vec<Sample>, Option<AxisRefit>)> {
+    let refit = if located { None } else { refit_survey(store, survey).await? };
+    let (samples, refit) = match refit {
+        Some((s, r)) => (s, Some(r)),
+        None => (store.samples(survey.id).await?, None),
+    };
+    Ok((crate::drift::for_analysis(survey, samples, drift), refit))
 }
 
 /// The shift between two centres, in the plane of `fit`.

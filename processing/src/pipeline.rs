@@ -162,7 +162,8 @@ pub fn process_with(
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
     let left = Left::of(&analysis, &decisions);
-    let prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?.with_left(&left);
+    let prediction =
+        predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?.with_left(&left, &samples, &built.table);
     notes.extend(left.lines.iter().map(|l| l.why.clone()));
     if prediction.no_better_than_native() {
         notes.push(format!(

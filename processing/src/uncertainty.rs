@@ -27,8 +27,11 @@
 //!   error over the measured arc.
 //! - **direction model**: a directional table's forward - reverse part (the
 //!   noise of the difference's mean and of its kept lines, halved in each
-//!   column); a table of one column for a bidirectional survey carries half
-//!   the mean hysteresis as an error of each direction.
+//!   column; a line of the difference kept at less than twice its threshold
+//!   may be a false alarm, noise selected for being large, and then each
+//!   column carries half of it wrongly: `A / (2 sqrt 2)` rms); a table of
+//!   one column for a bidirectional survey carries half the mean hysteresis
+//!   as an error of each direction.
 //! - **table resolution and interpolation**: the table is read between its
 //!   rows by linear interpolation: a line of amplitude `A` and angular
 //!   frequency `w` (rad/deg) leaves `A w^2 h^2 / sqrt(240)` rms between rows
@@ -80,8 +83,11 @@
 //! `U` solves `mean_r P(|s(r) + u_n Z| <= U) = 0.9545` (the probability
 //! `k = 2` gives a normal distribution, so `U` is continuous with the normal
 //! case), by bisection. The least favourable hypothesis (the largest `U`)
-//! is stated; `k` is then `U / u`, `u` the combined standard uncertainty
-//! (`u_n` and the rms of what is left, in quadrature).
+//! is stated. The budget keeps `k = 2` and `U = k u` (the contract's form):
+//! what is left enters it as the effective standard uncertainty
+//! `sqrt((U/2)^2 - u_n^2)`, the entry that expands to the coverage interval
+//! of the distribution; its rms (what quadrature would have used: for a
+//! sinusoid `0.707 A` against the interval's `0.997 A / 2`) is in `method`.
 //!
 //! What is not: the reference's calibration (a scale error of the reference
 //! instrument: it has no stated value here), more than one line missed.
@@ -232,7 +238,18 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     let bidirectional = map.forward.is_some() && map.reverse.is_some();
     let built = &processed.built;
     let direction_var = match (&built.direction_model, built.directional, &built.hysteresis) {
-        (Some(dm), _, _) => dm.noise_deg.powi(2) / (4.0 * dm.targets as f64) * (1.0 + 2.0 * dm.lines.len() as f64),
+        (Some(dm), _, _) => {
+            // A line kept at less than twice the threshold may be a false
+            // alarm: noise selected for being large. Then each column carries
+            // half of it wrongly, a sinusoid of rms `A / (2 sqrt 2)`.
+            let doubtful: f64 = dm
+                .lines
+                .iter()
+                .filter(|(_, a)| *a < 2.0 * dm.threshold_deg)
+                .map(|(_, a)| (a / 2.0).powi(2) / 2.0)
+                .sum();
+            dm.noise_deg.powi(2) / (4.0 * dm.targets as f64) * (1.0 + 2.0 * dm.lines.len() as f64) + doubtful
+        }
         // Each direction's terms fitted from its own half of the data.
         (None, true, _) => p * series_var / (n * runs) as f64,
         (None, false, Some(h)) if bidirectional && a.series == Series::Bidirectional => (h.mean_deg / 2.0).powi(2),
@@ -289,29 +306,6 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
 /// The budget with what the table leaves, and its coverage interval from the
 /// distribution (see the module documentation).
 fn with_left(left: &Left, normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
-    for l in &left.lines {
-        let names: Vec<String> =
-            l.candidates.iter().filter(|&&c| c != l.observed_cycles).map(|c| format!("{c}")).collect();
-        let (source, u_deg) = match l.kind {
-            LeftKind::NotCarried => (
-                format!(
-                    "left by the table: the line at bin {} ({} cycles/rev), not carried",
-                    l.observed_cycles,
-                    l.candidates.iter().map(|c| format!("{c}")).collect::<Vec<_>>().join(" or ")
-                ),
-                l.amplitude_deg / std::f64::consts::SQRT_2,
-            ),
-            LeftKind::MaybeAlias => (
-                format!(
-                    "unknown design: the line at bin {} may be {} cycles/rev",
-                    l.observed_cycles,
-                    names.join(" or ")
-                ),
-                l.amplitude_deg,
-            ),
-        };
-        budget.push(Contribution { source, u_deg });
-    }
     budget.push(Contribution {
         source: "the lines left, through the readout (their products with the error, second order)".into(),
         u_deg: left.second_order_deg,
@@ -319,35 +313,49 @@ fn with_left(left: &Left, normal_u: f64, mut budget: Vec<Contribution>, method: 
     let normal_u = normal_u.hypot(left.second_order_deg);
     // Their sizes at the upper end of what the survey allows (systematic: one
     // size for every readout).
-    let left = &left.at_upper_size(K);
+    let upper = left.at_upper_size(K);
     let p = coverage_probability();
     let readouts = Left::readouts();
-    let (table_u_deg, rms, hypothesis) = left
+    let (table_u_deg, rms, hypothesis) = upper
         .hypotheses()
         .into_iter()
         .map(|h| {
-            let s = left.values(&h, &readouts);
+            let s = upper.values(&h, &readouts);
             let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64).sqrt();
             (coverage_interval(&s, normal_u, p), rms, h)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .expect("a non-empty left has a hypothesis");
-    let combined_u_deg = normal_u.hypot(rms);
-    let truth: Vec<String> =
-        left.lines.iter().zip(&hypothesis).map(|(l, f)| format!("bin {} at {f}", l.observed_cycles)).collect();
+    // The entry that makes the budget expand (k = 2, in quadrature) to the
+    // coverage interval of the distribution: U / k less the normal part.
+    let effective = ((table_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
+    let lines: Vec<String> = left
+        .lines
+        .iter()
+        .zip(&hypothesis)
+        .map(|(l, f)| match l.kind {
+            LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
+            LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
+        })
+        .collect();
+    budget.push(Contribution {
+        source: format!("left by the table, from its distribution: {}", lines.join("; ")),
+        u_deg: effective,
+    });
     let method = format!(
         "{method}; the table leaves {} line(s) the survey saw: evaluated as functions of the readout at {} readouts \
-         over the table's range for each hypothesis of their true frequencies, the normal part added as a normal \
-         distribution, and the coverage interval of |left + normal| for {:.2} % (what k = {K} gives a normal \
-         distribution) computed from that distribution (GUM Supplement 1, propagated exactly); the least favourable \
-         hypothesis stated ({}): k = U / u = {:.3}",
+         over the table's range for each hypothesis of their true frequencies (sizes at A + {K} u_A), the rest added \
+         as a normal distribution, and U the coverage interval of |left + rest| for {:.2} % (what k = {K} gives a \
+         normal distribution) computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms: \
+         what is left has rms {:.2e} deg, {:.2e} deg in quadrature with the rest), the least favourable hypothesis \
+         stated; its budget entry is the effective standard uncertainty that expands with k = {K} to that interval",
         left.lines.len(),
         readouts.len(),
         100.0 * p,
-        truth.join(", "),
-        table_u_deg / combined_u_deg
+        rms,
+        normal_u.hypot(rms),
     );
-    Uncertainty { k: table_u_deg / combined_u_deg, table_u_deg, combined_u_deg, budget, method }
+    Uncertainty { k: K, table_u_deg, combined_u_deg: table_u_deg / K, budget, method }
 }
 
 impl Uncertainty {

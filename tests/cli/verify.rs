@@ -48,7 +48,63 @@ fn the_fig8_correction_measured_in_the_loop_beats_native_and_the_hysteresis_floo
     // interpolation adds nothing the noise does not hide.
     assert!((num("corrected_peak_deg") - num("predicted_corrected_peak_deg")).abs() < 0.002, "{v}");
     assert!(bench.exists("table-1.csv") && bench.exists("table-1.recipe.toml"));
+    // The contract's verdict: within the prediction plus U and better than native.
+    assert_eq!(v["verdict"], "confirmed", "{v}");
+    assert!(v["reason"].as_str().is_some_and(|r| r.contains("within the prediction")), "{v}");
+    assert!(!out.stderr.contains("warning"), "{out}");
 }
+
+/// The issue's case: a sparse survey (36 points, both directions, 2 runs)
+/// of a positioner whose design is unknown, its 20 cycles/rev gear pass seen
+/// at 16. The processing says beforehand that the table may be no better
+/// than native (it cannot tell 16 from 20 and 52, and counts that in the
+/// prediction and in U); the verification between the targets measures it
+/// worse than native: "not confirmed", exit status 1, a warning on stderr,
+/// the survey, its verification and the table stored, the report's summary
+/// saying so in plain words.
+#[test]
+fn a_verification_that_contradicts_the_prediction_is_not_confirmed_and_exits_1() {
+    let bench = Bench::new();
+    bench.write("no-design.toml", NO_DESIGN);
+    let out = bench.survey(&[
+        "run",
+        "--model",
+        "no-design.toml",
+        "--points",
+        "36",
+        "--runs",
+        "2",
+        "--bidirectional",
+        "--verify",
+        "--json",
+    ]);
+    assert_eq!(out.code, 1, "{out}");
+    assert!(out.stderr.contains("warning: survey 2: the verification does not confirm the prediction"), "{out}");
+    let doc: Value = serde_json::from_str(&out.stdout).expect("one JSON document, printed though the command failed");
+    let v = &doc["verify"];
+    assert_eq!(v["verdict"], "not confirmed", "{v}");
+    assert!(v["reason"].as_str().is_some_and(|r| r.contains("not better than the native")), "{v}");
+    let (measured, native) = (v["corrected_peak_deg"].as_f64().unwrap(), v["native_peak_deg"].as_f64().unwrap());
+    assert!(measured > native, "the 16-for-20 table makes the axis worse between the targets: {v}");
+    // The prediction was honest: the processing did not promise better than native.
+    let p = &doc["process"]["predicted"];
+    assert_eq!(p["no_better_than_native"], true, "{p}");
+    assert!(p["corrected_peak_deg"].as_f64().unwrap() >= 0.8 * measured, "{p} against {v}");
+    // Stored: the survey, its verification, the table.
+    assert!(bench.exists("table-1.csv"));
+    let listed = bench.survey(&["list", "--json"]).success().json();
+    assert_eq!(listed["surveys"].as_array().map(Vec::len), Some(2), "{listed}");
+    bench.survey(&["report", "--survey", "1", "--out", "report"]).success();
+    let page = bench.read("report/index.html");
+    assert!(page.contains("NOT CONFIRMED by survey 2"), "the summary says it in plain words");
+    assert!(page.contains("NOT A RESULT"), "and that the table is not a result");
+}
+
+/// The Figure 8 positioner without its `[design]`.
+const NO_DESIGN: &str = "[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 20\namplitude_deg = 0.0078\nphase_deg = 0.0\n\
+[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 40\namplitude_deg = 0.0025\nphase_deg = 60.0\n\
+[[effect]]\nkind = \"eccentricity\"\ncycles_per_rev = 1\namplitude_deg = 0.0015\nphase_deg = 110.0\n\
+[[effect]]\nkind = \"backlash\"\namplitude_deg = 0.008\n[[effect]]\nkind = \"noise\"\nsigma_deg = 0.0004\n";
 
 #[test]
 fn run_replays_a_recipe_and_refuses_a_bad_one_before_measuring() {

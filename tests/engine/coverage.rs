@@ -107,6 +107,33 @@ pub fn cases() -> Vec<Case> {
     ]
 }
 
+/// Further cases for the Monte Carlo only (other samplings of the same physics).
+pub fn variants() -> Vec<Case> {
+    let preset = |name: &str| survey_sims::Preset::by_name(name).unwrap().model;
+    let args = |a: &str| a.split_whitespace().map(String::from).collect::<Vec<_>>();
+    let case = |name, a: &str, model: &str| Case { name, args: args(a), model: preset(model), model_file: None };
+    vec![
+        case("default bench, 1800 points", "--points 1800 --bidirectional", "fig8"),
+        case("autocollimator, 36 faces", "--points 36 --reference autocollimator --bidirectional", "fig8"),
+        case("autocollimator, 12 faces", "--points 12 --reference autocollimator --bidirectional", "fig8"),
+        case("fig8 tracker, 30 points (20 and 40 at bin 10)", "--points 30 --bidirectional", "fig8"),
+        case("fig4, 720 points (648 at 72)", "--points 720 --runs 3 --bidirectional --preset fig4", "fig4"),
+        case("partial arc (fig1), 41 points", "--preset fig1 --points 41 --bidirectional", "fig1"),
+        Case {
+            name: "unknown design, 48 points, 2 runs",
+            args: args("--points 48 --runs 2 --bidirectional"),
+            model: Model::parse(FIG8_NO_DESIGN, "fig8-no-design.toml").unwrap(),
+            model_file: Some(FIG8_NO_DESIGN),
+        },
+        Case {
+            name: "unknown design, 360 points",
+            args: args("--points 360 --bidirectional"),
+            model: Model::parse(FIG8_NO_DESIGN, "fig8-no-design.toml").unwrap(),
+            model_file: Some(FIG8_NO_DESIGN),
+        },
+    ]
+}
+
 /// `E(r)`: the true error at readout `r` (`theta + e(theta) = r`, fixed point).
 fn true_error(model: &Model, r: f64, dir: Direction) -> f64 {
     let mut theta = r;
@@ -251,8 +278,12 @@ fn u_covers_what_the_table_leaves_in_every_case() {
 #[ignore = "Monte Carlo over many seeds: SURVEY_COVERAGE_SEEDS=N, figures for docs/validation/uncertainty.md"]
 fn monte_carlo_figures() {
     let n: u64 = std::env::var("SURVEY_COVERAGE_SEEDS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
-    for case in cases() {
+    let mut failed = Vec::new();
+    for case in cases().into_iter().chain(variants()) {
         let f = run_case(&case, 1..=n);
-        check(&case, &f);
+        if std::panic::catch_unwind(|| check(&case, &f)).is_err() {
+            failed.push(case.name);
+        }
     }
+    assert!(failed.is_empty(), "{failed:?}");
 }

@@ -1,10 +1,16 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
+//!
+//! The samples are those every command uses ([`crate::refit::samples_for_analysis`]:
+//! around the refitted axis of a tracker survey, unless `--located-axis`);
+//! the output says which axis (`"axis"`) and carries the survey's ISO 230-2
+//! figures of the same samples (`"iso230_2"`, as `survey stats` gives them).
 
 use super::support::{emit, open_read_only};
+use crate::output::{iso_json, iso_text};
 use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::progress::{self, Progress};
-use crate::refit::{located_axis_knowledge, refit_survey, uncertainty_inputs};
+use crate::refit::{Axis, located_axis_knowledge, samples_for_analysis, uncertainty_inputs};
 use clap::{Args, ValueEnum};
 use std::path::{Path, PathBuf};
 use survey_processing::export::controllers::{Controller, Directions};
@@ -161,22 +167,18 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let loaded = async {
         let survey = store.resolve(args.survey).await?;
-        let refit = if args.located_axis { None } else { refit_survey(&store, &survey).await? };
-        let samples = match &refit {
-            Some(_) => Vec::new(),
-            None => store.samples(survey.id).await?,
-        };
         // Corrected for the drift when the survey asked for it.
         let drift = store.drift_points(survey.id).await?;
-        let samples = crate::drift::for_analysis(&survey, samples, &drift);
-        let refit = refit.map(|(s, r)| (crate::drift::for_analysis(&survey, s, &drift), r));
+        let (samples, refit) = samples_for_analysis(&store, &survey, &drift, args.located_axis).await?;
         let located = if refit.is_none() { located_axis_knowledge(&store, &survey).await? } else { None };
         anyhow::Ok((survey, samples, refit, located))
     }
     .await;
     store.close().await;
     let (survey, samples, refit, located) = loaded?;
-    let uncertainty = uncertainty_inputs(&survey, refit.as_ref().map(|(_, r)| r), located.as_ref());
+    let uncertainty = uncertainty_inputs(&survey, refit.as_ref(), located.as_ref());
+    let axis = Axis::of(&survey, refit.as_ref());
+    let iso = survey_processing::iso230::iso230_2(&samples).ok();
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
     let opts = ProcessOptions {
         design: args.design,
@@ -185,19 +187,27 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         export: args.tables.into(),
         uncertainty,
     };
-    let to_process = refit.as_ref().map_or(&samples, |(s, _)| s);
-    progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
-    let outcome = process_survey(&survey, to_process, opts)?;
+    progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, samples.len()));
+    let outcome = process_survey(&survey, &samples, opts)?;
     drop(progress);
-    let out = match &refit {
-        Some((_, r)) if args.json => {
-            let mut doc = outcome.json();
-            doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
-            format!("{doc}\n")
+    let out = if args.json {
+        let mut doc = outcome.json();
+        doc["axis"] = axis.as_str().into();
+        if let Some(iso) = &iso {
+            doc["iso230_2"] = iso_json(survey.id, iso)["iso230_2"].clone();
         }
-        Some((_, r)) => format!("{}{}", r.text(), outcome.text()),
-        None if args.json => format!("{}\n", outcome.json()),
-        None => outcome.text(),
+        if let Some(r) = &refit {
+            doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
+        }
+        format!("{doc}\n")
+    } else {
+        let mut text = refit.as_ref().map(|r| r.text()).unwrap_or_default();
+        if let Some(iso) = &iso {
+            text += &iso_text(survey.id, iso);
+        }
+        text += axis.text();
+        text += "\n";
+        text + &outcome.text()
     };
     emit(&out);
     Ok(())

@@ -4,8 +4,12 @@
 //! incomplete ("N of M runs complete", `"complete": false` in the JSON), and
 //! its statistics are those of its complete runs only: a run cut short would
 //! weigh its targets unevenly.
+//!
+//! The figures are of the samples every command uses
+//! ([`crate::refit::samples_for_analysis`]: around the refitted axis of a
+//! tracker survey), and say which axis (`"axis"`).
 
-use super::support::{emit, load_survey_for_analysis};
+use super::support::{emit, open_read_only};
 use crate::error::bad_input;
 use crate::output::{iso_json, iso_text};
 use crate::survey::{SurveyRecord, SurveyStatus};
@@ -60,7 +64,17 @@ fn completion(survey: &SurveyRecord, samples: &[Sample]) -> Option<Completion> {
 }
 
 pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
-    let (survey, samples, drift) = load_survey_for_analysis(db, args.survey).await?;
+    let store = open_read_only(db).await?;
+    let loaded = async {
+        let survey = store.resolve(args.survey).await?;
+        let drift = store.drift_points(survey.id).await?;
+        let (samples, refit) = crate::refit::samples_for_analysis(&store, &survey, &drift, false).await?;
+        let axis = crate::refit::Axis::of(&survey, refit.as_ref());
+        anyhow::Ok((survey, samples, drift, axis))
+    }
+    .await;
+    store.close().await;
+    let (survey, samples, drift, axis) = loaded?;
     let id = survey.id;
     let completion = completion(&survey, &samples);
     let incomplete = completion.as_ref().filter(|c| !c.complete);
@@ -76,6 +90,7 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
     })?;
     if args.json {
         let mut doc = iso_json(id, &iso);
+        doc["axis"] = axis.as_str().into();
         doc["complete"] = completion.as_ref().is_none_or(|c| c.complete).into();
         doc["status"] = survey.status.as_str().into();
         if let Some(c) = &completion {
@@ -98,6 +113,8 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
             );
         }
         text += &iso_text(id, &iso);
+        text += axis.text();
+        text += "\n";
         text += &survey_processing::drift::text(&drift);
         if crate::drift::correction_asked(&survey) && !drift.is_empty() {
             text += "the statistics above are of the samples corrected for this drift (drift_control.correct)\n";

@@ -4,9 +4,7 @@ use crate::acquire::Engine;
 use crate::conclude::{ConcludeOptions, conclude};
 use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
-use crate::survey::SurveyRecord;
 use std::path::Path;
-use survey_processing::Sample;
 
 /// Logs go to stderr through `tracing`; `RUST_LOG` sets the level (default:
 /// warnings, and sqlx's statement logs only at debug).
@@ -39,40 +37,6 @@ pub async fn open_existing(db: &Path) -> anyhow::Result<Store> {
 /// ([`Store::open_read_only`]).
 pub async fn open_read_only(db: &Path) -> anyhow::Result<Store> {
     Store::open_read_only(db).await
-}
-
-/// Open the database at `db`, read survey `id` (the latest when `None`) and
-/// its samples, and close it: what the commands that only read need.
-pub async fn load_survey(db: &Path, id: Option<i64>) -> anyhow::Result<(SurveyRecord, Vec<Sample>)> {
-    let store = open_read_only(db).await?;
-    let loaded = async {
-        let survey = store.resolve(id).await?;
-        let samples = store.samples(survey.id).await?;
-        anyhow::Ok((survey, samples))
-    }
-    .await;
-    store.close().await;
-    loaded
-}
-
-/// [`load_survey`] for the statistics and the processing: the samples
-/// corrected for the drift when the survey asked for it ([`crate::drift`]),
-/// and the drift points.
-pub async fn load_survey_for_analysis(
-    db: &Path,
-    id: Option<i64>,
-) -> anyhow::Result<(SurveyRecord, Vec<Sample>, Vec<survey_processing::drift::DriftPoint>)> {
-    let store = open_read_only(db).await?;
-    let loaded = async {
-        let survey = store.resolve(id).await?;
-        let samples = store.samples(survey.id).await?;
-        let points = store.drift_points(survey.id).await?;
-        let samples = crate::drift::for_analysis(&survey, samples, &points);
-        anyhow::Ok((survey, samples, points))
-    }
-    .await;
-    store.close().await;
-    loaded
 }
 
 /// What `run` and `resume` do after acquiring (or failing to): on a stopped

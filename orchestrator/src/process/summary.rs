@@ -128,7 +128,12 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "floor": p.floor.what,
             "linuxcnc_corrected_peak_deg": p.controllers.iter().find(|c| c.controller == Controller::LinuxCnc).and_then(|c| c.corrected_peak_deg),
             "samples": pr.samples,
+            "in_sample_corrected_peak_deg": pr.in_sample_corrected_peak_deg,
+            "unseen_between_targets_deg": pr.unseen_between_targets_deg,
+            "peak_spread_deg": pr.peak_spread_deg,
+            "no_better_than_native": pr.no_better_than_native(),
         },
+        "left": p.left,
         "interpolation": p.interpolation.as_ref().ok(),
         "noise": a.noise,
         "points_needed": a.points_needed,
@@ -260,6 +265,23 @@ pub fn text(o: &ProcessOutcome) -> String {
         pr.native.rms_deg,
         pr.corrected.rms_deg
     );
+    let _ = writeln!(
+        s,
+        "  corrected peak: +/-{:.5} deg at the survey's own samples, +{:.5} deg for what the table leaves between the \
+         targets, +{:.5} deg for the spread of a new survey's peak of noise (95 %)",
+        pr.in_sample_corrected_peak_deg, pr.unseen_between_targets_deg, pr.peak_spread_deg
+    );
+    for l in &p.left.lines {
+        let _ = writeln!(s, "  left: {}", l.why);
+    }
+    if pr.no_better_than_native() {
+        let _ = writeln!(
+            s,
+            "NOT A RESULT: this table is not expected to improve the axis (corrected +/-{:.5} deg against native \
+             +/-{:.5} deg): do not load it",
+            pr.corrected_peak_deg, pr.native_peak_deg
+        );
+    }
     let _ = writeln!(s, "repeatability floor: {} deg ({})", opt(p.floor.deg), p.floor.what);
     for (c, _) in written(o) {
         let _ = writeln!(

@@ -74,8 +74,11 @@ pub struct ReportOptions {
 pub struct ReportData {
     /// The survey.
     pub survey: SurveyRecord,
-    /// Its samples, as processed.
+    /// Its samples, as processed (every figure of the page is of them, as
+    /// `survey stats` and `survey process` give them).
     pub samples: Vec<Sample>,
+    /// Which axis their actual angles were computed around.
+    pub axis: crate::refit::Axis,
     /// The processing, or why there is none.
     pub processed: Result<Processed, String>,
     /// The verification pair, when there is one.
@@ -107,6 +110,7 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
         Some((refitted, r)) => (refitted, Some(r)),
         None => (stored.clone(), None),
     };
+    let axis = crate::refit::Axis::of(&survey, refit.as_ref());
     // Corrected for the drift when the survey asked for it, as `survey process` does.
     let analysed = crate::drift::for_analysis(&survey, samples.clone(), &drift_points);
     let verification = find_verification(store, &survey, &stored, &samples).await?;
@@ -150,7 +154,8 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
     });
     Ok(ReportData {
         survey,
-        samples,
+        samples: analysed,
+        axis,
         processed,
         verification,
         model_gap,
@@ -212,6 +217,7 @@ fn summary(d: &ReportData, units: Units) -> String {
     if let Ok(iso) = iso230_2(&d.samples) {
         rows.push(vec!["ISO 230-2 accuracy A, as measured".into(), units.show(iso.a)]);
         rows.push(vec!["ISO 230-2 repeatability R".into(), units.show(iso.r)]);
+        rows.push(vec!["the figures' axis".into(), escape(d.axis.text())]);
     }
     if let Ok(p) = &d.processed {
         rows.push(vec!["native peak error ±".into(), units.show(p.prediction.native_peak_deg)]);
@@ -222,6 +228,8 @@ fn summary(d: &ReportData, units: Units) -> String {
         if let Some(floor) = p.floor.deg {
             rows.push(vec![format!("floor: {}", escape(&p.floor.what)), units.show(floor)]);
         }
+        let u = d.uncertainty.as_ref().map(|b| b.table_u_deg);
+        rows.extend(verification::verdict_rows(p, u, d.verification.as_ref(), d.survey.id, units));
     }
     if let Some(v) = &d.verification {
         let errors: Vec<f64> = v.corrected.iter().map(Sample::error_deg).collect();

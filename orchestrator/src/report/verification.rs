@@ -102,3 +102,49 @@ fn placement(native: &ErrorMap, corrected: &ErrorMap) -> String {
         )
     }
 }
+
+/// The summary's rows on whether the table is a result: the verification's
+/// verdict (when `v` verifies the table `p` made, stated with `u_deg`), in
+/// plain words, and a table predicted to make the axis no better.
+pub fn verdict_rows(
+    p: &survey_processing::pipeline::Processed,
+    u_deg: Option<f64>,
+    v: Option<&Verification>,
+    survey_id: i64,
+    units: Units,
+) -> Vec<Vec<String>> {
+    let mut rows = Vec::new();
+    if p.prediction.no_better_than_native() {
+        rows.push(vec![
+            "the table".into(),
+            format!(
+                "NOT A RESULT: predicted no better than the native axis (corrected ±{} against native ±{}, with what \
+                 the table leaves between the targets)",
+                units.show(p.prediction.corrected_peak_deg),
+                units.show(p.prediction.native_peak_deg)
+            ),
+        ]);
+    }
+    if let (Some(v), Some(u)) = (v, u_deg)
+        && v.native_id == survey_id
+    {
+        let peak = survey_processing::verification::peak_deg;
+        let j = survey_processing::verification::judge(
+            p.prediction.corrected_peak_deg,
+            u,
+            peak(&v.corrected),
+            peak(&v.native),
+        );
+        let words = match j.verdict {
+            survey_processing::verification::Verdict::Confirmed => {
+                format!("confirmed by survey {}: {}", v.verification_id, j.reason)
+            }
+            survey_processing::verification::Verdict::NotConfirmed => format!(
+                "NOT CONFIRMED by survey {}: {}. The table is not a result: do not load it",
+                v.verification_id, j.reason
+            ),
+        };
+        rows.push(vec!["verification verdict".into(), escape(&words)]);
+    }
+    rows
+}
