@@ -117,8 +117,10 @@ impl Left {
         Left { lines: Vec::new(), points: 0, start_deg: 0.0, worst: None, second_order_deg: 0.0 }
     }
 
-    /// What the table `decisions` made from `analysis` leaves (see the module documentation).
-    pub fn of(analysis: &Analysis, decisions: &Decisions) -> Self {
+    /// What the table `decisions` made from `analysis` leaves (see the module
+    /// documentation); `resolved` are bins whose line check points showed to
+    /// be where it is seen ([`crate::correction::resolve`]).
+    pub fn of(analysis: &Analysis, decisions: &Decisions, resolved: &[f64]) -> Self {
         let Coverage::FullCircle { n } = analysis.error_map.coverage else { return Left::none() };
         let start_deg = analysis.error_map.targets_deg.first().copied().unwrap_or(0.0);
         let nf = n as f64;
@@ -160,7 +162,13 @@ impl Left {
                     );
                     (LeftKind::NotCarried, candidates, why)
                 }
-                LineAction::Kept if sparse && !nyquist && l.kind == PeriodicKind::Harmonic && !l.aliased => {
+                LineAction::Kept
+                    if sparse
+                        && !nyquist
+                        && l.kind == PeriodicKind::Harmonic
+                        && !l.aliased
+                        && !resolved.contains(&bin) =>
+                {
                     let (low, high) = (nf - bin, nf + bin);
                     let why = format!(
                         "the line at bin {bin} ({:.2e} deg) matches no design part and the spectrum reaches {highest} of \

@@ -82,6 +82,7 @@ use crate::types::Sample;
 use serde::Serialize;
 
 pub mod left;
+pub mod resolve;
 pub(crate) mod true_angle;
 #[cfg(test)]
 mod truth_tests;
