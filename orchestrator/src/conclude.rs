@@ -126,6 +126,16 @@ pub async fn conclude(
     if let Err(why) = options.stop.check() {
         return stopped(store, id, why, Output { doc, text }).await;
     }
+    if let Some(native) = record.resolves {
+        // Check points finished by `survey resume`: folded into the survey
+        // they resolve, which takes them in when processed.
+        crate::resolving::fold(store, id, native).await?;
+        text += &format!(
+            "check points of survey {native}, stored with it: `survey process --survey {native}` (and its report) take \
+             them in\n"
+        );
+        return Ok(Concluded { output: Output { doc, text }, result: Ok(()) });
+    }
     let table_out = Some(default_table_path(db, id));
     let uncertainty = crate::refit::uncertainty_inputs(&record, refit.as_ref(), None);
     let processing = ProcessOptions {
@@ -135,10 +145,29 @@ pub async fn conclude(
         uncertainty,
         ..ProcessOptions::default()
     };
-    let processed = match process_survey(&record, &samples, processing) {
+    let mut processed = match process_survey(&record, &samples, processing.clone()) {
         Ok(p) => p,
         Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
     };
+    // Lines left in doubt, and a tracker that can measure between the
+    // targets: check points decide them, and the survey is processed again.
+    if let Some(checks) = crate::resolving::checks_plan(&plan, engine.reference_kind(), &processed) {
+        let left = &processed.processed.left;
+        let measured = crate::resolving::measure(engine, store, &record, &checks, left, options.acquire.clone()).await;
+        let check_samples = match measured {
+            Ok(m) => m,
+            Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+        };
+        let points = check_samples.len();
+        processed = match process_survey(&record, &samples, ProcessOptions { checks: check_samples, ..processing }) {
+            Ok(p) => p,
+            Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+        };
+        let o = crate::resolving::output(points, &processed);
+        doc["resolving"] = o.doc;
+        text += "\n";
+        text += &o.text;
+    }
     doc["process"] = processed.json();
     doc["process"]["axis"] = axis.as_str().into();
     text += "\n";

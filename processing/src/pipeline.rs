@@ -275,10 +275,23 @@ fn resolved_recipe(recipe: &Recipe, left: &Left, resolutions: &[Resolution]) -> 
                     source: Some("decided by check points measured between the targets".into()),
                 });
             }
-            // A line decided at a frequency the survey resolves, whose bin
-            // aliased design harmonics share, cannot be kept alone by a
-            // spectral edit: it stays left, in U.
-            LeftKind::NotCarried => {}
+            // Decided at a frequency the survey resolves: kept at its bin,
+            // the aliased candidates that share it named absent.
+            LeftKind::NotCarried => {
+                out.aliases.retain(|a| !line.candidates.contains(&(a.true_cycles as f64)));
+                out.lines.remove.retain(|k| !line.candidates.contains(k));
+                if !out.lines.keep.contains(&f) {
+                    out.lines.keep.push(f);
+                }
+                for &c in line.candidates.iter().filter(|&&c| c != f && 2.0 * c > n) {
+                    out.aliases.push(AliasChoice {
+                        true_cycles: c as usize,
+                        action: AliasChoiceAction::Absent,
+                        observed_cycles: Some(bin as usize),
+                        source: Some("not there: check points measured between the targets".into()),
+                    });
+                }
+            }
         }
     }
     (out, stays)

@@ -171,11 +171,12 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         let drift = store.drift_points(survey.id).await?;
         let (samples, refit) = samples_for_analysis(&store, &survey, &drift, args.located_axis).await?;
         let located = if refit.is_none() { located_axis_knowledge(&store, &survey).await? } else { None };
-        anyhow::Ok((survey, samples, refit, located))
+        let checks = crate::resolving::checks_of(&store, &survey).await?;
+        anyhow::Ok((survey, samples, refit, located, checks))
     }
     .await;
     store.close().await;
-    let (survey, samples, refit, located) = loaded?;
+    let (survey, samples, refit, located, checks) = loaded?;
     let uncertainty = uncertainty_inputs(&survey, refit.as_ref(), located.as_ref());
     let axis = Axis::of(&survey, refit.as_ref());
     let iso = survey_processing::iso230::iso230_2(&samples).ok();
@@ -186,6 +187,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         table_out: Some(table_out),
         export: args.tables.into(),
         uncertainty,
+        checks,
     };
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, samples.len()));
     let outcome = process_survey(&survey, &samples, opts)?;

@@ -118,6 +118,7 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
         design: opts.design.clone(),
         recipe: opts.recipe.clone(),
         table_out: None,
+        checks: crate::resolving::checks_of(store, &survey).await?,
         ..Default::default()
     };
     let processed = match crate::process::compute(&survey, &analysed, &process_opts) {

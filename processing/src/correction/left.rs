@@ -48,8 +48,6 @@ pub const MAX_HYPOTHESES: usize = 64;
 /// values have the distribution of the function over the readouts (to about
 /// `1 / sqrt(READOUTS)` in probability).
 pub const READOUTS: usize = 4096;
-/// Candidates kept per line (the lowest frequencies: the likeliest parts).
-const CANDIDATES_PER_LINE: usize = 3;
 
 /// Why a line is left.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -181,8 +179,6 @@ impl Left {
                 }
                 _ => continue,
             };
-            let mut candidates = candidates;
-            candidates.truncate(CANDIDATES_PER_LINE);
             lines.push(LeftLine {
                 observed_cycles: bin,
                 amplitude_deg,
