@@ -8,7 +8,7 @@
 use crate::Sample;
 use crate::analysis::{Analysis, AnalysisError, analyse};
 use crate::correction::left::{Left, LeftKind};
-use crate::correction::resolve::{Resolution, decide as resolve};
+use crate::correction::resolve::{Resolution, decide as resolve, measured_left_deg as measured_left_deg_of};
 use crate::correction::{CorrectionError, Prediction, predict_accuracy};
 use crate::errormap::Coverage;
 use crate::export::controllers::ControllerExport;
@@ -82,6 +82,10 @@ pub struct Processed {
     /// What check points between the targets decided about the lines in
     /// doubt ([`crate::correction::resolve`]; empty without check points).
     pub resolutions: Vec<Resolution>,
+    /// What the check points measure the table leaves between the targets
+    /// (its coverage interval, [`crate::correction::resolve::measured_left_deg`]),
+    /// when they left a line undecided: the table's `U` is at least this.
+    pub measured_left_deg: Option<f64>,
     /// Native and corrected accuracy, predicted on the survey's samples,
     /// with what the table leaves between the targets.
     pub prediction: Prediction,
@@ -169,6 +173,7 @@ pub fn process_with_checks(
     let mut built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
     let mut left = Left::of(&analysis, &decisions, &[]);
     let mut resolutions = Vec::new();
+    let mut measured_left = None;
     if !checks.is_empty() && !left.is_empty() {
         resolutions = resolve(&left, &built.table, checks);
         let (resolved, stays) = resolved_recipe(&recipe, &left, &resolutions);
@@ -179,6 +184,9 @@ pub fn process_with_checks(
         }
         left = Left::of(&analysis, &decisions, &stays);
         notes.extend(resolutions.iter().map(|r| r.why.clone()));
+        if resolutions.iter().any(|r| r.decided_cycles.is_none()) {
+            measured_left = measured_left_deg_of(&built.table, checks);
+        }
     }
     notes.extend(decisions.notes.iter().cloned());
     notes.extend(built.notes.iter().cloned());
@@ -195,8 +203,13 @@ pub fn process_with_checks(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let prediction =
+    let mut prediction =
         predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?.with_left(&left, &samples, &built.table);
+    // Check points that left a line undecided measured the corrected axis
+    // between the targets: the prediction does not promise better.
+    if let Some((_, peak)) = measured_left {
+        prediction.corrected_peak_deg = prediction.corrected_peak_deg.max(peak);
+    }
     notes.extend(left.lines.iter().map(|l| l.why.clone()));
     if prediction.no_better_than_native() {
         notes.push(format!(
@@ -232,6 +245,7 @@ pub fn process_with_checks(
         built,
         left,
         resolutions,
+        measured_left_deg: measured_left.map(|m| m.0),
         prediction,
         floor,
         iso,

@@ -89,6 +89,13 @@
 //! of the distribution; its rms (what quadrature would have used: for a
 //! sinusoid `0.707 A` against the interval's `0.997 A / 2`) is in `method`.
 //!
+//! Check points between the targets that leave a line undecided (no single
+//! candidate explains them: the bin may hold several lines, in part
+//! cancelling at the targets, so its measured size understates what is
+//! left) measure what the table leaves there directly: `U` is then at least
+//! the coverage interval of `|d - mean d|` over them
+//! ([`crate::correction::resolve::measured_left_deg`]).
+//!
 //! What is not: the reference's calibration (a scale error of the reference
 //! instrument: it has no stated value here), more than one line missed.
 
@@ -297,10 +304,35 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
     let left = &processed.left;
-    if left.is_empty() {
-        return Uncertainty { k: K, table_u_deg: K * normal_u, combined_u_deg: normal_u, budget, method };
+    let u = if left.is_empty() {
+        Uncertainty { k: K, table_u_deg: K * normal_u, combined_u_deg: normal_u, budget, method }
+    } else {
+        with_left(left, normal_u, budget, method)
+    };
+    match processed.measured_left_deg {
+        Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
+        _ => u,
     }
-    with_left(left, normal_u, budget, method)
+}
+
+/// `u` raised to what check points measured the table leaves between the
+/// targets, when they left a line undecided (see the module documentation):
+/// an entry makes the budget expand to it.
+fn at_least_measured(mut u: Uncertainty, measured: f64) -> Uncertainty {
+    let rest = u.budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>();
+    u.budget.push(Contribution {
+        source: "left by the table between the targets, as the check points measured it (a line they did not decide)"
+            .into(),
+        u_deg: ((measured / K).powi(2) - rest).max(0.0).sqrt(),
+    });
+    u.method += &format!(
+        "; check points between the targets left a line undecided (its bin may hold several lines, in part \
+         cancelling at the targets): U is at least the coverage interval of what they measured the table leaves, \
+         {measured:.2e} deg (their noise included)"
+    );
+    u.table_u_deg = measured;
+    u.combined_u_deg = measured / K;
+    u
 }
 
 /// The budget with what the table leaves, and its coverage interval from the

@@ -220,6 +220,28 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
         .collect()
 }
 
+/// What check points measure a table leaves between the targets: the
+/// coverage interval (95.45 %, [`crate::uncertainty::coverage_probability`])
+/// of `|d - mean d|` over them, `d = error - table`, the noise of one sample
+/// included (so it overstates by about that noise). Used when the check
+/// points decide nothing: the lines of one bin may then be several, in part
+/// cancelling at the targets, and their measured size understates what the
+/// table leaves; the check points measure it.
+///
+/// Returns the interval and the largest `|d - mean d|` (what the prediction
+/// of the corrected peak must not go below).
+pub fn measured_left_deg(table: &CorrectionTable, checks: &[Sample]) -> Option<(f64, f64)> {
+    if checks.len() < MIN_CHECKS {
+        return None;
+    }
+    let d: Vec<f64> = checks.iter().map(|s| s.error_deg() - table.error_at(s.readout_deg, s.direction)).collect();
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    let mut size: Vec<f64> = d.iter().map(|v| (v - mean).abs()).collect();
+    size.sort_by(f64::total_cmp);
+    let at = (crate::uncertainty::coverage_probability() * size.len() as f64).ceil() as usize;
+    Some((size[at.clamp(1, size.len()) - 1], size[size.len() - 1]))
+}
+
 /// The residual sum of squares of `y(r)` fitted by `c + a sin r + b cos r`
 /// ([`crate::lstsq`]; with fewer than four points, or points that cannot
 /// resolve the three terms, nothing is left: 0).
