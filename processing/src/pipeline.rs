@@ -182,7 +182,7 @@ pub fn process_with_checks(
             decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
             built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
         }
-        left = Left::of(&analysis, &decisions, &stays);
+        left = Left::of(&analysis, &decisions, &stays).with_rest(&left, &resolutions, &analysis.error_map.targets_deg);
         notes.extend(resolutions.iter().map(|r| r.why.clone()));
         if resolutions.iter().any(|r| r.decided_cycles.is_none()) {
             measured_left = measured_left_deg_of(&built.table, checks);

@@ -33,7 +33,11 @@
 //! than `25 sigma^2` (a likelihood ratio of 5 standard deviations);
 //! otherwise nothing is decided and the table states what it leaves. A line
 //! decided at a frequency above `N/2` is relocated there; one decided where
-//! it is seen stays, no longer in doubt.
+//! it is seen stays, no longer in doubt. What the check points cannot
+//! exclude stays in `U`: a second, smaller line at another candidate, up to
+//! `k` standard deviations of an amplitude fitted to them (`sigma sqrt(2/n)`),
+//! which the table (carrying the bin's mix at the decided frequency) misses
+//! at both frequencies ([`Resolution::rest_deg`]).
 
 use crate::correction::left::{Left, LeftKind};
 use crate::table::CorrectionTable;
@@ -127,6 +131,13 @@ pub struct Resolution {
     /// The candidates and the residual sum of squares of the best
     /// hypothesis that gives the line each, in units of `sigma^2`.
     pub candidates: Vec<(f64, f64)>,
+    /// For a decided line, the amplitude the check points cannot exclude at
+    /// its other candidates (a second, smaller line sharing the bin), degrees:
+    /// `k` times the standard deviation of a line's amplitude fitted to them,
+    /// `sigma sqrt(2 / n)`; the table, carrying the bin's mix at the decided
+    /// frequency, errs by such a line at both, which as one sinusoid of the
+    /// same rms is `sqrt 2` times larger.
+    pub rest_deg: f64,
     /// In words.
     pub why: String,
 }
@@ -150,6 +161,7 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
                 kind: left.lines[i].kind,
                 decided_cycles: None,
                 candidates: Vec::new(),
+                rest_deg: 0.0,
                 why: why.clone(),
             })
             .collect()
@@ -214,6 +226,11 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
                 kind: l.kind,
                 decided_cycles: decided.then_some(chosen),
                 candidates: per,
+                rest_deg: if decided {
+                    std::f64::consts::SQRT_2 * crate::uncertainty::K * (sigma2 * 2.0 / d.len() as f64).sqrt()
+                } else {
+                    0.0
+                },
                 why,
             }
         })
