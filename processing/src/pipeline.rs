@@ -84,7 +84,7 @@ pub struct Processed {
     pub resolutions: Vec<Resolution>,
     /// What the check points measure the table leaves between the targets
     /// (its coverage interval, [`crate::correction::resolve::measured_left_deg`]),
-    /// when they left a line undecided: the table's `U` is at least this.
+    /// when no hypothesis explains them: the table's `U` is at least this.
     pub measured_left_deg: Option<f64>,
     /// Native and corrected accuracy, predicted on the survey's samples,
     /// with what the table leaves between the targets.
@@ -184,7 +184,7 @@ pub fn process_with_checks(
         }
         left = Left::of(&analysis, &decisions, &stays).with_rest(&left, &resolutions, &analysis.error_map.targets_deg);
         notes.extend(resolutions.iter().map(|r| r.why.clone()));
-        if resolutions.iter().any(|r| r.decided_cycles.is_none()) {
+        if resolutions.iter().any(|r| !r.explained) {
             measured_left = measured_left_deg_of(&built.table, checks);
         }
     }
@@ -205,7 +205,7 @@ pub fn process_with_checks(
     };
     let mut prediction =
         predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?.with_left(&left, &samples, &built.table);
-    // Check points that left a line undecided measured the corrected axis
+    // Check points that no hypothesis explains measured the corrected axis
     // between the targets: the prediction does not promise better.
     if let Some((_, peak)) = measured_left {
         prediction.corrected_peak_deg = prediction.corrected_peak_deg.max(peak);

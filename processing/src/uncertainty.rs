@@ -89,8 +89,8 @@
 //! of the distribution; its rms (what quadrature would have used: for a
 //! sinusoid `0.707 A` against the interval's `0.997 A / 2`) is in `method`.
 //!
-//! Check points between the targets that leave a line undecided (no single
-//! candidate explains them: the bin may hold several lines, in part
+//! Check points between the targets that no hypothesis explains (no single
+//! candidate per line does: the bin may hold several lines, in part
 //! cancelling at the targets, so its measured size understates what is
 //! left) measure what the table leaves there directly: `U` is then at least
 //! the coverage interval of `|d - mean d|` over them
@@ -316,17 +316,17 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
 }
 
 /// `u` raised to what check points measured the table leaves between the
-/// targets, when they left a line undecided (see the module documentation):
+/// targets, when no hypothesis explains them (see the module documentation):
 /// an entry makes the budget expand to it.
 fn at_least_measured(mut u: Uncertainty, measured: f64) -> Uncertainty {
     let rest = u.budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>();
     u.budget.push(Contribution {
-        source: "left by the table between the targets, as the check points measured it (a line they did not decide)"
+        source: "left by the table between the targets, as the check points measured it (no hypothesis explains them)"
             .into(),
         u_deg: ((measured / K).powi(2) - rest).max(0.0).sqrt(),
     });
     u.method += &format!(
-        "; check points between the targets left a line undecided (its bin may hold several lines, in part \
+        "; no hypothesis explains the check points between the targets (a bin holds several lines, in part \
          cancelling at the targets): U is at least the coverage interval of what they measured the table leaves, \
          {measured:.2e} deg (their noise included)"
     );

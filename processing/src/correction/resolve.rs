@@ -138,6 +138,9 @@ pub struct Resolution {
     /// frequency, errs by such a line at both, which as one sinusoid of the
     /// same rms is `sqrt 2` times larger.
     pub rest_deg: f64,
+    /// Whether some hypothesis explains the check points down to their noise
+    /// (when not, the bin holds more than one line: see [`measured_left_deg`]).
+    pub explained: bool,
     /// In words.
     pub why: String,
 }
@@ -162,6 +165,7 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
                 decided_cycles: None,
                 candidates: Vec::new(),
                 rest_deg: 0.0,
+                explained: true,
                 why: why.clone(),
             })
             .collect()
@@ -231,6 +235,7 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
                 } else {
                     0.0
                 },
+                explained: consistent,
                 why,
             }
         })
@@ -240,8 +245,8 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
 /// What check points measure a table leaves between the targets: the
 /// coverage interval (95.45 %, [`crate::uncertainty::coverage_probability`])
 /// of `|d - mean d|` over them, `d = error - table`, the noise of one sample
-/// included (so it overstates by about that noise). Used when the check
-/// points decide nothing: the lines of one bin may then be several, in part
+/// included (so it overstates by about that noise). Used when no hypothesis
+/// explains the check points: the lines of one bin are then several, in part
 /// cancelling at the targets, and their measured size understates what the
 /// table leaves; the check points measure it.
 ///
