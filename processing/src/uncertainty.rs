@@ -328,7 +328,7 @@ fn at_least_measured(mut u: Uncertainty, measured: f64) -> Uncertainty {
     u.method += &format!(
         "; no hypothesis explains the check points between the targets (a bin holds several lines, in part \
          cancelling at the targets): U is at least the coverage interval of what they measured the table leaves, \
-         {measured:.2e} deg (their noise included)"
+         {measured:.2e} deg (their own noise removed in quadrature)"
     );
     u.table_u_deg = measured;
     u.combined_u_deg = measured / K;

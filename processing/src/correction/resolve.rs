@@ -244,8 +244,9 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
 
 /// What check points measure a table leaves between the targets: the
 /// coverage interval (95.45 %, [`crate::uncertainty::coverage_probability`])
-/// of `|d - mean d|` over them, `d = error - table`, the noise of one sample
-/// included (so it overstates by about that noise). Used when no hypothesis
+/// of `|d - mean d|` over them, `d = error - table`, less their own noise in
+/// quadrature (`k` times one sample's standard deviation, from the scatter
+/// of their runs). Used when no hypothesis
 /// explains the check points: the lines of one bin are then several, in part
 /// cancelling at the targets, and their measured size understates what the
 /// table leaves; the check points measure it.
@@ -261,7 +262,11 @@ pub fn measured_left_deg(table: &CorrectionTable, checks: &[Sample]) -> Option<(
     let mut size: Vec<f64> = d.iter().map(|v| (v - mean).abs()).collect();
     size.sort_by(f64::total_cmp);
     let at = (crate::uncertainty::coverage_probability() * size.len() as f64).ceil() as usize;
-    Some((size[at.clamp(1, size.len()) - 1], size[size.len() - 1]))
+    // Their own noise (one sample's, from the scatter of their runs) removed
+    // in quadrature from the interval: what is left of the table's error.
+    let q = size[at.clamp(1, size.len()) - 1];
+    let noise = noise_var(checks, table).map_or(0.0, |v| crate::uncertainty::K * crate::uncertainty::K * v);
+    Some(((q * q - noise).max(0.0).sqrt(), size[size.len() - 1]))
 }
 
 /// The residual sum of squares of `y(r)` fitted by `c + a sin r + b cos r`
