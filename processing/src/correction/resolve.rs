@@ -231,7 +231,7 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
                 decided_cycles: decided.then_some(chosen),
                 candidates: per,
                 rest_deg: if decided {
-                    std::f64::consts::SQRT_2 * crate::uncertainty::K * (sigma2 * 2.0 / d.len() as f64).sqrt()
+                    std::f64::consts::SQRT_2 * crate::coverage::K * (sigma2 * 2.0 / d.len() as f64).sqrt()
                 } else {
                     0.0
                 },
@@ -243,7 +243,7 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
 }
 
 /// What check points measure a table leaves between the targets: the
-/// coverage interval (95.45 %, [`crate::uncertainty::coverage_probability`])
+/// coverage interval (95.45 %, [`crate::coverage::coverage_probability`])
 /// of `|d - mean d|` over them, `d = error - table`, less their own noise in
 /// quadrature (`k` times one sample's standard deviation, from the scatter
 /// of their runs). Used when no hypothesis
@@ -261,11 +261,11 @@ pub fn measured_left_deg(table: &CorrectionTable, checks: &[Sample]) -> Option<(
     let mean = d.iter().sum::<f64>() / d.len() as f64;
     let mut size: Vec<f64> = d.iter().map(|v| (v - mean).abs()).collect();
     size.sort_by(f64::total_cmp);
-    let at = (crate::uncertainty::coverage_probability() * size.len() as f64).ceil() as usize;
+    let at = (crate::coverage::coverage_probability() * size.len() as f64).ceil() as usize;
     // Their own noise (one sample's, from the scatter of their runs) removed
     // in quadrature from the interval: what is left of the table's error.
     let q = size[at.clamp(1, size.len()) - 1];
-    let noise = noise_var(checks, table).map_or(0.0, |v| crate::uncertainty::K * crate::uncertainty::K * v);
+    let noise = noise_var(checks, table).map_or(0.0, |v| crate::coverage::K * crate::coverage::K * v);
     Some(((q * q - noise).max(0.0).sqrt(), size[size.len() - 1]))
 }
 
