@@ -1,7 +1,9 @@
 //! What follows an acquisition, like the paper's full process: the ISO 230-2
 //! statistics, then the processing (a recipe replayed when given), then with
 //! `--verify` the corrected accuracy measured with the table applied. The
-//! survey's samples are read once, here, for all three.
+//! survey's samples are read once, here, for all three: around the refitted
+//! axis of a tracker survey ([`crate::load`] with `Axis::Refitted`, as every
+//! command), which the output names (`"axis"`).
 
 use crate::acquire::Engine;
 use crate::output::{Output, Units, human, iso_json, iso_text};
@@ -52,13 +54,16 @@ pub async fn conclude(
     db: &Path,
     options: ConcludeOptions,
 ) -> anyhow::Result<Concluded> {
-    let loaded = crate::load::load(store, Some(id), crate::load::Axis::AsStored).await?;
-    let (record, drift) = (&loaded.survey, &loaded.drift);
+    // With a tracker, the figures and the table are of the axis fitted from every SMR position.
+    let loaded = crate::load::load(store, Some(id), crate::load::Axis::Refitted).await?;
+    let (record, drift, refit) = (&loaded.survey, &loaded.drift, &loaded.refit);
     let samples = loaded.analysed();
+    let axis = loaded.axis_used();
     let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;
     let outcome = &acquired.outcome;
     let mut doc = iso_json(id, &iso);
     doc["status"] = record.status.as_str().into();
+    doc["axis"] = axis.as_str().into();
     doc["samples"] = samples.len().into();
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
     doc["faults_survived"] = outcome.faults_survived.into();
@@ -116,17 +121,26 @@ pub async fn conclude(
         );
     }
     text += &iso_text(id, &iso, options.units);
+    text += axis.text();
+    text += "\n";
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
 
     if let Err(why) = options.stop.check() {
         return stopped(store, id, why, Output { doc, text }).await;
     }
+    if let Some(native) = record.resolves {
+        // Check points finished by `survey resume`: folded into the survey
+        // they resolve, which takes them in when processed.
+        crate::resolving::fold(store, id, native).await?;
+        text += &format!(
+            "check points of survey {native}, stored with it: `survey process --survey {native}` (and its report) take \
+             them in\n"
+        );
+        return Ok(Concluded { output: Output { doc, text }, result: Ok(()) });
+    }
     let table_out = Some(default_table_path(db, id));
-    // With a tracker, the table is made around the axis fitted from every SMR position.
-    let refit = crate::refit::refit_survey(store, record).await?;
-    let refitted = refit.as_ref().map(|(s, _)| loaded.corrected(s));
-    let uncertainty = crate::refit::uncertainty_inputs(record, refit.as_ref().map(|(_, r)| r), None);
+    let uncertainty = crate::refit::uncertainty_inputs(record, refit.as_ref(), None);
     let processing = ProcessOptions {
         recipe: options.recipe.clone(),
         design: None,
@@ -134,14 +148,33 @@ pub async fn conclude(
         uncertainty,
         ..ProcessOptions::default()
     };
-    let to_process = refitted.as_deref().unwrap_or(&samples);
-    let processed = match process_survey(record, to_process, processing) {
+    let mut processed = match process_survey(record, &samples, processing.clone()) {
         Ok(p) => p,
         Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
     };
+    // Lines left in doubt, and a tracker that can measure between the
+    // targets: check points decide them, and the survey is processed again.
+    if let Some(checks) = crate::resolving::checks_plan(&plan, engine.reference_kind(), &processed) {
+        let left = &processed.processed.left;
+        let measured = crate::resolving::measure(engine, store, record, &checks, left, options.acquire.clone()).await;
+        let check_samples = match measured {
+            Ok(m) => m,
+            Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+        };
+        let points = check_samples.len();
+        processed = match process_survey(record, &samples, ProcessOptions { checks: check_samples, ..processing }) {
+            Ok(p) => p,
+            Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+        };
+        let o = crate::resolving::output(points, &processed);
+        doc["resolving"] = o.doc;
+        text += "\n";
+        text += &o.text;
+    }
     doc["process"] = processed.json();
+    doc["process"]["axis"] = axis.as_str().into();
     text += "\n";
-    if let Some((_, r)) = &refit {
+    if let Some(r) = refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
         text += &options.units.text(&r.text());
         // Recorded with the survey (`survey show` lists it); a failed write
@@ -169,9 +202,20 @@ pub async fn conclude(
         );
         match verified.await {
             Ok(v) => {
-                doc["verify"] = v.doc;
+                if !v.confirmed() {
+                    eprintln!(
+                        "warning: survey {}: the verification does not confirm the prediction: {}",
+                        v.id, v.judged.reason
+                    );
+                    result = Err(anyhow::anyhow!(
+                        "the verification (survey {}) does not confirm the table of survey {id}: not a result; the survey \
+                         and the table stay stored",
+                        v.id
+                    ));
+                }
+                doc["verify"] = v.output.doc;
                 text += "\n";
-                text += &v.text;
+                text += &v.output.text;
             }
             Err(e) => result = Err(e),
         }

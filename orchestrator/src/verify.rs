@@ -11,6 +11,10 @@
 //! it makes interpolating between them would never show. With an
 //! autocollimator the only angles measured are the polygon's faces: the
 //! verification stays at the faces and says so.
+//!
+//! It ends with a verdict ([`survey_processing::verification::judge`]): the
+//! prediction is confirmed, or not (the measured corrected peak exceeds the
+//! prediction by more than the table's `U`, or is not better than native).
 
 use crate::acquire::{Engine, ReferenceKind, Timing};
 use crate::error::bad_input;
@@ -25,7 +29,7 @@ use survey_processing::Sample;
 use survey_processing::iso230::iso230_2;
 use survey_processing::plan::SurveyPlan;
 use survey_processing::table::CorrectionTable;
-use survey_processing::verification::{offset_deg, peak_deg, systematic_peak_deg};
+use survey_processing::verification::{Judged, Verdict, judge, offset_deg, peak_deg, systematic_peak_deg};
 
 /// Where a verification measures, decided before the calibration survey
 /// starts (a bad `--verify-points` is refused before hours of measuring).
@@ -74,8 +78,27 @@ pub async fn apply_correction(engine: &mut Engine, table: &CorrectionTable) -> a
     Ok(())
 }
 
+/// A verification's output and its verdict.
+#[derive(Debug)]
+pub struct Verified {
+    /// What to print (the `verify` document and its text).
+    pub output: Output,
+    /// The verification survey.
+    pub id: i64,
+    /// Confirmed or not, and why.
+    pub judged: Judged,
+}
+
+impl Verified {
+    /// Whether the prediction was confirmed.
+    pub fn confirmed(&self) -> bool {
+        self.judged.verdict == Verdict::Confirmed
+    }
+}
+
 /// Verify the table of `processed` (made from `native` and its `native_samples`):
-/// apply it and measure `verify_plan` as a new survey; the text's errors in `units`.
+/// apply it, measure `verify_plan` as a new survey, and judge it; the text's
+/// errors in `units`.
 #[allow(clippy::too_many_arguments)] // what is verified, where, and how it shows: none derives from another
 pub async fn verify(
     engine: &mut Engine,
@@ -86,7 +109,7 @@ pub async fn verify(
     processed: &ProcessOutcome,
     options: AcquireOptions,
     units: Units,
-) -> anyhow::Result<Output> {
+) -> anyhow::Result<Verified> {
     let table = &processed.processed.built.table;
     let plan = &verify_plan.plan;
     apply_correction(engine, table).await?;
@@ -136,11 +159,27 @@ pub async fn verify(
     let corrected = store.samples(id).await?;
     let predicted = processed.processed.prediction.corrected_peak_deg;
     let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
+    let u = processed.uncertainty.table_u_deg;
+    let judged = judge(predicted, u, peak_deg(&corrected), peak_deg(native_samples));
     out.doc["targets"] = plan.targets_deg.len().into();
     out.doc["between_targets"] = verify_plan.between.into();
     out.doc["offset_deg"] = verify_plan.offset_deg.into();
-    out.text = format!("{}\n{}", placement(verify_plan), out.text);
-    Ok(out)
+    out.doc["table_u_deg"] = u.into();
+    out.doc["verdict"] = judged.verdict.as_str().into();
+    out.doc["reason"] = judged.reason.clone().into();
+    out.text = format!("{}\n{}{}\n", placement(verify_plan), out.text, units.text(&verdict_text(&judged)));
+    Ok(Verified { output: out, id, judged })
+}
+
+/// The verdict for people: one line, plain words.
+pub fn verdict_text(j: &Judged) -> String {
+    match j.verdict {
+        Verdict::Confirmed => format!("verdict: the prediction is confirmed: {}", j.reason),
+        Verdict::NotConfirmed => format!(
+            "verdict: NOT CONFIRMED: {}; do not use this table as a result (the survey and the table stay stored)",
+            j.reason
+        ),
+    }
 }
 
 /// Where the verification measured, in words.

@@ -9,6 +9,7 @@ pub mod analysis;
 pub mod budget;
 pub mod correction;
 pub mod corrector;
+pub mod coverage;
 pub mod drift;
 pub mod errormap;
 pub mod export;

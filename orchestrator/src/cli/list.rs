@@ -116,11 +116,12 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
         let r = store.resolve(args.survey).await?;
         let events = store.events(r.id).await?;
         let drift = store.drift_points(r.id).await?;
-        anyhow::Ok((r, events, drift))
+        let checks = store.check_points(r.id).await?;
+        anyhow::Ok((r, events, drift, checks))
     }
     .await;
     store.close().await;
-    let (r, events, drift) = shown?;
+    let (r, events, drift, checks) = shown?;
     let plan = r.setup.plan();
     let mut doc = summary(&r);
     doc["plan"] = json!(plan.map(|p| json!({
@@ -145,6 +146,12 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
         events.iter().map(|e| json!({"at_s": e.at_s, "level": e.level, "message": e.message})).collect::<Vec<_>>()
     );
     doc["drift"] = crate::drift::json(&r, &drift);
+    // Check points measured between the targets (issue 20): their angles, as many times as measured.
+    let mut at: Vec<f64> = checks.iter().map(|c| c.target_deg).collect();
+    at.sort_by(f64::total_cmp);
+    at.dedup();
+    doc["check_points"] = json!({"samples": checks.len(), "targets_deg": at});
+    doc["resolves_survey"] = json!(r.resolves);
     if args.json {
         emit(&format!("{doc}\n"));
         return Ok(());
@@ -198,6 +205,16 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     }
     if let Some(v) = &r.verification {
         let _ = writeln!(s, "  verifies     survey {} (table {})", v.verifies_survey, v.table);
+    }
+    if !checks.is_empty() {
+        let shown: Vec<String> = at.iter().map(|t| format!("{t:.3}")).collect();
+        let _ = writeln!(s, "  check points {} samples between the targets, at {} deg", checks.len(), shown.join(", "));
+    }
+    if let Some(of) = r.resolves {
+        let _ = writeln!(
+            s,
+            "  checks       the check points of survey {of}, being acquired (`survey resume` finishes them)"
+        );
     }
     let units = args.units.units();
     for line in survey_processing::drift::text(&drift, units).lines() {

@@ -1,8 +1,14 @@
 //! `survey process`: the paper's DSP processing of a stored survey.
+//!
+//! The samples are those every command uses ([`crate::load`] with `Axis::Refitted`:
+//! around the refitted axis of a tracker survey, unless `--located-axis`);
+//! the output says which axis (`"axis"`) and carries the survey's ISO 230-2
+//! figures of the same samples (`"iso230_2"`, as `survey stats` gives them).
 
 use super::args::{UnitsArg, whole};
 use super::support::emit;
 use crate::load::{Axis, load_read_only};
+use crate::output::{iso_json, iso_text};
 use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::progress::{self, Progress};
@@ -187,6 +193,10 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     let loaded = load_read_only(db, args.survey, axis).await?;
     let survey = &loaded.survey;
     let uncertainty = loaded.uncertainty_inputs();
+    // Corrected for the drift when the survey asked for it.
+    let to_process = loaded.analysed();
+    let iso = survey_processing::iso230::iso230_2(&to_process).ok();
+    let axis = loaded.axis_used();
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
     let opts = ProcessOptions {
         design: args.design,
@@ -194,22 +204,30 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         table_out: Some(table_out),
         export: args.tables.into(),
         uncertainty,
+        checks: loaded.checks.clone(),
     };
-    // Corrected for the drift when the survey asked for it.
-    let to_process = loaded.analysed();
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
     let outcome = process_survey(survey, &to_process, opts)?;
     drop(progress);
     let units = args.units.units();
-    let out = match &loaded.refit {
-        Some(r) if args.json => {
-            let mut doc = outcome.json();
-            doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
-            format!("{doc}\n")
+    let out = if args.json {
+        let mut doc = outcome.json();
+        doc["axis"] = axis.as_str().into();
+        if let Some(iso) = &iso {
+            doc["iso230_2"] = iso_json(survey.id, iso)["iso230_2"].clone();
         }
-        Some(r) => format!("{}{}", units.text(&r.text()), outcome.text(units)),
-        None if args.json => format!("{}\n", outcome.json()),
-        None => outcome.text(units),
+        if let Some(r) = &loaded.refit {
+            doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
+        }
+        format!("{doc}\n")
+    } else {
+        let mut text = loaded.refit.as_ref().map(|r| units.text(&r.text())).unwrap_or_default();
+        if let Some(iso) = &iso {
+            text += &iso_text(survey.id, iso, units);
+        }
+        text += axis.text();
+        text += "\n";
+        text + &outcome.text(units)
     };
     emit(&out);
     Ok(())

@@ -34,7 +34,7 @@ pub struct ResumeArgs {
 
 pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let store = open_existing(db).await?;
-    let id = store.resolve(args.survey).await?.id;
+    let id = store.resolve_any(args.survey).await?.id;
     // One acquirer per survey: refused at once while a live process holds it.
     let lock = AcquirerLock::acquire(store.path(), id)?;
     if let Some(previous) = &lock.took_over {

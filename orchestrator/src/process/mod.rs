@@ -70,6 +70,9 @@ pub struct ProcessOptions {
     /// What the uncertainty budget needs beyond the samples (the reference
     /// instrument's noise, the axis fit's standard error).
     pub uncertainty: UncertaintyInputs,
+    /// Check points measured between the targets to decide the lines in
+    /// doubt ([`crate::resolving`]; empty when there are none).
+    pub checks: Vec<Sample>,
 }
 
 /// Where the design came from.
@@ -172,10 +175,20 @@ pub fn compute(
         let base = recipe.as_ref().map(|(r, _, _)| r.export.clone()).unwrap_or_default();
         Some(opts.export.resolve(&base)?)
     };
-    let processed = match survey_processing::pipeline::process_with(samples, &design, replay, export.as_ref()) {
-        Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
-        other => other.with_context(|| format!("survey {id} cannot be processed"))?,
-    };
+    let processed =
+        match survey_processing::pipeline::process_with_checks(samples, &design, replay, export.as_ref(), &opts.checks)
+        {
+            Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
+            other => other.with_context(|| format!("survey {id} cannot be processed"))?,
+        };
+    let mut processed = processed;
+    // An autocollimator's faces fix the sampling: say what a second
+    // orientation of the polygon would resolve.
+    if crate::resolving::reference_of(survey) == Some(crate::acquire::ReferenceKind::Autocollimator)
+        && let Some(t) = crate::resolving::second_orientation(&processed.left)
+    {
+        processed.notes.push(t);
+    }
     for n in &processed.notes {
         eprintln!("note: {n}");
     }

@@ -131,7 +131,12 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "floor": p.floor.what,
             "linuxcnc_corrected_peak_deg": p.controllers.iter().find(|c| c.controller == Controller::LinuxCnc).and_then(|c| c.corrected_peak_deg),
             "samples": pr.samples,
+            "in_sample_corrected_peak_deg": pr.in_sample_corrected_peak_deg,
+            "unseen_between_targets_deg": pr.unseen_between_targets_deg,
+            "peak_spread_deg": pr.peak_spread_deg,
+            "no_better_than_native": pr.no_better_than_native(),
         },
+        "left": p.left,
         "interpolation": p.interpolation.as_ref().ok(),
         "noise": a.noise,
         "points_needed": a.points_needed,
@@ -273,6 +278,26 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
         e5(pr.native.rms_deg),
         e5(pr.corrected.rms_deg)
     );
+    let _ = writeln!(
+        s,
+        "  corrected peak: +/-{} {u} at the survey's own samples, +{} {u} for what the table leaves between the \
+         targets, +{} {u} for the spread of a new survey's peak of noise (95 %)",
+        e5(pr.in_sample_corrected_peak_deg),
+        e5(pr.unseen_between_targets_deg),
+        e5(pr.peak_spread_deg)
+    );
+    for l in &p.left.lines {
+        let _ = writeln!(s, "  left: {}", units.text(&l.why));
+    }
+    if pr.no_better_than_native() {
+        let _ = writeln!(
+            s,
+            "NOT A RESULT: this table is not expected to improve the axis (corrected +/-{} {u} against native \
+             +/-{} {u}): do not load it",
+            e5(pr.corrected_peak_deg),
+            e5(pr.native_peak_deg)
+        );
+    }
     let _ = writeln!(s, "repeatability floor: {} {u} ({})", opt(p.floor.deg), p.floor.what);
     for (c, _) in written(o) {
         let _ = writeln!(

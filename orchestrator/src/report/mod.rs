@@ -61,8 +61,11 @@ pub struct ReportOptions {
 pub struct ReportData {
     /// The survey.
     pub survey: SurveyRecord,
-    /// Its samples, as processed.
+    /// Its samples, as processed (every figure of the page is of them, as
+    /// `survey stats` and `survey process` give them).
     pub samples: Vec<Sample>,
+    /// Which axis their actual angles were computed around.
+    pub axis: crate::refit::AxisUsed,
     /// The processing, or why there is none.
     pub processed: Result<Processed, String>,
     /// The verification pair, when there is one.
@@ -88,10 +91,12 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
     let verification = find_verification(store, &loaded).await?;
     let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
     let axis_u_deg = loaded.uncertainty_inputs().axis_u_deg;
+    let axis = loaded.axis_used();
     let Loaded { survey, samples, drift, .. } = loaded;
     Ok(ReportData {
         survey,
         samples,
+        axis,
         processed,
         verification,
         model_gap,
@@ -114,6 +119,7 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
         design: opts.design.clone(),
         recipe: opts.recipe.clone(),
         table_out: None,
+        checks: loaded.checks.clone(),
         ..Default::default()
     };
     let processed = match crate::process::compute(survey, &analysed, &process_opts) {

@@ -29,6 +29,7 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod checks;
 mod drift;
 mod lock;
 mod samples;
@@ -94,6 +95,7 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
+    (4, "check points", include_str!("../../../migrations/0004_check_points.sql")),
 ];
 
 fn migrator() -> Migrator {

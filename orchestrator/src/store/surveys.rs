@@ -234,17 +234,35 @@ impl Store {
 
     /// The survey `id`, or the latest one when `id` is `None`. A [`NotFound`]
     /// error when that survey does not exist or the database holds none.
+    /// The latest is the latest survey that is not check points (source
+    /// `resolving`: they are part of the survey they resolve, which
+    /// [`crate::resolving::checks_of`] finds): `survey run` then `survey
+    /// process` processes the survey, not its check points.
     pub async fn resolve(&self, id: Option<i64>) -> anyhow::Result<SurveyRecord> {
-        match id {
+        let latest = || async {
+            let id: Option<i64> = sqlx::query_scalar("SELECT MAX(id) FROM surveys WHERE source <> 'resolving'")
+                .fetch_one(&self.pool)
+                .await?;
+            anyhow::Ok(id)
+        };
+        self.resolve_with(id, latest().await?).await
+    }
+
+    /// [`Store::resolve`] with check points included in "the latest" (what
+    /// `survey resume` finishes).
+    pub async fn resolve_any(&self, id: Option<i64>) -> anyhow::Result<SurveyRecord> {
+        let latest = self.latest_survey_id().await?;
+        self.resolve_with(id, latest).await
+    }
+
+    async fn resolve_with(&self, id: Option<i64>, latest: Option<i64>) -> anyhow::Result<SurveyRecord> {
+        match id.or(latest) {
             Some(id) => self.survey(id).await,
-            None => match self.latest_survey_id().await? {
-                Some(id) => self.survey(id).await,
-                None => Err(NotFound(format!(
-                    "no survey in {}: run `survey run` or `survey import` first",
-                    self.path.display()
-                ))
-                .into()),
-            },
+            None => Err(NotFound(format!(
+                "no survey in {}: run `survey run` or `survey import` first",
+                self.path.display()
+            ))
+            .into()),
         }
     }
 
