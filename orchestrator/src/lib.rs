@@ -28,6 +28,7 @@ pub mod process;
 pub mod progress;
 pub mod refit;
 pub mod report;
+pub mod resolving;
 pub mod runtime;
 pub mod session;
 pub mod sim;

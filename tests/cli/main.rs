@@ -28,6 +28,7 @@ mod process;
 mod report;
 mod runs;
 mod tables;
+mod usage;
 mod verify;
 
 use serde_json::Value;

@@ -1,5 +1,5 @@
 //! What the check surveys of the recalibration loop decided (`checks`,
-//! migration 4): one row per check survey, written when its comparison is
+//! migration 5): one row per check survey, written when its comparison is
 //! made and completed when a recalibration follows.
 
 use serde::Serialize;
