@@ -321,7 +321,8 @@ fn run_stats_process_and_the_report_give_one_set_of_numbers_and_name_the_axis() 
     assert!(bench.survey(&["stats"]).success().stdout.contains("axis: refitted"));
     bench.survey(&["report", "--out", "report"]).success();
     let page = bench.read("report/index.html");
-    assert!(page.contains(&format!("{a:.5} deg")), "the report's A is {a:.5} deg");
+    let shown = survey_processing::units::Units::Deg.show(a);
+    assert!(page.contains(&shown), "the report's A is {shown}");
     assert!(page.contains("axis: refitted"), "the report names the axis");
     // Around the located axis, for comparison: said so, and a different figure.
     let located = process_json(&bench, &["--located-axis"]);
