@@ -55,7 +55,7 @@ pub async fn conclude(
     options: ConcludeOptions,
 ) -> anyhow::Result<Concluded> {
     // With a tracker, the figures and the table are of the axis fitted from every SMR position.
-    let loaded = crate::load::load(store, Some(id), crate::load::Axis::Refitted).await?;
+    let loaded = crate::load::load(store, Some(id.into()), crate::load::Axis::Refitted).await?;
     let (record, drift, refit) = (&loaded.survey, &loaded.drift, &loaded.refit);
     let samples = loaded.analysed();
     let axis = loaded.axis_used();

@@ -59,6 +59,18 @@ pub struct SurveyConfig {
     /// Drift control: a reference target re-measured every K steps (off by default).
     #[serde(default)]
     pub drift_control: Option<survey_processing::drift::DriftControl>,
+    /// The asset (the axis this configuration measures): its surveys' history.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub asset: Option<AssetSection>,
+}
+
+/// `[asset]`: the axis measured, whose surveys make one history
+/// (`survey history --asset ID`); `survey run --asset` overrides it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AssetSection {
+    /// 1-64 characters of letters, digits and `-_./`.
+    pub id: String,
 }
 
 /// `[certificate]`: what a calibration certificate states that no instrument
@@ -433,6 +445,9 @@ impl SurveyConfig {
     }
 
     fn check(&self) -> Result<(), String> {
+        if let Some(a) = &self.asset {
+            crate::survey::asset_id(&a.id).map_err(|e| format!("[asset] id: {e}"))?;
+        }
         match self.reference() {
             ReferenceKind::Tracker if self.tracker.is_none() => {
                 return Err("the reference is the tracker but there is no [tracker] section".into());
@@ -699,6 +714,23 @@ mod tests {
 
     const TRACKER_BENCH: &str = "[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n\
         [tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\n";
+
+    #[test]
+    fn the_asset_section_names_the_surveys_asset_and_is_checked() {
+        use crate::survey::{ConfiguredSetup, Setup};
+        let plan = survey_processing::plan::SurveyPlan::full_circle(36, 2, true).unwrap();
+        let setup = |config| Setup::Configured(ConfiguredSetup { config, plan: plan.clone() });
+        let cfg = SurveyConfig::parse(&format!("{TRACKER_BENCH}[asset]\nid = \"bay-2/az\"\n"), "c.toml").unwrap();
+        assert_eq!(setup(cfg.clone()).default_asset(), "bay-2/az");
+        // Stored with the survey and read back.
+        let text = serde_json::to_string(&cfg).unwrap();
+        assert_eq!(serde_json::from_str::<SurveyConfig>(&text).unwrap(), cfg);
+        let without = SurveyConfig::parse(TRACKER_BENCH, "c.toml").unwrap();
+        assert_eq!(setup(without).default_asset(), crate::survey::UNASSIGNED);
+        let e = error_of(&format!("{TRACKER_BENCH}[asset]\nid = \"bay 2\"\n"));
+        assert!(e.starts_with("c.toml: [asset] id: the asset id 'bay 2' holds ' '"), "{e}");
+        assert!(error_of(&format!("{TRACKER_BENCH}[asset]\nname = \"x\"\n")).contains("unknown field `name`"));
+    }
 
     #[test]
     fn every_number_is_finite_and_within_its_stated_range() {

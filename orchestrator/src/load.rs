@@ -8,7 +8,7 @@
 
 use crate::refit::{AxisRefit, AxisUsed, located_axis_knowledge, refit_survey};
 use crate::store::Store;
-use crate::survey::SurveyRecord;
+use crate::survey::{SurveyRecord, SurveyRef};
 use std::borrow::Cow;
 use std::path::Path;
 use survey_processing::Sample;
@@ -80,9 +80,9 @@ impl Loaded {
     }
 }
 
-/// Load survey `id` (the latest when `None`) from `store`, its actual angles
-/// taken around `axis`.
-pub async fn load(store: &Store, id: Option<i64>, axis: Axis) -> anyhow::Result<Loaded> {
+/// Load survey `id` (an id or a uid; the latest when `None`) from `store`,
+/// its actual angles taken around `axis`.
+pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::Result<Loaded> {
     let survey = store.resolve(id).await?;
     let refitted = match axis {
         Axis::Refitted => refit_survey(store, &survey).await?,
@@ -103,7 +103,7 @@ pub async fn load(store: &Store, id: Option<i64>, axis: Axis) -> anyhow::Result<
 
 /// [`load`] from the database at `db`, opened read-only and closed again:
 /// what a command that only reads does.
-pub async fn load_read_only(db: &Path, id: Option<i64>, axis: Axis) -> anyhow::Result<Loaded> {
+pub async fn load_read_only(db: &Path, id: Option<SurveyRef>, axis: Axis) -> anyhow::Result<Loaded> {
     let store = Store::open_read_only(db).await?;
     let loaded = load(&store, id, axis).await;
     store.close().await;
@@ -163,7 +163,7 @@ mod tests {
             assert!(loaded.checks.is_empty(), "{axis:?}");
             assert!(matches!(loaded.analysed(), Cow::Borrowed(s) if s == loaded.samples.as_slice()), "{axis:?}");
         }
-        let e = load_read_only(&db, Some(id + 1), Axis::Located).await.unwrap_err();
+        let e = load_read_only(&db, Some((id + 1).into()), Axis::Located).await.unwrap_err();
         assert!(crate::store::is_not_found(&e), "{e:#}");
     }
 }

@@ -155,6 +155,17 @@ impl Setup {
         }
     }
 
+    /// The asset a survey of this setup belongs to unless told otherwise:
+    /// `sim-<preset>` on the simulated bench, the configuration's `[asset]
+    /// id`, else [`UNASSIGNED`].
+    pub fn default_asset(&self) -> String {
+        match self {
+            Setup::Simulated(s) => simulated_asset(&s.preset),
+            Setup::Configured(c) => c.config.asset.as_ref().map_or(UNASSIGNED.to_string(), |a| a.id.clone()),
+            Setup::Imported { .. } | Setup::Unrecorded => UNASSIGNED.to_string(),
+        }
+    }
+
     /// The text stored in `config_json`.
     pub fn to_column(&self) -> String {
         match self {
@@ -287,6 +298,10 @@ pub struct NewSurvey {
     pub verification: Option<VerificationOf>,
     /// How many samples the plan holds, when known.
     pub planned_samples: Option<u64>,
+    /// The asset (the axis measured): see [`asset_id`].
+    pub asset: String,
+    /// For a check survey (`survey run --check`): the uid of the calibration it is compared with.
+    pub check_of: Option<String>,
 }
 
 impl Default for NewSurvey {
@@ -303,6 +318,8 @@ impl Default for NewSurvey {
             instruments: serde_json::json!({}),
             verification: None,
             planned_samples: None,
+            asset: UNASSIGNED.to_string(),
+            check_of: None,
         }
     }
 }
@@ -324,8 +341,14 @@ impl NewSurvey {
 /// A stored survey, typed: parsed once, when read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurveyRecord {
-    /// The survey id (`--survey ID`).
+    /// The survey id (`--survey ID`), this database's own.
     pub id: i64,
+    /// The survey's UUID, the same in every store it is copied to.
+    pub uid: String,
+    /// The asset (the axis measured).
+    pub asset: String,
+    /// For a check survey: the uid of the calibration it was compared with.
+    pub check_of: Option<String>,
     /// UTC ISO-8601, e.g. `2025-03-01T14:02:11Z`.
     pub created_at: String,
     /// UTC ISO-8601: the last change of status or axis.
@@ -366,6 +389,9 @@ pub struct SurveyRecord {
 #[derive(Debug, Clone)]
 pub(crate) struct StoredColumns {
     pub id: i64,
+    pub uid: String,
+    pub asset: String,
+    pub check_of: Option<String>,
     pub created_at: String,
     pub updated_at: String,
     pub status: String,
@@ -428,6 +454,9 @@ impl SurveyRecord {
         };
         Ok(SurveyRecord {
             id: c.id,
+            uid: c.uid,
+            asset: c.asset,
+            check_of: c.check_of,
             created_at: c.created_at,
             updated_at: c.updated_at,
             status,
@@ -452,6 +481,93 @@ impl SurveyRecord {
     pub fn plan(&self) -> Option<&SurveyPlan> {
         self.setup.plan()
     }
+
+    /// Whether the survey is a whole measurement: acquired to its end, or imported.
+    pub fn is_complete(&self) -> bool {
+        matches!(self.status, SurveyStatus::Complete | SurveyStatus::Imported)
+    }
+
+    /// Whether the survey is a calibration (neither a check nor a verification).
+    pub fn is_calibration(&self) -> bool {
+        self.check_of.is_none() && self.source != SurveySource::Verification
+    }
+}
+
+/// The asset of a survey whose asset is not known: imports without
+/// `--asset`, configurations without `[asset] id`, surveys stored before
+/// assets existed (other than simulated ones).
+pub const UNASSIGNED: &str = "unassigned";
+
+/// The asset of a survey on the simulated bench of `preset`: `sim-<preset>`.
+pub fn simulated_asset(preset: &str) -> String {
+    format!("sim-{preset}")
+}
+
+/// Check an asset id: 1-64 characters of letters, digits and `-_./`.
+pub fn asset_id(text: &str) -> Result<String, String> {
+    let bad = text.chars().find(|c| !(c.is_ascii_alphanumeric() || "-_./".contains(*c)));
+    match (text.chars().count(), bad) {
+        (0, _) => Err("an asset id cannot be empty".into()),
+        (n, _) if n > 64 => Err(format!("the asset id '{text}' is {n} characters long (at most 64)")),
+        (_, Some(c)) => Err(format!("the asset id '{text}' holds '{c}': only letters, digits and - _ . / are allowed")),
+        _ => Ok(text.to_string()),
+    }
+}
+
+/// A survey as the command line names it: its id in this database, or its uid.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SurveyRef {
+    /// The id (`3`).
+    Id(i64),
+    /// The UUID (`0b6c...-...`), lower or upper case.
+    Uid(String),
+}
+
+impl From<i64> for SurveyRef {
+    fn from(id: i64) -> Self {
+        SurveyRef::Id(id)
+    }
+}
+
+impl fmt::Display for SurveyRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SurveyRef::Id(id) => write!(f, "id {id}"),
+            SurveyRef::Uid(uid) => write!(f, "uid {uid}"),
+        }
+    }
+}
+
+impl std::str::FromStr for SurveyRef {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if let Ok(id) = s.parse::<i64>() {
+            return Ok(SurveyRef::Id(id));
+        }
+        if is_uid(s) {
+            return Ok(SurveyRef::Uid(s.to_ascii_lowercase()));
+        }
+        Err(format!("'{s}' is neither a survey id (a number) nor a survey uid (a UUID like 0b6c1a52-...)"))
+    }
+}
+
+/// Whether `s` has the shape of a UUID: 8-4-4-4-12 hexadecimal digits.
+pub fn is_uid(s: &str) -> bool {
+    let groups: Vec<&str> = s.split('-').collect();
+    groups.len() == 5
+        && groups.iter().zip([8, 4, 4, 4, 12]).all(|(g, n)| g.len() == n && g.chars().all(|c| c.is_ascii_hexdigit()))
+}
+
+/// A new random uid (UUID version 4, lower case), from the operating system's randomness.
+pub fn new_uid() -> String {
+    use rand::TryRngCore as _;
+    let mut b = [0u8; 16];
+    rand::rngs::OsRng.try_fill_bytes(&mut b).expect("the operating system gives random bytes");
+    b[6] = (b[6] & 0x0f) | 0x40;
+    b[8] = (b[8] & 0x3f) | 0x80;
+    let hex: String = b.iter().map(|x| format!("{x:02x}")).collect();
+    format!("{}-{}-{}-{}-{}", &hex[0..8], &hex[8..12], &hex[12..16], &hex[16..20], &hex[20..32])
 }
 
 #[cfg(test)]
@@ -461,6 +577,9 @@ mod tests {
     fn columns(source: &str, config: &str) -> StoredColumns {
         StoredColumns {
             id: 3,
+            uid: "00000000-0000-4000-8000-000000000003".into(),
+            asset: "sim-fig8".into(),
+            check_of: None,
             created_at: "t".into(),
             updated_at: "t".into(),
             status: "running".into(),
@@ -505,6 +624,20 @@ mod tests {
         let mut c = columns("import:a.csv", "{}");
         c.axis_json = Some("{".into());
         assert_eq!(SurveyRecord::parse(c, "x.db").unwrap_err().column, "located axis");
+    }
+
+    #[test]
+    fn asset_ids_and_survey_references_are_checked() {
+        assert_eq!(asset_id("lab-2/az.axis_1").unwrap(), "lab-2/az.axis_1");
+        assert!(asset_id("").is_err() && asset_id(&"a".repeat(65)).is_err() && asset_id(&"a".repeat(64)).is_ok());
+        let e = asset_id("bay 3").unwrap_err();
+        assert!(e.contains("' '"), "{e}");
+        assert_eq!("12".parse::<SurveyRef>(), Ok(SurveyRef::Id(12)));
+        let uid = new_uid();
+        assert!(is_uid(&uid) && uid.as_bytes()[14] == b'4' && "89ab".contains(uid.as_bytes()[19] as char), "{uid}");
+        assert_eq!(uid.to_uppercase().parse::<SurveyRef>(), Ok(SurveyRef::Uid(uid.clone())));
+        assert_ne!(new_uid(), uid);
+        assert!("12a".parse::<SurveyRef>().unwrap_err().contains("neither a survey id"));
     }
 
     #[test]

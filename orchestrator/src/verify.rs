@@ -143,6 +143,7 @@ pub async fn verify(
                 correction: Some(table.clone()),
             }),
             planned_samples: Some(plan.total_steps()),
+            asset: native.asset.clone(),
             ..NewSurvey::default()
         })
         .await?;

@@ -7,6 +7,7 @@
 
 pub mod analysis;
 pub mod budget;
+pub mod compare;
 pub mod correction;
 pub mod corrector;
 pub mod coverage;

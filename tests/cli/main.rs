@@ -20,6 +20,8 @@ mod drift;
 mod everyday;
 mod files;
 mod instruments;
+mod lab;
+mod life;
 mod list;
 mod modelgap;
 mod process;

@@ -60,6 +60,8 @@ impl Bench {
             instruments: self.instruments.clone(),
             verification: None,
             planned_samples: Some(self.plan.total_steps()),
+            asset: self.setup.default_asset(),
+            check_of: None,
         }
     }
 

@@ -19,9 +19,9 @@ pub struct ExportArgs {
     /// Where to write the CSV.
     #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub csv: PathBuf,
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
 }
 
 pub async fn export(db: &Path, args: ExportArgs) -> anyhow::Result<()> {

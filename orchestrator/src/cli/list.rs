@@ -1,7 +1,7 @@
 //! `survey list [--json]` and `survey show ID [--json]`: what a database
 //! holds, read-only.
 //!
-//! `list --json` prints `{"db": ..., "surveys": [{"id", "status", "source",
+//! `list --json` prints `{"db": ..., "surveys": [{"id", "uid", "asset", "status", "source",
 //! "points", "runs", "bidirectional", "samples", "planned_samples",
 //! "created_at", "updated_at"}, ...]}`, oldest first; `show --json` one
 //! survey with its plan, instruments, located axis, model and event log.
@@ -23,9 +23,9 @@ pub struct ListArgs {
 
 #[derive(Debug, Args)]
 pub struct ShowArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(value_name = "ID", allow_negative_numbers = true)]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     #[command(flatten)]
     pub units: UnitsArg,
     /// Print one JSON document on stdout.
@@ -37,6 +37,8 @@ pub struct ShowArgs {
 fn summary(r: &SurveyRecord) -> Value {
     json!({
         "id": r.id,
+        "uid": r.uid,
+        "asset": r.asset,
         "status": r.status.as_str(),
         "source": r.source.to_column(),
         "points": r.points,
@@ -63,12 +65,13 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
     store.close().await;
     let surveys = surveys?;
     if args.json {
-        let doc = json!({"db": db.display().to_string(), "surveys": surveys.iter().map(summary).collect::<Vec<_>>()});
+        let doc =
+            json!({"db": crate::store::lab::display(db), "surveys": surveys.iter().map(summary).collect::<Vec<_>>()});
         emit(&format!("{doc}\n"));
         return Ok(());
     }
     if surveys.is_empty() {
-        emit(&format!("{} holds no survey yet\n", db.display()));
+        emit(&format!("{} holds no survey yet\n", crate::store::lab::display(db)));
         return Ok(());
     }
     let mut s = format!(
@@ -142,6 +145,7 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     })));
     doc["model"] = json!(r.model.as_ref().map(|m| m.to_toml()));
     doc["verifies_survey"] = json!(r.verification.as_ref().map(|v| v.verifies_survey));
+    doc["check_of"] = json!(r.check_of);
     doc["events"] = json!(
         events.iter().map(|e| json!({"at_s": e.at_s, "level": e.level, "message": e.message})).collect::<Vec<_>>()
     );
@@ -157,6 +161,8 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let mut s = format!("survey {} ({})\n", r.id, r.status.as_str());
+    let _ = writeln!(s, "  uid          {}", r.uid);
+    let _ = writeln!(s, "  asset        {}", r.asset);
     let _ = writeln!(s, "  source       {}", r.source.to_column());
     let _ = writeln!(s, "  created      {}, last change {}", r.created_at, r.updated_at);
     let samples = match r.planned_samples {
@@ -206,6 +212,9 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     if let Some(v) = &r.verification {
         let _ = writeln!(s, "  verifies     survey {} (table {})", v.verifies_survey, v.table);
     }
+    if let Some(uid) = &r.check_of {
+        let _ = writeln!(s, "  checks       the calibration {uid}");
+    }
     if !checks.is_empty() {
         let shown: Vec<String> = at.iter().map(|t| format!("{t:.3}")).collect();
         let _ = writeln!(s, "  check points {} samples between the targets, at {} deg", checks.len(), shown.join(", "));
@@ -213,7 +222,7 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     if let Some(of) = r.resolves {
         let _ = writeln!(
             s,
-            "  checks       the check points of survey {of}, being acquired (`survey resume` finishes them)"
+            "  resolves     the check points of survey {of}, being acquired (`survey resume` finishes them)"
         );
     }
     let units = args.units.units();

@@ -7,12 +7,15 @@
 
 mod args;
 mod check;
+mod compare;
 mod docs;
 mod export;
+mod history;
 mod import;
 mod list;
 mod model_gap;
 mod process;
+mod push;
 mod report;
 mod resume;
 mod run;
@@ -34,8 +37,16 @@ use std::process::ExitCode;
 #[derive(Debug, Parser)]
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100, after_help = EXAMPLES)]
 pub struct Cli {
-    /// The SQLite database that holds the surveys.
-    #[arg(long, global = true, value_name = "PATH", value_hint = clap::ValueHint::FilePath, default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
+    /// The SQLite database that holds the surveys, or a lab store's postgres:// URL (read commands).
+    #[arg(
+        long,
+        global = true,
+        value_name = "PATH|URL",
+        value_hint = clap::ValueHint::FilePath,
+        default_value = crate::process::DEFAULT_DB,
+        env = "SURVEY_DB",
+        hide_env_values = true
+    )]
     pub db: PathBuf,
 
     /// Say more on stderr: -v how the work is done, -vv debug, -vvv trace (RUST_LOG, when set, decides instead).
@@ -129,6 +140,24 @@ Examples:
   survey show          # the latest survey
   survey show 3 --json")]
     Show(list::ShowArgs),
+    /// An asset's surveys in time order, and what changed from each complete survey to the next.
+    #[command(after_help = "\
+Examples:
+  survey history                          # the asset of the latest survey
+  survey history --asset bay-2/az --json")]
+    History(history::HistoryArgs),
+    /// Has the positioner changed from survey A to survey B, and does A's table still hold?
+    #[command(after_help = "\
+Examples:
+  survey compare 3 7
+  survey compare 3 7 --json")]
+    Compare(compare::CompareArgs),
+    /// Copy complete surveys from this station's SQLite file to the lab store, each once by its uid.
+    #[command(after_help = "\
+Examples:
+  survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
+  SURVEY_LAB=postgres://... survey push --json        # the latest survey")]
+    Push(push::PushArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
 Examples:
@@ -165,14 +194,17 @@ pub fn main() -> ExitCode {
     match outcome {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
+            let status = crate::error::exit_status(&e);
             match e.downcast_ref::<clap::Error>() {
                 // A usage error found after parsing reads as clap's own, usage line and all.
                 Some(usage) => {
                     let _ = usage.print();
                 }
+                // A recalibration is what `run --check` reports, not an error.
+                None if status == crate::error::RECALIBRATED => eprintln!("{e:#}"),
                 None => eprintln!("error: {e:#}"),
             }
-            ExitCode::from(crate::error::exit_status(&e))
+            ExitCode::from(status)
         }
         Err(e) => {
             eprintln!("error: cannot start the async runtime: {e}");
@@ -210,6 +242,9 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Process(args) => process::process(db, args).await,
         Command::List(args) => list::list(db, args).await,
         Command::Show(args) => list::show(db, args).await,
+        Command::History(args) => history::history(db, args).await,
+        Command::Compare(args) => compare::compare(db, args).await,
+        Command::Push(args) => push::push(db, args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),

@@ -33,9 +33,9 @@ pub struct ModelGapArgs {
     /// The positioner model file (TOML) to compare with the survey.
     #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: PathBuf,
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     /// Write the improved model file (the model with the effects added and adjusted) here.
     #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub out: Option<PathBuf>,

@@ -22,9 +22,9 @@ use survey_processing::export::layout::Directions;
 
 #[derive(Debug, Args)]
 pub struct ProcessArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
     #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub design: Option<PathBuf>,

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     /// The folder to write index.html into (created if missing).
     #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: PathBuf,

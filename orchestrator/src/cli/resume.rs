@@ -22,9 +22,9 @@ use std::time::Duration;
 
 #[derive(Debug, Args)]
 pub struct ResumeArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     #[command(flatten)]
     pub units: UnitsArg,
     /// Print the summary as one JSON document on stdout.

@@ -3,10 +3,11 @@
 //! processing and, with `--verify`, the corrected accuracy.
 
 use super::args::{UnitsArg, whole};
-use super::support::conclude_and_print;
+use super::support::{conclude_and_print, emit};
 use crate::acquire::ReferenceKind;
 use crate::bench::{Bench, PlanOverrides, SimulatedRequest, default_polygon_faces};
 use crate::conclude::ConcludeOptions;
+use crate::life::check::{CheckRequest, PlanSize, run_check};
 use crate::output::human;
 use crate::session::{AcquireOptions, acquire};
 use crate::stop::Stop;
@@ -91,6 +92,10 @@ pub struct RunArgs {
     /// A stall needs a wire: `survey sim --fault-rates`.
     #[arg(long, value_name = "SPEC")]
     pub fault_rates: Option<String>,
+    /// The asset (the axis measured) the survey belongs to [default: [asset] id
+    /// of the configuration, or sim-PRESET on the simulated bench].
+    #[arg(long, value_name = "ID", value_parser = crate::survey::asset_id)]
+    pub asset: Option<String>,
     #[command(flatten)]
     pub units: UnitsArg,
     /// Print the summary as one JSON document on stdout.
@@ -110,6 +115,16 @@ pub struct RunArgs {
     /// between each pair of calibration targets].
     #[arg(long, value_name = "N", requires = "verify", allow_negative_numbers = true, value_parser = whole::<2, u32>)]
     pub verify_points: Option<u32>,
+    /// The recalibration loop: a short check survey (a few dozen targets of
+    /// the calibration in force, both ways, 2 runs; --points N sets the
+    /// targets) compared with the asset's calibration in force; a full survey
+    /// with that calibration's plan only when the check finds a change or the
+    /// table no longer holds (an asset without a calibration gets one, with
+    /// the plan of --points, --runs, --bidirectional). Exit status 0: in
+    /// tolerance; 3: a full survey was made (recalibrated, or the asset's
+    /// first calibration); 1: failure.
+    #[arg(long, conflicts_with_all = ["verify", "sim_crash_after", "sim_signal_after", "sim_db_max_pages"])]
+    pub check: bool,
     /// Fault injection for tests: the process aborts (like a power loss)
     /// once N samples have been measured on the simulated bench.
     #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]
@@ -124,25 +139,22 @@ pub struct RunArgs {
     pub sim_db_max_pages: Option<u32>,
 }
 
-pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
-    // A bad recipe is found before hours of measuring, not after.
-    if let Some(path) = &args.recipe {
-        crate::inputs::read_recipe(path)?;
-    }
-    let mut bench = match &args.config {
+/// The bench of the command line's flags, with a plan of `size`.
+fn bench(args: &RunArgs, size: PlanSize) -> anyhow::Result<Bench> {
+    Ok(match &args.config {
         Some(path) => Bench::configured(
             path,
             PlanOverrides {
-                points: args.points,
-                runs: args.runs,
-                bidirectional: args.bidirectional,
+                points: size.points,
+                runs: size.runs,
+                bidirectional: size.bidirectional,
                 scan: args.scan.map(Into::into),
             },
         )?,
         None => Bench::simulated(&SimulatedRequest {
-            points: simulated_points(&args)?,
-            runs: args.runs,
-            bidirectional: args.bidirectional,
+            points: simulated_points(size.points, args.reference)?,
+            runs: size.runs,
+            bidirectional: size.bidirectional,
             preset: args.preset.clone(),
             model_file: args.model.clone(),
             reference: args.reference.into(),
@@ -157,7 +169,39 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
                 None => None,
             },
         })?,
-    };
+    })
+}
+
+pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
+    // A bad recipe is found before hours of measuring, not after.
+    if let Some(path) = &args.recipe {
+        crate::inputs::read_recipe(path)?;
+    }
+    if args.check {
+        let (asset, polygon) = match &args.config {
+            Some(path) => {
+                let cfg = crate::config::SurveyConfig::from_file(path)?;
+                let asset = cfg.asset.as_ref().map(|a| a.id.clone());
+                (asset, cfg.reference() == ReferenceKind::Autocollimator)
+            }
+            None => {
+                (Some(crate::survey::simulated_asset(&args.preset)), args.reference == ReferenceArg::Autocollimator)
+            }
+        };
+        let req = CheckRequest {
+            asset: args.asset.clone().or(asset).unwrap_or_else(|| crate::survey::UNASSIGNED.to_string()),
+            polygon,
+            size: PlanSize { points: args.points, runs: args.runs, bidirectional: args.bidirectional },
+            json: args.json,
+            recipe: args.recipe.clone(),
+            units: args.units.units(),
+        };
+        let outcome = run_check(db, &req, &|size| bench(&args, size)).await?;
+        emit(&outcome.output.render(args.json));
+        return outcome.result();
+    }
+    let size = PlanSize { points: args.points, runs: args.runs, bidirectional: args.bidirectional };
+    let mut bench = bench(&args, size)?;
     // A verification that cannot be measured is refused before the survey.
     let verify = match args.verify {
         true => Some(VerifyPlan::new(&bench.plan, bench.engine.reference_kind(), args.verify_points)?),
@@ -170,7 +214,15 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         Some(n) => Store::open_limited(db, n).await?,
         None => Store::open(db).await?,
     };
-    let (id, lock) = store.create_acquired_survey(&bench.new_survey()).await?;
+    let mut new = bench.new_survey();
+    if let Some(asset) = &args.asset {
+        new.asset = asset.clone();
+    } else if new.asset == crate::survey::UNASSIGNED {
+        eprintln!(
+            "note: the survey belongs to no asset (`unassigned`): give [asset] id in the configuration or --asset"
+        );
+    }
+    let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, bench.clock.now().as_secs_f64()).await?;
     let plan = bench.plan.clone();
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
@@ -207,11 +259,11 @@ pub const USAGE: &str = "survey run --points <N> [OPTIONS]
        survey run --config <FILE> [OPTIONS]
        survey run --reference autocollimator [OPTIONS]";
 
-/// The simulated bench's targets: `--points`, else the simulated polygon's
+/// The simulated bench's targets: `points` (`--points`), else the simulated polygon's
 /// faces with the autocollimator; the tracker bench has no count of its own,
 /// so it is asked for as clap asks for a missing argument, usage and all.
-fn simulated_points(args: &RunArgs) -> anyhow::Result<u32> {
-    match (args.points, args.reference) {
+fn simulated_points(points: Option<u32>, reference: ReferenceArg) -> anyhow::Result<u32> {
+    match (points, reference) {
         (Some(n), _) => Ok(n),
         (None, ReferenceArg::Autocollimator) => Ok(default_polygon_faces()),
         (None, ReferenceArg::Tracker) => {

@@ -23,9 +23,9 @@ use survey_processing::iso230::iso230_2;
 
 #[derive(Debug, Args)]
 pub struct StatsArgs {
-    /// Survey id (default: the latest).
+    /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
-    pub survey: Option<i64>,
+    pub survey: Option<crate::survey::SurveyRef>,
     #[command(flatten)]
     pub units: UnitsArg,
     /// Print one JSON document on stdout.

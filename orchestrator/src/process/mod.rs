@@ -44,9 +44,9 @@ pub const DEFAULT_DB: &str = "survey.db";
 /// `--table-out` is not given: `table-<id>.csv` in the current folder for the
 /// default database (`survey.db`), else `<db>.table-<id>.csv` beside the
 /// database, so surveys of different databases never overwrite each other's
-/// tables.
+/// tables; `table-<id>.csv` in the current folder for a lab store's URL too.
 pub fn default_table_path(db: &Path, id: i64) -> PathBuf {
-    if db == Path::new(DEFAULT_DB) {
+    if db == Path::new(DEFAULT_DB) || crate::store::lab::url_of(db).is_some() {
         PathBuf::from(format!("table-{id}.csv"))
     } else {
         let mut s = db.as_os_str().to_os_string();

@@ -24,6 +24,7 @@ fn new_survey() -> NewSurvey {
         instruments: serde_json::json!({"positioner": "sim-positioner", "reference": "sim-tracker"}),
         verification: None,
         planned_samples: Some(144),
+        ..NewSurvey::default()
     }
 }
 
@@ -92,9 +93,9 @@ async fn temp_store() -> (tempfile::TempDir, Store) {
 async fn wal_mode_and_reopen() {
     let (dir, store) = temp_store().await;
     assert_eq!(store.journal_mode().await.unwrap(), "wal");
-    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(&store.pool).await.unwrap();
+    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(sync, 2, "synchronous = FULL");
-    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(&store.pool).await.unwrap();
+    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(fk, 1);
     let id = store.create_survey(&new_survey()).await.unwrap();
     store.close().await;
@@ -205,17 +206,17 @@ async fn import_is_atomic() {
         "CREATE TEMP TRIGGER boom BEFORE INSERT ON samples WHEN NEW.seq = 900 \
          BEGIN SELECT RAISE(ABORT, 'boom'); END",
     )
-    .execute(&store.pool)
+    .execute(store.sqlite().unwrap())
     .await
     .unwrap();
     let e = store.import(&s, &good).await.unwrap_err();
     assert!(format!("{e:#}").contains("boom"), "{e:#}");
     assert!(store.list().await.unwrap().is_empty());
-    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples").fetch_one(&store.pool).await.unwrap();
+    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(n, 0);
     // The failed write retired its connection (store::tx), and the temporary
     // trigger went with it: the next connection has none.
-    sqlx::query("DROP TRIGGER IF EXISTS boom").execute(&store.pool).await.unwrap();
+    sqlx::query("DROP TRIGGER IF EXISTS boom").execute(store.sqlite().unwrap()).await.unwrap();
 
     let id = store.import(&s, &good).await.unwrap();
     let row = store.survey(id).await.unwrap();
@@ -237,8 +238,8 @@ async fn resolve_latest_and_not_found() {
     let b = store.create_survey(&new_survey()).await.unwrap();
     assert!(b > a);
     assert_eq!(store.resolve(None).await.unwrap().id, b);
-    assert_eq!(store.resolve(Some(a)).await.unwrap().id, a);
-    let e = store.resolve(Some(7)).await.unwrap_err();
+    assert_eq!(store.resolve(Some(a.into())).await.unwrap().id, a);
+    let e = store.resolve(Some(7.into())).await.unwrap_err();
     assert!(is_not_found(&e));
     assert!(e.downcast_ref::<NotFound>().is_some());
     assert_eq!(e.to_string(), format!("no survey with id 7 in {}", dir.path().join("survey.db").display()));

@@ -17,11 +17,13 @@
 //! - [`table`]: the correction table;
 //! - [`verification`]: native against corrected on one scale;
 //! - [`modelgap`], [`drift`], [`uncertainty`]: when there is such data;
+//! - [`history`]: the asset's earlier surveys, when it has any;
 //! - [`iso`]: ISO 230-2 and VDI/DGQ 3441 for the axis; per target in the appendix.
 
 pub mod drift;
 pub mod errors;
 pub mod header;
+pub mod history;
 pub mod hysteresis;
 pub mod interpolation;
 pub mod iso;
@@ -101,6 +103,7 @@ pub const BODY: &[Show] = &[
     modelgap::show,
     drift::show,
     uncertainty::show,
+    history::show,
     iso::show_axis,
     notes,
 ];
