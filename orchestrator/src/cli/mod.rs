@@ -156,7 +156,7 @@ Examples:
     #[command(after_help = "\
 Examples:
   survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
-  SURVEY_LAB=postgres://... survey push --json        # the latest survey")]
+  survey push --json        # the latest survey, to the lab store SURVEY_LAB names")]
     Push(push::PushArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
