@@ -91,6 +91,14 @@ pub struct CertificateSection {
     pub customer: Option<String>,
     /// The air temperature during the survey, degrees Celsius.
     pub temperature_c: Option<f64>,
+    /// The certificate's number, as the laboratory assigns it.
+    pub number: Option<String>,
+    /// The calibrating laboratory: name, address, accreditation.
+    pub laboratory: Option<String>,
+    /// How the measurement is traceable to the SI: the reference's calibration (by whom, certificate, date).
+    pub traceability: Option<String>,
+    /// The tolerance the positioner's ISO 230-2 accuracy A is judged against, degrees.
+    pub tolerance_deg: Option<f64>,
 }
 
 /// `[survey]`: the plan; command-line flags override these.
@@ -246,6 +254,26 @@ impl PositionerConfig {
         })
     }
 
+    /// The positioner driver's own deadline of one request and how long it
+    /// then drains late replies (a line without transaction id: Modbus RTU,
+    /// CANopen SDO), with the key that sets the deadline; `None` for a
+    /// driver whose deadline is the engine's (`scpi-*`).
+    pub fn own_deadline(&self) -> Option<(&'static str, Duration, Duration)> {
+        match self {
+            PositionerConfig::ModbusTcp { timeouts, .. } => {
+                Some(("positioner.timeouts.request_ms", timeouts.request, Duration::ZERO))
+            }
+            PositionerConfig::ModbusRtu { timeouts, .. } => {
+                Some(("positioner.timeouts.request_ms", timeouts.request, timeouts.late_window()))
+            }
+            PositionerConfig::Canopen { drive, .. } => {
+                let t = drive.sdo_timeouts();
+                Some(("positioner.sdo_timeout_ms", t.response, t.late_window()))
+            }
+            PositionerConfig::ScpiTcp { .. } | PositionerConfig::ScpiSerial { .. } => None,
+        }
+    }
+
     /// A short description (`canopen slcan /dev/ttyACM0 node 5`).
     pub fn can_describe(&self) -> Option<String> {
         let PositionerConfig::Canopen { drive, .. } = self else { return None };
@@ -344,6 +372,11 @@ pub struct TimingSection {
     pub beam_wait_s: Option<f64>,
     /// Wait between attempts to re-acquire a lost beam, s.
     pub beam_retry_s: Option<f64>,
+    /// The instruments run this many times faster than the hardware they
+    /// stand for (a rehearsal on `survey sim --time-scale X`; 1, the default,
+    /// for real instruments): instrument time is reported on their clock,
+    /// the time this process measured times this.
+    pub time_scale: Option<f64>,
 }
 
 fn one() -> u32 {
@@ -480,6 +513,7 @@ impl SurveyConfig {
             ("fetch_interval_s", t.fetch_interval_s, Range::Above(0.0), 10.0, "s"),
             ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
             ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
+            ("time_scale", t.time_scale, Range::Above(0.0), 10_000.0, "x real time"),
         ] {
             if let Some(v) = value {
                 within(&format!("timing.{key}"), v, range, max, unit)?;
@@ -501,6 +535,9 @@ impl SurveyConfig {
             }
             if let Some(t) = c.temperature_c {
                 within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
+            }
+            if let Some(t) = c.tolerance_deg {
+                within("certificate.tolerance_deg", t, Range::Above(0.0), 360.0, "deg")?;
             }
         }
         if let Some(arm) = &self.arm {
@@ -526,6 +563,26 @@ impl SurveyConfig {
         if let PositionerConfig::Canopen { drive, .. } = &self.positioner {
             within("positioner.counts_per_degree", drive.counts_per_degree, Range::Above(0.0), 1.0e9, "counts/deg")?;
         }
+        // The engine's deadline of a call must be longer than the driver's
+        // own (its deadline and the drain of late replies after it): a late
+        // reply is then met, drained and matched by the driver, never left on
+        // the line by a call the engine cancelled.
+        if let Some((key, own, late)) = self.positioner.own_deadline() {
+            let call = self.timing().call_timeout;
+            if call <= own + late {
+                let drain = if late.is_zero() {
+                    String::new()
+                } else {
+                    format!(" and the {} ms it then drains late replies", late.as_millis())
+                };
+                return Err(format!(
+                    "timing.call_timeout_s = {} s must be longer than the positioner's own deadline, {key} = {} \
+                     ms{drain}: raise timing.call_timeout_s or lower {key}",
+                    call.as_secs_f64(),
+                    own.as_millis()
+                ));
+            }
+        }
         if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
             within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
         }
@@ -541,6 +598,11 @@ impl SurveyConfig {
             }
         }
         Ok(())
+    }
+
+    /// How many times faster than the hardware the instruments run (`[timing] time_scale`, default 1).
+    pub fn time_scale(&self) -> f64 {
+        self.timing.time_scale.unwrap_or(1.0)
     }
 
     /// The engine timing: the defaults with this file's settings on top.
@@ -680,11 +742,14 @@ mod tests {
             ("[timing]\npoll_interval_s = 0\n", "timing.poll_interval_s = 0 is outside its range (above 0"),
             ("[timing]\nmax_retries = 4000000000\n", "timing.max_retries"),
             ("[timing]\nlocate_points = 2\n", "timing.locate_points"),
+            ("[timing]\ntime_scale = 0\n", "timing.time_scale = 0 is outside its range (above 0"),
+            ("[timing]\ntime_scale = 20000\n", "timing.time_scale = 20000 is outside"),
             ("[survey]\noverrun_deg = 45.0\n", "survey.overrun_deg = 45 is outside"),
             ("[survey]\ntravel_deg = [-1e9, 90.0]\n", "survey.travel_deg[0]"),
             ("[arm]\nradius_mm = 500.0\nradius_tolerance_mm = 600.0\n", "arm.radius_tolerance_mm"),
             ("[certificate]\ntemperature_c = 293.15\n", "certificate.temperature_c = 293.15 is outside"),
             ("[certificate]\nreference_uncertainty_deg = 0\n", "certificate.reference_uncertainty_deg = 0 is outside"),
+            ("[certificate]\ntolerance_deg = -0.01\n", "certificate.tolerance_deg = -0.01 is outside"),
         ] {
             let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
             assert!(e.starts_with("c.toml: ") && e.contains(key), "{extra}: {e}");
@@ -796,5 +861,32 @@ mod driver_tests {
             let e = SurveyConfig::parse(&bad, "c.toml").unwrap_err().to_string();
             assert!(e.contains("unknown field"), "{bad}\n-> {e}");
         }
+    }
+
+    /// The engine's deadline of a call must be longer than the positioner
+    /// driver's own and the drain of late replies after it: refused when
+    /// read, naming both keys.
+    #[test]
+    fn the_engine_deadline_is_longer_than_the_drivers_own() {
+        let tracker = "[tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\n";
+        let rtu = "[positioner]\ndriver = \"modbus-rtu\"\nport = \"/dev/ttyUSB0\"\n";
+        let can = "[positioner]\ndriver = \"canopen\"\ninterface = \"can0\"\n";
+        let tcp = "[positioner]\ndriver = \"modbus-tcp\"\naddress = \"h:502\"\n";
+        for (positioner, timing, says) in [
+            (rtu, "call_timeout_s = 1.4\n", "positioner.timeouts.request_ms = 1000 ms and the 500 ms it then drains"),
+            (can, "call_timeout_s = 0.75\n", "positioner.sdo_timeout_ms = 500 ms and the 250 ms it then drains"),
+            (tcp, "call_timeout_s = 1.0\n", "positioner.timeouts.request_ms = 1000 ms:"),
+        ] {
+            let e = SurveyConfig::parse(&format!("{positioner}{tracker}[timing]\n{timing}"), "c.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("timing.call_timeout_s = ") && e.contains(says), "{positioner}: {e}");
+        }
+        // The defaults (2 s for a call) are longer than every driver's own.
+        for positioner in [rtu, can, tcp] {
+            SurveyConfig::parse(&format!("{positioner}{tracker}"), "c.toml").unwrap();
+        }
+        let fast = format!("{rtu}timeouts = {{ request_ms = 100 }}\n{tracker}[timing]\ncall_timeout_s = 0.2\n");
+        SurveyConfig::parse(&fast, "c.toml").unwrap();
     }
 }

@@ -46,6 +46,8 @@ pub struct Shown {
     pub events: Vec<EventRow>,
     /// Its drift-control measurements.
     pub drift: Vec<DriftPoint>,
+    /// Its check points between the targets (issue 20), when it has them.
+    pub checks: Vec<Sample>,
 }
 
 /// Read what `survey show` shows of survey `r` (the latest when `None`).
@@ -53,7 +55,8 @@ pub async fn shown(store: &Store, r: Option<SurveyRef>) -> anyhow::Result<Shown>
     let survey = store.resolve(r).await?;
     let events = store.events(survey.id).await?;
     let drift = store.drift_points(survey.id).await?;
-    Ok(Shown { survey, events, drift })
+    let checks = store.check_points(survey.id).await?;
+    Ok(Shown { survey, events, drift, checks })
 }
 
 impl Shown {
@@ -87,7 +90,18 @@ impl Shown {
                 .collect::<Vec<_>>()
         );
         doc["drift"] = crate::drift::json(r, &self.drift);
+        // Check points measured between the targets (issue 20): their angles, as many times as measured.
+        doc["check_points"] = json!({"samples": self.checks.len(), "targets_deg": self.check_angles()});
+        doc["resolves_survey"] = json!(r.resolves);
         doc
+    }
+
+    /// The angles of the check points, each once, in order.
+    pub fn check_angles(&self) -> Vec<f64> {
+        let mut at: Vec<f64> = self.checks.iter().map(|c| c.target_deg).collect();
+        at.sort_by(f64::total_cmp);
+        at.dedup();
+        at
     }
 }
 
@@ -173,6 +187,7 @@ impl Stats {
     pub fn json(&self, loaded: &Loaded) -> Value {
         let survey = &loaded.survey;
         let mut doc = iso_json(survey.id, &self.iso);
+        doc["axis"] = loaded.axis_used().as_str().into();
         doc["complete"] = self.completion.as_ref().is_none_or(|c| c.complete).into();
         doc["status"] = survey.status.as_str().into();
         if let Some(c) = &self.completion {

@@ -63,7 +63,8 @@ impl PathError {
 }
 
 /// Whether the user's input caused `err`: some cause in its chain is an input
-/// error ([`BadInput`], the store's [`NotFound`], a [`Damaged`] survey record,
+/// error ([`BadInput`], a usage error the command line found after parsing
+/// ([`clap::Error`]), the store's [`NotFound`], a [`Damaged`] survey record,
 /// a defect of a configuration, model, recipe or CSV file, a plan that cannot
 /// be made, a path that cannot be used, an export choice that cannot be
 /// honoured, data that cannot be processed, compared with a model or give
@@ -84,6 +85,7 @@ pub fn is_bad_input(err: &anyhow::Error) -> bool {
             || c.is::<PipelineError>()
             || c.is::<ModelGapError>()
             || c.is::<StatsError>()
+            || c.is::<clap::Error>()
     })
 }
 

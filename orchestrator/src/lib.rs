@@ -30,6 +30,7 @@ pub mod process;
 pub mod progress;
 pub mod refit;
 pub mod report;
+pub mod resolving;
 pub mod runtime;
 pub mod serve;
 pub mod session;

@@ -10,7 +10,7 @@
 //!
 //! The text forms are those the store has always written, so databases made
 //! by earlier versions read unchanged: `source` is `simulated`,
-//! `instruments`, `verification` or `import:<file>`; `config_json` holds the
+//! `instruments`, `verification`, `resolving` or `import:<file>`; `config_json` holds the
 //! [`SimulatedSetup`] or [`ConfiguredSetup`] (a verification survey holds the
 //! setup of the survey it verifies), `{"imported_from": ...}` for an import,
 //! or `{}` when nothing was recorded.
@@ -34,6 +34,10 @@ pub enum SurveySource {
     Instruments,
     /// Acquired with a correction table applied (`survey run --verify`).
     Verification,
+    /// Check points between the targets of another survey, measured to
+    /// decide the lines its analysis left in doubt (`survey run` with a
+    /// tracker, [`crate::resolving`]).
+    Resolving,
     /// Imported from a CSV file.
     Import {
         /// The file, as it was named on the command line.
@@ -48,6 +52,7 @@ impl SurveySource {
             SurveySource::Simulated => "simulated".into(),
             SurveySource::Instruments => "instruments".into(),
             SurveySource::Verification => "verification".into(),
+            SurveySource::Resolving => "resolving".into(),
             SurveySource::Import { file } => format!("import:{file}"),
         }
     }
@@ -58,6 +63,7 @@ impl SurveySource {
             "simulated" => Some(SurveySource::Simulated),
             "instruments" => Some(SurveySource::Instruments),
             "verification" => Some(SurveySource::Verification),
+            "resolving" => Some(SurveySource::Resolving),
             other => other.strip_prefix("import:").map(|f| SurveySource::Import { file: f.to_string() }),
         }
     }
@@ -74,6 +80,7 @@ impl fmt::Display for SurveySource {
             SurveySource::Simulated => f.write_str("simulated instruments"),
             SurveySource::Instruments => f.write_str("instruments"),
             SurveySource::Verification => f.write_str("verification of a correction table"),
+            SurveySource::Resolving => f.write_str("check points deciding another survey's lines"),
             SurveySource::Import { file } => write!(f, "imported from {file}"),
         }
     }
@@ -128,6 +135,17 @@ pub enum Setup {
 }
 
 impl Setup {
+    /// How many times faster than real time the instruments ran: a
+    /// configuration's `[timing] time_scale` (a rehearsal on `survey sim
+    /// --time-scale X`); 1 for the simulated bench, whose virtual clock is
+    /// its instruments' own.
+    pub fn time_scale(&self) -> f64 {
+        match self {
+            Setup::Configured(c) => c.config.time_scale(),
+            _ => 1.0,
+        }
+    }
+
     /// The plan, when the survey was acquired.
     pub fn plan(&self) -> Option<&SurveyPlan> {
         match self {
@@ -170,7 +188,7 @@ impl Setup {
         match source {
             SurveySource::Simulated => simulated().map_err(|e| e.to_string()),
             SurveySource::Instruments => configured().map_err(|e| e.to_string()),
-            SurveySource::Verification => simulated()
+            SurveySource::Verification | SurveySource::Resolving => simulated()
                 .or_else(|_| configured())
                 .map_err(|e| format!("neither a simulated nor a configured setup: {e}")),
             SurveySource::Import { file } => Ok(Setup::Imported {
@@ -355,6 +373,8 @@ pub struct SurveyRecord {
     pub instruments: serde_json::Value,
     /// What a verification survey verifies.
     pub verification: Option<VerificationOf>,
+    /// The survey whose doubts a resolving survey's check points decide.
+    pub resolves: Option<i64>,
     /// Instrument time when acquisition started, seconds.
     pub started_at_s: Option<f64>,
     /// Instrument time when acquisition ended, seconds.
@@ -424,6 +444,14 @@ impl SurveyRecord {
             ),
             _ => None,
         };
+        let resolves = match source {
+            SurveySource::Resolving => Some(
+                instruments["resolves_survey"]
+                    .as_i64()
+                    .ok_or_else(|| damaged("resolved survey", "no resolves_survey id".into()))?,
+            ),
+            _ => None,
+        };
         Ok(SurveyRecord {
             id: c.id,
             uid: c.uid,
@@ -441,6 +469,7 @@ impl SurveyRecord {
             axis,
             instruments,
             verification,
+            resolves,
             started_at_s: c.started_at_s,
             ended_at_s: c.ended_at_s,
             planned_samples: c.planned_samples,

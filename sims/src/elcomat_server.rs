@@ -18,52 +18,24 @@
 //! decimals. The no-reflection replies (`4 000`, `2 100`) are this
 //! simulator's convention (validity digit 0), not a documented one.
 //!
-//! # Fault injection ([`ElcomatFaults`])
+//! # Faults
 //!
-//! Requests (valid `a`/`r` commands) are counted from 1. Per request, in this
-//! order:
-//!
-//! - `close_on`: the port is closed after the command is read, without a
-//!   reply (the driver sees a disconnection);
-//! - `truncate_and_close_on`: the first half of the reply line is sent with no
-//!   line end, then the port is closed;
-//! - `drop_reply_on` or probability `drop_probability`: the measurement is
-//!   taken but no reply is sent (the driver times out);
-//! - `garble_on` or probability `garble_probability`: a garbled line (non-ASCII
-//!   bytes in the status field) is sent instead of the reply.
-//!
-//! The random draws come from the fault stream of `seed`, two per request
-//! whatever happens, so a run is reproducible and the noise of the readings
-//! does not depend on the faults.
+//! Link faults are the [`relay`](crate::relay)'s in front of the instrument
+//! ([`garbled`]: the ELCOMAT way to garble a reply, non-ASCII bytes in the
+//! status field). Its device fault is the simulated autocollimator's own: no
+//! reflection (a blocked view, [`SimAutocollimator`]).
 
 use crate::autocollimator::{CODE_NO_REFLECTION, SimAutocollimator};
-use crate::{FAULT_STREAM, seeded_rng};
-use rand::Rng;
+use crate::faults::{Fault, Garble};
+use crate::serve::{self, Answer, Codec, Service};
+use async_trait::async_trait;
 use std::sync::Mutex;
-use survey_drivers::elcomat::{Command, CommandDecoder, Reply, encode_reply};
+use survey_drivers::elcomat::{Command, CommandDecoder, DecodeError, Reply, encode_reply};
 use survey_drivers::error::ErrorKind;
 use survey_drivers::traits::Autocollimator;
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncWrite};
 
-/// Faults to inject; none by default. Scheduled faults name requests counted
-/// from 1.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct ElcomatFaults {
-    /// Seed of the random faults.
-    pub seed: u64,
-    /// Probability that a reply is dropped.
-    pub drop_probability: f64,
-    /// Probability that a reply is replaced by a garbled line.
-    pub garble_probability: f64,
-    /// Drop the reply to these requests.
-    pub drop_reply_on: Vec<usize>,
-    /// Send a garbled line instead of the reply to these requests.
-    pub garble_on: Vec<usize>,
-    /// Send half of the reply to this request, then close the port.
-    pub truncate_and_close_on: Option<usize>,
-    /// Close the port on this request, before replying.
-    pub close_on: Option<usize>,
-}
+pub use crate::serve::ServeEnd;
 
 /// Settings of [`serve_with`].
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -71,20 +43,6 @@ pub struct ElcomatOptions {
     /// The zero that `r` readings are relative to, arcsec `(X0, Y0)` (the real
     /// instrument stores one; default `(0, 0)`).
     pub relative_zero_arcsec: (f64, f64),
-    /// Faults to inject.
-    pub faults: ElcomatFaults,
-}
-
-/// Why [`serve`] returned.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ServeEnd {
-    /// End of file from the peer.
-    PeerClosed,
-    /// A read or write failed (a pty master reads EIO once the other side is
-    /// closed).
-    LinkError(std::io::ErrorKind),
-    /// An injected fault closed the port.
-    ClosedByFault,
 }
 
 /// What [`serve`] did.
@@ -92,93 +50,81 @@ pub enum ServeEnd {
 pub struct ServeReport {
     /// Valid commands received.
     pub requests: usize,
-    /// Replies sent in full (valid, no-reflection or garbled).
+    /// Replies sent (valid or no-reflection).
     pub replies: usize,
     /// Why it returned.
     pub end: ServeEnd,
 }
 
-/// Serve `instrument` over `stream` with `faults` and a relative zero of
-/// `(0, 0)`, until the peer closes or a fault closes the port. The stream is
-/// dropped (the port closed) on return.
-pub async fn serve<S>(stream: S, instrument: SimAutocollimator, faults: ElcomatFaults) -> ServeReport
+/// The ELCOMAT way to garble a reply, for the relay in front of it: a line
+/// with non-ASCII bytes in the status field.
+pub fn garbled() -> Fault {
+    Fault::Garble(Garble::edit("ELCOMAT status field garbled", |line: &[u8]| {
+        let digit = *line.first()?;
+        Some(vec![digit, b' ', b'0', 0xFF, b'3', b' ', b'#', b'?', b'\r', b'\n'])
+    }))
+}
+
+/// Serve `instrument` over `stream` with a relative zero of `(0, 0)`, until
+/// the peer closes or the link fails. The stream is dropped (the port
+/// closed) on return.
+pub async fn serve<S>(stream: S, instrument: SimAutocollimator) -> ServeReport
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    serve_with(stream, instrument, ElcomatOptions { faults, ..ElcomatOptions::default() }).await
+    serve_with(stream, instrument, ElcomatOptions::default()).await
 }
 
 /// [`serve`] with all the settings.
-pub async fn serve_with<S>(mut stream: S, mut instrument: SimAutocollimator, options: ElcomatOptions) -> ServeReport
+pub async fn serve_with<S>(stream: S, instrument: SimAutocollimator, options: ElcomatOptions) -> ServeReport
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    let faults = &options.faults;
-    let mut rng = seeded_rng(faults.seed, FAULT_STREAM);
-    let mut decoder = CommandDecoder::new();
-    let mut buf = [0u8; 256];
-    let mut report = ServeReport { requests: 0, replies: 0, end: ServeEnd::PeerClosed };
-    loop {
-        while let Some(item) = decoder.next_command() {
-            let cmd = match item {
-                Ok(cmd) => cmd,
-                Err(e) => {
-                    tracing::debug!(error = %e, "sim ELCOMAT ignores a line");
-                    continue;
-                }
-            };
-            report.requests += 1;
-            let n = report.requests;
-            if faults.close_on == Some(n) {
-                tracing::debug!(request = n, "sim ELCOMAT closes the port (injected)");
-                report.end = ServeEnd::ClosedByFault;
-                return report;
-            }
-            let Some(reply) = measure(&mut instrument, cmd, options.relative_zero_arcsec).await else {
-                continue;
-            };
-            let mut line = encode_reply(&reply);
-            let (u_drop, u_garble): (f64, f64) = (rng.random(), rng.random());
-            if faults.truncate_and_close_on == Some(n) {
-                line.truncate((line.len() - 2) / 2);
-                tracing::debug!(request = n, sent = %String::from_utf8_lossy(&line), "sim ELCOMAT sends half a line and closes (injected)");
-                let _ = stream.write_all(&line).await;
-                let _ = stream.flush().await;
-                report.end = ServeEnd::ClosedByFault;
-                return report;
-            }
-            if faults.drop_reply_on.contains(&n) || u_drop < faults.drop_probability {
-                tracing::debug!(request = n, "sim ELCOMAT drops its reply (injected)");
-                continue;
-            }
-            if faults.garble_on.contains(&n) || u_garble < faults.garble_probability {
-                tracing::debug!(request = n, "sim ELCOMAT garbles its reply (injected)");
-                line = vec![reply.kind.type_digit() as u8, b' ', b'0', 0xFF, b'3', b' ', b'#', b'?', b'\r', b'\n'];
-            }
-            if let Err(e) = write_line(&mut stream, &line).await {
-                report.end = ServeEnd::LinkError(e.kind());
-                return report;
-            }
-            report.replies += 1;
-        }
-        match stream.read(&mut buf).await {
-            Ok(0) => {
-                report.end = ServeEnd::PeerClosed;
-                return report;
-            }
-            Ok(k) => decoder.push(&buf[..k]),
-            Err(e) => {
-                tracing::debug!(error = %e, "sim ELCOMAT link closed");
-                report.end = ServeEnd::LinkError(e.kind());
-                return report;
-            }
-        }
+    let mut elcomat = Elcomat { instrument, zero: options.relative_zero_arcsec, requests: 0, replies: 0 };
+    let end = serve::serve_stream(stream, CommandDecoder::new(), &mut elcomat).await;
+    ServeReport { requests: elcomat.requests, replies: elcomat.replies, end }
+}
+
+/// The instrument: commands in, reply lines out.
+struct Elcomat {
+    instrument: SimAutocollimator,
+    zero: (f64, f64),
+    requests: usize,
+    replies: usize,
+}
+
+impl Codec for CommandDecoder {
+    type Item = Result<Command, DecodeError>;
+    fn push(&mut self, bytes: &[u8]) {
+        CommandDecoder::push(self, bytes);
+    }
+    fn next_item(&mut self) -> Option<Self::Item> {
+        self.next_command()
     }
 }
 
-async fn write_line<S: AsyncWrite + Unpin>(stream: &mut S, line: &[u8]) -> std::io::Result<()> {
-    stream.write_all(line).await?;
-    stream.flush().await
+#[async_trait]
+impl Service for Elcomat {
+    type Request = Result<Command, DecodeError>;
+    type Reply = Vec<u8>;
+
+    async fn call(&mut self, command: Self::Request) -> Answer<Vec<u8>> {
+        let command = match command {
+            Ok(c) => c,
+            Err(e) => {
+                tracing::debug!(error = %e, "sim ELCOMAT ignores a line");
+                return Answer::Nothing;
+            }
+        };
+        self.requests += 1;
+        match measure(&mut self.instrument, command, self.zero).await {
+            Some(reply) => {
+                self.replies += 1;
+                Answer::Send(encode_reply(&reply))
+            }
+            None => Answer::Nothing,
+        }
+    }
 }
 
 /// One measurement for `cmd`: the reply, or `None` when the simulated
@@ -215,6 +161,8 @@ pub fn pty_pair() -> std::io::Result<(tokio_serial::SerialStream, tokio_serial::
 mod tests {
     use super::*;
     use crate::autocollimator::AutocollimatorConfig;
+    use crate::faults::{FaultRates, Faults};
+    use crate::relay::{Ended, Framing, Relay, pty_relay};
     use crate::turntable::Turntable;
     use std::sync::Arc;
     use std::time::Duration;
@@ -234,22 +182,28 @@ mod tests {
         cfg: AutocollimatorConfig,
         driver: ElcomatDriver<SerialStream>,
         server: JoinHandle<ServeReport>,
+        /// The relay's link faults.
+        faults: Faults,
+        relay: JoinHandle<Ended>,
     }
 
-    /// The simulator on the pty master, the driver on the slave.
-    fn rig(seed: u64, options: ElcomatOptions) -> Rig {
+    /// The simulator on a pty master, a relay between it and the driver's
+    /// line (its link faults: armed, and at `rates`).
+    fn rig_with(seed: u64, options: ElcomatOptions, rates: FaultRates) -> Rig {
         let clock = VirtualClock::new();
         let table = Turntable::new(0.0);
         let cfg = AutocollimatorConfig::seeded(24, seed);
         let ac = SimAutocollimator::new(cfg.clone(), Arc::new(clock), table.clone());
-        let (master, slave) = pty_pair().expect("pty pair");
+        let faults = Faults::new();
+        let relay = Relay { rates, seed, ..Relay::armed(faults.clone(), Framing::Lines) };
+        let (slave, master, relay) = pty_relay(relay);
         let server = tokio::spawn(serve_with(master, ac, options));
         let driver = ElcomatDriver::new(slave).with_timeout(TIMEOUT).with_name("elcomat-test");
-        Rig { table, cfg, driver, server }
+        Rig { table, cfg, driver, server, faults, relay }
     }
 
-    fn faults(f: ElcomatFaults) -> ElcomatOptions {
-        ElcomatOptions { faults: f, ..ElcomatOptions::default() }
+    fn rig(seed: u64, options: ElcomatOptions) -> Rig {
+        rig_with(seed, options, FaultRates::default())
     }
 
     /// Place the table `off_arcsec` from face `k`; the expected (X, Y) by the
@@ -278,7 +232,7 @@ mod tests {
     #[tokio::test]
     async fn relative_readings_are_taken_from_the_stored_zero() {
         let zero = (150.0, -40.0);
-        let mut rig = rig(3, ElcomatOptions { relative_zero_arcsec: zero, ..ElcomatOptions::default() });
+        let mut rig = rig(3, ElcomatOptions { relative_zero_arcsec: zero });
         let (x, y) = place(&rig, 4, 300.0);
         let rel = rig.driver.read_relative().await.unwrap();
         assert_near(rel, (x - zero.0, y - zero.1));
@@ -307,7 +261,8 @@ mod tests {
 
     #[tokio::test]
     async fn a_dropped_reply_times_out_and_the_next_request_works() {
-        let mut rig = rig(2, faults(ElcomatFaults { drop_reply_on: vec![1], ..ElcomatFaults::default() }));
+        let mut rig = rig(2, ElcomatOptions::default());
+        rig.faults.arm(Fault::Drop);
         let want = place(&rig, 6, 55.0);
         let t0 = std::time::Instant::now();
         let e = rig.driver.read().await.unwrap_err();
@@ -318,7 +273,9 @@ mod tests {
 
     #[tokio::test]
     async fn a_garbled_line_is_garbled_and_the_next_request_works() {
-        let mut rig = rig(4, faults(ElcomatFaults { garble_on: vec![2], ..ElcomatFaults::default() }));
+        let mut rig = rig(4, ElcomatOptions::default());
+        rig.faults.arm(Fault::Pass);
+        rig.faults.arm(garbled());
         let want = place(&rig, 9, -12.0);
         assert_near(rig.driver.read().await.unwrap(), want);
         let e = rig.driver.read().await.unwrap_err();
@@ -332,19 +289,22 @@ mod tests {
     /// hangup, end of file with a partial line is a disconnection.
     #[tokio::test]
     async fn a_truncated_line_then_close_is_disconnected() {
-        let mut rig = rig(5, faults(ElcomatFaults { truncate_and_close_on: Some(2), ..ElcomatFaults::default() }));
+        let mut rig = rig(5, ElcomatOptions::default());
+        rig.faults.arm(Fault::Pass);
+        rig.faults.arm(Fault::Disconnect);
         let want = place(&rig, 0, 20.0);
         assert_near(rig.driver.read().await.unwrap(), want);
         let e = rig.driver.read().await.unwrap_err();
         assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
         let e = rig.driver.read().await.unwrap_err();
         assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
-        assert_eq!(rig.server.await.unwrap().end, ServeEnd::ClosedByFault);
+        assert_eq!(rig.relay.await.unwrap(), Ended::Disconnect, "the relay cut the line");
     }
 
     #[tokio::test]
     async fn closing_mid_exchange_is_disconnected_not_a_timeout() {
-        let mut rig = rig(6, faults(ElcomatFaults { close_on: Some(1), ..ElcomatFaults::default() }));
+        let mut rig = rig(6, ElcomatOptions::default());
+        rig.faults.arm(Fault::Disconnect);
         place(&rig, 1, 0.0);
         let e = rig.driver.read().await.unwrap_err();
         assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
@@ -353,13 +313,8 @@ mod tests {
 
     #[tokio::test]
     async fn random_faults_are_link_faults_and_never_wrong_readings() {
-        let options = faults(ElcomatFaults {
-            seed: 11,
-            drop_probability: 0.1,
-            garble_probability: 0.15,
-            ..ElcomatFaults::default()
-        });
-        let mut rig = rig(8, options);
+        let rates = FaultRates { timeout: 0.1, garbled: 0.15, ..FaultRates::default() };
+        let mut rig = rig_with(8, ElcomatOptions::default(), rates);
         let (mut ok, mut failed) = (0, 0);
         for i in 0..30 {
             let want = place(&rig, i % 24, (i as f64 * 37.0) % 900.0 - 450.0);
@@ -390,7 +345,7 @@ mod tests {
         // slave is open).
         drop(slave);
         let mut driver = ElcomatDriver::open_serial(&path, 115_200).unwrap().with_timeout(TIMEOUT);
-        tokio::spawn(serve(master, ac, ElcomatFaults::default()));
+        tokio::spawn(serve(master, ac));
         assert_eq!(survey_drivers::traits::Autocollimator::name(&driver), format!("elcomat {path}"));
         table.place(cfg.nominal_deg(3) + 100.0 / 3600.0);
         let r = driver.read().await.unwrap();

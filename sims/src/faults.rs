@@ -1,84 +1,212 @@
-//! What the fault-injection handles of the protocol simulators have in common:
-//! a plan of armed faults behind a cheap handle that a test and a server share
-//! ([`FaultPlan`]), and the count of the next requests or replies an armed fault
-//! still applies to ([`Countdown`]).
-//!
-//! Each server keeps its own handle ([`ScpiFaults`](crate::scpi_server::ScpiFaults),
-//! [`EmsconFaults`](crate::emscon_server::EmsconFaults),
-//! [`ModbusFaults`](crate::modbus_server::ModbusFaults),
-//! [`NodeFaults`](crate::canopen_node::NodeFaults)) with its own arming
-//! methods and its own plan: what can be armed, and in which order the armed
-//! faults are checked, is each protocol's. A one-shot fault ("close during the
-//! next reply") is a `bool` taken with [`std::mem::take`], and faults armed one
-//! per call ("reject the next command with this code") queue in a
-//! [`VecDeque`](std::collections::VecDeque).
+//! The one fault vocabulary of the simulated instruments and the relays in
+//! front of them: a [`Fault`] names what goes wrong with one reply (a link
+//! fault, injected by a [`relay`](crate::relay) only) or with one request (a
+//! device fault, injected by the simulator that answers it only); a
+//! [`Faults`] handle, shared by the test (or `survey sim`), the relay and the
+//! simulator, holds the faults armed and counts every fault injected
+//! ([`Injected`], by [`FaultKind`]). Faults at a rate ([`FaultRates`]) are
+//! drawn by the relay, which arms the device faults it draws in the
+//! simulator behind it through the same handle.
 
+use std::collections::VecDeque;
 use std::fmt;
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+use survey_drivers::traits::DeviceFault;
 
-/// A plan of armed faults `P`, shared by clones: the test arms faults on its
-/// clone, the server takes them from its own.
-pub struct FaultPlan<P> {
-    plan: Arc<Mutex<P>>,
+/// One fault to inject.
+#[derive(Clone)]
+pub enum Fault {
+    /// Link: the reply is lost (the client's deadline fires).
+    Drop,
+    /// Link: the reply is changed ([`Garble`]).
+    Garble(Garble),
+    /// Link: the link closes halfway through the reply.
+    Disconnect,
+    /// Link: the reply is held this long, then delivered (a late reply: it
+    /// must not be taken for the next request's).
+    Stall(Duration),
+    /// Link: these bytes follow the reply at once (a duplicated or stale
+    /// answer the client must not take for its next reply).
+    Trailing(Vec<u8>),
+    /// Link: the reply passes unharmed (the faults armed after it land on
+    /// the replies after it).
+    Pass,
+    /// Device: the next request (on an SCPI controller, the next axis
+    /// command) is not executed and is refused with the instrument's own
+    /// fault code and text; `None`: the instrument's usual device fault (a
+    /// Modbus exception 4, SDO abort 0x06060000, SCPI error -310, emScon
+    /// `ES_RS_SensorNotStable`).
+    Refuse(Option<DeviceFault>),
+    /// Device: as [`Fault::Refuse`], in the protocol's error message where
+    /// it has one besides the command's own answer (emScon's
+    /// `ErrorResponseT`); elsewhere the same as `Refuse`.
+    RefuseWithError(DeviceFault),
+    /// Device: at the next request the axis latches this fault and stops.
+    Trip(DeviceFault),
+    /// Device: an unsolicited state change announced before the next answer
+    /// (an emScon `SystemStatusChangeT`); the instrument's state does not change.
+    Event(i64),
+    /// Device: the n-th write from now (1: the next) is acknowledged but
+    /// lost inside the device.
+    LoseWrite(usize),
 }
 
-impl<P> FaultPlan<P> {
-    /// Lock the plan. A lock poisoned by a panicking test is taken over: a plan
-    /// is plain data, consistent after every statement.
-    pub fn lock(&self) -> MutexGuard<'_, P> {
-        self.plan.lock().unwrap_or_else(|p| p.into_inner())
+impl Fault {
+    /// Whether a relay injects it (a reply's fault); else the simulator does.
+    pub fn is_link(&self) -> bool {
+        matches!(
+            self,
+            Fault::Drop | Fault::Garble(_) | Fault::Disconnect | Fault::Stall(_) | Fault::Trailing(_) | Fault::Pass
+        )
+    }
+
+    /// The kind it is counted as (`None`: [`Fault::Pass`]).
+    pub fn kind(&self) -> Option<FaultKind> {
+        Some(match self {
+            Fault::Drop => FaultKind::Timeout,
+            Fault::Garble(_) => FaultKind::Garbled,
+            Fault::Disconnect => FaultKind::Disconnect,
+            Fault::Stall(_) | Fault::Trailing(_) => FaultKind::Stall,
+            Fault::Pass => return None,
+            Fault::Refuse(_) | Fault::RefuseWithError(_) | Fault::Trip(_) | Fault::Event(_) | Fault::LoseWrite(_) => {
+                FaultKind::Device
+            }
+        })
     }
 }
 
-impl<P: Default> Default for FaultPlan<P> {
-    /// A new plan with nothing armed (`P::default()`).
-    fn default() -> Self {
-        Self { plan: Arc::default() }
-    }
-}
-
-impl<P> Clone for FaultPlan<P> {
-    /// Another handle on the same plan.
-    fn clone(&self) -> Self {
-        Self { plan: Arc::clone(&self.plan) }
-    }
-}
-
-impl<P: fmt::Debug> fmt::Debug for FaultPlan<P> {
-    /// As the shared mutex it wraps.
+impl fmt::Debug for Fault {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.plan.fmt(f)
-    }
-}
-
-/// How many of the next requests (or replies) an armed fault applies to, e.g.
-/// "drop the next `n` replies". Arming adds up; each [`take`](Self::take) that
-/// finds one left uses it.
-#[derive(Clone, Copy, Default, PartialEq, Eq)]
-pub struct Countdown(usize);
-
-impl Countdown {
-    /// Apply the fault to `n` more.
-    pub fn add(&mut self, n: usize) {
-        self.0 += n;
-    }
-
-    /// Whether the fault applies to this request (or reply); if it does, it is
-    /// used up once.
-    pub fn take(&mut self) -> bool {
-        if self.0 > 0 {
-            self.0 -= 1;
-            true
-        } else {
-            false
+        match self {
+            Fault::Drop => f.write_str("Drop"),
+            Fault::Garble(g) => write!(f, "Garble({g:?})"),
+            Fault::Disconnect => f.write_str("Disconnect"),
+            Fault::Stall(d) => write!(f, "Stall({d:?})"),
+            Fault::Trailing(b) => write!(f, "Trailing({:?})", String::from_utf8_lossy(b)),
+            Fault::Pass => f.write_str("Pass"),
+            Fault::Refuse(d) => write!(f, "Refuse({d:?})"),
+            Fault::RefuseWithError(d) => write!(f, "RefuseWithError({d:?})"),
+            Fault::Trip(d) => write!(f, "Trip({d:?})"),
+            Fault::Event(e) => write!(f, "Event({e})"),
+            Fault::LoseWrite(n) => write!(f, "LoseWrite({n})"),
         }
     }
 }
 
-impl fmt::Debug for Countdown {
-    /// As the count.
+/// How a reply is garbled.
+#[derive(Clone)]
+pub enum Garble {
+    /// One byte XOR 0x5A, at a place drawn from the relay's fault stream
+    /// (what the rates inject).
+    Byte,
+    /// The instrument's own way, named: the garbled reply, or `None` when it
+    /// does not fit this reply (the fault then waits for the next reply it
+    /// fits). Each simulator offers its own (`scpi_server::garbled`, ...).
+    Edit(&'static str, Edit),
+}
+
+/// A reply's edit: the garbled reply, or `None` when it does not fit.
+pub type Edit = Arc<dyn Fn(&[u8]) -> Option<Vec<u8>> + Send + Sync>;
+
+impl Garble {
+    /// An edit named `name` (see [`Garble::Edit`]).
+    pub fn edit(name: &'static str, f: impl Fn(&[u8]) -> Option<Vec<u8>> + Send + Sync + 'static) -> Garble {
+        Garble::Edit(name, Arc::new(f))
+    }
+}
+
+impl fmt::Debug for Garble {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        self.0.fmt(f)
+        match self {
+            Garble::Byte => f.write_str("Byte"),
+            Garble::Edit(name, _) => f.write_str(name),
+        }
+    }
+}
+
+/// The faults armed and the counts: a cheap handle, shared by clones (the
+/// test arms on its clone, the relay and the simulator take from theirs).
+/// Armed faults apply in the order armed, each to the next reply (link) or
+/// the next request it fits (device).
+#[derive(Clone, Default)]
+pub struct Faults {
+    armed: Arc<Mutex<Armed>>,
+    injected: Injected,
+}
+
+#[derive(Default)]
+struct Armed {
+    link: VecDeque<Fault>,
+    device: VecDeque<Fault>,
+}
+
+impl fmt::Debug for Faults {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let a = self.lock();
+        f.debug_struct("Faults").field("link", &a.link).field("device", &a.device).finish_non_exhaustive()
+    }
+}
+
+impl Faults {
+    /// Nothing armed, counts at zero.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Nothing armed; the faults injected are counted in `injected` (a
+    /// count shared with other handles and simulators).
+    pub fn counting(injected: Injected) -> Self {
+        Self { armed: Arc::default(), injected }
+    }
+
+    /// A poisoned lock (a panicking test) is taken over: the plan is plain
+    /// data, consistent after every statement.
+    fn lock(&self) -> MutexGuard<'_, Armed> {
+        self.armed.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Arm `fault` after those already armed.
+    pub fn arm(&self, fault: Fault) {
+        let mut a = self.lock();
+        if fault.is_link() { a.link.push_back(fault) } else { a.device.push_back(fault) }
+    }
+
+    /// Arm `fault` `n` times.
+    pub fn arm_n(&self, fault: Fault, n: usize) {
+        for _ in 0..n {
+            self.arm(fault.clone());
+        }
+    }
+
+    /// The counts of the faults injected.
+    pub fn injected(&self) -> &Injected {
+        &self.injected
+    }
+
+    /// For a relay: the next armed link fault, if any, taken out and counted
+    /// when `apply` applies it (`apply` returns `None` when the fault does
+    /// not fit this reply: it stays armed).
+    pub fn next_link<T>(&self, apply: impl FnOnce(&Fault) -> Option<T>) -> Option<T> {
+        let mut a = self.lock();
+        let applied = apply(a.link.front()?)?;
+        if let Some(kind) = a.link.pop_front().and_then(|f| f.kind()) {
+            self.injected.add(kind);
+        }
+        Some(applied)
+    }
+
+    /// For a simulator: the first armed device fault `fits` this request,
+    /// taken out and counted (`fits` may step a fault that waits for its
+    /// turn, as [`Fault::LoseWrite`] counts writes down).
+    pub fn take_device(&self, fits: impl FnMut(&mut Fault) -> bool) -> Option<Fault> {
+        let mut a = self.lock();
+        let at = a.device.iter_mut().position(fits)?;
+        let fault = a.device.remove(at)?;
+        if let Some(kind) = fault.kind() {
+            self.injected.add(kind);
+        }
+        Some(fault)
     }
 }
 
@@ -252,7 +380,7 @@ impl FaultRates {
 /// given a handle counts each fault it injects.
 #[derive(Debug, Clone, Default)]
 pub struct Injected {
-    counts: Arc<[std::sync::atomic::AtomicU64; 7]>,
+    counts: Arc<[std::sync::atomic::AtomicU64; 8]>,
 }
 
 impl Injected {
@@ -269,6 +397,16 @@ impl Injected {
     /// The count of one kind.
     pub fn get(&self, kind: FaultKind) -> u64 {
         self.counts[kind.index()].load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Count one reply that passed a relay (faulted or not).
+    pub fn count_reply(&self) {
+        self.counts[7].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// The replies that passed the relays counting here.
+    pub fn replies(&self) -> u64 {
+        self.counts[7].load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// Every fault counted.

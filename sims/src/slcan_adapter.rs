@@ -12,9 +12,11 @@
 //! go to the host as `tiiildd..` CR while the channel is open (listen-only
 //! refuses transmits with BEL). Anything else is answered with BEL.
 
+use crate::serve::{self, Answer, Codec, Service};
+use async_trait::async_trait;
 use survey_drivers::canopen::frame::CanBus;
-use survey_drivers::canopen::slcan::{LineDecoder, Message};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use survey_drivers::canopen::slcan::{LineDecoder, Message, SlcanError};
+use tokio::io::{AsyncRead, AsyncWrite};
 
 /// The adapter's version answer (`V1013`: hardware 10, software 13).
 pub const VERSION: (u8, u8) = (10, 13);
@@ -37,99 +39,97 @@ enum Channel {
     ListenOnly,
 }
 
+/// The adapter: the host's lines in, the answers out; the frames of the bus
+/// behind it passed to the host of its own accord.
+struct Adapter<B> {
+    bus: B,
+    channel: Channel,
+    bitrate: Option<u8>,
+    report: AdapterReport,
+}
+
+impl Codec for LineDecoder {
+    type Item = Result<Vec<u8>, SlcanError>;
+    fn push(&mut self, bytes: &[u8]) {
+        LineDecoder::push(self, bytes);
+    }
+    fn next_item(&mut self) -> Option<Self::Item> {
+        self.next_line()
+    }
+}
+
 /// Serve the adapter until the host side closes or the bus fails.
-pub async fn serve_adapter<S, B>(mut host: S, mut bus: B) -> AdapterReport
+pub async fn serve_adapter<S, B>(host: S, bus: B) -> AdapterReport
 where
     S: AsyncRead + AsyncWrite + Unpin,
     B: CanBus,
 {
-    let mut report = AdapterReport::default();
-    let mut decoder = LineDecoder::new();
-    let mut channel = Channel::Closed;
-    let mut bitrate: Option<u8> = None;
-    let mut buf = [0u8; 512];
-    loop {
-        tokio::select! {
-            read = host.read(&mut buf) => {
-                let n = match read {
-                    Ok(0) | Err(_) => return report,
-                    Ok(n) => n,
-                };
-                decoder.push(&buf[..n]);
-                let mut out = Vec::new();
-                while let Some(line) = decoder.next_line() {
-                    let reply = match line.map(|l| (String::from_utf8_lossy(&l).into_owned(), Message::parse(&l))) {
-                        Err(_) => Message::Error,
-                        Ok((text, parsed)) => {
-                            if !text.is_empty() {
-                                report.commands.push(text);
-                            }
-                            match (parsed, channel) {
-                                (Ok(Message::Ok), _) => continue, // a stray CR
-                                (Ok(Message::Bitrate(n)), Channel::Closed) if n <= 9 => {
-                                    bitrate = Some(n);
-                                    Message::Ok
-                                }
-                                (Ok(Message::Open), Channel::Closed) if bitrate.is_some() => {
-                                    channel = Channel::Open;
-                                    Message::Ok
-                                }
-                                (Ok(Message::ListenOnly), Channel::Closed) if bitrate.is_some() => {
-                                    channel = Channel::ListenOnly;
-                                    Message::Ok
-                                }
-                                (Ok(Message::Close), Channel::Open | Channel::ListenOnly) => {
-                                    channel = Channel::Closed;
-                                    Message::Ok
-                                }
-                                (Ok(Message::Version(None)), _) => {
-                                    out.extend(Message::Version(Some(VERSION)).encode());
-                                    continue;
-                                }
-                                (Ok(Message::Serial(None)), _) => {
-                                    out.extend(Message::Serial(Some(*b"SIM1")).encode());
-                                    continue;
-                                }
-                                (Ok(Message::Status(None)), _) => {
-                                    out.extend(Message::Status(Some(0)).encode());
-                                    continue;
-                                }
-                                (Ok(Message::Frame(f)), Channel::Open) => {
-                                    if bus.send(f).await.is_err() {
-                                        return report;
-                                    }
-                                    report.to_bus += 1;
-                                    Message::TransmitAck
-                                }
-                                _ => Message::Error,
-                            }
-                        }
-                    };
-                    out.extend(reply.encode());
-                }
-                if !out.is_empty() && (host.write_all(&out).await.is_err() || host.flush().await.is_err()) {
-                    return report;
-                }
-            }
-            frame = bus.recv() => {
-                let Ok(frame) = frame else { return report };
-                if channel != Channel::Closed {
-                    report.to_host += 1;
-                    if host.write_all(&Message::Frame(frame).encode()).await.is_err() {
-                        return report;
-                    }
-                    let _ = host.flush().await;
-                }
-            }
+    let mut adapter = Adapter { bus, channel: Channel::Closed, bitrate: None, report: AdapterReport::default() };
+    serve::serve_stream(host, LineDecoder::new(), &mut adapter).await;
+    adapter.report
+}
+
+#[async_trait]
+impl<B: CanBus> Service for Adapter<B> {
+    type Request = Result<Vec<u8>, SlcanError>;
+    type Reply = Vec<u8>;
+
+    async fn call(&mut self, line: Self::Request) -> Answer<Vec<u8>> {
+        let Ok(line) = line else { return Answer::Send(Message::Error.encode()) };
+        let text = String::from_utf8_lossy(&line).into_owned();
+        if !text.is_empty() {
+            self.report.commands.push(text);
         }
+        let reply = match (Message::parse(&line), self.channel) {
+            (Ok(Message::Ok), _) => return Answer::Nothing, // a stray CR
+            (Ok(Message::Bitrate(n)), Channel::Closed) if n <= 9 => {
+                self.bitrate = Some(n);
+                Message::Ok
+            }
+            (Ok(Message::Open), Channel::Closed) if self.bitrate.is_some() => {
+                self.channel = Channel::Open;
+                Message::Ok
+            }
+            (Ok(Message::ListenOnly), Channel::Closed) if self.bitrate.is_some() => {
+                self.channel = Channel::ListenOnly;
+                Message::Ok
+            }
+            (Ok(Message::Close), Channel::Open | Channel::ListenOnly) => {
+                self.channel = Channel::Closed;
+                Message::Ok
+            }
+            (Ok(Message::Version(None)), _) => Message::Version(Some(VERSION)),
+            (Ok(Message::Serial(None)), _) => Message::Serial(Some(*b"SIM1")),
+            (Ok(Message::Status(None)), _) => Message::Status(Some(0)),
+            (Ok(Message::Frame(f)), Channel::Open) => {
+                if self.bus.send(f).await.is_err() {
+                    return Answer::Close;
+                }
+                self.report.to_bus += 1;
+                Message::TransmitAck
+            }
+            _ => Message::Error,
+        };
+        Answer::Send(reply.encode())
+    }
+
+    /// A frame from the bus, to the host while the channel is open.
+    async fn unsolicited(&mut self) -> Answer<Vec<u8>> {
+        let Ok(frame) = self.bus.recv().await else { return Answer::Close };
+        if self.channel == Channel::Closed {
+            return Answer::Nothing;
+        }
+        self.report.to_host += 1;
+        Answer::Send(Message::Frame(frame).encode())
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::canopen_node::{NodeConfig, NodeFaults, serve};
+    use crate::canopen_node::{NodeConfig, serve};
     use crate::elcomat_server::pty_pair;
+    use crate::faults::Faults;
     use crate::positioner::{PositionerConfig, SimPositioner};
     use crate::presets::Preset;
     use std::sync::Arc;
@@ -138,6 +138,7 @@ mod tests {
     use survey_drivers::canopen::slcan::SlcanBus;
     use survey_drivers::canopen::{CanopenConfig, Cia402Positioner, MemoryBus};
     use survey_drivers::traits::Positioner;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
     /// The raw protocol on a pty, as a host writes it.
     #[tokio::test]
@@ -185,7 +186,7 @@ mod tests {
         let model = Preset::by_name("fig8").unwrap().model;
         let sim = SimPositioner::new(PositionerConfig::new(model), Arc::new(clock.clone()));
         let bus = MemoryBus::new();
-        tokio::spawn(serve(bus.endpoint(), sim, NodeConfig::new(4), NodeFaults::new()));
+        tokio::spawn(serve(bus.endpoint(), sim, NodeConfig::new(4), Faults::new()));
         let (master, slave) = pty_pair().unwrap();
         let path = tokio_serial::SerialPort::name(&slave).unwrap();
         tokio::spawn(serve_adapter(master, bus.endpoint()));

@@ -175,7 +175,25 @@ fn the_report_opens_in_chromium_with_every_figure_and_no_error() {
     let bench = Bench::new();
     bench.write("model.toml", super::CONTRACT_MODEL);
     bench.survey(&["run", "--points", "72", "--runs", "3", "--bidirectional", "--verify", "--json"]).success();
-    bench.survey(&["report", "--survey", "1", "--out", "r", "--model", "model.toml", "--units", "arcsec"]).success();
+    bench
+        .survey(&[
+            "report",
+            "--survey",
+            "1",
+            "--out",
+            "r",
+            "--model",
+            "model.toml",
+            "--units",
+            "arcsec",
+            "--certificate-number",
+            "CAL-2026-0042",
+            "--laboratory",
+            "Metrology Lab North",
+            "--tolerance",
+            "0.05",
+        ])
+        .success();
     let html = bench.read("r/index.html");
     let artifacts = Path::new(env!("CARGO_TARGET_TMPDIR")).join("report-browser");
     std::fs::create_dir_all(&artifacts).unwrap();
@@ -191,10 +209,26 @@ fn the_report_opens_in_chromium_with_every_figure_and_no_error() {
         "tbl-verification",
         "fig-modelgap",
         "tbl-modelgap",
+        // The certificate: its number on top, the verdict against the tolerance and its rule.
+        "certificate-number",
+        "verdict",
+        "decision-rule",
     ]);
     for id in expected {
         assert!(ids.contains(&id), "the page in the browser lacks {id}: {ids:?}");
     }
+    // The per-target table is an appendix, after every other section.
+    let at = |id: &str| ids.iter().position(|i| *i == id).unwrap_or_else(|| panic!("{id}: {ids:?}"));
+    for id in ["summary", "errors", "spectrum", "correction-table", "verification", "model-gap", "iso230"] {
+        assert!(at(id) < at("iso230-targets"), "{id} comes before the appendix: {ids:?}");
+    }
+    assert!(
+        html.contains("<section id=\"iso230-targets\" class=\"page appendix\">\n<h2>Appendix A: ISO 230-2 per target")
+    );
+    assert!(html.contains("Calibration certificate CAL-2026-0042 · Metrology Lab North"));
+    // Page x of y and the running head in print.
+    assert!(html.contains("@bottom-right{content:\"page \" counter(page) \" of \" counter(pages)"));
+    assert!(html.contains("@top-left{content:\"Calibration certificate CAL-2026-0042\""));
     // Every figure is drawn at a readable size (not collapsed, not overflowing).
     let figures = seen["figures"].as_array().unwrap();
     assert!(figures.len() >= 8, "{figures:?}");
@@ -253,6 +287,59 @@ fn a_page_with_an_error_fails_the_check() {
     assert!(errs.contains("deliberate console error"), "console.error is caught:\n{errs}");
     assert!(errs.contains("Error: deliberate") || errs.contains("Uncaught"), "an uncaught error is caught:\n{errs}");
     assert!(errs.contains("missing.png"), "a refused or failed load is caught:\n{errs}");
+}
+
+/// `pdftotext`'s text of one page of `pdf`, or `None` without poppler-utils.
+fn page_text(pdf: &Path, page: usize) -> Option<String> {
+    let p = page.to_string();
+    let out = Command::new("pdftotext").args(["-f", &p, "-l", &p, "-layout"]).arg(pdf).arg("-").output().ok()?;
+    out.status.success().then(|| String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+#[test]
+fn report_pdf_prints_the_certificate_with_page_x_of_y_on_every_page() {
+    if let Err(why) = chromium() {
+        println!("skipped: {why}");
+        return;
+    }
+    let bench = Bench::new();
+    bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--verify", "--json"]).success();
+    let out = bench
+        .survey(&[
+            "report",
+            "--survey",
+            "1",
+            "--out",
+            "r",
+            "--pdf",
+            "--certificate-number",
+            "CAL-9",
+            "--tolerance",
+            "0.05",
+        ])
+        .success();
+    let pdf = bench.path("r/index.pdf");
+    let printed = std::fs::read(&pdf).expect("the PDF beside the page");
+    assert!(printed.starts_with(b"%PDF"), "a PDF");
+    let key = b"/Type /Page";
+    let pages = printed.windows(key.len() + 1).filter(|w| w.starts_with(key) && w[key.len()] != b's').count();
+    assert!(out.stdout.contains(&format!("r/index.pdf ({pages} pages)")), "it says how many pages: {out}");
+    // A section a page at least: certificate and summary, errors, hysteresis, spectrum,
+    // interpolation, table, verification, uncertainty, ISO, appendix.
+    assert!(pages >= 10, "{pages} pages");
+    // Every page says which it is and how many there are, as the PDF has them.
+    match page_text(&pdf, 1) {
+        None => println!("pdftotext absent (Debian: poppler-utils): the pages' own numbering was not read"),
+        Some(first) => {
+            assert!(first.contains("Calibration certificate CAL-9"), "the running head: {first}");
+            for page in 1..=pages {
+                let text = page_text(&pdf, page).unwrap();
+                assert!(text.contains(&format!("page {page} of {pages}")), "page {page} of {pages}:\n{text}");
+            }
+            let last = page_text(&pdf, pages).unwrap();
+            assert!(!last.contains(&format!("page {} of", pages + 1)), "no page past the last");
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------

@@ -91,7 +91,11 @@ fn the_configuration_check_says_whether_a_continuous_scan_is_possible() {
     let b = Bench::new();
     let tracker = "[tracker]\ndriver = \"emscon\"\naddress = \"127.0.0.1:1\"\n";
     let cases = [
-        ("[positioner]\ndriver = \"modbus-tcp\"\naddress = \"127.0.0.1:1\"\n", true, "position register"),
+        (
+            "[positioner]\ndriver = \"modbus-tcp\"\naddress = \"127.0.0.1:1\"\ntimeouts = { request_ms = 150 }\n",
+            true,
+            "position register",
+        ),
         ("[positioner]\ndriver = \"scpi-tcp\"\naddress = \"127.0.0.1:1\"\n", false, "VEL:COMM"),
         (
             "[positioner]\ndriver = \"scpi-tcp\"\naddress = \"127.0.0.1:1\"\nunverified_commands = true\n",

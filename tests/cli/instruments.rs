@@ -7,8 +7,9 @@ use serde_json::Value;
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
 use survey_sims::autocollimator::AutocollimatorConfig;
-use survey_sims::elcomat_server::{ElcomatFaults, pty_pair, serve};
-use survey_sims::scpi_server::{ScpiFaults, serve_tcp};
+use survey_sims::elcomat_server::{pty_pair, serve};
+use survey_sims::faults::Faults;
+use survey_sims::scpi_server::serve_tcp;
 use survey_sims::{Preset, SimBench};
 use tokio_serial::SerialPort as _;
 
@@ -74,14 +75,14 @@ fn check_passes_against_simulators_speaking_the_protocols() {
         let sims = SimBench::builder(&preset, 3, clock).autocollimator(AutocollimatorConfig::seeded(24, 4)).build();
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let address = listener.local_addr().unwrap().to_string();
-        let server = tokio::spawn(serve_tcp(listener, sims.positioner, ScpiFaults::new()));
+        let server = tokio::spawn(serve_tcp(listener, sims.positioner, Faults::new()));
         let (master, slave) = pty_pair().unwrap();
         let port = slave.name().expect("the pty has a path");
         let bench = Bench::new();
         bench.write("c.toml", config(&address, &port));
         // Keep our slave open until the survey binary has opened the port, so the
         // master does not read EIO; the binary's open is not exclusive of ours.
-        let elcomat = tokio::spawn(serve(master, sims.autocollimator, ElcomatFaults::default()));
+        let elcomat = tokio::spawn(serve(master, sims.autocollimator));
         let out = tokio::task::spawn_blocking(move || {
             let out = bench.survey(&["check", "--config", "c.toml", "--json"]);
             drop(slave);

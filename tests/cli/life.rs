@@ -177,7 +177,6 @@ fn compare_finds_wear_a_disturbed_mounting_and_more_backlash_and_nothing_in_the_
     let one = bench.survey(&["import", "one-run.csv", "--asset", "sim-fig8"]).success().stdout.trim().to_string();
     bench.survey(&["compare", &cal.to_string(), &one]).bad_input(&["no target measured twice"]);
     bench.survey(&["compare", &cal.to_string(), "99"]).bad_input(&["no survey with id 99"]);
-
     // The history of the asset: every survey in time order, each with its
     // figures and main lines, and what changed from one complete survey to the next.
     let h = bench.survey(&["history", "--asset", "sim-fig8", "--json"]).success().json();
@@ -220,6 +219,17 @@ fn compare_finds_wear_a_disturbed_mounting_and_more_backlash_and_nothing_in_the_
     );
     bench.survey(&["report", "--survey", "1", "--out", "r1"]).success();
     assert!(!bench.read("r1/index.html").contains("<section id=\"history\""));
+
+    // A verification measures the corrected axis: not a survey of the positioner as it is.
+    let fresh = Bench::new();
+    let verified =
+        fresh.survey(&["run", "--points", "120", "--runs", "2", "--bidirectional", "--verify", "--json"]).success();
+    let doc = verified.json();
+    let (native, verification) = (doc["survey_id"].as_i64().unwrap(), doc["verify"]["survey_id"].as_i64().unwrap());
+    fresh.survey(&["compare", &native.to_string(), &verification.to_string()]).bad_input(&[
+        &format!("survey {verification} is a verification"),
+        &format!("the table of survey {native} applied"),
+    ]);
 }
 
 #[test]

@@ -29,6 +29,7 @@ mod report;
 mod runs;
 mod serve;
 mod tables;
+mod usage;
 mod verify;
 
 use serde_json::Value;

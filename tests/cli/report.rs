@@ -23,6 +23,53 @@ pub const ALWAYS: [&str; 15] = [
     "iso230-targets",
 ];
 
+/// No cell of any table is a row of zeros ("0.00000"): a value is shown by
+/// significance, or is exactly 0.
+pub fn assert_no_zeros(html: &str) {
+    for cell in html.split("<td").skip(1).filter_map(|c| c.split_once('>')).map(|c| c.1.split('<').next().unwrap_or(""))
+    {
+        let digits = cell.trim().trim_start_matches('-');
+        let zeros = digits.contains('.') && digits.chars().all(|c| c == '0' || c == '.');
+        assert!(!zeros, "a cell shows {cell:?}: a value lost to its format");
+    }
+}
+
+/// The spectrum's caption names the band above half the sampling rate
+/// exactly when the figure draws it (`drawn`: whether it should).
+fn assert_shading_as_drawn(html: &str, drawn: bool) {
+    let figure = html.split("<figure id=\"fig-spectrum\">").nth(1).unwrap().split("</figure>").next().unwrap();
+    let band = figure.contains("opacity=\"0.1\" fill=\"#969696\"");
+    let caption = figure.split("<figcaption>").nth(1).unwrap();
+    assert_eq!((band, caption.contains("shaded")), (drawn, drawn), "the band drawn and named: {caption}");
+}
+
+/// The spectrum's labels of the lines in the table of lines: (amplitude as
+/// the table shows it, the label's foot in the figure's pixels).
+fn spectrum_labels(html: &str) -> Vec<(f64, f64)> {
+    let table = html.split("id=\"tbl-lines\"").nth(1).unwrap().split("</table>").next().unwrap();
+    let amplitude: Vec<(String, f64)> = table
+        .split("<tr>")
+        .skip(2)
+        .map(|row| {
+            let cells: Vec<&str> =
+                row.split("<td").skip(1).map(|c| c.split('>').nth(1).unwrap().split('<').next().unwrap()).collect();
+            (cells[0].to_string(), cells[2].parse().unwrap())
+        })
+        .collect();
+    let figure = html.split("<figure id=\"fig-spectrum\">").nth(1).unwrap().split("</svg>").next().unwrap();
+    figure
+        .split("<text ")
+        .skip(1)
+        .filter_map(|t| {
+            let label = t.split('>').nth(1)?.split('<').next()?.trim();
+            let (cycles, _) = label.split_once(" · ")?;
+            let amp = amplitude.iter().find(|(c, _)| c == cycles)?.1;
+            let y: f64 = t.split("y=\"").nth(1)?.split('"').next()?.parse().ok()?;
+            Some((amp, y))
+        })
+        .collect()
+}
+
 #[test]
 fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     let bench = Bench::new();
@@ -48,15 +95,44 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     // The title names the positioner and the survey.
     assert!(html.contains("<title>simulated fig8 positioner: calibration survey 1</title>"), "title");
     // The simulated default's header: the preset, the tracker's noise (8.8e-4 deg).
-    for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.00088 deg", "survey 0.1.0"] {
+    for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.000884 deg", "survey 0.1.0"] {
         assert!(html.contains(words), "the header should say {words:?}");
     }
-    assert!(html.contains("No public text of VDI/DGQ 3441 was found"));
+    // A certificate: its number (made from the survey when none was assigned), the
+    // traceability a simulated reference has (none), page x of y in print.
+    assert!(html.contains("id=\"certificate-number\">Calibration certificate 20"), "the number on top");
+    assert!(
+        html.contains("made from the survey&#x27;s date and id") || html.contains("made from the survey's date and id")
+    );
+    assert!(html.contains("not traceable to the SI"), "a simulated reference is not traceable");
+    assert!(html.contains("counter(page) \" of \" counter(pages)"), "page x of y in print");
+    // The definitions the VDI figures use, without a remark about sources to a customer.
+    assert!(!html.contains("No public text") && html.contains("with these definitions"));
+    // Each line's label stands on its own stem: its height is linear in the line's
+    // amplitude (not every label at the tallest's height).
+    let labels = spectrum_labels(&html);
+    assert!(labels.len() >= 2, "labelled lines: {labels:?}");
+    let (lo, hi) = labels
+        .iter()
+        .fold((labels[0], labels[0]), |(l, h), p| (if p.0 < l.0 { *p } else { l }, if p.0 > h.0 { *p } else { h }));
+    assert!(hi.0 > 1.5 * lo.0 && hi.1 < lo.1 - 20.0, "the taller line's label stands higher: {labels:?}");
+    let slope = (hi.1 - lo.1) / (hi.0 - lo.0);
+    for (amp, y) in &labels {
+        assert!((lo.1 + slope * (amp - lo.0) - y).abs() < 2.0, "a label off its stem's height: {labels:?}");
+    }
+    // The caption names no region the figure does not draw.
+    // 36 points see the 20 and 40 cycles/rev gear pass beyond 18: the band is drawn.
+    assert_shading_as_drawn(&html, true);
+    assert_no_zeros(&html);
     assert!(
         !html.contains("<script") && !html.contains("src=") && !html.contains("href="),
         "self-contained: no scripts, no links"
     );
     assert!(html.contains("default-src 'none'"), "the page forbids every fetch");
+    // 180 points resolve every line: no band, and the caption names none.
+    bench.survey(&["run", "--points", "180", "--runs", "2"]).success();
+    bench.survey(&["report", "--out", "r180"]).success();
+    assert_shading_as_drawn(&bench.read("r180/index.html"), false);
     bench.survey(&["report", "--out", "r", "--survey", "9"]).bad_input(&["9"]);
     bench.survey(&["report"]).bad_input(&["--out"]);
 }
@@ -86,12 +162,21 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
             "ACME AZ-200 <serial 7>",
             "--model",
             "model.toml",
+            "--certificate-number",
+            "CAL-2026-0042",
+            "--laboratory",
+            "Metrology Lab \"North\", Bay 3",
+            "--traceability",
+            "Polygon calibrated by PTB, certificate 12345, 2026-01",
         ])
         .success();
     let html = bench.read("r/index.html");
-    // ISO A in the axis table, in arcsec with 2 decimals.
+    // ISO A in the axis table, in arcsec with 3 significant digits.
     let shown = html.split("A, accuracy</td><td>").nth(1).and_then(|s| s.split('<').next()).expect("A");
-    assert_eq!(shown, format!("{:.2}", a_deg * 3600.0), "A in arcsec against stats' {a_deg} deg");
+    let value: f64 = shown.parse().expect("a number");
+    let digits = shown.trim_start_matches(['-', '0', '.']).replace('.', "");
+    assert_eq!(digits.len(), 3, "3 significant digits: {shown}");
+    assert!((value - a_deg * 3600.0).abs() <= 5e-3 * a_deg * 3600.0, "A in arcsec {shown} against stats' {a_deg} deg");
     for words in [
         "error (readout − actual), arcsec",
         "J. Smith",
@@ -99,17 +184,31 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         "ACME AZ-200 &lt;serial 7&gt;",
         "(survey report flag)",
         "simulated autocollimator",
-        "0.10 arcsec (standard uncertainty of one angle)",
+        "0.100 arcsec (standard uncertainty of one angle)",
+        "Calibration certificate CAL-2026-0042 · Metrology Lab &quot;North&quot;, Bay 3",
+        "Polygon calibrated by PTB, certificate 12345, 2026-01",
+        // The running head and foot of every printed page.
+        "@top-left{content:\"Calibration certificate CAL-2026-0042\"",
+        "@top-right{content:\"Metrology Lab \\\"North\\\", Bay 3\"",
     ] {
         assert!(html.contains(words), "the page should show {words:?}");
     }
     assert!(html.contains("<title>ACME AZ-200 &lt;serial 7&gt;: calibration survey 1</title>"));
     assert!(html.contains("id=\"fig-modelgap\""), "the model-gap section");
+    // 24 faces see the 20 cycles/rev gear pass at 4: its true frequency lies in the shaded band.
+    assert_shading_as_drawn(&html, true);
+    // The processing's sentences take the unit too: the table's caption says why it has two columns.
+    let reason = html.split("Hysteresis max").nth(1).and_then(|s| s.split("(its noise)").next()).expect("the reason");
+    assert!(reason.contains("arcsec") && !reason.contains("deg"), "the table's caption in arcsec: {reason}");
+    assert_no_zeros(&html);
     // Bad input: exit 2, nothing written.
     for (args, words) in [
         (vec!["--units", "furlong"], vec!["furlong"]),
         (vec!["--temperature", "500"], vec!["--temperature"]),
         (vec!["--reference-uncertainty", "-1"], vec!["--reference-uncertainty"]),
+        (vec!["--tolerance", "0"], vec!["--tolerance"]),
+        (vec!["--tolerance", "-0.01"], vec!["--tolerance"]),
+        (vec!["--certificate-number", " "], vec!["--certificate-number"]),
         (vec!["--model", "missing.toml"], vec!["missing.toml"]),
     ] {
         let mut all = vec!["report", "--out", "bad"];
@@ -139,4 +238,173 @@ fn a_verified_survey_shows_native_and_corrected_on_one_scale() {
         };
         assert_eq!(ticks("fig-native"), ticks("fig-corrected"), "{id}");
     }
+}
+
+/// The verdict of the report of survey 1 (verified by survey 2) against `tolerance` degrees.
+fn verdict(bench: &Bench, tolerance: f64, extra: &[&str]) -> String {
+    let t = tolerance.to_string();
+    let mut args = vec!["report", "--survey", "1", "--out", "v", "--tolerance", &t];
+    args.extend(extra);
+    bench.survey(&args).success();
+    let html = bench.read("v/index.html");
+    assert!(html.contains("id=\"decision-rule\">Decision rule (ISO 14253-1, ILAC-G8"), "the rule is stated");
+    html.split("id=\"verdict\">").nth(1).and_then(|s| s.split("</p>").next()).expect("a verdict").to_string()
+}
+
+#[test]
+fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() {
+    let bench = Bench::new();
+    bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--verify", "--json"]).success();
+    // The corrected A: ISO 230-2 of the verification survey as stored.
+    let a = bench.stats_json(Some(2))["iso230_2"]["A"].as_f64().unwrap();
+    // The simulated tracker's stated 0.000884 deg (and the axis) make U about 0.0018 deg.
+    let pass = verdict(&bench, 10.0 * a, &[]);
+    assert!(pass.starts_with("Verdict against the tolerance") && pass.contains(": PASS. A = "), "{pass}");
+    assert!(pass.contains("the corrected accuracy A per ISO 230-2, measured by verification survey 2"), "{pass}");
+    assert!(pass.contains("(survey report flag)"), "{pass}");
+    let fail = verdict(&bench, a / 10.0, &[]);
+    assert!(fail.contains(": FAIL. ") && fail.contains("A − U = "), "{fail}");
+    let open = verdict(&bench, a, &[]);
+    assert!(open.contains(": NOT DECIDABLE (WITHIN THE UNCERTAINTY). "), "{open}");
+    // U follows the reference's stated uncertainty: twice A passes with the simulated
+    // tracker's, and is within the uncertainty of a reference as uncertain as A itself.
+    assert!(verdict(&bench, 2.0 * a, &[]).contains(": PASS. "));
+    let a_text = a.to_string();
+    let coarse = verdict(&bench, 2.0 * a, &["--reference-uncertainty", &a_text]);
+    assert!(coarse.contains(": NOT DECIDABLE (WITHIN THE UNCERTAINTY). "), "{coarse}");
+    // The figures carry their uncertainties: U beside A, the table's beside the prediction.
+    let html = bench.read("v/index.html");
+    let summary = html.split("id=\"tbl-summary\"").nth(1).unwrap().split("</table>").next().unwrap();
+    assert!(summary.contains("expanded uncertainty U (k = 2)") && summary.contains("(the table's)"), "{summary}");
+    assert!(summary.contains("ISO 230-2 accuracy A, corrected, measured (survey 2)"), "{summary}");
+    let u_in_summary = summary.split("as measured</td><td>").nth(1).unwrap().split("</td><td>").nth(1).unwrap();
+    let u_in_summary = u_in_summary.split('<').next().unwrap();
+    assert!(
+        html.contains(&format!(
+            "The measured figures A, E and M carry the expanded uncertainty U = {u_in_summary} (k = 2)"
+        )),
+        "the ISO figures state the same U as the summary ({u_in_summary})"
+    );
+    // The stated reference uncertainty enters the table's budget too (as the header states it).
+    let budget_u = |dir: &str| {
+        let html = bench.read(&format!("{dir}/index.html"));
+        let row =
+            html.split("<td class=\"l\">reference instrument</td><td>").nth(1).expect("the budget's row").to_string();
+        row.split('<').next().unwrap().parse::<f64>().unwrap()
+    };
+    bench.survey(&["report", "--survey", "1", "--out", "coarse", "--reference-uncertainty", "0.01"]).success();
+    bench.survey(&["report", "--survey", "1", "--out", "none"]).success();
+    // The simulated tracker's 0.000884 deg against 0.01 deg: about 11 times the contribution.
+    let ratio = budget_u("coarse") / budget_u("none");
+    assert!((ratio - 0.01 / 0.000_884).abs() < 0.5, "{ratio}");
+    // Without a tolerance, no verdict.
+    assert!(!bench.read("none/index.html").contains("id=\"verdict\""));
+}
+
+#[test]
+fn without_a_stated_reference_uncertainty_nothing_is_decidable() {
+    let bench = Bench::new();
+    bench.small_survey(true);
+    bench.survey(&["export", "--csv", "s.csv"]).success();
+    let other = Bench::new();
+    other.write("s.csv", bench.read("s.csv"));
+    other.survey(&["import", "s.csv"]).success();
+    other.survey(&["report", "--out", "v", "--tolerance", "10"]).success();
+    let html = other.read("v/index.html");
+    let verdict = html.split("id=\"verdict\">").nth(1).and_then(|s| s.split("</p>").next()).expect("a verdict");
+    assert!(verdict.contains("NOT DECIDABLE") && verdict.contains("uncertainty is not known"), "{verdict}");
+    assert!(verdict.contains("the native accuracy A per ISO 230-2 of this survey"), "{verdict}");
+    assert!(html.contains("The reference's uncertainty is not stated: the figures' uncertainty is not known."));
+}
+
+/// The pixel x range of the figure's table curves (polylines 2 px wide) and of its measured means (dots).
+fn x_ranges(figure: &str) -> ((f64, f64), (f64, f64)) {
+    let range = |xs: Vec<f64>| xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+    let attr =
+        |e: &str, key: &str| e.split(&format!("{key}=\"")).nth(1).map(|v| v.split('"').next().unwrap().to_string());
+    let curves = figure
+        .split("<polyline")
+        .filter(|e| e.contains("stroke-width=\"2\""))
+        .filter_map(|e| attr(e, "points"))
+        .flat_map(|p| {
+            p.split_whitespace().map(|xy| xy.split(',').next().unwrap().parse().unwrap()).collect::<Vec<f64>>()
+        })
+        .collect();
+    let dots = figure.split("<circle").skip(1).filter_map(|e| attr(e, "cx")).map(|x| x.parse().unwrap()).collect();
+    (range(curves), range(dots))
+}
+
+#[test]
+fn a_partial_arc_across_zero_shows_the_table_over_the_whole_arc_and_says_what_it_cannot_show() {
+    let bench = Bench::new();
+    // -30 to 90 deg, every 1 deg, 3 runs both ways: a once-per-revolution error and a 12 cycles/rev line.
+    let mut csv = String::from("run,direction,target_deg,readout_deg,actual_deg\n");
+    for run in 1..=3 {
+        for (direction, sign) in [("forward", 1.0), ("reverse", -1.0)] {
+            let mut targets: Vec<f64> = (0..=120).map(|i| -30.0 + i as f64).collect();
+            if sign < 0.0 {
+                targets.reverse();
+            }
+            for t in targets {
+                let th = t.to_radians();
+                let e = 0.004 * (th + 0.3).sin()
+                    + 0.0015 * (12.0 * th + 1.0).sin()
+                    + sign * 0.0005
+                    + 1e-5 * ((run as f64) * 7.0 + t).sin();
+                csv += &format!("{run},{direction},{t},{t},{}\n", t - e);
+            }
+        }
+    }
+    bench.write("arc.csv", csv);
+    bench.survey(&["import", "arc.csv"]).success();
+    bench.survey(&["report", "--out", "r"]).success();
+    let html = bench.read("r/index.html");
+    let figure = html.split("<figure id=\"fig-table\">").nth(1).unwrap().split("</svg>").next().unwrap();
+    // The table's columns are drawn over every measured target, below 0 deg too.
+    let (curves, measured) = x_ranges(figure);
+    assert!(
+        curves.0 <= measured.0 + 1.0 && curves.1 >= measured.1 - 1.0,
+        "curves {curves:?} over the targets {measured:?}"
+    );
+    // What cannot be shown on a partial arc says why.
+    assert!(html.contains("The survey measured a partial arc (-30 to 90 deg), so the comparison cannot be drawn"));
+    for id in ["fig-error", "fig-hysteresis", "fig-spectrum", "fig-table", "tbl-iso-axis", "tbl-iso-targets"] {
+        assert!(html.contains(&format!("id=\"{id}\"")), "{id} on a partial arc");
+    }
+    assert_no_zeros(&html);
+}
+
+#[test]
+fn report_pdf_without_a_working_browser_exits_1_says_why_and_keeps_the_page() {
+    let bench = Bench::new();
+    bench.small_survey(true);
+    bench.write("slow.sh", "#!/bin/sh\nsleep 30\n");
+    let slow = bench.path("slow.sh");
+    std::fs::set_permissions(&slow, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let missing = bench.path("no-such-browser");
+    for (browser, timeout, words) in [
+        (missing.to_str().unwrap(), "120", vec!["SURVEY_CHROMIUM=", "no-such-browser", "names no file"]),
+        ("/bin/false", "120", vec!["/bin/false exited with exit status: 1"]),
+        (slow.to_str().unwrap(), "0.5", vec!["slow.sh did not finish within 500ms"]),
+    ] {
+        let _ = std::fs::remove_dir_all(bench.path("r"));
+        let mut cmd = bench.command(&["report", "--out", "r", "--pdf"]);
+        cmd.env("SURVEY_CHROMIUM", browser).env("SURVEY_PDF_TIMEOUT_S", timeout);
+        let started = std::time::Instant::now();
+        let out = Bench::output_of(&["report", "--pdf"], cmd);
+        assert_eq!(out.code, 1, "a browser that cannot print is a run-time failure\n{out}");
+        let out = out.stderr_mentions(&["cannot print", "to PDF (the HTML page is written)"]).stderr_mentions(&words);
+        assert!(started.elapsed() < std::time::Duration::from_secs(20), "bounded: {:?}\n{out}", started.elapsed());
+        assert!(bench.exists("r/index.html") && !bench.exists("r/index.pdf"), "{browser}");
+    }
+    // No browser at all: none named, none on PATH.
+    let mut cmd = bench.command(&["report", "--out", "r", "--pdf"]);
+    cmd.env_remove("SURVEY_CHROMIUM").env("PATH", bench.path("empty"));
+    let out = Bench::output_of(&["report", "--pdf"], cmd);
+    assert_eq!(out.code, 1, "{out}");
+    out.stderr_mentions(&["no Chromium found", "apt-get install chromium", "SURVEY_CHROMIUM"]);
+    bench
+        .survey_with_env(&["report", "--out", "bad", "--pdf"], "SURVEY_PDF_TIMEOUT_S", "soon")
+        .bad_input(&["SURVEY_PDF_TIMEOUT_S"]);
+    assert!(!bench.exists("bad/index.html"), "bad input writes nothing");
 }

@@ -140,3 +140,105 @@ async fn our_sdo_client_against_python_canopens_local_node() {
     assert_eq!(held["0x2001"], String::from_utf8_lossy(long).as_ref());
     let _ = python.wait().await;
 }
+
+/// A CiA 402 drive with the standard objects only, as python-canopen's
+/// `LocalNode` holds them (nothing in 0x2000-0x5FFF: its SDO server answers
+/// abort 0x06020000 there, as a real drive does), behind a simulated SLCAN
+/// adapter: `survey check` passes and says what is unavailable without the
+/// correction objects; our driver (its default configuration) enables the
+/// drive, moves it and reads its status and position on the standard
+/// objects alone, and refuses the correction table as bad usage without
+/// sending it. Told the drive has the correction objects, the driver meets
+/// the drive's abort.
+#[tokio::test]
+async fn our_driver_checks_enables_and_moves_a_drive_with_only_the_standard_objects() {
+    use std::time::Duration;
+    use survey_drivers::Positioner as _;
+    use survey_drivers::canopen::slcan::SlcanBus;
+    use survey_drivers::canopen::{CanopenConfig, Cia402Positioner, MemoryBus};
+    use survey_drivers::error::ErrorKind;
+    use survey_orchestrator::config::SurveyConfig;
+    use survey_processing::table::CorrectionTable;
+    use survey_sims::elcomat_server::pty_pair;
+    use survey_sims::slcan_adapter::serve_adapter;
+    use tokio::io::{AsyncBufReadExt as _, AsyncWriteExt as _};
+
+    if let Some(why) = python_canopen_missing() {
+        eprintln!("skipped: {why}");
+        return;
+    }
+    let bus = MemoryBus::new();
+    let (python_master, python_slave) = pty_pair().unwrap();
+    let (our_master, our_slave) = pty_pair().unwrap();
+    let python_port = tokio_serial::SerialPort::name(&python_slave).unwrap();
+    let our_port = tokio_serial::SerialPort::name(&our_slave).unwrap();
+    tokio::spawn(serve_adapter(python_master, bus.endpoint()));
+    tokio::spawn(serve_adapter(our_master, bus.endpoint()));
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/interop/canopen_standard_drive.py");
+    let mut python = tokio::process::Command::new("python3")
+        .arg(script)
+        .arg(&python_port)
+        .arg("11")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut lines = tokio::io::BufReader::new(python.stdout.take().unwrap()).lines();
+    let ready = tokio::time::timeout(Duration::from_secs(30), lines.next_line()).await.unwrap().unwrap();
+    assert_eq!(ready.as_deref(), Some("ready"));
+    drop(python_slave);
+
+    // `survey check` of a configuration naming the drive (the tracker is
+    // not there: its own line fails, the positioner's passes).
+    let cfg = SurveyConfig::parse(
+        &format!(
+            "[positioner]\ndriver = \"canopen\"\ntransport = \"slcan\"\nport = \"{our_port}\"\nnode_id = 11\n\
+             counts_per_degree = 10000.0\n[tracker]\ndriver = \"emscon\"\naddress = \"127.0.0.1:1\"\n\
+             [timing]\ncall_timeout_s = 2.0\n"
+        ),
+        "standard.toml",
+    )
+    .unwrap();
+    let checked = survey_orchestrator::bench::instruments::check(&cfg, &survey_drivers::SystemClock::new()).await;
+    let positioner = &checked[0];
+    assert!(positioner.ok, "{positioner:?}");
+    assert!(positioner.detail.contains("in position"), "{positioner:?}");
+    assert!(
+        positioner.detail.contains("unavailable without correction_objects = true")
+            && positioner.detail.contains("loading the correction table into the drive"),
+        "{positioner:?}"
+    );
+
+    let can = SlcanBus::open_port(&our_port, 500_000, Duration::from_secs(2)).await.unwrap();
+    drop(our_slave);
+    let standard =
+        CanopenConfig { node_id: 11, counts_per_degree: 10_000.0, sdo_timeout_ms: 2000, ..CanopenConfig::default() };
+    let mut d = Cia402Positioner::connect(can, standard.clone()).await.unwrap();
+    assert_eq!(d.device_name().await.unwrap(), "python-canopen standard CiA 402 drive");
+    d.set_velocity(5.0).await.unwrap();
+    d.move_to(12.5).await.unwrap();
+    let s = d.status().await.unwrap();
+    assert!(s.in_position && !s.moving && s.fault.is_none() && s.limit.is_none() && !s.correction_enabled, "{s:?}");
+    assert_eq!(d.readout().await.unwrap(), 12.5);
+    d.stop().await.unwrap();
+    let table = CorrectionTable::new(vec![0.001; 8]).unwrap();
+    let e = d.load_correction_table(&table).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Usage, "{e}");
+    assert!(e.message.contains("correction_objects = true"), "{e}");
+    // The same drive, the driver told it has the correction objects: the
+    // status reads 0x2101, which the drive does not have.
+    let mut told = Cia402Positioner::new(d.into_bus(), CanopenConfig { correction_objects: true, ..standard }).unwrap();
+    let e = told.status().await.unwrap_err();
+    assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(0x0602_0000)), "{e}");
+    assert!(e.message.contains("0x2101"), "{e}");
+
+    let mut stdin = python.stdin.take().unwrap();
+    stdin.shutdown().await.unwrap();
+    drop(stdin);
+    let last = tokio::time::timeout(Duration::from_secs(10), lines.next_line()).await.unwrap().unwrap().unwrap();
+    let held: serde_json::Value = serde_json::from_str(&last).unwrap();
+    let written: Vec<&str> = held["written"].as_array().unwrap().iter().filter_map(|v| v.as_str()).collect();
+    assert_eq!(written, ["0x6040", "0x6060", "0x607A", "0x6081"], "only standard objects were written");
+    let _ = python.wait().await;
+}

@@ -51,6 +51,7 @@ impl Sim {
 
 fn start_sim(dir: &Path, name: &str, faults: &str, seed: &str) -> Sim {
     let base = "[survey]\nreference = \"tracker\"\n[positioner]\ndriver = \"modbus-tcp\"\naddress = \"ADDR_P\"\n\
+                timeouts = { request_ms = 200 }\n\
                 [tracker]\ndriver = \"emscon\"\naddress = \"ADDR_T\"\nmeasurement_time_ms = 500\n\
                 [timing]\ndwell_s = 0.01\ncall_timeout_s = 0.3\nmeasure_timeout_s = 2.0\nmax_retries = 8\n\
                 retry_backoff_s = 0.02\n";

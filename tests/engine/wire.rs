@@ -12,8 +12,9 @@ use survey_processing::iso230::{Iso230, iso230_2};
 use survey_processing::plan::SurveyPlan;
 use survey_processing::{Direction, Sample};
 use survey_sims::autocollimator::AutocollimatorConfig;
-use survey_sims::elcomat_server::{ElcomatFaults, pty_pair, serve};
-use survey_sims::scpi_server::{ScpiFaults, serve_tcp};
+use survey_sims::elcomat_server::{pty_pair, serve};
+use survey_sims::faults::Faults;
+use survey_sims::scpi_server::serve_tcp;
 use survey_sims::{Preset, SimBench};
 use tokio_serial::SerialPort as _;
 
@@ -49,7 +50,7 @@ async fn a_survey_over_scpi_and_elcomat_matches_the_in_process_survey() {
     let certificate = wired.autocollimator.certificate_arcsec().to_vec();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let address = listener.local_addr().unwrap();
-    let server = tokio::spawn(serve_tcp(listener, wired.positioner, ScpiFaults::new()));
+    let server = tokio::spawn(serve_tcp(listener, wired.positioner, Faults::new()));
     let (master, slave) = pty_pair().unwrap();
     let port = slave.name().expect("the pty has a path");
     drop(slave);
@@ -66,7 +67,7 @@ async fn a_survey_over_scpi_and_elcomat_matches_the_in_process_survey() {
     // The pty's master reads EIO until a slave is open: open it, then serve.
     let ReferenceInstrument::Autocollimator { instrument, .. } = &mut instruments.reference else { unreachable!() };
     instrument.connect().await.unwrap();
-    let elcomat = tokio::spawn(serve(master, wired.autocollimator, ElcomatFaults::default()));
+    let elcomat = tokio::spawn(serve(master, wired.autocollimator));
     let mut engine = instruments.into_engine(clock.clone(), &cfg);
     let (wire_samples, wire) = survey(&mut engine).await;
     drop(engine);
@@ -109,8 +110,8 @@ async fn a_survey_over_scpi_and_elcomat_matches_the_in_process_survey() {
 #[tokio::test]
 async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
     use survey_drivers::modbus::RegisterMap;
-    use survey_sims::emscon_server::EmsconFaults;
-    use survey_sims::modbus_server::{ModbusDevice, ModbusFaults};
+
+    use survey_sims::modbus_server::ModbusDevice;
     const POINTS: u32 = 36;
     const RUNS: u32 = 3;
 
@@ -118,10 +119,10 @@ async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
     let preset = Preset::by_name("fig8").unwrap();
     let wired = SimBench::new(&preset, 31, clock.clone());
     let device = ModbusDevice::new(wired.positioner, RegisterMap::default()).unwrap();
-    let modbus = device.spawn_tcp(ModbusFaults::new()).await.unwrap();
+    let modbus = device.spawn_tcp(Faults::new()).await.unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let emscon_addr = listener.local_addr().unwrap();
-    let emscon = tokio::spawn(survey_sims::emscon_server::serve_tcp(listener, wired.tracker, EmsconFaults::new()));
+    let emscon = tokio::spawn(survey_sims::emscon_server::serve_tcp(listener, wired.tracker, Faults::new()));
     let text = format!(
         "[survey]\nreference = \"tracker\"\n\
          [positioner]\ndriver = \"modbus-tcp\"\naddress = \"{}\"\n\
@@ -191,7 +192,7 @@ async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
 async fn the_emscon_driver_streams_in_continuous_time_mode_and_goes_back_to_stationary() {
     use survey_drivers::Tracker as _;
     use survey_drivers::emscon::{EmsconConfig, EmsconTracker};
-    use survey_sims::emscon_server::{EmsconFaults, serve_tcp};
+    use survey_sims::emscon_server::serve_tcp;
     use survey_sims::tracker::{SimTracker, TrackerConfig};
     let clock = VirtualClock::new();
     let turntable = survey_sims::Turntable::new(0.0);
@@ -201,7 +202,7 @@ async fn the_emscon_driver_streams_in_continuous_time_mode_and_goes_back_to_stat
     let sim = SimTracker::new(cfg, Arc::new(clock.clone()), turntable);
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
-    let server = tokio::spawn(serve_tcp(listener, sim, EmsconFaults::new()));
+    let server = tokio::spawn(serve_tcp(listener, sim, Faults::new()));
     let mut t = EmsconTracker::connect(addr, EmsconConfig { measurement_time_ms: 50, ..EmsconConfig::default() })
         .await
         .unwrap();

@@ -43,8 +43,9 @@ pub struct CanopenConfig {
     pub counts_per_degree: f64,
     /// Deadline of each SDO response, milliseconds. Default 500.
     pub sdo_timeout_ms: u64,
-    /// After a timeout, how long the next transfer waits for late frames to
-    /// drop, milliseconds. Default 20.
+    /// After a timeout, how long the SDO client drains late frames at least,
+    /// milliseconds (it drains half the SDO timeout when that is longer).
+    /// Default 20.
     pub resync_grace_ms: u64,
     /// Statusword reads to wait for the set-point acknowledge (bit 12) after
     /// a new set-point. Default 10.
@@ -58,6 +59,11 @@ pub struct CanopenConfig {
     /// reports a fault; the standard text of 0x603F is used when it is `None`
     /// or the node aborts the read. Default `Some(0x2102)`.
     pub fault_text_index: Option<u16>,
+    /// Whether the drive has this project's correction objects (0x2100 the
+    /// table, 0x2101 correction on/off: manufacturer-specific, not CiA 402).
+    /// Without them (the default) the status reads no correction, and
+    /// loading or switching the table is refused as bad usage.
+    pub correction_objects: bool,
 }
 
 impl Default for CanopenConfig {
@@ -70,6 +76,7 @@ impl Default for CanopenConfig {
             set_point_polls: 10,
             transition_timeout_ms: 500,
             fault_text_index: Some(index::FAULT_TEXT),
+            correction_objects: false,
         }
     }
 }
@@ -343,12 +350,25 @@ impl<B: CanBus> Cia402Positioner<B> {
 
     /// Read back the correction table held in 0x2100 (segmented upload).
     pub async fn read_correction_table(&mut self) -> Result<CorrectionTable> {
+        self.require_correction_objects("read the correction table")?;
         let bytes = self.upload(index::CORRECTION_TABLE, 0).await?;
         decode_table(&bytes).map_err(|e| {
             let e = DriverError::new(ErrorKind::Garbled, &self.name, format!("correction table 0x2100: {e}"));
             tracing::warn!(instrument = %self.name, error = %e, "bad table");
             e
         })
+    }
+
+    /// Refuse `what` as bad usage unless the drive has the correction objects.
+    fn require_correction_objects(&self, what: &str) -> Result<()> {
+        if self.cfg.correction_objects {
+            return Ok(());
+        }
+        Err(self.usage(format!(
+            "cannot {what}: the correction objects 0x2100/0x2101 are this project's own (manufacturer-specific, \
+             not CiA 402) and the configuration does not say the drive has them (correction_objects = true \
+             under [positioner]); load the table with the drive's own tool instead"
+        )))
     }
 
     fn usage(&self, message: String) -> DriverError {
@@ -423,11 +443,12 @@ impl<B: CanBus> Positioner for Cia402Positioner<B> {
     }
 
     /// The statusword (moving = operation enabled and not target reached;
-    /// in position = target reached), 0x2101 for the correction, and when
-    /// their bits say so 0x603F (+ fault text) and 0x60FD for the limit.
+    /// in position = target reached), 0x2101 for the correction (with the
+    /// correction objects; else none), and when their bits say so 0x603F (+
+    /// fault text) and 0x60FD for the limit.
     async fn status(&mut self) -> Result<PositionerStatus> {
         let word = self.statusword().await?;
-        let correction = self.read_fixed::<1>(index::CORRECTION_ENABLE).await?[0] != 0;
+        let correction = self.cfg.correction_objects && self.read_fixed::<1>(index::CORRECTION_ENABLE).await?[0] != 0;
         let fault = if word.fault() { Some(self.fault().await?) } else { None };
         let limit = if word.internal_limit() {
             let inputs = u32::from_le_bytes(self.read_fixed(index::DIGITAL_INPUTS).await?);
@@ -496,12 +517,14 @@ impl<B: CanBus> Positioner for Cia402Positioner<B> {
     /// Segmented download of the table to 0x2100 (f32 values, see
     /// [`encode_table`]).
     async fn load_correction_table(&mut self, table: &CorrectionTable) -> Result<()> {
+        self.require_correction_objects("load the correction table")?;
         let bytes = encode_table(table).map_err(|e| self.usage(format!("correction table: {e}")))?;
         self.download(index::CORRECTION_TABLE, 0, &bytes).await
     }
 
     /// 0x2101 = 1 or 0.
     async fn enable_correction(&mut self, enabled: bool) -> Result<()> {
+        self.require_correction_objects(if enabled { "apply the correction" } else { "switch the correction off" })?;
         self.download(index::CORRECTION_ENABLE, 0, &[u8::from(enabled)]).await
     }
 }
@@ -571,7 +594,7 @@ mod tests {
         let c = CanopenConfig::default();
         assert_eq!((c.node_id, c.counts_per_degree, c.sdo_timeout_ms), (1, 100_000.0, 500));
         assert_eq!((c.resync_grace_ms, c.set_point_polls, c.fault_text_index), (20, 10, Some(0x2102)));
-        assert_eq!(c.transition_timeout_ms, 500);
+        assert_eq!((c.transition_timeout_ms, c.correction_objects), (500, false));
         assert_eq!(c.sdo_timeouts().response, Duration::from_millis(500));
         let bus = MemoryBus::new();
         for bad in [
@@ -619,6 +642,37 @@ mod tests {
         // Status of such a drive: enabled, target not reached: moving.
         let s = p.status().await.unwrap();
         assert!(s.moving && !s.in_position && s.fault.is_none() && s.limit.is_none(), "{s:?}");
+    }
+
+    /// A drive with the standard objects only (no 0x2100-0x2102): status,
+    /// its fault and its limits need nothing else; the correction table is
+    /// refused before anything is sent unless the configuration says the
+    /// drive has the objects.
+    #[tokio::test]
+    async fn a_drive_with_only_the_standard_objects_reports_its_status() {
+        let bus = MemoryBus::new();
+        let mut m = HashMap::new();
+        m.insert(index::STATUSWORD, 0x0E37u16.to_le_bytes().to_vec());
+        m.insert(index::ERROR_CODE, 0u16.to_le_bytes().to_vec());
+        m.insert(index::DIGITAL_INPUTS, 2u32.to_le_bytes().to_vec());
+        let objs = Arc::new(Mutex::new(m));
+        let _node = scripted(&bus, 3, objs.clone(), false);
+        let mut p = Cia402Positioner::new(bus.endpoint(), cfg()).unwrap();
+        let s = p.status().await.unwrap();
+        assert_eq!((s.limit, s.correction_enabled, s.in_position), (Some(Limit::Upper), false, true), "{s:?}");
+        let f = p.fault().await.unwrap();
+        assert_eq!((f.code, f.text.as_str()), (0, "No error"), "0x2102 absent: the standard text");
+        let table = CorrectionTable::new(vec![0.0; 4]).unwrap();
+        for e in [p.load_correction_table(&table).await.unwrap_err(), p.enable_correction(true).await.unwrap_err()] {
+            assert_eq!(e.kind, ErrorKind::Usage, "{e}");
+            assert!(e.message.contains("correction_objects = true"), "{e}");
+        }
+        assert!(!objs.lock().unwrap().contains_key(&index::CORRECTION_TABLE), "nothing was sent");
+        // A drive that has them, configured so: 0x2101 is read.
+        objs.lock().unwrap().insert(index::CORRECTION_ENABLE, vec![1]);
+        let with = CanopenConfig { correction_objects: true, ..cfg() };
+        let mut p = Cia402Positioner::new(bus.endpoint(), with).unwrap();
+        assert!(p.status().await.unwrap().correction_enabled);
     }
 
     #[tokio::test]

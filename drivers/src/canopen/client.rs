@@ -3,16 +3,19 @@
 //!
 //! - Before each transfer, frames already waiting are dropped (a late
 //!   response to an earlier request must not be taken for this one's). After
-//!   a timeout the next transfer first waits [`SdoTimeouts::resync_grace`]
-//!   and drops what arrives in it.
+//!   a timeout the client drains the bus for as long as the node may still
+//!   answer ([`SdoTimeouts::late_window`]) before it reports the timeout.
+//! - An initiate response or an abort that names another object than the
+//!   transfer's (a late response to an earlier transfer) is discarded and
+//!   logged, not taken: the client waits on for its own within the deadline.
 //! - Frames with other COB-IDs than `0x580 + node` are ignored (other nodes'
 //!   traffic, heartbeats, emergencies).
 //! - No response within [`SdoTimeouts::response`] -> [`ErrorKind::Timeout`];
 //!   the client sends the abort `0x0504_0000` (SDO protocol timed out) so the
 //!   node forgets the transfer, as CiA 301 has it.
 //! - A response that does not decode, has an unexpected command specifier,
-//!   echoes another index or sub-index, or breaks the toggle sequence or the
-//!   size -> [`ErrorKind::Garbled`]; the client aborts the transfer
+//!   or breaks the toggle sequence or the size -> [`ErrorKind::Garbled`];
+//!   the client aborts the transfer
 //!   (`0x0504_0001`, `0x0503_0000` or `0x0607_001x`).
 //! - An abort from the node -> the code and its standard text, classified by
 //!   [`abort_kind`] ([`ErrorKind::Device`] or [`ErrorKind::Usage`]).
@@ -32,9 +35,19 @@ use tokio::time::Instant;
 pub struct SdoTimeouts {
     /// How long to wait for each response frame. Default 500 ms.
     pub response: Duration,
-    /// After a timeout, how long the next transfer first waits for late
-    /// frames to drop. Default 20 ms.
+    /// After a timeout, how long the client drains late frames at least
+    /// (see [`SdoTimeouts::late_window`]). Default 20 ms.
     pub resync_grace: Duration,
+}
+
+impl SdoTimeouts {
+    /// After a response timed out, how long the node may still answer: the
+    /// bus is drained for so long (half the response deadline, or the
+    /// resync grace when longer) before the timeout is reported. The
+    /// client's own bound of one response is the deadline and this.
+    pub fn late_window(&self) -> Duration {
+        (self.response / 2).max(self.resync_grace)
+    }
 }
 
 impl Default for SdoTimeouts {
@@ -53,7 +66,6 @@ pub struct SdoClient {
     node_id: u8,
     timeouts: SdoTimeouts,
     name: String,
-    resync: bool,
 }
 
 /// How a transfer step failed, before it is turned into a [`DriverError`].
@@ -77,7 +89,7 @@ impl From<DriverError> for Step {
 impl SdoClient {
     /// A client for node `node_id` (1..=127), errors named `name`.
     pub fn new(node_id: u8, timeouts: SdoTimeouts, name: impl Into<String>) -> Self {
-        Self { node_id, timeouts, name: name.into(), resync: false }
+        Self { node_id, timeouts, name: name.into() }
     }
 
     /// The node served.
@@ -185,7 +197,7 @@ impl SdoClient {
         subindex: u8,
     ) -> Result<(Vec<u8>, bool), Step> {
         self.send(bus, &SdoRequest::InitiateUpload { index, subindex }).await?;
-        let size = match self.response(bus).await? {
+        let size = match self.response(bus, (index, subindex)).await? {
             SdoResponse::InitiateUpload { index: i, subindex: s, data } if (i, s) == (index, subindex) => match data {
                 InitData::Expedited { data, size_indicated } => return Ok((data, size_indicated)),
                 InitData::Segmented { size } => size,
@@ -197,7 +209,7 @@ impl SdoClient {
         loop {
             let toggle = joined.toggle();
             self.send(bus, &SdoRequest::UploadSegment { toggle }).await?;
-            match self.response(bus).await? {
+            match self.response(bus, (index, subindex)).await? {
                 SdoResponse::UploadSegment { toggle: t, data, last } => {
                     let done = joined.push(t, &data, last).map_err(|e| Step::Garbled {
                         code: e.abort_code(),
@@ -230,7 +242,7 @@ impl SdoClient {
         };
         let segmented = matches!(init, InitData::Segmented { .. });
         self.send(bus, &SdoRequest::InitiateDownload { index, subindex, data: init }).await?;
-        match self.response(bus).await? {
+        match self.response(bus, (index, subindex)).await? {
             SdoResponse::InitiateDownload { index: i, subindex: s } if (i, s) == (index, subindex) => {}
             other => {
                 return Err(unexpected(&other, "an initiate download response echoing the object", index, subindex));
@@ -243,7 +255,7 @@ impl SdoClient {
         while let Some(seg) = segments.next_segment() {
             let toggle = seg.toggle;
             self.send(bus, &SdoRequest::DownloadSegment { toggle, data: seg.data, last: seg.last }).await?;
-            match self.response(bus).await? {
+            match self.response(bus, (index, subindex)).await? {
                 SdoResponse::DownloadSegment { toggle: t } if t == toggle => {}
                 SdoResponse::DownloadSegment { toggle: t } => {
                     return Err(Step::Garbled {
@@ -274,10 +286,10 @@ impl SdoClient {
                 Err(e)
             }
             Err(Step::Timeout) => {
-                self.resync = true;
                 let limit = self.timeouts.response;
                 tracing::warn!(instrument = %self.name, what, ?limit, "no SDO response; aborting the transfer");
                 self.send(bus, &SdoRequest::Abort { index, subindex, code: abort::TIMEOUT }).await?;
+                self.drain_late(bus).await?;
                 Err(DriverError::timeout(&self.name, what, limit))
             }
             Err(Step::Garbled { code, why }) => {
@@ -306,8 +318,10 @@ impl SdoClient {
         bus.send(frame).await
     }
 
-    /// The next response from our node, within the response deadline.
-    async fn response<B: CanBus + ?Sized>(&self, bus: &mut B) -> Result<SdoResponse, Step> {
+    /// The next response from our node to the transfer of `mux`, within the
+    /// response deadline: an initiate response or an abort naming another
+    /// object answers an earlier transfer (it came late) and is discarded.
+    async fn response<B: CanBus + ?Sized>(&self, bus: &mut B, mux: (u16, u8)) -> Result<SdoResponse, Step> {
         let deadline = Instant::now() + self.timeouts.response;
         loop {
             let frame = match tokio::time::timeout_at(deadline, bus.recv()).await {
@@ -319,7 +333,21 @@ impl SdoClient {
                 continue;
             }
             tracing::trace!(instrument = %self.name, %frame, "SDO response");
-            return match SdoResponse::decode(frame.data()) {
+            let decoded = SdoResponse::decode(frame.data());
+            if let Ok(
+                SdoResponse::InitiateUpload { index, subindex, .. }
+                | SdoResponse::InitiateDownload { index, subindex }
+                | SdoResponse::Abort { index, subindex, .. },
+            ) = &decoded
+                && (*index, *subindex) != mux
+            {
+                tracing::warn!(
+                    instrument = %self.name, %frame, transfer = %Multiplexer(mux.0, mux.1),
+                    "discarded an SDO response for another object (a late one)"
+                );
+                continue;
+            }
+            return match decoded {
                 Ok(SdoResponse::Abort { code, .. }) => Err(Step::Aborted(code)),
                 Ok(r) => Ok(r),
                 Err(e) => Err(Step::Garbled { code: abort::COMMAND_SPECIFIER, why: format!("{e} in {frame}") }),
@@ -327,19 +355,24 @@ impl SdoClient {
         }
     }
 
-    /// Drop frames already waiting (and, after a timeout, those arriving in
-    /// the grace period).
-    async fn drain<B: CanBus + ?Sized>(&mut self, bus: &mut B) -> Result<()> {
+    /// After a timeout: drop the frames of our node that arrive while it may
+    /// still answer ([`SdoTimeouts::late_window`]).
+    async fn drain_late<B: CanBus + ?Sized>(&mut self, bus: &mut B) -> Result<()> {
+        let window = self.timeouts.late_window();
+        let until = Instant::now() + window;
         let mut dropped = 0usize;
-        if std::mem::take(&mut self.resync) {
-            let until = Instant::now() + self.timeouts.resync_grace;
-            while let Ok(r) = tokio::time::timeout_at(until, bus.recv()).await {
-                let frame = r?;
-                if frame.id() == self.response_id() {
-                    dropped += 1;
-                }
+        while let Ok(r) = tokio::time::timeout_at(until, bus.recv()).await {
+            if r?.id() == self.response_id() {
+                dropped += 1;
             }
         }
+        tracing::warn!(instrument = %self.name, ?window, dropped, "drained the bus after a timeout");
+        Ok(())
+    }
+
+    /// Drop frames already waiting.
+    async fn drain<B: CanBus + ?Sized>(&mut self, bus: &mut B) -> Result<()> {
+        let mut dropped = 0usize;
         while let Some(frame) = bus.try_recv()? {
             if frame.id() == self.response_id() {
                 dropped += 1;

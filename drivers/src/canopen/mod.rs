@@ -10,7 +10,7 @@
 //! | [`sdo`] | SDO frame codec, abort codes, segmenting and reassembly | none (sans-IO) |
 //! | [`nmt`] | NMT node control and heartbeat frames | none (sans-IO) |
 //! | [`objects`] | CiA 402 objects, controlword/statusword, state machine, table domain | none (sans-IO) |
-//! | [`client`] | [`SdoClient`]: upload/download with deadlines, aborts, resync | over [`CanBus`] |
+//! | [`client`] | [`SdoClient`]: upload/download with deadlines, aborts, late frames drained | over [`CanBus`] |
 //! | [`cia402`] | [`Cia402Positioner`]: the `Positioner` trait | over [`CanBus`] |
 //! | [`memory_bus`] | [`MemoryBus`]: a broadcast bus in memory (tests, simulation) | tokio channels |
 //! | [`socketcan_bus`] | [`SocketCanBus`]: Linux SocketCAN | `AF_CAN` socket |
@@ -57,8 +57,9 @@
 //!
 //! | what happens | [`ErrorKind`](crate::error::ErrorKind) | the client also |
 //! |---|---|---|
-//! | no response within [`SdoTimeouts::response`] (default 500 ms) | `Timeout` | sends abort `0x0504_0000`, resyncs next time |
-//! | response not 8 bytes, unknown specifier, wrong kind, wrong index/sub-index echo | `Garbled` | sends abort `0x0504_0001` |
+//! | no response within [`SdoTimeouts::response`] (default 500 ms) | `Timeout` | sends abort `0x0504_0000`, drains late frames for [`SdoTimeouts::late_window`] |
+//! | response not 8 bytes, unknown specifier, wrong kind | `Garbled` | sends abort `0x0504_0001` |
+//! | initiate response or abort naming another object (a late response) | discarded, logged | waits on for its own |
 //! | toggle bit not alternated | `Garbled` | sends abort `0x0503_0000` |
 //! | segments do not add up to the indicated size | `Garbled` | sends abort `0x0607_0012` / `0x0607_0013` |
 //! | abort from the node | `Device` with the code, or `Usage` (see [`sdo::abort_kind`]: value range `0x0609_003x`, device state `0x0800_0022`, no data `0x0800_0024`) | - |
@@ -82,9 +83,17 @@
 //! | `0x607A` | i32 | target position, counts |
 //! | `0x6081` | u32 | profile velocity, counts per second |
 //! | `0x60FD` | u32 | digital inputs: bit 0 negative, bit 1 positive limit switch |
-//! | `0x2100` | domain | correction table (this project's layout, below) |
-//! | `0x2101` | u8 | correction applied (0/1) |
-//! | `0x2102` | visible string | text of the latched fault |
+//! | `0x2100` | domain | correction table (this project's layout, below), only with [`CanopenConfig::correction_objects`] |
+//! | `0x2101` | u8 | correction applied (0/1), only with [`CanopenConfig::correction_objects`] |
+//! | `0x2102` | visible string | text of the latched fault, when the drive has it ([`CanopenConfig::fault_text_index`]) |
+//!
+//! Status, enable, moves and limits use the CiA 301/402 objects only, which
+//! every CiA 402 drive has. 0x2100-0x2102 are this project's own layout in
+//! the manufacturer-specific range, which a drive may lack or use otherwise
+//! (SDO abort 0x06020000): the correction objects are used only when the
+//! configuration says the drive has them (`correction_objects = true`;
+//! without, loading and switching the correction table is refused as bad
+//! usage), and a missing fault-text object falls back to the code's text.
 //!
 //! Counts per degree are configured ([`CanopenConfig::counts_per_degree`],
 //! default 100 000); velocity units are counts per second.
@@ -103,7 +112,7 @@
 //! `in_position` = target reached; `fault` = bit 3, with the code of 0x603F
 //! and the text of 0x2102 (or the code's standard text); `limit` = bit 11
 //! (internal limit active) refined by 0x60FD bits 0/1; `correction_enabled`
-//! = 0x2101.
+//! = 0x2101 with the correction objects, else false.
 //!
 //! The correction table domain (0x2100): `u16` rows `n` (2..=8192), `u8`
 //! flags (bit 0: a reverse column follows), `u8` 0, then `n` forward values

@@ -134,6 +134,7 @@ where
         match tokio::time::timeout(limit, self.send_and_receive(cmd)).await {
             Err(_) => {
                 tracing::warn!(instrument = %self.name, command = %cmd.letter(), ?limit, "ELCOMAT did not answer");
+                self.drain_late().await;
                 Err(DriverError::timeout(self.name.clone(), &format!("'{}'", cmd.letter()), limit))
             }
             Ok(Ok(reply)) => {
@@ -145,6 +146,25 @@ where
                 Err(e)
             }
         }
+    }
+
+    /// After a request timed out, how long the instrument may still answer:
+    /// the line is drained for so long (half the timeout) before the timeout
+    /// is reported, so a late reading is never taken for the next one's.
+    pub fn late_window(&self) -> Duration {
+        self.timeout / 2
+    }
+
+    /// After a timeout: discard what arrives within the late window.
+    async fn drain_late(&mut self) {
+        let mut drained = 0usize;
+        let mut buf = [0u8; 256];
+        let mut late = Drain::late(tokio::time::Instant::now() + self.late_window());
+        while let Ok(Some(n)) = late.next(&mut self.io, &mut buf).await {
+            drained += n;
+        }
+        let discarded = self.decoder.discard_pending();
+        tracing::warn!(instrument = %self.name, drained, partial_lines = discarded.lines, "drained late replies after a timeout");
     }
 
     /// Discard bytes already waiting on the transport and whatever the

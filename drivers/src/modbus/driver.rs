@@ -1,5 +1,6 @@
 //! The [`Positioner`] driver over a tokio-modbus client context.
 
+use super::line::{LateReplies, line};
 use super::map::{Location, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, RegisterMap, RegisterTable, table_checksum};
 use crate::error::{DriverError, ErrorKind, Result};
 use crate::traits::{Positioner, PositionerStatus};
@@ -7,6 +8,7 @@ use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 use std::borrow::Cow;
 use std::fmt;
+use std::sync::Arc;
 use std::time::Duration;
 use survey_processing::table::CorrectionTable;
 use tokio::io::{AsyncRead, AsyncWrite};
@@ -26,6 +28,16 @@ pub struct ModbusTimeouts {
     /// One Modbus request and its reply (default 1 s).
     #[serde(rename = "request_ms", with = "millis")]
     pub request: Duration,
+}
+
+impl ModbusTimeouts {
+    /// After a request timed out on RTU, how long the device may still
+    /// answer: the line is drained for so long (half the request deadline)
+    /// before the timeout is reported. The driver's own bound of one request
+    /// is the deadline and this.
+    pub fn late_window(&self) -> Duration {
+        self.request / 2
+    }
 }
 
 impl Default for ModbusTimeouts {
@@ -93,6 +105,8 @@ pub struct ModbusPositioner {
     map: RegisterMap,
     timeouts: ModbusTimeouts,
     ctx: Option<Context>,
+    /// On RTU: the line's late replies, drained after a timeout.
+    late: Option<Arc<dyn LateReplies>>,
     /// Why the link is dead (after a link fault).
     dead: Option<String>,
 }
@@ -172,18 +186,22 @@ impl ModbusPositioner {
     {
         check_map("modbus-tcp", &map)?;
         let ctx = tokio_modbus::client::tcp::attach_slave(transport, Slave(map.unit_id));
-        Ok(Self { name: "modbus-tcp".into(), map, timeouts, ctx: Some(ctx), dead: None })
+        Ok(Self { name: "modbus-tcp".into(), map, timeouts, ctx: Some(ctx), late: None, dead: None })
     }
 
     /// Modbus RTU framing over an open byte stream (a serial port, a pty),
-    /// slave `map.unit_id`.
+    /// slave `map.unit_id`. RTU has no transaction id: a reply that does not
+    /// answer the request just sent (slave, function, byte count, echo) is
+    /// discarded, and after a timeout the line is drained for half the
+    /// request deadline again, as long as the device may still answer.
     pub fn attach_rtu<T>(transport: T, map: RegisterMap, timeouts: ModbusTimeouts) -> Result<Self>
     where
         T: AsyncRead + AsyncWrite + Send + Unpin + 'static,
     {
         check_map("modbus-rtu", &map)?;
-        let ctx = tokio_modbus::client::rtu::attach_slave(transport, Slave(map.unit_id));
-        Ok(Self { name: "modbus-rtu".into(), map, timeouts, ctx: Some(ctx), dead: None })
+        let (line, late) = line(transport);
+        let ctx = tokio_modbus::client::rtu::attach_slave(line, Slave(map.unit_id));
+        Ok(Self { name: "modbus-rtu".into(), map, timeouts, ctx: Some(ctx), late: Some(late), dead: None })
     }
 
     /// The same driver under another name (logs and errors).
@@ -216,6 +234,7 @@ impl ModbusPositioner {
     fn link_fault(&mut self, kind: ErrorKind, what: &str, message: String) -> DriverError {
         tracing::warn!(instrument = %self.name, request = what, %kind, %message, "Modbus link fault: the session is closed");
         self.ctx = None;
+        self.late = None;
         self.dead = Some(format!("{kind} during {what}: {message}"));
         self.fail(kind, None, message)
     }
@@ -232,7 +251,14 @@ impl ModbusPositioner {
         };
         let limit = self.timeouts.request;
         match tokio::time::timeout(limit, ctx.call(request)).await {
-            Err(_) => Err(self.link_fault(ErrorKind::Timeout, what, format!("no reply to {what} within {limit:?}"))),
+            Err(_) => {
+                if let Some(late) = &self.late {
+                    let window = self.timeouts.late_window();
+                    let dropped = late.drain_until(tokio::time::Instant::now() + window).await;
+                    tracing::warn!(instrument = %self.name, request = what, ?window, dropped, "drained the line after a timeout");
+                }
+                Err(self.link_fault(ErrorKind::Timeout, what, format!("no reply to {what} within {limit:?}")))
+            }
             Ok(Err(e)) => {
                 let kind = link_error_kind(&e);
                 Err(self.link_fault(kind, what, format!("{what}: {e}")))

@@ -179,7 +179,9 @@
 //! row, checksum register, load command), and the exception classes above.
 
 mod driver;
+mod line;
 mod map;
+mod rtu;
 
 pub use driver::{ModbusPositioner, ModbusTimeouts, exception_kind, exception_name, link_error_kind};
 pub use map::{
@@ -187,5 +189,6 @@ pub use map::{
     MapError, PositionEncoding, RegisterMap, RegisterTable, Span, StatusBits, TableBlock, ValueError,
     WINDOW_HEADER_WORDS, WordOrder, crc16_modbus_bytes, fault_code_register, fault_text, table_checksum,
 };
+pub use rtu::rtu_response_len;
 /// The tokio-modbus types the simulator and tests share with the driver.
 pub use tokio_modbus::{ExceptionCode, Request, Response};

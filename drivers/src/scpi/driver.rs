@@ -21,9 +21,20 @@ pub struct ScpiTimeouts {
     pub request: Duration,
     /// Deadline of the TCP connect. Default 5 s.
     pub connect: Duration,
-    /// After a timeout, how long the next request first waits for a late
-    /// reply to throw away. Default 50 ms.
+    /// After a timeout, how long the driver drains late replies at least
+    /// (see [`ScpiTimeouts::late_window`]). Default 50 ms.
     pub resync_grace: Duration,
+}
+
+impl ScpiTimeouts {
+    /// After a request timed out, how long the controller may still answer:
+    /// the line is drained for so long (half the request deadline, or the
+    /// resync grace when longer) before the timeout is reported, so a late
+    /// reply is never taken for the next request's. The driver's own bound
+    /// of one request is the deadline and this.
+    pub fn late_window(&self) -> Duration {
+        (self.request / 2).max(self.resync_grace)
+    }
 }
 
 impl Default for ScpiTimeouts {
@@ -109,7 +120,6 @@ pub struct ScpiPositioner<T> {
     /// word shows a fault.
     last_fault: Option<DeviceFault>,
     /// A request timed out: its reply may still come.
-    resync: bool,
     /// The last commanded position (in position is decided against it).
     target: Option<f64>,
     /// `UNIT:POS?` was checked on this connection.
@@ -182,7 +192,6 @@ where
             name: "scpi".into(),
             cfg,
             last_fault: None,
-            resync: false,
             target: None,
             units_checked: false,
             correction_on: false,
@@ -314,13 +323,12 @@ where
 
     // -- I/O ----------------------------------------------------------------
 
-    /// Throw away input that is already waiting (and, after a timeout, input
-    /// that arrives within the grace period).
-    async fn drain(&mut self, what: &str) -> Result<()> {
+    /// Throw away input that is already waiting (`late`: and what arrives
+    /// until the late window after a timeout has passed).
+    async fn drain(&mut self, what: &str, late: bool) -> Result<()> {
         let mut dropped = self.decoder.clear();
         let mut buf = [0u8; 1024];
-        let late_until =
-            std::mem::take(&mut self.resync).then(|| tokio::time::Instant::now() + self.cfg.timeouts.resync_grace);
+        let late_until = late.then(|| tokio::time::Instant::now() + self.cfg.timeouts.late_window());
         let mut stale = Drain::new(late_until);
         loop {
             let Some(io) = self.io.as_mut() else {
@@ -389,7 +397,7 @@ where
     /// One request: drain stale input, write `lines` in one go and, when the
     /// last is a query, read its reply line; all under the request deadline.
     async fn request(&mut self, lines: &[Command], what: &str) -> Result<Option<String>> {
-        self.drain(what).await?;
+        self.drain(what, false).await?;
         let mut bytes = Vec::new();
         for c in lines {
             bytes.extend(c.encode(self.cfg.address));
@@ -398,8 +406,12 @@ where
         let limit = self.cfg.timeouts.request;
         match tokio::time::timeout(limit, self.write_then_read(&bytes, reply, what)).await {
             Err(_) => {
-                self.resync = true;
-                tracing::warn!(instrument = %self.name, what, ?limit, "no reply");
+                tracing::warn!(instrument = %self.name, what, ?limit, "no reply; draining late replies");
+                // A link lost while draining is marked dead there; the
+                // request's own failure is the timeout.
+                if let Err(e) = self.drain(what, true).await {
+                    tracing::debug!(instrument = %self.name, error = %e, "the link was lost while draining");
+                }
                 Err(DriverError::timeout(&self.name, what, limit))
             }
             Ok(Err(e)) => Err(e),

@@ -122,8 +122,9 @@
 //!
 //! Before each request the driver drops whatever input is already waiting
 //! (lines and partial lines), so a late reply is never taken for the next
-//! request's answer. After a timeout it also waits
-//! [`ScpiTimeouts::resync_grace`] for a reply that is merely slow. A partial
+//! request's answer. After a timeout it drains the line for as long as the
+//! controller may still answer ([`ScpiTimeouts::late_window`]) before it
+//! reports the timeout. A partial
 //! line dropped this way makes the decoder skip everything up to the next LF,
 //! so its tail cannot pass for a reply either.
 //!

@@ -17,6 +17,20 @@ use survey_drivers::reconnect::{Connect, Reconnecting};
 use survey_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
 use survey_drivers::{Autocollimator, Clock, DriverError, ErrorKind, Positioner, Tracker};
 
+/// The SCPI driver's deadlines under the engine's call timeout: half of it
+/// for a request, so the driver meets a late reply and drains it
+/// ([`ScpiTimeouts::late_window`]) before the engine's deadline.
+pub fn scpi_timeouts(call_timeout: Duration) -> ScpiTimeouts {
+    ScpiTimeouts { request: call_timeout / 2, ..ScpiTimeouts::default() }
+}
+
+/// The ELCOMAT driver's timeout under the engine's measurement timeout:
+/// half of it, so the driver meets a late reading and drains it (a quarter)
+/// before the engine's deadline.
+pub fn elcomat_timeout(measure_timeout: Duration) -> Duration {
+    measure_timeout / 2
+}
+
 /// Opens the configured positioner controller.
 #[derive(Debug, Clone)]
 pub struct PositionerConnector {
@@ -27,7 +41,7 @@ pub struct PositionerConnector {
 #[async_trait]
 impl Connect<dyn Positioner> for PositionerConnector {
     async fn connect(&self) -> survey_drivers::Result<Box<dyn Positioner>> {
-        let timeouts = ScpiTimeouts { request: self.timeout, ..ScpiTimeouts::default() };
+        let timeouts = scpi_timeouts(self.timeout);
         match &self.config {
             PositionerConfig::ScpiTcp {
                 address,
@@ -142,7 +156,7 @@ impl Connect<dyn Autocollimator> for AutocollimatorConnector {
     async fn connect(&self) -> survey_drivers::Result<Box<dyn Autocollimator>> {
         match &self.config {
             AutocollimatorConfig::Elcomat { port, baud } => {
-                Ok(Box::new(ElcomatDriver::open_serial(port, *baud)?.with_timeout(self.timeout)))
+                Ok(Box::new(ElcomatDriver::open_serial(port, *baud)?.with_timeout(elcomat_timeout(self.timeout))))
             }
         }
     }
@@ -293,6 +307,20 @@ fn line(instrument: &str, address: String, result: Result<String, DriverError>) 
     }
 }
 
+/// What the configured positioner cannot do, for `survey check` (empty when
+/// nothing): a CiA 402 drive without this project's correction objects
+/// cannot take the correction table.
+fn unavailable(positioner: &PositionerConfig) -> &'static str {
+    match positioner {
+        PositionerConfig::Canopen { drive, .. } if !drive.correction_objects => {
+            "; unavailable without correction_objects = true (the drive has CiA 402's standard objects only): \
+             loading the correction table into the drive (0x2100/0x2101, this project's own objects), so \
+             survey run --verify cannot apply the table"
+        }
+        _ => "",
+    }
+}
+
 /// Connect to every instrument and read its status, bounded by the
 /// configuration's timeouts.
 pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
@@ -310,7 +338,7 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
         }
         let readout = with_timeout(clock, timing.call_timeout, &name, "readout", p.readout()).await?;
         Ok(format!(
-            "readout {readout} deg, {}{}",
+            "readout {readout} deg, {}{}{}",
             if status.moving {
                 "moving"
             } else if status.in_position {
@@ -318,7 +346,8 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
             } else {
                 "at rest"
             },
-            status.limit.map(|l| format!(", at the {l:?} limit")).unwrap_or_default()
+            status.limit.map(|l| format!(", at the {l:?} limit")).unwrap_or_default(),
+            unavailable(&cfg.positioner)
         ))
     }
     .await;

@@ -13,7 +13,7 @@ use survey_processing::{Direction, Sample};
 #[derive(Debug, Args)]
 pub struct ImportArgs {
     /// CSV file: run,direction,target_deg,readout_deg,actual_deg[,timestamp_s].
-    #[arg(value_name = "FILE.csv")]
+    #[arg(value_name = "FILE.csv", value_hint = clap::ValueHint::FilePath)]
     pub file: PathBuf,
     /// The asset (the axis measured) the survey belongs to [default: unassigned].
     #[arg(long, value_name = "ID", value_parser = crate::survey::asset_id)]

@@ -6,9 +6,11 @@
 //! "created_at", "updated_at"}, ...]}`, oldest first; `show --json` one
 //! survey with its plan, instruments, located axis, model and event log.
 
+use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
 use crate::survey::{Setup, SurveyRecord};
 use clap::Args;
+use serde_json::Value;
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -23,8 +25,10 @@ pub struct ListArgs {
 #[derive(Debug, Args)]
 pub struct ShowArgs {
     /// Survey id or uid (default: the latest).
-    #[arg(value_name = "ID")]
+    #[arg(value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<crate::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -82,12 +86,22 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The instruments of a configured survey, one a line (`positioner   scpi-tcp
+/// 192.168.1.20:4000`), as stored: a name's text, any other value as JSON.
+fn instruments_text(s: &mut String, instruments: &Value) {
+    for (role, name) in instruments.as_object().into_iter().flatten().filter(|(k, _)| *k != "config_file") {
+        let name = name.as_str().map_or_else(|| name.to_string(), str::to_string);
+        let _ = writeln!(s, "  {role:<12} {name}");
+    }
+}
+
 pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let shown = crate::documents::shown(&store, args.survey).await;
     store.close().await;
     let shown = shown?;
-    let (r, events, drift) = (&shown.survey, &shown.events, &shown.drift);
+    let (r, events, drift, checks) = (&shown.survey, &shown.events, &shown.drift, &shown.checks);
+    let at = shown.check_angles();
     let plan = r.setup.plan();
     if args.json {
         emit(&format!("{}\n", shown.json()));
@@ -117,10 +131,22 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     }
     match &r.setup {
         Setup::Simulated(sim) => {
-            let _ = writeln!(s, "  bench        simulated {} (seed {})", sim.preset, sim.seed);
+            let model = sim.model_file.as_ref().map(|m| format!(" running {m}")).unwrap_or_default();
+            let _ = writeln!(
+                s,
+                "  bench        simulated {}{model} with a {}, seed {}",
+                sim.preset,
+                sim.reference.as_str(),
+                sim.seed
+            );
+            if let Some(faults) = &sim.faults {
+                let _ = writeln!(s, "  faults       {}", crate::output::fault_rates(faults));
+            }
         }
         Setup::Configured(_) => {
-            let _ = writeln!(s, "  bench        configured instruments: {}", r.instruments);
+            let from = r.instruments.get("config_file").and_then(Value::as_str);
+            let _ = writeln!(s, "  bench        configured{}", from.map(|f| format!(" from {f}")).unwrap_or_default());
+            instruments_text(&mut s, &r.instruments);
         }
         Setup::Imported { file } => {
             let _ = writeln!(s, "  imported     from {file}");
@@ -136,13 +162,24 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     if let Some(uid) = &r.check_of {
         let _ = writeln!(s, "  checks       the calibration {uid}");
     }
-    for line in survey_processing::drift::text(drift).lines() {
+    if !checks.is_empty() {
+        let shown: Vec<String> = at.iter().map(|t| format!("{t:.3}")).collect();
+        let _ = writeln!(s, "  check points {} samples between the targets, at {} deg", checks.len(), shown.join(", "));
+    }
+    if let Some(of) = r.resolves {
+        let _ = writeln!(
+            s,
+            "  resolves     the check points of survey {of}, being acquired (`survey resume` finishes them)"
+        );
+    }
+    let units = args.units.units();
+    for line in survey_processing::drift::text(drift, units).lines() {
         let _ = writeln!(s, "  {line}");
     }
     if !events.is_empty() {
         let _ = writeln!(s, "  events");
         for e in events {
-            let _ = writeln!(s, "    {:>10.1} s  {:<5}  {}", e.at_s, e.level, e.message);
+            let _ = writeln!(s, "    {:>10.1} s  {:<5}  {}", e.at_s, e.level, units.text(&e.message));
         }
     }
     emit(&s);

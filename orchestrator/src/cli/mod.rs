@@ -5,6 +5,7 @@
 //! disk), 2 for bad usage or bad input. Every command that fails on its input
 //! stores nothing. Nothing below this module imports it.
 
+mod args;
 mod check;
 mod compare;
 mod docs;
@@ -42,11 +43,16 @@ pub struct Cli {
         long,
         global = true,
         value_name = "PATH|URL",
+        value_hint = clap::ValueHint::FilePath,
         default_value = crate::process::DEFAULT_DB,
         env = "SURVEY_DB",
         hide_env_values = true
     )]
     pub db: PathBuf,
+
+    /// Say more on stderr: -v how the work is done, -vv debug, -vvv trace (RUST_LOG, when set, decides instead).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
 
     #[command(subcommand)]
     pub command: Command,
@@ -64,7 +70,7 @@ Examples:
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Acquire a survey (the simulated instruments unless --config is given).
-    #[command(after_help = "\
+    #[command(override_usage = run::USAGE, after_help = "\
 Examples:
   survey run --points 360 --bidirectional                 # simulated Figure 8 bench, 5 runs
   survey run --points 720 --runs 3 --bidirectional --preset fig4 --json
@@ -83,7 +89,7 @@ Examples:
   survey resume                   # the latest survey
   survey resume --survey 3 --json")]
     Resume(resume::ResumeArgs),
-    /// Write the survey's report (a self-contained HTML page with its plots and tables) into DIR.
+    /// Write the survey's report, its calibration certificate: one self-contained HTML page into --out DIR.
     #[command(after_help = "\
 Examples:
   survey report --out report/               # report/index.html of the latest survey
@@ -151,7 +157,7 @@ Examples:
     #[command(after_help = "\
 Examples:
   survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
-  SURVEY_LAB=postgres://... survey push --json        # the latest survey")]
+  survey push --json        # the latest survey, to the lab store SURVEY_LAB names")]
     Push(push::PushArgs),
     /// Serve the lab's pages, read-only: assets, live surveys, histories, reports and the JSON documents.
     #[command(after_help = "\
@@ -184,7 +190,7 @@ Examples:
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    support::init_logging();
+    support::init_logging(cli.verbose);
     // The command awaits its work and every write; a background task that
     // never yields cannot keep the process alive (`crate::runtime`).
     let outcome = crate::runtime::block_on_bounded(2, async {
@@ -197,9 +203,15 @@ pub fn main() -> ExitCode {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
             let status = crate::error::exit_status(&e);
-            // A recalibration is what `run --check` reports, not an error.
-            let prefix = if status == crate::error::RECALIBRATED { "" } else { "error: " };
-            eprintln!("{prefix}{e:#}");
+            match e.downcast_ref::<clap::Error>() {
+                // A usage error found after parsing reads as clap's own, usage line and all.
+                Some(usage) => {
+                    let _ = usage.print();
+                }
+                // A recalibration is what `run --check` reports, not an error.
+                None if status == crate::error::RECALIBRATED => eprintln!("{e:#}"),
+                None => eprintln!("error: {e:#}"),
+            }
             ExitCode::from(status)
         }
         Err(e) => {

@@ -1,41 +1,30 @@
 //! `survey report --out DIR`: the survey's report as one HTML page.
 
+use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
-use crate::report::header::CertificateFlags;
-use crate::report::{ReportOptions, Units};
-use clap::{Args, ValueEnum};
+use crate::report::ReportOptions;
+use crate::report::certificate::CertificateFlags;
+use clap::Args;
 use std::path::{Path, PathBuf};
-
-/// The unit of every error in the report.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum UnitsArg {
-    /// Degrees.
-    Deg,
-    /// Arcseconds.
-    Arcsec,
-    /// Microradians.
-    Urad,
-}
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
     /// Survey id or uid (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<crate::survey::SurveyRef>,
     /// The folder to write index.html into (created if missing).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: PathBuf,
-    /// The unit of every error, figure and table.
-    #[arg(long, value_enum, default_value_t = UnitsArg::Deg)]
+    #[command(flatten)]
     pub units: UnitsArg,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub design: Option<PathBuf>,
     /// Replay this processing recipe (TOML), as `survey process --recipe` did.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub recipe: Option<PathBuf>,
     /// Compare the survey with this positioner model (model-gap) and show the steps.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: Option<PathBuf>,
     /// The positioner calibrated (make, model, serial) [default: [certificate] of the configuration, or the bench].
     #[arg(long, value_name = "TEXT")]
@@ -55,6 +44,21 @@ pub struct ReportArgs {
     /// The air temperature during the survey, degrees Celsius [default: [certificate] of the configuration].
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     pub temperature: Option<f64>,
+    /// The certificate's number [default: [certificate] number, or made from the survey's date and id].
+    #[arg(long, value_name = "TEXT")]
+    pub certificate_number: Option<String>,
+    /// The calibrating laboratory: name, address, accreditation [default: [certificate] laboratory].
+    #[arg(long, value_name = "TEXT")]
+    pub laboratory: Option<String>,
+    /// The traceability statement: the reference's calibration, by whom, certificate, date [default: [certificate] traceability].
+    #[arg(long, value_name = "TEXT")]
+    pub traceability: Option<String>,
+    /// Judge the ISO 230-2 accuracy A against this tolerance, degrees: pass, fail or not decidable within the uncertainty [default: [certificate] tolerance_deg].
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub tolerance: Option<f64>,
+    /// Print the page to DIR/index.pdf with Chromium, headless (SURVEY_CHROMIUM names the browser; else chromium on PATH).
+    #[arg(long)]
+    pub pdf: bool,
 }
 
 pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
@@ -68,12 +72,24 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     {
         return Err(crate::error::bad_input(format!("--reference-uncertainty {u}: must be above 0 and at most 1 deg")));
     }
+    if let Some(t) = args.tolerance
+        && !(t.is_finite() && t > 0.0 && t <= 360.0)
+    {
+        return Err(crate::error::bad_input(format!("--tolerance {t}: must be above 0 and at most 360 deg")));
+    }
+    for (flag, text) in [
+        ("--certificate-number", &args.certificate_number),
+        ("--laboratory", &args.laboratory),
+        ("--traceability", &args.traceability),
+    ] {
+        if text.as_ref().is_some_and(|t| t.trim().is_empty()) {
+            return Err(crate::error::bad_input(format!("{flag}: empty")));
+        }
+    }
+    // Checked before anything is written.
+    let pdf_bound = if args.pdf { Some(crate::report::pdf::timeout()?) } else { None };
     let opts = ReportOptions {
-        units: match args.units {
-            UnitsArg::Deg => Units::Deg,
-            UnitsArg::Arcsec => Units::Arcsec,
-            UnitsArg::Urad => Units::Urad,
-        },
+        units: args.units.units(),
         flags: CertificateFlags {
             positioner: args.positioner,
             reference: args.reference_instrument,
@@ -81,6 +97,10 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             operator: args.operator,
             customer: args.customer,
             temperature_c: args.temperature,
+            number: args.certificate_number,
+            laboratory: args.laboratory,
+            traceability: args.traceability,
+            tolerance_deg: args.tolerance,
         },
         design: args.design,
         recipe: args.recipe,
@@ -90,9 +110,17 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let data = crate::report::gather(&store, args.survey, &opts).await;
     store.close().await;
-    let html = crate::report::html(&data?, &opts)?;
+    let html = crate::report::html::render(&data?, &opts)?;
     let path = crate::report::write(&args.out, &html)?;
+    let printed = match pdf_bound {
+        Some(bound) => {
+            let pdf = path.with_extension("pdf");
+            let pages = crate::report::pdf::print(&path, &pdf, bound).await?;
+            format!("{} ({pages} pages)\n", pdf.display())
+        }
+        None => String::new(),
+    };
     drop(progress);
-    emit(&format!("{}\n", path.display()));
+    emit(&format!("{}\n{printed}", path.display()));
     Ok(())
 }

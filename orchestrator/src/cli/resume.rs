@@ -6,6 +6,7 @@
 //! stored but whose status is not complete (stopped while it was processed)
 //! is finished: statistics and processing, exit status 0.
 
+use super::args::UnitsArg;
 use super::support::{conclude_and_print, open_existing};
 use crate::acquire::Outcome;
 use crate::bench::Bench;
@@ -22,8 +23,10 @@ use std::time::Duration;
 #[derive(Debug, Args)]
 pub struct ResumeArgs {
     /// Survey id or uid (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<crate::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -31,7 +34,7 @@ pub struct ResumeArgs {
 
 pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let store = open_existing(db).await?;
-    let id = store.resolve(args.survey).await?.id;
+    let id = store.resolve_any(args.survey).await?.id;
     // One acquirer per survey: refused at once while a live process holds it.
     let lock = AcquirerLock::acquire(store.path(), id)?;
     if let Some(previous) = &lock.took_over {
@@ -93,7 +96,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         eprintln!("survey {id}: {message}");
         acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
     };
-    let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop };
+    let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop, units: args.units.units() };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done

@@ -4,7 +4,12 @@
 //! incomplete ("N of M runs complete", `"complete": false` in the JSON), and
 //! its statistics are those of its complete runs only: a run cut short would
 //! weigh its targets unevenly.
+//!
+//! The figures are of the samples every command uses
+//! ([`crate::load`] with `Axis::Refitted`: around the refitted axis of a
+//! tracker survey), and say which axis (`"axis"`).
 
+use super::args::UnitsArg;
 use super::support::emit;
 use crate::documents::Stats;
 use crate::load::{Axis, load_read_only};
@@ -15,16 +20,19 @@ use std::path::Path;
 #[derive(Debug, Args)]
 pub struct StatsArgs {
     /// Survey id or uid (default: the latest).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<crate::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
 pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
-    let loaded = load_read_only(db, args.survey, Axis::AsStored).await?;
+    let loaded = load_read_only(db, args.survey, Axis::Refitted).await?;
     let (survey, drift) = (&loaded.survey, &loaded.drift);
+    let axis = loaded.axis_used();
     let id = survey.id;
     let stats = Stats::of(&loaded)?;
     if args.json {
@@ -40,8 +48,11 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
                 c.runs_planned
             );
         }
-        text += &iso_text(id, &stats.iso);
-        text += &survey_processing::drift::text(drift);
+        let units = args.units.units();
+        text += &iso_text(id, &stats.iso, units);
+        text += axis.text();
+        text += "\n";
+        text += &survey_processing::drift::text(drift, units);
         if crate::drift::correction_asked(survey) && !drift.is_empty() {
             text += "the statistics above are of the samples corrected for this drift (drift_control.correct)\n";
         }

@@ -53,6 +53,8 @@ pub struct CheckRequest {
     pub json: bool,
     /// Process the recalibration with this recipe.
     pub recipe: Option<std::path::PathBuf>,
+    /// The unit of the errors in the text.
+    pub units: crate::output::Units,
 }
 
 /// A few dozen of the calibration's targets: the number of targets nearest
@@ -215,7 +217,13 @@ async fn full_survey(
     eprintln!("survey {id}: a full survey, {} targets x {} runs", b.plan.targets_deg.len(), b.plan.runs);
     let options = AcquireOptions { progress: !req.json, plan_progress: b.plan_progress.clone(), ..Default::default() };
     let acquired = acquire(store, id, &mut b.engine, &b.plan, 0, options.clone()).await?;
-    let finish = ConcludeOptions { recipe: req.recipe.clone(), verify: None, acquire: options, stop: stop.clone() };
+    let finish = ConcludeOptions {
+        recipe: req.recipe.clone(),
+        verify: None,
+        acquire: options,
+        stop: stop.clone(),
+        units: req.units,
+    };
     let concluded = conclude(store, id, &mut b.engine, &acquired, db, finish).await?;
     drop(lock);
     concluded.result?;

@@ -6,7 +6,8 @@
 //! A survey is measured here as `survey process` would process it: its
 //! samples around the axis fitted again from every SMR position (tracker
 //! surveys), corrected for drift when it asked for that, processed without a
-//! recipe with its stored model's design (quietly: no notes on stderr), and
+//! recipe with its stored model's design and its check points (quietly: no
+//! notes on stderr), and
 //! its table's uncertainty budgeted. The table of a survey, applied to
 //! another, is this table.
 
@@ -22,7 +23,7 @@ use survey_processing::compare::{CompareOptions, Comparison, Decision, TableChec
 use survey_processing::iso230::{Iso230, iso230_2};
 use survey_processing::model::Design;
 use survey_processing::modelgap::ReferenceInfo;
-use survey_processing::pipeline::{Processed, process};
+use survey_processing::pipeline::{Processed, process_with_checks};
 use survey_processing::recipe::LineAction;
 
 /// The false-alarm rate every comparison is made at.
@@ -116,7 +117,8 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
     let loaded = load(store, Some(r), Axis::Refitted).await?;
     let samples = loaded.analysed().into_owned();
     let design = loaded.survey.model.as_ref().map_or_else(Design::default, |m| m.design.clone());
-    let processed = process(&samples, &design, None).map_err(|e| e.to_string());
+    // With its check points, as `survey process` takes them in.
+    let processed = process_with_checks(&samples, &design, None, None, &loaded.checks).map_err(|e| e.to_string());
     let inputs = loaded.uncertainty_inputs();
     let table_u_deg =
         processed.as_ref().ok().map(|p| survey_processing::uncertainty::uncertainty(p, &samples, &inputs).table_u_deg);
@@ -146,6 +148,16 @@ pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
         return Err(crate::error::bad_input(format!(
             "survey {} belongs to the asset {} and survey {} to {}: only surveys of one asset compare",
             a.survey.id, a.survey.asset, b.survey.id, b.survey.asset
+        )));
+    }
+    // A verification measured the axis with a table applied: against a
+    // native survey every line the table corrects would read as a change.
+    if let Some(v) = [a, b].into_iter().find(|m| m.kind() == "verification") {
+        let of = v.survey.verification.as_ref().map_or(String::new(), |x| format!(" of survey {}", x.verifies_survey));
+        return Err(crate::error::bad_input(format!(
+            "survey {} is a verification (measured with the table{of} applied): it measures the corrected axis; \
+             compare calibrations and checks, which measure the positioner as it is",
+            v.survey.id
         )));
     }
     let lines: Vec<f64> =

@@ -70,6 +70,9 @@ pub struct ProcessOptions {
     /// What the uncertainty budget needs beyond the samples (the reference
     /// instrument's noise, the axis fit's standard error).
     pub uncertainty: UncertaintyInputs,
+    /// Check points measured between the targets to decide the lines in
+    /// doubt ([`crate::resolving`]; empty when there are none).
+    pub checks: Vec<Sample>,
 }
 
 /// Where the design came from.
@@ -108,9 +111,9 @@ impl ProcessOutcome {
         summary::json(self)
     }
 
-    /// The summary for people.
-    pub fn text(&self) -> String {
-        summary::text(self)
+    /// The summary for people, its errors in `units`.
+    pub fn text(&self, units: crate::output::Units) -> String {
+        summary::text(self, units)
     }
 }
 
@@ -148,8 +151,9 @@ pub fn compute(
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
                 eprintln!(
-                    "note: survey {id} has no stored model and no --design was given: lines are named without a design \
-                     (pass --design MODEL.toml to name gear and tooth harmonics)"
+                    "note: survey {id} has no stored model and no design was given: lines are named without a design \
+                     (`survey process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth \
+                     harmonics)"
                 );
                 (Design::default(), "none".to_string())
             }
@@ -171,12 +175,26 @@ pub fn compute(
         let base = recipe.as_ref().map(|(r, _, _)| r.export.clone()).unwrap_or_default();
         Some(opts.export.resolve(&base)?)
     };
-    let processed = match survey_processing::pipeline::process_with(samples, &design, replay, export.as_ref()) {
-        Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
-        other => other.with_context(|| format!("survey {id} cannot be processed"))?,
-    };
+    let processed =
+        match survey_processing::pipeline::process_with_checks(samples, &design, replay, export.as_ref(), &opts.checks)
+        {
+            Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
+            other => other.with_context(|| format!("survey {id} cannot be processed"))?,
+        };
+    let mut processed = processed;
+    // An autocollimator's faces fix the sampling: say what a second
+    // orientation of the polygon would resolve.
+    if crate::resolving::reference_of(survey) == Some(crate::acquire::ReferenceKind::Autocollimator)
+        && let Some(t) = crate::resolving::second_orientation(&processed.left)
+    {
+        processed.notes.push(t);
+    }
     for n in &processed.notes {
         eprintln!("note: {n}");
+    }
+    // How the table was made, not something to act on: under -v or RUST_LOG=info.
+    if let Some(dm) = &processed.built.direction_model {
+        tracing::info!("{}", dm.text());
     }
     let design = DesignSource {
         from: design_source,

@@ -1,43 +1,29 @@
 //! `survey report --out DIR`: the report a laboratory hands its customer, as
 //! one self-contained HTML page (inline SVG, inline style, no script, nothing
 //! fetched: its Content-Security-Policy forbids it) that prints as the
-//! certificate (A4, one section a page).
+//! certificate (A4, one section a page, "page x of y" on every page), and,
+//! with `--pdf`, that page printed by Chromium ([`pdf`]).
 //!
 //! [`gather`] reads what the report shows from the store: the survey, its
 //! samples (with a tracker, around the axis fitted again from every SMR
 //! position, as `survey process` does), the processing (computed, nothing
 //! written), the verification survey of its table (or, for a verification,
 //! the survey it verifies), and the model-gap steps when `--model` is given.
-//! [`html`] lays it out, one module per section:
+//! [`html`] lays it out, one module per section ([`html::BODY`] lists them);
+//! [`conformity`] decides a tolerance's verdict; [`page`] is the skeleton and
+//! the stylesheet, [`plot`] what every figure shares.
 //!
-//! - [`header`]: the certificate's header and where each field comes from;
-//! - [`errors`]: error against angle, every run and direction, ±2 s band;
-//! - [`hysteresis`]: forward minus reverse against angle;
-//! - [`spectrum`]: the spectrum with its lines named and the aliases moved;
-//! - [`interpolation`]: the paper's Figure 6;
-//! - [`table`]: the correction table;
-//! - [`verification`]: native against corrected on one scale;
-//! - [`modelgap`], [`drift`], [`uncertainty`]: when there is such data;
-//! - [`iso`]: ISO 230-2 and VDI/DGQ 3441, for the axis and per target.
-//!
-//! Every error is shown in the unit chosen ([`units::Units`]); angles along
-//! the axis stay in degrees.
+//! Every error is shown in the unit chosen ([`units::Units`]), by
+//! significance; angles along the axis stay in degrees.
 
-pub mod drift;
-pub mod errors;
-pub mod header;
-pub mod history;
-pub mod hysteresis;
-pub mod interpolation;
-pub mod iso;
-pub mod modelgap;
+pub mod certificate;
+pub mod conformity;
+pub mod html;
 pub mod page;
+pub mod pdf;
 pub mod plot;
-pub mod spectrum;
-pub mod table;
-pub mod uncertainty;
-pub mod units;
-pub mod verification;
+/// The units and numbers of the page (the processing's, shared with every command's text).
+pub use survey_processing::units;
 
 use crate::error::{bad_input, path_error};
 use crate::inputs::read_model;
@@ -46,16 +32,14 @@ use crate::process::ProcessOptions;
 use crate::store::Store;
 use crate::survey::{SurveyRecord, SurveyRef, SurveySource};
 use anyhow::Context as _;
-use header::{Certificate, CertificateFlags};
-use page::{escape, section};
+use certificate::CertificateFlags;
+pub use html::verification::Verification;
+use html::{drift, uncertainty};
 use std::path::{Path, PathBuf};
 use survey_processing::Sample;
-use survey_processing::errormap::ErrorMap;
-use survey_processing::iso230::iso230_2;
 use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 use survey_processing::pipeline::{PipelineError, Processed};
 pub use units::Units;
-pub use verification::Verification;
 
 /// What the report is asked for, besides the survey.
 #[derive(Debug, Clone, Default)]
@@ -77,8 +61,11 @@ pub struct ReportOptions {
 pub struct ReportData {
     /// The survey.
     pub survey: SurveyRecord,
-    /// Its samples, as processed.
+    /// Its samples, as processed (every figure of the page is of them, as
+    /// `survey stats` and `survey process` give them).
     pub samples: Vec<Sample>,
+    /// Which axis their actual angles were computed around.
+    pub axis: crate::refit::AxisUsed,
     /// The processing, or why there is none.
     pub processed: Result<Processed, String>,
     /// The verification pair, when there is one.
@@ -89,6 +76,8 @@ pub struct ReportData {
     pub drift: Vec<drift::DriftPoint>,
     /// The table's uncertainty budget, when the processing gives one.
     pub uncertainty: Option<uncertainty::UncertaintyBudget>,
+    /// The axis location's standard uncertainty (a tracker), degrees: a part of a measured figure's.
+    pub axis_u_deg: Option<f64>,
     /// When the report was made (UTC, RFC 3339).
     pub generated: String,
     /// The asset's history up to this survey, when it has one.
@@ -106,15 +95,19 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
     // does not keep the report from being written.
     let history = crate::life::history::history(store, &loaded.survey.asset, Some(loaded.survey.id)).await.ok();
     let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
+    let axis_u_deg = loaded.uncertainty_inputs().axis_u_deg;
+    let axis = loaded.axis_used();
     let Loaded { survey, samples, drift, .. } = loaded;
     Ok(ReportData {
         survey,
         samples,
+        axis,
         processed,
         verification,
         model_gap,
         drift: drift.iter().map(|p| (p.at_s, p.drift_deg)).collect(),
         uncertainty,
+        axis_u_deg,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
         history,
     })
@@ -132,6 +125,7 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
         design: opts.design.clone(),
         recipe: opts.recipe.clone(),
         table_out: None,
+        checks: loaded.checks.clone(),
         ..Default::default()
     };
     let processed = match crate::process::compute(survey, &analysed, &process_opts) {
@@ -151,7 +145,9 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
         }
         None => None,
     };
-    let inputs = loaded.uncertainty_inputs();
+    let mut inputs = loaded.uncertainty_inputs();
+    // The reference's uncertainty the certificate states (`--reference-uncertainty` over the stored one).
+    inputs.reference_u_deg = opts.flags.reference_uncertainty_deg.or(inputs.reference_u_deg);
     let uncertainty = processed.as_ref().ok().map(|p| {
         let u = survey_processing::uncertainty::uncertainty(p, &analysed, &inputs);
         uncertainty::UncertaintyBudget {
@@ -211,122 +207,6 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
         corrected: Some(store.samples(v.id).await?),
         directional: directional(v),
     }))
-}
-
-/// The summary: what a customer reads first.
-fn summary(d: &ReportData, units: Units) -> String {
-    let mut rows: Vec<Vec<String>> = Vec::new();
-    if let Ok(iso) = iso230_2(&d.samples) {
-        rows.push(vec!["ISO 230-2 accuracy A, as measured".into(), units.show(iso.a)]);
-        rows.push(vec!["ISO 230-2 repeatability R".into(), units.show(iso.r)]);
-    }
-    if let Ok(p) = &d.processed {
-        rows.push(vec!["native peak error ±".into(), units.show(p.prediction.native_peak_deg)]);
-        rows.push(vec![
-            "corrected peak error ±, predicted from this survey".into(),
-            units.show(p.prediction.corrected_peak_deg),
-        ]);
-        if let Some(floor) = p.floor.deg {
-            rows.push(vec![format!("floor: {}", escape(&p.floor.what)), units.show(floor)]);
-        }
-    }
-    if let Some(v) = &d.verification {
-        let errors: Vec<f64> = v.corrected(&d.samples).iter().map(Sample::error_deg).collect();
-        let peak = survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg;
-        rows.push(vec![format!("corrected peak error ±, measured (survey {})", v.verification_id), units.show(peak)]);
-    }
-    page::table("tbl-summary", &["figure", "value"], &rows)
-}
-
-/// The page of `d`.
-pub fn html(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
-    let units = opts.units;
-    let s = &d.survey;
-    let cert = Certificate::of(s, &opts.flags);
-    let name = cert.positioner_name(s);
-    let title = match (&s.source, &s.verification) {
-        (SurveySource::Verification, Some(v)) => {
-            format!("{name}: verification (survey {}) of the table of survey {}", s.id, v.verifies_survey)
-        }
-        _ => format!("{name}: calibration survey {}", s.id),
-    };
-    let mut body = format!(
-        "<h1>{}</h1>\n<p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and \
-         the accuracy figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
-        escape(&title),
-        units.symbol()
-    );
-    body +=
-        &section("certificate", "Certificate", false, &header::render(s, &cert, d.samples.len(), units, &d.generated));
-    body += &section("summary", "Summary", false, &summary(d, units));
-    let map = ErrorMap::from_samples(&d.samples);
-    let (errors_html, hysteresis_html) = match &map {
-        Ok(m) => (errors::section(m, units)?, hysteresis::section(m, units)?),
-        Err(e) => {
-            let note = format!("<p class=\"note\">No error map: {}.</p>\n", escape(&e.to_string()));
-            (note.clone(), note)
-        }
-    };
-    body += &section("errors", "Error against angle", true, &errors_html);
-    body += &section("hysteresis", "Hysteresis", true, &hysteresis_html);
-    match &d.processed {
-        Ok(p) => {
-            body += &section("spectrum", "Spectrum and error sources", true, &spectrum::section(p, units)?);
-            body += &section(
-                "interpolation",
-                "Interpolation between measured points",
-                true,
-                &interpolation::section(p, units)?,
-            );
-            body += &section("correction-table", "Correction table", true, &table::section(p, units)?);
-        }
-        Err(why) => {
-            let note = format!("<p class=\"note\">The survey cannot be processed: {}.</p>\n", escape(why));
-            body += &section("spectrum", "Spectrum, interpolation and correction table", true, &note);
-        }
-    }
-    if let Some(v) = &d.verification {
-        body += &section(
-            "verification",
-            "Native and corrected accuracy",
-            true,
-            &verification::section(v, &d.samples, units)?,
-        );
-    }
-    if let Some((model, gap)) = &d.model_gap {
-        body += &section("model-gap", "Model and measurement", true, &modelgap::section(gap, model, units)?);
-    }
-    if let Some(drift_html) = drift::section(&d.drift, units)? {
-        body += &section("drift", "Drift over time", true, &drift_html);
-    }
-    if let Some(b) = &d.uncertainty {
-        body += &section("uncertainty", "Uncertainty of the table", true, &uncertainty::section(b, units));
-    }
-    if let Some(history_html) = d.history.as_ref().map(|h| history::section(h, s.id, units)).transpose()?.flatten() {
-        body += &section("history", "The asset's history", true, &history_html);
-    }
-    match iso230_2(&d.samples) {
-        Ok(iso) => {
-            body += &section("iso230", "ISO 230-2 and VDI/DGQ 3441", true, &iso::axis_section(&iso, units));
-            body += &section("iso230-targets", "ISO 230-2 per target", true, &iso::targets_section(&iso, units));
-        }
-        Err(e) => {
-            let note = format!("<p class=\"note\">No ISO 230-2 figures: {}.</p>\n", escape(&e.to_string()));
-            body += &section("iso230", "ISO 230-2 and VDI/DGQ 3441", true, &note);
-        }
-    }
-    if let Ok(p) = &d.processed
-        && !p.notes.is_empty()
-    {
-        let items: String = p.notes.iter().map(|n| format!("<li>{}</li>", escape(n))).collect();
-        body += &section("notes", "Processing notes", false, &format!("<ul class=\"note\">{items}</ul>\n"));
-    }
-    body += &format!(
-        "<footer><p class=\"note\">survey {} — report made {}.</p></footer>\n",
-        env!("CARGO_PKG_VERSION"),
-        escape(&d.generated)
-    );
-    Ok(page::document(&title, &body))
 }
 
 /// Write `html` as `index.html` into the folder `out` (created if missing); returns the file's path.

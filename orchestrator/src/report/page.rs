@@ -4,7 +4,10 @@
 //! The page loads nothing: its Content-Security-Policy forbids every fetch
 //! (`default-src 'none'`), so a browser refuses, and reports, anything that
 //! is not inline. Print: A4, one section a page, no figure or table row cut
-//! across pages, SVG scaled to the page width.
+//! across pages, SVG scaled to the page width, and on every page the
+//! certificate's running head and "page x of y" (CSS paged media: `@page`
+//! margin boxes with `counter(page)` and `counter(pages)`, which Chromium
+//! prints from version 131 on).
 
 use std::fmt::Write as _;
 
@@ -19,13 +22,60 @@ figcaption{font-size:.92em;color:#333;margin-top:.3em}\
 ul.legend{list-style:none;padding:0;margin:.4em 0 0;display:flex;flex-wrap:wrap;gap:.3em 1.4em;font-size:.92em}\
 ul.legend svg{width:30px;height:12px;vertical-align:middle;margin-right:.35em}\
 table{border-collapse:collapse;margin:.6em 0;font-size:.9em}td,th{border:1px solid #bbb;padding:2px 7px;text-align:right}\
-th{background:#eee}td.l,th.l{text-align:left}\
-table.header td{text-align:left;border:none;padding:1px 12px 1px 0;vertical-align:top}table.header td:first-child{font-weight:bold;white-space:nowrap}\
+th{background:#eee}td.l,th.l{text-align:left}td{white-space:nowrap}td.l{white-space:normal}\
+table.header td{text-align:left;white-space:normal;border:none;padding:1px 12px 1px 0;vertical-align:top}table.header td:first-child{font-weight:bold;white-space:nowrap}\
 p.note,ul.note{color:#444;font-size:.92em}.subtitle{color:#444;margin:0 0 1em}\
-@page{size:A4;margin:14mm}\
+p.verdict{font-size:1.1em;padding:.4em .7em;border-left:5px solid #999;background:#f4f4f4}\
+p.verdict.pass{border-color:#009e73}p.verdict.fail{border-color:#d55e00}\
+section.appendix table{font-size:.82em}\
 @media print{body{max-width:none;margin:0;padding:0;font-size:10pt}\
 section.page{break-before:page}figure,tr,table.header,ul.legend{break-inside:avoid}h2,h3{break-after:avoid}\
 thead{display:table-header-group}}";
+
+/// The print margins' own rule: A4, and the boxes' type.
+const PAGE_STYLE: &str = "size:A4;margin:16mm 14mm 15mm;\
+@bottom-right{content:\"page \" counter(page) \" of \" counter(pages);font:8pt 'DejaVu Sans',Arial,sans-serif;color:#444}";
+
+/// What every printed page repeats in its margins besides "page x of y":
+/// the top left and right (the certificate and the laboratory), the bottom
+/// left (the survey).
+#[derive(Debug, Clone, Default)]
+pub struct Running {
+    pub top_left: String,
+    pub top_right: String,
+    pub bottom_left: String,
+}
+
+/// `s` as a CSS string (quoted): quotes and backslashes escaped, a line
+/// break as `\A`, and `<` as `\3C` so that no text ends the style element.
+pub fn css_string(s: &str) -> String {
+    let mut out = String::from("\"");
+    for c in s.chars() {
+        match c {
+            '"' | '\\' => {
+                out.push('\\');
+                out.push(c);
+            }
+            '\n' => out += "\\A ",
+            '<' => out += "\\3C ",
+            c if c.is_control() => {}
+            c => out.push(c),
+        }
+    }
+    out + "\""
+}
+
+/// The `@page` rule with the running head and foot of `running`.
+fn page_rule(running: &Running) -> String {
+    let boxes =
+        [("top-left", &running.top_left), ("top-right", &running.top_right), ("bottom-left", &running.bottom_left)];
+    let mut rule = format!("@page{{{PAGE_STYLE}");
+    for (place, text) in boxes.iter().filter(|(_, t)| !t.is_empty()) {
+        let _ =
+            write!(rule, "@{place}{{content:{};font:8pt 'DejaVu Sans',Arial,sans-serif;color:#444}}", css_string(text));
+    }
+    rule + "}"
+}
 
 /// Escape text for HTML.
 pub fn escape(s: &str) -> String {
@@ -35,20 +85,21 @@ pub fn escape(s: &str) -> String {
 /// The report's Content-Security-Policy: nothing is fetched, no script runs.
 pub const POLICY: &str = "default-src 'none'; style-src 'unsafe-inline'";
 
-/// The whole page: `title`, then `body` (already HTML).
-pub fn document(title: &str, body: &str) -> String {
-    document_under(POLICY, title, body)
+/// The whole page: `title`, the margins of every printed page, then `body` (already HTML).
+pub fn document(title: &str, running: &Running, body: &str) -> String {
+    document_under(POLICY, title, running, body)
 }
 
 /// [`document`] under another Content-Security-Policy (`survey serve`'s
 /// pages, which fetch their own JSON).
-pub fn document_under(policy: &str, title: &str, body: &str) -> String {
+pub fn document_under(policy: &str, title: &str, running: &Running, body: &str) -> String {
     format!(
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n\
          <meta http-equiv=\"Content-Security-Policy\" content=\"{policy}\">\n\
          <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
-         <title>{}</title>\n<style>{STYLE}</style></head><body>\n{body}</body></html>\n",
-        escape(title)
+         <title>{}</title>\n<style>{STYLE}\n{}</style></head><body>\n{body}</body></html>\n",
+        escape(title),
+        page_rule(running)
     )
 }
 
@@ -122,13 +173,10 @@ pub fn table_left(id: &str, head: &[&str], rows: &[Vec<String>], left: &[usize])
     s + "</tbody></table>\n"
 }
 
-/// A section of the page; `page` starts it on a new printed page.
-pub fn section(id: &str, title: &str, page: bool, body: &str) -> String {
-    format!(
-        "<section id=\"{id}\"{}>\n<h2>{}</h2>\n{body}</section>\n",
-        if page { " class=\"page\"" } else { "" },
-        escape(title)
-    )
+/// A section of the page with its classes (`page` starts it on a new printed page).
+pub fn section(id: &str, title: &str, classes: &[&str], body: &str) -> String {
+    let class = if classes.is_empty() { String::new() } else { format!(" class=\"{}\"", classes.join(" ")) };
+    format!("<section id=\"{id}\"{class}>\n<h2>{}</h2>\n{body}</section>\n", escape(title))
 }
 
 #[cfg(test)]
@@ -137,10 +185,15 @@ mod tests {
 
     #[test]
     fn the_page_forbids_every_fetch_and_escapes_its_title() {
-        let page = document("a <b> & c", "<p>x</p>");
+        let running = Running { top_left: "Certificate \"7\" </style>".into(), ..Running::default() };
+        let page = document("a <b> & c", &running, "<p>x</p>");
         assert!(page.contains("default-src 'none'") && page.contains("<title>a &lt;b&gt; &amp; c</title>"));
         assert!(page.contains("@media print") && page.contains("break-before:page"));
         assert!(!page.contains("src=") && !page.contains("href="));
+        assert!(page.contains("@bottom-right{content:\"page \" counter(page) \" of \" counter(pages)"), "page x of y");
+        assert!(page.contains("@top-left{content:\"Certificate \\\"7\\\" \\3C /style>\""), "{page}");
+        assert!(!page.contains("@top-right"), "an empty box is left out");
+        assert_eq!(page.matches("</style>").count(), 1, "no text ends the style element");
     }
 
     #[test]

@@ -240,7 +240,7 @@ pub mod api {
 
     async fn stats(State(app): State<App>, UrlPath(survey): UrlPath<String>) -> Result<impl IntoResponse, Failure> {
         let r = survey_ref(&survey, true)?;
-        let loaded = read!(app, true, |store| load(&store, Some(r), Axis::AsStored).await);
+        let loaded = read!(app, true, |store| load(&store, Some(r), Axis::Refitted).await);
         let stats = Stats::of(&loaded).map_err(|e| Failure::of(&e, true))?;
         Ok(json_body(&stats.json(&loaded)))
     }

@@ -90,7 +90,7 @@ pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<As
         let state = state(in_force.as_ref(), &checks, due_after_days, now);
         let calibration = match in_force {
             Some(r) => {
-                let loaded = load(store, Some(SurveyRef::Id(r.id)), Axis::AsStored).await?;
+                let loaded = load(store, Some(SurveyRef::Id(r.id)), Axis::Refitted).await?;
                 Some((r, iso230_2(&loaded.analysed()).ok()))
             }
             None => None,
@@ -211,6 +211,7 @@ mod tests {
             axis: None,
             instruments: Value::Null,
             verification: None,
+            resolves: None,
             started_at_s: None,
             ended_at_s: None,
             planned_samples: None,

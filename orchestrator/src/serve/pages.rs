@@ -4,7 +4,7 @@
 
 use super::overview::{self, Asset, Live};
 use super::{App, Failure, POLICY, html_body, read, survey_ref};
-use crate::report::page::{document_under, escape, section};
+use crate::report::page::{Running, document_under, escape, section};
 use crate::report::{ReportOptions, Units};
 use axum::extract::{Path as UrlPath, State};
 use axum::http::{StatusCode, header};
@@ -21,7 +21,7 @@ fn asset_link(asset: &str) -> String {
 /// A page of `survey serve`: the report's look, under the server's policy.
 fn page(title: &str, body: &str) -> String {
     let nav = "<p class=\"subtitle\"><a href=\"/\">All assets and live surveys</a></p>\n";
-    document_under(POLICY, title, &format!("{nav}{body}"))
+    document_under(POLICY, title, &Running::default(), &format!("{nav}{body}"))
 }
 
 /// The element of a survey being acquired (the script keeps it up to date).
@@ -100,7 +100,7 @@ pub(super) async fn index(State(app): State<App>) -> Result<impl IntoResponse, F
         live = section(
             "live",
             "Being acquired now",
-            false,
+            &[],
             &format!(
                 "<div id=\"live-list\">{live_html}</div>\n<p id=\"live-none\"{hidden}>No survey is being acquired.</p>\n\
                  <p class=\"note\" id=\"live-status\">refreshed every {s} s</p>\n",
@@ -111,7 +111,7 @@ pub(super) async fn index(State(app): State<App>) -> Result<impl IntoResponse, F
         assets = section(
             "assets",
             "Assets",
-            false,
+            &[],
             &if assets.is_empty() {
                 "<p>The database holds no survey yet.</p>\n".to_string()
             } else {
@@ -145,13 +145,14 @@ pub(super) async fn asset(
     UrlPath(asset): UrlPath<String>,
 ) -> Result<impl IntoResponse, Failure> {
     let h = read!(app, false, |store| crate::life::history::history(&store, &asset, None).await);
-    let figures = crate::report::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
+    let figures =
+        crate::report::html::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
     let body = format!(
         "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} surveys; the history as JSON: \
          <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{s}",
         a = escape(&h.asset),
         n = h.surveys.len(),
-        s = section("history", "History", false, &figures),
+        s = section("history", "History", &[], &figures),
     );
     Ok(html_body(page(&format!("Asset {}", h.asset), &body)))
 }
@@ -164,7 +165,7 @@ pub(super) async fn survey(
     let r = survey_ref(&survey, false)?;
     let opts = ReportOptions::default();
     let data = read!(app, false, |store| crate::report::gather(&store, Some(r), &opts).await);
-    let html = crate::report::html(&data, &opts).map_err(|e| Failure::of(&e, false))?;
+    let html = crate::report::html::render(&data, &opts).map_err(|e| Failure::of(&e, false))?;
     Ok(html_body(html))
 }
 

@@ -22,26 +22,25 @@
 //! simulator by the relay: a Modbus exception 4, SDO abort 0x06060000, SCPI
 //! error -310, emScon `ES_RS_SensorNotStable`; the ELCOMAT answers "no
 //! reflection"), moves trip the drive and measurements break the beam (for
-//! `beam_hold_s`). [`Served::injected`] counts every kind. A model that
+//! `beam_hold_s`). The relays are `survey_sims::relay`'s, the one layer that
+//! injects link faults; [`Served::injected`] counts every kind. A model that
 //! drifts drifts by its rate per run of the configuration's plan at the
 //! simulated hardware's pace ([`Served::drift_run_s`]; `points` required).
 
-pub mod relay;
-
 use crate::config::{AutocollimatorConfig as AcConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
 use crate::error::bad_input;
-use relay::{Counts, DeviceArm, Framing, LinkFaults, relay_with};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use survey_drivers::{Clock, ScaledClock};
 use survey_processing::model::Model;
 use survey_sims::autocollimator::AutocollimatorConfig;
-use survey_sims::elcomat_server::{self, ElcomatFaults, pty_pair};
-use survey_sims::emscon_server::{self, EmsconFaults};
-use survey_sims::faults::{FaultKind, FaultRates, Injected};
-use survey_sims::modbus_server::{ModbusDevice, ModbusFaults};
-use survey_sims::scpi_server::{self, ScpiFaults};
+use survey_sims::elcomat_server::{self, pty_pair};
+use survey_sims::emscon_server;
+use survey_sims::faults::{FaultKind, FaultRates, Faults, Injected};
+use survey_sims::modbus_server::ModbusDevice;
+use survey_sims::relay::{Ended, Framing, Relay, relay, relay_tcp};
+use survey_sims::scpi_server;
 use survey_sims::tracker::ArmGeometry;
 use survey_sims::{Preset, SimBench, derive_seed};
 use tokio::net::TcpListener;
@@ -75,11 +74,10 @@ pub struct Served {
     /// With a model that drifts: the simulator's time of one run, seconds
     /// (the drift grows by the model's rate per this much instrument time).
     pub drift_run_s: Option<f64>,
-    /// What the link-fault relays did.
-    pub counts: Arc<Counts>,
-    /// What the simulated instruments injected themselves (moves tripped,
-    /// beams broken, autocollimator reads blocked).
-    pub sims: Injected,
+    /// Every fault injected, by kind: the relays' link faults, the device
+    /// faults the simulators took, their own (moves tripped, beams broken,
+    /// autocollimator reads blocked); and the replies relayed.
+    pub faults: Injected,
     tasks: Vec<JoinHandle<()>>,
     links: Vec<PathBuf>,
     /// The pty slave ends, kept open so the masters never read EIO while no
@@ -91,54 +89,51 @@ impl Served {
     /// A serial instrument's line: a pty whose slave is linked at `port`;
     /// returns the stream the simulator serves on (the pty's master, or with
     /// faults the master of a second pty that a relay joins to it).
-    fn serial(
-        &mut self,
-        what: &str,
-        port: &str,
-        link: LinkFaults,
-        arm: Option<DeviceArm>,
-        seed: u64,
-    ) -> anyhow::Result<tokio_serial::SerialStream> {
+    fn serial(&mut self, what: &str, port: &str, relay: Option<Relay>) -> anyhow::Result<tokio_serial::SerialStream> {
         let (master, slave) = pty_at(what, port)?;
         self.links.push(PathBuf::from(port));
         self._slaves.push(slave);
-        if !link.any() && arm.is_none() {
-            return Ok(master);
-        }
+        let Some(relay) = relay else { return Ok(master) };
         let (device_master, device_slave) = pty_pair()?;
-        let counts = self.counts.clone();
         let port = PathBuf::from(port);
-        self.tasks.push(tokio::spawn(serial_relay(master, device_slave, link, arm, seed, counts, port)));
+        self.tasks.push(tokio::spawn(serial_relay(master, device_slave, relay, port)));
         Ok(device_master)
+    }
+
+    /// For a TCP instrument: the listener the simulator serves on. Without a
+    /// relay, the public one itself; with one, an inner one on a free
+    /// loopback port, the public one relaying to it (one client at a time).
+    async fn front(&mut self, public: TcpListener, relay: Option<Relay>) -> anyhow::Result<TcpListener> {
+        let Some(relay) = relay else { return Ok(public) };
+        let inner = TcpListener::bind("127.0.0.1:0").await?;
+        let inner_addr = inner.local_addr()?;
+        self.tasks.push(tokio::spawn(relay_tcp(public, inner_addr, relay)));
+        Ok(inner)
     }
 
     /// Every fault injected so far, by kind (`timeout`, `garbled`,
     /// `disconnect`, `stall`, `device`, `move`, `beam`), and their total.
     pub fn injected(&self) -> (u64, serde_json::Map<String, serde_json::Value>) {
-        let get = |c: &std::sync::atomic::AtomicU64| c.load(std::sync::atomic::Ordering::Relaxed);
-        let c = &self.counts;
-        let by_kind: Vec<(&str, u64)> = vec![
-            ("timeout", get(&c.dropped)),
-            ("garbled", get(&c.garbled)),
-            ("disconnect", get(&c.disconnects)),
-            ("stall", get(&c.stalls)),
-            ("device", get(&c.device) + self.sims.get(FaultKind::Device)),
-            ("move", self.sims.get(FaultKind::Move)),
-            ("beam", self.sims.get(FaultKind::Beam)),
-        ];
-        let total = by_kind.iter().map(|(_, n)| n).sum();
-        (total, by_kind.into_iter().map(|(k, n)| (k.to_string(), n.into())).collect())
+        let by_kind = self.faults.by_kind().into_iter().map(|(k, n)| (k.to_string(), n.into())).collect();
+        (self.faults.total(), by_kind)
     }
 
     /// What `survey sim` prints when it stops: requests relayed, faults
     /// injected by kind and in all (`{"replies", "injected", "by_kind", ...}`
-    /// with the relays' own counts beside them).
+    /// with the relays' link faults and the device faults beside them).
     pub fn counts_json(&self) -> serde_json::Value {
         let (total, by_kind) = self.injected();
-        let mut doc = self.counts.json();
-        doc["injected"] = total.into();
-        doc["by_kind"] = by_kind.into();
-        doc
+        let f = &self.faults;
+        serde_json::json!({
+            "replies": f.replies(),
+            "dropped": f.get(FaultKind::Timeout),
+            "garbled": f.get(FaultKind::Garbled),
+            "disconnects": f.get(FaultKind::Disconnect),
+            "stalls": f.get(FaultKind::Stall),
+            "device": f.get(FaultKind::Device),
+            "injected": total,
+            "by_kind": by_kind,
+        })
     }
 }
 
@@ -231,61 +226,79 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         ..opts.faults
     });
     let bench = builder.build();
-    // A stalled reply is held twice the client's call timeout (real time).
+    // A stalled reply is held past its client's deadline (real time): every
+    // driver on a line without transaction id drains late replies after its
+    // own deadline, and its stalled reply comes a little past the deadline,
+    // a tenth into the drain (Modbus and CANopen name their deadline; SCPI's
+    // and the ELCOMAT's are half the engine's); the tracker's connection
+    // (TCP) is closed after a timeout: its stalled reply is held twice the
+    // longer of the engine's deadlines.
     let call_timeout = cfg.timing().call_timeout;
+    let measure_timeout = cfg.timing().measure_timeout;
+    let stall = |own: std::time::Duration, late: std::time::Duration| own + own / 20 + late / 10;
+    let positioner_stall = match cfg.positioner.own_deadline() {
+        Some((_, own, late)) => stall(own, late),
+        None => {
+            let scpi = crate::bench::instruments::scpi_timeouts(call_timeout);
+            stall(scpi.request, scpi.late_window())
+        }
+    };
+    let elcomat = crate::bench::instruments::elcomat_timeout(measure_timeout);
+    let elcomat_stall = stall(elcomat, elcomat / 2);
     let f = &opts.faults;
-    let link_all = if f.any_link() {
-        LinkFaults {
-            drop: f.timeout,
-            garble: f.garbled,
+    let injected = bench.injected.clone();
+    let mut seeds = (1u64..).map(|k| derive_seed(opts.seed, 100 + k));
+    // The relay in front of an instrument (`None`: no fault reaches it),
+    // sharing `faults` with its simulator; `device`: whether the relay arms
+    // the instrument's device faults (the autocollimator's are its own).
+    let mut relay_for = |what: &str, faults: &Faults, framing: Framing, device: bool| {
+        let seed = seeds.next().unwrap_or(1);
+        if !wired(what) {
+            return None;
+        }
+        let rates = FaultRates {
+            timeout: f.timeout,
+            garbled: f.garbled,
             disconnect: f.disconnect,
             stall: f.stall,
-            stall_for: call_timeout * 2,
-            framing: Framing::Chunks,
+            device: if device { f.device } else { 0.0 },
+            ..FaultRates::default()
+        };
+        if !rates.any() {
+            return None;
         }
-    } else {
-        LinkFaults::NONE
+        let stall_for = match what {
+            "positioner" => positioner_stall,
+            "autocollimator" => elcomat_stall,
+            _ => (call_timeout * 2).max(measure_timeout * 2),
+        };
+        Some(Relay { faults: faults.clone(), rates, stall_for, framing, seed })
     };
-    // A reference instrument's measurement is bounded by measure_timeout_s:
-    // its stalled reply is held twice the longer of the two deadlines.
-    let measure_timeout = cfg.timing().measure_timeout;
-    let link = |what: &str| match (wired(what), what) {
-        (false, _) => LinkFaults::NONE,
-        (true, "positioner") => link_all,
-        (true, _) => LinkFaults { stall_for: link_all.stall_for.max(measure_timeout * 2), ..link_all },
-    };
-    let arm = |what: &str, rate: f64, arm: Arc<dyn Fn() + Send + Sync>| {
-        (rate > 0.0 && wired(what)).then_some(DeviceArm { rate, arm })
-    };
-    let counts = Arc::new(Counts::default());
     let mut served = Served {
         instruments: serde_json::Map::new(),
         drift_run_s: drift_run.map(|p| p.as_secs_f64()),
-        counts: counts.clone(),
-        sims: bench.injected.clone(),
+        faults: injected.clone(),
         tasks: Vec::new(),
         links: Vec::new(),
         _slaves: Vec::new(),
     };
-    let mut seeds = (1u64..).map(|k| derive_seed(opts.seed, 100 + k));
 
     // The positioner.
     match &cfg.positioner {
         PositionerConfig::ScpiTcp { address, controller, axis, .. } => {
             let listener = listen("positioner", address).await?;
             let public = listener.local_addr()?.to_string();
-            let faults = ScpiFaults::new();
-            let armed = arm("positioner", f.device, scpi_arm(&faults));
-            let listener =
-                front(listener, link("positioner"), armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            let faults = Faults::counting(injected.clone());
+            let relay = relay_for("positioner", &faults, Framing::Lines, true);
+            let listener = served.front(listener, relay).await?;
             let at = (*controller, *axis);
             served.tasks.push(tokio::spawn(scpi_server::serve_tcp_at(listener, bench.positioner, faults, at)));
             served.instruments.insert("positioner".into(), public.into());
         }
         PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
-            let faults = ScpiFaults::new();
-            let armed = arm("positioner", f.device, scpi_arm(&faults));
-            let device = served.serial("positioner", port, link("positioner"), armed, seeds.next().unwrap_or(1))?;
+            let faults = Faults::counting(injected.clone());
+            let relay = relay_for("positioner", &faults, Framing::Lines, true);
+            let device = served.serial("positioner", port, relay)?;
             let positioner = bench.positioner;
             let at = (*controller, *axis);
             served.tasks.push(tokio::spawn(async move {
@@ -298,10 +311,9 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             let public = listener.local_addr()?.to_string();
             let server = ModbusDevice::new(bench.positioner, map.clone())
                 .map_err(|e| bad_input(format!("positioner.map: {e}")))?;
-            let faults = ModbusFaults::new();
-            let armed = arm("positioner", f.device, modbus_arm(&faults));
-            let listener =
-                front(listener, link("positioner"), armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+            let faults = Faults::counting(injected.clone());
+            let relay = relay_for("positioner", &faults, Framing::ModbusTcp, true);
+            let listener = served.front(listener, relay).await?;
             served.tasks.push(tokio::spawn(async move {
                 if let Err(e) = server.serve_tcp(listener, faults).await {
                     tracing::error!(%e, "modbus simulator stopped");
@@ -310,9 +322,9 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             served.instruments.insert("positioner".into(), public.into());
         }
         PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
-            let faults = ModbusFaults::new();
-            let armed = arm("positioner", f.device, modbus_arm(&faults));
-            let device = served.serial("positioner", port, link("positioner"), armed, seeds.next().unwrap_or(1))?;
+            let faults = Faults::counting(injected.clone());
+            let relay = relay_for("positioner", &faults, Framing::ModbusRtu, true);
+            let device = served.serial("positioner", port, relay)?;
             // On a serial line the slave address is the unit (as the driver does).
             let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
             let server =
@@ -325,16 +337,18 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         PositionerConfig::Canopen { drive, .. } => {
             let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
             node.counts_per_degree = drive.counts_per_degree;
+            // A drive with this project's own objects when the configuration
+            // says so; else one with the standard objects only.
+            node.correction_objects = drive.correction_objects;
             let positioner = bench.positioner;
-            let faults = survey_sims::canopen_node::NodeFaults::new();
-            let armed = arm("positioner", f.device, canopen_arm(&faults));
+            let faults = Faults::counting(injected.clone());
             match cfg.positioner.can_link() {
                 Some(Ok(CanLink::Slcan { port, .. })) => {
                     // A CiA 402 drive behind a simulated USB-CAN adapter, on a
                     // pty linked at the port (link faults on the serial line,
                     // on the replies among the adapter's messages).
-                    let link = LinkFaults { framing: Framing::SlcanCanopen, ..link("positioner") };
-                    let device = served.serial("positioner", &port, link, armed, seeds.next().unwrap_or(1))?;
+                    let relay = relay_for("positioner", &faults, Framing::SlcanCanopen, true);
+                    let device = served.serial("positioner", &port, relay)?;
                     let bus = survey_drivers::canopen::MemoryBus::new();
                     let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
                     served.tasks.push(tokio::spawn(async move {
@@ -374,19 +388,20 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {
         let listener = listen("tracker", address).await?;
         let public = listener.local_addr()?.to_string();
-        let faults = EmsconFaults::new();
-        let armed = arm("tracker", f.device, emscon_arm(&faults));
-        let listener = front(listener, link("tracker"), armed, seeds.next().unwrap_or(1), &counts, &mut served).await?;
+        let faults = Faults::counting(injected.clone());
+        let relay = relay_for("tracker", &faults, Framing::Emscon, true);
+        let listener = served.front(listener, relay).await?;
         served.tasks.push(tokio::spawn(emscon_server::serve_tcp(listener, bench.tracker, faults)));
         served.instruments.insert("tracker".into(), public.into());
     }
     if let Some(AcConfig::Elcomat { port, .. }) = &cfg.autocollimator {
         // Its device fault is the simulated autocollimator's: a blocked view,
         // answered "no reflection".
-        let device = served.serial("autocollimator", port, link("autocollimator"), None, seeds.next().unwrap_or(1))?;
+        let relay = relay_for("autocollimator", &Faults::counting(injected.clone()), Framing::Lines, false);
+        let device = served.serial("autocollimator", port, relay)?;
         let instrument = bench.autocollimator;
         served.tasks.push(tokio::spawn(async move {
-            elcomat_server::serve(device, instrument, ElcomatFaults::default()).await;
+            elcomat_server::serve(device, instrument).await;
         }));
         served.instruments.insert("autocollimator".into(), port.clone().into());
     }
@@ -434,17 +449,14 @@ fn drift_run_period(
 async fn serial_relay(
     mut master: tokio_serial::SerialStream,
     mut device: tokio_serial::SerialStream,
-    link: LinkFaults,
-    arm: Option<DeviceArm>,
-    seed: u64,
-    counts: Arc<Counts>,
+    relay_cfg: Relay,
     port: PathBuf,
 ) {
     // The slave end of the current pty, kept open (see `Served::_slaves`).
     let mut _slave = None;
     for k in 0u64.. {
-        let seed = if k == 0 { seed } else { derive_seed(seed, k) };
-        if relay_with(master, &mut device, link, arm.clone(), seed, counts.clone()).await != relay::Ended::Disconnect {
+        let cfg = if k == 0 { relay_cfg.clone() } else { relay_cfg.reseeded(derive_seed(relay_cfg.seed, k)) };
+        if relay(master, &mut device, &cfg).await != Ended::Disconnect {
             return;
         }
         // Unplugged (the old master is closed); plugged in again.
@@ -458,83 +470,5 @@ async fn serial_relay(
         tracing::info!(port = %port.display(), "sim: the serial line is back after a disconnect");
         master = m;
         _slave = Some(s);
-    }
-}
-
-/// For a TCP instrument: the listener the simulator serves on. Without
-/// faults, the public one itself; with faults, an inner one on a free
-/// loopback port, the public one relaying to it.
-async fn front(
-    public: TcpListener,
-    link: LinkFaults,
-    arm: Option<DeviceArm>,
-    seed: u64,
-    counts: &Arc<Counts>,
-    served: &mut Served,
-) -> anyhow::Result<TcpListener> {
-    if link == LinkFaults::NONE && arm.is_none() {
-        return Ok(public);
-    }
-    let inner = TcpListener::bind("127.0.0.1:0").await?;
-    let inner_addr = inner.local_addr()?;
-    served.tasks.push(tokio::spawn(relay_tcp(public, inner_addr, link, arm, seed, counts.clone())));
-    Ok(inner)
-}
-
-/// The SCPI controller refuses the next axis command with -310 (a
-/// device-specific error of SCPI-99's -300 class).
-fn scpi_arm(faults: &ScpiFaults) -> Arc<dyn Fn() + Send + Sync> {
-    let f = faults.clone();
-    Arc::new(move || f.reject_next_command(-310, "System error; simulated device fault"))
-}
-
-/// The Modbus device answers the next request with exception 4 (server
-/// device failure).
-fn modbus_arm(faults: &ModbusFaults) -> Arc<dyn Fn() + Send + Sync> {
-    let f = faults.clone();
-    Arc::new(move || f.reject_next_request(survey_drivers::modbus::ExceptionCode::ServerDeviceFailure))
-}
-
-/// The CANopen drive aborts the next SDO request with 0x06060000 (CiA 301:
-/// access failed due to a hardware error), the SDO counterpart of Modbus
-/// exception 4. Not 0x08000022 (refused in the present device state): the
-/// driver reads that as a wrong request (`Usage`), which is never retried.
-fn canopen_arm(faults: &survey_sims::canopen_node::NodeFaults) -> Arc<dyn Fn() + Send + Sync> {
-    let f = faults.clone();
-    Arc::new(move || f.abort_next_request(0x0606_0000))
-}
-
-/// The emScon server refuses the next command with `ES_RS_SensorNotStable`.
-fn emscon_arm(faults: &EmsconFaults) -> Arc<dyn Fn() + Send + Sync> {
-    let f = faults.clone();
-    Arc::new(move || {
-        f.reject_next_command(
-            survey_drivers::emscon::codes::status::SENSOR_NOT_STABLE,
-            emscon_server::Refusal::CommandAnswer,
-        )
-    })
-}
-
-/// Accept clients on `listener` and relay each to the simulator at `inner`.
-async fn relay_tcp(
-    listener: TcpListener,
-    inner: SocketAddr,
-    link: LinkFaults,
-    arm: Option<DeviceArm>,
-    seed: u64,
-    counts: Arc<Counts>,
-) {
-    let mut k = 0u64;
-    loop {
-        let Ok((client, _)) = listener.accept().await else {
-            tokio::task::yield_now().await;
-            continue;
-        };
-        client.set_nodelay(true).ok();
-        let Ok(device) = tokio::net::TcpStream::connect(inner).await else { continue };
-        device.set_nodelay(true).ok();
-        k += 1;
-        // One client at a time, like the instruments.
-        relay_with(client, device, link, arm.clone(), derive_seed(seed, k), counts.clone()).await;
     }
 }

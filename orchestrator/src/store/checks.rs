@@ -1,5 +1,5 @@
 //! What the check surveys of the recalibration loop decided (`checks`,
-//! migration 4): one row per check survey, written when its comparison is
+//! migration 5): one row per check survey, written when its comparison is
 //! made and completed when a recalibration follows.
 
 use serde::Serialize;
@@ -143,7 +143,10 @@ mod tests {
         let path = dir.path().join("old.db");
         schema_3_database(&path).await;
         let e = Store::open_read_only(&path).await.unwrap_err();
-        assert!(format!("{e:#}").contains("older schema (3; this version reads 4)"), "{e:#}");
+        assert!(
+            format!("{e:#}").contains(&format!("older schema (3; this version reads {})", MIGRATIONS.len())),
+            "{e:#}"
+        );
         let store = Store::open(&path).await.unwrap();
         // (The setups above are cut short: read the columns themselves.)
         let rows =

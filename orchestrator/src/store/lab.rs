@@ -38,7 +38,8 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/postgres/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/postgres/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/postgres/0003_instrument_time.sql")),
-    (4, "assets", include_str!("../../../migrations/postgres/0004_assets.sql")),
+    (4, "check points", include_str!("../../../migrations/postgres/0004_check_points.sql")),
+    (5, "assets", include_str!("../../../migrations/postgres/0005_assets.sql")),
 ];
 
 fn migrator() -> sqlx::migrate::Migrator {

@@ -29,6 +29,7 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod check_points;
 mod checks;
 mod drift;
 pub mod lab;
@@ -97,7 +98,8 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
-    (4, "assets", include_str!("../../../migrations/0004_assets.sql")),
+    (4, "check points", include_str!("../../../migrations/0004_check_points.sql")),
+    (5, "assets", include_str!("../../../migrations/0005_assets.sql")),
 ];
 
 fn migrator() -> Migrator {

@@ -309,12 +309,29 @@ impl Store {
 
     /// The survey named by `r` (an id or a uid), or the latest one when `r`
     /// is `None`. A [`NotFound`] error when that survey does not exist or the
-    /// database holds none.
+    /// database holds none. The latest is the latest survey that is not check
+    /// points (source `resolving`: they are part of the survey they resolve,
+    /// which [`crate::resolving::checks_of`] finds): `survey run` then
+    /// `survey process` processes the survey, not its check points.
     pub async fn resolve(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
+        let latest = on_pool!(self, |pool| {
+            sqlx::query_scalar("SELECT MAX(id) FROM surveys WHERE source <> 'resolving'").fetch_one(pool).await?
+        });
+        self.resolve_with(r, latest).await
+    }
+
+    /// [`Store::resolve`] with check points included in "the latest" (what
+    /// `survey resume` finishes).
+    pub async fn resolve_any(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
+        let latest = self.latest_survey_id().await?;
+        self.resolve_with(r, latest).await
+    }
+
+    async fn resolve_with(&self, r: Option<SurveyRef>, latest: Option<i64>) -> anyhow::Result<SurveyRecord> {
         match r {
             Some(SurveyRef::Id(id)) => self.survey(id).await,
             Some(SurveyRef::Uid(uid)) => self.survey_by_uid(&uid).await,
-            None => match self.latest_survey_id().await? {
+            None => match latest {
                 Some(id) => self.survey(id).await,
                 None => Err(NotFound(format!(
                     "no survey in {}: run `survey run` or `survey import` first",

@@ -554,3 +554,41 @@ fn many_openers_of_a_new_database_set_its_schema_up_once() {
     })
     .expect("a runtime");
 }
+
+/// Check points (issue 20): acquired as a `resolving` survey, which "the
+/// latest survey" skips (resume finds it), then folded into the survey they
+/// resolve in one transaction, that survey removed with everything of it, so
+/// the next survey takes its id again.
+#[tokio::test]
+async fn check_points_fold_into_their_survey_and_free_their_id() {
+    let (_dir, store) = temp_store().await;
+    let main = store.create_survey(&new_survey()).await.unwrap();
+    let checks = store
+        .create_survey(&NewSurvey {
+            source: SurveySource::Resolving,
+            instruments: serde_json::json!({"resolves_survey": main}),
+            ..new_survey()
+        })
+        .await
+        .unwrap();
+    assert_eq!(store.resolve(None).await.unwrap().id, main, "the latest survey is not its check points");
+    assert_eq!(store.resolve_any(None).await.unwrap().id, checks, "resume finds them");
+    assert_eq!(store.survey(checks).await.unwrap().resolves, Some(main));
+    let samples: Vec<RecordedSample> = (0..40).map(recorded).collect();
+    store.append(checks, &samples).await.unwrap();
+    store.log_event(checks, 1.0, "info", "measured").await.unwrap();
+    assert_eq!(store.fold_check_points(checks, main).await.unwrap(), 40);
+    let folded = store.check_points(main).await.unwrap();
+    assert_eq!(folded.len(), 40);
+    for (f, r) in folded.iter().zip(&samples) {
+        assert_eq!(
+            (f.target_deg.to_bits(), f.actual_deg.to_bits(), f.run),
+            (r.sample.target_deg.to_bits(), r.sample.actual_deg.to_bits(), r.sample.run)
+        );
+    }
+    assert!(is_not_found(&store.survey(checks).await.unwrap_err()), "the check-point survey is gone");
+    assert!(store.events(checks).await.unwrap().is_empty());
+    assert_eq!(store.create_survey(&new_survey()).await.unwrap(), checks, "its id is free again");
+    assert!(store.check_points(checks).await.unwrap().is_empty());
+    store.close().await;
+}

@@ -53,6 +53,9 @@
 //!   drive goes to fault, 0x603F holds the code (codes above 0xFFFF become
 //!   0xFF00 "device specific", the original in the text), 0x2102 the text,
 //!   0x1001 bit 0 is set. Fault reset calls the sim's `clear_fault`.
+//! - This project's own objects, 0x2100-0x2102, exist only with
+//!   [`NodeConfig::correction_objects`] (else abort `0x0602_0000`, as on a
+//!   drive with the standard objects only).
 //! - Correction: 0x2100 download installs the table in the sim (refused
 //!   while moving with `0x0800_0022`; bad layout with the
 //!   [`TableDomainError`](survey_drivers::canopen::objects::TableDomainError)
@@ -62,22 +65,20 @@
 //!   fault on the bus: `Timeout` and `Disconnected` = no response (a CAN
 //!   node has no connection to drop), `Garbled` = a garbled response.
 //!
-//! # Fault injection ([`NodeFaults`])
+//! # Faults ([`Faults`])
 //!
-//! A shared handle; what is armed applies to the next SDO traffic:
-//! [`drop_next_responses`](NodeFaults::drop_next_responses) (the request is
-//! executed, the response not sent),
-//! [`garble_next_response`](NodeFaults::garble_next_response) (a [`Garble`]
-//! applied to the next response it fits),
-//! [`abort_next_request`](NodeFaults::abort_next_request) (answered with
-//! that abort code, not executed), and
-//! [`silence_after_segments`](NodeFaults::silence_after_segments) (the next
-//! segmented transfer gets that many segment responses, then silence until
-//! the client aborts or starts another transfer: a node dropping off the bus
-//! mid-transfer).
+//! The node is a [`Service`] on a CAN bus, served by
+//! [`serve_can`](crate::serve::serve_can); link faults are the
+//! [`relay_can`](crate::relay::relay_can)'s in front of it ([`garbled`]: the
+//! SDO ways to garble a response, [`Garble`]). A device fault armed in its
+//! [`Faults`], [`Fault::Refuse`], answers the next SDO request with that
+//! abort code (`None`: 0x06060000, access failed due to a hardware error),
+//! not executing it.
 
-use crate::faults::{Countdown, FaultPlan};
+use crate::faults::{Fault, Faults};
 use crate::positioner::SimPositioner;
+use crate::serve::{self, Service};
+use async_trait::async_trait;
 use survey_drivers::canopen::DEFAULT_COUNTS_PER_DEGREE;
 use survey_drivers::canopen::frame::{CanBus, CanFrame};
 use survey_drivers::canopen::nmt::{self, NmtCommand, NmtState};
@@ -113,6 +114,12 @@ pub struct NodeConfig {
     /// transition the controlword asks for (and to show a new mode of
     /// operation in 0x6061). Default [`TRANSITION_TIME`].
     pub transition_time: std::time::Duration,
+    /// Whether the drive has this project's own objects (0x2100 the
+    /// correction table, 0x2101 correction on/off, 0x2102 the fault's text:
+    /// manufacturer-specific); without them (the default) it has the CiA
+    /// 301/402 objects only and aborts those with 0x06020000, as a standard
+    /// drive does.
+    pub correction_objects: bool,
 }
 
 /// Default time of one drive state transition: 20 ms. Our own choice (real
@@ -131,6 +138,7 @@ impl NodeConfig {
             device_name: DEVICE_NAME.into(),
             max_velocity_deg_s: MAX_VELOCITY_DEG_S,
             transition_time: TRANSITION_TIME,
+            correction_objects: false,
         }
     }
 }
@@ -141,7 +149,7 @@ impl Default for NodeConfig {
     }
 }
 
-/// How a response is garbled.
+/// The SDO ways to garble a response ([`garbled`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Garble {
     /// Only the first 4 of the 8 bytes are sent (any response).
@@ -154,46 +162,32 @@ pub enum Garble {
     FlipToggle,
 }
 
-/// Faults armed by a test; a cheap handle shared by clones.
-#[derive(Debug, Clone, Default)]
-pub struct NodeFaults {
-    plan: FaultPlan<Plan>,
-}
+/// The default abort code of [`Fault::Refuse`]`(None)`: 0x06060000 (CiA
+/// 301: access failed due to a hardware error), the SDO counterpart of
+/// Modbus exception 4. Not 0x08000022 (refused in the present device state):
+/// the driver reads that as a wrong request (`Usage`), never retried.
+pub const DEVICE_FAULT_ABORT: u32 = 0x0606_0000;
 
-#[derive(Debug, Default)]
-struct Plan {
-    drop: Countdown,
-    garble: Option<Garble>,
-    abort: Option<u32>,
-    silence_after: Option<usize>,
-}
-
-impl NodeFaults {
-    /// Nothing armed.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Execute but do not answer the next `n` SDO requests that have a response.
-    pub fn drop_next_responses(&self, n: usize) {
-        self.plan.lock().drop.add(n);
-    }
-
-    /// Garble the next response this kind of garbling fits.
-    pub fn garble_next_response(&self, how: Garble) {
-        self.plan.lock().garble = Some(how);
-    }
-
-    /// Answer the next SDO request with this abort code (not executing it).
-    pub fn abort_next_request(&self, code: u32) {
-        self.plan.lock().abort = Some(code);
-    }
-
-    /// In the next segmented transfer, answer `k` segment requests, then
-    /// nothing until the transfer is aborted or another starts.
-    pub fn silence_after_segments(&self, k: usize) {
-        self.plan.lock().silence_after = Some(k);
-    }
+/// A link fault for the relay in front of the node: the next SDO response
+/// `how` fits, garbled (the data bytes of its frame).
+pub fn garbled(how: Garble) -> Fault {
+    Fault::Garble(crate::faults::Garble::edit("SDO response garbled", move |data: &[u8]| {
+        let resp = SdoResponse::decode(data).ok()?;
+        if !garble_fits(how, &resp) {
+            return None;
+        }
+        let mut bytes = data.to_vec();
+        match how {
+            Garble::Truncated => bytes.truncate(4),
+            Garble::BadSpecifier => bytes[0] = 0xE0,
+            Garble::WrongIndex => {
+                let i = u16::from_le_bytes([bytes[1], bytes[2]]).wrapping_add(1);
+                bytes[1..3].copy_from_slice(&i.to_le_bytes());
+            }
+            Garble::FlipToggle => bytes[0] ^= 0x10,
+        }
+        Some(bytes)
+    }))
 }
 
 /// What [`serve`] did.
@@ -243,11 +237,12 @@ enum Answer {
     Nothing,
 }
 
-struct Node<B> {
-    bus: B,
+struct Node {
     sim: SimPositioner,
     cfg: NodeConfig,
-    faults: NodeFaults,
+    faults: Faults,
+    /// The boot-up frame is still to be sent.
+    boot: bool,
     nmt: NmtState,
     drive: DriveState,
     /// A transition asked for and not yet carried out: the state, and when.
@@ -263,22 +258,18 @@ struct Node<B> {
     fault: Option<DeviceFault>,
     table: Option<Vec<u8>>,
     transfer: Option<Transfer>,
-    /// Segment requests answered in the current transfer.
-    segments_answered: usize,
-    /// Silent until the transfer ends (injected).
-    silent: bool,
     report: NodeReport,
 }
 
 /// Serve `sim` as node `cfg.node_id` on `bus` until the bus fails (shut
 /// down, interface gone). Returns what was served.
-pub async fn serve<B: CanBus>(bus: B, sim: SimPositioner, cfg: NodeConfig, faults: NodeFaults) -> NodeReport {
+pub async fn serve<B: CanBus>(bus: B, sim: SimPositioner, cfg: NodeConfig, faults: Faults) -> NodeReport {
     let velocity = (sim.config().velocity_deg_s * cfg.counts_per_degree).round() as u32;
     let mut node = Node {
-        bus,
         sim,
         cfg,
         faults,
+        boot: true,
         nmt: NmtState::PreOperational,
         drive: DriveState::SwitchOnDisabled,
         pending: None,
@@ -292,44 +283,50 @@ pub async fn serve<B: CanBus>(bus: B, sim: SimPositioner, cfg: NodeConfig, fault
         fault: None,
         table: None,
         transfer: None,
-        segments_answered: 0,
-        silent: false,
         report: NodeReport::default(),
     };
-    if node.heartbeat(NmtState::BootUp).await.is_err() {
-        return node.report;
-    }
-    loop {
-        let frame = match node.bus.recv().await {
-            Ok(f) => f,
-            Err(e) => {
-                tracing::debug!(error = %e, "CANopen node: bus gone");
-                return node.report;
-            }
-        };
-        if let Err(e) = node.handle(frame).await {
-            tracing::debug!(error = %e, "CANopen node: bus gone while answering");
-            return node.report;
+    serve::serve_can(bus, &mut node).await;
+    node.report
+}
+
+#[async_trait]
+impl Service for Node {
+    type Request = CanFrame;
+    type Reply = Vec<CanFrame>;
+
+    async fn call(&mut self, frame: CanFrame) -> serve::Answer<Vec<CanFrame>> {
+        match self.handle(frame).await {
+            Some(frame) => serve::Answer::Send(vec![frame]),
+            None => serve::Answer::Nothing,
         }
+    }
+
+    /// The boot-up frame (`0x700 + node`, `[0x00]`) when serving starts.
+    async fn unsolicited(&mut self) -> serve::Answer<Vec<CanFrame>> {
+        if !std::mem::take(&mut self.boot) {
+            return std::future::pending().await;
+        }
+        serve::Answer::Send(vec![self.heartbeat(NmtState::BootUp)])
     }
 }
 
-impl<B: CanBus> Node<B> {
-    async fn heartbeat(&mut self, state: NmtState) -> survey_drivers::Result<()> {
-        self.bus.send(nmt::encode_heartbeat(self.cfg.node_id, state)).await
+impl Node {
+    fn heartbeat(&self, state: NmtState) -> CanFrame {
+        nmt::encode_heartbeat(self.cfg.node_id, state)
     }
 
-    async fn handle(&mut self, frame: CanFrame) -> survey_drivers::Result<()> {
+    /// The frame a frame on the bus gets, if any.
+    async fn handle(&mut self, frame: CanFrame) -> Option<CanFrame> {
         if frame.id() == nmt::NMT_COB_ID {
             return self.nmt_command(&frame).await;
         }
         if frame.id() != SDO_REQUEST_BASE + u16::from(self.cfg.node_id) {
-            return Ok(());
+            return None;
         }
         self.report.sdo_requests += 1;
         if self.nmt == NmtState::Stopped {
             tracing::debug!(%frame, "CANopen node: stopped, SDO ignored");
-            return Ok(());
+            return None;
         }
         let answer = match SdoRequest::decode(frame.data()) {
             Ok(req) => self.sdo(req).await,
@@ -339,19 +336,19 @@ impl<B: CanBus> Node<B> {
                 Answer::Respond(SdoResponse::Abort { index: 0, subindex: 0, code: abort::COMMAND_SPECIFIER })
             }
         };
-        self.respond(answer).await
+        self.respond(answer)
     }
 
-    async fn nmt_command(&mut self, frame: &CanFrame) -> survey_drivers::Result<()> {
+    async fn nmt_command(&mut self, frame: &CanFrame) -> Option<CanFrame> {
         let (cmd, target) = match nmt::decode_command(frame) {
             Ok(c) => c,
             Err(e) => {
                 tracing::debug!(%frame, error = %e, "CANopen node: bad NMT frame ignored");
-                return Ok(());
+                return None;
             }
         };
         if target != 0 && target != self.cfg.node_id {
-            return Ok(());
+            return None;
         }
         self.report.nmt_commands += 1;
         tracing::debug!(?cmd, "CANopen node: NMT");
@@ -361,7 +358,6 @@ impl<B: CanBus> Node<B> {
             NmtCommand::EnterPreOperational => NmtState::PreOperational,
             NmtCommand::ResetNode | NmtCommand::ResetCommunication => {
                 self.transfer = None;
-                self.silent = false;
                 if cmd == NmtCommand::ResetNode {
                     if self.drive == DriveState::OperationEnabled {
                         let _ = self.sim.stop().await;
@@ -375,17 +371,23 @@ impl<B: CanBus> Node<B> {
                     self.ack = false;
                 }
                 self.nmt = NmtState::PreOperational;
-                return self.heartbeat(NmtState::BootUp).await;
+                return Some(self.heartbeat(NmtState::BootUp));
             }
         };
         self.nmt = state;
-        self.heartbeat(state).await
+        Some(self.heartbeat(state))
     }
 
     /// Serve one SDO request.
     async fn sdo(&mut self, req: SdoRequest) -> Answer {
-        let injected = self.faults.plan.lock().abort.take();
-        if let Some(code) = injected {
+        let refused = self.faults.take_device(|f| matches!(f, Fault::Refuse(_) | Fault::RefuseWithError(_)));
+        if let Some(fault) = refused {
+            let code = match fault {
+                Fault::Refuse(Some(d)) | Fault::RefuseWithError(d) => {
+                    u32::try_from(d.code).unwrap_or(DEVICE_FAULT_ABORT)
+                }
+                _ => DEVICE_FAULT_ABORT,
+            };
             let (index, subindex) = self.request_mux(&req);
             tracing::debug!(code = format_args!("0x{code:08X}"), "CANopen node: injected abort");
             self.transfer = None;
@@ -397,7 +399,6 @@ impl<B: CanBus> Node<B> {
                 self.report.client_aborts += 1;
                 tracing::debug!(code = format_args!("0x{code:08X}"), "CANopen node: client aborted");
                 self.transfer = None;
-                self.silent = false;
                 return Answer::Nothing;
             }
             SdoRequest::InitiateUpload { index, subindex } => {
@@ -408,18 +409,8 @@ impl<B: CanBus> Node<B> {
                 self.begin();
                 self.initiate_download(index, subindex, data).await
             }
-            SdoRequest::UploadSegment { toggle } => {
-                if self.silenced() {
-                    return Answer::Nothing;
-                }
-                self.upload_segment(toggle)
-            }
-            SdoRequest::DownloadSegment { toggle, data, last } => {
-                if self.silenced() {
-                    return Answer::Nothing;
-                }
-                self.download_segment(toggle, &data, last).await
-            }
+            SdoRequest::UploadSegment { toggle } => self.upload_segment(toggle),
+            SdoRequest::DownloadSegment { toggle, data, last } => self.download_segment(toggle, &data, last).await,
         };
         match result {
             Ok(r) => Answer::Respond(r),
@@ -445,27 +436,9 @@ impl<B: CanBus> Node<B> {
         }
     }
 
-    /// A new transfer starts: drop the old one and any injected silence.
+    /// A new transfer starts: drop the old one.
     fn begin(&mut self) {
         self.transfer = None;
-        self.silent = false;
-        self.segments_answered = 0;
-    }
-
-    /// Whether this segment request meets the injected silence.
-    fn silenced(&mut self) -> bool {
-        if !self.silent {
-            let mut plan = self.faults.plan.lock();
-            if plan.silence_after.is_some_and(|k| self.transfer.is_some() && self.segments_answered >= k) {
-                plan.silence_after = None;
-                self.silent = true;
-                tracing::debug!(after = self.segments_answered, "CANopen node: silent mid-transfer (injected)");
-            }
-        }
-        if !self.silent {
-            self.segments_answered += 1;
-        }
-        self.silent
     }
 
     async fn initiate_upload(&mut self, index: u16, subindex: u8) -> Result<SdoResponse, Refusal> {
@@ -499,7 +472,7 @@ impl<B: CanBus> Node<B> {
     }
 
     async fn initiate_download(&mut self, index: u16, subindex: u8, data: InitData) -> Result<SdoResponse, Refusal> {
-        let entry = od::writable(index, subindex)?;
+        let entry = od::writable(index, subindex, self.cfg.correction_objects)?;
         match data {
             InitData::Expedited { data, size_indicated } => {
                 let bytes = match (size_indicated, entry.size()) {
@@ -532,62 +505,25 @@ impl<B: CanBus> Node<B> {
         Ok(SdoResponse::DownloadSegment { toggle })
     }
 
-    /// Send what a request gets, applying the armed response faults.
-    async fn respond(&mut self, answer: Answer) -> survey_drivers::Result<()> {
-        let resp = match answer {
-            Answer::Nothing => return Ok(()),
-            Answer::GarbleIt => {
-                return self.send_raw(&[0xE0, 0, 0, 0, 0, 0, 0, 0]).await;
-            }
-            Answer::Respond(r) => r,
+    /// The frame a request gets.
+    fn respond(&mut self, answer: Answer) -> Option<CanFrame> {
+        let bytes = match answer {
+            Answer::Nothing => return None,
+            // The simulated positioner garbled its answer.
+            Answer::GarbleIt => vec![0xE0, 0, 0, 0, 0, 0, 0, 0],
+            Answer::Respond(r) => r.encode().to_vec(),
         };
-        let (dropped, garble) = {
-            let mut plan = self.faults.plan.lock();
-            if plan.drop.take() {
-                (true, None)
-            } else {
-                let fits = plan.garble.filter(|g| garble_fits(*g, &resp));
-                if fits.is_some() {
-                    plan.garble = None;
-                }
-                (false, fits)
-            }
-        };
-        if dropped {
-            tracing::debug!(?resp, "CANopen node: response dropped (injected)");
-            return Ok(());
-        }
-        let mut bytes = resp.encode();
-        let len = match garble {
-            None => 8,
-            Some(g) => {
-                tracing::debug!(?g, ?resp, "CANopen node: response garbled (injected)");
-                match g {
-                    Garble::Truncated => 4,
-                    Garble::BadSpecifier => {
-                        bytes[0] = 0xE0;
-                        8
-                    }
-                    Garble::WrongIndex => {
-                        let i = u16::from_le_bytes([bytes[1], bytes[2]]).wrapping_add(1);
-                        bytes[1..3].copy_from_slice(&i.to_le_bytes());
-                        8
-                    }
-                    Garble::FlipToggle => {
-                        bytes[0] ^= 0x10;
-                        8
-                    }
-                }
-            }
-        };
-        self.send_raw(&bytes[..len]).await
-    }
-
-    async fn send_raw(&mut self, bytes: &[u8]) -> survey_drivers::Result<()> {
         let id = SDO_RESPONSE_BASE + u16::from(self.cfg.node_id);
-        let frame = CanFrame::new(id, bytes).map_err(|e| DriverError::usage("canopen node", e.to_string()))?;
-        self.report.sdo_responses += 1;
-        self.bus.send(frame).await
+        match CanFrame::new(id, &bytes) {
+            Ok(frame) => {
+                self.report.sdo_responses += 1;
+                Some(frame)
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "CANopen node: response not sent");
+                None
+            }
+        }
     }
 
     // -- the drive ------------------------------------------------------------

@@ -2,7 +2,6 @@
 //! and size, and what reading and writing them does.
 
 use super::{MAX_TABLE_BYTES, Node, Refusal, link};
-use survey_drivers::canopen::frame::CanBus;
 use survey_drivers::canopen::objects::{
     DEVICE_TYPE_SERVO_DRIVE, PROFILE_POSITION_MODE, counts_to_degrees, decode_table, index,
 };
@@ -80,9 +79,17 @@ pub(super) const OD: [Entry; 16] = [
 /// python-canopen's `BaseNode402` before they switch the mode.
 pub(super) const SUPPORTED_DRIVE_MODES: u16 = 0x6502;
 
-/// The entry of `index:subindex`, or the abort code for a missing one.
-pub(super) fn entry(index: u16, subindex: u8) -> Result<Entry, Refusal> {
-    let e = OD.iter().find(|e| e.index == index).ok_or(Refusal::Abort(abort::NO_OBJECT))?;
+/// This project's own objects (manufacturer-specific, not CiA 402): a drive
+/// with only the standard objects lacks them.
+const OWN: [u16; 3] = [index::CORRECTION_TABLE, index::CORRECTION_ENABLE, index::FAULT_TEXT];
+
+/// The entry of `index:subindex` (this project's own objects only when the
+/// drive has them), or the abort code for a missing one.
+pub(super) fn entry(index: u16, subindex: u8, own: bool) -> Result<Entry, Refusal> {
+    let e = OD
+        .iter()
+        .find(|e| e.index == index && (own || !OWN.contains(&e.index)))
+        .ok_or(Refusal::Abort(abort::NO_OBJECT))?;
     if subindex != 0 {
         return Err(abort::NO_SUBINDEX.into());
     }
@@ -90,8 +97,8 @@ pub(super) fn entry(index: u16, subindex: u8) -> Result<Entry, Refusal> {
 }
 
 /// The entry of a download target, or the abort code.
-pub(super) fn writable(index: u16, subindex: u8) -> Result<Entry, Refusal> {
-    let e = entry(index, subindex)?;
+pub(super) fn writable(index: u16, subindex: u8, own: bool) -> Result<Entry, Refusal> {
+    let e = entry(index, subindex, own)?;
     if !e.writable {
         return Err(abort::READ_ONLY.into());
     }
@@ -107,10 +114,10 @@ fn sized<const N: usize>(data: &[u8]) -> Result<[u8; N], Refusal> {
     }
 }
 
-impl<B: CanBus> Node<B> {
+impl Node {
     /// The value of `index:subindex`.
     pub(super) async fn read(&mut self, index: u16, subindex: u8) -> Result<Vec<u8>, Refusal> {
-        entry(index, subindex)?;
+        entry(index, subindex, self.cfg.correction_objects)?;
         Ok(match index {
             index::DEVICE_TYPE => DEVICE_TYPE_SERVO_DRIVE.to_le_bytes().to_vec(),
             index::ERROR_REGISTER => {
@@ -144,7 +151,7 @@ impl<B: CanBus> Node<B> {
     /// Store `data` in `index` (sub-index 0; access already checked for
     /// segmented transfers, checked again here).
     pub(super) async fn write(&mut self, index: u16, data: &[u8]) -> Result<(), Refusal> {
-        writable(index, 0)?;
+        writable(index, 0, self.cfg.correction_objects)?;
         match index {
             index::CONTROLWORD => self.controlword(u16::from_le_bytes(sized(data)?)).await,
             index::MODES_OF_OPERATION => {

@@ -5,7 +5,7 @@
 //! no deadline is raced.
 
 use super::*;
-use crate::positioner::{PositionerConfig, PositionerFaults};
+use crate::positioner::{FAULT_FOLLOWING_ERROR, PositionerConfig, PositionerFaults};
 use crate::presets::{Preset, without_noise};
 use crate::turntable::Turntable;
 use rand::{Rng, SeedableRng};
@@ -18,6 +18,7 @@ use survey_drivers::canopen::objects::{
 use survey_drivers::canopen::socketcan_bus::{SocketCanBus, is_can_unavailable};
 use survey_drivers::canopen::{CW_OPERATE, CanopenConfig, Cia402Positioner, MemoryBus, MemoryEndpoint};
 use survey_drivers::clock::Clock;
+use survey_drivers::traits::DeviceFault;
 use survey_processing::Direction;
 use survey_processing::model::Model;
 use survey_processing::table::CorrectionTable;
@@ -30,16 +31,25 @@ fn fig8() -> Model {
     without_noise(&Preset::by_name("fig8").unwrap().model)
 }
 
+/// The driver for a drive with this project's correction objects.
 fn driver_cfg() -> CanopenConfig {
-    CanopenConfig { node_id: NODE, sdo_timeout_ms: 200, ..CanopenConfig::default() }
+    CanopenConfig { node_id: NODE, sdo_timeout_ms: 200, correction_objects: true, ..CanopenConfig::default() }
+}
+
+/// A node with this project's own objects (0x2100-0x2102).
+fn node_cfg() -> NodeConfig {
+    NodeConfig { correction_objects: true, ..NodeConfig::new(NODE) }
 }
 
 type Driver = Cia402Positioner<MemoryEndpoint>;
 
+/// The node on a bus of its own behind a relay (its link faults), the
+/// driver and the monitor on the host's bus.
 struct Rig {
     clock: VirtualClock,
     truth: Turntable,
-    faults: NodeFaults,
+    /// Link faults (the relay's) and device faults (the node's).
+    faults: Faults,
     bus: MemoryBus,
     /// Sees every frame on the bus.
     monitor: MemoryEndpoint,
@@ -56,16 +66,13 @@ impl Drop for Rig {
 
 impl Rig {
     fn new(cfg: PositionerConfig) -> Rig {
-        Rig::with_node(cfg, NodeConfig::new(NODE))
+        Rig::with_node(cfg, node_cfg())
     }
 
     /// A node that carries out a transition at once: for the tests of the
     /// state logic itself, step by step.
     fn instant() -> Rig {
-        Rig::with_node(
-            PositionerConfig::new(fig8()),
-            NodeConfig { transition_time: Duration::ZERO, ..NodeConfig::new(NODE) },
-        )
+        Rig::with_node(PositionerConfig::new(fig8()), NodeConfig { transition_time: Duration::ZERO, ..node_cfg() })
     }
 
     fn with_node(cfg: PositionerConfig, node_cfg: NodeConfig) -> Rig {
@@ -74,8 +81,17 @@ impl Rig {
         let truth = sim.truth();
         let bus = MemoryBus::new();
         let monitor = bus.endpoint();
-        let faults = NodeFaults::new();
-        let node = tokio::spawn(serve(bus.endpoint(), sim, node_cfg, faults.clone()));
+        let faults = Faults::new();
+        // When the host's bus goes down, the relay ends and takes the
+        // node's bus down with it.
+        let device_bus = MemoryBus::new();
+        let (host, device, node_end) = (bus.endpoint(), device_bus.endpoint(), device_bus.endpoint());
+        let relay = crate::relay::Relay::armed(faults.clone(), crate::relay::Framing::Chunks);
+        tokio::spawn(async move {
+            crate::relay::relay_can(host, device, &relay).await;
+            device_bus.shut_down();
+        });
+        let node = tokio::spawn(serve(node_end, sim, node_cfg, faults.clone()));
         Rig { clock, truth, faults, bus, monitor, node: Some(node) }
     }
 
@@ -411,7 +427,7 @@ async fn abort_codes_become_device_errors_with_code_and_text() {
         Some(abort::LENGTH_MISMATCH),
     );
     // An abort the node sends for its own reasons (injected), then all is well.
-    rig.faults.abort_next_request(0x0606_0000);
+    rig.faults.arm(Fault::Refuse(Some(DeviceFault { code: 0x0606_0000, text: String::new() })));
     let e = assert_error(d.readout().await, ErrorKind::Device, Some(0x0606_0000));
     assert!(e.message.contains("hardware error"), "{e}");
     assert_eq!(d.readout().await.unwrap(), 0.0);
@@ -422,7 +438,7 @@ async fn a_dropped_response_is_a_timeout_and_the_next_request_works() {
     let mut rig = Rig::fig8();
     let mut d = rig.connected().await;
     rig.client_aborts();
-    rig.faults.drop_next_responses(1);
+    rig.faults.arm(Fault::Drop);
     let t0 = tokio::time::Instant::now();
     let e = assert_error(d.readout().await, ErrorKind::Timeout, None);
     assert!(t0.elapsed() >= Duration::from_millis(200) && e.is_link(), "{e}");
@@ -431,7 +447,7 @@ async fn a_dropped_response_is_a_timeout_and_the_next_request_works() {
     assert_eq!(rig.client_aborts(), [abort::TIMEOUT]);
     assert_eq!(d.readout().await.unwrap(), 0.0);
     // A dropped response to a write: the write happened, the driver timed out.
-    rig.faults.drop_next_responses(1);
+    rig.faults.arm(Fault::Drop);
     assert_error(d.set_velocity(5.0).await, ErrorKind::Timeout, None);
     assert_eq!(d.upload(index::PROFILE_VELOCITY, 0).await.unwrap(), 500_000u32.to_le_bytes());
 }
@@ -442,14 +458,13 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
     let mut d = rig.connected().await;
     let table = CorrectionTable::new(vec![0.001; 16]).unwrap();
     rig.client_aborts();
-    let cases: [(Garble, &str); 4] = [
+    let cases: [(Garble, &str); 3] = [
         (Garble::Truncated, "4 data bytes"),
         (Garble::BadSpecifier, "unknown command specifier 7"),
-        (Garble::WrongIndex, "echoing the object"),
         (Garble::FlipToggle, "toggle"),
     ];
     for (g, says) in cases {
-        rig.faults.garble_next_response(g);
+        rig.faults.arm(garbled(g));
         let e = match g {
             Garble::FlipToggle => d.device_name().await.map(|_| ()),
             _ => d.readout().await.map(|_| ()),
@@ -463,11 +478,18 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
         assert_eq!(d.readout().await.unwrap(), 0.0);
         assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     }
-    // A flipped toggle in a download segment response, and a wrong echo of a download.
-    rig.faults.garble_next_response(Garble::FlipToggle);
+    // A flipped toggle in a download segment response.
+    rig.faults.arm(garbled(Garble::FlipToggle));
     assert_error(d.load_correction_table(&table).await, ErrorKind::Garbled, None);
-    rig.faults.garble_next_response(Garble::WrongIndex);
-    assert_error(d.load_correction_table(&table).await, ErrorKind::Garbled, None);
+    // A response echoing another object answers another transfer (a late
+    // one): discarded, not taken (it was once taken and failed as garbled);
+    // the transfer times out, and the client says so to the node.
+    rig.client_aborts();
+    rig.faults.arm(garbled(Garble::WrongIndex));
+    assert_error(d.readout().await, ErrorKind::Timeout, None);
+    assert_eq!(rig.client_aborts(), [abort::TIMEOUT]);
+    rig.faults.arm(garbled(Garble::WrongIndex));
+    assert_error(d.load_correction_table(&table).await, ErrorKind::Timeout, None);
     d.load_correction_table(&table).await.unwrap();
     assert_eq!(d.read_correction_table().await.unwrap().len(), 16);
 }
@@ -476,12 +498,15 @@ async fn garbled_responses_are_garbled_and_the_next_request_works() {
 async fn silence_in_the_middle_of_a_segmented_transfer_times_out_and_recovers() {
     let mut rig = Rig::fig8();
     let mut d = rig.connected().await;
-    rig.faults.silence_after_segments(2);
+    // The initiate response and 2 segment responses, then silence.
+    rig.faults.arm_n(Fault::Pass, 3);
+    rig.faults.arm(Fault::Drop);
     let e = assert_error(d.device_name().await, ErrorKind::Timeout, None);
     assert!(e.message.contains("0x1008:00"), "{e}");
     assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     let table = CorrectionTable::new((0..100).map(|i| f64::from(i) * 1e-4).collect()).unwrap();
-    rig.faults.silence_after_segments(5);
+    rig.faults.arm_n(Fault::Pass, 6);
+    rig.faults.arm(Fault::Drop);
     assert_error(d.load_correction_table(&table).await, ErrorKind::Timeout, None);
     assert_error(d.read_correction_table().await, ErrorKind::Usage, Some(abort::NO_DATA));
     d.load_correction_table(&table).await.unwrap();
@@ -593,7 +618,7 @@ async fn the_driver_and_the_node_over_socketcan_vcan0() {
     let driver_socket = SocketCanBus::open("vcan0").unwrap();
     let clock = VirtualClock::new();
     let sim = SimPositioner::new(PositionerConfig::new(fig8()), Arc::new(clock.clone()));
-    let node = tokio::spawn(serve(node_socket, sim, NodeConfig::new(NODE), NodeFaults::new()));
+    let node = tokio::spawn(serve(node_socket, sim, node_cfg(), Faults::new()));
     let mut d = Cia402Positioner::connect(driver_socket, driver_cfg()).await.unwrap();
     assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
     d.move_to(12.5).await.unwrap();
@@ -642,10 +667,62 @@ async fn each_transition_takes_time_and_the_driver_waits_for_it() {
 async fn a_drive_slower_than_the_transition_timeout_is_a_clear_error() {
     let rig = Rig::with_node(
         PositionerConfig::new(fig8()),
-        NodeConfig { transition_time: Duration::from_millis(300), ..NodeConfig::new(NODE) },
+        NodeConfig { transition_time: Duration::from_millis(300), ..node_cfg() },
     );
     let cfg = CanopenConfig { transition_timeout_ms: 50, ..driver_cfg() };
     let e = Cia402Positioner::connect(rig.bus.endpoint(), cfg).await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Device, "{e}");
     assert!(e.message.contains("did not switch to profile position mode: 0x6061 shows 0"), "{e}");
+}
+
+/// A drive with the CiA 301/402 objects only (`NodeConfig::new`, the
+/// driver's default configuration): enable, move, status, readout and its
+/// fault work on the standard objects; this project's own objects are
+/// absent (abort 0x06020000), so the driver neither reads them for the
+/// status nor sends the table.
+#[tokio::test]
+async fn a_drive_with_only_the_standard_objects() {
+    let faults = PositionerFaults { fault_on_move: Some(2), ..PositionerFaults::default() };
+    let rig = Rig::with_node(PositionerConfig { faults, ..PositionerConfig::new(fig8()) }, NodeConfig::new(NODE));
+    let standard = CanopenConfig { node_id: NODE, sdo_timeout_ms: 200, ..CanopenConfig::default() };
+    let mut d = Cia402Positioner::connect(rig.bus.endpoint(), standard).await.unwrap();
+    for object in [index::CORRECTION_TABLE, index::CORRECTION_ENABLE, index::FAULT_TEXT] {
+        assert_error(d.upload(object, 0).await, ErrorKind::Device, Some(abort::NO_OBJECT));
+    }
+    d.move_to(20.0).await.unwrap();
+    let s = settle(&mut d, &rig.clock).await;
+    assert!(s.in_position && !s.correction_enabled && s.fault.is_none(), "{s:?}");
+    assert_eq!(d.readout().await.unwrap(), 20.0);
+    // The second move trips the drive: the fault's code, and the standard
+    // text of 0x603F in place of 0x2102's.
+    d.move_to(40.0).await.unwrap();
+    let s = settle(&mut d, &rig.clock).await;
+    let f = s.fault.expect("the drive tripped");
+    assert_eq!(f.code, FAULT_FOLLOWING_ERROR);
+    assert!(f.text.to_lowercase().contains("following error"), "{}", f.text);
+    d.clear_fault().await.unwrap();
+    let table = CorrectionTable::new(vec![0.001; 16]).unwrap();
+    assert_error(d.load_correction_table(&table).await, ErrorKind::Usage, None);
+    assert_error(d.enable_correction(true).await, ErrorKind::Usage, None);
+}
+
+/// A response held past the SDO deadline (a stall) and delivered after the
+/// client's drain, in the middle of the next transfer, names its own object:
+/// discarded, and the next transfer takes its own response. One held within
+/// the drain is dropped there.
+#[tokio::test]
+async fn a_late_response_is_never_taken_for_the_next_transfer() {
+    let rig = Rig::fig8();
+    let mut d = rig.connected().await;
+    // Within the drain (200 ms deadline, 100 ms drain).
+    rig.faults.arm(Fault::Stall(Duration::from_millis(250)));
+    let t0 = std::time::Instant::now();
+    assert_error(d.readout().await, ErrorKind::Timeout, None);
+    assert!(t0.elapsed() >= Duration::from_millis(300), "drained: {:?}", t0.elapsed());
+    assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
+    // After the drain: it meets the next transfer.
+    rig.faults.arm(Fault::Stall(Duration::from_millis(450)));
+    assert_error(d.readout().await, ErrorKind::Timeout, None);
+    assert_eq!(d.device_name().await.unwrap(), DEVICE_NAME);
+    assert_eq!(d.readout().await.unwrap(), 0.0);
 }

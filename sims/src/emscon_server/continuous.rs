@@ -23,8 +23,6 @@ use survey_drivers::emscon::codes::{command as cmd, meas_mode, status};
 use survey_drivers::emscon::packets::Reply;
 use survey_drivers::emscon::stream::{ContinuousTimeModeData, MAX_POINTS_PER_PACKET, MeasValue, MultiMeasResult};
 use survey_drivers::traits::Tracker;
-use tokio::io::AsyncWriteExt;
-use tokio::net::TcpStream;
 
 /// How often points are pushed on a real or scaled clock.
 const PUSH_EVERY: Duration = Duration::from_millis(10);
@@ -132,12 +130,5 @@ impl Server {
             bytes.extend(Reply::MultiMeas(m).encode());
         }
         bytes
-    }
-
-    /// Push the points measured so far (the timer): false when the
-    /// connection is gone.
-    pub(super) async fn push_points(&mut self, stream: &mut TcpStream) -> bool {
-        let bytes = self.stream_packets().await;
-        bytes.is_empty() || (stream.write_all(&bytes).await.is_ok() && stream.flush().await.is_ok())
     }
 }

@@ -59,32 +59,28 @@
 //!   `ErrorResponseT` for `ES_C_Unknown` with `ES_RS_WrongParameter`; an
 //!   absurd size field: the connection is closed.
 //!
-//! # Fault injection ([`EmsconFaults`])
+//! # Faults ([`Faults`])
 //!
-//! A shared handle (clone it before passing it in); what is armed applies to
-//! the next answers as they are sent:
+//! The server is a [`Service`] served by [`crate::serve`]'s loops; link
+//! faults are the [`relay`](crate::relay)'s in front of it ([`garbled`]: the
+//! emScon ways to garble an answer, [`Garble`]). Device faults armed in its
+//! [`Faults`] apply to the next commands as they come:
 //!
-//! - [`drop_next_answers`](EmsconFaults::drop_next_answers): commands are
-//!   executed but not answered (status changes are still sent);
-//! - [`garble_next_answer`](EmsconFaults::garble_next_answer): the answer's
-//!   type is made unknown, its last 4 bytes are cut (size field patched), its
-//!   size field made absurd, or its result status made one the header does
-//!   not define ([`Garble`]);
-//! - [`close_during_next_answer`](EmsconFaults::close_during_next_answer):
-//!   the first half of the answer, then the connection is closed;
-//! - [`status_change_before_next_answer`](EmsconFaults::status_change_before_next_answer):
-//!   an unsolicited `SystemStatusChangeT` (e.g. `ES_SSC_MeasStatus_NotReady`)
-//!   right before the answer (the tracker's state does not change);
-//! - [`reject_next_command`](EmsconFaults::reject_next_command): the next
-//!   command is not executed and is answered with the given result status
-//!   (e.g. `ES_RS_SensorNotWarmedUp`), as a bare `BasicCommandRT` or as an
-//!   `ErrorResponseT` ([`Refusal`]).
+//! - [`Fault::Refuse`]: the next command is not executed and is answered
+//!   with the given result status as a bare `BasicCommandRT` (`None`:
+//!   `ES_RS_SensorNotStable`); [`Fault::RefuseWithError`]: as an
+//!   `ErrorResponseT`;
+//! - [`Fault::Event`]: an unsolicited `SystemStatusChangeT` (e.g.
+//!   `ES_SSC_MeasStatus_NotReady`) right before the next answer (the
+//!   tracker's state does not change).
 //!
-//! [`EmsconFaults::requests`] lists the commands received, for tests.
+//! [`Server::requests`] lists the commands received, for tests.
 
-use crate::faults::{Countdown, FaultPlan};
+use crate::faults::{Fault, Faults};
+use crate::serve::{self, Codec, Service};
 use crate::tracker::{CODE_BEAM_BROKEN, SimTracker};
-use std::collections::VecDeque;
+use async_trait::async_trait;
+use std::sync::{Arc, Mutex};
 use survey_drivers::emscon::codes::{
     adm_status, command as cmd, coordinate_system, data_type, laser_status, length_unit, meas_mode,
     measurement_status_info as msi, pressure_unit, statistic_mode, status, status_change, temperature_unit,
@@ -95,9 +91,7 @@ use survey_drivers::emscon::packets::{
     StationaryModeData, SystemStatus, SystemUnits,
 };
 use survey_drivers::traits::{SmrMeasurement, Tracker, TrackerState};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream};
-use tokio::task::JoinSet;
+use tokio::net::TcpListener;
 
 mod continuous;
 
@@ -110,7 +104,7 @@ pub const SIM_HUMIDITY_RH: f64 = 50.0;
 /// `lTrackerSerialNumber` of `GetSystemStatus`.
 pub const SIM_SERIAL_NUMBER: i32 = 390_001;
 
-/// How [`EmsconFaults::garble_next_answer`] garbles.
+/// The emScon ways to garble an answer ([`garbled`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Garble {
     /// The `type` field becomes a value no `ES_DataType` has.
@@ -126,135 +120,48 @@ pub enum Garble {
     Status,
 }
 
-/// How [`EmsconFaults::reject_next_command`] answers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Refusal {
-    /// A bare `BasicCommandRT` with the status.
-    CommandAnswer,
-    /// An `ErrorResponseT` (`ES_DT_Error`).
-    ErrorPacket,
+/// A link fault for the relay in front of the server: the next answer
+/// garbled as `how` says.
+pub fn garbled(how: Garble) -> Fault {
+    Fault::Garble(crate::faults::Garble::edit("emScon answer garbled", move |packet: &[u8]| {
+        (packet.len() >= 16).then(|| garble(packet.to_vec(), how))
+    }))
 }
 
-/// Faults armed by a test, and the commands received; a cheap handle shared
-/// by clones. See the module documentation.
+/// The commands a server received, in order (also the refused ones); a
+/// cheap handle shared by clones.
 #[derive(Debug, Clone, Default)]
-pub struct EmsconFaults {
-    plan: FaultPlan<Plan>,
-}
+pub struct Requests(Arc<Mutex<Vec<Request>>>);
 
-#[derive(Debug, Default)]
-struct Plan {
-    drop_answers: Countdown,
-    garble: VecDeque<Garble>,
-    close_in_answer: bool,
-    status_changes: VecDeque<i32>,
-    reject: VecDeque<(i32, Refusal)>,
-    requests: Vec<Request>,
-    extended_from_start: bool,
-}
-
-impl EmsconFaults {
-    /// No faults armed.
-    pub fn new() -> Self {
-        Self::default()
+impl Requests {
+    /// The commands received so far.
+    pub fn get(&self) -> Vec<Request> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).clone()
     }
 
-    /// Execute the next `n` commands without answering them.
-    pub fn drop_next_answers(&self, n: usize) {
-        self.plan.lock().drop_answers.add(n);
-    }
-
-    /// Garble the next answer (one per call, in order).
-    pub fn garble_next_answer(&self, how: Garble) {
-        self.plan.lock().garble.push_back(how);
-    }
-
-    /// Send half of the next answer, then close the connection.
-    pub fn close_during_next_answer(&self) {
-        self.plan.lock().close_in_answer = true;
-    }
-
-    /// Send a `SystemStatusChangeT` with `event` right before the next answer
-    /// (one per call, in order).
-    pub fn status_change_before_next_answer(&self, event: i32) {
-        self.plan.lock().status_changes.push_back(event);
-    }
-
-    /// Answer the next command (one per call, in order) with the result
-    /// status `code` instead of executing it.
-    pub fn reject_next_command(&self, code: i32, how: Refusal) {
-        self.plan.lock().reject.push_back((code, how));
-    }
-
-    /// The tracker was left in extended statistic mode by other software:
-    /// it answers measurements with `SingleMeasResult2T` until a client sets
-    /// the mode (applies when the server starts).
-    pub fn leave_in_extended_statistic_mode(&self) {
-        self.plan.lock().extended_from_start = true;
-    }
-
-    /// The commands received so far, in order (also the refused ones).
-    pub fn requests(&self) -> Vec<Request> {
-        self.plan.lock().requests.clone()
+    fn push(&self, request: Request) {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).push(request);
     }
 }
 
 /// Serve the tracker on `listener`, one client at a time, until the task
 /// running this future is dropped or aborted.
-pub async fn serve_tcp(listener: TcpListener, tracker: SimTracker, faults: EmsconFaults) {
-    let mut server = Server::new(tracker, faults);
-    if std::mem::take(&mut server.faults.plan.lock().extended_from_start) {
-        server.statistic_mode = statistic_mode::EXTENDED;
-    }
-    let mut refused = JoinSet::new();
-    loop {
-        let (stream, peer) = match listener.accept().await {
-            Ok(accepted) => accepted,
-            Err(e) => {
-                tracing::warn!(error = %e, "emscon simulator: accept failed");
-                tokio::task::yield_now().await;
-                continue;
-            }
-        };
-        tracing::debug!(%peer, "emscon simulator: client connected");
-        let mut serving = std::pin::pin!(server.serve(stream));
-        loop {
-            tokio::select! {
-                biased;
-                () = &mut serving => break,
-                accepted = listener.accept() => match accepted {
-                    Ok((other, who)) => {
-                        tracing::info!(%who, "emscon simulator: refusing a second client");
-                        refused.spawn(refuse(other));
-                    }
-                    Err(e) => tracing::warn!(error = %e, "emscon simulator: accept failed"),
-                },
-                Some(_) = refused.join_next(), if !refused.is_empty() => {}
-            }
-        }
-        tracing::debug!(%peer, "emscon simulator: client gone");
-    }
+pub async fn serve_tcp(listener: TcpListener, tracker: SimTracker, faults: Faults) {
+    serve_server(listener, Server::new(tracker, faults)).await;
 }
 
-/// Answer a second client's first command with
-/// `ES_RS_MultiConnectionsNotAllowed`, then hang up.
-async fn refuse(mut stream: TcpStream) {
-    let mut decoder = RequestDecoder::new();
-    let mut buf = [0u8; 512];
-    loop {
-        match stream.read(&mut buf).await {
-            Ok(0) | Err(_) => return,
-            Ok(n) => decoder.push(&buf[..n]),
-        }
-        if let Some(item) = decoder.next_request() {
-            let command = match item {
-                Ok(r) => r.command(),
-                Err((_, c)) => c.unwrap_or(cmd::UNKNOWN),
-            };
-            let answer = Reply::answer(command, status::MULTI_CONNECTIONS_NOT_ALLOWED).encode();
-            let _ = stream.write_all(&answer).await;
-            return;
-        }
+/// Serve `server` on `listener` (see [`serve_tcp`]).
+pub async fn serve_server(listener: TcpListener, server: Server) {
+    crate::serve::serve_tcp(listener, RequestDecoder::new, server).await;
+}
+
+impl Codec for RequestDecoder {
+    type Item = Result<Request, (survey_drivers::emscon::DecodeError, Option<i32>)>;
+    fn push(&mut self, bytes: &[u8]) {
+        RequestDecoder::push(self, bytes);
+    }
+    fn next_item(&mut self) -> Option<Self::Item> {
+        self.next_request()
     }
 }
 
@@ -264,17 +171,12 @@ struct Response {
     answer: Reply,
 }
 
-/// The fault the next answer meets.
-enum AnswerFault {
-    Drop,
-    Garble(Garble),
-    CloseHalfway,
-    None,
-}
-
-struct Server {
+/// A simulated emScon server: the [`Service`] [`serve_tcp`] serves.
+#[derive(Debug)]
+pub struct Server {
     sim: SimTracker,
-    faults: EmsconFaults,
+    faults: Faults,
+    requests: Requests,
     initialized: bool,
     units: SystemUnits,
     stationary: StationaryModeData,
@@ -296,11 +198,13 @@ fn ok(command: i32) -> Reply {
 }
 
 impl Server {
-    fn new(sim: SimTracker, faults: EmsconFaults) -> Self {
+    /// A server of `sim`, its device faults armed in `faults`.
+    pub fn new(sim: SimTracker, faults: Faults) -> Self {
         let meas_time_ms = i32::try_from(sim.config().measurement_time.as_millis()).unwrap_or(i32::MAX);
         Self {
             sim,
             faults,
+            requests: Requests::default(),
             initialized: false,
             units: SystemUnits { length: length_unit::METER, angle: 0, temperature: 0, pressure: 0, humidity: 0 },
             stationary: StationaryModeData { meas_time_ms, use_adm: false },
@@ -313,101 +217,51 @@ impl Server {
         }
     }
 
-    /// Serve one connection until it closes (or a fault closes it).
-    async fn serve(&mut self, mut stream: TcpStream) {
-        stream.set_nodelay(true).ok();
-        let mut decoder = RequestDecoder::new();
-        let mut buf = vec![0u8; 4096];
-        loop {
-            let read = tokio::select! {
-                r = stream.read(&mut buf) => r,
-                () = self.continuous.tick(), if self.continuous.pushes() => {
-                    if !self.push_points(&mut stream).await {
-                        return;
-                    }
-                    continue;
-                }
-            };
-            let n = match read {
-                Ok(0) | Err(_) => return,
-                Ok(n) => n,
-            };
-            decoder.push(&buf[..n]);
-            while let Some(item) = decoder.next_request() {
-                let response = match item {
-                    Ok(request) => self.handle(request).await,
-                    Err((e, _)) if e.loses_framing() => {
-                        tracing::warn!(error = %e, "emscon simulator: unframed request, closing");
-                        return;
-                    }
-                    Err((e, command)) => {
-                        tracing::debug!(error = %e, "emscon simulator: request refused");
-                        let code = match e {
-                            survey_drivers::emscon::DecodeError::UnsupportedCommand { .. } => status::NOT_IMPLEMENTED,
-                            _ => status::WRONG_PARAMETER,
-                        };
-                        let answer = match command {
-                            Some(c) => Reply::answer(c, code),
-                            None => Reply::Error { command: cmd::UNKNOWN, status: code },
-                        };
-                        Response { events: Vec::new(), answer }
-                    }
-                };
-                if !self.respond(&mut stream, response).await {
-                    return;
-                }
-            }
-        }
+    /// The tracker was left in extended statistic mode by other software:
+    /// it answers measurements with `SingleMeasResult2T` until a client sets
+    /// the mode.
+    pub fn left_in_extended_statistic_mode(mut self) -> Self {
+        self.statistic_mode = statistic_mode::EXTENDED;
+        self
     }
 
-    /// Send the status changes and the answer, applying the armed faults.
-    /// False: close the connection.
-    async fn respond(&mut self, stream: &mut TcpStream, response: Response) -> bool {
-        let (extra, fault) = {
-            let mut plan = self.faults.plan.lock();
-            let fault = if plan.drop_answers.take() {
-                AnswerFault::Drop
-            } else if let Some(g) = plan.garble.pop_front() {
-                AnswerFault::Garble(g)
-            } else if std::mem::take(&mut plan.close_in_answer) {
-                AnswerFault::CloseHalfway
-            } else {
-                AnswerFault::None
-            };
-            (plan.status_changes.pop_front(), fault)
+    /// The commands received, shared (read it while the server serves).
+    pub fn requests(&self) -> Requests {
+        self.requests.clone()
+    }
+
+    /// The packets for one request: the points streamed since the last
+    /// packets, the status changes (the command's own, then one armed), then
+    /// the answer.
+    async fn respond(&mut self, response: Response) -> Vec<u8> {
+        let armed = match self.faults.take_device(|f| matches!(f, Fault::Event(_))) {
+            Some(Fault::Event(e)) => i32::try_from(e).ok(),
+            _ => None,
         };
         let mut bytes = self.stream_packets().await;
-        for event in response.events.iter().chain(&extra) {
+        for event in response.events.iter().chain(&armed) {
             bytes.extend(Reply::StatusChange(*event).encode());
         }
-        let answer = response.answer.encode();
-        let mut close = false;
-        match fault {
-            AnswerFault::Drop => tracing::debug!(?response.answer, "emscon simulator: answer dropped (injected)"),
-            AnswerFault::Garble(how) => bytes.extend(garble(answer, how)),
-            AnswerFault::CloseHalfway => {
-                bytes.extend_from_slice(&answer[..answer.len() / 2]);
-                close = true;
-            }
-            AnswerFault::None => bytes.extend(answer),
-        }
-        let sent = stream.write_all(&bytes).await.is_ok() && stream.flush().await.is_ok();
-        sent && !close
+        bytes.extend(response.answer.encode());
+        bytes
     }
 
     async fn handle(&mut self, request: Request) -> Response {
         let c = request.command();
-        let rejected = {
-            let mut plan = self.faults.plan.lock();
-            plan.requests.push(request);
-            plan.reject.pop_front()
-        };
-        if let Some((code, how)) = rejected {
-            tracing::debug!(?request, code, "emscon simulator: command refused (injected)");
-            self.last_status = code;
-            let answer = match how {
-                Refusal::CommandAnswer => Reply::answer(c, code),
-                Refusal::ErrorPacket => Reply::Error { command: c, status: code },
+        self.requests.push(request);
+        let refused = self.faults.take_device(|f| matches!(f, Fault::Refuse(_) | Fault::RefuseWithError(_)));
+        if let Some(fault) = refused {
+            let code = |d: &survey_drivers::traits::DeviceFault| i32::try_from(d.code).unwrap_or(status::UNKNOWN);
+            let answer = match &fault {
+                Fault::RefuseWithError(d) => Reply::Error { command: c, status: code(d) },
+                Fault::Refuse(Some(d)) => Reply::answer(c, code(d)),
+                _ => Reply::answer(c, status::SENSOR_NOT_STABLE),
+            };
+            tracing::debug!(?request, ?fault, "emscon simulator: command refused (injected)");
+            self.last_status = match &answer {
+                Reply::Answer(a) => a.status,
+                Reply::Error { status, .. } => *status,
+                _ => status::UNKNOWN,
             };
             return Response { events: Vec::new(), answer };
         }
@@ -654,6 +508,58 @@ fn per_mbar(unit: i32) -> f64 {
         pressure_unit::INH2O => 0.401_463_078,
         pressure_unit::INHG => 0.029_529_983_1,
         _ => 1.0,
+    }
+}
+
+#[async_trait]
+impl Service for Server {
+    type Request = Result<Request, (survey_drivers::emscon::DecodeError, Option<i32>)>;
+    type Reply = Vec<u8>;
+
+    /// One client at a time, like the hardware.
+    const REFUSES_SECOND_CLIENT: bool = true;
+
+    async fn call(&mut self, request: Self::Request) -> serve::Answer<Vec<u8>> {
+        let response = match request {
+            Ok(request) => self.handle(request).await,
+            Err((e, _)) if e.loses_framing() => {
+                tracing::warn!(error = %e, "emscon simulator: unframed request, closing");
+                return serve::Answer::Close;
+            }
+            Err((e, command)) => {
+                tracing::debug!(error = %e, "emscon simulator: request refused");
+                let code = match e {
+                    survey_drivers::emscon::DecodeError::UnsupportedCommand { .. } => status::NOT_IMPLEMENTED,
+                    _ => status::WRONG_PARAMETER,
+                };
+                let answer = match command {
+                    Some(c) => Reply::answer(c, code),
+                    None => Reply::Error { command: cmd::UNKNOWN, status: code },
+                };
+                Response { events: Vec::new(), answer }
+            }
+        };
+        serve::Answer::Send(self.respond(response).await)
+    }
+
+    /// The points measured so far, pushed on a timer while a continuous
+    /// measurement runs on a clock that is not virtual.
+    async fn unsolicited(&mut self) -> serve::Answer<Vec<u8>> {
+        if !self.continuous.pushes() {
+            return std::future::pending().await;
+        }
+        self.continuous.tick().await;
+        let bytes = self.stream_packets().await;
+        if bytes.is_empty() { serve::Answer::Nothing } else { serve::Answer::Send(bytes) }
+    }
+
+    /// `ES_RS_MultiConnectionsNotAllowed` to the command of a second client.
+    fn busy(request: Self::Request) -> Option<Vec<u8>> {
+        let command = match request {
+            Ok(r) => r.command(),
+            Err((_, c)) => c.unwrap_or(cmd::UNKNOWN),
+        };
+        Some(Reply::answer(command, status::MULTI_CONNECTIONS_NOT_ALLOWED).encode())
     }
 }
 

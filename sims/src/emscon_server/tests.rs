@@ -10,6 +10,9 @@ use survey_drivers::VirtualClock;
 use survey_drivers::clock::Clock;
 use survey_drivers::emscon::{EmsconConfig, EmsconTimeouts, EmsconTracker};
 use survey_drivers::error::ErrorKind;
+use survey_drivers::traits::DeviceFault;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
 use tokio::task::JoinHandle;
 
 const ANGLE: f64 = 30.0;
@@ -33,18 +36,30 @@ fn driver_cfg() -> EmsconConfig {
 
 /// A server on 127.0.0.1:0, and a second tracker with the same seed and
 /// angle measured directly.
+/// The server is behind a relay (its link faults): `addr` is the relay's,
+/// `server_addr` the server's own.
 struct Rig {
     clock: VirtualClock,
-    faults: EmsconFaults,
+    /// Link faults (the relay's) and device faults (the server's).
+    faults: Faults,
+    requests: Requests,
     addr: SocketAddr,
+    server_addr: SocketAddr,
     server: JoinHandle<()>,
+    relay: JoinHandle<()>,
     direct: SimTracker,
 }
 
 impl Drop for Rig {
     fn drop(&mut self) {
         self.server.abort();
+        self.relay.abort();
     }
+}
+
+/// A refusal with the result status `code`.
+fn refusal(code: i32) -> DeviceFault {
+    DeviceFault { code: i64::from(code), text: String::new() }
 }
 
 impl Rig {
@@ -52,11 +67,14 @@ impl Rig {
         let clock = VirtualClock::new();
         let sim = SimTracker::new(cfg.clone(), Arc::new(clock.clone()), Turntable::new(ANGLE));
         let direct = SimTracker::new(cfg, Arc::new(VirtualClock::new()), Turntable::new(ANGLE));
-        let faults = EmsconFaults::new();
-        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let addr = listener.local_addr().unwrap();
-        let server = tokio::spawn(serve_tcp(listener, sim, faults.clone()));
-        Rig { clock, faults, addr, server, direct }
+        let faults = Faults::new();
+        let (listener, addr, relay) =
+            crate::relay::tcp_relay(crate::relay::Relay::armed(faults.clone(), crate::relay::Framing::Emscon)).await;
+        let server_addr = listener.local_addr().unwrap();
+        let server = Server::new(sim, faults.clone());
+        let requests = server.requests();
+        let server = tokio::spawn(serve_server(listener, server));
+        Rig { clock, faults, requests, addr, server_addr, server, relay, direct }
     }
 
     async fn connect(&self) -> EmsconTracker<TcpStream> {
@@ -77,7 +95,7 @@ async fn connect_sets_up_and_measures_as_the_simulator_does() {
         Request::SetStatisticMode { stationary: 0, continuous: 0 },
         Request::SetStationaryModeParams(params),
     ];
-    assert_eq!(rig.faults.requests(), setup);
+    assert_eq!(rig.requests.get(), setup);
     assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
     let s = t.system_status().await.unwrap();
     assert_eq!((s.tracker_serial_number, s.version), (SIM_SERIAL_NUMBER, [3, 6, 0]));
@@ -102,11 +120,10 @@ async fn a_tracker_left_in_extended_statistic_mode() {
     let clock = VirtualClock::new();
     let cfg = sim_cfg(5, None);
     let sim = SimTracker::new(cfg, Arc::new(clock.clone()), Turntable::new(ANGLE));
-    let faults = EmsconFaults::new();
-    faults.leave_in_extended_statistic_mode();
     let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
-    let server = tokio::spawn(serve_tcp(listener, sim, faults.clone()));
+    let server =
+        tokio::spawn(serve_server(listener, Server::new(sim, Faults::new()).left_in_extended_statistic_mode()));
     let le = |w: &[i32]| w.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>();
     let mut s = TcpStream::connect(addr).await.unwrap();
     async fn ask(s: &mut TcpStream, bytes: &[u8]) -> Vec<u8> {
@@ -189,11 +206,11 @@ async fn beam_break_is_a_device_error_and_reacquire_restores_measurements() {
     let e = t.measure().await.unwrap_err();
     assert_eq!(e.code, Some(i64::from(status::MEASUREMENT_STATUS_NOT_READY)), "{e}");
     assert!(e.message.contains("ES_RS_MeasurementStatusNotReady"), "{e}");
-    let before = rig.faults.requests().len();
+    let before = rig.requests.get().len();
     let t0 = rig.clock.now();
     t.reacquire().await.unwrap();
     assert!(rig.clock.now() - t0 >= rig.direct.config().reacquire_time);
-    let tail = rig.faults.requests()[before..].to_vec();
+    let tail = rig.requests.get()[before..].to_vec();
     assert_eq!(tail, [Request::GoLastMeasuredPoint, Request::GetMeasurementStatusInfo]);
     assert_eq!(t.last_status_change(), Some(status_change::MEAS_STATUS_READY));
     assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
@@ -206,9 +223,9 @@ async fn reacquire_without_a_last_point_searches_for_the_reflector() {
     let rig = Rig::new(sim_cfg(5, Some(1))).await;
     let mut t = rig.connect().await;
     assert_eq!(t.measure().await.unwrap_err().code, Some(i64::from(status::NO_STATIONARY_RESULT)));
-    let before = rig.faults.requests().len();
+    let before = rig.requests.get().len();
     t.reacquire().await.unwrap();
-    let tail = rig.faults.requests()[before..].to_vec();
+    let tail = rig.requests.get()[before..].to_vec();
     let find = Request::FindReflector { approx_distance: 3000.0 };
     assert_eq!(tail, [Request::GoLastMeasuredPoint, find, Request::GetMeasurementStatusInfo]);
     t.measure().await.unwrap();
@@ -225,11 +242,11 @@ async fn a_failed_reacquisition_answers_measurement_status_not_ready() {
     let mut t = rig.connect().await;
     t.measure().await.unwrap();
     assert_eq!(t.measure().await.unwrap_err().code, Some(i64::from(status::NO_STATIONARY_RESULT)));
-    let before = rig.faults.requests().len();
+    let before = rig.requests.get().len();
     let e = t.reacquire().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(i64::from(status::MEASUREMENT_STATUS_NOT_READY))), "{e}");
     assert!(e.message.contains("ES_RS_MeasurementStatusNotReady") && e.message.contains("FindReflector"), "{e}");
-    let tail = rig.faults.requests()[before..].to_vec();
+    let tail = rig.requests.get()[before..].to_vec();
     assert_eq!(tail[0], Request::GoLastMeasuredPoint);
     assert!(matches!(tail[1], Request::FindReflector { .. }), "{tail:?}");
     assert_eq!(t.state(), TrackerState::BeamBroken);
@@ -245,12 +262,12 @@ async fn a_failed_reacquisition_answers_measurement_status_not_ready() {
 async fn status_changes_before_an_answer_are_applied_not_taken_for_it() {
     let mut rig = Rig::new(sim_cfg(9, None)).await;
     let mut t = rig.connect().await;
-    rig.faults.status_change_before_next_answer(status_change::MEAS_STATUS_NOT_READY);
+    rig.faults.arm(Fault::Event(i64::from(status_change::MEAS_STATUS_NOT_READY)));
     assert_eq!(t.measure().await.unwrap(), rig.direct.measure().await.unwrap());
     assert_eq!((t.last_status_change(), t.status_changes_seen()), (Some(25), 1));
     assert_eq!(t.state(), TrackerState::TargetLocked, "a result proves the lock");
-    rig.faults.status_change_before_next_answer(status_change::LASER_WARMED_UP);
-    rig.faults.status_change_before_next_answer(status_change::MEAS_STATUS_BUSY);
+    rig.faults.arm(Fault::Event(i64::from(status_change::LASER_WARMED_UP)));
+    rig.faults.arm(Fault::Event(i64::from(status_change::MEAS_STATUS_BUSY)));
     assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
     assert_eq!((t.last_status_change(), t.status_changes_seen()), (Some(26), 3));
 }
@@ -259,13 +276,13 @@ async fn status_changes_before_an_answer_are_applied_not_taken_for_it() {
 async fn a_dropped_answer_times_out_and_the_next_request_succeeds() {
     let rig = Rig::new(sim_cfg(1, None)).await;
     let mut t = rig.connect().await;
-    rig.faults.drop_next_answers(1);
+    rig.faults.arm(Fault::Drop);
     let started = tokio::time::Instant::now();
     let e = t.status().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
     assert!(started.elapsed() >= Duration::from_millis(200));
     assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
-    rig.faults.drop_next_answers(1);
+    rig.faults.arm(Fault::Drop);
     let e = t.measure().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
     assert!(e.message.contains("200ms"), "measurement time + margin: {e}");
@@ -281,7 +298,7 @@ async fn garbled_answers_are_garbled_and_the_link_recovers() {
         (Garble::WrongLength, "expected 156"),
         (Garble::AbsurdSize, "absurd packet size"),
     ] {
-        rig.faults.garble_next_answer(how);
+        rig.faults.arm(garbled(how));
         let e = t.measure().await.unwrap_err();
         assert_eq!(e.kind, ErrorKind::Garbled, "{how:?}: {e}");
         assert!(e.message.contains(says), "{how:?}: {e}");
@@ -297,18 +314,18 @@ async fn garbled_answers_are_garbled_and_the_link_recovers() {
 async fn an_undefined_result_status_is_a_garbled_packet() {
     let rig = Rig::new(sim_cfg(3, None)).await;
     let mut t = rig.connect().await;
-    rig.faults.garble_next_answer(Garble::Status);
+    rig.faults.arm(garbled(Garble::Status));
     let e = t.measure().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Garbled, None), "{e}");
     assert!(e.message.contains("ES_ResultStatus 23040 is no status of the emScon header"), "{e}");
     t.measure().await.unwrap();
-    rig.faults.garble_next_answer(Garble::Status);
+    rig.faults.arm(garbled(Garble::Status));
     let e = t.status().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Garbled, None), "{e}");
     assert!(e.message.contains("ES_ResultStatus 23040") && e.message.contains("ES_C_GetSystemStatus"), "{e}");
     assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
     // A defined status refusing the command stays a device fault.
-    rig.faults.reject_next_command(status::SENSOR_NOT_STABLE, Refusal::CommandAnswer);
+    rig.faults.arm(Fault::Refuse(Some(refusal(status::SENSOR_NOT_STABLE))));
     let e = t.measure().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_013)), "{e}");
 }
@@ -317,7 +334,7 @@ async fn an_undefined_result_status_is_a_garbled_packet() {
 async fn a_truncated_answer_then_close_is_a_disconnection() {
     let rig = Rig::new(sim_cfg(4, None)).await;
     let mut t = rig.connect().await;
-    rig.faults.close_during_next_answer();
+    rig.faults.arm(Fault::Disconnect);
     let e = t.measure().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
     assert!(e.message.contains("after 78 bytes of a packet"), "{e}");
@@ -332,16 +349,16 @@ async fn a_truncated_answer_then_close_is_a_disconnection() {
 #[tokio::test]
 async fn error_statuses_carry_their_code_and_name() {
     let rig = Rig::new(sim_cfg(6, None)).await;
-    rig.faults.reject_next_command(status::SENSOR_NOT_WARMED_UP, Refusal::CommandAnswer);
+    rig.faults.arm(Fault::Refuse(Some(refusal(status::SENSOR_NOT_WARMED_UP))));
     let e = EmsconTracker::connect(rig.addr, driver_cfg()).await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_012)), "{e}");
     assert!(e.message.contains("ES_RS_SensorNotWarmedUp (10012) in answer to ES_C_Initialize"), "{e}");
     let mut t = rig.connect().await;
-    rig.faults.reject_next_command(status::SENSOR_NOT_WARMED_UP, Refusal::CommandAnswer);
+    rig.faults.arm(Fault::Refuse(Some(refusal(status::SENSOR_NOT_WARMED_UP))));
     let e = t.measure().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_012)), "{e}");
     assert_eq!(t.state(), TrackerState::NotReady);
-    rig.faults.reject_next_command(status::SYSTEM_NOT_READY_FOR_MEASUREMENT, Refusal::ErrorPacket);
+    rig.faults.arm(Fault::RefuseWithError(refusal(status::SYSTEM_NOT_READY_FOR_MEASUREMENT)));
     let e = t.status().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_014)), "{e}");
     assert!(e.message.contains("ES_RS_SystemNotReadyForMeasurement"), "{e}");
@@ -352,11 +369,12 @@ async fn error_statuses_carry_their_code_and_name() {
 #[tokio::test]
 async fn a_second_client_is_refused_while_the_first_is_served() {
     let rig = Rig::new(sim_cfg(8, None)).await;
-    let mut first = rig.connect().await;
-    let e = EmsconTracker::connect(rig.addr, driver_cfg()).await.unwrap_err();
+    // The server's own port (the relay in front serves one client at a time).
+    let mut first = EmsconTracker::connect(rig.server_addr, driver_cfg()).await.unwrap();
+    let e = EmsconTracker::connect(rig.server_addr, driver_cfg()).await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(10_011)), "{e}");
     assert!(e.message.contains("ES_RS_MultiConnectionsNotAllowed"), "{e}");
     first.measure().await.unwrap();
     drop(first);
-    rig.connect().await.measure().await.unwrap();
+    EmsconTracker::connect(rig.server_addr, driver_cfg()).await.unwrap().measure().await.unwrap();
 }

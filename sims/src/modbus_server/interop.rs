@@ -187,7 +187,7 @@ async fn a_pymodbus_client_against_our_simulator() {
     cfg.link_latency = Duration::from_millis(10);
     let sim = SimPositioner::new(cfg, Arc::new(VirtualClock::new()));
     let device = ModbusDevice::new(sim, RegisterMap::default()).unwrap();
-    let server = device.spawn_tcp(ModbusFaults::new()).await.unwrap();
+    let server = device.spawn_tcp(crate::faults::Faults::new()).await.unwrap();
     let port = server.addr.port().to_string();
     let run = tokio::task::spawn_blocking(move || {
         Command::new("python3").arg(CLIENT_SCRIPT).args([port.as_str(), "12.34567", "100", "200"]).output()
@@ -229,7 +229,7 @@ async fn a_pymodbus_rtu_client_against_our_simulator_on_a_pty() {
     let (master, slave) = crate::elcomat_server::pty_pair().unwrap();
     let path = tokio_serial::SerialPort::name(&slave).unwrap();
     let serving = device.clone();
-    let server = tokio::spawn(async move { serving.serve_rtu(master, ModbusFaults::new()).await });
+    let server = tokio::spawn(async move { serving.serve_rtu(master, crate::faults::Faults::new()).await });
     let target = format!("rtu:{path}");
     let run = tokio::task::spawn_blocking(move || {
         Command::new("python3").arg(CLIENT_SCRIPT).args([target.as_str(), "-7.25", "100", "200"]).output()

@@ -77,38 +77,29 @@
 //! - The positioner's fault code goes to the fault code register (0xFFFF if
 //!   it does not fit 16 bits); the sim's following error is 0x8611.
 //!
-//! # Fault injection ([`ModbusFaults`])
+//! # Faults ([`Faults`])
 //!
-//! A handle shared with the test: what is armed applies to the next requests
-//! to this unit as they come, one request per armed fault, checked in this
-//! order:
+//! Link faults are the [`relay`](crate::relay)'s in front of the controller
+//! ([`garbled`]: a reply of another function, the Modbus way to garble).
+//! Device faults armed in its [`Faults`] apply to the next requests to this
+//! unit as they come:
 //!
-//! - [`close_during_next_reply`](ModbusFaults::close_during_next_reply): the
-//!   request is executed; over TCP the first half of the reply frame is sent
-//!   and the connection is closed (the listener keeps accepting); over RTU
-//!   nothing is sent and the server stops, closing the pty master;
-//! - [`reject_next_request`](ModbusFaults::reject_next_request): not executed,
-//!   answered with the given exception;
-//! - [`drop_next_replies`](ModbusFaults::drop_next_replies): executed, no reply
-//!   (the client times out);
-//! - [`garble_next_replies`](ModbusFaults::garble_next_replies): executed,
-//!   answered with a reply of another function (the client sees a mismatch);
-//! - [`discard_nth_next_write`](ModbusFaults::discard_nth_next_write): the
-//!   n-th write from now is acknowledged but not applied (data lost inside
-//!   the device: the table checksum catches it).
+//! - [`Fault::Refuse`]: not executed, answered with the exception whose code
+//!   is given (`None`: `ServerDeviceFailure`, 4);
+//! - [`Fault::LoseWrite`]: the n-th write from now is acknowledged but not applied
+//!   (data lost inside the device: the table checksum catches it).
 
 mod device;
 
-use crate::faults::{Countdown, FaultPlan};
+use crate::faults::{Fault, Faults, Garble};
 use crate::positioner::SimPositioner;
 use device::{DeviceState, Outcome};
-use std::collections::VecDeque;
 use std::future::Future;
 use std::io;
 use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::task::{Context, Poll};
 use survey_drivers::modbus::{ExceptionCode, MapError, RegisterMap, Request, Response};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
@@ -122,103 +113,26 @@ use tokio_modbus::server::tcp::accept_tcp_connection;
 /// Most rows a staged table column may hold.
 pub const MAX_TABLE_ROWS: u16 = 16_384;
 
-/// Faults to inject, shared between the test and the server (clone it before
-/// passing it in). Nothing is armed by default.
-#[derive(Debug, Clone, Default)]
-pub struct ModbusFaults {
-    inner: FaultPlan<Armed>,
-}
-
-#[derive(Debug, Default)]
-struct Armed {
-    close: bool,
-    reject: VecDeque<ExceptionCode>,
-    drop: Countdown,
-    garble: Countdown,
-    discard_write: Option<usize>,
-    requests: usize,
-}
-
-/// What to do with one request.
-#[derive(Debug, Clone, Copy, Default)]
-struct Plan {
-    close: bool,
-    reject: Option<ExceptionCode>,
-    drop: bool,
-    garble: bool,
-}
-
-impl ModbusFaults {
-    /// Nothing armed.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Execute the next `n` requests but send no reply.
-    pub fn drop_next_replies(&self, n: usize) {
-        self.inner.lock().drop.add(n);
-    }
-
-    /// Execute the next `n` requests and answer each with a reply of another
-    /// function.
-    pub fn garble_next_replies(&self, n: usize) {
-        self.inner.lock().garble.add(n);
-    }
-
-    /// Answer the next request (not executed) with `code`. Several calls queue.
-    pub fn reject_next_request(&self, code: ExceptionCode) {
-        self.inner.lock().reject.push_back(code);
-    }
-
-    /// Execute the next request, then close the link in the middle of its
-    /// reply (TCP: half the frame; RTU: before the reply).
-    pub fn close_during_next_reply(&self) {
-        self.inner.lock().close = true;
-    }
-
-    /// Acknowledge the `n`-th write request from now (1 = the next one)
-    /// without applying it.
-    pub fn discard_nth_next_write(&self, n: usize) {
-        self.inner.lock().discard_write = Some(n.max(1));
-    }
-
-    /// Requests to this unit received so far.
-    pub fn requests(&self) -> usize {
-        self.inner.lock().requests
-    }
-
-    /// Count a write request that is about to be executed; true when it is
-    /// the one to discard.
-    fn discard_this_write(&self) -> bool {
-        let mut a = self.inner.lock();
-        match a.discard_write {
-            Some(1) => {
-                a.discard_write = None;
-                true
-            }
-            Some(n) => {
-                a.discard_write = Some(n - 1);
-                false
-            }
-            None => false,
+/// The Modbus way to garble a reply, for the relay in front of the
+/// controller: a well-formed reply of another function (the client sees a
+/// mismatch), over TCP (`rtu` false: the MBAP header kept) or RTU (the CRC
+/// recomputed).
+pub fn garbled(rtu: bool) -> Fault {
+    Fault::Garble(Garble::edit("Modbus reply of another function", move |frame: &[u8]| {
+        let header = if rtu { 1 } else { 7 };
+        let function = *frame.get(header)?;
+        let pdu: &[u8] = if matches!(function, 3 | 4) { &[6, 0, 0, 0, 0] } else { &[3, 2, 0, 0] };
+        let mut out = frame[..header].to_vec();
+        if rtu {
+            out.extend_from_slice(pdu);
+            let crc = survey_drivers::modbus::crc16_modbus_bytes(&out);
+            out.extend_from_slice(&crc.to_le_bytes());
+        } else {
+            out[4..6].copy_from_slice(&(1 + pdu.len() as u16).to_be_bytes());
+            out.extend_from_slice(pdu);
         }
-    }
-
-    fn next_plan(&self) -> Plan {
-        let mut a = self.inner.lock();
-        a.requests += 1;
-        let mut plan = Plan::default();
-        if std::mem::take(&mut a.close) {
-            plan.close = true;
-        } else if let Some(code) = a.reject.pop_front() {
-            plan.reject = Some(code);
-        } else if a.drop.take() {
-            plan.drop = true;
-        } else if a.garble.take() {
-            plan.garble = true;
-        }
-        plan
-    }
+        Some(out)
+    }))
 }
 
 /// The simulated controller: a [`SimPositioner`] behind a [`RegisterMap`].
@@ -227,6 +141,7 @@ impl ModbusFaults {
 pub struct ModbusDevice {
     state: Arc<tokio::sync::Mutex<DeviceState>>,
     map: Arc<RegisterMap>,
+    requests: Arc<AtomicUsize>,
 }
 
 impl std::fmt::Debug for ModbusDevice {
@@ -243,7 +158,7 @@ pub enum RtuEnd {
     /// A read or write failed (a pty master reads EIO once the other side is
     /// closed).
     LinkError(io::ErrorKind),
-    /// An injected fault (or the positioner's injected disconnect) closed the port.
+    /// The simulated positioner's own injected disconnect closed the port.
     ClosedByFault,
 }
 
@@ -267,7 +182,8 @@ impl ModbusDevice {
     pub fn new(positioner: SimPositioner, map: RegisterMap) -> Result<Self, MapError> {
         map.validate()?;
         let state = DeviceState::new(positioner, map.clone());
-        Ok(Self { state: Arc::new(tokio::sync::Mutex::new(state)), map: Arc::new(map) })
+        let state = Arc::new(tokio::sync::Mutex::new(state));
+        Ok(Self { state, map: Arc::new(map), requests: Arc::default() })
     }
 
     /// The register map.
@@ -286,18 +202,23 @@ impl ModbusDevice {
         self.state.lock().await.holding(address)
     }
 
-    fn session(&self, faults: &ModbusFaults, link: Link) -> Session {
+    /// Requests to this unit received so far.
+    pub fn requests(&self) -> usize {
+        self.requests.load(Ordering::Relaxed)
+    }
+
+    fn session(&self, faults: &Faults, link: Link) -> Session {
         Session { device: self.clone(), faults: faults.clone(), link }
     }
 
     /// Serve Modbus TCP on `listener` until the future is dropped (or the
     /// listener fails). Every connection gets its own session on the same
     /// controller.
-    pub async fn serve_tcp(&self, listener: TcpListener, faults: ModbusFaults) -> io::Result<()> {
+    pub async fn serve_tcp(&self, listener: TcpListener, faults: Faults) -> io::Result<()> {
         let server = tokio_modbus::server::tcp::Server::new(listener);
         let device = self.clone();
         let on_connected = move |stream: TcpStream, peer: SocketAddr| {
-            let cut = Arc::new(AtomicU8::new(CUT_NONE));
+            let cut = Arc::new(AtomicBool::new(false));
             let accepted =
                 accept_tcp_connection(stream, peer, |_| Ok(Some(device.session(&faults, Link::Tcp(cut.clone())))))
                     .map(|o| o.map(|(session, stream)| (session, FaultyStream { inner: stream, cut: cut.clone() })));
@@ -313,7 +234,7 @@ impl ModbusDevice {
     }
 
     /// Bind 127.0.0.1:0 and serve Modbus TCP in a task.
-    pub async fn spawn_tcp(&self, faults: ModbusFaults) -> io::Result<TcpServer> {
+    pub async fn spawn_tcp(&self, faults: Faults) -> io::Result<TcpServer> {
         let listener = TcpListener::bind("127.0.0.1:0").await?;
         let addr = listener.local_addr()?;
         let device = self.clone();
@@ -324,7 +245,7 @@ impl ModbusDevice {
     /// Serve Modbus RTU on `port` (the master side of a pty pair, or a real
     /// serial port) until the stream ends, fails, or a fault closes it. The
     /// port is closed on return.
-    pub async fn serve_rtu(&self, port: tokio_serial::SerialStream, faults: ModbusFaults) -> RtuEnd {
+    pub async fn serve_rtu(&self, port: tokio_serial::SerialStream, faults: Faults) -> RtuEnd {
         let notify = Arc::new(Notify::new());
         let session = self.session(&faults, Link::Rtu(notify.clone()));
         let abort = async move { notify.notified().await };
@@ -342,21 +263,17 @@ impl ModbusDevice {
 /// How a session closes its link.
 #[derive(Debug, Clone)]
 enum Link {
-    /// The cut mode of the connection's [`FaultyStream`].
-    Tcp(Arc<AtomicU8>),
+    /// Cuts the connection's [`FaultyStream`].
+    Tcp(Arc<AtomicBool>),
     /// Wakes `serve_until`'s abort signal.
     Rtu(Arc<Notify>),
 }
-
-const CUT_NONE: u8 = 0;
-const CUT_HALF: u8 = 1;
-const CUT_NOW: u8 = 2;
 
 /// One client's view of the controller: the `Service` tokio-modbus calls.
 #[derive(Debug)]
 struct Session {
     device: ModbusDevice,
-    faults: ModbusFaults,
+    faults: Faults,
     link: Link,
 }
 
@@ -383,49 +300,49 @@ impl Service for Session {
             tracing::debug!(slave, "sim Modbus controller: request to another unit, no reply");
             return Box::pin(std::future::ready(Ok(None)));
         }
-        let plan = self.faults.next_plan();
+        self.device.requests.fetch_add(1, Ordering::Relaxed);
         let faults = self.faults.clone();
         let device = self.device.clone();
         let link = self.link.clone();
         Box::pin(async move {
-            if let Some(code) = plan.reject {
+            if let Some(fault) = faults.take_device(|f| matches!(f, Fault::Refuse(_) | Fault::RefuseWithError(_))) {
+                let code = match &fault {
+                    Fault::Refuse(Some(d)) | Fault::RefuseWithError(d) => {
+                        ExceptionCode::new(u8::try_from(d.code).unwrap_or(4))
+                    }
+                    _ => ExceptionCode::ServerDeviceFailure,
+                };
                 tracing::debug!(?code, "sim Modbus controller rejects a request (injected)");
                 return Err(code);
             }
             let is_write = matches!(request, Request::WriteSingleRegister(..) | Request::WriteMultipleRegisters(..));
-            let discard = is_write && faults.discard_this_write();
+            let due = |f: &mut Fault| match f {
+                Fault::LoseWrite(n) if *n <= 1 => true,
+                Fault::LoseWrite(n) => {
+                    *n -= 1;
+                    false
+                }
+                _ => false,
+            };
+            let discard = is_write && faults.take_device(due).is_some();
             let outcome = device.state.lock().await.handle(&request, discard).await;
-            let reply: Reply = match outcome {
+            match outcome {
                 Outcome::Reply(r) => Ok(Some(r)),
                 Outcome::Exception(code) => Err(code),
-                Outcome::Silent => return Ok(None),
-                Outcome::Garble => return Ok(Some(mismatched(&request))),
-                Outcome::Close => return close(&link, CUT_NOW, Ok(Some(mismatched(&request)))).await,
-            };
-            if plan.close {
-                tracing::debug!("sim Modbus controller closes the link mid-reply (injected)");
-                return close(&link, CUT_HALF, reply).await;
+                Outcome::Silent => Ok(None),
+                Outcome::Garble => Ok(Some(mismatched(&request))),
+                Outcome::Close => close(&link, Ok(Some(mismatched(&request)))).await,
             }
-            if plan.drop {
-                tracing::debug!("sim Modbus controller drops its reply (injected)");
-                return Ok(None);
-            }
-            if plan.garble {
-                tracing::debug!("sim Modbus controller garbles its reply (injected)");
-                return Ok(Some(mismatched(&request)));
-            }
-            reply
         })
     }
 }
 
-/// Close the link: over TCP arm the stream's cut (the reply goes out as far
-/// as `mode` allows, then the connection fails and closes); over RTU stop the
-/// server and never answer.
-async fn close(link: &Link, mode: u8, reply: Reply) -> Reply {
+/// Close the link: over TCP cut the stream (the reply's write fails and the
+/// connection closes); over RTU stop the server and never answer.
+async fn close(link: &Link, reply: Reply) -> Reply {
     match link {
         Link::Tcp(cut) => {
-            cut.store(mode, Ordering::SeqCst);
+            cut.store(true, Ordering::SeqCst);
             reply
         }
         Link::Rtu(notify) => {
@@ -435,14 +352,13 @@ async fn close(link: &Link, mode: u8, reply: Reply) -> Reply {
     }
 }
 
-/// A TCP stream whose writes can be cut: after [`CUT_HALF`] the next write
-/// sends half its bytes and every later write fails; after [`CUT_NOW`] every
-/// write fails. The failed write ends the tokio-modbus session task, which
-/// drops (closes) the socket.
+/// A TCP stream whose writes can be cut: once cut, every write fails. The
+/// failed write ends the tokio-modbus session task, which drops (closes) the
+/// socket.
 #[derive(Debug)]
 struct FaultyStream {
     inner: TcpStream,
-    cut: Arc<AtomicU8>,
+    cut: Arc<AtomicBool>,
 }
 
 fn cut_error() -> io::Error {
@@ -457,18 +373,10 @@ impl AsyncRead for FaultyStream {
 
 impl AsyncWrite for FaultyStream {
     fn poll_write(mut self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
-        match self.cut.load(Ordering::SeqCst) {
-            CUT_NONE => Pin::new(&mut self.inner).poll_write(cx, buf),
-            CUT_HALF => {
-                let half = (buf.len() / 2).max(1).min(buf.len());
-                let r = Pin::new(&mut self.inner).poll_write(cx, &buf[..half]);
-                if let Poll::Ready(Ok(_)) = r {
-                    self.cut.store(CUT_NOW, Ordering::SeqCst);
-                }
-                r
-            }
-            _ => Poll::Ready(Err(cut_error())),
+        if self.cut.load(Ordering::SeqCst) {
+            return Poll::Ready(Err(cut_error()));
         }
+        Pin::new(&mut self.inner).poll_write(cx, buf)
     }
 
     fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {

@@ -5,11 +5,13 @@ use super::*;
 use crate::elcomat_server::pty_pair;
 use crate::positioner::{FAULT_FOLLOWING_ERROR, PositionerConfig, PositionerFaults};
 use crate::presets::{Preset, without_noise};
+use crate::relay::{Ended, Framing, Relay, pty_relay, tcp_relay};
 use std::time::{Duration, Instant};
 use survey_drivers::VirtualClock;
 use survey_drivers::clock::Clock;
 use survey_drivers::error::ErrorKind;
 use survey_drivers::modbus::{Location, ModbusPositioner, ModbusTimeouts, PositionEncoding, WordOrder};
+use survey_drivers::traits::DeviceFault;
 use survey_drivers::traits::{Positioner, PositionerStatus};
 use survey_processing::Direction;
 use survey_processing::table::CorrectionTable;
@@ -28,14 +30,38 @@ pub(super) fn config() -> PositionerConfig {
     cfg
 }
 
+/// The controller behind a relay (its link faults); the driver talks to the relay.
 struct Rig {
     clock: VirtualClock,
     device: ModbusDevice,
-    faults: ModbusFaults,
+    /// Link faults (the relay's) and device faults (the controller's).
+    faults: Faults,
     map: RegisterMap,
     drv: ModbusPositioner,
-    tcp: Option<TcpServer>,
+    /// The relay's address, over TCP.
+    tcp: Option<SocketAddr>,
     rtu: Option<JoinHandle<RtuEnd>>,
+    /// The serial line's path, over RTU.
+    path: Option<String>,
+    /// The serial relay's end.
+    line: Option<JoinHandle<Ended>>,
+    _tasks: Tasks,
+}
+
+/// Tasks aborted on drop.
+struct Tasks(Vec<JoinHandle<()>>);
+
+impl Drop for Tasks {
+    fn drop(&mut self) {
+        for t in &self.0 {
+            t.abort();
+        }
+    }
+}
+
+/// The device fault "answer with exception `code`".
+fn exception(code: ExceptionCode) -> Fault {
+    Fault::Refuse(Some(DeviceFault { code: i64::from(u8::from(code)), text: String::new() }))
 }
 
 fn device(cfg: PositionerConfig, map: &RegisterMap) -> (VirtualClock, ModbusDevice) {
@@ -46,27 +72,53 @@ fn device(cfg: PositionerConfig, map: &RegisterMap) -> (VirtualClock, ModbusDevi
 
 async fn tcp_rig(cfg: PositionerConfig, map: RegisterMap) -> Rig {
     let (clock, device) = device(cfg, &map);
-    let faults = ModbusFaults::new();
-    let server = device.spawn_tcp(faults.clone()).await.expect("bind");
-    let drv = ModbusPositioner::connect_tcp(server.addr, map.clone(), TIMEOUTS).await.expect("connect");
-    Rig { clock, device, faults, map, drv, tcp: Some(server), rtu: None }
+    let faults = Faults::new();
+    let (listener, addr, relay) = tcp_relay(Relay::armed(faults.clone(), Framing::ModbusTcp)).await;
+    let (d, f) = (device.clone(), faults.clone());
+    let server = tokio::spawn(async move {
+        let _ = d.serve_tcp(listener, f).await;
+    });
+    let drv = ModbusPositioner::connect_tcp(addr, map.clone(), TIMEOUTS).await.expect("connect");
+    Rig {
+        clock,
+        device,
+        faults,
+        map,
+        drv,
+        tcp: Some(addr),
+        rtu: None,
+        path: None,
+        line: None,
+        _tasks: Tasks(vec![server, relay]),
+    }
 }
 
 async fn rtu_rig(cfg: PositionerConfig, map: RegisterMap) -> Rig {
     let (clock, device) = device(cfg, &map);
-    let faults = ModbusFaults::new();
-    let (master, slave) = pty_pair().expect("pty pair");
+    let faults = Faults::new();
+    let (slave, master, line) = pty_relay(Relay::armed(faults.clone(), Framing::ModbusRtu));
+    let path = tokio_serial::SerialPort::name(&slave);
     let (d, f) = (device.clone(), faults.clone());
     let rtu = tokio::spawn(async move { d.serve_rtu(master, f).await });
     let drv = ModbusPositioner::attach_rtu(slave, map.clone(), TIMEOUTS).expect("attach").named("rtu-test");
-    Rig { clock, device, faults, map, drv, tcp: None, rtu: Some(rtu) }
+    let line = Some(line);
+    Rig { clock, device, faults, map, drv, tcp: None, rtu: Some(rtu), path, line, _tasks: Tasks(Vec::new()) }
 }
 
 impl Rig {
     /// A new TCP session (after a link fault closed the old one).
     async fn reconnect(&mut self) {
-        let addr = self.tcp.as_ref().expect("a TCP rig").addr;
+        let addr = self.tcp.expect("a TCP rig");
         self.drv = ModbusPositioner::connect_tcp(addr, self.map.clone(), TIMEOUTS).await.expect("reconnect");
+    }
+
+    /// A new driver on the RTU line (after a link fault closed the old
+    /// one), as the reconnect layer opens it: by its path.
+    fn reconnect_rtu(&mut self) {
+        let path = self.path.clone().expect("an RTU rig");
+        let port = tokio_serial::SerialPortBuilderExt::open_native_async(tokio_serial::new(&path, 115_200))
+            .expect("the line opens again");
+        self.drv = ModbusPositioner::attach_rtu(port, self.map.clone(), TIMEOUTS).expect("attach");
     }
 
     /// Let any move end and settle, then read the status.
@@ -273,7 +325,7 @@ async fn a_single_column_table_over_rtu_corrects_like_the_sim() {
 async fn a_lost_chunk_is_caught_by_the_checksum() {
     let mut rig = tcp_rig(config(), RegisterMap::default()).await;
     // Write 1 is the header, write 2 the first chunk.
-    rig.faults.discard_nth_next_write(2);
+    rig.faults.arm(Fault::LoseWrite(2));
     let e = rig.drv.load_correction_table(&sine_table(200, false)).await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
     assert!(e.message.contains("checksum"), "{e}");
@@ -287,7 +339,7 @@ async fn a_lost_chunk_is_caught_by_the_checksum() {
 #[tokio::test]
 async fn tcp_a_dropped_reply_times_out_and_a_new_session_works() {
     let mut rig = tcp_rig(config(), RegisterMap::default()).await;
-    rig.faults.drop_next_replies(1);
+    rig.faults.arm(Fault::Drop);
     let t0 = Instant::now();
     let e = rig.drv.readout().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
@@ -302,8 +354,8 @@ async fn tcp_a_dropped_reply_times_out_and_a_new_session_works() {
 #[tokio::test]
 async fn tcp_injected_exceptions_keep_their_codes() {
     let mut rig = tcp_rig(config(), RegisterMap::default()).await;
-    rig.faults.reject_next_request(ExceptionCode::ServerDeviceBusy);
-    rig.faults.reject_next_request(ExceptionCode::IllegalFunction);
+    rig.faults.arm(exception(ExceptionCode::ServerDeviceBusy));
+    rig.faults.arm(exception(ExceptionCode::IllegalFunction));
     let e = rig.drv.stop().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(6)), "{e}");
     let e = rig.drv.status().await.unwrap_err();
@@ -311,7 +363,7 @@ async fn tcp_injected_exceptions_keep_their_codes() {
     assert!(rig.drv.is_connected());
     rig.drv.stop().await.unwrap();
     // A gateway that cannot reach the device is a link fault.
-    rig.faults.reject_next_request(ExceptionCode::GatewayTargetDevice);
+    rig.faults.arm(exception(ExceptionCode::GatewayTargetDevice));
     let e = rig.drv.readout().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Timeout, Some(11)), "{e}");
     assert!(!rig.drv.is_connected());
@@ -321,7 +373,7 @@ async fn tcp_injected_exceptions_keep_their_codes() {
 async fn tcp_a_connection_closed_mid_reply_is_disconnected() {
     let mut rig = tcp_rig(config(), RegisterMap::default()).await;
     rig.drv.readout().await.unwrap();
-    rig.faults.close_during_next_reply();
+    rig.faults.arm(Fault::Disconnect);
     let e = rig.drv.status().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
     assert_eq!(rig.drv.readout().await.unwrap_err().kind, ErrorKind::Disconnected, "the session is closed");
@@ -329,12 +381,12 @@ async fn tcp_a_connection_closed_mid_reply_is_disconnected() {
     // executed (the commanded position is stored), but the move command was
     // never sent.
     rig.reconnect().await;
-    rig.faults.close_during_next_reply();
+    rig.faults.arm(Fault::Disconnect);
     let e = rig.drv.move_to(1.0).await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
     assert_eq!(rig.device.holding_register(1).await, rig.map.encode_position(1.0).unwrap()[1]);
     assert_eq!(rig.device.with_positioner(|p| p.moves()).await, 0);
-    assert_eq!(rig.faults.requests(), 3);
+    assert_eq!(rig.device.requests(), 3);
     rig.reconnect().await;
     rig.drv.readout().await.unwrap();
 }
@@ -342,7 +394,7 @@ async fn tcp_a_connection_closed_mid_reply_is_disconnected() {
 #[tokio::test]
 async fn tcp_a_reply_of_another_function_is_garbled() {
     let mut rig = tcp_rig(config(), RegisterMap::default()).await;
-    rig.faults.garble_next_replies(1);
+    rig.faults.arm(garbled(false));
     let e = rig.drv.readout().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
     assert!(!rig.drv.is_connected());
@@ -369,46 +421,96 @@ async fn the_positioners_own_link_faults_reach_the_wire() {
 #[tokio::test]
 async fn rtu_a_dropped_reply_times_out() {
     let mut rig = rtu_rig(config(), RegisterMap::default()).await;
-    rig.faults.drop_next_replies(1);
+    rig.faults.arm(Fault::Drop);
     let e = rig.drv.readout().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
     assert_eq!(rig.drv.readout().await.unwrap_err().kind, ErrorKind::Disconnected);
 }
 
 #[tokio::test]
-async fn rtu_exceptions_then_a_garbled_reply() {
+async fn rtu_exceptions_then_replies_that_answer_no_request() {
     let mut rig = rtu_rig(config(), RegisterMap::default()).await;
-    rig.faults.reject_next_request(ExceptionCode::ServerDeviceFailure);
+    rig.faults.arm(exception(ExceptionCode::ServerDeviceFailure));
     let e = rig.drv.readout().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(4)), "{e}");
     let e = rig.drv.move_to(500.0).await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Usage, Some(3)), "{e}");
     assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
-    rig.faults.garble_next_replies(1);
+    // A reply with a byte changed fails its CRC: tokio-modbus's framing
+    // drops it byte by byte, never taking it, and the request times out.
+    let flip = |frame: &[u8]| Some([&frame[..3], &[frame[3] ^ 0x5a], &frame[4..]].concat());
+    rig.faults.arm(Fault::Garble(crate::faults::Garble::edit("byte 3 flipped", flip)));
+    let e = rig.drv.readout().await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    // A well-formed reply of another function answers no request of ours
+    // (RTU has no transaction id: it could be a late reply): it is
+    // discarded, never taken (it was once taken and failed as garbled), and
+    // the request times out.
+    rig.reconnect_rtu();
+    rig.faults.arm(garbled(true));
     let e = rig.drv.set_velocity(3.0).await.unwrap_err();
-    assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    rig.reconnect_rtu();
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+}
+
+/// A reply held past the request's deadline on RTU (a stall) arrives while
+/// the driver drains the line after the timeout: it is discarded, and the
+/// next request on the line (a read of the same length, whose reply the
+/// late one could pass for) gets its own reply.
+#[tokio::test]
+async fn rtu_a_late_reply_is_drained_not_taken_for_the_next_request() {
+    let mut rig = rtu_rig(config(), RegisterMap::default()).await;
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+    // Due at 250 ms: after the 200 ms deadline, within the 100 ms drain.
+    rig.faults.arm(Fault::Stall(Duration::from_millis(250)));
+    let t0 = Instant::now();
+    let e = rig.drv.readout().await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    assert!(t0.elapsed() >= TIMEOUTS.request + TIMEOUTS.late_window(), "drained: {:?}", t0.elapsed());
+    rig.reconnect_rtu();
+    // Status and fault code: 2 registers, as the position's late reply.
+    let s = rig.drv.status().await.unwrap();
+    assert!(s.in_position && s.fault.is_none(), "{s:?}");
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+}
+
+/// A late reply of another request that comes after the drain, in the
+/// middle of the next request, does not answer it: discarded by its
+/// function code, and the next request's own reply is taken.
+#[tokio::test]
+async fn rtu_a_late_reply_of_another_function_is_discarded() {
+    let mut rig = rtu_rig(config(), RegisterMap::default()).await;
+    // Held 450 ms: past the 200 ms deadline and the 100 ms drain.
+    rig.faults.arm(Fault::Stall(Duration::from_millis(450)));
+    let e = rig.drv.set_velocity(3.0).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
+    rig.reconnect_rtu();
+    assert_eq!(rig.drv.readout().await.unwrap(), 0.0);
+    let s = rig.drv.status().await.unwrap();
+    assert!(s.in_position && s.fault.is_none(), "{s:?}");
 }
 
 #[tokio::test]
 async fn rtu_a_port_closed_mid_transfer_is_disconnected() {
     let mut rig = rtu_rig(config(), RegisterMap::default()).await;
     rig.drv.readout().await.unwrap();
-    rig.faults.close_during_next_reply();
+    rig.faults.arm(Fault::Disconnect);
     let e = rig.drv.status().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
-    assert_eq!(rig.rtu.take().unwrap().await.unwrap(), RtuEnd::ClosedByFault);
+    assert_eq!(rig.line.take().unwrap().await.unwrap(), Ended::Disconnect, "the relay cut the line");
 }
 
 #[tokio::test]
 async fn requests_to_another_unit_get_no_reply() {
     let mut rig = tcp_rig(config(), RegisterMap::default()).await;
     let other = RegisterMap { unit_id: 9, ..RegisterMap::default() };
-    let addr = rig.tcp.as_ref().unwrap().addr;
+    let addr = rig.tcp.unwrap();
     let mut drv = ModbusPositioner::connect_tcp(addr, other, TIMEOUTS).await.unwrap();
     assert_eq!(drv.readout().await.unwrap_err().kind, ErrorKind::Timeout);
-    assert_eq!(rig.faults.requests(), 0);
+    assert_eq!(rig.device.requests(), 0);
     rig.drv.readout().await.unwrap();
-    assert_eq!(rig.faults.requests(), 1);
+    assert_eq!(rig.device.requests(), 1);
 }
 
 #[tokio::test]
@@ -422,7 +524,7 @@ async fn connect_rtu_by_path() {
     // is open).
     drop(slave);
     let mut drv = ModbusPositioner::connect_rtu(&path, 115_200, 17, RegisterMap::default(), TIMEOUTS).await.unwrap();
-    tokio::spawn(async move { device.serve_rtu(master, ModbusFaults::new()).await });
+    tokio::spawn(async move { device.serve_rtu(master, Faults::new()).await });
     assert_eq!(drv.name(), format!("modbus-rtu {path}#17"));
     assert_eq!(drv.map().unit_id, 17);
     drv.move_to(2.5).await.unwrap();
@@ -435,7 +537,7 @@ async fn register_level_refusals_and_multi_item_writes() {
     use ExceptionCode::*;
     let map = RegisterMap::default();
     let (_clock, device) = device(config(), &map);
-    let server = device.spawn_tcp(ModbusFaults::new()).await.unwrap();
+    let server = device.spawn_tcp(Faults::new()).await.unwrap();
     let mut ctx = tokio_modbus::client::tcp::connect_slave(server.addr, tokio_modbus::Slave(1)).await.unwrap();
     assert_eq!(ctx.write_single_register(0, 5).await.unwrap(), Err(IllegalDataAddress), "half a position");
     assert_eq!(ctx.write_multiple_registers(1, &[1, 2]).await.unwrap(), Err(IllegalDataAddress), "two halves");

@@ -44,34 +44,31 @@
 //!   connection is closed, `Garbled` = a garbled reply (for a command without
 //!   reply, the command is lost).
 //!
-//! # Fault injection ([`ScpiFaults`])
+//! # Faults ([`Faults`])
 //!
-//! A [`ScpiFaults`] is a handle shared with the test (clone it before passing
-//! it in). What is armed applies to the next requests as they come, so a test
-//! arms a fault right before the driver call that should meet it:
+//! The controller is a [`Service`] served by [`crate::serve`]'s loops; link
+//! faults are the [`relay`](crate::relay)'s in front of it ([`garbled`]:
+//! the SCPI way to garble a reply, the high bit set on every byte). Device
+//! faults armed in its [`Faults`] apply to the next requests as they come:
 //!
-//! - [`drop_next_replies`](ScpiFaults::drop_next_replies): the next replies
-//!   are not sent (the query is still executed);
-//! - [`garble_next_replies`](ScpiFaults::garble_next_replies): the next
-//!   replies are sent with the high bit set on every byte (then LF);
-//! - [`close_during_next_reply`](ScpiFaults::close_during_next_reply): the
-//!   first half of the next reply is sent, without its LF, then the
-//!   connection is closed;
-//! - [`stale_line_after_next_reply`](ScpiFaults::stale_line_after_next_reply):
-//!   an extra line follows the next reply in the same write (a late or
-//!   duplicated answer the driver must not take for its next reply);
-//! - [`reject_next_command`](ScpiFaults::reject_next_command): the next axis
-//!   command (not a query, not `*CLS`) is not executed and pushes the given
-//!   code and text instead;
-//! - [`trip`](ScpiFaults::trip): at the next request the axis latches a device
-//!   fault with that code and text (the sim is stopped), reported by `STAT?`
-//!   and `SYST:ERR?` and refusing moves until `FAUL:CLE`.
+//! - [`Fault::Refuse`]: the next axis command (not a query, not `*CLS`) is
+//!   not executed and pushes the given code and text instead (`None`:
+//!   -310, a device-specific error of SCPI-99's -300 class);
+//! - [`Fault::Trip`]: at the next request the axis latches that device
+//!   fault (the sim is stopped), reported by `STAT?` and `SYST:ERR?` and
+//!   refusing moves until `FAUL:CLE`.
+//!
+//! [`Controller::position_units`] changes what `UNIT:POS?` answers.
 
-use crate::faults::{Countdown, FaultPlan};
+use crate::faults::{Fault, Faults, Garble};
 use crate::positioner::{FAULT_FOLLOWING_ERROR, SimPositioner};
+use crate::serve::{Answer, Codec, Service};
+use async_trait::async_trait;
 use std::collections::VecDeque;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI64, Ordering};
 use survey_drivers::error::{DriverError, ErrorKind};
-use survey_drivers::scpi::Decoder;
+use survey_drivers::scpi::{CodecError, Decoder};
 
 /// The `STAT?` bits, from the MI-4192 manual's table (p. 3-42) as public code
 /// reproduces it (`csun-rf-lab/antennameasure`, `MI4190.m`). Bits 13-15 are
@@ -96,7 +93,7 @@ pub mod status {
 }
 use survey_drivers::traits::{DeviceFault, Limit, Positioner};
 use survey_processing::table::CorrectionTable;
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::TcpListener;
 
 /// Fastest velocity `VEL:COMM` accepts, degrees per second.
@@ -110,132 +107,82 @@ pub const MAX_REQUEST_LINE: usize = 64 * 1024;
 /// The `*IDN?` reply.
 pub const IDN: &str = "survey-sims,MI-4190-style positioner controller (simulated),0,1.0";
 
-/// Faults armed by a test; a cheap handle, shared by clones. See the module
-/// documentation.
-#[derive(Debug, Clone, Default)]
-pub struct ScpiFaults {
-    plan: FaultPlan<Plan>,
-}
+/// The default device-fault code of [`Fault::Refuse`]`(None)`: -310, a
+/// device-specific error of SCPI-99's -300 class.
+pub const DEVICE_FAULT_CODE: i64 = -310;
 
-#[derive(Debug, Default)]
-struct Plan {
-    drop_replies: Countdown,
-    garble_replies: Countdown,
-    close_in_reply: bool,
-    stale_line: Option<String>,
-    reject: VecDeque<(i64, String)>,
-    trip: Option<DeviceFault>,
-    units: Option<i64>,
-}
-
-impl ScpiFaults {
-    /// No faults armed.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Do not send the next `n` replies.
-    pub fn drop_next_replies(&self, n: usize) {
-        self.plan.lock().drop_replies.add(n);
-    }
-
-    /// Garble the next `n` replies.
-    pub fn garble_next_replies(&self, n: usize) {
-        self.plan.lock().garble_replies.add(n);
-    }
-
-    /// Send half of the next reply, then close the connection.
-    pub fn close_during_next_reply(&self) {
-        self.plan.lock().close_in_reply = true;
-    }
-
-    /// Send `line` right after the next reply.
-    pub fn stale_line_after_next_reply(&self, line: impl Into<String>) {
-        self.plan.lock().stale_line = Some(line.into());
-    }
-
-    /// Refuse the next axis command with `code` and `text`.
-    pub fn reject_next_command(&self, code: i64, text: impl Into<String>) {
-        self.plan.lock().reject.push_back((code, text.into()));
-    }
-
-    /// Answer `UNIT:POS?` with `code` (default 6, degree).
-    pub fn report_position_units(&self, code: i64) {
-        self.plan.lock().units = Some(code);
-    }
-
-    /// Latch a device fault at the next request.
-    pub fn trip(&self, code: i64, text: impl Into<String>) {
-        self.plan.lock().trip = Some(DeviceFault { code, text: text.into() });
-    }
+/// The SCPI way to garble a reply: the high bit set on every byte but the
+/// line's LF.
+pub fn garbled() -> Fault {
+    Fault::Garble(Garble::edit("SCPI high bit set", |reply: &[u8]| {
+        let line = reply.strip_suffix(b"\n").unwrap_or(reply);
+        Some(garble_bytes(line))
+    }))
 }
 
 /// Serve the controller on `listener`, one client at a time, until the task
 /// running this future is dropped or aborted.
-pub async fn serve_tcp(listener: TcpListener, positioner: SimPositioner, faults: ScpiFaults) {
+pub async fn serve_tcp(listener: TcpListener, positioner: SimPositioner, faults: Faults) {
     serve_tcp_at(listener, positioner, faults, (1, 1)).await;
 }
 
 /// [`serve_tcp`] for the axis at `(controller, axis)` (`CONT<c>:AXIS(<a>)`):
 /// requests to any other address are answered with error -114, as to an
 /// axis the controller does not have.
-pub async fn serve_tcp_at(listener: TcpListener, positioner: SimPositioner, faults: ScpiFaults, address: (u32, u32)) {
-    let mut controller = Controller::new(positioner, faults);
-    controller.address = address;
-    loop {
-        match listener.accept().await {
-            Ok((stream, peer)) => {
-                tracing::debug!(%peer, "scpi simulator: client connected");
-                stream.set_nodelay(true).ok();
-                controller.serve(stream).await;
-                tracing::debug!(%peer, "scpi simulator: client gone");
-            }
-            Err(e) => {
-                tracing::warn!(error = %e, "scpi simulator: accept failed");
-                tokio::task::yield_now().await;
-            }
-        }
-    }
+pub async fn serve_tcp_at(listener: TcpListener, positioner: SimPositioner, faults: Faults, address: (u32, u32)) {
+    serve_controller(listener, Controller::new(positioner, faults).at(address)).await;
+}
+
+/// Serve `controller` on `listener` (see [`serve_tcp`]).
+pub async fn serve_controller(listener: TcpListener, controller: Controller) {
+    crate::serve::serve_tcp(listener, request_codec, controller).await;
 }
 
 /// Serve the controller's axis at `(controller, axis)` on one byte stream (a
 /// serial line: a pty's master end) until the stream closes.
-pub async fn serve_stream<S>(stream: S, positioner: SimPositioner, faults: ScpiFaults, address: (u32, u32))
+pub async fn serve_stream<S>(stream: S, positioner: SimPositioner, faults: Faults, address: (u32, u32))
 where
     S: AsyncRead + AsyncWrite + Unpin,
 {
-    let mut controller = Controller::new(positioner, faults);
-    controller.address = address;
-    controller.serve(stream).await;
+    let mut controller = Controller::new(positioner, faults).at(address);
+    crate::serve::serve_stream(stream, request_codec(), &mut controller).await;
+}
+
+/// The request framing: lines (the driver's [`Decoder`]).
+fn request_codec() -> Decoder {
+    Decoder::new(MAX_REQUEST_LINE)
+}
+
+impl Codec for Decoder {
+    type Item = Result<String, CodecError>;
+    fn push(&mut self, bytes: &[u8]) {
+        Decoder::push(self, bytes);
+    }
+    fn next_item(&mut self) -> Option<Self::Item> {
+        self.next_line()
+    }
 }
 
 /// What to do after a request.
-enum Outcome {
-    /// No reply (a command, or a query that failed into the error queue).
-    Nothing,
-    /// Send this line.
-    Reply(String),
-    /// The sim lost the request: no reply.
-    Lost,
-    /// The sim garbled its answer.
-    Garble,
-    /// The sim dropped the link.
-    Close,
+type Outcome = Answer<Vec<u8>>;
+
+/// A reply line.
+fn reply(line: String) -> Outcome {
+    let mut bytes = line.into_bytes();
+    bytes.push(b'\n');
+    Answer::Send(bytes)
 }
 
-/// The armed fault a reply meets.
-enum ReplyFault {
-    Drop,
-    Garble,
-    CloseHalfway,
-    None { stale: Option<String> },
-}
-
-struct Controller {
+/// A simulated controller: the [`Service`] [`serve_tcp`] and
+/// [`serve_stream`] serve.
+#[derive(Debug)]
+pub struct Controller {
     /// The `(controller, axis)` this simulator is (default `(1, 1)`).
     address: (u32, u32),
     sim: SimPositioner,
-    faults: ScpiFaults,
+    faults: Faults,
+    /// What `UNIT:POS?` answers (6, degree, unless changed).
+    units: Arc<AtomicI64>,
     commanded: f64,
     velocity: f64,
     queue: VecDeque<(i64, String)>,
@@ -248,7 +195,8 @@ struct Controller {
 }
 
 impl Controller {
-    fn new(sim: SimPositioner, faults: ScpiFaults) -> Self {
+    /// A controller of `sim`'s axis at `(1, 1)`, its device faults armed in `faults`.
+    pub fn new(sim: SimPositioner, faults: Faults) -> Self {
         let commanded = match sim.config().travel {
             Some((lo, hi)) => 0.0f64.clamp(lo, hi),
             None => 0.0,
@@ -258,6 +206,7 @@ impl Controller {
             address: (1, 1),
             sim,
             faults,
+            units: Arc::new(AtomicI64::new(6)),
             commanded,
             velocity,
             queue: VecDeque::new(),
@@ -266,6 +215,18 @@ impl Controller {
             injected: None,
             reported: None,
         }
+    }
+
+    /// The same controller for the axis at `(controller, axis)`.
+    pub fn at(mut self, address: (u32, u32)) -> Self {
+        self.address = address;
+        self
+    }
+
+    /// The code `UNIT:POS?` answers (6, degree, by default), shared: set it
+    /// while the controller serves.
+    pub fn position_units(&self) -> Arc<AtomicI64> {
+        Arc::clone(&self.units)
     }
 
     fn push_error(&mut self, code: i64, text: impl Into<String>) {
@@ -280,82 +241,12 @@ impl Controller {
         }
     }
 
-    /// Serve one connection until it closes (or a fault closes it).
-    async fn serve<S: AsyncRead + AsyncWrite + Unpin>(&mut self, mut stream: S) {
-        let mut decoder = Decoder::new(MAX_REQUEST_LINE);
-        let mut buf = vec![0u8; 4096];
-        loop {
-            let n = match stream.read(&mut buf).await {
-                Ok(0) | Err(_) => return,
-                Ok(n) => n,
-            };
-            decoder.push(&buf[..n]);
-            while let Some(line) = decoder.next_line() {
-                let outcome = match line {
-                    Ok(line) => self.handle(&line).await,
-                    Err(e) => {
-                        self.push_error(-102, format!("Syntax error;{e}"));
-                        Outcome::Nothing
-                    }
-                };
-                if !self.respond(&mut stream, outcome).await {
-                    return;
-                }
-            }
-        }
-    }
-
-    /// Send the outcome, applying the armed reply faults. False: close.
-    async fn respond<S: AsyncWrite + Unpin>(&mut self, stream: &mut S, outcome: Outcome) -> bool {
-        let (bytes, close_after) = match outcome {
-            Outcome::Nothing | Outcome::Lost => return true,
-            Outcome::Close => return false,
-            Outcome::Garble => (garble("#?"), false),
-            Outcome::Reply(r) => match self.reply_fault() {
-                ReplyFault::Drop => {
-                    tracing::debug!(%r, "scpi simulator: reply dropped (injected)");
-                    return true;
-                }
-                ReplyFault::Garble => (garble(&r), false),
-                ReplyFault::CloseHalfway => {
-                    tracing::debug!(%r, "scpi simulator: closing mid-reply (injected)");
-                    (r.as_bytes()[..r.len() / 2].to_vec(), true)
-                }
-                ReplyFault::None { stale } => {
-                    let mut bytes = r.into_bytes();
-                    bytes.push(b'\n');
-                    if let Some(stale) = stale {
-                        bytes.extend(stale.into_bytes());
-                        bytes.push(b'\n');
-                    }
-                    (bytes, false)
-                }
-            },
-        };
-        let sent = stream.write_all(&bytes).await.is_ok() && stream.flush().await.is_ok();
-        sent && !close_after
-    }
-
-    /// Take the armed fault for the next reply.
-    fn reply_fault(&self) -> ReplyFault {
-        let mut plan = self.faults.plan.lock();
-        if plan.drop_replies.take() {
-            ReplyFault::Drop
-        } else if plan.garble_replies.take() {
-            ReplyFault::Garble
-        } else if std::mem::take(&mut plan.close_in_reply) {
-            ReplyFault::CloseHalfway
-        } else {
-            ReplyFault::None { stale: plan.stale_line.take() }
-        }
-    }
-
     /// Map a sim failure: link faults to the wire, refusals to the queue.
     fn sim_failed(&mut self, e: DriverError, usage_code: i64) -> Outcome {
         match e.kind {
-            ErrorKind::Timeout => Outcome::Lost,
+            ErrorKind::Timeout => Outcome::Nothing,
             ErrorKind::Disconnected => Outcome::Close,
-            ErrorKind::Garbled => Outcome::Garble,
+            ErrorKind::Garbled => Outcome::Send(garble_bytes(b"#?")),
             ErrorKind::Usage => {
                 self.push_error(usage_code, format!("{};{}", text_of(usage_code), e.message));
                 Outcome::Nothing
@@ -368,8 +259,7 @@ impl Controller {
     }
 
     async fn handle(&mut self, line: &str) -> Outcome {
-        let trip = self.faults.plan.lock().trip.take();
-        if let Some(fault) = trip {
+        if let Some(Fault::Trip(fault)) = self.faults.take_device(|f| matches!(f, Fault::Trip(_))) {
             tracing::debug!(?fault, "scpi simulator: device fault latched (injected)");
             self.injected = Some(fault);
             if let Err(e) = self.sim.stop().await {
@@ -386,23 +276,23 @@ impl Controller {
         };
         let header = header.strip_prefix(':').unwrap_or(&header).to_string();
         match header.as_str() {
-            "*IDN?" => return Outcome::Reply(IDN.into()),
+            "*IDN?" => return reply(IDN.into()),
             "*CLS" => {
                 self.queue.clear();
                 return Outcome::Nothing;
             }
             "SYST:ERR?" | "SYST:ERR:NEXT?" => {
                 let (code, text) = self.queue.pop_front().unwrap_or((0, "No error".into()));
-                return Outcome::Reply(error_line(code, &text));
+                return reply(error_line(code, &text));
             }
             "SYST:ERR:ALL?" => {
                 if self.queue.is_empty() {
-                    return Outcome::Reply("0, \"No error\"".into());
+                    return reply("0, \"No error\"".into());
                 }
                 let all: Vec<String> = self.queue.drain(..).map(|(code, text)| error_line(code, &text)).collect();
-                return Outcome::Reply(all.join(", "));
+                return reply(all.join(", "));
             }
-            "SYST:ERR:COUN?" | "SYST:ERR:COUN" => return Outcome::Reply(self.queue.len().to_string()),
+            "SYST:ERR:COUN?" | "SYST:ERR:COUN" => return reply(self.queue.len().to_string()),
             _ => {}
         }
         let Some((controller, axis, tail)) = axis_header(&header) else {
@@ -415,8 +305,12 @@ impl Controller {
         }
         let query = tail.ends_with('?');
         if !query {
-            let rejected = self.faults.plan.lock().reject.pop_front();
-            if let Some((code, text)) = rejected {
+            let refused = |f: &mut Fault| matches!(f, Fault::Refuse(_) | Fault::RefuseWithError(_));
+            if let Some(fault) = self.faults.take_device(refused) {
+                let (code, text) = match fault {
+                    Fault::Refuse(Some(d)) | Fault::RefuseWithError(d) => (d.code, d.text),
+                    _ => (DEVICE_FAULT_CODE, "System error; simulated device fault".into()),
+                };
                 tracing::debug!(%line, code, "scpi simulator: command refused (injected)");
                 self.push_error(code, text);
                 return Outcome::Nothing;
@@ -446,8 +340,8 @@ impl Controller {
                 self.commanded = v;
                 Outcome::Nothing
             }
-            "POS:COMM?" => Outcome::Reply(format!("{}", self.commanded)),
-            "UNIT:POS?" => Outcome::Reply(self.faults.plan.lock().units.unwrap_or(6).to_string()),
+            "POS:COMM?" => reply(format!("{}", self.commanded)),
+            "UNIT:POS?" => reply(self.units.load(Ordering::Relaxed).to_string()),
             "MOT:STAR" => {
                 if let Some(f) = &self.injected {
                     let (code, text) = (f.code, format!("{} (clear the fault first)", f.text));
@@ -464,11 +358,11 @@ impl Controller {
                 Err(e) => self.sim_failed(e, -221),
             },
             "POS:CURR?" => match self.sim.readout().await {
-                Ok(v) => Outcome::Reply(format!("{v}")),
+                Ok(v) => reply(format!("{v}")),
                 Err(e) => self.sim_failed(e, -221),
             },
             "STAT?" => match self.status_word().await {
-                Ok(w) => Outcome::Reply(w.to_string()),
+                Ok(w) => reply(w.to_string()),
                 Err(e) => self.sim_failed(e, -221),
             },
             "VEL:COMM" => {
@@ -488,9 +382,9 @@ impl Controller {
                     Err(e) => self.sim_failed(e, -222),
                 }
             }
-            "VEL:COMM?" => Outcome::Reply(format!("{}", self.velocity)),
+            "VEL:COMM?" => reply(format!("{}", self.velocity)),
             "VEL:CURR?" => match self.sim.status().await {
-                Ok(s) => Outcome::Reply(format!("{}", if s.moving { self.velocity } else { 0.0 })),
+                Ok(s) => reply(format!("{}", if s.moving { self.velocity } else { 0.0 })),
                 Err(e) => self.sim_failed(e, -221),
             },
             "FAUL:CLE" => {
@@ -510,8 +404,8 @@ impl Controller {
                 self.table_rows(tail == "CORR:TABL:REV", params);
                 Outcome::Nothing
             }
-            "CORR:TABL:POIN?" => Outcome::Reply(self.forward.len().to_string()),
-            "CORR:TABL:REV:POIN?" => Outcome::Reply(self.reverse.len().to_string()),
+            "CORR:TABL:POIN?" => reply(self.forward.len().to_string()),
+            "CORR:TABL:REV:POIN?" => reply(self.reverse.len().to_string()),
             "CORR:TABL:LOAD" => {
                 let built = if self.reverse.is_empty() {
                     CorrectionTable::new(self.forward.clone())
@@ -544,7 +438,7 @@ impl Controller {
                 }
             }
             "CORR:STAT?" => match self.sim.status().await {
-                Ok(s) => Outcome::Reply(if s.correction_enabled { "1" } else { "0" }.into()),
+                Ok(s) => reply(if s.correction_enabled { "1" } else { "0" }.into()),
                 Err(e) => self.sim_failed(e, -221),
             },
             _ => {
@@ -672,10 +566,26 @@ fn text_of(code: i64) -> &'static str {
 }
 
 /// The line with the high bit set on every byte, then LF.
-fn garble(line: &str) -> Vec<u8> {
-    let mut b: Vec<u8> = line.bytes().map(|b| b | 0x80).collect();
+fn garble_bytes(line: &[u8]) -> Vec<u8> {
+    let mut b: Vec<u8> = line.iter().map(|b| b | 0x80).collect();
     b.push(b'\n');
     b
+}
+
+#[async_trait]
+impl Service for Controller {
+    type Request = Result<String, CodecError>;
+    type Reply = Vec<u8>;
+
+    async fn call(&mut self, request: Self::Request) -> Outcome {
+        match request {
+            Ok(line) => self.handle(&line).await,
+            Err(e) => {
+                self.push_error(-102, format!("Syntax error;{e}"));
+                Outcome::Nothing
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -8,9 +8,10 @@ use std::time::{Duration, Instant};
 use survey_drivers::VirtualClock;
 use survey_drivers::clock::Clock;
 use survey_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
-use survey_drivers::traits::PositionerStatus;
+use survey_drivers::traits::{DeviceFault, PositionerStatus};
 use survey_processing::Direction;
 use survey_processing::model::Model;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::task::JoinHandle;
 
@@ -27,18 +28,30 @@ fn fig8() -> Model {
 }
 
 /// A simulator on a loopback port; the server task is aborted on drop.
+/// The simulator behind a relay (its link faults), both on loopback ports;
+/// the tasks are aborted on drop.
 struct Rig {
     clock: VirtualClock,
     truth: Turntable,
-    faults: ScpiFaults,
+    /// Link faults (the relay's) and device faults (the controller's).
+    faults: Faults,
+    /// What `UNIT:POS?` answers.
+    units: Arc<AtomicI64>,
     addr: SocketAddr,
     server: JoinHandle<()>,
+    relay: JoinHandle<()>,
 }
 
 impl Drop for Rig {
     fn drop(&mut self) {
         self.server.abort();
+        self.relay.abort();
     }
+}
+
+/// A device fault of the controller: code and text.
+fn fault(code: i64, text: &str) -> DeviceFault {
+    DeviceFault { code, text: text.into() }
 }
 
 impl Rig {
@@ -46,11 +59,13 @@ impl Rig {
         let clock = VirtualClock::new();
         let sim = SimPositioner::new(cfg, Arc::new(clock.clone()));
         let truth = sim.truth();
-        let faults = ScpiFaults::new();
-        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let addr = listener.local_addr().unwrap();
-        let server = tokio::spawn(serve_tcp(listener, sim, faults.clone()));
-        Rig { clock, truth, faults, addr, server }
+        let faults = Faults::new();
+        let (listener, addr, relay) =
+            crate::relay::tcp_relay(crate::relay::Relay::armed(faults.clone(), crate::relay::Framing::Lines)).await;
+        let controller = Controller::new(sim, faults.clone());
+        let units = controller.position_units();
+        let server = tokio::spawn(serve_controller(listener, controller));
+        Rig { clock, truth, faults, units, addr, server, relay }
     }
 
     /// The driver with the commands the public record does not show
@@ -293,14 +308,14 @@ async fn dropped_reply_times_out_and_the_next_request_succeeds() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
     let mut p = rig.connect().await;
     let r0 = p.readout().await.unwrap();
-    rig.faults.drop_next_replies(1);
+    rig.faults.arm(Fault::Drop);
     let t = Instant::now();
     let e = p.readout().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Timeout, "{e}");
     assert!(t.elapsed() >= TIMEOUTS.request, "{:?}", t.elapsed());
     assert_eq!(p.readout().await.unwrap(), r0);
     // A dropped SYST:ERR? after a command times out the command too.
-    rig.faults.drop_next_replies(1);
+    rig.faults.arm(Fault::Drop);
     assert_eq!(p.stop().await.unwrap_err().kind, ErrorKind::Timeout);
     p.stop().await.unwrap();
 }
@@ -310,7 +325,7 @@ async fn a_stale_line_is_never_taken_for_the_next_answer() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
     let mut p = rig.connect().await;
     // "4865" would pass for a readout (and for a status word).
-    rig.faults.stale_line_after_next_reply("4865");
+    rig.faults.arm(Fault::Trailing(b"4865\n".to_vec()));
     let s = p.status().await.unwrap();
     assert!(s.in_position, "{s:?}");
     assert_eq!(p.readout().await.unwrap(), 0.0);
@@ -320,12 +335,12 @@ async fn a_stale_line_is_never_taken_for_the_next_answer() {
 async fn garbled_reply_then_the_next_request_succeeds() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
     let mut p = rig.connect().await;
-    rig.faults.garble_next_replies(1);
+    rig.faults.arm(garbled());
     let e = p.readout().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
     assert!(e.is_link());
     assert_eq!(p.readout().await.unwrap(), 0.0);
-    rig.faults.garble_next_replies(1);
+    rig.faults.arm(garbled());
     assert_eq!(p.status().await.unwrap_err().kind, ErrorKind::Garbled);
     assert!(p.status().await.unwrap().in_position);
 }
@@ -335,7 +350,7 @@ async fn closed_connection_is_disconnected_and_a_new_client_is_served() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
     let mut p = rig.connect().await;
     p.move_to(30.0).await.unwrap();
-    rig.faults.close_during_next_reply();
+    rig.faults.arm(Fault::Disconnect);
     let e = p.readout().await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Disconnected, "{e}");
     assert!(!p.is_connected());
@@ -356,7 +371,7 @@ async fn injected_device_fault_with_code_and_text() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
     let mut p = rig.connect().await;
     let text = "PAU fault: amplifier over temperature";
-    rig.faults.trip(305, text);
+    rig.faults.arm(Fault::Trip(fault(305, text)));
     let s = p.status().await.unwrap();
     let fault = s.fault.clone().expect("fault");
     assert_eq!((fault.code, fault.text.as_str()), (305, text));
@@ -395,11 +410,11 @@ async fn a_trip_of_the_simulated_drive_is_an_error_limit_fault() {
 async fn a_rejected_command_carries_code_and_text() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
     let mut p = rig.connect().await;
-    rig.faults.reject_next_command(-200, "Execution error;brake engaged");
+    rig.faults.arm(Fault::Refuse(Some(fault(-200, "Execution error;brake engaged"))));
     let e = p.move_to(20.0).await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(-200)), "{e}");
     assert!(e.message.contains("brake engaged"), "{e}");
-    rig.faults.reject_next_command(-224, "Illegal parameter value");
+    rig.faults.arm(Fault::Refuse(Some(fault(-224, "Illegal parameter value"))));
     assert_eq!(p.stop().await.unwrap_err().kind, ErrorKind::Usage);
     p.move_to(20.0).await.unwrap();
     assert!(settle(&mut p, &rig.clock).await.in_position);
@@ -419,7 +434,7 @@ async fn the_driver_works_with_only_the_publicly_recorded_commands() {
     assert!(s.in_position && !s.moving, "{s:?}");
     assert_eq!(p.readout().await.unwrap(), 30.0);
     // A fault latched on the controller: read from SYST:ERR:ALL?.
-    rig.faults.trip(305, "PAU fault");
+    rig.faults.arm(Fault::Trip(fault(305, "PAU fault")));
     let s = p.status().await.unwrap();
     assert_eq!(s.fault.as_ref().map(|f| f.code), Some(305), "{s:?}");
     assert!(!s.in_position);
@@ -439,7 +454,7 @@ async fn the_driver_works_with_only_the_publicly_recorded_commands() {
 #[tokio::test]
 async fn an_axis_in_other_units_is_refused_before_any_move() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
-    rig.faults.report_position_units(7);
+    rig.units.store(7, Ordering::Relaxed);
     let mut p = rig.connect_verified().await;
     let e = p.move_to(10.0).await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Usage, "{e}");
@@ -453,12 +468,12 @@ async fn an_axis_in_other_units_is_refused_before_any_move() {
 #[tokio::test]
 async fn a_unit_code_outside_the_table_is_a_garbled_reply() {
     let rig = Rig::new(PositionerConfig::new(fig8())).await;
-    rig.faults.report_position_units(800);
+    rig.units.store(800, Ordering::Relaxed);
     let mut p = rig.connect_verified().await;
     let e = p.move_to(10.0).await.unwrap_err();
     assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
     assert!(e.message.contains("800"), "{e}");
-    rig.faults.report_position_units(6);
+    rig.units.store(6, Ordering::Relaxed);
     p.move_to(10.0).await.unwrap();
 }
 
@@ -469,7 +484,7 @@ async fn the_status_word_uses_only_the_documented_bits_and_the_queue_answers_all
     let at_rest = raw(rig.addr, &[b"CONT1:AXIS(1):STAT?"]).await;
     let moving =
         raw(rig.addr, &[b"CONT1:AXIS(1):POS:COMM 90", b"CONT1:AXIS(1):MOT:STAR", b"CONT1:AXIS(1):STAT?"]).await;
-    rig.faults.trip(305, "PAU fault");
+    rig.faults.arm(Fault::Trip(fault(305, "PAU fault")));
     let faulted = raw(rig.addr, &[b"CONT1:AXIS(1):STAT?"]).await;
     for (what, w) in [("at rest", word(&at_rest[0])), ("moving", word(&moving[0])), ("faulted", word(&faulted[0]))] {
         assert_eq!(w & 0xE000, 0, "{what}: bits 13-15 are unused, got {w:#06x}");

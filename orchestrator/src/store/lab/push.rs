@@ -163,6 +163,19 @@ const ROWS: &[Table] = &[
         ],
         order: "idx",
     },
+    Table {
+        name: "check_points",
+        columns: &[
+            ("seq", Int),
+            ("run", Int),
+            ("direction", Text),
+            ("target_deg", Real),
+            ("readout_deg", Real),
+            ("actual_deg", Real),
+            ("timestamp_s", Real),
+        ],
+        order: "seq",
+    },
     Table { name: "survey_time", columns: &[("component", Text), ("seconds", Real)], order: "component" },
     Table {
         name: "scan_passes",

@@ -1,8 +1,10 @@
 //! ISO 230-2 figures for the axis and per target, with the VDI/DGQ 3441
 //! figures beside them and the definitions used.
 
-use super::page::{escape, table};
-use super::units::Units;
+use super::{Page, Section, note};
+use crate::report::conformity;
+use crate::report::page::{escape, table};
+use crate::report::units::{Units, angle};
 use survey_processing::iso230::Iso230;
 use survey_processing::vdi3441::{Vdi3441, vdi3441};
 
@@ -45,13 +47,14 @@ fn vdi_table(v: &Vdi3441, units: Units) -> String {
         vec!["Ū, mean reversal span".to_string(), units.opt(v.u_mean_deg)],
     ];
     let mut html = table("tbl-vdi", &["VDI/DGQ 3441", &format!("axis, {u}")], &rows);
-    html += "<p class=\"note\" id=\"vdi-definitions\">No public text of VDI/DGQ 3441 was found; these are the \
-             definitions as usually reproduced from it, used here: x̄<sub>j</sub> = (x̄↑<sub>j</sub> + \
+    html += "<p class=\"note\" id=\"vdi-definitions\">The VDI/DGQ 3441 figures are computed from the same per-target \
+             statistics as ISO 230-2, with these definitions: x̄<sub>j</sub> = (x̄↑<sub>j</sub> + \
              x̄↓<sub>j</sub>)/2; U<sub>j</sub> = |x̄↑<sub>j</sub> − x̄↓<sub>j</sub>|; Ps<sub>j</sub> = 6 (s↑<sub>j</sub> \
              + s↓<sub>j</sub>)/2; Pa = max x̄<sub>j</sub> − min x̄<sub>j</sub>; P = max<sub>j</sub> [x̄<sub>j</sub> + \
              (U<sub>j</sub> + Ps<sub>j</sub>)/2] − min<sub>j</sub> [x̄<sub>j</sub> − (U<sub>j</sub> + \
              Ps<sub>j</sub>)/2]; U and Ps the largest over the targets. Measured one way, U is not defined and P \
-             uses U<sub>j</sub> = 0. Note the ±3s of VDI 3441 against ISO 230-2's ±2s.</p>\n";
+             uses U<sub>j</sub> = 0. Note the ±3s of VDI 3441 against ISO 230-2's ±2s, and that VDI's U, a reversal span, \
+             is not the expanded uncertainty U this certificate states.</p>\n";
     html
 }
 
@@ -67,7 +70,7 @@ pub fn targets_section(iso: &Iso230, units: Units) -> String {
             let d = |x: Option<&survey_processing::iso230::DirStats>,
                      f: fn(&survey_processing::iso230::DirStats) -> f64| { units.opt(x.map(f)) };
             vec![
-                format!("{:.4}", t.target_deg),
+                angle(t.target_deg),
                 d(t.up.as_ref(), |s| s.mean),
                 d(t.up.as_ref(), |s| s.s),
                 d(t.down.as_ref(), |s| s.mean),
@@ -104,4 +107,32 @@ pub fn targets_section(iso: &Iso230, units: Units) -> String {
         escape("B_i = x̄↑ − x̄↓; x̄_i = (x̄↑ + x̄↓)/2; R_i as above; U_j and Ps_j as in VDI/DGQ 3441 above.")
     );
     html
+}
+
+/// The axis figures, or why there are none.
+pub fn show_axis(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let body = match &p.iso {
+        Ok(iso) => {
+            let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
+            let u = match conformity::accuracy_u_deg(reference_u, p.d.axis_u_deg) {
+                Some(u) => format!(
+                    "The measured figures A, E and M carry the expanded uncertainty U = {} (k = 2) of the \
+                     measurement (see the summary).",
+                    p.units.show(u)
+                ),
+                None => "The reference's uncertainty is not stated: the figures' uncertainty is not known.".into(),
+            };
+            axis_section(iso, p.units) + &note(&u)
+        }
+        Err(e) => note(&format!("No ISO 230-2 figures: {e}.")),
+    };
+    Ok(Section::page("iso230", "ISO 230-2 and VDI/DGQ 3441", body))
+}
+
+/// The per-target table, an appendix.
+pub fn show_targets(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    Ok(p.iso
+        .as_ref()
+        .ok()
+        .and_then(|iso| Section::page("iso230-targets", "ISO 230-2 per target", targets_section(iso, p.units))))
 }

@@ -1,4 +1,4 @@
--- Assets, uids and the checks' decisions (../0004_assets.sql). In the lab
+-- Assets, uids and the checks' decisions (../0005_assets.sql). In the lab
 -- store the uid is what `survey push` copies by: a survey is stored once.
 ALTER TABLE surveys ADD COLUMN uid TEXT NOT NULL DEFAULT '';
 ALTER TABLE surveys ADD COLUMN asset TEXT NOT NULL DEFAULT 'unassigned';

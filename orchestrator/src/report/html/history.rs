@@ -3,12 +3,13 @@
 //! ISO 230-2 accuracy `A` over time, and a table of the surveys with what
 //! each check decided.
 
-use super::page::{Key, escape, figure, legend, table_left};
-use super::plot::{
+use super::{Page, Section};
+use crate::life::history::History;
+use crate::report::page::{Key, escape, figure, legend, table_left};
+use crate::report::plot::{
     self, BLUE, GREEN, HEIGHT, ORANGE, PURPLE, SKY, VERMILLION, WIDTH, axes, extent, hex, padded, render,
 };
-use super::units::Units;
-use crate::life::history::History;
+use crate::report::units::Units;
 use plotters::prelude::*;
 
 /// Days since the first survey of the history, from `created_at` (UTC, RFC 3339).
@@ -153,4 +154,10 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
         }
     }
     Ok(html)
+}
+
+/// The section, when the survey's asset has a history.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let Some(h) = &p.d.history else { return Ok(None) };
+    Ok(section(h, p.d.survey.id, p.units)?.and_then(|body| Section::page("history", "The asset's history", body)))
 }

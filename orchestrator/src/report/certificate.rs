@@ -1,17 +1,17 @@
-//! The header a calibration certificate needs, and where each field comes
-//! from. In order of precedence: a flag of `survey report` (`--positioner`,
+//! The fields a calibration certificate states, and where each comes
+//! from ([`super::html::header`] shows them). In order of precedence: a flag of `survey report` (`--certificate-number`,
+//! `--laboratory`, `--traceability`, `--tolerance`, `--positioner`,
 //! `--reference-instrument`, `--reference-uncertainty`, `--operator`,
 //! `--customer`, `--temperature`); the `[certificate]` section of the
 //! configuration file, stored with the survey; what the bench itself says
 //! (the simulated preset's name and description, the simulated reference's
-//! noise, a configured instrument's driver and address); else "not stated".
+//! noise, a configured instrument's driver and address, a simulated
+//! reference's lack of traceability); the survey (a certificate number made
+//! of its date and id when none was assigned); else "not stated".
 
-use super::page::escape;
-use super::units::Units;
 use crate::acquire::ReferenceKind;
 use crate::config::CertificateSection;
 use crate::survey::{Setup, SurveyRecord};
-use std::fmt::Write as _;
 
 /// What `survey report`'s flags say (each overrides the stored value): the
 /// same fields as the configuration's `[certificate]`.
@@ -27,6 +27,11 @@ pub struct Stated<T> {
 /// Every field of the header.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Certificate {
+    /// Always present: assigned, or made from the survey.
+    pub number: Stated<String>,
+    pub laboratory: Option<Stated<String>>,
+    pub traceability: Option<Stated<String>>,
+    pub tolerance_deg: Option<Stated<f64>>,
     pub positioner: Option<Stated<String>>,
     pub reference: Option<Stated<String>>,
     pub reference_uncertainty_deg: Option<Stated<f64>>,
@@ -37,7 +42,9 @@ pub struct Certificate {
 
 const FLAG: &str = "survey report flag";
 const CONFIG: &str = "[certificate] of the configuration";
-const BENCH: &str = "the bench";
+/// Where a value the bench says came from (its sentences are the software's, errors in degrees).
+pub const BENCH: &str = "the bench";
+const SURVEY: &str = "made from the survey's date and id: no number was assigned";
 
 fn pick<T: Clone>(flag: &Option<T>, config: Option<&T>, bench: Option<T>) -> Option<Stated<T>> {
     flag.clone()
@@ -89,7 +96,21 @@ impl Certificate {
             }
             _ => (described("positioner"), described("reference"), None),
         };
+        let traceability = match &survey.setup {
+            Setup::Simulated(_) => Some(
+                "none: the reference is a simulated instrument, so these figures show the method and are not \
+                 traceable to the SI"
+                    .to_string(),
+            ),
+            _ => None,
+        };
+        let date: String = survey.created_at.chars().filter(char::is_ascii_digit).take(8).collect();
+        let made = if date.len() == 8 { format!("{date}-{}", survey.id) } else { survey.id.to_string() };
         Certificate {
+            number: pick(&flags.number, stored.number.as_ref(), None).unwrap_or(Stated { value: made, from: SURVEY }),
+            laboratory: pick(&flags.laboratory, stored.laboratory.as_ref(), None),
+            traceability: pick(&flags.traceability, stored.traceability.as_ref(), traceability),
+            tolerance_deg: pick(&flags.tolerance_deg, stored.tolerance_deg.as_ref(), None),
             positioner: pick(&flags.positioner, stored.positioner.as_ref(), bench_positioner),
             reference: pick(&flags.reference, stored.reference.as_ref(), bench_reference),
             reference_uncertainty_deg: pick(
@@ -117,89 +138,6 @@ impl Certificate {
 
 fn described_or(survey: &SurveyRecord, key: &str, default: &str) -> String {
     survey.instruments.get(key).and_then(|v| v.as_str()).map(str::to_string).unwrap_or_else(|| default.to_string())
-}
-
-/// The plan in words.
-pub fn plan_text(survey: &SurveyRecord) -> String {
-    let Some(plan) = survey.plan() else {
-        return format!(
-            "{} targets x {} runs, {} (as imported)",
-            survey.points.map_or("?".into(), |p| p.to_string()),
-            survey.runs.map_or("?".into(), |p| p.to_string()),
-            if survey.bidirectional { "bidirectional" } else { "one direction" }
-        );
-    };
-    let t = &plan.targets_deg;
-    let step = if t.len() > 1 { t[1] - t[0] } else { 0.0 };
-    let mut s = format!(
-        "{} targets from {:.4} to {:.4} deg (every {:.4} deg), {} runs, {}, overrun {:.3} deg",
-        t.len(),
-        t[0],
-        t[t.len() - 1],
-        step,
-        plan.runs,
-        if plan.bidirectional { "forward and reverse" } else { "forward only" },
-        plan.overrun_deg
-    );
-    if let Setup::Simulated(sim) = &survey.setup {
-        let _ = write!(s, "; reference {}, seed {}", sim.reference.as_str(), sim.seed);
-    }
-    s
-}
-
-/// The header as an HTML table (`tbl-header`).
-pub fn render(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
-    let not_stated = "<i>not stated</i>".to_string();
-    let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
-    let text = |v: &Option<Stated<String>>| v.as_ref().map_or(not_stated.clone(), |s| escape(&s.value) + &from(s.from));
-    let mut rows: Vec<(&str, String)> = vec![
-        ("Positioner", text(&cert.positioner)),
-        ("Reference instrument", text(&cert.reference)),
-        (
-            "Reference uncertainty",
-            cert.reference_uncertainty_deg.as_ref().map_or(not_stated.clone(), |u| {
-                format!("{} (standard uncertainty of one angle){}", units.show(u.value), from(u.from))
-            }),
-        ),
-        ("Operator", text(&cert.operator)),
-        ("Customer", text(&cert.customer)),
-        (
-            "Environment",
-            cert.temperature_c
-                .as_ref()
-                .map_or("<i>temperature not stated</i>".to_string(), |t| format!("{:.1} °C{}", t.value, from(t.from))),
-        ),
-        (
-            "Survey",
-            format!(
-                "{} ({}), status {}; {samples} samples",
-                survey.id,
-                escape(&survey.source.to_string()),
-                survey.status
-            ),
-        ),
-        ("Plan", escape(&plan_text(survey))),
-    ];
-    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
-        (Some(a), Some(b)) if b >= a => format!("; {:.1} h of instrument time", (b - a) / 3600.0),
-        _ => String::new(),
-    };
-    rows.push((
-        "Dates (UTC)",
-        format!(
-            "created {}, last changed {}{instrument_time}; report made {}",
-            escape(&survey.created_at),
-            escape(&survey.updated_at),
-            escape(generated)
-        ),
-    ));
-    rows.push(("Software", format!("survey {}", env!("CARGO_PKG_VERSION"))));
-    rows.push(("Units", format!("errors in {}; angles in degrees", units.symbol())));
-    let mut html = String::from("<table class=\"header\" id=\"tbl-header\"><tbody>\n");
-    for (k, v) in rows {
-        let _ = writeln!(html, "<tr><td>{k}</td><td>{v}</td></tr>");
-    }
-    html + "</tbody></table>\n"
 }
 
 #[cfg(test)]
@@ -255,6 +193,12 @@ mod tests {
         );
         assert_eq!(cert.reference_uncertainty_deg.as_ref().map(|u| u.value), Some(0.0005));
         assert_eq!(cert.temperature_c.as_ref().map(|t| t.value), Some(20.3));
+        assert_eq!(cert.laboratory.as_ref().map(|l| l.from), Some(CONFIG));
+        assert!(cert.traceability.as_ref().is_some_and(|t| t.value.contains("certificate 5678")));
+        // No number assigned: made from the survey (its id; `created_at` here has no date).
+        assert_eq!((cert.number.value.as_str(), cert.number.from), ("4", SURVEY));
+        let numbered = CertificateFlags { number: Some("CAL-1".into()), ..CertificateFlags::default() };
+        assert_eq!(Certificate::of(&survey, &numbered).number, Stated { value: "CAL-1".into(), from: FLAG });
         let flags = CertificateFlags { operator: Some("K. Lee".into()), ..CertificateFlags::default() };
         let cert = Certificate::of(&survey, &flags);
         assert_eq!(cert.operator.as_ref().unwrap().value, "K. Lee");

@@ -8,7 +8,7 @@
 -- `sim-<preset>` for a simulated survey, `[asset] id` of a configuration that
 -- had one, the verified survey's asset for a verification, and `unassigned`
 -- for the others (imports, configurations without `[asset]`).
--- PostgreSQL's lab store has the same change (migrations/postgres/0004_assets.sql).
+-- PostgreSQL's lab store has the same change (migrations/postgres/0005_assets.sql).
 
 ALTER TABLE surveys ADD COLUMN uid TEXT NOT NULL DEFAULT '';
 ALTER TABLE surveys ADD COLUMN asset TEXT NOT NULL DEFAULT 'unassigned';

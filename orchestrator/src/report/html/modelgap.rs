@@ -2,9 +2,10 @@
 //! survey): how far the residual falls as each missing effect is added,
 //! against the noise floor, and what was added.
 
-use super::page::{Key, escape, figure, legend, table};
-use super::plot::{self, BLUE, HEIGHT, INK, VERMILLION, WIDTH, axes, hex, render};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{Key, escape, figure, legend, table};
+use crate::report::plot::{self, BLUE, HEIGHT, INK, VERMILLION, WIDTH, axes, hex, render};
+use crate::report::units::Units;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use survey_processing::modelgap::ModelGap;
@@ -77,7 +78,7 @@ pub fn section(gap: &ModelGap, model_name: &str, units: Units) -> anyhow::Result
         .map(|s| {
             vec![
                 s.step.to_string(),
-                escape(&s.added),
+                escape(&units.text(&s.added)),
                 format!("{:?}", s.action).to_lowercase(),
                 if s.cycles_per_rev > 0.0 { format!("{}", s.cycles_per_rev) } else { "-".into() },
                 units.num(s.amplitude_deg),
@@ -91,7 +92,15 @@ pub fn section(gap: &ModelGap, model_name: &str, units: Units) -> anyhow::Result
         &rows,
     );
     for e in &gap.effects_added {
-        html += &format!("<p class=\"note\">{}: {}</p>\n", escape(&e.kind), escape(&e.explanation));
+        html += &format!("<p class=\"note\">{}: {}</p>\n", escape(&e.kind), escape(&units.text(&e.explanation)));
     }
     Ok(html)
+}
+
+/// The section, with `--model`.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match &p.d.model_gap {
+        Some((model, gap)) => Ok(Section::page("model-gap", "Model and measurement", section(gap, model, p.units)?)),
+        None => Ok(None),
+    }
 }

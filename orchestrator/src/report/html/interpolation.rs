@@ -4,9 +4,10 @@
 //! curves over the stretch where linear interpolation misses most, beside
 //! the scores over the whole revolution.
 
-use super::page::{Key, escape, figure, legend, table};
-use super::plot::{self, BLUE, GREEN, HEIGHT, INK, ORANGE, SKY, WIDTH, axes, extent, hex, padded, render};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{Key, escape, figure, legend, table};
+use crate::report::plot::{self, BLUE, GREEN, HEIGHT, INK, ORANGE, SKY, WIDTH, axes, extent, hex, padded, render};
+use crate::report::units::{Units, angle};
 use plotters::prelude::*;
 use survey_processing::errormap::Coverage;
 use survey_processing::pipeline::Processed;
@@ -109,8 +110,21 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
             html += &figure("fig-interpolation", &svg(y, start, step, units)?, &legend(&entries), &escape(&caption));
         }
         None => {
-            html += "<p id=\"fig-interpolation\" class=\"note\">The interpolation comparison needs a full revolution \
-                     of evenly spaced targets, an even number of them.</p>\n";
+            let why = match p.analysis.error_map.coverage {
+                Coverage::Partial { start, end, .. } => format!(
+                    "The survey measured a partial arc ({} to {} deg), so the comparison cannot be drawn: it keeps \
+                     every other point of a periodic map over the whole revolution and resamples it spectrally. \
+                     On a partial arc the table is a least-squares fit over the measured span instead (see the \
+                     correction table).",
+                    angle(start),
+                    angle(end)
+                ),
+                Coverage::FullCircle { n } => format!(
+                    "The comparison keeps every other one of an even number of evenly spaced targets; this survey \
+                     has {n}, so it cannot be drawn."
+                ),
+            };
+            html += &format!("<p id=\"fig-interpolation\" class=\"note\">{}</p>\n", escape(&why));
         }
     }
     match &p.interpolation {
@@ -128,4 +142,14 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         Err(why) => html += &format!("<p class=\"note\">No interpolation scores: {}.</p>\n", escape(why)),
     }
     Ok(html)
+}
+
+/// The section, when the survey was processed.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match p.processed() {
+        Some(processed) => {
+            Ok(Section::page("interpolation", "Interpolation between measured points", section(processed, p.units)?))
+        }
+        None => Ok(None),
+    }
 }

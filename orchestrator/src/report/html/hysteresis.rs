@@ -2,9 +2,10 @@
 //! per run and its mean with a ±2 s band. What a one-column table cannot
 //! remove, and what a direction-aware table does.
 
-use super::page::{Key, escape, figure, legend};
-use super::plot::{self, GREY, HEIGHT, PURPLE, WIDTH, axes, extent, hex, padded, render};
-use super::units::Units;
+use super::{Page, Section, note};
+use crate::report::page::{Key, escape, figure, legend};
+use crate::report::plot::{self, GREY, HEIGHT, PURPLE, WIDTH, axes, extent, hex, padded, render};
+use crate::report::units::Units;
 use plotters::prelude::*;
 use survey_processing::errormap::{ErrorMap, RunHysteresis};
 
@@ -65,4 +66,13 @@ pub fn section(map: &ErrorMap, units: Units) -> anyhow::Result<String> {
         escape(units.symbol())
     );
     Ok(figure("fig-hysteresis", &svg, &legend(&entries), &caption))
+}
+
+/// The section: the figure, or why there is none.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let body = match &p.map {
+        Ok(m) => section(m, p.units)?,
+        Err(e) => note(&format!("No error map: {e}.")),
+    };
+    Ok(Section::page("hysteresis", "Hysteresis", body))
 }

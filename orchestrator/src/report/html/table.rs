@@ -3,9 +3,10 @@
 //! correction) every few degrees. The full table is in the files `survey
 //! process` writes.
 
-use super::page::{Key, escape, figure, legend, table};
-use super::plot::{self, BLUE, HEIGHT, INK, VERMILLION, WIDTH, axes, extent, hex, padded, render};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{Key, escape, figure, legend, table};
+use crate::report::plot::{self, BLUE, HEIGHT, INK, VERMILLION, WIDTH, axes, extent, hex, padded, render};
+use crate::report::units::{Units, angle};
 use plotters::prelude::*;
 use survey_processing::Direction;
 use survey_processing::errormap::Coverage;
@@ -33,10 +34,10 @@ fn columns(p: &Processed) -> Vec<(Direction, RGBColor, &'static str)> {
 fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
     let t = &p.built.table;
     let (lo, hi) = span(p);
-    let rows = t.len();
-    let first = (lo / t.spacing_deg()).floor().max(0.0) as usize;
-    let last = ((hi / t.spacing_deg()).ceil() as usize).min(rows);
-    let stride = ((last - first) / MAX_DRAWN).max(1);
+    // Rows over the measured span, which may start below 0 (the table wraps at 360).
+    let h = t.spacing_deg();
+    let (first, last) = ((lo / h).floor() as i64, (hi / h).ceil() as i64);
+    let stride = (((last - first) as usize) / MAX_DRAWN).max(1);
     let map = &p.analysis.error_map;
     let curves: Vec<(RGBColor, Vec<(f64, f64)>)> = columns(p)
         .into_iter()
@@ -44,7 +45,7 @@ fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
             let pts = (first..=last)
                 .step_by(stride)
                 .map(|i| {
-                    let x = t.readout_at(i);
+                    let x = i as f64 * h;
                     (x, units.of(t.error_at(x, d)))
                 })
                 .collect();
@@ -96,8 +97,8 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         t.len(),
         t.spacing_deg(),
         if t.is_directional() { ", a forward and a reverse column" } else { ", one column" },
-        escape(&p.built.method.to_string()),
-        escape(&capitalised(&p.built.directional_reason)),
+        escape(&units.text(&p.built.method.to_string())),
+        escape(&capitalised(&units.text(&p.built.directional_reason))),
     );
     let mut html = figure("fig-table", &svg(p, units)?, &legend(&entries), &caption);
     let (lo, hi) = span(p);
@@ -113,7 +114,7 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
     let rows: Vec<Vec<String>> = (0..count)
         .map(|k| {
             let x = lo + k as f64 * step;
-            let mut row = vec![format!("{x:.3}")];
+            let mut row = vec![angle(x)];
             for (d, _, _) in &cols {
                 let e = t.error_at(x, *d);
                 row.push(units.num(e));
@@ -128,4 +129,12 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
     html += "<p class=\"note\">Every row of the table is in the files `survey process` writes beside it (CSV, \
              controller files, the binary table); the correction is the value added to the readout.</p>\n";
     Ok(html)
+}
+
+/// The section, when the survey was processed.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match p.processed() {
+        Some(processed) => Ok(Section::page("correction-table", "Correction table", section(processed, p.units)?)),
+        None => Ok(None),
+    }
 }

@@ -3,8 +3,9 @@
 //! (the expanded uncertainty U), "combined_u_deg" (u), "budget": [{"source",
 //! "u_deg"}]}`).
 
-use super::page::{escape, table};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{escape, table};
+use crate::report::units::{Units, percent};
 use serde::Deserialize;
 
 /// One contribution: its source and its standard uncertainty, degrees.
@@ -34,8 +35,8 @@ pub fn section(b: &UncertaintyBudget, units: Units) -> String {
         .budget
         .iter()
         .map(|e| {
-            let share = if total > 0.0 { e.u_deg * e.u_deg / total * 100.0 } else { 0.0 };
-            vec![escape(&e.source), units.num(e.u_deg), format!("{share:.1} %")]
+            let share = if total > 0.0 { e.u_deg * e.u_deg / total } else { 0.0 };
+            vec![escape(&units.text(&e.source)), units.num(e.u_deg), percent(share)]
         })
         .collect();
     rows.push(vec!["combined standard uncertainty u".into(), units.num(b.combined_u_deg), String::new()]);
@@ -44,6 +45,14 @@ pub fn section(b: &UncertaintyBudget, units: Units) -> String {
     html += "<p class=\"note\">Each contribution is a standard uncertainty (k = 1); the shares are of the sum of \
              their squares.</p>\n";
     html
+}
+
+/// The section, when the processing gives a budget.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    Ok(p.d
+        .uncertainty
+        .as_ref()
+        .and_then(|b| Section::page("uncertainty", "Uncertainty of the table", section(b, p.units))))
 }
 
 #[cfg(test)]

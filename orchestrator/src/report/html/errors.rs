@@ -1,9 +1,10 @@
 //! Error against angle, every run and direction, with the ±2 s band (the
 //! paper's Figures 1, 2 and 8): what a metrologist reads first.
 
-use super::page::{Key, LegendEntry, escape, figure, legend};
-use super::plot::{self, BLUE, HEIGHT, VERMILLION, WIDTH, axes, extent, hex, padded, render};
-use super::units::Units;
+use super::{Page, Section, note};
+use crate::report::page::{Key, LegendEntry, escape, figure, legend};
+use crate::report::plot::{self, BLUE, HEIGHT, VERMILLION, WIDTH, axes, extent, hex, padded, render};
+use crate::report::units::Units;
 use plotters::prelude::*;
 use std::ops::Range;
 use survey_processing::Direction;
@@ -89,4 +90,13 @@ pub fn section(map: &ErrorMap, units: Units) -> anyhow::Result<String> {
         map.runs.len()
     );
     Ok(figure("fig-error", &svg, &legend, &caption))
+}
+
+/// The section: the figure, or why there is none.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let body = match &p.map {
+        Ok(m) => section(m, p.units)?,
+        Err(e) => note(&format!("No error map: {e}.")),
+    };
+    Ok(Section::page("errors", "Error against angle", body))
 }

@@ -2,9 +2,10 @@
 //! position during the survey (drift control, `[drift_control]`), as
 //! (instrument time, drift) points from the store.
 
-use super::page::{Key, escape, figure, legend, table};
-use super::plot::{self, BLUE, HEIGHT, WIDTH, axes, extent, hex, padded, render};
-use super::units::Units;
+use super::{Page, Section};
+use crate::report::page::{Key, escape, figure, legend, table};
+use crate::report::plot::{self, BLUE, HEIGHT, WIDTH, axes, extent, hex, padded, render};
+use crate::report::units::Units;
 use plotters::prelude::*;
 
 /// One re-measurement: instrument time since the survey started, seconds,
@@ -49,6 +50,11 @@ pub fn section(points: &[DriftPoint], units: Units) -> anyhow::Result<Option<Str
     ];
     html += &table("tbl-drift", &["drift", &format!("value, {}", units.symbol())], &rows);
     Ok(Some(html))
+}
+
+/// The section, when drift was measured.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    Ok(section(&p.d.drift, p.units)?.and_then(|body| Section::page("drift", "Drift over time", body)))
 }
 
 #[cfg(test)]

@@ -3,9 +3,10 @@
 //! where it was observed and, dashed, where it belongs, the frequency axis
 //! sized to the lines (not to half the sampling rate), and the table of lines.
 
-use super::page::{self, Key, escape, figure, legend};
-use super::plot::{self, BLUE, GREY, INK, ORANGE, PURPLE, VERMILLION, WIDTH, axes, hex, nice_ceil, render};
-use super::units::Units;
+use super::{Page, Section, note};
+use crate::report::page::{self, Key, escape, figure, legend};
+use crate::report::plot::{self, BLUE, GREY, INK, ORANGE, PURPLE, VERMILLION, WIDTH, axes, hex, nice_ceil, render};
+use crate::report::units::{Units, percent};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use survey_processing::analysis::{Line, Method};
@@ -19,6 +20,8 @@ const DATA_FRACTION: f64 = 0.55;
 /// Labels longer than this are cut (they stand upright in the lane).
 const LABEL_CHARS: usize = 30;
 const LABEL_FONT: u32 = 15;
+/// A label's foot stands this many pixels above its stem's top.
+pub const LABEL_LIFT: i32 = 8;
 
 /// A short name of a line's source for its label: `12:1 pinion ×2`,
 /// `216-tooth gear ×2`, `ellipticity`, `216-tooth mesh -1×12:1 sideband`.
@@ -150,12 +153,19 @@ fn spread(xs: &[i32], gap: i32, left: i32, right: i32) -> Vec<i32> {
     out
 }
 
+/// Where the band above half the sampling rate starts, when the figure
+/// reaches it (a DFT whose lines, or aliases' true frequencies, lie past it).
+fn shaded(p: &Processed) -> Option<f64> {
+    let right = x_max(stems(p).iter().map(|s| s.cycles));
+    let a = &p.analysis;
+    (a.method == Method::Dft).then_some(a.points_per_rev / 2.0).filter(|ny| *ny < right)
+}
+
 fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
     let a = &p.analysis;
     let mut stems = stems(p);
     stems.sort_by(|x, y| x.cycles.total_cmp(&y.cycles));
     let right = x_max(stems.iter().map(|s| s.cycles));
-    let nyquist = (a.method == Method::Dft).then_some(a.points_per_rev / 2.0);
     let bins: Vec<(f64, f64)> = a
         .spectra
         .as_ref()
@@ -179,7 +189,7 @@ fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
             "cycles per revolution",
             &format!("amplitude of the mean error, {}", units.symbol()),
         )?;
-        if let Some(ny) = nyquist.filter(|ny| *ny < right) {
+        if let Some(ny) = shaded(p) {
             chart
                 .draw_series(std::iter::once(Rectangle::new([(ny, 0.0), (right, y_top)], GREY.mix(0.10).filled())))
                 .map_err(plot::plot_err)?;
@@ -218,9 +228,9 @@ fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
                     .map_err(plot::plot_err)?;
             }
         }
-        // Labels upright in the lane above the data, spread apart, with a
-        // leader from each stem's top.
-        let lane = chart.backend_coord(&(0.0, top * 1.04)).1;
+        // Labels upright, each standing on its own stem's top (the lines
+        // are tallest at 55 % of the plot, so the tallest label fits above),
+        // spread apart sideways, with a short leader from the stem.
         let (plot_left, plot_right) = (chart.backend_coord(&(0.0, 0.0)).0, chart.backend_coord(&(right, 0.0)).0);
         let tops: Vec<(i32, i32)> =
             stems.iter().map(|s| chart.backend_coord(&(s.cycles, units.of(s.amplitude_deg)))).collect();
@@ -232,10 +242,11 @@ fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
         );
         let font = ("sans-serif", LABEL_FONT).into_font().color(&INK).transform(FontTransform::Rotate270);
         for ((s, (tx, ty)), lx) in stems.iter().zip(&tops).zip(&xs) {
-            root.draw(&PathElement::new(vec![(*tx, *ty - 3), (*lx, lane)], s.colour.mix(0.5).stroke_width(1)))
+            let foot = ty - LABEL_LIFT;
+            root.draw(&PathElement::new(vec![(*tx, *ty - 2), (*lx, foot + 2)], s.colour.mix(0.5).stroke_width(1)))
                 .map_err(plot::plot_err)?;
             let style = font.clone().pos(Pos::new(HPos::Left, VPos::Center));
-            root.draw(&Text::new(s.label.clone(), (*lx, lane - 4), style)).map_err(plot::plot_err)?;
+            root.draw(&Text::new(s.label.clone(), (*lx, foot), style)).map_err(plot::plot_err)?;
         }
         Ok(())
     })
@@ -257,6 +268,9 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
     if a.spectra.is_some() {
         entries.push((hex(GREY), Key::Thin, "every bin of the mean spectrum".to_string()));
     }
+    if shaded(p).is_some() {
+        entries.push((hex(GREY), Key::Band, "above half the sampling rate: seen only as an alias".to_string()));
+    }
     if !p.decisions.aliases.is_empty() {
         entries.push((hex(PURPLE), Key::Line, "an alias, where it was observed".to_string()));
         entries.push((hex(PURPLE), Key::Dashed, "the same, where it belongs (relocated)".to_string()));
@@ -264,9 +278,9 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
     }
     let method = match (a.method, &a.spectra) {
         (Method::Dft, _) => format!(
-            "the DFT of the mean error over the runs ({} points per revolution; shaded: above half of it, where a \
-             line is only seen as an alias)",
-            num(a.points_per_rev)
+            "the DFT of the mean error over the runs ({} points per revolution{})",
+            num(a.points_per_rev),
+            if shaded(p).is_some() { "; shaded: above half of it, where a line is only seen as an alias" } else { "" }
         ),
         (Method::LeastSquares, Some(_)) => "the lines from a least-squares fit of sinusoids at the design's \
              frequencies (a partial range is not periodic); grey: the windowed DFT of the measured span, whose bins \
@@ -291,9 +305,9 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
                 units.num(l.amplitude_deg),
                 format!("{:.1}", l.phase_deg),
                 if l.repeatable { "yes" } else { "no" }.to_string(),
-                format!("{:.1} %", l.share * 100.0),
+                percent(l.share),
                 fate_word(fate(p, l)).to_string(),
-                escape(&l.source),
+                escape(&units.text(&l.source)),
             ]
         })
         .collect();
@@ -320,15 +334,28 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         };
         html += &format!(
             "<p class=\"note\">Alias: {} at {} cycles/rev is seen at {}; {action}.</p>\n",
-            escape(&alias.source),
+            escape(&units.text(&alias.source)),
             num(alias.true_cycles),
             num(alias.observed_cycles),
         );
     }
     if let Some(n) = &a.points_needed {
-        html += &format!("<p class=\"note\">{}</p>\n", escape(&n.note));
+        html += &format!("<p class=\"note\">{}</p>\n", escape(&units.text(&n.note)));
     }
     Ok(html)
+}
+
+/// The section, or why the survey could not be processed (which the
+/// interpolation and the table then do not repeat).
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    match &p.d.processed {
+        Ok(processed) => Ok(Section::page("spectrum", "Spectrum and error sources", section(processed, p.units)?)),
+        Err(why) => Ok(Section::page(
+            "spectrum",
+            "Spectrum, interpolation and correction table",
+            note(&format!("The survey cannot be processed: {why}.")),
+        )),
+    }
 }
 
 #[cfg(test)]
