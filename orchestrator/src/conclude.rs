@@ -128,6 +128,7 @@ pub async fn conclude(
         recipe: options.recipe.clone(),
         design: None,
         table_out,
+        make_folder: true,
         uncertainty,
         ..ProcessOptions::default()
     };

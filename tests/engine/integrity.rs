@@ -317,15 +317,41 @@ fn default_table_names_never_collide_across_databases() {
         let out = survey(&dir.path().join(name), &["run", "--points", "36", "--runs", "2", "--json"]);
         assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     }
-    // `--db survey.db` (the default) keeps table-<id>.csv in the current
-    // folder; any other database gets its own name beside it.
-    let a = std::fs::read_to_string(dir.path().join("a.db.table-1.csv")).expect("a's table");
-    let b = std::fs::read_to_string(dir.path().join("b.db.table-1.csv")).expect("b's table");
+    // Each survey's files go in its own folder: `<db>.survey-<id>/` beside
+    // any database but the default.
+    let a = std::fs::read_to_string(dir.path().join("a.db.survey-1/table-1.csv")).expect("a's table");
+    let b = std::fs::read_to_string(dir.path().join("b.db.survey-1/table-1.csv")).expect("b's table");
     assert!(a.starts_with("readout_deg,") && b.starts_with("readout_deg,"));
-    assert!(dir.path().join("a.db.table-1.recipe.toml").exists() && dir.path().join("b.db.table-1.bin").exists());
+    assert!(dir.path().join("a.db.survey-1/table-1.recipe.toml").exists());
+    assert!(dir.path().join("b.db.survey-1/table-1.bin").exists());
     // survey() passes --db as an absolute path: that is another database than
     // the default `survey.db` of the current folder, so it is named too.
-    assert!(dir.path().join(format!("{}.table-1.csv", dir.path().join("survey.db").display())).exists());
+    assert!(dir.path().join(format!("{}.survey-1/table-1.csv", dir.path().join("survey.db").display())).exists());
+
+    // The default database keeps `survey-<id>/` in the current folder, named
+    // in the summary and in `--json`'s table path; nothing else lands there.
+    let here = tempfile::tempdir().unwrap();
+    for expected in ["survey-1/table-1.csv", "survey-2/table-2.csv"] {
+        let out = Command::new(BIN)
+            .current_dir(here.path())
+            .env_remove("RUST_LOG")
+            .args(["run", "--points", "36", "--runs", "2", "--json"])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+        let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(doc["process"]["table"]["path"], expected, "{}", text(&out));
+        assert!(here.path().join(expected).exists(), "{expected}");
+    }
+    let mut names: Vec<String> = std::fs::read_dir(here.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["survey-1", "survey-2", "survey.db"], "one folder per survey and the database, nothing else");
+    let out =
+        Command::new(BIN).current_dir(here.path()).args(["run", "--points", "36", "--runs", "2"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stdout).contains("survey-3/table-3.csv"), "{}", text(&out));
 }
 
 #[test]

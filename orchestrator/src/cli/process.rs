@@ -22,7 +22,9 @@ pub struct ProcessArgs {
     /// Replay this processing recipe (TOML) instead of deriving one from the survey.
     #[arg(long, value_name = "FILE")]
     pub recipe: Option<PathBuf>,
-    /// The correction table CSV [default: table-<ID>.csv]; the controller files
+    /// The correction table CSV [default: survey-<ID>/table-<ID>.csv, the
+    /// survey's folder; beside a database other than survey.db,
+    /// <DB>.survey-<ID>/table-<ID>.csv]; the controller files
     /// (<stem>.comp0, <stem>.comp1, <stem>.840d.ini, <stem>.fanuc.txt), the binary
     /// table (<stem>.bin) and the recipe used (<stem>.recipe.toml) go beside it.
     #[arg(long, value_name = "FILE")]
@@ -163,11 +165,13 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     let loaded = load_read_only(db, args.survey, axis).await?;
     let survey = &loaded.survey;
     let uncertainty = loaded.uncertainty_inputs();
+    let make_folder = args.table_out.is_none();
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
     let opts = ProcessOptions {
         design: args.design,
         recipe: args.recipe,
         table_out: Some(table_out),
+        make_folder,
         export: args.tables.into(),
         uncertainty,
     };
