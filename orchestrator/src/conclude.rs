@@ -2,6 +2,13 @@
 //! statistics, then the processing (a recipe replayed when given), then with
 //! `--verify` the corrected accuracy measured with the table applied. The
 //! survey's samples are read once, here, for all three.
+//!
+//! The survey comes here `processing` (every sample stored) and is marked
+//! `complete` once its outputs (the table and the files beside it) are
+//! written. A processing that fails at run time (a full disk) or is stopped
+//! marks it `interrupted`, and `survey resume` finishes it; a kill leaves it
+//! `processing`, which `resume` finishes too. Data that cannot make a table
+//! (bad input: nothing more can be made of it) marks it complete, saying so.
 
 use crate::acquire::Engine;
 use crate::output::{Output, human, iso_json, iso_text};
@@ -27,6 +34,9 @@ pub struct ConcludeOptions {
     pub acquire: AcquireOptions,
     /// A stop request (a signal) ends the conclusion between its phases.
     pub stop: Stop,
+    /// For tests: abort once the outputs are staged, before they are renamed
+    /// ([`ProcessOptions::crash_when_staged`]).
+    pub crash_when_staged: bool,
 }
 
 /// The output, and whether everything after the acquisition succeeded: the
@@ -117,7 +127,7 @@ pub async fn conclude(
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
 
     if let Err(why) = options.stop.check() {
-        return stopped(store, id, why, Output { doc, text }).await;
+        return stopped(store, id, why, Output { doc, text }, true).await;
     }
     let table_out = Some(default_table_path(db, id));
     // With a tracker, the table is made around the axis fitted from every SMR position.
@@ -130,13 +140,16 @@ pub async fn conclude(
         table_out,
         make_folder: true,
         uncertainty,
+        crash_when_staged: options.crash_when_staged,
         ..ProcessOptions::default()
     };
     let to_process = refitted.as_deref().unwrap_or(&samples);
     let processed = match process_survey(record, to_process, processing) {
         Ok(p) => p,
-        Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+        Err(e) => return not_processed(store, id, e, Output { doc, text }).await,
     };
+    store.set_status(id, SurveyStatus::Complete, None).await?;
+    doc["status"] = SurveyStatus::Complete.as_str().into();
     doc["process"] = processed.json();
     text += "\n";
     if let Some((_, r)) = &refit {
@@ -151,7 +164,8 @@ pub async fn conclude(
     }
     text += &processed.text();
     if let Err(why) = options.stop.check() {
-        return stopped(store, id, why, Output { doc, text }).await;
+        // The survey is complete: only the verification is not made.
+        return stopped(store, id, why, Output { doc, text }, false).await;
     }
     let mut result = Ok(());
     if let Some(verify_plan) = &options.verify {
@@ -198,14 +212,45 @@ async fn budget(
     }
 }
 
-/// A stop request arrived after the acquisition: the survey (all of its
-/// samples stored) is marked interrupted, so `survey resume` finishes it.
-async fn stopped(store: &Store, id: i64, why: Stopped, mut output: Output) -> anyhow::Result<Concluded> {
-    let now = store.last_sample_time(id).await?.unwrap_or(f64::NAN);
-    let message = format!("{why} while processing; every sample is stored, `survey resume` finishes it");
-    store.log_event(id, now, "warn", &message).await?;
-    store.set_status(id, SurveyStatus::Interrupted, None).await?;
-    output.doc["status"] = SurveyStatus::Interrupted.as_str().into();
-    eprintln!("survey {id} {message}");
+/// A stop request arrived after the acquisition. Before the outputs were
+/// written (`mark`), the survey (all of its samples stored) is marked
+/// interrupted, so `survey resume` finishes it.
+async fn stopped(store: &Store, id: i64, why: Stopped, mut output: Output, mark: bool) -> anyhow::Result<Concluded> {
+    if mark {
+        let now = store.last_sample_time(id).await?.unwrap_or(f64::NAN);
+        let message = format!("{why} while processing; every sample is stored, `survey resume` finishes it");
+        store.log_event(id, now, "warn", &message).await?;
+        store.set_status(id, SurveyStatus::Interrupted, None).await?;
+        output.doc["status"] = SurveyStatus::Interrupted.as_str().into();
+        eprintln!("survey {id} {message}");
+    }
     Ok(Concluded { output, result: Err(why.into()) })
+}
+
+/// The processing failed. At run time (a full disk), the survey is marked
+/// interrupted: `survey resume` writes its outputs. Data that cannot make a
+/// table (bad input) is as complete as it will ever be: it is marked complete.
+async fn not_processed(store: &Store, id: i64, e: anyhow::Error, mut output: Output) -> anyhow::Result<Concluded> {
+    let (status, message) = match crate::error::is_bad_input(&e) {
+        true => (SurveyStatus::Complete, "no table can be made of these samples"),
+        false => (
+            SurveyStatus::Interrupted,
+            "its outputs could not be written; every sample is stored, `survey resume` writes them",
+        ),
+    };
+    let now = store.last_sample_time(id).await.ok().flatten().unwrap_or(f64::NAN);
+    // On a full disk these writes may fail too: the survey then stays
+    // `processing`, which `resume` finishes all the same.
+    let marked = match store.log_event(id, now, "warn", &format!("{message}: {e:#}")).await {
+        Ok(()) => store.set_status(id, status, None).await,
+        Err(e) => Err(e),
+    };
+    match marked {
+        Ok(()) => output.doc["status"] = status.as_str().into(),
+        Err(e) => tracing::warn!(error = %format!("{e:#}"), "the survey's status could not be stored"),
+    }
+    if status == SurveyStatus::Interrupted {
+        eprintln!("survey {id}: {message}");
+    }
+    Ok(Concluded { output, result: Err(e) })
 }

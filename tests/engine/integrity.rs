@@ -109,6 +109,107 @@ async fn a_stop_signal_while_processing_leaves_the_survey_for_resume_to_finish()
     assert_eq!((status, n), (SurveyStatus::Complete, 720));
 }
 
+/// The names in `folder` of our temporary files (`.<name>.tmp-<pid>`).
+fn temporary_files(folder: &Path) -> Vec<String> {
+    std::fs::read_dir(folder)
+        .map(|d| {
+            d.map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| n.contains(".tmp-")).collect()
+        })
+        .unwrap_or_default()
+}
+
+#[tokio::test]
+async fn a_kill_while_the_outputs_are_written_leaves_the_survey_processing_and_resume_writes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    let folder = dir.path().join("s.db.survey-1");
+    // The process aborts (a power loss, as SIGKILL) with every output written
+    // to its temporary name and none renamed into place.
+    let args = ["run", "--points", "36", "--runs", "2", "--bidirectional", "--json", "--sim-crash-in-outputs"];
+    let out = survey(&db, &args);
+    assert_eq!(out.status.code(), None, "killed by a signal: {}", text(&out));
+    assert!(!temporary_files(&folder).is_empty(), "the kill left the staged files");
+    assert!(!folder.join("table-1.csv").exists(), "no table yet");
+    let (status, n, _) = dense_prefix(&db).await;
+    assert_eq!((status, n), (SurveyStatus::Processing, 144), "acquired whole, not complete without its table");
+    let list = survey(&db, &["list"]);
+    assert!(text(&list).contains("processing"), "{}", text(&list));
+
+    let out = survey(&db, &["resume", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("all 144 samples are stored: finishing"), "{}", text(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    assert_eq!(doc["status"], "complete");
+    assert_eq!(doc["process"]["table"]["path"], folder.join("table-1.csv").display().to_string());
+    assert!(std::fs::read_to_string(folder.join("table-1.csv")).unwrap().starts_with("readout_deg,"));
+    assert_eq!(temporary_files(&folder), Vec::<String>::new(), "the stale temporary files are removed");
+    assert_eq!(dense_prefix(&db).await.0, SurveyStatus::Complete);
+    let again = survey(&db, &["resume"]);
+    assert_eq!(again.status.code(), Some(2), "{}", text(&again));
+    assert!(text(&again).contains("nothing to resume"), "{}", text(&again));
+}
+
+/// Runs `survey --db DB args` in a mount namespace of its own where `folder`
+/// is a 64 KiB tmpfs: a really full disk for what is written there. Prints
+/// what the folder holds when the command ends (`left: ...` on stderr).
+/// `None` when this machine does not let an unprivileged user namespace
+/// mount one (the reason printed).
+fn on_a_full_folder(folder: &Path, db: &Path, args: &[&str]) -> Option<Output> {
+    const SCRIPT: &str = r#"f=$1; shift; mount -t tmpfs -o size=64k survey-test "$f" || exit 99; "$@"; rc=$?; echo "left: $(ls -A "$f" | tr '\n' ' ')" >&2; exit $rc"#;
+    let probe = Command::new("unshare")
+        .args(["--user", "--map-root-user", "--mount", "sh", "-c", SCRIPT, "sh"])
+        .arg(folder)
+        .arg("true")
+        .output();
+    match probe {
+        Ok(p) if p.status.success() => {}
+        other => {
+            eprintln!("skipped: no tmpfs in a user namespace here ({other:?})");
+            return None;
+        }
+    }
+    let out = Command::new("unshare")
+        .args(["--user", "--map-root-user", "--mount", "sh", "-c", SCRIPT, "sh"])
+        .arg(folder)
+        .arg(BIN)
+        .current_dir(db.parent().unwrap())
+        .env_remove("RUST_LOG")
+        .arg("--db")
+        .arg(db)
+        .args(args)
+        .output()
+        .unwrap();
+    Some(out)
+}
+
+#[tokio::test]
+async fn a_full_disk_while_the_outputs_are_written_leaves_no_temporary_file_and_resume_writes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    let folder = dir.path().join("s.db.survey-1");
+    std::fs::create_dir(&folder).unwrap();
+    let args = ["run", "--points", "36", "--runs", "2", "--bidirectional", "--json"];
+    let Some(out) = on_a_full_folder(&folder, &db, &args) else { return };
+    let all = text(&out);
+    assert_eq!(out.status.code(), Some(1), "a full disk is a run-time failure: {all}");
+    assert!(all.contains("No space left on device") && all.contains("table-1"), "{all}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let left = stderr.lines().find_map(|l| l.strip_prefix("left:")).expect("the folder listed");
+    assert_eq!(left.trim(), "", "no temporary file stays on the full disk: {all}");
+    assert!(all.contains("`survey resume` writes them"), "{all}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    assert_eq!(doc["status"], "interrupted", "{all}");
+    let (status, n, events) = dense_prefix(&db).await;
+    assert_eq!((status, n), (SurveyStatus::Interrupted, 144));
+    assert!(events.iter().any(|e| e.contains("its outputs could not be written")), "{events:?}");
+
+    // Space freed (the namespace and its tmpfs are gone): resume writes them.
+    let out = survey(&db, &["resume", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(std::fs::read_to_string(folder.join("table-1.csv")).unwrap().starts_with("readout_deg,"));
+    assert_eq!(dense_prefix(&db).await.0, SurveyStatus::Complete);
+}
+
 #[tokio::test]
 async fn resume_is_refused_while_another_process_holds_the_survey_and_takes_over_a_dead_ones_lock() {
     let dir = tempfile::tempdir().unwrap();
@@ -153,8 +254,9 @@ async fn a_live_run_keeps_its_survey_from_resume_and_a_sigterm_from_outside_stop
     // before its survey is visible, so from then on it is held.
     let deadline = Instant::now() + Duration::from_secs(120);
     loop {
-        if db.exists() {
-            let store = Store::open_existing(&db).await.unwrap();
+        // Until the run has set the new file up, it holds no survey table
+        // and is refused (nothing is written to it).
+        if let Ok(store) = Store::open_existing(&db).await {
             let n = store.sample_count(1).await.unwrap_or(0);
             store.close().await;
             if n >= 512 {

@@ -174,6 +174,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         make_folder,
         export: args.tables.into(),
         uncertainty,
+        crash_when_staged: false,
     };
     // Corrected for the drift when the survey asked for it.
     let to_process = loaded.analysed();

@@ -3,8 +3,10 @@
 //! The survey's acquisition lock is taken first ([`AcquirerLock`]): a survey
 //! a live process is acquiring is refused at once, naming that process; a
 //! lock left by a dead one is taken over. A survey whose samples are all
-//! stored but whose status is not complete (stopped while it was processed)
-//! is finished: statistics and processing, exit status 0.
+//! stored but whose status is not complete (stopped, killed or out of disk
+//! space while it was processed: `interrupted`, `running` or `processing`)
+//! is finished: statistics and processing, its outputs written (stale
+//! temporary files of a killed write removed), exit status 0.
 
 use super::support::{conclude_and_print, open_existing};
 use crate::acquire::Outcome;
@@ -41,7 +43,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     // Read under the lock: the survey may have changed while it was held.
     let record = store.survey(id).await?;
     match record.status {
-        SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Failed => {}
+        SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Processing | SurveyStatus::Failed => {}
         SurveyStatus::Complete => {
             return Err(bad_input(format!("survey {id} is complete: there is nothing to resume")));
         }
@@ -76,7 +78,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         // finish it, statistics and processing.
         let message = format!("all {next} samples are stored: finishing (statistics and processing)");
         store.log_event(id, last_time, "info", &message).await?;
-        store.set_status(id, SurveyStatus::Complete, None).await?;
+        store.set_status(id, SurveyStatus::Processing, None).await?;
         eprintln!("survey {id}: {message}");
         let instrument_time = Duration::from_secs_f64(last_time.max(0.0));
         Ok(Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO })
@@ -93,7 +95,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         eprintln!("survey {id}: {message}");
         acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
     };
-    let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop };
+    let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop, crash_when_staged: false };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done

@@ -113,6 +113,11 @@ pub struct RunArgs {
     /// measured (N = all of them: while it processes).
     #[arg(long, value_name = "N", hide = true)]
     pub sim_signal_after: Option<u64>,
+    /// For tests: the process aborts (like a power loss) while it writes the
+    /// survey's outputs: every file written to its temporary name, none
+    /// renamed into place yet.
+    #[arg(long, hide = true)]
+    pub sim_crash_in_outputs: bool,
     /// For tests: limit the database to N pages (SQLite's max_page_count), so
     /// writes fail as on a full disk.
     #[arg(long, value_name = "N", hide = true)]
@@ -185,7 +190,13 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         plan_progress: bench.plan_progress.clone(),
     };
     let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options.clone()).await;
-    let finish = ConcludeOptions { recipe: args.recipe.clone(), verify, acquire: options, stop };
+    let finish = ConcludeOptions {
+        recipe: args.recipe.clone(),
+        verify,
+        acquire: options,
+        stop,
+        crash_when_staged: args.sim_crash_in_outputs,
+    };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done

@@ -76,6 +76,9 @@ pub struct ProcessOptions {
     /// What the uncertainty budget needs beyond the samples (the reference
     /// instrument's noise, the axis fit's standard error).
     pub uncertainty: UncertaintyInputs,
+    /// For tests: abort the process (like a power loss) once every file is
+    /// written to its temporary name, before any is renamed into place.
+    pub crash_when_staged: bool,
 }
 
 /// Where the design came from.
@@ -141,7 +144,7 @@ pub fn process_survey(
             .map_err(|e| crate::error::path_error(e, format!("cannot create the folder {}", folder.display())))?;
     }
     let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
-    outputs::write_all(&paths, &processed, id)?;
+    outputs::write_all(&paths, &processed, id, opts.crash_when_staged)?;
     let uncertainty = survey_processing::uncertainty::uncertainty(&processed, samples, &opts.uncertainty);
     Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths, uncertainty })
 }

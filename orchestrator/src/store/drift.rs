@@ -88,7 +88,7 @@ mod tests {
         schema_1_database(&path).await;
         // Read-only commands say it needs an upgrade, and leave it as it is.
         let e = Store::open_read_only(&path).await.unwrap_err();
-        assert!(format!("{e:#}").contains("older schema (1; this version reads 3)"), "{e:#}");
+        assert!(format!("{e:#}").contains("older schema (1; this version reads 4)"), "{e:#}");
         // A command that writes upgrades it; the survey is still there.
         let store = Store::open(&path).await.unwrap();
         let versions: Vec<i64> = sqlx::query("SELECT version FROM _sqlx_migrations ORDER BY version")
@@ -98,7 +98,7 @@ mod tests {
             .iter()
             .map(|r| r.get(0))
             .collect();
-        assert_eq!(versions, [1, 2, 3]);
+        assert_eq!(versions, [1, 2, 3, 4]);
         assert_eq!(store.survey(1).await.unwrap().id, 1);
         assert!(store.drift_points(1).await.unwrap().is_empty());
         let m = |seq, at_s, actual_deg| DriftMeasurement {

@@ -94,6 +94,7 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
+    (4, "processing", include_str!("../../../migrations/0004_processing.sql")),
 ];
 
 fn migrator() -> Migrator {
@@ -269,21 +270,19 @@ impl Store {
         let mut tries = 0;
         loop {
             tries += 1;
-            let e: sqlx::migrate::MigrateError = match single_connection_pool().connect_with(options.clone()).await {
-                Ok(pool) => match migrator().run(&pool).await {
-                    Ok(()) => return Ok(Store { pool, path: path.to_path_buf(), immutable: false }),
-                    Err(e) => {
-                        pool.close().await;
-                        e
-                    }
+            let e: sqlx::migrate::MigrateError = match migrate(&options).await {
+                Ok(()) => match single_connection_pool().connect_with(options.clone()).await {
+                    Ok(pool) => return Ok(Store { pool, path: path.to_path_buf(), immutable: false }),
+                    Err(e) => sqlx::migrate::MigrateError::Execute(e),
                 },
-                Err(e) => sqlx::migrate::MigrateError::Execute(e),
+                Err(e) => e,
             };
             let raced = match &e {
                 sqlx::migrate::MigrateError::Execute(inner)
                 | sqlx::migrate::MigrateError::ExecuteMigration(inner, _) => {
-                    inner.as_database_error().is_some_and(|d| d.message().contains("already exists"))
-                        || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
+                    inner.as_database_error().is_some_and(|d| {
+                        d.message().contains("already exists") || d.message().contains("_sqlx_migrations.version")
+                    }) || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
                 }
                 _ => false,
             };
@@ -346,6 +345,27 @@ fn is_foreign_key_error(e: &sqlx::Error) -> bool {
 /// SQLite's (extended) result code of a database error.
 fn sqlite_code(e: &sqlx::Error) -> Option<u32> {
     e.as_database_error().and_then(|d| d.code()).and_then(|c| c.parse().ok())
+}
+
+/// Bring the schema up to date on a connection of its own with foreign keys
+/// off, as SQLite's procedure for rebuilding a table asks (migration 4
+/// rebuilds `surveys` to change its CHECK; each migration commits with its
+/// record), then check them (`PRAGMA foreign_key_check`, the procedure's
+/// last step): a row left without the row it refers to fails the open.
+async fn migrate(options: &SqliteConnectOptions) -> Result<(), sqlx::migrate::MigrateError> {
+    let pool = single_connection_pool().connect_with(options.clone().foreign_keys(false)).await?;
+    let checked = match migrator().run(&pool).await {
+        Ok(()) => match sqlx::query("PRAGMA foreign_key_check").fetch_all(&pool).await {
+            Ok(rows) if rows.is_empty() => Ok(()),
+            Ok(rows) => Err(sqlx::migrate::MigrateError::Source(
+                format!("the schema upgrade left {} rows without the row they refer to", rows.len()).into(),
+            )),
+            Err(e) => Err(e.into()),
+        },
+        Err(e) => Err(e),
+    };
+    pool.close().await;
+    checked
 }
 
 /// The file at `path` exists and is a file ([`NotFound`] otherwise).
