@@ -396,6 +396,80 @@ async fn read_only_commands_never_write_and_refuse_foreign_damaged_or_newer_file
     assert!(text(&out).contains("newer.db was written by a newer version of survey"), "{}", text(&out));
 }
 
+#[tokio::test]
+async fn every_command_refuses_a_foreign_database_a_folder_or_a_device_with_exit_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    assert_eq!(survey(&db, &["run", "--points", "36", "--runs", "2"]).status.code(), Some(0));
+    let csv = dir.path().join("in.csv");
+    assert_eq!(survey(&db, &["export", "--csv", csv.to_str().unwrap()]).status.code(), Some(0));
+    let model = dir.path().join("m.toml");
+    std::fs::write(&model, "[[effect]]\nkind = \"noise\"\nsigma_deg = 0.001\n").unwrap();
+    let (out_csv, table, report) = (dir.path().join("e.csv"), dir.path().join("t.csv"), dir.path().join("report"));
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["run", "--points", "36", "--runs", "2"],
+        vec!["import", csv.to_str().unwrap()],
+        vec!["resume"],
+        vec!["stats"],
+        vec!["list"],
+        vec!["show"],
+        vec!["export", "--csv", out_csv.to_str().unwrap()],
+        vec!["process", "--table-out", table.to_str().unwrap()],
+        vec!["report", "--out", report.to_str().unwrap()],
+        vec!["model-gap", "--model", model.to_str().unwrap()],
+    ];
+    // Another application's SQLite file (in WAL mode or not): refused, its
+    // bytes unchanged, no WAL or shared-memory file made beside it.
+    for wal in [false, true] {
+        let foreign = dir.path().join(format!("app{wal}.sqlite"));
+        make_foreign(&foreign);
+        if wal {
+            rusqlite::Connection::open(&foreign).unwrap().pragma_update(None, "journal_mode", "wal").unwrap();
+        }
+        let before = sha(&foreign);
+        for args in &commands {
+            let out = survey(&foreign, args);
+            let all = text(&out);
+            assert_eq!(out.status.code(), Some(2), "survey {}: {all}", args.join(" "));
+            assert!(all.contains(&format!("app{wal}.sqlite is not a survey database")), "{all}");
+            assert!(sha(&foreign) == before, "`survey {}` changed another application's file", args.join(" "));
+            for suffix in ["-wal", "-shm", "-journal"] {
+                assert!(!dir.path().join(format!("app{wal}.sqlite{suffix}")).exists(), "{suffix} made: {all}");
+            }
+        }
+    }
+    // A folder and a device: a clear message, exit 2, nothing made.
+    let folder = dir.path().join("a-folder");
+    std::fs::create_dir(&folder).unwrap();
+    for (path, says) in [(folder.as_path(), "is a folder"), (Path::new("/dev/null"), "is not a regular file")] {
+        for args in &commands {
+            let out = survey(path, args);
+            let all = text(&out);
+            assert_eq!(out.status.code(), Some(2), "survey --db {} {}: {all}", path.display(), args.join(" "));
+            assert!(all.contains(&format!("{} {says}", path.display())) && !all.contains("SQLite"), "{all}");
+        }
+    }
+    assert_eq!(std::fs::read_dir(&folder).unwrap().count(), 0, "nothing made in the folder");
+    use std::os::unix::fs::FileTypeExt as _;
+    assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+    // A database in a folder that does not exist: said so, not created.
+    let nowhere = dir.path().join("no/such/folder/x.db");
+    let out = Command::new(BIN)
+        .current_dir(dir.path())
+        .arg("--db")
+        .arg(&nowhere)
+        .args(["run", "--points", "36", "--runs", "2"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("the folder") && text(&out).contains("does not exist"), "{}", text(&out));
+    // A new file is made where none exists, and an empty one is set up.
+    let empty = dir.path().join("empty.db");
+    std::fs::write(&empty, b"").unwrap();
+    assert_eq!(survey(&empty, &["import", csv.to_str().unwrap()]).status.code(), Some(0));
+    assert_eq!(survey(&empty, &["stats"]).status.code(), Some(0));
+}
+
 /// An SQLite file of another application: one table of its own.
 fn make_foreign(path: &Path) {
     let c = rusqlite::Connection::open(path).unwrap();
