@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Duration;
 use survey_drivers::canopen::CanopenConfig;
+mod derived;
 use survey_drivers::emscon::EmsconConfig;
 use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
 use survey_drivers::scpi::ErrorQueryForm;
@@ -498,6 +499,7 @@ impl SurveyConfig {
                 within(&format!("timing.{key}"), v, range, max, unit)?;
             }
         }
+        derived::check(self)?;
         if let Some(n) = t.max_retries
             && n > 1000
         {
