@@ -157,3 +157,21 @@ fn a_tiny_or_huge_timing_value_is_bad_input_naming_its_key_never_a_panic() {
         assert!(!bench.exists("survey.db"), "nothing stored");
     }
 }
+
+#[test]
+fn a_connection_error_names_the_instrument_and_the_cause_once() {
+    let bench = Bench::new();
+    bench.write(
+        "c.toml",
+        config("127.0.0.1:1", "/nonexistent/ttyX")
+            .replace("[timing]\n", "[timing]\nmax_retries = 1\nretry_backoff_s = 0.01\n"),
+    );
+    let out = bench.survey(&["run", "--config", "c.toml"]);
+    assert_eq!(out.code, 1, "{out}");
+    let line = out.stderr.lines().find_map(|l| l.strip_prefix("error: ")).expect("an error line").to_string();
+    // Each layer adds what it knows: the instrument, the kind of fault, what
+    // was being done, the system's reason; none of it twice.
+    assert_eq!(line.matches("127.0.0.1:1").count(), 1, "{line}");
+    assert_eq!(line.matches("refused").count(), 1, "{line}");
+    assert_eq!(line.matches("cannot connect").count() + line.matches("connect failed").count(), 1, "{line}");
+}

@@ -49,7 +49,10 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     let cfg = SurveyConfig::from_file(&args.config)?;
     let model = args.model.as_deref().map(read_model).transpose()?;
     if !(0.0..=0.5).contains(&args.faults) {
-        return Err(bad_input(format!("--faults is a fraction of requests from 0 to 0.5, got {}", args.faults)));
+        return Err(bad_input(format!(
+            "--faults is a fraction of requests from 0 to 0.5, got {}",
+            survey_processing::num::Num(args.faults)
+        )));
     }
     let faults = FaultRates::uniform(args.faults)
         .parse_over(args.fault_rates.as_deref().unwrap_or(""))

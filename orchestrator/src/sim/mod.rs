@@ -186,7 +186,10 @@ fn pty_at(what: &str, port: &str) -> anyhow::Result<(tokio_serial::SerialStream,
 /// Serve the simulated instruments of `cfg`.
 pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Served> {
     if !(opts.time_scale.is_finite() && opts.time_scale > 0.0 && opts.time_scale <= 10_000.0) {
-        return Err(bad_input(format!("--time-scale must be above 0 and at most 10000, got {}", opts.time_scale)));
+        return Err(bad_input(format!(
+            "--time-scale must be above 0 and at most 10000, got {}",
+            survey_processing::num::Num(opts.time_scale)
+        )));
     }
 
     let preset = Preset::by_name(&opts.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", opts.preset)))?;

@@ -13,10 +13,11 @@
 
 use super::fanuc::{FanucOptions, FanucTable};
 use super::generic::GenericTable;
-use super::layout::{DefaultSpacing, Directions, Grid, RangeChoice, Reader, Span, resolve};
+use super::layout::{DefaultSpacing, Directions, Grid, MAX_TABLE_DEG, RangeChoice, Reader, Span, resolve};
 use super::linuxcnc::LinuxCncTable;
 use super::sinumerik::{Sinumerik840d, SinumerikOptions};
 use super::{Applied, predicted_peak_deg};
+use crate::num::Num;
 use crate::recipe::{ChoiceError, ExportChoices};
 use crate::table::CorrectionTable;
 use crate::{Direction, Sample};
@@ -157,13 +158,21 @@ pub fn build(
         let one_table = controller == Controller::Sinumerik840d;
         let reader = Reader::new(table, full_circle, grid.interval_deg, separate && !one_table);
         let reference_deg = export.reference_deg.unwrap_or_else(|| default_reference(&grid));
-        if !reference_deg.is_finite() {
-            return Err(choice("reference_deg", format!("must be a finite angle, got {reference_deg}")));
+        if !(reference_deg.is_finite() && reference_deg.abs() <= MAX_TABLE_DEG) {
+            return Err(choice(
+                "reference_deg",
+                format!("must be an angle within +/-{MAX_TABLE_DEG} deg, got {}", Num(reference_deg)),
+            ));
         }
         if !full_circle && !(grid.start_deg - 1e-9..=grid.end_deg() + 1e-9).contains(&reference_deg) {
             return Err(choice(
                 "reference_deg",
-                format!("{reference_deg} deg is outside the table's range {}..{} deg", grid.start_deg, grid.end_deg()),
+                format!(
+                    "{} deg is outside the table's range {}..{} deg",
+                    Num(reference_deg),
+                    Num(grid.start_deg),
+                    Num(grid.end_deg())
+                ),
             ));
         }
         let offset = if export.zero_at_reference { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
