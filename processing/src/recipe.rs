@@ -47,7 +47,8 @@
 //! # interval_deg = 1.0        # or points = 361 (default: each format's)
 //! directions = "auto"         # "combined" or "separate" forward/reverse values
 //! # reference_deg = 0.0       # the reference point (default 0, or the point nearest it)
-//! zero_at_reference = false   # zero the LinuxCNC, 840D and generic values there
+//! zero_at_reference = false   # zero the LinuxCNC and generic values there
+//! sinumerik_absolute = false  # 840D: keep absolute values (default: zero at the reference, as K3 asks)
 //! sign = "error"              # generic table: "error" (readout - actual) or "correction"
 //! values = "absolute"         # generic table: or "incremental"
 //! sinumerik_axis = "C1"       # 840D machine axis name
@@ -329,8 +330,12 @@ pub struct ExportChoices {
     /// The reference point, degrees (default: 0, or the table's point nearest 0).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_deg: Option<f64>,
-    /// Zero the LinuxCNC, 840D and generic values at the reference point (Fanuc always is).
+    /// Zero the LinuxCNC and generic values at the reference point (the 840D
+    /// values are zero there unless `sinumerik_absolute`, Fanuc's always are).
     pub zero_at_reference: bool,
+    /// Write the 840D values absolute instead of zero at the reference point
+    /// (Siemens' K3 manual asks for zero there, the default).
+    pub sinumerik_absolute: bool,
     /// The generic table's sign: `error` (readout - actual) or `correction`.
     pub sign: Sign,
     /// The generic table's values: `absolute` or `incremental`.
@@ -365,6 +370,7 @@ impl Default for ExportChoices {
             directions: Directions::Auto,
             reference_deg: None,
             zero_at_reference: false,
+            sinumerik_absolute: false,
             sign: Sign::Error,
             values: Values::Absolute,
             sinumerik_axis: crate::export::sinumerik::DEFAULT_AXIS.to_string(),

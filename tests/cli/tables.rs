@@ -111,6 +111,26 @@ fn chosen_controllers_and_range_are_kept_in_the_recipe_and_replayed() {
 }
 
 #[test]
+fn the_840d_table_is_zero_at_the_reference_unless_the_recipe_keeps_it_absolute() {
+    let bench = Bench::new();
+    small_survey(&bench);
+    // The default (K3): zero at the reference point 0 deg, said in the file.
+    let ini = bench.read("survey-1/table-1.840d.ini");
+    assert!(ini.lines().any(|l| l == "$AA_ENC_COMP[0,0,C1]=0"), "{ini}");
+    assert!(ini.contains("\n; zero at the reference point 0 deg (K3)"), "{ini}");
+    let doc = bench.survey(&["process", "--json", "--sinumerik-absolute", "--table-out", "a.csv"]).success().json();
+    assert_eq!(doc["controllers"][1]["zero_at_reference"], false, "{doc}");
+    let absolute = bench.read("a.840d.ini");
+    assert!(!absolute.lines().any(|l| l == "$AA_ENC_COMP[0,0,C1]=0"), "{absolute}");
+    assert!(absolute.contains("\n; absolute values, not zero at the reference point"), "{absolute}");
+    let recipe = bench.read("a.recipe.toml");
+    assert!(recipe.contains("sinumerik_absolute = true"), "{recipe}");
+    // Replaying the recipe keeps the values absolute.
+    bench.survey(&["process", "--recipe", "a.recipe.toml", "--table-out", "b.csv"]).success();
+    assert_eq!(bench.read("b.840d.ini"), absolute);
+}
+
+#[test]
 fn bad_table_choices_exit_2_naming_the_flag_and_write_nothing() {
     let bench = Bench::new();
     small_survey(&bench);

@@ -71,7 +71,8 @@ pub struct TableArgs {
     /// The reference point, deg [default: 0, or the table point nearest 0].
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub table_reference: Option<f64>,
-    /// Zero the LinuxCNC, 840D and generic values at the reference point (Fanuc always is).
+    /// Zero the LinuxCNC and generic values at the reference point (840D values
+    /// are zero there unless --sinumerik-absolute; Fanuc values always are).
     #[arg(long)]
     pub table_zero_at_reference: bool,
     /// Generic table: error (readout - actual) or correction (actual - readout) [default: error].
@@ -83,6 +84,10 @@ pub struct TableArgs {
     /// Siemens 840D machine axis name [default: C1].
     #[arg(long, value_name = "NAME")]
     pub sinumerik_axis: Option<String>,
+    /// Siemens 840D: write absolute values instead of zero at the reference
+    /// point (the K3 manual asks for zero there, the default).
+    #[arg(long)]
+    pub sinumerik_absolute: bool,
     /// Fanuc detection unit, deg [default: 0.001].
     #[arg(long, value_name = "DEG")]
     pub fanuc_unit: Option<f64>,
@@ -143,6 +148,7 @@ impl From<TableArgs> for ExportOverrides {
             }),
             reference_deg: a.table_reference,
             zero_at_reference: a.table_zero_at_reference,
+            sinumerik_absolute: a.sinumerik_absolute,
             sign: a.table_sign.map(|s| match s {
                 SignArg::Error => Sign::Error,
                 SignArg::Correction => Sign::Correction,

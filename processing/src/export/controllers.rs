@@ -175,7 +175,13 @@ pub fn build(
                 ),
             ));
         }
-        let offset = if export.zero_at_reference { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
+        // Fanuc's values are increments from the reference (zero there by
+        // construction); the 840D's are zero there unless kept absolute (K3).
+        let zeroed = match controller {
+            Controller::Sinumerik840d => !export.sinumerik_absolute,
+            _ => export.zero_at_reference,
+        };
+        let offset = if zeroed { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
         let mut notes = Vec::new();
         let predict = |t: &dyn Applied| predicted_peak_deg(samples, t, full_circle);
         let mut e = ControllerExport {
@@ -185,7 +191,7 @@ pub fn build(
             directional: reader.is_separate(),
             modulo: false,
             reference_deg,
-            zero_at_reference: export.zero_at_reference,
+            zero_at_reference: zeroed,
             corrected_peak_deg: None,
             parameters: Vec::new(),
             notes: Vec::new(),
@@ -221,12 +227,15 @@ pub fn build(
                     axis: export.sinumerik_axis.clone(),
                     measuring_system: export.sinumerik_measuring_system,
                 };
-                let t = Sinumerik840d::new(&reader, &grid, offset, options).map_err(|err| match err {
-                    super::sinumerik::SinumerikError::BadAxis(_) => choice("sinumerik_axis", err.to_string()),
-                    super::sinumerik::SinumerikError::BadMeasuringSystem(_) => {
-                        choice("sinumerik_measuring_system", err.to_string())
-                    }
-                })?;
+                let t =
+                    Sinumerik840d::new(&reader, &grid, zeroed.then_some(reference_deg), options).map_err(|err| {
+                        match err {
+                            super::sinumerik::SinumerikError::BadAxis(_) => choice("sinumerik_axis", err.to_string()),
+                            super::sinumerik::SinumerikError::BadMeasuringSystem(_) => {
+                                choice("sinumerik_measuring_system", err.to_string())
+                            }
+                        }
+                    })?;
                 if separate && table.is_directional() {
                     notes.push(
                         "840D measuring-system error compensation is one table for both directions: the mean of forward and reverse was written (set the reversal with the backlash compensation)".into(),
