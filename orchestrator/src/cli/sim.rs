@@ -1,8 +1,9 @@
 //! `survey sim --config FILE [--preset NAME | --model FILE] [--seed S]
 //! [--faults RATE] [--fault-rates SPEC] [--time-scale X]`: serve the simulated instruments of a
 //! configuration over their real protocols (see [`crate::sim`]), print one
-//! JSON line `{"ready": true, "instruments": {...}}` on stdout when every
-//! instrument listens (with `"drift_run_s"` when the model drifts: the
+//! JSON line `{"ready": true, "instruments": {...}, "config": PATH}` on stdout
+//! when every instrument listens (`config`: the configuration to run against,
+//! with the addresses served; with `"drift_run_s"` when the model drifts: the
 //! simulator's run length), serve until SIGINT or SIGTERM, then print what was
 //! served (`{"stopped": true, "faults": {"replies", "injected", "by_kind",
 //! ...}}`) and exit 0.
@@ -19,7 +20,7 @@ use survey_sims::faults::FaultRates;
 
 #[derive(Debug, Args)]
 pub struct SimArgs {
-    /// The configuration file whose instruments to serve (TCP addresses on loopback).
+    /// The configuration file whose instruments to serve (on this machine: see the ready line's "config").
     #[arg(long, value_name = "FILE")]
     pub config: PathBuf,
     /// Simulated positioner: one of the paper's positioners.
@@ -61,17 +62,26 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
         SimOptions { preset: args.preset, model, seed: args.seed, faults, time_scale: args.time_scale, only: None };
     let mut stop = Stop::on_signals();
     let served = serve(&cfg, &opts).await?;
-    let mut ready = serde_json::json!({"ready": true, "instruments": served.instruments});
+    let text = std::fs::read_to_string(&args.config)
+        .map_err(|e| crate::error::path_error(e, format!("cannot read {}", args.config.display())))?;
+    let config = served.stand_ins.write_config(&text, &args.config)?;
+    let mut ready =
+        serde_json::json!({"ready": true, "instruments": served.instruments, "config": config.display().to_string()});
     if let Some(run_s) = served.drift_run_s {
         // The model drifts: its rate per run is per this much simulator time.
         ready["drift_run_s"] = run_s.into();
     }
     emit(&format!("{ready}\n"));
+    for moved in &served.stand_ins.moved {
+        eprintln!("survey sim: {moved}");
+    }
     eprintln!(
-        "survey sim: serving {} ({}x real time, faults {:?}); stop with Ctrl-C or SIGTERM",
+        "survey sim: serving {} ({}x real time, faults {:?}); stop with Ctrl-C or SIGTERM\n\
+         survey sim: run against it: survey run --config {}",
         args.config.display(),
         opts.time_scale,
-        opts.faults
+        opts.faults,
+        config.display()
     );
     let why = stop.wait().await;
     let summary = serde_json::json!({"stopped": true, "signal": why.0, "faults": served.counts_json()});

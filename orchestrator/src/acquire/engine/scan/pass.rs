@@ -2,6 +2,13 @@
 //! pass's velocity, the readout captured (or polled) and the tracker
 //! streaming while the axis turns from the pass's start to its end, every
 //! read noted with the host time of its answer; and its pairing.
+//!
+//! The scan's velocities, periods and deadlines are on the host's clock, and
+//! the instruments' clocks must keep its pace: a tracker whose clock runs at
+//! another rate (an instrument simulator under `survey sim --time-scale`,
+//! whose axis then turns that much faster too) ends the survey within the
+//! first [`CLOCK_CHECK_S`] of its first pass, saying so, rather than failing
+//! to pair pass after pass.
 
 use super::super::{Engine, Failed, Reference};
 use crate::acquire::record::{RawReading, RecordedSample, ScanPassRecord};
@@ -11,6 +18,7 @@ use survey_drivers::{DriverError, ErrorKind, SmrMeasurement, StreamedPoint, Trac
 use survey_processing::Sample;
 use survey_processing::budget::Component;
 use survey_processing::geometry::AxisFit;
+use survey_processing::num::Num;
 use survey_processing::pairing::{ClockMap, PairError, crossing_time, position_at};
 use survey_processing::plan::{PassPlan, ScanTiming, move_time};
 
@@ -33,6 +41,25 @@ pub(super) struct RawPass {
 
 /// How often the status is read during a pass, in reads of the streams.
 const STATUS_EVERY: u32 = 4;
+
+/// How long a pass reads the tracker's stream before it checks the tracker's
+/// clock against the host's, host seconds.
+pub(super) const CLOCK_CHECK_S: f64 = 0.5;
+
+/// The tracker's clock seconds per host second a scan accepts. A real
+/// tracker's is 1 within parts per million; the fit over half a second of
+/// reads is good to a few parts per thousand.
+const CLOCK_PACE: std::ops::RangeInclusive<f64> = 0.8..=1.25;
+
+/// The tracker's clock seconds per host second over `fetches` (`(stamp, host
+/// time)` per read), once they span [`CLOCK_CHECK_S`] of host time.
+fn clock_pace(fetches: &[(f64, f64)]) -> Option<f64> {
+    let span = fetches.last()?.1 - fetches.first()?.1;
+    if span < CLOCK_CHECK_S {
+        return None;
+    }
+    ClockMap::fit(fetches).map(|m| 1.0 / m.rate)
+}
 
 fn tracker(engine: &mut Engine) -> Result<&mut Box<dyn Tracker>, (DriverError, Failed)> {
     match &mut engine.reference {
@@ -82,6 +109,7 @@ pub(super) async fn acquire(engine: &mut Engine, p: &PassPlan) -> Result<RawPass
     };
     let mut reads = 0u32;
     let mut over = false;
+    let mut paced = false;
     loop {
         let tick = clock.now();
         if captured {
@@ -114,6 +142,21 @@ pub(super) async fn acquire(engine: &mut Engine, p: &PassPlan) -> Result<RawPass
             raw.point_fetches.push((last.device_time_s, clock.now().as_secs_f64()));
         }
         raw.points.extend(got);
+        if !paced && let Some(pace) = clock_pace(&raw.point_fetches) {
+            paced = true;
+            if !(pace.is_finite() && CLOCK_PACE.contains(&pace)) {
+                return Err(refe(DriverError::usage(
+                    tname,
+                    format!(
+                        "its clock runs {} times as fast as this computer's (an instrument simulator under \
+                         survey sim --time-scale?): a continuous scan turns the axis and pairs the streams in real \
+                         time, so it needs instruments in real time; use --scan step, or survey sim without \
+                         --time-scale",
+                        Num((pace * 100.0).round() / 100.0)
+                    ),
+                )));
+            }
+        }
         if over {
             break;
         }
