@@ -137,6 +137,7 @@ fn the_help_example_serves_a_real_bench_and_refuses_a_continuous_scan_under_a_ti
     let sim_err = String::from_utf8_lossy(&sim_out.stderr);
     assert!(sim_err.contains(&format!("survey run --config {}", run_cfg.display())), "{sim_err}");
     assert!(sim_err.contains("positioner: 192.168.1.40:502 -> 127.0.0.1:"), "{sim_err}");
+    assert!(sim_err.contains("at 100x real time a step scan works; a continuous scan needs"), "{sim_err}");
     assert!(!run_cfg.exists(), "the sim removed the configuration it wrote");
 }
 

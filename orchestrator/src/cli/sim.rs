@@ -75,6 +75,13 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     for moved in &served.stand_ins.moved {
         eprintln!("survey sim: {moved}");
     }
+    if opts.time_scale != 1.0 {
+        eprintln!(
+            "survey sim: at {}x real time a step scan works; a continuous scan needs the instruments in real time \
+             and is refused",
+            opts.time_scale
+        );
+    }
     eprintln!(
         "survey sim: serving {} ({}x real time, faults {:?}); stop with Ctrl-C or SIGTERM\n\
          survey sim: run against it: survey run --config {}",
