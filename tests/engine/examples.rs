@@ -116,8 +116,8 @@ fn the_help_example_serves_a_real_bench_and_refuses_a_continuous_scan_under_a_ti
     }
     assert_eq!(cfg["arm"]["radius_mm"].as_float(), Some(1000.0), "the rest of the example is kept");
     // A continuous scan cannot pair instruments 100 times faster than real time:
-    // refused within its first pass, saying why (before: minutes of passes, then
-    // "the tracker stream has no point within 0.0300 s").
+    // refused before the survey, saying why, nothing stored (before: minutes of
+    // passes, then "the tracker stream has no point within 0.0300 s", exit 1).
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("s.db");
     let started = Instant::now();
@@ -131,14 +131,75 @@ fn the_help_example_serves_a_real_bench_and_refuses_a_continuous_scan_under_a_ti
     nix::sys::signal::kill(nix::unistd::Pid::from_raw(sim.id() as i32), nix::sys::signal::Signal::SIGTERM).unwrap();
     let sim_out = sim.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("its clock runs 100") && err.contains("--scan step"), "{err}");
-    assert!(took.as_secs() < 60, "refused after {took:?}");
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--scan continuous: emscon 127.0.0.1:") && err.contains("its clock runs 100"), "{err}");
+    assert!(err.contains("--scan step"), "{err}");
+    assert!(took.as_secs() < 30, "refused after {took:?}");
+    assert!(!db.exists(), "nothing stored");
     let sim_err = String::from_utf8_lossy(&sim_out.stderr);
     assert!(sim_err.contains(&format!("survey run --config {}", run_cfg.display())), "{sim_err}");
     assert!(sim_err.contains("positioner: 192.168.1.40:502 -> 127.0.0.1:"), "{sim_err}");
     assert!(sim_err.contains("at 100x real time a step scan works; a continuous scan needs"), "{sim_err}");
     assert!(!run_cfg.exists(), "the sim removed the configuration it wrote");
+}
+
+#[test]
+fn a_continuous_survey_is_not_resumed_on_instruments_under_a_time_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/config/modbus-emscon.toml");
+    let sim = |config: &Path, scale: &str| {
+        let mut child = Command::new(BIN)
+            .args(["sim", "--config", config.to_str().unwrap(), "--time-scale", scale])
+            .env_remove("RUST_LOG")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
+        (child, serde_json::from_str::<serde_json::Value>(&line).unwrap_or_else(|e| panic!("{e}: {line}")))
+    };
+    let term = |child: &Child| {
+        nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), nix::sys::signal::Signal::SIGTERM)
+            .unwrap()
+    };
+    // A continuous survey started in real time and stopped at once: interrupted.
+    let (real_time, ready) = sim(&example, "1");
+    let (written, _) = sim_config(&ready);
+    let config = dir.path().join("bench.toml");
+    std::fs::copy(&written, &config).unwrap();
+    let db = dir.path().join("s.db");
+    let db_arg = db.to_str().unwrap();
+    let mut run = Command::new(BIN)
+        .args(["--db", db_arg, "run", "--config", config.to_str().unwrap(), "--points", "12", "--scan", "continuous"])
+        .env_remove("RUST_LOG")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(run.stderr.take().unwrap());
+    let mut line = String::new();
+    while !line.starts_with("survey 1:") {
+        line.clear();
+        assert!(stderr.read_line(&mut line).unwrap() > 0, "survey run ended before its survey began");
+    }
+    term(&run);
+    run.wait().unwrap();
+    term(&real_time);
+    real_time.wait_with_output().unwrap();
+    let status = || {
+        let out = Command::new(BIN).args(["--db", db_arg, "list", "--json"]).output().unwrap();
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()["surveys"][0]["status"].clone()
+    };
+    assert_eq!(status(), "interrupted");
+    // The same addresses, 100 times faster: resume refuses, nothing changes.
+    let (fast, _) = sim(&config, "100");
+    let out = Command::new(BIN).args(["--db", db_arg, "resume"]).env_remove("RUST_LOG").output().unwrap();
+    term(&fast);
+    fast.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--scan continuous: emscon 127.0.0.1:") && err.contains("its clock runs 100"), "{err}");
+    assert_eq!(status(), "interrupted");
 }
 
 #[test]

@@ -66,6 +66,9 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     if plan.continuous() {
         // The latency between the instruments, measured by the first runs.
         bench.engine.set_scan_latency(store.scan_latency(id).await?);
+        if record.source == SurveySource::Instruments && next < plan.total_steps() {
+            super::run::scan_clock_keeps_pace(&mut bench.engine).await?;
+        }
     }
     let options = AcquireOptions {
         progress: !args.json,

@@ -163,6 +163,9 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         true => Some(VerifyPlan::new(&bench.plan, bench.engine.reference_kind(), args.verify_points)?),
         false => None,
     };
+    if args.config.is_some() && bench.plan.continuous() {
+        scan_clock_keeps_pace(&mut bench.engine).await?;
+    }
     // From here on a signal stops the survey cleanly instead of killing the process.
     let stop = Stop::on_signals();
     bench.engine.set_stop(stop.clone());
@@ -200,4 +203,21 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done
+}
+
+/// A continuous scan on instruments: a tracker whose clock it cannot keep
+/// pace with (an instrument simulator under a time scale) is bad input,
+/// refused before anything is stored; a fault met while checking is left to
+/// the acquisition, which survives it.
+pub(super) async fn scan_clock_keeps_pace(engine: &mut crate::acquire::Engine) -> anyhow::Result<()> {
+    match engine.check_scan_clock().await {
+        Err(e) if e.kind == survey_drivers::ErrorKind::Usage => {
+            Err(crate::error::bad_input(format!("--scan continuous: {e}")))
+        }
+        Err(e) => {
+            tracing::warn!(%e, "the tracker's clock could not be checked before the scan");
+            Ok(())
+        }
+        Ok(()) => Ok(()),
+    }
 }
