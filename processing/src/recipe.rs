@@ -21,7 +21,8 @@
 //!
 //! [[alias]]                   # an aliased line, by its true frequency
 //! true_cycles = 432
-//! action = "relocate"         # or "null"
+//! action = "relocate"         # or "null", or "absent" (not there: its bin is
+//!                             # left to the other frequency that lands on it)
 //! observed_cycles = 288       # where it appeared when the recipe was made (for the record)
 //!
 //! [table]
@@ -226,6 +227,9 @@ pub enum AliasChoiceAction {
     Relocate,
     /// Empty its alias bin.
     Null,
+    /// It is not there (check points measured between the targets showed
+    /// it): its alias bin is left to the other frequency that lands there.
+    Absent,
 }
 
 /// One `[[alias]]` entry.

@@ -295,3 +295,41 @@ fn figure_8_correction_reaches_the_papers_factor_of_3_and_beats_the_hysteresis_w
     // Half the backlash stays; the rest goes: about the paper's factor of 3.
     assert!(c1 > 0.004 && c1 < native / 2.5, "one column: native {native}, corrected {c1}");
 }
+
+/// One set of numbers (issue 20 item 4): `run`, `stats`, `process` and the
+/// report give the same ISO 230-2 figures for the same survey, of the same
+/// samples (a tracker survey's angles around its refitted axis), and say
+/// which axis: `"axis": "refitted"`, `"located"` (`process --located-axis`,
+/// for comparison) or `"none"` (an autocollimator measures angles itself).
+#[test]
+fn run_stats_process_and_the_report_give_one_set_of_numbers_and_name_the_axis() {
+    let bench = Bench::new();
+    let run = bench.survey(&["run", "--points", "120", "--runs", "2", "--bidirectional", "--json"]).success().json();
+    let stats = bench.survey(&["stats", "--json"]).success().json();
+    let process = process_json(&bench, &[]);
+    let a = num(&stats["iso230_2"]["A"], "A");
+    for (what, doc) in [("run", &run), ("process", &process)] {
+        assert_eq!(doc["iso230_2"]["A"].as_f64(), Some(a), "{what}: {}", doc["iso230_2"]);
+        assert_eq!(doc["iso230_2"]["R"], stats["iso230_2"]["R"], "{what}");
+        assert_eq!(doc["iso230_2"]["B"], stats["iso230_2"]["B"], "{what}");
+        assert_eq!(doc["axis"], "refitted", "{what}");
+    }
+    assert_eq!(stats["axis"], "refitted");
+    assert_eq!(run["process"]["axis"], "refitted");
+    // The prediction's native A is of the same samples.
+    assert_eq!(process["predicted"]["native_iso230_a_deg"].as_f64(), Some(a));
+    // The text outputs say it too.
+    assert!(bench.survey(&["stats"]).success().stdout.contains("axis: refitted"));
+    bench.survey(&["report", "--out", "report"]).success();
+    let page = bench.read("report/index.html");
+    let shown = survey_processing::units::Units::Deg.show(a);
+    assert!(page.contains(&shown), "the report's A is {shown}");
+    assert!(page.contains("axis: refitted"), "the report names the axis");
+    // Around the located axis, for comparison: said so, and a different figure.
+    let located = process_json(&bench, &["--located-axis"]);
+    assert_eq!(located["axis"], "located");
+    assert_ne!(located["iso230_2"]["A"].as_f64(), Some(a), "the located axis carries its once-per-revolution error");
+    // An autocollimator survey has no axis to fit.
+    bench.survey(&["run", "--points", "24", "--reference", "autocollimator", "--runs", "2", "--json"]).success();
+    assert_eq!(bench.survey(&["stats", "--json"]).success().json()["axis"], "none");
+}

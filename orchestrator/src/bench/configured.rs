@@ -44,7 +44,9 @@ impl Bench {
 /// The plan of a configuration (its `[survey]` under the command line's
 /// overrides), checked against its travel; errors name `path`.
 pub fn configured_plan(cfg: &SurveyConfig, overrides: PlanOverrides, path: &Path) -> anyhow::Result<SurveyPlan> {
-    let points = overrides.points.or(cfg.survey.points).ok_or_else(|| {
+    // The count from where it is known before asking for it: an autocollimator's polygon has its faces.
+    let faces = cfg.polygon.as_ref().filter(|_| cfg.reference() == ReferenceKind::Autocollimator).map(|p| p.faces);
+    let points = overrides.points.or(cfg.survey.points).or(faces).ok_or_else(|| {
         bad_input(format!("--points N is required (or `points` in the [survey] section of {})", path.display()))
     })?;
     let runs = overrides.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);

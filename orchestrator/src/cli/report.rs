@@ -1,42 +1,31 @@
 //! `survey report --out DIR`: the survey's report as one HTML page.
 
+use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
+use crate::report::ReportOptions;
 use crate::report::certificate::CertificateFlags;
-use crate::report::{ReportOptions, Units};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::path::{Path, PathBuf};
 use survey_processing::num::Num;
 
-/// The unit of every error in the report.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum UnitsArg {
-    /// Degrees.
-    Deg,
-    /// Arcseconds.
-    Arcsec,
-    /// Microradians.
-    Urad,
-}
-
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
     /// The folder to write index.html into (created if missing).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: PathBuf,
-    /// The unit of every error, figure and table.
-    #[arg(long, value_enum, default_value_t = UnitsArg::Deg)]
+    #[command(flatten)]
     pub units: UnitsArg,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub design: Option<PathBuf>,
     /// Replay this processing recipe (TOML), as `survey process --recipe` did.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub recipe: Option<PathBuf>,
     /// Compare the survey with this positioner model (model-gap) and show the steps.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: Option<PathBuf>,
     /// The positioner calibrated (make, model, serial) [default: [certificate] of the configuration, or the bench].
     #[arg(long, value_name = "TEXT")]
@@ -104,11 +93,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     // Checked before anything is written.
     let pdf_bound = if args.pdf { Some(crate::report::pdf::timeout()?) } else { None };
     let opts = ReportOptions {
-        units: match args.units {
-            UnitsArg::Deg => Units::Deg,
-            UnitsArg::Arcsec => Units::Arcsec,
-            UnitsArg::Urad => Units::Urad,
-        },
+        units: args.units.units(),
         flags: CertificateFlags {
             positioner: args.positioner,
             reference: args.reference_instrument,

@@ -8,6 +8,7 @@
 //! is finished: statistics and processing, its outputs written (stale
 //! temporary files of a killed write removed), exit status 0.
 
+use super::args::UnitsArg;
 use super::support::{conclude_and_print, open_existing};
 use crate::acquire::Outcome;
 use crate::bench::Bench;
@@ -23,9 +24,11 @@ use std::time::Duration;
 
 #[derive(Debug, Args)]
 pub struct ResumeArgs {
-    /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -33,7 +36,7 @@ pub struct ResumeArgs {
 
 pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let store = open_existing(db).await?;
-    let id = store.resolve(args.survey).await?.id;
+    let id = store.resolve_any(args.survey).await?.id;
     // One acquirer per survey: refused at once while a live process holds it.
     let lock = AcquirerLock::acquire(store.path(), id)?;
     if let Some(previous) = &lock.took_over {
@@ -98,7 +101,14 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         eprintln!("survey {id}: {message}");
         acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
     };
-    let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop, crash_when_staged: false };
+    let finish = ConcludeOptions {
+        recipe: None,
+        verify: None,
+        acquire: options,
+        stop,
+        crash_when_staged: false,
+        units: args.units.units(),
+    };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done

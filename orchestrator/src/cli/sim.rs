@@ -8,6 +8,7 @@
 //! served (`{"stopped": true, "faults": {"replies", "injected", "by_kind",
 //! ...}}`) and exit 0.
 
+use super::args::whole;
 use super::support::emit;
 use crate::config::SurveyConfig;
 use crate::error::bad_input;
@@ -21,20 +22,20 @@ use survey_sims::faults::FaultRates;
 #[derive(Debug, Args)]
 pub struct SimArgs {
     /// The configuration file whose instruments to serve (on this machine: see the ready line's "config").
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub config: PathBuf,
     /// Simulated positioner: one of the paper's positioners.
     #[arg(long, value_name = "NAME", default_value = "fig8", value_parser = ["fig1", "fig4", "fig8"])]
     pub preset: String,
     /// Positioner model file (TOML), instead of the preset's model.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: Option<PathBuf>,
     /// Seed of every random draw.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true, value_parser = whole::<0, u64>)]
     pub seed: u64,
     /// Fraction of replies, moves and measurements that meet a fault (0 to
     /// 0.5): RATE/4 for each link kind, RATE for each device kind.
-    #[arg(long, value_name = "RATE", default_value_t = 0.0)]
+    #[arg(long, value_name = "RATE", default_value_t = 0.0, allow_negative_numbers = true)]
     pub faults: f64,
     /// Rates per kind over those of --faults: `kind=rate,...` with kinds
     /// timeout, garbled, disconnect, stall, device, move, beam, and
@@ -42,7 +43,7 @@ pub struct SimArgs {
     #[arg(long, value_name = "SPEC")]
     pub fault_rates: Option<String>,
     /// Run the instruments this many times faster than the hardware.
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    #[arg(long, value_name = "X", default_value_t = 1.0, allow_negative_numbers = true)]
     pub time_scale: f64,
 }
 
@@ -83,11 +84,11 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
         );
     }
     eprintln!(
-        "survey sim: serving {} ({}x real time, faults {:?}); stop with Ctrl-C or SIGTERM\n\
+        "survey sim: serving {} ({}x real time, faults injected: {}); stop with Ctrl-C or SIGTERM\n\
          survey sim: run against it: survey run --config {}",
         args.config.display(),
         opts.time_scale,
-        opts.faults,
+        crate::output::fault_rates(&opts.faults),
         config.display()
     );
     let why = stop.wait().await;

@@ -43,12 +43,12 @@ pub const DEFAULT_DB: &str = "survey.db";
 /// Where the table of survey `id` of the database `db` goes when
 /// `--table-out` is not given: `table-<id>.csv` in the survey's own folder,
 /// `survey-<id>/` in the current folder for the default database
-/// (`survey.db`), else `<db>.survey-<id>/` beside the database, so a survey's
-/// files stay together and surveys of different databases never overwrite
-/// each other's tables. [`process_survey`] makes the folder
-/// ([`ProcessOptions::make_folder`]).
+/// (`survey.db`) and for a lab store's URL, else `<db>.survey-<id>/` beside
+/// the database, so a survey's files stay together and surveys of different
+/// databases never overwrite each other's tables. [`process_survey`] makes
+/// the folder ([`ProcessOptions::make_folder`]).
 pub fn default_table_path(db: &Path, id: i64) -> PathBuf {
-    let folder = if db == Path::new(DEFAULT_DB) {
+    let folder = if db == Path::new(DEFAULT_DB) || crate::store::lab::url_of(db).is_some() {
         PathBuf::from(format!("survey-{id}"))
     } else {
         let mut s = db.as_os_str().to_os_string();
@@ -79,6 +79,9 @@ pub struct ProcessOptions {
     /// For tests: abort the process (like a power loss) once every file is
     /// written to its temporary name, before any is renamed into place.
     pub crash_when_staged: bool,
+    /// Check points measured between the targets to decide the lines in
+    /// doubt ([`crate::resolving`]; empty when there are none).
+    pub checks: Vec<Sample>,
 }
 
 /// Where the design came from.
@@ -117,9 +120,9 @@ impl ProcessOutcome {
         summary::json(self)
     }
 
-    /// The summary for people.
-    pub fn text(&self) -> String {
-        summary::text(self)
+    /// The summary for people, its errors in `units`.
+    pub fn text(&self, units: crate::output::Units) -> String {
+        summary::text(self, units)
     }
 }
 
@@ -164,8 +167,9 @@ pub fn compute(
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
                 eprintln!(
-                    "note: survey {id} has no stored model and no --design was given: lines are named without a design \
-                     (pass --design MODEL.toml to name gear and tooth harmonics)"
+                    "note: survey {id} has no stored model and no design was given: lines are named without a design \
+                     (`survey process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth \
+                     harmonics)"
                 );
                 (Design::default(), "none".to_string())
             }
@@ -187,12 +191,26 @@ pub fn compute(
         let base = recipe.as_ref().map(|(r, _, _)| r.export.clone()).unwrap_or_default();
         Some(opts.export.resolve(&base)?)
     };
-    let processed = match survey_processing::pipeline::process_with(samples, &design, replay, export.as_ref()) {
-        Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
-        other => other.with_context(|| format!("survey {id} cannot be processed"))?,
-    };
+    let processed =
+        match survey_processing::pipeline::process_with_checks(samples, &design, replay, export.as_ref(), &opts.checks)
+        {
+            Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
+            other => other.with_context(|| format!("survey {id} cannot be processed"))?,
+        };
+    let mut processed = processed;
+    // An autocollimator's faces fix the sampling: say what a second
+    // orientation of the polygon would resolve.
+    if crate::resolving::reference_of(survey) == Some(crate::acquire::ReferenceKind::Autocollimator)
+        && let Some(t) = crate::resolving::second_orientation(&processed.left)
+    {
+        processed.notes.push(t);
+    }
     for n in &processed.notes {
         eprintln!("note: {n}");
+    }
+    // How the table was made, not something to act on: under -v or RUST_LOG=info.
+    if let Some(dm) = &processed.built.direction_model {
+        tracing::info!("{}", dm.text());
     }
     let design = DesignSource {
         from: design_source,

@@ -29,7 +29,10 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod check_points;
+mod checks;
 mod drift;
+pub mod lab;
 mod lock;
 mod samples;
 mod scan;
@@ -39,6 +42,7 @@ mod surveys;
 mod tests;
 mod tx;
 
+pub use checks::CheckDecision;
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
 pub use scan::StoredPass;
 pub use sink::StoreSink;
@@ -50,7 +54,7 @@ use std::time::Duration;
 
 use anyhow::{Context, anyhow};
 use sqlx::migrate::{Migration, MigrationType, Migrator};
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous};
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use sqlx::{ConnectOptions as _, Row, SqlSafeStr, SqlitePool};
 
 #[cfg(doc)]
@@ -94,7 +98,9 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
-    (4, "processing", include_str!("../../../migrations/0004_processing.sql")),
+    (4, "check points", include_str!("../../../migrations/0004_check_points.sql")),
+    (5, "assets", include_str!("../../../migrations/0005_assets.sql")),
+    (6, "processing", include_str!("../../../migrations/0006_processing.sql")),
 ];
 
 fn migrator() -> Migrator {
@@ -129,13 +135,41 @@ pub fn is_not_found(err: &anyhow::Error) -> bool {
 /// take turns, waiting up to sqlx's acquire timeout of 30 s). Other processes
 /// can read the file at the same time (WAL); a second writer waits up to
 /// [`BUSY_TIMEOUT`] for the lock.
+///
+/// A station's store is an SQLite file; a laboratory's shared store is a
+/// PostgreSQL database ([`lab`]), opened only to read (`--db postgres://...`)
+/// or by `survey push`: every read works on either, with the same queries
+/// where the dialects agree ([`on_pool`]).
 #[derive(Debug, Clone)]
 pub struct Store {
-    pool: SqlitePool,
+    backend: Backend,
+    /// The file, or the lab store's URL without its password.
     path: PathBuf,
     /// Opened `immutable` (read-only media): the bulk reader must be too.
     immutable: bool,
 }
+
+/// The database behind a [`Store`].
+#[derive(Debug, Clone)]
+enum Backend {
+    /// A station's SQLite file.
+    Sqlite(SqlitePool),
+    /// The lab store.
+    Lab(sqlx::PgPool),
+}
+
+/// Run `$body` with `$pool` bound to the store's pool, SQLite or
+/// PostgreSQL: the same query text on both (`$1`-style parameters, which
+/// SQLite reads too), its rows mapped by the same code.
+macro_rules! on_pool {
+    ($store:expr, |$pool:ident| $body:expr) => {
+        match &$store.backend {
+            $crate::store::Backend::Sqlite($pool) => $body,
+            $crate::store::Backend::Lab($pool) => $body,
+        }
+    };
+}
+use on_pool;
 
 impl Store {
     /// Open the database at `path`, creating it if missing, and bring its schema
@@ -179,6 +213,9 @@ impl Store {
     /// written by a newer version of `survey` is refused with one message form
     /// naming the file ([`NotFound`]: bad input, exit status 2).
     pub async fn open_read_only(path: &Path) -> anyhow::Result<Store> {
+        if let Some(url) = lab::url_of(path) {
+            return lab::open(url, false).await;
+        }
         existing_file(path)?;
         // Another application's file is refused before a connection that
         // could make a WAL or shared-memory file beside it.
@@ -186,7 +223,7 @@ impl Store {
             return Err(foreign(path));
         }
         let (pool, immutable) = connect_read_only(path).await?;
-        let store = Store { pool, path: path.to_path_buf(), immutable };
+        let store = Store { backend: Backend::Sqlite(pool), path: path.to_path_buf(), immutable };
         if let Err(e) = store.check_schema().await {
             store.close().await;
             return Err(e);
@@ -198,7 +235,7 @@ impl Store {
     async fn check_schema(&self) -> anyhow::Result<()> {
         let path = self.path.display();
         let known = MIGRATIONS.last().map_or(0, |m| m.0);
-        match schema(&self.pool, &self.path).await? {
+        match schema(self.sqlite()?, &self.path).await? {
             Schema::Unset => Err(NotFound(format!(
                 "{path} is not a survey database (it is an SQLite file without the survey tables)"
             ))
@@ -262,6 +299,7 @@ impl Store {
     }
 
     async fn connect(path: &Path, create: bool, limits: StoreLimits) -> anyhow::Result<Store> {
+        lab::refuse_writes(path)?;
         // busy_timeout is applied when the connection is made, before the
         // pragmas (so the switch to WAL waits for a lock instead of failing).
         let options = SqliteConnectOptions::new()
@@ -281,8 +319,9 @@ impl Store {
         // Two processes opening a new database at the same moment race to
         // switch it to WAL (SQLite answers SQLITE_BUSY at once rather than
         // wait, to avoid a deadlock) and to apply migration 1 (the loser's
-        // transaction fails with "table surveys already exists" and leaves
-        // nothing behind). Either way the loser opens again, and then finds
+        // transaction fails with "table surveys already exists", or with
+        // "duplicate column name" for a later migration, and leaves nothing
+        // behind). Either way the loser opens again, and then finds
         // the database set up; a few tries, a short pause between them.
         const TRIES: u32 = 10;
         let mut tries = 0;
@@ -307,7 +346,13 @@ impl Store {
             }
             let e: sqlx::migrate::MigrateError = match migrate(&options).await {
                 Ok(()) => match single_connection_pool().connect_with(options.clone()).await {
-                    Ok(pool) => return Ok(Store { pool, path: path.to_path_buf(), immutable: false }),
+                    Ok(pool) => {
+                        return Ok(Store {
+                            backend: Backend::Sqlite(pool),
+                            path: path.to_path_buf(),
+                            immutable: false,
+                        });
+                    }
                     Err(e) => sqlx::migrate::MigrateError::Execute(e),
                 },
                 Err(e) => e,
@@ -316,7 +361,9 @@ impl Store {
                 sqlx::migrate::MigrateError::Execute(inner)
                 | sqlx::migrate::MigrateError::ExecuteMigration(inner, _) => {
                     inner.as_database_error().is_some_and(|d| {
-                        d.message().contains("already exists") || d.message().contains("_sqlx_migrations.version")
+                        d.message().contains("already exists")
+                            || d.message().contains("_sqlx_migrations.version")
+                            || d.message().contains("duplicate column name")
                     }) || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
                 }
                 _ => false,
@@ -342,13 +389,27 @@ impl Store {
 
     /// The SQLite journal mode in force (`"wal"`).
     pub async fn journal_mode(&self) -> anyhow::Result<String> {
-        let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(&self.pool).await?;
+        let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(self.sqlite()?).await?;
         Ok(mode)
     }
 
     /// Close the connection (this checkpoints the WAL into the database file).
     pub async fn close(self) {
-        self.pool.close().await;
+        on_pool!(self, |pool| pool.close().await)
+    }
+
+    /// The SQLite pool of a station's store: what every write and the
+    /// station-only reads use. The lab store is written only by `survey push`.
+    fn sqlite(&self) -> anyhow::Result<&SqlitePool> {
+        match &self.backend {
+            Backend::Sqlite(pool) => Ok(pool),
+            Backend::Lab(_) => Err(lab::written_by_push(&self.path)),
+        }
+    }
+
+    /// Whether this is the lab store (PostgreSQL).
+    pub fn is_lab(&self) -> bool {
+        matches!(self.backend, Backend::Lab(_))
     }
 
     fn no_survey(&self, id: i64) -> NotFound {
@@ -506,6 +567,7 @@ async fn connect_read_only(path: &Path) -> anyhow::Result<(SqlitePool, bool)> {
 
 /// The file at `path` exists and is a file ([`NotFound`] otherwise).
 fn existing_file(path: &Path) -> anyhow::Result<()> {
+    lab::refuse_writes(path)?;
     match std::fs::metadata(path) {
         Ok(m) => not_a_file(path, &m).map_or(Ok(()), |e| Err(e.into())),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(NotFound(format!(
@@ -551,7 +613,11 @@ fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
 }
 
 /// A nullable REAL column: NULL (how SQLite stores NaN) reads as NaN.
-fn real(row: &SqliteRow, col: &str) -> anyhow::Result<f64> {
+fn real<'r, R: Row>(row: &'r R, col: &str) -> anyhow::Result<f64>
+where
+    Option<f64>: sqlx::Decode<'r, R::Database> + sqlx::Type<R::Database>,
+    for<'c> &'c str: sqlx::ColumnIndex<R>,
+{
     let v: Option<f64> = row.try_get(col)?;
     Ok(v.unwrap_or(f64::NAN))
 }

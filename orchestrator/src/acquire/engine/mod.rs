@@ -52,6 +52,7 @@ impl Reference {
 #[derive(Debug, thiserror::Error)]
 pub enum EngineError {
     /// An instrument failed and retries did not help (or the request was bad).
+    /// Transparent: `{:#}` says the driver's error once, not twice.
     #[error(transparent)]
     Instrument(#[from] DriverError),
     /// The axis could not be located from the SMR positions.

@@ -8,7 +8,7 @@
 -- other kinds of table schema changes"), keeping every row and id. The store
 -- runs this migration on a connection with foreign keys off (step 1 of that
 -- procedure) and checks them afterwards (`PRAGMA foreign_key_check`); the
--- table has no index, trigger or view of its own to recreate.
+-- table's indexes (migration 5's) are recreated after it.
 
 CREATE TABLE surveys_new (
     id               INTEGER PRIMARY KEY,
@@ -31,15 +31,24 @@ CREATE TABLE surveys_new (
     axis_json        TEXT,
     started_at_s     REAL,
     ended_at_s       REAL,
-    planned_samples  INTEGER CHECK (planned_samples IS NULL OR planned_samples >= 0)
+    planned_samples  INTEGER CHECK (planned_samples IS NULL OR planned_samples >= 0),
+    -- migration 5: the asset, the uid, the calibration a check was compared with
+    uid              TEXT NOT NULL DEFAULT '',
+    asset            TEXT NOT NULL DEFAULT 'unassigned',
+    check_of         TEXT
 );
 
 INSERT INTO surveys_new (id, created_at, updated_at, status, source, points, runs, bidirectional, config_json,
-                         model_toml, instruments_json, axis_json, started_at_s, ended_at_s, planned_samples)
+                         model_toml, instruments_json, axis_json, started_at_s, ended_at_s, planned_samples,
+                         uid, asset, check_of)
 SELECT id, created_at, updated_at, status, source, points, runs, bidirectional, config_json,
-       model_toml, instruments_json, axis_json, started_at_s, ended_at_s, planned_samples
+       model_toml, instruments_json, axis_json, started_at_s, ended_at_s, planned_samples,
+       uid, asset, check_of
 FROM surveys;
 
 DROP TABLE surveys;
 
 ALTER TABLE surveys_new RENAME TO surveys;
+
+CREATE UNIQUE INDEX surveys_by_uid ON surveys (uid);
+CREATE INDEX surveys_by_asset ON surveys (asset, id);
