@@ -169,7 +169,7 @@ fn a_verification_that_contradicts_the_prediction_is_not_confirmed_and_exits_1()
     let (measured, native) = (v["corrected_peak_deg"].as_f64().unwrap(), v["native_peak_deg"].as_f64().unwrap());
     assert!(measured > native, "the table makes the axis worse between the targets: {v}");
     assert!(v["reason"].as_str().is_some_and(|r| r.contains("not better than the native")), "{v}");
-    assert!(bench.exists("table-1.csv"));
+    assert!(bench.exists("survey-1/table-1.csv"));
     let listed = bench.survey(&["list", "--json"]).success().json();
     assert_eq!(listed["surveys"].as_array().map(Vec::len), Some(2), "{listed}");
     bench.survey(&["report", "--survey", "1", "--recipe", "wrong.toml", "--out", "report"]).success();

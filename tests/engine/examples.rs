@@ -132,7 +132,10 @@ fn the_help_example_serves_a_real_bench_and_refuses_a_continuous_scan_under_a_ti
     let sim_out = sim.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("--scan continuous: emscon 127.0.0.1:") && err.contains("its clock runs 100"), "{err}");
+    assert!(
+        err.contains("--scan continuous: emscon 127.0.0.1:") && pace(&err).is_some_and(|x| (90.0..110.0).contains(&x)),
+        "{err}"
+    );
     assert!(err.contains("--scan step"), "{err}");
     assert!(took.as_secs() < 30, "refused after {took:?}");
     assert!(!db.exists(), "nothing stored");
@@ -198,7 +201,10 @@ fn a_continuous_survey_is_not_resumed_on_instruments_under_a_time_scale() {
     fast.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("--scan continuous: emscon 127.0.0.1:") && err.contains("its clock runs 100"), "{err}");
+    assert!(
+        err.contains("--scan continuous: emscon 127.0.0.1:") && pace(&err).is_some_and(|x| (90.0..110.0).contains(&x)),
+        "{err}"
+    );
     assert_eq!(status(), "interrupted");
 }
 
@@ -284,4 +290,9 @@ fn the_examples_page_is_read_block_by_block_to_the_byte() {
     assert_eq!(shown.len(), 2);
     assert_eq!(shown["a.toml"], "[survey]\n\npoints = 24\n");
     assert_eq!(shown["b.toml"], "# b\n");
+}
+
+/// How many times as fast as this computer the refusal says the tracker's clock runs.
+fn pace(err: &str) -> Option<f64> {
+    err.split("its clock runs ").nth(1)?.split(' ').next()?.parse().ok()
 }
