@@ -4,6 +4,15 @@
 //! survey's samples are read once, here, for all three: around the refitted
 //! axis of a tracker survey ([`crate::load`] with `Axis::Refitted`, as every
 //! command), which the output names (`"axis"`).
+//!
+//! The survey comes here `processing` (every sample stored) and is marked
+//! `complete` once its outputs (the table and the files beside it, after the
+//! check points that decide its doubts) are written. A processing that fails
+//! at run time (a full disk) or is stopped marks it `interrupted`, and `survey
+//! resume` finishes it; a kill, or check points that could not be measured,
+//! leave it `processing`, which `resume` finishes too. Data that cannot make
+//! a table (bad input: nothing more can be made of it) marks it complete,
+//! saying so.
 
 use crate::acquire::Engine;
 use crate::output::{Output, Units, human, iso_json, iso_text};
@@ -29,6 +38,9 @@ pub struct ConcludeOptions {
     pub acquire: AcquireOptions,
     /// A stop request (a signal) ends the conclusion between its phases.
     pub stop: Stop,
+    /// For tests: abort once the outputs are staged, before they are renamed
+    /// ([`ProcessOptions::crash_when_staged`]).
+    pub crash_when_staged: bool,
     /// The unit of the errors in the text (`--units`; the JSON stays in degrees).
     pub units: Units,
 }
@@ -127,7 +139,7 @@ pub async fn conclude(
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
 
     if let Err(why) = options.stop.check() {
-        return stopped(store, id, why, Output { doc, text }).await;
+        return stopped(store, id, why, Output { doc, text }, true).await;
     }
     if let Some(native) = record.resolves {
         // Check points finished by `survey resume`: folded into the survey
@@ -145,12 +157,14 @@ pub async fn conclude(
         recipe: options.recipe.clone(),
         design: None,
         table_out,
+        make_folder: true,
         uncertainty,
+        crash_when_staged: options.crash_when_staged,
         ..ProcessOptions::default()
     };
     let mut processed = match process_survey(record, &samples, processing.clone()) {
         Ok(p) => p,
-        Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+        Err(e) => return not_processed(store, id, e, Output { doc, text }).await,
     };
     // Lines left in doubt, and a tracker that can measure between the
     // targets: check points decide them, and the survey is processed again.
@@ -164,13 +178,15 @@ pub async fn conclude(
         let points = check_samples.len();
         processed = match process_survey(record, &samples, ProcessOptions { checks: check_samples, ..processing }) {
             Ok(p) => p,
-            Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
+            Err(e) => return not_processed(store, id, e, Output { doc, text }).await,
         };
         let o = crate::resolving::output(points, &processed);
         doc["resolving"] = o.doc;
         text += "\n";
         text += &o.text;
     }
+    store.set_status(id, SurveyStatus::Complete, None).await?;
+    doc["status"] = SurveyStatus::Complete.as_str().into();
     doc["process"] = processed.json();
     doc["process"]["axis"] = axis.as_str().into();
     text += "\n";
@@ -186,7 +202,8 @@ pub async fn conclude(
     }
     text += &processed.text(options.units);
     if let Err(why) = options.stop.check() {
-        return stopped(store, id, why, Output { doc, text }).await;
+        // The survey is complete: only the verification is not made.
+        return stopped(store, id, why, Output { doc, text }, false).await;
     }
     let mut result = Ok(());
     if let Some(verify_plan) = &options.verify {
@@ -259,14 +276,45 @@ async fn budget(
     }
 }
 
-/// A stop request arrived after the acquisition: the survey (all of its
-/// samples stored) is marked interrupted, so `survey resume` finishes it.
-async fn stopped(store: &Store, id: i64, why: Stopped, mut output: Output) -> anyhow::Result<Concluded> {
-    let now = store.last_sample_time(id).await?.unwrap_or(f64::NAN);
-    let message = format!("{why} while processing; every sample is stored, `survey resume` finishes it");
-    store.log_event(id, now, "warn", &message).await?;
-    store.set_status(id, SurveyStatus::Interrupted, None).await?;
-    output.doc["status"] = SurveyStatus::Interrupted.as_str().into();
-    eprintln!("survey {id} {message}");
+/// A stop request arrived after the acquisition. Before the outputs were
+/// written (`mark`), the survey (all of its samples stored) is marked
+/// interrupted, so `survey resume` finishes it.
+async fn stopped(store: &Store, id: i64, why: Stopped, mut output: Output, mark: bool) -> anyhow::Result<Concluded> {
+    if mark {
+        let now = store.last_sample_time(id).await?.unwrap_or(f64::NAN);
+        let message = format!("{why} while processing; every sample is stored, `survey resume` finishes it");
+        store.log_event(id, now, "warn", &message).await?;
+        store.set_status(id, SurveyStatus::Interrupted, None).await?;
+        output.doc["status"] = SurveyStatus::Interrupted.as_str().into();
+        eprintln!("survey {id} {message}");
+    }
     Ok(Concluded { output, result: Err(why.into()) })
+}
+
+/// The processing failed. At run time (a full disk), the survey is marked
+/// interrupted: `survey resume` writes its outputs. Data that cannot make a
+/// table (bad input) is as complete as it will ever be: it is marked complete.
+async fn not_processed(store: &Store, id: i64, e: anyhow::Error, mut output: Output) -> anyhow::Result<Concluded> {
+    let (status, message) = match crate::error::is_bad_input(&e) {
+        true => (SurveyStatus::Complete, "no table can be made of these samples"),
+        false => (
+            SurveyStatus::Interrupted,
+            "its outputs could not be written; every sample is stored, `survey resume` writes them",
+        ),
+    };
+    let now = store.last_sample_time(id).await.ok().flatten().unwrap_or(f64::NAN);
+    // On a full disk these writes may fail too: the survey then stays
+    // `processing`, which `resume` finishes all the same.
+    let marked = match store.log_event(id, now, "warn", &format!("{message}: {e:#}")).await {
+        Ok(()) => store.set_status(id, status, None).await,
+        Err(e) => Err(e),
+    };
+    match marked {
+        Ok(()) => output.doc["status"] = status.as_str().into(),
+        Err(e) => tracing::warn!(error = %format!("{e:#}"), "the survey's status could not be stored"),
+    }
+    if status == SurveyStatus::Interrupted {
+        eprintln!("survey {id}: {message}");
+    }
+    Ok(Concluded { output, result: Err(e) })
 }

@@ -138,7 +138,11 @@ fn completion(survey: &SurveyRecord, samples: &[Sample]) -> Option<Completion> {
     }
     let complete_runs = (1..=runs).filter(|&r| per_run_stored[r as usize] == per_run).collect();
     let all = survey.planned_samples.is_none_or(|p| p == samples.len() as u64);
-    Some(Completion { complete: survey.status == SurveyStatus::Complete && all, complete_runs, runs_planned: runs })
+    Some(Completion {
+        complete: matches!(survey.status, SurveyStatus::Complete | SurveyStatus::Processing) && all,
+        complete_runs,
+        runs_planned: runs,
+    })
 }
 
 /// `survey stats`: the ISO 230-2 figures of a survey. A survey still being

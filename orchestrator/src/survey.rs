@@ -235,7 +235,11 @@ pub enum SurveyStatus {
     Running,
     /// Acquisition stopped before the plan was complete; `survey resume` continues it.
     Interrupted,
-    /// Every planned sample is stored.
+    /// Every planned sample is stored; the outputs (the correction table and
+    /// the files beside it) are being written, or were not all written (a
+    /// kill, a full disk): `survey resume` writes them.
+    Processing,
+    /// Every planned sample is stored, and the outputs are written.
     Complete,
     /// Acquisition gave up on an error.
     Failed,
@@ -249,6 +253,7 @@ impl SurveyStatus {
         match self {
             SurveyStatus::Running => "running",
             SurveyStatus::Interrupted => "interrupted",
+            SurveyStatus::Processing => "processing",
             SurveyStatus::Complete => "complete",
             SurveyStatus::Failed => "failed",
             SurveyStatus::Imported => "imported",
@@ -260,6 +265,7 @@ impl SurveyStatus {
         Some(match s {
             "running" => SurveyStatus::Running,
             "interrupted" => SurveyStatus::Interrupted,
+            "processing" => SurveyStatus::Processing,
             "complete" => SurveyStatus::Complete,
             "failed" => SurveyStatus::Failed,
             "imported" => SurveyStatus::Imported,

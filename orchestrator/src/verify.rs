@@ -22,7 +22,7 @@ use crate::output::{Output, Units, iso_json, iso_text};
 use crate::process::ProcessOutcome;
 use crate::session::{AcquireOptions, acquire};
 use crate::store::Store;
-use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, VerificationOf};
+use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus, VerificationOf};
 use anyhow::Context as _;
 use survey_drivers::clock::with_timeout;
 use survey_processing::Sample;
@@ -157,6 +157,8 @@ pub async fn verify(
         progress.continue_with(plan.targets_deg.len() as u64 * plan.directions().len() as u64);
     }
     acquire(store, id, engine, plan, 0, options).await?;
+    // A verification writes no file: its figures are its outputs.
+    store.set_status(id, SurveyStatus::Complete, None).await?;
     let corrected = store.samples(id).await?;
     let predicted = processed.processed.prediction.corrected_peak_deg;
     let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;

@@ -55,7 +55,7 @@ impl DriftControl {
         if !(self.reference_deg.is_finite() && self.reference_deg.abs() <= 3600.0) {
             return Err(format!(
                 "drift_control.reference_deg = {} is not an angle within +/-3600 deg",
-                self.reference_deg
+                crate::num::Num(self.reference_deg)
             ));
         }
         Ok(())

@@ -19,6 +19,7 @@ pub mod iso230;
 pub mod lstsq;
 pub mod model;
 pub mod modelgap;
+pub mod num;
 pub mod pairing;
 pub mod pipeline;
 pub mod plan;

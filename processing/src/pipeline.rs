@@ -27,14 +27,14 @@ pub enum PipelineError {
     #[error("there are no samples to process")]
     NoSamples,
     /// The samples cannot be analysed (an incomplete error map, say).
-    #[error("the samples cannot be analysed: {0}")]
+    #[error("the samples cannot be analysed")]
     Analysis(#[from] AnalysisError),
     /// The recipe cannot be applied to these samples; the text names the
     /// recipe file and line when it was replayed from one.
     #[error("{0}")]
     Recipe(String),
     /// The accuracy cannot be predicted from these samples.
-    #[error("predicting the corrected accuracy: {0}")]
+    #[error("predicting the corrected accuracy")]
     Prediction(#[from] CorrectionError),
     /// The export choices given apart from a recipe file (on the command
     /// line) cannot be honoured; the key names the `[export]` choice.

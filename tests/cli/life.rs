@@ -291,7 +291,7 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
     );
     assert!(doc["reason"].as_str().unwrap().contains("the 20 cycles/rev line changed"), "{doc:#}");
     let table = doc["table_in_force"]["table"].as_str().unwrap().to_string();
-    assert_eq!((doc["table_in_force"]["survey_id"].as_i64(), table.as_str()), (Some(4), "table-4.csv"));
+    assert_eq!((doc["table_in_force"]["survey_id"].as_i64(), table.as_str()), (Some(4), "survey-4/table-4.csv"));
     assert!(bench.exists(&table));
     assert_eq!(doc["recalibration"]["status"], "complete");
     assert_eq!(doc["recalibration"]["samples"].as_u64(), Some(360 * 3 * 2), "the calibration's plan");
@@ -312,10 +312,13 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
     assert_eq!(surveys[1]["check"]["recalibrate"].as_bool(), Some(false));
     let decided = &surveys[2]["check"];
     assert_eq!((decided["recalibrate"].as_bool(), decided["recalibration_uid"].as_str()), (Some(true), Some(recal)));
-    assert_eq!((decided["table_holds"].as_bool(), decided["table_file"].as_str()), (Some(false), Some("table-4.csv")));
+    assert_eq!(
+        (decided["table_holds"].as_bool(), decided["table_file"].as_str()),
+        (Some(false), Some("survey-4/table-4.csv"))
+    );
     assert_eq!(surveys[4]["check"]["against_uid"].as_str(), Some(recal));
     let text = bench.survey(&["history", "--asset", "lab/ax1"]).success().stdout;
-    assert!(text.contains(&format!("recalibrated by {recal}, table table-4.csv in force")), "{text}");
+    assert!(text.contains(&format!("recalibrated by {recal}, table survey-4/table-4.csv in force")), "{text}");
 
     // Bad input stores nothing: a check of a survey plan that cannot be made,
     // and a first calibration that cannot be made creates no database.

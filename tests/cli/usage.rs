@@ -94,7 +94,12 @@ fn sim_and_show_print_what_a_person_reads_and_json_stays_json() {
             .expect("start survey sim");
         let (mut ready, mut serving) = (String::new(), String::new());
         BufReader::new(child.stdout.take().unwrap()).read_line(&mut ready).unwrap();
-        BufReader::new(child.stderr.take().unwrap()).read_line(&mut serving).unwrap();
+        // The lines before say where each instrument is served.
+        let mut stderr = BufReader::new(child.stderr.take().unwrap());
+        while !serving.contains("serving") {
+            serving.clear();
+            assert!(stderr.read_line(&mut serving).unwrap() > 0, "survey sim said nothing of serving");
+        }
         drop(super::drift::Sim(child));
         assert!(ready.contains("\"ready\":true"), "{ready}");
         assert!(serving.contains("100x real time") && serving.contains(shown), "{serving}");

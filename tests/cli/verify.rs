@@ -47,7 +47,7 @@ fn the_fig8_correction_measured_in_the_loop_beats_native_and_the_hysteresis_floo
     // table's own points) is borne out between them: the table's
     // interpolation adds nothing the noise does not hide.
     assert!((num("corrected_peak_deg") - num("predicted_corrected_peak_deg")).abs() < 0.002, "{v}");
-    assert!(bench.exists("table-1.csv") && bench.exists("table-1.recipe.toml"));
+    assert!(bench.exists("survey-1/table-1.csv") && bench.exists("survey-1/table-1.recipe.toml"));
     // The contract's verdict: within the prediction plus U and better than native.
     assert_eq!(v["verdict"], "confirmed", "{v}");
     assert!(v["reason"].as_str().is_some_and(|r| r.contains("within the prediction")), "{v}");
@@ -169,7 +169,7 @@ fn a_verification_that_contradicts_the_prediction_is_not_confirmed_and_exits_1()
     let (measured, native) = (v["corrected_peak_deg"].as_f64().unwrap(), v["native_peak_deg"].as_f64().unwrap());
     assert!(measured > native, "the table makes the axis worse between the targets: {v}");
     assert!(v["reason"].as_str().is_some_and(|r| r.contains("not better than the native")), "{v}");
-    assert!(bench.exists("table-1.csv"));
+    assert!(bench.exists("survey-1/table-1.csv"));
     let listed = bench.survey(&["list", "--json"]).success().json();
     assert_eq!(listed["surveys"].as_array().map(Vec::len), Some(2), "{listed}");
     bench.survey(&["report", "--survey", "1", "--recipe", "wrong.toml", "--out", "report"]).success();
@@ -240,13 +240,13 @@ fn run_replays_a_recipe_and_refuses_a_bad_one_before_measuring() {
         "--seed",
         "2",
         "--recipe",
-        "table-1.recipe.toml",
+        "survey-1/table-1.recipe.toml",
     ]);
     assert_eq!(again.code, 0, "{again}");
     let doc: Value = serde_json::from_str(&again.stdout).unwrap();
     assert_eq!(doc["process"]["survey_id"], 2, "{doc}");
     assert!(doc.get("resolving").is_none(), "the replayed recipe knows the answer: {doc}");
-    assert!(bench.exists("table-2.csv"));
+    assert!(bench.exists("survey-2/table-2.csv"));
     bench.write("bad.toml", "[table]\nrows = 1\n");
     let bad = bench.survey(&["--db", "other.db", "run", "--points", "120", "--runs", "2", "--recipe", "bad.toml"]);
     assert_eq!(bad.code, 2, "{bad}");

@@ -10,7 +10,7 @@ mod configured;
 pub mod instruments;
 mod simulated;
 
-pub use configured::{PlanOverrides, configured_engine, configured_plan};
+pub use configured::{PlanOverrides, configured_engine, configured_estimate, configured_plan};
 pub use simulated::{DEFAULT_RUNS, SimulatedRequest, default_polygon_faces, simulated_engine};
 
 use crate::acquire::Engine;

@@ -122,10 +122,10 @@ Examples:
     /// The paper's DSP processing: spectrum, lines, aliases, the correction table and its exports.
     #[command(after_help = "\
 Examples:
-  survey process --design positioner.toml          # name the lines from the design
-  survey process --recipe table-1.recipe.toml      # a recalibration, processed as the last one
+  survey process --design positioner.toml                # name the lines from the design
+  survey process --recipe survey-1/table-1.recipe.toml   # a recalibration, processed as the last one
   survey process --controller linuxcnc --table-start -720 --table-end 720
-  survey process --controller 840d --sinumerik-axis A1 --table-zero-at-reference
+  survey process --controller 840d --sinumerik-axis A1 --sinumerik-absolute
   survey process --controller fanuc --table-interval 5 --table-directions separate
   survey process --controller generic --table-sign correction --table-values incremental")]
     Process(process::ProcessArgs),

@@ -31,7 +31,9 @@ pub struct ProcessArgs {
     /// Replay this processing recipe (TOML) instead of deriving one from the survey.
     #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub recipe: Option<PathBuf>,
-    /// The correction table CSV [default: table-<ID>.csv]; the controller files
+    /// The correction table CSV [default: survey-<ID>/table-<ID>.csv, the
+    /// survey's folder; beside a database other than survey.db,
+    /// <DB>.survey-<ID>/table-<ID>.csv]; the controller files
     /// (<stem>.comp0, <stem>.comp1, <stem>.840d.ini, <stem>.fanuc.txt), the binary
     /// table (<stem>.bin) and the recipe used (<stem>.recipe.toml) go beside it.
     #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
@@ -80,7 +82,8 @@ pub struct TableArgs {
     /// The reference point, deg [default: 0, or the table point nearest 0].
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub table_reference: Option<f64>,
-    /// Zero the LinuxCNC, 840D and generic values at the reference point (Fanuc always is).
+    /// Zero the LinuxCNC and generic values at the reference point (840D values
+    /// are zero there unless --sinumerik-absolute; Fanuc values always are).
     #[arg(long)]
     pub table_zero_at_reference: bool,
     /// Generic table: error (readout - actual) or correction (actual - readout) [default: error].
@@ -92,6 +95,10 @@ pub struct TableArgs {
     /// Siemens 840D machine axis name [default: C1].
     #[arg(long, value_name = "NAME")]
     pub sinumerik_axis: Option<String>,
+    /// Siemens 840D: write absolute values instead of zero at the reference
+    /// point (the K3 manual asks for zero there, the default).
+    #[arg(long)]
+    pub sinumerik_absolute: bool,
     /// Fanuc detection unit, deg [default: 0.001].
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub fanuc_unit: Option<f64>,
@@ -171,6 +178,7 @@ impl From<TableArgs> for ExportOverrides {
             }),
             reference_deg: a.table_reference,
             zero_at_reference: a.table_zero_at_reference,
+            sinumerik_absolute: a.sinumerik_absolute,
             sign: a.table_sign.map(|s| match s {
                 SignArg::Error => Sign::Error,
                 SignArg::Correction => Sign::Correction,
@@ -193,6 +201,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     let loaded = load_read_only(db, args.survey, axis).await?;
     let survey = &loaded.survey;
     let uncertainty = loaded.uncertainty_inputs();
+    let make_folder = args.table_out.is_none();
     // Corrected for the drift when the survey asked for it.
     let to_process = loaded.analysed();
     let iso = survey_processing::iso230::iso230_2(&to_process).ok();
@@ -202,8 +211,10 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         design: args.design,
         recipe: args.recipe,
         table_out: Some(table_out),
+        make_folder,
         export: args.tables.into(),
         uncertainty,
+        crash_when_staged: false,
         checks: loaded.checks.clone(),
     };
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));

@@ -6,6 +6,7 @@ use crate::report::ReportOptions;
 use crate::report::certificate::CertificateFlags;
 use clap::Args;
 use std::path::{Path, PathBuf};
+use survey_processing::num::Num;
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -65,17 +66,20 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     if let Some(t) = args.temperature
         && !(t.is_finite() && (-50.0..=100.0).contains(&t))
     {
-        return Err(crate::error::bad_input(format!("--temperature {t}: outside -50 to 100 °C")));
+        return Err(crate::error::bad_input(format!("--temperature {}: outside -50 to 100 °C", Num(t))));
     }
     if let Some(u) = args.reference_uncertainty
         && !(u.is_finite() && u > 0.0 && u <= 1.0)
     {
-        return Err(crate::error::bad_input(format!("--reference-uncertainty {u}: must be above 0 and at most 1 deg")));
+        return Err(crate::error::bad_input(format!(
+            "--reference-uncertainty {}: must be above 0 and at most 1 deg",
+            Num(u)
+        )));
     }
     if let Some(t) = args.tolerance
         && !(t.is_finite() && t > 0.0 && t <= 360.0)
     {
-        return Err(crate::error::bad_input(format!("--tolerance {t}: must be above 0 and at most 360 deg")));
+        return Err(crate::error::bad_input(format!("--tolerance {}: must be above 0 and at most 360 deg", Num(t))));
     }
     for (flag, text) in [
         ("--certificate-number", &args.certificate_number),

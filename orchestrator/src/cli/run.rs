@@ -133,6 +133,11 @@ pub struct RunArgs {
     /// measured (N = all of them: while it processes).
     #[arg(long, value_name = "N", hide = true)]
     pub sim_signal_after: Option<u64>,
+    /// For tests: the process aborts (like a power loss) while it writes the
+    /// survey's outputs: every file written to its temporary name, none
+    /// renamed into place yet.
+    #[arg(long, hide = true)]
+    pub sim_crash_in_outputs: bool,
     /// For tests: limit the database to N pages (SQLite's max_page_count), so
     /// writes fail as on a full disk.
     #[arg(long, value_name = "N", hide = true)]
@@ -207,6 +212,9 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         true => Some(VerifyPlan::new(&bench.plan, bench.engine.reference_kind(), args.verify_points)?),
         false => None,
     };
+    if args.config.is_some() && bench.plan.continuous() {
+        scan_clock_keeps_pace(&mut bench.engine).await?;
+    }
     // From here on a signal stops the survey cleanly instead of killing the process.
     let stop = Stop::on_signals();
     bench.engine.set_stop(stop.clone());
@@ -247,8 +255,14 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         plan_progress: bench.plan_progress.clone(),
     };
     let acquired = acquire(&store, id, &mut bench.engine, &plan, 0, options.clone()).await;
-    let finish =
-        ConcludeOptions { recipe: args.recipe.clone(), verify, acquire: options, stop, units: args.units.units() };
+    let finish = ConcludeOptions {
+        recipe: args.recipe.clone(),
+        verify,
+        acquire: options,
+        stop,
+        crash_when_staged: args.sim_crash_in_outputs,
+        units: args.units.units(),
+    };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done
@@ -278,5 +292,22 @@ fn simulated_points(points: Option<u32>, reference: ReferenceArg) -> anyhow::Res
                 )
                 .into())
         }
+    }
+}
+
+/// A continuous scan on instruments: a tracker whose clock it cannot keep
+/// pace with (an instrument simulator under a time scale) is bad input,
+/// refused before anything is stored; a fault met while checking is left to
+/// the acquisition, which survives it.
+pub(super) async fn scan_clock_keeps_pace(engine: &mut crate::acquire::Engine) -> anyhow::Result<()> {
+    match engine.check_scan_clock().await {
+        Err(e) if e.kind == survey_drivers::ErrorKind::Usage => {
+            Err(crate::error::bad_input(format!("--scan continuous: {e}")))
+        }
+        Err(e) => {
+            tracing::warn!(%e, "the tracker's clock could not be checked before the scan");
+            Ok(())
+        }
+        Ok(()) => Ok(()),
     }
 }

@@ -176,6 +176,8 @@ async fn check_with(
         table_file: None,
     };
     store.record_check(&decision).await?;
+    // A check has no outputs of its own: its decision is what completes it.
+    store.set_status(id, crate::survey::SurveyStatus::Complete, None).await?;
     let mut check_doc = cmp.json(&a, &c);
     check_doc["survey_id"] = id.into();
     check_doc["uid"] = c.survey.uid.clone().into();
@@ -222,6 +224,7 @@ async fn full_survey(
         verify: None,
         acquire: options,
         stop: stop.clone(),
+        crash_when_staged: false,
         units: req.units,
     };
     let concluded = conclude(store, id, &mut b.engine, &acquired, db, finish).await?;

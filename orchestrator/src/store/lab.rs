@@ -40,6 +40,7 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (3, "instrument time", include_str!("../../../migrations/postgres/0003_instrument_time.sql")),
     (4, "check points", include_str!("../../../migrations/postgres/0004_check_points.sql")),
     (5, "assets", include_str!("../../../migrations/postgres/0005_assets.sql")),
+    (6, "processing", include_str!("../../../migrations/postgres/0006_processing.sql")),
 ];
 
 fn migrator() -> sqlx::migrate::Migrator {

@@ -555,6 +555,81 @@ fn many_openers_of_a_new_database_set_its_schema_up_once() {
     .expect("a runtime");
 }
 
+/// A database of schema 5 (before `processing`) with surveys, samples, raw
+/// readings and events: migration 6 rebuilds `surveys` to allow the new
+/// status, keeping every row as it was (ids, dates, every column), and every
+/// foreign key still holds and is still enforced.
+#[tokio::test]
+async fn the_processing_migration_rebuilds_surveys_keeping_every_row_and_foreign_key() {
+    use sqlx::migrate::{Migration, MigrationType, Migrator};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v5.db");
+    let options = SqliteConnectOptions::new().filename(&path).create_if_missing(true).foreign_keys(true);
+    let pool = single_connection_pool().connect_with(options).await.unwrap();
+    let first_five = MIGRATIONS[..5]
+        .iter()
+        .map(|&(v, d, sql)| Migration::new(v, Cow::Borrowed(d), MigrationType::Simple, sql.into_sql_str(), false))
+        .collect();
+    Migrator::with_migrations(first_five).run(&pool).await.unwrap();
+    sqlx::query(
+        "INSERT INTO surveys (id, created_at, updated_at, status, source, points, runs, config_json, ended_at_s, uid, \
+         asset, check_of) VALUES \
+         (3, '2026-01-02T03:04:05Z', '2026-01-02T05:00:00Z', 'complete', 'simulated', 36, 2, '{}', 12.5, \
+          '0b6c1a52-0000-4000-8000-000000000003', 'bay-2/az', NULL), \
+         (7, '2026-02-03T04:05:06Z', '2026-02-03T04:05:06Z', 'interrupted', 'import:a.csv', NULL, NULL, '{}', NULL, \
+          '0b6c1a52-0000-4000-8000-000000000007', 'bay-2/az', '0b6c1a52-0000-4000-8000-000000000003'); \
+         INSERT INTO samples (survey_id, seq, run, direction, target_deg, readout_deg, actual_deg) VALUES \
+         (3, 0, 1, 'forward', 0.0, 0.001, -0.0), (7, 0, 1, 'reverse', 10.0, 10.5, 10.25); \
+         INSERT INTO raw_readings (survey_id, seq, kind, ac_face, ac_x_arcsec) VALUES (3, 0, 'autocollimator', 1, 0.5); \
+         INSERT INTO events (survey_id, level, message) VALUES (3, 'info', 'kept'), (7, 'warn', 'also kept');",
+    )
+    .execute(&pool)
+    .await
+    .unwrap();
+    pool.close().await;
+    // Every row of every table, each value with its SQLite type.
+    let dump = |path: &std::path::Path| {
+        let c = rusqlite::Connection::open(path).unwrap();
+        let mut all = Vec::new();
+        for table in ["surveys", "samples", "raw_readings", "events"] {
+            let mut stmt = c.prepare(&format!("SELECT * FROM {table} ORDER BY 1, 2")).unwrap();
+            let n = stmt.column_count();
+            let rows = stmt
+                .query_map([], |r| Ok((0..n).map(|i| format!("{:?}", r.get_ref(i).unwrap())).collect::<Vec<_>>()))
+                .unwrap();
+            all.extend(rows.map(|r| format!("{table}: {}", r.unwrap().join(", "))));
+        }
+        all
+    };
+    let before = dump(&path);
+    assert_eq!(before.len(), 7);
+
+    let store = Store::open(&path).await.unwrap();
+    store.close().await;
+    assert_eq!(dump(&path), before, "every row kept as it was");
+    let store = Store::open(&path).await.unwrap();
+    let version: i64 = sqlx::query_scalar("SELECT MAX(version) FROM _sqlx_migrations")
+        .fetch_one(store.sqlite().unwrap())
+        .await
+        .unwrap();
+    assert_eq!(version, MIGRATIONS.last().unwrap().0);
+    // Migration 5's indexes are there again.
+    let indexes: Vec<String> = sqlx::query_scalar(
+        "SELECT name FROM sqlite_master WHERE type = 'index' AND tbl_name = 'surveys' ORDER BY name",
+    )
+    .fetch_all(store.sqlite().unwrap())
+    .await
+    .unwrap();
+    assert_eq!(indexes, ["surveys_by_asset", "surveys_by_uid"]);
+    let check: Vec<sqlx::sqlite::SqliteRow> =
+        sqlx::query("PRAGMA foreign_key_check").fetch_all(store.sqlite().unwrap()).await.unwrap();
+    assert!(check.is_empty(), "every sample, reading and event still has its survey");
+    // The new status is allowed; foreign keys are enforced again.
+    store.set_status(3, SurveyStatus::Processing, None).await.unwrap();
+    assert_eq!(store.survey(3).await.unwrap().status, SurveyStatus::Processing);
+    assert!(store.append(99, &[recorded(0)]).await.is_err(), "a sample of no survey is refused");
+}
+
 /// Check points (issue 20): acquired as a `resolving` survey, which "the
 /// latest survey" skips (resume finds it), then folded into the survey they
 /// resolve in one transaction, that survey removed with everything of it, so

@@ -56,7 +56,7 @@ pub enum EngineError {
     #[error(transparent)]
     Instrument(#[from] DriverError),
     /// The axis could not be located from the SMR positions.
-    #[error("locating the axis failed: {0}")]
+    #[error("locating the axis failed")]
     Geometry(#[from] GeometryError),
     /// The sample store failed.
     #[error("recording failed: {0:#}")]
