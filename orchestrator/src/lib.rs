@@ -2,8 +2,9 @@
 //! instrument drivers, the SQLite store it writes to, and the `survey` CLI.
 //!
 //! Layers, from the roof down (a module only uses those below it):
-//! `cli` (the command line) -> `conclude`, `verify`, `session`, `process`,
-//! `report` (what the commands do) -> `bench` (the simulated or configured
+//! `cli` (the command line) -> `serve` (the lab's pages over HTTP),
+//! `conclude`, `verify`, `session`, `process`, `report`, `life`, `documents`
+//! (what the commands do) -> `bench` (the simulated or configured
 //! instruments, set up) -> `store` (SQLite) and `survey` (typed survey
 //! records) -> `config`, `csvio`, `output`, `error` -> `acquire` (the
 //! acquisition core, used through its one door: the engine, its settings,
@@ -18,6 +19,7 @@ pub mod cli;
 pub mod conclude;
 pub mod config;
 pub mod csvio;
+pub mod documents;
 pub mod drift;
 pub mod error;
 pub mod inputs;
@@ -30,6 +32,7 @@ pub mod refit;
 pub mod report;
 pub mod resolving;
 pub mod runtime;
+pub mod serve;
 pub mod session;
 pub mod sim;
 pub mod stop;

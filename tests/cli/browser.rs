@@ -341,3 +341,171 @@ fn report_pdf_prints_the_certificate_with_page_x_of_y_on_every_page() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------
+// `survey serve`'s pages, live
+// ---------------------------------------------------------------------------
+
+/// The DOM of `url` after `budget_ms` of the page's (virtual) time, and the
+/// browser's console lines: on a served page every console message is an
+/// error (the pages log nothing; a refused fetch, a failed load or an
+/// uncaught error are logged as `CONSOLE` lines).
+fn open_live(browser: &Path, url: &str, budget_ms: u64) -> (String, Vec<String>) {
+    let profile = tempfile::tempdir().expect("a browser profile");
+    let args = vec![
+        "--dump-dom".to_string(),
+        format!("--virtual-time-budget={budget_ms}"),
+        "--enable-logging=stderr".into(),
+        "--v=0".into(),
+    ];
+    let (dom, log) = run(browser, profile.path(), &args, url);
+    (dom, log.lines().filter(|l| l.contains("CONSOLE")).map(str::to_string).collect())
+}
+
+/// The value of `attr` on the element of `id` in `dom`.
+fn attribute(dom: &str, id: &str, attr: &str) -> Option<String> {
+    let at = dom.find(&format!("id=\"{id}\""))?;
+    let start = dom[..at].rfind('<')?;
+    let end = at + dom[at..].find('>')?;
+    let tag = &dom[start..end];
+    Some(tag.split(&format!("{attr}=\"")).nth(1)?.split('"').next()?.to_string())
+}
+
+#[test]
+fn the_lab_pages_open_in_chromium_with_their_elements_and_no_error() {
+    let browser = match chromium() {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let bench = Bench::new();
+    bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--json"]).success();
+    bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--seed", "2", "--json"]).success();
+    let uid = bench.survey(&["list", "--json"]).success().json()["surveys"][1]["uid"].as_str().unwrap().to_string();
+    let server = super::serve::Server::on(&bench, "survey.db", &["--refresh", "0.5"]);
+
+    let (dom, console) = open_live(&browser, &format!("{}/", server.url), 3000);
+    assert!(console.is_empty(), "/ logged: {console:#?}");
+    for id in ["live", "live-list", "live-none", "live-status", "assets", "tbl-assets"] {
+        assert!(dom.contains(&format!("id=\"{id}\"")), "/ in the browser lacks {id}");
+    }
+    assert!(dom.contains("<a href=\"/assets/sim-fig8\">sim-fig8</a>"));
+    let refreshes: u64 = dom
+        .split("data-refreshes=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("the script refreshed nothing:\n{dom}"));
+    assert!(refreshes >= 2, "{refreshes} refreshes in 3 s at 0.5 s");
+
+    let (dom, console) = open_live(&browser, &format!("{}/assets/sim-fig8", server.url), 1000);
+    assert!(console.is_empty(), "the asset's page logged: {console:#?}");
+    for id in ["history", "fig-history-lines", "fig-history-a", "tbl-history"] {
+        assert!(dom.contains(&format!("id=\"{id}\"")), "the asset's page lacks {id}");
+    }
+    assert!(dom.contains(&format!("href=\"/surveys/{uid}\"")));
+
+    let (dom, console) = open_live(&browser, &format!("{}/surveys/{uid}", server.url), 1000);
+    assert!(console.is_empty(), "the survey's page logged: {console:#?}");
+    for id in ALWAYS {
+        assert!(dom.contains(&format!("id=\"{id}\"")), "the survey's page lacks {id}");
+    }
+
+    // The check sees an error: a page whose inline script the policy refuses.
+    let work = tempfile::tempdir().unwrap();
+    let broken = work.path().join("broken.html");
+    std::fs::write(
+        &broken,
+        "<!doctype html><html><head><meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'\">\
+         </head><body><script>console.log('x')</script><img src=\"/missing.png\"></body></html>",
+    )
+    .unwrap();
+    let (_, console) = open_live(&browser, &format!("file://{}", broken.display()), 500);
+    assert!(!console.is_empty(), "a refused script is logged");
+}
+
+#[test]
+fn a_survey_being_acquired_moves_on_the_open_page_without_a_reload() {
+    use survey_orchestrator::acquire::{RawReading, RecordedSample};
+    use survey_orchestrator::store::Store;
+    use survey_orchestrator::survey::NewSurvey;
+    use survey_processing::{Direction, Sample};
+
+    let browser = match chromium() {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let bench = Bench::new();
+    let db = bench.path("survey.db");
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    // A station acquiring: a survey of 10 targets both ways, 2 runs, written in steps.
+    let sample = |seq: u64| {
+        let (run, k) = (1 + (seq / 20) as u32, seq % 20);
+        let (direction, target) =
+            if k < 10 { (Direction::Forward, k as f64 * 36.0) } else { (Direction::Reverse, (19 - k) as f64 * 36.0) };
+        RecordedSample {
+            seq,
+            sample: Sample {
+                run,
+                direction,
+                target_deg: target,
+                readout_deg: target,
+                actual_deg: target + 1e-3,
+                timestamp_s: Some(seq as f64 * 2.0),
+            },
+            raw: RawReading::None,
+        }
+    };
+    let (store, id) = rt.block_on(async {
+        let store = Store::open(&db).await.unwrap();
+        let new = NewSurvey {
+            points: Some(10),
+            runs: Some(2),
+            bidirectional: true,
+            planned_samples: Some(40),
+            asset: "rig-9".into(),
+            ..NewSurvey::default()
+        };
+        let id = store.create_survey(&new).await.unwrap();
+        store.set_started(id, 0.0).await.unwrap();
+        store.append(id, &(0..5).map(sample).collect::<Vec<_>>()).await.unwrap();
+        (store, id)
+    });
+    let mut cmd = bench.command(&["serve", "--listen", "127.0.0.1:0", "--refresh", "0.1"]);
+    cmd.env("RUST_LOG", "warn,survey_orchestrator::serve=info");
+    let server = super::serve::Server::start(cmd);
+    let uid = super::serve::get(&server.url, "/api/live").json()["surveys"][0]["uid"].as_str().unwrap().to_string();
+
+    // The browser opens `/` and keeps it open for 60 s of its time (every
+    // fetch pauses that clock: 600 refreshes at least).
+    let url = format!("{}/", server.url);
+    let b = browser.clone();
+    let opened = std::thread::spawn(move || open_live(&b, &url, 60_000));
+    // Once `/` is served, the station stores 20 more samples; then wait for
+    // the page to read /api/live after them.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let wait_for = |what: &str| loop {
+        let line = server.log.recv_timeout(deadline.saturating_duration_since(Instant::now())).unwrap_or_else(|_| {
+            panic!("no request for {what} within the deadline");
+        });
+        if line.contains("served") && line.contains(&format!("path={what} ")) {
+            return;
+        }
+    };
+    wait_for("/");
+    rt.block_on(store.append(id, &(5..25).map(sample).collect::<Vec<_>>())).unwrap();
+    wait_for("/api/live");
+    let (dom, console) = opened.join().unwrap();
+    assert!(console.is_empty(), "/ logged: {console:#?}");
+    let shown = attribute(&dom, &format!("live-{uid}"), "data-samples");
+    assert_eq!(shown.as_deref(), Some("25"), "the page shows the samples stored after it loaded");
+    assert!(dom.contains("25 of 40 samples"), "{dom}");
+    let served_pages = server.log.try_iter().filter(|l| l.contains("path=/ ")).count();
+    assert_eq!(served_pages, 0, "the page was not loaded again");
+    rt.block_on(store.close());
+}

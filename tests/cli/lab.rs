@@ -13,10 +13,10 @@ use std::process::{Command, Stdio};
 use std::sync::OnceLock;
 
 /// The password of the cluster's user `survey`.
-const PASSWORD: &str = "lab-s3cret-pw";
+pub(super) const PASSWORD: &str = "lab-s3cret-pw";
 
 /// A PostgreSQL cluster of this test process.
-struct Server {
+pub(super) struct Server {
     bin: PathBuf,
     port: u16,
 }
@@ -25,7 +25,7 @@ static SERVER: OnceLock<Result<Server, String>> = OnceLock::new();
 
 /// The cluster, started on first use; `None` (with the reason printed) where
 /// PostgreSQL is not installed.
-fn server() -> Option<&'static Server> {
+pub(super) fn server() -> Option<&'static Server> {
     match SERVER.get_or_init(start) {
         Ok(s) => Some(s),
         Err(why) => {
@@ -133,7 +133,7 @@ impl Server {
     }
 
     /// A new, empty database for one test; its URL.
-    fn database(&self, name: &str) -> String {
+    pub(super) fn database(&self, name: &str) -> String {
         self.psql("postgres", &format!("CREATE DATABASE {name}"));
         self.url(name)
     }
@@ -271,7 +271,7 @@ fn uids(doc: &Value, key: &str) -> Vec<String> {
 }
 
 /// `n` small simulated surveys in the bench's database (seeds from `seed`).
-fn small_surveys(bench: &Bench, n: u32, seed: u32) {
+pub(super) fn small_surveys(bench: &Bench, n: u32, seed: u32) {
     for k in 0..n {
         let s = (seed + k).to_string();
         bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--seed", &s, "--json"]).success();

@@ -27,6 +27,7 @@ mod modelgap;
 mod process;
 mod report;
 mod runs;
+mod serve;
 mod tables;
 mod usage;
 mod verify;

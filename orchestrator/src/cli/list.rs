@@ -10,7 +10,8 @@ use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
 use crate::survey::{Setup, SurveyRecord};
 use clap::Args;
-use serde_json::{Value, json};
+use serde_json::Value;
+
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -33,24 +34,6 @@ pub struct ShowArgs {
     pub json: bool,
 }
 
-/// One survey as a line of `list`.
-fn summary(r: &SurveyRecord) -> Value {
-    json!({
-        "id": r.id,
-        "uid": r.uid,
-        "asset": r.asset,
-        "status": r.status.as_str(),
-        "source": r.source.to_column(),
-        "points": r.points,
-        "runs": r.runs,
-        "bidirectional": r.bidirectional,
-        "samples": r.sample_count,
-        "planned_samples": r.planned_samples,
-        "created_at": r.created_at,
-        "updated_at": r.updated_at,
-    })
-}
-
 /// "1800 x 5 runs, both ways" or "-" for a survey without a plan.
 fn plan_text(r: &SurveyRecord) -> String {
     match (r.points, r.runs) {
@@ -65,8 +48,7 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
     store.close().await;
     let surveys = surveys?;
     if args.json {
-        let doc =
-            json!({"db": crate::store::lab::display(db), "surveys": surveys.iter().map(summary).collect::<Vec<_>>()});
+        let doc = crate::documents::list_json(&crate::store::lab::display(db), &surveys);
         emit(&format!("{doc}\n"));
         return Ok(());
     }
@@ -115,49 +97,14 @@ fn instruments_text(s: &mut String, instruments: &Value) {
 
 pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
-    let shown = async {
-        let r = store.resolve(args.survey).await?;
-        let events = store.events(r.id).await?;
-        let drift = store.drift_points(r.id).await?;
-        let checks = store.check_points(r.id).await?;
-        anyhow::Ok((r, events, drift, checks))
-    }
-    .await;
+    let shown = crate::documents::shown(&store, args.survey).await;
     store.close().await;
-    let (r, events, drift, checks) = shown?;
+    let shown = shown?;
+    let (r, events, drift, checks) = (&shown.survey, &shown.events, &shown.drift, &shown.checks);
+    let at = shown.check_angles();
     let plan = r.setup.plan();
-    let mut doc = summary(&r);
-    doc["plan"] = json!(plan.map(|p| json!({
-        "targets_deg": [p.targets_deg.first(), p.targets_deg.last()],
-        "targets": p.targets_deg.len(),
-        "runs": p.runs,
-        "bidirectional": p.bidirectional,
-        "overrun_deg": p.overrun_deg,
-    })));
-    doc["instruments"] = r.instruments.clone();
-    doc["started_at_s"] = json!(r.started_at_s);
-    doc["ended_at_s"] = json!(r.ended_at_s);
-    doc["axis"] = json!(r.axis.as_ref().map(|a| json!({
-        "center_mm": a.center_mm,
-        "normal": a.normal,
-        "radius_mm": a.radius_mm,
-        "plane_rms_mm": a.plane_rms_mm,
-    })));
-    doc["model"] = json!(r.model.as_ref().map(|m| m.to_toml()));
-    doc["verifies_survey"] = json!(r.verification.as_ref().map(|v| v.verifies_survey));
-    doc["check_of"] = json!(r.check_of);
-    doc["events"] = json!(
-        events.iter().map(|e| json!({"at_s": e.at_s, "level": e.level, "message": e.message})).collect::<Vec<_>>()
-    );
-    doc["drift"] = crate::drift::json(&r, &drift);
-    // Check points measured between the targets (issue 20): their angles, as many times as measured.
-    let mut at: Vec<f64> = checks.iter().map(|c| c.target_deg).collect();
-    at.sort_by(f64::total_cmp);
-    at.dedup();
-    doc["check_points"] = json!({"samples": checks.len(), "targets_deg": at});
-    doc["resolves_survey"] = json!(r.resolves);
     if args.json {
-        emit(&format!("{doc}\n"));
+        emit(&format!("{}\n", shown.json()));
         return Ok(());
     }
     let mut s = format!("survey {} ({})\n", r.id, r.status.as_str());
@@ -226,12 +173,12 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
         );
     }
     let units = args.units.units();
-    for line in survey_processing::drift::text(&drift, units).lines() {
+    for line in survey_processing::drift::text(drift, units).lines() {
         let _ = writeln!(s, "  {line}");
     }
     if !events.is_empty() {
         let _ = writeln!(s, "  events");
-        for e in &events {
+        for e in events {
             let _ = writeln!(s, "    {:>10.1} s  {:<5}  {}", e.at_s, e.level, units.text(&e.message));
         }
     }

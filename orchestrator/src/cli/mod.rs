@@ -19,6 +19,7 @@ mod push;
 mod report;
 mod resume;
 mod run;
+mod serve;
 mod sim;
 mod stats;
 mod support;
@@ -158,6 +159,13 @@ Examples:
   survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
   survey push --json        # the latest survey, to the lab store SURVEY_LAB names")]
     Push(push::PushArgs),
+    /// Serve the lab's pages, read-only: assets, live surveys, histories, reports and the JSON documents.
+    #[command(after_help = "\
+Examples:
+  survey serve                                          # survey.db on http://127.0.0.1:8080
+  survey --db lab.db serve --listen 127.0.0.1:0         # any free port: the ready line says which
+  SURVEY_DB=postgres://viewer:PASSWORD@lab-db/surveys survey serve --due-after 180")]
+    Serve(serve::ServeArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
 Examples:
@@ -245,6 +253,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::History(args) => history::history(db, args).await,
         Command::Compare(args) => compare::compare(db, args).await,
         Command::Push(args) => push::push(db, args).await,
+        Command::Serve(args) => serve::serve(db, args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),

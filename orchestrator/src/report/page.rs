@@ -82,11 +82,20 @@ pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
+/// The report's Content-Security-Policy: nothing is fetched, no script runs.
+pub const POLICY: &str = "default-src 'none'; style-src 'unsafe-inline'";
+
 /// The whole page: `title`, the margins of every printed page, then `body` (already HTML).
 pub fn document(title: &str, running: &Running, body: &str) -> String {
+    document_under(POLICY, title, running, body)
+}
+
+/// [`document`] under another Content-Security-Policy (`survey serve`'s
+/// pages, which fetch their own JSON).
+pub fn document_under(policy: &str, title: &str, running: &Running, body: &str) -> String {
     format!(
         "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n\
-         <meta http-equiv=\"Content-Security-Policy\" content=\"default-src 'none'; style-src 'unsafe-inline'\">\n\
+         <meta http-equiv=\"Content-Security-Policy\" content=\"{policy}\">\n\
          <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
          <title>{}</title>\n<style>{STYLE}\n{}</style></head><body>\n{body}</body></html>\n",
         escape(title),

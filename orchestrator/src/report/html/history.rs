@@ -34,6 +34,13 @@ pub fn section(h: &History, this: i64, units: Units) -> anyhow::Result<Option<St
     if h.surveys.len() < 2 {
         return Ok(None);
     }
+    figures(h, Some(this), units, false).map(Some)
+}
+
+/// The history's figures (the main lines, A and R over time) and its table,
+/// survey `this` marked; with `links`, each survey links to its page
+/// (`/surveys/<uid>`, `survey serve`'s).
+pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> anyhow::Result<String> {
     let t = days(h);
     // The lines: the largest few of the surveys' main lines, each followed over time.
     let mut cycles: Vec<f64> = Vec::new();
@@ -84,33 +91,47 @@ pub fn section(h: &History, this: i64, units: Units) -> anyhow::Result<Option<St
             escape(units.symbol())
         ),
     );
-    let a: Vec<(f64, f64)> =
-        h.surveys.iter().zip(&t).filter_map(|(m, &d)| m.iso.as_ref().map(|i| (d, units.of(i.a)))).collect();
-    let (lo, hi) = extent(a.iter().map(|p| p.1));
+    let iso = |f: fn(&survey_processing::iso230::Iso230) -> f64| -> Vec<(f64, f64)> {
+        h.surveys.iter().zip(&t).filter_map(|(m, &d)| m.iso.as_ref().map(|i| (d, units.of(f(i))))).collect()
+    };
+    let (a, r) = (iso(|i| i.a), iso(|i| i.r));
+    let (lo, hi) = extent(a.iter().chain(&r).map(|p| p.1));
     let a_svg = render((WIDTH, HEIGHT * 3 / 4), |root| {
-        let mut chart =
-            axes(root, padded(t0, t1, 0.03), padded(lo.min(0.0), hi, 0.08), x_desc, &format!("A, {}", units.symbol()))?;
-        chart.draw_series(LineSeries::new(a.clone(), SKY.stroke_width(2))).map_err(plot::plot_err)?;
-        chart.draw_series(a.iter().map(|&p| Circle::new(p, 4, SKY.filled()))).map_err(plot::plot_err)?;
+        let mut chart = axes(
+            root,
+            padded(t0, t1, 0.03),
+            padded(lo.min(0.0), hi, 0.08),
+            x_desc,
+            &format!("A and R, {}", units.symbol()),
+        )?;
+        for (points, colour) in [(&a, SKY), (&r, ORANGE)] {
+            chart.draw_series(LineSeries::new(points.clone(), colour.stroke_width(2))).map_err(plot::plot_err)?;
+            chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(plot::plot_err)?;
+        }
         Ok(())
     })?;
     html += &figure(
         "fig-history-a",
         &a_svg,
-        &legend(&[(hex(SKY), Key::Line, "ISO 230-2 accuracy A".into())]),
-        &format!("ISO 230-2 accuracy A of each survey of the asset ({}).", escape(units.symbol())),
+        &legend(&[
+            (hex(SKY), Key::Line, "ISO 230-2 accuracy A".into()),
+            (hex(ORANGE), Key::Line, "ISO 230-2 repeatability R".into()),
+        ]),
+        &format!("ISO 230-2 accuracy A and repeatability R of each survey of the asset ({}).", escape(units.symbol())),
     );
     let rows: Vec<Vec<String>> = h
         .surveys
         .iter()
         .map(|m| {
             let s = &m.survey;
-            let mark = if s.id == this { " (this survey)" } else { "" };
+            let mark = if Some(s.id) == this { " (this survey)" } else { "" };
+            let id =
+                if links { format!("<a href=\"/surveys/{}\">{}</a>", escape(&s.uid), s.id) } else { s.id.to_string() };
             let decided = h.checks.iter().find(|c| c.survey_id == s.id).map_or(String::new(), |c| {
                 format!("{}{}", c.verdict, if c.recalibrate { ", recalibrate" } else { ", in tolerance" })
             });
             vec![
-                format!("{}{mark}", s.id),
+                format!("{id}{mark}"),
                 escape(&s.created_at),
                 m.kind().to_string(),
                 units.opt(m.iso.as_ref().map(|i| i.a)),
@@ -132,7 +153,7 @@ pub fn section(h: &History, this: i64, units: Units) -> anyhow::Result<Option<St
             );
         }
     }
-    Ok(Some(html))
+    Ok(html)
 }
 
 /// The section, when the survey's asset has a history.

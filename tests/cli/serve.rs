@@ -1,0 +1,419 @@
+//! `survey serve` over HTTP, without a browser: every path and status, the
+//! JSON documents equal to the commands' `--json`, the report equal to the
+//! one `survey report` writes, the policy on every response, and a survey
+//! acquired in another process into the same SQLite file seen moving on
+//! `/api/live` and `/`.
+
+use super::Bench;
+use serde_json::Value;
+use std::io::{BufRead as _, BufReader, Read as _, Write as _};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+/// A running `survey serve`, ended by SIGTERM when dropped.
+pub struct Server {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub url: String,
+    /// Its stderr, line by line.
+    pub log: mpsc::Receiver<String>,
+}
+
+impl Server {
+    /// Start `cmd` (a `survey ... serve` command) and wait for its ready line.
+    pub fn start(mut cmd: Command) -> Server {
+        let mut child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).stdin(Stdio::null()).spawn().unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let ready: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("the ready line {line:?}: {e}"));
+        let url = ready["listening"].as_str().expect("{\"listening\": URL}").to_string();
+        let (tx, log) = mpsc::channel();
+        let stderr = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for l in BufReader::new(stderr).lines().map_while(Result::ok) {
+                if tx.send(l).is_err() {
+                    break;
+                }
+            }
+        });
+        Server { child, url, log }
+    }
+
+    /// `survey --db DB serve --listen 127.0.0.1:0` in `bench`'s folder.
+    pub fn on(bench: &Bench, db: &str, extra: &[&str]) -> Server {
+        let mut args = vec!["--db", db, "serve", "--listen", "127.0.0.1:0"];
+        args.extend(extra);
+        Server::start(bench.command(&args))
+    }
+
+    /// SIGTERM, and the exit status.
+    pub fn stop(mut self) -> Option<i32> {
+        let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
+        nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status.code();
+            }
+            assert!(Instant::now() < deadline, "survey serve did not stop on SIGTERM");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// An HTTP response.
+#[derive(Debug)]
+pub struct Response {
+    pub status: u16,
+    pub headers: Vec<(String, String)>,
+    pub body: String,
+}
+
+impl Response {
+    pub fn header(&self, name: &str) -> Option<&str> {
+        self.headers.iter().find(|(k, _)| k.eq_ignore_ascii_case(name)).map(|(_, v)| v.as_str())
+    }
+
+    pub fn json(&self) -> Value {
+        serde_json::from_str(&self.body).unwrap_or_else(|e| panic!("JSON: {e}\n{}", self.body))
+    }
+}
+
+/// One HTTP/1.1 request to `url` (`http://host:port`) for `path`.
+pub fn request(url: &str, method: &str, path: &str) -> Response {
+    let host = url.trim_start_matches("http://");
+    let mut s = TcpStream::connect(host).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    write!(s, "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nContent-Length: 0\r\n\r\n").unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let text = String::from_utf8(raw).expect("UTF-8");
+    let (head, body) = text.split_once("\r\n\r\n").expect("a header and a body");
+    let mut lines = head.lines();
+    let status = lines.next().unwrap().split(' ').nth(1).unwrap().parse().unwrap();
+    let headers: Vec<(String, String)> = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_string()))
+        .collect();
+    assert!(
+        !headers.iter().any(|(k, v)| k == "transfer-encoding" && v.contains("chunked")),
+        "bodies are whole: {headers:?}"
+    );
+    Response { status, headers, body: body.to_string() }
+}
+
+/// GET `path`.
+pub fn get(url: &str, path: &str) -> Response {
+    request(url, "GET", path)
+}
+
+/// The report page without the moment it was made (`report made <RFC 3339>`).
+fn undated(html: &str) -> String {
+    let mut parts = html.split("report made ");
+    let mut out = parts.next().unwrap_or_default().to_string();
+    for p in parts {
+        assert!(
+            p.len() >= 20 && p.as_bytes()[19] == b'Z',
+            "a time stamp after 'report made': {}",
+            &p[..30.min(p.len())]
+        );
+        out += "report made (when)";
+        out += &p[20..];
+    }
+    out
+}
+
+#[test]
+fn every_path_answers_with_its_status_and_the_commands_documents() {
+    let bench = Bench::new();
+    bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--json"]).success();
+    bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--seed", "2", "--json"]).success();
+    let list = bench.survey(&["list", "--json"]).success().json();
+    let uid = list["surveys"][1]["uid"].as_str().unwrap().to_string();
+    let server = Server::on(&bench, "survey.db", &[]);
+    let url = server.url.clone();
+    assert!(url.starts_with("http://127.0.0.1:") && !url.ends_with(":0"), "the real port: {url}");
+
+    // The commands' documents, equal.
+    let same = |path: &str, args: &[&str]| {
+        let r = get(&url, path);
+        assert_eq!(r.status, 200, "{path}: {}", r.body);
+        assert_eq!(r.header("content-type"), Some("application/json"), "{path}");
+        assert_eq!(r.json(), bench.survey(args).success().json(), "{path} is `survey {}`", args.join(" "));
+    };
+    same("/api/surveys", &["list", "--json"]);
+    same("/api/surveys/2", &["show", "2", "--json"]);
+    same(&format!("/api/surveys/{uid}"), &["show", "2", "--json"]);
+    same("/api/surveys/1/stats", &["stats", "--survey", "1", "--json"]);
+    same(&format!("/api/surveys/{}/stats", uid.to_uppercase()), &["stats", "--survey", "2", "--json"]);
+    same("/api/history/sim-fig8", &["history", "--asset", "sim-fig8", "--json"]);
+    same("/api/compare/1/2", &["compare", "1", "2", "--json"]);
+
+    // `/`: the asset, its calibration in force (the last) and its state; nothing live.
+    let home = get(&url, "/");
+    assert_eq!(home.status, 200);
+    assert!(home.header("content-type").unwrap().starts_with("text/html"));
+    for part in [
+        "id=\"tbl-assets\"",
+        "<a href=\"/assets/sim-fig8\">sim-fig8</a>",
+        &format!("<a href=\"/surveys/{uid}\">survey 2</a>"),
+        "data-state=\"in tolerance\"",
+        "<p id=\"live-none\">",
+        "<script src=\"/static/live.js\"></script>",
+    ] {
+        assert!(home.body.contains(part), "/ lacks {part}:\n{}", home.body);
+    }
+    let assets = get(&url, "/api/assets").json();
+    assert_eq!(assets["assets"][0]["asset"], "sim-fig8");
+    assert_eq!(assets["assets"][0]["calibration"]["uid"], uid.as_str());
+    assert_eq!(assets["assets"][0]["state"], "in tolerance");
+    assert_eq!(get(&url, "/api/live").json(), serde_json::json!({"surveys": []}));
+    // With an interval shorter than the calibration's age (0.000001 days: 0.09 s), it is due.
+    let strict = Server::on(&bench, "survey.db", &["--due-after", "0.000001"]);
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(get(&strict.url, "/api/assets").json()["assets"][0]["state"], "due");
+    drop(strict);
+
+    // The asset's history: plotted, every survey linked.
+    let page = get(&url, "/assets/sim-fig8");
+    assert_eq!(page.status, 200);
+    for part in ["id=\"fig-history-lines\"", "id=\"fig-history-a\"", "<svg", "repeatability R", "/surveys/"] {
+        assert!(page.body.contains(part), "/assets/sim-fig8 lacks {part}");
+    }
+    for s in list["surveys"].as_array().unwrap() {
+        assert!(page.body.contains(&format!("href=\"/surveys/{}\"", s["uid"].as_str().unwrap())));
+    }
+
+    // The survey's page is the report `survey report` writes.
+    bench.survey(&["report", "--survey", &uid, "--out", "r"]).success();
+    let report = get(&url, &format!("/surveys/{uid}"));
+    assert_eq!(report.status, 200);
+    assert_eq!(undated(&report.body), undated(&bench.read("r/index.html")));
+    assert_eq!(get(&url, "/surveys/2").status, 200, "an id names it too");
+
+    // The script, same-origin.
+    let script = get(&url, "/static/live.js");
+    assert_eq!((script.status, script.header("content-type")), (200, Some("text/javascript; charset=utf-8")));
+    assert!(script.body.contains("/api/live"));
+
+    // Every response carries the policy; nothing else is fetched.
+    for r in [&home, &page, &report, &script] {
+        let csp = r.header("content-security-policy").expect("a policy");
+        assert!(csp.starts_with("default-src 'none'") && csp.contains("script-src 'self'"), "{csp}");
+    }
+
+    // 404: pages for pages, JSON under /api/.
+    for path in [
+        "/nothing",
+        "/surveys/999",
+        "/surveys/00000000-0000-4000-8000-000000000000",
+        "/surveys/not-a-survey",
+        "/assets/no-such-asset",
+        "/assets/",
+    ] {
+        let r = get(&url, path);
+        assert_eq!(r.status, 404, "{path}: {}", r.body);
+        assert!(r.body.contains("<h1>404 Not Found</h1>"), "{path}: {}", r.body);
+        assert!(r.header("content-security-policy").is_some());
+    }
+    for path in ["/api/nothing", "/api/surveys/999", "/api/surveys/999/stats", "/api/history/none", "/api/compare/1/9"]
+    {
+        let r = get(&url, path);
+        assert_eq!(r.status, 404, "{path}: {}", r.body);
+        assert!(r.json()["error"].as_str().is_some_and(|e| !e.is_empty()), "{path}: {}", r.body);
+    }
+    // 400: a comparison the store cannot make (surveys of two assets).
+    bench.survey(&["run", "--points", "36", "--runs", "2", "--asset", "rig-2", "--json"]).success();
+    let r = get(&url, "/api/compare/1/3");
+    assert_eq!(r.status, 400, "{}", r.body);
+    assert!(r.json()["error"].as_str().unwrap().contains("only surveys of one asset compare"));
+
+    // No page can write: anything but GET and HEAD is 405.
+    for (method, path) in [("POST", "/"), ("PUT", "/api/surveys/1"), ("DELETE", "/api/surveys/1"), ("PATCH", "/x")] {
+        let r = request(&url, method, path);
+        assert_eq!(r.status, 405, "{method} {path}");
+        assert_eq!(r.header("allow"), Some("GET, HEAD"));
+    }
+    let head = request(&url, "HEAD", "/");
+    assert_eq!((head.status, head.body.as_str()), (200, ""));
+    assert_eq!(bench.survey(&["list", "--json"]).success().json()["surveys"].as_array().unwrap().len(), 3);
+
+    // SIGINT/SIGTERM: a graceful end, status 0.
+    assert_eq!(server.stop(), Some(0));
+}
+
+#[test]
+fn a_database_it_cannot_read_is_a_503_with_the_reason_and_never_a_password() {
+    let bench = Bench::new();
+    let server = Server::on(&bench, "missing.db", &[]);
+    for path in ["/", "/assets/a", "/surveys/1"] {
+        let r = get(&server.url, path);
+        assert_eq!(r.status, 503, "{path}");
+        assert!(r.body.contains("missing.db") && r.body.contains("503 Service Unavailable"), "{}", r.body);
+    }
+    let r = get(&server.url, "/api/surveys");
+    assert_eq!(r.status, 503);
+    assert!(r.json()["error"].as_str().unwrap().contains("no survey database at missing.db"), "{}", r.body);
+    // The file appears: served at once, nothing to restart.
+    bench.survey(&["run", "--points", "36", "--runs", "2", "--json"]).success();
+    std::fs::rename(bench.path("survey.db"), bench.path("missing.db")).unwrap();
+    assert_eq!(get(&server.url, "/api/surveys").status, 200);
+    drop(server);
+
+    // A lab store that cannot be reached: the reason names the host, never the password.
+    let server = Server::on(&bench, "postgres://viewer:s3cret-pw@127.0.0.1:1/surveys", &[]);
+    for path in ["/", "/api/live"] {
+        let r = get(&server.url, path);
+        assert_eq!(r.status, 503, "{path}: {}", r.body);
+        assert!(r.body.contains("127.0.0.1") && !r.body.contains("s3cret-pw"), "{}", r.body);
+    }
+    let log: Vec<String> = server.log.try_iter().collect();
+    assert!(!log.join("\n").contains("s3cret-pw"), "{log:?}");
+}
+
+#[test]
+fn it_binds_loopback_unless_told_otherwise_and_says_so() {
+    let bench = Bench::new();
+    let server = Server::on(&bench, "survey.db", &[]);
+    assert!(server.url.starts_with("http://127.0.0.1:"));
+    drop(server);
+    let server = Server::start(bench.command(&["serve", "--listen", "0.0.0.0:0"]));
+    let warned = server.log.recv_timeout(Duration::from_secs(30)).unwrap();
+    assert!(warned.contains("not loopback") && warned.contains("reverse proxy"), "{warned}");
+    assert_eq!(server.stop(), Some(0));
+    bench.command(&["serve", "--listen", "nowhere"]).output().map(|o| assert_eq!(o.status.code(), Some(2))).unwrap();
+}
+
+/// A Modbus positioner and an emScon tracker, 12 targets both ways, 2 runs.
+fn slow_config(positioner: &str, tracker: &str) -> String {
+    format!(
+        "[survey]\nreference = \"tracker\"\npoints = 12\nruns = 2\nbidirectional = true\n\
+         [positioner]\ndriver = \"modbus-tcp\"\naddress = \"{positioner}\"\n\
+         [tracker]\ndriver = \"emscon\"\naddress = \"{tracker}\"\n\
+         [timing]\ndwell_s = 0.01\npoll_interval_s = 0.02\n"
+    )
+}
+
+/// `survey sim` of [`slow_config`] at `scale` times real time, and the
+/// configuration to run against it (written into `bench` as `run.toml`).
+pub fn slow_bench(bench: &Bench, scale: f64) -> Child {
+    bench.write("sim.toml", slow_config("127.0.0.1:0", "127.0.0.1:0"));
+    let mut sim = bench
+        .command(&["sim", "--config", "sim.toml", "--time-scale", &scale.to_string(), "--seed", "3"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(sim.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
+    let ready: Value = serde_json::from_str(&line).expect("the simulator's ready line");
+    let at = |k: &str| ready["instruments"][k].as_str().unwrap().to_string();
+    bench.write("run.toml", slow_config(&at("positioner"), &at("tracker")));
+    sim
+}
+
+#[test]
+fn a_survey_acquired_in_another_process_is_seen_moving_on_the_live_paths() {
+    let bench = Bench::new();
+    let mut sim = slow_bench(&bench, 10.0);
+    let run = bench
+        .command(&["run", "--config", "run.toml", "--asset", "bay-1/az", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The survey is created when the run starts; serve it from then on.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !bench.exists("survey.db") {
+        assert!(Instant::now() < deadline, "the run made no database");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let server = Server::on(&bench, "survey.db", &[]);
+    let mut seen: Vec<u64> = Vec::new();
+    let mut page_seen = None;
+    while Instant::now() < deadline {
+        let live = get(&server.url, "/api/live");
+        if live.status == 503 && seen.is_empty() {
+            // The run is still setting its new database up.
+            std::thread::sleep(Duration::from_millis(20));
+            continue;
+        }
+        assert_eq!(live.status, 200, "{}", live.body);
+        let live = live.json();
+        let Some(s) = live["surveys"].as_array().unwrap().first().cloned() else {
+            if seen.is_empty() {
+                std::thread::sleep(Duration::from_millis(20));
+                continue; // not started yet
+            }
+            break; // ended
+        };
+        assert_eq!((s["asset"].as_str(), s["planned_samples"].as_u64()), (Some("bay-1/az"), Some(48)), "{s}");
+        let n = s["samples"].as_u64().unwrap();
+        if seen.last() != Some(&n) {
+            seen.push(n);
+            if page_seen.is_none() && n > 0 {
+                let home = get(&server.url, "/").body;
+                let uid = s["uid"].as_str().unwrap();
+                let at = home.find(&format!("id=\"live-{uid}\"")).expect("the live survey on /");
+                let samples: u64 =
+                    home[at..].split("data-samples=\"").nth(1).unwrap().split('"').next().unwrap().parse().unwrap();
+                assert!(samples >= n, "/ shows {samples} samples, /api/live showed {n} before");
+                assert!(home[at..].contains("time left: "), "{home}");
+                page_seen = Some(samples);
+            }
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let out = run.wait_with_output().unwrap();
+    let _ = sim.kill();
+    let _ = sim.wait();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((doc["status"].as_str(), doc["samples"].as_u64()), (Some("complete"), Some(48)));
+    assert!(page_seen.is_some(), "the survey was seen on / while acquired");
+    let moving: Vec<u64> = seen.iter().copied().filter(|&n| n > 0 && n < 48).collect();
+    assert!(moving.len() >= 2 && moving.windows(2).all(|w| w[0] < w[1]), "the progress moved: {seen:?}");
+    assert_eq!(get(&server.url, "/api/live").json()["surveys"], serde_json::json!([]), "ended: no longer live");
+}
+
+#[test]
+fn the_lab_store_is_served_as_a_station_s_file_is() {
+    let Some(pg) = super::lab::server() else { return };
+    let lab = pg.database("served");
+    let bench = Bench::new();
+    super::lab::small_surveys(&bench, 2, 1);
+    bench.survey(&["push", "--to", &lab, "--all", "--json"]).success();
+    let uid = bench.survey(&["list", "--json"]).success().json()["surveys"][1]["uid"].as_str().unwrap().to_string();
+    let server = Server::on(&bench, &lab, &[]);
+    let on_lab = |args: &[&str]| {
+        let mut all = vec!["--db", lab.as_str()];
+        all.extend(args);
+        bench.survey(&all).success().json()
+    };
+    let listed = get(&server.url, "/api/surveys");
+    assert_eq!(listed.status, 200, "{}", listed.body);
+    assert!(!listed.body.contains(super::lab::PASSWORD));
+    assert_eq!(listed.json(), on_lab(&["list", "--json"]));
+    assert_eq!(get(&server.url, "/api/history/sim-fig8").json(), on_lab(&["history", "--asset", "sim-fig8", "--json"]));
+    let home = get(&server.url, "/");
+    assert_eq!(home.status, 200);
+    assert!(home.body.contains(&format!("/surveys/{uid}")) && !home.body.contains(super::lab::PASSWORD));
+    for path in [format!("/surveys/{uid}"), "/assets/sim-fig8".to_string()] {
+        assert_eq!(get(&server.url, &path).status, 200, "{path}");
+    }
+    assert_eq!(
+        get(&server.url, "/api/live").json(),
+        serde_json::json!({"surveys": []}),
+        "push copies complete surveys"
+    );
+    assert_eq!(server.stop(), Some(0));
+}
