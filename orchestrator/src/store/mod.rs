@@ -40,6 +40,7 @@ mod tests;
 mod tx;
 
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
+pub use samples::SmrPosition;
 pub use scan::StoredPass;
 pub use sink::StoreSink;
 pub use surveys::EventRow;
