@@ -98,9 +98,9 @@ impl Store {
     pub async fn samples_with_smr(&self, survey_id: i64) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
         let (path, immutable) = (self.path.clone(), self.immutable);
         tokio::task::spawn_blocking(move || read_samples_with_smr(&path, immutable, survey_id))
-        .await
-        .context("the sample reader stopped")?
-        .with_context(|| format!("cannot read the samples of survey {survey_id}"))
+            .await
+            .context("the sample reader stopped")?
+            .with_context(|| format!("cannot read the samples of survey {survey_id}"))
     }
 
     /// The samples of a survey, ordered by seq, with their raw readings and
