@@ -241,10 +241,14 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
 
 /// Groups samples by target, targets ascending; a group starts at its smallest
 /// target and takes every target within [`TARGET_TOLERANCE_DEG`] of it. The
-/// samples sorted by target (stably) and each group's range in them.
+/// samples sorted by target and each group's range in them.
 fn group_by_target(samples: &[Sample]) -> (Vec<&Sample>, Vec<std::ops::Range<usize>>) {
-    let mut sorted: Vec<&Sample> = samples.iter().collect();
-    sorted.sort_by(|a, b| a.target_deg.total_cmp(&b.target_deg));
+    // Sorted as (target, index) pairs, side by side in memory (not through a
+    // reference each); the order of equal targets does not matter: a group
+    // is ordered by run before anything is computed from it.
+    let mut keyed: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
+    keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let sorted: Vec<&Sample> = keyed.into_iter().map(|(_, i)| &samples[i]).collect();
     let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
     for (i, s) in sorted.iter().enumerate() {
         match groups.last_mut() {
