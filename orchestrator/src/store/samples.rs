@@ -298,7 +298,7 @@ fn read_samples_with_smr(
     immutable: bool,
     survey_id: i64,
 ) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
-    let conn = open_reader(&path, immutable)?;
+    let conn = open_reader(path, immutable)?;
     let mut smr = Vec::new();
     let mut stmt = conn.prepare(
         "SELECT seq, smr_x_mm, smr_y_mm, smr_z_mm FROM raw_readings \
