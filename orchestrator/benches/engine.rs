@@ -29,7 +29,7 @@ const RUNS: u32 = 2;
 
 fn bench_of(scan: ScanMode) -> Bench {
     Bench::simulated(&SimulatedRequest {
-        points: Some(POINTS),
+        points: POINTS,
         runs: Some(RUNS),
         bidirectional: true,
         preset: "fig8".into(),

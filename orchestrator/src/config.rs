@@ -30,6 +30,9 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Duration;
 use survey_drivers::canopen::CanopenConfig;
+use survey_processing::num::Num;
+
+mod derived;
 use survey_drivers::emscon::EmsconConfig;
 use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
 use survey_drivers::scpi::ErrorQueryForm;
@@ -59,6 +62,18 @@ pub struct SurveyConfig {
     /// Drift control: a reference target re-measured every K steps (off by default).
     #[serde(default)]
     pub drift_control: Option<survey_processing::drift::DriftControl>,
+    /// The asset (the axis this configuration measures): its surveys' history.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub asset: Option<AssetSection>,
+}
+
+/// `[asset]`: the axis measured, whose surveys make one history
+/// (`survey history --asset ID`); `survey run --asset` overrides it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AssetSection {
+    /// 1-64 characters of letters, digits and `-_./`.
+    pub id: String,
 }
 
 /// `[certificate]`: what a calibration certificate states that no instrument
@@ -360,6 +375,11 @@ pub struct TimingSection {
     pub beam_wait_s: Option<f64>,
     /// Wait between attempts to re-acquire a lost beam, s.
     pub beam_retry_s: Option<f64>,
+    /// The instruments run this many times faster than the hardware they
+    /// stand for (a rehearsal on `survey sim --time-scale X`; 1, the default,
+    /// for real instruments): instrument time is reported on their clock,
+    /// the time this process measured times this.
+    pub time_scale: Option<f64>,
 }
 
 fn one() -> u32 {
@@ -428,6 +448,9 @@ impl SurveyConfig {
     }
 
     fn check(&self) -> Result<(), String> {
+        if let Some(a) = &self.asset {
+            crate::survey::asset_id(&a.id).map_err(|e| format!("[asset] id: {e}"))?;
+        }
         match self.reference() {
             ReferenceKind::Tracker if self.tracker.is_none() => {
                 return Err("the reference is the tracker but there is no [tracker] section".into());
@@ -460,7 +483,11 @@ impl SurveyConfig {
         if let Some([lo, hi]) = self.survey.travel_deg
             && !(lo.is_finite() && hi.is_finite() && hi > lo)
         {
-            return Err(format!("survey.travel_deg = [{lo}, {hi}] is not an increasing pair of finite angles"));
+            return Err(format!(
+                "survey.travel_deg = [{}, {}] is not an increasing pair of finite angles",
+                Num(lo),
+                Num(hi)
+            ));
         }
         if let Some(v) = self.survey.overrun_deg {
             within("survey.overrun_deg", v, Range::Above(0.0), 10.0, "deg")?;
@@ -493,11 +520,13 @@ impl SurveyConfig {
             ("fetch_interval_s", t.fetch_interval_s, Range::Above(0.0), 10.0, "s"),
             ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
             ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
+            ("time_scale", t.time_scale, Range::Above(0.0), 10_000.0, "x real time"),
         ] {
             if let Some(v) = value {
                 within(&format!("timing.{key}"), v, range, max, unit)?;
             }
         }
+        derived::check(self)?;
         if let Some(n) = t.max_retries
             && n > 1000
         {
@@ -571,12 +600,19 @@ impl SurveyConfig {
                 && !(lo..=hi).contains(&d.reference_deg)
             {
                 return Err(format!(
-                    "drift_control.reference_deg = {} is outside the travel {lo}..{hi} deg",
-                    d.reference_deg
+                    "drift_control.reference_deg = {} is outside the travel {}..{} deg",
+                    Num(d.reference_deg),
+                    Num(lo),
+                    Num(hi)
                 ));
             }
         }
         Ok(())
+    }
+
+    /// How many times faster than the hardware the instruments run (`[timing] time_scale`, default 1).
+    pub fn time_scale(&self) -> f64 {
+        self.timing.time_scale.unwrap_or(1.0)
     }
 
     /// The engine timing: the defaults with this file's settings on top.
@@ -641,13 +677,13 @@ enum Range {
 /// `value` lies in the range, else the key, the value and the range.
 fn within(key: &str, value: f64, low: Range, max: f64, unit: &str) -> Result<(), String> {
     let (ok, low_text) = match low {
-        Range::From(lo) => (value >= lo, format!("{lo}")),
-        Range::Above(lo) => (value > lo, format!("above {lo}")),
+        Range::From(lo) => (value >= lo, format!("{}", Num(lo))),
+        Range::Above(lo) => (value > lo, format!("above {}", Num(lo))),
     };
     if value.is_finite() && ok && value <= max {
         Ok(())
     } else {
-        Err(format!("{key} = {value} is outside its range ({low_text} to {max} {unit})"))
+        Err(format!("{key} = {} is outside its range ({low_text} to {} {unit})", Num(value), Num(max)))
     }
 }
 
@@ -690,15 +726,34 @@ mod tests {
         [tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\n";
 
     #[test]
+    fn the_asset_section_names_the_surveys_asset_and_is_checked() {
+        use crate::survey::{ConfiguredSetup, Setup};
+        let plan = survey_processing::plan::SurveyPlan::full_circle(36, 2, true).unwrap();
+        let setup = |config| Setup::Configured(ConfiguredSetup { config, plan: plan.clone() });
+        let cfg = SurveyConfig::parse(&format!("{TRACKER_BENCH}[asset]\nid = \"bay-2/az\"\n"), "c.toml").unwrap();
+        assert_eq!(setup(cfg.clone()).default_asset(), "bay-2/az");
+        // Stored with the survey and read back.
+        let text = serde_json::to_string(&cfg).unwrap();
+        assert_eq!(serde_json::from_str::<SurveyConfig>(&text).unwrap(), cfg);
+        let without = SurveyConfig::parse(TRACKER_BENCH, "c.toml").unwrap();
+        assert_eq!(setup(without).default_asset(), crate::survey::UNASSIGNED);
+        let e = error_of(&format!("{TRACKER_BENCH}[asset]\nid = \"bay 2\"\n"));
+        assert!(e.starts_with("c.toml: [asset] id: the asset id 'bay 2' holds ' '"), "{e}");
+        assert!(error_of(&format!("{TRACKER_BENCH}[asset]\nname = \"x\"\n")).contains("unknown field `name`"));
+    }
+
+    #[test]
     fn every_number_is_finite_and_within_its_stated_range() {
         assert!(SurveyConfig::parse(TRACKER_BENCH, "c.toml").is_ok());
         for (extra, key) in [
-            ("[timing]\ncall_timeout_s = 1e19\n", "timing.call_timeout_s = 10000000000000000000 is outside"),
+            ("[timing]\ncall_timeout_s = 1e19\n", "timing.call_timeout_s = 1e19 is outside"),
             ("[timing]\nretry_backoff_s = 2e19\n", "timing.retry_backoff_s"),
             ("[timing]\ndwell_s = 1e19\n", "timing.dwell_s"),
             ("[timing]\npoll_interval_s = 0\n", "timing.poll_interval_s = 0 is outside its range (above 0"),
             ("[timing]\nmax_retries = 4000000000\n", "timing.max_retries"),
             ("[timing]\nlocate_points = 2\n", "timing.locate_points"),
+            ("[timing]\ntime_scale = 0\n", "timing.time_scale = 0 is outside its range (above 0"),
+            ("[timing]\ntime_scale = 20000\n", "timing.time_scale = 20000 is outside"),
             ("[survey]\noverrun_deg = 45.0\n", "survey.overrun_deg = 45 is outside"),
             ("[survey]\ntravel_deg = [-1e9, 90.0]\n", "survey.travel_deg[0]"),
             ("[arm]\nradius_mm = 500.0\nradius_tolerance_mm = 600.0\n", "arm.radius_tolerance_mm"),

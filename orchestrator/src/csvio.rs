@@ -8,12 +8,17 @@
 //!
 //! A bad file gives a [`CsvError`] naming the file, the physical line and what
 //! is wrong, e.g. `data.csv:7: column 'readout_deg': 'abc' is not a number`.
+//! A run holds one sample per target and direction: a second one is refused
+//! on its line, naming the line of the first (the statistics could not use
+//! the survey).
 //! [`write_survey_csv`] writes every number with Rust's shortest round-trip
 //! formatting, so parsing an export gives back every value bit for bit.
 
 use std::io::Write;
 use std::path::Path;
 
+use survey_processing::iso230::TARGET_TOLERANCE_DEG;
+use survey_processing::num::Num;
 use survey_processing::{Direction, Sample};
 
 /// The required columns, in order.
@@ -78,18 +83,48 @@ pub fn parse_survey_csv(text: &str, source: &str) -> Result<Vec<Sample>, CsvErro
     })?;
 
     let mut samples = Vec::new();
+    let mut lines = Vec::new();
     for rec in rdr.records() {
         let rec = rec.map_err(|e| from_csv_error(text, source, e))?;
-        let sample = parse_row(&rec, has_timestamp).map_err(|w| {
-            let line = line_of(text, rec.position().map_or(0, |p| p.byte()));
-            CsvError::at(source, line, w)
-        })?;
+        let line = line_of(text, rec.position().map_or(0, |p| p.byte()));
+        let sample = parse_row(&rec, has_timestamp).map_err(|w| CsvError::at(source, line, w))?;
         samples.push(sample);
+        lines.push(line);
     }
     if samples.is_empty() {
         return Err(CsvError::whole(source, "no samples after the header"));
     }
+    if let Some((first, again)) = repeated(&samples) {
+        let s = &samples[again];
+        return Err(CsvError::at(
+            source,
+            lines[again],
+            format!(
+                "run {}, {}, target {} deg is on line {} already: a run gives one sample per target and direction",
+                s.run,
+                s.direction,
+                Num(s.target_deg),
+                lines[first]
+            ),
+        ));
+    }
     Ok(samples)
+}
+
+/// The first pair of samples of one run, direction and target (targets
+/// within [`TARGET_TOLERANCE_DEG`] are one, as the statistics group them),
+/// by index `(earlier, later)`, the later as early in the file as can be.
+fn repeated(samples: &[Sample]) -> Option<(usize, usize)> {
+    let mut order: Vec<usize> = (0..samples.len()).collect();
+    let key = |i: usize| (samples[i].run, samples[i].direction == Direction::Reverse);
+    order.sort_by(|&a, &b| key(a).cmp(&key(b)).then(samples[a].target_deg.total_cmp(&samples[b].target_deg)));
+    order
+        .windows(2)
+        .filter(|w| {
+            key(w[0]) == key(w[1]) && samples[w[1]].target_deg - samples[w[0]].target_deg <= TARGET_TOLERANCE_DEG
+        })
+        .map(|w| (w[0].min(w[1]), w[0].max(w[1])))
+        .min_by_key(|&(_, later)| later)
 }
 
 /// Check the header; `Ok(true)` when it has the `timestamp_s` column.
@@ -259,6 +294,24 @@ mod tests {
         let e = err(&format!("{HEADER},timestamp_s\n1,forward,0,0,0.001,1e13\n"));
         assert!(e.starts_with("data.csv:2: column 'timestamp_s': 1e13 is outside"), "{e}");
         assert!(parse_survey_csv(&format!("{HEADER},timestamp_s\n1,forward,-999999,0,0.001,1.7e9\n"), "d").is_ok());
+    }
+
+    #[test]
+    fn a_second_sample_of_a_run_direction_and_target_is_refused_naming_both_lines() {
+        let rows = "1,forward,0,0,0.001\n1,forward,90,90,90.001\n1,reverse,90,90,89.999\n2,forward,0,0,0.002\n";
+        assert!(
+            parse_survey_csv(&format!("{HEADER}\n{rows}"), "d").is_ok(),
+            "other runs and directions repeat a target"
+        );
+        let e = err(&format!("{HEADER}\n{rows}2,forward,90,90,90.002\n1,forward,90,90,90.003\n"));
+        assert_eq!(
+            e,
+            "data.csv:7: run 1, forward, target 90 deg is on line 3 already: a run gives one sample per target and \
+             direction"
+        );
+        // Targets the statistics take as one (within 1e-9 deg) are one.
+        let e = err(&format!("{HEADER}\n{rows}1,reverse,90.0000000001,90,89.998\n"));
+        assert!(e.starts_with("data.csv:6: run 1, reverse, target 90.0000000001 deg is on line 4 already"), "{e}");
     }
 
     fn assert_bit_equal(a: &[Sample], b: &[Sample]) {

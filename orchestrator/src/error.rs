@@ -63,7 +63,8 @@ impl PathError {
 }
 
 /// Whether the user's input caused `err`: some cause in its chain is an input
-/// error ([`BadInput`], the store's [`NotFound`], a [`Damaged`] survey record,
+/// error ([`BadInput`], a usage error the command line found after parsing
+/// ([`clap::Error`]), the store's [`NotFound`], a [`Damaged`] survey record,
 /// a defect of a configuration, model, recipe or CSV file, a plan that cannot
 /// be made, a path that cannot be used, an export choice that cannot be
 /// honoured, data that cannot be processed, compared with a model or give
@@ -84,12 +85,30 @@ pub fn is_bad_input(err: &anyhow::Error) -> bool {
             || c.is::<PipelineError>()
             || c.is::<ModelGapError>()
             || c.is::<StatsError>()
+            || c.is::<clap::Error>()
     })
 }
 
-/// The exit status of a failed command: 2 for bad input, 1 for a run-time failure.
+/// Not a failure: `survey run --check` made a full survey (the check found
+/// a change, or the table in force no longer held, or the asset had no
+/// calibration yet), so a new table is in force. Exit status [`RECALIBRATED`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("recalibrated: {0}")]
+pub struct Recalibrated(pub String);
+
+/// The exit status of `survey run --check` when it recalibrated.
+pub const RECALIBRATED: u8 = 3;
+
+/// The exit status of a failed command: 2 for bad input, 1 for a run-time
+/// failure; [`RECALIBRATED`] (3) when a check recalibrated.
 pub fn exit_status(err: &anyhow::Error) -> u8 {
-    if is_bad_input(err) { 2 } else { 1 }
+    if err.chain().any(|c| c.is::<Recalibrated>()) {
+        RECALIBRATED
+    } else if is_bad_input(err) {
+        2
+    } else {
+        1
+    }
 }
 
 /// A [`PathError`]: `e` met doing `what`.
@@ -115,6 +134,13 @@ mod tests {
         // A typed cause decides, under any context.
         let e = Err::<(), _>(StatsError::NoSamples).context("ISO 230-2 statistics").unwrap_err();
         assert_eq!((exit_status(&e), format!("{e:#}").matches("no samples").count()), (2, 1));
+    }
+
+    #[test]
+    fn a_recalibration_is_status_3_whatever_its_context() {
+        let e = anyhow::Error::from(Recalibrated("the 20 cycles/rev line grew".into())).context("survey run --check");
+        assert_eq!(exit_status(&e), RECALIBRATED);
+        assert_eq!(format!("{e:#}"), "survey run --check: recalibrated: the 20 cycles/rev line grew");
     }
 
     #[test]

@@ -9,10 +9,12 @@
 //! duplicated and dropped; numbers replaced by extreme ones (nan, inf, 1e308,
 //! -0, 4294967296, ...).
 
+use crate::bench::{PlanOverrides, configured_estimate, configured_plan};
 use crate::config::SurveyConfig;
 use crate::csvio::{MAX_ABS_ANGLE_DEG, parse_survey_csv};
 use proptest::prelude::*;
 use survey_processing::model::Model;
+use survey_processing::plan::ScanMode;
 use survey_processing::recipe::Recipe;
 
 const CONFIGS: [&str; 5] = [
@@ -135,6 +137,59 @@ fn inputs(seed: String) -> impl Strategy<Value = String> {
     ]
 }
 
+/// Every numeric key of `[timing]`.
+const TIMING_KEYS: [&str; 21] = [
+    "call_timeout_s",
+    "measure_timeout_s",
+    "move_margin_s",
+    "poll_interval_s",
+    "dwell_s",
+    "max_retries",
+    "retry_backoff_s",
+    "locate_points",
+    "velocity_deg_s",
+    "accel_deg_s2",
+    "settle_window_deg",
+    "settle_stable_s",
+    "settle_poll_s",
+    "settle_time_s",
+    "scan_velocity_deg_s",
+    "calibration_velocity_deg_s",
+    "capture_period_s",
+    "stream_period_s",
+    "fetch_interval_s",
+    "beam_wait_s",
+    "beam_retry_s",
+];
+
+/// A value for a timing key: any magnitude from 1e-320 to 1e308, either
+/// sign, any float, a small integer.
+fn timing_value() -> impl Strategy<Value = String> {
+    prop_oneof![
+        (-320i32..=308, 1u8..10, any::<bool>())
+            .prop_map(|(k, m, neg)| format!("{}{m}e{k}", if neg { "-" } else { "" })),
+        any::<f64>().prop_filter("a TOML float", |f| f.is_finite()).prop_map(|f| format!("{f:e}")),
+        (0u32..100_000).prop_map(|n| n.to_string()),
+    ]
+}
+
+/// An example configuration with up to 6 of its `[timing]` keys set to
+/// [`timing_value`]s (after its own `[timing]` header, or a new one), and
+/// the keys set.
+fn timing_inputs() -> impl Strategy<Value = (String, Vec<&'static str>)> {
+    (0..CONFIGS.len(), proptest::collection::btree_map(0..TIMING_KEYS.len(), timing_value(), 1..6)).prop_map(
+        |(k, values)| {
+            let lines: String = values.iter().map(|(key, v)| format!("{} = {v}\n", TIMING_KEYS[*key])).collect();
+            let seed = CONFIGS[k];
+            let text = match seed.find("[timing]\n") {
+                Some(at) => format!("{}{lines}{}", &seed[..at + 9], &seed[at + 9..]),
+                None => format!("{seed}\n[timing]\n{lines}"),
+            };
+            (text, values.keys().map(|key| TIMING_KEYS[*key]).collect())
+        },
+    )
+}
+
 fn config_inputs() -> impl Strategy<Value = String> {
     (0..CONFIGS.len(), proptest::collection::vec(mutation(), 1..6)).prop_map(|(k, ms)| apply(CONFIGS[k], &ms))
 }
@@ -184,6 +239,32 @@ proptest! {
                 let _ = cfg.timing();
             }
             Err(e) => prop_assert!(e.to_string().starts_with("c.toml: "), "{e}"),
+        }
+    }
+
+    #[test]
+    fn timing_section((text, keys) in timing_inputs()) {
+        match SurveyConfig::parse(&text, "c.toml") {
+            Ok(cfg) => {
+                // Every duration the timing makes converts, for a plan in
+                // either scan mode: the estimate `run` prints (every move
+                // and pass summed), and the deadline of the longest move.
+                let t = cfg.timing();
+                let longest = survey_processing::plan::move_time(362.0, t.velocity_deg_s, t.accel_deg_s2);
+                prop_assert!(std::time::Duration::try_from_secs_f64(longest).is_ok(), "{longest}");
+                for scan in [ScanMode::Step, ScanMode::Continuous] {
+                    let overrides = PlanOverrides { points: Some(360), runs: Some(5), bidirectional: true, scan: Some(scan) };
+                    if let Ok(plan) = configured_plan(&cfg, overrides, std::path::Path::new("c.toml")) {
+                        let _ = configured_estimate(&cfg, &plan);
+                    }
+                }
+            }
+            Err(e) => {
+                let e = e.to_string();
+                prop_assert!(e.starts_with("c.toml: "), "{e}");
+                // A bad value is named by its key (a value of the wrong type by its line).
+                prop_assert!(keys.iter().any(|k| e.contains(k)) || e.contains(": line "), "{keys:?}: {e}");
+            }
         }
     }
 

@@ -6,9 +6,9 @@
 //! applied when the samples are read for analysis ([`Loaded::analysed`]),
 //! borrowing them when the survey asked for none, and never written back.
 
-use crate::refit::{AxisRefit, located_axis_knowledge, refit_survey};
+use crate::refit::{AxisRefit, AxisUsed, located_axis_knowledge, refit_survey};
 use crate::store::Store;
-use crate::survey::SurveyRecord;
+use crate::survey::{SurveyRecord, SurveyRef};
 use std::borrow::Cow;
 use std::path::Path;
 use survey_processing::Sample;
@@ -18,11 +18,11 @@ use survey_processing::modelgap::ReferenceInfo;
 use survey_processing::uncertainty::UncertaintyInputs;
 
 /// Around which axis a tracker survey's actual angles are taken, and what a
-/// command learns of it.
+/// command learns of it. Every command that states a survey's figures uses
+/// [`Axis::Refitted`] (one set of numbers); `--located-axis` asks for
+/// [`Axis::Located`] to compare.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Axis {
-    /// The samples as stored; nothing of the axis (the statistics, the export).
-    AsStored,
     /// As stored, around the axis located before the runs, with how well it
     /// is known ([`Loaded::located`]).
     Located,
@@ -46,6 +46,9 @@ pub struct Loaded {
     pub located: Option<Refit>,
     /// The drift-control reference measurements.
     pub drift: Vec<DriftPoint>,
+    /// The check points measured between the targets, when the survey has
+    /// them ([`crate::resolving`]).
+    pub checks: Vec<Sample>,
 }
 
 impl Loaded {
@@ -61,6 +64,11 @@ impl Loaded {
         crate::drift::for_analysis(&self.survey, samples, &self.drift)
     }
 
+    /// Which axis the samples are around, as the output says it.
+    pub fn axis_used(&self) -> AxisUsed {
+        AxisUsed::of(&self.survey, self.refit.as_ref())
+    }
+
     /// What model-gap is told of the survey's reference.
     pub fn reference_info(&self) -> ReferenceInfo {
         crate::refit::reference_info(&self.survey, self.refit.as_ref(), self.located.as_ref())
@@ -72,29 +80,30 @@ impl Loaded {
     }
 }
 
-/// Load survey `id` (the latest when `None`) from `store`, its actual angles
-/// taken around `axis`.
-pub async fn load(store: &Store, id: Option<i64>, axis: Axis) -> anyhow::Result<Loaded> {
+/// Load survey `id` (an id or a uid; the latest when `None`) from `store`,
+/// its actual angles taken around `axis`.
+pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::Result<Loaded> {
     let survey = store.resolve(id).await?;
     let refitted = match axis {
         Axis::Refitted => refit_survey(store, &survey).await?,
-        Axis::AsStored | Axis::Located => None,
+        Axis::Located => None,
     };
     let (samples, refit) = match refitted {
         Some((samples, refit)) => (samples, Some(refit)),
         None => (store.samples(survey.id).await?, None),
     };
-    let located = match axis {
-        Axis::Located | Axis::Refitted if refit.is_none() => located_axis_knowledge(store, &survey).await?,
-        _ => None,
+    let located = match refit {
+        None => located_axis_knowledge(store, &survey).await?,
+        Some(_) => None,
     };
     let drift = store.drift_points(survey.id).await?;
-    Ok(Loaded { survey, samples, refit, located, drift })
+    let checks = crate::resolving::checks_of(store, &survey).await?;
+    Ok(Loaded { survey, samples, refit, located, drift, checks })
 }
 
 /// [`load`] from the database at `db`, opened read-only and closed again:
 /// what a command that only reads does.
-pub async fn load_read_only(db: &Path, id: Option<i64>, axis: Axis) -> anyhow::Result<Loaded> {
+pub async fn load_read_only(db: &Path, id: Option<SurveyRef>, axis: Axis) -> anyhow::Result<Loaded> {
     let store = Store::open_read_only(db).await?;
     let loaded = load(&store, id, axis).await;
     store.close().await;
@@ -144,15 +153,17 @@ mod tests {
         store.add_drift_measurement(id, &m(8, 80.0, -0.002)).await.unwrap();
         store.close().await;
 
-        for axis in [Axis::AsStored, Axis::Located, Axis::Refitted] {
+        for axis in [Axis::Located, Axis::Refitted] {
             let loaded = load_read_only(&db, None, axis).await.unwrap();
             assert_eq!((loaded.survey.id, loaded.samples.as_slice()), (id, samples().as_slice()), "{axis:?}");
             assert_eq!(loaded.drift.len(), 2, "{axis:?}");
             // An import has no axis, and asks for no drift correction.
             assert!(loaded.refit.is_none() && loaded.located.is_none(), "{axis:?}");
+            assert_eq!(loaded.axis_used(), AxisUsed::None, "{axis:?}");
+            assert!(loaded.checks.is_empty(), "{axis:?}");
             assert!(matches!(loaded.analysed(), Cow::Borrowed(s) if s == loaded.samples.as_slice()), "{axis:?}");
         }
-        let e = load_read_only(&db, Some(id + 1), Axis::AsStored).await.unwrap_err();
+        let e = load_read_only(&db, Some((id + 1).into()), Axis::Located).await.unwrap_err();
         assert!(crate::store::is_not_found(&e), "{e:#}");
     }
 }

@@ -11,6 +11,15 @@
 //! carries a once-per-revolution error that the table would then "correct"
 //! into the positioner. The survey's thousands of positions know the centre
 //! far better.
+//!
+//! One set of numbers: every command that states a survey's figures
+//! (`stats`, `process`, `report`, the end of `run`) computes them from the
+//! same samples, loaded by [`crate::load`] with [`crate::load::Axis::Refitted`]:
+//! around the refitted axis when the survey has one (a tracker survey with SMR
+//! positions), as stored otherwise, corrected for the drift when the survey
+//! asked for it; and says which axis ([`AxisUsed`]: `"axis": "refitted" |
+//! "located" | "none"` in their JSON). `survey process --located-axis` processes around the located axis
+//! for comparison and says so.
 
 use crate::acquire::ReferenceKind;
 use crate::store::Store;
@@ -45,6 +54,47 @@ pub struct AxisRefit {
     /// (standard error, its mean over the arc removed): how far the arc
     /// allows the axis to be known.
     pub over_arc_se_deg: f64,
+}
+
+/// Which axis a survey's actual angles were computed around.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisUsed {
+    /// Fitted again from every SMR position of the survey.
+    Refitted,
+    /// Located before the runs (as stored).
+    Located,
+    /// No axis: an autocollimator, an import.
+    None,
+}
+
+impl AxisUsed {
+    /// The JSON word.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AxisUsed::Refitted => "refitted",
+            AxisUsed::Located => "located",
+            AxisUsed::None => "none",
+        }
+    }
+
+    /// The axis of `survey` analysed with `refit` (or without one).
+    pub fn of(survey: &SurveyRecord, refit: Option<&AxisRefit>) -> Self {
+        match (refit, &survey.axis) {
+            (Some(_), _) => AxisUsed::Refitted,
+            (None, Some(_)) => AxisUsed::Located,
+            (None, None) => AxisUsed::None,
+        }
+    }
+
+    /// One line for people: which angles the figures are of.
+    pub fn text(self) -> &'static str {
+        match self {
+            AxisUsed::Refitted => "axis: refitted (actual angles around the axis fitted again from every SMR position)",
+            AxisUsed::Located => "axis: located (actual angles as stored, around the axis located before the runs)",
+            AxisUsed::None => "axis: none (the reference measures angles directly)",
+        }
+    }
 }
 
 /// The shift between two centres, in the plane of `fit`.

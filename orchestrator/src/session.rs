@@ -1,6 +1,7 @@
 //! One acquisition session: the engine runs the plan (or what is left of
-//! it) into the store, with a progress bar, and the survey is marked complete
-//! or interrupted. A signal reaches the engine through its [`crate::stop::Stop`]:
+//! it) into the store, with a progress bar, and the survey is marked
+//! `processing` (every sample stored: its outputs come next, and mark it
+//! complete) or interrupted. A signal reaches the engine through its [`crate::stop::Stop`]:
 //! it stops the axis between writes, the measured samples are committed, the
 //! survey is marked interrupted with the reason "stopped by signal", and the
 //! command ends with exit status 1. `survey run`, `survey resume` and the
@@ -42,8 +43,9 @@ pub struct Acquired {
 }
 
 /// Acquire `plan` from step `from_seq` into survey `id` and mark the survey:
-/// complete when the engine finished, interrupted (with the reason in its
-/// events) when it stopped. Samples measured before a stop are stored.
+/// `processing` when the engine finished (the caller marks it complete once
+/// its outputs are written), interrupted (with the reason in its events) when
+/// it stopped. Samples measured before a stop are stored.
 pub async fn acquire(
     store: &Store,
     id: i64,
@@ -65,7 +67,7 @@ pub async fn acquire(
         engine.stop().clone().wait().await;
     }
     let now = engine.clock().now();
-    let status = if outcome.is_ok() { SurveyStatus::Complete } else { SurveyStatus::Interrupted };
+    let status = if outcome.is_ok() { SurveyStatus::Processing } else { SurveyStatus::Interrupted };
     if let Err(e) = &outcome {
         let level = if matches!(e, EngineError::Stopped(_)) { "warn" } else { "error" };
         let _ = store.log_event(id, now.as_secs_f64(), level, &format!("{e:#}")).await;

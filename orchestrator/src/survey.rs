@@ -10,7 +10,7 @@
 //!
 //! The text forms are those the store has always written, so databases made
 //! by earlier versions read unchanged: `source` is `simulated`,
-//! `instruments`, `verification` or `import:<file>`; `config_json` holds the
+//! `instruments`, `verification`, `resolving` or `import:<file>`; `config_json` holds the
 //! [`SimulatedSetup`] or [`ConfiguredSetup`] (a verification survey holds the
 //! setup of the survey it verifies), `{"imported_from": ...}` for an import,
 //! or `{}` when nothing was recorded.
@@ -34,6 +34,10 @@ pub enum SurveySource {
     Instruments,
     /// Acquired with a correction table applied (`survey run --verify`).
     Verification,
+    /// Check points between the targets of another survey, measured to
+    /// decide the lines its analysis left in doubt (`survey run` with a
+    /// tracker, [`crate::resolving`]).
+    Resolving,
     /// Imported from a CSV file.
     Import {
         /// The file, as it was named on the command line.
@@ -48,6 +52,7 @@ impl SurveySource {
             SurveySource::Simulated => "simulated".into(),
             SurveySource::Instruments => "instruments".into(),
             SurveySource::Verification => "verification".into(),
+            SurveySource::Resolving => "resolving".into(),
             SurveySource::Import { file } => format!("import:{file}"),
         }
     }
@@ -58,6 +63,7 @@ impl SurveySource {
             "simulated" => Some(SurveySource::Simulated),
             "instruments" => Some(SurveySource::Instruments),
             "verification" => Some(SurveySource::Verification),
+            "resolving" => Some(SurveySource::Resolving),
             other => other.strip_prefix("import:").map(|f| SurveySource::Import { file: f.to_string() }),
         }
     }
@@ -74,6 +80,7 @@ impl fmt::Display for SurveySource {
             SurveySource::Simulated => f.write_str("simulated instruments"),
             SurveySource::Instruments => f.write_str("instruments"),
             SurveySource::Verification => f.write_str("verification of a correction table"),
+            SurveySource::Resolving => f.write_str("check points deciding another survey's lines"),
             SurveySource::Import { file } => write!(f, "imported from {file}"),
         }
     }
@@ -128,12 +135,34 @@ pub enum Setup {
 }
 
 impl Setup {
+    /// How many times faster than real time the instruments ran: a
+    /// configuration's `[timing] time_scale` (a rehearsal on `survey sim
+    /// --time-scale X`); 1 for the simulated bench, whose virtual clock is
+    /// its instruments' own.
+    pub fn time_scale(&self) -> f64 {
+        match self {
+            Setup::Configured(c) => c.config.time_scale(),
+            _ => 1.0,
+        }
+    }
+
     /// The plan, when the survey was acquired.
     pub fn plan(&self) -> Option<&SurveyPlan> {
         match self {
             Setup::Simulated(s) => Some(&s.plan),
             Setup::Configured(c) => Some(&c.plan),
             Setup::Imported { .. } | Setup::Unrecorded => None,
+        }
+    }
+
+    /// The asset a survey of this setup belongs to unless told otherwise:
+    /// `sim-<preset>` on the simulated bench, the configuration's `[asset]
+    /// id`, else [`UNASSIGNED`].
+    pub fn default_asset(&self) -> String {
+        match self {
+            Setup::Simulated(s) => simulated_asset(&s.preset),
+            Setup::Configured(c) => c.config.asset.as_ref().map_or(UNASSIGNED.to_string(), |a| a.id.clone()),
+            Setup::Imported { .. } | Setup::Unrecorded => UNASSIGNED.to_string(),
         }
     }
 
@@ -159,7 +188,7 @@ impl Setup {
         match source {
             SurveySource::Simulated => simulated().map_err(|e| e.to_string()),
             SurveySource::Instruments => configured().map_err(|e| e.to_string()),
-            SurveySource::Verification => simulated()
+            SurveySource::Verification | SurveySource::Resolving => simulated()
                 .or_else(|_| configured())
                 .map_err(|e| format!("neither a simulated nor a configured setup: {e}")),
             SurveySource::Import { file } => Ok(Setup::Imported {
@@ -206,7 +235,11 @@ pub enum SurveyStatus {
     Running,
     /// Acquisition stopped before the plan was complete; `survey resume` continues it.
     Interrupted,
-    /// Every planned sample is stored.
+    /// Every planned sample is stored; the outputs (the correction table and
+    /// the files beside it) are being written, or were not all written (a
+    /// kill, a full disk): `survey resume` writes them.
+    Processing,
+    /// Every planned sample is stored, and the outputs are written.
     Complete,
     /// Acquisition gave up on an error.
     Failed,
@@ -220,6 +253,7 @@ impl SurveyStatus {
         match self {
             SurveyStatus::Running => "running",
             SurveyStatus::Interrupted => "interrupted",
+            SurveyStatus::Processing => "processing",
             SurveyStatus::Complete => "complete",
             SurveyStatus::Failed => "failed",
             SurveyStatus::Imported => "imported",
@@ -231,6 +265,7 @@ impl SurveyStatus {
         Some(match s {
             "running" => SurveyStatus::Running,
             "interrupted" => SurveyStatus::Interrupted,
+            "processing" => SurveyStatus::Processing,
             "complete" => SurveyStatus::Complete,
             "failed" => SurveyStatus::Failed,
             "imported" => SurveyStatus::Imported,
@@ -269,6 +304,10 @@ pub struct NewSurvey {
     pub verification: Option<VerificationOf>,
     /// How many samples the plan holds, when known.
     pub planned_samples: Option<u64>,
+    /// The asset (the axis measured): see [`asset_id`].
+    pub asset: String,
+    /// For a check survey (`survey run --check`): the uid of the calibration it is compared with.
+    pub check_of: Option<String>,
 }
 
 impl Default for NewSurvey {
@@ -285,6 +324,8 @@ impl Default for NewSurvey {
             instruments: serde_json::json!({}),
             verification: None,
             planned_samples: None,
+            asset: UNASSIGNED.to_string(),
+            check_of: None,
         }
     }
 }
@@ -306,8 +347,14 @@ impl NewSurvey {
 /// A stored survey, typed: parsed once, when read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurveyRecord {
-    /// The survey id (`--survey ID`).
+    /// The survey id (`--survey ID`), this database's own.
     pub id: i64,
+    /// The survey's UUID, the same in every store it is copied to.
+    pub uid: String,
+    /// The asset (the axis measured).
+    pub asset: String,
+    /// For a check survey: the uid of the calibration it was compared with.
+    pub check_of: Option<String>,
     /// UTC ISO-8601, e.g. `2025-03-01T14:02:11Z`.
     pub created_at: String,
     /// UTC ISO-8601: the last change of status or axis.
@@ -332,6 +379,8 @@ pub struct SurveyRecord {
     pub instruments: serde_json::Value,
     /// What a verification survey verifies.
     pub verification: Option<VerificationOf>,
+    /// The survey whose doubts a resolving survey's check points decide.
+    pub resolves: Option<i64>,
     /// Instrument time when acquisition started, seconds.
     pub started_at_s: Option<f64>,
     /// Instrument time when acquisition ended, seconds.
@@ -346,6 +395,9 @@ pub struct SurveyRecord {
 #[derive(Debug, Clone)]
 pub(crate) struct StoredColumns {
     pub id: i64,
+    pub uid: String,
+    pub asset: String,
+    pub check_of: Option<String>,
     pub created_at: String,
     pub updated_at: String,
     pub status: String,
@@ -398,8 +450,19 @@ impl SurveyRecord {
             ),
             _ => None,
         };
+        let resolves = match source {
+            SurveySource::Resolving => Some(
+                instruments["resolves_survey"]
+                    .as_i64()
+                    .ok_or_else(|| damaged("resolved survey", "no resolves_survey id".into()))?,
+            ),
+            _ => None,
+        };
         Ok(SurveyRecord {
             id: c.id,
+            uid: c.uid,
+            asset: c.asset,
+            check_of: c.check_of,
             created_at: c.created_at,
             updated_at: c.updated_at,
             status,
@@ -412,6 +475,7 @@ impl SurveyRecord {
             axis,
             instruments,
             verification,
+            resolves,
             started_at_s: c.started_at_s,
             ended_at_s: c.ended_at_s,
             planned_samples: c.planned_samples,
@@ -423,6 +487,93 @@ impl SurveyRecord {
     pub fn plan(&self) -> Option<&SurveyPlan> {
         self.setup.plan()
     }
+
+    /// Whether the survey is a whole measurement: acquired to its end, or imported.
+    pub fn is_complete(&self) -> bool {
+        matches!(self.status, SurveyStatus::Complete | SurveyStatus::Imported)
+    }
+
+    /// Whether the survey is a calibration (neither a check nor a verification).
+    pub fn is_calibration(&self) -> bool {
+        self.check_of.is_none() && self.source != SurveySource::Verification
+    }
+}
+
+/// The asset of a survey whose asset is not known: imports without
+/// `--asset`, configurations without `[asset] id`, surveys stored before
+/// assets existed (other than simulated ones).
+pub const UNASSIGNED: &str = "unassigned";
+
+/// The asset of a survey on the simulated bench of `preset`: `sim-<preset>`.
+pub fn simulated_asset(preset: &str) -> String {
+    format!("sim-{preset}")
+}
+
+/// Check an asset id: 1-64 characters of letters, digits and `-_./`.
+pub fn asset_id(text: &str) -> Result<String, String> {
+    let bad = text.chars().find(|c| !(c.is_ascii_alphanumeric() || "-_./".contains(*c)));
+    match (text.chars().count(), bad) {
+        (0, _) => Err("an asset id cannot be empty".into()),
+        (n, _) if n > 64 => Err(format!("the asset id '{text}' is {n} characters long (at most 64)")),
+        (_, Some(c)) => Err(format!("the asset id '{text}' holds '{c}': only letters, digits and - _ . / are allowed")),
+        _ => Ok(text.to_string()),
+    }
+}
+
+/// A survey as the command line names it: its id in this database, or its uid.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SurveyRef {
+    /// The id (`3`).
+    Id(i64),
+    /// The UUID (`0b6c...-...`), lower or upper case.
+    Uid(String),
+}
+
+impl From<i64> for SurveyRef {
+    fn from(id: i64) -> Self {
+        SurveyRef::Id(id)
+    }
+}
+
+impl fmt::Display for SurveyRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SurveyRef::Id(id) => write!(f, "id {id}"),
+            SurveyRef::Uid(uid) => write!(f, "uid {uid}"),
+        }
+    }
+}
+
+impl std::str::FromStr for SurveyRef {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if let Ok(id) = s.parse::<i64>() {
+            return Ok(SurveyRef::Id(id));
+        }
+        if is_uid(s) {
+            return Ok(SurveyRef::Uid(s.to_ascii_lowercase()));
+        }
+        Err(format!("'{s}' is neither a survey id (a number) nor a survey uid (a UUID like 0b6c1a52-...)"))
+    }
+}
+
+/// Whether `s` has the shape of a UUID: 8-4-4-4-12 hexadecimal digits.
+pub fn is_uid(s: &str) -> bool {
+    let groups: Vec<&str> = s.split('-').collect();
+    groups.len() == 5
+        && groups.iter().zip([8, 4, 4, 4, 12]).all(|(g, n)| g.len() == n && g.chars().all(|c| c.is_ascii_hexdigit()))
+}
+
+/// A new random uid (UUID version 4, lower case), from the operating system's randomness.
+pub fn new_uid() -> String {
+    use rand::TryRngCore as _;
+    let mut b = [0u8; 16];
+    rand::rngs::OsRng.try_fill_bytes(&mut b).expect("the operating system gives random bytes");
+    b[6] = (b[6] & 0x0f) | 0x40;
+    b[8] = (b[8] & 0x3f) | 0x80;
+    let hex: String = b.iter().map(|x| format!("{x:02x}")).collect();
+    format!("{}-{}-{}-{}-{}", &hex[0..8], &hex[8..12], &hex[12..16], &hex[16..20], &hex[20..32])
 }
 
 #[cfg(test)]
@@ -432,6 +583,9 @@ mod tests {
     fn columns(source: &str, config: &str) -> StoredColumns {
         StoredColumns {
             id: 3,
+            uid: "00000000-0000-4000-8000-000000000003".into(),
+            asset: "sim-fig8".into(),
+            check_of: None,
             created_at: "t".into(),
             updated_at: "t".into(),
             status: "running".into(),
@@ -476,6 +630,20 @@ mod tests {
         let mut c = columns("import:a.csv", "{}");
         c.axis_json = Some("{".into());
         assert_eq!(SurveyRecord::parse(c, "x.db").unwrap_err().column, "located axis");
+    }
+
+    #[test]
+    fn asset_ids_and_survey_references_are_checked() {
+        assert_eq!(asset_id("lab-2/az.axis_1").unwrap(), "lab-2/az.axis_1");
+        assert!(asset_id("").is_err() && asset_id(&"a".repeat(65)).is_err() && asset_id(&"a".repeat(64)).is_ok());
+        let e = asset_id("bay 3").unwrap_err();
+        assert!(e.contains("' '"), "{e}");
+        assert_eq!("12".parse::<SurveyRef>(), Ok(SurveyRef::Id(12)));
+        let uid = new_uid();
+        assert!(is_uid(&uid) && uid.as_bytes()[14] == b'4' && "89ab".contains(uid.as_bytes()[19] as char), "{uid}");
+        assert_eq!(uid.to_uppercase().parse::<SurveyRef>(), Ok(SurveyRef::Uid(uid.clone())));
+        assert_ne!(new_uid(), uid);
+        assert!("12a".parse::<SurveyRef>().unwrap_err().contains("neither a survey id"));
     }
 
     #[test]

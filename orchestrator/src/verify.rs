@@ -11,21 +11,25 @@
 //! it makes interpolating between them would never show. With an
 //! autocollimator the only angles measured are the polygon's faces: the
 //! verification stays at the faces and says so.
+//!
+//! It ends with a verdict ([`survey_processing::verification::judge`]): the
+//! prediction is confirmed, or not (the measured corrected peak exceeds the
+//! prediction by more than the table's `U`, or is not better than native).
 
 use crate::acquire::{Engine, ReferenceKind, Timing};
 use crate::error::bad_input;
-use crate::output::{Output, iso_json, iso_text};
+use crate::output::{Output, Units, iso_json, iso_text};
 use crate::process::ProcessOutcome;
 use crate::session::{AcquireOptions, acquire};
 use crate::store::Store;
-use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, VerificationOf};
+use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus, VerificationOf};
 use anyhow::Context as _;
 use survey_drivers::clock::with_timeout;
 use survey_processing::Sample;
 use survey_processing::iso230::iso230_2;
 use survey_processing::plan::SurveyPlan;
 use survey_processing::table::CorrectionTable;
-use survey_processing::verification::{offset_deg, peak_deg, systematic_peak_deg};
+use survey_processing::verification::{Judged, Verdict, judge, offset_deg, peak_deg, systematic_peak_deg};
 
 /// Where a verification measures, decided before the calibration survey
 /// starts (a bad `--verify-points` is refused before hours of measuring).
@@ -74,8 +78,28 @@ pub async fn apply_correction(engine: &mut Engine, table: &CorrectionTable) -> a
     Ok(())
 }
 
+/// A verification's output and its verdict.
+#[derive(Debug)]
+pub struct Verified {
+    /// What to print (the `verify` document and its text).
+    pub output: Output,
+    /// The verification survey.
+    pub id: i64,
+    /// Confirmed or not, and why.
+    pub judged: Judged,
+}
+
+impl Verified {
+    /// Whether the prediction was confirmed.
+    pub fn confirmed(&self) -> bool {
+        self.judged.verdict == Verdict::Confirmed
+    }
+}
+
 /// Verify the table of `processed` (made from `native` and its `native_samples`):
-/// apply it and measure `verify_plan` as a new survey.
+/// apply it, measure `verify_plan` as a new survey, and judge it; the text's
+/// errors in `units`.
+#[allow(clippy::too_many_arguments)] // what is verified, where, and how it shows: none derives from another
 pub async fn verify(
     engine: &mut Engine,
     store: &Store,
@@ -84,7 +108,8 @@ pub async fn verify(
     verify_plan: &VerifyPlan,
     processed: &ProcessOutcome,
     options: AcquireOptions,
-) -> anyhow::Result<Output> {
+    units: Units,
+) -> anyhow::Result<Verified> {
     let table = &processed.processed.built.table;
     let plan = &verify_plan.plan;
     apply_correction(engine, table).await?;
@@ -118,6 +143,7 @@ pub async fn verify(
                 correction: Some(table.clone()),
             }),
             planned_samples: Some(plan.total_steps()),
+            asset: native.asset.clone(),
             ..NewSurvey::default()
         })
         .await?;
@@ -131,14 +157,32 @@ pub async fn verify(
         progress.continue_with(plan.targets_deg.len() as u64 * plan.directions().len() as u64);
     }
     acquire(store, id, engine, plan, 0, options).await?;
+    // A verification writes no file: its figures are its outputs.
+    store.set_status(id, SurveyStatus::Complete, None).await?;
     let corrected = store.samples(id).await?;
     let predicted = processed.processed.prediction.corrected_peak_deg;
-    let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional())?;
+    let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
+    let u = processed.uncertainty.table_u_deg;
+    let judged = judge(predicted, u, peak_deg(&corrected), peak_deg(native_samples));
     out.doc["targets"] = plan.targets_deg.len().into();
     out.doc["between_targets"] = verify_plan.between.into();
     out.doc["offset_deg"] = verify_plan.offset_deg.into();
-    out.text = format!("{}\n{}", placement(verify_plan), out.text);
-    Ok(out)
+    out.doc["table_u_deg"] = u.into();
+    out.doc["verdict"] = judged.verdict.as_str().into();
+    out.doc["reason"] = judged.reason.clone().into();
+    out.text = format!("{}\n{}{}\n", placement(verify_plan), out.text, units.text(&verdict_text(&judged)));
+    Ok(Verified { output: out, id, judged })
+}
+
+/// The verdict for people: one line, plain words.
+pub fn verdict_text(j: &Judged) -> String {
+    match j.verdict {
+        Verdict::Confirmed => format!("verdict: the prediction is confirmed: {}", j.reason),
+        Verdict::NotConfirmed => format!(
+            "verdict: NOT CONFIRMED: {}; do not use this table as a result (the survey and the table stay stored)",
+            j.reason
+        ),
+    }
 }
 
 /// Where the verification measured, in words.
@@ -157,7 +201,7 @@ fn placement(v: &VerifyPlan) -> String {
     }
 }
 
-/// The verification's figures: native against corrected.
+/// The verification's figures: native against corrected, the text's errors in `units`.
 pub fn figures(
     id: i64,
     native_id: i64,
@@ -165,6 +209,7 @@ pub fn figures(
     corrected: &[Sample],
     predicted: Option<f64>,
     directional: bool,
+    units: Units,
 ) -> anyhow::Result<Output> {
     let iso = iso230_2(corrected).context("ISO 230-2 statistics of the verification")?;
     let (native_peak, corrected_peak) = (peak_deg(native), peak_deg(corrected));
@@ -180,15 +225,18 @@ pub fn figures(
         "directional": directional,
         "iso230_2": iso_json(id, &iso)["iso230_2"].clone(),
     });
-    let predicted = predicted.map(|p| format!(" (predicted +/-{p:.5})")).unwrap_or_default();
+    let (e, unit) = (|deg: f64| units.fixed(deg, 5), units.symbol());
+    let predicted = predicted.map(|p| format!(" (predicted +/-{})", e(p))).unwrap_or_default();
     let text = format!(
         "verification (survey {id}): measured with the table applied in the feedback path\n  \
-         native peak +/-{native_peak:.5} deg, corrected +/-{corrected_peak:.5} deg{predicted}, {:.1}x better\n  \
-         systematic part (mean over the runs): native +/-{:.5} deg, corrected +/-{:.5} deg\n{}",
+         native peak +/-{} {unit}, corrected +/-{} {unit}{predicted}, {:.1}x better\n  \
+         systematic part (mean over the runs): native +/-{} {unit}, corrected +/-{} {unit}\n{}",
+        e(native_peak),
+        e(corrected_peak),
         native_peak / corrected_peak,
-        systematic_peak_deg(native),
-        systematic_peak_deg(corrected),
-        iso_text(id, &iso)
+        e(systematic_peak_deg(native)),
+        e(systematic_peak_deg(corrected)),
+        iso_text(id, &iso, units)
     );
     Ok(Output { doc, text })
 }

@@ -29,6 +29,7 @@
 //! names a drift as an effect of the model).
 
 use crate::Sample;
+use crate::units::Units;
 use serde::{Deserialize, Serialize};
 
 /// `[drift_control]` of a configuration file.
@@ -54,7 +55,7 @@ impl DriftControl {
         if !(self.reference_deg.is_finite() && self.reference_deg.abs() <= 3600.0) {
             return Err(format!(
                 "drift_control.reference_deg = {} is not an angle within +/-3600 deg",
-                self.reference_deg
+                crate::num::Num(self.reference_deg)
             ));
         }
         Ok(())
@@ -154,15 +155,15 @@ pub fn for_analysis<'a>(
     if correct_asked && !points.is_empty() { correct(samples, points).into() } else { samples.into() }
 }
 
-/// The drift table of `survey show` and `survey stats`.
-pub fn text(points: &[DriftPoint]) -> String {
+/// The drift table of `survey show` and `survey stats`, the drift in `units`.
+pub fn text(points: &[DriftPoint], units: Units) -> String {
     if points.is_empty() {
         return String::new();
     }
-    let mut out =
-        String::from("drift of the reference target (drift control):\n      time_s   before_step     drift_deg\n");
+    let column = format!("drift_{}", units.symbol());
+    let mut out = format!("drift of the reference target (drift control):\n      time_s   before_step {column:>13}\n");
     for p in points {
-        out += &format!("{:>12.1} {:>13} {:>13.3e}\n", p.at_s, p.before_seq, p.drift_deg);
+        out += &format!("{:>12.1} {:>13} {:>13}\n", p.at_s, p.before_seq, units.small(p.drift_deg, 3, false));
     }
     out
 }

@@ -7,8 +7,10 @@
 
 pub mod analysis;
 pub mod budget;
+pub mod compare;
 pub mod correction;
 pub mod corrector;
+pub mod coverage;
 pub mod drift;
 pub mod errormap;
 pub mod export;
@@ -17,6 +19,7 @@ pub mod iso230;
 pub mod lstsq;
 pub mod model;
 pub mod modelgap;
+pub mod num;
 pub mod pairing;
 pub mod pipeline;
 pub mod plan;
@@ -27,6 +30,7 @@ pub mod spectrum;
 pub mod table;
 pub mod types;
 pub mod uncertainty;
+pub mod units;
 pub mod vdi3441;
 pub mod verification;
 

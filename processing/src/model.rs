@@ -8,6 +8,7 @@
 //! and `-amplitude/2` on reverse ones; drift adds `rate_deg_per_run` per run
 //! elapsed; noise is a normal, non-repeatable error of `sigma_deg`.
 
+use crate::num::Num;
 use crate::types::Direction;
 use std::fmt::Write as _;
 
@@ -309,6 +310,14 @@ fn fmt_num(v: f64) -> String {
     if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") { s } else { format!("{s}.0") }
 }
 
+/// A TOML value for a message: a float as [`Num`] shows it.
+fn shown(v: &toml::Value) -> String {
+    match v {
+        toml::Value::Float(f) => Num(*f).to_string(),
+        other => other.to_string(),
+    }
+}
+
 fn line_of_offset(text: &str, offset: usize) -> usize {
     text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
 }
@@ -381,7 +390,8 @@ fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
                             return Err((
                                 at(key),
                                 format!(
-                                    "design.gear_ratios: {v} is not a gear ratio (a number from above 0 to 100000)"
+                                    "design.gear_ratios: {} is not a gear ratio (a number from above 0 to 100000)",
+                                    shown(v)
                                 ),
                             ));
                         }
@@ -397,7 +407,10 @@ fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
                         _ => {
                             return Err((
                                 at(key),
-                                format!("design.tooth_counts: {v} is not a tooth count (an integer from 1 to 100000)"),
+                                format!(
+                                    "design.tooth_counts: {} is not a tooth count (an integer from 1 to 100000)",
+                                    shown(v)
+                                ),
                             ));
                         }
                     }
@@ -446,7 +459,7 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
     let kind = match t.get("kind") {
         None => return Err((header, format!("effect[{n}]: missing key 'kind' (one of {KINDS})"))),
         Some(toml::Value::String(s)) => s.as_str(),
-        Some(v) => return Err((at("kind"), format!("effect[{n}].kind must be a string, got {v}"))),
+        Some(v) => return Err((at("kind"), format!("effect[{n}].kind must be a string, got {}", shown(v)))),
     };
     let allowed: &[&str] = match kind {
         "eccentricity" | "ellipticity" | "gear_pass" | "tooth_mesh" | "harmonic" => {
@@ -469,17 +482,18 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
         let v = t.get(key).ok_or((header, format!("effect[{n}] ({kind}): missing key '{key}'")))?;
         match number(v) {
             Some(x) if x.is_finite() => match physical_range(key) {
-                Some((lo, hi, why)) if !(lo..=hi).contains(&x) => {
-                    Err((at(key), format!("effect[{n}] ({kind}).{key} = {x} is outside {lo}..={hi}: {why}")))
-                }
+                Some((lo, hi, why)) if !(lo..=hi).contains(&x) => Err((
+                    at(key),
+                    format!("effect[{n}] ({kind}).{key} = {} is outside {}..={}: {why}", Num(x), Num(lo), Num(hi)),
+                )),
                 _ => Ok(x),
             },
-            _ => Err((at(key), format!("effect[{n}] ({kind}).{key} must be a finite number, got {v}"))),
+            _ => Err((at(key), format!("effect[{n}] ({kind}).{key} must be a finite number, got {}", shown(v)))),
         }
     };
     let non_negative = |key: &str, x: f64| -> Result<f64, Fail> {
         if x < 0.0 {
-            Err((at(key), format!("effect[{n}] ({kind}).{key} must not be negative, got {x}")))
+            Err((at(key), format!("effect[{n}] ({kind}).{key} must not be negative, got {}", Num(x))))
         } else {
             Ok(x)
         }
@@ -494,13 +508,13 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
         {
             return Err((
                 at("cycles_per_rev"),
-                format!("effect[{n}] ({}).cycles_per_rev must be {fixed}, got {cycles}", kind.as_str()),
+                format!("effect[{n}] ({}).cycles_per_rev must be {fixed}, got {}", kind.as_str(), Num(cycles)),
             ));
         }
         if cycles <= 0.0 {
             return Err((
                 at("cycles_per_rev"),
-                format!("effect[{n}] ({}).cycles_per_rev must be positive, got {cycles}", kind.as_str()),
+                format!("effect[{n}] ({}).cycles_per_rev must be positive, got {}", kind.as_str(), Num(cycles)),
             ));
         }
         let amplitude_deg = non_negative("amplitude_deg", get("amplitude_deg")?)?;
@@ -522,7 +536,7 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
                 Some(v) => {
                     return Err((
                         at("shape"),
-                        format!("effect[{n}] (drift).shape must be \"ramp\" or \"step\", got {v}"),
+                        format!("effect[{n}] (drift).shape must be \"ramp\" or \"step\", got {}", shown(v)),
                     ));
                 }
             };

@@ -7,12 +7,16 @@
 
 use crate::Sample;
 use crate::analysis::{Analysis, AnalysisError, analyse};
+use crate::correction::left::{Left, LeftKind};
+use crate::correction::resolve::{Resolution, decide as resolve, measured_left_deg as measured_left_deg_of};
 use crate::correction::{CorrectionError, Prediction, predict_accuracy};
 use crate::errormap::Coverage;
 use crate::export::controllers::ControllerExport;
 use crate::iso230::{Iso230, iso230_2};
 use crate::model::Design;
-use crate::recipe::{ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe};
+use crate::recipe::{
+    AliasChoice, AliasChoiceAction, ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe,
+};
 use crate::resample::{MethodScore, compare_interpolation};
 
 /// Why a survey cannot be processed. Every variant is about the data or the
@@ -23,14 +27,14 @@ pub enum PipelineError {
     #[error("there are no samples to process")]
     NoSamples,
     /// The samples cannot be analysed (an incomplete error map, say).
-    #[error("the samples cannot be analysed: {0}")]
+    #[error("the samples cannot be analysed")]
     Analysis(#[from] AnalysisError),
     /// The recipe cannot be applied to these samples; the text names the
     /// recipe file and line when it was replayed from one.
     #[error("{0}")]
     Recipe(String),
     /// The accuracy cannot be predicted from these samples.
-    #[error("predicting the corrected accuracy: {0}")]
+    #[error("predicting the corrected accuracy")]
     Prediction(#[from] CorrectionError),
     /// The export choices given apart from a recipe file (on the command
     /// line) cannot be honoured; the key names the `[export]` choice.
@@ -72,7 +76,18 @@ pub struct Processed {
     pub decisions: Decisions,
     /// The table.
     pub built: BuiltTable,
-    /// Native and corrected accuracy, predicted on the survey's samples.
+    /// What the table leaves uncorrected that the survey saw (nulled lines,
+    /// lines that may be aliases).
+    pub left: Left,
+    /// What check points between the targets decided about the lines in
+    /// doubt ([`crate::correction::resolve`]; empty without check points).
+    pub resolutions: Vec<Resolution>,
+    /// What the check points measure the table leaves between the targets
+    /// (its coverage interval, [`crate::correction::resolve::measured_left_deg`]),
+    /// when no hypothesis explains them: the table's `U` is at least this.
+    pub measured_left_deg: Option<f64>,
+    /// Native and corrected accuracy, predicted on the survey's samples,
+    /// with what the table leaves between the targets.
     pub prediction: Prediction,
     /// The repeatability floor.
     pub floor: Floor,
@@ -124,6 +139,21 @@ pub fn process_with(
     replay: Option<Replay<'_>>,
     export: Option<&ExportChoices>,
 ) -> Result<Processed, PipelineError> {
+    process_with_checks(samples, design, replay, export, &[])
+}
+
+/// [`process_with`] with `checks`, samples measured between the targets to
+/// decide the lines in doubt ([`crate::correction::resolve`]): a line
+/// decided above the sampling's resolution is relocated there (the recipe
+/// written says so, so a recalibration replays it), one decided where it is
+/// seen is no longer in doubt; what is not decided stays in `left`.
+pub fn process_with_checks(
+    samples: &[Sample],
+    design: &Design,
+    replay: Option<Replay<'_>>,
+    export: Option<&ExportChoices>,
+    checks: &[Sample],
+) -> Result<Processed, PipelineError> {
     if samples.is_empty() {
         return Err(PipelineError::NoSamples);
     }
@@ -139,9 +169,26 @@ pub fn process_with(
     if let Some(export) = export {
         recipe.export = export.clone();
     }
-    let decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
+    let mut decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
+    let mut built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
+    let mut left = Left::of(&analysis, &decisions, &[]);
+    let mut resolutions = Vec::new();
+    let mut measured_left = None;
+    if !checks.is_empty() && !left.is_empty() {
+        resolutions = resolve(&left, &built.table, checks);
+        let (resolved, stays) = resolved_recipe(&recipe, &left, &resolutions);
+        if resolved != recipe {
+            recipe = resolved;
+            decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
+            built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
+        }
+        left = Left::of(&analysis, &decisions, &stays).with_rest(&left, &resolutions, &analysis.error_map.targets_deg);
+        notes.extend(resolutions.iter().map(|r| r.why.clone()));
+        if resolutions.iter().any(|r| !r.explained) {
+            measured_left = measured_left_deg_of(&built.table, checks);
+        }
+    }
     notes.extend(decisions.notes.iter().cloned());
-    let built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
     notes.extend(built.notes.iter().cloned());
     let iso = iso230_2(&samples).ok();
     let floor = match &iso {
@@ -156,7 +203,21 @@ pub fn process_with(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?;
+    let mut prediction =
+        predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?.with_left(&left, &samples, &built.table);
+    // Check points that no hypothesis explains measured the corrected axis
+    // between the targets: the prediction does not promise better.
+    if let Some((_, peak)) = measured_left {
+        prediction.corrected_peak_deg = prediction.corrected_peak_deg.max(peak);
+    }
+    notes.extend(left.lines.iter().map(|l| l.why.clone()));
+    if prediction.no_better_than_native() {
+        notes.push(format!(
+            "this table is not expected to improve the axis: corrected peak +/-{:.5} deg predicted (with what it leaves \
+             between the targets) against +/-{:.5} deg native; it is not a result to load",
+            prediction.corrected_peak_deg, prediction.native_peak_deg
+        ));
+    }
     let single = match analysis.error_map.coverage {
         Coverage::FullCircle { .. } => analysis
             .error_map
@@ -182,6 +243,9 @@ pub fn process_with(
         replayed: replay.is_some(),
         decisions,
         built,
+        left,
+        resolutions,
+        measured_left_deg: measured_left.map(|m| m.0),
         prediction,
         floor,
         iso,
@@ -189,6 +253,62 @@ pub fn process_with(
         controllers,
         notes,
     })
+}
+
+/// `recipe` with what `resolutions` decided about the lines of `left`: a
+/// line decided above the sampling's resolution relocated there (its bin's
+/// other candidates no longer named), and the bins decided where they are
+/// seen (no longer in doubt).
+fn resolved_recipe(recipe: &Recipe, left: &Left, resolutions: &[Resolution]) -> (Recipe, Vec<f64>) {
+    let mut out = recipe.clone();
+    let mut stays = Vec::new();
+    let n = left.points as f64;
+    for r in resolutions {
+        let (Some(f), Some(line)) =
+            (r.decided_cycles, left.lines.iter().find(|l| l.observed_cycles == r.observed_cycles))
+        else {
+            continue;
+        };
+        let bin = r.observed_cycles;
+        match r.kind {
+            LeftKind::MaybeAlias if f == bin => stays.push(bin),
+            LeftKind::MaybeAlias => {
+                out.lines.keep.retain(|k| *k != bin);
+                out.lines.keep.push(f);
+            }
+            // Above the resolution: relocated there, in place of whatever the
+            // bin's candidates were named.
+            LeftKind::NotCarried if 2.0 * f > n => {
+                out.aliases.retain(|a| !line.candidates.contains(&(a.true_cycles as f64)));
+                out.lines.keep.retain(|k| !line.candidates.contains(k));
+                out.lines.remove.retain(|k| !line.candidates.contains(k));
+                out.aliases.push(AliasChoice {
+                    true_cycles: f as usize,
+                    action: AliasChoiceAction::Relocate,
+                    observed_cycles: Some(bin as usize),
+                    source: Some("decided by check points measured between the targets".into()),
+                });
+            }
+            // Decided at a frequency the survey resolves: kept at its bin,
+            // the aliased candidates that share it named absent.
+            LeftKind::NotCarried => {
+                out.aliases.retain(|a| !line.candidates.contains(&(a.true_cycles as f64)));
+                out.lines.remove.retain(|k| !line.candidates.contains(k));
+                if !out.lines.keep.contains(&f) {
+                    out.lines.keep.push(f);
+                }
+                for &c in line.candidates.iter().filter(|&&c| c != f && 2.0 * c > n) {
+                    out.aliases.push(AliasChoice {
+                        true_cycles: c as usize,
+                        action: AliasChoiceAction::Absent,
+                        observed_cycles: Some(bin as usize),
+                        source: Some("not there: check points measured between the targets".into()),
+                    });
+                }
+            }
+        }
+    }
+    (out, stays)
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ pub use passes::{PassPlan, ScanTiming, passes, start_deg};
 
 use crate::Direction;
 use crate::errormap::Coverage;
+use crate::num::Num;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 
@@ -89,20 +90,31 @@ pub enum PlanError {
     )]
     NotTheFaces { points: u32, faces: u32 },
     #[error(
-        "the travel {min}..{max} deg holds {found} of the {faces} polygon faces (every {pitch} deg) with room to \
-         approach them from both sides; at least 2 are needed"
+        "the travel {}..{} deg holds {found} of the {faces} polygon faces (every {} deg) with room to \
+         approach them from both sides; at least 2 are needed",
+        Num(*min),
+        Num(*max),
+        Num(*pitch)
     )]
     TooFewFaces { min: f64, max: f64, faces: u32, pitch: f64, found: usize },
-    #[error("the range {start}..{end} deg is empty or not finite")]
+    #[error("the range {}..{} deg is empty or not finite", Num(*start), Num(*end))]
     BadRange { start: f64, end: f64 },
-    #[error("the overrun must be positive and finite, got {0} deg")]
+    #[error("the overrun must be positive and finite, got {} deg", Num(*.0))]
     BadOverrun(f64),
-    #[error("targets {first}..{last} deg with {overrun} deg of overrun leave the travel {min}..{max} deg")]
+    #[error(
+        "targets {}..{} deg with {} deg of overrun leave the travel {}..{} deg",
+        Num(*first),
+        Num(*last),
+        Num(*overrun),
+        Num(*min),
+        Num(*max)
+    )]
     OutsideTravel { first: f64, last: f64, overrun: f64, min: f64, max: f64 },
     #[error(
-        "--verify-points {points}: the verification target {target} deg falls on a calibration target, where the \
+        "--verify-points {points}: the verification target {} deg falls on a calibration target, where the \
          table needs no interpolation; choose a count whose targets all fall between them (a multiple of the \
-         {calibration} calibration targets always does)"
+         {calibration} calibration targets always does)",
+        Num(*target)
     )]
     VerificationOnTarget { points: u32, target: f64, calibration: usize },
 }

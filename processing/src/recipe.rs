@@ -21,7 +21,8 @@
 //!
 //! [[alias]]                   # an aliased line, by its true frequency
 //! true_cycles = 432
-//! action = "relocate"         # or "null"
+//! action = "relocate"         # or "null", or "absent" (not there: its bin is
+//!                             # left to the other frequency that lands on it)
 //! observed_cycles = 288       # where it appeared when the recipe was made (for the record)
 //!
 //! [table]
@@ -47,7 +48,8 @@
 //! # interval_deg = 1.0        # or points = 361 (default: each format's)
 //! directions = "auto"         # "combined" or "separate" forward/reverse values
 //! # reference_deg = 0.0       # the reference point (default 0, or the point nearest it)
-//! zero_at_reference = false   # zero the LinuxCNC, 840D and generic values there
+//! zero_at_reference = false   # zero the LinuxCNC and generic values there
+//! sinumerik_absolute = false  # 840D: keep absolute values (default: zero at the reference, as K3 asks)
 //! sign = "error"              # generic table: "error" (readout - actual) or "correction"
 //! values = "absolute"         # generic table: or "incremental"
 //! sinumerik_axis = "C1"       # 840D machine axis name
@@ -114,8 +116,11 @@ pub use direction::DirectionModel;
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};
 use crate::corrector::ValueFormat;
+use crate::export::fanuc::MIN_UNIT_DEG;
 use crate::export::generic::{Sign, Values};
 use crate::export::layout::Directions;
+use crate::export::layout::MAX_TABLE_DEG;
+use crate::num::Num;
 use crate::resample::{Method as Interpolation, PartialMethod};
 use serde::{Deserialize, Serialize, Serializer};
 
@@ -222,6 +227,9 @@ pub enum AliasChoiceAction {
     Relocate,
     /// Empty its alias bin.
     Null,
+    /// It is not there (check points measured between the targets showed
+    /// it): its alias bin is left to the other frequency that lands there.
+    Absent,
 }
 
 /// One `[[alias]]` entry.
@@ -326,8 +334,12 @@ pub struct ExportChoices {
     /// The reference point, degrees (default: 0, or the table's point nearest 0).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_deg: Option<f64>,
-    /// Zero the LinuxCNC, 840D and generic values at the reference point (Fanuc always is).
+    /// Zero the LinuxCNC and generic values at the reference point (the 840D
+    /// values are zero there unless `sinumerik_absolute`, Fanuc's always are).
     pub zero_at_reference: bool,
+    /// Write the 840D values absolute instead of zero at the reference point
+    /// (Siemens' K3 manual asks for zero there, the default).
+    pub sinumerik_absolute: bool,
     /// The generic table's sign: `error` (readout - actual) or `correction`.
     pub sign: Sign,
     /// The generic table's values: `absolute` or `incremental`.
@@ -362,6 +374,7 @@ impl Default for ExportChoices {
             directions: Directions::Auto,
             reference_deg: None,
             zero_at_reference: false,
+            sinumerik_absolute: false,
             sign: Sign::Error,
             values: Values::Absolute,
             sinumerik_axis: crate::export::sinumerik::DEFAULT_AXIS.to_string(),
@@ -453,12 +466,15 @@ impl Recipe {
         // when it runs; checked here so the key and line can be named).
         let a = &self.analysis;
         if !(a.false_alarm_rate > 0.0 && a.false_alarm_rate.is_finite()) {
-            return bad("analysis.false_alarm_rate", format!("must be a positive number, got {}", a.false_alarm_rate));
+            return bad(
+                "analysis.false_alarm_rate",
+                format!("must be a positive number, got {}", Num(a.false_alarm_rate)),
+            );
         }
         if let Some(c) = a.min_coherence
             && !(0.0..=1.0).contains(&c)
         {
-            return bad("analysis.min_coherence", format!("must be from 0 to 1, got {c}"));
+            return bad("analysis.min_coherence", format!("must be from 0 to 1, got {}", Num(c)));
         }
         for (key, v) in [
             ("analysis.gear_harmonics", a.gear_harmonics),
@@ -472,17 +488,20 @@ impl Recipe {
         }
         for (key, list) in [("lines.keep", &self.lines.keep), ("lines.remove", &self.lines.remove)] {
             if let Some(f) = list.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
-                return bad(key, format!("{f} is not a positive frequency (the mean, 0, is table.remove_mean)"));
+                return bad(
+                    key,
+                    format!("{} is not a positive frequency (the mean, 0, is table.remove_mean)", Num(*f)),
+                );
             }
         }
         if let Some(f) = self.lines.keep.iter().find(|f| self.lines.remove.contains(f)) {
-            return bad("lines.remove", format!("{f} cycles/rev is both kept and removed"));
+            return bad("lines.remove", format!("{} cycles/rev is both kept and removed", Num(*f)));
         }
         let m = self.lines.min_amplitude_deg;
         if !(m.is_finite() && m >= 0.0) {
             return bad(
                 "lines.min_amplitude_deg",
-                format!("must be a finite, non-negative number of degrees, got {m}"),
+                format!("must be a finite, non-negative number of degrees, got {}", Num(m)),
             );
         }
         for (i, a) in self.aliases.iter().enumerate() {
@@ -509,11 +528,14 @@ impl Recipe {
             return bad("table.dense_points", format!("must be from 2 to {MAX_POINTS}, got {}", t.dense_points));
         }
         if !(t.hysteresis_factor.is_finite() && t.hysteresis_factor > 0.0) {
-            return bad("table.hysteresis_factor", format!("must be a positive number, got {}", t.hysteresis_factor));
+            return bad(
+                "table.hysteresis_factor",
+                format!("must be a positive number, got {}", Num(t.hysteresis_factor)),
+            );
         }
         if let Some(PartialMethod::LeastSquares { cycles, poly_degree }) = &t.partial_method {
             if let Some(c) = cycles.iter().find(|c| !(c.is_finite() && **c > 0.0)) {
-                return bad("table.partial_method", format!("frequency {c} must be positive"));
+                return bad("table.partial_method", format!("frequency {} must be positive", Num(*c)));
             }
             if *poly_degree > 20 {
                 return bad("table.partial_method", format!("poly_degree {poly_degree} is above 20"));
@@ -526,20 +548,20 @@ impl Recipe {
             ("export.reference_deg", x.reference_deg),
         ] {
             if let Some(v) = v
-                && !v.is_finite()
+                && !(v.is_finite() && v.abs() <= MAX_TABLE_DEG)
             {
-                return bad(key, format!("must be a finite angle, got {v}"));
+                return bad(key, format!("must be an angle within +/-{MAX_TABLE_DEG} deg, got {}", Num(v)));
             }
         }
         if let (Some(a), Some(b)) = (x.start_deg, x.end_deg)
             && b <= a
         {
-            return bad("export.end_deg", format!("must be above export.start_deg ({a}), got {b}"));
+            return bad("export.end_deg", format!("must be above export.start_deg ({}), got {}", Num(a), Num(b)));
         }
         if let Some(d) = x.interval_deg
             && !(d.is_finite() && d > 0.0)
         {
-            return bad("export.interval_deg", format!("must be a positive number of degrees, got {d}"));
+            return bad("export.interval_deg", format!("must be a positive number of degrees, got {}", Num(d)));
         }
         if let Some(p) = x.points {
             if x.interval_deg.is_some() {
@@ -558,10 +580,10 @@ impl Recipe {
                 format!("must be 0 or 1, got {}", x.sinumerik_measuring_system),
             );
         }
-        if !(x.fanuc_unit_deg.is_finite() && x.fanuc_unit_deg > 0.0) {
+        if !(MIN_UNIT_DEG..=1.0).contains(&x.fanuc_unit_deg) {
             return bad(
                 "export.fanuc_unit_deg",
-                format!("must be a positive number of degrees, got {}", x.fanuc_unit_deg),
+                format!("must be a detection unit from {} to 1 deg, got {}", Num(MIN_UNIT_DEG), Num(x.fanuc_unit_deg)),
             );
         }
         if !(1..=100).contains(&x.fanuc_magnification) {

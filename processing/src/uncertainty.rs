@@ -27,8 +27,11 @@
 //!   error over the measured arc.
 //! - **direction model**: a directional table's forward - reverse part (the
 //!   noise of the difference's mean and of its kept lines, halved in each
-//!   column); a table of one column for a bidirectional survey carries half
-//!   the mean hysteresis as an error of each direction.
+//!   column; a line of the difference kept at less than twice its threshold
+//!   may be a false alarm, noise selected for being large, and then each
+//!   column carries half of it wrongly: `A / (2 sqrt 2)` rms); a table of
+//!   one column for a bidirectional survey carries half the mean hysteresis
+//!   as an error of each direction.
 //! - **table resolution and interpolation**: the table is read between its
 //!   rows by linear interpolation: a line of amplitude `A` and angular
 //!   frequency `w` (rad/deg) leaves `A w^2 h^2 / sqrt(240)` rms between rows
@@ -47,9 +50,56 @@
 //!   such line, its amplitude rectangular between 0 and the threshold `T`, at
 //!   any phase: `T / sqrt(6)`.
 //!
+//! - **what the table leaves** ([`crate::correction::left`]): a repeatable
+//!   line the survey saw and the table does not carry (nulled: two design
+//!   harmonics alias to its bin; removed), at its measured size, and, when
+//!   the design does not name a line and the spectrum reaches into the top
+//!   half of what the sampling resolves, the risk that the line is the alias
+//!   of a frequency above it (the table then errs by up to twice the line
+//!   between the targets). A line of amplitude `A` left whole contributes
+//!   `A / sqrt(2)` rms; a possible alias, the difference of two lines, `A`.
+//!   Their sizes are known to the noise of each measured phasor (`u_A` per
+//!   component): one size for every readout, a systematic error, so the
+//!   lines are taken at the upper end of that interval, `A + k u_A`, not
+//!   averaged over the readouts like noise. Beside them a normal term: their
+//!   products with the error through the readout, which the table made
+//!   through the true angle carries for the lines it keeps and not for
+//!   these (second order, [`crate::correction::left`]).
+//!
+//! # The coverage interval
+//!
+//! Without anything left, every source is about normal and `U = k u` with
+//! `k = 2` (about 95 %: 95.45 % for a normal distribution). What the table
+//! leaves is not normal: a sinusoid over the readouts has the arcsine
+//! distribution (its 95th percentile `0.997 A`, its rms `0.707 A`), and the
+//! lines of one part are harmonics of each other with fixed relative phases,
+//! so neither quadrature nor an independent-phase convolution describes
+//! their sum. So the distribution is propagated instead of its rms (the
+//! method of GUM Supplement 1, JCGM 101, done exactly rather than by random
+//! draws): what is left, `s(r)`, is evaluated as the function it is at 4096
+//! readouts equidistributed over the table's range, for each hypothesis of
+//! its lines' true frequencies; the normal part (every other source, in
+//! quadrature, `u_n`) is added as a normal of that standard deviation, and
+//! `U` solves `mean_r P(|s(r) + u_n Z| <= U) = 0.9545` (the probability
+//! `k = 2` gives a normal distribution, so `U` is continuous with the normal
+//! case), by bisection. The least favourable hypothesis (the largest `U`)
+//! is stated. The budget keeps `k = 2` and `U = k u` (the contract's form):
+//! what is left enters it as the effective standard uncertainty
+//! `sqrt((U/2)^2 - u_n^2)`, the entry that expands to the coverage interval
+//! of the distribution; its rms (what quadrature would have used: for a
+//! sinusoid `0.707 A` against the interval's `0.997 A / 2`) is in `method`.
+//!
+//! Check points between the targets that no hypothesis explains (no single
+//! candidate per line does: the bin may hold several lines, in part
+//! cancelling at the targets, so its measured size understates what is
+//! left) measure what the table leaves there directly: `U` is then at least
+//! the coverage interval of `|d - mean d|` over them
+//! ([`crate::correction::resolve::measured_left_deg`]).
+//!
 //! What is not: the reference's calibration (a scale error of the reference
 //! instrument: it has no stated value here), more than one line missed.
 
+use crate::correction::left::{Left, LeftKind};
 use crate::errormap::{Coverage, Series};
 use crate::pipeline::Processed;
 use crate::types::{Direction, Sample};
@@ -91,8 +141,7 @@ pub struct Uncertainty {
     pub method: String,
 }
 
-/// The coverage factor stated (about 95 % for a normal distribution).
-pub const K: f64 = 2.0;
+pub use crate::coverage::{K, coverage_interval, coverage_probability};
 
 /// The slope of the run means per run and its standard error, per
 /// direction measured (`None` with fewer than three runs).
@@ -160,7 +209,18 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     let bidirectional = map.forward.is_some() && map.reverse.is_some();
     let built = &processed.built;
     let direction_var = match (&built.direction_model, built.directional, &built.hysteresis) {
-        (Some(dm), _, _) => dm.noise_deg.powi(2) / (4.0 * dm.targets as f64) * (1.0 + 2.0 * dm.lines.len() as f64),
+        (Some(dm), _, _) => {
+            // A line kept at less than twice the threshold may be a false
+            // alarm: noise selected for being large. Then each column carries
+            // half of it wrongly, a sinusoid of rms `A / (2 sqrt 2)`.
+            let doubtful: f64 = dm
+                .lines
+                .iter()
+                .filter(|(_, a)| *a < 2.0 * dm.threshold_deg)
+                .map(|(_, a)| (a / 2.0).powi(2) / 2.0)
+                .sum();
+            dm.noise_deg.powi(2) / (4.0 * dm.targets as f64) * (1.0 + 2.0 * dm.lines.len() as f64) + doubtful
+        }
         // Each direction's terms fitted from its own half of the data.
         (None, true, _) => p * series_var / (n * runs) as f64,
         (None, false, Some(h)) if bidirectional && a.series == Series::Bidirectional => (h.mean_deg / 2.0).powi(2),
@@ -198,7 +258,7 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     // at a random phase: `T / sqrt(3)` amplitude, `1 / sqrt(2)` of it rms.
     let threshold = a.noise.coherent_threshold_deg;
     budget.push(Contribution { source: "a line below the detection threshold".into(), u_deg: threshold / 6f64.sqrt() });
-    let combined_u_deg = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
+    let normal_u = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
         "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
          expanded with k = {K}; the table's value at an angle relative to its zero reference, {} fitted terms from \
@@ -207,7 +267,91 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         samples.len(),
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
-    Uncertainty { k: K, table_u_deg: K * combined_u_deg, combined_u_deg, budget, method }
+    let left = &processed.left;
+    let u = if left.is_empty() {
+        Uncertainty { k: K, table_u_deg: K * normal_u, combined_u_deg: normal_u, budget, method }
+    } else {
+        with_left(left, normal_u, budget, method)
+    };
+    match processed.measured_left_deg {
+        Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
+        _ => u,
+    }
+}
+
+/// `u` raised to what check points measured the table leaves between the
+/// targets, when no hypothesis explains them (see the module documentation):
+/// an entry makes the budget expand to it.
+fn at_least_measured(mut u: Uncertainty, measured: f64) -> Uncertainty {
+    let rest = u.budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>();
+    u.budget.push(Contribution {
+        source: "left by the table between the targets, as the check points measured it (no hypothesis explains them)"
+            .into(),
+        u_deg: ((measured / K).powi(2) - rest).max(0.0).sqrt(),
+    });
+    u.method += &format!(
+        "; no hypothesis explains the check points between the targets (a bin holds several lines, in part \
+         cancelling at the targets): U is at least the coverage interval of what they measured the table leaves, \
+         {measured:.2e} deg (their own noise removed in quadrature)"
+    );
+    u.table_u_deg = measured;
+    u.combined_u_deg = measured / K;
+    u
+}
+
+/// The budget with what the table leaves, and its coverage interval from the
+/// distribution (see the module documentation).
+fn with_left(left: &Left, normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
+    budget.push(Contribution {
+        source: "the lines left, through the readout (their products with the error, second order)".into(),
+        u_deg: left.second_order_deg,
+    });
+    let normal_u = normal_u.hypot(left.second_order_deg);
+    // Their sizes at the upper end of what the survey allows (systematic: one
+    // size for every readout).
+    let upper = left.at_upper_size(K);
+    let p = coverage_probability();
+    let readouts = Left::readouts();
+    let (table_u_deg, rms, hypothesis) = upper
+        .hypotheses()
+        .into_iter()
+        .map(|h| {
+            let s = upper.values(&h, &readouts);
+            let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64).sqrt();
+            (coverage_interval(&s, normal_u, p), rms, h)
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .expect("a non-empty left has a hypothesis");
+    // The entry that makes the budget expand (k = 2, in quadrature) to the
+    // coverage interval of the distribution: U / k less the normal part.
+    let effective = ((table_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
+    let lines: Vec<String> = left
+        .lines
+        .iter()
+        .zip(&hypothesis)
+        .map(|(l, f)| match l.kind {
+            LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
+            LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
+        })
+        .collect();
+    budget.push(Contribution {
+        source: format!("left by the table, from its distribution: {}", lines.join("; ")),
+        u_deg: effective,
+    });
+    let method = format!(
+        "{method}; the table leaves {} line(s) the survey saw: evaluated as functions of the readout at {} readouts \
+         over the table's range for each hypothesis of their true frequencies (sizes at A + {K} u_A), the rest added \
+         as a normal distribution, and U the coverage interval of |left + rest| for {:.2} % (what k = {K} gives a \
+         normal distribution) computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms: \
+         what is left has rms {:.2e} deg, {:.2e} deg in quadrature with the rest), the least favourable hypothesis \
+         stated; its budget entry is the effective standard uncertainty that expands with k = {K} to that interval",
+        left.lines.len(),
+        readouts.len(),
+        100.0 * p,
+        rms,
+        normal_u.hypot(rms),
+    );
+    Uncertainty { k: K, table_u_deg, combined_u_deg: table_u_deg / K, budget, method }
 }
 
 impl Uncertainty {

@@ -1,6 +1,18 @@
 //! The figures of a verification survey (`survey run --verify`): where its
-//! targets lie against the calibration targets, and the peak errors that
-//! compare the corrected axis with the native one.
+//! targets lie against the calibration targets, the peak errors that
+//! compare the corrected axis with the native one, and the verdict.
+//!
+//! # The verdict (the contract's `verify.verdict`)
+//!
+//! The processing predicted a corrected peak `P` and stated the table's
+//! expanded uncertainty `U`. The verification measures the corrected peak
+//! `M` with the table applied, and the native peak `N` is the calibration
+//! survey's. The prediction is **not confirmed** when `M > P + U` (the
+//! table does worse than what was promised, beyond what its uncertainty
+//! allows: `U` bounds the table's error at a readout, so a corrected peak
+//! more than `U` above the prediction is not the table's noise) or when
+//! `M >= N` (the corrected axis is not better than the native one: whatever
+//! was predicted, the table is not a result). Otherwise it is **confirmed**.
 
 use crate::Direction;
 use crate::Sample;
@@ -43,6 +55,57 @@ pub fn systematic_peak_deg(samples: &[Sample]) -> f64 {
     means.iter().map(|m| (m - mean).abs()).fold(0.0, f64::max)
 }
 
+/// The verdict of a verification.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Verdict {
+    /// The measured corrected peak is within the prediction plus `U`, and better than native.
+    #[serde(rename = "confirmed")]
+    Confirmed,
+    /// It is not (see the module documentation).
+    #[serde(rename = "not confirmed")]
+    NotConfirmed,
+}
+
+impl Verdict {
+    /// The contract's word.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Verdict::Confirmed => "confirmed",
+            Verdict::NotConfirmed => "not confirmed",
+        }
+    }
+}
+
+/// The verdict and why, in words.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Judged {
+    /// Confirmed or not.
+    pub verdict: Verdict,
+    /// Why, with the figures.
+    pub reason: String,
+}
+
+/// Judge a verification: `measured` corrected peak against the `predicted`
+/// one and the table's `u` (expanded), and against the `native` peak
+/// (degrees; see the module documentation).
+pub fn judge(predicted: f64, u: f64, measured: f64, native: f64) -> Judged {
+    let figures = format!(
+        "measured corrected peak +/-{measured:.5} deg, predicted +/-{predicted:.5} deg with U = {u:.5} deg, native \
+         +/-{native:.5} deg"
+    );
+    let (verdict, why) = if measured >= native {
+        (
+            Verdict::NotConfirmed,
+            "the corrected axis is not better than the native one: the table makes it worse or no better",
+        )
+    } else if measured > predicted + u {
+        (Verdict::NotConfirmed, "the corrected peak exceeds the prediction by more than the table's uncertainty U")
+    } else {
+        (Verdict::Confirmed, "the corrected peak is within the prediction plus U, and better than native")
+    };
+    Judged { verdict, reason: format!("{why} ({figures})") }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -79,5 +142,24 @@ mod tests {
         assert_eq!(systematic_peak_deg(&[]), 0.0);
         // Every sample's error from the overall mean: at most 3.
         assert!((peak_deg(&s) - 3.0).abs() < 1e-12, "{}", peak_deg(&s));
+    }
+
+    #[test]
+    fn the_verdict_follows_the_contract() {
+        // Within P + U and better than native.
+        assert_eq!(judge(0.002, 0.0005, 0.0024, 0.015).verdict, Verdict::Confirmed);
+        // Exactly at P + U: still confirmed (the rule is "exceeds by more than U").
+        assert_eq!(judge(0.002, 0.0005, 0.0025, 0.015).verdict, Verdict::Confirmed);
+        // Above P + U.
+        let j = judge(0.002, 0.0005, 0.0026, 0.015);
+        assert_eq!(j.verdict, Verdict::NotConfirmed);
+        assert!(j.reason.contains("exceeds the prediction"), "{}", j.reason);
+        // The issue's sparse survey: predicted 0.0022 with U 5.6e-4, measured 0.0205, native 0.0152.
+        let j = judge(0.0022, 5.6e-4, 0.0205, 0.0152);
+        assert_eq!(j.verdict, Verdict::NotConfirmed);
+        assert!(j.reason.contains("not better than the native"), "{}", j.reason);
+        // Within the prediction but no better than native: not confirmed.
+        assert_eq!(judge(0.02, 0.005, 0.015, 0.015).verdict, Verdict::NotConfirmed);
+        assert_eq!(serde_json::to_value(Verdict::NotConfirmed).unwrap(), "not confirmed");
     }
 }

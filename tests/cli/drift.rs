@@ -16,7 +16,7 @@ const RATE: f64 = 0.05;
 /// `survey sim --time-scale`.
 const SCALE: f64 = 100.0;
 
-struct Sim(Child);
+pub(super) struct Sim(pub(super) Child);
 
 impl Drop for Sim {
     fn drop(&mut self) {

@@ -28,8 +28,11 @@ fn export_import_export_round_trip_is_byte_identical() {
     assert_eq!(s1["survey_id"].as_i64(), Some(id));
     assert_eq!(s2["survey_id"].as_i64(), Some(new_id));
     assert_eq!((&s1["complete"], &s2["complete"]), (&Value::Bool(true), &Value::Bool(true)));
-    // What the survey is (acquired to a plan, or imported) differs; the figures do not.
-    for key in ["survey_id", "status", "runs_complete", "runs_planned"] {
+    // What the survey is (acquired to a plan around its refitted axis, or
+    // imported) differs; the figures do not (the export writes the angles
+    // around the refitted axis, those the figures are of).
+    assert_eq!((&s1["axis"], &s2["axis"]), (&Value::from("refitted"), &Value::from("none")));
+    for key in ["survey_id", "status", "runs_complete", "runs_planned", "axis"] {
         s1.as_object_mut().unwrap().remove(key);
         s2.as_object_mut().unwrap().remove(key);
     }
@@ -416,4 +419,65 @@ fn a_command_exits_while_a_spawned_task_spins() {
     assert_eq!(status.code(), Some(0), "{status:?}");
     let stats = bench.stats_json(Some(1));
     assert!(stats["iso230_2"]["A"].as_f64().is_some_and(|a| a > 0.0), "{stats}");
+}
+
+// ---------------------------------------------------------------------------
+// Messages: each thing said once, numbers in a readable form
+// ---------------------------------------------------------------------------
+
+#[test]
+fn import_refuses_a_second_sample_of_a_run_direction_and_target_naming_both_lines() {
+    let b = Bench::new();
+    // Line 4 repeats run 1, forward, target 90 of line 3: stats would refuse
+    // the survey, so import does, and stores nothing.
+    b.write("dup.csv", format!("{HEADER}\n1,forward,0,0,0.001\n1,forward,90,90,90.001\n1,forward,90,90,90.002\n"));
+    let out = b.survey(&["import", "dup.csv"]).bad_input(&["dup.csv:4:", "run 1, forward, target 90 deg", "line 3"]);
+    assert!(out.stdout.is_empty(), "{out}");
+    assert!(!b.exists("survey.db"), "nothing stored\n{out}");
+}
+
+/// The text after `error: ` on stderr.
+fn error_line(out: &Output) -> String {
+    out.stderr.lines().find_map(|l| l.strip_prefix("error: ")).unwrap_or_default().to_string()
+}
+
+#[test]
+fn an_error_says_each_thing_once() {
+    let b = Bench::new();
+    // Two targets make no spectrum: the reason once, not once per layer.
+    let out = b.survey(&["run", "--points", "2", "--runs", "2"]);
+    let line = error_line(&out);
+    assert_eq!(line.matches("at least 3 are needed").count(), 1, "{out}");
+}
+
+#[test]
+fn large_and_tiny_numbers_in_messages_read_as_written_and_never_panic() {
+    let b = Bench::new();
+    b.small_survey(false);
+    b.write("m.toml", "[[effect]]\nkind = \"noise\"\nsigma_deg = 1e308\n");
+    b.write("d.toml", "[design]\ngear_ratios = [1e308]\n");
+    b.write(
+        "c.toml",
+        "[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n[tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\n\
+         [timing]\ndwell_s = 1e308\n",
+    );
+    b.write("r.toml", "[lines]\nmin_amplitude_deg = -1e308\n");
+    for (args, shown) in [
+        (vec!["model-gap", "--model", "m.toml"], "sigma_deg = 1e308"),
+        (vec!["process", "--design", "d.toml"], "1e308 is not a gear ratio"),
+        (vec!["run", "--config", "c.toml", "--points", "36"], "timing.dwell_s = 1e308"),
+        (vec!["process", "--recipe", "r.toml"], "got -1e308"),
+        (vec!["process", "--table-interval", "1e-300"], "1e-300 deg intervals"),
+        (vec!["process", "--table-start", "1e308"], "got 1e308"),
+        (vec!["process", "--table-end", "1e308"], "got 1e308"),
+        (vec!["process", "--table-reference", "1e308"], "got 1e308"),
+        (vec!["process", "--fanuc-unit", "1e-300"], "got 1e-300"),
+        (vec!["report", "--out", "r", "--tolerance", "1e308"], "--tolerance 1e308"),
+        (vec!["report", "--out", "r", "--temperature", "-1e308"], "--temperature -1e308"),
+    ] {
+        let out = b.survey(&args).bad_input(&[shown]);
+        let line = error_line(&out);
+        assert!(line.len() < 300 && !line.contains("00000000000"), "{}: {out}", args.join(" "));
+        assert!(!out.stderr.contains("panicked"), "{out}");
+    }
 }

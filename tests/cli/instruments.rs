@@ -136,3 +136,42 @@ fn a_survey_of_unreachable_instruments_fails_at_run_time_and_can_be_resumed_late
     assert_eq!(out.code, 1, "{out}");
     assert!(out.stderr.contains("resumed at step 0"), "{out}");
 }
+
+#[test]
+fn a_tiny_or_huge_timing_value_is_bad_input_naming_its_key_never_a_panic() {
+    let bench = Bench::new();
+    for (value, key) in [
+        ("velocity_deg_s = 1e-300", "timing.velocity_deg_s = 1e-300"),
+        ("accel_deg_s2 = 1e-300", "timing.accel_deg_s2 = 1e-300"),
+        ("scan_velocity_deg_s = 1e-300", "timing.scan_velocity_deg_s = 1e-300"),
+        ("calibration_velocity_deg_s = 1e-300", "timing.calibration_velocity_deg_s = 1e-300"),
+    ] {
+        let text = config("127.0.0.1:1", "/nonexistent/ttyX").replace("[timing]\n", &format!("[timing]\n{value}\n"));
+        bench.write("c.toml", text);
+        for command in ["run", "check"] {
+            let out = bench.survey(&[command, "--config", "c.toml"]);
+            assert_eq!(out.code, 2, "{value}: {out}");
+            assert!(out.stderr.contains("c.toml") && out.stderr.contains(key), "{out}");
+            assert!(!out.stderr.contains("panicked"), "{out}");
+        }
+        assert!(!bench.exists("survey.db"), "nothing stored");
+    }
+}
+
+#[test]
+fn a_connection_error_names_the_instrument_and_the_cause_once() {
+    let bench = Bench::new();
+    bench.write(
+        "c.toml",
+        config("127.0.0.1:1", "/nonexistent/ttyX")
+            .replace("[timing]\n", "[timing]\nmax_retries = 1\nretry_backoff_s = 0.01\n"),
+    );
+    let out = bench.survey(&["run", "--config", "c.toml"]);
+    assert_eq!(out.code, 1, "{out}");
+    let line = out.stderr.lines().find_map(|l| l.strip_prefix("error: ")).expect("an error line").to_string();
+    // Each layer adds what it knows: the instrument, the kind of fault, what
+    // was being done, the system's reason; none of it twice.
+    assert_eq!(line.matches("127.0.0.1:1").count(), 1, "{line}");
+    assert_eq!(line.matches("refused").count(), 1, "{line}");
+    assert_eq!(line.matches("cannot connect").count() + line.matches("connect failed").count(), 1, "{line}");
+}

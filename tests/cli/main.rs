@@ -20,12 +20,15 @@ mod drift;
 mod everyday;
 mod files;
 mod instruments;
+mod lab;
+mod life;
 mod list;
 mod modelgap;
 mod process;
 mod report;
 mod runs;
 mod tables;
+mod usage;
 mod verify;
 
 use serde_json::Value;

@@ -215,7 +215,7 @@ fn model_gap_on_a_partial_arc_names_the_axis_location_and_is_never_falsely_conte
     bench.survey(&run).success();
     // Every controller's table of the partial range, Fanuc's on whole degrees
     // inside the measured arc (its spacing counts whole detection units).
-    let fanuc = bench.read("table-1.fanuc.txt");
+    let fanuc = bench.read("survey-1/table-1.fanuc.txt");
     let interval = fanuc.lines().find(|l| l.split_whitespace().collect::<Vec<_>>().starts_with(&["3624", "1000"]));
     assert!(interval.is_some(), "parameter 3624 = 1000 units of 0.001 deg\n{fanuc}");
     let out = bench.survey(&["model-gap", "--model", preset, "--located-axis", "--json"]).success();

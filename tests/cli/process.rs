@@ -91,7 +91,7 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
     }
     assert!(budget.iter().any(|b| b["source"] == "table resolution and interpolation"), "{u}");
     let table = &doc["table"];
-    assert_eq!(table["path"], "table-1.csv");
+    assert_eq!(table["path"], "survey-1/table-1.csv");
     let points = table["points"].as_u64().expect("points") as usize;
     assert_eq!(points, 16384);
     let directional = table["directional"].as_bool().expect("directional is a boolean");
@@ -100,7 +100,7 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
     assert!(corrected < native / 3.0, "native {native}, corrected {corrected}");
 
     // The table CSV: the header, one row per point, uniform readouts from 0.
-    let csv = bench.read("table-1.csv");
+    let csv = bench.read("survey-1/table-1.csv");
     let mut lines = csv.lines();
     let header = lines.next().unwrap();
     let columns = if directional {
@@ -119,8 +119,8 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
 
     // LinuxCNC: at most 256 triplets, no header, ascending nominals, the two
     // types agree (type 0 holds nominal - trim).
-    let t0: Vec<Vec<f64>> = bench.read("table-1.comp0").lines().map(|l| numbers(l, ' ')).collect();
-    let t1: Vec<Vec<f64>> = bench.read("table-1.comp1").lines().map(|l| numbers(l, ' ')).collect();
+    let t0: Vec<Vec<f64>> = bench.read("survey-1/table-1.comp0").lines().map(|l| numbers(l, ' ')).collect();
+    let t1: Vec<Vec<f64>> = bench.read("survey-1/table-1.comp1").lines().map(|l| numbers(l, ' ')).collect();
     assert!(t0.len() <= 256 && t0.len() == t1.len() && t0.len() > 100, "{} lines", t0.len());
     for (a, b) in t0.iter().zip(&t1) {
         assert!(a.len() == 3 && b.len() == 3);
@@ -136,14 +136,15 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
     }
 
     // The binary table loads and holds the CSV's rows.
-    let bin = std::fs::read(bench.path("table-1.bin")).unwrap();
+    let bin = std::fs::read(bench.path("survey-1/table-1.bin")).unwrap();
     let loaded = corrector::from_bytes(&bin).expect("the binary table loads");
     assert_eq!((loaded.len(), loaded.is_directional()), (points, directional));
     for (j, r) in rows.iter().enumerate().step_by(97) {
         assert_eq!(loaded.forward[j], r[1]);
     }
     // The recipe used is a valid recipe.
-    let recipe = Recipe::parse(&bench.read("table-1.recipe.toml"), "table-1.recipe.toml").expect("the recipe parses");
+    let recipe = Recipe::parse(&bench.read("survey-1/table-1.recipe.toml"), "survey-1/table-1.recipe.toml")
+        .expect("the recipe parses");
     assert!(recipe.lines.keep.contains(&12.0));
     assert_eq!(doc["recipe"]["replayed"], false);
 
@@ -169,17 +170,17 @@ fn a_recipe_replayed_on_a_second_survey_keeps_the_same_lines() {
     fig4_survey(&bench, "1");
     let first = process_json(&bench, &["--survey", "1"]);
     fig4_survey(&bench, "2");
-    let second = process_json(&bench, &["--survey", "2", "--recipe", "table-1.recipe.toml"]);
+    let second = process_json(&bench, &["--survey", "2", "--recipe", "survey-1/table-1.recipe.toml"]);
     assert_eq!(second["recipe"]["replayed"], true);
-    assert_eq!(second["recipe"]["from"], "table-1.recipe.toml");
+    assert_eq!(second["recipe"]["from"], "survey-1/table-1.recipe.toml");
     assert_eq!(first["table"]["kept_cycles"], second["table"]["kept_cycles"], "{first:#}\n{second:#}");
     assert_eq!(first["table"]["null_bins"], second["table"]["null_bins"]);
     // The replayed recipe is written again beside the new table, unchanged.
     let body = |name: &str| bench.read(name).lines().skip(1).collect::<Vec<_>>().join("\n");
-    assert_eq!(body("table-1.recipe.toml"), body("table-2.recipe.toml"));
+    assert_eq!(body("survey-1/table-1.recipe.toml"), body("survey-2/table-2.recipe.toml"));
     // A line the recipe keeps stays kept even when removed from this survey's
     // sight: a recipe that keeps an extra frequency carries it.
-    let text = bench.read("table-1.recipe.toml").replace("keep = [", "keep = [100, ");
+    let text = bench.read("survey-1/table-1.recipe.toml").replace("keep = [", "keep = [100, ");
     bench.write("extra.toml", text);
     let third = process_json(&bench, &["--survey", "2", "--recipe", "extra.toml", "--table-out", "extra.csv"]);
     let kept: Vec<f64> =
@@ -192,7 +193,7 @@ fn a_bad_recipe_exits_2_naming_the_file_line_and_key_and_writes_nothing() {
     let bench = Bench::new();
     fig4_survey(&bench, "1");
     process_json(&bench, &[]);
-    let before = bench.read("table-1.csv");
+    let before = bench.read("survey-1/table-1.csv");
     bench.write("bad.toml", "version = 1\n[table]\nrows = 1\n");
     bench.survey(&["process", "--recipe", "bad.toml"]).bad_input(&["bad.toml:3", "table.rows"]);
     bench.write("typo.toml", "[lines]\nkeep = [12]\nkepe = [24]\n");
@@ -206,8 +207,8 @@ fn a_bad_recipe_exits_2_naming_the_file_line_and_key_and_writes_nothing() {
         "[[alias]]\ntrue_cycles = 432\naction = \"relocate\"\n\n[[alias]]\ntrue_cycles = 648\naction = \"relocate\"\n",
     );
     bench.survey(&["process", "--recipe", "clash.toml"]).bad_input(&["clash.toml:6", "alias[2].true_cycles", "bin 72"]);
-    assert_eq!(bench.read("table-1.csv"), before, "a failed process leaves the table as it was");
-    let left: Vec<String> = std::fs::read_dir(bench.path("."))
+    assert_eq!(bench.read("survey-1/table-1.csv"), before, "a failed process leaves the table as it was");
+    let left: Vec<String> = std::fs::read_dir(bench.path("survey-1"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .filter(|n| n.contains(".tmp-"))
@@ -223,14 +224,14 @@ fn designs_unknown_surveys_and_output_paths() {
     let id = bench.small_survey(true);
     // `survey run` ends with processing: remove its table so that what the
     // failing commands below might write would show.
-    std::fs::remove_file(bench.path(&format!("table-{id}.csv"))).unwrap();
+    std::fs::remove_file(bench.path(&format!("survey-{id}/table-{id}.csv"))).unwrap();
     let stored = bench.stored();
     bench.survey(&["process", "--survey", "7"]).bad_input(&["7"]);
     bench.write("bad-model.toml", "[design]\ngear_ratios = [12]\n\n[[effect]]\nkind = \"gear_passs\"\n");
     bench.survey(&["process", "--design", "bad-model.toml"]).bad_input(&["bad-model.toml:5", "gear_passs"]);
     bench.survey(&["process", "--design", "nothing.toml"]).bad_input(&["nothing.toml"]);
     bench.survey(&["process", "--table-out", "no/such/folder/t.csv"]).bad_input(&["no/such/folder/t.csv"]);
-    assert!(!bench.exists(&format!("table-{id}.csv")), "failed commands wrote no table");
+    assert!(!bench.exists(&format!("survey-{id}/table-{id}.csv")), "failed commands wrote no table");
 
     // An imported survey has no model: an empty design, said on stderr;
     // --design names the lines from a model file.
@@ -293,4 +294,42 @@ fn figure_8_correction_reaches_the_papers_factor_of_3_and_beats_the_hysteresis_w
     let c1 = num(&one["predicted"]["corrected_peak_deg"], "corrected");
     // Half the backlash stays; the rest goes: about the paper's factor of 3.
     assert!(c1 > 0.004 && c1 < native / 2.5, "one column: native {native}, corrected {c1}");
+}
+
+/// One set of numbers (issue 20 item 4): `run`, `stats`, `process` and the
+/// report give the same ISO 230-2 figures for the same survey, of the same
+/// samples (a tracker survey's angles around its refitted axis), and say
+/// which axis: `"axis": "refitted"`, `"located"` (`process --located-axis`,
+/// for comparison) or `"none"` (an autocollimator measures angles itself).
+#[test]
+fn run_stats_process_and_the_report_give_one_set_of_numbers_and_name_the_axis() {
+    let bench = Bench::new();
+    let run = bench.survey(&["run", "--points", "120", "--runs", "2", "--bidirectional", "--json"]).success().json();
+    let stats = bench.survey(&["stats", "--json"]).success().json();
+    let process = process_json(&bench, &[]);
+    let a = num(&stats["iso230_2"]["A"], "A");
+    for (what, doc) in [("run", &run), ("process", &process)] {
+        assert_eq!(doc["iso230_2"]["A"].as_f64(), Some(a), "{what}: {}", doc["iso230_2"]);
+        assert_eq!(doc["iso230_2"]["R"], stats["iso230_2"]["R"], "{what}");
+        assert_eq!(doc["iso230_2"]["B"], stats["iso230_2"]["B"], "{what}");
+        assert_eq!(doc["axis"], "refitted", "{what}");
+    }
+    assert_eq!(stats["axis"], "refitted");
+    assert_eq!(run["process"]["axis"], "refitted");
+    // The prediction's native A is of the same samples.
+    assert_eq!(process["predicted"]["native_iso230_a_deg"].as_f64(), Some(a));
+    // The text outputs say it too.
+    assert!(bench.survey(&["stats"]).success().stdout.contains("axis: refitted"));
+    bench.survey(&["report", "--out", "report"]).success();
+    let page = bench.read("report/index.html");
+    let shown = survey_processing::units::Units::Deg.show(a);
+    assert!(page.contains(&shown), "the report's A is {shown}");
+    assert!(page.contains("axis: refitted"), "the report names the axis");
+    // Around the located axis, for comparison: said so, and a different figure.
+    let located = process_json(&bench, &["--located-axis"]);
+    assert_eq!(located["axis"], "located");
+    assert_ne!(located["iso230_2"]["A"].as_f64(), Some(a), "the located axis carries its once-per-revolution error");
+    // An autocollimator survey has no axis to fit.
+    bench.survey(&["run", "--points", "24", "--reference", "autocollimator", "--runs", "2", "--json"]).success();
+    assert_eq!(bench.survey(&["stats", "--json"]).success().json()["axis"], "none");
 }

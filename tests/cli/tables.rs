@@ -30,25 +30,25 @@ fn every_controller_by_default_beside_the_table_with_the_contract_keys_kept() {
     }
     assert_eq!(controllers(&doc), ["linuxcnc", "840d", "fanuc"]);
     let files = &doc["files"];
-    assert_eq!(files["sinumerik_840d"], "table-1.840d.ini");
-    assert_eq!(files["fanuc"], "table-1.fanuc.txt");
-    assert_eq!(files["linuxcnc_type0"], "table-1.comp0");
+    assert_eq!(files["sinumerik_840d"], "survey-1/table-1.840d.ini");
+    assert_eq!(files["fanuc"], "survey-1/table-1.fanuc.txt");
+    assert_eq!(files["linuxcnc_type0"], "survey-1/table-1.comp0");
     assert_eq!(files["generic"], Value::Null);
     let c = &doc["controllers"];
-    assert_eq!(c[0]["files"], serde_json::json!(["table-1.comp0", "table-1.comp1"]));
+    assert_eq!(c[0]["files"], serde_json::json!(["survey-1/table-1.comp0", "survey-1/table-1.comp1"]));
     assert_eq!((c[1]["points"].as_u64(), c[1]["modulo"].as_bool()), (Some(361), Some(true)));
     assert!(c[2]["parameters"].as_array().unwrap().iter().any(|p| p["number"] == "3625" && p["value"] == "360000"));
     for e in c.as_array().unwrap() {
         let peak = e["corrected_peak_deg"].as_f64().expect("a predicted peak");
         assert!(peak < doc["predicted"]["native_peak_deg"].as_f64().unwrap(), "{e}");
     }
-    let ini = bench.read("table-1.840d.ini");
+    let ini = bench.read("survey-1/table-1.840d.ini");
     assert!(ini.starts_with("%_N_AX_EEC_INI\nCHANDATA(1)\n$AA_ENC_COMP[0,0,C1]=") && ini.ends_with("M17\n"), "{ini}");
-    assert!(bench.read("table-1.fanuc.txt").contains("3620"));
-    assert!(!bench.exists("table-1.generic.csv"));
+    assert!(bench.read("survey-1/table-1.fanuc.txt").contains("3620"));
+    assert!(!bench.exists("survey-1/table-1.generic.csv"));
     // The human summary names each controller file with its units.
     let text = bench.survey(&["process"]).success().stdout;
-    for w in ["Siemens 840D table: 361 points", "deg every 1.000000 deg", "table-1.fanuc.txt", "3622=360"] {
+    for w in ["Siemens 840D table: 361 points", "deg every 1.000000 deg", "survey-1/table-1.fanuc.txt", "3622=360"] {
         assert!(text.contains(w), "{w:?} missing\n{text}");
     }
 }
@@ -111,12 +111,32 @@ fn chosen_controllers_and_range_are_kept_in_the_recipe_and_replayed() {
 }
 
 #[test]
+fn the_840d_table_is_zero_at_the_reference_unless_the_recipe_keeps_it_absolute() {
+    let bench = Bench::new();
+    small_survey(&bench);
+    // The default (K3): zero at the reference point 0 deg, said in the file.
+    let ini = bench.read("survey-1/table-1.840d.ini");
+    assert!(ini.lines().any(|l| l == "$AA_ENC_COMP[0,0,C1]=0"), "{ini}");
+    assert!(ini.contains("\n; zero at the reference point 0 deg (K3)"), "{ini}");
+    let doc = bench.survey(&["process", "--json", "--sinumerik-absolute", "--table-out", "a.csv"]).success().json();
+    assert_eq!(doc["controllers"][1]["zero_at_reference"], false, "{doc}");
+    let absolute = bench.read("a.840d.ini");
+    assert!(!absolute.lines().any(|l| l == "$AA_ENC_COMP[0,0,C1]=0"), "{absolute}");
+    assert!(absolute.contains("\n; absolute values, not zero at the reference point"), "{absolute}");
+    let recipe = bench.read("a.recipe.toml");
+    assert!(recipe.contains("sinumerik_absolute = true"), "{recipe}");
+    // Replaying the recipe keeps the values absolute.
+    bench.survey(&["process", "--recipe", "a.recipe.toml", "--table-out", "b.csv"]).success();
+    assert_eq!(bench.read("b.840d.ini"), absolute);
+}
+
+#[test]
 fn bad_table_choices_exit_2_naming_the_flag_and_write_nothing() {
     let bench = Bench::new();
     small_survey(&bench);
-    // `run` wrote table-1.* already: a failed process must leave them as they are.
+    // `run` wrote survey-1/table-1.* already: a failed process must leave them as they are.
     let snapshot = || {
-        let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(bench.path("."))
+        let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(bench.path("survey-1"))
             .unwrap()
             .map(|e| e.unwrap().path())
             .filter(|p| p.file_name().unwrap().to_string_lossy().starts_with("table-1"))

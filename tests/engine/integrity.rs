@@ -109,6 +109,107 @@ async fn a_stop_signal_while_processing_leaves_the_survey_for_resume_to_finish()
     assert_eq!((status, n), (SurveyStatus::Complete, 720));
 }
 
+/// The names in `folder` of our temporary files (`.<name>.tmp-<pid>`).
+fn temporary_files(folder: &Path) -> Vec<String> {
+    std::fs::read_dir(folder)
+        .map(|d| {
+            d.map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| n.contains(".tmp-")).collect()
+        })
+        .unwrap_or_default()
+}
+
+#[tokio::test]
+async fn a_kill_while_the_outputs_are_written_leaves_the_survey_processing_and_resume_writes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    let folder = dir.path().join("s.db.survey-1");
+    // The process aborts (a power loss, as SIGKILL) with every output written
+    // to its temporary name and none renamed into place.
+    let args = ["run", "--points", "36", "--runs", "2", "--bidirectional", "--json", "--sim-crash-in-outputs"];
+    let out = survey(&db, &args);
+    assert_eq!(out.status.code(), None, "killed by a signal: {}", text(&out));
+    assert!(!temporary_files(&folder).is_empty(), "the kill left the staged files");
+    assert!(!folder.join("table-1.csv").exists(), "no table yet");
+    let (status, n, _) = dense_prefix(&db).await;
+    assert_eq!((status, n), (SurveyStatus::Processing, 144), "acquired whole, not complete without its table");
+    let list = survey(&db, &["list"]);
+    assert!(text(&list).contains("processing"), "{}", text(&list));
+
+    let out = survey(&db, &["resume", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("all 144 samples are stored: finishing"), "{}", text(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    assert_eq!(doc["status"], "complete");
+    assert_eq!(doc["process"]["table"]["path"], folder.join("table-1.csv").display().to_string());
+    assert!(std::fs::read_to_string(folder.join("table-1.csv")).unwrap().starts_with("readout_deg,"));
+    assert_eq!(temporary_files(&folder), Vec::<String>::new(), "the stale temporary files are removed");
+    assert_eq!(dense_prefix(&db).await.0, SurveyStatus::Complete);
+    let again = survey(&db, &["resume"]);
+    assert_eq!(again.status.code(), Some(2), "{}", text(&again));
+    assert!(text(&again).contains("nothing to resume"), "{}", text(&again));
+}
+
+/// Runs `survey --db DB args` in a mount namespace of its own where `folder`
+/// is a 64 KiB tmpfs: a really full disk for what is written there. Prints
+/// what the folder holds when the command ends (`left: ...` on stderr).
+/// `None` when this machine does not let an unprivileged user namespace
+/// mount one (the reason printed).
+fn on_a_full_folder(folder: &Path, db: &Path, args: &[&str]) -> Option<Output> {
+    const SCRIPT: &str = r#"f=$1; shift; mount -t tmpfs -o size=64k survey-test "$f" || exit 99; "$@"; rc=$?; echo "left: $(ls -A "$f" | tr '\n' ' ')" >&2; exit $rc"#;
+    let probe = Command::new("unshare")
+        .args(["--user", "--map-root-user", "--mount", "sh", "-c", SCRIPT, "sh"])
+        .arg(folder)
+        .arg("true")
+        .output();
+    match probe {
+        Ok(p) if p.status.success() => {}
+        other => {
+            eprintln!("skipped: no tmpfs in a user namespace here ({other:?})");
+            return None;
+        }
+    }
+    let out = Command::new("unshare")
+        .args(["--user", "--map-root-user", "--mount", "sh", "-c", SCRIPT, "sh"])
+        .arg(folder)
+        .arg(BIN)
+        .current_dir(db.parent().unwrap())
+        .env_remove("RUST_LOG")
+        .arg("--db")
+        .arg(db)
+        .args(args)
+        .output()
+        .unwrap();
+    Some(out)
+}
+
+#[tokio::test]
+async fn a_full_disk_while_the_outputs_are_written_leaves_no_temporary_file_and_resume_writes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    let folder = dir.path().join("s.db.survey-1");
+    std::fs::create_dir(&folder).unwrap();
+    let args = ["run", "--points", "36", "--runs", "2", "--bidirectional", "--json"];
+    let Some(out) = on_a_full_folder(&folder, &db, &args) else { return };
+    let all = text(&out);
+    assert_eq!(out.status.code(), Some(1), "a full disk is a run-time failure: {all}");
+    assert!(all.contains("No space left on device") && all.contains("table-1"), "{all}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let left = stderr.lines().find_map(|l| l.strip_prefix("left:")).expect("the folder listed");
+    assert_eq!(left.trim(), "", "no temporary file stays on the full disk: {all}");
+    assert!(all.contains("`survey resume` writes them"), "{all}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    assert_eq!(doc["status"], "interrupted", "{all}");
+    let (status, n, events) = dense_prefix(&db).await;
+    assert_eq!((status, n), (SurveyStatus::Interrupted, 144));
+    assert!(events.iter().any(|e| e.contains("its outputs could not be written")), "{events:?}");
+
+    // Space freed (the namespace and its tmpfs are gone): resume writes them.
+    let out = survey(&db, &["resume", "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(std::fs::read_to_string(folder.join("table-1.csv")).unwrap().starts_with("readout_deg,"));
+    assert_eq!(dense_prefix(&db).await.0, SurveyStatus::Complete);
+}
+
 #[tokio::test]
 async fn resume_is_refused_while_another_process_holds_the_survey_and_takes_over_a_dead_ones_lock() {
     let dir = tempfile::tempdir().unwrap();
@@ -153,8 +254,9 @@ async fn a_live_run_keeps_its_survey_from_resume_and_a_sigterm_from_outside_stop
     // before its survey is visible, so from then on it is held.
     let deadline = Instant::now() + Duration::from_secs(120);
     loop {
-        if db.exists() {
-            let store = Store::open_existing(&db).await.unwrap();
+        // Until the run has set the new file up, it holds no survey table
+        // and is refused (nothing is written to it).
+        if let Ok(store) = Store::open_existing(&db).await {
             let n = store.sample_count(1).await.unwrap_or(0);
             store.close().await;
             if n >= 512 {
@@ -294,6 +396,80 @@ async fn read_only_commands_never_write_and_refuse_foreign_damaged_or_newer_file
     assert!(text(&out).contains("newer.db was written by a newer version of survey"), "{}", text(&out));
 }
 
+#[tokio::test]
+async fn every_command_refuses_a_foreign_database_a_folder_or_a_device_with_exit_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    assert_eq!(survey(&db, &["run", "--points", "36", "--runs", "2"]).status.code(), Some(0));
+    let csv = dir.path().join("in.csv");
+    assert_eq!(survey(&db, &["export", "--csv", csv.to_str().unwrap()]).status.code(), Some(0));
+    let model = dir.path().join("m.toml");
+    std::fs::write(&model, "[[effect]]\nkind = \"noise\"\nsigma_deg = 0.001\n").unwrap();
+    let (out_csv, table, report) = (dir.path().join("e.csv"), dir.path().join("t.csv"), dir.path().join("report"));
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["run", "--points", "36", "--runs", "2"],
+        vec!["import", csv.to_str().unwrap()],
+        vec!["resume"],
+        vec!["stats"],
+        vec!["list"],
+        vec!["show"],
+        vec!["export", "--csv", out_csv.to_str().unwrap()],
+        vec!["process", "--table-out", table.to_str().unwrap()],
+        vec!["report", "--out", report.to_str().unwrap()],
+        vec!["model-gap", "--model", model.to_str().unwrap()],
+    ];
+    // Another application's SQLite file (in WAL mode or not): refused, its
+    // bytes unchanged, no WAL or shared-memory file made beside it.
+    for wal in [false, true] {
+        let foreign = dir.path().join(format!("app{wal}.sqlite"));
+        make_foreign(&foreign);
+        if wal {
+            rusqlite::Connection::open(&foreign).unwrap().pragma_update(None, "journal_mode", "wal").unwrap();
+        }
+        let before = sha(&foreign);
+        for args in &commands {
+            let out = survey(&foreign, args);
+            let all = text(&out);
+            assert_eq!(out.status.code(), Some(2), "survey {}: {all}", args.join(" "));
+            assert!(all.contains(&format!("app{wal}.sqlite is not a survey database")), "{all}");
+            assert!(sha(&foreign) == before, "`survey {}` changed another application's file", args.join(" "));
+            for suffix in ["-wal", "-shm", "-journal"] {
+                assert!(!dir.path().join(format!("app{wal}.sqlite{suffix}")).exists(), "{suffix} made: {all}");
+            }
+        }
+    }
+    // A folder and a device: a clear message, exit 2, nothing made.
+    let folder = dir.path().join("a-folder");
+    std::fs::create_dir(&folder).unwrap();
+    for (path, says) in [(folder.as_path(), "is a folder"), (Path::new("/dev/null"), "is not a regular file")] {
+        for args in &commands {
+            let out = survey(path, args);
+            let all = text(&out);
+            assert_eq!(out.status.code(), Some(2), "survey --db {} {}: {all}", path.display(), args.join(" "));
+            assert!(all.contains(&format!("{} {says}", path.display())) && !all.contains("SQLite"), "{all}");
+        }
+    }
+    assert_eq!(std::fs::read_dir(&folder).unwrap().count(), 0, "nothing made in the folder");
+    use std::os::unix::fs::FileTypeExt as _;
+    assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+    // A database in a folder that does not exist: said so, not created.
+    let nowhere = dir.path().join("no/such/folder/x.db");
+    let out = Command::new(BIN)
+        .current_dir(dir.path())
+        .arg("--db")
+        .arg(&nowhere)
+        .args(["run", "--points", "36", "--runs", "2"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("the folder") && text(&out).contains("does not exist"), "{}", text(&out));
+    // A new file is made where none exists, and an empty one is set up.
+    let empty = dir.path().join("empty.db");
+    std::fs::write(&empty, b"").unwrap();
+    assert_eq!(survey(&empty, &["import", csv.to_str().unwrap()]).status.code(), Some(0));
+    assert_eq!(survey(&empty, &["stats"]).status.code(), Some(0));
+}
+
 /// An SQLite file of another application: one table of its own.
 fn make_foreign(path: &Path) {
     let c = rusqlite::Connection::open(path).unwrap();
@@ -317,15 +493,41 @@ fn default_table_names_never_collide_across_databases() {
         let out = survey(&dir.path().join(name), &["run", "--points", "36", "--runs", "2", "--json"]);
         assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     }
-    // `--db survey.db` (the default) keeps table-<id>.csv in the current
-    // folder; any other database gets its own name beside it.
-    let a = std::fs::read_to_string(dir.path().join("a.db.table-1.csv")).expect("a's table");
-    let b = std::fs::read_to_string(dir.path().join("b.db.table-1.csv")).expect("b's table");
+    // Each survey's files go in its own folder: `<db>.survey-<id>/` beside
+    // any database but the default.
+    let a = std::fs::read_to_string(dir.path().join("a.db.survey-1/table-1.csv")).expect("a's table");
+    let b = std::fs::read_to_string(dir.path().join("b.db.survey-1/table-1.csv")).expect("b's table");
     assert!(a.starts_with("readout_deg,") && b.starts_with("readout_deg,"));
-    assert!(dir.path().join("a.db.table-1.recipe.toml").exists() && dir.path().join("b.db.table-1.bin").exists());
+    assert!(dir.path().join("a.db.survey-1/table-1.recipe.toml").exists());
+    assert!(dir.path().join("b.db.survey-1/table-1.bin").exists());
     // survey() passes --db as an absolute path: that is another database than
     // the default `survey.db` of the current folder, so it is named too.
-    assert!(dir.path().join(format!("{}.table-1.csv", dir.path().join("survey.db").display())).exists());
+    assert!(dir.path().join(format!("{}.survey-1/table-1.csv", dir.path().join("survey.db").display())).exists());
+
+    // The default database keeps `survey-<id>/` in the current folder, named
+    // in the summary and in `--json`'s table path; nothing else lands there.
+    let here = tempfile::tempdir().unwrap();
+    for expected in ["survey-1/table-1.csv", "survey-2/table-2.csv"] {
+        let out = Command::new(BIN)
+            .current_dir(here.path())
+            .env_remove("RUST_LOG")
+            .args(["run", "--points", "36", "--runs", "2", "--json"])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+        let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(doc["process"]["table"]["path"], expected, "{}", text(&out));
+        assert!(here.path().join(expected).exists(), "{expected}");
+    }
+    let mut names: Vec<String> = std::fs::read_dir(here.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["survey-1", "survey-2", "survey.db"], "one folder per survey and the database, nothing else");
+    let out =
+        Command::new(BIN).current_dir(here.path()).args(["run", "--points", "36", "--runs", "2"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stdout).contains("survey-3/table-3.csv"), "{}", text(&out));
 }
 
 #[test]

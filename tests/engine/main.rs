@@ -2,6 +2,7 @@
 //! SQLite, checked against the truth the simulators know.
 
 mod axis_refit;
+mod coverage;
 mod examples;
 mod instrument_time;
 mod integrity;

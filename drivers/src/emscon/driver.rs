@@ -149,7 +149,7 @@ impl EmsconTracker<TcpStream> {
             }
             Ok(Err(e)) => {
                 tracing::warn!(instrument = %label, error = %e, "emScon connect failed");
-                return Err(DriverError::new(ErrorKind::Disconnected, label, format!("connect failed: {e}")));
+                return Err(DriverError::new(ErrorKind::Disconnected, label, e.to_string()));
             }
             Ok(Ok(s)) => s,
         };

@@ -147,7 +147,7 @@ impl ModbusPositioner {
             }
             Ok(Err(e)) => {
                 tracing::warn!(instrument = %name, error = %e, "Modbus TCP connect failed");
-                return Err(DriverError::new(ErrorKind::Disconnected, name, format!("connect failed: {e}")));
+                return Err(DriverError::new(ErrorKind::Disconnected, name, e.to_string()));
             }
             Ok(Ok(s)) => s,
         };

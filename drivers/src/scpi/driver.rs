@@ -147,7 +147,7 @@ impl ScpiPositioner<TcpStream> {
         let label = format!("scpi-tcp {addr:?}");
         let stream = match tokio::time::timeout(timeouts.connect, TcpStream::connect(&addr)).await {
             Err(_) => return Err(DriverError::timeout(label, "connect", timeouts.connect)),
-            Ok(Err(e)) => return Err(DriverError::new(ErrorKind::Disconnected, label, format!("connect failed: {e}"))),
+            Ok(Err(e)) => return Err(DriverError::new(ErrorKind::Disconnected, label, e.to_string())),
             Ok(Ok(s)) => s,
         };
         stream

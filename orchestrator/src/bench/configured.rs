@@ -44,7 +44,9 @@ impl Bench {
 /// The plan of a configuration (its `[survey]` under the command line's
 /// overrides), checked against its travel; errors name `path`.
 pub fn configured_plan(cfg: &SurveyConfig, overrides: PlanOverrides, path: &Path) -> anyhow::Result<SurveyPlan> {
-    let points = overrides.points.or(cfg.survey.points).ok_or_else(|| {
+    // The count from where it is known before asking for it: an autocollimator's polygon has its faces.
+    let faces = cfg.polygon.as_ref().filter(|_| cfg.reference() == ReferenceKind::Autocollimator).map(|p| p.faces);
+    let points = overrides.points.or(cfg.survey.points).or(faces).ok_or_else(|| {
         bad_input(format!("--points N is required (or `points` in the [survey] section of {})", path.display()))
     })?;
     let runs = overrides.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
@@ -80,32 +82,36 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
         "positioner": engine.positioner_name(),
         "reference": engine.reference_name(),
     });
-    let t = cfg.timing();
-    let measure = integration(cfg).unwrap_or(Duration::from_millis(200));
-    let per_target = t.dwell + measure + t.poll_interval;
-    let estimate = if setup.plan.continuous() {
-        let d = survey_processing::budget::Dynamics {
-            velocity_deg_s: t.velocity_deg_s,
-            accel_deg_s2: t.accel_deg_s2,
-            integration_s: measure.as_secs_f64(),
-            locate_points: t.locate_points,
-        };
-        Duration::from_secs_f64(
-            survey_processing::budget::scan_bound(&setup.plan, &d, &cfg.settle_model(), &t.scan).total(),
-        )
-    } else {
-        setup.plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target)
-    };
     Bench {
         engine,
         clock,
-        estimate,
+        estimate: configured_estimate(cfg, &setup.plan),
         plan: setup.plan.clone(),
         setup: Setup::Configured(setup.clone()),
         model: None,
         source: SurveySource::Instruments,
         instruments,
         plan_progress: None,
+    }
+}
+
+/// How long `plan` should take on the instruments of `cfg` (what `run` says
+/// before it starts). Every move and pass is within a day (the
+/// configuration's check), so the sum is a duration.
+pub fn configured_estimate(cfg: &SurveyConfig, plan: &SurveyPlan) -> Duration {
+    let t = cfg.timing();
+    let measure = integration(cfg).unwrap_or(Duration::from_millis(200));
+    let per_target = t.dwell + measure + t.poll_interval;
+    if plan.continuous() {
+        let d = survey_processing::budget::Dynamics {
+            velocity_deg_s: t.velocity_deg_s,
+            accel_deg_s2: t.accel_deg_s2,
+            integration_s: measure.as_secs_f64(),
+            locate_points: t.locate_points,
+        };
+        Duration::from_secs_f64(survey_processing::budget::scan_bound(plan, &d, &cfg.settle_model(), &t.scan).total())
+    } else {
+        plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target)
     }
 }
 

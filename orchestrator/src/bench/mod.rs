@@ -10,8 +10,8 @@ mod configured;
 pub mod instruments;
 mod simulated;
 
-pub use configured::{PlanOverrides, configured_engine, configured_plan};
-pub use simulated::{DEFAULT_RUNS, SimulatedRequest, simulated_engine};
+pub use configured::{PlanOverrides, configured_engine, configured_estimate, configured_plan};
+pub use simulated::{DEFAULT_RUNS, SimulatedRequest, default_polygon_faces, simulated_engine};
 
 use crate::acquire::Engine;
 use crate::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus};
@@ -60,6 +60,8 @@ impl Bench {
             instruments: self.instruments.clone(),
             verification: None,
             planned_samples: Some(self.plan.total_steps()),
+            asset: self.setup.default_asset(),
+            check_of: None,
         }
     }
 

@@ -24,8 +24,9 @@ pub const DEFAULT_RUNS: u32 = 5;
 /// What the user asked of the simulated bench.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimulatedRequest {
-    /// Targets per revolution (or over the travel).
-    pub points: Option<u32>,
+    /// Targets per revolution (or over the travel); with the autocollimator,
+    /// the polygon's faces.
+    pub points: u32,
     /// Runs (default [`DEFAULT_RUNS`]).
     pub runs: Option<u32>,
     /// Measure the reverse pass too.
@@ -74,6 +75,12 @@ pub fn expected_time(plan: &SurveyPlan, timing: &Timing, integration: Duration, 
     Duration::from_secs_f64(bound * 1.03 + if plan.continuous() { 0.0 } else { waits })
 }
 
+/// The faces of the simulated polygon when the command line does not say
+/// (with the autocollimator, `--points` is the faces): the simulator's own.
+pub fn default_polygon_faces() -> u32 {
+    AutocollimatorConfig::default().faces
+}
+
 /// The stationary measurement time of each simulated reference.
 fn measurement_time(reference: ReferenceKind) -> Duration {
     match reference {
@@ -85,7 +92,7 @@ fn measurement_time(reference: ReferenceKind) -> Duration {
 impl Bench {
     /// The simulated bench of a request, checked before anything is stored.
     pub fn simulated(req: &SimulatedRequest) -> anyhow::Result<Bench> {
-        let points = req.points.ok_or_else(|| bad_input("--points N is required"))?;
+        let points = req.points;
         let runs = req.runs.unwrap_or(DEFAULT_RUNS);
         let preset =
             Preset::by_name(&req.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", req.preset)))?;

@@ -10,7 +10,7 @@ use survey_drivers::SystemClock;
 #[derive(Debug, Args)]
 pub struct CheckArgs {
     /// The configuration file whose instruments to check.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub config: PathBuf,
     /// Print one JSON document on stdout.
     #[arg(long)]

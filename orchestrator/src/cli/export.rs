@@ -1,4 +1,10 @@
 //! `survey export --csv FILE`: write a survey in the import format.
+//!
+//! The actual angles written are those every command's figures are of
+//! ([`crate::load`] with `Axis::Refitted`): around the refitted axis of a
+//! tracker survey, so `survey stats` of the file imported gives the figures
+//! `survey stats` gives of the survey (as measured otherwise; never
+//! corrected for drift: the file holds what was measured).
 
 use crate::csvio::write_survey_csv;
 use crate::error::path_error;
@@ -11,16 +17,16 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Args)]
 pub struct ExportArgs {
     /// Where to write the CSV.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub csv: PathBuf,
-    /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
 }
 
 pub async fn export(db: &Path, args: ExportArgs) -> anyhow::Result<()> {
     let progress = Progress::spinner("loading the survey", progress::visible(false));
-    let loaded = load_read_only(db, args.survey, Axis::AsStored).await?;
+    let loaded = load_read_only(db, args.survey, Axis::Refitted).await?;
     let (survey, samples) = (&loaded.survey, &loaded.samples);
     progress.stage(format!("writing {} samples to {}", samples.len(), args.csv.display()));
     let out =

@@ -13,8 +13,11 @@ use survey_processing::{Direction, Sample};
 #[derive(Debug, Args)]
 pub struct ImportArgs {
     /// CSV file: run,direction,target_deg,readout_deg,actual_deg[,timestamp_s].
-    #[arg(value_name = "FILE.csv")]
+    #[arg(value_name = "FILE.csv", value_hint = clap::ValueHint::FilePath)]
     pub file: PathBuf,
+    /// The asset (the axis measured) the survey belongs to [default: unassigned].
+    #[arg(long, value_name = "ID", value_parser = crate::survey::asset_id)]
+    pub asset: Option<String>,
 }
 
 pub async fn import(db: &Path, args: ImportArgs) -> anyhow::Result<()> {
@@ -34,6 +37,7 @@ pub async fn import(db: &Path, args: ImportArgs) -> anyhow::Result<()> {
         bidirectional,
         setup: Setup::Imported { file: name.clone() },
         planned_samples: Some(samples.len() as u64),
+        asset: args.asset.clone().unwrap_or_else(|| crate::survey::UNASSIGNED.to_string()),
         ..NewSurvey::default()
     };
     let id = store.import(&survey, &samples).await;

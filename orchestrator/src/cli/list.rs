@@ -1,11 +1,12 @@
 //! `survey list [--json]` and `survey show ID [--json]`: what a database
 //! holds, read-only.
 //!
-//! `list --json` prints `{"db": ..., "surveys": [{"id", "status", "source",
+//! `list --json` prints `{"db": ..., "surveys": [{"id", "uid", "asset", "status", "source",
 //! "points", "runs", "bidirectional", "samples", "planned_samples",
 //! "created_at", "updated_at"}, ...]}`, oldest first; `show --json` one
 //! survey with its plan, instruments, located axis, model and event log.
 
+use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
 use crate::survey::{Setup, SurveyRecord};
 use clap::Args;
@@ -22,9 +23,11 @@ pub struct ListArgs {
 
 #[derive(Debug, Args)]
 pub struct ShowArgs {
-    /// Survey id (default: the latest).
-    #[arg(value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -34,6 +37,8 @@ pub struct ShowArgs {
 fn summary(r: &SurveyRecord) -> Value {
     json!({
         "id": r.id,
+        "uid": r.uid,
+        "asset": r.asset,
         "status": r.status.as_str(),
         "source": r.source.to_column(),
         "points": r.points,
@@ -60,12 +65,13 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
     store.close().await;
     let surveys = surveys?;
     if args.json {
-        let doc = json!({"db": db.display().to_string(), "surveys": surveys.iter().map(summary).collect::<Vec<_>>()});
+        let doc =
+            json!({"db": crate::store::lab::display(db), "surveys": surveys.iter().map(summary).collect::<Vec<_>>()});
         emit(&format!("{doc}\n"));
         return Ok(());
     }
     if surveys.is_empty() {
-        emit(&format!("{} holds no survey yet\n", db.display()));
+        emit(&format!("{} holds no survey yet\n", crate::store::lab::display(db)));
         return Ok(());
     }
     let mut s = format!(
@@ -98,17 +104,27 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The instruments of a configured survey, one a line (`positioner   scpi-tcp
+/// 192.168.1.20:4000`), as stored: a name's text, any other value as JSON.
+fn instruments_text(s: &mut String, instruments: &Value) {
+    for (role, name) in instruments.as_object().into_iter().flatten().filter(|(k, _)| *k != "config_file") {
+        let name = name.as_str().map_or_else(|| name.to_string(), str::to_string);
+        let _ = writeln!(s, "  {role:<12} {name}");
+    }
+}
+
 pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let shown = async {
         let r = store.resolve(args.survey).await?;
         let events = store.events(r.id).await?;
         let drift = store.drift_points(r.id).await?;
-        anyhow::Ok((r, events, drift))
+        let checks = store.check_points(r.id).await?;
+        anyhow::Ok((r, events, drift, checks))
     }
     .await;
     store.close().await;
-    let (r, events, drift) = shown?;
+    let (r, events, drift, checks) = shown?;
     let plan = r.setup.plan();
     let mut doc = summary(&r);
     doc["plan"] = json!(plan.map(|p| json!({
@@ -129,15 +145,24 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     })));
     doc["model"] = json!(r.model.as_ref().map(|m| m.to_toml()));
     doc["verifies_survey"] = json!(r.verification.as_ref().map(|v| v.verifies_survey));
+    doc["check_of"] = json!(r.check_of);
     doc["events"] = json!(
         events.iter().map(|e| json!({"at_s": e.at_s, "level": e.level, "message": e.message})).collect::<Vec<_>>()
     );
     doc["drift"] = crate::drift::json(&r, &drift);
+    // Check points measured between the targets (issue 20): their angles, as many times as measured.
+    let mut at: Vec<f64> = checks.iter().map(|c| c.target_deg).collect();
+    at.sort_by(f64::total_cmp);
+    at.dedup();
+    doc["check_points"] = json!({"samples": checks.len(), "targets_deg": at});
+    doc["resolves_survey"] = json!(r.resolves);
     if args.json {
         emit(&format!("{doc}\n"));
         return Ok(());
     }
     let mut s = format!("survey {} ({})\n", r.id, r.status.as_str());
+    let _ = writeln!(s, "  uid          {}", r.uid);
+    let _ = writeln!(s, "  asset        {}", r.asset);
     let _ = writeln!(s, "  source       {}", r.source.to_column());
     let _ = writeln!(s, "  created      {}, last change {}", r.created_at, r.updated_at);
     let samples = match r.planned_samples {
@@ -159,10 +184,22 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     }
     match &r.setup {
         Setup::Simulated(sim) => {
-            let _ = writeln!(s, "  bench        simulated {} (seed {})", sim.preset, sim.seed);
+            let model = sim.model_file.as_ref().map(|m| format!(" running {m}")).unwrap_or_default();
+            let _ = writeln!(
+                s,
+                "  bench        simulated {}{model} with a {}, seed {}",
+                sim.preset,
+                sim.reference.as_str(),
+                sim.seed
+            );
+            if let Some(faults) = &sim.faults {
+                let _ = writeln!(s, "  faults       {}", crate::output::fault_rates(faults));
+            }
         }
         Setup::Configured(_) => {
-            let _ = writeln!(s, "  bench        configured instruments: {}", r.instruments);
+            let from = r.instruments.get("config_file").and_then(Value::as_str);
+            let _ = writeln!(s, "  bench        configured{}", from.map(|f| format!(" from {f}")).unwrap_or_default());
+            instruments_text(&mut s, &r.instruments);
         }
         Setup::Imported { file } => {
             let _ = writeln!(s, "  imported     from {file}");
@@ -175,13 +212,27 @@ pub async fn show(db: &Path, args: ShowArgs) -> anyhow::Result<()> {
     if let Some(v) = &r.verification {
         let _ = writeln!(s, "  verifies     survey {} (table {})", v.verifies_survey, v.table);
     }
-    for line in survey_processing::drift::text(&drift).lines() {
+    if let Some(uid) = &r.check_of {
+        let _ = writeln!(s, "  checks       the calibration {uid}");
+    }
+    if !checks.is_empty() {
+        let shown: Vec<String> = at.iter().map(|t| format!("{t:.3}")).collect();
+        let _ = writeln!(s, "  check points {} samples between the targets, at {} deg", checks.len(), shown.join(", "));
+    }
+    if let Some(of) = r.resolves {
+        let _ = writeln!(
+            s,
+            "  resolves     the check points of survey {of}, being acquired (`survey resume` finishes them)"
+        );
+    }
+    let units = args.units.units();
+    for line in survey_processing::drift::text(&drift, units).lines() {
         let _ = writeln!(s, "  {line}");
     }
     if !events.is_empty() {
         let _ = writeln!(s, "  events");
         for e in &events {
-            let _ = writeln!(s, "    {:>10.1} s  {:<5}  {}", e.at_s, e.level, e.message);
+            let _ = writeln!(s, "    {:>10.1} s  {:<5}  {}", e.at_s, e.level, units.text(&e.message));
         }
     }
     emit(&s);

@@ -5,13 +5,17 @@
 //! disk), 2 for bad usage or bad input. Every command that fails on its input
 //! stores nothing. Nothing below this module imports it.
 
+mod args;
 mod check;
+mod compare;
 mod docs;
 mod export;
+mod history;
 mod import;
 mod list;
 mod model_gap;
 mod process;
+mod push;
 mod report;
 mod resume;
 mod run;
@@ -33,9 +37,21 @@ use std::process::ExitCode;
 #[derive(Debug, Parser)]
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100, after_help = EXAMPLES)]
 pub struct Cli {
-    /// The SQLite database that holds the surveys.
-    #[arg(long, global = true, value_name = "PATH", default_value = crate::process::DEFAULT_DB, env = "SURVEY_DB")]
+    /// The SQLite database that holds the surveys, or a lab store's postgres:// URL (read commands).
+    #[arg(
+        long,
+        global = true,
+        value_name = "PATH|URL",
+        value_hint = clap::ValueHint::FilePath,
+        default_value = crate::process::DEFAULT_DB,
+        env = "SURVEY_DB",
+        hide_env_values = true
+    )]
     pub db: PathBuf,
+
+    /// Say more on stderr: -v how the work is done, -vv debug, -vvv trace (RUST_LOG, when set, decides instead).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
 
     #[command(subcommand)]
     pub command: Command,
@@ -53,7 +69,7 @@ Examples:
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Acquire a survey (the simulated instruments unless --config is given).
-    #[command(after_help = "\
+    #[command(override_usage = run::USAGE, after_help = "\
 Examples:
   survey run --points 360 --bidirectional                 # simulated Figure 8 bench, 5 runs
   survey run --points 720 --runs 3 --bidirectional --preset fig4 --json
@@ -72,7 +88,7 @@ Examples:
   survey resume                   # the latest survey
   survey resume --survey 3 --json")]
     Resume(resume::ResumeArgs),
-    /// Write the survey's report (a self-contained HTML page with its plots and tables) into DIR.
+    /// Write the survey's report, its calibration certificate: one self-contained HTML page into --out DIR.
     #[command(after_help = "\
 Examples:
   survey report --out report/               # report/index.html of the latest survey
@@ -105,10 +121,10 @@ Examples:
     /// The paper's DSP processing: spectrum, lines, aliases, the correction table and its exports.
     #[command(after_help = "\
 Examples:
-  survey process --design positioner.toml          # name the lines from the design
-  survey process --recipe table-1.recipe.toml      # a recalibration, processed as the last one
+  survey process --design positioner.toml                # name the lines from the design
+  survey process --recipe survey-1/table-1.recipe.toml   # a recalibration, processed as the last one
   survey process --controller linuxcnc --table-start -720 --table-end 720
-  survey process --controller 840d --sinumerik-axis A1 --table-zero-at-reference
+  survey process --controller 840d --sinumerik-axis A1 --sinumerik-absolute
   survey process --controller fanuc --table-interval 5 --table-directions separate
   survey process --controller generic --table-sign correction --table-values incremental")]
     Process(process::ProcessArgs),
@@ -124,6 +140,24 @@ Examples:
   survey show          # the latest survey
   survey show 3 --json")]
     Show(list::ShowArgs),
+    /// An asset's surveys in time order, and what changed from each complete survey to the next.
+    #[command(after_help = "\
+Examples:
+  survey history                          # the asset of the latest survey
+  survey history --asset bay-2/az --json")]
+    History(history::HistoryArgs),
+    /// Has the positioner changed from survey A to survey B, and does A's table still hold?
+    #[command(after_help = "\
+Examples:
+  survey compare 3 7
+  survey compare 3 7 --json")]
+    Compare(compare::CompareArgs),
+    /// Copy complete surveys from this station's SQLite file to the lab store, each once by its uid.
+    #[command(after_help = "\
+Examples:
+  survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
+  survey push --json        # the latest survey, to the lab store SURVEY_LAB names")]
+    Push(push::PushArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
 Examples:
@@ -148,7 +182,7 @@ Examples:
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    support::init_logging();
+    support::init_logging(cli.verbose);
     // The command awaits its work and every write; a background task that
     // never yields cannot keep the process alive (`crate::runtime`).
     let outcome = crate::runtime::block_on_bounded(2, async {
@@ -160,8 +194,17 @@ pub fn main() -> ExitCode {
     match outcome {
         Ok(Ok(())) => ExitCode::SUCCESS,
         Ok(Err(e)) => {
-            eprintln!("error: {e:#}");
-            ExitCode::from(crate::error::exit_status(&e))
+            let status = crate::error::exit_status(&e);
+            match e.downcast_ref::<clap::Error>() {
+                // A usage error found after parsing reads as clap's own, usage line and all.
+                Some(usage) => {
+                    let _ = usage.print();
+                }
+                // A recalibration is what `run --check` reports, not an error.
+                None if status == crate::error::RECALIBRATED => eprintln!("{e:#}"),
+                None => eprintln!("error: {e:#}"),
+            }
+            ExitCode::from(status)
         }
         Err(e) => {
             eprintln!("error: cannot start the async runtime: {e}");
@@ -199,6 +242,9 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Process(args) => process::process(db, args).await,
         Command::List(args) => list::list(db, args).await,
         Command::Show(args) => list::show(db, args).await,
+        Command::History(args) => history::history(db, args).await,
+        Command::Compare(args) => compare::compare(db, args).await,
+        Command::Push(args) => push::push(db, args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),

@@ -17,6 +17,7 @@
 //! reference and how well its axis is known, so what of the gap is the axis
 //! location is named as the reference's, with its size.
 
+use super::args::UnitsArg;
 use super::support::emit;
 use crate::error::path_error;
 use crate::inputs::read_model;
@@ -30,19 +31,21 @@ use survey_processing::modelgap::{ModelGap, ModelGapOptions};
 #[derive(Debug, Args)]
 pub struct ModelGapArgs {
     /// The positioner model file (TOML) to compare with the survey.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: PathBuf,
-    /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
     /// Write the improved model file (the model with the effects added and adjusted) here.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub out: Option<PathBuf>,
     /// Compare the actual angles as stored, around the axis located before
     /// the runs, instead of around the axis fitted again from every SMR
     /// position (tracker surveys).
     #[arg(long)]
     pub located_axis: bool,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -80,11 +83,12 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
         }
         emit(&format!("{doc}\n"));
     } else {
+        let units = args.units.units();
         let mut text = format!("survey {}, model {}\n", survey.id, args.model.display());
         if let Some(r) = refit {
-            text += &r.text();
+            text += &units.text(&r.text());
         }
-        text += &gap.to_text();
+        text += &gap.to_text_in(units);
         if let Some(out) = &args.out {
             text += &format!("improved model written to {}\n", out.display());
         }

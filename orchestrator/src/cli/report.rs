@@ -1,41 +1,31 @@
 //! `survey report --out DIR`: the survey's report as one HTML page.
 
+use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
+use crate::report::ReportOptions;
 use crate::report::certificate::CertificateFlags;
-use crate::report::{ReportOptions, Units};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::path::{Path, PathBuf};
-
-/// The unit of every error in the report.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum UnitsArg {
-    /// Degrees.
-    Deg,
-    /// Arcseconds.
-    Arcsec,
-    /// Microradians.
-    Urad,
-}
+use survey_processing::num::Num;
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
     /// The folder to write index.html into (created if missing).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: PathBuf,
-    /// The unit of every error, figure and table.
-    #[arg(long, value_enum, default_value_t = UnitsArg::Deg)]
+    #[command(flatten)]
     pub units: UnitsArg,
     /// Positioner model file (TOML) whose [design] names the lines [default: the survey's stored model].
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub design: Option<PathBuf>,
     /// Replay this processing recipe (TOML), as `survey process --recipe` did.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub recipe: Option<PathBuf>,
     /// Compare the survey with this positioner model (model-gap) and show the steps.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
     pub model: Option<PathBuf>,
     /// The positioner calibrated (make, model, serial) [default: [certificate] of the configuration, or the bench].
     #[arg(long, value_name = "TEXT")]
@@ -76,17 +66,20 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     if let Some(t) = args.temperature
         && !(t.is_finite() && (-50.0..=100.0).contains(&t))
     {
-        return Err(crate::error::bad_input(format!("--temperature {t}: outside -50 to 100 °C")));
+        return Err(crate::error::bad_input(format!("--temperature {}: outside -50 to 100 °C", Num(t))));
     }
     if let Some(u) = args.reference_uncertainty
         && !(u.is_finite() && u > 0.0 && u <= 1.0)
     {
-        return Err(crate::error::bad_input(format!("--reference-uncertainty {u}: must be above 0 and at most 1 deg")));
+        return Err(crate::error::bad_input(format!(
+            "--reference-uncertainty {}: must be above 0 and at most 1 deg",
+            Num(u)
+        )));
     }
     if let Some(t) = args.tolerance
         && !(t.is_finite() && t > 0.0 && t <= 360.0)
     {
-        return Err(crate::error::bad_input(format!("--tolerance {t}: must be above 0 and at most 360 deg")));
+        return Err(crate::error::bad_input(format!("--tolerance {}: must be above 0 and at most 360 deg", Num(t))));
     }
     for (flag, text) in [
         ("--certificate-number", &args.certificate_number),
@@ -100,11 +93,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     // Checked before anything is written.
     let pdf_bound = if args.pdf { Some(crate::report::pdf::timeout()?) } else { None };
     let opts = ReportOptions {
-        units: match args.units {
-            UnitsArg::Deg => Units::Deg,
-            UnitsArg::Arcsec => Units::Arcsec,
-            UnitsArg::Urad => Units::Urad,
-        },
+        units: args.units.units(),
         flags: CertificateFlags {
             positioner: args.positioner,
             reference: args.reference_instrument,

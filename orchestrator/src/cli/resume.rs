@@ -3,9 +3,12 @@
 //! The survey's acquisition lock is taken first ([`AcquirerLock`]): a survey
 //! a live process is acquiring is refused at once, naming that process; a
 //! lock left by a dead one is taken over. A survey whose samples are all
-//! stored but whose status is not complete (stopped while it was processed)
-//! is finished: statistics and processing, exit status 0.
+//! stored but whose status is not complete (stopped, killed or out of disk
+//! space while it was processed: `interrupted`, `running` or `processing`)
+//! is finished: statistics and processing, its outputs written (stale
+//! temporary files of a killed write removed), exit status 0.
 
+use super::args::UnitsArg;
 use super::support::{conclude_and_print, open_existing};
 use crate::acquire::Outcome;
 use crate::bench::Bench;
@@ -21,9 +24,11 @@ use std::time::Duration;
 
 #[derive(Debug, Args)]
 pub struct ResumeArgs {
-    /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -31,7 +36,7 @@ pub struct ResumeArgs {
 
 pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let store = open_existing(db).await?;
-    let id = store.resolve(args.survey).await?.id;
+    let id = store.resolve_any(args.survey).await?.id;
     // One acquirer per survey: refused at once while a live process holds it.
     let lock = AcquirerLock::acquire(store.path(), id)?;
     if let Some(previous) = &lock.took_over {
@@ -41,7 +46,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     // Read under the lock: the survey may have changed while it was held.
     let record = store.survey(id).await?;
     match record.status {
-        SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Failed => {}
+        SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Processing | SurveyStatus::Failed => {}
         SurveyStatus::Complete => {
             return Err(bad_input(format!("survey {id} is complete: there is nothing to resume")));
         }
@@ -64,6 +69,9 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     if plan.continuous() {
         // The latency between the instruments, measured by the first runs.
         bench.engine.set_scan_latency(store.scan_latency(id).await?);
+        if record.source == SurveySource::Instruments && next < plan.total_steps() {
+            super::run::scan_clock_keeps_pace(&mut bench.engine).await?;
+        }
     }
     let options = AcquireOptions {
         progress: !args.json,
@@ -76,7 +84,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         // finish it, statistics and processing.
         let message = format!("all {next} samples are stored: finishing (statistics and processing)");
         store.log_event(id, last_time, "info", &message).await?;
-        store.set_status(id, SurveyStatus::Complete, None).await?;
+        store.set_status(id, SurveyStatus::Processing, None).await?;
         eprintln!("survey {id}: {message}");
         let instrument_time = Duration::from_secs_f64(last_time.max(0.0));
         Ok(Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO })
@@ -93,7 +101,14 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         eprintln!("survey {id}: {message}");
         acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
     };
-    let finish = ConcludeOptions { recipe: None, verify: None, acquire: options, stop };
+    let finish = ConcludeOptions {
+        recipe: None,
+        verify: None,
+        acquire: options,
+        stop,
+        crash_when_staged: false,
+        units: args.units.units(),
+    };
     let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
     drop(lock);
     done

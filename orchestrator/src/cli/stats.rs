@@ -4,7 +4,12 @@
 //! incomplete ("N of M runs complete", `"complete": false` in the JSON), and
 //! its statistics are those of its complete runs only: a run cut short would
 //! weigh its targets unevenly.
+//!
+//! The figures are of the samples every command uses
+//! ([`crate::load`] with `Axis::Refitted`: around the refitted axis of a
+//! tracker survey), and say which axis (`"axis"`).
 
+use super::args::UnitsArg;
 use super::support::emit;
 use crate::load::{Axis, load_read_only};
 use crate::output::{iso_json, iso_text};
@@ -18,9 +23,11 @@ use survey_processing::iso230::iso230_2;
 
 #[derive(Debug, Args)]
 pub struct StatsArgs {
-    /// Survey id (default: the latest).
-    #[arg(long, value_name = "ID")]
-    pub survey: Option<i64>,
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<crate::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
@@ -58,13 +65,18 @@ fn completion(survey: &SurveyRecord, samples: &[Sample]) -> Option<Completion> {
     }
     let complete_runs = (1..=runs).filter(|&r| per_run_stored[r as usize] == per_run).collect();
     let all = survey.planned_samples.is_none_or(|p| p == samples.len() as u64);
-    Some(Completion { complete: survey.status == SurveyStatus::Complete && all, complete_runs, runs_planned: runs })
+    Some(Completion {
+        complete: matches!(survey.status, SurveyStatus::Complete | SurveyStatus::Processing) && all,
+        complete_runs,
+        runs_planned: runs,
+    })
 }
 
 pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
-    let loaded = load_read_only(db, args.survey, Axis::AsStored).await?;
+    let loaded = load_read_only(db, args.survey, Axis::Refitted).await?;
     let (survey, drift) = (&loaded.survey, &loaded.drift);
     let samples = loaded.analysed();
+    let axis = loaded.axis_used();
     let id = survey.id;
     let completion = completion(survey, &samples);
     let incomplete = completion.as_ref().filter(|c| !c.complete);
@@ -80,6 +92,7 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
     })?;
     if args.json {
         let mut doc = iso_json(id, &iso);
+        doc["axis"] = axis.as_str().into();
         doc["complete"] = completion.as_ref().is_none_or(|c| c.complete).into();
         doc["status"] = survey.status.as_str().into();
         if let Some(c) = &completion {
@@ -101,8 +114,11 @@ pub async fn stats(db: &Path, args: StatsArgs) -> anyhow::Result<()> {
                 c.runs_planned
             );
         }
-        text += &iso_text(id, &iso);
-        text += &survey_processing::drift::text(drift);
+        let units = args.units.units();
+        text += &iso_text(id, &iso, units);
+        text += axis.text();
+        text += "\n";
+        text += &survey_processing::drift::text(drift, units);
         if crate::drift::correction_asked(survey) && !drift.is_empty() {
             text += "the statistics above are of the samples corrected for this drift (drift_control.correct)\n";
         }

@@ -6,17 +6,28 @@ use crate::session::{Acquired, stopped_doc};
 use crate::store::Store;
 use std::path::Path;
 
-/// Logs go to stderr through `tracing`; `RUST_LOG` sets the level (default:
-/// warnings, and sqlx's statement logs only at debug).
-pub fn init_logging() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn,sqlx=error"));
+/// Logs go to stderr through `tracing`: warnings, and more for each
+/// `-v` (info, debug, then trace, sqlx's statements too); `RUST_LOG`, when
+/// set, decides instead. A line says its level and message; the time and
+/// the module it came from are for debugging (`-vv`, or `RUST_LOG`).
+pub fn init_logging(verbose: u8) {
+    let from_env = tracing_subscriber::EnvFilter::try_from_default_env().ok();
+    let debugging = from_env.is_some() || verbose >= 2;
+    let filter = from_env.unwrap_or_else(|| {
+        tracing_subscriber::EnvFilter::new(match verbose {
+            0 => "warn,sqlx=error",
+            1 => "info,sqlx=error",
+            2 => "debug,sqlx=error",
+            _ => "trace",
+        })
+    });
     use std::io::IsTerminal as _;
-    let _ = tracing_subscriber::fmt()
+    let logs = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
         .with_ansi(std::io::stderr().is_terminal())
-        .try_init();
+        .with_target(debugging);
+    let _ = if debugging { logs.try_init() } else { logs.without_time().try_init() };
 }
 
 /// Write command output to stdout. A closed pipe (`survey stats | head`) is

@@ -10,7 +10,7 @@
 //! the predicted accuracy (native and corrected peak, ISO 230-2 `A`, the
 //! repeatability floor), the paper's Figure 6 interpolation comparison. Last,
 //! the files ([`outputs`]): the table CSV (`--table-out`, default
-//! `table-<id>.csv`), and beside it, named from its stem, the controller
+//! `table-<id>.csv` in the survey's folder, [`default_table_path`]), and beside it, named from its stem, the controller
 //! files the recipe's `[export]` asks for (with the command line's choices
 //! laid over it, [`overrides`]): LinuxCNC `<stem>.comp0` and `<stem>.comp1`,
 //! Siemens 840D `<stem>.840d.ini`, Fanuc `<stem>.fanuc.txt`, the generic
@@ -41,18 +41,21 @@ use survey_processing::uncertainty::{Uncertainty, UncertaintyInputs};
 pub const DEFAULT_DB: &str = "survey.db";
 
 /// Where the table of survey `id` of the database `db` goes when
-/// `--table-out` is not given: `table-<id>.csv` in the current folder for the
-/// default database (`survey.db`), else `<db>.table-<id>.csv` beside the
-/// database, so surveys of different databases never overwrite each other's
-/// tables.
+/// `--table-out` is not given: `table-<id>.csv` in the survey's own folder,
+/// `survey-<id>/` in the current folder for the default database
+/// (`survey.db`) and for a lab store's URL, else `<db>.survey-<id>/` beside
+/// the database, so a survey's files stay together and surveys of different
+/// databases never overwrite each other's tables. [`process_survey`] makes
+/// the folder ([`ProcessOptions::make_folder`]).
 pub fn default_table_path(db: &Path, id: i64) -> PathBuf {
-    if db == Path::new(DEFAULT_DB) {
-        PathBuf::from(format!("table-{id}.csv"))
+    let folder = if db == Path::new(DEFAULT_DB) || crate::store::lab::url_of(db).is_some() {
+        PathBuf::from(format!("survey-{id}"))
     } else {
         let mut s = db.as_os_str().to_os_string();
-        s.push(format!(".table-{id}.csv"));
+        s.push(format!(".survey-{id}"));
         PathBuf::from(s)
-    }
+    };
+    folder.join(format!("table-{id}.csv"))
 }
 
 /// What to process with; every field optional.
@@ -62,14 +65,23 @@ pub struct ProcessOptions {
     pub design: Option<PathBuf>,
     /// A recipe to replay (default: derive one from this survey).
     pub recipe: Option<PathBuf>,
-    /// The table CSV (default `table-<id>.csv` in the current folder); the
-    /// other files go beside it.
+    /// The table CSV (default `survey-<id>/table-<id>.csv`); the other files
+    /// go beside it.
     pub table_out: Option<PathBuf>,
+    /// Make the table's folder when it is missing (the survey's own folder,
+    /// [`default_table_path`]); a folder the user named must exist.
+    pub make_folder: bool,
     /// Export choices laid over the recipe's `[export]` (the command line's).
     pub export: overrides::ExportOverrides,
     /// What the uncertainty budget needs beyond the samples (the reference
     /// instrument's noise, the axis fit's standard error).
     pub uncertainty: UncertaintyInputs,
+    /// For tests: abort the process (like a power loss) once every file is
+    /// written to its temporary name, before any is renamed into place.
+    pub crash_when_staged: bool,
+    /// Check points measured between the targets to decide the lines in
+    /// doubt ([`crate::resolving`]; empty when there are none).
+    pub checks: Vec<Sample>,
 }
 
 /// Where the design came from.
@@ -108,9 +120,9 @@ impl ProcessOutcome {
         summary::json(self)
     }
 
-    /// The summary for people.
-    pub fn text(&self) -> String {
-        summary::text(self)
+    /// The summary for people, its errors in `units`.
+    pub fn text(&self, units: crate::output::Units) -> String {
+        summary::text(self, units)
     }
 }
 
@@ -126,9 +138,16 @@ pub fn process_survey(
 ) -> anyhow::Result<ProcessOutcome> {
     let id = survey.id;
     let (processed, design) = compute(survey, samples, &opts)?;
-    let table_out = opts.table_out.clone().unwrap_or_else(|| default_table_path(Path::new(DEFAULT_DB), id));
+    let (table_out, make_folder) = match &opts.table_out {
+        Some(path) => (path.clone(), opts.make_folder),
+        None => (default_table_path(Path::new(DEFAULT_DB), id), true),
+    };
+    if let Some(folder) = table_out.parent().filter(|f| make_folder && !f.as_os_str().is_empty()) {
+        std::fs::create_dir_all(folder)
+            .map_err(|e| crate::error::path_error(e, format!("cannot create the folder {}", folder.display())))?;
+    }
     let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
-    outputs::write_all(&paths, &processed, id)?;
+    outputs::write_all(&paths, &processed, id, opts.crash_when_staged)?;
     let uncertainty = survey_processing::uncertainty::uncertainty(&processed, samples, &opts.uncertainty);
     Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths, uncertainty })
 }
@@ -148,8 +167,9 @@ pub fn compute(
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
                 eprintln!(
-                    "note: survey {id} has no stored model and no --design was given: lines are named without a design \
-                     (pass --design MODEL.toml to name gear and tooth harmonics)"
+                    "note: survey {id} has no stored model and no design was given: lines are named without a design \
+                     (`survey process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth \
+                     harmonics)"
                 );
                 (Design::default(), "none".to_string())
             }
@@ -171,12 +191,26 @@ pub fn compute(
         let base = recipe.as_ref().map(|(r, _, _)| r.export.clone()).unwrap_or_default();
         Some(opts.export.resolve(&base)?)
     };
-    let processed = match survey_processing::pipeline::process_with(samples, &design, replay, export.as_ref()) {
-        Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
-        other => other.with_context(|| format!("survey {id} cannot be processed"))?,
-    };
+    let processed =
+        match survey_processing::pipeline::process_with_checks(samples, &design, replay, export.as_ref(), &opts.checks)
+        {
+            Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
+            other => other.with_context(|| format!("survey {id} cannot be processed"))?,
+        };
+    let mut processed = processed;
+    // An autocollimator's faces fix the sampling: say what a second
+    // orientation of the polygon would resolve.
+    if crate::resolving::reference_of(survey) == Some(crate::acquire::ReferenceKind::Autocollimator)
+        && let Some(t) = crate::resolving::second_orientation(&processed.left)
+    {
+        processed.notes.push(t);
+    }
     for n in &processed.notes {
         eprintln!("note: {n}");
+    }
+    // How the table was made, not something to act on: under -v or RUST_LOG=info.
+    if let Some(dm) = &processed.built.direction_model {
+        tracing::info!("{}", dm.text());
     }
     let design = DesignSource {
         from: design_source,

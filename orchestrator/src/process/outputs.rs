@@ -14,8 +14,10 @@
 //! this module only names the files and puts them on disk.
 //!
 //! `<stem>` is the CSV path without its `.csv` extension. Everything is
-//! written to temporary files first and renamed into place at the end, so a
-//! failed command leaves the previous files as they were.
+//! written to temporary files first (`.<name>.tmp-<pid>` beside it) and
+//! renamed into place at the end, so a failed command leaves the previous
+//! files as they were. Temporary files of ours that a killed process left
+//! beside them (their process is gone) are removed.
 
 use crate::error::{bad_input, path_error};
 use std::path::{Path, PathBuf};
@@ -148,10 +150,41 @@ impl Drop for Staged {
     }
 }
 
+/// The name of `target`'s temporary files: `.<name>.tmp-` and a process id.
+fn tmp_prefix(target: &Path) -> String {
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    format!(".{name}.tmp-")
+}
+
+/// Remove the temporary files of `target` that a process that is gone left
+/// beside it (killed between writing and renaming). Those of a live process
+/// (another `survey` writing the same file now) are left alone.
+fn remove_stale(target: &Path) {
+    let prefix = tmp_prefix(target);
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(|n| n.strip_prefix(&prefix)).and_then(|p| p.parse::<i32>().ok()) else {
+            continue;
+        };
+        // Signal 0 only asks whether the process exists.
+        let gone = nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), None) == Err(nix::errno::Errno::ESRCH);
+        if gone && entry.file_type().is_ok_and(|t| t.is_file()) {
+            match std::fs::remove_file(entry.path()) {
+                Ok(()) => tracing::info!(file = %entry.path().display(), "a stale temporary file removed"),
+                Err(e) => tracing::warn!(file = %entry.path().display(), %e, "a stale temporary file stays"),
+            }
+        }
+    }
+}
+
 /// Write `bytes` to a temporary file beside `target` (named for `shown`).
 fn stage(target: &Path, shown: &Path, bytes: &[u8]) -> anyhow::Result<Staged> {
-    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let tmp = target.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let tmp = target.with_file_name(format!("{}{}", tmp_prefix(target), std::process::id()));
     let staged = Staged { tmp, path: target.to_path_buf(), done: false };
     let mut file =
         std::fs::File::create(&staged.tmp).map_err(|e| path_error(e, format!("cannot create {}", shown.display())))?;
@@ -179,7 +212,13 @@ fn stream(target: &Path, shown: &Path, bytes: &[u8]) -> anyhow::Result<()> {
 /// Write every file of `paths` from `processed` (see the module
 /// documentation): regular files are staged and renamed into place only when
 /// every file was written, so a failure leaves the previous files as they were.
-pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> anyhow::Result<()> {
+/// `crash_when_staged` (tests) aborts the process between the two.
+pub fn write_all(
+    paths: &OutputPaths,
+    processed: &Processed,
+    survey_id: i64,
+    crash_when_staged: bool,
+) -> anyhow::Result<()> {
     let table = &processed.built.table;
     let mut outputs: Vec<(&Path, Vec<u8>)> = vec![(paths.table_csv.as_path(), table_csv(table).into_bytes())];
     for file in processed.controllers.iter().flat_map(|c| &c.files) {
@@ -202,9 +241,16 @@ pub fn write_all(paths: &OutputPaths, processed: &Processed, survey_id: i64) -> 
     let mut streams = Vec::new();
     for (shown, bytes) in &outputs {
         match target(shown)? {
-            Target::Replace(t) => staged.push(stage(&t, shown, bytes)?),
+            Target::Replace(t) => {
+                remove_stale(&t);
+                staged.push(stage(&t, shown, bytes)?);
+            }
             Target::Stream(t) => streams.push((t, *shown, bytes)),
         }
+    }
+    if crash_when_staged {
+        // A simulated power loss: the temporary files stay, none is renamed.
+        std::process::abort();
     }
     for (t, shown, bytes) in streams {
         stream(&t, shown, bytes)?;

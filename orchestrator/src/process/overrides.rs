@@ -27,6 +27,8 @@ pub struct ExportOverrides {
     pub reference_deg: Option<f64>,
     /// `export.zero_at_reference` (set when true).
     pub zero_at_reference: bool,
+    /// `export.sinumerik_absolute` (set when true).
+    pub sinumerik_absolute: bool,
     /// `export.sign`.
     pub sign: Option<Sign>,
     /// `export.values`.
@@ -72,6 +74,7 @@ impl ExportOverrides {
             x.directions = d;
         }
         x.zero_at_reference |= self.zero_at_reference;
+        x.sinumerik_absolute |= self.sinumerik_absolute;
         if let Some(s) = self.sign {
             x.sign = s;
         }
@@ -111,6 +114,7 @@ pub fn flag_of(key: &str) -> Option<&'static str> {
         "directions" => "--table-directions",
         "reference_deg" => "--table-reference",
         "zero_at_reference" => "--table-zero-at-reference",
+        "sinumerik_absolute" => "--sinumerik-absolute",
         "sign" => "--table-sign",
         "values" => "--table-values",
         "sinumerik_axis" => "--sinumerik-axis",

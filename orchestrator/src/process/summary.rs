@@ -6,7 +6,8 @@
 //! `table` with `path`, `points`, `directional`; `predicted` with
 //! `native_peak_deg` and `corrected_peak_deg`) and more: each peak's true
 //! frequency, phase, share and fate in the table; each alias' source and
-//! reason; the table's method, kept lines and hysteresis test; the predicted
+//! reason; the table's method, kept lines, hysteresis test and direction
+//! model (a directional full-circle table's forward - reverse); the predicted
 //! RMS and ISO 230-2 `A`, the repeatability floor and the LinuxCNC file's
 //! predicted peak; the Figure 6 interpolation comparison; the noise floor;
 //! the points needed; the design and recipe used; every file written
@@ -18,6 +19,7 @@
 //! whose true frequency is `true_cycles_per_rev`).
 
 use super::ProcessOutcome;
+use crate::output::Units;
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use survey_processing::export::controllers::{Controller, ControllerExport};
@@ -112,6 +114,7 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "spacing_deg": t.spacing_deg(),
             "directional_reason": p.built.directional_reason,
             "hysteresis": p.built.hysteresis,
+            "direction_model": p.built.direction_model,
             "method": p.built.method,
             "method_text": p.built.method.to_string(),
             "kept_cycles": p.decisions.kept_cycles,
@@ -128,7 +131,12 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "floor": p.floor.what,
             "linuxcnc_corrected_peak_deg": p.controllers.iter().find(|c| c.controller == Controller::LinuxCnc).and_then(|c| c.corrected_peak_deg),
             "samples": pr.samples,
+            "in_sample_corrected_peak_deg": pr.in_sample_corrected_peak_deg,
+            "unseen_between_targets_deg": pr.unseen_between_targets_deg,
+            "peak_spread_deg": pr.peak_spread_deg,
+            "no_better_than_native": pr.no_better_than_native(),
         },
+        "left": p.left,
         "interpolation": p.interpolation.as_ref().ok(),
         "noise": a.noise,
         "points_needed": a.points_needed,
@@ -149,14 +157,17 @@ pub fn json(o: &ProcessOutcome) -> Value {
     })
 }
 
-fn opt(v: Option<f64>) -> String {
-    v.map_or_else(|| "-".to_string(), |x| format!("{x:.5}"))
-}
-
-/// The human summary (see the module documentation).
-pub fn text(o: &ProcessOutcome) -> String {
+/// The human summary (see the module documentation): errors in `units`,
+/// angles along the axis (ranges, spacings) in degrees.
+pub fn text(o: &ProcessOutcome, units: Units) -> String {
     let p = &o.processed;
     let a = &p.analysis;
+    let u = units.symbol();
+    // An error to 1e-5 deg, or to 1e-6 deg in a table's column; a small one in exponent form.
+    let e5 = |deg: f64| units.fixed(deg, 5);
+    let e6 = |deg: f64| units.fixed(deg, 6);
+    let small = |deg: f64| units.small(deg, 2, false);
+    let opt = |v: Option<f64>| v.map_or_else(|| "-".to_string(), e5);
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -172,11 +183,13 @@ pub fn text(o: &ProcessOutcome) -> String {
     );
     let _ = writeln!(
         s,
-        "noise: {:.2e} deg per sample; a line needs {:.2e} deg in the mean spectrum",
-        a.noise.sample_sd_deg, a.noise.coherent_threshold_deg
+        "noise: {} {u} per sample; a line needs {} {u} in the mean spectrum",
+        small(a.noise.sample_sd_deg),
+        small(a.noise.coherent_threshold_deg)
     );
     let _ = writeln!(s, "\npeaks ({} significant):", a.lines.len());
-    let _ = writeln!(s, "  {:>8} {:>10} {:>7}  {:<10} {:<10} source", "cyc/rev", "amp deg", "share", "", "table");
+    let amp = format!("amp {u}");
+    let _ = writeln!(s, "  {:>8} {:>10} {:>7}  {:<10} {:<10} source", "cyc/rev", amp, "share", "", "table");
     for l in &a.lines {
         let d = p.decisions.lines.iter().find(|d| d.significant && d.cycles_per_rev == l.cycles_per_rev);
         let fate = match d.map(|d| (d.action, d.true_cycles_per_rev)) {
@@ -186,9 +199,9 @@ pub fn text(o: &ProcessOutcome) -> String {
         };
         let _ = writeln!(
             s,
-            "  {:>8} {:>10.6} {:>6.1}%  {:<10} {:<10} {}",
+            "  {:>8} {:>10} {:>6.1}%  {:<10} {:<10} {}",
             l.cycles_per_rev,
-            l.amplitude_deg,
+            e6(l.amplitude_deg),
             100.0 * l.share,
             if l.repeatable { "repeatable" } else { "random" },
             fate,
@@ -198,8 +211,13 @@ pub fn text(o: &ProcessOutcome) -> String {
     for d in p.decisions.lines.iter().filter(|d| !d.significant) {
         let _ = writeln!(
             s,
-            "  {:>8} {:>10.6} {:>7}  {:<10} {:<10} {}",
-            d.cycles_per_rev, d.amplitude_deg, "", "", "kept", d.reason
+            "  {:>8} {:>10} {:>7}  {:<10} {:<10} {}",
+            d.cycles_per_rev,
+            e6(d.amplitude_deg),
+            "",
+            "",
+            "kept",
+            units.text(&d.reason)
         );
     }
     let applied: Vec<_> = p.decisions.aliases.iter().filter(|x| x.applied || x.from_recipe).collect();
@@ -213,7 +231,7 @@ pub fn text(o: &ProcessOutcome) -> String {
                 x.true_cycles,
                 format!("{:?}", x.action).to_lowercase(),
                 x.source,
-                x.reason
+                units.text(&x.reason)
             );
         }
     }
@@ -223,20 +241,20 @@ pub fn text(o: &ProcessOutcome) -> String {
     }
     match &p.interpolation {
         Ok(scores) => {
-            let _ = writeln!(s, "\ninterpolation of the survey decimated by 2 (paper Figure 6), deg:");
+            let _ = writeln!(s, "\ninterpolation of the survey decimated by 2 (paper Figure 6), {u}:");
             for m in scores {
                 let mark = if m.method == p.recipe.table.interpolation { " *" } else { "" };
                 let _ = writeln!(
                     s,
-                    "  {:<10} rms {:.2e} deg  peak {:.2e} deg{mark}",
+                    "  {:<10} rms {} {u}  peak {} {u}{mark}",
                     m.method.as_str(),
-                    m.rms_deg,
-                    m.peak_deg
+                    small(m.rms_deg),
+                    small(m.peak_deg)
                 );
             }
         }
         Err(why) => {
-            let _ = writeln!(s, "\ninterpolation comparison: not made ({why})");
+            let _ = writeln!(s, "\ninterpolation comparison: not made ({})", units.text(why));
         }
     }
     let t = &p.built.table;
@@ -247,20 +265,40 @@ pub fn text(o: &ProcessOutcome) -> String {
         t.spacing_deg(),
         if t.is_directional() { "directional" } else { "one column" },
         p.built.method,
-        p.built.directional_reason
+        units.text(&p.built.directional_reason)
     );
     let pr = &p.prediction;
     let _ = writeln!(
         s,
-        "predicted: native +/-{:.5} deg (ISO A {} deg) -> corrected +/-{:.5} deg (ISO A {} deg); RMS {:.5} deg -> {:.5} deg",
-        pr.native_peak_deg,
+        "predicted: native +/-{} {u} (ISO A {} {u}) -> corrected +/-{} {u} (ISO A {} {u}); RMS {} {u} -> {} {u}",
+        e5(pr.native_peak_deg),
         opt(pr.native.iso230_a_deg),
-        pr.corrected_peak_deg,
+        e5(pr.corrected_peak_deg),
         opt(pr.corrected.iso230_a_deg),
-        pr.native.rms_deg,
-        pr.corrected.rms_deg
+        e5(pr.native.rms_deg),
+        e5(pr.corrected.rms_deg)
     );
-    let _ = writeln!(s, "repeatability floor: {} deg ({})", opt(p.floor.deg), p.floor.what);
+    let _ = writeln!(
+        s,
+        "  corrected peak: +/-{} {u} at the survey's own samples, +{} {u} for what the table leaves between the \
+         targets, +{} {u} for the spread of a new survey's peak of noise (95 %)",
+        e5(pr.in_sample_corrected_peak_deg),
+        e5(pr.unseen_between_targets_deg),
+        e5(pr.peak_spread_deg)
+    );
+    for l in &p.left.lines {
+        let _ = writeln!(s, "  left: {}", units.text(&l.why));
+    }
+    if pr.no_better_than_native() {
+        let _ = writeln!(
+            s,
+            "NOT A RESULT: this table is not expected to improve the axis (corrected +/-{} {u} against native \
+             +/-{} {u}): do not load it",
+            e5(pr.corrected_peak_deg),
+            e5(pr.native_peak_deg)
+        );
+    }
+    let _ = writeln!(s, "repeatability floor: {} {u} ({})", opt(p.floor.deg), p.floor.what);
     for (c, _) in written(o) {
         let _ = writeln!(
             s,
@@ -277,10 +315,10 @@ pub fn text(o: &ProcessOutcome) -> String {
             c.grid.interval_deg,
             if c.directional { ", forward and reverse" } else { "" },
             if c.modulo { ", modulo 360" } else { "" },
-            c.corrected_peak_deg.map_or_else(|| "-".to_string(), |v| format!("+/-{v:.5} deg")),
+            c.corrected_peak_deg.map_or_else(|| "-".to_string(), |v| format!("+/-{} {u}", e5(v))),
         );
         for n in &c.notes {
-            let _ = writeln!(s, "  note: {n}");
+            let _ = writeln!(s, "  note: {}", units.text(n));
         }
         if c.controller == Controller::Fanuc {
             let params: Vec<String> = c.parameters.iter().map(|(n, v, _)| format!("{n}={v}")).collect();
@@ -308,6 +346,6 @@ pub fn text(o: &ProcessOutcome) -> String {
     if let Some(recipe) = &f.recipe {
         let _ = writeln!(s, "  recipe          {} (replay with --recipe)", recipe.display());
     }
-    s += &o.uncertainty.text();
+    s += &units.text(&o.uncertainty.text());
     s
 }

@@ -164,6 +164,9 @@ mod tests {
         };
         let columns = crate::survey::StoredColumns {
             id: 4,
+            uid: "00000000-0000-4000-8000-000000000004".into(),
+            asset: "unassigned".into(),
+            check_of: None,
             created_at: "t".into(),
             updated_at: "t".into(),
             status: "complete".into(),

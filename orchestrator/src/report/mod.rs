@@ -22,14 +22,15 @@ pub mod html;
 pub mod page;
 pub mod pdf;
 pub mod plot;
-pub mod units;
+/// The units and numbers of the page (the processing's, shared with every command's text).
+pub use survey_processing::units;
 
 use crate::error::{bad_input, path_error};
 use crate::inputs::read_model;
 use crate::load::{Axis, Loaded, load};
 use crate::process::ProcessOptions;
 use crate::store::Store;
-use crate::survey::{SurveyRecord, SurveySource};
+use crate::survey::{SurveyRecord, SurveyRef, SurveySource};
 use anyhow::Context as _;
 use certificate::CertificateFlags;
 pub use html::verification::Verification;
@@ -60,8 +61,11 @@ pub struct ReportOptions {
 pub struct ReportData {
     /// The survey.
     pub survey: SurveyRecord,
-    /// Its samples, as processed.
+    /// Its samples, as processed (every figure of the page is of them, as
+    /// `survey stats` and `survey process` give them).
     pub samples: Vec<Sample>,
+    /// Which axis their actual angles were computed around.
+    pub axis: crate::refit::AxisUsed,
     /// The processing, or why there is none.
     pub processed: Result<Processed, String>,
     /// The verification pair, when there is one.
@@ -76,21 +80,28 @@ pub struct ReportData {
     pub axis_u_deg: Option<f64>,
     /// When the report was made (UTC, RFC 3339).
     pub generated: String,
+    /// The asset's history up to this survey, when it has one.
+    pub history: Option<crate::life::history::History>,
 }
 
 /// Read what the report of survey `id` (the latest when `None`) shows.
-pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> anyhow::Result<ReportData> {
+pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) -> anyhow::Result<ReportData> {
     let loaded = load(store, id, Axis::Refitted).await?;
     if loaded.samples.is_empty() {
         return Err(bad_input(format!("survey {} holds no samples yet", loaded.survey.id)));
     }
     let verification = find_verification(store, &loaded).await?;
+    // Its asset's history, up to this survey; a history that cannot be read
+    // does not keep the report from being written.
+    let history = crate::life::history::history(store, &loaded.survey.asset, Some(loaded.survey.id)).await.ok();
     let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
     let axis_u_deg = loaded.uncertainty_inputs().axis_u_deg;
+    let axis = loaded.axis_used();
     let Loaded { survey, samples, drift, .. } = loaded;
     Ok(ReportData {
         survey,
         samples,
+        axis,
         processed,
         verification,
         model_gap,
@@ -98,6 +109,7 @@ pub async fn gather(store: &Store, id: Option<i64>, opts: &ReportOptions) -> any
         uncertainty,
         axis_u_deg,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        history,
     })
 }
 
@@ -113,6 +125,7 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
         design: opts.design.clone(),
         recipe: opts.recipe.clone(),
         table_out: None,
+        checks: loaded.checks.clone(),
         ..Default::default()
     };
     let processed = match crate::process::compute(survey, &analysed, &process_opts) {
@@ -164,7 +177,7 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
     };
     if survey.source == SurveySource::Verification {
         let Some(of) = &survey.verification else { return Ok(None) };
-        let native = load(store, Some(of.verifies_survey), Axis::Refitted).await?.samples;
+        let native = load(store, Some(of.verifies_survey.into()), Axis::Refitted).await?.samples;
         if native.is_empty() {
             return Ok(None);
         }

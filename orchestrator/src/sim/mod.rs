@@ -4,14 +4,19 @@
 //! software) talk to them as to the hardware, from another process.
 //!
 //! - TCP instruments (`scpi-tcp`, `modbus-tcp`, `emscon`) listen on their
-//!   configured address, which must be on loopback (port 0 takes a free port;
-//!   the ready line says which).
+//!   configured address when it is on loopback (port 0 takes a free port;
+//!   the ready line says which), else on a free loopback port.
 //! - Serial instruments (`scpi-serial`, `modbus-rtu`, `elcomat`) get a
 //!   pseudo-terminal whose slave is linked at the configured `port` path (a
 //!   symbolic link made here and removed on exit; an existing file there is
-//!   never replaced).
-//! - CAN (`canopen`) is served on the configured SocketCAN interface, which
-//!   must exist (a `vcan` interface on a machine with AF_CAN).
+//!   never replaced), or in the sim's own folder for a device under `/dev/`.
+//! - CAN (`canopen`) is served on the configured SocketCAN interface when this
+//!   machine has it (a `vcan` interface on a machine with AF_CAN), else behind
+//!   a simulated SLCAN adapter on a pseudo-terminal in the sim's folder.
+//!
+//! So a configuration written for the real bench is served as it is
+//! ([`StandIns`]); [`Served::stand_ins`] writes the configuration to run
+//! against, with the addresses served.
 //!
 //! The simulators run on a [`ScaledClock`]: `--time-scale X` makes every move,
 //! settle and measurement X times faster than on the hardware. Faults at a
@@ -27,7 +32,13 @@
 //! drifts drifts by its rate per run of the configuration's plan at the
 //! simulated hardware's pace ([`Served::drift_run_s`]; `points` required).
 
-use crate::config::{AutocollimatorConfig as AcConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
+mod stand_in;
+
+pub use stand_in::StandIns;
+
+use crate::config::{
+    AutocollimatorConfig as AcConfig, CanLink, DEFAULT_CAN_BITRATE, PositionerConfig, SurveyConfig, TrackerConfig,
+};
 use crate::error::bad_input;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -78,6 +89,8 @@ pub struct Served {
     /// faults the simulators took, their own (moves tripped, beams broken,
     /// autocollimator reads blocked); and the replies relayed.
     pub faults: Injected,
+    /// Where the instruments stand in for the configured ones, and the sim's folder.
+    pub stand_ins: StandIns,
     tasks: Vec<JoinHandle<()>>,
     links: Vec<PathBuf>,
     /// The pty slave ends, kept open so the masters never read EIO while no
@@ -148,22 +161,25 @@ impl Drop for Served {
     }
 }
 
-/// A loopback listener at `address` (`host:port`; port 0 takes a free one).
-async fn listen(what: &str, address: &str) -> anyhow::Result<TcpListener> {
-    let addr: SocketAddr = tokio::net::lookup_host(address)
-        .await
-        .ok()
-        .and_then(|mut a| a.next())
-        .ok_or_else(|| bad_input(format!("{what}: '{address}' is not a host:port address")))?;
-    if !addr.ip().is_loopback() {
-        return Err(bad_input(format!(
-            "{what}: survey sim serves on loopback only, and {address} is not a loopback address \
-             (use 127.0.0.1:PORT in the configuration you rehearse with)"
-        )));
+impl Served {
+    /// A loopback listener standing in for `section.key = address`; the
+    /// address it listens on.
+    async fn listen(&mut self, section: &'static str, address: &str) -> anyhow::Result<(TcpListener, String)> {
+        let addr: SocketAddr = self.stand_ins.tcp(section, address)?;
+        let listener = TcpListener::bind(addr).await.map_err(|e| {
+            crate::error::path_error(e, format!("{section}: cannot listen on {addr}")).context("survey sim")
+        })?;
+        let public = listener.local_addr()?.to_string();
+        self.stand_ins.served(section, "address", address, &public);
+        Ok((listener, public))
     }
-    TcpListener::bind(addr)
-        .await
-        .map_err(|e| crate::error::path_error(e, format!("{what}: cannot listen on {address}")).context("survey sim"))
+
+    /// The path a serial instrument of `section` is linked at for `port`.
+    fn port(&mut self, section: &'static str, port: &str) -> String {
+        let at = self.stand_ins.serial(section, port);
+        self.stand_ins.served(section, "port", port, &at);
+        at
+    }
 }
 
 /// A pty whose slave is linked at `port`; returns the master and the slave.
@@ -186,7 +202,10 @@ fn pty_at(what: &str, port: &str) -> anyhow::Result<(tokio_serial::SerialStream,
 /// Serve the simulated instruments of `cfg`.
 pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Served> {
     if !(opts.time_scale.is_finite() && opts.time_scale > 0.0 && opts.time_scale <= 10_000.0) {
-        return Err(bad_input(format!("--time-scale must be above 0 and at most 10000, got {}", opts.time_scale)));
+        return Err(bad_input(format!(
+            "--time-scale must be above 0 and at most 10000, got {}",
+            survey_processing::num::Num(opts.time_scale)
+        )));
     }
 
     let preset = Preset::by_name(&opts.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", opts.preset)))?;
@@ -278,6 +297,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         instruments: serde_json::Map::new(),
         drift_run_s: drift_run.map(|p| p.as_secs_f64()),
         faults: injected.clone(),
+        stand_ins: StandIns::new()?,
         tasks: Vec::new(),
         links: Vec::new(),
         _slaves: Vec::new(),
@@ -286,8 +306,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     // The positioner.
     match &cfg.positioner {
         PositionerConfig::ScpiTcp { address, controller, axis, .. } => {
-            let listener = listen("positioner", address).await?;
-            let public = listener.local_addr()?.to_string();
+            let (listener, public) = served.listen("positioner", address).await?;
             let faults = Faults::counting(injected.clone());
             let relay = relay_for("positioner", &faults, Framing::Lines, true);
             let listener = served.front(listener, relay).await?;
@@ -298,17 +317,17 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
             let faults = Faults::counting(injected.clone());
             let relay = relay_for("positioner", &faults, Framing::Lines, true);
-            let device = served.serial("positioner", port, relay)?;
+            let port = served.port("positioner", port);
+            let device = served.serial("positioner", &port, relay)?;
             let positioner = bench.positioner;
             let at = (*controller, *axis);
             served.tasks.push(tokio::spawn(async move {
                 scpi_server::serve_stream(device, positioner, faults, at).await;
             }));
-            served.instruments.insert("positioner".into(), port.clone().into());
+            served.instruments.insert("positioner".into(), port.into());
         }
         PositionerConfig::ModbusTcp { address, map, .. } => {
-            let listener = listen("positioner", address).await?;
-            let public = listener.local_addr()?.to_string();
+            let (listener, public) = served.listen("positioner", address).await?;
             let server = ModbusDevice::new(bench.positioner, map.clone())
                 .map_err(|e| bad_input(format!("positioner.map: {e}")))?;
             let faults = Faults::counting(injected.clone());
@@ -324,7 +343,8 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
             let faults = Faults::counting(injected.clone());
             let relay = relay_for("positioner", &faults, Framing::ModbusRtu, true);
-            let device = served.serial("positioner", port, relay)?;
+            let port = served.port("positioner", port);
+            let device = served.serial("positioner", &port, relay)?;
             // On a serial line the slave address is the unit (as the driver does).
             let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
             let server =
@@ -332,7 +352,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             served.tasks.push(tokio::spawn(async move {
                 server.serve_rtu(device, faults).await;
             }));
-            served.instruments.insert("positioner".into(), port.clone().into());
+            served.instruments.insert("positioner".into(), port.into());
         }
         PositionerConfig::Canopen { drive, .. } => {
             let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
@@ -342,8 +362,25 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             node.correction_objects = drive.correction_objects;
             let positioner = bench.positioner;
             let faults = Faults::counting(injected.clone());
-            match cfg.positioner.can_link() {
-                Some(Ok(CanLink::Slcan { port, .. })) => {
+            let link = match cfg.positioner.can_link() {
+                Some(Ok(link)) => link,
+                Some(Err(e)) => return Err(bad_input(e)),
+                None => unreachable!("a CANopen configuration has a CAN link"),
+            };
+            let link = match link {
+                // No such interface here: the drive behind a simulated adapter.
+                CanLink::SocketCan(interface) if !Path::new("/sys/class/net").join(&interface).exists() => {
+                    let port = served.stand_ins.dir().join("positioner").display().to_string();
+                    served.stand_ins.served("positioner", "transport", "socketcan", "slcan");
+                    served.stand_ins.served("positioner", "port", &interface, &port);
+                    served.stand_ins.removed("positioner", "interface");
+                    CanLink::Slcan { port, bitrate: DEFAULT_CAN_BITRATE }
+                }
+                CanLink::Slcan { port, bitrate } => CanLink::Slcan { port: served.port("positioner", &port), bitrate },
+                link => link,
+            };
+            match link {
+                CanLink::Slcan { port, .. } => {
                     // A CiA 402 drive behind a simulated USB-CAN adapter, on a
                     // pty linked at the port (link faults on the serial line,
                     // on the replies among the adapter's messages).
@@ -360,7 +397,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
                     }));
                     served.instruments.insert("positioner".into(), port.clone().into());
                 }
-                Some(Ok(CanLink::SocketCan(interface))) => {
+                CanLink::SocketCan(interface) => {
                     let bus = survey_drivers::canopen::SocketCanBus::open(&interface).map_err(|e| {
                         anyhow::anyhow!(
                             "positioner: cannot open the SocketCAN interface {interface} ({e}); survey sim serves a \
@@ -378,16 +415,13 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
                         .instruments
                         .insert("positioner".into(), format!("{interface} node {}", drive.node_id).into());
                 }
-                Some(Err(e)) => return Err(bad_input(e)),
-                None => unreachable!("a CANopen configuration has a CAN link"),
             }
         }
     }
 
     // The reference instruments (both may be configured; each is served).
     if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {
-        let listener = listen("tracker", address).await?;
-        let public = listener.local_addr()?.to_string();
+        let (listener, public) = served.listen("tracker", address).await?;
         let faults = Faults::counting(injected.clone());
         let relay = relay_for("tracker", &faults, Framing::Emscon, true);
         let listener = served.front(listener, relay).await?;
@@ -398,12 +432,13 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         // Its device fault is the simulated autocollimator's: a blocked view,
         // answered "no reflection".
         let relay = relay_for("autocollimator", &Faults::counting(injected.clone()), Framing::Lines, false);
-        let device = served.serial("autocollimator", port, relay)?;
+        let port = served.port("autocollimator", port);
+        let device = served.serial("autocollimator", &port, relay)?;
         let instrument = bench.autocollimator;
         served.tasks.push(tokio::spawn(async move {
             elcomat_server::serve(device, instrument).await;
         }));
-        served.instruments.insert("autocollimator".into(), port.clone().into());
+        served.instruments.insert("autocollimator".into(), port.into());
     }
     Ok(served)
 }

@@ -1,15 +1,15 @@
 //! The reference measurements of drift control ([`survey_processing::drift`]), stored
 //! in `drift_points` (migration 2) in measurement order.
 
-use super::Store;
 use super::tx::WriteTx;
+use super::{Store, on_pool};
 use sqlx::Row;
 use survey_processing::drift::{DriftMeasurement, DriftPoint, drift_points};
 
 impl Store {
     /// Store one measurement of the reference target after those stored.
     pub async fn add_drift_measurement(&self, id: i64, m: &DriftMeasurement) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         sqlx::query(
             "INSERT INTO drift_points (survey_id, idx, before_seq, at_s, reference_deg, readout_deg, actual_deg) \
              SELECT ?, COALESCE(MAX(idx) + 1, 0), ?, ?, ?, ?, ? FROM drift_points WHERE survey_id = ?",
@@ -30,24 +30,26 @@ impl Store {
 
     /// The reference measurements of survey `id`, in measurement order.
     pub async fn drift_measurements(&self, id: i64) -> anyhow::Result<Vec<DriftMeasurement>> {
-        let rows = sqlx::query(
-            "SELECT before_seq, at_s, reference_deg, readout_deg, actual_deg FROM drift_points \
-             WHERE survey_id = ? ORDER BY idx",
-        )
-        .bind(id)
-        .fetch_all(&self.pool)
-        .await?;
-        rows.iter()
-            .map(|r| -> anyhow::Result<DriftMeasurement> {
-                Ok(DriftMeasurement {
-                    before_seq: u64::try_from(r.try_get::<i64, _>("before_seq")?)?,
-                    at_s: r.try_get("at_s")?,
-                    reference_deg: r.try_get("reference_deg")?,
-                    readout_deg: r.try_get("readout_deg")?,
-                    actual_deg: r.try_get("actual_deg")?,
+        on_pool!(self, |pool| {
+            let rows = sqlx::query(
+                "SELECT before_seq, at_s, reference_deg, readout_deg, actual_deg FROM drift_points \
+                 WHERE survey_id = $1 ORDER BY idx",
+            )
+            .bind(id)
+            .fetch_all(pool)
+            .await?;
+            rows.iter()
+                .map(|r| -> anyhow::Result<DriftMeasurement> {
+                    Ok(DriftMeasurement {
+                        before_seq: u64::try_from(r.try_get::<i64, _>("before_seq")?)?,
+                        at_s: r.try_get("at_s")?,
+                        reference_deg: r.try_get("reference_deg")?,
+                        readout_deg: r.try_get("readout_deg")?,
+                        actual_deg: r.try_get("actual_deg")?,
+                    })
                 })
-            })
-            .collect()
+                .collect()
+        })
     }
 
     /// The drift over time of survey `id`: `(time, drift)` points for a plot
@@ -88,17 +90,20 @@ mod tests {
         schema_1_database(&path).await;
         // Read-only commands say it needs an upgrade, and leave it as it is.
         let e = Store::open_read_only(&path).await.unwrap_err();
-        assert!(format!("{e:#}").contains("older schema (1; this version reads 3)"), "{e:#}");
+        assert!(
+            format!("{e:#}").contains(&format!("older schema (1; this version reads {})", MIGRATIONS.len())),
+            "{e:#}"
+        );
         // A command that writes upgrades it; the survey is still there.
         let store = Store::open(&path).await.unwrap();
         let versions: Vec<i64> = sqlx::query("SELECT version FROM _sqlx_migrations ORDER BY version")
-            .fetch_all(&store.pool)
+            .fetch_all(store.sqlite().unwrap())
             .await
             .unwrap()
             .iter()
             .map(|r| r.get(0))
             .collect();
-        assert_eq!(versions, [1, 2, 3]);
+        assert_eq!(versions, MIGRATIONS.iter().map(|m| m.0).collect::<Vec<_>>());
         assert_eq!(store.survey(1).await.unwrap().id, 1);
         assert!(store.drift_points(1).await.unwrap().is_empty());
         let m = |seq, at_s, actual_deg| DriftMeasurement {

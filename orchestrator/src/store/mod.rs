@@ -29,7 +29,10 @@
 //! - `samples`: storing and reading samples with their raw readings;
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
+mod check_points;
+mod checks;
 mod drift;
+pub mod lab;
 mod lock;
 mod samples;
 mod scan;
@@ -39,6 +42,7 @@ mod surveys;
 mod tests;
 mod tx;
 
+pub use checks::CheckDecision;
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
 pub use samples::SmrPosition;
 pub use scan::StoredPass;
@@ -51,7 +55,7 @@ use std::time::Duration;
 
 use anyhow::{Context, anyhow};
 use sqlx::migrate::{Migration, MigrationType, Migrator};
-use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteRow, SqliteSynchronous};
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
 use sqlx::{ConnectOptions as _, Row, SqlSafeStr, SqlitePool};
 
 #[cfg(doc)]
@@ -95,6 +99,9 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (1, "init", include_str!("../../../migrations/0001_init.sql")),
     (2, "drift", include_str!("../../../migrations/0002_drift.sql")),
     (3, "instrument time", include_str!("../../../migrations/0003_instrument_time.sql")),
+    (4, "check points", include_str!("../../../migrations/0004_check_points.sql")),
+    (5, "assets", include_str!("../../../migrations/0005_assets.sql")),
+    (6, "processing", include_str!("../../../migrations/0006_processing.sql")),
 ];
 
 fn migrator() -> Migrator {
@@ -129,18 +136,51 @@ pub fn is_not_found(err: &anyhow::Error) -> bool {
 /// take turns, waiting up to sqlx's acquire timeout of 30 s). Other processes
 /// can read the file at the same time (WAL); a second writer waits up to
 /// [`BUSY_TIMEOUT`] for the lock.
+///
+/// A station's store is an SQLite file; a laboratory's shared store is a
+/// PostgreSQL database ([`lab`]), opened only to read (`--db postgres://...`)
+/// or by `survey push`: every read works on either, with the same queries
+/// where the dialects agree ([`on_pool`]).
 #[derive(Debug, Clone)]
 pub struct Store {
-    pool: SqlitePool,
+    backend: Backend,
+    /// The file, or the lab store's URL without its password.
     path: PathBuf,
     /// Opened `immutable` (read-only media): the bulk reader must be too.
     immutable: bool,
 }
 
+/// The database behind a [`Store`].
+#[derive(Debug, Clone)]
+enum Backend {
+    /// A station's SQLite file.
+    Sqlite(SqlitePool),
+    /// The lab store.
+    Lab(sqlx::PgPool),
+}
+
+/// Run `$body` with `$pool` bound to the store's pool, SQLite or
+/// PostgreSQL: the same query text on both (`$1`-style parameters, which
+/// SQLite reads too), its rows mapped by the same code.
+macro_rules! on_pool {
+    ($store:expr, |$pool:ident| $body:expr) => {
+        match &$store.backend {
+            $crate::store::Backend::Sqlite($pool) => $body,
+            $crate::store::Backend::Lab($pool) => $body,
+        }
+    };
+}
+use on_pool;
+
 impl Store {
     /// Open the database at `path`, creating it if missing, and bring its schema
     /// up to date. WAL journal, `synchronous = FULL` (a committed transaction
     /// survives power loss), busy timeout 5 s, foreign keys enforced.
+    ///
+    /// Only a survey database, an empty file or none at all is opened: a
+    /// folder, a device, another application's SQLite file, a damaged one or
+    /// one of a newer version are refused ([`NotFound`], bad input) before
+    /// anything is written to them.
     pub async fn open(path: &Path) -> anyhow::Result<Store> {
         Self::connect(path, true, StoreLimits::default()).await
     }
@@ -157,8 +197,9 @@ impl Store {
         Self::connect(path, true, limits).await
     }
 
-    /// Open an existing database (for the commands that only read). Fails with a
-    /// [`NotFound`] when there is no file at `path`, and does not create one.
+    /// Open an existing survey database to write to it (`resume`): as
+    /// [`Store::open`], and a [`NotFound`] when there is no file at `path`
+    /// (none is created).
     pub async fn open_existing(path: &Path) -> anyhow::Result<Store> {
         existing_file(path)?;
         Self::connect(path, false, StoreLimits::default()).await
@@ -173,34 +214,17 @@ impl Store {
     /// written by a newer version of `survey` is refused with one message form
     /// naming the file ([`NotFound`]: bad input, exit status 2).
     pub async fn open_read_only(path: &Path) -> anyhow::Result<Store> {
+        if let Some(url) = lab::url_of(path) {
+            return lab::open(url, false).await;
+        }
         existing_file(path)?;
-        let options = SqliteConnectOptions::new()
-            .filename(path)
-            .read_only(true)
-            .busy_timeout(BUSY_TIMEOUT)
-            .log_slow_statements(log::LevelFilter::Debug, Duration::from_secs(1));
-        // Connect and read the schema once: in WAL mode SQLite only finds out
-        // at the first read that it cannot make the shared-memory file.
-        let connect = |options: SqliteConnectOptions| async move {
-            let pool = single_connection_pool().connect_with(options).await?;
-            match sqlx::query("SELECT 1 FROM sqlite_master LIMIT 1").fetch_optional(&pool).await {
-                Ok(_) => Ok(pool),
-                Err(e) => {
-                    pool.close().await;
-                    Err(e)
-                }
-            }
-        };
-        let (pool, immutable) = match connect(options.clone()).await {
-            Ok(pool) => (pool, false),
-            Err(e) if sqlite_code(&e).is_some_and(|c| matches!(c & 0xff, 8 | 14)) => {
-                // SQLITE_READONLY / SQLITE_CANTOPEN: read-only media.
-                let pool = connect(options.immutable(true)).await.map_err(|e| open_error(path, e))?;
-                (pool, true)
-            }
-            Err(e) => return Err(open_error(path, e)),
-        };
-        let store = Store { pool, path: path.to_path_buf(), immutable };
+        // Another application's file is refused before a connection that
+        // could make a WAL or shared-memory file beside it.
+        if looks_foreign(path).await {
+            return Err(foreign(path));
+        }
+        let (pool, immutable) = connect_read_only(path).await?;
+        let store = Store { backend: Backend::Sqlite(pool), path: path.to_path_buf(), immutable };
         if let Err(e) = store.check_schema().await {
             store.close().await;
             return Err(e);
@@ -211,39 +235,72 @@ impl Store {
     /// The file is a survey database of a schema this version reads.
     async fn check_schema(&self) -> anyhow::Result<()> {
         let path = self.path.display();
-        let tables: Vec<String> = sqlx::query_scalar(
-            "SELECT name FROM sqlite_master WHERE type = 'table' AND name IN ('_sqlx_migrations', 'surveys', 'samples')",
-        )
-        .fetch_all(&self.pool)
-        .await
-        .map_err(|e| open_error(&self.path, e))?;
-        if tables.len() < 3 {
-            return Err(NotFound(format!(
+        let known = MIGRATIONS.last().map_or(0, |m| m.0);
+        match schema(self.sqlite()?, &self.path).await? {
+            Schema::Unset => Err(NotFound(format!(
                 "{path} is not a survey database (it is an SQLite file without the survey tables)"
             ))
-            .into());
-        }
-        let version: Option<i64> = sqlx::query_scalar("SELECT MAX(version) FROM _sqlx_migrations WHERE success")
-            .fetch_one(&self.pool)
-            .await
-            .map_err(|e| open_error(&self.path, e))?;
-        let known = MIGRATIONS.last().map_or(0, |m| m.0);
-        match version {
-            Some(v) if v > known => Err(NotFound(format!(
-                "{path} was written by a newer version of survey (schema {v}; this version reads up to {known})"
-            ))
             .into()),
-            Some(v) if v < known => Err(NotFound(format!(
+            Schema::Survey(None) => {
+                Err(NotFound(format!("{path} is not a survey database (its schema was never set up)")).into())
+            }
+            Schema::Survey(Some(v)) if v < known => Err(NotFound(format!(
                 "{path} has an older schema ({v}; this version reads {known}): any command that writes \
                  (`survey resume`, `survey import`) upgrades it"
             ))
             .into()),
-            Some(_) => Ok(()),
-            None => Err(NotFound(format!("{path} is not a survey database (its schema was never set up)")).into()),
+            Schema::Survey(Some(_)) => Ok(()),
+            Schema::Foreign => Err(foreign(&self.path)),
+        }
+    }
+
+    /// What the file at `path` is, for a command that writes to it, found
+    /// without writing anything: `true` when it is to be set up as a new survey
+    /// database (there is no file, an empty one, or an SQLite file with no
+    /// table yet: another `survey` process may be setting it up), `false` when
+    /// it is a survey database. Everything else is refused with a
+    /// [`NotFound`] (bad input) naming the file: a folder, a device or a pipe,
+    /// a path whose folder does not exist, a file that is not SQLite, a
+    /// damaged one, another application's database, a survey database of a
+    /// newer version. Its bytes are left as they were.
+    async fn writable_kind(path: &Path) -> anyhow::Result<bool> {
+        let shown = path.display();
+        let meta = match std::fs::metadata(path) {
+            Ok(m) => m,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+                return match std::fs::metadata(parent) {
+                    Ok(p) if p.is_dir() => Ok(true),
+                    _ => Err(NotFound(format!(
+                        "cannot create the database {shown}: the folder {} does not exist",
+                        parent.display()
+                    ))
+                    .into()),
+                };
+            }
+            Err(e) => return Err(anyhow!(e).context(format!("cannot open the database {shown}"))),
+        };
+        if let Some(e) = not_a_file(path, &meta) {
+            return Err(e.into());
+        }
+        if meta.len() == 0 {
+            return Ok(true);
+        }
+        if looks_foreign(path).await {
+            return Err(foreign(path));
+        }
+        let (pool, _) = connect_read_only(path).await?;
+        let found = schema(&pool, path).await;
+        pool.close().await;
+        match found? {
+            Schema::Unset => Ok(true),
+            Schema::Survey(_) => Ok(false),
+            Schema::Foreign => Err(foreign(path)),
         }
     }
 
     async fn connect(path: &Path, create: bool, limits: StoreLimits) -> anyhow::Result<Store> {
+        lab::refuse_writes(path)?;
         // busy_timeout is applied when the connection is made, before the
         // pragmas (so the switch to WAL waits for a lock instead of failing).
         let options = SqliteConnectOptions::new()
@@ -263,28 +320,52 @@ impl Store {
         // Two processes opening a new database at the same moment race to
         // switch it to WAL (SQLite answers SQLITE_BUSY at once rather than
         // wait, to avoid a deadlock) and to apply migration 1 (the loser's
-        // transaction fails with "table surveys already exists" and leaves
-        // nothing behind). Either way the loser opens again, and then finds
+        // transaction fails with "table surveys already exists", or with
+        // "duplicate column name" for a later migration, and leaves nothing
+        // behind). Either way the loser opens again, and then finds
         // the database set up; a few tries, a short pause between them.
         const TRIES: u32 = 10;
         let mut tries = 0;
         loop {
             tries += 1;
-            let e: sqlx::migrate::MigrateError = match single_connection_pool().connect_with(options.clone()).await {
-                Ok(pool) => match migrator().run(&pool).await {
-                    Ok(()) => return Ok(Store { pool, path: path.to_path_buf(), immutable: false }),
-                    Err(e) => {
-                        pool.close().await;
-                        e
+            // What the file is, found without writing to it: nothing but a
+            // survey database (or a new one) is ever written.
+            let new = match Self::writable_kind(path).await {
+                Ok(new) => new,
+                Err(e) if is_busy(&e) && tries < TRIES => {
+                    tokio::time::sleep(Duration::from_millis(20 * u64::from(tries))).await;
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            if new && !create {
+                return Err(NotFound(format!(
+                    "no survey database at {}: the file holds no survey table (run `survey run` or `survey import` first)",
+                    path.display()
+                ))
+                .into());
+            }
+            let e: sqlx::migrate::MigrateError = match migrate(&options).await {
+                Ok(()) => match single_connection_pool().connect_with(options.clone()).await {
+                    Ok(pool) => {
+                        return Ok(Store {
+                            backend: Backend::Sqlite(pool),
+                            path: path.to_path_buf(),
+                            immutable: false,
+                        });
                     }
+                    Err(e) => sqlx::migrate::MigrateError::Execute(e),
                 },
-                Err(e) => sqlx::migrate::MigrateError::Execute(e),
+                Err(e) => e,
             };
             let raced = match &e {
                 sqlx::migrate::MigrateError::Execute(inner)
                 | sqlx::migrate::MigrateError::ExecuteMigration(inner, _) => {
-                    inner.as_database_error().is_some_and(|d| d.message().contains("already exists"))
-                        || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
+                    inner.as_database_error().is_some_and(|d| {
+                        d.message().contains("already exists")
+                            || d.message().contains("_sqlx_migrations.version")
+                            || d.message().contains("duplicate column name")
+                    }) || sqlite_code(inner).is_some_and(|c| matches!(c & 0xff, 5 | 6))
                 }
                 _ => false,
             };
@@ -309,13 +390,27 @@ impl Store {
 
     /// The SQLite journal mode in force (`"wal"`).
     pub async fn journal_mode(&self) -> anyhow::Result<String> {
-        let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(&self.pool).await?;
+        let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(self.sqlite()?).await?;
         Ok(mode)
     }
 
     /// Close the connection (this checkpoints the WAL into the database file).
     pub async fn close(self) {
-        self.pool.close().await;
+        on_pool!(self, |pool| pool.close().await)
+    }
+
+    /// The SQLite pool of a station's store: what every write and the
+    /// station-only reads use. The lab store is written only by `survey push`.
+    fn sqlite(&self) -> anyhow::Result<&SqlitePool> {
+        match &self.backend {
+            Backend::Sqlite(pool) => Ok(pool),
+            Backend::Lab(_) => Err(lab::written_by_push(&self.path)),
+        }
+    }
+
+    /// Whether this is the lab store (PostgreSQL).
+    pub fn is_lab(&self) -> bool {
+        matches!(self.backend, Backend::Lab(_))
     }
 
     fn no_survey(&self, id: i64) -> NotFound {
@@ -349,25 +444,155 @@ fn sqlite_code(e: &sqlx::Error) -> Option<u32> {
     e.as_database_error().and_then(|d| d.code()).and_then(|c| c.parse().ok())
 }
 
+/// Bring the schema up to date on a connection of its own with foreign keys
+/// off, as SQLite's procedure for rebuilding a table asks (migration 4
+/// rebuilds `surveys` to change its CHECK; each migration commits with its
+/// record), then check them (`PRAGMA foreign_key_check`, the procedure's
+/// last step): a row left without the row it refers to fails the open.
+async fn migrate(options: &SqliteConnectOptions) -> Result<(), sqlx::migrate::MigrateError> {
+    let pool = single_connection_pool().connect_with(options.clone().foreign_keys(false)).await?;
+    let checked = match migrator().run(&pool).await {
+        Ok(()) => match sqlx::query("PRAGMA foreign_key_check").fetch_all(&pool).await {
+            Ok(rows) if rows.is_empty() => Ok(()),
+            Ok(rows) => Err(sqlx::migrate::MigrateError::Source(
+                format!("the schema upgrade left {} rows without the row they refer to", rows.len()).into(),
+            )),
+            Err(e) => Err(e.into()),
+        },
+        Err(e) => Err(e),
+    };
+    pool.close().await;
+    checked
+}
+
+/// What an SQLite file holds, as far as `survey` is concerned.
+enum Schema {
+    /// No table at all, or only an empty migrations table: nothing set up
+    /// (yet: another process may be setting it up).
+    Unset,
+    /// The survey tables, at this schema version (`None`: none recorded).
+    Survey(Option<i64>),
+    /// Another application's database: tables of its own.
+    Foreign,
+}
+
+/// The refusal of another application's database ([`NotFound`]: bad input).
+fn foreign(path: &Path) -> anyhow::Error {
+    NotFound(format!(
+        "{} is not a survey database (it is an SQLite file without the survey tables): nothing was written to it",
+        path.display()
+    ))
+    .into()
+}
+
+/// What the SQLite file of `pool` (at `path`) holds: [`Schema`], or a
+/// [`NotFound`] for a survey database of a newer version than this one.
+async fn schema(pool: &SqlitePool, path: &Path) -> anyhow::Result<Schema> {
+    let shown = path.display();
+    let tables: Vec<String> = sqlx::query_scalar(
+        r"SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT LIKE 'sqlite\_%' ESCAPE '\'",
+    )
+    .fetch_all(pool)
+    .await
+    .map_err(|e| open_error(path, e))?;
+    let has = |name: &str| tables.iter().any(|t| t == name);
+    let version: Option<i64> = match has("_sqlx_migrations") {
+        true => sqlx::query_scalar("SELECT MAX(version) FROM _sqlx_migrations WHERE success")
+            .fetch_one(pool)
+            .await
+            .map_err(|e| open_error(path, e))?,
+        false => None,
+    };
+    let known = MIGRATIONS.last().map_or(0, |m| m.0);
+    if has("surveys") && has("samples") && has("_sqlx_migrations") {
+        return match version {
+            Some(v) if v > known => Err(NotFound(format!(
+                "{shown} was written by a newer version of survey (schema {v}; this version reads up to {known})"
+            ))
+            .into()),
+            v => Ok(Schema::Survey(v)),
+        };
+    }
+    if version.is_none() && tables.iter().all(|t| t == "_sqlx_migrations") {
+        return Ok(Schema::Unset);
+    }
+    Ok(Schema::Foreign)
+}
+
+/// Whether the SQLite file at `path` is another application's database, as
+/// far as can be told without leaving a trace: opened `immutable` (no lock,
+/// no WAL or shared-memory file made beside it, which even a read-only
+/// connection to a WAL database makes), it shows its last checkpoint. A
+/// survey database never looks foreign that way (every checkpoint is a
+/// committed state of it); anything this glance cannot read (a checkpoint
+/// under way, a file that is not SQLite) is left to the connection that
+/// follows, which decides.
+async fn looks_foreign(path: &Path) -> bool {
+    let options = SqliteConnectOptions::new().filename(path).read_only(true).immutable(true);
+    let Ok(pool) = single_connection_pool().connect_with(options).await else { return false };
+    let found = schema(&pool, path).await;
+    pool.close().await;
+    matches!(found, Ok(Schema::Foreign))
+}
+
+/// A read-only connection to the SQLite file at `path` that has read its
+/// schema once (in WAL mode SQLite only finds out at the first read that it
+/// cannot make the shared-memory file); on read-only media (SQLite cannot
+/// make that file) the file is opened as immutable, and `true` says so.
+async fn connect_read_only(path: &Path) -> anyhow::Result<(SqlitePool, bool)> {
+    let options = SqliteConnectOptions::new()
+        .filename(path)
+        .read_only(true)
+        .busy_timeout(BUSY_TIMEOUT)
+        .log_slow_statements(log::LevelFilter::Debug, Duration::from_secs(1));
+    let connect = |options: SqliteConnectOptions| async move {
+        let pool = single_connection_pool().connect_with(options).await?;
+        match sqlx::query("SELECT 1 FROM sqlite_master LIMIT 1").fetch_optional(&pool).await {
+            Ok(_) => Ok(pool),
+            Err(e) => {
+                pool.close().await;
+                Err(e)
+            }
+        }
+    };
+    match connect(options.clone()).await {
+        Ok(pool) => Ok((pool, false)),
+        Err(e) if sqlite_code(&e).is_some_and(|c| matches!(c & 0xff, 8 | 14)) => {
+            // SQLITE_READONLY / SQLITE_CANTOPEN: read-only media.
+            let pool = connect(options.immutable(true)).await.map_err(|e| open_error(path, e))?;
+            Ok((pool, true))
+        }
+        Err(e) => Err(open_error(path, e)),
+    }
+}
+
 /// The file at `path` exists and is a file ([`NotFound`] otherwise).
 fn existing_file(path: &Path) -> anyhow::Result<()> {
+    lab::refuse_writes(path)?;
     match std::fs::metadata(path) {
-        Ok(m) if m.is_file() => {}
-        Ok(_) => {
-            return Err(NotFound(format!("{} is not a survey database (it is not a file)", path.display())).into());
-        }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            return Err(NotFound(format!(
-                "no survey database at {}: run `survey run` or `survey import` first",
-                path.display()
-            ))
-            .into());
-        }
-        Err(e) => {
-            return Err(anyhow!(e).context(format!("cannot open the database {}", path.display())));
-        }
+        Ok(m) => not_a_file(path, &m).map_or(Ok(()), |e| Err(e.into())),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(NotFound(format!(
+            "no survey database at {}: run `survey run` or `survey import` first",
+            path.display()
+        ))
+        .into()),
+        Err(e) => Err(anyhow!(e).context(format!("cannot open the database {}", path.display()))),
     }
-    Ok(())
+}
+
+/// What is wrong with `--db` naming something that is there but is not a
+/// regular file: a folder, a device (`/dev/null`), a pipe.
+fn not_a_file(path: &Path, meta: &std::fs::Metadata) -> Option<NotFound> {
+    let shown = path.display();
+    if meta.is_dir() {
+        Some(NotFound(format!("{shown} is a folder, not a survey database: --db names the database file")))
+    } else if !meta.is_file() {
+        Some(NotFound(format!(
+            "{shown} is not a regular file (a device or a pipe), not a survey database: --db names the database file"
+        )))
+    } else {
+        None
+    }
 }
 
 /// An error opening `path`: "file is not a database" (SQLITE_NOTADB, 26) and
@@ -389,7 +614,11 @@ fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
 }
 
 /// A nullable REAL column: NULL (how SQLite stores NaN) reads as NaN.
-fn real(row: &SqliteRow, col: &str) -> anyhow::Result<f64> {
+fn real<'r, R: Row>(row: &'r R, col: &str) -> anyhow::Result<f64>
+where
+    Option<f64>: sqlx::Decode<'r, R::Database> + sqlx::Type<R::Database>,
+    for<'c> &'c str: sqlx::ColumnIndex<R>,
+{
     let v: Option<f64> = row.try_get(col)?;
     Ok(v.unwrap_or(f64::NAN))
 }

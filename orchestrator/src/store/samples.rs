@@ -5,16 +5,60 @@ use std::str::FromStr;
 
 use anyhow::{Context, anyhow, bail};
 use futures_util::TryStreamExt as _;
-use sqlx::sqlite::{SqliteConnection, SqliteRow};
+use sqlx::sqlite::SqliteConnection;
 use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::{AcReading, SmrMeasurement};
 use survey_processing::{Direction, Sample};
 
 use super::surveys::insert_survey;
 use super::tx::WriteTx;
-use super::{CHUNK_ROWS, NotFound, Store, is_foreign_key_error, real};
+use super::{CHUNK_ROWS, NotFound, Store, is_foreign_key_error, on_pool, real};
 use crate::acquire::{RawReading, RecordedSample};
 use crate::survey::NewSurvey;
+
+/// A sample row of either backend, with its raw reading when the query
+/// joined one (a row without a `kind` column has none).
+macro_rules! sample_from_row {
+    ($row:expr) => {
+        (|| -> anyhow::Result<RecordedSample> {
+            let row = $row;
+            let seq: i64 = row.try_get("seq")?;
+            let run: i64 = row.try_get("run")?;
+            let direction: String = row.try_get("direction")?;
+            let sample = Sample {
+                run: u32::try_from(run).with_context(|| format!("seq {seq}: bad run {run}"))?,
+                direction: Direction::from_str(&direction).map_err(|e| anyhow!("seq {seq}: {e}"))?,
+                target_deg: row.try_get("target_deg")?,
+                readout_deg: row.try_get("readout_deg")?,
+                actual_deg: row.try_get("actual_deg")?,
+                timestamp_s: row.try_get("timestamp_s")?,
+            };
+            let kind: Option<String> = match row.try_get("kind") {
+                Err(sqlx::Error::ColumnNotFound(_)) => None,
+                other => other?,
+            };
+            let raw = match kind.as_deref() {
+                None => RawReading::None,
+                Some("smr") => RawReading::Smr(SmrMeasurement {
+                    x_mm: real(row, "smr_x_mm")?,
+                    y_mm: real(row, "smr_y_mm")?,
+                    z_mm: real(row, "smr_z_mm")?,
+                    std_dev_mm: [real(row, "smr_sx_mm")?, real(row, "smr_sy_mm")?, real(row, "smr_sz_mm")?],
+                    measurement_time_s: real(row, "measurement_time_s")?,
+                }),
+                Some("autocollimator") => {
+                    let face: i64 = row.try_get("ac_face")?;
+                    RawReading::Autocollimator {
+                        face: u32::try_from(face).with_context(|| format!("seq {seq}: bad polygon face {face}"))?,
+                        reading: AcReading { x_arcsec: real(row, "ac_x_arcsec")?, y_arcsec: real(row, "ac_y_arcsec")? },
+                    }
+                }
+                Some(other) => bail!("seq {seq}: unknown raw reading kind '{other}'"),
+            };
+            Ok(RecordedSample { seq: u64::try_from(seq).with_context(|| format!("negative seq {seq}"))?, sample, raw })
+        })()
+    };
+}
 
 impl Store {
     /// Store samples of survey `survey_id` with their raw readings, in one
@@ -25,7 +69,7 @@ impl Store {
         if samples.is_empty() {
             return Ok(());
         }
-        let mut tx = WriteTx::begin(&self.pool)
+        let mut tx = WriteTx::begin(self.sqlite()?)
             .await
             .with_context(|| format!("cannot store samples of survey {survey_id} in {}", self.path.display()))?;
         if let Err(e) = insert_samples(tx.conn(), survey_id, samples).await {
@@ -53,7 +97,7 @@ impl Store {
             .enumerate()
             .map(|(i, sample)| RecordedSample { seq: i as u64, sample: *sample, raw: RawReading::None })
             .collect();
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let inserted = match insert_survey(tx.conn(), s).await {
             Ok(id) => insert_samples(tx.conn(), id, &recorded).await.map(|()| id),
             Err(e) => Err(e),
@@ -81,12 +125,28 @@ impl Store {
     /// through a read-only rusqlite connection to the same bundled SQLite
     /// (both link `libsqlite3-sys`), which sees every committed transaction
     /// (WAL) and writes nothing.
+    ///
+    /// From the lab store (PostgreSQL), the same columns through sqlx.
     pub async fn samples(&self, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
-        let (path, immutable) = (self.path.clone(), self.immutable);
-        tokio::task::spawn_blocking(move || read_samples(&path, immutable, survey_id))
-            .await
-            .context("the sample reader stopped")?
-            .with_context(|| format!("cannot read the samples of survey {survey_id}"))
+        let read = match &self.backend {
+            super::Backend::Sqlite(_) => {
+                let (path, immutable) = (self.path.clone(), self.immutable);
+                tokio::task::spawn_blocking(move || read_samples(&path, immutable, survey_id))
+                    .await
+                    .context("the sample reader stopped")?
+            }
+            super::Backend::Lab(pool) => {
+                let rows = sqlx::query(
+                    "SELECT seq, run, direction, target_deg, readout_deg, actual_deg, timestamp_s \
+                     FROM samples WHERE survey_id = $1 ORDER BY seq",
+                )
+                .bind(survey_id)
+                .fetch_all(pool)
+                .await?;
+                rows.iter().map(|row| sample_from_row!(row).map(|r| r.sample)).collect()
+            }
+        };
+        read.with_context(|| format!("cannot read the samples of survey {survey_id}"))
     }
 
     /// The samples of a survey as [`Store::samples`] reads them, with the SMR
@@ -106,27 +166,29 @@ impl Store {
     /// The samples of a survey, ordered by seq, with their raw readings and
     /// their place in the plan (for exports of raw data, tests).
     pub async fn recorded_samples(&self, survey_id: i64) -> anyhow::Result<Vec<RecordedSample>> {
-        let mut out = Vec::new();
-        let mut rows = sqlx::query(
-            "SELECT s.seq, s.run, s.direction, s.target_deg, s.readout_deg, s.actual_deg, \
-             s.timestamp_s, r.kind, r.smr_x_mm, r.smr_y_mm, r.smr_z_mm, r.smr_sx_mm, \
-             r.smr_sy_mm, r.smr_sz_mm, r.measurement_time_s, r.ac_face, r.ac_x_arcsec, \
-             r.ac_y_arcsec \
-             FROM samples AS s LEFT JOIN raw_readings AS r \
-             ON r.survey_id = s.survey_id AND r.seq = s.seq \
-             WHERE s.survey_id = ? ORDER BY s.seq",
-        )
-        .bind(survey_id)
-        .fetch(&self.pool);
-        while let Some(row) =
-            rows.try_next().await.with_context(|| format!("cannot read the samples of survey {survey_id}"))?
-        {
-            out.push(
-                sample_from_row(&row)
-                    .with_context(|| format!("survey {survey_id} in {} holds a bad sample", self.path.display()))?,
-            );
-        }
-        Ok(out)
+        on_pool!(self, |pool| {
+            let mut out = Vec::new();
+            let mut rows = sqlx::query(
+                "SELECT s.seq, s.run, s.direction, s.target_deg, s.readout_deg, s.actual_deg, \
+                 s.timestamp_s, r.kind, r.smr_x_mm, r.smr_y_mm, r.smr_z_mm, r.smr_sx_mm, \
+                 r.smr_sy_mm, r.smr_sz_mm, r.measurement_time_s, r.ac_face, r.ac_x_arcsec, \
+                 r.ac_y_arcsec \
+                 FROM samples AS s LEFT JOIN raw_readings AS r \
+                 ON r.survey_id = s.survey_id AND r.seq = s.seq \
+                 WHERE s.survey_id = $1 ORDER BY s.seq",
+            )
+            .bind(survey_id)
+            .fetch(pool);
+            while let Some(row) =
+                rows.try_next().await.with_context(|| format!("cannot read the samples of survey {survey_id}"))?
+            {
+                out.push(
+                    sample_from_row!(&row)
+                        .with_context(|| format!("survey {survey_id} in {} holds a bad sample", self.path.display()))?,
+                );
+            }
+            Ok(out)
+        })
     }
 
     /// The latest instrument time stored for a survey: the last sample's
@@ -134,7 +196,7 @@ impl Store {
     pub async fn last_sample_time(&self, id: i64) -> anyhow::Result<Option<f64>> {
         let t: Option<f64> = sqlx::query_scalar("SELECT MAX(timestamp_s) FROM samples WHERE survey_id = ?")
             .bind(id)
-            .fetch_one(&self.pool)
+            .fetch_one(self.sqlite()?)
             .await?;
         Ok(t)
     }
@@ -143,7 +205,7 @@ impl Store {
     pub async fn sample_count(&self, id: i64) -> anyhow::Result<u64> {
         let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples WHERE survey_id = ?")
             .bind(id)
-            .fetch_one(&self.pool)
+            .fetch_one(self.sqlite()?)
             .await?;
         Ok(u64::try_from(n).unwrap_or(0))
     }
@@ -153,7 +215,7 @@ impl Store {
     pub async fn last_seq(&self, id: i64) -> anyhow::Result<Option<u64>> {
         let seq: Option<i64> = sqlx::query_scalar("SELECT MAX(seq) FROM samples WHERE survey_id = ?")
             .bind(id)
-            .fetch_one(&self.pool)
+            .fetch_one(self.sqlite()?)
             .await?;
         seq.map(|s| u64::try_from(s).context("negative seq in the database")).transpose()
     }
@@ -360,38 +422,4 @@ fn read_samples_with(
         });
     }
     Ok(out)
-}
-
-fn sample_from_row(row: &SqliteRow) -> anyhow::Result<RecordedSample> {
-    let seq: i64 = row.try_get("seq")?;
-    let run: i64 = row.try_get("run")?;
-    let direction: String = row.try_get("direction")?;
-    let sample = Sample {
-        run: u32::try_from(run).with_context(|| format!("seq {seq}: bad run {run}"))?,
-        direction: Direction::from_str(&direction).map_err(|e| anyhow!("seq {seq}: {e}"))?,
-        target_deg: row.try_get("target_deg")?,
-        readout_deg: row.try_get("readout_deg")?,
-        actual_deg: row.try_get("actual_deg")?,
-        timestamp_s: row.try_get("timestamp_s")?,
-    };
-    let kind: Option<String> = row.try_get("kind")?;
-    let raw = match kind.as_deref() {
-        None => RawReading::None,
-        Some("smr") => RawReading::Smr(SmrMeasurement {
-            x_mm: real(row, "smr_x_mm")?,
-            y_mm: real(row, "smr_y_mm")?,
-            z_mm: real(row, "smr_z_mm")?,
-            std_dev_mm: [real(row, "smr_sx_mm")?, real(row, "smr_sy_mm")?, real(row, "smr_sz_mm")?],
-            measurement_time_s: real(row, "measurement_time_s")?,
-        }),
-        Some("autocollimator") => {
-            let face: i64 = row.try_get("ac_face")?;
-            RawReading::Autocollimator {
-                face: u32::try_from(face).with_context(|| format!("seq {seq}: bad polygon face {face}"))?,
-                reading: AcReading { x_arcsec: real(row, "ac_x_arcsec")?, y_arcsec: real(row, "ac_y_arcsec")? },
-            }
-        }
-        Some(other) => bail!("seq {seq}: unknown raw reading kind '{other}'"),
-    };
-    Ok(RecordedSample { seq: u64::try_from(seq).with_context(|| format!("negative seq {seq}"))?, sample, raw })
 }

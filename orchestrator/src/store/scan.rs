@@ -38,7 +38,7 @@ impl Store {
     /// Store a pass of a continuous scan with its samples and raw streams in
     /// one transaction: all of it or, on any error, none.
     pub async fn append_pass(&self, survey_id: i64, p: &ScanPassRecord) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(&self.pool).await.with_context(|| {
+        let mut tx = WriteTx::begin(self.sqlite()?).await.with_context(|| {
             format!("cannot store pass {} of survey {survey_id} in {}", p.pass, self.path.display())
         })?;
         let written = async {
@@ -119,7 +119,7 @@ impl Store {
              FROM scan_passes p WHERE p.survey_id = ? ORDER BY p.pass",
         )
         .bind(survey_id)
-        .fetch_all(&self.pool)
+        .fetch_all(self.sqlite()?)
         .await?;
         rows.iter()
             .map(|r| {
@@ -150,7 +150,7 @@ impl Store {
         .bind(survey_id)
         .bind(i64::from(pass))
         .bind(stream)
-        .fetch_all(&self.pool)
+        .fetch_all(self.sqlite()?)
         .await?;
         let mut out = Vec::new();
         for r in rows {
@@ -176,7 +176,7 @@ impl Store {
 
     /// Add an acquisition's instrument time by component.
     pub async fn add_survey_time(&self, survey_id: i64, spent: &Spent) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let written = async {
             for (c, s) in spent.entries() {
                 sqlx::query(
@@ -204,7 +204,7 @@ impl Store {
     pub async fn survey_time(&self, survey_id: i64) -> anyhow::Result<Spent> {
         let rows = sqlx::query("SELECT component, seconds FROM survey_time WHERE survey_id = ?")
             .bind(survey_id)
-            .fetch_all(&self.pool)
+            .fetch_all(self.sqlite()?)
             .await?;
         let mut spent = Spent::default();
         for r in rows {

@@ -3,14 +3,14 @@
 
 use anyhow::Context;
 use serde::Serialize;
-use sqlx::sqlite::{SqliteConnection, SqliteRow};
+use sqlx::sqlite::SqliteConnection;
 use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
 use super::tx::WriteTx;
-use super::{AcquirerLock, CHUNK_ROWS, NotFound, Store, real};
-use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyStatus};
+use super::{AcquirerLock, CHUNK_ROWS, NotFound, Store, on_pool, real};
+use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyRef, SurveyStatus};
 
 /// One entry of a survey's event log.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -25,16 +25,72 @@ pub struct EventRow {
     pub message: String,
 }
 
-const SURVEY_COLUMNS: &str = "SELECT s.id, s.created_at, s.updated_at, s.status, s.source, \
-     s.points, s.runs, s.bidirectional, s.config_json, s.model_toml, s.instruments_json, \
-     s.axis_json, s.started_at_s, s.ended_at_s, s.planned_samples, \
-     (SELECT COUNT(*) FROM samples AS c WHERE c.survey_id = s.id) AS sample_count \
-     FROM surveys AS s";
+/// The query of surveys, `$tail` (a `WHERE`, an `ORDER BY`) appended: the
+/// same text on either backend.
+macro_rules! select_surveys {
+    ($tail:literal) => {
+        concat!(
+            "SELECT s.id, s.uid, s.asset, s.check_of, s.created_at, s.updated_at, s.status, s.source, \
+             s.points, s.runs, s.bidirectional, s.config_json, s.model_toml, s.instruments_json, \
+             s.axis_json, s.started_at_s, s.ended_at_s, s.planned_samples, \
+             (SELECT COUNT(*) FROM samples AS c WHERE c.survey_id = s.id) AS sample_count \
+             FROM surveys AS s",
+            $tail
+        )
+    };
+}
+
+/// The stored columns of the survey rows `rows` (of either backend), unparsed.
+macro_rules! columns_of {
+    ($rows:expr) => {
+        $rows.iter().map(|row| columns_from_row!(row)).collect::<anyhow::Result<Vec<StoredColumns>>>()
+    };
+}
+
+/// The stored columns of a survey row (of either backend), unparsed (see
+/// [`SurveyRecord::parse`]).
+macro_rules! columns_from_row {
+    ($row:expr) => {
+        (|| -> anyhow::Result<StoredColumns> {
+            let row = $row;
+            let id: i64 = row.try_get("id")?;
+            let small = |col: &str| -> anyhow::Result<Option<u32>> {
+                let v: Option<i64> = row.try_get(col)?;
+                v.map(|v| u32::try_from(v).with_context(|| format!("survey {id}: bad {col} {v}"))).transpose()
+            };
+            let planned: Option<i64> = row.try_get("planned_samples")?;
+            let count: i64 = row.try_get("sample_count")?;
+            Ok(StoredColumns {
+                id,
+                uid: row.try_get("uid")?,
+                asset: row.try_get("asset")?,
+                check_of: row.try_get("check_of")?,
+                created_at: row.try_get("created_at")?,
+                updated_at: row.try_get("updated_at")?,
+                status: row.try_get("status")?,
+                source: row.try_get("source")?,
+                points: small("points")?,
+                runs: small("runs")?,
+                bidirectional: row.try_get("bidirectional")?,
+                config_json: row.try_get("config_json")?,
+                model_toml: row.try_get("model_toml")?,
+                instruments_json: row.try_get("instruments_json")?,
+                axis_json: row.try_get("axis_json")?,
+                started_at_s: row.try_get("started_at_s")?,
+                ended_at_s: row.try_get("ended_at_s")?,
+                planned_samples: planned
+                    .map(|p| u64::try_from(p).with_context(|| format!("survey {id}: bad planned_samples {p}")))
+                    .transpose()?,
+                sample_count: u64::try_from(count).unwrap_or(0),
+            })
+        })()
+    };
+}
 
 impl Store {
     /// Store a new survey; returns its id.
     pub async fn create_survey(&self, s: &NewSurvey) -> anyhow::Result<i64> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let id = insert_survey(tx.conn(), s)
             .await
             .with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
@@ -47,7 +103,7 @@ impl Store {
     /// (the lock is taken inside the transaction that inserts it), so no
     /// `resume` can ever see the survey unlocked while this process acquires it.
     pub async fn create_acquired_survey(&self, s: &NewSurvey) -> anyhow::Result<(i64, AcquirerLock)> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let id = insert_survey(tx.conn(), s)
             .await
             .with_context(|| format!("cannot store a new survey in {}", self.path.display()))?;
@@ -59,7 +115,7 @@ impl Store {
     /// Set a survey's status and, when given, the instrument time it ended.
     /// A [`NotFound`] error when there is no such survey.
     pub async fn set_status(&self, id: i64, status: SurveyStatus, ended_at_s: Option<f64>) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let done = sqlx::query(
             "UPDATE surveys SET status = ?, ended_at_s = COALESCE(?, ended_at_s), \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
@@ -79,7 +135,7 @@ impl Store {
 
     /// Set the instrument time at which acquisition started.
     pub async fn set_started(&self, id: i64, started_at_s: f64) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let done = sqlx::query(
             "UPDATE surveys SET started_at_s = ?, \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
@@ -99,7 +155,7 @@ impl Store {
     /// Store the located axis.
     pub async fn set_axis(&self, id: i64, axis: &AxisFit) -> anyhow::Result<()> {
         let axis_json = serde_json::to_string(axis).context("cannot encode the located axis")?;
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let done = sqlx::query(
             "UPDATE surveys SET axis_json = ?, \
              updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', 'now') WHERE id = ?",
@@ -122,7 +178,7 @@ impl Store {
         if points.is_empty() {
             return Ok(());
         }
-        let mut tx = WriteTx::begin(&self.pool).await?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let next: i64 = sqlx::query_scalar("SELECT COALESCE(MAX(idx) + 1, 0) FROM locate_points WHERE survey_id = ?")
             .bind(id)
             .fetch_one(tx.conn())
@@ -156,34 +212,36 @@ impl Store {
     /// The SMR positions that located the axis, in the order they were stored.
     /// A coordinate SQLite held as NULL (the instrument gave NaN) reads as NaN.
     pub async fn locate_points(&self, id: i64) -> anyhow::Result<Vec<(f64, SmrMeasurement)>> {
-        let rows = sqlx::query(
-            "SELECT readout_deg, x_mm, y_mm, z_mm, sx, sy, sz, measurement_time_s \
-             FROM locate_points WHERE survey_id = ? ORDER BY idx",
-        )
-        .bind(id)
-        .fetch_all(&self.pool)
-        .await?;
-        rows.iter()
-            .map(|r| -> anyhow::Result<(f64, SmrMeasurement)> {
-                Ok((
-                    r.try_get("readout_deg")?,
-                    SmrMeasurement {
-                        x_mm: real(r, "x_mm")?,
-                        y_mm: real(r, "y_mm")?,
-                        z_mm: real(r, "z_mm")?,
-                        std_dev_mm: [real(r, "sx")?, real(r, "sy")?, real(r, "sz")?],
-                        measurement_time_s: real(r, "measurement_time_s")?,
-                    },
-                ))
-            })
-            .collect()
+        on_pool!(self, |pool| {
+            let rows = sqlx::query(
+                "SELECT readout_deg, x_mm, y_mm, z_mm, sx, sy, sz, measurement_time_s \
+                 FROM locate_points WHERE survey_id = $1 ORDER BY idx",
+            )
+            .bind(id)
+            .fetch_all(pool)
+            .await?;
+            rows.iter()
+                .map(|r| -> anyhow::Result<(f64, SmrMeasurement)> {
+                    Ok((
+                        r.try_get("readout_deg")?,
+                        SmrMeasurement {
+                            x_mm: real(r, "x_mm")?,
+                            y_mm: real(r, "y_mm")?,
+                            z_mm: real(r, "z_mm")?,
+                            std_dev_mm: [real(r, "sx")?, real(r, "sy")?, real(r, "sz")?],
+                            measurement_time_s: real(r, "measurement_time_s")?,
+                        },
+                    ))
+                })
+                .collect()
+        })
     }
 
     /// Log an event (a fault survived, a resume) at instrument time `at_s`.
     /// `level` is free text; the engine uses `info`, `warn` and `error`.
     pub async fn log_event(&self, id: i64, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
         let context = || format!("cannot log an event of survey {id}");
-        let mut tx = WriteTx::begin(&self.pool).await.with_context(context)?;
+        let mut tx = WriteTx::begin(self.sqlite()?).await.with_context(context)?;
         sqlx::query("INSERT INTO events (survey_id, at_s, level, message) VALUES (?, ?, ?, ?)")
             .bind(id)
             .bind(at_s)
@@ -198,46 +256,82 @@ impl Store {
 
     /// A survey's events, in the order they were logged.
     pub async fn events(&self, id: i64) -> anyhow::Result<Vec<EventRow>> {
-        let rows = sqlx::query("SELECT id, at_s, level, message FROM events WHERE survey_id = ? ORDER BY id")
-            .bind(id)
-            .fetch_all(&self.pool)
-            .await?;
-        rows.iter()
-            .map(|r| -> anyhow::Result<EventRow> {
-                Ok(EventRow {
-                    id: r.try_get("id")?,
-                    at_s: real(r, "at_s")?,
-                    level: r.try_get("level")?,
-                    message: r.try_get("message")?,
+        on_pool!(self, |pool| {
+            let rows = sqlx::query("SELECT id, at_s, level, message FROM events WHERE survey_id = $1 ORDER BY id")
+                .bind(id)
+                .fetch_all(pool)
+                .await?;
+            rows.iter()
+                .map(|r| -> anyhow::Result<EventRow> {
+                    Ok(EventRow {
+                        id: r.try_get("id")?,
+                        at_s: real(r, "at_s")?,
+                        level: r.try_get("level")?,
+                        message: r.try_get("message")?,
+                    })
                 })
-            })
-            .collect()
+                .collect()
+        })
     }
 
     /// One survey. A [`NotFound`] error (`no survey with id 7 in survey.db`)
     /// when there is none with that id.
     pub async fn survey(&self, id: i64) -> anyhow::Result<SurveyRecord> {
-        let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(SURVEY_COLUMNS);
-        qb.push(" WHERE s.id = ").push_bind(id);
-        let row = qb.build().fetch_optional(&self.pool).await?;
-        match row {
-            Some(row) => self.record(&row),
+        let columns = on_pool!(self, |pool| {
+            let rows = sqlx::query(select_surveys!(" WHERE s.id = $1")).bind(id).fetch_all(pool).await?;
+            columns_of!(rows)?
+        });
+        match columns.into_iter().next() {
+            Some(c) => self.record(c),
             None => Err(self.no_survey(id).into()),
         }
     }
 
     /// The id of the latest survey (the highest id), if any.
     pub async fn latest_survey_id(&self) -> anyhow::Result<Option<i64>> {
-        let id: Option<i64> = sqlx::query_scalar("SELECT MAX(id) FROM surveys").fetch_one(&self.pool).await?;
+        let id: Option<i64> =
+            on_pool!(self, |pool| sqlx::query_scalar("SELECT MAX(id) FROM surveys").fetch_one(pool).await?);
         Ok(id)
     }
 
-    /// The survey `id`, or the latest one when `id` is `None`. A [`NotFound`]
-    /// error when that survey does not exist or the database holds none.
-    pub async fn resolve(&self, id: Option<i64>) -> anyhow::Result<SurveyRecord> {
-        match id {
-            Some(id) => self.survey(id).await,
-            None => match self.latest_survey_id().await? {
+    /// The survey with this uid. A [`NotFound`] error when there is none.
+    pub async fn survey_by_uid(&self, uid: &str) -> anyhow::Result<SurveyRecord> {
+        let uid = uid.to_ascii_lowercase();
+        let columns = on_pool!(self, |pool| {
+            let rows = sqlx::query(select_surveys!(" WHERE s.uid = $1")).bind(&uid).fetch_all(pool).await?;
+            columns_of!(rows)?
+        });
+        match columns.into_iter().next() {
+            Some(c) => self.record(c),
+            None => Err(NotFound(format!("no survey with uid {uid} in {}", self.path.display())).into()),
+        }
+    }
+
+    /// The survey named by `r` (an id or a uid), or the latest one when `r`
+    /// is `None`. A [`NotFound`] error when that survey does not exist or the
+    /// database holds none. The latest is the latest survey that is not check
+    /// points (source `resolving`: they are part of the survey they resolve,
+    /// which [`crate::resolving::checks_of`] finds): `survey run` then
+    /// `survey process` processes the survey, not its check points.
+    pub async fn resolve(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
+        let latest = on_pool!(self, |pool| {
+            sqlx::query_scalar("SELECT MAX(id) FROM surveys WHERE source <> 'resolving'").fetch_one(pool).await?
+        });
+        self.resolve_with(r, latest).await
+    }
+
+    /// [`Store::resolve`] with check points included in "the latest" (what
+    /// `survey resume` finishes).
+    pub async fn resolve_any(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
+        let latest = self.latest_survey_id().await?;
+        self.resolve_with(r, latest).await
+    }
+
+    async fn resolve_with(&self, r: Option<SurveyRef>, latest: Option<i64>) -> anyhow::Result<SurveyRecord> {
+        match r {
+            Some(SurveyRef::Id(id)) => self.survey(id).await,
+            Some(SurveyRef::Uid(uid)) => self.survey_by_uid(&uid).await,
+            None => match latest {
                 Some(id) => self.survey(id).await,
                 None => Err(NotFound(format!(
                     "no survey in {}: run `survey run` or `survey import` first",
@@ -250,16 +344,28 @@ impl Store {
 
     /// Every survey, oldest first.
     pub async fn list(&self) -> anyhow::Result<Vec<SurveyRecord>> {
-        let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(SURVEY_COLUMNS);
-        qb.push(" ORDER BY s.id");
-        let rows = qb.build().fetch_all(&self.pool).await?;
-        rows.iter().map(|r| self.record(r)).collect()
+        let columns = on_pool!(self, |pool| {
+            let rows = sqlx::query(select_surveys!(" ORDER BY s.id")).fetch_all(pool).await?;
+            columns_of!(rows)?
+        });
+        columns.into_iter().map(|c| self.record(c)).collect()
     }
 
-    /// A survey row, typed (see [`crate::survey`]): a column that does not
-    /// parse is a [`crate::survey::Damaged`] error.
-    fn record(&self, row: &SqliteRow) -> anyhow::Result<SurveyRecord> {
-        let columns = columns_from_row(row)?;
+    /// The surveys of an asset, in the order they were made (oldest first).
+    pub async fn surveys_of_asset(&self, asset: &str) -> anyhow::Result<Vec<SurveyRecord>> {
+        let columns = on_pool!(self, |pool| {
+            let rows = sqlx::query(select_surveys!(" WHERE s.asset = $1 ORDER BY s.created_at, s.id"))
+                .bind(asset)
+                .fetch_all(pool)
+                .await?;
+            columns_of!(rows)?
+        });
+        columns.into_iter().map(|c| self.record(c)).collect()
+    }
+
+    /// A survey's columns, typed (see [`crate::survey`]): a column that does
+    /// not parse is a [`crate::survey::Damaged`] error.
+    fn record(&self, columns: StoredColumns) -> anyhow::Result<SurveyRecord> {
         Ok(SurveyRecord::parse(columns, &self.path.display().to_string())?)
     }
 }
@@ -267,9 +373,12 @@ impl Store {
 pub(super) async fn insert_survey(conn: &mut SqliteConnection, s: &NewSurvey) -> anyhow::Result<i64> {
     let planned = s.planned_samples.map(i64::try_from).transpose().context("planned_samples is too large")?;
     let done = sqlx::query(
-        "INSERT INTO surveys (status, source, points, runs, bidirectional, config_json, \
-         model_toml, instruments_json, planned_samples) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        "INSERT INTO surveys (uid, asset, check_of, status, source, points, runs, bidirectional, config_json, \
+         model_toml, instruments_json, planned_samples) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
     )
+    .bind(crate::survey::new_uid())
+    .bind(&s.asset)
+    .bind(&s.check_of)
     .bind(s.status.as_str())
     .bind(s.source.to_column())
     .bind(s.points.map(i64::from))
@@ -282,35 +391,4 @@ pub(super) async fn insert_survey(conn: &mut SqliteConnection, s: &NewSurvey) ->
     .execute(&mut *conn)
     .await?;
     Ok(done.last_insert_rowid())
-}
-
-/// The stored columns of a survey, unparsed (see [`SurveyRecord::parse`]).
-fn columns_from_row(row: &SqliteRow) -> anyhow::Result<StoredColumns> {
-    let id: i64 = row.try_get("id")?;
-    let small = |col: &str| -> anyhow::Result<Option<u32>> {
-        let v: Option<i64> = row.try_get(col)?;
-        v.map(|v| u32::try_from(v).with_context(|| format!("survey {id}: bad {col} {v}"))).transpose()
-    };
-    let planned: Option<i64> = row.try_get("planned_samples")?;
-    let count: i64 = row.try_get("sample_count")?;
-    Ok(StoredColumns {
-        id,
-        created_at: row.try_get("created_at")?,
-        updated_at: row.try_get("updated_at")?,
-        status: row.try_get("status")?,
-        source: row.try_get("source")?,
-        points: small("points")?,
-        runs: small("runs")?,
-        bidirectional: row.try_get("bidirectional")?,
-        config_json: row.try_get("config_json")?,
-        model_toml: row.try_get("model_toml")?,
-        instruments_json: row.try_get("instruments_json")?,
-        axis_json: row.try_get("axis_json")?,
-        started_at_s: row.try_get("started_at_s")?,
-        ended_at_s: row.try_get("ended_at_s")?,
-        planned_samples: planned
-            .map(|p| u64::try_from(p).with_context(|| format!("survey {id}: bad planned_samples {p}")))
-            .transpose()?,
-        sample_count: u64::try_from(count).unwrap_or(0),
-    })
 }

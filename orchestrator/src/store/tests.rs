@@ -24,6 +24,7 @@ fn new_survey() -> NewSurvey {
         instruments: serde_json::json!({"positioner": "sim-positioner", "reference": "sim-tracker"}),
         verification: None,
         planned_samples: Some(144),
+        ..NewSurvey::default()
     }
 }
 
@@ -92,9 +93,9 @@ async fn temp_store() -> (tempfile::TempDir, Store) {
 async fn wal_mode_and_reopen() {
     let (dir, store) = temp_store().await;
     assert_eq!(store.journal_mode().await.unwrap(), "wal");
-    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(&store.pool).await.unwrap();
+    let sync: i64 = sqlx::query_scalar("PRAGMA synchronous").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(sync, 2, "synchronous = FULL");
-    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(&store.pool).await.unwrap();
+    let fk: i64 = sqlx::query_scalar("PRAGMA foreign_keys").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(fk, 1);
     let id = store.create_survey(&new_survey()).await.unwrap();
     store.close().await;
@@ -218,17 +219,17 @@ async fn import_is_atomic() {
         "CREATE TEMP TRIGGER boom BEFORE INSERT ON samples WHEN NEW.seq = 900 \
          BEGIN SELECT RAISE(ABORT, 'boom'); END",
     )
-    .execute(&store.pool)
+    .execute(store.sqlite().unwrap())
     .await
     .unwrap();
     let e = store.import(&s, &good).await.unwrap_err();
     assert!(format!("{e:#}").contains("boom"), "{e:#}");
     assert!(store.list().await.unwrap().is_empty());
-    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples").fetch_one(&store.pool).await.unwrap();
+    let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM samples").fetch_one(store.sqlite().unwrap()).await.unwrap();
     assert_eq!(n, 0);
     // The failed write retired its connection (store::tx), and the temporary
     // trigger went with it: the next connection has none.
-    sqlx::query("DROP TRIGGER IF EXISTS boom").execute(&store.pool).await.unwrap();
+    sqlx::query("DROP TRIGGER IF EXISTS boom").execute(store.sqlite().unwrap()).await.unwrap();
 
     let id = store.import(&s, &good).await.unwrap();
     let row = store.survey(id).await.unwrap();
@@ -250,8 +251,8 @@ async fn resolve_latest_and_not_found() {
     let b = store.create_survey(&new_survey()).await.unwrap();
     assert!(b > a);
     assert_eq!(store.resolve(None).await.unwrap().id, b);
-    assert_eq!(store.resolve(Some(a)).await.unwrap().id, a);
-    let e = store.resolve(Some(7)).await.unwrap_err();
+    assert_eq!(store.resolve(Some(a.into())).await.unwrap().id, a);
+    let e = store.resolve(Some(7.into())).await.unwrap_err();
     assert!(is_not_found(&e));
     assert!(e.downcast_ref::<NotFound>().is_some());
     assert_eq!(e.to_string(), format!("no survey with id 7 in {}", dir.path().join("survey.db").display()));
@@ -565,4 +566,117 @@ fn many_openers_of_a_new_database_set_its_schema_up_once() {
         }
     })
     .expect("a runtime");
+}
+
+/// A database of schema 5 (before `processing`) with surveys, samples, raw
+/// readings and events: migration 6 rebuilds `surveys` to allow the new
+/// status, keeping every row as it was (ids, dates, every column), and every
+/// foreign key still holds and is still enforced.
+#[tokio::test]
+async fn the_processing_migration_rebuilds_surveys_keeping_every_row_and_foreign_key() {
+    use sqlx::migrate::{Migration, MigrationType, Migrator};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v5.db");
+    let options = SqliteConnectOptions::new().filename(&path).create_if_missing(true).foreign_keys(true);
+    let pool = single_connection_pool().connect_with(options).await.unwrap();
+    let first_five = MIGRATIONS[..5]
+        .iter()
+        .map(|&(v, d, sql)| Migration::new(v, Cow::Borrowed(d), MigrationType::Simple, sql.into_sql_str(), false))
+        .collect();
+    Migrator::with_migrations(first_five).run(&pool).await.unwrap();
+    sqlx::query(
+        "INSERT INTO surveys (id, created_at, updated_at, status, source, points, runs, config_json, ended_at_s, uid, \
+         asset, check_of) VALUES \
+         (3, '2026-01-02T03:04:05Z', '2026-01-02T05:00:00Z', 'complete', 'simulated', 36, 2, '{}', 12.5, \
+          '0b6c1a52-0000-4000-8000-000000000003', 'bay-2/az', NULL), \
+         (7, '2026-02-03T04:05:06Z', '2026-02-03T04:05:06Z', 'interrupted', 'import:a.csv', NULL, NULL, '{}', NULL, \
+          '0b6c1a52-0000-4000-8000-000000000007', 'bay-2/az', '0b6c1a52-0000-4000-8000-000000000003'); \
+         INSERT INTO samples (survey_id, seq, run, direction, target_deg, readout_deg, actual_deg) VALUES \
+         (3, 0, 1, 'forward', 0.0, 0.001, -0.0), (7, 0, 1, 'reverse', 10.0, 10.5, 10.25); \
+         INSERT INTO raw_readings (survey_id, seq, kind, ac_face, ac_x_arcsec) VALUES (3, 0, 'autocollimator', 1, 0.5); \
+         INSERT INTO events (survey_id, level, message) VALUES (3, 'info', 'kept'), (7, 'warn', 'also kept');",
+    )
+    .execute(&pool)
+    .await
+    .unwrap();
+    pool.close().await;
+    // Every row of every table, each value with its SQLite type.
+    let dump = |path: &std::path::Path| {
+        let c = rusqlite::Connection::open(path).unwrap();
+        let mut all = Vec::new();
+        for table in ["surveys", "samples", "raw_readings", "events"] {
+            let mut stmt = c.prepare(&format!("SELECT * FROM {table} ORDER BY 1, 2")).unwrap();
+            let n = stmt.column_count();
+            let rows = stmt
+                .query_map([], |r| Ok((0..n).map(|i| format!("{:?}", r.get_ref(i).unwrap())).collect::<Vec<_>>()))
+                .unwrap();
+            all.extend(rows.map(|r| format!("{table}: {}", r.unwrap().join(", "))));
+        }
+        all
+    };
+    let before = dump(&path);
+    assert_eq!(before.len(), 7);
+
+    let store = Store::open(&path).await.unwrap();
+    store.close().await;
+    assert_eq!(dump(&path), before, "every row kept as it was");
+    let store = Store::open(&path).await.unwrap();
+    let version: i64 = sqlx::query_scalar("SELECT MAX(version) FROM _sqlx_migrations")
+        .fetch_one(store.sqlite().unwrap())
+        .await
+        .unwrap();
+    assert_eq!(version, MIGRATIONS.last().unwrap().0);
+    // Migration 5's indexes are there again.
+    let indexes: Vec<String> = sqlx::query_scalar(
+        "SELECT name FROM sqlite_master WHERE type = 'index' AND tbl_name = 'surveys' ORDER BY name",
+    )
+    .fetch_all(store.sqlite().unwrap())
+    .await
+    .unwrap();
+    assert_eq!(indexes, ["surveys_by_asset", "surveys_by_uid"]);
+    let check: Vec<sqlx::sqlite::SqliteRow> =
+        sqlx::query("PRAGMA foreign_key_check").fetch_all(store.sqlite().unwrap()).await.unwrap();
+    assert!(check.is_empty(), "every sample, reading and event still has its survey");
+    // The new status is allowed; foreign keys are enforced again.
+    store.set_status(3, SurveyStatus::Processing, None).await.unwrap();
+    assert_eq!(store.survey(3).await.unwrap().status, SurveyStatus::Processing);
+    assert!(store.append(99, &[recorded(0)]).await.is_err(), "a sample of no survey is refused");
+}
+
+/// Check points (issue 20): acquired as a `resolving` survey, which "the
+/// latest survey" skips (resume finds it), then folded into the survey they
+/// resolve in one transaction, that survey removed with everything of it, so
+/// the next survey takes its id again.
+#[tokio::test]
+async fn check_points_fold_into_their_survey_and_free_their_id() {
+    let (_dir, store) = temp_store().await;
+    let main = store.create_survey(&new_survey()).await.unwrap();
+    let checks = store
+        .create_survey(&NewSurvey {
+            source: SurveySource::Resolving,
+            instruments: serde_json::json!({"resolves_survey": main}),
+            ..new_survey()
+        })
+        .await
+        .unwrap();
+    assert_eq!(store.resolve(None).await.unwrap().id, main, "the latest survey is not its check points");
+    assert_eq!(store.resolve_any(None).await.unwrap().id, checks, "resume finds them");
+    assert_eq!(store.survey(checks).await.unwrap().resolves, Some(main));
+    let samples: Vec<RecordedSample> = (0..40).map(recorded).collect();
+    store.append(checks, &samples).await.unwrap();
+    store.log_event(checks, 1.0, "info", "measured").await.unwrap();
+    assert_eq!(store.fold_check_points(checks, main).await.unwrap(), 40);
+    let folded = store.check_points(main).await.unwrap();
+    assert_eq!(folded.len(), 40);
+    for (f, r) in folded.iter().zip(&samples) {
+        assert_eq!(
+            (f.target_deg.to_bits(), f.actual_deg.to_bits(), f.run),
+            (r.sample.target_deg.to_bits(), r.sample.actual_deg.to_bits(), r.sample.run)
+        );
+    }
+    assert!(is_not_found(&store.survey(checks).await.unwrap_err()), "the check-point survey is gone");
+    assert!(store.events(checks).await.unwrap().is_empty());
+    assert_eq!(store.create_survey(&new_survey()).await.unwrap(), checks, "its id is free again");
+    assert!(store.check_points(checks).await.unwrap().is_empty());
+    store.close().await;
 }

@@ -10,23 +10,43 @@
 //! (the write lock is taken at once, and waited for up to the busy timeout),
 //! the statements, `COMMIT`; on any failure an explicit `ROLLBACK`, and the
 //! connection is closed instead of going back to the pool, so nothing of a
-//! failed transaction can reach a later write.
+//! failed transaction can reach a later write. The lab store's writes
+//! (`survey push`, PostgreSQL) go through the same guard (`BEGIN`).
 
 use sqlx::pool::PoolConnection;
-use sqlx::{Sqlite, SqliteConnection, SqlitePool};
+use sqlx::{Database, Executor, IntoArguments, Pool, Postgres, Sqlite};
+
+/// A database the store writes in transactions, and how it begins one.
+pub(super) trait TxDatabase: Database {
+    /// The statement that opens a write transaction.
+    const BEGIN: &'static str;
+}
+
+impl TxDatabase for Sqlite {
+    /// The write lock is taken at once (and waited for up to the busy timeout).
+    const BEGIN: &'static str = "BEGIN IMMEDIATE";
+}
+
+impl TxDatabase for Postgres {
+    const BEGIN: &'static str = "BEGIN";
+}
 
 /// An open write transaction on a connection of its own.
 #[derive(Debug)]
-pub(super) struct WriteTx {
-    conn: PoolConnection<Sqlite>,
+pub(super) struct WriteTx<DB: TxDatabase = Sqlite> {
+    conn: PoolConnection<DB>,
     open: bool,
 }
 
-impl WriteTx {
-    /// `BEGIN IMMEDIATE` on a connection from `pool`.
-    pub(super) async fn begin(pool: &SqlitePool) -> Result<WriteTx, sqlx::Error> {
+impl<DB: TxDatabase> WriteTx<DB>
+where
+    for<'c> &'c mut DB::Connection: Executor<'c, Database = DB>,
+    DB::Arguments: IntoArguments<DB>,
+{
+    /// [`TxDatabase::BEGIN`] on a connection from `pool`.
+    pub(super) async fn begin(pool: &Pool<DB>) -> Result<WriteTx<DB>, sqlx::Error> {
         let mut conn = pool.acquire().await?;
-        if let Err(e) = sqlx::query("BEGIN IMMEDIATE").execute(&mut *conn).await {
+        if let Err(e) = sqlx::query(DB::BEGIN).execute(&mut *conn).await {
             conn.close_on_drop();
             return Err(e);
         }
@@ -34,7 +54,7 @@ impl WriteTx {
     }
 
     /// The connection, to run the transaction's statements on.
-    pub(super) fn conn(&mut self) -> &mut SqliteConnection {
+    pub(super) fn conn(&mut self) -> &mut DB::Connection {
         &mut self.conn
     }
 
@@ -63,7 +83,7 @@ impl WriteTx {
     }
 }
 
-impl Drop for WriteTx {
+impl<DB: TxDatabase> Drop for WriteTx<DB> {
     /// Dropped open (an error path returned early, or the future was
     /// cancelled): closing the connection rolls the transaction back.
     fn drop(&mut self) {

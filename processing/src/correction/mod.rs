@@ -55,9 +55,20 @@
 //!   replaced by `target + actual - c` (with `readout = target` at rest this is
 //!   `actual + E(readout)`).
 //!
-//! The prediction is in-sample: the table was built from the same runs, so it
-//! has absorbed their mean noise and the corrected figures are slightly
-//! optimistic (by a factor of about `sqrt(1 - 1/runs)` on the noise). The
+//! The prediction is made on the survey's samples, at its targets: the table
+//! was built from the same runs, so it has absorbed their mean noise and the
+//! corrected figures are slightly optimistic (by a factor of about
+//! `sqrt(1 - 1/runs)` on the noise). Between the targets the table may do
+//! worse than at them: a line it does not carry, or one it carries at a bin
+//! that may be the alias of its true frequency ([`left`]), peaks higher
+//! there than the survey saw. [`Prediction::with_left`] makes the
+//! contract's `corrected_peak_deg` a prediction of what a new survey of the
+//! same plan with the table applied measures (what `survey run --verify`
+//! checks), never better than the table can do: the in-sample peak, plus how
+//! much higher what the table leaves peaks between the targets than at them
+//! (under the least favourable hypothesis of its lines' true frequencies),
+//! plus how much higher a new survey's peak of noise may be than this one's
+//! (95 %). The in-sample figure stays beside it. The
 //! repeatability floor (`floor_deg`, passed in: for example half the ISO 230-2
 //! `R`, or the bidirectional repeatability when a single table is used) is
 //! reported beside them: no correction can go below it, and the paper's
@@ -70,6 +81,8 @@ use crate::table::{CorrectionTable, TableError};
 use crate::types::Sample;
 use serde::Serialize;
 
+pub mod left;
+pub mod resolve;
 pub(crate) mod true_angle;
 #[cfg(test)]
 mod truth_tests;
@@ -290,8 +303,17 @@ pub struct ErrorFigures {
 pub struct Prediction {
     /// The contract's `native_peak_deg`: `max |e - mean|` without correction.
     pub native_peak_deg: f64,
-    /// The contract's `corrected_peak_deg`: the same after correction.
+    /// The contract's `corrected_peak_deg`: the same after correction, with
+    /// what the table leaves between the targets ([`Prediction::with_left`]).
     pub corrected_peak_deg: f64,
+    /// The corrected peak at the survey's own samples (the targets), degrees.
+    pub in_sample_corrected_peak_deg: f64,
+    /// How much higher what the table leaves peaks between the targets than
+    /// at them, degrees (0 when it leaves nothing the survey saw).
+    pub unseen_between_targets_deg: f64,
+    /// How much higher the noise of a new survey of the same plan may peak
+    /// than this one's did (95 %), degrees ([`Prediction::with_left`]).
+    pub peak_spread_deg: f64,
     /// All native figures.
     pub native: ErrorFigures,
     /// All corrected figures.
@@ -329,6 +351,9 @@ pub fn predict_accuracy(
     Ok(Prediction {
         native_peak_deg: native.peak_deg,
         corrected_peak_deg: corrected.peak_deg,
+        in_sample_corrected_peak_deg: corrected.peak_deg,
+        unseen_between_targets_deg: 0.0,
+        peak_spread_deg: 0.0,
         native,
         corrected,
         floor_deg,
@@ -336,11 +361,57 @@ pub fn predict_accuracy(
     })
 }
 
+impl Prediction {
+    /// The prediction of what a new survey of the same plan with the table
+    /// applied measures (`survey run --verify`): the in-sample peak, plus
+    /// what the table leaves between the targets
+    /// ([`left::Left::unseen_peak_deg`]), plus the spread of a peak of noise
+    /// (`samples`' corrected errors about their per-target, per-direction
+    /// means give the noise `sigma`; the peak of `M` such samples has a
+    /// Gumbel distribution of scale `sigma / sqrt(2 ln 2M)`, and the
+    /// difference of two such peaks a logistic one, which exceeds
+    /// `ln(19)` scales 5 % of the time).
+    pub fn with_left(self, left: &left::Left, samples: &[Sample], table: &CorrectionTable) -> Self {
+        let unseen = left.unseen_peak_deg();
+        let spread = noise_sd(samples, table).map_or(0.0, |sigma| {
+            let m = samples.len().max(1) as f64;
+            sigma * 19f64.ln() / (2.0 * (2.0 * m).ln()).sqrt()
+        });
+        Prediction {
+            corrected_peak_deg: self.in_sample_corrected_peak_deg + unseen + spread,
+            unseen_between_targets_deg: unseen,
+            peak_spread_deg: spread,
+            ..self
+        }
+    }
+
+    /// Whether the corrected axis is predicted no better than the native one.
+    pub fn no_better_than_native(&self) -> bool {
+        self.corrected_peak_deg >= self.native_peak_deg
+    }
+}
+
 impl ErrorFigures {
     /// The figures of the errors `e` (readout - actual), with an ISO 230-2 `A` when known.
     pub fn of(e: &[f64], iso230_a_deg: Option<f64>) -> Self {
         figures(e, iso230_a_deg)
     }
+}
+
+/// The noise of the corrected errors: their pooled standard deviation about
+/// the mean of each target and direction (`None` with one run).
+fn noise_sd(samples: &[Sample], table: &CorrectionTable) -> Option<f64> {
+    let mut groups: std::collections::BTreeMap<(u64, bool), (f64, f64, usize)> = Default::default();
+    for (s, e) in samples.iter().zip(corrected_errors(samples, table)) {
+        let g = groups.entry((s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward)).or_default();
+        g.0 += e;
+        g.1 += e * e;
+        g.2 += 1;
+    }
+    let (ss, dof) = groups
+        .values()
+        .fold((0.0, 0usize), |(ss, dof), (s1, s2, n)| (ss + (s2 - s1 * s1 / *n as f64).max(0.0), dof + n - 1));
+    (dof > 0).then(|| (ss / dof as f64).sqrt())
 }
 
 fn figures(e: &[f64], iso230_a_deg: Option<f64>) -> ErrorFigures {

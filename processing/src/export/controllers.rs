@@ -13,10 +13,11 @@
 
 use super::fanuc::{FanucOptions, FanucTable};
 use super::generic::GenericTable;
-use super::layout::{DefaultSpacing, Directions, Grid, RangeChoice, Reader, Span, resolve};
+use super::layout::{DefaultSpacing, Directions, Grid, MAX_TABLE_DEG, RangeChoice, Reader, Span, resolve};
 use super::linuxcnc::LinuxCncTable;
 use super::sinumerik::{Sinumerik840d, SinumerikOptions};
 use super::{Applied, predicted_peak_deg};
+use crate::num::Num;
 use crate::recipe::{ChoiceError, ExportChoices};
 use crate::table::CorrectionTable;
 use crate::{Direction, Sample};
@@ -157,16 +158,30 @@ pub fn build(
         let one_table = controller == Controller::Sinumerik840d;
         let reader = Reader::new(table, full_circle, grid.interval_deg, separate && !one_table);
         let reference_deg = export.reference_deg.unwrap_or_else(|| default_reference(&grid));
-        if !reference_deg.is_finite() {
-            return Err(choice("reference_deg", format!("must be a finite angle, got {reference_deg}")));
+        if !(reference_deg.is_finite() && reference_deg.abs() <= MAX_TABLE_DEG) {
+            return Err(choice(
+                "reference_deg",
+                format!("must be an angle within +/-{MAX_TABLE_DEG} deg, got {}", Num(reference_deg)),
+            ));
         }
         if !full_circle && !(grid.start_deg - 1e-9..=grid.end_deg() + 1e-9).contains(&reference_deg) {
             return Err(choice(
                 "reference_deg",
-                format!("{reference_deg} deg is outside the table's range {}..{} deg", grid.start_deg, grid.end_deg()),
+                format!(
+                    "{} deg is outside the table's range {}..{} deg",
+                    Num(reference_deg),
+                    Num(grid.start_deg),
+                    Num(grid.end_deg())
+                ),
             ));
         }
-        let offset = if export.zero_at_reference { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
+        // Fanuc's values are increments from the reference (zero there by
+        // construction); the 840D's are zero there unless kept absolute (K3).
+        let zeroed = match controller {
+            Controller::Sinumerik840d => !export.sinumerik_absolute,
+            _ => export.zero_at_reference,
+        };
+        let offset = if zeroed { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
         let mut notes = Vec::new();
         let predict = |t: &dyn Applied| predicted_peak_deg(samples, t, full_circle);
         let mut e = ControllerExport {
@@ -176,7 +191,7 @@ pub fn build(
             directional: reader.is_separate(),
             modulo: false,
             reference_deg,
-            zero_at_reference: export.zero_at_reference,
+            zero_at_reference: zeroed,
             corrected_peak_deg: None,
             parameters: Vec::new(),
             notes: Vec::new(),
@@ -212,12 +227,15 @@ pub fn build(
                     axis: export.sinumerik_axis.clone(),
                     measuring_system: export.sinumerik_measuring_system,
                 };
-                let t = Sinumerik840d::new(&reader, &grid, offset, options).map_err(|err| match err {
-                    super::sinumerik::SinumerikError::BadAxis(_) => choice("sinumerik_axis", err.to_string()),
-                    super::sinumerik::SinumerikError::BadMeasuringSystem(_) => {
-                        choice("sinumerik_measuring_system", err.to_string())
-                    }
-                })?;
+                let t =
+                    Sinumerik840d::new(&reader, &grid, zeroed.then_some(reference_deg), options).map_err(|err| {
+                        match err {
+                            super::sinumerik::SinumerikError::BadAxis(_) => choice("sinumerik_axis", err.to_string()),
+                            super::sinumerik::SinumerikError::BadMeasuringSystem(_) => {
+                                choice("sinumerik_measuring_system", err.to_string())
+                            }
+                        }
+                    })?;
                 if separate && table.is_directional() {
                     notes.push(
                         "840D measuring-system error compensation is one table for both directions: the mean of forward and reverse was written (set the reversal with the backlash compensation)".into(),

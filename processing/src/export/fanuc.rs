@@ -39,7 +39,12 @@
 use super::Applied;
 use super::layout::{Grid, Reader, whole};
 use crate::Direction;
+use crate::num::Num;
 use std::fmt::Write as _;
+
+/// The finest detection unit taken, degrees (IS-E is 1e-6 deg); a finer
+/// one makes compensation values beyond any register.
+pub const MIN_UNIT_DEG: f64 = 1e-7;
 
 /// The common per-point limit (not confirmed publicly).
 pub const VALUE_RANGE: std::ops::RangeInclusive<i64> = -128..=127;
@@ -118,8 +123,11 @@ impl FanucTable {
     /// must be a point of the grid.
     pub fn new(reader: &Reader, grid: &Grid, options: FanucOptions) -> Result<Self, FanucError> {
         let u = options.unit_deg;
-        if !(u.is_finite() && u > 0.0) {
-            return fail("fanuc_unit_deg", format!("must be a positive number of degrees, got {u}"));
+        if !(MIN_UNIT_DEG..=1.0).contains(&u) {
+            return fail(
+                "fanuc_unit_deg",
+                format!("must be a detection unit from {} to 1 deg, got {}", Num(MIN_UNIT_DEG), Num(u)),
+            );
         }
         if !(1..=100).contains(&options.magnification) {
             return fail("fanuc_magnification", format!("must be from 1 to 100, got {}", options.magnification));
@@ -128,8 +136,9 @@ impl FanucTable {
             return fail(
                 "interval_deg",
                 format!(
-                    "the interval {} deg is not a whole number of detection units ({u} deg): parameter 3624 holds whole units",
-                    grid.interval_deg
+                    "the interval {} deg is not a whole number of detection units ({} deg): parameter 3624 holds whole units",
+                    Num(grid.interval_deg),
+                    Num(u)
                 ),
             );
         }
@@ -137,15 +146,16 @@ impl FanucTable {
         let rotary = reader.is_periodic() && (grid.span_deg() - 360.0).abs() < 1e-9;
         let (grid, reference_index) = if rotary {
             if whole(360.0 / u).is_none() {
-                return fail("fanuc_unit_deg", format!("360 deg is not a whole number of {u} deg units (3625)"));
+                return fail("fanuc_unit_deg", format!("360 deg is not a whole number of {} deg units (3625)", Num(u)));
             }
             let off = (reference - grid.start_deg).rem_euclid(360.0) / grid.interval_deg;
             if whole(off).is_none() && whole(off - (grid.points - 1) as f64).is_none() {
                 return fail(
                     "reference_deg",
                     format!(
-                        "the reference point {reference} deg is not a point of the table (every {} deg)",
-                        grid.interval_deg
+                        "the reference point {} deg is not a point of the table (every {} deg)",
+                        Num(reference),
+                        Num(grid.interval_deg)
                     ),
                 );
             }
@@ -157,10 +167,11 @@ impl FanucTable {
                     return fail(
                         "reference_deg",
                         format!(
-                            "the reference point {reference} deg is not a point of the table ({}..{} deg every {} deg)",
-                            grid.start_deg,
-                            grid.end_deg(),
-                            grid.interval_deg
+                            "the reference point {} deg is not a point of the table ({}..{} deg every {} deg)",
+                            Num(reference),
+                            Num(grid.start_deg),
+                            Num(grid.end_deg()),
+                            Num(grid.interval_deg)
                         ),
                     );
                 }

@@ -12,6 +12,7 @@
 //! as it is, inside the measured range only.
 
 use crate::Direction;
+use crate::num::Num;
 use crate::resample::Resampler;
 use crate::table::CorrectionTable;
 use serde::{Deserialize, Serialize};
@@ -127,6 +128,10 @@ fn err(key: &'static str, message: String) -> LayoutError {
 }
 
 /// Whether `x` is a whole number within the tolerance; the number if so.
+/// The widest a table reaches: +/-3600 deg (ten turns either way, the
+/// travel a configuration allows).
+pub const MAX_TABLE_DEG: f64 = 3600.0;
+
 pub(crate) fn whole(x: f64) -> Option<u64> {
     let r = x.round();
     ((x - r).abs() <= WHOLE * x.abs().max(1.0) && r >= 0.0).then_some(r as u64)
@@ -140,11 +145,18 @@ pub fn resolve(choice: &RangeChoice, span: Span, default: DefaultSpacing) -> Res
     };
     let start = choice.start_deg.unwrap_or(lo);
     let end = choice.end_deg.unwrap_or(hi);
-    if !start.is_finite() {
-        return Err(err("start_deg", format!("must be a finite angle, got {start}")));
+    if !(start.is_finite() && start.abs() <= MAX_TABLE_DEG) {
+        return Err(err("start_deg", format!("must be an angle within +/-{MAX_TABLE_DEG} deg, got {}", Num(start))));
     }
-    if !end.is_finite() || end <= start {
-        return Err(err("end_deg", format!("must be a finite angle above the start ({start} deg), got {end}")));
+    if !(end.is_finite() && end.abs() <= MAX_TABLE_DEG) || end <= start {
+        return Err(err(
+            "end_deg",
+            format!(
+                "must be an angle above the start ({} deg) within +/-{MAX_TABLE_DEG} deg, got {}",
+                Num(start),
+                Num(end)
+            ),
+        ));
     }
     if let Span::Measured { start: s, end: e } = span {
         let tol = 1e-9 * (e - s).abs().max(1.0);
@@ -152,7 +164,10 @@ pub fn resolve(choice: &RangeChoice, span: Span, default: DefaultSpacing) -> Res
             return Err(err(
                 "start_deg",
                 format!(
-                    "{start} deg is outside the measured range {s}..{e} deg: a partial-range table holds nothing outside what was measured"
+                    "{} deg is outside the measured range {}..{} deg: a partial-range table holds nothing outside what was measured",
+                    Num(start),
+                    Num(s),
+                    Num(e)
                 ),
             ));
         }
@@ -160,7 +175,10 @@ pub fn resolve(choice: &RangeChoice, span: Span, default: DefaultSpacing) -> Res
             return Err(err(
                 "end_deg",
                 format!(
-                    "{end} deg is outside the measured range {s}..{e} deg: a partial-range table holds nothing outside what was measured"
+                    "{} deg is outside the measured range {}..{} deg: a partial-range table holds nothing outside what was measured",
+                    Num(end),
+                    Num(s),
+                    Num(e)
                 ),
             ));
         }
@@ -171,13 +189,19 @@ pub fn resolve(choice: &RangeChoice, span: Span, default: DefaultSpacing) -> Res
         (Some(_), Some(_)) => Err(err("points", "give interval_deg or points, not both".into())),
         (Some(d), None) => {
             if !(d.is_finite() && d > 0.0) {
-                return Err(err("interval_deg", format!("must be a positive number of degrees, got {d}")));
+                return Err(err("interval_deg", format!("must be a positive number of degrees, got {}", Num(d))));
             }
             match whole(span_deg / d) {
                 Some(n) if (1..1 << 24).contains(&n) => Ok(grid(span_deg / n as f64, n as usize + 1)),
                 _ => Err(err(
                     "interval_deg",
-                    format!("the range {start}..{end} deg ({span_deg} deg) is not a whole number of {d} deg intervals"),
+                    format!(
+                        "the range {}..{} deg ({} deg) is not a whole number of {} deg intervals",
+                        Num(start),
+                        Num(end),
+                        Num(span_deg),
+                        Num(d)
+                    ),
                 )),
             }
         }

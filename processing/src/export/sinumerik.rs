@@ -11,6 +11,7 @@
 //! $AA_ENC_COMP_MIN[0,C1]=<MIN>
 //! $AA_ENC_COMP_MAX[0,C1]=<MAX>
 //! $AA_ENC_COMP_IS_MODULO[0,C1]=<1 or 0>
+//! ; zero at the reference point 0 deg (K3); --sinumerik-absolute keeps absolute values
 //! M17
 //! ```
 //!
@@ -20,8 +21,11 @@
 //! machine axis to move in the negative direction": the value is added to the
 //! measuring system's position, so a value is `actual - readout`, minus our
 //! error (`actual = readout + value`). A rotary axis over exactly 0..360 is
-//! written modulo, with equal end values. The table may be zeroed at the
-//! reference point (the manual asks for zero there). The compensation is one
+//! written modulo, with equal end values. The values are zero at the
+//! reference point by default, as the K3 manual asks for the compensation
+//! value there; `[export] sinumerik_absolute = true` (`survey process
+//! --sinumerik-absolute`) keeps them absolute. A comment line (`;`, the NC
+//! language's comment) before `M17` says which. The compensation is one
 //! table for both directions: a direction-aware table is written as the mean of
 //! its directions (the direction-dependent CEC tables' sign was not found
 //! stated publicly). MD38000 `$MA_MM_ENC_COMP_MAX_POINTS` must reserve at least
@@ -82,16 +86,18 @@ pub struct Sinumerik840d {
     pub values_deg: Vec<f64>,
     /// `$AA_ENC_COMP_IS_MODULO`.
     pub modulo: bool,
+    /// The reference point the values are zero at, degrees (`None`: absolute values).
+    pub zero_at_deg: Option<f64>,
 }
 
 impl Sinumerik840d {
     /// The table on `grid` read from `reader` (one column: the mean of the
-    /// directions of a direction-aware table), `offset_deg` subtracted from the
-    /// error first (the error at the reference point, to zero the table there).
+    /// directions of a direction-aware table), zero at the reference point
+    /// `zero_at_deg` when one is given (its error subtracted from every value).
     pub fn new(
         reader: &Reader,
         grid: &Grid,
-        offset_deg: f64,
+        zero_at_deg: Option<f64>,
         options: SinumerikOptions,
     ) -> Result<Self, SinumerikError> {
         check_axis(&options.axis)?;
@@ -106,12 +112,13 @@ impl Sinumerik840d {
                 reader.error_at(p, Direction::Forward)
             }
         };
+        let offset_deg = zero_at_deg.map_or(0.0, error);
         let mut values_deg: Vec<f64> = (0..grid.points).map(|i| -(error(grid.position(i)) - offset_deg)).collect();
         if modulo {
             let first = values_deg[0];
             *values_deg.last_mut().expect("a grid has two points or more") = first;
         }
-        Ok(Self { options, grid: *grid, values_deg, modulo })
+        Ok(Self { options, grid: *grid, values_deg, modulo, zero_at_deg })
     }
 
     /// The `%_N_AX_EEC_INI` file.
@@ -126,6 +133,16 @@ impl Sinumerik840d {
         let _ = writeln!(s, "$AA_ENC_COMP_MIN[{e},{ax}]={}", number(self.grid.start_deg, 9));
         let _ = writeln!(s, "$AA_ENC_COMP_MAX[{e},{ax}]={}", number(self.grid.end_deg(), 9));
         let _ = writeln!(s, "$AA_ENC_COMP_IS_MODULO[{e},{ax}]={}", u8::from(self.modulo));
+        match self.zero_at_deg {
+            Some(r) => {
+                let _ = writeln!(
+                    s,
+                    "; zero at the reference point {} deg (K3); --sinumerik-absolute keeps absolute values",
+                    number(r, 9)
+                );
+            }
+            None => s.push_str("; absolute values, not zero at the reference point (--sinumerik-absolute)\n"),
+        }
         s.push_str("M17\n");
         s
     }

@@ -193,7 +193,8 @@ fn read_eec(text: &str, axis: &str) -> Eec {
     assert_eq!(*lines.last().unwrap(), "M17");
     let mut values = Vec::new();
     let (mut step, mut min, mut max, mut modulo) = (None, None, None, None);
-    for l in &lines[2..lines.len() - 1] {
+    // `;` starts a comment in the NC language.
+    for l in lines[2..lines.len() - 1].iter().filter(|l| !l.starts_with(';')) {
         let (lhs, rhs) = l.split_once('=').unwrap();
         let v: f64 = rhs.parse().unwrap();
         if let Some(idx) = lhs.strip_prefix("$AA_ENC_COMP[") {
@@ -266,6 +267,36 @@ fn sinumerik_840d_is_modulo_with_equal_ends_and_its_sign_shrinks_the_error() {
     assert!(!eec.modulo && eec.min == -360.0 && eec.max == 360.0 && eec.step == 2.0);
     assert_eq!(eec.value_at(90.0), 0.0);
     assert_eq!(eec.value_at(-270.0), 0.0, "the same point a turn before");
+}
+
+#[test]
+fn sinumerik_840d_is_zero_at_the_reference_point_unless_kept_absolute() {
+    let samples = survey();
+    // K3: the compensation value at the reference point (0 deg by default) is zero.
+    let zeroed = &export(&samples, &only(Controller::Sinumerik840d))[0];
+    let text = &zeroed.files[0].text;
+    let z = read_eec(text, "C1");
+    assert_eq!(z.value_at(0.0), 0.0, "{}", &text[..120]);
+    assert!(zeroed.zero_at_reference);
+    assert!(text.contains("\n; zero at the reference point 0 deg (K3)"), "{}", &text[text.len() - 200..]);
+    // Kept absolute on request, whatever the other formats do: minus the
+    // error at 0 (the mean of the directions), the same table shifted.
+    for zero_others in [false, true] {
+        let choices = ExportChoices {
+            sinumerik_absolute: true,
+            zero_at_reference: zero_others,
+            ..only(Controller::Sinumerik840d)
+        };
+        let absolute = &export(&samples, &choices)[0];
+        let a = read_eec(&absolute.files[0].text, "C1");
+        let error_at_0 = 0.5 * (truth(0.0, Direction::Forward) + truth(0.0, Direction::Reverse));
+        assert!(error_at_0 > 0.008 && (a.value_at(0.0) + error_at_0).abs() < 3e-4, "{}", a.value_at(0.0));
+        for (x, y) in z.values.iter().zip(&a.values) {
+            assert!((x - y + a.values[0]).abs() < 2e-7, "{x} {y}");
+        }
+        assert!(!absolute.zero_at_reference);
+        assert!(absolute.files[0].text.contains("\n; absolute values, not zero at the reference point"));
+    }
 }
 
 #[test]

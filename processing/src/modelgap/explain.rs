@@ -155,7 +155,8 @@ pub(crate) fn finish(
         f.phase_deg = p;
         f.standard_error_deg = se_of(touched, se, f.index);
         let unit = if matches!(e, Effect::Drift { .. }) { "deg per run" } else { "deg" };
-        let mut s = format!("{}: amplitude {:.3e} -> {:.3e} {unit}", label(e), f.amplitude_before_deg, a);
+        // Each figure with its unit, so a sentence read in another unit converts both.
+        let mut s = format!("{}: amplitude {:.3e} {unit} -> {:.3e} {unit}", label(e), f.amplitude_before_deg, a);
         if let (Some(p0), Some(p1)) = (f.phase_before_deg, p) {
             s += &format!(", phase {p0:.1} -> {p1:.1} deg");
         }

@@ -107,10 +107,10 @@
 
 mod explain;
 mod fit;
-mod stats;
+pub(crate) mod stats;
 mod survey;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 #[cfg(test)]
 mod tests_cases;
 #[cfg(test)]

@@ -15,7 +15,7 @@ use crate::types::{Direction, Sample};
 /// it), and the reference reads the true angle plus normal noise of
 /// `reference_sigma`. One run takes 1000 s of timestamps; `runs elapsed` is
 /// time over that (the simulator's `drift_run_period`).
-pub(super) fn simulate(
+pub(crate) fn simulate(
     model: &Model,
     targets: &[f64],
     runs: u32,
@@ -63,16 +63,16 @@ pub(super) fn simulate(
 }
 
 /// `n` targets uniformly over a revolution from 0.
-pub(super) fn circle(n: usize) -> Vec<f64> {
+pub(crate) fn circle(n: usize) -> Vec<f64> {
     (0..n).map(|k| k as f64 * 360.0 / n as f64).collect()
 }
 
-pub(super) fn periodic(kind: PeriodicKind, cycles: f64, amplitude: f64, phase: f64) -> Effect {
+pub(crate) fn periodic(kind: PeriodicKind, cycles: f64, amplitude: f64, phase: f64) -> Effect {
     Effect::Periodic { kind, cycles_per_rev: cycles, amplitude_deg: amplitude, phase_deg: phase }
 }
 
 /// A model from a design and effects.
-pub(super) fn model(gears: &[f64], teeth: &[u32], effects: Vec<Effect>) -> Model {
+pub(crate) fn model(gears: &[f64], teeth: &[u32], effects: Vec<Effect>) -> Model {
     Model {
         design: crate::model::Design { gear_ratios: gears.to_vec(), tooth_counts: teeth.to_vec(), encoder_heads: None },
         effects,

@@ -3,11 +3,20 @@
 
 use super::explain::num;
 use super::{ModelGap, Views};
+use crate::units::Units;
 use std::fmt::Write as _;
 
 impl ModelGap {
-    /// The report as text (what `survey model-gap` prints without `--json`).
+    /// The report as text, in degrees.
     pub fn to_text(&self) -> String {
+        self.to_text_in(Units::Deg)
+    }
+
+    /// The report as text with its errors in `units` (what `survey
+    /// model-gap` prints without `--json`); angles along the axis and
+    /// phases stay in degrees.
+    pub fn to_text_in(&self, units: Units) -> String {
+        let (u, e) = (units.symbol(), |deg: f64, digits: usize| units.small(deg, digits, false));
         let mut s = String::new();
         let sh = &self.survey;
         let _ = writeln!(
@@ -25,8 +34,8 @@ impl ModelGap {
         );
         let _ = writeln!(
             s,
-            "noise floor {:.3e} deg (standard deviation of one sample, {}{})",
-            self.noise_floor_deg,
+            "noise floor {} {u} (standard deviation of one sample, {}{})",
+            e(self.noise_floor_deg, 3),
             if self.noise.method == "run_cell_interaction" {
                 "scatter from run to run"
             } else {
@@ -34,40 +43,57 @@ impl ModelGap {
             },
             self.noise.dof.map(|d| format!(", {d} degrees of freedom")).unwrap_or_default()
         );
-        let _ = writeln!(s, "significance: {}", self.significance.statement);
+        let _ = writeln!(s, "significance: {}", units.text(&self.significance.statement));
         let d = &self.detection_limits;
         let _ = writeln!(
             s,
-            "found with probability 99.9 % from: periodic {:.2e} deg{}{}",
-            d.periodic_deg,
-            d.backlash_deg.map(|b| format!(", backlash {b:.2e} deg")).unwrap_or_default(),
-            d.drift_deg_per_run.map(|b| format!(", drift {b:.2e} deg per run")).unwrap_or_default()
+            "found with probability 99.9 % from: periodic {} {u}{}{}",
+            e(d.periodic_deg, 2),
+            d.backlash_deg.map(|b| format!(", backlash {} {u}", e(b, 2))).unwrap_or_default(),
+            d.drift_deg_per_run.map(|b| format!(", drift {} {u} per run", e(b, 2))).unwrap_or_default()
         );
         let _ = writeln!(s, "\nthe gap with the model given:");
-        views_text(&mut s, &self.before, self.noise_floor_deg);
+        views_text(&mut s, &self.before, self.noise_floor_deg, units);
 
-        let _ = writeln!(s, "\nsteps (each effect fitted by least squares, the model simulated again):");
+        let _ = writeln!(s, "\nsteps (each effect fitted by least squares, the model simulated again), {u}:");
+        // Two residual figures of different things: every sample's scatter
+        // is in the RMS, a target's mean over its runs averages it out.
         let _ = writeln!(
             s,
-            "  {:>4}  {:<52} {:>14} {:>12} {:>12}",
-            "step", "change", "amplitude_deg", "rms_deg", "peak_deg"
+            "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
+            "", "", "amplitude", "residual RMS", "largest residual"
         );
         let _ = writeln!(
             s,
-            "  {:>4}  {:<52} {:>14} {:>12.3e} {:>12.3e}",
+            "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
+            "step", "change", "of the effect", "of all samples", "of a target mean"
+        );
+        let _ = writeln!(
+            s,
+            "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
             0,
             "the model as given",
             "",
-            self.rms_before_deg,
-            self.before.angle.mean_peak_deg.abs()
+            e(self.rms_before_deg, 3),
+            e(self.before.angle.mean_peak_deg.abs(), 3)
         );
         for st in &self.steps {
             let _ = writeln!(
                 s,
-                "  {:>4}  {:<52} {:>14.3e} {:>12.3e} {:>12.3e}",
-                st.step, st.added, st.amplitude_deg, st.rms_deg, st.mean_peak_deg
+                "  {:>4}  {:<52} {:>14}  {:>14}  {:>16}",
+                st.step,
+                st.added,
+                e(st.amplitude_deg, 3),
+                e(st.rms_deg, 3),
+                e(st.mean_peak_deg, 3)
             );
         }
+        let _ = writeln!(
+            s,
+            "  (residual RMS: over every sample, its noise included; largest residual of a target mean: the \
+             residual averaged over a target's runs and directions, largest in magnitude over the targets: the \
+             noise averages out, so it can be below the RMS)"
+        );
         if self.effects_added.is_empty() && self.verdict.explained && self.verdict.reference.is_empty() {
             let _ = writeln!(s, "\neffects added: none (the model explains the data down to the noise floor)");
         } else if self.effects_added.is_empty() {
@@ -84,46 +110,55 @@ impl ModelGap {
                 };
                 let _ = writeln!(
                     s,
-                    "  {}{at}: {:.3e} +/- {:.1e} deg{unit}{phase}: {}",
-                    f.kind, f.amplitude_deg, f.standard_error_deg, f.explanation
+                    "  {}{at}: {} +/- {} {u}{unit}{phase}: {}",
+                    f.kind,
+                    e(f.amplitude_deg, 3),
+                    e(f.standard_error_deg, 1),
+                    units.text(&f.explanation)
                 );
             }
         }
         if !self.effects_adjusted.is_empty() {
             let _ = writeln!(s, "\neffects adjusted:");
             for f in &self.effects_adjusted {
-                let _ = writeln!(s, "  {}", f.explanation);
+                let _ = writeln!(s, "  {}", units.text(&f.explanation));
             }
         }
         let _ = writeln!(s, "\nthe gap with the improved model:");
-        views_text(&mut s, &self.after, self.noise_floor_deg);
+        views_text(&mut s, &self.after, self.noise_floor_deg, units);
         let _ = writeln!(
             s,
-            "residual rms {:.3e} -> {:.3e} deg (noise floor {:.3e} deg); zero-reference offset {:+.3e} deg",
-            self.rms_before_deg, self.rms_after_deg, self.noise_floor_deg, self.offset_deg
+            "residual rms {} -> {} {u} (noise floor {} {u}); zero-reference offset {} {u}",
+            e(self.rms_before_deg, 3),
+            e(self.rms_after_deg, 3),
+            e(self.noise_floor_deg, 3),
+            units.small(self.offset_deg, 3, true)
         );
-        let _ = writeln!(s, "verdict: {}", self.verdict.statement);
+        let _ = writeln!(s, "verdict: {}", units.text(&self.verdict.statement));
         for n in &self.notes {
-            let _ = writeln!(s, "note: {n}");
+            let _ = writeln!(s, "note: {}", units.text(n));
         }
         s
     }
 }
 
-fn views_text(s: &mut String, v: &Views, floor: f64) {
+fn views_text(s: &mut String, v: &Views, floor: f64, units: Units) {
+    let u = units.symbol();
+    let e = |deg: f64, digits: usize| units.small(deg, digits, false);
+    let signed = |deg: f64| units.small(deg, 2, true);
     let _ = writeln!(
         s,
-        "  residual rms {:.3e} deg over all samples ({:.2} x the noise floor)",
-        v.rms_deg,
+        "  residual rms {} {u} over all samples ({:.2} x the noise floor)",
+        e(v.rms_deg, 3),
         v.rms_deg / floor.max(f64::MIN_POSITIVE)
     );
     let a = &v.angle;
     if a.ranges_total == 0 {
         let _ = writeln!(
             s,
-            "  in angle:     every target's mean residual inside +/-{:.2e} deg (largest {:+.2e} deg at {} deg)",
-            a.band_deg,
-            a.mean_peak_deg,
+            "  in angle:     every target's mean residual inside +/-{} {u} (largest {} {u} at {} deg)",
+            e(a.band_deg, 2),
+            signed(a.mean_peak_deg),
             num(a.peak_at_deg)
         );
     } else {
@@ -133,20 +168,20 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
             .take(6)
             .map(|r| {
                 format!(
-                    "{}..{} deg (peak {:+.2e} deg at {} deg)",
+                    "{}..{} deg (peak {} {u} at {} deg)",
                     num(r.start_deg),
                     num(r.end_deg),
-                    r.peak_deg,
+                    signed(r.peak_deg),
                     num(r.at_deg)
                 )
             })
             .collect();
         let _ = writeln!(
             s,
-            "  in angle:     {} targets in {} ranges leave +/-{:.2e} deg: {}{}",
+            "  in angle:     {} targets in {} ranges leave +/-{} {u}: {}{}",
             a.targets_outside,
             a.ranges_total,
-            a.band_deg,
+            e(a.band_deg, 2),
             shown.join(", "),
             if a.ranges_total > shown.len() { ", ..." } else { "" }
         );
@@ -163,17 +198,17 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
             } else {
                 num(l.cycles_per_rev)
             };
-            format!("{at} cycles/rev {:.2e} deg {}", l.amplitude_deg, l.kind)
+            format!("{at} cycles/rev {} {u} {}", e(l.amplitude_deg, 2), l.kind)
         })
         .collect();
     if significant.is_empty() {
-        let _ = writeln!(s, "  in frequency: no line above {:.2e} deg", f.threshold_deg);
+        let _ = writeln!(s, "  in frequency: no line above {} {u}", e(f.threshold_deg, 2));
     } else {
         let more = f.lines.iter().filter(|l| l.coherent).count() - significant.len();
         let _ = writeln!(
             s,
-            "  in frequency: above {:.2e} deg: {}{}",
-            f.threshold_deg,
+            "  in frequency: above {} {u}: {}{}",
+            e(f.threshold_deg, 2),
             significant.join("; "),
             if more > 0 { format!("; and {more} more") } else { String::new() }
         );
@@ -182,12 +217,12 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
         Some(d) => {
             let _ = writeln!(
                 s,
-                "  by direction: forward - reverse {:+.2e} deg; backlash change {:+.2e} +/- {:.1e} deg: {}",
-                d.forward_minus_reverse_deg,
-                d.backlash_change_deg,
-                d.standard_error_deg,
+                "  by direction: forward - reverse {} {u}; backlash change {} +/- {} {u}: {}",
+                signed(d.forward_minus_reverse_deg),
+                signed(d.backlash_change_deg),
+                e(d.standard_error_deg, 1),
                 if d.significant {
-                    format!("significant (above {:.2e} deg)", d.threshold_deg)
+                    format!("significant (above {} {u})", e(d.threshold_deg, 2))
                 } else {
                     "not significant".into()
                 }
@@ -201,12 +236,12 @@ fn views_text(s: &mut String, v: &Views, floor: f64) {
         Some(t) => {
             let _ = writeln!(
                 s,
-                "  in time:      trend {:+.2e} +/- {:.1e} deg per run over {} runs: {}",
-                t.drift_change_deg_per_run,
-                t.standard_error_deg_per_run,
+                "  in time:      trend {} +/- {} {u} per run over {} runs: {}",
+                signed(t.drift_change_deg_per_run),
+                e(t.standard_error_deg_per_run, 1),
                 t.run_means.len(),
                 if t.significant {
-                    format!("significant (above {:.2e} deg per run)", t.threshold_deg_per_run)
+                    format!("significant (above {} {u} per run)", e(t.threshold_deg_per_run, 2))
                 } else {
                     "not significant".into()
                 }

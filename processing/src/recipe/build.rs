@@ -166,8 +166,8 @@ impl Recipe {
         let mut rs = Resampler::new();
         let model = match (map.coverage, columns.as_slice(), &hysteresis) {
             (Coverage::FullCircle { .. }, [f, r], Some(h)) => {
+                // Not a note: it changes nothing the user should do (`direction_model` carries it).
                 let (dm, half) = direction_model(f, r, h.noise_deg, analysis.noise.false_alarm_rate, &mut rs);
-                notes.push(dm.text());
                 let mean: Vec<f64> = f.iter().zip(r.iter()).map(|(a, b)| (a + b) / 2.0).collect();
                 Some((dm, half, mean))
             }

@@ -168,7 +168,7 @@ impl Recipe {
             if 2 * f < n {
                 let (set, what) = match a.action {
                     AliasChoiceAction::Relocate => (&mut keep, "kept as a line"),
-                    AliasChoiceAction::Null => (&mut removed, "removed as a line"),
+                    AliasChoiceAction::Null | AliasChoiceAction::Absent => (&mut removed, "removed as a line"),
                 };
                 set.insert(f);
                 notes.push(format!("alias[{}]: {f} cycles/rev is resolved by this survey's {n} points: {what}", i + 1));
@@ -207,6 +207,11 @@ impl Recipe {
                         null.insert(b);
                         (AliasOutcome::Nulled, true, by_recipe("nulled"))
                     }
+                    AliasChoiceAction::Absent => (
+                        AliasOutcome::Nulled,
+                        false,
+                        by_recipe("absent (not there: check points showed it), its bin left to the other frequency"),
+                    ),
                 }
             };
             aliases.push(AliasDecision {

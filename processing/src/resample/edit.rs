@@ -154,7 +154,7 @@ pub enum EditError {
         cycles: usize,
     },
     /// The threshold of [`Keep::AboveThreshold`] is negative or not finite.
-    #[error("keep threshold {0} deg must be a finite, non-negative number")]
+    #[error("keep threshold {} deg must be a finite, non-negative number", crate::num::Num(*.0))]
     BadThreshold(f64),
 }
 

@@ -93,7 +93,11 @@ pub enum PartialMethod {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PartialError {
     /// The span is not `0 < end - start < 360` with finite ends.
-    #[error("span {start_deg}..{end_deg} deg: it must be finite with 0 < end - start < 360")]
+    #[error(
+        "span {}..{} deg: it must be finite with 0 < end - start < 360",
+        crate::num::Num(*start_deg),
+        crate::num::Num(*end_deg)
+    )]
     BadSpan {
         /// The lower end given.
         start_deg: f64,
@@ -111,7 +115,7 @@ pub enum PartialError {
         method: &'static str,
     },
     /// A sample is NaN or infinite.
-    #[error("sample {index} is {value}, not a finite number")]
+    #[error("sample {index} is {}, not a finite number", crate::num::Num(*value))]
     NotFinite {
         /// Position of the sample (from 0).
         index: usize,
@@ -119,7 +123,7 @@ pub enum PartialError {
         value: f64,
     },
     /// A frequency is not a positive, finite number.
-    #[error("frequency {0} cycles/rev must be positive and finite")]
+    #[error("frequency {} cycles/rev must be positive and finite", crate::num::Num(*.0))]
     BadFrequency(f64),
     /// The basis is numerically dependent over the span.
     #[error(

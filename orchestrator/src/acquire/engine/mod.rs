@@ -52,10 +52,11 @@ impl Reference {
 #[derive(Debug, thiserror::Error)]
 pub enum EngineError {
     /// An instrument failed and retries did not help (or the request was bad).
-    #[error("{0}")]
+    /// Transparent: `{:#}` says the driver's error once, not twice.
+    #[error(transparent)]
     Instrument(#[from] DriverError),
     /// The axis could not be located from the SMR positions.
-    #[error("locating the axis failed: {0}")]
+    #[error("locating the axis failed")]
     Geometry(#[from] GeometryError),
     /// The sample store failed.
     #[error("recording failed: {0:#}")]
@@ -64,7 +65,7 @@ pub enum EngineError {
     #[error("{0}")]
     Plan(String),
     /// A stop was requested (a signal): the axis was stopped.
-    #[error("{0}")]
+    #[error(transparent)]
     Stopped(#[from] Stopped),
     /// The survey was suspended and could not go on (the beam stayed lost
     /// past `beam_wait`, the axis met a limit or a fault it could not clear):

@@ -17,11 +17,13 @@
 //! - [`table`]: the correction table;
 //! - [`verification`]: native against corrected on one scale;
 //! - [`modelgap`], [`drift`], [`uncertainty`]: when there is such data;
+//! - [`history`]: the asset's earlier surveys, when it has any;
 //! - [`iso`]: ISO 230-2 and VDI/DGQ 3441 for the axis; per target in the appendix.
 
 pub mod drift;
 pub mod errors;
 pub mod header;
+pub mod history;
 pub mod hysteresis;
 pub mod interpolation;
 pub mod iso;
@@ -101,6 +103,7 @@ pub const BODY: &[Show] = &[
     modelgap::show,
     drift::show,
     uncertainty::show,
+    history::show,
     iso::show_axis,
     notes,
 ];
@@ -113,10 +116,15 @@ pub fn note(text: &str) -> String {
     format!("<p class=\"note\">{}</p>\n", escape(text))
 }
 
-/// The processing's notes, when there are any.
+/// The processing's notes and its direction model, when there are any.
 fn notes(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
-    let Some(processed) = p.processed().filter(|x| !x.notes.is_empty()) else { return Ok(None) };
-    let items: String = processed.notes.iter().map(|n| format!("<li>{}</li>", escape(&p.units.text(n)))).collect();
+    let Some(processed) = p.processed() else { return Ok(None) };
+    let direction = processed.built.direction_model.as_ref().map(|dm| dm.text());
+    let notes: Vec<&String> = processed.notes.iter().chain(&direction).collect();
+    if notes.is_empty() {
+        return Ok(None);
+    }
+    let items: String = notes.iter().map(|n| format!("<li>{}</li>", escape(&p.units.text(n)))).collect();
     Ok(Some(Section {
         id: "notes",
         title: "Processing notes".into(),

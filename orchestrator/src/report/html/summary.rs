@@ -18,6 +18,7 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     if let Ok(iso) = &p.iso {
         rows.push(vec!["ISO 230-2 accuracy A, as measured".into(), units.show(iso.a), u_of(measured_u)]);
         rows.push(vec!["ISO 230-2 repeatability R".into(), units.show(iso.r), "-".into()]);
+        rows.push(vec!["the figures' axis".into(), escape(d.axis.text()), "-".into()]);
     }
     let table_u = d.uncertainty.as_ref().map(|b| b.table_u_deg);
     if let Ok(processed) = &d.processed {
@@ -35,6 +36,8 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
                 "-".into(),
             ]);
         }
+        let own = (d.survey.id, d.samples.as_slice());
+        rows.extend(super::verification::verdict_rows(processed, table_u, d.verification.as_ref(), own, units));
     }
     let corrected_a =
         d.verification.as_ref().and_then(|v| iso230_2(v.corrected(&d.samples)).ok().map(|iso| (v, iso.a)));

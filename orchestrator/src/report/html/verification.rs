@@ -55,9 +55,16 @@ pub fn section(v: &Verification, own: &[Sample], units: Units) -> anyhow::Result
     let y = padded(a.0.min(b.0), a.1.max(b.1), 0.06);
     let (native_svg, legend_html) = errors::svg(&native, units, Some(y.clone()))?;
     let (corrected_svg, _) = errors::svg(&corrected, units, Some(y))?;
-    let doc =
-        crate::verify::figures(v.verification_id, v.native_id, native_samples, corrected_samples, None, v.directional)?
-            .doc;
+    let doc = crate::verify::figures(
+        v.verification_id,
+        v.native_id,
+        native_samples,
+        corrected_samples,
+        None,
+        v.directional,
+        units,
+    )?
+    .doc;
     let f = |k: &str| doc[k].as_f64().unwrap_or(f64::NAN);
     let iso = |k: &str| doc["iso230_2"][k].as_f64();
     let native_iso = survey_processing::iso230::iso230_2(native_samples).ok();
@@ -132,4 +139,46 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
         }
         None => Ok(None),
     }
+}
+
+/// The summary's rows (figure, value, its U) on whether the table is a
+/// result: the verification's verdict (when `v` verifies the table `p`
+/// made, stated with `u_deg`; `own` are the report's samples), in plain
+/// words, and a table predicted to make the axis no better.
+pub fn verdict_rows(
+    p: &survey_processing::pipeline::Processed,
+    u_deg: Option<f64>,
+    v: Option<&Verification>,
+    (survey_id, own): (i64, &[Sample]),
+    units: Units,
+) -> Vec<Vec<String>> {
+    use survey_processing::verification::{Verdict, judge, peak_deg};
+    let mut rows = Vec::new();
+    if p.prediction.no_better_than_native() {
+        rows.push(vec![
+            "the table".into(),
+            format!(
+                "NOT A RESULT: predicted no better than the native axis (corrected ±{} against native ±{}, with what \
+                 the table leaves between the targets)",
+                units.show(p.prediction.corrected_peak_deg),
+                units.show(p.prediction.native_peak_deg)
+            ),
+            "-".into(),
+        ]);
+    }
+    if let (Some(v), Some(u)) = (v, u_deg)
+        && v.native_id == survey_id
+    {
+        let j = judge(p.prediction.corrected_peak_deg, u, peak_deg(v.corrected(own)), peak_deg(v.native(own)));
+        let reason = units.text(&j.reason);
+        let words = match j.verdict {
+            Verdict::Confirmed => format!("confirmed by survey {}: {reason}", v.verification_id),
+            Verdict::NotConfirmed => format!(
+                "NOT CONFIRMED by survey {}: {reason}. The table is not a result: do not load it",
+                v.verification_id
+            ),
+        };
+        rows.push(vec!["verification verdict".into(), escape(&words), "-".into()]);
+    }
+    rows
 }

@@ -74,6 +74,16 @@ pub struct ScanState {
     pub report: ScanReport,
 }
 
+impl Engine {
+    /// Whether the tracker's clock keeps this computer's pace, as a
+    /// continuous scan needs: its stream read for half a second with the
+    /// axis at rest. A usage error when it does not (an instrument simulator
+    /// under a time scale); a link or device error as met.
+    pub async fn check_scan_clock(&mut self) -> Result<(), survey_drivers::DriverError> {
+        pass::probe_pace(self).await
+    }
+}
+
 /// Acquire `plan` (continuous) from step `from_seq` (a pass boundary).
 pub(super) async fn run(
     engine: &mut Engine,

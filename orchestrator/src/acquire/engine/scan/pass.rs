@@ -2,6 +2,13 @@
 //! pass's velocity, the readout captured (or polled) and the tracker
 //! streaming while the axis turns from the pass's start to its end, every
 //! read noted with the host time of its answer; and its pairing.
+//!
+//! The scan's velocities, periods and deadlines are on the host's clock, and
+//! the instruments' clocks must keep its pace: a tracker whose clock runs at
+//! another rate (an instrument simulator under `survey sim --time-scale`,
+//! whose axis then turns that much faster too) is refused before a survey on
+//! instruments is acquired or resumed ([`probe_pace`]), saying so, rather
+//! than failing to pair pass after pass.
 
 use super::super::{Engine, Failed, Reference};
 use crate::acquire::record::{RawReading, RecordedSample, ScanPassRecord};
@@ -11,6 +18,7 @@ use survey_drivers::{DriverError, ErrorKind, SmrMeasurement, StreamedPoint, Trac
 use survey_processing::Sample;
 use survey_processing::budget::Component;
 use survey_processing::geometry::AxisFit;
+use survey_processing::num::Num;
 use survey_processing::pairing::{ClockMap, PairError, crossing_time, position_at};
 use survey_processing::plan::{PassPlan, ScanTiming, move_time};
 
@@ -33,6 +41,81 @@ pub(super) struct RawPass {
 
 /// How often the status is read during a pass, in reads of the streams.
 const STATUS_EVERY: u32 = 4;
+
+/// How long the tracker's stream is read to check its clock against the
+/// host's, host seconds.
+const CLOCK_CHECK_S: f64 = 0.5;
+
+/// The tracker's clock seconds per host second a scan accepts. A real
+/// tracker's is 1 within parts per million; the fit over half a second of
+/// reads is good to a few parts per thousand.
+const CLOCK_PACE: std::ops::RangeInclusive<f64> = 0.8..=1.25;
+
+/// The tracker's clock seconds per host second over `fetches` (`(stamp, host
+/// time)` per read), once they span [`CLOCK_CHECK_S`] of host time.
+fn clock_pace(fetches: &[(f64, f64)]) -> Option<f64> {
+    let span = fetches.last()?.1 - fetches.first()?.1;
+    if span < CLOCK_CHECK_S {
+        return None;
+    }
+    ClockMap::fit(fetches).map(|m| 1.0 / m.rate)
+}
+
+/// Why the tracker `name`, whose clock runs `pace` times the host's, cannot
+/// be scanned with (`None`: it can).
+fn pace_refused(name: &str, pace: f64) -> Option<DriverError> {
+    (!(pace.is_finite() && CLOCK_PACE.contains(&pace))).then(|| {
+        DriverError::usage(
+            name,
+            format!(
+                "its clock runs {} times as fast as this computer's (an instrument simulator under survey sim \
+                 --time-scale?): a continuous scan turns the axis and pairs the streams in real time, so it needs \
+                 instruments in real time; use --scan step, or survey sim without --time-scale",
+                Num((pace * 100.0).round() / 100.0)
+            ),
+        )
+    })
+}
+
+/// Read the tracker's stream for [`CLOCK_CHECK_S`] with the axis at rest and
+/// check its clock's pace: a usage error when a scan cannot pair it; a link
+/// or device error as met (the stream is stopped either way).
+pub(super) async fn probe_pace(engine: &mut Engine) -> Result<(), DriverError> {
+    let clock = engine.clock.clone();
+    let t = engine.timing.clone();
+    let name = tracker(engine).map_err(|e| e.0)?.name().to_string();
+    let start = tracker(engine).map_err(|e| e.0)?.start_stream(t.scan.stream_period);
+    with_timeout(&*clock, t.measure_timeout, &name, "start stream", start).await?;
+    let started = clock.now();
+    let mut fetches = Vec::new();
+    let verdict = loop {
+        clock.sleep(t.scan.fetch_interval).await;
+        let read = tracker(engine).map_err(|e| e.0)?.read_stream();
+        match with_timeout(&*clock, t.call_timeout, &name, "read stream", read).await {
+            Ok(got) => {
+                if let Some(last) = got.last() {
+                    fetches.push((last.device_time_s, clock.now().as_secs_f64()));
+                }
+            }
+            Err(e) => break Err(e),
+        }
+        if let Some(pace) = clock_pace(&fetches) {
+            break pace_refused(&name, pace).map_or(Ok(()), Err);
+        }
+        if clock.now() - started > t.measure_timeout {
+            break Err(DriverError::new(
+                ErrorKind::Timeout,
+                name.clone(),
+                format!("its stream gave no points to time for {:?}", t.measure_timeout),
+            ));
+        }
+    };
+    let stop = tracker(engine).map_err(|e| e.0)?.stop_stream();
+    if let Err(e) = with_timeout(&*clock, t.call_timeout, &name, "stop stream", stop).await {
+        tracing::debug!(%e, "stopping the stream after its clock's check");
+    }
+    verdict
+}
 
 fn tracker(engine: &mut Engine) -> Result<&mut Box<dyn Tracker>, (DriverError, Failed)> {
     match &mut engine.reference {

@@ -1,7 +1,8 @@
-//! The units a report shows its errors in (`--units deg|arcsec|urad`).
-//! Angles along an axis (targets, readouts) stay in degrees; every error,
-//! deviation and figure is converted here, once, from the degrees the rest
-//! of the program computes in.
+//! The units errors are shown in (`--units deg|arcsec|urad`, the report and
+//! every command's text). Angles along an axis (targets, readouts) stay in
+//! degrees; every error, deviation and figure is converted here, once, from
+//! the degrees the rest of the program computes in (and every file and JSON
+//! document keeps).
 
 /// The unit of every error in the report.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -22,6 +23,15 @@ impl Units {
             Units::Deg => 1.0,
             Units::Arcsec => 3600.0,
             Units::Urad => std::f64::consts::PI / 180.0 * 1e6,
+        }
+    }
+
+    /// The unit's name in words (`degrees`, `arcseconds`, `microradians`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Units::Deg => "degrees",
+            Units::Arcsec => "arcseconds",
+            Units::Urad => "microradians",
         }
     }
 
@@ -52,7 +62,8 @@ impl Units {
     /// `text` (a sentence of the processing, whose errors are in degrees)
     /// with each error in this unit: a number below 1 followed by ` deg`
     /// (an error: angles along the axis, phases and ranges are left as they
-    /// are: a number of 1 or more, or one in a clause about a phase).
+    /// are: a number of 1 or more, one after `at`, `from` or `to`, or one in
+    /// a clause about a phase).
     pub fn text(self, text: &str) -> String {
         if self == Units::Deg {
             return text.to_string();
@@ -70,9 +81,14 @@ impl Units {
             let (head, number) = before.split_at(start);
             let word_ends = after[4..].chars().next().is_none_or(|c| !c.is_alphanumeric());
             let clause = head.rsplit([',', ';', '(']).next().unwrap_or(head);
+            // "at 0 deg", "from 0.5 deg": a position along the axis.
+            let position = head.ends_with(" at ") || head.ends_with(" from ") || head.ends_with(" to ");
             match number.parse::<f64>() {
-                Ok(v) if word_ends && v.abs() < 1.0 && !clause.contains("phase") => {
+                Ok(v) if word_ends && v.abs() < 1.0 && !clause.contains("phase") && !position => {
                     out += head;
+                    if number.starts_with('+') {
+                        out += "+";
+                    }
                     out += &self.show(v);
                 }
                 _ => out += &rest[..at + 4],
@@ -85,6 +101,25 @@ impl Units {
     /// An optional figure, `-` when absent.
     pub fn opt(self, deg: Option<f64>) -> String {
         deg.map(|d| self.num(d)).unwrap_or_else(|| "-".into())
+    }
+
+    /// `deg` in this unit, fixed-point, to the resolution `deg_decimals`
+    /// decimals give in degrees (a text table's column: 6 decimals of a
+    /// degree are 3 of an arcsecond, 2 of a microradian), no symbol.
+    pub fn fixed(self, deg: f64, deg_decimals: usize) -> String {
+        let shift = self.per_deg().log10().floor() as usize;
+        format!("{:.*}", deg_decimals.saturating_sub(shift), self.of(deg))
+    }
+
+    /// A small error as the text summaries print it, no symbol: in degrees
+    /// in exponent form with `digits` decimals (`7.80e-4`), in another unit
+    /// by significance (`2.81`); `signed` puts a `+` before a positive value.
+    pub fn small(self, deg: f64, digits: usize, signed: bool) -> String {
+        let shown = match self {
+            Units::Deg => format!("{deg:.digits$e}"),
+            _ => significant(self.of(deg)),
+        };
+        if signed && !shown.starts_with('-') { format!("+{shown}") } else { shown }
     }
 }
 
@@ -162,6 +197,18 @@ mod tests {
     }
 
     #[test]
+    fn text_columns_keep_their_resolution_in_every_unit() {
+        assert_eq!(Units::Deg.fixed(0.001498, 6), "0.001498");
+        assert_eq!(Units::Arcsec.fixed(0.001498, 6), "5.393");
+        assert_eq!(Units::Urad.fixed(0.001498, 6), "26.15");
+        assert_eq!(Units::Arcsec.fixed(0.01522, 5), "54.79");
+        assert_eq!(Units::Deg.small(7.8e-4, 2, false), "7.80e-4");
+        assert_eq!(Units::Deg.small(7.8e-4, 2, true), "+7.80e-4");
+        assert_eq!(Units::Arcsec.small(7.8e-4, 2, false), "2.81");
+        assert_eq!(Units::Arcsec.small(-7.8e-4, 2, true), "-2.81");
+    }
+
+    #[test]
     fn errors_in_sentences_take_the_unit_and_angles_stay_in_degrees() {
         let s = "hysteresis max 0.00116 deg > 5 x 7.48e-5 deg (its noise); partial range -10 to 90 deg, phase 0.5 deg";
         assert_eq!(
@@ -170,5 +217,9 @@ mod tests {
         );
         assert_eq!(Units::Deg.text(s), s);
         assert_eq!(Units::Arcsec.text("drift 1.0e-3 deg per run, 12 degrees"), "drift 3.60 arcsec per run, 12 degrees");
+        assert_eq!(
+            Units::Arcsec.text("largest +1.00e-3 deg at 0 deg, from 0.5 deg to 0.75 deg"),
+            "largest +3.60 arcsec at 0 deg, from 0.5 deg to 0.75 deg"
+        );
     }
 }
