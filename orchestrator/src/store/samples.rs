@@ -155,7 +155,22 @@ impl Store {
     /// in mm (NaN where the tracker gave NaN). Read like [`Store::samples`],
     /// the samples and the SMR rows each in one pass in seq order, merged
     /// (no join: 80 bytes a sample at most).
+    ///
+    /// From the lab store (PostgreSQL), through sqlx: the samples with their
+    /// raw readings ([`Store::recorded_samples`]).
     pub async fn samples_with_smr(&self, survey_id: i64) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
+        if let super::Backend::Lab(_) = &self.backend {
+            let recorded = self.recorded_samples(survey_id).await?;
+            let smr = recorded
+                .iter()
+                .enumerate()
+                .filter_map(|(index, r)| match &r.raw {
+                    crate::acquire::RawReading::Smr(m) => Some(SmrPosition { index, xyz_mm: m.xyz() }),
+                    _ => None,
+                })
+                .collect();
+            return Ok((recorded.into_iter().map(|r| r.sample).collect(), smr));
+        }
         let (path, immutable) = (self.path.clone(), self.immutable);
         tokio::task::spawn_blocking(move || read_samples_with_smr(&path, immutable, survey_id))
             .await
