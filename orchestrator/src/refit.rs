@@ -21,7 +21,6 @@
 //! "located" | "none"` in their JSON). `survey process --located-axis` processes around the located axis
 //! for comparison and says so.
 
-use crate::acquire::RawReading;
 use crate::acquire::ReferenceKind;
 use crate::store::Store;
 use crate::survey::{Setup, SurveyRecord};
@@ -110,37 +109,26 @@ fn in_plane_shift(fit: &AxisFit, other: &AxisFit) -> f64 {
 /// without a located axis (an autocollimator survey, an import).
 pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Result<Option<(Vec<Sample>, AxisRefit)>> {
     let Some(located) = &survey.axis else { return Ok(None) };
-    let recorded = store.recorded_samples(survey.id).await?;
+    let (mut samples, smr) = store.samples_with_smr(survey.id).await?;
     let locate = store.locate_points(survey.id).await?;
-    let mut points = Vec::with_capacity(recorded.len() + locate.len());
-    let mut readouts = Vec::with_capacity(points.capacity());
-    for (readout, m) in &locate {
-        points.push(m.xyz());
-        readouts.push(*readout);
-    }
-    for r in &recorded {
-        if let RawReading::Smr(m) = &r.raw {
-            points.push(m.xyz());
-            readouts.push(r.sample.readout_deg);
-        }
-    }
+    let points: Vec<[f64; 3]> = locate.iter().map(|(_, m)| m.xyz()).chain(smr.iter().map(|p| p.xyz_mm)).collect();
     if points.len() < 3 {
         return Ok(None);
     }
+    let readouts: Vec<f64> =
+        locate.iter().map(|(readout, _)| *readout).chain(smr.iter().map(|p| samples[p.index].readout_deg)).collect();
     let Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. } =
         refit_axis(&points, &readouts).map_err(|e| {
             anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
         })?;
-    let samples = recorded
-        .iter()
-        .map(|r| match &r.raw {
-            RawReading::Smr(m) => Sample { actual_deg: fit.angle_deg(m.xyz(), r.sample.target_deg), ..r.sample },
-            _ => r.sample,
-        })
-        .collect();
+    drop((points, readouts));
+    for p in &smr {
+        let s = &mut samples[p.index];
+        s.actual_deg = fit.angle_deg(p.xyz_mm, s.target_deg);
+    }
     let center_shift_mm = in_plane_shift(&fit, located);
     let refit = AxisRefit {
-        points: points.len(),
+        points: locate.len() + smr.len(),
         dropped,
         radius_mm: fit.radius_mm,
         center_shift_mm,

@@ -168,12 +168,12 @@ impl ErrorMap {
             return Err(ErrorMapError::NoSamples);
         }
         // Group targets: sort, then a group starts at its smallest target.
-        let mut order: Vec<usize> = (0..samples.len()).collect();
-        order.sort_by(|&a, &b| samples[a].target_deg.total_cmp(&samples[b].target_deg));
+        // (The targets sorted beside their indices; equal ones in any order.)
+        let mut order: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
+        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let mut targets_deg: Vec<f64> = Vec::new();
         let mut target_of = vec![0usize; samples.len()];
-        for &i in &order {
-            let t = samples[i].target_deg;
+        for &(t, i) in &order {
             match targets_deg.last() {
                 Some(&first) if t - first <= TARGET_TOLERANCE_DEG => {}
                 _ => targets_deg.push(t),

@@ -281,11 +281,11 @@ pub fn refit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<Refit,
     let keep: Vec<usize> = (0..points_mm.len()).filter(|&i| limit <= 0.0 || r[i] <= limit).collect();
     let dropped = points_mm.len() - keep.len();
     let (fit, kept) = if dropped == 0 || keep.len() < 3 {
-        (first, points_mm.to_vec())
+        (first, std::borrow::Cow::Borrowed(points_mm))
     } else {
         let pts: Vec<[f64; 3]> = keep.iter().map(|&i| points_mm[i]).collect();
         let ro: Vec<f64> = keep.iter().map(|&i| readouts_deg[i]).collect();
-        (fit_axis(&pts, &ro)?, pts)
+        (fit_axis(&pts, &ro)?, std::borrow::Cow::Owned(pts))
     };
     let knowledge = center_knowledge(&fit, &kept);
     Ok(Refit {

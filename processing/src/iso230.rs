@@ -192,10 +192,15 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
     let bidirectional = any_up && any_down;
 
     let mut targets = Vec::new();
-    for group in group_by_target(samples) {
+    let (sorted, groups) = group_by_target(samples);
+    // One buffer each for a direction's samples and deviations, reused by every target.
+    let (mut g, mut x): (Vec<&Sample>, Vec<f64>) = (Vec::new(), Vec::new());
+    for range in groups {
+        let group = &sorted[range];
         let target_deg = group[0].target_deg;
-        let dir_stats = |direction: Direction| -> Result<Option<DirStats>, StatsError> {
-            let mut g: Vec<&Sample> = group.iter().copied().filter(|s| s.direction == direction).collect();
+        let mut dir_stats = |direction: Direction| -> Result<Option<DirStats>, StatsError> {
+            g.clear();
+            g.extend(group.iter().copied().filter(|s| s.direction == direction));
             if g.is_empty() {
                 return Ok(None);
             }
@@ -208,7 +213,8 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
             if g.len() < 2 {
                 return Err(StatsError::TooFewRuns { target_deg, direction, runs: g.len() });
             }
-            let x: Vec<f64> = g.iter().map(|s| s.deviation_deg()).collect();
+            x.clear();
+            x.extend(g.iter().map(|s| s.deviation_deg()));
             Ok(Some(dir_stats_of(&x)))
         };
         let up = dir_stats(Direction::Forward)?;
@@ -234,18 +240,23 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
 }
 
 /// Groups samples by target, targets ascending; a group starts at its smallest
-/// target and takes every target within [`TARGET_TOLERANCE_DEG`] of it.
-fn group_by_target(samples: &[Sample]) -> Vec<Vec<&Sample>> {
-    let mut sorted: Vec<&Sample> = samples.iter().collect();
-    sorted.sort_by(|a, b| a.target_deg.total_cmp(&b.target_deg));
-    let mut groups: Vec<Vec<&Sample>> = Vec::new();
-    for s in sorted {
+/// target and takes every target within [`TARGET_TOLERANCE_DEG`] of it. The
+/// samples sorted by target and each group's range in them.
+fn group_by_target(samples: &[Sample]) -> (Vec<&Sample>, Vec<std::ops::Range<usize>>) {
+    // Sorted as (target, index) pairs, side by side in memory (not through a
+    // reference each); the order of equal targets does not matter: a group
+    // is ordered by run before anything is computed from it.
+    let mut keyed: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
+    keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let sorted: Vec<&Sample> = keyed.into_iter().map(|(_, i)| &samples[i]).collect();
+    let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, s) in sorted.iter().enumerate() {
         match groups.last_mut() {
-            Some(g) if s.target_deg - g[0].target_deg <= TARGET_TOLERANCE_DEG => g.push(s),
-            _ => groups.push(vec![s]),
+            Some(g) if s.target_deg - sorted[g.start].target_deg <= TARGET_TOLERANCE_DEG => g.end = i + 1,
+            _ => groups.push(i..i + 1),
         }
     }
-    groups
+    (sorted, groups)
 }
 
 fn dir_stats_of(x: &[f64]) -> DirStats {

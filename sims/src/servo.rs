@@ -81,35 +81,27 @@ impl Servo {
     /// Time after the profile's end from which the ringing of amplitude
     /// `amplitude` stays within `window_deg` (positive), seconds: the last
     /// moment it is outside (0 when it never is).
+    ///
+    /// A search over the ringing's peaks and a bisection (a hundred `sin`
+    /// and `exp`): a survey's moves are of a few sizes, so it is made once
+    /// per servo, amplitude and window on each thread and remembered.
     pub fn settle_time_s(&self, amplitude: f64, window_deg: f64) -> f64 {
         let (sigma, omega) = (self.decay_rate(), self.ring_omega());
         if amplitude <= window_deg || omega <= 0.0 {
             return 0.0;
         }
-        let x = |s: f64| (amplitude * (-sigma * s).exp() * (omega * s).sin()).abs();
-        // |x| peaks where tan(omega s) = omega / sigma, every half period.
-        let first = (omega / sigma).atan() / omega;
-        let half = std::f64::consts::PI / omega;
-        let mut last = None;
-        for k in 0..10_000 {
-            let peak = first + k as f64 * half;
-            if x(peak) > window_deg {
-                last = Some((peak, (k + 1) as f64 * half));
-            } else if amplitude * (-sigma * peak).exp() <= window_deg {
-                break;
+        let key = [sigma, omega, amplitude, window_deg].map(f64::to_bits);
+        SETTLE_TIMES.with_borrow_mut(|known| {
+            if let Some(&t) = known.get(&key) {
+                return t;
             }
-        }
-        let Some((mut lo, mut hi)) = last else { return 0.0 };
-        // |x| falls from the peak to the next zero: the crossing of the window.
-        for _ in 0..80 {
-            let mid = 0.5 * (lo + hi);
-            if x(mid) > window_deg {
-                lo = mid;
-            } else {
-                hi = mid;
+            if known.len() >= SETTLE_TIMES_KEPT {
+                known.clear();
             }
-        }
-        hi
+            let t = search_settle_time(sigma, omega, amplitude, window_deg);
+            known.insert(key, t);
+            t
+        })
     }
 
     /// The settling a move of `distance` degrees at `velocity` and `accel`
@@ -117,6 +109,45 @@ impl Servo {
     pub fn move_settle_s(&self, distance: f64, velocity: f64, accel: f64, window_deg: f64) -> f64 {
         self.settle_time_s(self.amplitude_deg(peak_velocity(distance, velocity, accel)), window_deg)
     }
+}
+
+/// How many settle times a thread remembers (forgotten all at once past it:
+/// a continuous range of move sizes must not grow it without bound).
+const SETTLE_TIMES_KEPT: usize = 4096;
+
+thread_local! {
+    /// [`Servo::settle_time_s`] by the bits of (decay rate, ringing frequency, amplitude, window).
+    static SETTLE_TIMES: std::cell::RefCell<std::collections::HashMap<[u64; 4], f64>> = Default::default();
+}
+
+/// [`Servo::settle_time_s`] computed: the last peak of the ringing
+/// `amplitude exp(-sigma s) sin(omega s)` outside the window, then the
+/// bisection to where it falls into it.
+fn search_settle_time(sigma: f64, omega: f64, amplitude: f64, window_deg: f64) -> f64 {
+    let x = |s: f64| (amplitude * (-sigma * s).exp() * (omega * s).sin()).abs();
+    // |x| peaks where tan(omega s) = omega / sigma, every half period.
+    let first = (omega / sigma).atan() / omega;
+    let half = std::f64::consts::PI / omega;
+    let mut last = None;
+    for k in 0..10_000 {
+        let peak = first + k as f64 * half;
+        if x(peak) > window_deg {
+            last = Some((peak, (k + 1) as f64 * half));
+        } else if amplitude * (-sigma * peak).exp() <= window_deg {
+            break;
+        }
+    }
+    let Some((mut lo, mut hi)) = last else { return 0.0 };
+    // |x| falls from the peak to the next zero: the crossing of the window.
+    for _ in 0..80 {
+        let mid = 0.5 * (lo + hi);
+        if x(mid) > window_deg {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
 }
 
 /// The peak velocity of a trapezoidal (or triangular) move, deg/s.
@@ -277,6 +308,22 @@ mod tests {
         assert!(long.hold_at() - Duration::from_millis(9500) > r.hold_at() - Duration::from_millis(200));
         assert!(long.offset_deg(Duration::from_millis(9510)) < 0.0, "a reverse move overshoots backward");
         assert!(servo.move_settle_s(90.0, 10.0, 20.0, w) > servo.move_settle_s(0.2, 10.0, 20.0, w));
+    }
+
+    #[test]
+    fn a_remembered_settle_time_is_the_searched_one_and_the_memory_stays_bounded() {
+        let servo = Servo::default();
+        let (sigma, omega) = (servo.decay_rate(), servo.ring_omega());
+        for i in 0..(SETTLE_TIMES_KEPT + 100) {
+            let a = 1e-4 + i as f64 * 1e-6;
+            let searched = search_settle_time(sigma, omega, a, 1e-5);
+            assert_eq!(servo.settle_time_s(a, 1e-5).to_bits(), searched.to_bits());
+            assert_eq!(servo.settle_time_s(a, 1e-5).to_bits(), searched.to_bits(), "remembered");
+        }
+        assert!(SETTLE_TIMES.with_borrow(|known| known.len()) <= SETTLE_TIMES_KEPT);
+        // Another servo's ringing is not taken for this one's.
+        let stiff = Servo { natural_hz: 40.0, ..servo };
+        assert!(stiff.settle_time_s(0.004, 1e-5) < servo.settle_time_s(0.004, 1e-5) / 4.0);
     }
 
     #[test]

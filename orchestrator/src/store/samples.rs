@@ -149,8 +149,37 @@ impl Store {
         read.with_context(|| format!("cannot read the samples of survey {survey_id}"))
     }
 
+    /// The samples of a survey as [`Store::samples`] reads them, with the SMR
+    /// position behind each that has one (what the axis refit needs): the
+    /// compact vector and, per SMR reading, the sample's index and x, y, z
+    /// in mm (NaN where the tracker gave NaN). Read like [`Store::samples`],
+    /// the samples and the SMR rows each in one pass in seq order, merged
+    /// (no join: 80 bytes a sample at most).
+    ///
+    /// From the lab store (PostgreSQL), through sqlx: the samples with their
+    /// raw readings ([`Store::recorded_samples`]).
+    pub async fn samples_with_smr(&self, survey_id: i64) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
+        if let super::Backend::Lab(_) = &self.backend {
+            let recorded = self.recorded_samples(survey_id).await?;
+            let smr = recorded
+                .iter()
+                .enumerate()
+                .filter_map(|(index, r)| match &r.raw {
+                    crate::acquire::RawReading::Smr(m) => Some(SmrPosition { index, xyz_mm: m.xyz() }),
+                    _ => None,
+                })
+                .collect();
+            return Ok((recorded.into_iter().map(|r| r.sample).collect(), smr));
+        }
+        let (path, immutable) = (self.path.clone(), self.immutable);
+        tokio::task::spawn_blocking(move || read_samples_with_smr(&path, immutable, survey_id))
+            .await
+            .context("the sample reader stopped")?
+            .with_context(|| format!("cannot read the samples of survey {survey_id}"))
+    }
+
     /// The samples of a survey, ordered by seq, with their raw readings and
-    /// their place in the plan (for the axis fit, exports of raw data, tests).
+    /// their place in the plan (for exports of raw data, tests).
     pub async fn recorded_samples(&self, survey_id: i64) -> anyhow::Result<Vec<RecordedSample>> {
         on_pool!(self, |pool| {
             let mut out = Vec::new();
@@ -300,8 +329,17 @@ pub(super) async fn insert_samples(
     Ok(())
 }
 
-/// [`Store::samples`], on the calling thread.
-fn read_samples(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
+/// The SMR position behind a sample: its index in the survey's samples (in
+/// seq order) and the tracker's x, y, z in mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmrPosition {
+    pub index: usize,
+    pub xyz_mm: [f64; 3],
+}
+
+/// A read-only rusqlite connection to the database at `path` (with
+/// `immutable=1` on read-only media).
+fn open_reader(path: &std::path::Path, immutable: bool) -> anyhow::Result<rusqlite::Connection> {
     use rusqlite::OpenFlags;
     let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
     let conn = if immutable {
@@ -320,6 +358,59 @@ fn read_samples(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyh
         rusqlite::Connection::open_with_flags(path, flags)?
     };
     conn.busy_timeout(super::BUSY_TIMEOUT)?;
+    // Pages read through a memory map rather than a read(2) copy each (the
+    // bulk reads touch every page of a table once).
+    conn.pragma_update(None, "mmap_size", 1i64 << 30)?;
+    Ok(conn)
+}
+
+/// [`Store::samples`], on the calling thread.
+fn read_samples(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
+    read_samples_with(&open_reader(path, immutable)?, survey_id, |_, _| Ok(()))
+}
+
+/// [`Store::samples_with_smr`], on the calling thread.
+fn read_samples_with_smr(
+    path: &std::path::Path,
+    immutable: bool,
+    survey_id: i64,
+) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
+    let conn = open_reader(path, immutable)?;
+    let mut smr = Vec::new();
+    let mut stmt = conn.prepare(
+        "SELECT seq, smr_x_mm, smr_y_mm, smr_z_mm FROM raw_readings \
+         WHERE survey_id = ?1 AND kind = 'smr' ORDER BY seq",
+    )?;
+    let mut rows = stmt.query([survey_id])?;
+    let mut next = || -> anyhow::Result<Option<(i64, [f64; 3])>> {
+        let Some(row) = rows.next()? else { return Ok(None) };
+        let xyz = |i: usize| -> rusqlite::Result<f64> { Ok(row.get::<_, Option<f64>>(i)?.unwrap_or(f64::NAN)) };
+        Ok(Some((row.get(0)?, [xyz(1)?, xyz(2)?, xyz(3)?])))
+    };
+    let mut pending = next()?;
+    let samples = read_samples_with(&conn, survey_id, |index, seq| {
+        // Both in seq order: a raw reading belongs to the sample of its seq.
+        while let Some((raw_seq, xyz)) = pending {
+            if raw_seq > seq {
+                break;
+            }
+            if raw_seq == seq {
+                smr.push(SmrPosition { index, xyz_mm: xyz });
+            }
+            pending = next()?;
+        }
+        Ok(())
+    })?;
+    Ok((samples, smr))
+}
+
+/// The samples of a survey in seq order, telling `each` every sample's index
+/// and seq as it is read.
+fn read_samples_with(
+    conn: &rusqlite::Connection,
+    survey_id: i64,
+    mut each: impl FnMut(usize, i64) -> anyhow::Result<()>,
+) -> anyhow::Result<Vec<Sample>> {
     let count: i64 = conn.query_row("SELECT COUNT(*) FROM samples WHERE survey_id = ?1", [survey_id], |r| r.get(0))?;
     let mut out = Vec::with_capacity(usize::try_from(count).unwrap_or(0));
     let mut stmt = conn.prepare(
@@ -335,6 +426,7 @@ fn read_samples(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyh
             other => bail!("sample seq {seq}: direction '{other}'"),
         };
         let run: i64 = row.get(1)?;
+        each(out.len(), seq)?;
         out.push(Sample {
             run: u32::try_from(run).with_context(|| format!("sample seq {seq}: bad run {run}"))?,
             direction,

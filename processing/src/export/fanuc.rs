@@ -373,9 +373,7 @@ impl Applied for FanucTable {
         let scale = self.options.unit_deg * self.options.magnification as f64;
         let g = &self.grid;
         let p = if self.rotary { g.start_deg + (position_deg - g.start_deg).rem_euclid(360.0) } else { position_deg };
-        let positions: Vec<f64> = (0..g.points).map(|i| g.position(i)).collect();
-        let values: Vec<f64> = col.absolute.iter().map(|&a| a as f64 * scale).collect();
-        super::interpolate_held(&positions, &values, p)
+        super::interpolate_held_by(g.points, |i| g.position(i), |i| col.absolute[i] as f64 * scale, p)
     }
 
     fn range_deg(&self) -> (f64, f64) {

@@ -72,15 +72,28 @@ pub trait Applied {
 /// Linear interpolation in `ys` over ascending `xs`, the end values held
 /// outside (LinuxCNC's `control.c` and a non-modulo 840D table).
 pub(crate) fn interpolate_held(xs: &[f64], ys: &[f64], p: f64) -> f64 {
-    let n = xs.len();
-    if p <= xs[0] {
-        return ys[0];
+    interpolate_held_by(xs.len(), |i| xs[i], |i| ys[i], p)
+}
+
+/// [`interpolate_held`] over `n` points given by index (`x(i)` ascending):
+/// a table whose positions or values are computed reads only the two points
+/// around `p`, so predicting it on every sample builds nothing.
+pub(crate) fn interpolate_held_by(n: usize, x: impl Fn(usize) -> f64, y: impl Fn(usize) -> f64, p: f64) -> f64 {
+    if p <= x(0) {
+        return y(0);
     }
-    if p >= xs[n - 1] {
-        return ys[n - 1];
+    if p >= x(n - 1) {
+        return y(n - 1);
     }
-    let i = xs.partition_point(|&x| x <= p) - 1;
-    ys[i] + (ys[i + 1] - ys[i]) * (p - xs[i]) / (xs[i + 1] - xs[i])
+    // The first index whose position is above p (`partition_point`), minus one.
+    let (mut lo, mut hi) = (0, n);
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if x(mid) <= p { lo = mid + 1 } else { hi = mid }
+    }
+    let i = lo - 1;
+    let (x0, x1, y0, y1) = (x(i), x(i + 1), y(i), y(i + 1));
+    y0 + (y1 - y0) * (p - x0) / (x1 - x0)
 }
 
 /// The corrected peak error (`max |e - removed - mean|`) a controller's table

@@ -161,8 +161,7 @@ impl Applied for Sinumerik840d {
     fn removed_deg(&self, position_deg: f64, _direction: Direction) -> f64 {
         let g = &self.grid;
         let p = if self.modulo { position_deg.rem_euclid(360.0) } else { position_deg };
-        let positions: Vec<f64> = (0..g.points).map(|i| g.position(i)).collect();
-        -super::interpolate_held(&positions, &self.values_deg, p)
+        -super::interpolate_held_by(g.points, |i| g.position(i), |i| self.values_deg[i], p)
     }
 
     fn range_deg(&self) -> (f64, f64) {
