@@ -164,7 +164,7 @@ Examples:
 Examples:
   survey serve                                          # survey.db on http://127.0.0.1:8080
   survey --db lab.db serve --listen 127.0.0.1:0         # any free port: the ready line says which
-  SURVEY_DB=postgres://viewer:PASSWORD@lab-db/surveys survey serve --due-after 180")]
+  survey --db postgres://viewer:PASSWORD@lab-db/surveys serve --due-after 180   # the lab store")]
     Serve(serve::ServeArgs),
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
