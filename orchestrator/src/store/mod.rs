@@ -345,18 +345,26 @@ impl Store {
                 ))
                 .into());
             }
-            let e: sqlx::migrate::MigrateError = match migrate(&options).await {
-                Ok(()) => match single_connection_pool().connect_with(options.clone()).await {
-                    Ok(pool) => {
+            // The store's own connection first, then the migrations on theirs:
+            // closing the migrations' connection is then never closing the
+            // last one, which would checkpoint the whole write-ahead log into
+            // the database file (on a full disk just freed, that checkpoint
+            // took the space the next write needed).
+            let e: sqlx::migrate::MigrateError = match single_connection_pool().connect_with(options.clone()).await {
+                Ok(pool) => match migrate(&options).await {
+                    Ok(()) => {
                         return Ok(Store {
                             backend: Backend::Sqlite(pool),
                             path: path.to_path_buf(),
                             immutable: false,
                         });
                     }
-                    Err(e) => sqlx::migrate::MigrateError::Execute(e),
+                    Err(e) => {
+                        pool.close().await;
+                        e
+                    }
                 },
-                Err(e) => e,
+                Err(e) => sqlx::migrate::MigrateError::Execute(e),
             };
             let raced = match &e {
                 sqlx::migrate::MigrateError::Execute(inner)
