@@ -184,13 +184,17 @@ where
     F: Future<Output = Result<T>>,
 {
     let started = clock.now();
-    let real_limit = if clock.is_virtual() { VIRTUAL_REAL_TIME_GUARD } else { limit };
-    match tokio::time::timeout(real_limit, call).await {
-        Err(_) => {
+    let outcome = if clock.is_virtual() {
+        guarded(VIRTUAL_REAL_TIME_GUARD, call).await
+    } else {
+        tokio::time::timeout(limit, call).await.ok()
+    };
+    match outcome {
+        None => {
             tracing::warn!(instrument, what, ?limit, "instrument call timed out");
             Err(DriverError::timeout(instrument, what, limit))
         }
-        Ok(result) => {
+        Some(result) => {
             if clock.is_virtual() && clock.now().saturating_sub(started) > limit {
                 tracing::warn!(instrument, what, ?limit, "simulated instrument call exceeded its deadline");
                 return Err(DriverError::timeout(instrument, what, limit));
@@ -198,6 +202,64 @@ where
             result
         }
     }
+}
+
+/// How many times in a row a call may be pending having woken itself (a
+/// simulated instrument sleeping on the virtual clock: it is polled again at
+/// once) before [`guarded`] arms its real-time timer anyway.
+const SELF_WOKEN_POLLS: u32 = 64;
+
+/// Whether the call woke its task while it was being polled, forwarding the
+/// wake to the task.
+struct SelfWake {
+    woke: std::sync::atomic::AtomicBool,
+    task: std::task::Waker,
+}
+
+impl std::task::Wake for SelfWake {
+    fn wake(self: Arc<Self>) {
+        self.wake_by_ref();
+    }
+    fn wake_by_ref(self: &Arc<Self>) {
+        self.woke.store(true, Ordering::Relaxed);
+        self.task.wake_by_ref();
+    }
+}
+
+/// `call`, cancelled (`None`) once it has been pending for `limit` of real
+/// time. A call on the virtual clock is pending only while a simulated
+/// instrument's sleep yields once (it wakes itself and is polled again at
+/// once); a timer for every such call (a clock read and the timer wheel's
+/// locks, about a tenth of a simulated survey's CPU) is armed only when the
+/// call is pending without having woken itself (waiting on something
+/// outside: a socket, a pty, a simulator that never answers), or has woken
+/// itself [`SELF_WOKEN_POLLS`] times in a row. The limit then runs from that
+/// poll: a hang is still cut after `limit`.
+async fn guarded<T>(limit: Duration, call: impl Future<Output = T>) -> Option<T> {
+    let mut call = std::pin::pin!(call);
+    let mut timer: Option<Pin<Box<tokio::time::Sleep>>> = None;
+    let mut self_woken = 0;
+    std::future::poll_fn(|cx| {
+        if timer.is_none() {
+            let wake = Arc::new(SelfWake { woke: false.into(), task: cx.waker().clone() });
+            let waker = std::task::Waker::from(wake.clone());
+            if let Poll::Ready(out) = call.as_mut().poll(&mut Context::from_waker(&waker)) {
+                return Poll::Ready(Some(out));
+            }
+            if wake.woke.load(Ordering::Relaxed) && self_woken < SELF_WOKEN_POLLS {
+                self_woken += 1;
+                return Poll::Pending;
+            }
+            timer = Some(Box::pin(tokio::time::sleep(limit)));
+        } else if let Poll::Ready(out) = call.as_mut().poll(cx) {
+            return Poll::Ready(Some(out));
+        }
+        match timer.as_mut().map(|t| t.as_mut().poll(cx)) {
+            Some(Poll::Ready(())) => Poll::Ready(None),
+            _ => Poll::Pending,
+        }
+    })
+    .await
 }
 
 #[cfg(test)]
@@ -232,6 +294,38 @@ mod tests {
             Ok(2)
         };
         assert_eq!(with_timeout(&c, Duration::from_secs(2), "tracker", "measure", fast).await, Ok(2));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn virtual_timeout_cancels_a_simulator_that_never_answers() {
+        // Waiting on something outside (no wake of its own): the timer is
+        // armed at the first poll and cuts it after the real-time guard
+        // (tokio's paused clock runs it forward).
+        let c = VirtualClock::new();
+        let started = tokio::time::Instant::now();
+        let never = std::future::pending::<Result<()>>();
+        let e = with_timeout(&c, Duration::from_millis(50), "tracker", "measure", never).await.unwrap_err();
+        assert_eq!(e.kind, ErrorKind::Timeout);
+        assert_eq!(started.elapsed(), VIRTUAL_REAL_TIME_GUARD);
+        assert_eq!(c.now(), Duration::ZERO);
+    }
+
+    #[tokio::test]
+    async fn the_real_time_guard_cuts_a_call_that_keeps_waking_itself() {
+        // A simulator polling forever on the virtual clock wakes itself on
+        // every poll: after SELF_WOKEN_POLLS the real-time timer is armed.
+        let c = VirtualClock::new();
+        let spinning = async {
+            loop {
+                c.sleep(Duration::from_millis(1)).await;
+            }
+        };
+        assert_eq!(guarded(Duration::from_millis(20), spinning).await, None::<()>);
+        let answering = async {
+            c.sleep(Duration::from_secs(1)).await;
+            7
+        };
+        assert_eq!(guarded(Duration::from_millis(20), answering).await, Some(7));
     }
 
     #[tokio::test(start_paused = true)]

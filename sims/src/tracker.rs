@@ -262,7 +262,7 @@ impl Tracker for SimTracker {
         let breaks = self.cfg.break_on_measurement == Some(self.measurements) || draw < self.cfg.beam_break_probability;
         self.clock.sleep(self.cfg.measurement_time).await;
         let t1 = t0 + self.cfg.measurement_time;
-        let theta = self.turntable.mean_actual_deg(t0, t1);
+        let (theta, spread_deg) = self.turntable.mean_and_spread_deg(t0, t1);
         if breaks {
             self.state = TrackerState::BeamBroken;
             self.blocked_until = self.clock.now() + self.cfg.beam_hold;
@@ -278,7 +278,8 @@ impl Tracker for SimTracker {
         }
         let p = self.cfg.arm.smr_position_mm(theta);
         let sigma = sigma_mm(dot(p, p).sqrt());
-        let spread = self.motion_spread_mm(t0, t1, theta);
+        // The SMR's rms distance from its mean position during the measurement.
+        let spread = self.cfg.arm.radius_mm * spread_deg.to_radians();
         let reported = (sigma * sigma + spread * spread).sqrt();
         let mut noisy = [0.0; 3];
         for (out, x) in noisy.iter_mut().zip(p) {

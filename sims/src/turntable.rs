@@ -181,27 +181,28 @@ impl Turntable {
     }
 
     /// The mean true angle over `[from, to]` (what an instrument that
-    /// integrates over that time sees), degrees: the angle itself when the
-    /// axis does not move in it, else Simpson's rule over 32 intervals.
-    pub fn mean_actual_deg(&self, from: Duration, to: Duration) -> f64 {
+    /// integrates over that time sees) and the rms of the angle about it,
+    /// degrees: the angle itself and 0 when the axis does not move in it,
+    /// else both by Simpson's rule over the same 32 intervals.
+    pub fn mean_and_spread_deg(&self, from: Duration, to: Duration) -> (f64, f64) {
         let truth = self.lock().clone();
         if from >= truth.still_from() || to <= from {
-            return truth.value(from);
+            return (truth.value(from), 0.0);
         }
         let (a, b) = (from.as_secs_f64(), to.as_secs_f64());
         let h = (b - a) / MEAN_INTERVALS as f64;
-        let mut sum = 0.0;
-        for i in 0..=MEAN_INTERVALS {
-            let w = if i == 0 || i == MEAN_INTERVALS {
-                1.0
-            } else if i % 2 == 1 {
-                4.0
-            } else {
-                2.0
-            };
-            sum += w * truth.value(Duration::from_secs_f64(a + h * i as f64));
-        }
-        sum * h / 3.0 / (b - a)
+        let weight = |i: usize| match i {
+            0 | MEAN_INTERVALS => 1.0,
+            i if i % 2 == 1 => 4.0,
+            _ => 2.0,
+        };
+        let angles: [f64; MEAN_INTERVALS + 1] =
+            std::array::from_fn(|i| truth.value(Duration::from_secs_f64(a + h * i as f64)));
+        let average = |f: &dyn Fn(f64) -> f64| {
+            angles.iter().enumerate().map(|(i, &x)| weight(i) * f(x)).sum::<f64>() / (3.0 * MEAN_INTERVALS as f64)
+        };
+        let mean = average(&|x| x);
+        (mean, average(&|x| (x - mean).powi(2)).sqrt())
     }
 
     /// Whether the axis is moving at `now`.

@@ -214,10 +214,7 @@ const ONE_LINE: &str = "[[effect]]\nkind = \"harmonic\"\ncycles_per_rev = 20\nam
 [[effect]]\nkind = \"noise\"\nsigma_deg = 0.0002\n";
 
 /// The Figure 8 positioner without its `[design]`.
-const NO_DESIGN: &str = "[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 20\namplitude_deg = 0.0078\nphase_deg = 0.0\n\
-[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 40\namplitude_deg = 0.0025\nphase_deg = 60.0\n\
-[[effect]]\nkind = \"eccentricity\"\ncycles_per_rev = 1\namplitude_deg = 0.0015\nphase_deg = 110.0\n\
-[[effect]]\nkind = \"backlash\"\namplitude_deg = 0.008\n[[effect]]\nkind = \"noise\"\nsigma_deg = 0.0004\n";
+const NO_DESIGN: &str = include_str!("../fixtures/fig8-no-design.toml");
 
 #[test]
 fn run_replays_a_recipe_and_refuses_a_bad_one_before_measuring() {

@@ -30,29 +30,7 @@ use survey_processing::model::Model;
 const BIN: &str = env!("CARGO_BIN_EXE_survey");
 
 /// The fig8 positioner with no `[design]`: the processing does not know its parts.
-const FIG8_NO_DESIGN: &str = r#"
-[[effect]]
-kind = "gear_pass"
-cycles_per_rev = 20
-amplitude_deg = 0.0078
-phase_deg = 0.0
-[[effect]]
-kind = "gear_pass"
-cycles_per_rev = 40
-amplitude_deg = 0.0025
-phase_deg = 60.0
-[[effect]]
-kind = "eccentricity"
-cycles_per_rev = 1
-amplitude_deg = 0.0015
-phase_deg = 110.0
-[[effect]]
-kind = "backlash"
-amplitude_deg = 0.008
-[[effect]]
-kind = "noise"
-sigma_deg = 0.0004
-"#;
+const FIG8_NO_DESIGN: &str = include_str!("../fixtures/fig8-no-design.toml");
 
 fn survey(db: &Path, args: &[&str]) -> serde_json::Value {
     let out = Command::new(BIN).arg("--db").arg(db).args(args).env_remove("RUST_LOG").output().unwrap();

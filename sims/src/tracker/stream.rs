@@ -105,23 +105,4 @@ impl SimTracker {
         }
         Ok(out)
     }
-
-    /// The rms distance of the SMR from its mean position over `[t0, t1]`,
-    /// mm (0 when the axis does not move then): the arm's radius times the
-    /// rms angle about `mean_deg`, from 16 samples.
-    pub(super) fn motion_spread_mm(&self, t0: Duration, t1: Duration, mean_deg: f64) -> f64 {
-        if !self.turntable.is_moving(t0) {
-            return 0.0;
-        }
-        let n = 16;
-        let span = (t1 - t0).as_secs_f64();
-        let ms = (0..n)
-            .map(|i| {
-                let t = t0 + Duration::from_secs_f64(span * (i as f64 + 0.5) / n as f64);
-                (self.turntable.actual_deg(t) - mean_deg).powi(2)
-            })
-            .sum::<f64>()
-            / n as f64;
-        self.cfg.arm.radius_mm * ms.sqrt().to_radians()
-    }
 }

@@ -12,26 +12,9 @@ use crate::pipeline::{process, process_with_checks};
 use crate::types::Direction;
 use std::f64::consts::SQRT_2;
 
-const FIG8_NO_DESIGN: &str = r#"
-[[effect]]
-kind = "gear_pass"
-cycles_per_rev = 20
-amplitude_deg = 0.0078
-phase_deg = 0.0
-[[effect]]
-kind = "gear_pass"
-cycles_per_rev = 40
-amplitude_deg = 0.0025
-phase_deg = 60.0
-[[effect]]
-kind = "eccentricity"
-cycles_per_rev = 1
-amplitude_deg = 0.0015
-phase_deg = 110.0
-[[effect]]
-kind = "backlash"
-amplitude_deg = 0.008
-"#;
+/// The Figure 8 positioner with no `[design]` (these tests draw their own
+/// noise, [`SIGMA`], not the file's).
+const FIG8_NO_DESIGN: &str = include_str!("../../../../tests/fixtures/fig8-no-design.toml");
 
 /// The noise of one sample (the default bench's positioner and tracker together), degrees.
 const SIGMA: f64 = 0.001;
