@@ -9,7 +9,9 @@
 mod passes;
 
 pub use passes::{
-    CALIBRATION_ARC_DEG, CALIBRATION_VELOCITY_SHARE, PassPlan, ScanTiming, calibration_passes, passes, scan_order, start_deg};
+    CALIBRATION_ARC_DEG, CALIBRATION_VELOCITY_SHARE, PassPlan, ScanTiming, calibration_passes, passes, scan_order,
+    start_deg,
+};
 
 use crate::Direction;
 use crate::errormap::Coverage;

@@ -33,16 +33,13 @@ async fn measured_and_truth(seed: u64) -> ((f64, f64), Vec<f64>) {
     let builder = SimBench::builder(&preset, seed, clock.clone()).servo(Servo::default()).stream_losses(0.002, 0.001);
     let (capture, stream) = (builder.positioner.capture.clock, builder.tracker.stream);
     let bench = builder.build();
-    let timing = Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
+    let timing =
+        Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
     let period = timing.scan.stream_period.as_secs_f64();
     let window = timing.settle.window_deg;
-    let mut engine = Engine::new(
-        clock.clone(),
-        Box::new(bench.positioner),
-        Reference::Tracker(Box::new(bench.tracker)),
-        timing,
-    )
-    .with_physics(SettleModel::Servo { servo: Servo::default(), window_deg: window }, None);
+    let mut engine =
+        Engine::new(clock.clone(), Box::new(bench.positioner), Reference::Tracker(Box::new(bench.tracker)), timing)
+            .with_physics(SettleModel::Servo { servo: Servo::default(), window_deg: window }, None);
     let mut plan = SurveyPlan::full_circle(36, 2, true).unwrap();
     plan.scan = ScanMode::Continuous;
     let mut sink = MemorySink::default();

@@ -175,8 +175,7 @@ pub fn calibration_passes(plan: &SurveyPlan, velocity: f64, accel: f64, t: &Scan
     let arc = (plan.targets_deg[plan.targets_deg.len() - 1] - from).min(CALIBRATION_ARC_DEG);
     let spacing = cal.min(scan) * t.stream_period.as_secs_f64();
     let intervals = if spacing > 0.0 { (arc / spacing - 1e-9).ceil().max(1.0) as u64 } else { 1 };
-    let forward: Vec<(u64, f64)> =
-        (0..=intervals).map(|k| (k, from + arc * k as f64 / intervals as f64)).collect();
+    let forward: Vec<(u64, f64)> = (0..=intervals).map(|k| (k, from + arc * k as f64 / intervals as f64)).collect();
     let reverse: Vec<(u64, f64)> = forward.iter().rev().copied().collect();
     let first = plan.runs as usize * plan.directions().len();
     [scan, cal]
@@ -279,12 +278,10 @@ mod tests {
             // 0.01 deg apart: a point at 2 deg/s.
             assert_eq!(p.targets.len(), 1001);
         }
-        assert_eq!(cal.iter().map(|p| p.direction).collect::<Vec<_>>(), [
-            Direction::Forward,
-            Direction::Reverse,
-            Direction::Forward,
-            Direction::Reverse
-        ]);
+        assert_eq!(
+            cal.iter().map(|p| p.direction).collect::<Vec<_>>(),
+            [Direction::Forward, Direction::Reverse, Direction::Forward, Direction::Reverse]
+        );
         assert_eq!((cal[0].index, cal[2].speed), (2, 2.0));
     }
 }
