@@ -106,6 +106,7 @@ pub async fn conclude(
             "mode": plan.scan.as_str(),
             "latency_s": engine.scan_latency().map(|l| l.delta_s),
             "latency_se_s": engine.scan_latency().map(|l| l.se_s),
+            "bound_at_max_velocity_s": budget.at_max_velocity.map(|(_, b)| b),
             "this_acquisition": engine.scan_report(),
         });
     }
@@ -268,6 +269,10 @@ async fn budget(
     crate::output::Budget {
         instrument_time_s: instrument_time.as_secs_f64() * time_scale,
         bound: survey_processing::budget::plan_bound(plan, &d, engine.settle_model(), &t.scan),
+        at_max_velocity: plan.continuous().then(|| {
+            let at = survey_processing::budget::scan_bound_at_max_velocity(plan, &d, engine.settle_model(), &t.scan);
+            (t.velocity_deg_s, at.total())
+        }),
         spent,
         settle_observed: engine.settle_stats().summary().map(|(n, mean, max)| (n, mean * time_scale, max * time_scale)),
         settle_poll_s: t.settle.poll.as_secs_f64() * time_scale,

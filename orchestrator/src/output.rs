@@ -10,6 +10,7 @@ use std::fmt::Write as _;
 use std::time::Duration;
 use survey_processing::budget::{Bound, Component, Spent};
 use survey_processing::iso230::Iso230;
+use survey_processing::num::Num;
 pub use survey_processing::units::Units;
 use survey_sims::faults::{FaultKind, FaultRates};
 
@@ -116,6 +117,10 @@ pub struct Budget {
     pub settle_poll_s: f64,
     /// The scan mode (`step` or `continuous`).
     pub scan: &'static str,
+    /// A continuous scan: the positioner's maximum velocity (the configured
+    /// one), deg/s, and the plan's bound at it without the latency's
+    /// calibration passes, seconds.
+    pub at_max_velocity: Option<(f64, f64)>,
     /// How many times faster than real time the instruments' clock ran (a
     /// rehearsal on `survey sim --time-scale X`; 1 on real instruments).
     pub time_scale: f64,
@@ -164,6 +169,16 @@ impl Budget {
             self.scan,
             if total > 0.0 { self.instrument_time_s / total } else { f64::NAN },
         );
+        if let Some((v, bound)) = self.at_max_velocity {
+            let _ = writeln!(
+                s,
+                "  at the positioner's maximum velocity ({} deg/s) without the latency's calibration passes, the bound \
+                 is {} ({bound:.0} s): {:.3} x",
+                Num(v),
+                human(Duration::from_secs_f64(bound.max(0.0))),
+                if bound > 0.0 { self.instrument_time_s / bound } else { f64::NAN },
+            );
+        }
         let _ = writeln!(s, "  {:<18}{:>12} {:>12}", "component", "time s", "bound s");
         for c in Component::ALL {
             let (t, b) = (self.spent.get(c), self.bound.of(c));

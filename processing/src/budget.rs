@@ -10,11 +10,14 @@
 //! [`SettleModel`]), the reference's integration time at every sample, and
 //! the locate (its moves, settling and measurements, and the way back to the
 //! first target). A continuous scan's bound is its passes at their
-//! velocities, the moves between them, and the locate. Commands, polls,
+//! velocities (the latency's calibration passes included), the moves
+//! between them, and the locate; [`scan_bound_at_max_velocity`] is the same
+//! plan at the positioner's pace, every pass at the configured velocity and
+//! no calibration passes (what it would cost with the latency known). Commands, polls,
 //! dwells and recoveries cost instrument time but are not physics: they are
 //! the gap between the two.
 
-use crate::plan::{ScanTiming, SurveyPlan, locate_readouts, move_time, passes};
+use crate::plan::{PassPlan, ScanTiming, SurveyPlan, locate_readouts, move_time, passes, scan_order};
 use serde::Serialize;
 use std::time::Duration;
 
@@ -285,10 +288,23 @@ pub fn step_bound(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling) -> Bou
 }
 
 /// The lower bound of a continuous plan: the locate, the moves to the
-/// first pass's start and between passes, and every pass at its velocity
-/// over its targets plus the acceleration ramps (no margins).
+/// first pass's start and between passes, and every pass (the latency's
+/// calibration passes too) at its velocity over its targets plus the
+/// acceleration ramps (no margins).
 pub fn scan_bound(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling, t: &ScanTiming) -> Bound {
-    let all = passes(plan, d.velocity_deg_s, d.accel_deg_s2, t);
+    passes_bound(plan, &scan_order(plan, d.velocity_deg_s, d.accel_deg_s2, t), d, settle)
+}
+
+/// The lower bound of a continuous plan at the positioner's pace: every
+/// pass at the configured velocity (its maximum), and no calibration
+/// passes (what the plan costs once the latency is known).
+pub fn scan_bound_at_max_velocity(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling, t: &ScanTiming) -> Bound {
+    let t = ScanTiming { velocity_deg_s: None, ..*t };
+    passes_bound(plan, &passes(plan, d.velocity_deg_s, d.accel_deg_s2, &t), d, settle)
+}
+
+/// The bound of turning `all` in order (see [`scan_bound`]).
+fn passes_bound(plan: &SurveyPlan, all: &[PassPlan], d: &Dynamics, settle: &dyn Settling) -> Bound {
     let mut b = Bound::default();
     let mut pos = all.first().map_or(0.0, |p| p.start);
     b.locate_s = locate_bound(plan, d, settle, pos);
@@ -360,5 +376,35 @@ mod tests {
         assert_eq!(b.measure_s, 16.0);
         assert!((b.settle_s - 16.0 * 0.3).abs() < 1e-12);
         assert_eq!(b.locate_s, 0.0);
+    }
+
+    #[test]
+    fn the_scan_bound_turns_the_calibration_arc_four_times_and_the_bound_at_pace_none() {
+        use crate::plan::ScanMode;
+        let mut plan = SurveyPlan::full_circle(36, 2, true).unwrap();
+        plan.scan = ScanMode::Continuous;
+        let d = Dynamics { velocity_deg_s: 10.0, accel_deg_s2: 20.0, integration_s: 0.0, locate_points: 0 };
+        let t = ScanTiming::default();
+        let mt = |x: f64, v: f64| move_time(x, v, 20.0);
+        // At 10 deg/s the ramps are 2.5 deg, at 2.5 deg/s 0.15625 deg: the
+        // four passes over the plan (350 deg between its first and last
+        // target) at 10 deg/s, and the calibration arc of 60 deg each way at
+        // 10 and 2.5.
+        let at_pace = scan_bound_at_max_velocity(&plan, &d, &Fixed(0.0), &t);
+        assert!((at_pace.scan_s - 4.0 * mt(355.0, 10.0)).abs() < 1e-9, "{at_pace:?}");
+        let b = scan_bound(&plan, &d, &Fixed(0.0), &t);
+        let arc = 2.0 * mt(65.0, 10.0) + 2.0 * mt(60.3125, 2.5);
+        assert!((b.scan_s - at_pace.scan_s - arc).abs() < 1e-9, "{b:?}");
+        // Moves: from the first pass's run-up point (where the locate
+        // leaves the axis) to its ramp's start; none between the plan's
+        // passes (each ends where the next starts); from the calibration
+        // passes at 10 deg/s to those at 2.5 and back to run 1's start.
+        let first = mt(t.runup_deg(10.0, 20.0) - 2.5, 10.0);
+        assert!((at_pace.move_s - first).abs() < 1e-9, "{at_pace:?}");
+        assert!((b.move_s - first - 2.0 * mt(2.34375, 10.0)).abs() < 1e-9, "{b:?}");
+        // A scan velocity set below the maximum counts in the plan's bound, not in the one at pace.
+        let slow = ScanTiming { velocity_deg_s: Some(5.0), ..t };
+        assert_eq!(scan_bound_at_max_velocity(&plan, &d, &Fixed(0.0), &slow), at_pace);
+        assert!(scan_bound(&plan, &d, &Fixed(0.0), &slow).scan_s > 1.9 * at_pace.scan_s);
     }
 }

@@ -8,7 +8,10 @@
 
 mod passes;
 
-pub use passes::{PassPlan, ScanTiming, passes, start_deg};
+pub use passes::{
+    CALIBRATION_ARC_DEG, CALIBRATION_VELOCITY_SHARE, PassPlan, ScanTiming, calibration_passes, passes, scan_order,
+    start_deg,
+};
 
 use crate::Direction;
 use crate::errormap::Coverage;

@@ -3,8 +3,9 @@
 //! - The default plan (the paper's Figure 8 positioner, a tracker, 1800
 //!   points, 5 runs, both directions) in step mode takes at most 5 % more
 //!   instrument time than its physical lower bound; scanned continuously it
-//!   takes at least 20 times less than in step mode, and its correction
-//!   table's true residual is within 20 % of the step scan's.
+//!   takes at least 50 times less than in step mode (issue 21; 20 in issue
+//!   12), and its correction table's true residual is within 20 % of the
+//!   step scan's.
 //! - Adaptive settling against a long fixed dwell, on noise-free instruments
 //!   so that what is left is the settling: its error is stated and bounded,
 //!   and a wait that is too short (a wide window) shows up as error.
@@ -26,7 +27,7 @@ fn num(doc: &serde_json::Value, key: &str) -> f64 {
 }
 
 #[test]
-fn the_default_plan_scanned_continuously_takes_20_times_less_instrument_time_for_the_same_table() {
+fn the_default_plan_scanned_continuously_takes_50_times_less_instrument_time_for_the_same_table() {
     let model = Model::parse(include_str!("../../sims/presets/fig8.toml"), "fig8.toml").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let plan = ["--points", "1800", "--runs", "5", "--bidirectional", "--json"];
@@ -51,10 +52,22 @@ fn the_default_plan_scanned_continuously_takes_20_times_less_instrument_time_for
             // The reversal: fig8's backlash is 0.008 deg. A latency left in
             // the continuous scan would add twice velocity x latency to it
             // (0.05 deg at 5 deg/s and 5 ms), which a non-directional table
-            // averages away: so it is checked here, within 2e-4 deg
-            // (measured -0.00802 step, -0.00799 continuous on seed 1).
+            // averages away: so it is checked here, within 2e-4 deg.
             let b_mean = run["iso230_2"]["B_mean"].as_f64().unwrap();
             assert!((b_mean + 0.008).abs() < 2e-4, "{scan} seed {seed}: mean reversal {b_mean} deg");
+            if scan == "continuous" {
+                // The same plan at the positioner's pace without the
+                // latency's calibration passes: what the scan spends on
+                // them (and its margins) is the gap.
+                let at_pace = num(&run["scan"], "bound_at_max_velocity_s");
+                assert!(at_pace < bound, "{at_pace} s at pace against {bound} s");
+                eprintln!(
+                    "seed {seed}: continuous {time:.0} s, bound {bound:.0} s, at the positioner's maximum velocity \
+                     without the calibration passes {at_pace:.0} s; latency {:.4} +/- {:.4} ms",
+                    num(&run["scan"], "latency_s") * 1e3,
+                    num(&run["scan"], "latency_se_s") * 1e3
+                );
+            }
             measured.push((time, bound, residual));
         }
         let ((step_t, step_b, step_r), (cont_t, cont_b, cont_r)) = (measured[0], measured[1]);
@@ -67,9 +80,9 @@ fn the_default_plan_scanned_continuously_takes_20_times_less_instrument_time_for
         figures.push((step_t / cont_t, cont_r / step_r));
     }
     for (seed, (less, residual)) in figures.iter().enumerate() {
-        // The issue's goals, as stated: at least 20 times less instrument time,
+        // The issue's goals, as stated: at least 50 times less instrument time,
         // a true residual within 20 % of step mode's.
-        assert!(*less >= 20.0, "seed {}: only {less:.1} times less instrument time", seed + 1);
+        assert!(*less >= 50.0, "seed {}: only {less:.1} times less instrument time", seed + 1);
         assert!(*residual <= 1.2, "seed {}: the continuous table's residual is {residual:.2} of step mode's", seed + 1);
     }
 }
@@ -149,9 +162,9 @@ async fn a_continuous_survey_stopped_after_a_pass_resumes_with_its_latency_and_e
     use survey_orchestrator::survey::SurveyStatus;
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("s.db");
-    // 360 targets x 3 runs x 2 directions: 6 passes of 360 samples. The
-    // first two runs (4 passes) are stored together once the latency is
-    // known; the signal is raised after the fifth pass (1800 samples).
+    // 360 targets x 3 runs x 2 directions: 6 passes of 360 samples, each
+    // stored as it ends (the latency is measured before the first); the
+    // signal is raised after the fifth pass (1800 samples).
     let plan = ["run", "--points", "360", "--runs", "3", "--bidirectional", "--scan", "continuous", "--json"];
     let mut args = plan.to_vec();
     args.extend(["--sim-signal-after", "1800"]);
@@ -167,8 +180,8 @@ async fn a_continuous_survey_stopped_after_a_pass_resumes_with_its_latency_and_e
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let (status, n, _) = dense_prefix(&db).await;
     assert_eq!((status, n), (SurveyStatus::Complete, 2160));
-    // The resume goes on with the latency the first runs measured (read back
-    // from the stored passes), so the last pass is paired as the others.
+    // The resume goes on with the latency the calibration passes measured
+    // (read back from the stored passes), so the last pass is paired as the others.
     let latency = doc["scan"]["latency_s"].as_f64().expect("the latency after a resume");
     assert!((latency - 0.005).abs() < 1e-4, "latency {latency} s (5.000 ms measured on the whole survey)");
     let b_mean = doc["iso230_2"]["B_mean"].as_f64().unwrap();

@@ -9,6 +9,7 @@ mod integrity;
 mod interop_canopen;
 mod modelgap;
 mod resume;
+mod scan_latency;
 mod soak;
 mod uncertainty;
 mod wire;

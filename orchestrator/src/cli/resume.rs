@@ -67,7 +67,8 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     bench.engine.set_stop(stop.clone());
     let plan = bench.plan.clone();
     if plan.continuous() {
-        // The latency between the instruments, measured by the first runs.
+        // The latency between the instruments, measured by the calibration
+        // passes (none stored: measured again).
         bench.engine.set_scan_latency(store.scan_latency(id).await?);
         if record.source == SurveySource::Instruments && next < plan.total_steps() {
             super::run::scan_clock_keeps_pace(&mut bench.engine).await?;

@@ -202,7 +202,7 @@ impl Engine {
         self
     }
 
-    /// A continuous survey goes on with the latency its first runs measured.
+    /// A continuous survey goes on with the latency its calibration passes measured.
     pub fn set_scan_latency(&mut self, latency: Option<survey_processing::pairing::Latency>) {
         self.scan.latency = latency;
     }

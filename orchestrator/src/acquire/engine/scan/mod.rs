@@ -25,22 +25,27 @@
 //! again), or the velocity's ripple (both streams are read at the same
 //! moment, and the position is a quadratic fit in time).
 //!
-//! The latency ([`survey_processing::pairing::latency`]) is measured, not assumed: the first run turns
-//! at the calibration velocity (the configured one), the others at the scan
-//! velocity (half of it), and the velocity-dependent backlash between the
-//! two gives it. The first two runs are held in memory until it is known,
-//! then paired with it and stored, pass by pass; later passes are paired
-//! and stored as they end.
+//! The latency ([`survey_processing::pairing::latency`]) is measured, not
+//! assumed, before the first run: four short calibration passes
+//! ([`survey_processing::plan::calibration_passes`]) turn over the first 60
+//! deg of the plan's range forward and back at the scan velocity (the
+//! configured one, the positioner's maximum), then at a second velocity
+//! (a quarter of it); paired without a latency at the same angles, the
+//! difference between the two velocities' errors gives it. They are never
+//! stored. Every pass of the plan then turns at the scan velocity and is
+//! paired with the latency and stored as it ends. The passes come after the
+//! calibration rather than reusing the first run over the arc (a few
+//! seconds of motion saved) so that no pass is held in memory and a survey
+//! resumes at pass granularity wherever it stopped.
 //!
 //! # Storage and resume
 //!
 //! A pass is stored whole in one transaction: its samples, its raw streams
 //! and how they were paired (`scan_passes`, `scan_streams`). So a survey
 //! stopped or killed during a pass has stored the passes before it, and
-//! `survey resume` scans again from the first pass not stored (pass
-//! granularity; during the first two runs, from the first run, since they
-//! are stored together once the latency is known). The latency is read back
-//! from the stored passes.
+//! `survey resume` scans again from the first pass not stored, with the
+//! latency read back from the stored passes; with none stored (stopped
+//! during the calibration passes, or the first pass) it measures it again.
 
 mod pass;
 
@@ -50,7 +55,7 @@ use serde::Serialize;
 use survey_processing::Direction;
 use survey_processing::pairing::Latency;
 use survey_processing::pairing::latency::{self, PassErrors};
-use survey_processing::plan::{PassPlan, ScanTiming, SurveyPlan, passes};
+use survey_processing::plan::{PassPlan, SurveyPlan, scan_order};
 
 /// What the continuous scan did, for the survey's report.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -109,122 +114,109 @@ pub(super) async fn run(
     let (cal, scan) = t.scan.speeds(t.velocity_deg_s);
     if (cal - scan).abs() < 1e-9 || cal <= 0.0 || scan <= 0.0 {
         return Err(EngineError::Plan(format!(
-            "the calibration run and the scan need two different positive velocities, got {cal} and {scan} deg/s"
+            "the latency's calibration passes and the scan need two different positive velocities, got {cal} and \
+             {scan} deg/s"
         )));
     }
-    let all = passes(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
+    let all = scan_order(plan, t.velocity_deg_s, t.accel_deg_s2, &t.scan);
     if let Some((lo, hi)) = engine.travel()
         && let Some(p) = all.iter().find(|p| p.start.min(p.end) < lo || p.start.max(p.end) > hi)
     {
         return Err(EngineError::Plan(format!(
-            "pass {} turns from {} to {} deg (with its run-up), outside the travel {lo}..{hi} deg",
-            p.index, p.start, p.end
+            "{} turns from {} to {} deg (with its run-up), outside the travel {lo}..{hi} deg",
+            label(p),
+            p.start,
+            p.end
         )));
-    }
-    let dirs = plan.directions().len();
-    let first = (from_seq / n) as usize;
-    if engine.scan.latency.is_none() && first >= 2 * dirs {
-        return Err(EngineError::Plan(
-            "the survey's latency between its instruments is not stored: it cannot go on from here".into(),
-        ));
     }
     engine.scan.report.velocity_deg_s = scan;
     engine.scan.report.calibration_velocity_deg_s = cal;
     let axis = engine.axis.clone().ok_or_else(|| EngineError::Plan("the axis has not been located".into()))?;
+    let (calibration, survey): (Vec<PassPlan>, Vec<PassPlan>) = all.into_iter().partition(|p| p.calibration);
+    let latency = match engine.scan.latency {
+        Some(l) => l,
+        None => {
+            let l = calibrate(engine, &calibration, &axis, sink).await?;
+            tracing::info!(delta_s = l.delta_s, se_s = l.se_s, "latency between the instruments");
+            engine.scan.latency = Some(l);
+            l
+        }
+    };
     let total = plan.total_steps();
     let mut outcome = Outcome::default();
-    let mut held: Vec<(usize, pass::RawPass)> = Vec::new();
-    for (i, p) in all.iter().enumerate().skip(first) {
+    for p in survey.iter().skip((from_seq / n) as usize) {
         if let Err(why) = engine.stop.check() {
             return Err(engine.halt(why).await);
         }
-        let raw = acquire(engine, p, &axis, sink).await?;
-        engine.scan.report.readouts_captured = Some(raw.captured);
-        match engine.scan.latency {
-            Some(l) => {
-                store(engine, p, &raw, &axis, l, sink).await?;
-                outcome.samples_recorded += n;
-                report_progress(engine, p, total, progress);
-            }
-            None => {
-                held.push((i, raw));
-                if i + 1 == 2 * dirs {
-                    let l = calibrate(&all, &held, &axis, &t.scan)?;
-                    tracing::info!(delta_s = l.delta_s, se_s = l.se_s, "latency between the instruments");
-                    engine.scan.latency = Some(l);
-                    for (j, raw) in std::mem::take(&mut held) {
-                        store(engine, &all[j], &raw, &axis, l, sink).await?;
-                        outcome.samples_recorded += n;
-                        report_progress(engine, &all[j], total, progress);
-                    }
-                }
-            }
-        }
+        let (raw, paired) = acquire(engine, p, &axis, latency.delta_s, sink).await?;
+        let record = pass::record(p, &raw, paired, (latency.delta_s, latency.se_s));
+        engine.scan.report.passes += 1;
+        engine.scan.report.readouts += raw.readouts.len() as u64;
+        engine.scan.report.points += raw.points.len() as u64;
+        sink.record_pass(record).await.map_err(EngineError::Sink)?;
+        outcome.samples_recorded += n;
+        let last = p.targets.last().map_or(0, |(seq, _)| *seq);
+        progress(&Progress {
+            done: last + 1,
+            total,
+            run: p.run,
+            direction: p.direction,
+            instrument_time: engine.clock.now(),
+        });
     }
     Ok(outcome)
 }
 
-fn report_progress(engine: &Engine, p: &PassPlan, total: u64, progress: &mut (dyn FnMut(&Progress) + Send)) {
-    let last = p.targets.last().map_or(0, |(seq, _)| *seq);
-    progress(&Progress {
-        done: last + 1,
-        total,
-        run: p.run,
-        direction: p.direction,
-        instrument_time: engine.clock.now(),
-    });
+/// How a pass is named in messages.
+fn label(p: &PassPlan) -> String {
+    if p.calibration {
+        format!("the latency's calibration pass at {} deg/s ({})", p.speed, p.direction.as_str())
+    } else {
+        format!("pass {}", p.index)
+    }
 }
 
-/// The latency from the first two runs' passes, paired without one.
-fn calibrate(
-    all: &[PassPlan],
-    held: &[(usize, pass::RawPass)],
+/// Scan the calibration passes and estimate the latency from them, paired
+/// without one (the passes are not stored).
+async fn calibrate(
+    engine: &mut Engine,
+    calibration: &[PassPlan],
     axis: &survey_processing::geometry::AxisFit,
-    t: &ScanTiming,
+    sink: &mut dyn SampleSink,
 ) -> Result<Latency, EngineError> {
     let mut errors = Vec::new();
-    for (j, raw) in held {
-        let paired = pass::pair(raw, &all[*j], axis, t, 0.0).map_err(|e| EngineError::Plan(e.to_string()))?;
-        let mut by_target = paired.errors;
-        if all[*j].direction == Direction::Reverse {
-            by_target.reverse();
+    for p in calibration {
+        if let Err(why) = engine.stop.check() {
+            return Err(engine.halt(why).await);
         }
-        errors.push((all[*j].run, all[*j].direction, PassErrors { speed_deg_s: all[*j].speed, errors: by_target }));
+        let (_, paired) = acquire(engine, p, axis, 0.0, sink).await?;
+        let mut by_angle = paired.errors;
+        if p.direction == Direction::Reverse {
+            by_angle.reverse();
+        }
+        errors.push((p.speed, p.direction, PassErrors { speed_deg_s: p.speed, errors: by_angle }));
     }
-    let get = |run: u32, d: Direction| errors.iter().find(|e| e.0 == run && e.1 == d).map(|e| &e.2);
-    let (f1, f2) = (get(1, Direction::Forward), get(2, Direction::Forward));
-    let reverse = get(1, Direction::Reverse).zip(get(2, Direction::Reverse));
+    let (_, scan) = engine.timing.scan.speeds(engine.timing.velocity_deg_s);
+    let get = |fast: bool, d: Direction| {
+        errors.iter().find(|e| ((e.0 - scan).abs() < 1e-12) == fast && e.1 == d).map(|e| &e.2)
+    };
+    let (f1, f2) = (get(true, Direction::Forward), get(false, Direction::Forward));
+    let reverse = get(true, Direction::Reverse).zip(get(false, Direction::Reverse));
     f1.zip(f2)
         .and_then(|(f1, f2)| latency::estimate(f1, f2, reverse))
-        .ok_or_else(|| EngineError::Plan("the latency could not be estimated from the first two runs".into()))
+        .ok_or_else(|| EngineError::Plan("the latency could not be estimated from the calibration passes".into()))
 }
 
-/// Pair a pass with the latency and store it.
-async fn store(
-    engine: &mut Engine,
-    p: &PassPlan,
-    raw: &pass::RawPass,
-    axis: &survey_processing::geometry::AxisFit,
-    l: Latency,
-    sink: &mut dyn SampleSink,
-) -> Result<(), EngineError> {
-    let paired = pass::pair(raw, p, axis, &engine.timing.scan, l.delta_s)
-        .map_err(|e| EngineError::Plan(format!("pass {}: {e}", p.index)))?;
-    let record = pass::record(p, raw, paired, (l.delta_s, l.se_s));
-    engine.scan.report.passes += 1;
-    engine.scan.report.readouts += raw.readouts.len() as u64;
-    engine.scan.report.points += raw.points.len() as u64;
-    sink.record_pass(record).await.map_err(EngineError::Sink)
-}
-
-/// Scan one pass, again after a fault or a gap that leaves a target
-/// unpaired, up to the retry limit; a stop request ends it.
+/// Scan one pass and pair it with the latency `delta_s`, again after a
+/// fault or a gap that leaves a target unpaired, up to the retry limit; a
+/// stop request ends it.
 async fn acquire(
     engine: &mut Engine,
     p: &PassPlan,
     axis: &survey_processing::geometry::AxisFit,
+    delta_s: f64,
     sink: &mut dyn SampleSink,
-) -> Result<pass::RawPass, EngineError> {
+) -> Result<(pass::RawPass, pass::Paired), EngineError> {
     let mut attempt = 0;
     loop {
         let mut stop = engine.stop.clone();
@@ -248,26 +240,26 @@ async fn acquire(
                 pass::abandon(engine).await;
                 return Err(engine.halt(why).await);
             }
-            Ok(Ok(raw)) => {
-                let delta = engine.scan.latency.map_or(0.0, |l| l.delta_s);
-                match pass::pair(&raw, p, axis, &engine.timing.scan, delta) {
-                    Ok(_) => return Ok(raw),
-                    Err(e) => (
-                        survey_drivers::DriverError::device(
-                            engine.reference.name(),
-                            0,
-                            format!("pass {} could not be paired: {e}", p.index),
-                        ),
-                        Failed::Reference,
-                    ),
+            Ok(Ok(raw)) => match pass::pair(&raw, p, axis, &engine.timing.scan, delta_s) {
+                Ok(paired) => {
+                    engine.scan.report.readouts_captured = Some(raw.captured);
+                    return Ok((raw, paired));
                 }
-            }
+                Err(e) => (
+                    survey_drivers::DriverError::device(
+                        engine.reference.name(),
+                        0,
+                        format!("{} could not be paired: {e}", label(p)),
+                    ),
+                    Failed::Reference,
+                ),
+            },
             Ok(Err(failure)) => failure,
         };
         pass::abandon(engine).await;
         engine.scan.report.rescans += 1;
         attempt += 1;
         let (error, failed) = failure;
-        engine.survive(error, failed, attempt, &format!("scan pass {}", p.index), sink).await?;
+        engine.survive(error, failed, attempt, &format!("scan {}", label(p)), sink).await?;
     }
 }
