@@ -10,7 +10,7 @@ mod passes;
 
 pub use passes::{
     CALIBRATION_ARC_DEG, CALIBRATION_VELOCITY_SHARE, PassPlan, ScanTiming, calibration_passes, passes, scan_order,
-    start_deg,
+    start_deg, within_travel_for_scan,
 };
 
 use crate::Direction;

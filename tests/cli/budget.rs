@@ -78,6 +78,27 @@ fn a_continuous_scan_stores_the_plans_points_per_pass_in_far_less_time() {
     }
 }
 
+/// A travel-limited axis (the Figure 1 elevation axis, -10..90 deg): the
+/// step plan keeps its targets one overrun inside the travel, which a pass's
+/// run-up at the positioner's pace overshoots; the continuous plan keeps them
+/// a run-up inside, and every move stays in the travel (the simulated
+/// positioner refuses one outside it, which failed the survey before).
+#[test]
+fn a_continuous_scan_of_a_travel_limited_axis_keeps_its_run_ups_inside_the_travel() {
+    let b = Bench::new();
+    let args = ["run", "--preset", "fig1", "--scan", "continuous", "--points", "100", "--runs", "2", "--bidirectional"];
+    let doc = b.survey(&[&args[..], &["--json"]].concat()).success().json();
+    assert_eq!(doc["status"], "complete", "{doc}");
+    assert_eq!(doc["samples"], 100 * 2 * 2);
+    let csv = b.export(doc["survey_id"].as_i64(), "fig1.csv");
+    let targets: Vec<f64> = rows(&csv).iter().map(|r| r[2].parse().unwrap()).collect();
+    let (first, last) = targets.iter().fold((f64::MAX, f64::MIN), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+    // fig1 turns at 5 deg/s and 20 deg/s^2: 0.625 deg to reach its velocity,
+    // about 1.1 deg with the margin to pair the first target; the step
+    // plan's overrun at 100 points is 0.5 deg.
+    assert!(first > -10.0 + 0.625 && last < 90.0 - 0.625, "targets {first}..{last} deg");
+}
+
 #[test]
 fn a_continuous_scan_without_a_streaming_reference_is_bad_input() {
     let b = Bench::new();

@@ -67,6 +67,12 @@ pub fn configured_plan(cfg: &SurveyConfig, overrides: PlanOverrides, path: &Path
         plan.check_travel(lo, hi)?;
     }
     plan.scan = overrides.scan.or(cfg.survey.scan).unwrap_or_default();
+    if let (true, Some([lo, hi])) = (plan.continuous(), cfg.survey.travel_deg) {
+        let t = cfg.timing();
+        plan =
+            survey_processing::plan::within_travel_for_scan(&plan, (lo, hi), t.velocity_deg_s, t.accel_deg_s2, &t.scan)
+                .with_context(|| path.display().to_string())?;
+    }
     if plan.continuous()
         && let Err(why) = crate::bench::instruments::continuous_support(cfg)
     {

@@ -13,7 +13,7 @@ use std::time::Duration;
 use survey_drivers::{Clock, VirtualClock};
 use survey_processing::budget::{Dynamics, plan_bound};
 use survey_processing::model::Model;
-use survey_processing::plan::{ScanMode, SurveyPlan};
+use survey_processing::plan::{ScanMode, SurveyPlan, within_travel_for_scan};
 use survey_sims::autocollimator::AutocollimatorConfig;
 use survey_sims::servo::Servo;
 use survey_sims::{PlanProgress, Preset, SimBench};
@@ -120,6 +120,9 @@ impl Bench {
         let mut timing =
             Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
         timing.settle.window_deg = crate::acquire::default_window_deg(req.reference);
+        if let (true, Some(travel)) = (plan.continuous(), preset.travel) {
+            plan = within_travel_for_scan(&plan, travel, timing.velocity_deg_s, timing.accel_deg_s2, &timing.scan)?;
+        }
         let tracker = req.reference == ReferenceKind::Tracker;
         let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker) / runs;
         let setup = SimulatedSetup {

@@ -18,7 +18,7 @@
 //! resume with no pass stored measures the latency again on the same
 //! //! arc. [`scan_order`] is the order the engine scans them in.
 
-use super::SurveyPlan;
+use super::{PlanError, SurveyPlan};
 use crate::Direction;
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
@@ -98,6 +98,43 @@ pub const CALIBRATION_VELOCITY_SHARE: f64 = 0.25;
 
 /// See [`CALIBRATION_VELOCITY_SHARE`].
 pub const CALIBRATION_ARC_DEG: f64 = 60.0;
+
+/// A continuous plan on an axis that travels only `lo..hi`: its targets
+/// kept far enough inside the travel for every pass's run-up and run-out
+/// (a step plan keeps them one overrun inside, which a pass at the
+/// positioner's pace overshoots), the same count, runs, directions, overrun
+/// and scan. The plan itself when it fits; an error naming the travel and
+/// the run-up when the travel is too short for a scan.
+pub fn within_travel_for_scan(
+    plan: &SurveyPlan,
+    (lo, hi): (f64, f64),
+    velocity: f64,
+    accel: f64,
+    t: &ScanTiming,
+) -> Result<SurveyPlan, PlanError> {
+    let fits = |p: &SurveyPlan| {
+        scan_order(p, velocity, accel, t)
+            .iter()
+            .all(|pass| pass.start.min(pass.end) >= lo && pass.start.max(pass.end) <= hi)
+    };
+    if fits(plan) {
+        return Ok(plan.clone());
+    }
+    let (cal, scan) = t.speeds(velocity);
+    let inset = t.runup_deg(cal.max(scan), accel).max(plan.overrun_deg);
+    let points = plan.targets_deg.len() as u32;
+    let mut inside =
+        SurveyPlan::range(lo + inset, hi - inset, points, plan.runs, plan.bidirectional).map_err(|_| {
+            PlanError::OutsideTravel { first: lo + inset, last: hi - inset, overrun: inset, min: lo, max: hi }
+        })?;
+    inside.overrun_deg = plan.overrun_deg;
+    inside.scan = plan.scan;
+    if fits(&inside) {
+        Ok(inside)
+    } else {
+        Err(PlanError::OutsideTravel { first: lo + inset, last: hi - inset, overrun: inset, min: lo, max: hi })
+    }
+}
 
 /// One pass of a plan, or a calibration pass.
 #[derive(Debug, Clone, PartialEq)]
@@ -206,6 +243,34 @@ mod tests {
     fn continuous(mut plan: SurveyPlan) -> SurveyPlan {
         plan.scan = ScanMode::Continuous;
         plan
+    }
+
+    #[test]
+    fn a_scan_on_a_travel_limited_axis_keeps_its_run_ups_inside_the_travel() {
+        // An axis of the paper's Figure 1's travel, -10..90 deg, at 10 deg/s
+        // and 20 deg/s^2: its step plan keeps the targets one overrun inside
+        // the travel; a pass at 10 deg/s needs 2.5 deg to reach its velocity
+        // and more to pair its first target.
+        let t = ScanTiming::default();
+        let plan = continuous(SurveyPlan::within_travel(-10.0, 90.0, 60, 2, true).unwrap());
+        let outside = |p: &SurveyPlan| {
+            scan_order(p, 10.0, 20.0, &t).iter().any(|s| s.start.min(s.end) < -10.0 || s.start.max(s.end) > 90.0)
+        };
+        assert!(outside(&plan), "the step plan's targets leave no room for the run-up");
+        let inside = within_travel_for_scan(&plan, (-10.0, 90.0), 10.0, 20.0, &t).unwrap();
+        assert!(!outside(&inside));
+        assert_eq!(inside.targets_deg.len(), 60);
+        assert_eq!((inside.runs, inside.bidirectional, inside.scan), (2, true, ScanMode::Continuous));
+        assert_eq!(inside.overrun_deg, plan.overrun_deg);
+        let runup = t.runup_deg(10.0, 20.0);
+        assert!((inside.targets_deg[0] - (-10.0 + runup)).abs() < 1e-9, "{}", inside.targets_deg[0]);
+        assert!((inside.targets_deg[59] - (90.0 - runup)).abs() < 1e-9);
+        // A plan that fits is kept; a travel too short for two run-ups is refused.
+        let slow = within_travel_for_scan(&plan, (-10.0, 90.0), 1.0, 20.0, &t).unwrap();
+        assert_eq!(slow, plan);
+        let short = continuous(SurveyPlan::within_travel(0.0, 4.0, 10, 2, true).unwrap());
+        let e = within_travel_for_scan(&short, (0.0, 4.0), 10.0, 20.0, &t).unwrap_err();
+        assert!(e.to_string().contains("leave the travel 0..4 deg"), "{e}");
     }
 
     #[test]
