@@ -238,13 +238,21 @@ fn a_faulty_bench_killed_five_times_loses_and_repeats_nothing() {
         let (a1, a2) = (c1.accuracy().await, c2.accuracy().await);
         // Two fault-free seeds give a poor idea of A's own scatter: with 2
         // runs a target's s comes from 2 readings, so A (max of mean + 2 s,
-        // min of mean - 2 s) moves by a few percent from seed to seed and
-        // with where the kills fell (one soak under load measured 4.6 %
-        // above its clean pair, whose own difference was 1 %): at least 2 %
-        // of A is taken as the spread.
-        let spread = (a1 - a2).abs().max(0.02 * a1);
-        eprintln!("soak: A = {a:.6} deg; fault-free A = {a1:.6} and {a2:.6} deg");
-        assert!((a - a1).abs() <= 3.0 * spread, "A {a} against fault-free {a1} / {a2}");
+        // min of mean - 2 s) moves from seed to seed. Over 30 seeds of this
+        // plan on the in-process simulated bench (`survey run --points 24
+        // --runs 2 --bidirectional --seed 1..30`) A's relative standard
+        // deviation was 3.9 % (pairs of seeds differed by up to 8 %; the
+        // tolerance before, 3 x max(pair difference, 2 % of A), failed
+        // twice under load). So A's standard deviation is taken as 4 % of
+        // the fault-free mean, and the soak's A must lie within 4 standard
+        // deviations of the difference from it (sqrt(1 + 1/2): the soak
+        // against the mean of two): 20 % of A, a false alarm about once in
+        // 16000. A sample stored at the wrong target or twice shifts A by
+        // the error's whole range (fig8's 0.03 deg), far beyond it.
+        let clean_mean = (a1 + a2) / 2.0;
+        let tolerance = 4.0 * 0.04 * clean_mean * 1.5f64.sqrt();
+        eprintln!("soak: A = {a:.6} deg; fault-free A = {a1:.6} and {a2:.6} deg (tolerance {tolerance:.6} deg)");
+        assert!((a - clean_mean).abs() <= tolerance, "A {a} against fault-free {a1} / {a2}");
     })
     .expect("a runtime");
 }
