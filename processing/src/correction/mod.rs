@@ -404,16 +404,26 @@ impl ErrorFigures {
 /// The noise of the corrected errors: their pooled standard deviation about
 /// the mean of each target and direction (`None` with one run).
 fn noise_sd(samples: &[Sample], table: &CorrectionTable) -> Option<f64> {
-    let mut groups: std::collections::BTreeMap<(u64, bool), (f64, f64, usize)> = Default::default();
+    // Each group summed in the samples' order, the groups then taken in the
+    // order of their keys (a hash map to find a sample's group: a tree of
+    // every target was most of this function's time on a large survey).
+    let mut index: std::collections::HashMap<(u64, bool), usize> = Default::default();
+    let mut groups: Vec<((u64, bool), (f64, f64, usize))> = Vec::new();
     for (s, e) in samples.iter().zip(corrected_errors(samples, table)) {
-        let g = groups.entry((s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward)).or_default();
+        let key = (s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward);
+        let at = *index.entry(key).or_insert_with(|| {
+            groups.push((key, (0.0, 0.0, 0)));
+            groups.len() - 1
+        });
+        let g = &mut groups[at].1;
         g.0 += e;
         g.1 += e * e;
         g.2 += 1;
     }
+    groups.sort_unstable_by_key(|(key, _)| *key);
     let (ss, dof) = groups
-        .values()
-        .fold((0.0, 0usize), |(ss, dof), (s1, s2, n)| (ss + (s2 - s1 * s1 / *n as f64).max(0.0), dof + n - 1));
+        .iter()
+        .fold((0.0, 0usize), |(ss, dof), (_, (s1, s2, n))| (ss + (s2 - s1 * s1 / *n as f64).max(0.0), dof + n - 1));
     (dof > 0).then(|| (ss / dof as f64).sqrt())
 }
 
