@@ -407,8 +407,10 @@ fn noise_sd(samples: &[Sample], table: &CorrectionTable) -> Option<f64> {
     // Each group summed in the samples' order, the groups then taken in the
     // order of their keys (a hash map to find a sample's group: a tree of
     // every target was most of this function's time on a large survey).
-    let mut index: std::collections::HashMap<(u64, bool), usize> = Default::default();
-    let mut groups: Vec<((u64, bool), (f64, f64, usize))> = Vec::new();
+    type Key = (u64, bool);
+    let mut index: std::collections::HashMap<Key, usize> = Default::default();
+    // (key, (sum, sum of squares, count))
+    let mut groups: Vec<(Key, (f64, f64, usize))> = Vec::new();
     for (s, e) in samples.iter().zip(corrected_errors(samples, table)) {
         let key = (s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward);
         let at = *index.entry(key).or_insert_with(|| {
