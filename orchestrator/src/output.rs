@@ -33,9 +33,19 @@ impl Output {
 
 /// The `stats --json` document: the contract's keys, plus per-target figures.
 pub fn iso_json(survey_id: i64, iso: &Iso230) -> serde_json::Value {
-    let mut figures = serde_json::to_value(iso).expect("statistics serialise");
-    let targets = figures.as_object_mut().and_then(|o| o.remove("targets")).unwrap_or_default();
-    serde_json::json!({ "survey_id": survey_id, "iso230_2": figures, "targets": targets })
+    let targets = serde_json::to_value(&iso.targets).expect("statistics serialise");
+    serde_json::json!({ "survey_id": survey_id, "iso230_2": iso_figures_json(iso), "targets": targets })
+}
+
+/// The axis figures of `iso` as [`iso_json`] gives them under `"iso230_2"`,
+/// without serialising the per-target figures (a map per target: most of the
+/// time of `survey process` on a large survey when they were made and
+/// thrown away).
+pub fn iso_figures_json(iso: &Iso230) -> serde_json::Value {
+    let figures = Iso230 { targets: Vec::new(), ..*iso };
+    let mut doc = serde_json::to_value(figures).expect("statistics serialise");
+    doc.as_object_mut().map(|o| o.remove("targets"));
+    doc
 }
 
 /// A figure in a column of a text table: `units`, to a millionth of a degree's resolution.

@@ -18,7 +18,7 @@
 
 use crate::acquire::{Engine, ReferenceKind, Timing};
 use crate::error::bad_input;
-use crate::output::{Output, Units, iso_json, iso_text};
+use crate::output::{Output, Units, iso_figures_json, iso_text};
 use crate::process::ProcessOutcome;
 use crate::session::{AcquireOptions, acquire};
 use crate::store::Store;
@@ -223,7 +223,7 @@ pub fn figures(
         "native_systematic_peak_deg": systematic_peak_deg(native),
         "corrected_systematic_peak_deg": systematic_peak_deg(corrected),
         "directional": directional,
-        "iso230_2": iso_json(id, &iso)["iso230_2"].clone(),
+        "iso230_2": iso_figures_json(&iso),
     });
     let (e, unit) = (|deg: f64| units.fixed(deg, 5), units.symbol());
     let predicted = predicted.map(|p| format!(" (predicted +/-{})", e(p))).unwrap_or_default();

@@ -274,9 +274,10 @@ pub fn refit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<Refit,
         (dot(in_plane, in_plane).sqrt() - f.radius_mm).hypot(h)
     };
     let r: Vec<f64> = points_mm.iter().map(|&p| residual(&first, p)).collect();
+    // The median's element, found without sorting the rest.
     let mut sorted = r.clone();
-    sorted.sort_by(f64::total_cmp);
-    let mad = sorted[sorted.len() / 2];
+    let mid = sorted.len() / 2;
+    let mad = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
     let limit = 5.0 * 1.4826 * mad;
     let keep: Vec<usize> = (0..points_mm.len()).filter(|&i| limit <= 0.0 || r[i] <= limit).collect();
     let dropped = points_mm.len() - keep.len();

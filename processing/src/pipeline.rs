@@ -18,6 +18,7 @@ use crate::recipe::{
     AliasChoice, AliasChoiceAction, ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe,
 };
 use crate::resample::{MethodScore, compare_interpolation};
+use std::borrow::Cow;
 
 /// Why a survey cannot be processed. Every variant is about the data or the
 /// recipe given, never about the machine.
@@ -103,7 +104,7 @@ pub struct Processed {
 
 /// A survey whose targets include both 0 and 360 (the same angle twice)
 /// loses the samples at the last one, so that it is one uniform revolution.
-fn close_circle(samples: &[Sample]) -> (Vec<Sample>, Option<String>) {
+fn close_circle(samples: &[Sample]) -> (Cow<'_, [Sample]>, Option<String>) {
     let lo = samples.iter().map(|s| s.target_deg).fold(f64::INFINITY, f64::min);
     let hi = samples.iter().map(|s| s.target_deg).fold(f64::NEG_INFINITY, f64::max);
     if ((hi - lo) - 360.0).abs() < 1e-6 {
@@ -111,9 +112,9 @@ fn close_circle(samples: &[Sample]) -> (Vec<Sample>, Option<String>) {
         let note = format!(
             "targets {lo} and {hi} deg are the same angle: the samples at {hi} deg are left out of the processing"
         );
-        (kept, Some(note))
+        (Cow::Owned(kept), Some(note))
     } else {
-        (samples.to_vec(), None)
+        (Cow::Borrowed(samples), None)
     }
 }
 
@@ -203,8 +204,8 @@ pub fn process_with_checks(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let mut prediction =
-        predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0))?.with_left(&left, &samples, &built.table);
+    let mut prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0), iso.as_ref().map(|s| s.a))?
+        .with_left(&left, &samples, &built.table);
     // Check points that no hypothesis explains measured the corrected axis
     // between the targets: the prediction does not promise better.
     if let Some((_, peak)) = measured_left {

@@ -91,7 +91,9 @@
 //! repeatable lines in `keep`, the significant non-repeatable ones in
 //! `remove`, and one `[[alias]]` per aliased design harmonic whose bin holds a
 //! line, with the analysis' recommendation (`null` when the line is not
-//! repeatable). Deciding that recipe on the same analysis gives the same table.
+//! repeatable); a full circle of more targets than `dense_points` raises it
+//! to the next power of two that holds them. Deciding that recipe on the same
+//! analysis gives the same table.
 //!
 //! # Errors
 //!
@@ -116,6 +118,7 @@ pub use direction::DirectionModel;
 use crate::analysis::{Analysis, AnalysisOptions, Method as AnalysisMethod};
 use crate::correction::{CorrectionError, DEFAULT_DENSE_POINTS, DEFAULT_TABLE_ROWS};
 use crate::corrector::ValueFormat;
+use crate::errormap::Coverage;
 use crate::export::fanuc::MIN_UNIT_DEG;
 use crate::export::generic::{Sign, Values};
 use crate::export::layout::Directions;
@@ -650,6 +653,13 @@ impl Recipe {
         r.lines.keep.sort_by(f64::total_cmp);
         r.lines.remove.sort_by(f64::total_cmp);
         r.aliases.sort_by_key(|a| a.true_cycles);
+        // A full circle of more targets than the default grid resamples
+        // through the next power of two that holds them all.
+        if let Coverage::FullCircle { n } = analysis.error_map.coverage
+            && n > r.table.dense_points
+        {
+            r.table.dense_points = n.next_power_of_two().min(MAX_POINTS);
+        }
         r
     }
 }

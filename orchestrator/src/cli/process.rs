@@ -8,12 +8,13 @@
 use super::args::{UnitsArg, whole};
 use super::support::emit;
 use crate::load::{Axis, load_read_only};
-use crate::output::{iso_json, iso_text};
+use crate::output::{iso_figures_json, iso_text};
 use crate::process::overrides::ExportOverrides;
 use crate::process::{ProcessOptions, default_table_path, process_survey};
 use crate::progress::{self, Progress};
 use clap::builder::{PossibleValue, TypedValueParser};
 use clap::{Args, ValueEnum};
+use std::borrow::Cow;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use survey_processing::export::controllers::Controller;
@@ -204,7 +205,6 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     let make_folder = args.table_out.is_none();
     // Corrected for the drift when the survey asked for it.
     let to_process = loaded.analysed();
-    let iso = survey_processing::iso230::iso230_2(&to_process).ok();
     let axis = loaded.axis_used();
     let table_out = args.table_out.unwrap_or_else(|| default_table_path(db, survey.id));
     let opts = ProcessOptions {
@@ -219,13 +219,19 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
     };
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
     let outcome = process_survey(survey, &to_process, opts)?;
+    // The processing's own statistics are of the same samples unless it left
+    // some out (a closed circle's last target): computed once.
+    let iso = match &outcome.processed.iso {
+        Some(iso) if outcome.processed.prediction.samples == to_process.len() => Some(Cow::Borrowed(iso)),
+        _ => survey_processing::iso230::iso230_2(&to_process).ok().map(Cow::Owned),
+    };
     drop(progress);
     let units = args.units.units();
     let out = if args.json {
         let mut doc = outcome.json();
         doc["axis"] = axis.as_str().into();
         if let Some(iso) = &iso {
-            doc["iso230_2"] = iso_json(survey.id, iso)["iso230_2"].clone();
+            doc["iso230_2"] = iso_figures_json(iso);
         }
         if let Some(r) = &loaded.refit {
             doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();

@@ -331,10 +331,13 @@ pub fn corrected_errors(samples: &[Sample], table: &CorrectionTable) -> Vec<f64>
 
 /// Apply `table` to `samples` and report native and corrected figures beside
 /// the repeatability floor `floor_deg` (see the module documentation).
+/// `native_iso230_a_deg` is the samples' own ISO 230-2 `A`
+/// (`iso230_2(samples).ok().map(|s| s.a)`), which the caller has already.
 pub fn predict_accuracy(
     samples: &[Sample],
     table: &CorrectionTable,
     floor_deg: f64,
+    native_iso230_a_deg: Option<f64>,
 ) -> Result<Prediction, CorrectionError> {
     if samples.is_empty() {
         return Err(CorrectionError::NoSamples);
@@ -346,7 +349,7 @@ pub fn predict_accuracy(
     let corrected = corrected_errors(samples, table);
     let shifted: Vec<Sample> =
         samples.iter().zip(&corrected).map(|(s, e)| Sample { actual_deg: s.target_deg - e, ..*s }).collect();
-    let native = figures(&native, iso230_2(samples).ok().map(|st| st.a));
+    let native = figures(&native, native_iso230_a_deg);
     let corrected = figures(&corrected, iso230_2(&shifted).ok().map(|st| st.a));
     Ok(Prediction {
         native_peak_deg: native.peak_deg,
@@ -401,16 +404,28 @@ impl ErrorFigures {
 /// The noise of the corrected errors: their pooled standard deviation about
 /// the mean of each target and direction (`None` with one run).
 fn noise_sd(samples: &[Sample], table: &CorrectionTable) -> Option<f64> {
-    let mut groups: std::collections::BTreeMap<(u64, bool), (f64, f64, usize)> = Default::default();
+    // Each group summed in the samples' order, the groups then taken in the
+    // order of their keys (a hash map to find a sample's group: a tree of
+    // every target was most of this function's time on a large survey).
+    type Key = (u64, bool);
+    let mut index: std::collections::HashMap<Key, usize> = Default::default();
+    // (key, (sum, sum of squares, count))
+    let mut groups: Vec<(Key, (f64, f64, usize))> = Vec::new();
     for (s, e) in samples.iter().zip(corrected_errors(samples, table)) {
-        let g = groups.entry((s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward)).or_default();
+        let key = (s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward);
+        let at = *index.entry(key).or_insert_with(|| {
+            groups.push((key, (0.0, 0.0, 0)));
+            groups.len() - 1
+        });
+        let g = &mut groups[at].1;
         g.0 += e;
         g.1 += e * e;
         g.2 += 1;
     }
+    groups.sort_unstable_by_key(|(key, _)| *key);
     let (ss, dof) = groups
-        .values()
-        .fold((0.0, 0usize), |(ss, dof), (s1, s2, n)| (ss + (s2 - s1 * s1 / *n as f64).max(0.0), dof + n - 1));
+        .iter()
+        .fold((0.0, 0usize), |(ss, dof), (_, (s1, s2, n))| (ss + (s2 - s1 * s1 / *n as f64).max(0.0), dof + n - 1));
     (dof > 0).then(|| (ss / dof as f64).sqrt())
 }
 
@@ -534,12 +549,17 @@ mod tests {
         out
     }
 
+    /// The samples' ISO 230-2 `A`, as the pipeline passes it.
+    fn a_of(samples: &[Sample]) -> Option<f64> {
+        iso230_2(samples).ok().map(|s| s.a)
+    }
+
     #[test]
     fn prediction_applies_the_table_with_the_contract_sign() {
         let e = |t: f64| 0.004 * (3.0 * t.to_radians()).sin() + 0.01;
         let samples = samples_with(e, 2);
         let table = CorrectionTable::new(map(36, e)).unwrap();
-        let p = predict_accuracy(&samples, &table, 1e-5).unwrap();
+        let p = predict_accuracy(&samples, &table, 1e-5, a_of(&samples)).unwrap();
         assert_eq!(p.samples, 144);
         assert!((p.native_peak_deg - 0.004).abs() < 1e-5, "{p:?}");
         assert!((p.native.mean_deg - 0.01).abs() < 1e-9);
@@ -554,12 +574,12 @@ mod tests {
         assert!((p.corrected.iso230_a_deg.unwrap() - 4.0 * s).abs() < 1e-9, "{p:?}");
         // A wrong sign would double the error instead.
         let wrong = CorrectionTable::new(map(36, |t| -e(t))).unwrap();
-        assert!(predict_accuracy(&samples, &wrong, 0.0).unwrap().corrected_peak_deg > 0.007);
+        assert!(predict_accuracy(&samples, &wrong, 0.0, a_of(&samples)).unwrap().corrected_peak_deg > 0.007);
         // One run: no ISO figures, the rest stands.
-        let one = predict_accuracy(&samples_with(e, 1), &table, 0.0).unwrap();
+        let one = predict_accuracy(&samples_with(e, 1), &table, 0.0, a_of(&samples_with(e, 1))).unwrap();
         assert_eq!(one.native.iso230_a_deg, None);
         let json = serde_json::to_value(&p).unwrap();
         assert!(json["native_peak_deg"].is_f64() && json["corrected_peak_deg"].is_f64());
-        assert_eq!(predict_accuracy(&[], &table, 0.0), Err(CorrectionError::NoSamples));
+        assert_eq!(predict_accuracy(&[], &table, 0.0, None), Err(CorrectionError::NoSamples));
     }
 }
