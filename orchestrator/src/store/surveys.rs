@@ -27,13 +27,14 @@ pub struct EventRow {
 
 /// The query of surveys, `$tail` (a `WHERE`, an `ORDER BY`) appended: the
 /// same text on either backend. Each survey's sample count is a `COUNT(*)`
-/// over its samples (a walk of every row), or with `uncounted;` first, 0.
+/// over its samples (a walk of every row), or with `uncounted;` first, 0 (a
+/// BIGINT, as the count is on PostgreSQL).
 macro_rules! select_surveys {
     ($tail:literal) => {
         select_surveys!("(SELECT COUNT(*) FROM samples AS c WHERE c.survey_id = s.id)", $tail)
     };
     (uncounted; $tail:literal) => {
-        select_surveys!("0", $tail)
+        select_surveys!("CAST(0 AS BIGINT)", $tail)
     };
     ($count:literal, $tail:literal) => {
         concat!(
