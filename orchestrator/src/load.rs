@@ -83,7 +83,8 @@ impl Loaded {
 /// Load survey `id` (an id or a uid; the latest when `None`) from `store`,
 /// its actual angles taken around `axis`.
 pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::Result<Loaded> {
-    let survey = store.resolve(id).await?;
+    // Counted here, as its samples are read (not walked twice).
+    let mut survey = store.resolve_uncounted(id).await?;
     let refitted = match axis {
         Axis::Refitted => refit_survey(store, &survey).await?,
         Axis::Located => None,
@@ -92,6 +93,7 @@ pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::R
         Some((samples, refit)) => (samples, Some(refit)),
         None => (store.samples(survey.id).await?, None),
     };
+    survey.sample_count = samples.len() as u64;
     let located = match refit {
         None => located_axis_knowledge(store, &survey).await?,
         Some(_) => None,
@@ -157,6 +159,7 @@ mod tests {
             let loaded = load_read_only(&db, None, axis).await.unwrap();
             assert_eq!((loaded.survey.id, loaded.samples.as_slice()), (id, samples().as_slice()), "{axis:?}");
             assert_eq!(loaded.drift.len(), 2, "{axis:?}");
+            assert_eq!(loaded.survey.sample_count, 8, "counted as read: {axis:?}");
             // An import has no axis, and asks for no drift correction.
             assert!(loaded.refit.is_none() && loaded.located.is_none(), "{axis:?}");
             assert_eq!(loaded.axis_used(), AxisUsed::None, "{axis:?}");

@@ -156,7 +156,7 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
             [dot(d, u) / spread, dot(d, v) / spread]
         })
         .collect();
-    let (mut a, mut b, r) = fit_circle(&xy)
+    let (mut a, mut b, r, cost) = fit_circle(&xy)
         .ok_or_else(|| GeometryError::Degenerate("the projected positions do not determine a circle".into()))?;
     let radius_mm = r * spread;
     if !radius_mm.is_finite() || !a.is_finite() || !b.is_finite() || radius_mm <= 1e-9 * spread {
@@ -164,7 +164,7 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
             "the fitted circle is degenerate (radius {radius_mm} mm over a spread of {spread} mm)"
         )));
     }
-    let circle_rms_mm = spread * (xy.iter().map(|q| ((q[0] - a).hypot(q[1] - b) - r).powi(2)).sum::<f64>() / nf).sqrt();
+    let circle_rms_mm = spread * (cost / nf).sqrt();
     let plane_rms_mm = (points_mm.iter().map(|&p| dot(sub(p, centroid), normal).powi(2)).sum::<f64>() / nf).sqrt();
 
     // 3. Orientation. With theta the raw angles and r the readouts, the sum over
@@ -386,8 +386,9 @@ impl AxisFit {
 }
 
 /// Circle through 2-D points: Kasa's algebraic fit, refined by Gauss-Newton on
-/// the geometric distance. Returns `(centre x, centre y, radius)`.
-fn fit_circle(xy: &[[f64; 2]]) -> Option<(f64, f64, f64)> {
+/// the geometric distance. Returns `(centre x, centre y, radius)` and the sum
+/// of the squared distances from the circle.
+fn fit_circle(xy: &[[f64; 2]]) -> Option<(f64, f64, f64, f64)> {
     // Kasa: x^2 + y^2 + D x + E y + F = 0, linear least squares in (D, E, F).
     let mut m = [[0.0; 3]; 3];
     let mut rhs = [0.0; 3];
@@ -409,45 +410,68 @@ fn fit_circle(xy: &[[f64; 2]]) -> Option<(f64, f64, f64)> {
     }
     let mut r = r2.sqrt();
 
-    // Gauss-Newton on r_k = |q_k - c| - r, halving a step that does not reduce the cost.
-    let cost = |a: f64, b: f64, r: f64| xy.iter().map(|q| ((q[0] - a).hypot(q[1] - b) - r).powi(2)).sum::<f64>();
-    let mut current = cost(a, b, r);
+    // Gauss-Newton on r_k = |q_k - c| - r, halving a step that does not reduce
+    // the cost. The cost at a point and the normal equations there take the
+    // same distances: both come from one pass, so an accepted step's pass
+    // also gives the next step's equations. A step at the convergence
+    // tolerance ends the fit whether it is taken or not: one that does not
+    // reduce the cost is not halved further (at convergence the cost no longer
+    // falls but by rounding, and twenty halvings cost twenty passes).
+    let mut current = gauss_newton_pass(xy, a, b, r);
     for _ in 0..50 {
-        let mut jtj = [[0.0; 3]; 3];
-        let mut jtr = [0.0; 3];
-        for q in xy {
-            let dist = (q[0] - a).hypot(q[1] - b);
-            if dist == 0.0 {
-                continue;
-            }
-            let jac = [-(q[0] - a) / dist, -(q[1] - b) / dist, -1.0];
-            let res = dist - r;
-            for i in 0..3 {
-                for j in 0..3 {
-                    jtj[i][j] += jac[i] * jac[j];
-                }
-                jtr[i] -= jac[i] * res;
-            }
-        }
-        let Some(step) = solve3(jtj, jtr) else { break };
+        let Some(step) = solve3(current.jtj, current.jtr) else { break };
+        let (norm, tolerance) = ((step[0].powi(2) + step[1].powi(2) + step[2].powi(2)).sqrt(), 1e-14 * (1.0 + r));
         let mut k = 1.0;
         let mut accepted = false;
         for _ in 0..20 {
             let (na, nb, nr) = (a + k * step[0], b + k * step[1], r + k * step[2]);
-            let c = cost(na, nb, nr);
-            if c <= current {
-                (a, b, r, current) = (na, nb, nr, c);
+            let next = gauss_newton_pass(xy, na, nb, nr);
+            if next.cost <= current.cost {
+                (a, b, r, current) = (na, nb, nr, next);
                 accepted = true;
+                break;
+            }
+            if norm * k <= tolerance {
                 break;
             }
             k /= 2.0;
         }
-        let size = (step[0].powi(2) + step[1].powi(2) + step[2].powi(2)).sqrt() * k;
-        if !accepted || size <= 1e-14 * (1.0 + r) {
+        if !accepted || norm * k <= 1e-14 * (1.0 + r) {
             break;
         }
     }
-    Some((a, b, r.abs()))
+    let cost = if r >= 0.0 { current.cost } else { gauss_newton_pass(xy, a, b, -r).cost };
+    Some((a, b, r.abs(), cost))
+}
+
+/// The circle fit's sum of squared residuals `|q_k - c| - r` at centre
+/// `(a, b)` and radius `r`, and the Gauss-Newton normal equations there
+/// (`JᵀJ`, `-Jᵀr`; a point at the centre has no direction and is left out of
+/// them).
+struct GaussNewtonPass {
+    cost: f64,
+    jtj: [[f64; 3]; 3],
+    jtr: [f64; 3],
+}
+
+fn gauss_newton_pass(xy: &[[f64; 2]], a: f64, b: f64, r: f64) -> GaussNewtonPass {
+    let mut pass = GaussNewtonPass { cost: 0.0, jtj: [[0.0; 3]; 3], jtr: [0.0; 3] };
+    for q in xy {
+        let dist = (q[0] - a).hypot(q[1] - b);
+        let res = dist - r;
+        pass.cost += res.powi(2);
+        if dist == 0.0 {
+            continue;
+        }
+        let jac = [-(q[0] - a) / dist, -(q[1] - b) / dist, -1.0];
+        for i in 0..3 {
+            for j in 0..3 {
+                pass.jtj[i][j] += jac[i] * jac[j];
+            }
+            pass.jtr[i] -= jac[i] * res;
+        }
+    }
+    pass
 }
 
 /// Solves `m x = rhs` by Gaussian elimination with partial pivoting; `None`

@@ -245,9 +245,11 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
 fn group_by_target(samples: &[Sample]) -> (Vec<&Sample>, Vec<std::ops::Range<usize>>) {
     // Sorted as (target, index) pairs, side by side in memory (not through a
     // reference each); the order of equal targets does not matter: a group
-    // is ordered by run before anything is computed from it.
+    // is ordered by run before anything is computed from it. A survey's
+    // samples are a few sweeps, each ascending or descending in target: the
+    // stable sort finds them and merges them (an unstable one partitions).
     let mut keyed: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
-    keyed.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
     let sorted: Vec<&Sample> = keyed.into_iter().map(|(_, i)| &samples[i]).collect();
     let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
     for (i, s) in sorted.iter().enumerate() {

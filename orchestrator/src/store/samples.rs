@@ -376,7 +376,8 @@ fn read_samples_with_smr(
     survey_id: i64,
 ) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
     let conn = open_reader(path, immutable)?;
-    let mut smr = Vec::new();
+    // At most a position a sample.
+    let mut smr = Vec::with_capacity(seq_bound(&conn, survey_id)?);
     let mut stmt = conn.prepare(
         "SELECT seq, smr_x_mm, smr_y_mm, smr_z_mm FROM raw_readings \
          WHERE survey_id = ?1 AND kind = 'smr' ORDER BY seq",
@@ -404,6 +405,20 @@ fn read_samples_with_smr(
     Ok((samples, smr))
 }
 
+/// One more than the highest seq of a survey's samples (0 without any): as
+/// many as it has when its seqs run from 0 without a gap (as a survey stores
+/// them), from the primary key alone (a `COUNT(*)` walks every row). A
+/// capacity hint: a stray huge seq reserves no more than [`MAX_RESERVED`].
+fn seq_bound(conn: &rusqlite::Connection, survey_id: i64) -> anyhow::Result<usize> {
+    let last: Option<i64> =
+        conn.query_row("SELECT MAX(seq) FROM samples WHERE survey_id = ?1", [survey_id], |r| r.get(0))?;
+    Ok(last.and_then(|s| usize::try_from(s).ok()).map_or(0, |s| s.saturating_add(1)).min(MAX_RESERVED))
+}
+
+/// The most samples a reader reserves room for up front (the vector grows
+/// beyond it as it must).
+const MAX_RESERVED: usize = 1 << 26;
+
 /// The samples of a survey in seq order, telling `each` every sample's index
 /// and seq as it is read.
 fn read_samples_with(
@@ -411,8 +426,7 @@ fn read_samples_with(
     survey_id: i64,
     mut each: impl FnMut(usize, i64) -> anyhow::Result<()>,
 ) -> anyhow::Result<Vec<Sample>> {
-    let count: i64 = conn.query_row("SELECT COUNT(*) FROM samples WHERE survey_id = ?1", [survey_id], |r| r.get(0))?;
-    let mut out = Vec::with_capacity(usize::try_from(count).unwrap_or(0));
+    let mut out = Vec::with_capacity(seq_bound(conn, survey_id)?);
     let mut stmt = conn.prepare(
         "SELECT seq, run, direction, target_deg, readout_deg, actual_deg, timestamp_s \
          FROM samples WHERE survey_id = ?1 ORDER BY seq",

@@ -26,15 +26,23 @@ pub struct EventRow {
 }
 
 /// The query of surveys, `$tail` (a `WHERE`, an `ORDER BY`) appended: the
-/// same text on either backend.
+/// same text on either backend. Each survey's sample count is a `COUNT(*)`
+/// over its samples (a walk of every row), or with `uncounted;` first, 0 (a
+/// BIGINT, as the count is on PostgreSQL).
 macro_rules! select_surveys {
     ($tail:literal) => {
+        select_surveys!("(SELECT COUNT(*) FROM samples AS c WHERE c.survey_id = s.id)", $tail)
+    };
+    (uncounted; $tail:literal) => {
+        select_surveys!("CAST(0 AS BIGINT)", $tail)
+    };
+    ($count:literal, $tail:literal) => {
         concat!(
             "SELECT s.id, s.uid, s.asset, s.check_of, s.created_at, s.updated_at, s.status, s.source, \
              s.points, s.runs, s.bidirectional, s.config_json, s.model_toml, s.instruments_json, \
-             s.axis_json, s.started_at_s, s.ended_at_s, s.planned_samples, \
-             (SELECT COUNT(*) FROM samples AS c WHERE c.survey_id = s.id) AS sample_count \
-             FROM surveys AS s",
+             s.axis_json, s.started_at_s, s.ended_at_s, s.planned_samples, ",
+            $count,
+            " AS sample_count FROM surveys AS s",
             $tail
         )
     };
@@ -277,8 +285,17 @@ impl Store {
     /// One survey. A [`NotFound`] error (`no survey with id 7 in survey.db`)
     /// when there is none with that id.
     pub async fn survey(&self, id: i64) -> anyhow::Result<SurveyRecord> {
+        self.survey_counted(id, true).await
+    }
+
+    /// [`Store::survey`], its sample count left 0 unless `counted`.
+    async fn survey_counted(&self, id: i64, counted: bool) -> anyhow::Result<SurveyRecord> {
+        let query = match counted {
+            true => select_surveys!(" WHERE s.id = $1"),
+            false => select_surveys!(uncounted; " WHERE s.id = $1"),
+        };
         let columns = on_pool!(self, |pool| {
-            let rows = sqlx::query(select_surveys!(" WHERE s.id = $1")).bind(id).fetch_all(pool).await?;
+            let rows = sqlx::query(query).bind(id).fetch_all(pool).await?;
             columns_of!(rows)?
         });
         match columns.into_iter().next() {
@@ -296,9 +313,18 @@ impl Store {
 
     /// The survey with this uid. A [`NotFound`] error when there is none.
     pub async fn survey_by_uid(&self, uid: &str) -> anyhow::Result<SurveyRecord> {
+        self.survey_by_uid_counted(uid, true).await
+    }
+
+    /// [`Store::survey_by_uid`], its sample count left 0 unless `counted`.
+    async fn survey_by_uid_counted(&self, uid: &str, counted: bool) -> anyhow::Result<SurveyRecord> {
         let uid = uid.to_ascii_lowercase();
+        let query = match counted {
+            true => select_surveys!(" WHERE s.uid = $1"),
+            false => select_surveys!(uncounted; " WHERE s.uid = $1"),
+        };
         let columns = on_pool!(self, |pool| {
-            let rows = sqlx::query(select_surveys!(" WHERE s.uid = $1")).bind(&uid).fetch_all(pool).await?;
+            let rows = sqlx::query(query).bind(&uid).fetch_all(pool).await?;
             columns_of!(rows)?
         });
         match columns.into_iter().next() {
@@ -314,25 +340,41 @@ impl Store {
     /// which [`crate::resolving::checks_of`] finds): `survey run` then
     /// `survey process` processes the survey, not its check points.
     pub async fn resolve(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
+        self.resolve_counted(r, true).await
+    }
+
+    /// [`Store::resolve`] with the survey's `sample_count` left 0: for a
+    /// caller that reads every sample anyway and counts them as it does
+    /// ([`crate::load`]), so that the samples are not walked twice.
+    pub async fn resolve_uncounted(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
+        self.resolve_counted(r, false).await
+    }
+
+    async fn resolve_counted(&self, r: Option<SurveyRef>, counted: bool) -> anyhow::Result<SurveyRecord> {
         let latest = on_pool!(self, |pool| {
             sqlx::query_scalar("SELECT MAX(id) FROM surveys WHERE source <> 'resolving'").fetch_one(pool).await?
         });
-        self.resolve_with(r, latest).await
+        self.resolve_with(r, latest, counted).await
     }
 
     /// [`Store::resolve`] with check points included in "the latest" (what
     /// `survey resume` finishes).
     pub async fn resolve_any(&self, r: Option<SurveyRef>) -> anyhow::Result<SurveyRecord> {
         let latest = self.latest_survey_id().await?;
-        self.resolve_with(r, latest).await
+        self.resolve_with(r, latest, true).await
     }
 
-    async fn resolve_with(&self, r: Option<SurveyRef>, latest: Option<i64>) -> anyhow::Result<SurveyRecord> {
+    async fn resolve_with(
+        &self,
+        r: Option<SurveyRef>,
+        latest: Option<i64>,
+        counted: bool,
+    ) -> anyhow::Result<SurveyRecord> {
         match r {
-            Some(SurveyRef::Id(id)) => self.survey(id).await,
-            Some(SurveyRef::Uid(uid)) => self.survey_by_uid(&uid).await,
+            Some(SurveyRef::Id(id)) => self.survey_counted(id, counted).await,
+            Some(SurveyRef::Uid(uid)) => self.survey_by_uid_counted(&uid, counted).await,
             None => match latest {
-                Some(id) => self.survey(id).await,
+                Some(id) => self.survey_counted(id, counted).await,
                 None => Err(NotFound(format!(
                     "no survey in {}: run `survey run` or `survey import` first",
                     self.path.display()
