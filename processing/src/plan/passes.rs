@@ -16,7 +16,7 @@
 //! pass of the plan is paired and stored as it ends (none held in memory),
 //! a survey stopped anywhere resumes from its first pass not stored, and a
 //! resume with no pass stored measures the latency again on the same
-//! //! arc. [`scan_order`] is the order the engine scans them in.
+//! arc. [`scan_order`] is the order the engine scans them in.
 
 use super::{PlanError, SurveyPlan};
 use crate::Direction;
@@ -123,17 +123,11 @@ pub fn within_travel_for_scan(
     let (cal, scan) = t.speeds(velocity);
     let inset = t.runup_deg(cal.max(scan), accel).max(plan.overrun_deg);
     let points = plan.targets_deg.len() as u32;
-    let mut inside =
-        SurveyPlan::range(lo + inset, hi - inset, points, plan.runs, plan.bidirectional).map_err(|_| {
-            PlanError::OutsideTravel { first: lo + inset, last: hi - inset, overrun: inset, min: lo, max: hi }
-        })?;
-    inside.overrun_deg = plan.overrun_deg;
-    inside.scan = plan.scan;
-    if fits(&inside) {
-        Ok(inside)
-    } else {
-        Err(PlanError::OutsideTravel { first: lo + inset, last: hi - inset, overrun: inset, min: lo, max: hi })
-    }
+    SurveyPlan::range(lo + inset, hi - inset, points, plan.runs, plan.bidirectional)
+        .ok()
+        .map(|inside| SurveyPlan { overrun_deg: plan.overrun_deg, scan: plan.scan, ..inside })
+        .filter(fits)
+        .ok_or(PlanError::OutsideTravel { first: lo + inset, last: hi - inset, overrun: inset, min: lo, max: hi })
 }
 
 /// One pass of a plan, or a calibration pass.
