@@ -3,9 +3,9 @@
 -- survey (process, stats, report, model-gap) read, in place of two rows a
 -- sample (decoding them was most of `survey process`'s time). The rows of
 -- `samples` and `raw_readings` stay the record: a pack is a copy of them,
--- written in the transaction that marks the acquisition whole, and dropped by
--- any later change to them (the triggers below); a survey without a pack is
--- read from its rows.
+-- written right after the transaction that marks the acquisition whole, and
+-- dropped by any later change to them (the triggers below); a survey without
+-- a pack is read from its rows.
 --
 -- `data` holds `count` records of 72 bytes, little-endian, in seq order (the
 -- layout of `format` 1; orchestrator/src/store/pack.rs): seq (i64), run

@@ -3,21 +3,29 @@
 //! once its acquisition is whole, so that a command reading the whole survey
 //! decodes a blob instead of two SQLite rows a sample.
 //!
-//! The rows stay the record. A pack is written in the transaction that marks
-//! the acquisition whole ([`Store::set_status`] to `processing`, `complete`
-//! or `imported`, and [`Store::import`]), from the rows as they are then; any
-//! later insert, update or delete of a survey's samples or raw readings drops
-//! its pack (triggers), and a survey without one is read from its rows. The
-//! format is this project's own (no public document); its layout is in the
-//! migration and in [`Record`].
+//! The rows stay the record. A pack is written from them in a transaction
+//! of its own right after the one that marks the acquisition whole
+//! ([`Store::set_status`](super::Store::set_status) to `processing`,
+//! `complete` or `imported`, and [`Store::import`](super::Store::import)),
+//! under the write lock, so it holds the rows as they are then. Any later
+//! insert, update or delete of a survey's samples or raw readings drops its
+//! pack (triggers). A survey without a pack (a kill between the two
+//! transactions, a full disk, a database from before migration 7), or with
+//! one that does not decode or does not end at its last sample, is read from
+//! its rows. The format is this project's own (no public document); its
+//! layout is in the migration and in [`Record`].
 
 use anyhow::{Context as _, bail};
 use sqlx::sqlite::SqliteConnection;
 use survey_processing::{Direction, Sample};
 
-use super::Store;
-use super::samples::SmrPosition;
-use super::tx::WriteTx;
+/// The SMR position behind a sample: its index in the survey's samples (in
+/// seq order) and the tracker's x, y, z in mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmrPosition {
+    pub index: usize,
+    pub xyz_mm: [f64; 3],
+}
 
 /// The layout [`encode`] writes and [`decode`] reads.
 pub(super) const FORMAT: i64 = 1;
@@ -145,47 +153,11 @@ pub(super) async fn write(conn: &mut SqliteConnection, survey_id: i64, records: 
     Ok(())
 }
 
-impl Store {
-    /// Write the pack of survey `id` from its rows, unless it has one. Best
-    /// effort: the rows are the record, so a pack that cannot be written
-    /// (a full disk, say) is logged and the survey is read from its rows.
-    pub(super) async fn pack(&self, id: i64) {
-        if let Err(e) = self.try_pack(id).await {
-            tracing::warn!(survey = id, error = %format!("{e:#}"), "the samples were not packed: they are read from their rows");
-        }
-    }
-
-    async fn try_pack(&self, id: i64) -> anyhow::Result<()> {
-        let mut tx = WriteTx::begin(self.sqlite()?).await?;
-        // Under the write lock from here: the rows read are the rows packed.
-        let packed: Option<i64> = sqlx::query_scalar("SELECT 1 FROM sample_packs WHERE survey_id = ? LIMIT 1")
-            .bind(id)
-            .fetch_optional(tx.conn())
-            .await?;
-        let records = match packed {
-            Some(_) => Vec::new(),
-            None => {
-                let (path, immutable) = (self.path.clone(), self.immutable);
-                tokio::task::spawn_blocking(move || super::samples::read_records(&path, immutable, id))
-                    .await
-                    .context("the sample reader stopped")??
-            }
-        };
-        if !records.is_empty() {
-            write(tx.conn(), id, &records).await?;
-        }
-        tx.commit().await?;
-        if !records.is_empty() {
-            tracing::debug!(survey = id, samples = records.len(), "samples packed");
-        }
-        Ok(())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::acquire::{RawReading, RecordedSample};
+    use crate::store::Store;
     use crate::survey::{NewSurvey, SurveyStatus};
     use survey_drivers::SmrMeasurement;
 
@@ -214,8 +186,11 @@ mod tests {
         RecordedSample { seq, sample, raw }
     }
 
-    /// Bit for bit (NaN equal to NaN, -0 not 0).
-    fn bits(samples: &[Sample], smr: &[SmrPosition]) -> (Vec<[u64; 6]>, Vec<(usize, [u64; 3])>) {
+    /// The samples and SMR positions as bits: compared bit for bit (NaN
+    /// equal to NaN, -0 not 0).
+    type Bits = (Vec<[u64; 6]>, Vec<(usize, [u64; 3])>);
+
+    fn bits(samples: &[Sample], smr: &[SmrPosition]) -> Bits {
         let s = samples
             .iter()
             .map(|s| {
@@ -250,7 +225,7 @@ mod tests {
             .unwrap()
     }
 
-    async fn read(store: &Store, id: i64) -> (Vec<[u64; 6]>, Vec<(usize, [u64; 3])>) {
+    async fn read(store: &Store, id: i64) -> Bits {
         let (samples, smr) = store.samples_with_smr(id).await.unwrap();
         assert_eq!(bits(&store.samples(id).await.unwrap(), &[]).0, bits(&samples, &[]).0);
         bits(&samples, &smr)

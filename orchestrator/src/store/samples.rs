@@ -10,7 +10,7 @@ use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::{AcReading, SmrMeasurement};
 use survey_processing::{Direction, Sample};
 
-use super::pack;
+use super::pack::{self, SmrPosition};
 use super::surveys::insert_survey;
 use super::tx::WriteTx;
 use super::{CHUNK_ROWS, NotFound, Store, is_foreign_key_error, on_pool, real};
@@ -238,6 +238,43 @@ impl Store {
     }
 }
 
+impl Store {
+    /// Write the pack of survey `id` from its rows, unless it has one. Best
+    /// effort: the rows are the record, so a pack that cannot be written
+    /// (a full disk, say) is logged and the survey is read from its rows.
+    pub(super) async fn pack(&self, id: i64) {
+        if let Err(e) = self.try_pack(id).await {
+            tracing::warn!(survey = id, error = %format!("{e:#}"), "the samples were not packed: they are read from their rows");
+        }
+    }
+
+    async fn try_pack(&self, id: i64) -> anyhow::Result<()> {
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
+        // Under the write lock from here: the rows read are the rows packed.
+        let packed: Option<i64> = sqlx::query_scalar("SELECT 1 FROM sample_packs WHERE survey_id = ? LIMIT 1")
+            .bind(id)
+            .fetch_optional(tx.conn())
+            .await?;
+        let records = match packed {
+            Some(_) => Vec::new(),
+            None => {
+                let (path, immutable) = (self.path.clone(), self.immutable);
+                tokio::task::spawn_blocking(move || read_records(&path, immutable, id))
+                    .await
+                    .context("the sample reader stopped")??
+            }
+        };
+        if !records.is_empty() {
+            pack::write(tx.conn(), id, &records).await?;
+        }
+        tx.commit().await?;
+        if !records.is_empty() {
+            tracing::debug!(survey = id, samples = records.len(), "samples packed");
+        }
+        Ok(())
+    }
+}
+
 /// Check what SQLite would reject with a less helpful message (or silently
 /// change: SQLite stores NaN as NULL).
 fn check_sample(r: &RecordedSample) -> anyhow::Result<()> {
@@ -331,14 +368,6 @@ pub(super) async fn insert_samples(
     Ok(())
 }
 
-/// The SMR position behind a sample: its index in the survey's samples (in
-/// seq order) and the tracker's x, y, z in mm.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SmrPosition {
-    pub index: usize,
-    pub xyz_mm: [f64; 3],
-}
-
 /// A read-only rusqlite connection to the database at `path` (with
 /// `immutable=1` on read-only media).
 fn open_reader(path: &std::path::Path, immutable: bool) -> anyhow::Result<rusqlite::Connection> {
@@ -394,13 +423,12 @@ fn read_samples_with_smr(
 ) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
     let conn = open_reader(path, immutable)?;
     let last = last_seq(&conn, survey_id)?;
-    let (mut samples, mut smr) = (Vec::with_capacity(capacity(last)), Vec::new());
+    // At most a position a sample.
+    let (mut samples, mut smr) = (Vec::with_capacity(capacity(last)), Vec::with_capacity(capacity(last)));
     if read_pack(&conn, survey_id, last, &mut samples, Some(&mut smr))? {
         return Ok((samples, smr));
     }
     map_pages(&conn)?;
-    // At most a position a sample.
-    smr.reserve(samples.capacity());
     let samples = read_rows(&conn, survey_id, true, samples, |index, _, xyz| {
         if let Some(xyz_mm) = xyz {
             smr.push(SmrPosition { index, xyz_mm });
@@ -411,11 +439,7 @@ fn read_samples_with_smr(
 
 /// Every sample of survey `survey_id` with its seq and SMR position, from
 /// its rows: what its pack is written from.
-pub(super) fn read_records(
-    path: &std::path::Path,
-    immutable: bool,
-    survey_id: i64,
-) -> anyhow::Result<Vec<pack::Record>> {
+fn read_records(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyhow::Result<Vec<pack::Record>> {
     let conn = open_reader(path, immutable)?;
     map_pages(&conn)?;
     let mut found = Vec::with_capacity(capacity(last_seq(&conn, survey_id)?));
