@@ -10,6 +10,7 @@ use survey_processing::{Direction, Sample};
 
 /// The tables a survey's rows live in, children first.
 const SURVEY_TABLES: &[&str] = &[
+    "sample_packs",
     "raw_readings",
     "samples",
     "events",

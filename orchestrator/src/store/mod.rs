@@ -27,6 +27,8 @@
 //! - `surveys`: the surveys themselves (create, status, axis, locate points,
 //!   events, look-ups);
 //! - `samples`: storing and reading samples with their raw readings;
+//! - `pack`: the samples packed once a survey's acquisition is whole (what
+//!   the whole-survey reads decode);
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
 mod check_points;
@@ -34,6 +36,7 @@ mod checks;
 mod drift;
 pub mod lab;
 mod lock;
+mod pack;
 mod samples;
 mod scan;
 mod sink;
@@ -44,7 +47,7 @@ mod tx;
 
 pub use checks::CheckDecision;
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
-pub use samples::SmrPosition;
+pub use pack::SmrPosition;
 pub use scan::StoredPass;
 pub use sink::StoreSink;
 pub use surveys::EventRow;
@@ -102,6 +105,7 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (4, "check points", include_str!("../../../migrations/0004_check_points.sql")),
     (5, "assets", include_str!("../../../migrations/0005_assets.sql")),
     (6, "processing", include_str!("../../../migrations/0006_processing.sql")),
+    (7, "sample packs", include_str!("../../../migrations/0007_sample_packs.sql")),
 ];
 
 fn migrator() -> Migrator {

@@ -10,6 +10,7 @@ use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::{AcReading, SmrMeasurement};
 use survey_processing::{Direction, Sample};
 
+use super::pack::{self, SmrPosition};
 use super::surveys::insert_survey;
 use super::tx::WriteTx;
 use super::{CHUNK_ROWS, NotFound, Store, is_foreign_key_error, on_pool, real};
@@ -105,6 +106,7 @@ impl Store {
         match inserted {
             Ok(id) => {
                 tx.commit().await?;
+                self.pack(id).await;
                 Ok(id)
             }
             Err(e) => {
@@ -236,6 +238,43 @@ impl Store {
     }
 }
 
+impl Store {
+    /// Write the pack of survey `id` from its rows, unless it has one. Best
+    /// effort: the rows are the record, so a pack that cannot be written
+    /// (a full disk, say) is logged and the survey is read from its rows.
+    pub(super) async fn pack(&self, id: i64) {
+        if let Err(e) = self.try_pack(id).await {
+            tracing::warn!(survey = id, error = %format!("{e:#}"), "the samples were not packed: they are read from their rows");
+        }
+    }
+
+    async fn try_pack(&self, id: i64) -> anyhow::Result<()> {
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
+        // Under the write lock from here: the rows read are the rows packed.
+        let packed: Option<i64> = sqlx::query_scalar("SELECT 1 FROM sample_packs WHERE survey_id = ? LIMIT 1")
+            .bind(id)
+            .fetch_optional(tx.conn())
+            .await?;
+        let records = match packed {
+            Some(_) => Vec::new(),
+            None => {
+                let (path, immutable) = (self.path.clone(), self.immutable);
+                tokio::task::spawn_blocking(move || read_records(&path, immutable, id))
+                    .await
+                    .context("the sample reader stopped")??
+            }
+        };
+        if !records.is_empty() {
+            pack::write(tx.conn(), id, &records).await?;
+        }
+        tx.commit().await?;
+        if !records.is_empty() {
+            tracing::debug!(survey = id, samples = records.len(), "samples packed");
+        }
+        Ok(())
+    }
+}
+
 /// Check what SQLite would reject with a less helpful message (or silently
 /// change: SQLite stores NaN as NULL).
 fn check_sample(r: &RecordedSample) -> anyhow::Result<()> {
@@ -329,14 +368,6 @@ pub(super) async fn insert_samples(
     Ok(())
 }
 
-/// The SMR position behind a sample: its index in the survey's samples (in
-/// seq order) and the tracker's x, y, z in mm.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SmrPosition {
-    pub index: usize,
-    pub xyz_mm: [f64; 3],
-}
-
 /// A read-only rusqlite connection to the database at `path` (with
 /// `immutable=1` on read-only media).
 fn open_reader(path: &std::path::Path, immutable: bool) -> anyhow::Result<rusqlite::Connection> {
@@ -358,75 +389,153 @@ fn open_reader(path: &std::path::Path, immutable: bool) -> anyhow::Result<rusqli
         rusqlite::Connection::open_with_flags(path, flags)?
     };
     conn.busy_timeout(super::BUSY_TIMEOUT)?;
-    // Pages read through a memory map rather than a read(2) copy each (the
-    // bulk reads touch every page of a table once).
-    conn.pragma_update(None, "mmap_size", 1i64 << 30)?;
     Ok(conn)
 }
 
-/// [`Store::samples`], on the calling thread.
-fn read_samples(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
-    read_samples_with(&open_reader(path, immutable)?, survey_id, |_, _| Ok(()))
+/// Read the pages through a memory map rather than a read(2) copy each: for
+/// the rows, whose bulk reads touch every page of a table once. (A pack is
+/// read without: its blobs are copied out of their pages anyway, and the
+/// mapped pages would stay resident beside the copy.)
+fn map_pages(conn: &rusqlite::Connection) -> anyhow::Result<()> {
+    conn.pragma_update(None, "mmap_size", 1i64 << 30)?;
+    Ok(())
 }
 
-/// [`Store::samples_with_smr`], on the calling thread.
+/// [`Store::samples`], on the calling thread: from the survey's pack when
+/// it has one, from its rows otherwise.
+fn read_samples(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyhow::Result<Vec<Sample>> {
+    let conn = open_reader(path, immutable)?;
+    let last = last_seq(&conn, survey_id)?;
+    let mut samples = Vec::with_capacity(capacity(last));
+    if read_pack(&conn, survey_id, last, &mut samples, None)? {
+        return Ok(samples);
+    }
+    map_pages(&conn)?;
+    read_rows(&conn, survey_id, false, samples, |_, _, _| ())
+}
+
+/// [`Store::samples_with_smr`], on the calling thread: from the survey's
+/// pack when it has one, from its rows otherwise.
 fn read_samples_with_smr(
     path: &std::path::Path,
     immutable: bool,
     survey_id: i64,
 ) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
     let conn = open_reader(path, immutable)?;
+    let last = last_seq(&conn, survey_id)?;
     // At most a position a sample.
-    let mut smr = Vec::with_capacity(seq_bound(&conn, survey_id)?);
-    let mut stmt = conn.prepare(
-        "SELECT seq, smr_x_mm, smr_y_mm, smr_z_mm FROM raw_readings \
-         WHERE survey_id = ?1 AND kind = 'smr' ORDER BY seq",
-    )?;
-    let mut rows = stmt.query([survey_id])?;
-    let mut next = || -> anyhow::Result<Option<(i64, [f64; 3])>> {
-        let Some(row) = rows.next()? else { return Ok(None) };
-        let xyz = |i: usize| -> rusqlite::Result<f64> { Ok(row.get::<_, Option<f64>>(i)?.unwrap_or(f64::NAN)) };
-        Ok(Some((row.get(0)?, [xyz(1)?, xyz(2)?, xyz(3)?])))
-    };
-    let mut pending = next()?;
-    let samples = read_samples_with(&conn, survey_id, |index, seq| {
-        // Both in seq order: a raw reading belongs to the sample of its seq.
-        while let Some((raw_seq, xyz)) = pending {
-            if raw_seq > seq {
-                break;
-            }
-            if raw_seq == seq {
-                smr.push(SmrPosition { index, xyz_mm: xyz });
-            }
-            pending = next()?;
+    let (mut samples, mut smr) = (Vec::with_capacity(capacity(last)), Vec::with_capacity(capacity(last)));
+    if read_pack(&conn, survey_id, last, &mut samples, Some(&mut smr))? {
+        return Ok((samples, smr));
+    }
+    map_pages(&conn)?;
+    let samples = read_rows(&conn, survey_id, true, samples, |index, _, xyz| {
+        if let Some(xyz_mm) = xyz {
+            smr.push(SmrPosition { index, xyz_mm });
         }
-        Ok(())
     })?;
     Ok((samples, smr))
 }
 
-/// One more than the highest seq of a survey's samples (0 without any): as
-/// many as it has when its seqs run from 0 without a gap (as a survey stores
-/// them), from the primary key alone (a `COUNT(*)` walks every row). A
-/// capacity hint: a stray huge seq reserves no more than [`MAX_RESERVED`].
-fn seq_bound(conn: &rusqlite::Connection, survey_id: i64) -> anyhow::Result<usize> {
-    let last: Option<i64> =
-        conn.query_row("SELECT MAX(seq) FROM samples WHERE survey_id = ?1", [survey_id], |r| r.get(0))?;
-    Ok(last.and_then(|s| usize::try_from(s).ok()).map_or(0, |s| s.saturating_add(1)).min(MAX_RESERVED))
+/// Every sample of survey `survey_id` with its seq and SMR position, from
+/// its rows: what its pack is written from.
+fn read_records(path: &std::path::Path, immutable: bool, survey_id: i64) -> anyhow::Result<Vec<pack::Record>> {
+    let conn = open_reader(path, immutable)?;
+    map_pages(&conn)?;
+    let mut found = Vec::with_capacity(capacity(last_seq(&conn, survey_id)?));
+    let samples = read_rows(&conn, survey_id, true, Vec::new(), |_, seq, smr_mm| found.push((seq, smr_mm)))?;
+    Ok(found.into_iter().zip(samples).map(|((seq, smr_mm), sample)| pack::Record { seq, sample, smr_mm }).collect())
+}
+
+/// Read the pack of survey `survey_id` into `samples` (and `smr`) when it
+/// has one that ends at its last sample (seq `last`, [`last_seq`]): `true`.
+/// `false`, with nothing read, when it has none, or one that cannot be read
+/// (logged: the rows are read instead, the record).
+fn read_pack(
+    conn: &rusqlite::Connection,
+    survey_id: i64,
+    last_stored: Option<i64>,
+    samples: &mut Vec<Sample>,
+    mut smr: Option<&mut Vec<SmrPosition>>,
+) -> anyhow::Result<bool> {
+    let mut stmt = conn
+        .prepare("SELECT first_seq, count, format, data FROM sample_packs WHERE survey_id = ?1 ORDER BY first_seq")?;
+    let mut rows = stmt.query([survey_id])?;
+    let mut last = None;
+    let read = (|| -> anyhow::Result<bool> {
+        while let Some(row) = rows.next()? {
+            let (first_seq, count, format): (i64, i64, i64) = (row.get(0)?, row.get(1)?, row.get(2)?);
+            if format != pack::FORMAT {
+                bail!("the pack from seq {first_seq} is of format {format}, not {}", pack::FORMAT);
+            }
+            let data = row.get_ref(3)?.as_blob()?;
+            last = Some(pack::decode(data, first_seq, count, last, samples, smr.as_deref_mut())?);
+        }
+        match (last, last_stored) {
+            (None, _) => Ok(false),
+            (Some(l), Some(s)) if l == s => Ok(true),
+            (Some(l), s) => bail!("the pack ends at seq {l}, the samples at {s:?}"),
+        }
+    })();
+    match read {
+        Ok(true) => Ok(true),
+        Ok(false) => Ok(false),
+        Err(e) => {
+            tracing::warn!(survey = survey_id, error = %format!("{e:#}"), "the sample pack is not used: the rows are read");
+            samples.clear();
+            if let Some(smr) = smr {
+                smr.clear();
+            }
+            Ok(false)
+        }
+    }
+}
+
+/// The highest seq of a survey's samples (`None` without any), from the
+/// primary key alone (a `COUNT(*)` walks every row).
+fn last_seq(conn: &rusqlite::Connection, survey_id: i64) -> anyhow::Result<Option<i64>> {
+    Ok(conn.query_row("SELECT MAX(seq) FROM samples WHERE survey_id = ?1", [survey_id], |r| r.get(0))?)
+}
+
+/// Room for the samples up to seq `last`: as many as a survey has when its
+/// seqs run from 0 without a gap (as a survey stores them). A capacity hint:
+/// a stray huge seq reserves no more than [`MAX_RESERVED`].
+fn capacity(last: Option<i64>) -> usize {
+    last.and_then(|s| usize::try_from(s).ok()).map_or(0, |s| s.saturating_add(1)).min(MAX_RESERVED)
 }
 
 /// The most samples a reader reserves room for up front (the vector grows
 /// beyond it as it must).
 const MAX_RESERVED: usize = 1 << 26;
 
-/// The samples of a survey in seq order, telling `each` every sample's index
-/// and seq as it is read.
-fn read_samples_with(
+/// The samples of a survey in seq order from its rows, appended to `out`,
+/// telling `each` every sample's index, seq and (with `smr_too`) the SMR
+/// position behind it: the samples and the SMR rows each read in one pass in
+/// seq order, merged (no join).
+fn read_rows(
     conn: &rusqlite::Connection,
     survey_id: i64,
-    mut each: impl FnMut(usize, i64) -> anyhow::Result<()>,
+    smr_too: bool,
+    mut out: Vec<Sample>,
+    mut each: impl FnMut(usize, i64, Option<[f64; 3]>),
 ) -> anyhow::Result<Vec<Sample>> {
-    let mut out = Vec::with_capacity(seq_bound(conn, survey_id)?);
+    let mut smr_stmt = match smr_too {
+        true => Some(conn.prepare(
+            "SELECT seq, smr_x_mm, smr_y_mm, smr_z_mm FROM raw_readings \
+             WHERE survey_id = ?1 AND kind = 'smr' ORDER BY seq",
+        )?),
+        false => None,
+    };
+    let mut smr_rows = match &mut smr_stmt {
+        Some(stmt) => Some(stmt.query([survey_id])?),
+        None => None,
+    };
+    let mut next_smr = || -> anyhow::Result<Option<(i64, [f64; 3])>> {
+        let Some(row) = smr_rows.as_mut().map(|r| r.next()).transpose()?.flatten() else { return Ok(None) };
+        let xyz = |i: usize| -> rusqlite::Result<f64> { Ok(row.get::<_, Option<f64>>(i)?.unwrap_or(f64::NAN)) };
+        Ok(Some((row.get(0)?, [xyz(1)?, xyz(2)?, xyz(3)?])))
+    };
+    let mut pending = next_smr()?;
     let mut stmt = conn.prepare(
         "SELECT seq, run, direction, target_deg, readout_deg, actual_deg, timestamp_s \
          FROM samples WHERE survey_id = ?1 ORDER BY seq",
@@ -440,7 +549,18 @@ fn read_samples_with(
             other => bail!("sample seq {seq}: direction '{other}'"),
         };
         let run: i64 = row.get(1)?;
-        each(out.len(), seq)?;
+        // Both in seq order: a raw reading belongs to the sample of its seq.
+        let mut smr = None;
+        while let Some((raw_seq, xyz)) = pending {
+            if raw_seq > seq {
+                break;
+            }
+            if raw_seq == seq {
+                smr = Some(xyz);
+            }
+            pending = next_smr()?;
+        }
+        each(out.len(), seq, smr);
         out.push(Sample {
             run: u32::try_from(run).with_context(|| format!("sample seq {seq}: bad run {run}"))?,
             direction,

@@ -138,6 +138,10 @@ impl Store {
             return Err(self.no_survey(id).into());
         }
         tx.commit().await?;
+        // The acquisition is whole: the samples are packed for the reads.
+        if matches!(status, SurveyStatus::Processing | SurveyStatus::Complete | SurveyStatus::Imported) {
+            self.pack(id).await;
+        }
         Ok(())
     }
 
