@@ -9,10 +9,10 @@ use crate::Sample;
 use crate::analysis::{Analysis, AnalysisError, analyse};
 use crate::correction::left::{Left, LeftKind};
 use crate::correction::resolve::{Resolution, decide as resolve, measured_left_deg as measured_left_deg_of};
-use crate::correction::{CorrectionError, Prediction, predict_accuracy};
+use crate::correction::{CorrectionError, Prediction, corrected_errors, predict_accuracy};
 use crate::errormap::Coverage;
 use crate::export::controllers::ControllerExport;
-use crate::iso230::{Iso230, iso230_2};
+use crate::iso230::{Iso230, TargetGroups, iso230_2_grouped};
 use crate::model::Design;
 use crate::recipe::{
     AliasChoice, AliasChoiceAction, ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe,
@@ -191,7 +191,9 @@ pub fn process_with_checks(
     }
     notes.extend(decisions.notes.iter().cloned());
     notes.extend(built.notes.iter().cloned());
-    let iso = iso230_2(&samples).ok();
+    // One grouping by target for the survey's statistics and its corrected errors'.
+    let groups = TargetGroups::of(&samples);
+    let iso = iso230_2_grouped(&samples, &groups).ok();
     let floor = match &iso {
         Some(s) if built.directional => Floor {
             deg: Some(s.r_up.unwrap_or(s.r).max(s.r_down.unwrap_or(0.0)) / 2.0),
@@ -204,8 +206,11 @@ pub fn process_with_checks(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let mut prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0), iso.as_ref().map(|s| s.a))?
-        .with_left(&left, &samples, &built.table);
+    let corrected = corrected_errors(&samples, &built.table);
+    let mut prediction =
+        predict_accuracy(&samples, &corrected, &groups, floor.deg.unwrap_or(0.0), iso.as_ref().map(|s| s.a))?
+            .with_left(&left, &samples, &corrected);
+    drop((groups, corrected));
     // Check points that no hypothesis explains measured the corrected axis
     // between the targets: the prediction does not promise better.
     if let Some((_, peak)) = measured_left {
