@@ -39,11 +39,20 @@ const GRID_FACTOR: usize = 4;
 /// `grid.len()` points over 360 deg.
 fn interp(grid: &[f64], theta_deg: f64) -> f64 {
     let m = grid.len();
-    let x = theta_deg.rem_euclid(360.0) / 360.0 * m as f64;
-    let i = (x.floor() as usize).min(m - 1);
+    // `rem_euclid` leaves an angle in [0, 360) as it is: only the others
+    // pay for its division. `x` is not negative: `as` is its floor.
+    let wrapped = if (0.0..360.0).contains(&theta_deg) { theta_deg } else { theta_deg.rem_euclid(360.0) };
+    let x = wrapped / 360.0 * m as f64;
+    let i = (x as usize).min(m - 1);
     let f = x - i as f64;
-    let at = |k: isize| grid[(i as isize + k).rem_euclid(m as isize) as usize];
-    let (a, b, c, d) = (at(-1), at(0), at(1), at(2));
+    // The four nodes, wrapped around the grid only at its ends.
+    let (a, b, c, d) = match grid.get(i.wrapping_sub(1)..i + 3) {
+        Some(&[a, b, c, d]) => (a, b, c, d),
+        _ => {
+            let at = |k: usize| grid[(i + m - 1 + k) % m];
+            (at(0), at(1), at(2), at(3))
+        }
+    };
     // Lagrange weights at nodes -1, 0, 1, 2.
     let wa = -f * (f - 1.0) * (f - 2.0) / 6.0;
     let wb = (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0;
