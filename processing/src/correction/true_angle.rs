@@ -24,6 +24,7 @@
 //! reference and, per direction, half the backlash) is put back as it is.
 
 use crate::resample::{Complex64, PartialError, PartialFit, PartialMethod, Resampler, Series, Span, fit_partial};
+use crate::types::rem_euclid_360;
 
 /// Passes of the correction of `g` (each removes one order of the products).
 const PASSES: usize = 2;
@@ -39,10 +40,8 @@ const GRID_FACTOR: usize = 4;
 /// `grid.len()` points over 360 deg.
 fn interp(grid: &[f64], theta_deg: f64) -> f64 {
     let m = grid.len();
-    // `rem_euclid` leaves an angle in [0, 360) as it is: only the others
-    // pay for its division. `x` is not negative: `as` is its floor.
-    let wrapped = if (0.0..360.0).contains(&theta_deg) { theta_deg } else { theta_deg.rem_euclid(360.0) };
-    let x = wrapped / 360.0 * m as f64;
+    // `x` is not negative: `as` is its floor.
+    let x = rem_euclid_360(theta_deg) / 360.0 * m as f64;
     let i = (x as usize).min(m - 1);
     let f = x - i as f64;
     // The four nodes, wrapped around the grid only at its ends.
