@@ -208,11 +208,10 @@ pub(crate) fn iso230_2_with_actual(
     let any_down = samples.iter().any(|s| s.direction == Direction::Reverse);
     let bidirectional = any_up && any_down;
 
-    let mut targets = Vec::with_capacity(groups.ranges.len());
+    let mut targets = Vec::with_capacity(groups.len());
     // One buffer each for a direction's samples and deviations, reused by every target.
     let (mut g, mut x): (Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new());
-    for range in groups.ranges.iter().cloned() {
-        let group = &groups.sorted[range];
+    for group in groups.iter() {
         let target_deg = samples[group[0]].target_deg;
         let mut dir_stats = |direction: Direction| -> Result<Option<DirStats>, StatsError> {
             g.clear();
@@ -285,6 +284,23 @@ impl TargetGroups {
             }
         }
         TargetGroups { sorted: keyed.into_iter().map(|(_, i)| i).collect(), ranges }
+    }
+
+    /// How many targets.
+    pub fn len(&self) -> usize {
+        self.ranges.len()
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.ranges.is_empty()
+    }
+
+    /// Each target's samples (indices), targets ascending, a target's
+    /// samples in the order of their targets (equal ones in the samples'
+    /// order).
+    pub fn iter(&self) -> impl Iterator<Item = &[usize]> {
+        self.ranges.iter().map(|r| &self.sorted[r.clone()])
     }
 }
 

@@ -6,7 +6,7 @@
 //! controller files ([`crate::export::controllers`]). Pure: the caller reads the samples and writes the files.
 
 use crate::Sample;
-use crate::analysis::{Analysis, AnalysisError, analyse};
+use crate::analysis::{Analysis, AnalysisError, analyse_grouped};
 use crate::correction::left::{Left, LeftKind};
 use crate::correction::resolve::{Resolution, decide as resolve, measured_left_deg as measured_left_deg_of};
 use crate::correction::{CorrectionError, Prediction, corrected_errors, predict_accuracy};
@@ -162,7 +162,10 @@ pub fn process_with_checks(
     let (samples, note) = close_circle(samples);
     notes.extend(note);
     let base = replay.map(|r| r.recipe.clone()).unwrap_or_default();
-    let analysis = analyse(&samples, design, &base.analysis)?;
+    // One grouping by target for the error map, the survey's statistics and
+    // its corrected errors'.
+    let groups = TargetGroups::of(&samples);
+    let analysis = analyse_grouped(&samples, &groups, design, &base.analysis)?;
     let mut recipe = match replay {
         Some(r) => r.recipe.clone(),
         None => Recipe::from_analysis(&analysis, &base),
@@ -191,8 +194,6 @@ pub fn process_with_checks(
     }
     notes.extend(decisions.notes.iter().cloned());
     notes.extend(built.notes.iter().cloned());
-    // One grouping by target for the survey's statistics and its corrected errors'.
-    let groups = TargetGroups::of(&samples);
     let iso = iso230_2_grouped(&samples, &groups).ok();
     let floor = match &iso {
         Some(s) if built.directional => Floor {
