@@ -210,7 +210,7 @@ pub fn process_with_checks(
     let corrected = corrected_errors(&samples, &built.table);
     let mut prediction =
         predict_accuracy(&samples, &corrected, &groups, floor.deg.unwrap_or(0.0), iso.as_ref().map(|s| s.a))?
-            .with_left(&left, &samples, &corrected);
+            .with_left(&left, &samples, &corrected, &groups);
     drop((groups, corrected));
     // Check points that no hypothesis explains measured the corrected axis
     // between the targets: the prediction does not promise better.

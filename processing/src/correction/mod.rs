@@ -378,10 +378,11 @@ impl Prediction {
     /// Gumbel distribution of scale `sigma / sqrt(2 ln 2M)`, and the
     /// difference of two such peaks a logistic one, which exceeds
     /// `ln(19)` scales 5 % of the time).
-    /// `corrected` are the samples' corrected errors ([`corrected_errors`]).
-    pub fn with_left(self, left: &left::Left, samples: &[Sample], corrected: &[f64]) -> Self {
+    /// `corrected` are the samples' corrected errors ([`corrected_errors`]),
+    /// `groups` their grouping by target ([`TargetGroups::of`]).
+    pub fn with_left(self, left: &left::Left, samples: &[Sample], corrected: &[f64], groups: &TargetGroups) -> Self {
         let unseen = left.unseen_peak_deg();
-        let spread = noise_sd(samples, corrected).map_or(0.0, |sigma| {
+        let spread = noise_sd(samples, corrected, groups).map_or(0.0, |sigma| {
             let m = samples.len().max(1) as f64;
             sigma * 19f64.ln() / (2.0 * (2.0 * m).ln()).sqrt()
         });
@@ -408,24 +409,38 @@ impl ErrorFigures {
 
 /// The noise of the corrected errors: their pooled standard deviation about
 /// the mean of each target and direction (`None` with one run).
-fn noise_sd(samples: &[Sample], corrected: &[f64]) -> Option<f64> {
-    // Each group summed in the samples' order, the groups then taken in the
-    // order of their keys (a hash map to find a sample's group: a tree of
-    // every target was most of this function's time on a large survey).
+fn noise_sd(samples: &[Sample], corrected: &[f64], by_target: &TargetGroups) -> Option<f64> {
+    // Each group (one target exactly, one direction) summed in the samples'
+    // order, the groups then taken in the order of their keys. The grouping
+    // by target lists equal targets side by side in the samples' order (its
+    // sort is stable): a group's samples are found by walking it, with no
+    // map from a sample to its group.
     type Key = (u64, bool);
-    let mut index: std::collections::HashMap<Key, usize> = Default::default();
     // (key, (sum, sum of squares, count))
-    let mut groups: Vec<(Key, (f64, f64, usize))> = Vec::new();
-    for (s, &e) in samples.iter().zip(corrected) {
-        let key = (s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward);
-        let at = *index.entry(key).or_insert_with(|| {
-            groups.push((key, (0.0, 0.0, 0)));
-            groups.len() - 1
-        });
-        let g = &mut groups[at].1;
+    let mut groups: Vec<(Key, (f64, f64, usize))> = Vec::with_capacity(2 * by_target.len());
+    let mut open: [(f64, f64, usize); 2] = [(0.0, 0.0, 0); 2];
+    let mut bits = None;
+    let mut close = |bits: u64, open: &mut [(f64, f64, usize); 2]| {
+        for (forward, g) in [false, true].into_iter().zip(std::mem::take(open)) {
+            if g.2 > 0 {
+                groups.push(((bits, forward), g));
+            }
+        }
+    };
+    for i in by_target.iter().flatten().copied() {
+        let (s, e) = (&samples[i], corrected[i]);
+        let b = s.target_deg.to_bits();
+        if let Some(previous) = bits.filter(|&p| p != b) {
+            close(previous, &mut open);
+        }
+        bits = Some(b);
+        let g = &mut open[usize::from(s.direction == crate::types::Direction::Forward)];
         g.0 += e;
         g.1 += e * e;
         g.2 += 1;
+    }
+    if let Some(last) = bits {
+        close(last, &mut open);
     }
     groups.sort_unstable_by_key(|(key, _)| *key);
     let (ss, dof) = groups
