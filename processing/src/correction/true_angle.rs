@@ -70,7 +70,12 @@ fn through_true_angle(grid: &[f64], readouts: &[f64], offset: f64) -> Vec<f64> {
         .map(|&r| {
             let mut theta = r - offset;
             for _ in 0..THETA_ITERATIONS {
-                theta = r - offset - (interp(grid, theta) - mean);
+                let next = r - offset - (interp(grid, theta) - mean);
+                // At a fixed point the iterations left would not move it.
+                if next.to_bits() == theta.to_bits() {
+                    break;
+                }
+                theta = next;
             }
             interp(grid, theta)
         })
