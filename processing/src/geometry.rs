@@ -279,21 +279,7 @@ pub fn refit_axis_with_angles(
     readouts_deg: &[f64],
 ) -> Result<(Refit, Vec<f64>), GeometryError> {
     let first = fit_axis(points_mm, readouts_deg)?;
-    let residual = |f: &AxisFit, p: [f64; 3]| {
-        let d = sub(p, f.center_mm);
-        let h = dot(d, f.normal);
-        let in_plane = sub(d, scale(f.normal, h));
-        (dot(in_plane, in_plane).sqrt() - f.radius_mm).hypot(h)
-    };
-    let r: Vec<f64> = points_mm.iter().map(|&p| residual(&first, p)).collect();
-    // The median's element, found without sorting the rest.
-    let mut sorted = r.clone();
-    let mid = sorted.len() / 2;
-    let mad = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
-    drop(sorted);
-    let limit = 5.0 * 1.4826 * mad;
-    let keep: Vec<usize> = (0..points_mm.len()).filter(|&i| limit <= 0.0 || r[i] <= limit).collect();
-    drop(r);
+    let keep = within_limit(&first, points_mm);
     let dropped = points_mm.len() - keep.len();
     let refitted = dropped != 0 && keep.len() >= 3;
     let fit = if refitted {
@@ -319,6 +305,67 @@ pub fn refit_axis_with_angles(
         over_arc_se_deg: knowledge.over_arc_se_deg,
     };
     Ok((refit, raw))
+}
+
+/// The indices of the points whose distance from the circle and plane of
+/// `fit` (`hypot` of the in-plane and the out-of-plane distance) is within 5
+/// robust standard deviations (1.4826 x the median distance); all of them
+/// when that median is 0.
+///
+/// `hypot` is within an ulp but slow, and this is a pass over every sample.
+/// Each distance is first estimated by a plain square root, within `REL` of
+/// `hypot`'s (a few ulps; `hypot` itself where squares could overflow or
+/// underflow), and `hypot` is taken only where those bounds cannot decide:
+/// for the few distances next to the median and to the limit. The median
+/// and the points kept are the ones `hypot` everywhere gives.
+fn within_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
+    const REL: f64 = 1e-14;
+    let parts = |p: [f64; 3]| {
+        let d = sub(p, fit.center_mm);
+        let h = dot(d, fit.normal);
+        let in_plane = sub(d, scale(fit.normal, h));
+        (dot(in_plane, in_plane).sqrt() - fit.radius_mm, h)
+    };
+    let exact = |i: usize| {
+        let (a, h) = parts(points_mm[i]);
+        a.hypot(h)
+    };
+    // (distance, whether it is hypot's): an estimate is within REL of it.
+    let estimates: Vec<(f64, bool)> = points_mm
+        .iter()
+        .map(|&p| {
+            let (a, h) = parts(p);
+            let q = (a * a + h * h).sqrt();
+            if (1e-150..1e150).contains(&q) { (q, false) } else { (a.hypot(h), true) }
+        })
+        .collect();
+    let bounds = |(v, exact): (f64, bool)| if exact { (v, v) } else { (v * (1.0 - REL), v * (1.0 + REL)) };
+    // The median: the estimates' median `q` bounds it within [q (1 - REL),
+    // q (1 + REL)]; the distances certainly below that band are below it,
+    // those certainly above above it, and it is found among the others.
+    let mid = points_mm.len() / 2;
+    let mut sorted: Vec<f64> = estimates.iter().map(|e| e.0).collect();
+    let q = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let (band_lo, band_hi) = (q * (1.0 - REL), q * (1.0 + REL));
+    let mut below = 0;
+    sorted.clear();
+    for (i, &e) in estimates.iter().enumerate() {
+        let (lo, hi) = bounds(e);
+        if hi < band_lo {
+            below += 1;
+        } else if lo <= band_hi {
+            sorted.push(if e.1 { e.0 } else { exact(i) });
+        }
+    }
+    let mad = *sorted.select_nth_unstable_by(mid - below, f64::total_cmp).1;
+    drop(sorted);
+    let limit = 5.0 * 1.4826 * mad;
+    (0..points_mm.len())
+        .filter(|&i| {
+            let (lo, hi) = bounds(estimates[i]);
+            limit <= 0.0 || hi <= limit || (lo <= limit && exact(i) <= limit)
+        })
+        .collect()
 }
 
 /// How well a fitted circle's centre is known from its points.
