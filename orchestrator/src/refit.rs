@@ -25,7 +25,7 @@ use crate::acquire::ReferenceKind;
 use crate::store::Store;
 use crate::survey::{Setup, SurveyRecord};
 use survey_processing::Sample;
-use survey_processing::geometry::{AxisFit, Refit, refit_axis};
+use survey_processing::geometry::{AxisFit, Refit, refit_axis, refit_axis_with_angles};
 use survey_processing::modelgap::ReferenceInfo;
 use survey_processing::uncertainty::UncertaintyInputs;
 
@@ -117,14 +117,15 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
     }
     let readouts: Vec<f64> =
         locate.iter().map(|(readout, _)| *readout).chain(smr.iter().map(|p| samples[p.index].readout_deg)).collect();
-    let Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. } =
-        refit_axis(&points, &readouts).map_err(|e| {
+    let (Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. }, raw) =
+        refit_axis_with_angles(&points, &readouts).map_err(|e| {
             anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
         })?;
     drop((points, readouts));
-    for p in &smr {
+    // The samples' positions follow the locate points in `raw`.
+    for (p, &raw) in smr.iter().zip(&raw[locate.len()..]) {
         let s = &mut samples[p.index];
-        s.actual_deg = fit.angle_deg(p.xyz_mm, s.target_deg);
+        s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
     }
     let center_shift_mm = in_plane_shift(&fit, located);
     let refit = AxisRefit {

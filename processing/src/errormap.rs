@@ -7,7 +7,7 @@
 //! hysteresis `forward mean - reverse mean` per target.
 //!
 //! Targets are grouped as in [`crate::iso230`]: targets within
-//! [`TARGET_TOLERANCE_DEG`] of each other are one target, reported at the
+//! [`crate::iso230::TARGET_TOLERANCE_DEG`] of each other are one target, reported at the
 //! smallest of them, in ascending order. The map is complete (no NaN, no hole):
 //! every direction that was measured must hold one sample for every run and
 //! every target, where the runs are all the runs seen in the survey and the
@@ -19,7 +19,7 @@
 //! plain DFT in cycles per revolution) or a partial range such as an elevation
 //! axis from -10 to 90 deg (analysed by least squares at the design frequencies).
 
-use crate::iso230::TARGET_TOLERANCE_DEG;
+use crate::iso230::TargetGroups;
 use crate::types::{Direction, Sample};
 use serde::Serialize;
 
@@ -155,6 +155,12 @@ pub enum ErrorMapError {
 impl ErrorMap {
     /// Build the error map of a survey. Samples may come in any order.
     pub fn from_samples(samples: &[Sample]) -> Result<Self, ErrorMapError> {
+        Self::from_grouped(samples, &TargetGroups::of(samples))
+    }
+
+    /// [`ErrorMap::from_samples`] with the samples' grouping by target made
+    /// already ([`TargetGroups::of`] `samples`).
+    pub fn from_grouped(samples: &[Sample], groups: &TargetGroups) -> Result<Self, ErrorMapError> {
         for (index, s) in samples.iter().enumerate() {
             for (field, value) in
                 [("target_deg", s.target_deg), ("readout_deg", s.readout_deg), ("actual_deg", s.actual_deg)]
@@ -167,18 +173,12 @@ impl ErrorMap {
         if samples.is_empty() {
             return Err(ErrorMapError::NoSamples);
         }
-        // Group targets: sort, then a group starts at its smallest target.
-        // (The targets sorted beside their indices; equal ones in any order.)
-        let mut order: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
-        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        let mut targets_deg: Vec<f64> = Vec::new();
+        // A target is its group's smallest.
+        let mut targets_deg: Vec<f64> = Vec::with_capacity(groups.len());
         let mut target_of = vec![0usize; samples.len()];
-        for &(t, i) in &order {
-            match targets_deg.last() {
-                Some(&first) if t - first <= TARGET_TOLERANCE_DEG => {}
-                _ => targets_deg.push(t),
-            }
-            target_of[i] = targets_deg.len() - 1;
+        for (t, group) in groups.iter().enumerate() {
+            targets_deg.push(samples[group[0]].target_deg);
+            group.iter().for_each(|&i| target_of[i] = t);
         }
         let mut runs: Vec<u32> = samples.iter().map(|s| s.run).collect();
         runs.sort_unstable();

@@ -266,38 +266,106 @@ pub struct Refit {
 /// uncertainty (a tilt of microradians) changes angles only at second order
 /// and is left out.
 pub fn refit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<Refit, GeometryError> {
+    refit_axis_with_angles(points_mm, readouts_deg).map(|(refit, _)| refit)
+}
+
+/// [`refit_axis`], and the raw angle of every position around the refitted
+/// axis ([`AxisFit::raw_angle`], in the order of `points_mm`, the dropped
+/// ones too): what the centre's uncertainty takes, and what
+/// [`AxisFit::angle_of_raw`] turns into the positions' angles without a
+/// second `atan2` each.
+pub fn refit_axis_with_angles(
+    points_mm: &[[f64; 3]],
+    readouts_deg: &[f64],
+) -> Result<(Refit, Vec<f64>), GeometryError> {
     let first = fit_axis(points_mm, readouts_deg)?;
-    let residual = |f: &AxisFit, p: [f64; 3]| {
-        let d = sub(p, f.center_mm);
-        let h = dot(d, f.normal);
-        let in_plane = sub(d, scale(f.normal, h));
-        (dot(in_plane, in_plane).sqrt() - f.radius_mm).hypot(h)
-    };
-    let r: Vec<f64> = points_mm.iter().map(|&p| residual(&first, p)).collect();
-    // The median's element, found without sorting the rest.
-    let mut sorted = r.clone();
-    let mid = sorted.len() / 2;
-    let mad = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let limit = 5.0 * 1.4826 * mad;
-    let keep: Vec<usize> = (0..points_mm.len()).filter(|&i| limit <= 0.0 || r[i] <= limit).collect();
+    let keep = within_limit(&first, points_mm);
     let dropped = points_mm.len() - keep.len();
-    let (fit, kept) = if dropped == 0 || keep.len() < 3 {
-        (first, std::borrow::Cow::Borrowed(points_mm))
-    } else {
+    let refitted = dropped != 0 && keep.len() >= 3;
+    let fit = if refitted {
         let pts: Vec<[f64; 3]> = keep.iter().map(|&i| points_mm[i]).collect();
         let ro: Vec<f64> = keep.iter().map(|&i| readouts_deg[i]).collect();
-        (fit_axis(&pts, &ro)?, std::borrow::Cow::Owned(pts))
+        fit_axis(&pts, &ro)?
+    } else {
+        first
     };
-    let knowledge = center_knowledge(&fit, &kept);
-    Ok(Refit {
+    let raw: Vec<f64> = points_mm.iter().map(|&p| fit.raw_angle(p)).collect();
+    let knowledge = if refitted {
+        center_knowledge(&fit, keep.iter().map(|&i| (points_mm[i], raw[i])))
+    } else {
+        center_knowledge(&fit, points_mm.iter().copied().zip(raw.iter().copied()))
+    };
+    let refit = Refit {
         fit,
-        dropped: if dropped == 0 || keep.len() < 3 { 0 } else { dropped },
+        dropped: if refitted { dropped } else { 0 },
         center_cov_mm2: knowledge.cov,
         center_se_mm: knowledge.worst_se_mm,
         once_per_rev_se_deg: knowledge.once_per_rev_se_deg,
         arc_deg: knowledge.arc_deg,
         over_arc_se_deg: knowledge.over_arc_se_deg,
-    })
+    };
+    Ok((refit, raw))
+}
+
+/// The indices of the points whose distance from the circle and plane of
+/// `fit` (`hypot` of the in-plane and the out-of-plane distance) is within 5
+/// robust standard deviations (1.4826 x the median distance); all of them
+/// when that median is 0.
+///
+/// `hypot` is within an ulp but slow, and this is a pass over every sample.
+/// Each distance is first estimated by a plain square root, within `REL` of
+/// `hypot`'s (a few ulps; `hypot` itself where squares could overflow or
+/// underflow), and `hypot` is taken only where those bounds cannot decide:
+/// for the few distances next to the median and to the limit. The median
+/// and the points kept are the ones `hypot` everywhere gives.
+fn within_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
+    const REL: f64 = 1e-14;
+    let parts = |p: [f64; 3]| {
+        let d = sub(p, fit.center_mm);
+        let h = dot(d, fit.normal);
+        let in_plane = sub(d, scale(fit.normal, h));
+        (dot(in_plane, in_plane).sqrt() - fit.radius_mm, h)
+    };
+    let exact = |i: usize| {
+        let (a, h) = parts(points_mm[i]);
+        a.hypot(h)
+    };
+    // (distance, whether it is hypot's): an estimate is within REL of it.
+    let estimates: Vec<(f64, bool)> = points_mm
+        .iter()
+        .map(|&p| {
+            let (a, h) = parts(p);
+            let q = (a * a + h * h).sqrt();
+            if (1e-150..1e150).contains(&q) { (q, false) } else { (a.hypot(h), true) }
+        })
+        .collect();
+    let bounds = |(v, exact): (f64, bool)| if exact { (v, v) } else { (v * (1.0 - REL), v * (1.0 + REL)) };
+    // The median: the estimates' median `q` bounds it within [q (1 - REL),
+    // q (1 + REL)]; the distances certainly below that band are below it,
+    // those certainly above above it, and it is found among the others.
+    let mid = points_mm.len() / 2;
+    let mut sorted: Vec<f64> = estimates.iter().map(|e| e.0).collect();
+    let q = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let (band_lo, band_hi) = (q * (1.0 - REL), q * (1.0 + REL));
+    let mut below = 0;
+    sorted.clear();
+    for (i, &e) in estimates.iter().enumerate() {
+        let (lo, hi) = bounds(e);
+        if hi < band_lo {
+            below += 1;
+        } else if lo <= band_hi {
+            sorted.push(if e.1 { e.0 } else { exact(i) });
+        }
+    }
+    let mad = *sorted.select_nth_unstable_by(mid - below, f64::total_cmp).1;
+    drop(sorted);
+    let limit = 5.0 * 1.4826 * mad;
+    (0..points_mm.len())
+        .filter(|&i| {
+            let (lo, hi) = bounds(estimates[i]);
+            limit <= 0.0 || hi <= limit || (lo <= limit && exact(i) <= limit)
+        })
+        .collect()
 }
 
 /// How well a fitted circle's centre is known from its points.
@@ -309,12 +377,12 @@ struct CenterKnowledge {
     over_arc_se_deg: f64,
 }
 
-fn center_knowledge(fit: &AxisFit, points_mm: &[[f64; 3]]) -> CenterKnowledge {
-    let n = points_mm.len();
+/// From the points fitted and the raw angle of each ([`AxisFit::raw_angle`]).
+fn center_knowledge(fit: &AxisFit, points: impl Iterator<Item = ([f64; 3], f64)>) -> CenterKnowledge {
     let mut jtj = [[0.0; 3]; 3];
     let mut ss = 0.0;
-    let mut phi = Vec::with_capacity(n);
-    for &p in points_mm {
+    let mut phi = Vec::with_capacity(points.size_hint().0);
+    for (p, raw) in points {
         let d = sub(p, fit.center_mm);
         let (x, y) = (dot(d, fit.u), dot(d, fit.v));
         let dist = x.hypot(y);
@@ -328,7 +396,7 @@ fn center_knowledge(fit: &AxisFit, points_mm: &[[f64; 3]]) -> CenterKnowledge {
             }
         }
         ss += (dist - fit.radius_mm).powi(2);
-        phi.push(y.atan2(x));
+        phi.push(raw);
     }
     let s2 = ss / (phi.len().saturating_sub(3)).max(1) as f64;
     let col = |k: usize| {
@@ -344,26 +412,28 @@ fn center_knowledge(fit: &AxisFit, points_mm: &[[f64; 3]]) -> CenterKnowledge {
     let (a, b, c) = (cov[0][0], 0.5 * (cov[0][1] + cov[1][0]), cov[1][1]);
     let worst = 0.5 * (a + c) + (0.25 * (a - c).powi(2) + b * b).sqrt();
     let worst_se_mm = worst.max(0.0).sqrt();
-    // The arc: 360 less the largest gap between the sorted raw angles.
-    let mut sorted = phi.clone();
-    sorted.sort_by(f64::total_cmp);
-    let gap = sorted
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .chain(sorted.first().zip(sorted.last()).map(|(f, l)| f + std::f64::consts::TAU - l))
-        .fold(0.0, f64::max);
-    let arc_deg = (std::f64::consts::TAU - gap).to_degrees().max(0.0);
     // The angle error a centre error makes at phi, per unit of (dc_u, dc_v):
     // g(phi) = (sin phi, -cos phi) / R; its mean over the points removed.
+    // Each angle's sine and cosine once, for the mean and for the maximum.
     let r = fit.radius_mm;
     let m = phi.len().max(1) as f64;
-    let (gs, gc) = phi.iter().fold((0.0, 0.0), |(s, c), p| (s + p.sin() / m, c + p.cos() / m));
+    let sin_cos: Vec<(f64, f64)> = phi.iter().map(|p| (p.sin(), p.cos())).collect();
+    let (gs, gc) = sin_cos.iter().fold((0.0, 0.0), |(s, c), (sin, cos)| (s + sin / m, c + cos / m));
     let mut over_arc = 0.0f64;
-    for p in &phi {
-        let g = [(p.sin() - gs) / r, (-p.cos() + gc) / r];
+    for (sin, cos) in &sin_cos {
+        let g = [(sin - gs) / r, (-cos + gc) / r];
         let var = g[0] * g[0] * a + 2.0 * g[0] * g[1] * b + g[1] * g[1] * c;
         over_arc = over_arc.max(var);
     }
+    drop(sin_cos);
+    // The arc: 360 less the largest gap between the sorted raw angles.
+    phi.sort_by(f64::total_cmp);
+    let gap = phi
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .chain(phi.first().zip(phi.last()).map(|(f, l)| f + std::f64::consts::TAU - l))
+        .fold(0.0, f64::max);
+    let arc_deg = (std::f64::consts::TAU - gap).to_degrees().max(0.0);
     CenterKnowledge {
         cov,
         worst_se_mm,
@@ -379,9 +449,20 @@ impl AxisFit {
     /// angle of its projection in the plane minus `zero_offset_deg`, unwrapped to
     /// within +-180 of `near_deg`.
     pub fn angle_deg(&self, p_mm: [f64; 3], near_deg: f64) -> f64 {
+        self.angle_of_raw(self.raw_angle(p_mm), near_deg)
+    }
+
+    /// The raw angle of an SMR position, radians: the direction of its
+    /// projection in the plane around the centre, from `u` towards `v`.
+    pub fn raw_angle(&self, p_mm: [f64; 3]) -> f64 {
         let d = sub(p_mm, self.center_mm);
-        let raw = dot(d, self.v).atan2(dot(d, self.u)).to_degrees();
-        near_deg + wrap_180(raw - self.zero_offset_deg - near_deg)
+        dot(d, self.v).atan2(dot(d, self.u))
+    }
+
+    /// [`AxisFit::angle_deg`] of a position whose raw angle
+    /// ([`AxisFit::raw_angle`]) is `raw_rad`.
+    pub fn angle_of_raw(&self, raw_rad: f64, near_deg: f64) -> f64 {
+        near_deg + wrap_180(raw_rad.to_degrees() - self.zero_offset_deg - near_deg)
     }
 }
 

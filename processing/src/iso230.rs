@@ -177,8 +177,25 @@ pub enum StatsError {
 /// not depend on the order of `samples`. Only `target_deg` and `actual_deg`
 /// are used.
 pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
+    iso230_2_grouped(samples, &TargetGroups::of(samples))
+}
+
+/// [`iso230_2`] with the samples' grouping by target made already
+/// ([`TargetGroups::of`] `samples`, or of samples with the same targets in
+/// the same order).
+pub fn iso230_2_grouped(samples: &[Sample], groups: &TargetGroups) -> Result<Iso230, StatsError> {
+    iso230_2_with_actual(samples, groups, |i| samples[i].actual_deg)
+}
+
+/// [`iso230_2_grouped`] of `samples` with the actual angle of sample `i`
+/// replaced by `actual(i)` (corrected samples, without a copy of them).
+pub(crate) fn iso230_2_with_actual(
+    samples: &[Sample],
+    groups: &TargetGroups,
+    actual: impl Fn(usize) -> f64,
+) -> Result<Iso230, StatsError> {
     for (index, s) in samples.iter().enumerate() {
-        for (field, value) in [("target_deg", s.target_deg), ("actual_deg", s.actual_deg)] {
+        for (field, value) in [("target_deg", s.target_deg), ("actual_deg", actual(index))] {
             if !value.is_finite() {
                 return Err(StatsError::NonFinite { index, run: s.run, direction: s.direction, field, value });
             }
@@ -191,30 +208,28 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
     let any_down = samples.iter().any(|s| s.direction == Direction::Reverse);
     let bidirectional = any_up && any_down;
 
-    let mut targets = Vec::new();
-    let (sorted, groups) = group_by_target(samples);
+    let mut targets = Vec::with_capacity(groups.len());
     // One buffer each for a direction's samples and deviations, reused by every target.
-    let (mut g, mut x): (Vec<&Sample>, Vec<f64>) = (Vec::new(), Vec::new());
-    for range in groups {
-        let group = &sorted[range];
-        let target_deg = group[0].target_deg;
+    let (mut g, mut x): (Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new());
+    for group in groups.iter() {
+        let target_deg = samples[group[0]].target_deg;
         let mut dir_stats = |direction: Direction| -> Result<Option<DirStats>, StatsError> {
             g.clear();
-            g.extend(group.iter().copied().filter(|s| s.direction == direction));
+            g.extend(group.iter().copied().filter(|&i| samples[i].direction == direction));
             if g.is_empty() {
                 return Ok(None);
             }
-            g.sort_by_key(|s| s.run);
-            if let Some(w) = g.windows(2).find(|w| w[0].run == w[1].run) {
-                let run = w[0].run;
-                let count = g.iter().filter(|s| s.run == run).count();
+            g.sort_by_key(|&i| samples[i].run);
+            if let Some(w) = g.windows(2).find(|w| samples[w[0]].run == samples[w[1]].run) {
+                let run = samples[w[0]].run;
+                let count = g.iter().filter(|&&i| samples[i].run == run).count();
                 return Err(StatsError::DuplicateRun { target_deg, direction, run, count });
             }
             if g.len() < 2 {
                 return Err(StatsError::TooFewRuns { target_deg, direction, runs: g.len() });
             }
             x.clear();
-            x.extend(g.iter().map(|s| s.deviation_deg()));
+            x.extend(g.iter().map(|&i| actual(i) - samples[i].target_deg));
             Ok(Some(dir_stats_of(&x)))
         };
         let up = dir_stats(Direction::Forward)?;
@@ -239,26 +254,54 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
     Ok(axis_figures(targets))
 }
 
-/// Groups samples by target, targets ascending; a group starts at its smallest
-/// target and takes every target within [`TARGET_TOLERANCE_DEG`] of it. The
-/// samples sorted by target and each group's range in them.
-fn group_by_target(samples: &[Sample]) -> (Vec<&Sample>, Vec<std::ops::Range<usize>>) {
-    // Sorted as (target, index) pairs, side by side in memory (not through a
-    // reference each); the order of equal targets does not matter: a group
-    // is ordered by run before anything is computed from it. A survey's
-    // samples are a few sweeps, each ascending or descending in target: the
-    // stable sort finds them and merges them (an unstable one partitions).
-    let mut keyed: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
-    keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let sorted: Vec<&Sample> = keyed.into_iter().map(|(_, i)| &samples[i]).collect();
-    let mut groups: Vec<std::ops::Range<usize>> = Vec::new();
-    for (i, s) in sorted.iter().enumerate() {
-        match groups.last_mut() {
-            Some(g) if s.target_deg - sorted[g.start].target_deg <= TARGET_TOLERANCE_DEG => g.end = i + 1,
-            _ => groups.push(i..i + 1),
+/// Samples grouped by target, targets ascending; a group starts at its
+/// smallest target and takes every target within [`TARGET_TOLERANCE_DEG`]
+/// of it. Made once, it serves every statistic of samples with these
+/// targets in this order (the survey's, its corrected errors').
+#[derive(Debug, Clone)]
+pub struct TargetGroups {
+    /// The samples' indices sorted by target.
+    sorted: Vec<usize>,
+    /// Each group's range in `sorted`.
+    ranges: Vec<std::ops::Range<usize>>,
+}
+
+impl TargetGroups {
+    /// The grouping of `samples` by target.
+    pub fn of(samples: &[Sample]) -> Self {
+        // Sorted as (target, index) pairs, side by side in memory (not through a
+        // reference each); the order of equal targets does not matter: a group
+        // is ordered by run before anything is computed from it. A survey's
+        // samples are a few sweeps, each ascending or descending in target: the
+        // stable sort finds them and merges them (an unstable one partitions).
+        let mut keyed: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
+        keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
+        for (i, &(t, _)) in keyed.iter().enumerate() {
+            match ranges.last_mut() {
+                Some(g) if t - keyed[g.start].0 <= TARGET_TOLERANCE_DEG => g.end = i + 1,
+                _ => ranges.push(i..i + 1),
+            }
         }
+        TargetGroups { sorted: keyed.into_iter().map(|(_, i)| i).collect(), ranges }
     }
-    (sorted, groups)
+
+    /// How many targets.
+    pub fn len(&self) -> usize {
+        self.ranges.len()
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.ranges.is_empty()
+    }
+
+    /// Each target's samples (indices), targets ascending, a target's
+    /// samples in the order of their targets (equal ones in the samples'
+    /// order).
+    pub fn iter(&self) -> impl Iterator<Item = &[usize]> {
+        self.ranges.iter().map(|r| &self.sorted[r.clone()])
+    }
 }
 
 fn dir_stats_of(x: &[f64]) -> DirStats {

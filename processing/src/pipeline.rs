@@ -6,13 +6,13 @@
 //! controller files ([`crate::export::controllers`]). Pure: the caller reads the samples and writes the files.
 
 use crate::Sample;
-use crate::analysis::{Analysis, AnalysisError, analyse};
+use crate::analysis::{Analysis, AnalysisError, analyse_grouped};
 use crate::correction::left::{Left, LeftKind};
 use crate::correction::resolve::{Resolution, decide as resolve, measured_left_deg as measured_left_deg_of};
-use crate::correction::{CorrectionError, Prediction, predict_accuracy};
+use crate::correction::{CorrectionError, Prediction, corrected_errors, predict_accuracy};
 use crate::errormap::Coverage;
 use crate::export::controllers::ControllerExport;
-use crate::iso230::{Iso230, iso230_2};
+use crate::iso230::{Iso230, TargetGroups, iso230_2_grouped};
 use crate::model::Design;
 use crate::recipe::{
     AliasChoice, AliasChoiceAction, ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe,
@@ -162,7 +162,10 @@ pub fn process_with_checks(
     let (samples, note) = close_circle(samples);
     notes.extend(note);
     let base = replay.map(|r| r.recipe.clone()).unwrap_or_default();
-    let analysis = analyse(&samples, design, &base.analysis)?;
+    // One grouping by target for the error map, the survey's statistics and
+    // its corrected errors'.
+    let groups = TargetGroups::of(&samples);
+    let analysis = analyse_grouped(&samples, &groups, design, &base.analysis)?;
     let mut recipe = match replay {
         Some(r) => r.recipe.clone(),
         None => Recipe::from_analysis(&analysis, &base),
@@ -191,7 +194,7 @@ pub fn process_with_checks(
     }
     notes.extend(decisions.notes.iter().cloned());
     notes.extend(built.notes.iter().cloned());
-    let iso = iso230_2(&samples).ok();
+    let iso = iso230_2_grouped(&samples, &groups).ok();
     let floor = match &iso {
         Some(s) if built.directional => Floor {
             deg: Some(s.r_up.unwrap_or(s.r).max(s.r_down.unwrap_or(0.0)) / 2.0),
@@ -204,8 +207,11 @@ pub fn process_with_checks(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let mut prediction = predict_accuracy(&samples, &built.table, floor.deg.unwrap_or(0.0), iso.as_ref().map(|s| s.a))?
-        .with_left(&left, &samples, &built.table);
+    let corrected = corrected_errors(&samples, &built.table);
+    let mut prediction =
+        predict_accuracy(&samples, &corrected, &groups, floor.deg.unwrap_or(0.0), iso.as_ref().map(|s| s.a))?
+            .with_left(&left, &samples, &corrected, &groups);
+    drop((groups, corrected));
     // Check points that no hypothesis explains measured the corrected axis
     // between the targets: the prediction does not promise better.
     if let Some((_, peak)) = measured_left {

@@ -77,9 +77,15 @@ impl Sample {
     }
 }
 
+/// `deg.rem_euclid(360.0)`, without its division for an angle in `[0,
+/// 360)` already (which it returns unchanged): the per-sample paths call it.
+pub(crate) fn rem_euclid_360(deg: f64) -> f64 {
+    if (0.0..360.0).contains(&deg) { deg } else { deg.rem_euclid(360.0) }
+}
+
 /// Wrap an angle into `[0, 360)`.
 pub fn wrap_360(deg: f64) -> f64 {
-    let w = deg.rem_euclid(360.0);
+    let w = rem_euclid_360(deg);
     if w >= 360.0 { 0.0 } else { w }
 }
 

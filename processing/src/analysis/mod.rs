@@ -117,6 +117,7 @@ pub use detect::{NoiseFloor, NoiseMethod, default_min_coherence};
 pub use naming::{Alias, AliasAction, AliasEntry, Candidate, alias, design_candidates, unalias_phase_deg};
 
 use crate::errormap::{Coverage, ErrorMap, ErrorMapError, Series};
+use crate::iso230::TargetGroups;
 use crate::model::{Design, PeriodicKind};
 use crate::spectrum::{Phasor, Planner, SinusoidBasis, SinusoidFit, Spectrum, SpectrumError, Window};
 use crate::types::Sample;
@@ -353,8 +354,19 @@ pub enum AnalysisError {
 
 /// Analyse a survey. See the module documentation.
 pub fn analyse(samples: &[Sample], design: &Design, options: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
+    analyse_grouped(samples, &TargetGroups::of(samples), design, options)
+}
+
+/// [`analyse`] with the samples' grouping by target made already
+/// ([`TargetGroups::of`] `samples`).
+pub fn analyse_grouped(
+    samples: &[Sample],
+    groups: &TargetGroups,
+    design: &Design,
+    options: &AnalysisOptions,
+) -> Result<Analysis, AnalysisError> {
     options.validate()?;
-    let map = ErrorMap::from_samples(samples)?;
+    let map = ErrorMap::from_grouped(samples, groups)?;
     analyse_map(map, design, options)
 }
 

@@ -74,7 +74,7 @@
 //! reported beside them: no correction can go below it, and the paper's
 //! answer is to measure again with the correction applied.
 
-use crate::iso230::iso230_2;
+use crate::iso230::{TargetGroups, iso230_2_with_actual};
 use crate::resample::EditError;
 use crate::resample::{PartialError, PartialMethod, Resampler, Series, Span, SpectralEdit, fit_partial};
 use crate::table::{CorrectionTable, TableError};
@@ -329,13 +329,17 @@ pub fn corrected_errors(samples: &[Sample], table: &CorrectionTable) -> Vec<f64>
     samples.iter().map(|s| (s.readout_deg - table.error_at(s.readout_deg, s.direction)) - s.actual_deg).collect()
 }
 
-/// Apply `table` to `samples` and report native and corrected figures beside
-/// the repeatability floor `floor_deg` (see the module documentation).
+/// Report the native and corrected figures of `samples` beside the
+/// repeatability floor `floor_deg` (see the module documentation),
+/// `corrected` their corrected errors under the table
+/// ([`corrected_errors`]) and `groups` their grouping by target
+/// ([`TargetGroups::of`]), both made once for every figure of the table.
 /// `native_iso230_a_deg` is the samples' own ISO 230-2 `A`
 /// (`iso230_2(samples).ok().map(|s| s.a)`), which the caller has already.
 pub fn predict_accuracy(
     samples: &[Sample],
-    table: &CorrectionTable,
+    corrected: &[f64],
+    groups: &TargetGroups,
     floor_deg: f64,
     native_iso230_a_deg: Option<f64>,
 ) -> Result<Prediction, CorrectionError> {
@@ -346,11 +350,11 @@ pub fn predict_accuracy(
         return Err(CorrectionError::BadSample { index });
     }
     let native: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
-    let corrected = corrected_errors(samples, table);
-    let shifted: Vec<Sample> =
-        samples.iter().zip(&corrected).map(|(s, e)| Sample { actual_deg: s.target_deg - e, ..*s }).collect();
     let native = figures(&native, native_iso230_a_deg);
-    let corrected = figures(&corrected, iso230_2(&shifted).ok().map(|st| st.a));
+    // The corrected samples' actual angles: target - corrected error.
+    let corrected_a =
+        iso230_2_with_actual(samples, groups, |i| samples[i].target_deg - corrected[i]).ok().map(|st| st.a);
+    let corrected = figures(corrected, corrected_a);
     Ok(Prediction {
         native_peak_deg: native.peak_deg,
         corrected_peak_deg: corrected.peak_deg,
@@ -374,9 +378,11 @@ impl Prediction {
     /// Gumbel distribution of scale `sigma / sqrt(2 ln 2M)`, and the
     /// difference of two such peaks a logistic one, which exceeds
     /// `ln(19)` scales 5 % of the time).
-    pub fn with_left(self, left: &left::Left, samples: &[Sample], table: &CorrectionTable) -> Self {
+    /// `corrected` are the samples' corrected errors ([`corrected_errors`]),
+    /// `groups` their grouping by target ([`TargetGroups::of`]).
+    pub fn with_left(self, left: &left::Left, samples: &[Sample], corrected: &[f64], groups: &TargetGroups) -> Self {
         let unseen = left.unseen_peak_deg();
-        let spread = noise_sd(samples, table).map_or(0.0, |sigma| {
+        let spread = noise_sd(samples, corrected, groups).map_or(0.0, |sigma| {
             let m = samples.len().max(1) as f64;
             sigma * 19f64.ln() / (2.0 * (2.0 * m).ln()).sqrt()
         });
@@ -403,24 +409,38 @@ impl ErrorFigures {
 
 /// The noise of the corrected errors: their pooled standard deviation about
 /// the mean of each target and direction (`None` with one run).
-fn noise_sd(samples: &[Sample], table: &CorrectionTable) -> Option<f64> {
-    // Each group summed in the samples' order, the groups then taken in the
-    // order of their keys (a hash map to find a sample's group: a tree of
-    // every target was most of this function's time on a large survey).
+fn noise_sd(samples: &[Sample], corrected: &[f64], by_target: &TargetGroups) -> Option<f64> {
+    // Each group (one target exactly, one direction) summed in the samples'
+    // order, the groups then taken in the order of their keys. The grouping
+    // by target lists equal targets side by side in the samples' order (its
+    // sort is stable): a group's samples are found by walking it, with no
+    // map from a sample to its group.
     type Key = (u64, bool);
-    let mut index: std::collections::HashMap<Key, usize> = Default::default();
     // (key, (sum, sum of squares, count))
-    let mut groups: Vec<(Key, (f64, f64, usize))> = Vec::new();
-    for (s, e) in samples.iter().zip(corrected_errors(samples, table)) {
-        let key = (s.target_deg.to_bits(), s.direction == crate::types::Direction::Forward);
-        let at = *index.entry(key).or_insert_with(|| {
-            groups.push((key, (0.0, 0.0, 0)));
-            groups.len() - 1
-        });
-        let g = &mut groups[at].1;
+    let mut groups: Vec<(Key, (f64, f64, usize))> = Vec::with_capacity(2 * by_target.len());
+    let mut open: [(f64, f64, usize); 2] = [(0.0, 0.0, 0); 2];
+    let mut bits = None;
+    let mut close = |bits: u64, open: &mut [(f64, f64, usize); 2]| {
+        for (forward, g) in [false, true].into_iter().zip(std::mem::take(open)) {
+            if g.2 > 0 {
+                groups.push(((bits, forward), g));
+            }
+        }
+    };
+    for i in by_target.iter().flatten().copied() {
+        let (s, e) = (&samples[i], corrected[i]);
+        let b = s.target_deg.to_bits();
+        if let Some(previous) = bits.filter(|&p| p != b) {
+            close(previous, &mut open);
+        }
+        bits = Some(b);
+        let g = &mut open[usize::from(s.direction == crate::types::Direction::Forward)];
         g.0 += e;
         g.1 += e * e;
         g.2 += 1;
+    }
+    if let Some(last) = bits {
+        close(last, &mut open);
     }
     groups.sort_unstable_by_key(|(key, _)| *key);
     let (ss, dof) = groups
@@ -439,6 +459,7 @@ fn figures(e: &[f64], iso230_a_deg: Option<f64>) -> ErrorFigures {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::iso230::iso230_2;
     use crate::resample::{Keep, Relocation, spectral_resample};
     use crate::types::Direction;
 
@@ -554,12 +575,22 @@ mod tests {
         iso230_2(samples).ok().map(|s| s.a)
     }
 
+    /// [`predict_accuracy`] of `table` on `samples`, its inputs made as the pipeline makes them.
+    fn predict(
+        samples: &[Sample],
+        table: &CorrectionTable,
+        floor_deg: f64,
+        a: Option<f64>,
+    ) -> Result<Prediction, CorrectionError> {
+        predict_accuracy(samples, &corrected_errors(samples, table), &TargetGroups::of(samples), floor_deg, a)
+    }
+
     #[test]
     fn prediction_applies_the_table_with_the_contract_sign() {
         let e = |t: f64| 0.004 * (3.0 * t.to_radians()).sin() + 0.01;
         let samples = samples_with(e, 2);
         let table = CorrectionTable::new(map(36, e)).unwrap();
-        let p = predict_accuracy(&samples, &table, 1e-5, a_of(&samples)).unwrap();
+        let p = predict(&samples, &table, 1e-5, a_of(&samples)).unwrap();
         assert_eq!(p.samples, 144);
         assert!((p.native_peak_deg - 0.004).abs() < 1e-5, "{p:?}");
         assert!((p.native.mean_deg - 0.01).abs() < 1e-9);
@@ -574,12 +605,12 @@ mod tests {
         assert!((p.corrected.iso230_a_deg.unwrap() - 4.0 * s).abs() < 1e-9, "{p:?}");
         // A wrong sign would double the error instead.
         let wrong = CorrectionTable::new(map(36, |t| -e(t))).unwrap();
-        assert!(predict_accuracy(&samples, &wrong, 0.0, a_of(&samples)).unwrap().corrected_peak_deg > 0.007);
+        assert!(predict(&samples, &wrong, 0.0, a_of(&samples)).unwrap().corrected_peak_deg > 0.007);
         // One run: no ISO figures, the rest stands.
-        let one = predict_accuracy(&samples_with(e, 1), &table, 0.0, a_of(&samples_with(e, 1))).unwrap();
+        let one = predict(&samples_with(e, 1), &table, 0.0, a_of(&samples_with(e, 1))).unwrap();
         assert_eq!(one.native.iso230_a_deg, None);
         let json = serde_json::to_value(&p).unwrap();
         assert!(json["native_peak_deg"].is_f64() && json["corrected_peak_deg"].is_f64());
-        assert_eq!(predict_accuracy(&[], &table, 0.0, None), Err(CorrectionError::NoSamples));
+        assert_eq!(predict(&[], &table, 0.0, None), Err(CorrectionError::NoSamples));
     }
 }

@@ -24,6 +24,7 @@
 //! reference and, per direction, half the backlash) is put back as it is.
 
 use crate::resample::{Complex64, PartialError, PartialFit, PartialMethod, Resampler, Series, Span, fit_partial};
+use crate::types::rem_euclid_360;
 
 /// Passes of the correction of `g` (each removes one order of the products).
 const PASSES: usize = 2;
@@ -39,11 +40,18 @@ const GRID_FACTOR: usize = 4;
 /// `grid.len()` points over 360 deg.
 fn interp(grid: &[f64], theta_deg: f64) -> f64 {
     let m = grid.len();
-    let x = theta_deg.rem_euclid(360.0) / 360.0 * m as f64;
-    let i = (x.floor() as usize).min(m - 1);
+    // `x` is not negative: `as` is its floor.
+    let x = rem_euclid_360(theta_deg) / 360.0 * m as f64;
+    let i = (x as usize).min(m - 1);
     let f = x - i as f64;
-    let at = |k: isize| grid[(i as isize + k).rem_euclid(m as isize) as usize];
-    let (a, b, c, d) = (at(-1), at(0), at(1), at(2));
+    // The four nodes, wrapped around the grid only at its ends.
+    let (a, b, c, d) = match grid.get(i.wrapping_sub(1)..i + 3) {
+        Some(&[a, b, c, d]) => (a, b, c, d),
+        _ => {
+            let at = |k: usize| grid[(i + m - 1 + k) % m];
+            (at(0), at(1), at(2), at(3))
+        }
+    };
     // Lagrange weights at nodes -1, 0, 1, 2.
     let wa = -f * (f - 1.0) * (f - 2.0) / 6.0;
     let wb = (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0;
@@ -62,7 +70,12 @@ fn through_true_angle(grid: &[f64], readouts: &[f64], offset: f64) -> Vec<f64> {
         .map(|&r| {
             let mut theta = r - offset;
             for _ in 0..THETA_ITERATIONS {
-                theta = r - offset - (interp(grid, theta) - mean);
+                let next = r - offset - (interp(grid, theta) - mean);
+                // At a fixed point the iterations left would not move it.
+                if next.to_bits() == theta.to_bits() {
+                    break;
+                }
+                theta = next;
             }
             interp(grid, theta)
         })

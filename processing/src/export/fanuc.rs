@@ -372,7 +372,11 @@ impl Applied for FanucTable {
         };
         let scale = self.options.unit_deg * self.options.magnification as f64;
         let g = &self.grid;
-        let p = if self.rotary { g.start_deg + (position_deg - g.start_deg).rem_euclid(360.0) } else { position_deg };
+        let p = if self.rotary {
+            g.start_deg + crate::types::rem_euclid_360(position_deg - g.start_deg)
+        } else {
+            position_deg
+        };
         super::interpolate_held_by(g.points, |i| g.position(i), |i| col.absolute[i] as f64 * scale, p)
     }
 

@@ -86,7 +86,20 @@ pub(crate) fn interpolate_held_by(n: usize, x: impl Fn(usize) -> f64, y: impl Fn
         return y(n - 1);
     }
     // The first index whose position is above p (`partition_point`), minus one.
+    // The index where p would fall on evenly spaced points is tried first:
+    // on a controller's grid it is right but for rounding, and two
+    // comparisons then end the search.
     let (mut lo, mut hi) = (0, n);
+    let (x0, xn) = (x(0), x(n - 1));
+    let guess = (((p - x0) / (xn - x0) * (n - 1) as f64) as usize).min(n - 1);
+    if x(guess) <= p {
+        lo = guess + 1;
+        if lo < n && x(lo) > p {
+            hi = lo;
+        }
+    } else {
+        hi = guess;
+    }
     while lo < hi {
         let mid = lo + (hi - lo) / 2;
         if x(mid) <= p { lo = mid + 1 } else { hi = mid }

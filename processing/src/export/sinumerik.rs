@@ -160,7 +160,7 @@ impl Applied for Sinumerik840d {
     /// error it removes is minus the value; modulo wraps, else the ends hold.
     fn removed_deg(&self, position_deg: f64, _direction: Direction) -> f64 {
         let g = &self.grid;
-        let p = if self.modulo { position_deg.rem_euclid(360.0) } else { position_deg };
+        let p = if self.modulo { crate::types::rem_euclid_360(position_deg) } else { position_deg };
         -super::interpolate_held_by(g.points, |i| g.position(i), |i| self.values_deg[i], p)
     }
 

@@ -493,3 +493,66 @@ fn on_a_partial_arc_the_refit_states_what_the_arc_allows() {
     assert!((ratio - 1.0).abs() < 0.15, "spread {} against stated {}", sd(&ends), stated.over_arc_se_deg);
     assert!(stated.over_arc_se_deg < stated.once_per_rev_se_deg, "{stated:?}");
 }
+
+/// The points the refit keeps are those `hypot` everywhere keeps: the
+/// cheaper estimates only spare `hypot` where they decide, at the limit too.
+#[test]
+fn the_refit_keeps_the_points_hypot_everywhere_keeps() {
+    let reference = |fit: &AxisFit, points: &[[f64; 3]]| -> Vec<usize> {
+        let r: Vec<f64> = points
+            .iter()
+            .map(|&p| {
+                let d = sub(p, fit.center_mm);
+                let h = dot(d, fit.normal);
+                let in_plane = sub(d, scale(fit.normal, h));
+                (dot(in_plane, in_plane).sqrt() - fit.radius_mm).hypot(h)
+            })
+            .collect();
+        let mut sorted = r.clone();
+        let mad = *sorted.select_nth_unstable_by(r.len() / 2, f64::total_cmp).1;
+        let limit = 5.0 * 1.4826 * mad;
+        (0..r.len()).filter(|&i| limit <= 0.0 || r[i] <= limit).collect()
+    };
+    // A noisy survey with glitches, around its own fit.
+    let mut rng = Rng(0x00dd_ba11);
+    let readouts: Vec<f64> = (0..3001).map(|k| k as f64 * 0.12).collect();
+    let mut points: Vec<[f64; 3]> = readouts
+        .iter()
+        .map(|d| {
+            let t = d.to_radians();
+            [700.0 + 500.0 * t.cos() + 0.01 * rng.normal(), -40.0 + 0.01 * rng.normal(), 500.0 * t.sin()]
+        })
+        .collect();
+    for k in [3, 999, 2000] {
+        points[k][1] += 2.0;
+    }
+    let fit = fit_axis(&points, &readouts).unwrap();
+    let kept = within_limit(&fit, &points);
+    assert_eq!(kept, reference(&fit, &points));
+    assert_eq!(kept.len(), 2998);
+    // A unit circle where a position's distance is exactly its offset from
+    // the plane: distances 0 and 1e-200 (hypot's own), the median, one
+    // exactly at the limit (kept) and the next one above it (left out).
+    let fit = AxisFit {
+        center_mm: [0.0; 3],
+        normal: [0.0, 0.0, 1.0],
+        u: [1.0, 0.0, 0.0],
+        v: [0.0, 1.0, 0.0],
+        radius_mm: 1.0,
+        zero_offset_deg: 0.0,
+        plane_rms_mm: 0.0,
+        circle_rms_mm: 0.0,
+        points: 0,
+    };
+    let mut h: Vec<f64> = vec![0.0, -1e-200];
+    h.extend((1..=100).map(|k| k as f64 * 1e-3 * if k % 2 == 0 { 1.0 } else { -1.0 }));
+    let limit: f64 = 5.0 * 1.4826 * (51.0 * 1e-3);
+    h.extend([limit, limit.next_up()]);
+    let points: Vec<[f64; 3]> = h.iter().map(|&h| [1.0, 0.0, h]).collect();
+    let kept = within_limit(&fit, &points);
+    assert_eq!(kept, reference(&fit, &points));
+    assert_eq!(kept, (0..103).collect::<Vec<usize>>());
+    // Every distance 0: every point kept.
+    let zero = vec![[0.0, 1.0, 0.0]; 5];
+    assert_eq!(within_limit(&fit, &zero), vec![0, 1, 2, 3, 4]);
+}
