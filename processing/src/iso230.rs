@@ -212,10 +212,10 @@ pub(crate) fn iso230_2_with_actual(
     // One buffer each for a direction's samples and deviations, reused by every target.
     let (mut g, mut x): (Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new());
     for group in groups.iter() {
-        let target_deg = samples[group[0]].target_deg;
+        let target_deg = samples[group[0] as usize].target_deg;
         let mut dir_stats = |direction: Direction| -> Result<Option<DirStats>, StatsError> {
             g.clear();
-            g.extend(group.iter().copied().filter(|&i| samples[i].direction == direction));
+            g.extend(group.iter().map(|&i| i as usize).filter(|&i| samples[i].direction == direction));
             if g.is_empty() {
                 return Ok(None);
             }
@@ -260,8 +260,9 @@ pub(crate) fn iso230_2_with_actual(
 /// targets in this order (the survey's, its corrected errors').
 #[derive(Debug, Clone)]
 pub struct TargetGroups {
-    /// The samples' indices sorted by target.
-    sorted: Vec<usize>,
+    /// The samples' indices sorted by target (`u32`: 4 bytes a sample for
+    /// as long as the grouping is kept, a quarter of a `usize` with its key).
+    sorted: Vec<u32>,
     /// Each group's range in `sorted`.
     ranges: Vec<std::ops::Range<usize>>,
 }
@@ -274,7 +275,8 @@ impl TargetGroups {
         // is ordered by run before anything is computed from it. A survey's
         // samples are a few sweeps, each ascending or descending in target: the
         // stable sort finds them and merges them (an unstable one partitions).
-        let mut keyed: Vec<(f64, usize)> = samples.iter().map(|s| s.target_deg).zip(0..).collect();
+        let count = u32::try_from(samples.len()).expect("fewer than 2^32 samples");
+        let mut keyed: Vec<(f64, u32)> = samples.iter().map(|s| s.target_deg).zip(0..count).collect();
         keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
         for (i, &(t, _)) in keyed.iter().enumerate() {
@@ -283,7 +285,9 @@ impl TargetGroups {
                 _ => ranges.push(i..i + 1),
             }
         }
-        TargetGroups { sorted: keyed.into_iter().map(|(_, i)| i).collect(), ranges }
+        // A new vector (collected in place, it would keep the pairs' room).
+        let sorted = keyed.iter().map(|&(_, i)| i).collect();
+        TargetGroups { sorted, ranges }
     }
 
     /// How many targets.
@@ -299,7 +303,7 @@ impl TargetGroups {
     /// Each target's samples (indices), targets ascending, a target's
     /// samples in the order of their targets (equal ones in the samples'
     /// order).
-    pub fn iter(&self) -> impl Iterator<Item = &[usize]> {
+    pub fn iter(&self) -> impl Iterator<Item = &[u32]> {
         self.ranges.iter().map(|r| &self.sorted[r.clone()])
     }
 }
