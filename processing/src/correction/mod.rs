@@ -74,7 +74,7 @@
 //! reported beside them: no correction can go below it, and the paper's
 //! answer is to measure again with the correction applied.
 
-use crate::iso230::{TargetGroups, iso230_2_with_actual};
+use crate::iso230::{TargetGroups, iso230_2_a_with_actual};
 use crate::resample::EditError;
 use crate::resample::{PartialError, PartialMethod, Resampler, Series, Span, SpectralEdit, fit_partial};
 use crate::table::{CorrectionTable, TableError};
@@ -351,8 +351,7 @@ pub fn predict_accuracy(
     }
     let native = figures(samples.iter().map(Sample::error_deg), native_iso230_a_deg);
     // The corrected samples' actual angles: target - corrected error.
-    let corrected_a =
-        iso230_2_with_actual(samples, groups, |i| samples[i].target_deg - corrected[i]).ok().map(|st| st.a);
+    let corrected_a = iso230_2_a_with_actual(samples, groups, |i| samples[i].target_deg - corrected[i]).ok();
     let corrected = figures(corrected.iter().copied(), corrected_a);
     Ok(Prediction {
         native_peak_deg: native.peak_deg,
