@@ -172,6 +172,7 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // increase with the readouts; it equals (|sum e^{i(theta - r)}|^2 -
     // |sum e^{i(theta + r)}|^2) / 4, which needs no pairs and no unwrapping.
     let mut raw: Vec<f64> = xy.iter().map(|q| (q[1] - b).atan2(q[0] - a).to_degrees()).collect();
+    drop(xy);
     let resultant = |sign: f64| {
         let (s, c) = raw.iter().zip(readouts_deg).fold((0.0, 0.0), |(s, c), (t, r)| {
             let x = (t + sign * r).to_radians();
@@ -195,7 +196,10 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // 4. Zero: the mean over the fit points of wrap_180(raw - zero - readout) is zero.
     // A circular mean first (robust to the wrap), then the arithmetic mean of the
     // wrapped differences around it.
-    let diffs: Vec<f64> = raw.iter().zip(readouts_deg).map(|(t, r)| t - r).collect();
+    // The raw angles become the differences in place (a vector each would
+    // be the refit's peak).
+    let mut diffs = raw;
+    diffs.iter_mut().zip(readouts_deg).for_each(|(t, r)| *t -= r);
     let (s, c) = diffs.iter().fold((0.0, 0.0), |(s, c), d| (s + d.to_radians().sin(), c + d.to_radians().cos()));
     let z0 = s.atan2(c).to_degrees();
     let z = z0 + diffs.iter().map(|d| wrap_180(d - z0)).sum::<f64>() / nf;
