@@ -109,27 +109,31 @@ fn in_plane_shift(fit: &AxisFit, other: &AxisFit) -> f64 {
 /// without a located axis (an autocollimator survey, an import).
 pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Result<Option<(Vec<Sample>, AxisRefit)>> {
     let Some(located) = &survey.axis else { return Ok(None) };
-    let (mut samples, smr) = store.samples_with_smr(survey.id).await?;
     let locate = store.locate_points(survey.id).await?;
-    let points: Vec<[f64; 3]> = locate.iter().map(|(_, m)| m.xyz()).chain(smr.iter().map(|p| p.xyz_mm)).collect();
+    // The locate points first, then every sample's position.
+    let (mut samples, smr) = store.samples_with_smr(survey.id, locate.iter().map(|(_, m)| m.xyz()).collect()).await?;
+    let points = &smr.xyz_mm;
     if points.len() < 3 {
         return Ok(None);
     }
-    let readouts: Vec<f64> =
-        locate.iter().map(|(readout, _)| *readout).chain(smr.iter().map(|p| samples[p.index].readout_deg)).collect();
+    let readouts: Vec<f64> = locate
+        .iter()
+        .map(|(readout, _)| *readout)
+        .chain(smr.sample_index.iter().map(|&i| samples[i as usize].readout_deg))
+        .collect();
     let (Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. }, raw) =
-        refit_axis_with_angles(&points, &readouts).map_err(|e| {
+        refit_axis_with_angles(points, &readouts).map_err(|e| {
             anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
         })?;
-    drop((points, readouts));
+    drop(readouts);
     // The samples' positions follow the locate points in `raw`.
-    for (p, &raw) in smr.iter().zip(&raw[locate.len()..]) {
-        let s = &mut samples[p.index];
+    for (&i, &raw) in smr.sample_index.iter().zip(&raw[locate.len()..]) {
+        let s = &mut samples[i as usize];
         s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
     }
     let center_shift_mm = in_plane_shift(&fit, located);
     let refit = AxisRefit {
-        points: locate.len() + smr.len(),
+        points: smr.xyz_mm.len(),
         dropped,
         radius_mm: fit.radius_mm,
         center_shift_mm,

@@ -175,10 +175,10 @@ impl ErrorMap {
         }
         // A target is its group's smallest.
         let mut targets_deg: Vec<f64> = Vec::with_capacity(groups.len());
-        let mut target_of = vec![0usize; samples.len()];
-        for (t, group) in groups.iter().enumerate() {
-            targets_deg.push(samples[group[0]].target_deg);
-            group.iter().for_each(|&i| target_of[i] = t);
+        let mut target_of = vec![0u32; samples.len()];
+        for (t, group) in (0..).zip(groups.iter()) {
+            targets_deg.push(samples[group[0] as usize].target_deg);
+            group.iter().for_each(|&i| target_of[i as usize] = t);
         }
         let mut runs: Vec<u32> = samples.iter().map(|s| s.run).collect();
         runs.sort_unstable();
@@ -191,7 +191,7 @@ impl ErrorMap {
             }
             let mut cells: Vec<Vec<(usize, Option<f64>)>> = vec![vec![(0, None); targets_deg.len()]; runs.len()];
             for (i, s) in samples.iter().enumerate().filter(|(_, s)| s.direction == direction) {
-                let cell = &mut cells[run_index(s.run)][target_of[i]];
+                let cell = &mut cells[run_index(s.run)][target_of[i] as usize];
                 cell.0 += 1;
                 cell.1 = Some(s.error_deg());
             }

@@ -172,6 +172,7 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // increase with the readouts; it equals (|sum e^{i(theta - r)}|^2 -
     // |sum e^{i(theta + r)}|^2) / 4, which needs no pairs and no unwrapping.
     let mut raw: Vec<f64> = xy.iter().map(|q| (q[1] - b).atan2(q[0] - a).to_degrees()).collect();
+    drop(xy);
     let resultant = |sign: f64| {
         let (s, c) = raw.iter().zip(readouts_deg).fold((0.0, 0.0), |(s, c), (t, r)| {
             let x = (t + sign * r).to_radians();
@@ -195,7 +196,10 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // 4. Zero: the mean over the fit points of wrap_180(raw - zero - readout) is zero.
     // A circular mean first (robust to the wrap), then the arithmetic mean of the
     // wrapped differences around it.
-    let diffs: Vec<f64> = raw.iter().zip(readouts_deg).map(|(t, r)| t - r).collect();
+    // The raw angles become the differences in place (a vector each would
+    // be the refit's peak).
+    let mut diffs = raw;
+    diffs.iter_mut().zip(readouts_deg).for_each(|(t, r)| *t -= r);
     let (s, c) = diffs.iter().fold((0.0, 0.0), |(s, c), d| (s + d.to_radians().sin(), c + d.to_radians().cos()));
     let z0 = s.atan2(c).to_degrees();
     let z = z0 + diffs.iter().map(|d| wrap_180(d - z0)).sum::<f64>() / nf;
@@ -279,21 +283,24 @@ pub fn refit_axis_with_angles(
     readouts_deg: &[f64],
 ) -> Result<(Refit, Vec<f64>), GeometryError> {
     let first = fit_axis(points_mm, readouts_deg)?;
-    let keep = within_limit(&first, points_mm);
-    let dropped = points_mm.len() - keep.len();
-    let refitted = dropped != 0 && keep.len() >= 3;
+    // Few or none: the points kept are the others.
+    let beyond = beyond_limit(&first, points_mm);
+    let dropped = beyond.len();
+    let kept = points_mm.len() - dropped;
+    let refitted = dropped != 0 && kept >= 3;
+    let is_kept = |i: &usize| beyond.binary_search(i).is_err();
     let fit = if refitted {
-        let pts: Vec<[f64; 3]> = keep.iter().map(|&i| points_mm[i]).collect();
-        let ro: Vec<f64> = keep.iter().map(|&i| readouts_deg[i]).collect();
+        let pts: Vec<[f64; 3]> = (0..points_mm.len()).filter(is_kept).map(|i| points_mm[i]).collect();
+        let ro: Vec<f64> = (0..points_mm.len()).filter(is_kept).map(|i| readouts_deg[i]).collect();
         fit_axis(&pts, &ro)?
     } else {
         first
     };
     let raw: Vec<f64> = points_mm.iter().map(|&p| fit.raw_angle(p)).collect();
     let knowledge = if refitted {
-        center_knowledge(&fit, keep.iter().map(|&i| (points_mm[i], raw[i])))
+        center_knowledge(&fit, kept, (0..points_mm.len()).filter(is_kept).map(|i| (points_mm[i], raw[i])))
     } else {
-        center_knowledge(&fit, points_mm.iter().copied().zip(raw.iter().copied()))
+        center_knowledge(&fit, kept, points_mm.iter().copied().zip(raw.iter().copied()))
     };
     let refit = Refit {
         fit,
@@ -308,9 +315,9 @@ pub fn refit_axis_with_angles(
 }
 
 /// The indices of the points whose distance from the circle and plane of
-/// `fit` (`hypot` of the in-plane and the out-of-plane distance) is within 5
-/// robust standard deviations (1.4826 x the median distance); all of them
-/// when that median is 0.
+/// `fit` (`hypot` of the in-plane and the out-of-plane distance) is beyond 5
+/// robust standard deviations (1.4826 x the median distance), ascending;
+/// none when that median is 0.
 ///
 /// `hypot` is within an ulp but slow, and this is a pass over every sample.
 /// Each distance is first estimated by a plain square root, within `REL` of
@@ -318,7 +325,7 @@ pub fn refit_axis_with_angles(
 /// underflow), and `hypot` is taken only where those bounds cannot decide:
 /// for the few distances next to the median and to the limit. The median
 /// and the points kept are the ones `hypot` everywhere gives.
-fn within_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
+fn beyond_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
     const REL: f64 = 1e-14;
     let parts = |p: [f64; 3]| {
         let d = sub(p, fit.center_mm);
@@ -330,26 +337,32 @@ fn within_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
         let (a, h) = parts(points_mm[i]);
         a.hypot(h)
     };
-    // (distance, whether it is hypot's): an estimate is within REL of it.
-    let estimates: Vec<(f64, bool)> = points_mm
+    // The distances, and whether each is hypot's (an estimate is within REL
+    // of it): side by side, 9 bytes a point.
+    let mut is_exact = Vec::with_capacity(points_mm.len());
+    let values: Vec<f64> = points_mm
         .iter()
         .map(|&p| {
             let (a, h) = parts(p);
             let q = (a * a + h * h).sqrt();
-            if (1e-150..1e150).contains(&q) { (q, false) } else { (a.hypot(h), true) }
+            let estimated = (1e-150..1e150).contains(&q);
+            is_exact.push(!estimated);
+            if estimated { q } else { a.hypot(h) }
         })
         .collect();
+    let estimate = |i: usize| (values[i], is_exact[i]);
     let bounds = |(v, exact): (f64, bool)| if exact { (v, v) } else { (v * (1.0 - REL), v * (1.0 + REL)) };
     // The median: the estimates' median `q` bounds it within [q (1 - REL),
     // q (1 + REL)]; the distances certainly below that band are below it,
     // those certainly above above it, and it is found among the others.
     let mid = points_mm.len() / 2;
-    let mut sorted: Vec<f64> = estimates.iter().map(|e| e.0).collect();
+    let mut sorted: Vec<f64> = values.clone();
     let q = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
     let (band_lo, band_hi) = (q * (1.0 - REL), q * (1.0 + REL));
     let mut below = 0;
     sorted.clear();
-    for (i, &e) in estimates.iter().enumerate() {
+    for i in 0..points_mm.len() {
+        let e = estimate(i);
         let (lo, hi) = bounds(e);
         if hi < band_lo {
             below += 1;
@@ -362,8 +375,8 @@ fn within_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
     let limit = 5.0 * 1.4826 * mad;
     (0..points_mm.len())
         .filter(|&i| {
-            let (lo, hi) = bounds(estimates[i]);
-            limit <= 0.0 || hi <= limit || (lo <= limit && exact(i) <= limit)
+            let (lo, hi) = bounds(estimate(i));
+            !(limit <= 0.0 || hi <= limit || (lo <= limit && exact(i) <= limit))
         })
         .collect()
 }
@@ -377,11 +390,11 @@ struct CenterKnowledge {
     over_arc_se_deg: f64,
 }
 
-/// From the points fitted and the raw angle of each ([`AxisFit::raw_angle`]).
-fn center_knowledge(fit: &AxisFit, points: impl Iterator<Item = ([f64; 3], f64)>) -> CenterKnowledge {
+/// From the `n` points fitted and the raw angle of each ([`AxisFit::raw_angle`]).
+fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64; 3], f64)>) -> CenterKnowledge {
     let mut jtj = [[0.0; 3]; 3];
     let mut ss = 0.0;
-    let mut phi = Vec::with_capacity(points.size_hint().0);
+    let mut phi = Vec::with_capacity(n);
     for (p, raw) in points {
         let d = sub(p, fit.center_mm);
         let (x, y) = (dot(d, fit.u), dot(d, fit.v));
@@ -414,18 +427,20 @@ fn center_knowledge(fit: &AxisFit, points: impl Iterator<Item = ([f64; 3], f64)>
     let worst_se_mm = worst.max(0.0).sqrt();
     // The angle error a centre error makes at phi, per unit of (dc_u, dc_v):
     // g(phi) = (sin phi, -cos phi) / R; its mean over the points removed.
-    // Each angle's sine and cosine once, for the mean and for the maximum.
+    // Each angle's sine and cosine for the mean, then again for the maximum
+    // (a vector of them would be 16 bytes a sample at the refit's peak).
     let r = fit.radius_mm;
     let m = phi.len().max(1) as f64;
-    let sin_cos: Vec<(f64, f64)> = phi.iter().map(|p| (p.sin(), p.cos())).collect();
-    let (gs, gc) = sin_cos.iter().fold((0.0, 0.0), |(s, c), (sin, cos)| (s + sin / m, c + cos / m));
+    let (gs, gc) = phi.iter().fold((0.0, 0.0), |(s, c), p| {
+        let (sin, cos) = p.sin_cos();
+        (s + sin / m, c + cos / m)
+    });
     let mut over_arc = 0.0f64;
-    for (sin, cos) in &sin_cos {
+    for (sin, cos) in phi.iter().map(|p| p.sin_cos()) {
         let g = [(sin - gs) / r, (-cos + gc) / r];
         let var = g[0] * g[0] * a + 2.0 * g[0] * g[1] * b + g[1] * g[1] * c;
         over_arc = over_arc.max(var);
     }
-    drop(sin_cos);
     // The arc: 360 less the largest gap between the sorted raw angles.
     phi.sort_by(f64::total_cmp);
     let gap = phi

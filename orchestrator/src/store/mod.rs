@@ -47,7 +47,7 @@ mod tx;
 
 pub use checks::CheckDecision;
 pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
-pub use pack::SmrPosition;
+pub use pack::SmrPositions;
 pub use scan::StoredPass;
 pub use sink::StoreSink;
 pub use surveys::EventRow;

@@ -19,12 +19,45 @@ use anyhow::{Context as _, bail};
 use sqlx::sqlite::SqliteConnection;
 use survey_processing::{Direction, Sample};
 
-/// The SMR position behind a sample: its index in the survey's samples (in
-/// seq order) and the tracker's x, y, z in mm.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SmrPosition {
-    pub index: usize,
-    pub xyz_mm: [f64; 3],
+/// The SMR positions behind a survey's samples, what the axis refit fits:
+/// the points the read was given first (the locate points), then the
+/// position behind each sample that has one, in seq order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SmrPositions {
+    /// x, y, z in mm (NaN where the tracker gave NaN).
+    pub xyz_mm: Vec<[f64; 3]>,
+    /// The index in the samples of each position after the given points.
+    pub sample_index: Vec<u32>,
+}
+
+impl SmrPositions {
+    /// `before` first, room for `n` positions after.
+    pub(super) fn after(before: Vec<[f64; 3]>, n: usize) -> Self {
+        let mut xyz_mm = before;
+        xyz_mm.reserve(n);
+        SmrPositions { xyz_mm, sample_index: Vec::with_capacity(n) }
+    }
+
+    /// Add the position `xyz_mm` of the sample at `index`.
+    pub(super) fn push(&mut self, index: usize, xyz_mm: [f64; 3]) -> anyhow::Result<()> {
+        let index = u32::try_from(index).map_err(|_| anyhow::anyhow!("more than {} samples", u32::MAX))?;
+        self.xyz_mm.push(xyz_mm);
+        self.sample_index.push(index);
+        Ok(())
+    }
+
+    /// Clear the positions added, keeping the `before` given.
+    pub(super) fn truncate_to_given(&mut self) {
+        let given = self.xyz_mm.len() - self.sample_index.len();
+        self.xyz_mm.truncate(given);
+        self.sample_index.clear();
+    }
+
+    /// The positions after the given points: (sample index, x, y, z).
+    pub fn of_samples(&self) -> impl Iterator<Item = (usize, [f64; 3])> + '_ {
+        let given = self.xyz_mm.len() - self.sample_index.len();
+        self.sample_index.iter().zip(&self.xyz_mm[given..]).map(|(&i, &p)| (i as usize, p))
+    }
 }
 
 /// The layout [`encode`] writes and [`decode`] reads.
@@ -95,7 +128,7 @@ pub(super) fn decode(
     count: i64,
     last_seq: Option<i64>,
     samples: &mut Vec<Sample>,
-    mut smr: Option<&mut Vec<SmrPosition>>,
+    mut smr: Option<&mut SmrPositions>,
 ) -> anyhow::Result<i64> {
     if usize::try_from(count).ok().and_then(|n| n.checked_mul(RECORD)) != Some(data.len()) || count == 0 {
         bail!("the pack from seq {first_seq} holds {} bytes, not {count} records of {RECORD}", data.len())
@@ -120,7 +153,7 @@ pub(super) fn decode(
         if flags & HAS_SMR != 0
             && let Some(smr) = smr.as_deref_mut()
         {
-            smr.push(SmrPosition { index: samples.len(), xyz_mm: [f64_at(b, 48), f64_at(b, 56), f64_at(b, 64)] });
+            smr.push(samples.len(), [f64_at(b, 48), f64_at(b, 56), f64_at(b, 64)])?;
         }
         samples.push(Sample {
             run,
@@ -188,9 +221,9 @@ mod tests {
 
     /// The samples and SMR positions as bits: compared bit for bit (NaN
     /// equal to NaN, -0 not 0).
-    type Bits = (Vec<[u64; 6]>, Vec<(usize, [u64; 3])>);
+    type Bits = (Vec<[u64; 6]>, Vec<[u64; 3]>, Vec<u32>);
 
-    fn bits(samples: &[Sample], smr: &[SmrPosition]) -> Bits {
+    fn bits(samples: &[Sample], smr: &SmrPositions) -> Bits {
         let s = samples
             .iter()
             .map(|s| {
@@ -204,7 +237,7 @@ mod tests {
                 ]
             })
             .collect();
-        (s, smr.iter().map(|p| (p.index, p.xyz_mm.map(f64::to_bits))).collect())
+        (s, smr.xyz_mm.iter().map(|p| p.map(f64::to_bits)).collect(), smr.sample_index.clone())
     }
 
     async fn store_with(n: u64) -> (tempfile::TempDir, Store, i64) {
@@ -225,9 +258,15 @@ mod tests {
             .unwrap()
     }
 
+    /// The locate points a refit gives the read, to come first.
+    const LOCATE: [[f64; 3]; 2] = [[1.0, 2.0, 3.0], [4.0, f64::NAN, -0.0]];
+
     async fn read(store: &Store, id: i64) -> Bits {
-        let (samples, smr) = store.samples_with_smr(id).await.unwrap();
-        assert_eq!(bits(&store.samples(id).await.unwrap(), &[]).0, bits(&samples, &[]).0);
+        let (samples, smr) = store.samples_with_smr(id, LOCATE.to_vec()).await.unwrap();
+        assert_eq!(bits(&store.samples(id).await.unwrap(), &SmrPositions::default()).0, bits(&samples, &smr).0);
+        let given: Vec<[u64; 3]> = LOCATE.iter().map(|p| p.map(f64::to_bits)).collect();
+        assert_eq!(smr.xyz_mm.len(), smr.sample_index.len() + 2);
+        assert_eq!(bits(&samples, &smr).1[..2], given);
         bits(&samples, &smr)
     }
 
@@ -240,8 +279,9 @@ mod tests {
         let (_dir, store, id) = store_with(600).await;
         assert_eq!(packed(&store, id).await, (0, 0), "not packed while it is acquired");
         let rows = read(&store, id).await;
-        assert_eq!(rows.1.len(), 400);
-        assert!(rows.1.iter().any(|p| f64::from_bits(p.1[0]).is_nan()));
+        assert_eq!(rows.2.len(), 400);
+        assert_eq!(rows.2[..3], [1, 2, 4], "the samples with a position");
+        assert!(rows.1[2..].iter().any(|p| f64::from_bits(p[0]).is_nan()));
         store.set_status(id, SurveyStatus::Processing, None).await.unwrap();
         assert_eq!(packed(&store, id).await, (1, 600));
         assert_eq!(read(&store, id).await, rows);
@@ -278,9 +318,9 @@ mod tests {
             store.set_status(id, SurveyStatus::Complete, None).await.unwrap();
             assert_eq!(read(&store, id).await, from_rows, "{change}: packed again");
         }
-        let (samples, smr) = store.samples_with_smr(id).await.unwrap();
+        let (samples, smr) = store.samples_with_smr(id, Vec::new()).await.unwrap();
         assert_eq!((samples.len(), samples[7].actual_deg), (299, 1.0));
-        assert!(smr.iter().any(|p| p.xyz_mm[1] == 3.0) && !smr.iter().any(|p| p.index == 10 && p.xyz_mm[0] == 250.01));
+        assert!(smr.of_samples().any(|(_, p)| p[1] == 3.0) && !smr.of_samples().any(|(i, _)| i == 10));
         // A new sample drops the pack too (a survey resumed).
         store.append(id, &[recorded(300)]).await.unwrap();
         assert_eq!(packed(&store, id).await, (0, 0));
@@ -328,7 +368,7 @@ mod tests {
         let id = store.import(&new, &samples).await.unwrap();
         assert_eq!(packed(&store, id).await, (1, 50));
         assert_eq!(store.samples(id).await.unwrap(), samples);
-        assert!(store.samples_with_smr(id).await.unwrap().1.is_empty());
+        assert_eq!(store.samples_with_smr(id, LOCATE[..1].to_vec()).await.unwrap().1.xyz_mm, LOCATE[..1]);
         store.close().await;
     }
 
@@ -345,14 +385,14 @@ mod tests {
             blobs.iter().map(|b| (b.0, b.1)).collect::<Vec<_>>(),
             [(0, PER_BLOB as i64), (PER_BLOB as i64, PER_BLOB as i64), (2 * PER_BLOB as i64, 5)]
         );
-        let (mut samples, mut smr, mut last) = (Vec::new(), Vec::new(), None);
+        let (mut samples, mut smr, mut last) = (Vec::new(), SmrPositions::default(), None);
         for (first, count, data) in &blobs {
             last = Some(decode(data, *first, *count, last, &mut samples, Some(&mut smr)).unwrap());
         }
         assert_eq!(last, Some(records.len() as i64 - 1));
         assert_eq!(samples, records.iter().map(|r| r.sample).collect::<Vec<_>>());
-        assert_eq!(smr.len(), PER_BLOB + 3);
-        assert!(smr.iter().all(|p| p.xyz_mm[0] == p.index as f64));
+        assert_eq!(smr.sample_index.len(), PER_BLOB + 3);
+        assert!(smr.of_samples().all(|(i, p)| p[0] == i as f64));
         // Out of order: the second blob after the third.
         let e = decode(&blobs[1].2, blobs[1].0, blobs[1].1, Some(2 * PER_BLOB as i64 + 4), &mut samples, None);
         assert!(format!("{:#}", e.unwrap_err()).contains("out of order"));

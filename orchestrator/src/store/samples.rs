@@ -10,7 +10,7 @@ use sqlx::{QueryBuilder, Row, Sqlite};
 use survey_drivers::{AcReading, SmrMeasurement};
 use survey_processing::{Direction, Sample};
 
-use super::pack::{self, SmrPosition};
+use super::pack::{self, SmrPositions};
 use super::surveys::insert_survey;
 use super::tx::WriteTx;
 use super::{CHUNK_ROWS, NotFound, Store, is_foreign_key_error, on_pool, real};
@@ -152,29 +152,31 @@ impl Store {
     }
 
     /// The samples of a survey as [`Store::samples`] reads them, with the SMR
-    /// position behind each that has one (what the axis refit needs): the
-    /// compact vector and, per SMR reading, the sample's index and x, y, z
-    /// in mm (NaN where the tracker gave NaN). Read like [`Store::samples`],
-    /// the samples and the SMR rows each in one pass in seq order, merged
-    /// (no join: 80 bytes a sample at most).
+    /// position behind each that has one (what the axis refit needs), after
+    /// the points `before` (the locate points): [`SmrPositions`], x, y, z in
+    /// mm (NaN where the tracker gave NaN) and each one's sample index. From
+    /// the survey's pack, or like [`Store::samples`] from the samples and the
+    /// SMR rows, each read in one pass in seq order, merged (no join).
     ///
     /// From the lab store (PostgreSQL), through sqlx: the samples with their
     /// raw readings ([`Store::recorded_samples`]).
-    pub async fn samples_with_smr(&self, survey_id: i64) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
+    pub async fn samples_with_smr(
+        &self,
+        survey_id: i64,
+        before: Vec<[f64; 3]>,
+    ) -> anyhow::Result<(Vec<Sample>, SmrPositions)> {
         if let super::Backend::Lab(_) = &self.backend {
             let recorded = self.recorded_samples(survey_id).await?;
-            let smr = recorded
-                .iter()
-                .enumerate()
-                .filter_map(|(index, r)| match &r.raw {
-                    crate::acquire::RawReading::Smr(m) => Some(SmrPosition { index, xyz_mm: m.xyz() }),
-                    _ => None,
-                })
-                .collect();
+            let mut smr = SmrPositions::after(before, recorded.len());
+            for (index, r) in recorded.iter().enumerate() {
+                if let crate::acquire::RawReading::Smr(m) = &r.raw {
+                    smr.push(index, m.xyz())?;
+                }
+            }
             return Ok((recorded.into_iter().map(|r| r.sample).collect(), smr));
         }
         let (path, immutable) = (self.path.clone(), self.immutable);
-        tokio::task::spawn_blocking(move || read_samples_with_smr(&path, immutable, survey_id))
+        tokio::task::spawn_blocking(move || read_samples_with_smr(&path, immutable, survey_id, before))
             .await
             .context("the sample reader stopped")?
             .with_context(|| format!("cannot read the samples of survey {survey_id}"))
@@ -420,21 +422,25 @@ fn read_samples_with_smr(
     path: &std::path::Path,
     immutable: bool,
     survey_id: i64,
-) -> anyhow::Result<(Vec<Sample>, Vec<SmrPosition>)> {
+    before: Vec<[f64; 3]>,
+) -> anyhow::Result<(Vec<Sample>, SmrPositions)> {
     let conn = open_reader(path, immutable)?;
     let last = last_seq(&conn, survey_id)?;
     // At most a position a sample.
-    let (mut samples, mut smr) = (Vec::with_capacity(capacity(last)), Vec::with_capacity(capacity(last)));
+    let (mut samples, mut smr) = (Vec::with_capacity(capacity(last)), SmrPositions::after(before, capacity(last)));
     if read_pack(&conn, survey_id, last, &mut samples, Some(&mut smr))? {
         return Ok((samples, smr));
     }
     map_pages(&conn)?;
+    let mut pushed = Ok(());
     let samples = read_rows(&conn, survey_id, true, samples, |index, _, xyz| {
-        if let Some(xyz_mm) = xyz {
-            smr.push(SmrPosition { index, xyz_mm });
+        if let Some(xyz_mm) = xyz
+            && pushed.is_ok()
+        {
+            pushed = smr.push(index, xyz_mm);
         }
     })?;
-    Ok((samples, smr))
+    pushed.map(|()| (samples, smr))
 }
 
 /// Every sample of survey `survey_id` with its seq and SMR position, from
@@ -456,7 +462,7 @@ fn read_pack(
     survey_id: i64,
     last_stored: Option<i64>,
     samples: &mut Vec<Sample>,
-    mut smr: Option<&mut Vec<SmrPosition>>,
+    mut smr: Option<&mut SmrPositions>,
 ) -> anyhow::Result<bool> {
     let mut stmt = conn
         .prepare("SELECT first_seq, count, format, data FROM sample_packs WHERE survey_id = ?1 ORDER BY first_seq")?;
@@ -484,7 +490,7 @@ fn read_pack(
             tracing::warn!(survey = survey_id, error = %format!("{e:#}"), "the sample pack is not used: the rows are read");
             samples.clear();
             if let Some(smr) = smr {
-                smr.clear();
+                smr.truncate_to_given();
             }
             Ok(false)
         }

@@ -133,17 +133,16 @@ async fn append_in_chunks_and_read_back() {
         assert_eq!(bits(c), bits(&r.sample));
     }
     // The refit's read: the same samples, and each SMR position at its sample's index.
-    let (with_smr, smr) = store.samples_with_smr(id).await.unwrap();
+    let (with_smr, smr) = store.samples_with_smr(id, vec![[7.0, 8.0, 9.0]]).await.unwrap();
     assert_eq!(with_smr, compact);
-    let expected: Vec<SmrPosition> = samples
-        .iter()
-        .enumerate()
-        .filter_map(|(index, r)| match r.raw {
-            RawReading::Smr(m) => Some(SmrPosition { index, xyz_mm: m.xyz() }),
-            _ => None,
-        })
-        .collect();
-    assert_eq!(expected.len(), 1667);
+    let mut expected = SmrPositions { xyz_mm: vec![[7.0, 8.0, 9.0]], sample_index: Vec::new() };
+    for (index, r) in samples.iter().enumerate() {
+        if let RawReading::Smr(m) = r.raw {
+            expected.xyz_mm.push(m.xyz());
+            expected.sample_index.push(index as u32);
+        }
+    }
+    assert_eq!(expected.sample_index.len(), 1667);
     assert_eq!(smr, expected);
     let latest = samples.iter().filter_map(|r| r.sample.timestamp_s).fold(f64::MIN, f64::max);
     assert_eq!(store.last_sample_time(id).await.unwrap(), Some(latest));

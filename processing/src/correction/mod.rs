@@ -74,7 +74,7 @@
 //! reported beside them: no correction can go below it, and the paper's
 //! answer is to measure again with the correction applied.
 
-use crate::iso230::{TargetGroups, iso230_2_with_actual};
+use crate::iso230::{TargetGroups, iso230_2_a_with_actual};
 use crate::resample::EditError;
 use crate::resample::{PartialError, PartialMethod, Resampler, Series, Span, SpectralEdit, fit_partial};
 use crate::table::{CorrectionTable, TableError};
@@ -349,12 +349,10 @@ pub fn predict_accuracy(
     if let Some(index) = samples.iter().position(|s| !(s.readout_deg.is_finite() && s.actual_deg.is_finite())) {
         return Err(CorrectionError::BadSample { index });
     }
-    let native: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
-    let native = figures(&native, native_iso230_a_deg);
+    let native = figures(samples.iter().map(Sample::error_deg), native_iso230_a_deg);
     // The corrected samples' actual angles: target - corrected error.
-    let corrected_a =
-        iso230_2_with_actual(samples, groups, |i| samples[i].target_deg - corrected[i]).ok().map(|st| st.a);
-    let corrected = figures(corrected, corrected_a);
+    let corrected_a = iso230_2_a_with_actual(samples, groups, |i| samples[i].target_deg - corrected[i]).ok();
+    let corrected = figures(corrected.iter().copied(), corrected_a);
     Ok(Prediction {
         native_peak_deg: native.peak_deg,
         corrected_peak_deg: corrected.peak_deg,
@@ -403,7 +401,7 @@ impl Prediction {
 impl ErrorFigures {
     /// The figures of the errors `e` (readout - actual), with an ISO 230-2 `A` when known.
     pub fn of(e: &[f64], iso230_a_deg: Option<f64>) -> Self {
-        figures(e, iso230_a_deg)
+        figures(e.iter().copied(), iso230_a_deg)
     }
 }
 
@@ -427,7 +425,7 @@ fn noise_sd(samples: &[Sample], corrected: &[f64], by_target: &TargetGroups) -> 
             }
         }
     };
-    for i in by_target.iter().flatten().copied() {
+    for i in by_target.iter().flatten().map(|&i| i as usize) {
         let (s, e) = (&samples[i], corrected[i]);
         let b = s.target_deg.to_bits();
         if let Some(previous) = bits.filter(|&p| p != b) {
@@ -449,10 +447,13 @@ fn noise_sd(samples: &[Sample], corrected: &[f64], by_target: &TargetGroups) -> 
     (dof > 0).then(|| (ss / dof as f64).sqrt())
 }
 
-fn figures(e: &[f64], iso230_a_deg: Option<f64>) -> ErrorFigures {
-    let mean = e.iter().sum::<f64>() / e.len() as f64;
-    let peak = e.iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
-    let rms = (e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
+/// The figures of the errors `e` yields (walked three times: the mean, then
+/// the peak and the RMS about it, with no vector of them kept).
+fn figures(e: impl Iterator<Item = f64> + Clone, iso230_a_deg: Option<f64>) -> ErrorFigures {
+    let n = e.clone().count() as f64;
+    let mean = e.clone().sum::<f64>() / n;
+    let peak = e.clone().map(|v| (v - mean).abs()).fold(0.0, f64::max);
+    let rms = (e.map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
     ErrorFigures { mean_deg: mean, peak_deg: peak, rms_deg: rms, iso230_a_deg }
 }
 

@@ -511,7 +511,7 @@ fn the_refit_keeps_the_points_hypot_everywhere_keeps() {
         let mut sorted = r.clone();
         let mad = *sorted.select_nth_unstable_by(r.len() / 2, f64::total_cmp).1;
         let limit = 5.0 * 1.4826 * mad;
-        (0..r.len()).filter(|&i| limit <= 0.0 || r[i] <= limit).collect()
+        (0..r.len()).filter(|&i| !(limit <= 0.0 || r[i] <= limit)).collect()
     };
     // A noisy survey with glitches, around its own fit.
     let mut rng = Rng(0x00dd_ba11);
@@ -527,9 +527,9 @@ fn the_refit_keeps_the_points_hypot_everywhere_keeps() {
         points[k][1] += 2.0;
     }
     let fit = fit_axis(&points, &readouts).unwrap();
-    let kept = within_limit(&fit, &points);
-    assert_eq!(kept, reference(&fit, &points));
-    assert_eq!(kept.len(), 2998);
+    let beyond = beyond_limit(&fit, &points);
+    assert_eq!(beyond, reference(&fit, &points));
+    assert_eq!(beyond, [3, 999, 2000]);
     // A unit circle where a position's distance is exactly its offset from
     // the plane: distances 0 and 1e-200 (hypot's own), the median, one
     // exactly at the limit (kept) and the next one above it (left out).
@@ -549,10 +549,10 @@ fn the_refit_keeps_the_points_hypot_everywhere_keeps() {
     let limit: f64 = 5.0 * 1.4826 * (51.0 * 1e-3);
     h.extend([limit, limit.next_up()]);
     let points: Vec<[f64; 3]> = h.iter().map(|&h| [1.0, 0.0, h]).collect();
-    let kept = within_limit(&fit, &points);
-    assert_eq!(kept, reference(&fit, &points));
-    assert_eq!(kept, (0..103).collect::<Vec<usize>>());
+    let beyond = beyond_limit(&fit, &points);
+    assert_eq!(beyond, reference(&fit, &points));
+    assert_eq!(beyond, [103]);
     // Every distance 0: every point kept.
     let zero = vec![[0.0, 1.0, 0.0]; 5];
-    assert_eq!(within_limit(&fit, &zero), vec![0, 1, 2, 3, 4]);
+    assert_eq!(beyond_limit(&fit, &zero), Vec::<usize>::new());
 }
