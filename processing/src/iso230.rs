@@ -189,7 +189,7 @@ pub fn iso230_2_grouped(samples: &[Sample], groups: &TargetGroups) -> Result<Iso
 
 /// [`iso230_2_grouped`] of `samples` with the actual angle of sample `i`
 /// replaced by `actual(i)` (corrected samples, without a copy of them).
-pub(crate) fn iso230_2_with_actual(
+fn iso230_2_with_actual(
     samples: &[Sample],
     groups: &TargetGroups,
     actual: impl Fn(usize) -> f64,

@@ -257,22 +257,19 @@ impl Store {
             .bind(id)
             .fetch_optional(tx.conn())
             .await?;
-        let records = match packed {
-            Some(_) => Vec::new(),
-            None => {
-                let (path, immutable) = (self.path.clone(), self.immutable);
-                tokio::task::spawn_blocking(move || read_records(&path, immutable, id))
-                    .await
-                    .context("the sample reader stopped")??
-            }
-        };
+        if packed.is_some() {
+            tx.commit().await?;
+            return Ok(());
+        }
+        let (path, immutable) = (self.path.clone(), self.immutable);
+        let records = tokio::task::spawn_blocking(move || read_records(&path, immutable, id))
+            .await
+            .context("the sample reader stopped")??;
         if !records.is_empty() {
             pack::write(tx.conn(), id, &records).await?;
         }
         tx.commit().await?;
-        if !records.is_empty() {
-            tracing::debug!(survey = id, samples = records.len(), "samples packed");
-        }
+        tracing::debug!(survey = id, samples = records.len(), "samples packed");
         Ok(())
     }
 }
@@ -484,8 +481,7 @@ fn read_pack(
         }
     })();
     match read {
-        Ok(true) => Ok(true),
-        Ok(false) => Ok(false),
+        Ok(read) => Ok(read),
         Err(e) => {
             tracing::warn!(survey = survey_id, error = %format!("{e:#}"), "the sample pack is not used: the rows are read");
             samples.clear();
