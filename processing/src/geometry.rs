@@ -305,9 +305,9 @@ pub fn refit_axis_with_angles(
     };
     let raw: Vec<f64> = points_mm.iter().map(|&p| fit.raw_angle(p)).collect();
     let knowledge = if refitted {
-        center_knowledge(&fit, kept, (0..points_mm.len()).filter(is_kept).map(|i| (points_mm[i], raw[i])))
+        center_knowledge(&fit, || (0..points_mm.len()).filter(is_kept).map(|i| (points_mm[i], raw[i])))
     } else {
-        center_knowledge(&fit, kept, points_mm.iter().copied().zip(raw.iter().copied()))
+        center_knowledge(&fit, || points_mm.iter().copied().zip(raw.iter().copied()))
     };
     let refit = Refit {
         fit,
@@ -391,16 +391,22 @@ struct CenterKnowledge {
     over_arc_se_deg: f64,
 }
 
-/// From the `n` points fitted and the raw angle of each ([`AxisFit::raw_angle`]).
-fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64; 3], f64)>) -> CenterKnowledge {
+/// From the points fitted and the raw angle of each ([`AxisFit::raw_angle`]),
+/// which `points` makes anew for each pass over them (a copy of the angles
+/// was 8 bytes a sample at the refit's peak).
+fn center_knowledge<I: Iterator<Item = ([f64; 3], f64)>>(fit: &AxisFit, points: impl Fn() -> I) -> CenterKnowledge {
     let mut jtj = [[0.0; 3]; 3];
     let mut ss = 0.0;
-    let mut phi = Vec::with_capacity(n);
-    for (p, raw) in points {
+    // The places (in `points`' order) of any point at the centre: it has no
+    // direction, and its angle is left out with it.
+    let mut at_centre = Vec::new();
+    let mut count = 0usize;
+    for (k, (p, _)) in points().enumerate() {
         let d = sub(p, fit.center_mm);
         let (x, y) = (dot(d, fit.u), dot(d, fit.v));
         let dist = x.hypot(y);
         if dist == 0.0 {
+            at_centre.push(k);
             continue;
         }
         let jac = [-x / dist, -y / dist, -1.0];
@@ -410,9 +416,10 @@ fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64;
             }
         }
         ss += (dist - fit.radius_mm).powi(2);
-        phi.push(raw);
+        count += 1;
     }
-    let s2 = ss / (phi.len().saturating_sub(3)).max(1) as f64;
+    let phi = || points().enumerate().filter(|(k, _)| at_centre.binary_search(k).is_err()).map(|(_, (_, raw))| raw);
+    let s2 = ss / (count.saturating_sub(3)).max(1) as f64;
     let col = |k: usize| {
         let mut e = [0.0; 3];
         e[k] = 1.0;
@@ -431,26 +438,19 @@ fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64;
     // Each angle's sine and cosine for the mean, then again for the maximum
     // (a vector of them would be 16 bytes a sample at the refit's peak).
     let r = fit.radius_mm;
-    let m = phi.len().max(1) as f64;
-    let (gs, gc) = phi.iter().fold((0.0, 0.0), |(s, c), p| {
+    let m = count.max(1) as f64;
+    let (gs, gc) = phi().fold((0.0, 0.0), |(s, c), p| {
         let (sin, cos) = p.sin_cos();
         (s + sin / m, c + cos / m)
     });
     let mut over_arc = 0.0f64;
-    for (sin, cos) in phi.iter().map(|p| p.sin_cos()) {
+    for (sin, cos) in phi().map(|p| p.sin_cos()) {
         let g = [(sin - gs) / r, (-cos + gc) / r];
         let var = g[0] * g[0] * a + 2.0 * g[0] * g[1] * b + g[1] * g[1] * c;
         over_arc = over_arc.max(var);
     }
-    // The arc: 360 less the largest gap between the sorted raw angles.
-    // Equal under `total_cmp` is equal to the bit: unstable is as good, and
-    // needs no scratch.
-    phi.sort_unstable_by(f64::total_cmp);
-    let gap = phi
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .chain(phi.first().zip(phi.last()).map(|(f, l)| f + std::f64::consts::TAU - l))
-        .fold(0.0, f64::max);
+    // The arc: 360 less the largest gap between the raw angles.
+    let gap = largest_gap(phi, count);
     let arc_deg = (std::f64::consts::TAU - gap).to_degrees().max(0.0);
     CenterKnowledge {
         cov,
@@ -459,6 +459,59 @@ fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64;
         arc_deg,
         over_arc_se_deg: over_arc.max(0.0).sqrt().to_degrees(),
     }
+}
+
+/// The largest gap between `count` angles (radians, within a turn) taken
+/// in ascending order, the one across the turn's end (from the largest
+/// round to the smallest) included: what sorting them gives, to the bit,
+/// without sorting (a sort of every sample's angle was a twentieth of the
+/// processing). `angles` makes them anew for each pass.
+///
+/// The angles fall into `count / 4` buckets of equal width between the
+/// smallest and the largest; the bucket of an angle never decreases as the
+/// angle grows (each step of its arithmetic is monotonic), so consecutive
+/// angles are in one bucket or in consecutive non-empty ones. A gap between
+/// buckets is the next one's least less the last one's largest; a gap
+/// inside a bucket is at most its largest less its least. When the largest
+/// gap between buckets is at least every bucket's span, it is the largest
+/// gap; otherwise (angles spread evenly, no clusters) they are sorted.
+fn largest_gap<I: Iterator<Item = f64>>(angles: impl Fn() -> I, count: usize) -> f64 {
+    let (lo, hi) = angles().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), a| (lo.min(a), hi.max(a)));
+    if count == 0 || lo > hi {
+        return 0.0;
+    }
+    let wrap = lo + std::f64::consts::TAU - hi;
+    let buckets = (count / 4).max(1);
+    let scale = if hi > lo { buckets as f64 / (hi - lo) } else { 0.0 };
+    let mut range = vec![(f64::INFINITY, f64::NEG_INFINITY); buckets];
+    for a in angles() {
+        let b = (((a - lo) * scale) as usize).min(buckets - 1);
+        range[b] = (range[b].0.min(a), range[b].1.max(a));
+    }
+    let (mut best, mut span, mut last) = (wrap.max(0.0), 0.0f64, None::<f64>);
+    for &(least, largest) in range.iter().filter(|r| r.0 <= r.1) {
+        if let Some(previous) = last {
+            best = best.max(least - previous);
+        }
+        span = span.max(largest - least);
+        last = Some(largest);
+    }
+    if best >= span {
+        return best;
+    }
+    drop(range);
+    let mut sorted: Vec<f64> = angles().collect();
+    sorted.sort_unstable_by(f64::total_cmp);
+    sorted_largest_gap(&sorted)
+}
+
+/// [`largest_gap`] of angles sorted ascending.
+fn sorted_largest_gap(sorted: &[f64]) -> f64 {
+    sorted
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .chain(sorted.first().zip(sorted.last()).map(|(f, l)| f + std::f64::consts::TAU - l))
+        .fold(0.0, f64::max)
 }
 
 impl AxisFit {
