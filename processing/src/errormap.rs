@@ -170,6 +170,35 @@ impl ErrorMap {
                 }
             }
         }
+        Self::of_errors(samples, groups, |i| samples[i].error_deg())
+    }
+
+    /// [`ErrorMap::from_grouped`] of `samples` with each error replaced by
+    /// `errors[i]`: of the samples with `readout_deg = errors[i]` and
+    /// `actual_deg = 0` (a residual), without a copy of them made.
+    pub fn from_grouped_errors(
+        samples: &[Sample],
+        groups: &TargetGroups,
+        errors: &[f64],
+    ) -> Result<Self, ErrorMapError> {
+        assert_eq!(samples.len(), errors.len(), "an error a sample");
+        for (index, (s, &e)) in samples.iter().zip(errors).enumerate() {
+            for (field, value) in [("target_deg", s.target_deg), ("readout_deg", e)] {
+                if !value.is_finite() {
+                    return Err(ErrorMapError::NonFinite { index, run: s.run, direction: s.direction, field, value });
+                }
+            }
+        }
+        // `e - 0.0` is `e` to the bit.
+        Self::of_errors(samples, groups, |i| errors[i])
+    }
+
+    /// The map of `samples` (checked finite) with sample `i`'s error `error(i)`.
+    fn of_errors(
+        samples: &[Sample],
+        groups: &TargetGroups,
+        error: impl Fn(usize) -> f64,
+    ) -> Result<Self, ErrorMapError> {
         if samples.is_empty() {
             return Err(ErrorMapError::NoSamples);
         }
@@ -199,7 +228,7 @@ impl ErrorMap {
             for (i, s) in samples.iter().enumerate().filter(|(_, s)| s.direction == direction) {
                 let (r, t) = (run_index(s.run), target_of[i] as usize);
                 seen[r * targets + t] = seen[r * targets + t].saturating_add(1);
-                errors_deg[r][t] = s.error_deg();
+                errors_deg[r][t] = error(i);
             }
             if let Some(cell) = seen.iter().position(|&n| n != 1) {
                 let (r, t) = (cell / targets, cell % targets);

@@ -164,7 +164,7 @@ impl Default for AnalysisOptions {
 }
 
 impl AnalysisOptions {
-    fn validate(&self) -> Result<(), AnalysisError> {
+    pub(crate) fn validate(&self) -> Result<(), AnalysisError> {
         let bad = |option: &'static str, message: String| Err(AnalysisError::BadOption { option, message });
         if !(self.false_alarm_rate > 0.0 && self.false_alarm_rate.is_finite()) {
             return bad("false_alarm_rate", format!("must be a positive number, got {}", self.false_alarm_rate));

@@ -3,6 +3,7 @@
 
 use super::ModelGapError;
 use crate::errormap::ErrorMap;
+use crate::iso230::TargetGroups;
 use crate::model::{DriftTime, Model};
 use crate::types::{Direction, Sample};
 use serde::Serialize;
@@ -21,8 +22,12 @@ pub enum Timebase {
 
 /// A prepared survey.
 #[derive(Debug, Clone)]
-pub(crate) struct Survey {
-    pub samples: Vec<Sample>,
+pub(crate) struct Survey<'a> {
+    /// The survey's samples (borrowed: a copy was 48 bytes a sample).
+    pub samples: &'a [Sample],
+    /// Their grouping by target, made once: the error map's, and every
+    /// residual's (the same targets in the same order).
+    pub groups: TargetGroups,
     pub map: ErrorMap,
     /// Per sample: index into `map.targets_deg`.
     pub target: Vec<usize>,
@@ -49,9 +54,10 @@ pub(crate) struct Survey {
     pub run_duration_s: Option<f64>,
 }
 
-impl Survey {
-    pub fn prepare(samples: &[Sample]) -> Result<Self, ModelGapError> {
-        let map = ErrorMap::from_samples(samples)?;
+impl<'a> Survey<'a> {
+    pub fn prepare(samples: &'a [Sample]) -> Result<Self, ModelGapError> {
+        let groups = TargetGroups::of(samples);
+        let map = ErrorMap::from_grouped(samples, &groups)?;
         let dirs: Vec<Direction> =
             [Direction::Forward, Direction::Reverse].into_iter().filter(|d| map.direction(*d).is_some()).collect();
         let target: Vec<usize> =
@@ -65,7 +71,8 @@ impl Survey {
         let run_index = run.iter().map(|&r| r as f64).collect();
         let angle_deg = samples.iter().map(|s| s.actual_deg).collect();
         Ok(Survey {
-            samples: samples.to_vec(),
+            samples,
+            groups,
             map,
             target,
             run,
@@ -94,7 +101,7 @@ impl Survey {
     /// of 36000 points.)
     pub fn set_angle_shift(&mut self, shift_deg: f64) {
         self.angle_shift_deg = shift_deg;
-        for (a, s) in self.angle_deg.iter_mut().zip(&self.samples) {
+        for (a, s) in self.angle_deg.iter_mut().zip(self.samples) {
             *a = s.actual_deg + shift_deg;
         }
     }
@@ -102,10 +109,10 @@ impl Survey {
     /// [`Survey::prepare`], with the zero reference's angle found against
     /// `model` (two passes: the second changes it by the model's slope times
     /// the first's change, far below anything measurable).
-    pub fn prepare_for(samples: &[Sample], model: &Model) -> Result<Self, ModelGapError> {
+    pub fn prepare_for(samples: &'a [Sample], model: &Model) -> Result<Self, ModelGapError> {
         let mut s = Survey::prepare(samples)?;
         for _ in 0..2 {
-            let (_, offset) = s.residual(model);
+            let offset = s.offset(model);
             s.set_angle_shift(offset);
         }
         Ok(s)
@@ -160,13 +167,23 @@ impl Survey {
             .collect()
     }
 
+    /// `y - model` at sample `i`.
+    fn gap_at(&self, model: &Model, i: usize) -> f64 {
+        self.y[i] - model.systematic_error_at(self.angle_deg[i], self.direction(i), self.drift_time(i))
+    }
+
     /// `y - model`, with the constant offset (zero reference) removed; returns the offset too.
     pub fn residual(&self, model: &Model) -> (Vec<f64>, f64) {
-        let p = self.predict(model);
-        let mut r: Vec<f64> = self.y.iter().zip(&p).map(|(y, p)| y - p).collect();
+        let mut r: Vec<f64> = (0..self.len()).map(|i| self.gap_at(model, i)).collect();
         let offset = r.iter().sum::<f64>() / r.len() as f64;
         r.iter_mut().for_each(|v| *v -= offset);
         (r, offset)
+    }
+
+    /// The offset of [`Survey::residual`] alone (the same sum, to the bit),
+    /// with no vector of the residual.
+    pub fn offset(&self, model: &Model) -> f64 {
+        (0..self.len()).map(|i| self.gap_at(model, i)).sum::<f64>() / self.len() as f64
     }
 
     /// The noise floor from the two-way layout runs x cells (cell = target and
