@@ -29,12 +29,12 @@ pub(crate) struct Survey<'a> {
     /// residual's (the same targets in the same order).
     pub groups: TargetGroups,
     pub map: ErrorMap,
-    /// Per sample: index into `map.targets_deg`.
-    pub target: Vec<usize>,
+    /// Per sample: index into `map.targets_deg` (`u32`, as the grouping's).
+    pub target: Vec<u32>,
     /// Per sample: index into `map.runs`.
-    pub run: Vec<usize>,
+    pub run: Vec<u32>,
     /// Per sample: index into `dirs`.
-    pub dir: Vec<usize>,
+    pub dir: Vec<u8>,
     /// The measured directions (forward first).
     pub dirs: Vec<Direction>,
     /// Per sample: runs elapsed since the first sample (the time of a ramp).
@@ -60,15 +60,19 @@ impl<'a> Survey<'a> {
         let map = ErrorMap::from_grouped(samples, &groups)?;
         let dirs: Vec<Direction> =
             [Direction::Forward, Direction::Reverse].into_iter().filter(|d| map.direction(*d).is_some()).collect();
-        let target: Vec<usize> =
-            samples.iter().map(|s| map.targets_deg.partition_point(|&t| t <= s.target_deg).saturating_sub(1)).collect();
-        let run: Vec<usize> =
-            samples.iter().map(|s| map.runs.binary_search(&s.run).expect("every run is in the map")).collect();
-        let dir: Vec<usize> =
-            samples.iter().map(|s| dirs.iter().position(|d| *d == s.direction).expect("measured")).collect();
+        // A sample's target is its group's: the map's targets are the
+        // groups' smallest, in the groups' order.
+        let mut target = vec![0u32; samples.len()];
+        for (t, group) in (0..).zip(groups.iter()) {
+            group.iter().for_each(|&i| target[i as usize] = t);
+        }
+        let run: Vec<u32> =
+            samples.iter().map(|s| map.runs.binary_search(&s.run).expect("every run is in the map") as u32).collect();
+        let dir: Vec<u8> =
+            samples.iter().map(|s| dirs.iter().position(|d| *d == s.direction).expect("measured") as u8).collect();
         let y: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
         let (tau, timebase, run_duration_s) = time_in_runs(samples, &run, map.runs.len());
-        let run_index = run.iter().map(|&r| r as f64).collect();
+        let run_index = run.iter().map(|&r| f64::from(r)).collect();
         let angle_deg = samples.iter().map(|s| s.actual_deg).collect();
         Ok(Survey {
             samples,
@@ -142,8 +146,8 @@ impl<'a> Survey<'a> {
         let mut sum = vec![0.0; t];
         let mut count = vec![0usize; t];
         for (i, r) in residual.iter().enumerate() {
-            sum[self.target[i]] += r;
-            count[self.target[i]] += 1;
+            sum[self.target[i] as usize] += r;
+            count[self.target[i] as usize] += 1;
         }
         let mean = sum.iter().zip(&count).map(|(a, c)| a / *c as f64).collect();
         (mean, count)
@@ -154,7 +158,7 @@ impl<'a> Survey<'a> {
     }
 
     pub fn direction(&self, i: usize) -> Direction {
-        self.dirs[self.dir[i]]
+        self.dirs[usize::from(self.dir[i])]
     }
 
     /// The model's systematic error at every sample: at the axis angle (the
@@ -200,7 +204,8 @@ impl<'a> Survey<'a> {
         }
         let mut cells = vec![0.0; r * c];
         for i in 0..self.len() {
-            cells[self.run[i] * c + self.target[i] * self.dirs.len() + self.dir[i]] = self.y[i];
+            cells[self.run[i] as usize * c + self.target[i] as usize * self.dirs.len() + usize::from(self.dir[i])] =
+                self.y[i];
         }
         let run_mean: Vec<f64> = (0..r).map(|k| cells[k * c..(k + 1) * c].iter().sum::<f64>() / c as f64).collect();
         let cell_mean: Vec<f64> = (0..c).map(|j| (0..r).map(|k| cells[k * c + j]).sum::<f64>() / r as f64).collect();
@@ -216,7 +221,7 @@ impl<'a> Survey<'a> {
 
 /// Runs elapsed at every sample, from the timestamps when every sample has one
 /// (and they span some time), else from the acquisition order.
-fn time_in_runs(samples: &[Sample], run: &[usize], runs: usize) -> (Vec<f64>, Timebase, Option<f64>) {
+fn time_in_runs(samples: &[Sample], run: &[u32], runs: usize) -> (Vec<f64>, Timebase, Option<f64>) {
     let stamps: Option<Vec<f64>> = samples.iter().map(|s| s.timestamp_s.filter(|t| t.is_finite())).collect();
     if let Some(t) = stamps {
         let t0 = t.iter().copied().fold(f64::INFINITY, f64::min);
@@ -224,7 +229,7 @@ fn time_in_runs(samples: &[Sample], run: &[usize], runs: usize) -> (Vec<f64>, Ti
         let duration = if runs >= 2 {
             let mut start = vec![f64::INFINITY; runs];
             for (i, &ti) in t.iter().enumerate() {
-                start[run[i]] = start[run[i]].min(ti);
+                start[run[i] as usize] = start[run[i] as usize].min(ti);
             }
             (start[runs - 1] - start[0]) / (runs - 1) as f64
         } else if samples.len() >= 2 {
@@ -238,12 +243,13 @@ fn time_in_runs(samples: &[Sample], run: &[usize], runs: usize) -> (Vec<f64>, Ti
     }
     let mut count = vec![0usize; runs];
     for &r in run {
-        count[r] += 1;
+        count[r as usize] += 1;
     }
     let mut seen = vec![0usize; runs];
     let tau = run
         .iter()
         .map(|&r| {
+            let r = r as usize;
             let k = seen[r];
             seen[r] += 1;
             r as f64 + k as f64 / count[r] as f64

@@ -129,7 +129,7 @@ pub(crate) fn repeatable_test(ctx: &Ctx, residual: &[f64]) -> Option<RepeatableT
     let mut sum = vec![0.0; c];
     let mut count = vec![0usize; c];
     for (i, v) in residual.iter().enumerate() {
-        let cell = s.target[i] * s.dirs.len() + s.dir[i];
+        let cell = s.target[i] as usize * s.dirs.len() + usize::from(s.dir[i]);
         sum[cell] += v;
         count[cell] += 1;
     }

@@ -380,8 +380,8 @@ fn direction_view(ctx: &Ctx, residual: &[f64]) -> Option<DirectionView> {
     let mut acc = vec![[0.0f64; 4]; t];
     for (i, r) in residual.iter().enumerate() {
         let k = if s.direction(i) == crate::types::Direction::Forward { 0 } else { 2 };
-        acc[s.target[i]][k] += r;
-        acc[s.target[i]][k + 1] += 1.0;
+        acc[s.target[i] as usize][k] += r;
+        acc[s.target[i] as usize][k + 1] += 1.0;
     }
     let h: Vec<f64> = acc.iter().map(|a| a[0] / a[1] - a[2] / a[3]).collect();
     let mean = h.iter().sum::<f64>() / t as f64;
@@ -404,9 +404,10 @@ fn time_view(ctx: &Ctx, residual: &[f64]) -> Option<TimeView> {
     }
     let mut acc = vec![[0.0f64; 3]; r];
     for (i, v) in residual.iter().enumerate() {
-        acc[s.run[i]][0] += v;
-        acc[s.run[i]][1] += s.tau[i];
-        acc[s.run[i]][2] += 1.0;
+        let run = s.run[i] as usize;
+        acc[run][0] += v;
+        acc[run][1] += s.tau[i];
+        acc[run][2] += 1.0;
     }
     let m: Vec<f64> = acc.iter().map(|a| a[0] / a[2]).collect();
     let x: Vec<f64> = acc.iter().map(|a| a[1] / a[2]).collect();
