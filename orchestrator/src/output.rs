@@ -58,7 +58,7 @@ pub fn iso_text(survey_id: i64, iso: &Iso230, units: Units) -> String {
     let bidirectional = iso.b.is_some();
     let mut s = format!(
         "survey {survey_id}: ISO 230-2, {} targets x {} runs, {} ({})\n",
-        iso.targets.len(),
+        iso.target_count,
         iso.runs,
         if bidirectional { "bidirectional" } else { "unidirectional" },
         units.name()

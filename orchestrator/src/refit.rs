@@ -119,7 +119,7 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
     let readouts: Vec<f64> = locate
         .iter()
         .map(|(readout, _)| *readout)
-        .chain(smr.sample_index.iter().map(|&i| samples[i as usize].readout_deg))
+        .chain(smr.sample_indices().map(|i| samples[i].readout_deg))
         .collect();
     let (Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. }, raw) =
         refit_axis_with_angles(points, &readouts).map_err(|e| {
@@ -127,8 +127,8 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         })?;
     drop(readouts);
     // The samples' positions follow the locate points in `raw`.
-    for (&i, &raw) in smr.sample_index.iter().zip(&raw[locate.len()..]) {
-        let s = &mut samples[i as usize];
+    for (i, &raw) in smr.sample_indices().zip(&raw[locate.len()..]) {
+        let s = &mut samples[i];
         s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
     }
     let center_shift_mm = in_plane_shift(&fit, located);

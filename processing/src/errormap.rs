@@ -170,6 +170,35 @@ impl ErrorMap {
                 }
             }
         }
+        Self::of_errors(samples, groups, |i| samples[i].error_deg())
+    }
+
+    /// [`ErrorMap::from_grouped`] of `samples` with each error replaced by
+    /// `errors[i]`: of the samples with `readout_deg = errors[i]` and
+    /// `actual_deg = 0` (a residual), without a copy of them made.
+    pub fn from_grouped_errors(
+        samples: &[Sample],
+        groups: &TargetGroups,
+        errors: &[f64],
+    ) -> Result<Self, ErrorMapError> {
+        assert_eq!(samples.len(), errors.len(), "an error a sample");
+        for (index, (s, &e)) in samples.iter().zip(errors).enumerate() {
+            for (field, value) in [("target_deg", s.target_deg), ("readout_deg", e)] {
+                if !value.is_finite() {
+                    return Err(ErrorMapError::NonFinite { index, run: s.run, direction: s.direction, field, value });
+                }
+            }
+        }
+        // `e - 0.0` is `e` to the bit.
+        Self::of_errors(samples, groups, |i| errors[i])
+    }
+
+    /// The map of `samples` (checked finite) with sample `i`'s error `error(i)`.
+    fn of_errors(
+        samples: &[Sample],
+        groups: &TargetGroups,
+        error: impl Fn(usize) -> f64,
+    ) -> Result<Self, ErrorMapError> {
         if samples.is_empty() {
             return Err(ErrorMapError::NoSamples);
         }
@@ -180,35 +209,40 @@ impl ErrorMap {
             targets_deg.push(samples[group[0] as usize].target_deg);
             group.iter().for_each(|&i| target_of[i as usize] = t);
         }
-        let mut runs: Vec<u32> = samples.iter().map(|s| s.run).collect();
-        runs.sort_unstable();
-        runs.dedup();
+        // The runs, ascending (a set: a few, where a vector was a run a sample).
+        let runs: Vec<u32> =
+            samples.iter().map(|s| s.run).collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
         let run_index = |run: u32| runs.binary_search(&run).expect("every run was collected");
 
         let build = |direction: Direction| -> Result<Option<DirectionErrors>, ErrorMapError> {
             if !samples.iter().any(|s| s.direction == direction) {
                 return Ok(None);
             }
-            let mut cells: Vec<Vec<(usize, Option<f64>)>> = vec![vec![(0, None); targets_deg.len()]; runs.len()];
+            // Each run's row of errors, filled in place, and how many samples
+            // fell in each cell (saturating: an exact count is made again
+            // for the error only). Not a cell of (count, value) each: that
+            // was 24 bytes a target and run where a row takes 8.
+            let targets = targets_deg.len();
+            let mut errors_deg: Vec<Vec<f64>> = vec![vec![f64::NAN; targets]; runs.len()];
+            let mut seen = vec![0u8; runs.len() * targets];
             for (i, s) in samples.iter().enumerate().filter(|(_, s)| s.direction == direction) {
-                let cell = &mut cells[run_index(s.run)][target_of[i] as usize];
-                cell.0 += 1;
-                cell.1 = Some(s.error_deg());
+                let (r, t) = (run_index(s.run), target_of[i] as usize);
+                seen[r * targets + t] = seen[r * targets + t].saturating_add(1);
+                errors_deg[r][t] = error(i);
             }
-            let mut errors_deg = Vec::with_capacity(runs.len());
-            for (r, row) in cells.into_iter().enumerate() {
-                let mut out = Vec::with_capacity(row.len());
-                for (t, (count, value)) in row.into_iter().enumerate() {
-                    let (run, target_deg) = (runs[r], targets_deg[t]);
-                    match (count, value) {
-                        (1, Some(v)) => out.push(v),
-                        (0, _) | (_, None) => return Err(ErrorMapError::MissingSample { run, target_deg, direction }),
-                        (count, _) => {
-                            return Err(ErrorMapError::DuplicateSample { run, target_deg, direction, count });
-                        }
-                    }
+            if let Some(cell) = seen.iter().position(|&n| n != 1) {
+                let (r, t) = (cell / targets, cell % targets);
+                let (run, target_deg) = (runs[r], targets_deg[t]);
+                if seen[cell] == 0 {
+                    return Err(ErrorMapError::MissingSample { run, target_deg, direction });
                 }
-                errors_deg.push(out);
+                let count = (0..samples.len())
+                    .filter(|&i| {
+                        let s = &samples[i];
+                        s.direction == direction && s.run == run && target_of[i] as usize == t
+                    })
+                    .count();
+                return Err(ErrorMapError::DuplicateSample { run, target_deg, direction, count });
             }
             Ok(Some(DirectionErrors::new(direction, errors_deg)))
         };

@@ -149,14 +149,15 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
 
     // 2. Circle in the plane, in coordinates scaled to the spread of the points.
     let spread = (values[1] + values[2]).sqrt();
-    let xy: Vec<[f64; 2]> = points_mm
-        .iter()
-        .map(|&p| {
-            let d = sub(p, centroid);
-            [dot(d, u) / spread, dot(d, v) / spread]
-        })
-        .collect();
-    let (mut a, mut b, r, cost) = fit_circle(&xy)
+    // The projected points are made again on every pass over them (two dot
+    // products) rather than kept: a vector of them was 16 bytes a point at
+    // the refit's peak.
+    let project = |p: &[f64; 3]| {
+        let d = sub(*p, centroid);
+        [dot(d, u) / spread, dot(d, v) / spread]
+    };
+    let xy = || points_mm.iter().map(project);
+    let (mut a, mut b, r, cost) = fit_circle(xy)
         .ok_or_else(|| GeometryError::Degenerate("the projected positions do not determine a circle".into()))?;
     let radius_mm = r * spread;
     if !radius_mm.is_finite() || !a.is_finite() || !b.is_finite() || radius_mm <= 1e-9 * spread {
@@ -171,16 +172,16 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // pairs of sin(theta_j - theta_i) sin(r_j - r_i) is positive when the angles
     // increase with the readouts; it equals (|sum e^{i(theta - r)}|^2 -
     // |sum e^{i(theta + r)}|^2) / 4, which needs no pairs and no unwrapping.
-    let mut raw: Vec<f64> = xy.iter().map(|q| (q[1] - b).atan2(q[0] - a).to_degrees()).collect();
-    drop(xy);
-    let resultant = |sign: f64| {
-        let (s, c) = raw.iter().zip(readouts_deg).fold((0.0, 0.0), |(s, c), (t, r)| {
+    let mut raw: Vec<f64> = xy().map(|q| (q[1] - b).atan2(q[0] - a).to_degrees()).collect();
+    let sums = |sign: f64| {
+        raw.iter().zip(readouts_deg).fold((0.0, 0.0), |(s, c), (t, r)| {
             let x = (t + sign * r).to_radians();
             (s + x.sin(), c + x.cos())
-        });
-        s * s + c * c
+        })
     };
-    let orientation = (resultant(-1.0) - resultant(1.0)) / 4.0;
+    let (minus, plus) = (sums(-1.0), sums(1.0));
+    let resultant = |(s, c): (f64, f64)| s * s + c * c;
+    let orientation = (resultant(minus) - resultant(plus)) / 4.0;
     if orientation.abs() <= 1e-9 * nf * nf {
         return Err(GeometryError::Degenerate(
             "the readouts do not vary enough to tell the direction of rotation".into(),
@@ -200,7 +201,13 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // be the refit's peak).
     let mut diffs = raw;
     diffs.iter_mut().zip(readouts_deg).for_each(|(t, r)| *t -= r);
-    let (s, c) = diffs.iter().fold((0.0, 0.0), |(s, c), d| (s + d.to_radians().sin(), c + d.to_radians().cos()));
+    // Unflipped, the differences are the angles the orientation's first
+    // resultant summed (`t + -1 r` is `t - r` to the bit): its sums serve.
+    let (s, c) = if orientation < 0.0 {
+        diffs.iter().fold((0.0, 0.0), |(s, c), d| (s + d.to_radians().sin(), c + d.to_radians().cos()))
+    } else {
+        minus
+    };
     let z0 = s.atan2(c).to_degrees();
     let z = z0 + diffs.iter().map(|d| wrap_180(d - z0)).sum::<f64>() / nf;
 
@@ -298,9 +305,9 @@ pub fn refit_axis_with_angles(
     };
     let raw: Vec<f64> = points_mm.iter().map(|&p| fit.raw_angle(p)).collect();
     let knowledge = if refitted {
-        center_knowledge(&fit, kept, (0..points_mm.len()).filter(is_kept).map(|i| (points_mm[i], raw[i])))
+        center_knowledge(&fit, || (0..points_mm.len()).filter(is_kept).map(|i| (points_mm[i], raw[i])))
     } else {
-        center_knowledge(&fit, kept, points_mm.iter().copied().zip(raw.iter().copied()))
+        center_knowledge(&fit, || points_mm.iter().copied().zip(raw.iter().copied()))
     };
     let refit = Refit {
         fit,
@@ -337,26 +344,20 @@ fn beyond_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
         let (a, h) = parts(points_mm[i]);
         a.hypot(h)
     };
-    // The distances, and whether each is hypot's (an estimate is within REL
-    // of it): side by side, 9 bytes a point.
-    let mut is_exact = Vec::with_capacity(points_mm.len());
-    let values: Vec<f64> = points_mm
-        .iter()
-        .map(|&p| {
-            let (a, h) = parts(p);
-            let q = (a * a + h * h).sqrt();
-            let estimated = (1e-150..1e150).contains(&q);
-            is_exact.push(!estimated);
-            if estimated { q } else { a.hypot(h) }
-        })
-        .collect();
-    let estimate = |i: usize| (values[i], is_exact[i]);
+    // Each distance's estimate, and whether it is hypot's (an estimate is
+    // within REL of it), made again on each of the three passes rather than
+    // kept: a square root costs less than 9 bytes a point at the refit's peak.
+    let estimate = |i: usize| {
+        let (a, h) = parts(points_mm[i]);
+        let q = (a * a + h * h).sqrt();
+        if (1e-150..1e150).contains(&q) { (q, false) } else { (a.hypot(h), true) }
+    };
     let bounds = |(v, exact): (f64, bool)| if exact { (v, v) } else { (v * (1.0 - REL), v * (1.0 + REL)) };
     // The median: the estimates' median `q` bounds it within [q (1 - REL),
     // q (1 + REL)]; the distances certainly below that band are below it,
     // those certainly above above it, and it is found among the others.
     let mid = points_mm.len() / 2;
-    let mut sorted: Vec<f64> = values.clone();
+    let mut sorted: Vec<f64> = (0..points_mm.len()).map(|i| estimate(i).0).collect();
     let q = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
     let (band_lo, band_hi) = (q * (1.0 - REL), q * (1.0 + REL));
     let mut below = 0;
@@ -390,16 +391,22 @@ struct CenterKnowledge {
     over_arc_se_deg: f64,
 }
 
-/// From the `n` points fitted and the raw angle of each ([`AxisFit::raw_angle`]).
-fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64; 3], f64)>) -> CenterKnowledge {
+/// From the points fitted and the raw angle of each ([`AxisFit::raw_angle`]),
+/// which `points` makes anew for each pass over them (a copy of the angles
+/// was 8 bytes a sample at the refit's peak).
+fn center_knowledge<I: Iterator<Item = ([f64; 3], f64)>>(fit: &AxisFit, points: impl Fn() -> I) -> CenterKnowledge {
     let mut jtj = [[0.0; 3]; 3];
     let mut ss = 0.0;
-    let mut phi = Vec::with_capacity(n);
-    for (p, raw) in points {
+    // The places (in `points`' order) of any point at the centre: it has no
+    // direction, and its angle is left out with it.
+    let mut at_centre = Vec::new();
+    let mut count = 0usize;
+    for (k, (p, _)) in points().enumerate() {
         let d = sub(p, fit.center_mm);
         let (x, y) = (dot(d, fit.u), dot(d, fit.v));
         let dist = x.hypot(y);
         if dist == 0.0 {
+            at_centre.push(k);
             continue;
         }
         let jac = [-x / dist, -y / dist, -1.0];
@@ -409,9 +416,10 @@ fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64;
             }
         }
         ss += (dist - fit.radius_mm).powi(2);
-        phi.push(raw);
+        count += 1;
     }
-    let s2 = ss / (phi.len().saturating_sub(3)).max(1) as f64;
+    let phi = || points().enumerate().filter(|(k, _)| at_centre.binary_search(k).is_err()).map(|(_, (_, raw))| raw);
+    let s2 = ss / (count.saturating_sub(3)).max(1) as f64;
     let col = |k: usize| {
         let mut e = [0.0; 3];
         e[k] = 1.0;
@@ -430,24 +438,19 @@ fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64;
     // Each angle's sine and cosine for the mean, then again for the maximum
     // (a vector of them would be 16 bytes a sample at the refit's peak).
     let r = fit.radius_mm;
-    let m = phi.len().max(1) as f64;
-    let (gs, gc) = phi.iter().fold((0.0, 0.0), |(s, c), p| {
+    let m = count.max(1) as f64;
+    let (gs, gc) = phi().fold((0.0, 0.0), |(s, c), p| {
         let (sin, cos) = p.sin_cos();
         (s + sin / m, c + cos / m)
     });
     let mut over_arc = 0.0f64;
-    for (sin, cos) in phi.iter().map(|p| p.sin_cos()) {
+    for (sin, cos) in phi().map(|p| p.sin_cos()) {
         let g = [(sin - gs) / r, (-cos + gc) / r];
         let var = g[0] * g[0] * a + 2.0 * g[0] * g[1] * b + g[1] * g[1] * c;
         over_arc = over_arc.max(var);
     }
-    // The arc: 360 less the largest gap between the sorted raw angles.
-    phi.sort_by(f64::total_cmp);
-    let gap = phi
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .chain(phi.first().zip(phi.last()).map(|(f, l)| f + std::f64::consts::TAU - l))
-        .fold(0.0, f64::max);
+    // The arc: 360 less the largest gap between the raw angles.
+    let gap = largest_gap(phi, count);
     let arc_deg = (std::f64::consts::TAU - gap).to_degrees().max(0.0);
     CenterKnowledge {
         cov,
@@ -456,6 +459,59 @@ fn center_knowledge(fit: &AxisFit, n: usize, points: impl Iterator<Item = ([f64;
         arc_deg,
         over_arc_se_deg: over_arc.max(0.0).sqrt().to_degrees(),
     }
+}
+
+/// The largest gap between `count` angles (radians, within a turn) taken
+/// in ascending order, the one across the turn's end (from the largest
+/// round to the smallest) included: what sorting them gives, to the bit,
+/// without sorting (a sort of every sample's angle was a twentieth of the
+/// processing). `angles` makes them anew for each pass.
+///
+/// The angles fall into `count / 4` buckets of equal width between the
+/// smallest and the largest; the bucket of an angle never decreases as the
+/// angle grows (each step of its arithmetic is monotonic), so consecutive
+/// angles are in one bucket or in consecutive non-empty ones. A gap between
+/// buckets is the next one's least less the last one's largest; a gap
+/// inside a bucket is at most its largest less its least. When the largest
+/// gap between buckets is at least every bucket's span, it is the largest
+/// gap; otherwise (angles spread evenly, no clusters) they are sorted.
+fn largest_gap<I: Iterator<Item = f64>>(angles: impl Fn() -> I, count: usize) -> f64 {
+    let (lo, hi) = angles().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), a| (lo.min(a), hi.max(a)));
+    if count == 0 || lo > hi {
+        return 0.0;
+    }
+    let wrap = lo + std::f64::consts::TAU - hi;
+    let buckets = (count / 4).max(1);
+    let scale = if hi > lo { buckets as f64 / (hi - lo) } else { 0.0 };
+    let mut range = vec![(f64::INFINITY, f64::NEG_INFINITY); buckets];
+    for a in angles() {
+        let b = (((a - lo) * scale) as usize).min(buckets - 1);
+        range[b] = (range[b].0.min(a), range[b].1.max(a));
+    }
+    let (mut best, mut span, mut last) = (wrap.max(0.0), 0.0f64, None::<f64>);
+    for &(least, largest) in range.iter().filter(|r| r.0 <= r.1) {
+        if let Some(previous) = last {
+            best = best.max(least - previous);
+        }
+        span = span.max(largest - least);
+        last = Some(largest);
+    }
+    if best >= span {
+        return best;
+    }
+    drop(range);
+    let mut sorted: Vec<f64> = angles().collect();
+    sorted.sort_unstable_by(f64::total_cmp);
+    sorted_largest_gap(&sorted)
+}
+
+/// [`largest_gap`] of angles sorted ascending.
+fn sorted_largest_gap(sorted: &[f64]) -> f64 {
+    sorted
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .chain(sorted.first().zip(sorted.last()).map(|(f, l)| f + std::f64::consts::TAU - l))
+        .fold(0.0, f64::max)
 }
 
 impl AxisFit {
@@ -484,11 +540,12 @@ impl AxisFit {
 /// Circle through 2-D points: Kasa's algebraic fit, refined by Gauss-Newton on
 /// the geometric distance. Returns `(centre x, centre y, radius)` and the sum
 /// of the squared distances from the circle.
-fn fit_circle(xy: &[[f64; 2]]) -> Option<(f64, f64, f64, f64)> {
+/// `xy` makes the points anew for each pass over them.
+fn fit_circle<I: Iterator<Item = [f64; 2]>>(xy: impl Fn() -> I + Copy) -> Option<(f64, f64, f64, f64)> {
     // Kasa: x^2 + y^2 + D x + E y + F = 0, linear least squares in (D, E, F).
     let mut m = [[0.0; 3]; 3];
     let mut rhs = [0.0; 3];
-    for q in xy {
+    for q in xy() {
         let row = [q[0], q[1], 1.0];
         let w = q[0] * q[0] + q[1] * q[1];
         for i in 0..3 {
@@ -513,7 +570,7 @@ fn fit_circle(xy: &[[f64; 2]]) -> Option<(f64, f64, f64, f64)> {
     // tolerance ends the fit whether it is taken or not: one that does not
     // reduce the cost is not halved further (at convergence the cost no longer
     // falls but by rounding, and twenty halvings cost twenty passes).
-    let mut current = gauss_newton_pass(xy, a, b, r);
+    let mut current = gauss_newton_pass(xy(), a, b, r);
     for _ in 0..50 {
         let Some(step) = solve3(current.jtj, current.jtr) else { break };
         let (norm, tolerance) = ((step[0].powi(2) + step[1].powi(2) + step[2].powi(2)).sqrt(), 1e-14 * (1.0 + r));
@@ -521,7 +578,7 @@ fn fit_circle(xy: &[[f64; 2]]) -> Option<(f64, f64, f64, f64)> {
         let mut accepted = false;
         for _ in 0..20 {
             let (na, nb, nr) = (a + k * step[0], b + k * step[1], r + k * step[2]);
-            let next = gauss_newton_pass(xy, na, nb, nr);
+            let next = gauss_newton_pass(xy(), na, nb, nr);
             if next.cost <= current.cost {
                 (a, b, r, current) = (na, nb, nr, next);
                 accepted = true;
@@ -536,7 +593,7 @@ fn fit_circle(xy: &[[f64; 2]]) -> Option<(f64, f64, f64, f64)> {
             break;
         }
     }
-    let cost = if r >= 0.0 { current.cost } else { gauss_newton_pass(xy, a, b, -r).cost };
+    let cost = if r >= 0.0 { current.cost } else { gauss_newton_pass(xy(), a, b, -r).cost };
     Some((a, b, r.abs(), cost))
 }
 
@@ -550,7 +607,7 @@ struct GaussNewtonPass {
     jtr: [f64; 3],
 }
 
-fn gauss_newton_pass(xy: &[[f64; 2]], a: f64, b: f64, r: f64) -> GaussNewtonPass {
+fn gauss_newton_pass(xy: impl Iterator<Item = [f64; 2]>, a: f64, b: f64, r: f64) -> GaussNewtonPass {
     let mut pass = GaussNewtonPass { cost: 0.0, jtj: [[0.0; 3]; 3], jtr: [0.0; 3] };
     for q in xy {
         let dist = (q[0] - a).hypot(q[1] - b);

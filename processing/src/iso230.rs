@@ -108,8 +108,12 @@ pub struct Iso230 {
     pub m: Option<f64>,
     /// The largest number of runs seen at any target and direction.
     pub runs: usize,
-    /// Per-target statistics, targets in ascending order.
+    /// Per-target statistics, targets in ascending order; empty when only
+    /// the figures were kept ([`iso230_2_figures_grouped`]).
     pub targets: Vec<TargetStats>,
+    /// How many targets the figures are of (`targets.len()` when they are kept).
+    #[serde(skip)]
+    pub target_count: usize,
 }
 
 /// Why ISO 230-2 statistics cannot be computed.
@@ -185,6 +189,15 @@ pub fn iso230_2(samples: &[Sample]) -> Result<Iso230, StatsError> {
 /// the same order).
 pub fn iso230_2_grouped(samples: &[Sample], groups: &TargetGroups) -> Result<Iso230, StatsError> {
     iso230_2_with_actual(samples, groups, |i| samples[i].actual_deg)
+}
+
+/// [`iso230_2_grouped`]'s figures alone, `targets` left empty: the
+/// per-target statistics (a hundred bytes a target) are folded into the
+/// figures as they are made, to the same bits, and not kept.
+pub fn iso230_2_figures_grouped(samples: &[Sample], groups: &TargetGroups) -> Result<Iso230, StatsError> {
+    let mut fold = AxisFold::default();
+    each_target(samples, groups, |i| samples[i].actual_deg, |t| fold.add(&t))?;
+    Ok(fold.figures(Vec::new()))
 }
 
 /// [`iso230_2_grouped`] of `samples` with the actual angle of sample `i`
@@ -348,6 +361,7 @@ fn dir_stats_of(x: &[f64]) -> DirStats {
 }
 
 /// Axis figures of one direction: (A, R, E).
+#[derive(Clone, Copy)]
 struct DirFigures {
     a: f64,
     r: f64,
@@ -360,11 +374,11 @@ struct DirFigures {
     lo_mean: f64,
 }
 
-fn dir_figures<'a>(stats: impl Iterator<Item = &'a DirStats>) -> Option<DirFigures> {
-    let mut f: Option<DirFigures> = None;
-    for d in stats {
+impl DirFigures {
+    /// The figures so far (`None`: no target yet) with one more target's statistics.
+    fn add(f: Option<DirFigures>, d: &DirStats) -> DirFigures {
         let (hi_band, lo_band) = (d.mean + 2.0 * d.s, d.mean - 2.0 * d.s);
-        f = Some(match f {
+        match f {
             None => DirFigures { a: 0.0, r: d.r, e: 0.0, hi_band, lo_band, hi_mean: d.mean, lo_mean: d.mean },
             Some(f) => DirFigures {
                 r: f.r.max(d.r),
@@ -374,49 +388,109 @@ fn dir_figures<'a>(stats: impl Iterator<Item = &'a DirStats>) -> Option<DirFigur
                 lo_mean: f.lo_mean.min(d.mean),
                 ..f
             },
-        });
+        }
     }
-    f.map(|f| DirFigures { a: f.hi_band - f.lo_band, e: f.hi_mean - f.lo_mean, ..f })
+
+    fn finish(self) -> DirFigures {
+        DirFigures { a: self.hi_band - self.lo_band, e: self.hi_mean - self.lo_mean, ..self }
+    }
+}
+
+/// The axis figures, folded target by target in target order: what they
+/// need of each target, and nothing kept a target.
+struct AxisFold {
+    up: Option<DirFigures>,
+    down: Option<DirFigures>,
+    runs: usize,
+    r: f64,
+    /// Largest `|B_i|`, and the sum (in target order) and count of the `B_i`.
+    b_abs: f64,
+    b_sum: Option<f64>,
+    b_count: usize,
+    /// Largest and smallest bidirectional mean `x̄_i`.
+    hi_mean_bi: f64,
+    lo_mean_bi: f64,
+    targets: usize,
+}
+
+impl Default for AxisFold {
+    fn default() -> Self {
+        AxisFold {
+            up: None,
+            down: None,
+            runs: 0,
+            r: f64::NEG_INFINITY,
+            b_abs: 0.0,
+            b_sum: None,
+            b_count: 0,
+            hi_mean_bi: f64::NEG_INFINITY,
+            lo_mean_bi: f64::INFINITY,
+            targets: 0,
+        }
+    }
+}
+
+impl AxisFold {
+    fn add(&mut self, t: &TargetStats) {
+        if let Some(d) = &t.up {
+            self.up = Some(DirFigures::add(self.up, d));
+        }
+        if let Some(d) = &t.down {
+            self.down = Some(DirFigures::add(self.down, d));
+        }
+        self.runs = [&t.up, &t.down].into_iter().flatten().map(|d| d.n).fold(self.runs, usize::max);
+        self.r = self.r.max(t.r);
+        if let Some(b) = t.b {
+            self.b_abs = self.b_abs.max(b.abs());
+            // From the first term on: a sum from -0.0, as `Iterator::sum` makes it.
+            self.b_sum = Some(self.b_sum.map_or(b, |sum| sum + b));
+            self.b_count += 1;
+        }
+        if let Some(m) = t.mean_bi {
+            self.hi_mean_bi = self.hi_mean_bi.max(m);
+            self.lo_mean_bi = self.lo_mean_bi.min(m);
+        }
+        self.targets += 1;
+    }
+
+    /// The figures, with `targets` (the statistics folded, or none kept).
+    fn figures(self, targets: Vec<TargetStats>) -> Iso230 {
+        let (up, down) = (self.up.map(DirFigures::finish), self.down.map(DirFigures::finish));
+        let (a, e, b, b_mean, m) = match (&up, &down) {
+            (Some(u), Some(d)) => (
+                u.hi_band.max(d.hi_band) - u.lo_band.min(d.lo_band),
+                u.hi_mean.max(d.hi_mean) - u.lo_mean.min(d.lo_mean),
+                Some(self.b_abs),
+                Some(self.b_sum.unwrap_or(-0.0) / self.b_count as f64),
+                Some(self.hi_mean_bi - self.lo_mean_bi),
+            ),
+            (Some(one), None) | (None, Some(one)) => (one.a, one.e, None, None, None),
+            (None, None) => unreachable!("iso230_2 rejects an empty survey"),
+        };
+        Iso230 {
+            a,
+            a_up: up.as_ref().map(|f| f.a),
+            a_down: down.as_ref().map(|f| f.a),
+            r: self.r,
+            r_up: up.as_ref().map(|f| f.r),
+            r_down: down.as_ref().map(|f| f.r),
+            b,
+            b_mean,
+            e,
+            e_up: up.as_ref().map(|f| f.e),
+            e_down: down.as_ref().map(|f| f.e),
+            m,
+            runs: self.runs,
+            targets,
+            target_count: self.targets,
+        }
+    }
 }
 
 fn axis_figures(targets: Vec<TargetStats>) -> Iso230 {
-    let up = dir_figures(targets.iter().filter_map(|t| t.up.as_ref()));
-    let down = dir_figures(targets.iter().filter_map(|t| t.down.as_ref()));
-    let runs = targets.iter().flat_map(|t| [&t.up, &t.down]).flatten().map(|d| d.n).max().unwrap_or(0);
-    let r = targets.iter().map(|t| t.r).fold(f64::NEG_INFINITY, f64::max);
-    let (a, e, b, b_mean, m) = match (&up, &down) {
-        (Some(u), Some(d)) => {
-            let bs: Vec<f64> = targets.iter().filter_map(|t| t.b).collect();
-            let means: Vec<f64> = targets.iter().filter_map(|t| t.mean_bi).collect();
-            let max = |v: &[f64]| v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
-            (
-                u.hi_band.max(d.hi_band) - u.lo_band.min(d.lo_band),
-                u.hi_mean.max(d.hi_mean) - u.lo_mean.min(d.lo_mean),
-                Some(bs.iter().map(|b| b.abs()).fold(0.0, f64::max)),
-                Some(bs.iter().sum::<f64>() / bs.len() as f64),
-                Some(max(&means) - min(&means)),
-            )
-        }
-        (Some(one), None) | (None, Some(one)) => (one.a, one.e, None, None, None),
-        (None, None) => unreachable!("iso230_2 rejects an empty survey"),
-    };
-    Iso230 {
-        a,
-        a_up: up.as_ref().map(|f| f.a),
-        a_down: down.as_ref().map(|f| f.a),
-        r,
-        r_up: up.as_ref().map(|f| f.r),
-        r_down: down.as_ref().map(|f| f.r),
-        b,
-        b_mean,
-        e,
-        e_up: up.as_ref().map(|f| f.e),
-        e_down: down.as_ref().map(|f| f.e),
-        m,
-        runs,
-        targets,
-    }
+    let mut fold = AxisFold::default();
+    targets.iter().for_each(|t| fold.add(t));
+    fold.figures(targets)
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@ use crate::correction::resolve::{Resolution, decide as resolve, measured_left_de
 use crate::correction::{CorrectionError, Prediction, corrected_errors, predict_accuracy};
 use crate::errormap::Coverage;
 use crate::export::controllers::ControllerExport;
-use crate::iso230::{Iso230, TargetGroups, iso230_2_grouped};
+use crate::iso230::{Iso230, TargetGroups, iso230_2_figures_grouped};
 use crate::model::Design;
 use crate::recipe::{
     AliasChoice, AliasChoiceAction, ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe,
@@ -92,7 +92,8 @@ pub struct Processed {
     pub prediction: Prediction,
     /// The repeatability floor.
     pub floor: Floor,
-    /// ISO 230-2 statistics of the survey, when it allows them.
+    /// ISO 230-2 figures of the survey, when it allows them (the figures
+    /// only: `targets` is empty, [`crate::iso230::iso230_2`] has them).
     pub iso: Option<Iso230>,
     /// The paper's Figure 6 comparison (or why it could not be made).
     pub interpolation: Result<Vec<MethodScore>, String>,
@@ -194,7 +195,7 @@ pub fn process_with_checks(
     }
     notes.extend(decisions.notes.iter().cloned());
     notes.extend(built.notes.iter().cloned());
-    let iso = iso230_2_grouped(&samples, &groups).ok();
+    let iso = iso230_2_figures_grouped(&samples, &groups).ok();
     let floor = match &iso {
         Some(s) if built.directional => Floor {
             deg: Some(s.r_up.unwrap_or(s.r).max(s.r_down.unwrap_or(0.0)) / 2.0),

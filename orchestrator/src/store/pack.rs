@@ -22,12 +22,16 @@ use survey_processing::{Direction, Sample};
 /// The SMR positions behind a survey's samples, what the axis refit fits:
 /// the points the read was given first (the locate points), then the
 /// position behind each sample that has one, in seq order.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default)]
 pub struct SmrPositions {
     /// x, y, z in mm (NaN where the tracker gave NaN).
     pub xyz_mm: Vec<[f64; 3]>,
-    /// The index in the samples of each position after the given points.
-    pub sample_index: Vec<u32>,
+    /// The index in the samples of each position after the given points;
+    /// empty while they are 0, 1, 2, ... (each sample so far has one, the
+    /// tracker survey's case: 4 bytes a sample saved at the refit's peak).
+    sample_index: Vec<u32>,
+    /// How many positions follow the given points.
+    added: usize,
 }
 
 impl SmrPositions {
@@ -35,28 +39,53 @@ impl SmrPositions {
     pub(super) fn after(before: Vec<[f64; 3]>, n: usize) -> Self {
         let mut xyz_mm = before;
         xyz_mm.reserve(n);
-        SmrPositions { xyz_mm, sample_index: Vec::with_capacity(n) }
+        SmrPositions { xyz_mm, sample_index: Vec::new(), added: 0 }
     }
 
     /// Add the position `xyz_mm` of the sample at `index`.
     pub(super) fn push(&mut self, index: usize, xyz_mm: [f64; 3]) -> anyhow::Result<()> {
         let index = u32::try_from(index).map_err(|_| anyhow::anyhow!("more than {} samples", u32::MAX))?;
+        if !(self.sample_index.is_empty() && index as usize == self.added) {
+            if self.sample_index.is_empty() {
+                // The first sample without a position: the indices so far
+                // are written out.
+                self.sample_index = (0..self.added as u32).collect();
+            }
+            self.sample_index.push(index);
+        }
         self.xyz_mm.push(xyz_mm);
-        self.sample_index.push(index);
+        self.added += 1;
         Ok(())
     }
 
     /// Clear the positions added, keeping the `before` given.
     pub(super) fn truncate_to_given(&mut self) {
-        let given = self.xyz_mm.len() - self.sample_index.len();
-        self.xyz_mm.truncate(given);
-        self.sample_index.clear();
+        self.xyz_mm.truncate(self.given());
+        self.sample_index = Vec::new();
+        self.added = 0;
+    }
+
+    /// How many points were given before the samples' positions.
+    pub fn given(&self) -> usize {
+        self.xyz_mm.len() - self.added
+    }
+
+    /// The index in the samples of each position after the given points.
+    pub fn sample_indices(&self) -> impl Iterator<Item = usize> + '_ {
+        let dense = self.sample_index.is_empty();
+        (0..self.added).map(move |k| if dense { k } else { self.sample_index[k] as usize })
     }
 
     /// The positions after the given points: (sample index, x, y, z).
     pub fn of_samples(&self) -> impl Iterator<Item = (usize, [f64; 3])> + '_ {
-        let given = self.xyz_mm.len() - self.sample_index.len();
-        self.sample_index.iter().zip(&self.xyz_mm[given..]).map(|(&i, &p)| (i as usize, p))
+        self.sample_indices().zip(&self.xyz_mm[self.given()..]).map(|(i, &p)| (i, p))
+    }
+}
+
+/// The same positions, whether their indices are written out or not.
+impl PartialEq for SmrPositions {
+    fn eq(&self, other: &Self) -> bool {
+        self.xyz_mm == other.xyz_mm && self.added == other.added && self.sample_indices().eq(other.sample_indices())
     }
 }
 
@@ -193,6 +222,38 @@ mod tests {
     use crate::store::Store;
     use crate::survey::{NewSurvey, SurveyStatus};
     use survey_drivers::SmrMeasurement;
+
+    /// The indices stay implicit while every sample has a position, and
+    /// are written out from the first one without: either way they read
+    /// back the same, and compare equal to the same positions pushed.
+    #[test]
+    fn sample_indices_are_implicit_until_a_sample_has_no_position() {
+        let mut dense = SmrPositions::after(vec![[1.0, 2.0, 3.0]], 4);
+        for i in 0..3 {
+            dense.push(i, [i as f64, 0.0, 0.0]).unwrap();
+        }
+        assert!(dense.sample_index.is_empty());
+        assert_eq!(dense.given(), 1);
+        assert_eq!(dense.sample_indices().collect::<Vec<_>>(), [0, 1, 2]);
+        let mut sparse = dense.clone();
+        sparse.push(4, [4.0, 0.0, 0.0]).unwrap();
+        sparse.push(5, [5.0, 0.0, 0.0]).unwrap();
+        assert_eq!(sparse.sample_index, [0, 1, 2, 4, 5]);
+        assert_eq!(
+            sparse.of_samples().map(|(i, p)| (i, p[0])).collect::<Vec<_>>(),
+            [(0, 0.0), (1, 1.0), (2, 2.0), (4, 4.0), (5, 5.0)]
+        );
+        assert_ne!(sparse, dense);
+        // The same positions with the indices written out from the start.
+        let mut written = SmrPositions::after(vec![[1.0, 2.0, 3.0]], 0);
+        written.sample_index = vec![0, 1, 2];
+        written.xyz_mm.extend((0..3).map(|i| [i as f64, 0.0, 0.0]));
+        written.added = 3;
+        assert_eq!(written, dense);
+        sparse.truncate_to_given();
+        assert_eq!(sparse, SmrPositions::after(vec![[1.0, 2.0, 3.0]], 0));
+        assert_eq!(sparse.sample_indices().count(), 0);
+    }
 
     /// Sample `seq` of a tracker survey: an SMR position behind two of three
     /// (NaN where the tracker gave NaN), a timestamp on four of five.

@@ -135,15 +135,15 @@ async fn append_in_chunks_and_read_back() {
     // The refit's read: the same samples, and each SMR position at its sample's index.
     let (with_smr, smr) = store.samples_with_smr(id, vec![[7.0, 8.0, 9.0]]).await.unwrap();
     assert_eq!(with_smr, compact);
-    let mut expected = SmrPositions { xyz_mm: vec![[7.0, 8.0, 9.0]], sample_index: Vec::new() };
+    let mut expected = SmrPositions::after(vec![[7.0, 8.0, 9.0]], 0);
     for (index, r) in samples.iter().enumerate() {
         if let RawReading::Smr(m) = r.raw {
-            expected.xyz_mm.push(m.xyz());
-            expected.sample_index.push(index as u32);
+            expected.push(index, m.xyz()).unwrap();
         }
     }
-    assert_eq!(expected.sample_index.len(), 1667);
+    assert_eq!(expected.sample_indices().count(), 1667);
     assert_eq!(smr, expected);
+    assert_eq!(smr.of_samples().map(|(i, _)| i).collect::<Vec<_>>(), expected.sample_indices().collect::<Vec<_>>());
     let latest = samples.iter().filter_map(|r| r.sample.timestamp_s).fold(f64::MIN, f64::max);
     assert_eq!(store.last_sample_time(id).await.unwrap(), Some(latest));
     assert_eq!(store.last_seq(id).await.unwrap(), Some(4999));

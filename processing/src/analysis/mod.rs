@@ -164,7 +164,7 @@ impl Default for AnalysisOptions {
 }
 
 impl AnalysisOptions {
-    fn validate(&self) -> Result<(), AnalysisError> {
+    pub(crate) fn validate(&self) -> Result<(), AnalysisError> {
         let bad = |option: &'static str, message: String| Err(AnalysisError::BadOption { option, message });
         if !(self.false_alarm_rate > 0.0 && self.false_alarm_rate.is_finite()) {
             return bad("false_alarm_rate", format!("must be a positive number, got {}", self.false_alarm_rate));
@@ -247,11 +247,11 @@ pub struct Line {
     pub notes: Vec<String>,
 }
 
-/// Spectra of each run and of the mean.
+/// The spectrum of the mean series. (Each run's spectrum serves the tests
+/// of the lines and is not kept: five of them were ten bytes a sample for
+/// as long as the analysis was.)
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Spectra {
-    /// One per run, in the order of the error map's runs.
-    pub runs: Vec<Spectrum>,
     /// Spectrum of the mean series.
     pub mean: Spectrum,
 }
@@ -299,7 +299,7 @@ pub struct Analysis {
     pub points_per_rev: f64,
     /// DFT or least squares.
     pub method: Method,
-    /// Spectra of each run and of the mean (`None` for an unevenly spaced partial range).
+    /// The mean series's spectrum (`None` for an unevenly spaced partial range).
     pub spectra: Option<Spectra>,
     /// The least-squares fits of a partial range.
     pub fit: Option<PartialFit>,
@@ -554,7 +554,7 @@ fn full_circle(
     Ok(Core {
         points_per_rev: n as f64,
         method: Method::Dft,
-        spectra: Some(Spectra { runs: spectra, mean }),
+        spectra: Some(Spectra { mean }),
         fit: None,
         noise,
         lines,
@@ -663,7 +663,7 @@ fn partial_range(
             .map(|y| planner.spectrum(y, g.start, span, options.partial_window))
             .collect::<Result<Vec<_>, _>>()?;
         let mean = Spectrum::mean_of(&runs).expect("one spectrum per run, all of the same shape");
-        Some(Spectra { runs, mean })
+        Some(Spectra { mean })
     } else {
         None
     };

@@ -409,20 +409,34 @@ impl ErrorFigures {
 /// the mean of each target and direction (`None` with one run).
 fn noise_sd(samples: &[Sample], corrected: &[f64], by_target: &TargetGroups) -> Option<f64> {
     // Each group (one target exactly, one direction) summed in the samples'
-    // order, the groups then taken in the order of their keys. The grouping
-    // by target lists equal targets side by side in the samples' order (its
+    // order, the groups then taken in the order of their keys (the target's
+    // bits as a `u64`, then the direction: reverse first). The grouping by
+    // target lists equal targets side by side in the samples' order (its
     // sort is stable): a group's samples are found by walking it, with no
-    // map from a sample to its group.
-    type Key = (u64, bool);
-    // (key, (sum, sum of squares, count))
-    let mut groups: Vec<(Key, (f64, f64, usize))> = Vec::with_capacity(2 * by_target.len());
+    // map from a sample to its group. It lists the targets ascending, which
+    // is the keys' order for the targets from +0.0 up, and the reverse of it
+    // for the negative ones (their bits grow with their magnitude; they all
+    // follow the positive ones): the groups from +0.0 up are folded as they
+    // close, and the negative ones' terms, kept a target each, are added
+    // after them in the reverse order. No list of every group is made (40
+    // bytes a group at the processing's peak), and the sum has the same bits.
+    let mut ss_positive = 0.0;
+    let mut dof = 0usize;
+    // Each negative target's terms, reverse then forward.
+    let mut negative: Vec<[Option<f64>; 2]> = Vec::new();
     let mut open: [(f64, f64, usize); 2] = [(0.0, 0.0, 0); 2];
     let mut bits = None;
     let mut close = |bits: u64, open: &mut [(f64, f64, usize); 2]| {
-        for (forward, g) in [false, true].into_iter().zip(std::mem::take(open)) {
-            if g.2 > 0 {
-                groups.push(((bits, forward), g));
-            }
+        let terms = std::mem::take(open).map(|(s1, s2, n)| {
+            (n > 0).then(|| {
+                dof += n - 1;
+                (s2 - s1 * s1 / n as f64).max(0.0)
+            })
+        });
+        if bits >> 63 == 1 {
+            negative.push(terms);
+        } else {
+            ss_positive = terms.into_iter().flatten().fold(ss_positive, |ss, t| ss + t);
         }
     };
     for i in by_target.iter().flatten().map(|&i| i as usize) {
@@ -440,10 +454,7 @@ fn noise_sd(samples: &[Sample], corrected: &[f64], by_target: &TargetGroups) -> 
     if let Some(last) = bits {
         close(last, &mut open);
     }
-    groups.sort_unstable_by_key(|(key, _)| *key);
-    let (ss, dof) = groups
-        .iter()
-        .fold((0.0, 0usize), |(ss, dof), (_, (s1, s2, n))| (ss + (s2 - s1 * s1 / *n as f64).max(0.0), dof + n - 1));
+    let ss = negative.iter().rev().flatten().flatten().fold(ss_positive, |ss, t| ss + t);
     (dof > 0).then(|| (ss / dof as f64).sqrt())
 }
 
@@ -463,6 +474,56 @@ mod tests {
     use crate::iso230::iso230_2;
     use crate::resample::{Keep, Relocation, spectral_resample};
     use crate::types::Direction;
+
+    /// The pooled noise as it was first written: every group listed with its
+    /// key, the list sorted by key, then summed.
+    fn noise_sd_listed(samples: &[Sample], corrected: &[f64]) -> Option<f64> {
+        type Group = ((u64, bool), (f64, f64, usize));
+        let mut groups: Vec<Group> = Vec::new();
+        let mut order: Vec<usize> = (0..samples.len()).collect();
+        order.sort_by(|&a, &b| samples[a].target_deg.total_cmp(&samples[b].target_deg));
+        for i in order {
+            let key = (samples[i].target_deg.to_bits(), samples[i].direction == Direction::Forward);
+            let e = corrected[i];
+            match groups.iter_mut().find(|(k, _)| *k == key) {
+                Some((_, g)) => *g = (g.0 + e, g.1 + e * e, g.2 + 1),
+                None => groups.push((key, (e, e * e, 1))),
+            }
+        }
+        groups.sort_unstable_by_key(|(key, _)| *key);
+        let (ss, dof) = groups
+            .iter()
+            .fold((0.0, 0usize), |(ss, dof), (_, (s1, s2, n))| (ss + (s2 - s1 * s1 / *n as f64).max(0.0), dof + n - 1));
+        (dof > 0).then(|| (ss / dof as f64).sqrt())
+    }
+
+    proptest::proptest! {
+        /// Folding the groups as they close (the positive targets) and the
+        /// negative ones after, in reverse, gives the bits of the sorted list.
+        #[test]
+        fn the_pooled_noise_folded_is_the_sorted_lists(
+            picks in proptest::collection::vec((0usize..7, proptest::bool::ANY, -1e-3f64..1e-3), 1..80),
+        ) {
+            // Negative, signed-zero and positive targets, two of them within
+            // the grouping's tolerance of each other but not equal.
+            let targets = [-20.0, -5.0, -0.0, 0.0, 5.0, 5.0 + 1e-12, 40.0];
+            let samples: Vec<Sample> = picks
+                .iter()
+                .enumerate()
+                .map(|(k, &(t, forward, _))| Sample {
+                    run: k as u32,
+                    direction: if forward { Direction::Forward } else { Direction::Reverse },
+                    target_deg: targets[t],
+                    readout_deg: targets[t],
+                    actual_deg: targets[t],
+                    timestamp_s: None,
+                })
+                .collect();
+            let corrected: Vec<f64> = picks.iter().map(|p| p.2).collect();
+            let folded = noise_sd(&samples, &corrected, &TargetGroups::of(&samples));
+            proptest::prop_assert_eq!(folded.map(f64::to_bits), noise_sd_listed(&samples, &corrected).map(f64::to_bits));
+        }
+    }
 
     fn map(n: usize, f: impl Fn(f64) -> f64) -> Vec<f64> {
         (0..n).map(|j| f(360.0 * j as f64 / n as f64)).collect()

@@ -36,7 +36,6 @@ pub mod sinumerik;
 mod tests;
 
 use crate::Direction;
-use crate::correction::ErrorFigures;
 use crate::table::CorrectionTable;
 use std::fmt::Write as _;
 
@@ -113,6 +112,12 @@ pub(crate) fn interpolate_held_by(n: usize, x: impl Fn(usize) -> f64, y: impl Fn
 /// is predicted to leave on `samples`, on every turn it covers: a periodic
 /// (full-circle) survey is moved by whole turns onto each turn of the table's
 /// range, and the worst turn is returned. `None` when no sample falls inside.
+///
+/// One pass over the samples for every turn at once, each turn's errors
+/// folded into their count, sum, least and largest: the peak about the mean
+/// is the larger of `largest - mean` and `mean - least` (rounding is
+/// monotonic: the same bits as [`crate::correction::ErrorFigures`]' `peak_deg` of the errors
+/// collected, with no vector of them).
 pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, periodic: bool) -> Option<f64> {
     let (lo, hi) = table.range_deg();
     let turns: Vec<i64> = if periodic && lo.is_finite() && hi.is_finite() {
@@ -121,17 +126,24 @@ pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, period
         vec![0]
     };
     let tol = 1e-9;
-    turns
+    // (count, sum, least, largest) of each turn's errors; the sum in their
+    // order from -0.0, as `Iterator::sum` takes it.
+    let mut folds = vec![(0usize, -0.0f64, f64::INFINITY, f64::NEG_INFINITY); turns.len()];
+    for s in samples {
+        for (&k, fold) in turns.iter().zip(folds.iter_mut()) {
+            let p = s.readout_deg + 360.0 * k as f64;
+            if p >= lo - tol && p <= hi + tol {
+                let e = s.error_deg() - table.removed_deg(p, s.direction);
+                *fold = (fold.0 + 1, fold.1 + e, fold.2.min(e), fold.3.max(e));
+            }
+        }
+    }
+    folds
         .into_iter()
-        .filter_map(|k| {
-            let e: Vec<f64> = samples
-                .iter()
-                .filter_map(|s| {
-                    let p = s.readout_deg + 360.0 * k as f64;
-                    (p >= lo - tol && p <= hi + tol).then(|| s.error_deg() - table.removed_deg(p, s.direction))
-                })
-                .collect();
-            (!e.is_empty()).then(|| ErrorFigures::of(&e, None).peak_deg)
+        .filter(|f| f.0 > 0)
+        .map(|(n, sum, least, largest)| {
+            let mean = sum / n as f64;
+            0.0f64.max(largest - mean).max(mean - least)
         })
         .reduce(f64::max)
 }
@@ -139,6 +151,65 @@ pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, period
 #[cfg(test)]
 mod csv_tests {
     use super::*;
+
+    /// A table removing a smooth error over `range`, more in reverse.
+    struct Smooth {
+        range: (f64, f64),
+    }
+
+    impl Applied for Smooth {
+        fn removed_deg(&self, p: f64, direction: Direction) -> f64 {
+            0.004 * (3.0 * p).to_radians().sin() + if direction == Direction::Reverse { 0.001 } else { 0.0 }
+        }
+        fn range_deg(&self) -> (f64, f64) {
+            self.range
+        }
+    }
+
+    proptest::proptest! {
+        /// The one-pass fold gives the bits of the peak of the errors
+        /// collected turn by turn, as `ErrorFigures` takes it.
+        #[test]
+        fn predicted_peak_is_the_collected_errors_peak(
+            errors in proptest::collection::vec((0.0f64..360.0, -0.01f64..0.01, proptest::bool::ANY), 1..200),
+            range in proptest::sample::select(vec![(0.0, 360.0), (-180.0, 540.0), (10.0, 90.0), (f64::NEG_INFINITY, f64::INFINITY)]),
+            periodic in proptest::bool::ANY,
+        ) {
+            let samples: Vec<crate::Sample> = errors
+                .iter()
+                .map(|&(readout_deg, e, reverse)| crate::Sample {
+                    run: 1,
+                    direction: if reverse { Direction::Reverse } else { Direction::Forward },
+                    target_deg: readout_deg.round(),
+                    readout_deg,
+                    actual_deg: readout_deg - e,
+                    timestamp_s: None,
+                })
+                .collect();
+            let table = Smooth { range };
+            let (lo, hi) = range;
+            let turns: Vec<i64> = if periodic && lo.is_finite() && hi.is_finite() {
+                ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1).collect()
+            } else {
+                vec![0]
+            };
+            let collected = turns
+                .into_iter()
+                .filter_map(|k| {
+                    let e: Vec<f64> = samples
+                        .iter()
+                        .filter_map(|s| {
+                            let p = s.readout_deg + 360.0 * k as f64;
+                            (p >= lo - 1e-9 && p <= hi + 1e-9).then(|| s.error_deg() - table.removed_deg(p, s.direction))
+                        })
+                        .collect();
+                    (!e.is_empty()).then(|| crate::correction::ErrorFigures::of(&e, None).peak_deg)
+                })
+                .reduce(f64::max);
+            let folded = predicted_peak_deg(&samples, &table, periodic);
+            proptest::prop_assert_eq!(folded.map(f64::to_bits), collected.map(f64::to_bits));
+        }
+    }
 
     #[test]
     fn csv_format() {

@@ -556,3 +556,72 @@ fn the_refit_keeps_the_points_hypot_everywhere_keeps() {
     let zero = vec![[0.0, 1.0, 0.0]; 5];
     assert_eq!(beyond_limit(&fit, &zero), Vec::<usize>::new());
 }
+
+/// The largest gap found through buckets is the sorted angles' own, to the
+/// bit: on clustered angles (a survey's: each target's runs side by side),
+/// on a partial arc, on angles spread evenly (where it falls back to the
+/// sort), with repeats and signed zeros.
+mod largest_gap_by_buckets {
+    use super::super::{largest_gap, sorted_largest_gap};
+    use proptest::prelude::*;
+    use std::f64::consts::PI;
+
+    fn check(angles: &[f64]) -> Result<(), TestCaseError> {
+        let mut sorted = angles.to_vec();
+        sorted.sort_unstable_by(f64::total_cmp);
+        let by_buckets = largest_gap(|| angles.iter().copied(), angles.len());
+        prop_assert_eq!(by_buckets.to_bits(), sorted_largest_gap(&sorted).to_bits(), "{:?}", angles);
+        Ok(())
+    }
+
+    proptest! {
+        #[test]
+        fn clustered_targets(
+            targets in 1usize..400,
+            runs in 1usize..6,
+            start in -PI..PI,
+            arc in 0.1f64..(2.0 * PI),
+            jitter in 0.0f64..1e-3,
+            seed in any::<u64>(),
+        ) {
+            let mut state = seed;
+            let mut next = || {
+                state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+                let mut z = state;
+                z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+                z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+                (z ^ (z >> 31)) as f64 / u64::MAX as f64 - 0.5
+            };
+            let step = arc / targets as f64;
+            let angles: Vec<f64> = (0..runs)
+                .flat_map(|_| (0..targets).collect::<Vec<_>>())
+                .map(|t| {
+                    let a = start + t as f64 * step + jitter * step * next();
+                    if a >= PI { a - 2.0 * PI } else { a }
+                })
+                .collect();
+            check(&angles)?;
+        }
+
+        #[test]
+        fn spread_evenly_or_repeated(angles in proptest::collection::vec(prop_oneof![
+            -PI..PI,
+            Just(0.0),
+            Just(-0.0),
+            Just(1.0),
+        ], 0..300)) {
+            check(&angles)?;
+        }
+    }
+
+    #[test]
+    fn none_one_and_all_equal() {
+        assert_eq!(largest_gap(std::iter::empty, 0), 0.0);
+        assert_eq!(largest_gap(|| [0.5].into_iter(), 1), 2.0 * PI);
+        assert_eq!(largest_gap(|| [0.5; 9].into_iter(), 9), 2.0 * PI);
+        // A half circle: the gap is the other half.
+        let half: Vec<f64> = (0..1000).map(|k| k as f64 * PI / 999.0).collect();
+        let gap = largest_gap(|| half.iter().copied(), half.len());
+        assert!((gap - PI).abs() < 1e-12, "{gap}");
+    }
+}

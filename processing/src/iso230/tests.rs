@@ -443,6 +443,36 @@ proptest! {
         prop_assert_eq!(iso230_2_a_with_actual(&s, &groups, actual).map(f64::to_bits), whole);
     }
 
+    /// The figures folded target by target (what the processing keeps) are
+    /// the figures of the per-target statistics taken whole, to the bit.
+    #[test]
+    fn the_figures_folded_are_those_of_the_targets_taken_whole(s in survey()) {
+        let groups = TargetGroups::of(&s);
+        let whole = iso230_2(&s).unwrap();
+        let folded = iso230_2_figures_grouped(&s, &groups).unwrap();
+        prop_assert!(folded.targets.is_empty());
+        prop_assert_eq!(folded.target_count, whole.targets.len());
+        prop_assert_eq!(&Iso230 { targets: Vec::new(), ..whole.clone() }, &folded);
+        // And from the per-target statistics directly, as a reader would take them.
+        let t = &whole.targets;
+        let bits = |v: Option<f64>| v.map(f64::to_bits);
+        let bs: Vec<f64> = t.iter().filter_map(|t| t.b).collect();
+        let means: Vec<f64> = t.iter().filter_map(|t| t.mean_bi).collect();
+        if !bs.is_empty() {
+            prop_assert_eq!(bits(folded.b_mean), bits(Some(bs.iter().sum::<f64>() / bs.len() as f64)));
+            prop_assert_eq!(bits(folded.b), bits(Some(bs.iter().map(|b| b.abs()).fold(0.0, f64::max))));
+            let (hi, lo) = means.iter().fold((f64::NEG_INFINITY, f64::INFINITY), |(h, l), &m| (h.max(m), l.min(m)));
+            prop_assert_eq!(bits(folded.m), bits(Some(hi - lo)));
+        }
+        prop_assert_eq!(folded.r.to_bits(), t.iter().map(|t| t.r).fold(f64::NEG_INFINITY, f64::max).to_bits());
+        let ups: Vec<&DirStats> = t.iter().filter_map(|t| t.up.as_ref()).collect();
+        if !ups.is_empty() {
+            let hi = ups.iter().map(|d| d.mean + 2.0 * d.s).fold(f64::NEG_INFINITY, f64::max);
+            let lo = ups.iter().map(|d| d.mean - 2.0 * d.s).fold(f64::INFINITY, f64::min);
+            prop_assert_eq!(bits(folded.a_up), bits(Some(hi - lo)));
+        }
+    }
+
     #[test]
     fn invariant_under_sample_order(
         (s, shuffled) in survey().prop_flat_map(|s| (Just(s.clone()), Just(s).prop_shuffle()))

@@ -61,6 +61,7 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
             Effect::Noise { .. } => unreachable!("noise is never fitted"),
         }
     }
+    let columns: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();
     let fit = least_squares(&columns, &target).map_err(|col| owner[col].min(touched.len().saturating_sub(1)))?;
     let mut standard_error = Vec::with_capacity(touched.len());
     let mut col = 1;

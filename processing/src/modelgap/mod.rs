@@ -765,7 +765,10 @@ pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -
         gap.notes.push(format!("stopped after {} steps with disagreements left", options.max_steps));
     }
     gap.prune(line_factor)?;
-    let (residual_after, offset_after) = survey.residual(&gap.model);
+    // The model unchanged (nothing added, or all of it pruned again), its
+    // residual is the first one: not evaluated again at every sample.
+    let (residual_after, offset_after) =
+        if gap.model == *model { (residual0, offset0) } else { survey.residual(&gap.model) };
     let after = if gap.steps.is_empty() {
         before.clone()
     } else {

@@ -8,7 +8,7 @@
 //! only for the pre-test of run-to-run offsets, where a few per cent do not
 //! matter).
 
-use crate::lstsq::{Qr, column_norms};
+use crate::lstsq::Qr;
 pub(crate) use crate::special::erfc;
 
 /// `P(|Z| > z)` for a standard normal `Z`.
@@ -111,13 +111,14 @@ pub(crate) struct Lsq {
 /// Solve `min |A x - y|` (the crate's [`Qr`]), `A` given by its columns. A
 /// column whose part independent of the earlier columns is below `1e-6` of its
 /// own norm cannot be resolved: its index is the error.
-pub(crate) fn least_squares(columns: &[Vec<f64>], y: &[f64]) -> Result<Lsq, usize> {
+pub(crate) fn least_squares(columns: &[&[f64]], y: &[f64]) -> Result<Lsq, usize> {
     let p = columns.len();
     if y.len() < p {
         return Err(p.saturating_sub(1));
     }
-    let norms = column_norms(columns);
-    let qr = Qr::new(columns.to_vec(), |j| 1e-6 * norms[j])?;
+    let norms: Vec<f64> = columns.iter().map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt()).collect();
+    // The factorisation works in place: its one copy of the columns.
+    let qr = Qr::new(columns.iter().map(|c| c.to_vec()).collect(), |j| 1e-6 * norms[j])?;
     let (coef, _) = qr.solve(y);
     Ok(Lsq { coef, unit_var: qr.unit_var() })
 }

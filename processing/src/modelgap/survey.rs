@@ -3,6 +3,7 @@
 
 use super::ModelGapError;
 use crate::errormap::ErrorMap;
+use crate::iso230::TargetGroups;
 use crate::model::{DriftTime, Model};
 use crate::types::{Direction, Sample};
 use serde::Serialize;
@@ -21,15 +22,19 @@ pub enum Timebase {
 
 /// A prepared survey.
 #[derive(Debug, Clone)]
-pub(crate) struct Survey {
-    pub samples: Vec<Sample>,
+pub(crate) struct Survey<'a> {
+    /// The survey's samples (borrowed: a copy was 48 bytes a sample).
+    pub samples: &'a [Sample],
+    /// Their grouping by target, made once: the error map's, and every
+    /// residual's (the same targets in the same order).
+    pub groups: TargetGroups,
     pub map: ErrorMap,
-    /// Per sample: index into `map.targets_deg`.
-    pub target: Vec<usize>,
+    /// Per sample: index into `map.targets_deg` (`u32`, as the grouping's).
+    pub target: Vec<u32>,
     /// Per sample: index into `map.runs`.
-    pub run: Vec<usize>,
+    pub run: Vec<u32>,
     /// Per sample: index into `dirs`.
-    pub dir: Vec<usize>,
+    pub dir: Vec<u8>,
     /// The measured directions (forward first).
     pub dirs: Vec<Direction>,
     /// Per sample: runs elapsed since the first sample (the time of a ramp).
@@ -49,23 +54,29 @@ pub(crate) struct Survey {
     pub run_duration_s: Option<f64>,
 }
 
-impl Survey {
-    pub fn prepare(samples: &[Sample]) -> Result<Self, ModelGapError> {
-        let map = ErrorMap::from_samples(samples)?;
+impl<'a> Survey<'a> {
+    pub fn prepare(samples: &'a [Sample]) -> Result<Self, ModelGapError> {
+        let groups = TargetGroups::of(samples);
+        let map = ErrorMap::from_grouped(samples, &groups)?;
         let dirs: Vec<Direction> =
             [Direction::Forward, Direction::Reverse].into_iter().filter(|d| map.direction(*d).is_some()).collect();
-        let target: Vec<usize> =
-            samples.iter().map(|s| map.targets_deg.partition_point(|&t| t <= s.target_deg).saturating_sub(1)).collect();
-        let run: Vec<usize> =
-            samples.iter().map(|s| map.runs.binary_search(&s.run).expect("every run is in the map")).collect();
-        let dir: Vec<usize> =
-            samples.iter().map(|s| dirs.iter().position(|d| *d == s.direction).expect("measured")).collect();
+        // A sample's target is its group's: the map's targets are the
+        // groups' smallest, in the groups' order.
+        let mut target = vec![0u32; samples.len()];
+        for (t, group) in (0..).zip(groups.iter()) {
+            group.iter().for_each(|&i| target[i as usize] = t);
+        }
+        let run: Vec<u32> =
+            samples.iter().map(|s| map.runs.binary_search(&s.run).expect("every run is in the map") as u32).collect();
+        let dir: Vec<u8> =
+            samples.iter().map(|s| dirs.iter().position(|d| *d == s.direction).expect("measured") as u8).collect();
         let y: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
         let (tau, timebase, run_duration_s) = time_in_runs(samples, &run, map.runs.len());
-        let run_index = run.iter().map(|&r| r as f64).collect();
+        let run_index = run.iter().map(|&r| f64::from(r)).collect();
         let angle_deg = samples.iter().map(|s| s.actual_deg).collect();
         Ok(Survey {
-            samples: samples.to_vec(),
+            samples,
+            groups,
             map,
             target,
             run,
@@ -94,7 +105,7 @@ impl Survey {
     /// of 36000 points.)
     pub fn set_angle_shift(&mut self, shift_deg: f64) {
         self.angle_shift_deg = shift_deg;
-        for (a, s) in self.angle_deg.iter_mut().zip(&self.samples) {
+        for (a, s) in self.angle_deg.iter_mut().zip(self.samples) {
             *a = s.actual_deg + shift_deg;
         }
     }
@@ -102,10 +113,10 @@ impl Survey {
     /// [`Survey::prepare`], with the zero reference's angle found against
     /// `model` (two passes: the second changes it by the model's slope times
     /// the first's change, far below anything measurable).
-    pub fn prepare_for(samples: &[Sample], model: &Model) -> Result<Self, ModelGapError> {
+    pub fn prepare_for(samples: &'a [Sample], model: &Model) -> Result<Self, ModelGapError> {
         let mut s = Survey::prepare(samples)?;
         for _ in 0..2 {
-            let (_, offset) = s.residual(model);
+            let offset = s.offset(model);
             s.set_angle_shift(offset);
         }
         Ok(s)
@@ -135,8 +146,8 @@ impl Survey {
         let mut sum = vec![0.0; t];
         let mut count = vec![0usize; t];
         for (i, r) in residual.iter().enumerate() {
-            sum[self.target[i]] += r;
-            count[self.target[i]] += 1;
+            sum[self.target[i] as usize] += r;
+            count[self.target[i] as usize] += 1;
         }
         let mean = sum.iter().zip(&count).map(|(a, c)| a / *c as f64).collect();
         (mean, count)
@@ -147,7 +158,7 @@ impl Survey {
     }
 
     pub fn direction(&self, i: usize) -> Direction {
-        self.dirs[self.dir[i]]
+        self.dirs[usize::from(self.dir[i])]
     }
 
     /// The model's systematic error at every sample: at the axis angle (the
@@ -160,13 +171,23 @@ impl Survey {
             .collect()
     }
 
+    /// `y - model` at sample `i`.
+    fn gap_at(&self, model: &Model, i: usize) -> f64 {
+        self.y[i] - model.systematic_error_at(self.angle_deg[i], self.direction(i), self.drift_time(i))
+    }
+
     /// `y - model`, with the constant offset (zero reference) removed; returns the offset too.
     pub fn residual(&self, model: &Model) -> (Vec<f64>, f64) {
-        let p = self.predict(model);
-        let mut r: Vec<f64> = self.y.iter().zip(&p).map(|(y, p)| y - p).collect();
+        let mut r: Vec<f64> = (0..self.len()).map(|i| self.gap_at(model, i)).collect();
         let offset = r.iter().sum::<f64>() / r.len() as f64;
         r.iter_mut().for_each(|v| *v -= offset);
         (r, offset)
+    }
+
+    /// The offset of [`Survey::residual`] alone (the same sum, to the bit),
+    /// with no vector of the residual.
+    pub fn offset(&self, model: &Model) -> f64 {
+        (0..self.len()).map(|i| self.gap_at(model, i)).sum::<f64>() / self.len() as f64
     }
 
     /// The noise floor from the two-way layout runs x cells (cell = target and
@@ -183,7 +204,8 @@ impl Survey {
         }
         let mut cells = vec![0.0; r * c];
         for i in 0..self.len() {
-            cells[self.run[i] * c + self.target[i] * self.dirs.len() + self.dir[i]] = self.y[i];
+            cells[self.run[i] as usize * c + self.target[i] as usize * self.dirs.len() + usize::from(self.dir[i])] =
+                self.y[i];
         }
         let run_mean: Vec<f64> = (0..r).map(|k| cells[k * c..(k + 1) * c].iter().sum::<f64>() / c as f64).collect();
         let cell_mean: Vec<f64> = (0..c).map(|j| (0..r).map(|k| cells[k * c + j]).sum::<f64>() / r as f64).collect();
@@ -199,7 +221,7 @@ impl Survey {
 
 /// Runs elapsed at every sample, from the timestamps when every sample has one
 /// (and they span some time), else from the acquisition order.
-fn time_in_runs(samples: &[Sample], run: &[usize], runs: usize) -> (Vec<f64>, Timebase, Option<f64>) {
+fn time_in_runs(samples: &[Sample], run: &[u32], runs: usize) -> (Vec<f64>, Timebase, Option<f64>) {
     let stamps: Option<Vec<f64>> = samples.iter().map(|s| s.timestamp_s.filter(|t| t.is_finite())).collect();
     if let Some(t) = stamps {
         let t0 = t.iter().copied().fold(f64::INFINITY, f64::min);
@@ -207,7 +229,7 @@ fn time_in_runs(samples: &[Sample], run: &[usize], runs: usize) -> (Vec<f64>, Ti
         let duration = if runs >= 2 {
             let mut start = vec![f64::INFINITY; runs];
             for (i, &ti) in t.iter().enumerate() {
-                start[run[i]] = start[run[i]].min(ti);
+                start[run[i] as usize] = start[run[i] as usize].min(ti);
             }
             (start[runs - 1] - start[0]) / (runs - 1) as f64
         } else if samples.len() >= 2 {
@@ -221,12 +243,13 @@ fn time_in_runs(samples: &[Sample], run: &[usize], runs: usize) -> (Vec<f64>, Ti
     }
     let mut count = vec![0usize; runs];
     for &r in run {
-        count[r] += 1;
+        count[r as usize] += 1;
     }
     let mut seen = vec![0usize; runs];
     let tau = run
         .iter()
         .map(|&r| {
+            let r = r as usize;
             let k = seen[r];
             seen[r] += 1;
             r as f64 + k as f64 / count[r] as f64

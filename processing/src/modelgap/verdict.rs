@@ -129,7 +129,7 @@ pub(crate) fn repeatable_test(ctx: &Ctx, residual: &[f64]) -> Option<RepeatableT
     let mut sum = vec![0.0; c];
     let mut count = vec![0usize; c];
     for (i, v) in residual.iter().enumerate() {
-        let cell = s.target[i] * s.dirs.len() + s.dir[i];
+        let cell = s.target[i] as usize * s.dirs.len() + usize::from(s.dir[i]);
         sum[cell] += v;
         count[cell] += 1;
     }
@@ -266,7 +266,7 @@ fn axis_location(
     let s = ctx.survey;
     let n = residual.len();
     let (sin, cos): (Vec<f64>, Vec<f64>) = s.angle_deg.iter().map(|a| a.to_radians().sin_cos()).unzip();
-    let fit = least_squares(&[vec![1.0; n], sin.clone(), cos.clone()], residual).ok()?;
+    let fit = least_squares(&[&vec![1.0; n], &sin, &cos], residual).ok()?;
     let (a, b) = (fit.coef[1], fit.coef[2]);
     let amplitude = a.hypot(b);
     let se = ctx.sigma * fit.unit_var[1].max(fit.unit_var[2]).sqrt();

@@ -5,9 +5,9 @@
 use super::ModelGapError;
 use super::stats::{chi2_isf, least_squares, normal_two_sided_isf, t_two_sided_isf};
 use super::survey::Survey;
-use crate::analysis::{Analysis, AnalysisOptions, Method, alias, analyse};
+use crate::analysis::{Analysis, AnalysisOptions, Method, alias, analyse_map};
+use crate::errormap::ErrorMap;
 use crate::model::{Design, Effect, Model, PeriodicKind};
-use crate::types::Sample;
 use serde::Serialize;
 
 /// The gap seen four ways, for one model.
@@ -185,7 +185,7 @@ pub struct TimeView {
 /// What the views need besides the residual.
 #[derive(Debug, Clone)]
 pub(crate) struct Ctx<'a> {
-    pub survey: &'a Survey,
+    pub survey: &'a Survey<'a>,
     pub design: &'a Design,
     /// Analysis options, with the false-alarm rate of the spectral tests set.
     pub analysis: AnalysisOptions,
@@ -199,14 +199,13 @@ pub(crate) struct Ctx<'a> {
 /// (the spectral lines take the other half).
 pub(crate) const SCALAR_SHARE: f64 = 0.25;
 
-/// The residual samples (`readout = residual`, `actual = 0`) for the spectral analysis.
-pub(crate) fn residual_samples(survey: &Survey, residual: &[f64]) -> Vec<Sample> {
-    survey.samples.iter().zip(residual).map(|(s, r)| Sample { readout_deg: *r, actual_deg: 0.0, ..*s }).collect()
-}
-
-/// The spectral analysis of a residual.
+/// The spectral analysis of a residual: of the survey's samples with their
+/// error replaced by it (`readout = residual`, `actual = 0`), grouped as the
+/// survey's, with no copy of the samples made.
 pub(crate) fn analyse_residual(ctx: &Ctx, residual: &[f64]) -> Result<Analysis, ModelGapError> {
-    Ok(analyse(&residual_samples(ctx.survey, residual), ctx.design, &ctx.analysis)?)
+    ctx.analysis.validate()?;
+    let map = ErrorMap::from_grouped_errors(ctx.survey.samples, &ctx.survey.groups, residual)?;
+    Ok(analyse_map(map, ctx.design, &ctx.analysis)?)
 }
 
 /// All four views of `residual` (data minus `model`, offset removed), and the
@@ -369,10 +368,10 @@ fn direction_view(ctx: &Ctx, residual: &[f64]) -> Option<DirectionView> {
     let ones = vec![1.0; n];
     // A drift of either shape is a nuisance here: a ramp moves forward against
     // reverse within a run, and a step fitted as a ramp would too.
-    let both = least_squares(&[ones.clone(), half_sign.clone(), s.tau.clone(), s.run_index.clone()], residual);
+    let both = least_squares(&[&ones, &half_sign, &s.tau, &s.run_index], residual);
     let fit = both
-        .or_else(|_| least_squares(&[ones.clone(), half_sign.clone(), s.tau.clone()], residual))
-        .or_else(|_| least_squares(&[ones, half_sign], residual))
+        .or_else(|_| least_squares(&[&ones, &half_sign, &s.tau], residual))
+        .or_else(|_| least_squares(&[&ones, &half_sign], residual))
         .ok()?;
     let se = ctx.sigma * fit.unit_var[1].sqrt();
     let threshold = normal_two_sided_isf(ctx.alpha * SCALAR_SHARE) * se;
@@ -381,8 +380,8 @@ fn direction_view(ctx: &Ctx, residual: &[f64]) -> Option<DirectionView> {
     let mut acc = vec![[0.0f64; 4]; t];
     for (i, r) in residual.iter().enumerate() {
         let k = if s.direction(i) == crate::types::Direction::Forward { 0 } else { 2 };
-        acc[s.target[i]][k] += r;
-        acc[s.target[i]][k + 1] += 1.0;
+        acc[s.target[i] as usize][k] += r;
+        acc[s.target[i] as usize][k + 1] += 1.0;
     }
     let h: Vec<f64> = acc.iter().map(|a| a[0] / a[1] - a[2] / a[3]).collect();
     let mean = h.iter().sum::<f64>() / t as f64;
@@ -405,9 +404,10 @@ fn time_view(ctx: &Ctx, residual: &[f64]) -> Option<TimeView> {
     }
     let mut acc = vec![[0.0f64; 3]; r];
     for (i, v) in residual.iter().enumerate() {
-        acc[s.run[i]][0] += v;
-        acc[s.run[i]][1] += s.tau[i];
-        acc[s.run[i]][2] += 1.0;
+        let run = s.run[i] as usize;
+        acc[run][0] += v;
+        acc[run][1] += s.tau[i];
+        acc[run][2] += 1.0;
     }
     let m: Vec<f64> = acc.iter().map(|a| a[0] / a[2]).collect();
     let x: Vec<f64> = acc.iter().map(|a| a[1] / a[2]).collect();
