@@ -582,21 +582,15 @@ mod largest_gap_by_buckets {
             start in -PI..PI,
             arc in 0.1f64..(2.0 * PI),
             jitter in 0.0f64..1e-3,
-            seed in any::<u64>(),
+            // Each sample's place within its target's jitter, cycled.
+            places in proptest::collection::vec(-0.5f64..0.5, 1..64),
         ) {
-            let mut state = seed;
-            let mut next = || {
-                state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-                let mut z = state;
-                z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-                z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-                (z ^ (z >> 31)) as f64 / u64::MAX as f64 - 0.5
-            };
             let step = arc / targets as f64;
             let angles: Vec<f64> = (0..runs)
-                .flat_map(|_| (0..targets).collect::<Vec<_>>())
-                .map(|t| {
-                    let a = start + t as f64 * step + jitter * step * next();
+                .flat_map(|_| 0..targets)
+                .enumerate()
+                .map(|(k, t)| {
+                    let a = start + t as f64 * step + jitter * step * places[k % places.len()];
                     if a >= PI { a - 2.0 * PI } else { a }
                 })
                 .collect();
