@@ -291,6 +291,20 @@ impl Planner {
         span_deg: f64,
         window: Window,
     ) -> Result<Spectrum, SpectrumError> {
+        let phasors = self.phasors(y, start_deg, span_deg, window)?;
+        Ok(Spectrum::of_phasors(y.len(), start_deg, span_deg, window, phasors))
+    }
+
+    /// The phasors of [`Planner::spectrum`]'s bins alone (each bin's
+    /// amplitude and phase, an `atan2` and a `hypot`, not taken): what the
+    /// runs' spectra are needed for when only their mean is kept.
+    pub fn phasors(
+        &mut self,
+        y: &[f64],
+        start_deg: f64,
+        span_deg: f64,
+        window: Window,
+    ) -> Result<Vec<Phasor>, SpectrumError> {
         let n = y.len();
         if n < 3 {
             return Err(SpectrumError::TooFewPoints { points: n, min: 3 });
@@ -309,11 +323,10 @@ impl Planner {
         let mut out = fft.make_output_vec();
         fft.process(&mut input, &mut out).map_err(|e| SpectrumError::Fft(e.to_string()))?;
         let half = n / 2;
-        let bins = out
+        Ok(out
             .iter()
             .enumerate()
             .map(|(k, x)| {
-                let cycles = k as f64 * 360.0 / span_deg;
                 let local = if k == 0 {
                     Phasor { sin_deg: 0.0, cos_deg: if window == Window::Hann { mean } else { x.re / gain } }
                 } else if 2 * k == n {
@@ -322,11 +335,15 @@ impl Planner {
                     Phasor { sin_deg: -2.0 * x.im / gain, cos_deg: 2.0 * x.re / gain }
                 };
                 debug_assert!(k <= half);
-                Bin::new(cycles, local.rotate_deg(-cycles * start_deg))
+                local.rotate_deg(-bin_cycles(k, span_deg) * start_deg)
             })
-            .collect();
-        Ok(Spectrum { points: n, start_deg, span_deg, window, bins })
+            .collect())
     }
+}
+
+/// The frequency of bin `k` over a span, cycles/rev.
+fn bin_cycles(k: usize, span_deg: f64) -> f64 {
+    k as f64 * 360.0 / span_deg
 }
 
 impl Spectrum {
@@ -348,6 +365,19 @@ impl Spectrum {
     pub fn bin_near(&self, cycles_per_rev: f64) -> Option<&Bin> {
         let k = (cycles_per_rev * self.span_deg / 360.0).round();
         (k >= 0.0).then(|| self.bins.get(k as usize)).flatten()
+    }
+
+    /// The spectrum whose bins have `phasors` ([`Planner::phasors`] of `points`
+    /// samples over `span_deg` from `start_deg`).
+    pub fn of_phasors(
+        points: usize,
+        start_deg: f64,
+        span_deg: f64,
+        window: Window,
+        phasors: impl IntoIterator<Item = Phasor>,
+    ) -> Spectrum {
+        let bins = phasors.into_iter().enumerate().map(|(k, p)| Bin::new(bin_cycles(k, span_deg), p)).collect();
+        Spectrum { points, start_deg, span_deg, window, bins }
     }
 
     /// The spectrum of the mean series: the mean of the phasors of spectra with

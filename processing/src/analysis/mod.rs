@@ -494,21 +494,22 @@ fn full_circle(
     }
     let r = rows.len();
     let mut planner = Planner::new();
+    // Each run's phasors (the line tests need no more of their spectra),
+    // and the mean series's spectrum from their mean.
     let spectra = rows
         .iter()
-        .map(|y| planner.spectrum(y, frame.start_deg, 360.0, Window::Rectangular))
+        .map(|y| planner.phasors(y, frame.start_deg, 360.0, Window::Rectangular))
         .collect::<Result<Vec<_>, _>>()?;
-    let mean = Spectrum::mean_of(&spectra).expect("one spectrum per run, all of the same shape");
+    let mean = mean_spectrum(rows[0].len(), frame.start_deg, 360.0, Window::Rectangular, &spectra);
     let regular = (n - 1) / 2;
     let nyquist = n.is_multiple_of(2);
     let (sd_run, method, dof) = if r >= 2 {
-        let ss: f64 = (1..=regular)
-            .map(|k| spectra.iter().map(|s| (s.bins[k].phasor - mean.bins[k].phasor).norm_sqr()).sum::<f64>())
-            .sum();
+        let ss: f64 =
+            (1..=regular).map(|k| spectra.iter().map(|s| (s[k] - mean.bins[k].phasor).norm_sqr()).sum::<f64>()).sum();
         let dof = 2 * regular * (r - 1);
         ((ss / dof as f64).sqrt(), NoiseMethod::SpectrumScatter, Some(dof))
     } else {
-        let mut p: Vec<f64> = (1..=regular).map(|k| spectra[0].bins[k].phasor.norm_sqr()).collect();
+        let mut p: Vec<f64> = (1..=regular).map(|k| spectra[0][k].norm_sqr()).collect();
         p.sort_by(f64::total_cmp);
         let median = if p.len() % 2 == 1 { p[p.len() / 2] } else { 0.5 * (p[p.len() / 2 - 1] + p[p.len() / 2]) };
         ((median / (2.0 * std::f64::consts::LN_2)).sqrt(), NoiseMethod::SpectrumMedian, None)
@@ -523,7 +524,7 @@ fn full_circle(
     for k in 1..=n / 2 {
         let one_dim = 2 * k == n;
         let tested = Tested {
-            runs: spectra.iter().map(|s| s.bins[k].phasor).collect(),
+            runs: spectra.iter().map(|s| s[k]).collect(),
             mean: mean.bins[k].phasor,
             sd_run: if one_dim { sd_run / std::f64::consts::SQRT_2 } else { sd_run },
             one_dim,
@@ -560,6 +561,20 @@ fn full_circle(
         lines,
         aliases,
     })
+}
+
+/// The spectrum of the mean series of `points` samples: the mean of each
+/// run's phasors, bin by bin (the transform is linear; as
+/// [`Spectrum::mean_of`] takes the runs' spectra, to the bit).
+fn mean_spectrum(points: usize, start_deg: f64, span_deg: f64, window: Window, runs: &[Vec<Phasor>]) -> Spectrum {
+    let bins = runs.first().map_or(0, Vec::len);
+    Spectrum::of_phasors(
+        points,
+        start_deg,
+        span_deg,
+        window,
+        (0..bins).map(|k| Phasor::mean(runs.iter().map(|r| r[k]))),
+    )
 }
 
 /// The geometry of a partial range.
@@ -660,10 +675,9 @@ fn partial_range(
         let span = n as f64 * g.step;
         let runs = rows
             .iter()
-            .map(|y| planner.spectrum(y, g.start, span, options.partial_window))
+            .map(|y| planner.phasors(y, g.start, span, options.partial_window))
             .collect::<Result<Vec<_>, _>>()?;
-        let mean = Spectrum::mean_of(&runs).expect("one spectrum per run, all of the same shape");
-        Some(Spectra { mean })
+        Some(Spectra { mean: mean_spectrum(rows[0].len(), g.start, span, options.partial_window, &runs) })
     } else {
         None
     };
