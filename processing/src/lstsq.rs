@@ -20,8 +20,8 @@ pub struct Qr {
 }
 
 /// The Euclidean norm of each column.
-pub fn column_norms(columns: &[Vec<f64>]) -> Vec<f64> {
-    columns.iter().map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt()).collect()
+pub fn column_norms<C: AsRef<[f64]>>(columns: &[C]) -> Vec<f64> {
+    columns.iter().map(|c| c.as_ref().iter().map(|v| v * v).sum::<f64>().sqrt()).collect()
 }
 
 impl Qr {

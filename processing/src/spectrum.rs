@@ -393,10 +393,22 @@ impl Spectrum {
         }) {
             return None;
         }
-        let bins = (0..first.bins.len())
-            .map(|k| Bin::new(first.bins[k].cycles_per_rev, Phasor::mean(spectra.iter().map(|s| s.bins[k].phasor))))
-            .collect();
-        Some(Spectrum { bins, ..first.clone() })
+        let mean = (0..first.bins.len()).map(|k| Phasor::mean(spectra.iter().map(|s| s.bins[k].phasor)));
+        Some(Spectrum::of_phasors(first.points, first.start_deg, first.span_deg, first.window, mean))
+    }
+
+    /// [`Spectrum::mean_of`] of the runs' spectra from their phasors alone
+    /// ([`Planner::phasors`] of `points` samples each, over `span_deg` from
+    /// `start_deg`): the same spectrum, to the bit.
+    pub fn mean_of_phasors(
+        points: usize,
+        start_deg: f64,
+        span_deg: f64,
+        window: Window,
+        runs: &[Vec<Phasor>],
+    ) -> Spectrum {
+        let mean = (0..runs.first().map_or(0, Vec::len)).map(|k| Phasor::mean(runs.iter().map(|r| r[k])));
+        Spectrum::of_phasors(points, start_deg, span_deg, window, mean)
     }
 }
 

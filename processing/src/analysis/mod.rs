@@ -500,7 +500,7 @@ fn full_circle(
         .iter()
         .map(|y| planner.phasors(y, frame.start_deg, 360.0, Window::Rectangular))
         .collect::<Result<Vec<_>, _>>()?;
-    let mean = mean_spectrum(rows[0].len(), frame.start_deg, 360.0, Window::Rectangular, &spectra);
+    let mean = Spectrum::mean_of_phasors(rows[0].len(), frame.start_deg, 360.0, Window::Rectangular, &spectra);
     let regular = (n - 1) / 2;
     let nyquist = n.is_multiple_of(2);
     let (sd_run, method, dof) = if r >= 2 {
@@ -561,20 +561,6 @@ fn full_circle(
         lines,
         aliases,
     })
-}
-
-/// The spectrum of the mean series of `points` samples: the mean of each
-/// run's phasors, bin by bin (the transform is linear; as
-/// [`Spectrum::mean_of`] takes the runs' spectra, to the bit).
-fn mean_spectrum(points: usize, start_deg: f64, span_deg: f64, window: Window, runs: &[Vec<Phasor>]) -> Spectrum {
-    let bins = runs.first().map_or(0, Vec::len);
-    Spectrum::of_phasors(
-        points,
-        start_deg,
-        span_deg,
-        window,
-        (0..bins).map(|k| Phasor::mean(runs.iter().map(|r| r[k]))),
-    )
 }
 
 /// The geometry of a partial range.
@@ -677,7 +663,7 @@ fn partial_range(
             .iter()
             .map(|y| planner.phasors(y, g.start, span, options.partial_window))
             .collect::<Result<Vec<_>, _>>()?;
-        Some(Spectra { mean: mean_spectrum(rows[0].len(), g.start, span, options.partial_window, &runs) })
+        Some(Spectra { mean: Spectrum::mean_of_phasors(rows[0].len(), g.start, span, options.partial_window, &runs) })
     } else {
         None
     };

@@ -8,7 +8,7 @@
 //! only for the pre-test of run-to-run offsets, where a few per cent do not
 //! matter).
 
-use crate::lstsq::Qr;
+use crate::lstsq::{Qr, column_norms};
 pub(crate) use crate::special::erfc;
 
 /// `P(|Z| > z)` for a standard normal `Z`.
@@ -116,7 +116,7 @@ pub(crate) fn least_squares(columns: &[&[f64]], y: &[f64]) -> Result<Lsq, usize>
     if y.len() < p {
         return Err(p.saturating_sub(1));
     }
-    let norms: Vec<f64> = columns.iter().map(|c| c.iter().map(|v| v * v).sum::<f64>().sqrt()).collect();
+    let norms = column_norms(columns);
     // The factorisation works in place: its one copy of the columns.
     let qr = Qr::new(columns.iter().map(|c| c.to_vec()).collect(), |j| 1e-6 * norms[j])?;
     let (coef, _) = qr.solve(y);
