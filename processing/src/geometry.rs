@@ -186,11 +186,18 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
     // |sum e^{i(theta + r)}|^2) / 4, which needs no pairs and no unwrapping.
     // A position's e^{i theta} is its direction from the centre (a quotient,
     // not a sine and a cosine of its angle); e^{i r} is the readout's.
+    // The raw angles around the fitted centre, radians, are taken in the
+    // same pass: what `AxisFit::raw_angle` gives, to rounding, once `v` is
+    // flipped with the normal (below) where it has to be (the refit hands
+    // them on).
     let (mut minus, mut plus) = ((0.0, 0.0), (0.0, 0.0));
+    let mut raw: Vec<f64> = Vec::with_capacity(n);
     for (q, r) in xy().zip(readouts_deg()) {
         let (x, y) = (q[0] - a, q[1] - b);
         let rho = norm2(x, y);
-        let (st, ct) = if rho > 0.0 { (y / rho, x / rho) } else { y.atan2(x).sin_cos() };
+        let theta = y.atan2(x);
+        raw.push(theta);
+        let (st, ct) = if rho > 0.0 { (y / rho, x / rho) } else { theta.sin_cos() };
         let (sr, cr) = r.to_radians().sin_cos();
         minus = (minus.0 + (st * cr - ct * sr), minus.1 + (ct * cr + st * sr));
         plus = (plus.0 + (st * cr + ct * sr), plus.1 + (ct * cr - st * sr));
@@ -202,15 +209,12 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
             "the readouts do not vary enough to tell the direction of rotation".into(),
         ));
     }
-    // The raw angles around the fitted centre, radians, in the fit's frame
-    // (`v` flipped with the normal): what `AxisFit::raw_angle` gives, to
-    // rounding (the refit hands them on).
-    let flip = if orientation < 0.0 { -1.0 } else { 1.0 };
-    let raw: Vec<f64> = xy().map(|q| (flip * (q[1] - b)).atan2(q[0] - a)).collect();
     if orientation < 0.0 {
         normal = scale(normal, -1.0);
         v = scale(v, -1.0);
         b = -b;
+        // `atan2` is odd in `y`, to the bit.
+        raw.iter_mut().for_each(|t| *t = -*t);
     }
 
     // 4. Zero: the mean over the fit points of wrap_180(raw - zero - readout) is zero.
