@@ -164,9 +164,11 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
     // The projected points are made again on every pass over them (two dot
     // products) rather than kept: a vector of them was 16 bytes a point at
     // the refit's peak.
+    // The basis scaled by the spread: two dot products a point, no division.
+    let (us, vs) = (scale(u, 1.0 / spread), scale(v, 1.0 / spread));
     let project = |p: &[f64; 3]| {
         let d = sub(*p, centroid);
-        [dot(d, u) / spread, dot(d, v) / spread]
+        [dot(d, us), dot(d, vs)]
     };
     let xy = || points_mm.iter().map(project);
     let (mut a, mut b, r, cost) = fit_circle(xy)
@@ -197,7 +199,7 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
         let rho = norm2(x, y);
         let theta = y.atan2(x);
         raw.push(theta);
-        let (st, ct) = if rho > 0.0 { (y / rho, x / rho) } else { theta.sin_cos() };
+        let (st, ct) = if rho > 0.0 { (y * (1.0 / rho), x * (1.0 / rho)) } else { theta.sin_cos() };
         let (sr, cr) = r.to_radians().sin_cos();
         minus = (minus.0 + (st * cr - ct * sr), minus.1 + (ct * cr + st * sr));
         plus = (plus.0 + (st * cr + ct * sr), plus.1 + (ct * cr - st * sr));
@@ -409,15 +411,16 @@ fn center_knowledge<I: Iterator<Item = ([f64; 3], f64)>>(fit: &AxisFit, points: 
             at_centre.push(k);
             continue;
         };
-        let jac = [-x / dist, -y / dist, -1.0];
+        let (c, s) = (x * (1.0 / dist), y * (1.0 / dist));
+        let jac = [-c, -s, -1.0];
         for i in 0..3 {
             for j in 0..3 {
                 jtj[i][j] += jac[i] * jac[j];
             }
         }
         ss += (dist - fit.radius_mm).powi(2);
-        sum_sin += y / dist;
-        sum_cos += x / dist;
+        sum_sin += s;
+        sum_cos += c;
         count += 1;
     }
     let phi = || points().enumerate().filter(|(k, _)| at_centre.binary_search(k).is_err()).map(|(_, (_, raw))| raw);
@@ -440,9 +443,10 @@ fn center_knowledge<I: Iterator<Item = ([f64; 3], f64)>>(fit: &AxisFit, points: 
     let r = fit.radius_mm;
     let m = count.max(1) as f64;
     let (gs, gc) = (sum_sin / m, sum_cos / m);
-    let mut over_arc = 0.0f64;
+    let (mut over_arc, inv_r) = (0.0f64, 1.0 / r);
     for (x, y, dist) in points().filter_map(|(p, _)| direction(p)) {
-        let g = [(y / dist - gs) / r, (-x / dist + gc) / r];
+        let inv = 1.0 / dist;
+        let g = [(y * inv - gs) * inv_r, (-x * inv + gc) * inv_r];
         let var = g[0] * g[0] * a + 2.0 * g[0] * g[1] * b + g[1] * g[1] * c;
         over_arc = over_arc.max(var);
     }
