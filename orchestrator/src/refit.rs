@@ -116,16 +116,13 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
     if points.len() < 3 {
         return Ok(None);
     }
-    let readouts: Vec<f64> = locate
-        .iter()
-        .map(|(readout, _)| *readout)
-        .chain(smr.sample_indices().map(|i| samples[i].readout_deg))
-        .collect();
+    // The readouts in the order of `points`, made anew for each pass.
+    let readouts =
+        || locate.iter().map(|(readout, _)| *readout).chain(smr.sample_indices().map(|i| samples[i].readout_deg));
     let (Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. }, raw) =
-        refit_axis_with_angles(points, &readouts).map_err(|e| {
+        refit_axis_with_angles(points, readouts).map_err(|e| {
             anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
         })?;
-    drop(readouts);
     // The samples' positions follow the locate points in `raw`.
     for (i, &raw) in smr.sample_indices().zip(&raw[locate.len()..]) {
         let s = &mut samples[i];

@@ -152,6 +152,24 @@ pub enum ErrorMapError {
     },
 }
 
+/// The runs of `samples`, ascending: a few, inserted in order as they
+/// first appear (a survey stores a run's samples together, so a sample's run
+/// is almost always the last one's). Not a `BTreeSet` collected: that sorts
+/// a vector of every sample's run first.
+fn distinct_runs(samples: &[Sample]) -> Vec<u32> {
+    let mut runs: Vec<u32> = Vec::new();
+    let mut last = None;
+    for s in samples {
+        if last != Some(s.run) {
+            last = Some(s.run);
+            if let Err(place) = runs.binary_search(&s.run) {
+                runs.insert(place, s.run);
+            }
+        }
+    }
+    runs
+}
+
 impl ErrorMap {
     /// Build the error map of a survey. Samples may come in any order.
     pub fn from_samples(samples: &[Sample]) -> Result<Self, ErrorMapError> {
@@ -209,9 +227,7 @@ impl ErrorMap {
             targets_deg.push(samples[group[0] as usize].target_deg);
             group.iter().for_each(|&i| target_of[i as usize] = t);
         }
-        // The runs, ascending (a set: a few, where a vector was a run a sample).
-        let runs: Vec<u32> =
-            samples.iter().map(|s| s.run).collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
+        let runs = distinct_runs(samples);
         let run_index = |run: u32| runs.binary_search(&run).expect("every run was collected");
 
         let build = |direction: Direction| -> Result<Option<DirectionErrors>, ErrorMapError> {
@@ -505,5 +521,16 @@ mod tests {
         let mut v = case();
         v.push(s(3, Forward, 0.0, 0.0));
         assert!(matches!(ErrorMap::from_samples(&v).unwrap_err(), ErrorMapError::MissingSample { run: 3, .. }));
+    }
+
+    proptest::proptest! {
+        /// The runs found as they first appear are the set of them, in order,
+        /// in whatever order the samples come.
+        #[test]
+        fn distinct_runs_are_the_set_of_runs(runs in proptest::collection::vec(0u32..12, 0..300)) {
+            let samples: Vec<Sample> = runs.iter().map(|&run| s(run, Forward, 0.0, 0.0)).collect();
+            let set: Vec<u32> = runs.iter().copied().collect::<std::collections::BTreeSet<u32>>().into_iter().collect();
+            proptest::prop_assert_eq!(distinct_runs(&samples), set);
+        }
     }
 }

@@ -109,14 +109,26 @@ fn normalize(a: V3) -> V3 {
 /// geometry comes from the points alone. They may be in any order, and may
 /// cover a full revolution or a partial arc.
 pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit, GeometryError> {
+    fit_axis_with_angles(points_mm, || readouts_deg.iter().copied()).map(|(fit, _)| fit)
+}
+
+/// [`fit_axis`], and the raw angle of every point around the fitted axis
+/// ([`AxisFit::raw_angle`] to rounding: from the circle fit's own
+/// coordinates), in the order of `points_mm`. `readouts_deg` makes the
+/// readouts anew for each pass over them.
+fn fit_axis_with_angles<I: Iterator<Item = f64>>(
+    points_mm: &[[f64; 3]],
+    readouts_deg: impl Fn() -> I,
+) -> Result<(AxisFit, Vec<f64>), GeometryError> {
     let n = points_mm.len();
-    if n != readouts_deg.len() {
-        return Err(GeometryError::LengthMismatch { points: n, readouts: readouts_deg.len() });
+    let readouts = readouts_deg().count();
+    if n != readouts {
+        return Err(GeometryError::LengthMismatch { points: n, readouts });
     }
     if n < 3 {
         return Err(GeometryError::TooFewPoints(n));
     }
-    for (index, (p, &r)) in points_mm.iter().zip(readouts_deg).enumerate() {
+    for (index, (p, r)) in points_mm.iter().zip(readouts_deg()).enumerate() {
         for (what, value) in [("x", p[0]), ("y", p[1]), ("z", p[2]), ("readout", r)] {
             if !value.is_finite() {
                 return Err(GeometryError::NonFinite { index, what, value });
@@ -152,9 +164,11 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // The projected points are made again on every pass over them (two dot
     // products) rather than kept: a vector of them was 16 bytes a point at
     // the refit's peak.
+    // The basis scaled by the spread: two dot products a point, no division.
+    let (us, vs) = (scale(u, 1.0 / spread), scale(v, 1.0 / spread));
     let project = |p: &[f64; 3]| {
         let d = sub(*p, centroid);
-        [dot(d, u) / spread, dot(d, v) / spread]
+        [dot(d, us), dot(d, vs)]
     };
     let xy = || points_mm.iter().map(project);
     let (mut a, mut b, r, cost) = fit_circle(xy)
@@ -172,14 +186,24 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
     // pairs of sin(theta_j - theta_i) sin(r_j - r_i) is positive when the angles
     // increase with the readouts; it equals (|sum e^{i(theta - r)}|^2 -
     // |sum e^{i(theta + r)}|^2) / 4, which needs no pairs and no unwrapping.
-    let mut raw: Vec<f64> = xy().map(|q| (q[1] - b).atan2(q[0] - a).to_degrees()).collect();
-    let sums = |sign: f64| {
-        raw.iter().zip(readouts_deg).fold((0.0, 0.0), |(s, c), (t, r)| {
-            let x = (t + sign * r).to_radians();
-            (s + x.sin(), c + x.cos())
-        })
-    };
-    let (minus, plus) = (sums(-1.0), sums(1.0));
+    // A position's e^{i theta} is its direction from the centre (a quotient,
+    // not a sine and a cosine of its angle); e^{i r} is the readout's.
+    // The raw angles around the fitted centre, radians, are taken in the
+    // same pass: what `AxisFit::raw_angle` gives, to rounding, once `v` is
+    // flipped with the normal (below) where it has to be (the refit hands
+    // them on).
+    let (mut minus, mut plus) = ((0.0, 0.0), (0.0, 0.0));
+    let mut raw: Vec<f64> = Vec::with_capacity(n);
+    for (q, r) in xy().zip(readouts_deg()) {
+        let (x, y) = (q[0] - a, q[1] - b);
+        let rho = norm2(x, y);
+        let theta = y.atan2(x);
+        raw.push(theta);
+        let (st, ct) = if rho > 0.0 { (y * (1.0 / rho), x * (1.0 / rho)) } else { theta.sin_cos() };
+        let (sr, cr) = r.to_radians().sin_cos();
+        minus = (minus.0 + (st * cr - ct * sr), minus.1 + (ct * cr + st * sr));
+        plus = (plus.0 + (st * cr + ct * sr), plus.1 + (ct * cr - st * sr));
+    }
     let resultant = |(s, c): (f64, f64)| s * s + c * c;
     let orientation = (resultant(minus) - resultant(plus)) / 4.0;
     if orientation.abs() <= 1e-9 * nf * nf {
@@ -191,29 +215,21 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
         normal = scale(normal, -1.0);
         v = scale(v, -1.0);
         b = -b;
+        // `atan2` is odd in `y`, to the bit.
         raw.iter_mut().for_each(|t| *t = -*t);
     }
 
     // 4. Zero: the mean over the fit points of wrap_180(raw - zero - readout) is zero.
     // A circular mean first (robust to the wrap), then the arithmetic mean of the
-    // wrapped differences around it.
-    // The raw angles become the differences in place (a vector each would
-    // be the refit's peak).
-    let mut diffs = raw;
-    diffs.iter_mut().zip(readouts_deg).for_each(|(t, r)| *t -= r);
-    // Unflipped, the differences are the angles the orientation's first
-    // resultant summed (`t + -1 r` is `t - r` to the bit): its sums serve.
-    let (s, c) = if orientation < 0.0 {
-        diffs.iter().fold((0.0, 0.0), |(s, c), d| (s + d.to_radians().sin(), c + d.to_radians().cos()))
-    } else {
-        minus
-    };
+    // wrapped differences around it. Flipped, e^{i(-theta - r)} is the
+    // conjugate of e^{i(theta + r)}: the orientation's sums serve both ways.
+    let (s, c) = if orientation < 0.0 { (-plus.0, plus.1) } else { minus };
     let z0 = s.atan2(c).to_degrees();
-    let z = z0 + diffs.iter().map(|d| wrap_180(d - z0)).sum::<f64>() / nf;
+    let z = z0 + raw.iter().zip(readouts_deg()).map(|(t, r)| wrap_180(t.to_degrees() - r - z0)).sum::<f64>() / nf;
 
     a *= spread;
     b *= spread;
-    Ok(AxisFit {
+    let fit = AxisFit {
         center_mm: add(centroid, add(scale(u, a), scale(v, b))),
         normal,
         u,
@@ -223,7 +239,17 @@ pub fn fit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<AxisFit,
         plane_rms_mm,
         circle_rms_mm,
         points: n,
-    })
+    };
+    Ok((fit, raw))
+}
+
+/// `hypot(x, y)` by a plain square root where the squares can neither
+/// overflow nor underflow (within a few ulps of `hypot`, and far quicker:
+/// the refit takes several per sample), `hypot` itself elsewhere.
+#[inline]
+fn norm2(x: f64, y: f64) -> f64 {
+    let q = (x * x + y * y).sqrt();
+    if (1e-150..1e150).contains(&q) { q } else { x.hypot(y) }
 }
 
 /// The axis fitted again from a whole survey's SMR positions (see [`refit_axis`]).
@@ -277,33 +303,37 @@ pub struct Refit {
 /// uncertainty (a tilt of microradians) changes angles only at second order
 /// and is left out.
 pub fn refit_axis(points_mm: &[[f64; 3]], readouts_deg: &[f64]) -> Result<Refit, GeometryError> {
-    refit_axis_with_angles(points_mm, readouts_deg).map(|(refit, _)| refit)
+    refit_axis_with_angles(points_mm, || readouts_deg.iter().copied()).map(|(refit, _)| refit)
 }
 
 /// [`refit_axis`], and the raw angle of every position around the refitted
 /// axis ([`AxisFit::raw_angle`], in the order of `points_mm`, the dropped
 /// ones too): what the centre's uncertainty takes, and what
 /// [`AxisFit::angle_of_raw`] turns into the positions' angles without a
-/// second `atan2` each.
-pub fn refit_axis_with_angles(
+/// second `atan2` each. `readouts_deg` makes the readouts anew for each
+/// pass over them (a survey's are its samples': a copy of them was 8 bytes
+/// a sample at the refit's peak).
+pub fn refit_axis_with_angles<I: Iterator<Item = f64>>(
     points_mm: &[[f64; 3]],
-    readouts_deg: &[f64],
+    readouts_deg: impl Fn() -> I,
 ) -> Result<(Refit, Vec<f64>), GeometryError> {
-    let first = fit_axis(points_mm, readouts_deg)?;
+    let (first, first_raw) = fit_axis_with_angles(points_mm, &readouts_deg)?;
     // Few or none: the points kept are the others.
     let beyond = beyond_limit(&first, points_mm);
     let dropped = beyond.len();
     let kept = points_mm.len() - dropped;
     let refitted = dropped != 0 && kept >= 3;
     let is_kept = |i: &usize| beyond.binary_search(i).is_err();
-    let fit = if refitted {
+    let (fit, raw) = if refitted {
+        drop(first_raw);
         let pts: Vec<[f64; 3]> = (0..points_mm.len()).filter(is_kept).map(|i| points_mm[i]).collect();
-        let ro: Vec<f64> = (0..points_mm.len()).filter(is_kept).map(|i| readouts_deg[i]).collect();
-        fit_axis(&pts, &ro)?
+        let ro: Vec<f64> = readouts_deg().enumerate().filter(|(i, _)| is_kept(i)).map(|(_, r)| r).collect();
+        let fit = fit_axis(&pts, &ro)?;
+        let raw: Vec<f64> = points_mm.iter().map(|&p| fit.raw_angle(p)).collect();
+        (fit, raw)
     } else {
-        first
+        (first, first_raw)
     };
-    let raw: Vec<f64> = points_mm.iter().map(|&p| fit.raw_angle(p)).collect();
     let knowledge = if refitted {
         center_knowledge(&fit, || (0..points_mm.len()).filter(is_kept).map(|i| (points_mm[i], raw[i])))
     } else {
@@ -322,64 +352,28 @@ pub fn refit_axis_with_angles(
 }
 
 /// The indices of the points whose distance from the circle and plane of
-/// `fit` (`hypot` of the in-plane and the out-of-plane distance) is beyond 5
-/// robust standard deviations (1.4826 x the median distance), ascending;
+/// `fit` (the norm of the in-plane and the out-of-plane distance) is beyond
+/// 5 robust standard deviations (1.4826 x the median distance), ascending;
 /// none when that median is 0.
 ///
-/// `hypot` is within an ulp but slow, and this is a pass over every sample.
-/// Each distance is first estimated by a plain square root, within `REL` of
-/// `hypot`'s (a few ulps; `hypot` itself where squares could overflow or
-/// underflow), and `hypot` is taken only where those bounds cannot decide:
-/// for the few distances next to the median and to the limit. The median
-/// and the points kept are the ones `hypot` everywhere gives.
+/// Each distance is made again on the second pass rather than kept (8 bytes
+/// a point at the refit's peak): the vector the median is selected in is
+/// the only one.
 fn beyond_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
-    const REL: f64 = 1e-14;
-    let parts = |p: [f64; 3]| {
-        let d = sub(p, fit.center_mm);
+    let distance = |p: &[f64; 3]| {
+        let d = sub(*p, fit.center_mm);
         let h = dot(d, fit.normal);
         let in_plane = sub(d, scale(fit.normal, h));
-        (dot(in_plane, in_plane).sqrt() - fit.radius_mm, h)
+        norm2(dot(in_plane, in_plane).sqrt() - fit.radius_mm, h)
     };
-    let exact = |i: usize| {
-        let (a, h) = parts(points_mm[i]);
-        a.hypot(h)
-    };
-    // Each distance's estimate, and whether it is hypot's (an estimate is
-    // within REL of it), made again on each of the three passes rather than
-    // kept: a square root costs less than 9 bytes a point at the refit's peak.
-    let estimate = |i: usize| {
-        let (a, h) = parts(points_mm[i]);
-        let q = (a * a + h * h).sqrt();
-        if (1e-150..1e150).contains(&q) { (q, false) } else { (a.hypot(h), true) }
-    };
-    let bounds = |(v, exact): (f64, bool)| if exact { (v, v) } else { (v * (1.0 - REL), v * (1.0 + REL)) };
-    // The median: the estimates' median `q` bounds it within [q (1 - REL),
-    // q (1 + REL)]; the distances certainly below that band are below it,
-    // those certainly above above it, and it is found among the others.
-    let mid = points_mm.len() / 2;
-    let mut sorted: Vec<f64> = (0..points_mm.len()).map(|i| estimate(i).0).collect();
-    let q = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let (band_lo, band_hi) = (q * (1.0 - REL), q * (1.0 + REL));
-    let mut below = 0;
-    sorted.clear();
-    for i in 0..points_mm.len() {
-        let e = estimate(i);
-        let (lo, hi) = bounds(e);
-        if hi < band_lo {
-            below += 1;
-        } else if lo <= band_hi {
-            sorted.push(if e.1 { e.0 } else { exact(i) });
-        }
-    }
-    let mad = *sorted.select_nth_unstable_by(mid - below, f64::total_cmp).1;
-    drop(sorted);
+    let mut distances: Vec<f64> = points_mm.iter().map(distance).collect();
+    let mad = *distances.select_nth_unstable_by(points_mm.len() / 2, f64::total_cmp).1;
+    drop(distances);
     let limit = 5.0 * 1.4826 * mad;
-    (0..points_mm.len())
-        .filter(|&i| {
-            let (lo, hi) = bounds(estimate(i));
-            !(limit <= 0.0 || hi <= limit || (lo <= limit && exact(i) <= limit))
-        })
-        .collect()
+    if limit <= 0.0 {
+        return Vec::new();
+    }
+    points_mm.iter().enumerate().filter(|(_, p)| distance(p) > limit).map(|(i, _)| i).collect()
 }
 
 /// How well a fitted circle's centre is known from its points.
@@ -401,21 +395,32 @@ fn center_knowledge<I: Iterator<Item = ([f64; 3], f64)>>(fit: &AxisFit, points: 
     // direction, and its angle is left out with it.
     let mut at_centre = Vec::new();
     let mut count = 0usize;
-    for (k, (p, _)) in points().enumerate() {
+    // A point's direction from the centre (the sine and the cosine of its
+    // raw angle, as quotients), made again for each pass over the points
+    // rather than kept: `None` at the centre.
+    let direction = |p: [f64; 3]| {
         let d = sub(p, fit.center_mm);
         let (x, y) = (dot(d, fit.u), dot(d, fit.v));
-        let dist = x.hypot(y);
-        if dist == 0.0 {
+        let dist = norm2(x, y);
+        (dist != 0.0).then_some((x, y, dist))
+    };
+    // Sums of the sine and the cosine of the raw angles.
+    let (mut sum_sin, mut sum_cos) = (0.0, 0.0);
+    for (k, (p, _)) in points().enumerate() {
+        let Some((x, y, dist)) = direction(p) else {
             at_centre.push(k);
             continue;
-        }
-        let jac = [-x / dist, -y / dist, -1.0];
+        };
+        let (c, s) = (x * (1.0 / dist), y * (1.0 / dist));
+        let jac = [-c, -s, -1.0];
         for i in 0..3 {
             for j in 0..3 {
                 jtj[i][j] += jac[i] * jac[j];
             }
         }
         ss += (dist - fit.radius_mm).powi(2);
+        sum_sin += s;
+        sum_cos += c;
         count += 1;
     }
     let phi = || points().enumerate().filter(|(k, _)| at_centre.binary_search(k).is_err()).map(|(_, (_, raw))| raw);
@@ -435,17 +440,13 @@ fn center_knowledge<I: Iterator<Item = ([f64; 3], f64)>>(fit: &AxisFit, points: 
     let worst_se_mm = worst.max(0.0).sqrt();
     // The angle error a centre error makes at phi, per unit of (dc_u, dc_v):
     // g(phi) = (sin phi, -cos phi) / R; its mean over the points removed.
-    // Each angle's sine and cosine for the mean, then again for the maximum
-    // (a vector of them would be 16 bytes a sample at the refit's peak).
     let r = fit.radius_mm;
     let m = count.max(1) as f64;
-    let (gs, gc) = phi().fold((0.0, 0.0), |(s, c), p| {
-        let (sin, cos) = p.sin_cos();
-        (s + sin / m, c + cos / m)
-    });
-    let mut over_arc = 0.0f64;
-    for (sin, cos) in phi().map(|p| p.sin_cos()) {
-        let g = [(sin - gs) / r, (-cos + gc) / r];
+    let (gs, gc) = (sum_sin / m, sum_cos / m);
+    let (mut over_arc, inv_r) = (0.0f64, 1.0 / r);
+    for (x, y, dist) in points().filter_map(|(p, _)| direction(p)) {
+        let inv = 1.0 / dist;
+        let g = [(y * inv - gs) * inv_r, (-x * inv + gc) * inv_r];
         let var = g[0] * g[0] * a + 2.0 * g[0] * g[1] * b + g[1] * g[1] * c;
         over_arc = over_arc.max(var);
     }
@@ -566,14 +567,19 @@ fn fit_circle<I: Iterator<Item = [f64; 2]>>(xy: impl Fn() -> I + Copy) -> Option
     // Gauss-Newton on r_k = |q_k - c| - r, halving a step that does not reduce
     // the cost. The cost at a point and the normal equations there take the
     // same distances: both come from one pass, so an accepted step's pass
-    // also gives the next step's equations. A step at the convergence
-    // tolerance ends the fit whether it is taken or not: one that does not
-    // reduce the cost is not halved further (at convergence the cost no longer
-    // falls but by rounding, and twenty halvings cost twenty passes).
+    // also gives the next step's equations. A step within the convergence
+    // tolerance ends the fit untaken (it moves the circle by less than
+    // rounding, and taking it would cost a pass); a halved step reaching it
+    // ends the fit whether it is taken or not: one that does not reduce the
+    // cost is not halved further (at convergence the cost no longer falls
+    // but by rounding, and twenty halvings cost twenty passes).
     let mut current = gauss_newton_pass(xy(), a, b, r);
     for _ in 0..50 {
         let Some(step) = solve3(current.jtj, current.jtr) else { break };
         let (norm, tolerance) = ((step[0].powi(2) + step[1].powi(2) + step[2].powi(2)).sqrt(), 1e-14 * (1.0 + r));
+        if norm <= tolerance {
+            break;
+        }
         let mut k = 1.0;
         let mut accepted = false;
         for _ in 0..20 {
@@ -608,23 +614,32 @@ struct GaussNewtonPass {
 }
 
 fn gauss_newton_pass(xy: impl Iterator<Item = [f64; 2]>, a: f64, b: f64, r: f64) -> GaussNewtonPass {
-    let mut pass = GaussNewtonPass { cost: 0.0, jtj: [[0.0; 3]; 3], jtr: [0.0; 3] };
+    // The Jacobian's row is `(-dx / dist, -dy / dist, -1)`: the sums of
+    // `JᵀJ`'s five distinct entries besides the count, and of `Jᵀr`.
+    let (mut cost, mut count) = (0.0, 0.0);
+    let (mut xx, mut xy_, mut yy, mut x, mut y) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut rx, mut ry, mut rr) = (0.0, 0.0, 0.0);
     for q in xy {
-        let dist = (q[0] - a).hypot(q[1] - b);
+        let (dx, dy) = (q[0] - a, q[1] - b);
+        let dist = norm2(dx, dy);
         let res = dist - r;
-        pass.cost += res.powi(2);
+        cost += res * res;
         if dist == 0.0 {
             continue;
         }
-        let jac = [-(q[0] - a) / dist, -(q[1] - b) / dist, -1.0];
-        for i in 0..3 {
-            for j in 0..3 {
-                pass.jtj[i][j] += jac[i] * jac[j];
-            }
-            pass.jtr[i] -= jac[i] * res;
-        }
+        let inv = 1.0 / dist;
+        let (jx, jy) = (-dx * inv, -dy * inv);
+        xx += jx * jx;
+        xy_ += jx * jy;
+        yy += jy * jy;
+        x += jx;
+        y += jy;
+        count += 1.0;
+        rx += jx * res;
+        ry += jy * res;
+        rr += res;
     }
-    pass
+    GaussNewtonPass { cost, jtj: [[xx, xy_, -x], [xy_, yy, -y], [-x, -y, count]], jtr: [-rx, -ry, rr] }
 }
 
 /// Solves `m x = rhs` by Gaussian elimination with partial pivoting; `None`

@@ -65,10 +65,15 @@ fn interp(grid: &[f64], theta_deg: f64) -> f64 {
 /// (a directional column's half backlash: its true angle is `r - g - offset`).
 fn through_true_angle(grid: &[f64], readouts: &[f64], offset: f64) -> Vec<f64> {
     let mean = grid.iter().sum::<f64>() / grid.len() as f64;
+    // A readout's iterations start from the previous readout's `theta - (r -
+    // offset)`: the readouts come in order, a target or a row apart, and
+    // `g` changes little between them, so fewer iterations reach the fixed
+    // point (the first starts from the readout itself).
+    let mut previous = 0.0;
     readouts
         .iter()
         .map(|&r| {
-            let mut theta = r - offset;
+            let mut theta = r - offset + previous;
             for _ in 0..THETA_ITERATIONS {
                 let next = r - offset - (interp(grid, theta) - mean);
                 // At a fixed point the iterations left would not move it.
@@ -77,6 +82,7 @@ fn through_true_angle(grid: &[f64], readouts: &[f64], offset: f64) -> Vec<f64> {
                 }
                 theta = next;
             }
+            previous = theta - (r - offset);
             interp(grid, theta)
         })
         .collect()

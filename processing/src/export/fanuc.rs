@@ -36,8 +36,8 @@
 //! like the positive one). Where within a section the control outputs a value
 //! is not modelled: [`Applied`] interpolates linearly, exact at the points.
 
-use super::Applied;
 use super::layout::{Grid, Reader, whole};
+use super::{Applied, AppliedLine};
 use crate::Direction;
 use crate::num::Num;
 use std::fmt::Write as _;
@@ -365,19 +365,13 @@ impl Applied for FanucTable {
     /// The cumulative compensation, relative to the reference point, linear
     /// between points; a rotary table repeats every revolution, a linear one
     /// holds its ends.
-    fn removed_deg(&self, position_deg: f64, direction: Direction) -> f64 {
+    fn applied(&self, direction: Direction) -> AppliedLine {
         let col = match (direction, &self.reverse) {
             (Direction::Reverse, Some(r)) => r,
             _ => &self.forward,
         };
         let scale = self.options.unit_deg * self.options.magnification as f64;
-        let g = &self.grid;
-        let p = if self.rotary {
-            g.start_deg + crate::types::rem_euclid_360(position_deg - g.start_deg)
-        } else {
-            position_deg
-        };
-        super::interpolate_held_by(g.points, |i| g.position(i), |i| col.absolute[i] as f64 * scale, p)
+        AppliedLine::new(&self.grid, col.absolute.iter().map(|&r| r as f64 * scale).collect(), self.rotary)
     }
 
     fn range_deg(&self) -> (f64, f64) {

@@ -23,8 +23,8 @@
 //! the axis reaches) or `nominal  error_fwd  error_rev` (type 1), ascending
 //! nominals, 10 decimals.
 
-use super::Applied;
 use super::layout::{Grid, Reader};
+use super::{Applied, AppliedLine};
 use crate::Direction;
 use std::fmt::Write as _;
 
@@ -34,8 +34,8 @@ pub const MAX_POINTS: usize = 256;
 /// A joint compensation table: nominal joint positions and the trims.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinuxCncTable {
-    /// Nominal joint positions, strictly increasing, degrees.
-    pub nominal_deg: Vec<f64>,
+    /// The nominal joint positions, degrees: a uniform grid.
+    pub grid: Grid,
     /// Trim while moving up (our forward error), degrees.
     pub forward_deg: Vec<f64>,
     /// Trim while moving down (our reverse error), degrees.
@@ -59,17 +59,14 @@ impl LinuxCncTable {
             return Err(LinuxCncError::TooManyPoints(grid.points));
         }
         let col = |d| reader.column(grid, d).into_iter().map(|e| e - offset_deg).collect();
-        Ok(Self {
-            nominal_deg: (0..grid.points).map(|i| grid.position(i)).collect(),
-            forward_deg: col(Direction::Forward),
-            reverse_deg: col(Direction::Reverse),
-        })
+        Ok(Self { grid: *grid, forward_deg: col(Direction::Forward), reverse_deg: col(Direction::Reverse) })
     }
 
     /// The file of `COMP_FILE_TYPE` 0 (positions) or 1 (trims).
     pub fn text(&self, file_type: u8) -> String {
-        let mut s = String::with_capacity(self.nominal_deg.len() * 48);
-        for ((n, f), r) in self.nominal_deg.iter().zip(&self.forward_deg).zip(&self.reverse_deg) {
+        let mut s = String::with_capacity(self.grid.points * 48);
+        let nominal = (0..self.grid.points).map(|i| self.grid.position(i));
+        for ((n, f), r) in nominal.zip(&self.forward_deg).zip(&self.reverse_deg) {
             let (a, b) = if file_type == 0 { (n - f, n - r) } else { (*f, *r) };
             let _ = writeln!(s, "{n:.10} {a:.10} {b:.10}");
         }
@@ -80,15 +77,15 @@ impl LinuxCncTable {
 impl Applied for LinuxCncTable {
     /// `control.c`: the trim at the commanded position, linear between entries,
     /// the end values outside.
-    fn removed_deg(&self, position_deg: f64, direction: Direction) -> f64 {
+    fn applied(&self, direction: Direction) -> AppliedLine {
         let trims = match direction {
             Direction::Forward => &self.forward_deg,
             Direction::Reverse => &self.reverse_deg,
         };
-        super::interpolate_held(&self.nominal_deg, trims, position_deg)
+        AppliedLine::new(&self.grid, trims.clone(), false)
     }
 
     fn range_deg(&self) -> (f64, f64) {
-        (self.nominal_deg[0], self.nominal_deg[self.nominal_deg.len() - 1])
+        (self.grid.start_deg, self.grid.end_deg())
     }
 }

@@ -37,6 +37,7 @@ mod tests;
 
 use crate::Direction;
 use crate::table::CorrectionTable;
+use layout::Grid;
 use std::fmt::Write as _;
 
 /// The contract's table CSV.
@@ -62,50 +63,66 @@ pub fn table_csv(table: &CorrectionTable) -> String {
 /// How a controller applies its table, for predicting what it leaves: the
 /// error it removes at a position (the corrected error is `e - removed`).
 pub trait Applied {
-    /// The error removed at `position_deg` for motion in `direction`, degrees.
-    fn removed_deg(&self, position_deg: f64, direction: Direction) -> f64;
+    /// The error the table removes for motion in `direction`, as the
+    /// controller interpolates it.
+    fn applied(&self, direction: Direction) -> AppliedLine;
     /// The positions the table covers (infinite for a modulo table).
     fn range_deg(&self) -> (f64, f64);
+    /// The error removed at `position_deg` for motion in `direction`,
+    /// degrees (a line made for the one position: [`Applied::applied`]
+    /// once, then [`AppliedLine::at`], for many).
+    fn removed_deg(&self, position_deg: f64, direction: Direction) -> f64 {
+        self.applied(direction).at(position_deg)
+    }
 }
 
-/// Linear interpolation in `ys` over ascending `xs`, the end values held
-/// outside (LinuxCNC's `control.c` and a non-modulo 840D table).
-pub(crate) fn interpolate_held(xs: &[f64], ys: &[f64], p: f64) -> f64 {
-    interpolate_held_by(xs.len(), |i| xs[i], |i| ys[i], p)
+/// A controller table for one direction of motion as the controller applies
+/// it: the error removed at each point of a uniform grid, linear between
+/// points; a modulo (rotary) table first brings a position into the
+/// revolution from its grid's start, and beyond the points the end values
+/// hold (LinuxCNC's `control.c`, a non-modulo 840D table, a linear Fanuc
+/// table, and the last section of a rotary Fanuc one).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AppliedLine {
+    start_deg: f64,
+    /// Points per degree: a position's place on the grid is a product.
+    per_deg: f64,
+    removed_deg: Vec<f64>,
+    modulo: bool,
 }
 
-/// [`interpolate_held`] over `n` points given by index (`x(i)` ascending):
-/// a table whose positions or values are computed reads only the two points
-/// around `p`, so predicting it on every sample builds nothing.
-pub(crate) fn interpolate_held_by(n: usize, x: impl Fn(usize) -> f64, y: impl Fn(usize) -> f64, p: f64) -> f64 {
-    if p <= x(0) {
-        return y(0);
+impl AppliedLine {
+    /// `removed_deg` at the points of `grid` (one value a point), modulo
+    /// 360 degrees from the grid's start or not.
+    pub fn new(grid: &Grid, removed_deg: Vec<f64>, modulo: bool) -> Self {
+        assert_eq!(removed_deg.len(), grid.points, "a value for each point of the grid");
+        assert!(grid.points >= 1 && grid.interval_deg > 0.0, "a grid of points ascending");
+        AppliedLine { start_deg: grid.start_deg, per_deg: 1.0 / grid.interval_deg, removed_deg, modulo }
     }
-    if p >= x(n - 1) {
-        return y(n - 1);
-    }
-    // The first index whose position is above p (`partition_point`), minus one.
-    // The index where p would fall on evenly spaced points is tried first:
-    // on a controller's grid it is right but for rounding, and two
-    // comparisons then end the search.
-    let (mut lo, mut hi) = (0, n);
-    let (x0, xn) = (x(0), x(n - 1));
-    let guess = (((p - x0) / (xn - x0) * (n - 1) as f64) as usize).min(n - 1);
-    if x(guess) <= p {
-        lo = guess + 1;
-        if lo < n && x(lo) > p {
-            hi = lo;
+
+    /// The error removed at `position_deg`, degrees: a product, a
+    /// comparison and a linear interpolation (no search: it is taken at
+    /// every sample of a survey, for every controller).
+    pub fn at(&self, position_deg: f64) -> f64 {
+        let p = if self.modulo {
+            self.start_deg + crate::types::rem_euclid_360(position_deg - self.start_deg)
+        } else {
+            position_deg
+        };
+        let v = &self.removed_deg;
+        let last = v.len() - 1;
+        // The place on the grid, in points from its start.
+        let t = (p - self.start_deg) * self.per_deg;
+        if t.is_nan() || t <= 0.0 {
+            return v[0];
         }
-    } else {
-        hi = guess;
+        if t >= last as f64 {
+            return v[last];
+        }
+        // `t` is positive: `as` is its floor, below `last`.
+        let i = t as usize;
+        v[i] + (v[i + 1] - v[i]) * (t - i as f64)
     }
-    while lo < hi {
-        let mid = lo + (hi - lo) / 2;
-        if x(mid) <= p { lo = mid + 1 } else { hi = mid }
-    }
-    let i = lo - 1;
-    let (x0, x1, y0, y1) = (x(i), x(i + 1), y(i), y(i + 1));
-    y0 + (y1 - y0) * (p - x0) / (x1 - x0)
 }
 
 /// The corrected peak error (`max |e - removed - mean|`) a controller's table
@@ -126,14 +143,16 @@ pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, period
         vec![0]
     };
     let tol = 1e-9;
+    let lines = [table.applied(Direction::Forward), table.applied(Direction::Reverse)];
     // (count, sum, least, largest) of each turn's errors; the sum in their
     // order from -0.0, as `Iterator::sum` takes it.
     let mut folds = vec![(0usize, -0.0f64, f64::INFINITY, f64::NEG_INFINITY); turns.len()];
     for s in samples {
+        let line = &lines[usize::from(s.direction == Direction::Reverse)];
         for (&k, fold) in turns.iter().zip(folds.iter_mut()) {
             let p = s.readout_deg + 360.0 * k as f64;
             if p >= lo - tol && p <= hi + tol {
-                let e = s.error_deg() - table.removed_deg(p, s.direction);
+                let e = s.error_deg() - line.at(p);
                 *fold = (fold.0 + 1, fold.1 + e, fold.2.min(e), fold.3.max(e));
             }
         }
@@ -158,8 +177,21 @@ mod csv_tests {
     }
 
     impl Applied for Smooth {
-        fn removed_deg(&self, p: f64, direction: Direction) -> f64 {
-            0.004 * (3.0 * p).to_radians().sin() + if direction == Direction::Reverse { 0.001 } else { 0.0 }
+        /// The smooth error at a point every 0.1 deg of the range (one
+        /// revolution, modulo, for an infinite one).
+        fn applied(&self, direction: Direction) -> AppliedLine {
+            let (lo, hi) = self.range;
+            let modulo = !(lo.is_finite() && hi.is_finite());
+            let (start_deg, end_deg) = if modulo { (0.0, 360.0) } else { (lo, hi) };
+            let points = ((end_deg - start_deg) * 10.0).round() as usize + 1;
+            let grid = Grid { start_deg, interval_deg: (end_deg - start_deg) / (points - 1) as f64, points };
+            let removed = (0..points)
+                .map(|i| {
+                    let p = grid.position(i);
+                    0.004 * (3.0 * p).to_radians().sin() + if direction == Direction::Reverse { 0.001 } else { 0.0 }
+                })
+                .collect();
+            AppliedLine::new(&grid, removed, modulo)
         }
         fn range_deg(&self) -> (f64, f64) {
             self.range
@@ -225,12 +257,30 @@ mod csv_tests {
 
     #[test]
     fn held_interpolation_is_control_c() {
-        let xs = [0.0, 10.0, 20.0];
-        let ys = [1.0, 3.0, -1.0];
-        assert_eq!(interpolate_held(&xs, &ys, -5.0), 1.0);
-        assert_eq!(interpolate_held(&xs, &ys, 5.0), 2.0);
-        assert_eq!(interpolate_held(&xs, &ys, 10.0), 3.0);
-        assert_eq!(interpolate_held(&xs, &ys, 15.0), 1.0);
-        assert_eq!(interpolate_held(&xs, &ys, 25.0), -1.0);
+        let grid = Grid { start_deg: 0.0, interval_deg: 10.0, points: 3 };
+        let line = AppliedLine::new(&grid, vec![1.0, 3.0, -1.0], false);
+        assert_eq!(line.at(-5.0), 1.0);
+        assert_eq!(line.at(5.0), 2.0);
+        assert_eq!(line.at(10.0), 3.0);
+        assert_eq!(line.at(15.0), 1.0);
+        assert_eq!(line.at(20.0), -1.0);
+        assert_eq!(line.at(25.0), -1.0);
+    }
+
+    #[test]
+    fn a_modulo_line_repeats_every_revolution_from_its_start() {
+        // A rotary table from its reference point at 30 deg, a point every
+        // 120 deg; past the last point the last section holds its end.
+        let grid = Grid { start_deg: 30.0, interval_deg: 120.0, points: 3 };
+        let line = AppliedLine::new(&grid, vec![0.0, 1.2, 2.4], true);
+        for turns in [-2.0, -1.0, 0.0, 1.0, 5.0] {
+            let at = |p: f64| line.at(p + 360.0 * turns);
+            assert!((at(30.0) - 0.0).abs() < 1e-12);
+            assert!((at(90.0) - 0.6).abs() < 1e-12);
+            assert!((at(210.0) - 1.8).abs() < 1e-12);
+            assert!((at(300.0) - 2.4).abs() < 1e-12);
+            // 10 deg is 340 past the start: beyond the last point, held.
+            assert!((at(10.0) - 2.4).abs() < 1e-12);
+        }
     }
 }

@@ -36,8 +36,8 @@
 //! (`C1` by default, the first C axis; `A1`, `B1`, `AX4` are others). Values
 //! are written with 7 decimals (1e-7 deg), positions with up to 9.
 
-use super::Applied;
 use super::layout::{Grid, Reader};
+use super::{Applied, AppliedLine};
 use crate::Direction;
 use std::fmt::Write as _;
 
@@ -158,10 +158,8 @@ pub(crate) fn number(x: f64, decimals: usize) -> String {
 impl Applied for Sinumerik840d {
     /// The control adds the interpolated value to the measured position: the
     /// error it removes is minus the value; modulo wraps, else the ends hold.
-    fn removed_deg(&self, position_deg: f64, _direction: Direction) -> f64 {
-        let g = &self.grid;
-        let p = if self.modulo { crate::types::rem_euclid_360(position_deg) } else { position_deg };
-        -super::interpolate_held_by(g.points, |i| g.position(i), |i| self.values_deg[i], p)
+    fn applied(&self, _direction: Direction) -> AppliedLine {
+        AppliedLine::new(&self.grid, self.values_deg.iter().map(|v| -v).collect(), self.modulo)
     }
 
     fn range_deg(&self) -> (f64, f64) {

@@ -37,7 +37,7 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
         base.effects[i] = zeroed(&base.effects[i]);
     }
     let rest = survey.predict(&base);
-    let target: Vec<f64> = survey.y.iter().zip(&rest).map(|(y, p)| y - p).collect();
+    let target: Vec<f64> = survey.ys().zip(&rest).map(|(y, p)| y - p).collect();
     let n = survey.len();
     let mut columns = vec![vec![1.0; n]];
     let mut owner = vec![usize::MAX];
@@ -45,7 +45,7 @@ pub(crate) fn refit(survey: &Survey, model: &mut Model, touched: &[usize], sigma
         match &model.effects[i] {
             Effect::Periodic { cycles_per_rev, .. } => {
                 let (s, c): (Vec<f64>, Vec<f64>) =
-                    survey.angle_deg.iter().map(|a| (cycles_per_rev * a).to_radians().sin_cos()).unzip();
+                    survey.angles().map(|a| (cycles_per_rev * a).to_radians().sin_cos()).unzip();
                 columns.push(s);
                 columns.push(c);
                 owner.extend([k, k]);

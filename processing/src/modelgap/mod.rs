@@ -2,8 +2,9 @@
 //! each disagreement is, and the model that closes the gap.
 //!
 //! [`model_gap`] simulates the model at the survey's samples with the model
-//! code the simulators run ([`Model::systematic_error_deg`], evaluated at the
-//! measured actual angle because the simulators read `readout = actual +
+//! code the simulators run ([`Model::systematic_error_deg`], its effects
+//! sorted out once: [`crate::model::Systematic`], the same sums; evaluated at
+//! the measured actual angle because the simulators read `readout = actual +
 //! e(actual)` with the servo holding the readout on target), fits the constant
 //! offset between model and data (a matter of zero reference: always fitted,
 //! never reported), and looks at the residual four ways ([`Views`]):
@@ -469,7 +470,7 @@ impl Gap<'_> {
     /// Sum of squared residuals of the data against the model and offset.
     fn rss(&self) -> f64 {
         let p = self.ctx.survey.predict(&self.model);
-        self.ctx.survey.y.iter().zip(&p).map(|(y, p)| (y - p - self.offset).powi(2)).sum()
+        self.ctx.survey.ys().zip(&p).map(|(y, p)| (y - p - self.offset).powi(2)).sum()
     }
 
     /// A drift just added as a ramp: fit it as a step too and keep the shape
@@ -694,7 +695,7 @@ pub fn model_gap(samples: &[Sample], model: &Model, options: &ModelGapOptions) -
     };
     let numerical_floor = {
         let angle = survey.samples.iter().fold(1.0f64, |m, s| m.max(s.actual_deg.abs()).max(s.target_deg.abs()));
-        let rms = (survey.y.iter().map(|v| v * v).sum::<f64>() / survey.len() as f64).sqrt();
+        let rms = (survey.ys().map(|v| v * v).sum::<f64>() / survey.len() as f64).sqrt();
         (1e-12 * rms).max(8.0 * f64::EPSILON * angle)
     };
     let mut ctx = Ctx {

@@ -4,7 +4,7 @@
 use super::ModelGapError;
 use crate::errormap::ErrorMap;
 use crate::iso230::TargetGroups;
-use crate::model::{DriftTime, Model};
+use crate::model::{DriftTime, Model, Systematic};
 use crate::types::{Direction, Sample};
 use serde::Serialize;
 
@@ -41,14 +41,12 @@ pub(crate) struct Survey<'a> {
     pub tau: Vec<f64>,
     /// Per sample: the run's place among the survey's runs, from 0 (the time of a step).
     pub run_index: Vec<f64>,
-    /// Per sample: the axis angle the model is evaluated at, degrees: the
-    /// measured actual angle plus [`Survey::angle_shift_deg`].
-    pub angle_deg: Vec<f64>,
     /// The reference's zero against the model's axis angle, degrees (see
-    /// [`Survey::set_angle_shift`]).
+    /// [`Survey::set_angle_shift`]): a sample's axis angle is its measured
+    /// actual angle plus this ([`Survey::angle_at`]; made from the samples
+    /// when asked, as the measured error is: [`Survey::y_at`]. Two vectors
+    /// of them were 16 bytes a sample at model-gap's peak).
     pub angle_shift_deg: f64,
-    /// Per sample: the measured error `readout - actual`.
-    pub y: Vec<f64>,
     pub timebase: Timebase,
     /// Mean run duration, seconds (with timestamps).
     pub run_duration_s: Option<f64>,
@@ -70,10 +68,8 @@ impl<'a> Survey<'a> {
             samples.iter().map(|s| map.runs.binary_search(&s.run).expect("every run is in the map") as u32).collect();
         let dir: Vec<u8> =
             samples.iter().map(|s| dirs.iter().position(|d| *d == s.direction).expect("measured") as u8).collect();
-        let y: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
         let (tau, timebase, run_duration_s) = time_in_runs(samples, &run, map.runs.len());
         let run_index = run.iter().map(|&r| f64::from(r)).collect();
-        let angle_deg = samples.iter().map(|s| s.actual_deg).collect();
         Ok(Survey {
             samples,
             groups,
@@ -84,9 +80,7 @@ impl<'a> Survey<'a> {
             dirs,
             tau,
             run_index,
-            angle_deg,
             angle_shift_deg: 0.0,
-            y,
             timebase,
             run_duration_s,
         })
@@ -105,9 +99,27 @@ impl<'a> Survey<'a> {
     /// of 36000 points.)
     pub fn set_angle_shift(&mut self, shift_deg: f64) {
         self.angle_shift_deg = shift_deg;
-        for (a, s) in self.angle_deg.iter_mut().zip(self.samples) {
-            *a = s.actual_deg + shift_deg;
-        }
+    }
+
+    /// Sample `i`'s axis angle, the model's: its measured actual angle
+    /// plus the shift of the zero reference, degrees.
+    pub fn angle_at(&self, i: usize) -> f64 {
+        self.samples[i].actual_deg + self.angle_shift_deg
+    }
+
+    /// Every sample's axis angle ([`Survey::angle_at`]), in order.
+    pub fn angles(&self) -> impl Iterator<Item = f64> + '_ {
+        self.samples.iter().map(|s| s.actual_deg + self.angle_shift_deg)
+    }
+
+    /// Sample `i`'s measured error `readout - actual`.
+    pub fn y_at(&self, i: usize) -> f64 {
+        self.samples[i].error_deg()
+    }
+
+    /// Every sample's measured error ([`Survey::y_at`]), in order.
+    pub fn ys(&self) -> impl Iterator<Item = f64> + '_ {
+        self.samples.iter().map(Sample::error_deg)
     }
 
     /// [`Survey::prepare`], with the zero reference's angle found against
@@ -166,19 +178,19 @@ impl<'a> Survey<'a> {
     /// actual angle with the zero reference's shift), in the sample's
     /// direction, at its time (a ramp by `tau`, a step by the run).
     pub fn predict(&self, model: &Model) -> Vec<f64> {
-        (0..self.len())
-            .map(|i| model.systematic_error_at(self.angle_deg[i], self.direction(i), self.drift_time(i)))
-            .collect()
+        let model = model.systematic();
+        (0..self.len()).map(|i| model.at(self.angle_at(i), self.direction(i), self.drift_time(i))).collect()
     }
 
     /// `y - model` at sample `i`.
-    fn gap_at(&self, model: &Model, i: usize) -> f64 {
-        self.y[i] - model.systematic_error_at(self.angle_deg[i], self.direction(i), self.drift_time(i))
+    fn gap_at(&self, model: &Systematic, i: usize) -> f64 {
+        self.y_at(i) - model.at(self.angle_at(i), self.direction(i), self.drift_time(i))
     }
 
     /// `y - model`, with the constant offset (zero reference) removed; returns the offset too.
     pub fn residual(&self, model: &Model) -> (Vec<f64>, f64) {
-        let mut r: Vec<f64> = (0..self.len()).map(|i| self.gap_at(model, i)).collect();
+        let model = model.systematic();
+        let mut r: Vec<f64> = (0..self.len()).map(|i| self.gap_at(&model, i)).collect();
         let offset = r.iter().sum::<f64>() / r.len() as f64;
         r.iter_mut().for_each(|v| *v -= offset);
         (r, offset)
@@ -187,7 +199,8 @@ impl<'a> Survey<'a> {
     /// The offset of [`Survey::residual`] alone (the same sum, to the bit),
     /// with no vector of the residual.
     pub fn offset(&self, model: &Model) -> f64 {
-        (0..self.len()).map(|i| self.gap_at(model, i)).sum::<f64>() / self.len() as f64
+        let model = model.systematic();
+        (0..self.len()).map(|i| self.gap_at(&model, i)).sum::<f64>() / self.len() as f64
     }
 
     /// The noise floor from the two-way layout runs x cells (cell = target and
@@ -205,7 +218,7 @@ impl<'a> Survey<'a> {
         let mut cells = vec![0.0; r * c];
         for i in 0..self.len() {
             cells[self.run[i] as usize * c + self.target[i] as usize * self.dirs.len() + usize::from(self.dir[i])] =
-                self.y[i];
+                self.y_at(i);
         }
         let run_mean: Vec<f64> = (0..r).map(|k| cells[k * c..(k + 1) * c].iter().sum::<f64>() / c as f64).collect();
         let cell_mean: Vec<f64> = (0..c).map(|j| (0..r).map(|k| cells[k * c + j]).sum::<f64>() / r as f64).collect();

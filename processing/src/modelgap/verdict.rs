@@ -265,7 +265,7 @@ fn axis_location(
 ) -> Option<(ReferenceFinding, Vec<f64>)> {
     let s = ctx.survey;
     let n = residual.len();
-    let (sin, cos): (Vec<f64>, Vec<f64>) = s.angle_deg.iter().map(|a| a.to_radians().sin_cos()).unzip();
+    let (sin, cos): (Vec<f64>, Vec<f64>) = s.angles().map(|a| a.to_radians().sin_cos()).unzip();
     let fit = least_squares(&[&vec![1.0; n], &sin, &cos], residual).ok()?;
     let (a, b) = (fit.coef[1], fit.coef[2]);
     let amplitude = a.hypot(b);
