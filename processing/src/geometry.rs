@@ -162,9 +162,8 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
     // 2. Circle in the plane, in coordinates scaled to the spread of the points.
     let spread = (values[1] + values[2]).sqrt();
     // The projected points are made again on every pass over them (two dot
-    // products) rather than kept: a vector of them was 16 bytes a point at
-    // the refit's peak.
-    // The basis scaled by the spread: two dot products a point, no division.
+    // products with the basis scaled by the spread, no division) rather
+    // than kept: a vector of them was 16 bytes a point at the refit's peak.
     let (us, vs) = (scale(u, 1.0 / spread), scale(v, 1.0 / spread));
     let project = |p: &[f64; 3]| {
         let d = sub(*p, centroid);
