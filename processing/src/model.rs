@@ -136,6 +136,14 @@ impl Effect {
             _ => 0.0,
         }
     }
+
+    /// The contribution of a drift effect at `t`.
+    pub fn drift_at(&self, t: DriftTime) -> f64 {
+        match self {
+            Effect::Drift { rate_deg_per_run, shape } => rate_deg_per_run * shape.runs_at(t),
+            _ => 0.0,
+        }
+    }
 }
 
 /// A positioner error model: its design and its effects.
@@ -282,13 +290,7 @@ impl Model {
 
     /// The drift at `t`, each drift effect by its shape.
     pub fn drift_deg_at(&self, t: DriftTime) -> f64 {
-        self.effects
-            .iter()
-            .map(|e| match e {
-                Effect::Drift { rate_deg_per_run, shape } => rate_deg_per_run * shape.runs_at(t),
-                _ => 0.0,
-            })
-            .sum()
+        self.effects.iter().map(|e| e.drift_at(t)).sum()
     }
 
     /// The systematic readout error at `t` (a ramp by the time, a step by
@@ -301,25 +303,12 @@ impl Model {
     /// The model's systematic error made once to be taken at many samples
     /// ([`Systematic::at`]).
     pub fn systematic(&self) -> Systematic {
-        let periodic = self
-            .effects
-            .iter()
-            .filter_map(|e| match *e {
-                Effect::Periodic { cycles_per_rev, amplitude_deg, phase_deg, .. } => {
-                    Some((cycles_per_rev, amplitude_deg, phase_deg))
-                }
-                _ => None,
-            })
-            .collect();
-        let drift = self
-            .effects
-            .iter()
-            .filter_map(|e| match *e {
-                Effect::Drift { rate_deg_per_run, shape } => Some((rate_deg_per_run, shape)),
-                _ => None,
-            })
-            .collect();
-        Systematic { periodic, half_backlash_deg: self.backlash_deg() / 2.0, drift }
+        let kept = |keep: fn(&Effect) -> bool| self.effects.iter().filter(|e| keep(e)).cloned().collect();
+        Systematic {
+            periodic: kept(|e| matches!(e, Effect::Periodic { .. })),
+            half_backlash_deg: self.backlash_deg() / 2.0,
+            drift: kept(|e| matches!(e, Effect::Drift { .. })),
+        }
     }
 
     /// The periodic effects, in file order.
@@ -335,11 +324,11 @@ impl Model {
 /// every sample of a survey several times over.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Systematic {
-    /// `(cycles_per_rev, amplitude_deg, phase_deg)` of each periodic effect.
-    periodic: Vec<(f64, f64, f64)>,
+    /// The periodic effects.
+    periodic: Vec<Effect>,
     half_backlash_deg: f64,
-    /// `(rate_deg_per_run, shape)` of each drift.
-    drift: Vec<(f64, DriftShape)>,
+    /// The drifts.
+    drift: Vec<Effect>,
 }
 
 impl Systematic {
@@ -347,12 +336,8 @@ impl Systematic {
     /// order, the other effects' zeros left out (they could change only the
     /// sign of a zero).
     pub fn at(&self, theta_deg: f64, direction: Direction, t: DriftTime) -> f64 {
-        let periodic = self
-            .periodic
-            .iter()
-            .map(|&(cycles, amplitude, phase)| amplitude * (cycles * theta_deg + phase).to_radians().sin())
-            .sum::<f64>();
-        let drift = self.drift.iter().map(|&(rate, shape)| rate * shape.runs_at(t)).sum::<f64>();
+        let periodic = self.periodic.iter().map(|e| e.periodic_at(theta_deg)).sum::<f64>();
+        let drift = self.drift.iter().map(|e| e.drift_at(t)).sum::<f64>();
         periodic + direction.sign() * self.half_backlash_deg + drift
     }
 }
