@@ -11,6 +11,9 @@ use tokio::task::JoinHandle;
 use super::{Store, is_busy};
 use crate::acquire::{RecordedSample, SampleSink, ScanPassRecord};
 
+/// A write of a batch running as a task of its own.
+type Write = JoinHandle<anyhow::Result<()>>;
+
 /// A [`SampleSink`] that writes to the store in batches.
 ///
 /// `record` buffers the sample and writes the buffer (one [`Store::append`]
@@ -56,7 +59,7 @@ pub struct StoreSink {
     max_age: Duration,
     buffer: Vec<RecordedSample>,
     /// The batch being written beside the acquisition, and its write.
-    in_flight: Option<(Arc<Vec<RecordedSample>>, JoinHandle<anyhow::Result<()>>)>,
+    in_flight: Option<(Arc<Vec<RecordedSample>>, Write)>,
     oldest: Option<Instant>,
     last_record: Option<Instant>,
     acknowledged: Option<u64>,
