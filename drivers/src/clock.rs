@@ -14,8 +14,41 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::task::{Context, Poll};
 use std::time::{Duration, Instant};
 
-/// A boxed sleep future.
-pub type Sleep<'a> = Pin<Box<dyn Future<Output = ()> + Send + 'a>>;
+/// A clock's sleep. On the virtual clock a plain future (a simulated survey
+/// sleeps millions of times: no allocation each), else a boxed tokio timer.
+#[must_use = "a sleep does nothing unless awaited"]
+pub struct Sleep<'a>(SleepOn<'a>);
+
+enum SleepOn<'a> {
+    Virtual(VirtualSleep<'a>),
+    Timer(Pin<Box<tokio::time::Sleep>>),
+}
+
+impl<'a> Sleep<'a> {
+    /// A sleep of `d` on tokio's timer.
+    fn timer(d: Duration) -> Self {
+        Sleep(SleepOn::Timer(Box::pin(tokio::time::sleep(d))))
+    }
+}
+
+impl Future for Sleep<'_> {
+    type Output = ();
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<()> {
+        match &mut self.0 {
+            SleepOn::Virtual(s) => Pin::new(s).poll(cx),
+            SleepOn::Timer(s) => s.as_mut().poll(cx),
+        }
+    }
+}
+
+impl Debug for Sleep<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self.0 {
+            SleepOn::Virtual(_) => "Sleep(virtual)",
+            SleepOn::Timer(_) => "Sleep(timer)",
+        })
+    }
+}
 
 /// A source of time and of waiting.
 pub trait Clock: Send + Sync + Debug {
@@ -57,7 +90,7 @@ impl Clock for SystemClock {
         self.offset + self.epoch.elapsed()
     }
     fn sleep(&self, d: Duration) -> Sleep<'_> {
-        Box::pin(tokio::time::sleep(d))
+        Sleep::timer(d)
     }
     fn is_virtual(&self) -> bool {
         false
@@ -93,7 +126,7 @@ impl Clock for ScaledClock {
         self.epoch.elapsed().mul_f64(self.scale)
     }
     fn sleep(&self, d: Duration) -> Sleep<'_> {
-        Box::pin(tokio::time::sleep(d.div_f64(self.scale)))
+        Sleep::timer(d.div_f64(self.scale))
     }
     fn is_virtual(&self) -> bool {
         false
@@ -138,7 +171,7 @@ impl Clock for VirtualClock {
         Duration::from_nanos(self.nanos.load(Ordering::SeqCst))
     }
     fn sleep(&self, d: Duration) -> Sleep<'_> {
-        Box::pin(VirtualSleep { clock: self, d, start: None })
+        Sleep(SleepOn::Virtual(VirtualSleep { clock: self, d, start: None }))
     }
     fn is_virtual(&self) -> bool {
         true
@@ -213,7 +246,8 @@ const SELF_WOKEN_POLLS: u32 = 64;
 /// wake to the task.
 struct SelfWake {
     woke: std::sync::atomic::AtomicBool,
-    task: std::task::Waker,
+    /// The task polling the call; none while the [`SelfWake`] is spare.
+    task: Option<std::task::Waker>,
 }
 
 impl std::task::Wake for SelfWake {
@@ -222,7 +256,39 @@ impl std::task::Wake for SelfWake {
     }
     fn wake_by_ref(self: &Arc<Self>) {
         self.woke.store(true, Ordering::Relaxed);
-        self.task.wake_by_ref();
+        if let Some(task) = &self.task {
+            task.wake_by_ref();
+        }
+    }
+}
+
+thread_local! {
+    /// A spare [`SelfWake`] for [`guarded`]'s next poll on this thread: a
+    /// simulated survey polls millions of calls, each one allocation less.
+    static SPARE_WAKE: std::cell::Cell<Option<Arc<SelfWake>>> = const { std::cell::Cell::new(None) };
+}
+
+impl SelfWake {
+    /// A [`SelfWake`] for `task`, not yet woken: the spare one when nothing
+    /// else holds it (a call that keeps a clone of its waker), else a new one.
+    fn for_task(task: &std::task::Waker) -> Arc<SelfWake> {
+        if let Some(mut spare) = SPARE_WAKE.take()
+            && let Some(w) = Arc::get_mut(&mut spare)
+        {
+            *w.woke.get_mut() = false;
+            w.task = Some(task.clone());
+            return spare;
+        }
+        Arc::new(SelfWake { woke: false.into(), task: Some(task.clone()) })
+    }
+
+    /// Give `wake` back as this thread's spare, unless the call kept a clone
+    /// of its waker (it may still wake it: that one stays with the call).
+    fn give_back(mut wake: Arc<SelfWake>) {
+        if let Some(w) = Arc::get_mut(&mut wake) {
+            w.task = None;
+            SPARE_WAKE.set(Some(wake));
+        }
     }
 }
 
@@ -241,12 +307,16 @@ async fn guarded<T>(limit: Duration, call: impl Future<Output = T>) -> Option<T>
     let mut self_woken = 0;
     std::future::poll_fn(|cx| {
         if timer.is_none() {
-            let wake = Arc::new(SelfWake { woke: false.into(), task: cx.waker().clone() });
+            let wake = SelfWake::for_task(cx.waker());
             let waker = std::task::Waker::from(wake.clone());
-            if let Poll::Ready(out) = call.as_mut().poll(&mut Context::from_waker(&waker)) {
+            let polled = call.as_mut().poll(&mut Context::from_waker(&waker));
+            drop(waker);
+            let woke = wake.woke.load(Ordering::Relaxed);
+            SelfWake::give_back(wake);
+            if let Poll::Ready(out) = polled {
                 return Poll::Ready(Some(out));
             }
-            if wake.woke.load(Ordering::Relaxed) && self_woken < SELF_WOKEN_POLLS {
+            if woke && self_woken < SELF_WOKEN_POLLS {
                 self_woken += 1;
                 return Poll::Pending;
             }
@@ -326,6 +396,51 @@ mod tests {
             7
         };
         assert_eq!(guarded(Duration::from_millis(20), answering).await, Some(7));
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_reused_wake_does_not_carry_the_previous_calls_wake() {
+        // The spare SelfWake of a call that woke itself, reused for one that
+        // waits on something outside: the timer must still be armed at once.
+        let c = VirtualClock::new();
+        let answering = async {
+            c.sleep(Duration::from_millis(1)).await;
+            1
+        };
+        assert_eq!(guarded(Duration::from_secs(5), answering).await, Some(1));
+        let started = tokio::time::Instant::now();
+        let never = guarded(Duration::from_secs(5), std::future::pending::<()>());
+        let cut = tokio::time::timeout(Duration::from_secs(6), never).await;
+        assert_eq!(cut, Ok(None), "cut by its own guard, not the outer timeout");
+        assert_eq!(started.elapsed(), Duration::from_secs(5));
+    }
+
+    #[tokio::test]
+    async fn a_call_that_keeps_its_waker_is_woken_through_it() {
+        // A call that keeps its waker and is woken from another thread later
+        // (a socket's reply): its wake is not taken back as the spare.
+        let slot: Arc<std::sync::Mutex<Option<std::task::Waker>>> = Arc::default();
+        let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let (s2, d2) = (slot.clone(), done.clone());
+        let outside = std::future::poll_fn(move |cx| {
+            if d2.load(Ordering::SeqCst) {
+                return Poll::Ready(2);
+            }
+            *s2.lock().unwrap() = Some(cx.waker().clone());
+            Poll::Pending
+        });
+        let waker_thread = std::thread::spawn(move || {
+            loop {
+                if let Some(w) = slot.lock().unwrap().take() {
+                    done.store(true, Ordering::SeqCst);
+                    w.wake();
+                    return;
+                }
+                std::thread::yield_now();
+            }
+        });
+        assert_eq!(guarded(Duration::from_secs(5), outside).await, Some(2));
+        waker_thread.join().unwrap();
     }
 
     #[tokio::test(start_paused = true)]

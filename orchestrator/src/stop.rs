@@ -8,6 +8,11 @@
 //! it between its phases. So a signal at any moment ends the command with exit
 //! status 1 and a survey that `survey resume` continues.
 
+use futures_util::StreamExt;
+use futures_util::stream::FuturesUnordered;
+use std::future::Future;
+use std::pin::Pin;
+use std::task::{Context, Poll};
 use tokio::sync::watch;
 
 /// The stop request: which signal, once one arrived.
@@ -84,11 +89,41 @@ impl Stop {
         self.requested().map_or(Ok(()), Err)
     }
 
+    /// Resolves when a stop is requested, like [`Stop::wait`], for racing
+    /// work that yields often: it is polled again only when its own waker
+    /// fired (a stop may have come), not every time the work it races is
+    /// (a simulated step re-polls its `select!` some sixty times).
+    pub fn waiter(&self) -> StopWaiter {
+        let mut stop = self.clone();
+        StopWaiter(std::iter::once(Box::pin(async move { stop.wait().await }) as _).collect())
+    }
+
     /// Resolves when a stop is requested (never, if no sender remains).
     pub async fn wait(&mut self) -> Stopped {
-        match self.rx.wait_for(Option::is_some).await {
-            Ok(v) => Stopped(v.expect("waited for Some")),
+        let requested = self.rx.wait_for(Option::is_some).await.map(|v| Stopped(v.expect("waited for Some")));
+        match requested {
+            Ok(why) => why,
             Err(_) => std::future::pending().await,
+        }
+    }
+}
+
+/// See [`Stop::waiter`]: the wait, in a [`FuturesUnordered`]'s ready queue.
+pub struct StopWaiter(FuturesUnordered<Pin<Box<dyn Future<Output = Stopped> + Send>>>);
+
+impl std::fmt::Debug for StopWaiter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("StopWaiter")
+    }
+}
+
+impl Future for StopWaiter {
+    type Output = Stopped;
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<Stopped> {
+        match self.0.poll_next_unpin(cx) {
+            Poll::Ready(Some(why)) => Poll::Ready(why),
+            // Already resolved once: nothing more to wait for.
+            Poll::Ready(None) | Poll::Pending => Poll::Pending,
         }
     }
 }
@@ -123,6 +158,42 @@ mod tests {
         assert_eq!(a.wait().await, Stopped("SIGTERM"));
         assert_eq!(b.check(), Err(Stopped("SIGTERM")));
         assert_eq!(Stopped("SIGTERM").to_string(), "stopped by signal (SIGTERM)");
+    }
+
+    #[tokio::test]
+    async fn a_waiter_wins_the_race_against_work_that_keeps_yielding() {
+        // The work yields (and is polled again) a thousand times; the stop
+        // comes from another task after the work's tenth poll.
+        let (tx, stop) = Stop::channel();
+        let polls = std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0));
+        let counted = polls.clone();
+        let mut tx = Some(tx);
+        let work = std::future::poll_fn(move |cx| {
+            let n = counted.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1;
+            if n == 10 {
+                let tx = tx.take().expect("once");
+                tokio::spawn(async move { tx.stop("SIGINT") });
+            }
+            if n == 1000 {
+                return Poll::Ready(());
+            }
+            cx.waker().wake_by_ref();
+            Poll::Pending
+        });
+        let raced = tokio::select! {
+            biased;
+            why = stop.waiter() => Err(why),
+            () = work => Ok(()),
+        };
+        assert_eq!(raced, Err(Stopped("SIGINT")));
+        assert!(polls.load(std::sync::atomic::Ordering::SeqCst) < 1000);
+        // Without a stop the work ends first, and the waiter never fires.
+        let raced = tokio::select! {
+            biased;
+            why = Stop::never().waiter() => Err(why),
+            () = tokio::task::yield_now() => Ok(()),
+        };
+        assert_eq!(raced, Ok(()));
     }
 
     #[tokio::test]

@@ -352,18 +352,29 @@ async fn store_sink_flushes_by_batch_and_on_flush() {
     }
     assert_eq!(store.last_seq(id).await.unwrap(), None);
     assert_eq!(sink.pending(), 9);
+    // The tenth fills the batch: it goes to a write beside the acquisition,
+    // unacknowledged until a later call has waited for it.
     sink.record(recorded(9)).await.unwrap();
-    assert_eq!(store.last_seq(id).await.unwrap(), Some(9));
-    assert_eq!(sink.pending(), 0);
-    assert_eq!(sink.last_acknowledged(), Some(9));
-    for seq in 10..13 {
+    assert_eq!(sink.pending(), 10);
+    assert_eq!(sink.last_acknowledged(), None);
+    for seq in 10..19 {
         sink.record(recorded(seq)).await.unwrap();
     }
-    assert_eq!(store.last_seq(id).await.unwrap(), Some(9));
+    assert_eq!(sink.pending(), 19);
+    // The second batch waits for the first, which is then on disk.
+    sink.record(recorded(19)).await.unwrap();
+    assert_eq!(sink.last_acknowledged(), Some(9));
+    assert_eq!(sink.pending(), 10);
+    assert!(store.last_seq(id).await.unwrap() >= Some(9));
+    for seq in 20..23 {
+        sink.record(recorded(seq)).await.unwrap();
+    }
     sink.flush().await.unwrap();
-    assert_eq!(store.last_seq(id).await.unwrap(), Some(12));
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(22));
+    assert_eq!(sink.pending(), 0);
+    assert_eq!(sink.last_acknowledged(), Some(22));
     sink.flush().await.unwrap(); // nothing to write
-    let expected: Vec<RecordedSample> = (0..13).map(recorded).collect();
+    let expected: Vec<RecordedSample> = (0..23).map(recorded).collect();
     assert_same(&store.recorded_samples(id).await.unwrap(), &expected);
     store.close().await;
 }
@@ -400,6 +411,28 @@ async fn store_sink_flushes_by_age_and_keeps_failed_batches() {
     sink.flush().await.unwrap_err();
     assert_eq!(sink.pending(), 1);
     assert_eq!(sink.last_acknowledged(), Some(3));
+    store.close().await;
+}
+
+#[tokio::test]
+async fn a_failed_write_beside_the_acquisition_gives_its_samples_back_in_order() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    let mut sink = StoreSink::new(store.clone(), id).with_batch(2).with_max_age(Duration::from_secs(60));
+    sink.record(recorded(0)).await.unwrap();
+    sink.record(recorded(1)).await.unwrap(); // batch [0, 1] written beside
+    sink.record(recorded(1)).await.unwrap(); // a duplicate seq
+    sink.record(recorded(2)).await.unwrap(); // [0, 1] waited for; [1, 2] written beside, and fails
+    assert_eq!(sink.last_acknowledged(), Some(1));
+    sink.record(recorded(3)).await.unwrap();
+    let e = sink.flush().await.unwrap_err();
+    assert!(format!("{e:#}").contains("samples 1..=2"), "{e:#}");
+    // Nothing of the failed batch is stored; it is back in front of the buffer.
+    assert_eq!(store.last_seq(id).await.unwrap(), Some(1));
+    assert_eq!(sink.pending(), 3);
+    assert_eq!(sink.last_acknowledged(), Some(1));
+    let e = sink.flush().await.unwrap_err();
+    assert!(format!("{e:#}").contains("samples 1..=3"), "in order, the failed batch first: {e:#}");
     store.close().await;
 }
 

@@ -20,7 +20,7 @@ use super::SimPositioner;
 use crate::servo::{Response, hashed_normal};
 use crate::turntable::{AxisPath, Profile, TruthPath};
 use crate::{derive_seed, fixed_point};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 use survey_processing::Direction;
 use survey_processing::model::Model;
@@ -49,6 +49,19 @@ pub(super) struct MoveTruth {
     rest_noise: f64,
     noise_seed: u64,
     noise_sigma: f64,
+    /// The noise grid's values about the target (what a reference that
+    /// integrates near it asks for again and again), made when first asked.
+    near_target: OnceLock<NearTarget>,
+}
+
+/// The noise grid's values at the four grid points about a move's target.
+#[derive(Debug, Clone, Copy)]
+struct NearTarget {
+    /// The grid index of the first of `values`.
+    first: i64,
+    values: [f64; 4],
+    /// `rest_noise - grid(target)`: the rest noise the path joins.
+    rest_offset: f64,
 }
 
 impl MoveTruth {
@@ -56,19 +69,40 @@ impl MoveTruth {
         self.display.value(t) + self.response.map_or(0.0, |r| r.offset_deg(t))
     }
 
+    /// The noise grid's value (standard normal) at grid index `k`.
+    fn grid_value(&self, k: i64, near: &NearTarget) -> f64 {
+        match usize::try_from(k - near.first) {
+            Ok(i) if i < near.values.len() => near.values[i],
+            _ => hashed_normal(self.noise_seed, k),
+        }
+    }
+
+    /// The noise grid interpolated at displayed angle `x`.
+    fn grid(&self, x: f64, near: &NearTarget) -> f64 {
+        let k = (x / MOTION_NOISE_STEP_DEG).floor();
+        let f = x / MOTION_NOISE_STEP_DEG - k;
+        let (a, b) = (self.grid_value(k as i64, near), self.grid_value(k as i64 + 1, near));
+        (a + (b - a) * f) * self.noise_sigma
+    }
+
+    fn near_target(&self) -> &NearTarget {
+        self.near_target.get_or_init(|| {
+            let first = (self.target / MOTION_NOISE_STEP_DEG).floor() as i64 - 1;
+            let values = std::array::from_fn(|i| hashed_normal(self.noise_seed, first + i as i64));
+            let mut near = NearTarget { first, values, rest_offset: 0.0 };
+            near.rest_offset = self.rest_noise - self.grid(self.target, &near);
+            near
+        })
+    }
+
     /// The non-repeatable error where the display shows `d`.
     fn noise_at(&self, d: f64) -> f64 {
         if self.noise_sigma == 0.0 {
             return self.rest_noise;
         }
-        let grid = |x: f64| {
-            let k = (x / MOTION_NOISE_STEP_DEG).floor();
-            let f = x / MOTION_NOISE_STEP_DEG - k;
-            let (a, b) = (hashed_normal(self.noise_seed, k as i64), hashed_normal(self.noise_seed, k as i64 + 1));
-            (a + (b - a) * f) * self.noise_sigma
-        };
+        let near = self.near_target();
         let join = (1.0 - (d - self.target).abs() / MOTION_NOISE_STEP_DEG).max(0.0);
-        grid(d) + (self.rest_noise - grid(self.target)) * join
+        self.grid(d, near) + near.rest_offset * join
     }
 }
 
@@ -127,6 +161,7 @@ impl SimPositioner {
             rest_noise: self.noise_deg,
             noise_seed: derive_seed(self.cfg.seed ^ MOTION_NOISE_SALT, self.moves as u64),
             noise_sigma: self.cfg.model.noise_sigma_deg(),
+            near_target: OnceLock::new(),
         };
         self.turntable.set_truth(Arc::new(truth));
     }

@@ -510,10 +510,10 @@ impl Engine {
             }
             // The moves and reads of a step race the stop request; the write
             // of its sample below does not.
-            let mut stop = self.stop.clone();
+            let stop = self.stop.waiter();
             let measured = tokio::select! {
                 biased;
-                why = stop.wait() => Err(why),
+                why = stop => Err(why),
                 r = async {
                     let drift = self.drift_reference(step.seq, from_seq, plan.overrun_deg, sink).await?;
                     let pair = self.measure(step.target_deg, step.direction, plan.overrun_deg, sink).await?;
