@@ -277,6 +277,8 @@ struct Latched {
 pub struct SimPositioner {
     clock: Arc<dyn Clock>,
     cfg: PositionerConfig,
+    /// `cfg.model`, shared with the truth of every move (not copied each).
+    model: Arc<Model>,
     turntable: Turntable,
     velocity_deg_s: f64,
     /// The displayed readout along the current move (or at rest).
@@ -351,6 +353,7 @@ impl SimPositioner {
             moves: 0,
             calls: 0,
             injected: None,
+            model: Arc::new(cfg.model.clone()),
             cfg,
         };
         let actual = sim.actual_for_raw(start, sim.runs_at(now));

@@ -203,7 +203,7 @@ mod csv_tests {
         /// collected turn by turn, as `ErrorFigures` takes it.
         #[test]
         fn predicted_peak_is_the_collected_errors_peak(
-            errors in proptest::collection::vec((0.0f64..360.0, -0.01f64..0.01, proptest::bool::ANY), 1..200),
+            errors in proptest::collection::vec((-400.0f64..800.0, -0.01f64..0.01, proptest::bool::ANY), 1..200),
             range in proptest::sample::select(vec![(0.0, 360.0), (-180.0, 540.0), (10.0, 90.0), (f64::NEG_INFINITY, f64::INFINITY)]),
             periodic in proptest::bool::ANY,
         ) {

@@ -43,7 +43,9 @@ pub(super) struct MoveTruth {
     still_from: Duration,
     model: Arc<Model>,
     direction: Direction,
-    runs: f64,
+    /// The model's drift over the move (it changes by the run, not along
+    /// a move): `systematic_error_deg`'s second term, made once.
+    drift_deg: f64,
     /// The table applied in the feedback path, if any.
     table: Option<Arc<CorrectionTable>>,
     rest_noise: f64,
@@ -117,7 +119,8 @@ impl TruthPath for MoveTruth {
             None => d,
         };
         let n = self.noise_at(d);
-        fixed_point(|a| raw - n - self.model.systematic_error_deg(a, self.direction, self.runs), raw - n)
+        // `systematic_error_deg(a, direction, runs)`, term by term.
+        fixed_point(|a| raw - n - (self.model.repeatable_error_deg(a, self.direction) + self.drift_deg), raw - n)
     }
 
     fn still_from(&self) -> Duration {
@@ -154,9 +157,9 @@ impl SimPositioner {
             target,
             rest_actual: actual,
             still_from: self.response.map_or(end, |r| r.hold_at().max(end)),
-            model: Arc::new(self.cfg.model.clone()),
+            model: self.model.clone(),
             direction: self.direction,
-            runs: self.runs_at(end),
+            drift_deg: self.cfg.model.drift_deg(self.runs_at(end)),
             table,
             rest_noise: self.noise_deg,
             noise_seed: derive_seed(self.cfg.seed ^ MOTION_NOISE_SALT, self.moves as u64),
