@@ -74,36 +74,48 @@ const STATUS_EVERY: u32 = 10;
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Ringing {
     /// The last two readings' `(time s, |deviation|)`.
-    last: Vec<(f64, f64)>,
+    last: LastTwo,
     /// The last two peaks.
-    peaks: Vec<(f64, f64)>,
+    peaks: LastTwo,
+}
+
+/// The two most recent of a series of `(time s, value)`, oldest first
+/// (a settling wait keeps them at every poll: no vector each).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct LastTwo {
+    older: Option<(f64, f64)>,
+    newer: Option<(f64, f64)>,
+}
+
+impl LastTwo {
+    fn push(&mut self, v: (f64, f64)) {
+        self.older = self.newer.replace(v);
+    }
+
+    /// Both, oldest first, once two were pushed.
+    fn both(&self) -> Option<[(f64, f64); 2]> {
+        Some([self.older?, self.newer?])
+    }
 }
 
 impl Ringing {
     /// Take a reading at `t` seconds deviating `d` degrees from the target.
     pub fn push(&mut self, t: f64, d: f64, window: f64) {
         let a = d.abs();
-        if let [(t0, a0), (t1, a1)] = self.last[..]
+        if let Some([(_, a0), (t1, a1)]) = self.last.both()
             && a1 > a0
             && a1 > a
             && a1 > window / 4.0
         {
-            let _ = t0;
             self.peaks.push((t1, a1));
-            if self.peaks.len() > 2 {
-                self.peaks.remove(0);
-            }
         }
         self.last.push((t, a));
-        if self.last.len() > 2 {
-            self.last.remove(0);
-        }
     }
 
     /// When the envelope reaches `window`, seconds, if the swing is seen
     /// decaying (`min_gap`: the least time between two peaks, two polls).
     pub fn within_at(&self, window: f64, min_gap: f64) -> Option<f64> {
-        let [(t1, p1), (t2, p2)] = self.peaks[..] else { return None };
+        let [(t1, p1), (t2, p2)] = self.peaks.both()?;
         if t2 - t1 < min_gap || p2 >= p1 {
             return None;
         }
