@@ -1,5 +1,6 @@
 //! [`StoreSink`]: the [`SampleSink`] that writes to the store in batches.
 
+use std::future::Future;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -199,10 +200,22 @@ async fn append_retrying(
     samples: &[RecordedSample],
     busy_wait: Duration,
 ) -> anyhow::Result<()> {
+    let what = format!("{} samples", samples.len());
+    while_busy(survey_id, &what, busy_wait, || store.append(survey_id, samples)).await
+}
+
+/// `write`, tried again every 200 ms while the database is locked by another
+/// writer, each wait logged, for up to `busy_wait`; then its error.
+async fn while_busy<F: Future<Output = anyhow::Result<()>>>(
+    survey_id: i64,
+    what: &str,
+    busy_wait: Duration,
+    mut write: impl FnMut() -> F,
+) -> anyhow::Result<()> {
     let started = Instant::now();
     let mut attempt = 0u32;
     loop {
-        match store.append(survey_id, samples).await {
+        match write().await {
             Ok(()) => return Ok(()),
             Err(e) if is_busy(&e) && started.elapsed() < busy_wait => {
                 attempt += 1;
@@ -210,8 +223,8 @@ async fn append_retrying(
                     survey = survey_id,
                     attempt,
                     waited_s = started.elapsed().as_secs_f64(),
-                    pending = samples.len(),
-                    "the database is locked by another writer: the samples wait in memory, retrying"
+                    pending = what,
+                    "the database is locked by another writer: what is pending waits in memory, retrying"
                 );
                 tokio::time::sleep(Duration::from_millis(200)).await;
             }
@@ -254,21 +267,8 @@ impl SampleSink for StoreSink {
     /// database, like every write).
     async fn record_pass(&mut self, pass: ScanPassRecord) -> anyhow::Result<()> {
         self.write().await?;
-        let started = Instant::now();
-        loop {
-            match self.store.append_pass(self.survey_id, &pass).await {
-                Ok(()) => break,
-                Err(e) if is_busy(&e) && started.elapsed() < self.busy_wait => {
-                    tracing::warn!(
-                        survey = self.survey_id,
-                        pass = pass.pass,
-                        "the database is locked: retrying the pass"
-                    );
-                    tokio::time::sleep(Duration::from_millis(200)).await;
-                }
-                Err(e) => return Err(e),
-            }
-        }
+        let what = format!("pass {}", pass.pass);
+        while_busy(self.survey_id, &what, self.busy_wait, || self.store.append_pass(self.survey_id, &pass)).await?;
         self.acknowledge(&pass.samples);
         Ok(())
     }
