@@ -128,17 +128,22 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
     if n < 3 {
         return Err(GeometryError::TooFewPoints(n));
     }
-    for (index, (p, r)) in points_mm.iter().zip(readouts_deg()).enumerate() {
-        for (what, value) in [("x", p[0]), ("y", p[1]), ("z", p[2]), ("readout", r)] {
-            if !value.is_finite() {
-                return Err(GeometryError::NonFinite { index, what, value });
+    // 1. Plane: centroid and the smallest eigenvector of the covariance.
+    // The sums of the coordinates and of the readouts are finite unless a
+    // value is not (or they overflow): only then is each value looked at,
+    // to name the first that is not finite.
+    let nf = n as f64;
+    let sum = points_mm.iter().fold([0.0; 3], |acc, &p| add(acc, p));
+    if !(sum.iter().all(|v| v.is_finite()) && readouts_deg().sum::<f64>().is_finite()) {
+        for (index, (p, r)) in points_mm.iter().zip(readouts_deg()).enumerate() {
+            for (what, value) in [("x", p[0]), ("y", p[1]), ("z", p[2]), ("readout", r)] {
+                if !value.is_finite() {
+                    return Err(GeometryError::NonFinite { index, what, value });
+                }
             }
         }
     }
-
-    // 1. Plane: centroid and the smallest eigenvector of the covariance.
-    let nf = n as f64;
-    let centroid = scale(points_mm.iter().fold([0.0; 3], |acc, &p| add(acc, p)), 1.0 / nf);
+    let centroid = scale(sum, 1.0 / nf);
     // The six distinct sums of the symmetric covariance, divided once.
     let mut sums = [0.0; 6];
     for &p in points_mm {
@@ -272,7 +277,7 @@ fn orientation_sums(
     let mut skip = 0;
     for (q, r) in points {
         let (x, y) = (q[0] - a, q[1] - b);
-        let theta = y.atan2(x);
+        let theta = libm::atan2(y, x);
         if let Some(raw) = raw.as_deref_mut() {
             raw.push(theta);
         }
