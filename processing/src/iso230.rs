@@ -330,8 +330,14 @@ pub struct TargetGroups {
 impl TargetGroups {
     /// The grouping of `samples` by target.
     pub fn of(samples: &[Sample]) -> Self {
+        // Sorted as (target, index) pairs, side by side in memory (not through a
+        // reference each); the order of equal targets does not matter: a group
+        // is ordered by run before anything is computed from it. A survey's
+        // samples are a few sweeps, each ascending or descending in target: the
+        // stable sort finds them and merges them (an unstable one partitions).
         let count = u32::try_from(samples.len()).expect("fewer than 2^32 samples");
-        let keyed = by_target(samples, count);
+        let mut keyed: Vec<(f64, u32)> = samples.iter().map(|s| s.target_deg).zip(0..count).collect();
+        keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
         for (i, &(t, _)) in keyed.iter().enumerate() {
             match ranges.last_mut() {
@@ -343,64 +349,7 @@ impl TargetGroups {
         let sorted = keyed.iter().map(|&(_, i)| i).collect();
         TargetGroups { sorted, ranges }
     }
-}
 
-/// The samples' (target, index) pairs in the order of a stable sort by
-/// target ([`f64::total_cmp`]): equal targets in the samples' order.
-///
-/// Sorted by buckets: the pairs are counted into `count / 4` buckets of
-/// equal width between the least and the largest target, then placed
-/// bucket by bucket in the samples' order, and each bucket is sorted alone.
-/// The bucket of a target never decreases as the target grows (each step of
-/// its arithmetic is monotonic; -0 and +0 share one), so the buckets in
-/// turn are the sort; a survey's bucket holds a target's samples or none,
-/// already in order. Two passes that count and place, against a merge
-/// sort's passes and its room for half the pairs (a twentieth of the
-/// processing at 1.8 M samples). Targets that are not all finite are
-/// sorted as they are.
-fn by_target(samples: &[Sample], count: u32) -> Vec<(f64, u32)> {
-    let (mut lo, mut hi, mut finite) = (f64::INFINITY, f64::NEG_INFINITY, true);
-    for s in samples {
-        lo = lo.min(s.target_deg);
-        hi = hi.max(s.target_deg);
-        finite &= s.target_deg.is_finite();
-    }
-    let by_sort = |mut keyed: Vec<(f64, u32)>| {
-        keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
-        keyed
-    };
-    if !finite || samples.len() < 64 || !(hi - lo).is_finite() {
-        return by_sort(samples.iter().map(|s| s.target_deg).zip(0..count).collect());
-    }
-    let buckets = samples.len() / 4;
-    let scale = if hi > lo { buckets as f64 / (hi - lo) } else { 0.0 };
-    let bucket = |t: f64| (((t - lo) * scale) as usize).min(buckets - 1);
-    // Where each bucket starts among the pairs.
-    let mut start = vec![0u32; buckets + 1];
-    for s in samples {
-        start[bucket(s.target_deg) + 1] += 1;
-    }
-    for b in 0..buckets {
-        start[b + 1] += start[b];
-    }
-    let mut keyed = vec![(0.0f64, 0u32); samples.len()];
-    let mut next = start.clone();
-    for (s, i) in samples.iter().zip(0..count) {
-        let b = bucket(s.target_deg);
-        keyed[next[b] as usize] = (s.target_deg, i);
-        next[b] += 1;
-    }
-    drop(next);
-    for b in start.windows(2) {
-        let within = &mut keyed[b[0] as usize..b[1] as usize];
-        if !within.is_sorted_by(|x, y| x.0.total_cmp(&y.0).is_le()) {
-            within.sort_by(|x, y| x.0.total_cmp(&y.0));
-        }
-    }
-    keyed
-}
-
-impl TargetGroups {
     /// How many targets.
     pub fn len(&self) -> usize {
         self.ranges.len()

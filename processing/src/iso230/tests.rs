@@ -512,39 +512,3 @@ proptest! {
         }
     }
 }
-
-proptest! {
-    /// Sorting by buckets orders the (target, index) pairs as a stable
-    /// sort does, to the bit: sweeps of a grid up and down, targets
-    /// repeated, clustered, -0 beside +0, and some not finite.
-    #[test]
-    fn sorting_by_buckets_is_a_stable_sort_by_target(
-        grid in prop::collection::vec(prop_oneof![
-            Just(0.0), Just(-0.0), Just(360.0), -1e-10f64..1e-10, -400.0f64..400.0, 1e6f64..1e6 + 1e-6,
-        ], 1..60),
-        sweeps in 1usize..12,
-        odd in prop_oneof![Just(None), Just(Some(f64::NAN)), Just(Some(f64::INFINITY)), Just(Some(-f64::INFINITY))],
-    ) {
-        let mut targets: Vec<f64> = (0..sweeps)
-            .flat_map(|w| {
-                let mut sweep = grid.clone();
-                if w % 2 == 1 {
-                    sweep.reverse();
-                }
-                sweep
-            })
-            .collect();
-        if let Some(v) = odd {
-            let middle = targets.len() / 2;
-            targets[middle] = v;
-        }
-        let samples: Vec<Sample> = targets.iter().map(|&t| sample(1, Direction::Forward, t, 0.0)).collect();
-        let mut want: Vec<(f64, u32)> = targets.iter().copied().zip(0..).collect();
-        want.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let got = by_target(&samples, samples.len() as u32);
-        prop_assert_eq!(
-            got.iter().map(|&(t, i)| (t.to_bits(), i)).collect::<Vec<_>>(),
-            want.iter().map(|&(t, i)| (t.to_bits(), i)).collect::<Vec<_>>()
-        );
-    }
-}
