@@ -116,11 +116,18 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
     if points.len() < 3 {
         return Ok(None);
     }
-    // The readouts in the order of `points`, made anew for each pass.
-    let readouts =
-        || locate.iter().map(|(readout, _)| *readout).chain(smr.sample_indices().map(|i| samples[i].readout_deg));
-    let (Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. }, raw) =
-        refit_axis_with_angles(points, readouts).map_err(|e| {
+    // The readouts in the order of `points`, made anew for each pass: the
+    // first samples' in order when each has a position (a tracker survey:
+    // no index looked up a position), through the indices otherwise.
+    let at_locate = || locate.iter().map(|(readout, _)| *readout);
+    let fitted = match smr.dense() {
+        Some(n) => refit_axis_with_angles(points, || at_locate().chain(samples[..n].iter().map(|s| s.readout_deg))),
+        None => {
+            refit_axis_with_angles(points, || at_locate().chain(smr.sample_indices().map(|i| samples[i].readout_deg)))
+        }
+    };
+    let (Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. }, raw) = fitted
+        .map_err(|e| {
             anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
         })?;
     // The samples' positions follow the locate points in `raw`.

@@ -228,7 +228,23 @@ impl ErrorMap {
             group.iter().for_each(|&i| target_of[i as usize] = t);
         }
         let runs = distinct_runs(samples);
-        let run_index = |run: u32| runs.binary_search(&run).expect("every run was collected");
+        // A run's row: looked up by its number while the runs are numbered
+        // below a million (a survey's from 1: no search a sample), searched
+        // for otherwise.
+        let slot: Vec<u32> = match runs.last() {
+            Some(&last) if last < 1 << 20 => {
+                let mut slot = vec![u32::MAX; last as usize + 1];
+                for (r, &run) in (0..).zip(&runs) {
+                    slot[run as usize] = r;
+                }
+                slot
+            }
+            _ => Vec::new(),
+        };
+        let run_index = |run: u32| match slot.get(run as usize) {
+            Some(&r) if r != u32::MAX => r as usize,
+            _ => runs.binary_search(&run).expect("every run was collected"),
+        };
 
         let build = |direction: Direction| -> Result<Option<DirectionErrors>, ErrorMapError> {
             if !samples.iter().any(|s| s.direction == direction) {
@@ -442,6 +458,18 @@ mod tests {
         let one_run: Vec<Sample> = case().into_iter().filter(|s| s.run == 2).collect();
         let h = ErrorMap::from_samples(&one_run).unwrap().run_hysteresis().unwrap();
         assert_eq!((h.mean_deg, h.sd_deg), (vec![1.0, 2.0, 3.0], None));
+    }
+
+    /// Runs numbered beyond the lookup's reach are searched for: the same
+    /// map as with small numbers, rows in run order.
+    #[test]
+    fn runs_of_any_number_find_their_rows() {
+        let renumbered: Vec<Sample> =
+            case().into_iter().map(|x| Sample { run: if x.run == 1 { 7 } else { 3_000_000_000 }, ..x }).collect();
+        let (small, large) = (ErrorMap::from_samples(&case()).unwrap(), ErrorMap::from_samples(&renumbered).unwrap());
+        assert_eq!(large.runs, vec![7, 3_000_000_000]);
+        assert_eq!(large.forward, small.forward);
+        assert_eq!(large.reverse, small.reverse);
     }
 
     #[test]

@@ -128,26 +128,32 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
     if n < 3 {
         return Err(GeometryError::TooFewPoints(n));
     }
-    for (index, (p, r)) in points_mm.iter().zip(readouts_deg()).enumerate() {
-        for (what, value) in [("x", p[0]), ("y", p[1]), ("z", p[2]), ("readout", r)] {
-            if !value.is_finite() {
-                return Err(GeometryError::NonFinite { index, what, value });
+    // 1. Plane: centroid and the smallest eigenvector of the covariance.
+    // The sums of the coordinates and of the readouts are finite unless a
+    // value is not (or they overflow): only then is each value looked at,
+    // to name the first that is not finite.
+    let nf = n as f64;
+    let sum = points_mm.iter().fold([0.0; 3], |acc, &p| add(acc, p));
+    if !(sum.iter().all(|v| v.is_finite()) && readouts_deg().sum::<f64>().is_finite()) {
+        for (index, (p, r)) in points_mm.iter().zip(readouts_deg()).enumerate() {
+            for (what, value) in [("x", p[0]), ("y", p[1]), ("z", p[2]), ("readout", r)] {
+                if !value.is_finite() {
+                    return Err(GeometryError::NonFinite { index, what, value });
+                }
             }
         }
     }
-
-    // 1. Plane: centroid and the smallest eigenvector of the covariance.
-    let nf = n as f64;
-    let centroid = scale(points_mm.iter().fold([0.0; 3], |acc, &p| add(acc, p)), 1.0 / nf);
-    let mut cov = [[0.0; 3]; 3];
+    let centroid = scale(sum, 1.0 / nf);
+    // The six distinct sums of the symmetric covariance, divided once.
+    let mut sums = [0.0; 6];
     for &p in points_mm {
         let d = sub(p, centroid);
-        for (i, row) in cov.iter_mut().enumerate() {
-            for (j, c) in row.iter_mut().enumerate() {
-                *c += d[i] * d[j] / nf;
-            }
+        for (s, (i, j)) in sums.iter_mut().zip([(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]) {
+            *s += d[i] * d[j];
         }
     }
+    let [xx, xy_, xz, yy, yz, zz] = sums.map(|s| s / nf);
+    let cov = [[xx, xy_, xz], [xy_, yy, yz], [xz, yz, zz]];
     let (values, vectors) = sym_eigen3(cov);
     if values[2] <= 0.0 {
         return Err(GeometryError::Degenerate("all positions coincide".into()));
@@ -191,21 +197,29 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
     // same pass: what `AxisFit::raw_angle` gives, to rounding, once `v` is
     // flipped with the normal (below) where it has to be (the refit hands
     // them on).
-    let (mut minus, mut plus) = ((0.0, 0.0), (0.0, 0.0));
+    //
+    // The sums take every `stride`-th position, a few thousand of them
+    // (every position up to 8191): they tell a direction and the zero's
+    // circular mean, which the arithmetic mean over every position then
+    // refines (step 4), and a readout's sine and cosine were a tenth of a
+    // large survey's processing. A subset that does not tell the direction
+    // clearly (its two squared resultants apart by less than half the square
+    // of its count, which a clean full circle makes them: an arc, or
+    // positions that alias with the sweeps) is not trusted: the sums are
+    // taken again over every position, as they always are up to 8191.
+    let stride = (n / ORIENTATION_POSITIONS).max(1);
     let mut raw: Vec<f64> = Vec::with_capacity(n);
-    for (q, r) in xy().zip(readouts_deg()) {
-        let (x, y) = (q[0] - a, q[1] - b);
-        let rho = norm2(x, y);
-        let theta = y.atan2(x);
-        raw.push(theta);
-        let (st, ct) = if rho > 0.0 { (y * (1.0 / rho), x * (1.0 / rho)) } else { theta.sin_cos() };
-        let (sr, cr) = r.to_radians().sin_cos();
-        minus = (minus.0 + (st * cr - ct * sr), minus.1 + (ct * cr + st * sr));
-        plus = (plus.0 + (st * cr + ct * sr), plus.1 + (ct * cr - st * sr));
-    }
+    let mut sums = orientation_sums(xy().zip(readouts_deg()), stride, a, b, Some(&mut raw));
     let resultant = |(s, c): (f64, f64)| s * s + c * c;
+    let told = |(minus, plus, m): ((f64, f64), (f64, f64), usize)| {
+        (resultant(minus) - resultant(plus)).abs() >= (m as f64).powi(2) / 2.0
+    };
+    if stride > 1 && !told(sums) {
+        sums = orientation_sums(xy().zip(readouts_deg()), 1, a, b, None);
+    }
+    let (minus, plus, taken) = sums;
     let orientation = (resultant(minus) - resultant(plus)) / 4.0;
-    if orientation.abs() <= 1e-9 * nf * nf {
+    if orientation.abs() <= 1e-9 * (taken as f64).powi(2) {
         return Err(GeometryError::Degenerate(
             "the readouts do not vary enough to tell the direction of rotation".into(),
         ));
@@ -240,6 +254,46 @@ fn fit_axis_with_angles<I: Iterator<Item = f64>>(
         points: n,
     };
     Ok((fit, raw))
+}
+
+/// Positions the orientation's sums take at least (every one below twice as many).
+const ORIENTATION_POSITIONS: usize = 4096;
+
+/// The orientation's sums over every `stride`-th of the positions `q` (in
+/// the circle's plane, centre `(a, b)`) with their readouts `r`, degrees:
+/// `sum e^{i(theta - r)}` and `sum e^{i(theta + r)}` as (sine, cosine)
+/// parts, and how many positions they took; with `raw` some, the raw angle
+/// `theta` of every position is pushed to it.
+fn orientation_sums(
+    points: impl Iterator<Item = ([f64; 2], f64)>,
+    stride: usize,
+    a: f64,
+    b: f64,
+    mut raw: Option<&mut Vec<f64>>,
+) -> ((f64, f64), (f64, f64), usize) {
+    let (mut minus, mut plus, mut taken) = ((0.0, 0.0), (0.0, 0.0), 0);
+    // Positions until the next one taken (a count, not a remainder: a
+    // division a position).
+    let mut skip = 0;
+    for (q, r) in points {
+        let (x, y) = (q[0] - a, q[1] - b);
+        let theta = libm::atan2(y, x);
+        if let Some(raw) = raw.as_deref_mut() {
+            raw.push(theta);
+        }
+        if skip > 0 {
+            skip -= 1;
+            continue;
+        }
+        skip = stride - 1;
+        let rho = norm2(x, y);
+        let (st, ct) = if rho > 0.0 { (y * (1.0 / rho), x * (1.0 / rho)) } else { theta.sin_cos() };
+        let (sr, cr) = r.to_radians().sin_cos();
+        minus = (minus.0 + (st * cr - ct * sr), minus.1 + (ct * cr + st * sr));
+        plus = (plus.0 + (st * cr + ct * sr), plus.1 + (ct * cr - st * sr));
+        taken += 1;
+    }
+    (minus, plus, taken)
 }
 
 /// `hypot(x, y)` by a plain square root where the squares can neither
@@ -355,24 +409,26 @@ pub fn refit_axis_with_angles<I: Iterator<Item = f64>>(
 /// 5 robust standard deviations (1.4826 x the median distance), ascending;
 /// none when that median is 0.
 ///
-/// Each distance is made again on the second pass rather than kept (8 bytes
-/// a point at the refit's peak): the vector the median is selected in is
-/// the only one.
+/// The distances are compared in square (a square root a point fewer),
+/// and each is made again on the second pass rather than kept (8 bytes a
+/// point at the refit's peak): the vector the median is selected in is the
+/// only one.
 fn beyond_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
-    let distance = |p: &[f64; 3]| {
+    let squared = |p: &[f64; 3]| {
         let d = sub(*p, fit.center_mm);
         let h = dot(d, fit.normal);
         let in_plane = sub(d, scale(fit.normal, h));
-        norm2(dot(in_plane, in_plane).sqrt() - fit.radius_mm, h)
+        (dot(in_plane, in_plane).sqrt() - fit.radius_mm).powi(2) + h * h
     };
-    let mut distances: Vec<f64> = points_mm.iter().map(distance).collect();
-    let mad = *distances.select_nth_unstable_by(points_mm.len() / 2, f64::total_cmp).1;
-    drop(distances);
+    let mut squares: Vec<f64> = points_mm.iter().map(squared).collect();
+    let mad = squares.select_nth_unstable_by(points_mm.len() / 2, f64::total_cmp).1.sqrt();
+    drop(squares);
     let limit = 5.0 * 1.4826 * mad;
     if limit <= 0.0 {
         return Vec::new();
     }
-    points_mm.iter().enumerate().filter(|(_, p)| distance(p) > limit).map(|(i, _)| i).collect()
+    let limit2 = limit * limit;
+    points_mm.iter().enumerate().filter(|(_, p)| squared(p) > limit2).map(|(i, _)| i).collect()
 }
 
 /// How well a fitted circle's centre is known from its points.

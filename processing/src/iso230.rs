@@ -253,27 +253,43 @@ fn each_target(
     let any_down = samples.iter().any(|s| s.direction == Direction::Reverse);
     let bidirectional = any_up && any_down;
 
-    // One buffer each for a direction's samples and deviations, reused by every target.
-    let (mut g, mut x): (Vec<usize>, Vec<f64>) = (Vec::new(), Vec::new());
+    // One buffer each for a direction's (run, sample) and for deviations,
+    // reused by every target; a target's samples are split by direction in
+    // one pass over them.
+    let mut up_runs: Vec<(u32, usize)> = Vec::new();
+    let mut down_runs: Vec<(u32, usize)> = Vec::new();
+    let mut x: Vec<f64> = Vec::new();
     for group in groups.iter() {
         let target_deg = samples[group[0] as usize].target_deg;
+        up_runs.clear();
+        down_runs.clear();
+        for &i in group {
+            let s = &samples[i as usize];
+            match s.direction {
+                Direction::Forward => up_runs.push((s.run, i as usize)),
+                Direction::Reverse => down_runs.push((s.run, i as usize)),
+            }
+        }
         let mut dir_stats = |direction: Direction| -> Result<Option<DirStats>, StatsError> {
-            g.clear();
-            g.extend(group.iter().map(|&i| i as usize).filter(|&i| samples[i].direction == direction));
+            let g = if direction == Direction::Forward { &mut up_runs } else { &mut down_runs };
             if g.is_empty() {
                 return Ok(None);
             }
-            g.sort_by_key(|&i| samples[i].run);
-            if let Some(w) = g.windows(2).find(|w| samples[w[0]].run == samples[w[1]].run) {
-                let run = samples[w[0]].run;
-                let count = g.iter().filter(|&&i| samples[i].run == run).count();
+            // In run order (a survey stores them so: no sort); equal runs
+            // in the samples' order.
+            if !g.is_sorted_by_key(|&(run, _)| run) {
+                g.sort_by_key(|&(run, _)| run);
+            }
+            if let Some(w) = g.windows(2).find(|w| w[0].0 == w[1].0) {
+                let run = w[0].0;
+                let count = g.iter().filter(|&&(r, _)| r == run).count();
                 return Err(StatsError::DuplicateRun { target_deg, direction, run, count });
             }
             if g.len() < 2 {
                 return Err(StatsError::TooFewRuns { target_deg, direction, runs: g.len() });
             }
             x.clear();
-            x.extend(g.iter().map(|&i| actual(i) - samples[i].target_deg));
+            x.extend(g.iter().map(|&(_, i)| actual(i) - samples[i].target_deg));
             Ok(Some(dir_stats_of(&x)))
         };
         let up = dir_stats(Direction::Forward)?;

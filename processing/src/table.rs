@@ -111,8 +111,10 @@ pub(crate) fn row_position(readout_deg: f64, rows: usize, rows_f: f64, scale: f6
     let p = readout_deg * scale;
     let p = p - rows_f * (p * inv_rows).floor();
     // Rounding can give p == rows: clamped to the last row, fraction 1.
-    let i = (p as usize).min(rows - 1);
-    (i, p - i as f64)
+    // Through `i64` (a NaN gives 0 as well): a float's conversion to an
+    // unsigned integer, and back, take several instructions each on x86-64.
+    let i = (p as i64).clamp(0, rows as i64 - 1);
+    (i as usize, p - i as f64)
 }
 
 #[cfg(test)]

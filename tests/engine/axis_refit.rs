@@ -87,3 +87,40 @@ fn the_refitted_axis_keeps_the_located_axis_error_out_of_the_table() {
     assert!(worst.1 <= 3e-5, "true residual rms {:.2e} deg", worst.1);
     assert!(worst.2 > 1e-4, "the located axis's error shows without the refit ({:.2e})", worst.2);
 }
+
+/// A survey some of whose samples have no SMR position (their raw readings
+/// gone: read from the rows, the positions through their indices) is
+/// refitted from the positions it has: the same axis to well within its
+/// uncertainty, two positions fewer.
+#[test]
+fn samples_without_a_position_are_refitted_from_the_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("s.db");
+    survey(&db, &["run", "--points", "360", "--bidirectional", "--json"]);
+    let (t, u) = (dir.path().join("t.csv"), dir.path().join("u.csv"));
+    let whole = survey(&db, &["process", "--table-out", t.to_str().unwrap(), "--json"]);
+    let c = rusqlite::Connection::open(&db).unwrap();
+    assert_eq!(c.execute("DELETE FROM raw_readings WHERE seq IN (10, 2000)", []).unwrap(), 2);
+    drop(c);
+    let sparse = survey(&db, &["process", "--table-out", u.to_str().unwrap(), "--json"]);
+    // The table as it was, to the noise two positions carry (the zero
+    // reference aside: a table's constant is its zero's).
+    let rows = |p: &Path| -> Vec<Vec<f64>> {
+        let text = std::fs::read_to_string(p).unwrap();
+        text.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect()
+    };
+    let worst = rows(&t)
+        .iter()
+        .zip(rows(&u))
+        .flat_map(|(a, b)| a[1..].iter().zip(&b[1..]).map(|(x, y)| (x - y).abs()).collect::<Vec<_>>())
+        .fold(0.0f64, f64::max);
+    assert!(worst < 2e-5, "the table moved by {worst} deg");
+    let (w, s) = (&whole["axis_refit"], &sparse["axis_refit"]);
+    assert_eq!(s["points"].as_u64().unwrap() + 2, w["points"].as_u64().unwrap(), "{s} {w}");
+    // Two positions of 3612 move the centre by about 2/3612 of a position's
+    // scatter: far below the centre's standard error.
+    let se = w["center_se_mm"].as_f64().unwrap();
+    let moved = (s["center_shift_mm"].as_f64().unwrap() - w["center_shift_mm"].as_f64().unwrap()).abs();
+    assert!(moved < se, "the centre moved {moved} mm, its standard error {se} mm");
+    assert!((s["radius_mm"].as_f64().unwrap() - w["radius_mm"].as_f64().unwrap()).abs() < se, "{s} {w}");
+}

@@ -70,6 +70,13 @@ impl SmrPositions {
         self.xyz_mm.len() - self.added
     }
 
+    /// How many positions follow the given points when they are those of
+    /// the first samples, one each in order (a tracker survey's case):
+    /// `None` when some sample before the last one with a position has none.
+    pub fn dense(&self) -> Option<usize> {
+        self.sample_index.is_empty().then_some(self.added)
+    }
+
     /// The index in the samples of each position after the given points.
     pub fn sample_indices(&self) -> impl Iterator<Item = usize> + '_ {
         let dense = self.sample_index.is_empty();
@@ -235,10 +242,12 @@ mod tests {
         assert!(dense.sample_index.is_empty());
         assert_eq!(dense.given(), 1);
         assert_eq!(dense.sample_indices().collect::<Vec<_>>(), [0, 1, 2]);
+        assert_eq!(dense.dense(), Some(3));
         let mut sparse = dense.clone();
         sparse.push(4, [4.0, 0.0, 0.0]).unwrap();
         sparse.push(5, [5.0, 0.0, 0.0]).unwrap();
         assert_eq!(sparse.sample_index, [0, 1, 2, 4, 5]);
+        assert_eq!(sparse.dense(), None);
         assert_eq!(
             sparse.of_samples().map(|(i, p)| (i, p[0])).collect::<Vec<_>>(),
             [(0, 0.0), (1, 1.0), (2, 2.0), (4, 4.0), (5, 5.0)]

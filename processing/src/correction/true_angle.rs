@@ -40,10 +40,12 @@ const GRID_FACTOR: usize = 4;
 /// `grid.len()` points over 360 deg.
 fn interp(grid: &[f64], theta_deg: f64) -> f64 {
     let m = grid.len();
-    // `x` is not negative: `as` is its floor.
+    // `x` is not negative: `as` is its floor (through `i64`, a NaN gives 0:
+    // a float's conversion to an unsigned integer, and back, take several
+    // instructions each on x86-64).
     let x = rem_euclid_360(theta_deg) / 360.0 * m as f64;
-    let i = (x as usize).min(m - 1);
-    let f = x - i as f64;
+    let k = (x as i64).min(m as i64 - 1);
+    let (i, f) = (k as usize, x - k as f64);
     // The four nodes, wrapped around the grid only at its ends.
     let (a, b, c, d) = match grid.get(i.wrapping_sub(1)..i + 3) {
         Some(&[a, b, c, d]) => (a, b, c, d),

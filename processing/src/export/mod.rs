@@ -88,6 +88,8 @@ pub struct AppliedLine {
     /// Points per degree: a position's place on the grid is a product.
     per_deg: f64,
     removed_deg: Vec<f64>,
+    /// The last point's place on the grid (`removed_deg.len() - 1`).
+    last: f64,
     modulo: bool,
 }
 
@@ -97,7 +99,8 @@ impl AppliedLine {
     pub fn new(grid: &Grid, removed_deg: Vec<f64>, modulo: bool) -> Self {
         assert_eq!(removed_deg.len(), grid.points, "a value for each point of the grid");
         assert!(grid.points >= 1 && grid.interval_deg > 0.0, "a grid of points ascending");
-        AppliedLine { start_deg: grid.start_deg, per_deg: 1.0 / grid.interval_deg, removed_deg, modulo }
+        let last = (removed_deg.len() - 1) as f64;
+        AppliedLine { start_deg: grid.start_deg, per_deg: 1.0 / grid.interval_deg, removed_deg, last, modulo }
     }
 
     /// The error removed at `position_deg`, degrees: a product, a
@@ -116,12 +119,16 @@ impl AppliedLine {
         if t.is_nan() || t <= 0.0 {
             return v[0];
         }
-        if t >= last as f64 {
+        if t >= self.last {
             return v[last];
         }
-        // `t` is positive: `as` is its floor, below `last`.
-        let i = t as usize;
-        v[i] + (v[i + 1] - v[i]) * (t - i as f64)
+        // `t` is positive: `as` is its floor, below `last`. Through `i64`:
+        // a float's conversion to an unsigned integer, and back, take
+        // several instructions each on x86-64 (this runs at every sample for
+        // every controller).
+        let k = t as i64;
+        let i = k as usize;
+        v[i] + (v[i + 1] - v[i]) * (t - k as f64)
     }
 }
 
@@ -130,39 +137,47 @@ impl AppliedLine {
 /// (full-circle) survey is moved by whole turns onto each turn of the table's
 /// range, and the worst turn is returned. `None` when no sample falls inside.
 ///
-/// One pass over the samples for every turn at once, each turn's errors
-/// folded into their count, sum, least and largest: the peak about the mean
-/// is the larger of `largest - mean` and `mean - least` (rounding is
-/// monotonic: the same bits as [`crate::correction::ErrorFigures`]' `peak_deg` of the errors
-/// collected, with no vector of them).
+/// A pass over the samples for each turn some sample falls on, the turn's
+/// errors folded into their count, sum, least and largest (kept in
+/// registers: one pass for every turn kept them in memory): the peak about
+/// the mean is the larger of `largest - mean` and `mean - least` (rounding
+/// is monotonic: the same bits as [`crate::correction::ErrorFigures`]'
+/// `peak_deg` of the errors collected, with no vector of them). A turn onto
+/// which the least and the largest readout both move outside the range, on
+/// one side, takes no sample (a sum is monotonic) and is not passed over.
 pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, periodic: bool) -> Option<f64> {
     let (lo, hi) = table.range_deg();
+    let tol = 1e-9;
+    let (lo_tol, hi_tol) = (lo - tol, hi + tol);
     let turns: Vec<i64> = if periodic && lo.is_finite() && hi.is_finite() {
-        ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1).collect()
+        let (least, largest) = samples
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| (a.min(s.readout_deg), b.max(s.readout_deg)));
+        ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1)
+            .filter(|&k| largest + 360.0 * k as f64 >= lo_tol && least + 360.0 * k as f64 <= hi_tol)
+            .collect()
     } else {
         vec![0]
     };
-    let tol = 1e-9;
     let lines = [table.applied(Direction::Forward), table.applied(Direction::Reverse)];
-    // (count, sum, least, largest) of each turn's errors; the sum in their
-    // order from -0.0, as `Iterator::sum` takes it.
-    let mut folds = vec![(0usize, -0.0f64, f64::INFINITY, f64::NEG_INFINITY); turns.len()];
-    for s in samples {
-        let line = &lines[usize::from(s.direction == Direction::Reverse)];
-        for (&k, fold) in turns.iter().zip(folds.iter_mut()) {
-            let p = s.readout_deg + 360.0 * k as f64;
-            if p >= lo - tol && p <= hi + tol {
-                let e = s.error_deg() - line.at(p);
-                *fold = (fold.0 + 1, fold.1 + e, fold.2.min(e), fold.3.max(e));
-            }
-        }
-    }
-    folds
+    turns
         .into_iter()
-        .filter(|f| f.0 > 0)
-        .map(|(n, sum, least, largest)| {
-            let mean = sum / n as f64;
-            0.0f64.max(largest - mean).max(mean - least)
+        .filter_map(|k| {
+            let turn = 360.0 * k as f64;
+            // The sum in the errors' order from -0.0, as `Iterator::sum` takes it.
+            let (mut n, mut sum, mut least, mut largest) = (0usize, -0.0f64, f64::INFINITY, f64::NEG_INFINITY);
+            for s in samples {
+                let p = s.readout_deg + turn;
+                if p >= lo_tol && p <= hi_tol {
+                    let line = &lines[usize::from(s.direction == Direction::Reverse)];
+                    let e = s.error_deg() - line.at(p);
+                    (n, sum, least, largest) = (n + 1, sum + e, least.min(e), largest.max(e));
+                }
+            }
+            (n > 0).then(|| {
+                let mean = sum / n as f64;
+                0.0f64.max(largest - mean).max(mean - least)
+            })
         })
         .reduce(f64::max)
 }

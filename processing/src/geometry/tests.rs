@@ -330,6 +330,18 @@ fn errors() {
     assert_eq!(err.to_string(), "point 1: z is NaN, not a finite number");
     let err = fit_axis(&p, &[0.0, f64::INFINITY, 240.0]).unwrap_err();
     assert!(matches!(err, GeometryError::NonFinite { index: 1, what: "readout", .. }), "{err:?}");
+    // The first value that is not finite is named, a point's or a readout's.
+    let mut both = p.clone();
+    both[2][0] = f64::NEG_INFINITY;
+    let err = fit_axis(&both, &[0.0, f64::NAN, 240.0]).unwrap_err();
+    assert!(matches!(err, GeometryError::NonFinite { index: 1, what: "readout", .. }), "{err:?}");
+    let err = fit_axis(&both, &[0.0, 120.0, 240.0]).unwrap_err();
+    assert_eq!(err.to_string(), "point 2: x is -inf, not a finite number");
+    // Finite values whose sum overflows are not taken for values that are not.
+    let huge = vec![[f64::MAX, 0.0, 0.0], [f64::MAX, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    if let Err(err) = fit_axis(&huge, &[0.0, 120.0, 240.0]) {
+        assert!(!matches!(err, GeometryError::NonFinite { .. }), "{err:?}");
+    }
 
     let line: Vec<V3> = (0..5).map(|k| [k as f64 * 10.0, 2.0 * k as f64, -3.0]).collect();
     let err = fit_axis(&line, &[0.0, 1.0, 2.0, 3.0, 4.0]).unwrap_err();
