@@ -512,3 +512,55 @@ proptest! {
         }
     }
 }
+
+/// Whole sweeps over `targets` (each sweep ascending when its flag is set),
+/// then `edit` applied: a target moved, a sample dropped or repeated.
+fn sweeps(targets: &[f64], up: &[bool]) -> Vec<Sample> {
+    let mut out = Vec::new();
+    for (s, &forward) in up.iter().enumerate() {
+        let direction = if forward { Direction::Forward } else { Direction::Reverse };
+        let order: Vec<f64> = if forward { targets.to_vec() } else { targets.iter().rev().copied().collect() };
+        out.extend(order.into_iter().map(|t| sample(s as u32 / 2 + 1, direction, t, 0.0)));
+    }
+    out
+}
+
+fn same_groups(a: &TargetGroups, b: &TargetGroups) -> bool {
+    a.ranges == b.ranges && a.sorted == b.sorted
+}
+
+proptest! {
+    /// A survey's whole sweeps are grouped without a sort, to the indices
+    /// the stable sort gives; any other layout is sorted (the same groups,
+    /// whichever path takes it).
+    #[test]
+    fn sweeps_are_grouped_as_the_sort_groups_them(
+        steps in proptest::collection::vec(prop_oneof![Just(1e-12), Just(0.5), 0.001f64..3.0], 1..40),
+        start in prop_oneof![Just(-0.0), Just(0.0), -20.0f64..20.0],
+        up in proptest::collection::vec(proptest::bool::ANY, 1..7),
+        edit in 0usize..5,
+        at in proptest::num::usize::ANY,
+    ) {
+        let targets: Vec<f64> = steps.iter().scan(start, |t, d| { *t += d; Some(*t) }).collect();
+        let mut s = sweeps(&targets, &up);
+        let i = at % s.len();
+        match edit {
+            1 => s[i].target_deg += 1e-3,
+            2 => { s.remove(i); }
+            3 => { let x = s[i]; s.insert(i, x); }
+            4 => s[i].target_deg = f64::NAN,
+            _ => {}
+        }
+        if s.is_empty() {
+            return Ok(());
+        }
+        let fast = TargetGroups::of_sweeps(&s);
+        if edit == 0 {
+            prop_assert!(fast.is_some() || targets.len() < 2, "whole sweeps take the sort");
+        }
+        if let Some(fast) = fast {
+            prop_assert!(same_groups(&fast, &TargetGroups::by_sort(&s)));
+        }
+        prop_assert!(same_groups(&TargetGroups::of(&s), &TargetGroups::by_sort(&s)));
+    }
+}
