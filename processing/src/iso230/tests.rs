@@ -443,6 +443,36 @@ proptest! {
         prop_assert_eq!(iso230_2_a_with_actual(&s, &groups, actual).map(f64::to_bits), whole);
     }
 
+    /// The figures and the `A` of other actual angles from one walk are
+    /// each what its own function gives, to the bit, errors included: a
+    /// value that is not finite in either set, or a sample whose run is
+    /// repeated (both sets' error).
+    #[test]
+    fn the_figures_and_the_a_together_are_each_alone(
+        s in survey(),
+        c in -1e-3f64..1e-3,
+        broken in proptest::option::of((proptest::num::usize::ANY, proptest::bool::ANY)),
+        repeat in proptest::bool::ANY,
+    ) {
+        let mut s = s;
+        if repeat {
+            let x = s[0];
+            s.push(x);
+        }
+        let mut bad = None;
+        if let Some((at, native)) = broken {
+            let i = at % s.len();
+            if native { s[i].actual_deg = f64::NAN } else { bad = Some(i) }
+        }
+        let groups = TargetGroups::of(&s);
+        let actual = |i: usize| if bad == Some(i) { f64::INFINITY } else { s[i].actual_deg + c * (i as f64).cos() };
+        let (figures, a) = iso230_2_figures_and_a_with_actual(&s, &groups, actual);
+        // Compared as printed: an error's NaN is not equal to itself.
+        prop_assert_eq!(format!("{figures:?}"), format!("{:?}", iso230_2_figures_grouped(&s, &groups)));
+        let bits = |r: Result<f64, StatsError>| format!("{:?}", r.map(f64::to_bits));
+        prop_assert_eq!(bits(a), bits(iso230_2_a_with_actual(&s, &groups, actual)));
+    }
+
     /// The figures folded target by target (what the processing keeps) are
     /// the figures of the per-target statistics taken whole, to the bit.
     #[test]
