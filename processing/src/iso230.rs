@@ -467,7 +467,7 @@ impl TargetGroups {
             return None;
         }
         let len = 1 + (1..n).take_while(|&i| t(i).total_cmp(&t(i - 1)) == first).count();
-        if n % len != 0 {
+        if !n.is_multiple_of(len) {
             return None;
         }
         // The targets ascending, as the first sweep holds them.
