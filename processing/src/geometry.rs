@@ -410,9 +410,9 @@ pub fn refit_axis_with_angles<I: Iterator<Item = f64>>(
 /// none when that median is 0.
 ///
 /// The distances are compared in square (a square root a point fewer),
-/// and each is made again on each pass rather than kept: their median is
-/// selected without a vector of them all ([`median_of_squares`]; 8 bytes a
-/// point at the refit's peak, its largest vector but the positions').
+/// and each is made again on the second pass rather than kept (8 bytes a
+/// point at the refit's peak): the vector the median is selected in is the
+/// only one.
 fn beyond_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
     let squared = |p: &[f64; 3]| {
         let d = sub(*p, fit.center_mm);
@@ -420,41 +420,15 @@ fn beyond_limit(fit: &AxisFit, points_mm: &[[f64; 3]]) -> Vec<usize> {
         let in_plane = sub(d, scale(fit.normal, h));
         (dot(in_plane, in_plane).sqrt() - fit.radius_mm).powi(2) + h * h
     };
-    let mad = median_of_squares(|| points_mm.iter().map(squared), points_mm.len()).sqrt();
+    let mut squares: Vec<f64> = points_mm.iter().map(squared).collect();
+    let mad = squares.select_nth_unstable_by(points_mm.len() / 2, f64::total_cmp).1.sqrt();
+    drop(squares);
     let limit = 5.0 * 1.4826 * mad;
     if limit <= 0.0 {
         return Vec::new();
     }
     let limit2 = limit * limit;
     points_mm.iter().enumerate().filter(|(_, p)| squared(p) > limit2).map(|(i, _)| i).collect()
-}
-
-/// The element of rank `count / 2` (from 0, ascending) of `count` values
-/// that are not negative (squares: `+0.0` up, infinity or NaN included),
-/// which `values` makes anew for each pass: what `select_nth_unstable_by`
-/// with `f64::total_cmp` gives, to the bit, without a vector of them all.
-/// A non-negative float's bits, as an integer, grow with it: a first pass
-/// counts the values by their top 16 bits (sign, exponent and four bits of
-/// mantissa: a bucket spans a 16th of an octave), the second keeps the
-/// bucket the rank falls in (a few percent of them) and selects in it.
-fn median_of_squares<I: Iterator<Item = f64>>(values: impl Fn() -> I, count: usize) -> f64 {
-    const SHIFT: u32 = 48;
-    let mut counts = vec![0u32; 1 << (64 - SHIFT)];
-    for v in values() {
-        counts[(v.to_bits() >> SHIFT) as usize] += 1;
-    }
-    let mut rank = count / 2;
-    let mut bucket = 0;
-    for (b, &c) in counts.iter().enumerate() {
-        if rank < c as usize {
-            bucket = b as u64;
-            break;
-        }
-        rank -= c as usize;
-    }
-    drop(counts);
-    let mut kept: Vec<f64> = values().filter(|v| v.to_bits() >> SHIFT == bucket).collect();
-    *kept.select_nth_unstable_by(rank, f64::total_cmp).1
 }
 
 /// How well a fitted circle's centre is known from its points.

@@ -631,33 +631,3 @@ mod largest_gap_by_buckets {
         assert!((gap - PI).abs() < 1e-12, "{gap}");
     }
 }
-
-mod median_of_squares {
-    use super::*;
-    use proptest::prelude::*;
-
-    proptest! {
-        /// The median selected by buckets of bits is the one a select over
-        /// all the values gives, to the bit: squares of distances spread
-        /// over decades, clustered in one bucket, repeated, zero or
-        /// infinite.
-        #[test]
-        fn is_the_selected_median(
-            values in proptest::collection::vec(
-                prop_oneof![
-                    Just(0.0),
-                    Just(f64::INFINITY),
-                    1e-30f64..1e30,
-                    (0.0f64..1.0).prop_map(|x| 1.0 + x * 1e-3),
-                    (0u8..4).prop_map(|k| 2.0f64.powi(i32::from(k))),
-                ],
-                1..300,
-            ),
-        ) {
-            let mut all = values.clone();
-            let want = *all.select_nth_unstable_by(values.len() / 2, f64::total_cmp).1;
-            let got = median_of_squares(|| values.iter().copied(), values.len());
-            prop_assert_eq!(got.to_bits(), want.to_bits());
-        }
-    }
-}
