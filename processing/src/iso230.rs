@@ -200,6 +200,62 @@ pub fn iso230_2_figures_grouped(samples: &[Sample], groups: &TargetGroups) -> Re
     Ok(fold.figures(Vec::new()))
 }
 
+/// [`iso230_2_figures_grouped`] and [`iso230_2_a_with_actual`] of
+/// `actual` together, from one walk of the groups (each as the function
+/// gives it alone, to the bit; either fails alone where the function does).
+pub(crate) fn iso230_2_figures_and_a_with_actual(
+    samples: &[Sample],
+    groups: &TargetGroups,
+    actual: impl Fn(usize) -> f64,
+) -> (Result<Iso230, StatsError>, Result<f64, StatsError>) {
+    let mut fold = AxisFold::default();
+    let mut a = ABand::default();
+    match each_target_of(
+        samples,
+        groups,
+        |i| [samples[i].actual_deg, actual(i)],
+        |[native, other]| {
+            fold.add(&native);
+            a.add(&other);
+        },
+    ) {
+        Ok(()) => (Ok(fold.figures(Vec::new())), Ok(a.a())),
+        // A value that is not finite is one set's: each is taken alone to
+        // tell which (the errors of the grouping are both sets').
+        Err(StatsError::NonFinite { .. }) => {
+            (iso230_2_figures_grouped(samples, groups), iso230_2_a_with_actual(samples, groups, actual))
+        }
+        Err(e) => (Err(e.clone()), Err(e)),
+    }
+}
+
+/// The bidirectional `A`'s largest `x̄ + 2s` and smallest `x̄ - 2s`, as
+/// [`axis_figures`] finds them (a largest and a smallest: the same bits in
+/// any order).
+struct ABand {
+    hi: f64,
+    lo: f64,
+}
+
+impl Default for ABand {
+    fn default() -> Self {
+        ABand { hi: f64::NEG_INFINITY, lo: f64::INFINITY }
+    }
+}
+
+impl ABand {
+    fn add(&mut self, t: &TargetStats) {
+        for d in [&t.up, &t.down].into_iter().flatten() {
+            self.hi = self.hi.max(d.mean + 2.0 * d.s);
+            self.lo = self.lo.min(d.mean - 2.0 * d.s);
+        }
+    }
+
+    fn a(&self) -> f64 {
+        self.hi - self.lo
+    }
+}
+
 /// [`iso230_2_grouped`] of `samples` with the actual angle of sample `i`
 /// replaced by `actual(i)` (corrected samples, without a copy of them).
 fn iso230_2_with_actual(
@@ -221,14 +277,9 @@ pub(crate) fn iso230_2_a_with_actual(
     groups: &TargetGroups,
     actual: impl Fn(usize) -> f64,
 ) -> Result<f64, StatsError> {
-    let (mut hi, mut lo) = (f64::NEG_INFINITY, f64::INFINITY);
-    each_target(samples, groups, actual, |t| {
-        for d in [&t.up, &t.down].into_iter().flatten() {
-            hi = hi.max(d.mean + 2.0 * d.s);
-            lo = lo.min(d.mean - 2.0 * d.s);
-        }
-    })?;
-    Ok(hi - lo)
+    let mut band = ABand::default();
+    each_target(samples, groups, actual, |t| band.add(&t))?;
+    Ok(band.a())
 }
 
 /// Every target's statistics of `samples` (actual angle of sample `i`:
@@ -239,11 +290,39 @@ fn each_target(
     actual: impl Fn(usize) -> f64,
     mut each: impl FnMut(TargetStats),
 ) -> Result<(), StatsError> {
+    each_target_of(samples, groups, |i| [actual(i)], |[t]| each(t))
+}
+
+/// [`each_target`] of `N` sets of actual angles at once (sample `i`'s:
+/// `actual(i)`), each target's statistics of each set to `each` together:
+/// one walk of the groups, one split of a target's samples by direction and
+/// one check of their runs serve every set. The first value that is not
+/// finite, of any set, is the error.
+fn each_target_of<const N: usize>(
+    samples: &[Sample],
+    groups: &TargetGroups,
+    actual: impl Fn(usize) -> [f64; N],
+    mut each: impl FnMut([TargetStats; N]),
+) -> Result<(), StatsError> {
     for (index, s) in samples.iter().enumerate() {
-        for (field, value) in [("target_deg", s.target_deg), ("actual_deg", actual(index))] {
-            if !value.is_finite() {
-                return Err(StatsError::NonFinite { index, run: s.run, direction: s.direction, field, value });
-            }
+        if !s.target_deg.is_finite() {
+            let value = s.target_deg;
+            return Err(StatsError::NonFinite {
+                index,
+                run: s.run,
+                direction: s.direction,
+                field: "target_deg",
+                value,
+            });
+        }
+        if let Some(&value) = actual(index).iter().find(|v| !v.is_finite()) {
+            return Err(StatsError::NonFinite {
+                index,
+                run: s.run,
+                direction: s.direction,
+                field: "actual_deg",
+                value,
+            });
         }
     }
     if samples.is_empty() {
@@ -253,12 +332,12 @@ fn each_target(
     let any_down = samples.iter().any(|s| s.direction == Direction::Reverse);
     let bidirectional = any_up && any_down;
 
-    // One buffer each for a direction's (run, sample) and for deviations,
-    // reused by every target; a target's samples are split by direction in
-    // one pass over them.
+    // One buffer each for a direction's (run, sample) and for each set's
+    // deviations, reused by every target; a target's samples are split by
+    // direction in one pass over them.
     let mut up_runs: Vec<(u32, usize)> = Vec::new();
     let mut down_runs: Vec<(u32, usize)> = Vec::new();
-    let mut x: Vec<f64> = Vec::new();
+    let mut x: [Vec<f64>; N] = std::array::from_fn(|_| Vec::new());
     for group in groups.iter() {
         let target_deg = samples[group[0] as usize].target_deg;
         up_runs.clear();
@@ -270,7 +349,7 @@ fn each_target(
                 Direction::Reverse => down_runs.push((s.run, i as usize)),
             }
         }
-        let mut dir_stats = |direction: Direction| -> Result<Option<DirStats>, StatsError> {
+        let mut dir_stats = |direction: Direction| -> Result<Option<[DirStats; N]>, StatsError> {
             let g = if direction == Direction::Forward { &mut up_runs } else { &mut down_runs };
             if g.is_empty() {
                 return Ok(None);
@@ -288,30 +367,39 @@ fn each_target(
             if g.len() < 2 {
                 return Err(StatsError::TooFewRuns { target_deg, direction, runs: g.len() });
             }
-            x.clear();
-            x.extend(g.iter().map(|&(_, i)| actual(i) - samples[i].target_deg));
-            Ok(Some(dir_stats_of(&x)))
+            x.iter_mut().for_each(Vec::clear);
+            for &(_, i) in g.iter() {
+                let (a, t) = (actual(i), samples[i].target_deg);
+                for k in 0..N {
+                    x[k].push(a[k] - t);
+                }
+            }
+            Ok(Some(std::array::from_fn(|k| dir_stats_of(&x[k]))))
         };
         let up = dir_stats(Direction::Forward)?;
         let down = dir_stats(Direction::Reverse)?;
-        let target = match (&up, &down) {
-            (Some(u), Some(d)) => {
-                let b = u.mean - d.mean;
-                let r = (2.0 * u.s + 2.0 * d.s + b.abs()).max(u.r).max(d.r);
-                TargetStats { target_deg, b: Some(b), r, mean_bi: Some((u.mean + d.mean) / 2.0), up, down }
-            }
-            (Some(one), None) | (None, Some(one)) => {
-                if bidirectional {
-                    let missing = if up.is_none() { Direction::Forward } else { Direction::Reverse };
-                    return Err(StatsError::MissingDirection { target_deg, missing });
-                }
-                TargetStats { target_deg, b: None, r: one.r, mean_bi: None, up, down }
-            }
-            (None, None) => unreachable!("every target group holds at least one sample"),
-        };
-        each(target);
+        if bidirectional && (up.is_none() || down.is_none()) {
+            let missing = if up.is_none() { Direction::Forward } else { Direction::Reverse };
+            return Err(StatsError::MissingDirection { target_deg, missing });
+        }
+        each(std::array::from_fn(|k| {
+            target_stats(target_deg, up.as_ref().map(|u| u[k].clone()), down.as_ref().map(|d| d[k].clone()))
+        }));
     }
     Ok(())
+}
+
+/// A target's statistics from its directions' (one at least).
+fn target_stats(target_deg: f64, up: Option<DirStats>, down: Option<DirStats>) -> TargetStats {
+    match (&up, &down) {
+        (Some(u), Some(d)) => {
+            let b = u.mean - d.mean;
+            let r = (2.0 * u.s + 2.0 * d.s + b.abs()).max(u.r).max(d.r);
+            TargetStats { target_deg, b: Some(b), r, mean_bi: Some((u.mean + d.mean) / 2.0), up, down }
+        }
+        (Some(one), None) | (None, Some(one)) => TargetStats { target_deg, b: None, r: one.r, mean_bi: None, up, down },
+        (None, None) => unreachable!("every target group holds at least one sample"),
+    }
 }
 
 /// Samples grouped by target, targets ascending; a group starts at its
@@ -335,6 +423,14 @@ impl TargetGroups {
         // is ordered by run before anything is computed from it. A survey's
         // samples are a few sweeps, each ascending or descending in target: the
         // stable sort finds them and merges them (an unstable one partitions).
+        if let Some(groups) = Self::of_sweeps(samples) {
+            return groups;
+        }
+        Self::by_sort(samples)
+    }
+
+    /// [`TargetGroups::of`] by a stable sort of the samples' targets.
+    fn by_sort(samples: &[Sample]) -> Self {
         let count = u32::try_from(samples.len()).expect("fewer than 2^32 samples");
         let mut keyed: Vec<(f64, u32)> = samples.iter().map(|s| s.target_deg).zip(0..count).collect();
         keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -348,6 +444,80 @@ impl TargetGroups {
         // A new vector (collected in place, it would keep the pairs' room).
         let sorted = keyed.iter().map(|&(_, i)| i).collect();
         TargetGroups { sorted, ranges }
+    }
+
+    /// The grouping of a survey's samples that are whole sweeps over the
+    /// same targets (what a survey stores: each run forward, then reverse
+    /// when bidirectional): the first sweep strictly ascending or
+    /// descending, every other one the same targets (bit for bit) in the
+    /// same or the reverse order. Their sorted order is then known without
+    /// a sort: target by target, a sample from each sweep in the sweeps'
+    /// order (the samples' order: what the stable sort gives, to the
+    /// index). `None` for any other layout (repeated readings, a sweep cut
+    /// short, a target missing): the sort takes those.
+    fn of_sweeps(samples: &[Sample]) -> Option<Self> {
+        let n = samples.len();
+        let t = |i: usize| samples[i].target_deg;
+        if n < 2 || u32::try_from(n).is_err() {
+            return None;
+        }
+        // The first sweep: its length and its direction.
+        let first = t(1).total_cmp(&t(0));
+        if first == std::cmp::Ordering::Equal {
+            return None;
+        }
+        let len = 1 + (1..n).take_while(|&i| t(i).total_cmp(&t(i - 1)) == first).count();
+        if !n.is_multiple_of(len) {
+            return None;
+        }
+        // The targets ascending, as the first sweep holds them.
+        let ascending = first == std::cmp::Ordering::Greater;
+        let target = |j: usize| if ascending { t(j) } else { t(len - 1 - j) };
+        // Every sweep: its direction from its first target, then each of
+        // its targets the same bits as the first sweep's.
+        let sweeps = n / len;
+        let mut up = Vec::with_capacity(sweeps);
+        for s in 0..sweeps {
+            let base = s * len;
+            let bits = t(base).to_bits();
+            let forward = if bits == target(0).to_bits() {
+                true
+            } else if bits == target(len - 1).to_bits() {
+                false
+            } else {
+                return None;
+            };
+            let same = (0..len).all(|j| {
+                let k = if forward { j } else { len - 1 - j };
+                t(base + j).to_bits() == target(k).to_bits()
+            });
+            if !same {
+                return None;
+            }
+            up.push(forward);
+        }
+        let mut sorted = Vec::with_capacity(n);
+        for j in 0..len {
+            for (s, &forward) in up.iter().enumerate() {
+                let k = if forward { j } else { len - 1 - j };
+                sorted.push((s * len + k) as u32);
+            }
+        }
+        // The groups as the sorted targets make them (every sweep's sample
+        // of a target has its bits).
+        let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
+        let mut start_target = f64::NAN;
+        for j in 0..len {
+            let (from, to) = (j * sweeps, (j + 1) * sweeps);
+            match ranges.last_mut() {
+                Some(g) if target(j) - start_target <= TARGET_TOLERANCE_DEG => g.end = to,
+                _ => {
+                    ranges.push(from..to);
+                    start_target = target(j);
+                }
+            }
+        }
+        Some(TargetGroups { sorted, ranges })
     }
 
     /// How many targets.

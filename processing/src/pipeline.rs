@@ -9,10 +9,10 @@ use crate::Sample;
 use crate::analysis::{Analysis, AnalysisError, analyse_grouped};
 use crate::correction::left::{Left, LeftKind};
 use crate::correction::resolve::{Resolution, decide as resolve, measured_left_deg as measured_left_deg_of};
-use crate::correction::{CorrectionError, Prediction, corrected_errors, predict_accuracy};
+use crate::correction::{CorrectionError, Prediction, corrected_errors, predict_accuracy_with_a};
 use crate::errormap::Coverage;
 use crate::export::controllers::ControllerExport;
-use crate::iso230::{Iso230, TargetGroups, iso230_2_figures_grouped};
+use crate::iso230::{Iso230, TargetGroups, iso230_2_figures_and_a_with_actual};
 use crate::model::Design;
 use crate::recipe::{
     AliasChoice, AliasChoiceAction, ApplyError, BuiltTable, ChoiceError, Decisions, ExportChoices, Recipe,
@@ -195,7 +195,12 @@ pub fn process_with_checks(
     }
     notes.extend(decisions.notes.iter().cloned());
     notes.extend(built.notes.iter().cloned());
-    let iso = iso230_2_figures_grouped(&samples, &groups).ok();
+    // The survey's figures and its corrected samples' `A` (actual angles:
+    // target - corrected error) from one walk of the groups.
+    let corrected = corrected_errors(&samples, &built.table);
+    let (iso, corrected_a) =
+        iso230_2_figures_and_a_with_actual(&samples, &groups, |i| samples[i].target_deg - corrected[i]);
+    let iso = iso.ok();
     let floor = match &iso {
         Some(s) if built.directional => Floor {
             deg: Some(s.r_up.unwrap_or(s.r).max(s.r_down.unwrap_or(0.0)) / 2.0),
@@ -208,10 +213,14 @@ pub fn process_with_checks(
         },
         None => Floor { deg: None, what: "one run: no repeatability figure".into() },
     };
-    let corrected = corrected_errors(&samples, &built.table);
-    let mut prediction =
-        predict_accuracy(&samples, &corrected, &groups, floor.deg.unwrap_or(0.0), iso.as_ref().map(|s| s.a))?
-            .with_left(&left, &samples, &corrected, &groups);
+    let mut prediction = predict_accuracy_with_a(
+        &samples,
+        &corrected,
+        floor.deg.unwrap_or(0.0),
+        iso.as_ref().map(|s| s.a),
+        corrected_a.ok(),
+    )?
+    .with_left(&left, &samples, &corrected, &groups);
     drop((groups, corrected));
     // Check points that no hypothesis explains measured the corrected axis
     // between the targets: the prediction does not promise better.

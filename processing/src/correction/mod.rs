@@ -343,6 +343,20 @@ pub fn predict_accuracy(
     floor_deg: f64,
     native_iso230_a_deg: Option<f64>,
 ) -> Result<Prediction, CorrectionError> {
+    let corrected_a = iso230_2_a_with_actual(samples, groups, |i| samples[i].target_deg - corrected[i]).ok();
+    predict_accuracy_with_a(samples, corrected, floor_deg, native_iso230_a_deg, corrected_a)
+}
+
+/// [`predict_accuracy`] with the corrected samples' ISO 230-2 `A` made
+/// already (by the caller, with the native figures: one walk of the groups
+/// for both).
+pub(crate) fn predict_accuracy_with_a(
+    samples: &[Sample],
+    corrected: &[f64],
+    floor_deg: f64,
+    native_iso230_a_deg: Option<f64>,
+    corrected_a: Option<f64>,
+) -> Result<Prediction, CorrectionError> {
     if samples.is_empty() {
         return Err(CorrectionError::NoSamples);
     }
@@ -350,8 +364,6 @@ pub fn predict_accuracy(
         return Err(CorrectionError::BadSample { index });
     }
     let native = figures(samples.iter().map(Sample::error_deg), native_iso230_a_deg);
-    // The corrected samples' actual angles: target - corrected error.
-    let corrected_a = iso230_2_a_with_actual(samples, groups, |i| samples[i].target_deg - corrected[i]).ok();
     let corrected = figures(corrected.iter().copied(), corrected_a);
     Ok(Prediction {
         native_peak_deg: native.peak_deg,

@@ -16,7 +16,7 @@ use super::generic::GenericTable;
 use super::layout::{DefaultSpacing, Directions, Grid, MAX_TABLE_DEG, RangeChoice, Reader, Span, resolve};
 use super::linuxcnc::LinuxCncTable;
 use super::sinumerik::{Sinumerik840d, SinumerikOptions};
-use super::{Applied, predicted_peak_deg};
+use super::{AppliedTable, predicted_peaks_deg};
 use crate::num::Num;
 use crate::recipe::{ChoiceError, ExportChoices};
 use crate::table::CorrectionTable;
@@ -148,6 +148,9 @@ pub fn build(
         Directions::Separate => true,
     };
     let mut out = Vec::new();
+    // Each export's table whose accuracy is predicted (its place in `out`):
+    // all of them from one pass over the samples, after the loop.
+    let mut predicted: Vec<(usize, AppliedTable)> = Vec::new();
     for controller in chosen(export) {
         let default = match controller {
             Controller::LinuxCnc => DefaultSpacing::FinestWithin(export.linuxcnc_points),
@@ -183,7 +186,6 @@ pub fn build(
         };
         let offset = if zeroed { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
         let mut notes = Vec::new();
-        let predict = |t: &dyn Applied| predicted_peak_deg(samples, t, full_circle);
         let mut e = ControllerExport {
             controller,
             files: Vec::new(),
@@ -216,7 +218,7 @@ pub fn build(
                         grid.end_deg()
                     ));
                 }
-                e.corrected_peak_deg = predict(&t);
+                predicted.push((out.len(), AppliedTable::of(&t)));
                 e.files = vec![
                     ControllerFile { kind: "linuxcnc_type0", suffix: ".comp0", text: t.text(0) },
                     ControllerFile { kind: "linuxcnc_type1", suffix: ".comp1", text: t.text(1) },
@@ -253,7 +255,7 @@ pub fn build(
                     grid.points
                 ));
                 e.modulo = t.modulo;
-                e.corrected_peak_deg = predict(&t);
+                predicted.push((out.len(), AppliedTable::of(&t)));
                 e.files = vec![ControllerFile { kind: "sinumerik_840d", suffix: ".840d.ini", text: t.text() }];
             }
             Controller::Fanuc => {
@@ -268,7 +270,7 @@ pub fn build(
                 e.grid = t.grid;
                 e.modulo = t.rotary;
                 e.zero_at_reference = true;
-                e.corrected_peak_deg = predict(&t);
+                predicted.push((out.len(), AppliedTable::of(&t)));
                 e.parameters = t.parameters().into_iter().map(|(n, v, w)| (n.to_string(), v, w)).collect();
                 e.files = vec![ControllerFile { kind: "fanuc", suffix: ".fanuc.txt", text: t.text() }];
             }
@@ -279,6 +281,10 @@ pub fn build(
         }
         e.notes = notes;
         out.push(e);
+    }
+    let (places, tables): (Vec<usize>, Vec<AppliedTable>) = predicted.into_iter().unzip();
+    for (place, peak) in places.into_iter().zip(predicted_peaks_deg(samples, &tables, full_circle)) {
+        out[place].corrected_peak_deg = peak;
     }
     Ok(out)
 }

@@ -146,27 +146,64 @@ impl AppliedLine {
 /// which the least and the largest readout both move outside the range, on
 /// one side, takes no sample (a sum is monotonic) and is not passed over.
 pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, periodic: bool) -> Option<f64> {
-    let (lo, hi) = table.range_deg();
+    predicted_peaks_deg(samples, &[AppliedTable::of(table)], periodic)[0]
+}
+
+/// A controller table as [`predicted_peaks_deg`] takes it: the lines it
+/// applies in each direction and the range it covers.
+#[derive(Debug, Clone)]
+pub struct AppliedTable {
+    lines: [AppliedLine; 2],
+    range_deg: (f64, f64),
+}
+
+impl AppliedTable {
+    /// `table`'s lines and range.
+    pub fn of(table: &dyn Applied) -> Self {
+        AppliedTable {
+            lines: [table.applied(Direction::Forward), table.applied(Direction::Reverse)],
+            range_deg: table.range_deg(),
+        }
+    }
+}
+
+/// [`predicted_peak_deg`] of each of `tables`, from one pass over the
+/// samples' memory for them all (each table's turns folded over a chunk of
+/// them in turn, each in the samples' order: the same bits as a pass a
+/// table; a pass over a large survey's samples costs more in memory traffic
+/// than the lookups in it).
+pub fn predicted_peaks_deg(samples: &[crate::Sample], tables: &[AppliedTable], periodic: bool) -> Vec<Option<f64>> {
     let tol = 1e-9;
-    let (lo_tol, hi_tol) = (lo - tol, hi + tol);
-    let turns: Vec<i64> = if periodic && lo.is_finite() && hi.is_finite() {
-        let (least, largest) = samples
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| (a.min(s.readout_deg), b.max(s.readout_deg)));
-        ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1)
-            .filter(|&k| largest + 360.0 * k as f64 >= lo_tol && least + 360.0 * k as f64 <= hi_tol)
-            .collect()
-    } else {
-        vec![0]
-    };
-    let lines = [table.applied(Direction::Forward), table.applied(Direction::Reverse)];
-    turns
-        .into_iter()
-        .filter_map(|k| {
-            let turn = 360.0 * k as f64;
-            // The sum in the errors' order from -0.0, as `Iterator::sum` takes it.
-            let (mut n, mut sum, mut least, mut largest) = (0usize, -0.0f64, f64::INFINITY, f64::NEG_INFINITY);
-            for s in samples {
+    // The least and the largest readout, when a table's turns need them.
+    let mut extent = None;
+    // Each table's turns, in the order they are reduced: (table, turn).
+    let mut folds: Vec<TurnFold> = Vec::new();
+    for (t, table) in tables.iter().enumerate() {
+        let (lo, hi) = table.range_deg;
+        let (lo_tol, hi_tol) = (lo - tol, hi + tol);
+        if periodic && lo.is_finite() && hi.is_finite() {
+            let (least, largest) = *extent.get_or_insert_with(|| {
+                samples
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| (a.min(s.readout_deg), b.max(s.readout_deg)))
+            });
+            folds.extend(
+                ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1)
+                    .filter(|&k| largest + 360.0 * k as f64 >= lo_tol && least + 360.0 * k as f64 <= hi_tol)
+                    .map(|k| TurnFold::new(t, 360.0 * k as f64, lo_tol, hi_tol)),
+            );
+        } else {
+            folds.push(TurnFold::new(t, 0.0, lo_tol, hi_tol));
+        }
+    }
+    // A chunk of the samples at a time (cached), each turn's fold held in
+    // registers over it: the memory is read once, the loop is a table's.
+    for chunk in samples.chunks(PEAK_CHUNK) {
+        for f in &mut folds {
+            let lines = &tables[f.table].lines;
+            let (turn, lo_tol, hi_tol) = (f.turn, f.lo_tol, f.hi_tol);
+            let (mut n, mut sum, mut least, mut largest) = (f.n, f.sum, f.least, f.largest);
+            for s in chunk {
                 let p = s.readout_deg + turn;
                 if p >= lo_tol && p <= hi_tol {
                     let line = &lines[usize::from(s.direction == Direction::Reverse)];
@@ -174,12 +211,49 @@ pub fn predicted_peak_deg(samples: &[crate::Sample], table: &dyn Applied, period
                     (n, sum, least, largest) = (n + 1, sum + e, least.min(e), largest.max(e));
                 }
             }
-            (n > 0).then(|| {
-                let mean = sum / n as f64;
-                0.0f64.max(largest - mean).max(mean - least)
-            })
+            (f.n, f.sum, f.least, f.largest) = (n, sum, least, largest);
+        }
+    }
+    let mut peaks = vec![None; tables.len()];
+    for f in &folds {
+        if let Some(peak) = f.peak() {
+            let best: &mut Option<f64> = &mut peaks[f.table];
+            *best = Some(best.map_or(peak, |b: f64| b.max(peak)));
+        }
+    }
+    peaks
+}
+
+/// Samples a chunk of [`predicted_peaks_deg`] (96 KiB: within a core's
+/// second-level cache).
+const PEAK_CHUNK: usize = 2048;
+
+/// One turn of a table: where the samples fall on it, and the fold of
+/// their corrected errors there (count, sum, least, largest).
+struct TurnFold {
+    table: usize,
+    turn: f64,
+    lo_tol: f64,
+    hi_tol: f64,
+    n: usize,
+    sum: f64,
+    least: f64,
+    largest: f64,
+}
+
+impl TurnFold {
+    fn new(table: usize, turn: f64, lo_tol: f64, hi_tol: f64) -> Self {
+        // The sum in the errors' order from -0.0, as `Iterator::sum` takes it.
+        TurnFold { table, turn, lo_tol, hi_tol, n: 0, sum: -0.0, least: f64::INFINITY, largest: f64::NEG_INFINITY }
+    }
+
+    /// The peak about the mean (`None`: no sample on this turn).
+    fn peak(&self) -> Option<f64> {
+        (self.n > 0).then(|| {
+            let mean = self.sum / self.n as f64;
+            0.0f64.max(self.largest - mean).max(mean - self.least)
         })
-        .reduce(f64::max)
+    }
 }
 
 #[cfg(test)]
@@ -219,7 +293,10 @@ mod csv_tests {
         #[test]
         fn predicted_peak_is_the_collected_errors_peak(
             errors in proptest::collection::vec((-400.0f64..800.0, -0.01f64..0.01, proptest::bool::ANY), 1..200),
-            range in proptest::sample::select(vec![(0.0, 360.0), (-180.0, 540.0), (10.0, 90.0), (f64::NEG_INFINITY, f64::INFINITY)]),
+            ranges in proptest::collection::vec(
+                proptest::sample::select(vec![(0.0, 360.0), (-180.0, 540.0), (10.0, 90.0), (f64::NEG_INFINITY, f64::INFINITY)]),
+                1..4,
+            ),
             periodic in proptest::bool::ANY,
         ) {
             let samples: Vec<crate::Sample> = errors
@@ -233,28 +310,36 @@ mod csv_tests {
                     timestamp_s: None,
                 })
                 .collect();
-            let table = Smooth { range };
-            let (lo, hi) = range;
-            let turns: Vec<i64> = if periodic && lo.is_finite() && hi.is_finite() {
-                ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1).collect()
-            } else {
-                vec![0]
+            let collected = |table: &Smooth| {
+                let (lo, hi) = table.range;
+                let turns: Vec<i64> = if periodic && lo.is_finite() && hi.is_finite() {
+                    ((lo / 360.0).floor() as i64 - 1..=(hi / 360.0).ceil() as i64 + 1).collect()
+                } else {
+                    vec![0]
+                };
+                turns
+                    .into_iter()
+                    .filter_map(|k| {
+                        let e: Vec<f64> = samples
+                            .iter()
+                            .filter_map(|s| {
+                                let p = s.readout_deg + 360.0 * k as f64;
+                                (p >= lo - 1e-9 && p <= hi + 1e-9).then(|| s.error_deg() - table.removed_deg(p, s.direction))
+                            })
+                            .collect();
+                        (!e.is_empty()).then(|| crate::correction::ErrorFigures::of(&e, None).peak_deg)
+                    })
+                    .reduce(f64::max)
             };
-            let collected = turns
-                .into_iter()
-                .filter_map(|k| {
-                    let e: Vec<f64> = samples
-                        .iter()
-                        .filter_map(|s| {
-                            let p = s.readout_deg + 360.0 * k as f64;
-                            (p >= lo - 1e-9 && p <= hi + 1e-9).then(|| s.error_deg() - table.removed_deg(p, s.direction))
-                        })
-                        .collect();
-                    (!e.is_empty()).then(|| crate::correction::ErrorFigures::of(&e, None).peak_deg)
-                })
-                .reduce(f64::max);
-            let folded = predicted_peak_deg(&samples, &table, periodic);
-            proptest::prop_assert_eq!(folded.map(f64::to_bits), collected.map(f64::to_bits));
+            let tables: Vec<Smooth> = ranges.into_iter().map(|range| Smooth { range }).collect();
+            // Each alone, and all of them from one pass.
+            let together =
+                predicted_peaks_deg(&samples, &tables.iter().map(|t| AppliedTable::of(t)).collect::<Vec<_>>(), periodic);
+            for (table, together) in tables.iter().zip(together) {
+                let want = collected(table).map(f64::to_bits);
+                proptest::prop_assert_eq!(predicted_peak_deg(&samples, table, periodic).map(f64::to_bits), want);
+                proptest::prop_assert_eq!(together.map(f64::to_bits), want);
+            }
         }
     }
 

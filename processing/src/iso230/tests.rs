@@ -443,6 +443,36 @@ proptest! {
         prop_assert_eq!(iso230_2_a_with_actual(&s, &groups, actual).map(f64::to_bits), whole);
     }
 
+    /// The figures and the `A` of other actual angles from one walk are
+    /// each what its own function gives, to the bit, errors included: a
+    /// value that is not finite in either set, or a sample whose run is
+    /// repeated (both sets' error).
+    #[test]
+    fn the_figures_and_the_a_together_are_each_alone(
+        s in survey(),
+        c in -1e-3f64..1e-3,
+        broken in proptest::option::of((proptest::num::usize::ANY, proptest::bool::ANY)),
+        repeat in proptest::bool::ANY,
+    ) {
+        let mut s = s;
+        if repeat {
+            let x = s[0];
+            s.push(x);
+        }
+        let mut bad = None;
+        if let Some((at, native)) = broken {
+            let i = at % s.len();
+            if native { s[i].actual_deg = f64::NAN } else { bad = Some(i) }
+        }
+        let groups = TargetGroups::of(&s);
+        let actual = |i: usize| if bad == Some(i) { f64::INFINITY } else { s[i].actual_deg + c * (i as f64).cos() };
+        let (figures, a) = iso230_2_figures_and_a_with_actual(&s, &groups, actual);
+        // Compared as printed: an error's NaN is not equal to itself.
+        prop_assert_eq!(format!("{figures:?}"), format!("{:?}", iso230_2_figures_grouped(&s, &groups)));
+        let bits = |r: Result<f64, StatsError>| format!("{:?}", r.map(f64::to_bits));
+        prop_assert_eq!(bits(a), bits(iso230_2_a_with_actual(&s, &groups, actual)));
+    }
+
     /// The figures folded target by target (what the processing keeps) are
     /// the figures of the per-target statistics taken whole, to the bit.
     #[test]
@@ -510,5 +540,57 @@ proptest! {
                 }
             }
         }
+    }
+}
+
+/// Whole sweeps over `targets` (each sweep ascending when its flag is set),
+/// then `edit` applied: a target moved, a sample dropped or repeated.
+fn sweeps(targets: &[f64], up: &[bool]) -> Vec<Sample> {
+    let mut out = Vec::new();
+    for (s, &forward) in up.iter().enumerate() {
+        let direction = if forward { Direction::Forward } else { Direction::Reverse };
+        let order: Vec<f64> = if forward { targets.to_vec() } else { targets.iter().rev().copied().collect() };
+        out.extend(order.into_iter().map(|t| sample(s as u32 / 2 + 1, direction, t, 0.0)));
+    }
+    out
+}
+
+fn same_groups(a: &TargetGroups, b: &TargetGroups) -> bool {
+    a.ranges == b.ranges && a.sorted == b.sorted
+}
+
+proptest! {
+    /// A survey's whole sweeps are grouped without a sort, to the indices
+    /// the stable sort gives; any other layout is sorted (the same groups,
+    /// whichever path takes it).
+    #[test]
+    fn sweeps_are_grouped_as_the_sort_groups_them(
+        steps in proptest::collection::vec(prop_oneof![Just(1e-12), Just(0.5), 0.001f64..3.0], 1..40),
+        start in prop_oneof![Just(-0.0), Just(0.0), -20.0f64..20.0],
+        up in proptest::collection::vec(proptest::bool::ANY, 1..7),
+        edit in 0usize..5,
+        at in proptest::num::usize::ANY,
+    ) {
+        let targets: Vec<f64> = steps.iter().scan(start, |t, d| { *t += d; Some(*t) }).collect();
+        let mut s = sweeps(&targets, &up);
+        let i = at % s.len();
+        match edit {
+            1 => s[i].target_deg += 1e-3,
+            2 => { s.remove(i); }
+            3 => { let x = s[i]; s.insert(i, x); }
+            4 => s[i].target_deg = f64::NAN,
+            _ => {}
+        }
+        if s.is_empty() {
+            return Ok(());
+        }
+        let fast = TargetGroups::of_sweeps(&s);
+        if edit == 0 {
+            prop_assert!(fast.is_some() || targets.len() < 2, "whole sweeps take the sort");
+        }
+        if let Some(fast) = fast {
+            prop_assert!(same_groups(&fast, &TargetGroups::by_sort(&s)));
+        }
+        prop_assert!(same_groups(&TargetGroups::of(&s), &TargetGroups::by_sort(&s)));
     }
 }
