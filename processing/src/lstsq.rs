@@ -43,7 +43,10 @@ impl Qr {
                 return Err(j);
             }
             let alpha = if columns[j][j] > 0.0 { -norm } else { norm };
-            let mut h = columns[j][j..].to_vec();
+            // Column `j` is not needed past here: its rows `j..` become the
+            // Householder vector in place (no second copy of the matrix).
+            let mut h = std::mem::take(&mut columns[j]);
+            h.drain(..j);
             h[0] -= alpha;
             let hh: f64 = h.iter().map(|x| x * x).sum();
             // Apply I - 2 h h^T / (h^T h) to the later columns (column j becomes alpha e_0).
