@@ -137,9 +137,9 @@ impl AppliedLine {
 /// (full-circle) survey is moved by whole turns onto each turn of the table's
 /// range, and the worst turn is returned. `None` when no sample falls inside.
 ///
-/// A pass over the samples for each turn some sample falls on, the turn's
-/// errors folded into their count, sum, least and largest (kept in
-/// registers: one pass for every turn kept them in memory): the peak about
+/// Each turn some sample falls on folds its errors into their count, sum,
+/// least and largest, a chunk of samples at a time ([`predicted_peaks_deg`],
+/// the fold in registers over a chunk): the peak about
 /// the mean is the larger of `largest - mean` and `mean - least` (rounding
 /// is monotonic: the same bits as [`crate::correction::ErrorFigures`]'
 /// `peak_deg` of the errors collected, with no vector of them). A turn onto
