@@ -434,13 +434,7 @@ impl TargetGroups {
         let count = u32::try_from(samples.len()).expect("fewer than 2^32 samples");
         let mut keyed: Vec<(f64, u32)> = samples.iter().map(|s| s.target_deg).zip(0..count).collect();
         keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
-        for (i, &(t, _)) in keyed.iter().enumerate() {
-            match ranges.last_mut() {
-                Some(g) if t - keyed[g.start].0 <= TARGET_TOLERANCE_DEG => g.end = i + 1,
-                _ => ranges.push(i..i + 1),
-            }
-        }
+        let ranges = group_ranges(keyed.iter().map(|&(t, _)| t), 1);
         // A new vector (collected in place, it would keep the pairs' room).
         let sorted = keyed.iter().map(|&(_, i)| i).collect();
         TargetGroups { sorted, ranges }
@@ -505,18 +499,7 @@ impl TargetGroups {
         }
         // The groups as the sorted targets make them (every sweep's sample
         // of a target has its bits).
-        let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
-        let mut start_target = f64::NAN;
-        for j in 0..len {
-            let (from, to) = (j * sweeps, (j + 1) * sweeps);
-            match ranges.last_mut() {
-                Some(g) if target(j) - start_target <= TARGET_TOLERANCE_DEG => g.end = to,
-                _ => {
-                    ranges.push(from..to);
-                    start_target = target(j);
-                }
-            }
-        }
+        let ranges = group_ranges((0..len).map(target), sweeps);
         Some(TargetGroups { sorted, ranges })
     }
 
@@ -536,6 +519,25 @@ impl TargetGroups {
     pub fn iter(&self) -> impl Iterator<Item = &[u32]> {
         self.ranges.iter().map(|r| &self.sorted[r.clone()])
     }
+}
+
+/// The groups of `targets` (ascending, each `places` places of the sorted
+/// order): a group starts at its smallest target and takes every target
+/// within [`TARGET_TOLERANCE_DEG`] of it.
+fn group_ranges(targets: impl Iterator<Item = f64>, places: usize) -> Vec<std::ops::Range<usize>> {
+    let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
+    let mut start_target = f64::NAN;
+    for (j, t) in targets.enumerate() {
+        let (from, to) = (j * places, (j + 1) * places);
+        match ranges.last_mut() {
+            Some(g) if t - start_target <= TARGET_TOLERANCE_DEG => g.end = to,
+            _ => {
+                ranges.push(from..to);
+                start_target = t;
+            }
+        }
+    }
+    ranges
 }
 
 fn dir_stats_of(x: &[f64]) -> DirStats {
