@@ -447,10 +447,38 @@ impl SurveyConfig {
         self.survey.reference.unwrap_or(ReferenceKind::Tracker)
     }
 
+    /// What serde cannot check: every value within its stated range and the
+    /// sections consistent, section by section. The first defect found is the
+    /// error, in this order: the asset, the reference's instruments, the plan,
+    /// the timing, the certificate, the arm, the polygon, the positioner, the
+    /// tracker, the drift control.
     fn check(&self) -> Result<(), String> {
         if let Some(a) = &self.asset {
             crate::asset::asset_id(&a.id).map_err(|e| format!("[asset] id: {e}"))?;
         }
+        self.check_reference()?;
+        self.check_survey()?;
+        self.check_timing()?;
+        if let Some(c) = &self.certificate {
+            c.check()?;
+        }
+        if let Some(arm) = &self.arm {
+            arm.check()?;
+        }
+        if let Some(p) = &self.polygon {
+            p.check_ranges()?;
+        }
+        self.check_positioner()?;
+        if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
+            within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
+        }
+        self.check_drift_control()
+    }
+
+    /// The reference's instruments are configured: the tracker's section,
+    /// or the autocollimator's with a polygon of at least 2 faces whose
+    /// certificate, when given, holds one finite value a face.
+    fn check_reference(&self) -> Result<(), String> {
         match self.reference() {
             ReferenceKind::Tracker if self.tracker.is_none() => {
                 return Err("the reference is the tracker but there is no [tracker] section".into());
@@ -480,6 +508,12 @@ impl SurveyConfig {
             }
             _ => {}
         }
+        Ok(())
+    }
+
+    /// `[survey]`: the travel is an increasing pair of angles within ten
+    /// turns either way, the overrun within 10 degrees.
+    fn check_survey(&self) -> Result<(), String> {
         if let Some([lo, hi]) = self.survey.travel_deg
             && !(lo.is_finite() && hi.is_finite() && hi > lo)
         {
@@ -496,6 +530,13 @@ impl SurveyConfig {
             within("survey.travel_deg[0]", lo, Range::From(-3600.0), 3600.0, "deg")?;
             within("survey.travel_deg[1]", hi, Range::From(-3600.0), 3600.0, "deg")?;
         }
+        Ok(())
+    }
+
+    /// `[timing]`: every duration, rate and period within its stated range,
+    /// the durations they make within a day ([`derived::check`]), then the
+    /// retries and the points that locate the axis.
+    fn check_timing(&self) -> Result<(), String> {
         // Stated physical ranges: a value outside is a unit or typing error,
         // and a time beyond an hour would overflow the clock's arithmetic or
         // stall a survey for ever.
@@ -537,29 +578,13 @@ impl SurveyConfig {
         {
             return Err(format!("timing.locate_points = {n} is outside 3..=10000 (a circle needs 3 points)"));
         }
-        if let Some(c) = &self.certificate {
-            if let Some(u) = c.reference_uncertainty_deg {
-                within("certificate.reference_uncertainty_deg", u, Range::Above(0.0), 1.0, "deg")?;
-            }
-            if let Some(t) = c.temperature_c {
-                within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
-            }
-            if let Some(t) = c.tolerance_deg {
-                within("certificate.tolerance_deg", t, Range::Above(0.0), 360.0, "deg")?;
-            }
-        }
-        if let Some(arm) = &self.arm {
-            within("arm.radius_mm", arm.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
-            within("arm.radius_tolerance_mm", arm.radius_tolerance_mm, Range::Above(0.0), arm.radius_mm, "mm")?;
-        }
-        if let Some(p) = &self.polygon {
-            if p.faces > 3600 {
-                return Err(format!("polygon.faces = {} is outside 2..=3600", p.faces));
-            }
-            for (i, c) in p.certificate_arcsec.iter().enumerate() {
-                within(&format!("polygon.certificate_arcsec[{i}]"), *c, Range::From(-3600.0), 3600.0, "arcsec")?;
-            }
-        }
+        Ok(())
+    }
+
+    /// `[positioner]`: the in-position window of a SCPI controller, the CAN
+    /// link and the counts per degree of a CANopen drive, and the engine's
+    /// deadline of a call against the driver's own.
+    fn check_positioner(&self) -> Result<(), String> {
         if let PositionerConfig::ScpiTcp { in_position_window_deg: w, .. }
         | PositionerConfig::ScpiSerial { in_position_window_deg: w, .. } = &self.positioner
         {
@@ -591,21 +616,23 @@ impl SurveyConfig {
                 ));
             }
         }
-        if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
-            within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
-        }
-        if let Some(d) = &self.drift_control {
-            d.check()?;
-            if let Some([lo, hi]) = self.survey.travel_deg
-                && !(lo..=hi).contains(&d.reference_deg)
-            {
-                return Err(format!(
-                    "drift_control.reference_deg = {} is outside the travel {}..{} deg",
-                    Num(d.reference_deg),
-                    Num(lo),
-                    Num(hi)
-                ));
-            }
+        Ok(())
+    }
+
+    /// `[drift_control]`: its own keys ([`survey_plan::drift::DriftControl::check`]),
+    /// and a reference target within the travel of a partial-range axis.
+    fn check_drift_control(&self) -> Result<(), String> {
+        let Some(d) = &self.drift_control else { return Ok(()) };
+        d.check()?;
+        if let Some([lo, hi]) = self.survey.travel_deg
+            && !(lo..=hi).contains(&d.reference_deg)
+        {
+            return Err(format!(
+                "drift_control.reference_deg = {} is outside the travel {}..{} deg",
+                Num(d.reference_deg),
+                Num(lo),
+                Num(hi)
+            ));
         }
         Ok(())
     }
@@ -664,6 +691,46 @@ impl SurveyConfig {
             Some(s) => SettleModel::Fixed(Duration::from_secs_f64(s)),
             None => SettleModel::Unknown,
         }
+    }
+}
+
+impl CertificateSection {
+    /// The stated figures within their ranges: the reference's uncertainty,
+    /// the temperature, the tolerance.
+    fn check(&self) -> Result<(), String> {
+        if let Some(u) = self.reference_uncertainty_deg {
+            within("certificate.reference_uncertainty_deg", u, Range::Above(0.0), 1.0, "deg")?;
+        }
+        if let Some(t) = self.temperature_c {
+            within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
+        }
+        if let Some(t) = self.tolerance_deg {
+            within("certificate.tolerance_deg", t, Range::Above(0.0), 360.0, "deg")?;
+        }
+        Ok(())
+    }
+}
+
+impl ArmSection {
+    /// The radius within 100 m, its tolerance no larger than the radius.
+    fn check(&self) -> Result<(), String> {
+        within("arm.radius_mm", self.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
+        within("arm.radius_tolerance_mm", self.radius_tolerance_mm, Range::Above(0.0), self.radius_mm, "mm")
+    }
+}
+
+impl PolygonSection {
+    /// At most 3600 faces, each certificate value within +/-3600 arcsec
+    /// (with the autocollimator as the reference, the faces' lower bound and
+    /// the certificate's length are checked with the reference).
+    fn check_ranges(&self) -> Result<(), String> {
+        if self.faces > 3600 {
+            return Err(format!("polygon.faces = {} is outside 2..=3600", self.faces));
+        }
+        for (i, c) in self.certificate_arcsec.iter().enumerate() {
+            within(&format!("polygon.certificate_arcsec[{i}]"), *c, Range::From(-3600.0), 3600.0, "arcsec")?;
+        }
+        Ok(())
     }
 }
 
