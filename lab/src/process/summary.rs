@@ -158,17 +158,64 @@ pub fn json(o: &ProcessOutcome) -> Value {
 }
 
 /// The human summary (see the module documentation): errors in `units`,
-/// angles along the axis (ranges, spacings) in degrees.
+/// angles along the axis (ranges, spacings) in degrees. Its sections in
+/// order: the heading, the peaks, the aliases, the interpolation
+/// comparison, the table and its predicted accuracy, the controller files,
+/// the points needed, the files written and the uncertainty budget.
 pub fn text(o: &ProcessOutcome, units: Units) -> String {
-    let p = &o.processed;
-    let a = &p.analysis;
-    let u = units.symbol();
-    // An error to 1e-5 deg, or to 1e-6 deg in a table's column; a small one in exponent form.
-    let e5 = |deg: f64| units.fixed(deg, 5);
-    let e6 = |deg: f64| units.fixed(deg, 6);
-    let small = |deg: f64| units.small(deg, 2, false);
-    let opt = |v: Option<f64>| v.map_or_else(|| "-".to_string(), e5);
+    let e = Errors { units, u: units.symbol() };
     let mut s = String::new();
+    heading(&mut s, o, e);
+    peaks(&mut s, o, e);
+    aliases(&mut s, o, e);
+    interpolation(&mut s, o, e);
+    table(&mut s, o, e);
+    prediction(&mut s, o, e);
+    controllers(&mut s, o, e);
+    if let Some(n) = &o.processed.analysis.points_needed {
+        let _ = writeln!(s, "points: {}", n.note);
+    }
+    files(&mut s, o);
+    s += &units.text(&o.uncertainty.text());
+    s
+}
+
+/// How the summary writes an error: in its units (`u` their symbol), to
+/// 1e-5 deg, or to 1e-6 deg in a table's column; a small one in exponent
+/// form.
+#[derive(Debug, Clone, Copy)]
+struct Errors {
+    units: Units,
+    u: &'static str,
+}
+
+impl Errors {
+    /// To 1e-5 deg.
+    fn e5(self, deg: f64) -> String {
+        self.units.fixed(deg, 5)
+    }
+
+    /// To 1e-6 deg (a table's column).
+    fn e6(self, deg: f64) -> String {
+        self.units.fixed(deg, 6)
+    }
+
+    /// A small error (in degrees, in exponent form).
+    fn small(self, deg: f64) -> String {
+        self.units.small(deg, 2, false)
+    }
+
+    /// To 1e-5 deg, `-` when there is none.
+    fn opt(self, deg: Option<f64>) -> String {
+        deg.map_or_else(|| "-".to_string(), |d| self.e5(d))
+    }
+}
+
+/// The survey processed (points, runs, design, recipe) and its noise: a
+/// sample's, and the amplitude a line needs in the mean spectrum.
+fn heading(s: &mut String, o: &ProcessOutcome, e: Errors) {
+    let a = &o.processed.analysis;
+    let u = e.u;
     let _ = writeln!(
         s,
         "survey {}: processing of {} points/rev x {} runs; design: {}; recipe: {}",
@@ -184,11 +231,19 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
     let _ = writeln!(
         s,
         "noise: {} {u} per sample; a line needs {} {u} in the mean spectrum",
-        small(a.noise.sample_sd_deg),
-        small(a.noise.coherent_threshold_deg)
+        e.small(a.noise.sample_sd_deg),
+        e.small(a.noise.coherent_threshold_deg)
     );
+}
+
+/// The significant lines, each with its amplitude, share, kind, fate in the
+/// table and source; then the lines the recipe keeps that are not
+/// significant, with the reason.
+fn peaks(s: &mut String, o: &ProcessOutcome, e: Errors) {
+    let p = &o.processed;
+    let a = &p.analysis;
     let _ = writeln!(s, "\npeaks ({} significant):", a.lines.len());
-    let amp = format!("amp {u}");
+    let amp = format!("amp {}", e.u);
     let _ = writeln!(s, "  {:>8} {:>10} {:>7}  {:<10} {:<10} source", "cyc/rev", amp, "share", "", "table");
     for l in &a.lines {
         let d = p.decisions.lines.iter().find(|d| d.significant && d.cycles_per_rev == l.cycles_per_rev);
@@ -201,7 +256,7 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
             s,
             "  {:>8} {:>10} {:>6.1}%  {:<10} {:<10} {}",
             l.cycles_per_rev,
-            e6(l.amplitude_deg),
+            e.e6(l.amplitude_deg),
             100.0 * l.share,
             if l.repeatable { "repeatable" } else { "random" },
             fate,
@@ -213,14 +268,21 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
             s,
             "  {:>8} {:>10} {:>7}  {:<10} {:<10} {}",
             d.cycles_per_rev,
-            e6(d.amplitude_deg),
+            e.e6(d.amplitude_deg),
             "",
             "",
             "kept",
-            units.text(&d.reason)
+            e.units.text(&d.reason)
         );
     }
-    let applied: Vec<_> = p.decisions.aliases.iter().filter(|x| x.applied || x.from_recipe).collect();
+}
+
+/// The aliases applied or given by the recipe (observed <- true frequency,
+/// the action, the source and the reason), and how many aliased design
+/// frequencies had no line at their bin.
+fn aliases(s: &mut String, o: &ProcessOutcome, e: Errors) {
+    let aliases = &o.processed.decisions.aliases;
+    let applied: Vec<_> = aliases.iter().filter(|x| x.applied || x.from_recipe).collect();
     if !applied.is_empty() {
         let _ = writeln!(s, "\naliases (observed <- true cycles/rev):");
         for x in applied {
@@ -231,14 +293,21 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
                 x.true_cycles,
                 format!("{:?}", x.action).to_lowercase(),
                 x.source,
-                units.text(&x.reason)
+                e.units.text(&x.reason)
             );
         }
     }
-    let quiet = p.decisions.aliases.iter().filter(|x| !x.applied && !x.from_recipe).count();
+    let quiet = aliases.iter().filter(|x| !x.applied && !x.from_recipe).count();
     if quiet > 0 {
         let _ = writeln!(s, "  ({quiet} more aliased design frequencies with no line at their bin)");
     }
+}
+
+/// The paper's Figure 6 comparison: each interpolation's RMS and peak on
+/// the survey decimated by 2, the recipe's marked; or why it was not made.
+fn interpolation(s: &mut String, o: &ProcessOutcome, e: Errors) {
+    let p = &o.processed;
+    let u = e.u;
     match &p.interpolation {
         Ok(scores) => {
             let _ = writeln!(s, "\ninterpolation of the survey decimated by 2 (paper Figure 6), {u}:");
@@ -248,57 +317,79 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
                     s,
                     "  {:<10} rms {} {u}  peak {} {u}{mark}",
                     m.method.as_str(),
-                    small(m.rms_deg),
-                    small(m.peak_deg)
+                    e.small(m.rms_deg),
+                    e.small(m.peak_deg)
                 );
             }
         }
         Err(why) => {
-            let _ = writeln!(s, "\ninterpolation comparison: not made ({})", units.text(why));
+            let _ = writeln!(s, "\ninterpolation comparison: not made ({})", e.units.text(why));
         }
     }
-    let t = &p.built.table;
+}
+
+/// The table: its rows and spacing, one column or directional (and why),
+/// the method.
+fn table(s: &mut String, o: &ProcessOutcome, e: Errors) {
+    let built = &o.processed.built;
+    let t = &built.table;
     let _ = writeln!(
         s,
         "\ntable: {} rows every {:.5} deg, {}, {}; {}",
         t.len(),
         t.spacing_deg(),
         if t.is_directional() { "directional" } else { "one column" },
-        p.built.method,
-        units.text(&p.built.directional_reason)
+        built.method,
+        e.units.text(&built.directional_reason)
     );
+}
+
+/// The predicted accuracy, native and corrected (peak, ISO 230-2 `A`,
+/// RMS), what the corrected peak is made of, the lines left, a warning when
+/// the table is not expected to improve the axis, and the repeatability
+/// floor.
+fn prediction(s: &mut String, o: &ProcessOutcome, e: Errors) {
+    let p = &o.processed;
     let pr = &p.prediction;
+    let u = e.u;
     let _ = writeln!(
         s,
         "predicted: native +/-{} {u} (ISO A {} {u}) -> corrected +/-{} {u} (ISO A {} {u}); RMS {} {u} -> {} {u}",
-        e5(pr.native_peak_deg),
-        opt(pr.native.iso230_a_deg),
-        e5(pr.corrected_peak_deg),
-        opt(pr.corrected.iso230_a_deg),
-        e5(pr.native.rms_deg),
-        e5(pr.corrected.rms_deg)
+        e.e5(pr.native_peak_deg),
+        e.opt(pr.native.iso230_a_deg),
+        e.e5(pr.corrected_peak_deg),
+        e.opt(pr.corrected.iso230_a_deg),
+        e.e5(pr.native.rms_deg),
+        e.e5(pr.corrected.rms_deg)
     );
     let _ = writeln!(
         s,
         "  corrected peak: +/-{} {u} at the survey's own samples, +{} {u} for what the table leaves between the \
          targets, +{} {u} for the spread of a new survey's peak of noise (95 %)",
-        e5(pr.in_sample_corrected_peak_deg),
-        e5(pr.unseen_between_targets_deg),
-        e5(pr.peak_spread_deg)
+        e.e5(pr.in_sample_corrected_peak_deg),
+        e.e5(pr.unseen_between_targets_deg),
+        e.e5(pr.peak_spread_deg)
     );
     for l in &p.left.lines {
-        let _ = writeln!(s, "  left: {}", units.text(&l.why));
+        let _ = writeln!(s, "  left: {}", e.units.text(&l.why));
     }
     if pr.no_better_than_native() {
         let _ = writeln!(
             s,
             "NOT A RESULT: this table is not expected to improve the axis (corrected +/-{} {u} against native \
              +/-{} {u}): do not load it",
-            e5(pr.corrected_peak_deg),
-            e5(pr.native_peak_deg)
+            e.e5(pr.corrected_peak_deg),
+            e.e5(pr.native_peak_deg)
         );
     }
-    let _ = writeln!(s, "repeatability floor: {} {u} ({})", opt(p.floor.deg), p.floor.what);
+    let _ = writeln!(s, "repeatability floor: {} {u} ({})", e.opt(p.floor.deg), p.floor.what);
+}
+
+/// Each controller file written: its points, range, spacing, directions,
+/// modulo and predicted corrected peak, its notes, and a Fanuc file's
+/// parameters.
+fn controllers(s: &mut String, o: &ProcessOutcome, e: Errors) {
+    let u = e.u;
     for (c, _) in written(o) {
         let _ = writeln!(
             s,
@@ -315,19 +406,21 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
             c.grid.interval_deg,
             if c.directional { ", forward and reverse" } else { "" },
             if c.modulo { ", modulo 360" } else { "" },
-            c.corrected_peak_deg.map_or_else(|| "-".to_string(), |v| format!("+/-{} {u}", e5(v))),
+            c.corrected_peak_deg.map_or_else(|| "-".to_string(), |v| format!("+/-{} {u}", e.e5(v))),
         );
         for n in &c.notes {
-            let _ = writeln!(s, "  note: {}", units.text(n));
+            let _ = writeln!(s, "  note: {}", e.units.text(n));
         }
         if c.controller == Controller::Fanuc {
             let params: Vec<String> = c.parameters.iter().map(|(n, v, _)| format!("{n}={v}")).collect();
             let _ = writeln!(s, "  parameters: {}", params.join(" "));
         }
     }
-    if let Some(n) = &a.points_needed {
-        let _ = writeln!(s, "points: {}", n.note);
-    }
+}
+
+/// Every file written: the table, each controller's and the binary file,
+/// the recipe.
+fn files(s: &mut String, o: &ProcessOutcome) {
     let _ = writeln!(s, "\nfiles:");
     let f = &o.files;
     let _ = writeln!(s, "  table           {}", f.table_csv.display());
@@ -346,6 +439,4 @@ pub fn text(o: &ProcessOutcome, units: Units) -> String {
     if let Some(recipe) = &f.recipe {
         let _ = writeln!(s, "  recipe          {} (replay with --recipe)", recipe.display());
     }
-    s += &units.text(&o.uncertainty.text());
-    s
 }
