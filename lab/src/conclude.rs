@@ -14,15 +14,18 @@
 //! a table (bad input: nothing more can be made of it) marks it complete,
 //! saying so.
 
-use crate::process::{ProcessOptions, default_table_path, process_survey};
+use crate::load::Loaded;
+use crate::process::{ProcessOptions, ProcessOutcome, default_table_path, process_survey};
+use crate::refit::AxisUsed;
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
-use survey_acquire::Engine;
 use survey_acquire::stop::{Stop, Stopped};
+use survey_acquire::{Engine, Outcome};
 use survey_bench::output::{Output, Units, human, iso_json, iso_text};
 use survey_bench::session::{AcquireOptions, Acquired};
 use survey_plan::SurveyPlan;
-use survey_processing::iso230::iso230_2;
+use survey_processing::Sample;
+use survey_processing::iso230::{Iso230, iso230_2};
 use survey_store::Store;
 use survey_store::survey::SurveyStatus;
 
@@ -68,35 +71,79 @@ pub async fn conclude(
 ) -> anyhow::Result<Concluded> {
     // With a tracker, the figures and the table are of the axis fitted from every SMR position.
     let loaded = crate::load::load(store, Some(id.into()), crate::load::Axis::Refitted).await?;
-    let (record, drift, refit) = (&loaded.survey, &loaded.drift, &loaded.refit);
     let samples = loaded.analysed();
-    let axis = loaded.axis_used();
     let iso = iso230_2(&samples).context("ISO 230-2 statistics")?;
+    // An acquired survey always has its plan stored.
+    let plan = loaded.survey.plan().cloned().with_context(|| format!("survey {id} has no stored plan"))?;
+    let survey = Concluding { store, id, db, loaded: &loaded, samples: &samples, axis: loaded.axis_used(), plan };
+    let mut output = statistics(&survey, engine, acquired, &iso, options.units).await;
+
+    if let Err(why) = options.stop.check() {
+        return stopped(store, id, why, output, true).await;
+    }
+    if let Some(native) = loaded.survey.resolves {
+        // Check points finished by `survey resume`: folded into the survey
+        // they resolve, which takes them in when processed.
+        crate::resolving::fold(store, id, native).await?;
+        output.text += &format!(
+            "check points of survey {native}, stored with it: `survey process --survey {native}` (and its report) take \
+             them in\n"
+        );
+        return Ok(Concluded { output, result: Ok(()) });
+    }
+    let processed = match process(&survey, engine, &options, &mut output).await {
+        Ok(p) => p,
+        Err(Unprocessed::Failed(e)) => return not_processed(store, id, e, output).await,
+        Err(Unprocessed::ChecksNotMeasured(e)) => return Ok(Concluded { output, result: Err(e) }),
+    };
+    complete(&survey, engine, &processed, options.units, &mut output).await?;
+    if let Err(why) = options.stop.check() {
+        // The survey is complete: only the verification is not made.
+        return stopped(store, id, why, output, false).await;
+    }
+    let result = match &options.verify {
+        Some(verify_plan) => verification(&survey, engine, verify_plan, &processed, &options, &mut output).await,
+        None => Ok(()),
+    };
+    Ok(Concluded { output, result })
+}
+
+/// The survey being concluded: where it is stored, as loaded once (see the
+/// module documentation), its samples as analysed, the axis they are
+/// around, and its plan.
+struct Concluding<'a> {
+    store: &'a Store,
+    id: i64,
+    /// The database, as the output names it.
+    db: &'a Path,
+    loaded: &'a Loaded,
+    samples: &'a [Sample],
+    axis: AxisUsed,
+    plan: SurveyPlan,
+}
+
+/// The acquisition's output: the ISO 230-2 statistics, the faults met and
+/// survived, the instrument time against the plan's bound, a continuous
+/// scan's latency, the drift measured, and where the data is.
+async fn statistics(
+    survey: &Concluding<'_>,
+    engine: &Engine,
+    acquired: &Acquired,
+    iso: &Iso230,
+    units: Units,
+) -> Output {
+    let (store, id, db, axis, plan) = (survey.store, survey.id, survey.db, survey.axis, &survey.plan);
+    let (record, drift) = (&survey.loaded.survey, &survey.loaded.drift);
+    let samples = survey.samples;
     let outcome = &acquired.outcome;
-    let mut doc = iso_json(id, &iso);
+    let mut doc = iso_json(id, iso);
     doc["status"] = record.status.as_str().into();
     doc["axis"] = axis.as_str().into();
     doc["samples"] = samples.len().into();
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
     doc["faults_survived"] = outcome.faults_survived.into();
-    // What the engine met and survived. `injected` is what the simulators
-    // injected where they run in this process (null on other instruments; a
-    // separate `survey sim` prints its own counts when it stops).
-    let injected = engine.injected().map(|i| {
-        let by_kind: serde_json::Map<String, serde_json::Value> =
-            i.by_kind().into_iter().map(|(k, n)| (k.to_string(), n.into())).collect();
-        (i.total(), by_kind)
-    });
-    doc["faults"] = serde_json::json!({
-        "injected": injected.as_ref().map(|(n, _)| *n),
-        "injected_by_kind": injected.map(|(_, k)| k),
-        "met": outcome.faults_met.total(),
-        "recovered": outcome.faults_survived,
-        "by_kind": outcome.faults_met,
-    });
-    // An acquired survey always has its plan stored.
-    let plan = record.plan().cloned().with_context(|| format!("survey {id} has no stored plan"))?;
-    let budget = budget(store, id, engine, &plan, (outcome.instrument_time, record.setup.time_scale())).await;
+    doc["faults"] = faults_json(engine, outcome);
+    let budget = budget(store, id, engine, plan, (outcome.instrument_time, record.setup.time_scale())).await;
     doc["instrument_time_s"] = budget.instrument_time_s.into();
     doc["time_scale"] = budget.time_scale.into();
     doc["bound_s"] = budget.bound.total().into();
@@ -133,27 +180,54 @@ pub async fn conclude(
             l.se_s * 1e3
         );
     }
-    text += &iso_text(id, &iso, options.units);
+    text += &iso_text(id, iso, units);
     text += axis.text();
     text += "\n";
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
+    Output { doc, text }
+}
 
-    if let Err(why) = options.stop.check() {
-        return stopped(store, id, why, Output { doc, text }, true).await;
-    }
-    if let Some(native) = record.resolves {
-        // Check points finished by `survey resume`: folded into the survey
-        // they resolve, which takes them in when processed.
-        crate::resolving::fold(store, id, native).await?;
-        text += &format!(
-            "check points of survey {native}, stored with it: `survey process --survey {native}` (and its report) take \
-             them in\n"
-        );
-        return Ok(Concluded { output: Output { doc, text }, result: Ok(()) });
-    }
-    let table_out = Some(default_table_path(db, id));
-    let uncertainty = crate::refit::uncertainty_inputs(record, refit.as_ref(), None);
+/// What the engine met and survived (`"faults"`). `injected` is what the
+/// simulators injected where they run in this process (null on other
+/// instruments; a separate `survey sim` prints its own counts when it
+/// stops).
+fn faults_json(engine: &Engine, outcome: &Outcome) -> serde_json::Value {
+    let injected = engine.injected().map(|i| {
+        let by_kind: serde_json::Map<String, serde_json::Value> =
+            i.by_kind().into_iter().map(|(k, n)| (k.to_string(), n.into())).collect();
+        (i.total(), by_kind)
+    });
+    serde_json::json!({
+        "injected": injected.as_ref().map(|(n, _)| *n),
+        "injected_by_kind": injected.map(|(_, k)| k),
+        "met": outcome.faults_met.total(),
+        "recovered": outcome.faults_survived,
+        "by_kind": outcome.faults_met,
+    })
+}
+
+/// Why the processing made no table: it failed ([`not_processed`] marks the
+/// survey), or the check points that decide its doubts could not be
+/// measured (the survey stays `processing`).
+enum Unprocessed {
+    Failed(anyhow::Error),
+    ChecksNotMeasured(anyhow::Error),
+}
+
+/// The processing (a recipe replayed when given). Lines left in doubt, and
+/// a tracker that can measure between the targets: check points decide
+/// them, the survey is processed again and `output` says what they decided
+/// (`"resolving"`).
+async fn process(
+    survey: &Concluding<'_>,
+    engine: &mut Engine,
+    options: &ConcludeOptions,
+    output: &mut Output,
+) -> Result<ProcessOutcome, Unprocessed> {
+    let record = &survey.loaded.survey;
+    let table_out = Some(default_table_path(survey.db, survey.id));
+    let uncertainty = crate::refit::uncertainty_inputs(record, survey.loaded.refit.as_ref(), None);
     let processing = ProcessOptions {
         recipe: options.recipe.clone(),
         design: None,
@@ -163,37 +237,44 @@ pub async fn conclude(
         crash_when_staged: options.crash_when_staged,
         ..ProcessOptions::default()
     };
-    let mut processed = match process_survey(record, &samples, processing.clone()) {
-        Ok(p) => p,
-        Err(e) => return not_processed(store, id, e, Output { doc, text }).await,
+    let processed = process_survey(record, survey.samples, processing.clone()).map_err(Unprocessed::Failed)?;
+    let Some(checks) = crate::resolving::checks_plan(&survey.plan, engine.reference_kind(), &processed) else {
+        return Ok(processed);
     };
-    // Lines left in doubt, and a tracker that can measure between the
-    // targets: check points decide them, and the survey is processed again.
-    if let Some(checks) = crate::resolving::checks_plan(&plan, engine.reference_kind(), &processed) {
-        let left = &processed.processed.left;
-        let measured = crate::resolving::measure(engine, store, record, &checks, left, options.acquire.clone()).await;
-        let check_samples = match measured {
-            Ok(m) => m,
-            Err(e) => return Ok(Concluded { output: Output { doc, text }, result: Err(e) }),
-        };
-        let points = check_samples.len();
-        processed = match process_survey(record, &samples, ProcessOptions { checks: check_samples, ..processing }) {
-            Ok(p) => p,
-            Err(e) => return not_processed(store, id, e, Output { doc, text }).await,
-        };
-        let o = crate::resolving::output(points, &processed);
-        doc["resolving"] = o.doc;
-        text += "\n";
-        text += &o.text;
-    }
+    let left = &processed.processed.left;
+    let measured =
+        crate::resolving::measure(engine, survey.store, record, &checks, left, options.acquire.clone()).await;
+    let check_samples = measured.map_err(Unprocessed::ChecksNotMeasured)?;
+    let points = check_samples.len();
+    let processed = process_survey(record, survey.samples, ProcessOptions { checks: check_samples, ..processing })
+        .map_err(Unprocessed::Failed)?;
+    let o = crate::resolving::output(points, &processed);
+    output.doc["resolving"] = o.doc;
+    output.text += "\n";
+    output.text += &o.text;
+    Ok(processed)
+}
+
+/// The survey marked complete, and its processing in the output: the
+/// document (`"process"`, with the axis and any refit), the refit (also
+/// recorded with the survey) and the summary.
+async fn complete(
+    survey: &Concluding<'_>,
+    engine: &Engine,
+    processed: &ProcessOutcome,
+    units: Units,
+    output: &mut Output,
+) -> anyhow::Result<()> {
+    let (store, id) = (survey.store, survey.id);
+    let Output { doc, text } = output;
     store.set_status(id, SurveyStatus::Complete, None).await?;
     doc["status"] = SurveyStatus::Complete.as_str().into();
     doc["process"] = processed.json();
-    doc["process"]["axis"] = axis.as_str().into();
-    text += "\n";
-    if let Some(r) = refit {
+    doc["process"]["axis"] = survey.axis.as_str().into();
+    *text += "\n";
+    if let Some(r) = &survey.loaded.refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
-        text += &options.units.text(&r.text());
+        *text += &units.text(&r.text());
         // Recorded with the survey (`survey show` lists it); a failed write
         // loses only this line, the refit is made again from the raw readings.
         let at = engine.clock().now().as_secs_f64();
@@ -201,44 +282,47 @@ pub async fn conclude(
             tracing::warn!(error = %format!("{e:#}"), "the axis refit could not be recorded");
         }
     }
-    text += &processed.text(options.units);
-    if let Err(why) = options.stop.check() {
-        // The survey is complete: only the verification is not made.
-        return stopped(store, id, why, Output { doc, text }, false).await;
-    }
+    *text += &processed.text(units);
+    Ok(())
+}
+
+/// With `--verify`: the corrected accuracy measured with the table applied
+/// ([`crate::verify`]), added to `output`. An error when the verification
+/// failed, or when it does not confirm the prediction (then also said on
+/// stderr): not a result, and the survey and the table stay stored.
+async fn verification(
+    survey: &Concluding<'_>,
+    engine: &mut Engine,
+    verify_plan: &crate::verify::VerifyPlan,
+    processed: &ProcessOutcome,
+    options: &ConcludeOptions,
+    output: &mut Output,
+) -> anyhow::Result<()> {
+    let id = survey.id;
+    let v = crate::verify::verify(
+        engine,
+        survey.store,
+        &survey.loaded.survey,
+        survey.samples,
+        verify_plan,
+        processed,
+        options.acquire.clone(),
+        options.units,
+    )
+    .await?;
     let mut result = Ok(());
-    if let Some(verify_plan) = &options.verify {
-        let verified = crate::verify::verify(
-            engine,
-            store,
-            record,
-            &samples,
-            verify_plan,
-            &processed,
-            options.acquire.clone(),
-            options.units,
-        );
-        match verified.await {
-            Ok(v) => {
-                if !v.confirmed() {
-                    eprintln!(
-                        "warning: survey {}: the verification does not confirm the prediction: {}",
-                        v.id, v.judged.reason
-                    );
-                    result = Err(anyhow::anyhow!(
-                        "the verification (survey {}) does not confirm the table of survey {id}: not a result; the survey \
-                         and the table stay stored",
-                        v.id
-                    ));
-                }
-                doc["verify"] = v.output.doc;
-                text += "\n";
-                text += &v.output.text;
-            }
-            Err(e) => result = Err(e),
-        }
+    if !v.confirmed() {
+        eprintln!("warning: survey {}: the verification does not confirm the prediction: {}", v.id, v.judged.reason);
+        result = Err(anyhow::anyhow!(
+            "the verification (survey {}) does not confirm the table of survey {id}: not a result; the survey and the \
+             table stay stored",
+            v.id
+        ));
     }
-    Ok(Concluded { output: Output { doc, text }, result })
+    output.doc["verify"] = v.output.doc;
+    output.text += "\n";
+    output.text += &v.output.text;
+    result
 }
 
 /// The survey's instrument time beside its plan's bound, on the
