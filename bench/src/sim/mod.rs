@@ -39,6 +39,8 @@ pub use stand_in::StandIns;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::time::Duration;
+use survey_drivers::canopen::CanopenConfig;
 use survey_drivers::{Clock, ScaledClock};
 use survey_processing::model::Model;
 use survey_sims::autocollimator::AutocollimatorConfig;
@@ -49,7 +51,7 @@ use survey_sims::modbus_server::ModbusDevice;
 use survey_sims::relay::{Ended, Framing, Relay, relay, relay_tcp};
 use survey_sims::scpi_server;
 use survey_sims::tracker::ArmGeometry;
-use survey_sims::{Preset, SimBench, derive_seed};
+use survey_sims::{Preset, SimAutocollimator, SimBench, SimPositioner, SimTracker, derive_seed};
 use survey_store::config::{
     AutocollimatorConfig as AcConfig, CanLink, DEFAULT_CAN_BITRATE, PositionerConfig, SurveyConfig, TrackerConfig,
 };
@@ -199,7 +201,10 @@ fn pty_at(what: &str, port: &str) -> anyhow::Result<(tokio_serial::SerialStream,
     Ok((master, slave))
 }
 
-/// Serve the simulated instruments of `cfg`.
+/// Serve the simulated instruments of `cfg`: the bench is built on the
+/// scaled clock, then the positioner, the tracker and the autocollimator
+/// configured are served, each behind the relay that injects its link
+/// faults.
 pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Served> {
     if !(opts.time_scale.is_finite() && opts.time_scale > 0.0 && opts.time_scale <= 10_000.0) {
         return Err(bad_input(format!(
@@ -207,7 +212,42 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             survey_processing::num::Num(opts.time_scale)
         )));
     }
+    let (bench, drift_run) = simulated_bench(cfg, opts)?;
+    let mut relays = Relays::new(cfg, opts);
+    let mut served = Served {
+        instruments: serde_json::Map::new(),
+        drift_run_s: drift_run.map(|p| p.as_secs_f64()),
+        faults: bench.injected.clone(),
+        stand_ins: StandIns::new()?,
+        tasks: Vec::new(),
+        links: Vec::new(),
+        _slaves: Vec::new(),
+    };
+    served.positioner(cfg, bench.positioner, &mut relays).await?;
+    // The reference instruments (both may be configured; each is served).
+    if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {
+        served.tracker(address, bench.tracker, &mut relays).await?;
+    }
+    if let Some(AcConfig::Elcomat { port, .. }) = &cfg.autocollimator {
+        served.autocollimator(port, bench.autocollimator, &mut relays)?;
+    }
+    Ok(served)
+}
 
+impl SimOptions {
+    /// Whether the wire of `what` (`positioner`, `tracker`,
+    /// `autocollimator`) meets faults ([`SimOptions::only`]).
+    fn wired(&self, what: &str) -> bool {
+        self.only.as_deref().is_none_or(|o| o == what)
+    }
+}
+
+/// The simulated bench of `cfg` on a clock scaled by `--time-scale`: the
+/// preset's positioner (or the model given) over the configured travel,
+/// the configured arm and polygon, and the simulators' own device faults;
+/// with the instrument time of one run when the model drifts
+/// ([`drift_run_period`]).
+fn simulated_bench(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<(SimBench, Option<Duration>)> {
     let preset = Preset::by_name(&opts.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", opts.preset)))?;
     let clock: Arc<dyn Clock> = Arc::new(ScaledClock::new(opts.time_scale));
     let mut builder = SimBench::builder(&preset, opts.seed, clock.clone())
@@ -234,8 +274,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
     // The link faults are the relays'; the simulators inject their own
     // device faults (drive trips, beam breaks, a blocked autocollimator),
     // set last so that no configuration above replaces them.
-    let wired = |what: &str| opts.only.as_deref().is_none_or(|o| o == what);
-    let blocked = if wired("autocollimator") { opts.faults.device } else { 0.0 };
+    let blocked = if opts.wired("autocollimator") { opts.faults.device } else { 0.0 };
     builder = builder.fault_rates(&FaultRates {
         timeout: 0.0,
         garbled: 0.0,
@@ -244,37 +283,65 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         device: blocked,
         ..opts.faults
     });
-    let bench = builder.build();
-    // A stalled reply is held past its client's deadline (real time): every
-    // driver on a line without transaction id drains late replies after its
-    // own deadline, and its stalled reply comes a little past the deadline,
-    // a tenth into the drain (Modbus and CANopen name their deadline; SCPI's
-    // and the ELCOMAT's are half the engine's); the tracker's connection
-    // (TCP) is closed after a timeout: its stalled reply is held twice the
-    // longer of the engine's deadlines.
-    let call_timeout = cfg.timing().call_timeout;
-    let measure_timeout = cfg.timing().measure_timeout;
-    let stall = |own: std::time::Duration, late: std::time::Duration| own + own / 20 + late / 10;
-    let positioner_stall = match cfg.positioner.own_deadline() {
-        Some((_, own, late)) => stall(own, late),
-        None => {
-            let scpi = crate::instruments::scpi_timeouts(call_timeout);
-            stall(scpi.request, scpi.late_window())
+    Ok((builder.build(), drift_run))
+}
+
+/// What the relays in front of the instruments are made of: the link and
+/// device fault rates, the wires that meet them, how long each
+/// instrument's stalled reply is held, and the seeds, one a relay in turn.
+struct Relays<'a> {
+    opts: &'a SimOptions,
+    /// The positioner's stalled reply is held this long, real time.
+    positioner_stall: Duration,
+    /// The autocollimator's.
+    elcomat_stall: Duration,
+    /// The tracker's.
+    tracker_stall: Duration,
+    /// How many relays were asked for: the next one's seed is derived from it.
+    asked: u64,
+}
+
+impl<'a> Relays<'a> {
+    /// The relays of `cfg`'s instruments, at the rates and from the seed of
+    /// `opts`. A stalled reply is held past its client's deadline (real
+    /// time): every driver on a line without transaction id drains late
+    /// replies after its own deadline, and its stalled reply comes a little
+    /// past the deadline, a tenth into the drain (Modbus and CANopen name
+    /// their deadline; SCPI's and the ELCOMAT's are half the engine's); the
+    /// tracker's connection (TCP) is closed after a timeout: its stalled
+    /// reply is held twice the longer of the engine's deadlines.
+    fn new(cfg: &SurveyConfig, opts: &'a SimOptions) -> Self {
+        let call_timeout = cfg.timing().call_timeout;
+        let measure_timeout = cfg.timing().measure_timeout;
+        let stall = |own: Duration, late: Duration| own + own / 20 + late / 10;
+        let positioner_stall = match cfg.positioner.own_deadline() {
+            Some((_, own, late)) => stall(own, late),
+            None => {
+                let scpi = crate::instruments::scpi_timeouts(call_timeout);
+                stall(scpi.request, scpi.late_window())
+            }
+        };
+        let elcomat = crate::instruments::elcomat_timeout(measure_timeout);
+        Relays {
+            opts,
+            positioner_stall,
+            elcomat_stall: stall(elcomat, elcomat / 2),
+            tracker_stall: (call_timeout * 2).max(measure_timeout * 2),
+            asked: 0,
         }
-    };
-    let elcomat = crate::instruments::elcomat_timeout(measure_timeout);
-    let elcomat_stall = stall(elcomat, elcomat / 2);
-    let f = &opts.faults;
-    let injected = bench.injected.clone();
-    let mut seeds = (1u64..).map(|k| derive_seed(opts.seed, 100 + k));
-    // The relay in front of an instrument (`None`: no fault reaches it),
-    // sharing `faults` with its simulator; `device`: whether the relay arms
-    // the instrument's device faults (the autocollimator's are its own).
-    let mut relay_for = |what: &str, faults: &Faults, framing: Framing, device: bool| {
-        let seed = seeds.next().unwrap_or(1);
-        if !wired(what) {
+    }
+
+    /// The relay in front of `what` (`None`: no fault reaches it), sharing
+    /// `faults` with its simulator; `device`: whether the relay arms the
+    /// instrument's device faults (the autocollimator's are its own). Each
+    /// call takes the next seed, whether or not it makes a relay.
+    fn front_of(&mut self, what: &str, faults: &Faults, framing: Framing, device: bool) -> Option<Relay> {
+        self.asked += 1;
+        let seed = derive_seed(self.opts.seed, 100 + self.asked);
+        if !self.opts.wired(what) {
             return None;
         }
+        let f = &self.opts.faults;
         let rates = FaultRates {
             timeout: f.timeout,
             garbled: f.garbled,
@@ -287,160 +354,188 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
             return None;
         }
         let stall_for = match what {
-            "positioner" => positioner_stall,
-            "autocollimator" => elcomat_stall,
-            _ => (call_timeout * 2).max(measure_timeout * 2),
+            "positioner" => self.positioner_stall,
+            "autocollimator" => self.elcomat_stall,
+            _ => self.tracker_stall,
         };
         Some(Relay { faults: faults.clone(), rates, stall_for, framing, seed })
-    };
-    let mut served = Served {
-        instruments: serde_json::Map::new(),
-        drift_run_s: drift_run.map(|p| p.as_secs_f64()),
-        faults: injected.clone(),
-        stand_ins: StandIns::new()?,
-        tasks: Vec::new(),
-        links: Vec::new(),
-        _slaves: Vec::new(),
-    };
+    }
+}
 
-    // The positioner.
-    match &cfg.positioner {
-        PositionerConfig::ScpiTcp { address, controller, axis, .. } => {
-            let (listener, public) = served.listen("positioner", address).await?;
-            let faults = Faults::counting(injected.clone());
-            let relay = relay_for("positioner", &faults, Framing::Lines, true);
-            let listener = served.front(listener, relay).await?;
-            let at = (*controller, *axis);
-            served.tasks.push(tokio::spawn(scpi_server::serve_tcp_at(listener, bench.positioner, faults, at)));
-            served.instruments.insert("positioner".into(), public.into());
-        }
-        PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
-            let faults = Faults::counting(injected.clone());
-            let relay = relay_for("positioner", &faults, Framing::Lines, true);
-            let port = served.port("positioner", port);
-            let device = served.serial("positioner", &port, relay)?;
-            let positioner = bench.positioner;
-            let at = (*controller, *axis);
-            served.tasks.push(tokio::spawn(async move {
-                scpi_server::serve_stream(device, positioner, faults, at).await;
-            }));
-            served.instruments.insert("positioner".into(), port.into());
-        }
-        PositionerConfig::ModbusTcp { address, map, .. } => {
-            let (listener, public) = served.listen("positioner", address).await?;
-            let server = ModbusDevice::new(bench.positioner, map.clone())
-                .map_err(|e| bad_input(format!("positioner.map: {e}")))?;
-            let faults = Faults::counting(injected.clone());
-            let relay = relay_for("positioner", &faults, Framing::ModbusTcp, true);
-            let listener = served.front(listener, relay).await?;
-            served.tasks.push(tokio::spawn(async move {
-                if let Err(e) = server.serve_tcp(listener, faults).await {
-                    tracing::error!(%e, "modbus simulator stopped");
-                }
-            }));
-            served.instruments.insert("positioner".into(), public.into());
-        }
-        PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
-            let faults = Faults::counting(injected.clone());
-            let relay = relay_for("positioner", &faults, Framing::ModbusRtu, true);
-            let port = served.port("positioner", port);
-            let device = served.serial("positioner", &port, relay)?;
-            // On a serial line the slave address is the unit (as the driver does).
-            let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
-            let server =
-                ModbusDevice::new(bench.positioner, map).map_err(|e| bad_input(format!("positioner.map: {e}")))?;
-            served.tasks.push(tokio::spawn(async move {
-                server.serve_rtu(device, faults).await;
-            }));
-            served.instruments.insert("positioner".into(), port.into());
-        }
-        PositionerConfig::Canopen { drive, .. } => {
-            let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
-            node.counts_per_degree = drive.counts_per_degree;
-            // A drive with this project's own objects when the configuration
-            // says so; else one with the standard objects only.
-            node.correction_objects = drive.correction_objects;
-            let positioner = bench.positioner;
-            let faults = Faults::counting(injected.clone());
-            let link = match cfg.positioner.can_link() {
-                Some(Ok(link)) => link,
-                Some(Err(e)) => return Err(bad_input(e)),
-                None => unreachable!("a CANopen configuration has a CAN link"),
-            };
-            let link = match link {
-                // No such interface here: the drive behind a simulated adapter.
-                CanLink::SocketCan(interface) if !Path::new("/sys/class/net").join(&interface).exists() => {
-                    let port = served.stand_ins.dir().join("positioner").display().to_string();
-                    served.stand_ins.served("positioner", "transport", "socketcan", "slcan");
-                    served.stand_ins.served("positioner", "port", &interface, &port);
-                    served.stand_ins.removed("positioner", "interface");
-                    CanLink::Slcan { port, bitrate: DEFAULT_CAN_BITRATE }
-                }
-                CanLink::Slcan { port, bitrate } => CanLink::Slcan { port: served.port("positioner", &port), bitrate },
-                link => link,
-            };
-            match link {
-                CanLink::Slcan { port, .. } => {
-                    // A CiA 402 drive behind a simulated USB-CAN adapter, on a
-                    // pty linked at the port (link faults on the serial line,
-                    // on the replies among the adapter's messages).
-                    let relay = relay_for("positioner", &faults, Framing::SlcanCanopen, true);
-                    let device = served.serial("positioner", &port, relay)?;
-                    let bus = survey_drivers::canopen::MemoryBus::new();
-                    let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
-                    served.tasks.push(tokio::spawn(async move {
-                        survey_sims::canopen_node::serve(drive_end, positioner, node, faults).await;
-                    }));
-                    served.tasks.push(tokio::spawn(async move {
-                        survey_sims::slcan_adapter::serve_adapter(device, adapter_end).await;
-                        drop(bus);
-                    }));
-                    served.instruments.insert("positioner".into(), port.clone().into());
-                }
-                CanLink::SocketCan(interface) => {
-                    let bus = survey_drivers::canopen::SocketCanBus::open(&interface).map_err(|e| {
-                        anyhow::anyhow!(
-                            "positioner: cannot open the SocketCAN interface {interface} ({e}); survey sim serves a \
-                             CANopen drive on an existing interface (ip link add dev {interface} type vcan; ip link \
-                             set up {interface}), or behind a simulated USB-CAN adapter with transport = \"slcan\""
-                        )
-                    })?;
-                    served.tasks.push(tokio::spawn(async move {
-                        // No relay on the kernel's bus: link and armed device
-                        // faults reach a CANopen drive on its SLCAN line only
-                        // (its drive trips are the simulator's, here too).
-                        survey_sims::canopen_node::serve(bus, positioner, node, faults).await;
-                    }));
-                    served
-                        .instruments
-                        .insert("positioner".into(), format!("{interface} node {}", drive.node_id).into());
-                }
+impl Served {
+    /// The positioner, on a loopback listener (TCP) or a linked pty
+    /// (serial), behind its relay; a CANopen drive as [`Served::canopen`]
+    /// serves it.
+    async fn positioner(
+        &mut self,
+        cfg: &SurveyConfig,
+        positioner: SimPositioner,
+        relays: &mut Relays<'_>,
+    ) -> anyhow::Result<()> {
+        let at = match &cfg.positioner {
+            PositionerConfig::ScpiTcp { address, controller, axis, .. } => {
+                let (listener, public) = self.listen("positioner", address).await?;
+                let faults = Faults::counting(self.faults.clone());
+                let relay = relays.front_of("positioner", &faults, Framing::Lines, true);
+                let listener = self.front(listener, relay).await?;
+                let at = (*controller, *axis);
+                self.tasks.push(tokio::spawn(scpi_server::serve_tcp_at(listener, positioner, faults, at)));
+                public
+            }
+            PositionerConfig::ScpiSerial { port, controller, axis, .. } => {
+                let faults = Faults::counting(self.faults.clone());
+                let relay = relays.front_of("positioner", &faults, Framing::Lines, true);
+                let port = self.port("positioner", port);
+                let device = self.serial("positioner", &port, relay)?;
+                let at = (*controller, *axis);
+                self.tasks.push(tokio::spawn(async move {
+                    scpi_server::serve_stream(device, positioner, faults, at).await;
+                }));
+                port
+            }
+            PositionerConfig::ModbusTcp { address, map, .. } => {
+                let (listener, public) = self.listen("positioner", address).await?;
+                let server = ModbusDevice::new(positioner, map.clone())
+                    .map_err(|e| bad_input(format!("positioner.map: {e}")))?;
+                let faults = Faults::counting(self.faults.clone());
+                let relay = relays.front_of("positioner", &faults, Framing::ModbusTcp, true);
+                let listener = self.front(listener, relay).await?;
+                self.tasks.push(tokio::spawn(async move {
+                    if let Err(e) = server.serve_tcp(listener, faults).await {
+                        tracing::error!(%e, "modbus simulator stopped");
+                    }
+                }));
+                public
+            }
+            PositionerConfig::ModbusRtu { port, map, slave: address, .. } => {
+                let faults = Faults::counting(self.faults.clone());
+                let relay = relays.front_of("positioner", &faults, Framing::ModbusRtu, true);
+                let port = self.port("positioner", port);
+                let device = self.serial("positioner", &port, relay)?;
+                // On a serial line the slave address is the unit (as the driver does).
+                let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
+                let server =
+                    ModbusDevice::new(positioner, map).map_err(|e| bad_input(format!("positioner.map: {e}")))?;
+                self.tasks.push(tokio::spawn(async move {
+                    server.serve_rtu(device, faults).await;
+                }));
+                port
+            }
+            PositionerConfig::Canopen { drive, .. } => return self.canopen(&cfg.positioner, drive, positioner, relays),
+        };
+        self.instruments.insert("positioner".into(), at.into());
+        Ok(())
+    }
+
+    /// A CiA 402 drive: on the configured SocketCAN interface when this
+    /// machine has it, else behind a simulated USB-CAN adapter on a pty
+    /// (in the sim's folder for a missing interface, at the configured port
+    /// for `slcan`).
+    fn canopen(
+        &mut self,
+        cfg: &PositionerConfig,
+        drive: &CanopenConfig,
+        positioner: SimPositioner,
+        relays: &mut Relays<'_>,
+    ) -> anyhow::Result<()> {
+        let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
+        node.counts_per_degree = drive.counts_per_degree;
+        // A drive with this project's own objects when the configuration
+        // says so; else one with the standard objects only.
+        node.correction_objects = drive.correction_objects;
+        let faults = Faults::counting(self.faults.clone());
+        match self.can_link(cfg)? {
+            CanLink::Slcan { port, .. } => {
+                // A CiA 402 drive behind a simulated USB-CAN adapter, on a
+                // pty linked at the port (link faults on the serial line,
+                // on the replies among the adapter's messages).
+                let relay = relays.front_of("positioner", &faults, Framing::SlcanCanopen, true);
+                let device = self.serial("positioner", &port, relay)?;
+                let bus = survey_drivers::canopen::MemoryBus::new();
+                let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
+                self.tasks.push(tokio::spawn(async move {
+                    survey_sims::canopen_node::serve(drive_end, positioner, node, faults).await;
+                }));
+                self.tasks.push(tokio::spawn(async move {
+                    survey_sims::slcan_adapter::serve_adapter(device, adapter_end).await;
+                    drop(bus);
+                }));
+                self.instruments.insert("positioner".into(), port.clone().into());
+            }
+            CanLink::SocketCan(interface) => {
+                let bus = survey_drivers::canopen::SocketCanBus::open(&interface).map_err(|e| {
+                    anyhow::anyhow!(
+                        "positioner: cannot open the SocketCAN interface {interface} ({e}); survey sim serves a \
+                         CANopen drive on an existing interface (ip link add dev {interface} type vcan; ip link \
+                         set up {interface}), or behind a simulated USB-CAN adapter with transport = \"slcan\""
+                    )
+                })?;
+                self.tasks.push(tokio::spawn(async move {
+                    // No relay on the kernel's bus: link and armed device
+                    // faults reach a CANopen drive on its SLCAN line only
+                    // (its drive trips are the simulator's, here too).
+                    survey_sims::canopen_node::serve(bus, positioner, node, faults).await;
+                }));
+                self.instruments.insert("positioner".into(), format!("{interface} node {}", drive.node_id).into());
             }
         }
+        Ok(())
     }
 
-    // The reference instruments (both may be configured; each is served).
-    if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {
-        let (listener, public) = served.listen("tracker", address).await?;
-        let faults = Faults::counting(injected.clone());
-        let relay = relay_for("tracker", &faults, Framing::Emscon, true);
-        let listener = served.front(listener, relay).await?;
-        served.tasks.push(tokio::spawn(emscon_server::serve_tcp(listener, bench.tracker, faults)));
-        served.instruments.insert("tracker".into(), public.into());
+    /// Where a CANopen drive is served: its configured CAN link, but a
+    /// SocketCAN interface this machine lacks becomes a simulated adapter's
+    /// pty in the sim's folder, and an SLCAN port the path a pty is linked
+    /// at (both said in the stand-ins).
+    fn can_link(&mut self, cfg: &PositionerConfig) -> anyhow::Result<CanLink> {
+        let link = match cfg.can_link() {
+            Some(Ok(link)) => link,
+            Some(Err(e)) => return Err(bad_input(e)),
+            None => unreachable!("a CANopen configuration has a CAN link"),
+        };
+        Ok(match link {
+            // No such interface here: the drive behind a simulated adapter.
+            CanLink::SocketCan(interface) if !Path::new("/sys/class/net").join(&interface).exists() => {
+                let port = self.stand_ins.dir().join("positioner").display().to_string();
+                self.stand_ins.served("positioner", "transport", "socketcan", "slcan");
+                self.stand_ins.served("positioner", "port", &interface, &port);
+                self.stand_ins.removed("positioner", "interface");
+                CanLink::Slcan { port, bitrate: DEFAULT_CAN_BITRATE }
+            }
+            CanLink::Slcan { port, bitrate } => CanLink::Slcan { port: self.port("positioner", &port), bitrate },
+            link => link,
+        })
     }
-    if let Some(AcConfig::Elcomat { port, .. }) = &cfg.autocollimator {
-        // Its device fault is the simulated autocollimator's: a blocked view,
-        // answered "no reflection".
-        let relay = relay_for("autocollimator", &Faults::counting(injected.clone()), Framing::Lines, false);
-        let port = served.port("autocollimator", port);
-        let device = served.serial("autocollimator", &port, relay)?;
-        let instrument = bench.autocollimator;
-        served.tasks.push(tokio::spawn(async move {
+
+    /// The emScon tracker on a loopback listener standing in for `address`,
+    /// behind its relay.
+    async fn tracker(&mut self, address: &str, tracker: SimTracker, relays: &mut Relays<'_>) -> anyhow::Result<()> {
+        let (listener, public) = self.listen("tracker", address).await?;
+        let faults = Faults::counting(self.faults.clone());
+        let relay = relays.front_of("tracker", &faults, Framing::Emscon, true);
+        let listener = self.front(listener, relay).await?;
+        self.tasks.push(tokio::spawn(emscon_server::serve_tcp(listener, tracker, faults)));
+        self.instruments.insert("tracker".into(), public.into());
+        Ok(())
+    }
+
+    /// The ELCOMAT on a pty linked at `port`, behind its relay. Its device
+    /// fault is the simulated autocollimator's: a blocked view, answered
+    /// "no reflection".
+    fn autocollimator(
+        &mut self,
+        port: &str,
+        instrument: SimAutocollimator,
+        relays: &mut Relays<'_>,
+    ) -> anyhow::Result<()> {
+        let relay = relays.front_of("autocollimator", &Faults::counting(self.faults.clone()), Framing::Lines, false);
+        let port = self.port("autocollimator", port);
+        let device = self.serial("autocollimator", &port, relay)?;
+        self.tasks.push(tokio::spawn(async move {
             elcomat_server::serve(device, instrument).await;
         }));
-        served.instruments.insert("autocollimator".into(), port.into());
+        self.instruments.insert("autocollimator".into(), port.into());
+        Ok(())
     }
-    Ok(served)
 }
 
 /// The instrument time of one run when the model drifts (the contract's
