@@ -84,9 +84,10 @@ pub fn parse_survey_csv(text: &str, source: &str) -> Result<Vec<Sample>, CsvErro
 
     let mut samples = Vec::new();
     let mut lines = Vec::new();
+    let mut counted = Lines::new(text);
     for rec in rdr.records() {
         let rec = rec.map_err(|e| from_csv_error(text, source, e))?;
-        let line = line_of(text, rec.position().map_or(0, |p| p.byte()));
+        let line = counted.line_at(rec.position().map_or(0, |p| p.byte()));
         let sample = parse_row(&rec, has_timestamp).map_err(|w| CsvError::at(source, line, w))?;
         samples.push(sample);
         lines.push(line);
@@ -198,18 +199,41 @@ fn parse_row(rec: &csv::StringRecord, has_timestamp: bool) -> Result<Sample, Str
 /// lines, and its record offsets point at the line breaks before the record.)
 /// LF, CRLF and a lone CR each end a line.
 fn line_of(text: &str, start: u64) -> u64 {
-    let bytes = text.as_bytes();
-    let mut at = usize::try_from(start).unwrap_or(usize::MAX).min(bytes.len());
-    while at < bytes.len() && (bytes[at] == b'\n' || bytes[at] == b'\r') {
-        at += 1;
+    Lines::new(text).line_at(start)
+}
+
+/// Physical lines counted forward as the reader goes: records come in file
+/// order, so each byte is counted once for the whole file ([`line_of`]'s rule;
+/// a position before the last one asked counts again from the start).
+#[derive(Debug)]
+struct Lines<'a> {
+    bytes: &'a [u8],
+    /// Where counting stopped, and the line breaks before it.
+    at: usize,
+    breaks: u64,
+}
+
+impl<'a> Lines<'a> {
+    fn new(text: &'a str) -> Self {
+        Lines { bytes: text.as_bytes(), at: 0, breaks: 0 }
     }
-    let before = &bytes[..at];
-    let breaks = before
-        .iter()
-        .enumerate()
-        .filter(|&(i, &b)| b == b'\n' || (b == b'\r' && bytes.get(i + 1) != Some(&b'\n')))
-        .count();
-    1 + breaks as u64
+
+    /// The line of the record that starts at byte `start` (see [`line_of`]).
+    fn line_at(&mut self, start: u64) -> u64 {
+        let bytes = self.bytes;
+        let mut to = usize::try_from(start).unwrap_or(usize::MAX).min(bytes.len());
+        while to < bytes.len() && (bytes[to] == b'\n' || bytes[to] == b'\r') {
+            to += 1;
+        }
+        if to < self.at {
+            (self.at, self.breaks) = (0, 0);
+        }
+        self.breaks += (self.at..to)
+            .filter(|&i| bytes[i] == b'\n' || (bytes[i] == b'\r' && bytes.get(i + 1) != Some(&b'\n')))
+            .count() as u64;
+        self.at = to;
+        1 + self.breaks
+    }
 }
 
 fn from_csv_error(text: &str, source: &str, e: csv::Error) -> CsvError {
@@ -555,6 +579,34 @@ mod tests {
             prop_assert_eq!(back.len(), samples.len());
             for (a, b) in back.iter().zip(&samples) {
                 prop_assert_eq!(bits(a), bits(b));
+            }
+        }
+
+        /// Lines counted forward, at positions in any order, are the lines
+        /// counted from the start of the text.
+        #[test]
+        fn lines_counted_forward_are_lines_counted_from_the_start(
+            text in "[a,\r\n]{0,80}",
+            mut at in proptest::collection::vec(0u64..90, 0..12),
+            sorted in proptest::bool::ANY,
+        ) {
+            if sorted {
+                at.sort_unstable();
+            }
+            let mut lines = Lines::new(&text);
+            for a in at {
+                let scratch = {
+                    let bytes = text.as_bytes();
+                    let mut to = usize::try_from(a).unwrap().min(bytes.len());
+                    while to < bytes.len() && (bytes[to] == b'\n' || bytes[to] == b'\r') {
+                        to += 1;
+                    }
+                    let breaks = (0..to)
+                        .filter(|&i| bytes[i] == b'\n' || (bytes[i] == b'\r' && bytes.get(i + 1) != Some(&b'\n')))
+                        .count();
+                    1 + breaks as u64
+                };
+                prop_assert_eq!(lines.line_at(a), scratch);
             }
         }
 
