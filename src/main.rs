@@ -1,7 +1,7 @@
-//! The `survey` binary: a thin shell over `survey_orchestrator::cli`.
+//! The `survey` binary: a thin shell over `survey_cli`.
 fn main() -> std::process::ExitCode {
     keep_freed_memory();
-    survey_orchestrator::cli::main()
+    survey_cli::main()
 }
 
 /// Keep the memory a command frees for its next allocation.

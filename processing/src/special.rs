@@ -3,7 +3,7 @@
 
 /// Complementary error function (Numerical Recipes `erfcc`, fractional error
 /// below 1.2e-7 everywhere).
-pub(crate) fn erfc(x: f64) -> f64 {
+pub fn erfc(x: f64) -> f64 {
     let z = x.abs();
     let t = 1.0 / (1.0 + 0.5 * z);
     let poly = -z * z - 1.265_512_23
@@ -18,7 +18,7 @@ pub(crate) fn erfc(x: f64) -> f64 {
 }
 
 /// The `c` with `P(|Z| > c) = p` for a standard normal `Z`.
-pub(crate) fn normal_two_sided_isf(p: f64) -> f64 {
+pub fn normal_two_sided_isf(p: f64) -> f64 {
     let (mut lo, mut hi) = (0.0f64, 40.0f64);
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);

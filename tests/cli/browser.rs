@@ -428,10 +428,10 @@ fn the_lab_pages_open_in_chromium_with_their_elements_and_no_error() {
 
 #[test]
 fn a_survey_being_acquired_moves_on_the_open_page_without_a_reload() {
-    use survey_orchestrator::acquire::{RawReading, RecordedSample};
-    use survey_orchestrator::store::Store;
-    use survey_orchestrator::survey::NewSurvey;
+    use survey_acquire::{RawReading, RecordedSample};
     use survey_processing::{Direction, Sample};
+    use survey_store::Store;
+    use survey_store::survey::NewSurvey;
 
     let browser = match chromium() {
         Ok(b) => b,
@@ -477,7 +477,7 @@ fn a_survey_being_acquired_moves_on_the_open_page_without_a_reload() {
         (store, id)
     });
     let mut cmd = bench.command(&["serve", "--listen", "127.0.0.1:0", "--refresh", "0.1"]);
-    cmd.env("RUST_LOG", "warn,survey_orchestrator::serve=info");
+    cmd.env("RUST_LOG", "warn,survey_serve=info");
     let server = super::serve::Server::start(cmd);
     let uid = super::serve::get(&server.url, "/api/live").json()["surveys"][0]["uid"].as_str().unwrap().to_string();
 

@@ -69,7 +69,7 @@ fn check_says_when_the_device_speaks_another_protocol() {
 
 #[test]
 fn check_passes_against_simulators_speaking_the_protocols() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
         let preset = Preset::by_name("fig8").unwrap();
         let sims = SimBench::builder(&preset, 3, clock).autocollimator(AutocollimatorConfig::seeded(24, 4)).build();

@@ -13,12 +13,12 @@
 use super::axis_refit::{against_truth, survey};
 use std::sync::Arc;
 use std::time::Duration;
+use survey_acquire::MemorySink;
+use survey_acquire::{Engine, Reference, Timing};
+use survey_acquire::{SettleMode, SettleModel};
 use survey_drivers::{Clock, VirtualClock};
-use survey_orchestrator::acquire::MemorySink;
-use survey_orchestrator::acquire::{Engine, Reference, Timing};
-use survey_orchestrator::acquire::{SettleMode, SettleModel};
+use survey_plan::SurveyPlan;
 use survey_processing::model::Model;
-use survey_processing::plan::SurveyPlan;
 use survey_sims::servo::Servo;
 use survey_sims::{Preset, SimBench};
 
@@ -159,7 +159,7 @@ async fn adaptive_settling_costs_no_accuracy_against_a_long_dwell_and_a_short_wa
 #[tokio::test]
 async fn a_continuous_survey_stopped_after_a_pass_resumes_with_its_latency_and_every_sample_once() {
     use super::integrity::{dense_prefix, survey as run_binary, text};
-    use survey_orchestrator::survey::SurveyStatus;
+    use survey_store::survey::SurveyStatus;
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("s.db");
     // 360 targets x 3 runs x 2 directions: 6 passes of 360 samples, each

@@ -7,8 +7,8 @@ use nix::unistd::Pid;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
-use survey_orchestrator::store::{AcquirerLock, Store, lock_path};
-use survey_orchestrator::survey::SurveyStatus;
+use survey_store::survey::SurveyStatus;
+use survey_store::{AcquirerLock, Store, lock_path};
 
 const BIN: &str = env!("CARGO_BIN_EXE_survey");
 

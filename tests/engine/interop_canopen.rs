@@ -157,10 +157,10 @@ async fn our_driver_checks_enables_and_moves_a_drive_with_only_the_standard_obje
     use survey_drivers::canopen::slcan::SlcanBus;
     use survey_drivers::canopen::{CanopenConfig, Cia402Positioner, MemoryBus};
     use survey_drivers::error::ErrorKind;
-    use survey_orchestrator::config::SurveyConfig;
     use survey_processing::table::CorrectionTable;
     use survey_sims::elcomat_server::pty_pair;
     use survey_sims::slcan_adapter::serve_adapter;
+    use survey_store::config::SurveyConfig;
     use tokio::io::{AsyncBufReadExt as _, AsyncWriteExt as _};
 
     if let Some(why) = python_canopen_missing() {
@@ -200,7 +200,7 @@ async fn our_driver_checks_enables_and_moves_a_drive_with_only_the_standard_obje
         "standard.toml",
     )
     .unwrap();
-    let checked = survey_orchestrator::bench::instruments::check(&cfg, &survey_drivers::SystemClock::new()).await;
+    let checked = survey_bench::instruments::check(&cfg, &survey_drivers::SystemClock::new()).await;
     let positioner = &checked[0];
     assert!(positioner.ok, "{positioner:?}");
     assert!(positioner.detail.contains("in position"), "{positioner:?}");

@@ -16,18 +16,18 @@ mod wire;
 mod wire_faults;
 
 use std::sync::Arc;
+use survey_acquire::{Engine, Reference, Timing};
+use survey_acquire::{MemorySink, RawReading};
 use survey_drivers::{Clock, VirtualClock};
-use survey_orchestrator::acquire::{Engine, Reference, Timing};
-use survey_orchestrator::acquire::{MemorySink, RawReading};
-use survey_orchestrator::store::{Store, StoreSink};
-use survey_orchestrator::survey::{NewSurvey, SurveyStatus};
+use survey_plan::SurveyPlan;
 use survey_processing::geometry::AxisFit;
 use survey_processing::iso230::iso230_2;
 use survey_processing::model::Model;
-use survey_processing::plan::SurveyPlan;
 use survey_processing::{Direction, Sample};
 use survey_sims::tracker::{ArmGeometry, sigma_mm};
 use survey_sims::{Preset, SimBench, SimBenchBuilder};
+use survey_store::survey::{NewSurvey, SurveyStatus};
+use survey_store::{Store, StoreSink};
 
 fn fig8() -> Preset {
     Preset::by_name("fig8").expect("fig8 preset")
@@ -60,7 +60,7 @@ async fn a_bidirectional_multi_run_survey_lands_in_sqlite() {
     let id = store
         .create_survey(&NewSurvey {
             status: SurveyStatus::Running,
-            source: survey_orchestrator::survey::SurveySource::Simulated,
+            source: survey_store::survey::SurveySource::Simulated,
             points: Some(90),
             runs: Some(3),
             bidirectional: true,

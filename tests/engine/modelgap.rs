@@ -2,7 +2,7 @@
 //! instruments (SimBench running a true model, a tracking laser as the
 //! reference), compared with a model that lacks one of the true model's
 //! effects. The tolerances are those of the processing tests
-//! (`survey_processing::modelgap`): a periodic effect's phasor within 5
+//! (`survey_modelgap`): a periodic effect's phasor within 5
 //! standard errors of the truth, backlash and drift within 5 standard errors,
 //! the noise floor within 10 % of the truth, the residual after within 6 % of
 //! the noise floor.
@@ -16,13 +16,13 @@
 
 use super::{fig8, virtual_clock};
 use PeriodicKind::{Eccentricity, GearPass, Harmonic, ToothMesh};
-use survey_orchestrator::acquire::MemorySink;
-use survey_orchestrator::acquire::{Engine, Reference, Timing};
+use survey_acquire::MemorySink;
+use survey_acquire::{Engine, Reference, Timing};
+use survey_modelgap::{FoundEffect, ModelGap, ModelGapOptions, model_gap};
+use survey_plan::SurveyPlan;
 use survey_processing::Sample;
 use survey_processing::geometry::AxisFit;
 use survey_processing::model::{Design, DriftShape, Effect, Model, PeriodicKind};
-use survey_processing::modelgap::{FoundEffect, ModelGap, ModelGapOptions, model_gap};
-use survey_processing::plan::SurveyPlan;
 use survey_processing::spectrum::{Phasor, fit_sinusoids};
 use survey_sims::tracker::ArmGeometry;
 use survey_sims::{PlanProgress, SimBench};

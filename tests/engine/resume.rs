@@ -2,8 +2,8 @@
 //! its last stored sample: no sample lost, none duplicated.
 
 use std::process::{Command, Stdio};
-use survey_orchestrator::store::Store;
-use survey_orchestrator::survey::SurveyStatus;
+use survey_store::Store;
+use survey_store::survey::SurveyStatus;
 
 #[tokio::test]
 async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {

@@ -16,9 +16,9 @@
 
 use std::sync::Arc;
 use std::time::Duration;
+use survey_acquire::{Engine, MemorySink, Reference, SettleModel, Timing};
 use survey_drivers::{Clock, VirtualClock};
-use survey_orchestrator::acquire::{Engine, MemorySink, Reference, SettleModel, Timing};
-use survey_processing::plan::{ScanMode, SurveyPlan};
+use survey_plan::{ScanMode, SurveyPlan};
 use survey_sims::servo::Servo;
 use survey_sims::{Preset, SimBench};
 

@@ -14,8 +14,8 @@ use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use survey_orchestrator::store::Store;
-use survey_orchestrator::survey::SurveyStatus;
+use survey_store::Store;
+use survey_store::survey::SurveyStatus;
 
 const BIN: &str = env!("CARGO_BIN_EXE_survey");
 
@@ -145,7 +145,7 @@ impl FaultFree {
 
 #[test]
 fn a_faulty_bench_killed_five_times_loses_and_repeats_nothing() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         let dir = tempfile::tempdir().unwrap();
         // The fault-free surveys the soak is compared with run beside it.
         let clean = [FaultFree::start(dir.path(), "11"), FaultFree::start(dir.path(), "12")];

@@ -3,19 +3,19 @@
 //! simulated bench driven in-process.
 
 use std::sync::Arc;
+use survey_acquire::MemorySink;
+use survey_acquire::{Engine, Reference, Timing};
+use survey_bench::instruments::{Instruments, ReferenceInstrument};
 use survey_drivers::{Clock, VirtualClock};
-use survey_orchestrator::acquire::MemorySink;
-use survey_orchestrator::acquire::{Engine, Reference, Timing};
-use survey_orchestrator::bench::instruments::{Instruments, ReferenceInstrument};
-use survey_orchestrator::config::SurveyConfig;
+use survey_plan::SurveyPlan;
 use survey_processing::iso230::{Iso230, iso230_2};
-use survey_processing::plan::SurveyPlan;
 use survey_processing::{Direction, Sample};
 use survey_sims::autocollimator::AutocollimatorConfig;
 use survey_sims::elcomat_server::{pty_pair, serve};
 use survey_sims::faults::Faults;
 use survey_sims::scpi_server::serve_tcp;
 use survey_sims::{Preset, SimBench};
+use survey_store::config::SurveyConfig;
 use tokio_serial::SerialPort as _;
 
 const FACES: u32 = 24;

@@ -6,7 +6,7 @@
 //! simulator's truth (so no late or garbled reply was ever taken for a value).
 //!
 //! One survey per wire and fault kind, each kind alone at its rate, served by
-//! `survey_orchestrator::sim::serve` (the code of `survey sim`: relays, armed
+//! `survey_bench::sim::serve` (the code of `survey sim`: relays, armed
 //! device faults, simulators) on loopback ports and ptys, 1000 times faster
 //! than the hardware; the kinds of one wire run side by side. Seeded; the
 //! assertions hold whatever the scheduling (at least one fault of the kind,
@@ -15,15 +15,15 @@
 
 use std::path::Path;
 use std::sync::Arc;
+use survey_acquire::FaultCounts;
+use survey_acquire::MemorySink;
+use survey_bench::sim::{SimOptions, serve};
+use survey_bench::{PlanOverrides, configured_engine, configured_plan};
 use survey_drivers::{Clock, SystemClock};
-use survey_orchestrator::acquire::FaultCounts;
-use survey_orchestrator::acquire::MemorySink;
-use survey_orchestrator::bench::{PlanOverrides, configured_engine, configured_plan};
-use survey_orchestrator::config::SurveyConfig;
-use survey_orchestrator::sim::{SimOptions, serve};
 use survey_processing::Direction;
 use survey_sims::Preset;
 use survey_sims::faults::FaultRates;
+use survey_store::config::SurveyConfig;
 
 /// The wires under test.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -334,7 +334,7 @@ fn check(wire: Wire, f: &Faulted) {
 
 #[test]
 fn modbus_tcp() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         every_kind_on(Wire::ModbusTcp, 100).await;
     })
     .expect("a runtime");
@@ -342,7 +342,7 @@ fn modbus_tcp() {
 
 #[test]
 fn modbus_rtu() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         every_kind_on(Wire::ModbusRtu, 200).await;
     })
     .expect("a runtime");
@@ -350,7 +350,7 @@ fn modbus_rtu() {
 
 #[test]
 fn canopen_slcan() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         every_kind_on(Wire::CanopenSlcan, 300).await;
     })
     .expect("a runtime");
@@ -358,7 +358,7 @@ fn canopen_slcan() {
 
 #[test]
 fn scpi_tcp() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         every_kind_on(Wire::ScpiTcp, 400).await;
     })
     .expect("a runtime");
@@ -366,7 +366,7 @@ fn scpi_tcp() {
 
 #[test]
 fn scpi_serial() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         every_kind_on(Wire::ScpiSerial, 500).await;
     })
     .expect("a runtime");
@@ -374,7 +374,7 @@ fn scpi_serial() {
 
 #[test]
 fn emscon() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         every_kind_on(Wire::Emscon, 600).await;
     })
     .expect("a runtime");
@@ -382,7 +382,7 @@ fn emscon() {
 
 #[test]
 fn elcomat() {
-    survey_orchestrator::runtime::block_on_bounded(2, async {
+    survey_store::runtime::block_on_bounded(2, async {
         every_kind_on(Wire::Elcomat, 700).await;
     })
     .expect("a runtime");

@@ -110,8 +110,10 @@ mod detect;
 mod naming;
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-pub(crate) mod testutil;
+/// Test support for this crate's tests and the crates built on it (the
+/// `testutil` feature, their dev-dependency's).
+#[cfg(any(test, feature = "testutil"))]
+pub mod testutil;
 
 pub use detect::{NoiseFloor, NoiseMethod, default_min_coherence};
 pub use naming::{Alias, AliasAction, AliasEntry, Candidate, alias, design_candidates, unalias_phase_deg};
@@ -164,7 +166,7 @@ impl Default for AnalysisOptions {
 }
 
 impl AnalysisOptions {
-    pub(crate) fn validate(&self) -> Result<(), AnalysisError> {
+    pub fn validate(&self) -> Result<(), AnalysisError> {
         let bad = |option: &'static str, message: String| Err(AnalysisError::BadOption { option, message });
         if !(self.false_alarm_rate > 0.0 && self.false_alarm_rate.is_finite()) {
             return bad("false_alarm_rate", format!("must be a positive number, got {}", self.false_alarm_rate));

@@ -5,7 +5,7 @@ use crate::types::{Direction, Sample};
 
 /// SplitMix64 with Box-Muller: deterministic, seeded, no dependency.
 #[derive(Debug, Clone)]
-pub(crate) struct Normal {
+pub struct Normal {
     state: u64,
     spare: Option<f64>,
 }
@@ -42,24 +42,24 @@ impl Normal {
 }
 
 /// The Figure 4 azimuth positioner (the simulators' preset).
-pub(crate) fn fig4() -> Model {
+pub fn fig4() -> Model {
     Model::parse(include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/../sims/presets/fig4.toml")), "fig4.toml").unwrap()
 }
 
 /// The Figure 1 elevation axis (the simulators' preset).
-pub(crate) fn fig1() -> Model {
+pub fn fig1() -> Model {
     Model::parse(include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/../sims/presets/fig1.toml")), "fig1.toml").unwrap()
 }
 
 /// `n` targets uniformly over a revolution from `start`.
-pub(crate) fn circle(n: usize, start: f64) -> Vec<f64> {
+pub fn circle(n: usize, start: f64) -> Vec<f64> {
     (0..n).map(|k| start + k as f64 * 360.0 / n as f64).collect()
 }
 
 /// A synthetic survey: at every target, run and direction, the readout error is
 /// `error(run, direction, theta)` plus normal noise of `sigma`. The actual angle
 /// is the target plus a per-run offset (so only `readout - actual` carries the error).
-pub(crate) fn survey(
+pub fn survey(
     targets: &[f64],
     runs: u32,
     directions: &[Direction],
@@ -95,7 +95,7 @@ pub(crate) fn survey(
 /// The true angle `theta` at which a positioner whose error at the true angle
 /// is `error(theta)` reads `readout` (`theta + error(theta) = readout`, the
 /// contract's convention), by fixed-point iteration.
-pub(crate) fn true_angle(readout: f64, error: impl Fn(f64) -> f64) -> f64 {
+pub fn true_angle(readout: f64, error: impl Fn(f64) -> f64) -> f64 {
     let mut theta = readout;
     for _ in 0..60 {
         theta = readout - error(theta);
@@ -108,7 +108,7 @@ pub(crate) fn true_angle(readout: f64, error: impl Fn(f64) -> f64) -> f64 {
 /// the `theta` where the positioner reads `t` ([`true_angle`]): the error as
 /// a function of the readout then holds the products of the lines, as a
 /// simulated or a real positioner's does.
-pub(crate) fn survey_at_true_angle(
+pub fn survey_at_true_angle(
     targets: &[f64],
     runs: u32,
     directions: &[Direction],

@@ -210,49 +210,6 @@ impl Left {
         out
     }
 
-    /// `self` with what check points that decided a line of `before` cannot
-    /// exclude at its other candidates ([`crate::correction::resolve::Resolution::rest_deg`]),
-    /// its figures made again at `targets`.
-    pub fn with_rest(
-        mut self,
-        before: &Left,
-        resolutions: &[crate::correction::resolve::Resolution],
-        targets: &[f64],
-    ) -> Left {
-        for r in resolutions.iter().filter(|r| r.rest_deg > 0.0) {
-            let (Some(f), Some(l)) =
-                (r.decided_cycles, before.lines.iter().find(|l| l.observed_cycles == r.observed_cycles))
-            else {
-                continue;
-            };
-            let others: Vec<f64> = l.candidates.iter().copied().filter(|&c| c != f).collect();
-            if others.is_empty() {
-                continue;
-            }
-            let names: Vec<String> = others.iter().map(|c| format!("{c}")).collect();
-            self.lines.push(LeftLine {
-                observed_cycles: l.observed_cycles,
-                amplitude_deg: r.rest_deg,
-                phase_deg: l.phase_deg,
-                noise_sd_deg: 0.0,
-                kind: LeftKind::NotCarried,
-                candidates: others,
-                why: format!(
-                    "bin {}: decided {f} cycles/rev; the check points cannot exclude a line of up to {:.2e} deg at {} \
-                     cycles/rev sharing the bin, which the table would miss",
-                    l.observed_cycles,
-                    r.rest_deg,
-                    names.join(" or ")
-                ),
-            });
-        }
-        self.points = before.points;
-        self.start_deg = before.start_deg;
-        self.lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
-        self.worst = self.least_favourable(targets);
-        self
-    }
-
     /// Whether anything is left.
     pub fn is_empty(&self) -> bool {
         self.lines.is_empty()
@@ -301,7 +258,7 @@ impl Left {
 
     /// The hypothesis whose left error peaks highest between the targets
     /// (beyond what the survey saw at them), with its figures.
-    fn least_favourable(&self, targets: &[f64]) -> Option<Worst> {
+    pub(super) fn least_favourable(&self, targets: &[f64]) -> Option<Worst> {
         if self.lines.is_empty() {
             return None;
         }

@@ -39,7 +39,8 @@
 //! which the table (carrying the bin's mix at the decided frequency) misses
 //! at both frequencies ([`Resolution::rest_deg`]).
 
-use crate::correction::left::{Left, LeftKind};
+use crate::analysis::alias;
+use crate::correction::left::{Left, LeftKind, LeftLine};
 use crate::table::CorrectionTable;
 use crate::types::Sample;
 use serde::Serialize;
@@ -298,6 +299,95 @@ fn noise_var(checks: &[Sample], table: &CorrectionTable) -> Option<f64> {
         (ss + v.iter().map(|x| (x - m).powi(2)).sum::<f64>(), dof + v.len() - 1)
     });
     (dof > 0).then(|| ss / dof as f64)
+}
+
+impl Left {
+    /// `self` with what check points that decided a line of `before` cannot
+    /// exclude at its other candidates ([`Resolution::rest_deg`]),
+    /// its figures made again at `targets`.
+    pub fn with_rest(mut self, before: &Left, resolutions: &[Resolution], targets: &[f64]) -> Left {
+        for r in resolutions.iter().filter(|r| r.rest_deg > 0.0) {
+            let (Some(f), Some(l)) =
+                (r.decided_cycles, before.lines.iter().find(|l| l.observed_cycles == r.observed_cycles))
+            else {
+                continue;
+            };
+            let others: Vec<f64> = l.candidates.iter().copied().filter(|&c| c != f).collect();
+            if others.is_empty() {
+                continue;
+            }
+            let names: Vec<String> = others.iter().map(|c| format!("{c}")).collect();
+            self.lines.push(LeftLine {
+                observed_cycles: l.observed_cycles,
+                amplitude_deg: r.rest_deg,
+                phase_deg: l.phase_deg,
+                noise_sd_deg: 0.0,
+                kind: LeftKind::NotCarried,
+                candidates: others,
+                why: format!(
+                    "bin {}: decided {f} cycles/rev; the check points cannot exclude a line of up to {:.2e} deg at {} \
+                     cycles/rev sharing the bin, which the table would miss",
+                    l.observed_cycles,
+                    r.rest_deg,
+                    names.join(" or ")
+                ),
+            });
+        }
+        self.points = before.points;
+        self.start_deg = before.start_deg;
+        self.lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
+        self.worst = self.least_favourable(targets);
+        self
+    }
+}
+
+/// What a second orientation of an autocollimator's polygon would resolve
+/// (`None` when nothing is in doubt): turned by half a face on the table,
+/// its faces fall half way between the first ones, and both orientations
+/// together sample the circle at `2N` points per revolution. A line in doubt
+/// is resolved by that when its candidate frequencies land on distinct bins
+/// at `2N` points; else even that does not separate them.
+pub fn second_orientation(left: &Left) -> Option<String> {
+    let n2 = 2.0 * left.points as f64;
+    let (resolved, unresolved): (Vec<_>, Vec<_>) =
+        left.lines.iter().filter(|l| l.candidates.len() > 1).partition(|l| {
+            let mut bins: Vec<f64> = l.candidates.iter().map(|&c| alias(c, n2).observed).collect();
+            bins.sort_by(f64::total_cmp);
+            bins.windows(2).all(|w| (w[1] - w[0]).abs() > 0.5)
+        });
+    if resolved.is_empty() && !unresolved.is_empty() {
+        let c: Vec<String> = unresolved.iter().map(|l| describe(l)).collect();
+        return Some(format!(
+            "the polygon's faces fix where this survey measured; a second orientation (the polygon turned by half a \
+             face) would not separate {}: their candidates land on one bin at {} points per revolution too",
+            c.join(", "),
+            n2
+        ));
+    }
+    (!resolved.is_empty()).then(|| {
+        let r: Vec<String> = resolved.iter().map(|l| describe(l)).collect();
+        let rest = if unresolved.is_empty() {
+            String::new()
+        } else {
+            let c: Vec<String> = unresolved.iter().map(|l| describe(l)).collect();
+            format!("; it would not separate {}", c.join(", "))
+        };
+        format!(
+            "the polygon's faces fix where this survey measured: measured again with the polygon turned by half a \
+             face on the table, the faces fall half way between these, and both orientations together ({n2} points \
+             per revolution) would resolve {}{rest}",
+            r.join(", ")
+        )
+    })
+}
+
+fn describe(l: &LeftLine) -> String {
+    let c: Vec<String> = l.candidates.iter().map(|c| format!("{c}")).collect();
+    let what = match l.kind {
+        LeftKind::NotCarried => "not carried",
+        LeftKind::MaybeAlias => "kept where it is seen",
+    };
+    format!("the line at bin {} ({} cycles/rev, {what})", l.observed_cycles, c.join(" or "))
 }
 
 #[cfg(test)]

@@ -147,37 +147,58 @@ pub fn build(
         Directions::Combined => false,
         Directions::Separate => true,
     };
+    let source = Source { table, full_circle, export, separate, range, span };
     let mut out = Vec::new();
     // Each export's table whose accuracy is predicted (its place in `out`):
     // all of them from one pass over the samples, after the loop.
     let mut predicted: Vec<(usize, AppliedTable)> = Vec::new();
     for controller in chosen(export) {
+        let (e, applied) = source.controller_export(controller)?;
+        if let Some(t) = applied {
+            predicted.push((out.len(), t));
+        }
+        out.push(e);
+    }
+    let (places, tables): (Vec<usize>, Vec<AppliedTable>) = predicted.into_iter().unzip();
+    for (place, peak) in places.into_iter().zip(predicted_peaks_deg(samples, &tables, full_circle)) {
+        out[place].corrected_peak_deg = peak;
+    }
+    Ok(out)
+}
+
+/// What every controller's file is made from: the correction table, what it
+/// covers, and the `[export]` choices.
+struct Source<'a> {
+    table: &'a CorrectionTable,
+    /// A full circle (else the measured range `span` holds).
+    full_circle: bool,
+    export: &'a ExportChoices,
+    /// Forward and reverse values apart, in the formats that hold two.
+    separate: bool,
+    /// The range and spacing `export` asks for.
+    range: RangeChoice,
+    /// What the survey covers.
+    span: Span,
+}
+
+impl Source<'_> {
+    /// `controller`'s export (its grid, its reference point, zeroed there or
+    /// not, its files), its predicted accuracy left to the caller, and the
+    /// table whose accuracy is to be predicted (none for the generic table).
+    fn controller_export(
+        &self,
+        controller: Controller,
+    ) -> Result<(ControllerExport, Option<AppliedTable>), ChoiceError> {
+        let export = self.export;
         let default = match controller {
             Controller::LinuxCnc => DefaultSpacing::FinestWithin(export.linuxcnc_points),
             _ => DefaultSpacing::Interval(1.0),
         };
-        let grid = resolve(&range, span, default).map_err(|e| choice(e.key, e.message))?;
+        let grid = resolve(&self.range, self.span, default).map_err(|e| choice(e.key, e.message))?;
         // 840D EEC is one table for both directions (see its module).
         let one_table = controller == Controller::Sinumerik840d;
-        let reader = Reader::new(table, full_circle, grid.interval_deg, separate && !one_table);
-        let reference_deg = export.reference_deg.unwrap_or_else(|| default_reference(&grid));
-        if !(reference_deg.is_finite() && reference_deg.abs() <= MAX_TABLE_DEG) {
-            return Err(choice(
-                "reference_deg",
-                format!("must be an angle within +/-{MAX_TABLE_DEG} deg, got {}", Num(reference_deg)),
-            ));
-        }
-        if !full_circle && !(grid.start_deg - 1e-9..=grid.end_deg() + 1e-9).contains(&reference_deg) {
-            return Err(choice(
-                "reference_deg",
-                format!(
-                    "{} deg is outside the table's range {}..{} deg",
-                    Num(reference_deg),
-                    Num(grid.start_deg),
-                    Num(grid.end_deg())
-                ),
-            ));
-        }
+        let reader = Reader::new(self.table, self.full_circle, grid.interval_deg, self.separate && !one_table);
+        let reference_deg = self.reference(&grid)?;
         // Fanuc's values are increments from the reference (zero there by
         // construction); the 840D's are zero there unless kept absolute (K3).
         let zeroed = match controller {
@@ -185,7 +206,6 @@ pub fn build(
             _ => export.zero_at_reference,
         };
         let offset = if zeroed { reader.error_at(reference_deg, Direction::Forward) } else { 0.0 };
-        let mut notes = Vec::new();
         let mut e = ControllerExport {
             controller,
             files: Vec::new(),
@@ -198,93 +218,130 @@ pub fn build(
             parameters: Vec::new(),
             notes: Vec::new(),
         };
-        match controller {
-            Controller::LinuxCnc => {
-                let t = LinuxCncTable::new(&reader, &grid, offset).map_err(|err| {
-                    choice(
-                        if export.interval_deg.is_some() { "interval_deg" } else { "points" },
-                        format!(
-                            "{err} over {}..{} deg: give a coarser spacing (at least {:.6} deg), or leave LinuxCNC out of the controllers",
-                            grid.start_deg,
-                            grid.end_deg(),
-                            grid.span_deg() / (super::linuxcnc::MAX_POINTS - 1) as f64
-                        ),
-                    )
-                })?;
-                if full_circle && grid.span_deg() <= 360.0 + 1e-9 {
-                    notes.push(format!(
-                        "the LinuxCNC table covers {}..{} deg only: LinuxCNC holds the end values outside its table and never wraps a rotary joint, so give the joint's whole range (--table-start, --table-end)",
-                        grid.start_deg,
-                        grid.end_deg()
-                    ));
-                }
-                predicted.push((out.len(), AppliedTable::of(&t)));
-                e.files = vec![
-                    ControllerFile { kind: "linuxcnc_type0", suffix: ".comp0", text: t.text(0) },
-                    ControllerFile { kind: "linuxcnc_type1", suffix: ".comp1", text: t.text(1) },
-                ];
-            }
-            Controller::Sinumerik840d => {
-                let options = SinumerikOptions {
-                    axis: export.sinumerik_axis.clone(),
-                    measuring_system: export.sinumerik_measuring_system,
-                };
-                let t =
-                    Sinumerik840d::new(&reader, &grid, zeroed.then_some(reference_deg), options).map_err(|err| {
-                        match err {
-                            super::sinumerik::SinumerikError::BadAxis(_) => choice("sinumerik_axis", err.to_string()),
-                            super::sinumerik::SinumerikError::BadMeasuringSystem(_) => {
-                                choice("sinumerik_measuring_system", err.to_string())
-                            }
-                        }
-                    })?;
-                if separate && table.is_directional() {
-                    notes.push(
-                        "840D measuring-system error compensation is one table for both directions: the mean of forward and reverse was written (set the reversal with the backlash compensation)".into(),
-                    );
-                }
-                if full_circle && !t.modulo {
-                    notes.push(format!(
-                        "the 840D table is not modulo (its range {}..{} deg is not 0..360): the end values hold outside it",
-                        grid.start_deg,
-                        grid.end_deg()
-                    ));
-                }
-                notes.push(format!(
-                    "MD38000 $MA_MM_ENC_COMP_MAX_POINTS must reserve at least {} points; load the file while MD32700 is 0",
-                    grid.points
-                ));
-                e.modulo = t.modulo;
-                predicted.push((out.len(), AppliedTable::of(&t)));
-                e.files = vec![ControllerFile { kind: "sinumerik_840d", suffix: ".840d.ini", text: t.text() }];
-            }
-            Controller::Fanuc => {
-                let options = FanucOptions {
-                    unit_deg: export.fanuc_unit_deg,
-                    magnification: export.fanuc_magnification,
-                    reference_number: export.fanuc_reference_number,
-                    reference_deg,
-                };
-                let t = FanucTable::new(&reader, &grid, options).map_err(|err| choice(err.key, err.message))?;
-                notes.extend(t.warnings.iter().cloned());
-                e.grid = t.grid;
-                e.modulo = t.rotary;
-                e.zero_at_reference = true;
-                predicted.push((out.len(), AppliedTable::of(&t)));
-                e.parameters = t.parameters().into_iter().map(|(n, v, w)| (n.to_string(), v, w)).collect();
-                e.files = vec![ControllerFile { kind: "fanuc", suffix: ".fanuc.txt", text: t.text() }];
-            }
+        let applied = match controller {
+            Controller::LinuxCnc => Some(self.linuxcnc(&mut e, &reader, offset)?),
+            Controller::Sinumerik840d => Some(self.sinumerik_840d(&mut e, &reader)?),
+            Controller::Fanuc => Some(self.fanuc(&mut e, &reader)?),
             Controller::Generic => {
                 let t = GenericTable::new(&reader, &grid, offset, export.sign, export.values);
                 e.files = vec![ControllerFile { kind: "generic", suffix: ".generic.csv", text: t.text() }];
+                None
             }
+        };
+        Ok((e, applied))
+    }
+
+    /// The reference point on `grid`: `reference_deg`, else the default. It
+    /// must be an angle a table may hold and, over a partial range, a point of
+    /// the table's range.
+    fn reference(&self, grid: &Grid) -> Result<f64, ChoiceError> {
+        let reference_deg = self.export.reference_deg.unwrap_or_else(|| default_reference(grid));
+        if !(reference_deg.is_finite() && reference_deg.abs() <= MAX_TABLE_DEG) {
+            return Err(choice(
+                "reference_deg",
+                format!("must be an angle within +/-{MAX_TABLE_DEG} deg, got {}", Num(reference_deg)),
+            ));
         }
-        e.notes = notes;
-        out.push(e);
+        if !self.full_circle && !(grid.start_deg - 1e-9..=grid.end_deg() + 1e-9).contains(&reference_deg) {
+            return Err(choice(
+                "reference_deg",
+                format!(
+                    "{} deg is outside the table's range {}..{} deg",
+                    Num(reference_deg),
+                    Num(grid.start_deg),
+                    Num(grid.end_deg())
+                ),
+            ));
+        }
+        Ok(reference_deg)
     }
-    let (places, tables): (Vec<usize>, Vec<AppliedTable>) = predicted.into_iter().unzip();
-    for (place, peak) in places.into_iter().zip(predicted_peaks_deg(samples, &tables, full_circle)) {
-        out[place].corrected_peak_deg = peak;
+
+    /// LinuxCNC's two files into `e`, less `offset` (the error at the
+    /// reference point, or 0); a note when a full circle's table does not go
+    /// past one turn, since LinuxCNC never wraps.
+    fn linuxcnc(&self, e: &mut ControllerExport, reader: &Reader, offset: f64) -> Result<AppliedTable, ChoiceError> {
+        let grid = e.grid;
+        let t = LinuxCncTable::new(reader, &grid, offset).map_err(|err| {
+            choice(
+                if self.export.interval_deg.is_some() { "interval_deg" } else { "points" },
+                format!(
+                    "{err} over {}..{} deg: give a coarser spacing (at least {:.6} deg), or leave LinuxCNC out of the controllers",
+                    grid.start_deg,
+                    grid.end_deg(),
+                    grid.span_deg() / (super::linuxcnc::MAX_POINTS - 1) as f64
+                ),
+            )
+        })?;
+        if self.full_circle && grid.span_deg() <= 360.0 + 1e-9 {
+            e.notes.push(format!(
+                "the LinuxCNC table covers {}..{} deg only: LinuxCNC holds the end values outside its table and never wraps a rotary joint, so give the joint's whole range (--table-start, --table-end)",
+                grid.start_deg,
+                grid.end_deg()
+            ));
+        }
+        e.files = vec![
+            ControllerFile { kind: "linuxcnc_type0", suffix: ".comp0", text: t.text(0) },
+            ControllerFile { kind: "linuxcnc_type1", suffix: ".comp1", text: t.text(1) },
+        ];
+        Ok(AppliedTable::of(&t))
     }
-    Ok(out)
+
+    /// The 840D's file into `e` (zeroed at the reference point when
+    /// `e.zero_at_reference`), whether it is modulo, and notes: directions
+    /// merged, a full circle's table that is not modulo, the points MD38000
+    /// must reserve.
+    fn sinumerik_840d(&self, e: &mut ControllerExport, reader: &Reader) -> Result<AppliedTable, ChoiceError> {
+        let grid = e.grid;
+        let options = SinumerikOptions {
+            axis: self.export.sinumerik_axis.clone(),
+            measuring_system: self.export.sinumerik_measuring_system,
+        };
+        let t = Sinumerik840d::new(reader, &grid, e.zero_at_reference.then_some(e.reference_deg), options).map_err(
+            |err| match err {
+                super::sinumerik::SinumerikError::BadAxis(_) => choice("sinumerik_axis", err.to_string()),
+                super::sinumerik::SinumerikError::BadMeasuringSystem(_) => {
+                    choice("sinumerik_measuring_system", err.to_string())
+                }
+            },
+        )?;
+        if self.separate && self.table.is_directional() {
+            e.notes.push(
+                "840D measuring-system error compensation is one table for both directions: the mean of forward and reverse was written (set the reversal with the backlash compensation)".into(),
+            );
+        }
+        if self.full_circle && !t.modulo {
+            e.notes.push(format!(
+                "the 840D table is not modulo (its range {}..{} deg is not 0..360): the end values hold outside it",
+                grid.start_deg,
+                grid.end_deg()
+            ));
+        }
+        e.notes.push(format!(
+            "MD38000 $MA_MM_ENC_COMP_MAX_POINTS must reserve at least {} points; load the file while MD32700 is 0",
+            grid.points
+        ));
+        e.modulo = t.modulo;
+        e.files = vec![ControllerFile { kind: "sinumerik_840d", suffix: ".840d.ini", text: t.text() }];
+        Ok(AppliedTable::of(&t))
+    }
+
+    /// Fanuc's file into `e`, with the grid it holds, its rotary type, its
+    /// parameters and its warnings; its values are increments from the
+    /// reference point, so zero there.
+    fn fanuc(&self, e: &mut ControllerExport, reader: &Reader) -> Result<AppliedTable, ChoiceError> {
+        let options = FanucOptions {
+            unit_deg: self.export.fanuc_unit_deg,
+            magnification: self.export.fanuc_magnification,
+            reference_number: self.export.fanuc_reference_number,
+            reference_deg: e.reference_deg,
+        };
+        let t = FanucTable::new(reader, &e.grid, options).map_err(|err| choice(err.key, err.message))?;
+        e.notes.extend(t.warnings.iter().cloned());
+        e.grid = t.grid;
+        e.modulo = t.rotary;
+        e.zero_at_reference = true;
+        e.parameters = t.parameters().into_iter().map(|(n, v, w)| (n.to_string(), v, w)).collect();
+        e.files = vec![ControllerFile { kind: "fanuc", suffix: ".fanuc.txt", text: t.text() }];
+        Ok(AppliedTable::of(&t))
+    }
 }

@@ -258,13 +258,13 @@ impl Controller {
         }
     }
 
+    /// One request line. An armed trip latches first; then the controller's
+    /// own commands are answered, then a command to this axis is checked
+    /// (address, injected refusal, parameters) and goes to its group: the
+    /// axis queries, the motion commands, the correction table.
     async fn handle(&mut self, line: &str) -> Outcome {
-        if let Some(Fault::Trip(fault)) = self.faults.take_device(|f| matches!(f, Fault::Trip(_))) {
-            tracing::debug!(?fault, "scpi simulator: device fault latched (injected)");
-            self.injected = Some(fault);
-            if let Err(e) = self.sim.stop().await {
-                return self.sim_failed(e, -221);
-            }
+        if let Some(out) = self.trip_if_armed().await {
+            return out;
         }
         let line = line.trim();
         if line.is_empty() {
@@ -275,59 +275,146 @@ impl Controller {
             None => (line.to_ascii_uppercase(), ""),
         };
         let header = header.strip_prefix(':').unwrap_or(&header).to_string();
-        match header.as_str() {
-            "*IDN?" => return reply(IDN.into()),
+        if let Some(out) = self.controller_command(&header) {
+            return out;
+        }
+        let Some(tail) = self.axis_tail(&header) else { return Outcome::Nothing };
+        if !tail.ends_with('?') && self.refused_by_fault(line) {
+            return Outcome::Nothing;
+        }
+        if !self.parameters_fit(tail, params) {
+            return Outcome::Nothing;
+        }
+        if let Some(out) = self.axis_query(tail).await {
+            return out;
+        }
+        if let Some(out) = self.motion(tail, params).await {
+            return out;
+        }
+        if let Some(out) = self.correction(tail, params).await {
+            return out;
+        }
+        self.push_error(-113, format!("Undefined header;{header}"));
+        Outcome::Nothing
+    }
+
+    /// An armed [`Fault::Trip`]: the axis latches its device fault and the
+    /// sim is stopped. `Some` when the stop fails: that failure is the
+    /// request's outcome.
+    async fn trip_if_armed(&mut self) -> Option<Outcome> {
+        if let Some(Fault::Trip(fault)) = self.faults.take_device(|f| matches!(f, Fault::Trip(_))) {
+            tracing::debug!(?fault, "scpi simulator: device fault latched (injected)");
+            self.injected = Some(fault);
+            if let Err(e) = self.sim.stop().await {
+                return Some(self.sim_failed(e, -221));
+            }
+        }
+        None
+    }
+
+    /// The controller's own commands (no axis in the header): `*IDN?`,
+    /// `*CLS` and the error queue's `SYST:ERR` family. `None` for any other
+    /// header.
+    fn controller_command(&mut self, header: &str) -> Option<Outcome> {
+        Some(match header {
+            "*IDN?" => reply(IDN.into()),
             "*CLS" => {
                 self.queue.clear();
-                return Outcome::Nothing;
+                Outcome::Nothing
             }
             "SYST:ERR?" | "SYST:ERR:NEXT?" => {
                 let (code, text) = self.queue.pop_front().unwrap_or((0, "No error".into()));
-                return reply(error_line(code, &text));
+                reply(error_line(code, &text))
             }
             "SYST:ERR:ALL?" => {
                 if self.queue.is_empty() {
-                    return reply("0, \"No error\"".into());
+                    return Some(reply("0, \"No error\"".into()));
                 }
                 let all: Vec<String> = self.queue.drain(..).map(|(code, text)| error_line(code, &text)).collect();
-                return reply(all.join(", "));
+                reply(all.join(", "))
             }
-            "SYST:ERR:COUN?" | "SYST:ERR:COUN" => return reply(self.queue.len().to_string()),
-            _ => {}
-        }
-        let Some((controller, axis, tail)) = axis_header(&header) else {
+            "SYST:ERR:COUN?" | "SYST:ERR:COUN" => reply(self.queue.len().to_string()),
+            _ => return None,
+        })
+    }
+
+    /// The command part of an axis header addressed to this axis. `None`
+    /// with `-113` queued for a header of no axis, `-114` for another
+    /// controller's or axis'.
+    fn axis_tail<'h>(&mut self, header: &'h str) -> Option<&'h str> {
+        let Some((controller, axis, tail)) = axis_header(header) else {
             self.push_error(-113, format!("Undefined header;{header}"));
-            return Outcome::Nothing;
+            return None;
         };
         if (controller, axis) != self.address {
             self.push_error(-114, format!("Header suffix out of range;no controller {controller} axis {axis}"));
-            return Outcome::Nothing;
+            return None;
         }
-        let query = tail.ends_with('?');
-        if !query {
-            let refused = |f: &mut Fault| matches!(f, Fault::Refuse(_) | Fault::RefuseWithError(_));
-            if let Some(fault) = self.faults.take_device(refused) {
-                let (code, text) = match fault {
-                    Fault::Refuse(Some(d)) | Fault::RefuseWithError(d) => (d.code, d.text),
-                    _ => (DEVICE_FAULT_CODE, "System error; simulated device fault".into()),
-                };
-                tracing::debug!(%line, code, "scpi simulator: command refused (injected)");
-                self.push_error(code, text);
-                return Outcome::Nothing;
-            }
-        }
+        Some(tail)
+    }
+
+    /// Whether an armed [`Fault::Refuse`] or [`Fault::RefuseWithError`] takes
+    /// this command (`line`, not a query): then it is not executed and the
+    /// fault's code and text are queued instead.
+    fn refused_by_fault(&mut self, line: &str) -> bool {
+        let refused = |f: &mut Fault| matches!(f, Fault::Refuse(_) | Fault::RefuseWithError(_));
+        let Some(fault) = self.faults.take_device(refused) else { return false };
+        let (code, text) = match fault {
+            Fault::Refuse(Some(d)) | Fault::RefuseWithError(d) => (d.code, d.text),
+            _ => (DEVICE_FAULT_CODE, "System error; simulated device fault".into()),
+        };
+        tracing::debug!(%line, code, "scpi simulator: command refused (injected)");
+        self.push_error(code, text);
+        true
+    }
+
+    /// Whether the axis command `tail` has parameters exactly when it takes
+    /// some; else `-108` (given, not taken) or `-109` (taken, missing) is queued.
+    fn parameters_fit(&mut self, tail: &str, params: &str) -> bool {
         let takes_params = matches!(tail, "POS:COMM" | "VEL:COMM" | "CORR:TABL" | "CORR:TABL:REV" | "CORR:STAT");
         if !takes_params && !params.is_empty() {
             self.push_error(-108, format!("Parameter not allowed;{params}"));
-            return Outcome::Nothing;
+            return false;
         }
         if takes_params && params.is_empty() {
             self.push_error(-109, "Missing parameter");
-            return Outcome::Nothing;
+            return false;
         }
-        match tail {
+        true
+    }
+
+    /// The axis' queries of position, units, status and velocity (`POS:COMM?`,
+    /// `UNIT:POS?`, `POS:CURR?`, `STAT?`, `VEL:COMM?`, `VEL:CURR?`). `None`
+    /// for any other command.
+    async fn axis_query(&mut self, tail: &str) -> Option<Outcome> {
+        Some(match tail {
+            "POS:COMM?" => reply(format!("{}", self.commanded)),
+            "UNIT:POS?" => reply(self.units.load(Ordering::Relaxed).to_string()),
+            "POS:CURR?" => match self.sim.readout().await {
+                Ok(v) => reply(format!("{v}")),
+                Err(e) => self.sim_failed(e, -221),
+            },
+            "STAT?" => match self.status_word().await {
+                Ok(w) => reply(w.to_string()),
+                Err(e) => self.sim_failed(e, -221),
+            },
+            "VEL:COMM?" => reply(format!("{}", self.velocity)),
+            "VEL:CURR?" => match self.sim.status().await {
+                Ok(s) => reply(format!("{}", if s.moving { self.velocity } else { 0.0 })),
+                Err(e) => self.sim_failed(e, -221),
+            },
+            _ => return None,
+        })
+    }
+
+    /// The motion commands: the commanded position (within the travel) and
+    /// velocity, start, stop, and clearing a latched fault (`POS:COMM`,
+    /// `VEL:COMM`, `MOT:STAR`, `MOT:STOP`, `FAUL:CLE`). A start while a fault
+    /// is latched is refused with the fault. `None` for any other command.
+    async fn motion(&mut self, tail: &str, params: &str) -> Option<Outcome> {
+        Some(match tail {
             "POS:COMM" => {
-                let Some(v) = self.number(params) else { return Outcome::Nothing };
+                let Some(v) = self.number(params) else { return Some(Outcome::Nothing) };
                 if let Some((lo, hi)) = self.sim.config().travel
                     && !(lo..=hi).contains(&v)
                 {
@@ -335,18 +422,16 @@ impl Controller {
                         -222,
                         format!("Data out of range;target {v} deg is outside the travel {lo}..{hi} deg"),
                     );
-                    return Outcome::Nothing;
+                    return Some(Outcome::Nothing);
                 }
                 self.commanded = v;
                 Outcome::Nothing
             }
-            "POS:COMM?" => reply(format!("{}", self.commanded)),
-            "UNIT:POS?" => reply(self.units.load(Ordering::Relaxed).to_string()),
             "MOT:STAR" => {
                 if let Some(f) = &self.injected {
                     let (code, text) = (f.code, format!("{} (clear the fault first)", f.text));
                     self.push_error(code, text);
-                    return Outcome::Nothing;
+                    return Some(Outcome::Nothing);
                 }
                 match self.sim.move_to(self.commanded).await {
                     Ok(()) => Outcome::Nothing,
@@ -357,22 +442,14 @@ impl Controller {
                 Ok(()) => Outcome::Nothing,
                 Err(e) => self.sim_failed(e, -221),
             },
-            "POS:CURR?" => match self.sim.readout().await {
-                Ok(v) => reply(format!("{v}")),
-                Err(e) => self.sim_failed(e, -221),
-            },
-            "STAT?" => match self.status_word().await {
-                Ok(w) => reply(w.to_string()),
-                Err(e) => self.sim_failed(e, -221),
-            },
             "VEL:COMM" => {
-                let Some(v) = self.number(params) else { return Outcome::Nothing };
+                let Some(v) = self.number(params) else { return Some(Outcome::Nothing) };
                 if !(v > 0.0 && v <= MAX_VELOCITY_DEG_S) {
                     self.push_error(
                         -222,
                         format!("Data out of range;velocity {v} deg/s is not in (0, {MAX_VELOCITY_DEG_S}]"),
                     );
-                    return Outcome::Nothing;
+                    return Some(Outcome::Nothing);
                 }
                 match self.sim.set_velocity(v).await {
                     Ok(()) => {
@@ -382,11 +459,6 @@ impl Controller {
                     Err(e) => self.sim_failed(e, -222),
                 }
             }
-            "VEL:COMM?" => reply(format!("{}", self.velocity)),
-            "VEL:CURR?" => match self.sim.status().await {
-                Ok(s) => reply(format!("{}", if s.moving { self.velocity } else { 0.0 })),
-                Err(e) => self.sim_failed(e, -221),
-            },
             "FAUL:CLE" => {
                 self.injected = None;
                 self.reported = None;
@@ -395,6 +467,17 @@ impl Controller {
                     Err(e) => self.sim_failed(e, -221),
                 }
             }
+            _ => return None,
+        })
+    }
+
+    /// The correction table: clearing, writing and counting the forward and
+    /// reverse rows, loading them into the sim, and switching the correction
+    /// on or off (`CORR:TABL:CLE`, `CORR:TABL[:REV]`, `CORR:TABL[:REV]:POIN?`,
+    /// `CORR:TABL:LOAD`, `CORR:STAT`, `CORR:STAT?`). `None` for any other
+    /// command.
+    async fn correction(&mut self, tail: &str, params: &str) -> Option<Outcome> {
+        Some(match tail {
             "CORR:TABL:CLE" => {
                 self.forward.clear();
                 self.reverse.clear();
@@ -429,7 +512,7 @@ impl Controller {
                     "OFF" | "0" => false,
                     _ => {
                         self.push_error(-104, format!("Data type error;{params}"));
-                        return Outcome::Nothing;
+                        return Some(Outcome::Nothing);
                     }
                 };
                 match self.sim.enable_correction(on).await {
@@ -441,11 +524,8 @@ impl Controller {
                 Ok(s) => reply(if s.correction_enabled { "1" } else { "0" }.into()),
                 Err(e) => self.sim_failed(e, -221),
             },
-            _ => {
-                self.push_error(-113, format!("Undefined header;{header}"));
-                Outcome::Nothing
-            }
-        }
+            _ => return None,
+        })
     }
 
     /// A decimal parameter, or `-104`/`-222` on the queue.

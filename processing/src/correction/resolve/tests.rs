@@ -7,6 +7,7 @@
 //! close to a dense survey's.
 
 use super::*;
+use crate::correction::left::LeftLine;
 use crate::model::{Design, Model};
 use crate::pipeline::{process, process_with_checks};
 use crate::types::Direction;
@@ -149,4 +150,42 @@ fn two_lines_sharing_a_bin_are_not_forced_into_one_frequency() {
     assert_eq!(at10.decided_cycles, None, "{at10:?}");
     assert!(at10.why.contains("no candidate explains"), "{}", at10.why);
     assert!(again.left.lines.iter().any(|l| l.observed_cycles == 10.0));
+}
+
+/// A `Left` of `points` per revolution with `lines` (bin, candidates, kind).
+fn left(points: usize, lines: &[(f64, &[f64], LeftKind)]) -> Left {
+    Left {
+        lines: lines
+            .iter()
+            .map(|&(bin, c, kind)| LeftLine {
+                observed_cycles: bin,
+                amplitude_deg: 0.01,
+                phase_deg: 0.0,
+                noise_sd_deg: 0.0,
+                kind,
+                candidates: c.to_vec(),
+                why: String::new(),
+            })
+            .collect(),
+        points,
+        start_deg: 0.0,
+        worst: None,
+        second_order_deg: 0.0,
+    }
+}
+
+#[test]
+fn a_second_orientation_says_what_twice_the_faces_resolve() {
+    // 24 faces, Figure 8's design: bin 4 holds 20 and 100, bin 8 holds 40
+    // and 80. At 48 points they land on 20, 4, 8 and 16: all resolved.
+    let l = left(24, &[(4.0, &[20.0, 100.0], LeftKind::NotCarried), (8.0, &[40.0, 80.0], LeftKind::NotCarried)]);
+    let t = second_orientation(&l).unwrap();
+    assert!(t.contains("would resolve the line at bin 4") && t.contains("bin 8"), "{t}");
+    assert!(!t.contains("not separate"), "{t}");
+    // An unknown design at 36 faces: 16 may be 20 or 52, which land on one
+    // bin (20) at 72 points too.
+    let l = left(36, &[(16.0, &[16.0, 20.0, 52.0], LeftKind::MaybeAlias)]);
+    let t = second_orientation(&l).unwrap();
+    assert!(t.contains("would not separate the line at bin 16"), "{t}");
+    assert_eq!(second_orientation(&left(24, &[])), None);
 }

@@ -1,0 +1,184 @@
+//! The bench of a configuration file: real instruments (or anything that
+//! speaks their protocols, such as `survey sim`), on the system clock.
+
+use super::{Bench, DEFAULT_RUNS};
+use crate::instruments::Instruments;
+use anyhow::Context as _;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+use survey_acquire::{Engine, ReferenceKind};
+use survey_drivers::{Clock, SystemClock};
+use survey_plan::SurveyPlan;
+use survey_store::config::SurveyConfig;
+use survey_store::error::bad_input;
+use survey_store::survey::{ConfiguredSetup, Setup, SurveySource};
+
+/// Plan settings from the command line, over the configuration's `[survey]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PlanOverrides {
+    /// `--points`.
+    pub points: Option<u32>,
+    /// `--runs`.
+    pub runs: Option<u32>,
+    /// `--bidirectional` (it can only turn the reverse pass on).
+    pub bidirectional: bool,
+    /// `--scan` (over `[survey] scan`).
+    pub scan: Option<survey_plan::ScanMode>,
+}
+
+impl Bench {
+    /// The bench of the configuration file at `path`, checked before anything is stored.
+    pub fn configured(path: &Path, overrides: PlanOverrides) -> anyhow::Result<Bench> {
+        let cfg = SurveyConfig::from_file(path)?;
+        let plan = configured_plan(&cfg, overrides, path)?;
+        let setup = ConfiguredSetup { config: cfg, plan };
+        let mut bench = on_clock(&setup, Arc::new(SystemClock::new()));
+        if let Some(obj) = bench.instruments.as_object_mut() {
+            obj.insert("config_file".into(), path.display().to_string().into());
+        }
+        Ok(bench)
+    }
+}
+
+/// The plan of a configuration (its `[survey]` under the command line's
+/// overrides), checked against its travel; errors name `path`.
+pub fn configured_plan(cfg: &SurveyConfig, overrides: PlanOverrides, path: &Path) -> anyhow::Result<SurveyPlan> {
+    // The count from where it is known before asking for it: an autocollimator's polygon has its faces.
+    let faces = cfg.polygon.as_ref().filter(|_| cfg.reference() == ReferenceKind::Autocollimator).map(|p| p.faces);
+    let points = overrides.points.or(cfg.survey.points).or(faces).ok_or_else(|| {
+        bad_input(format!("--points N is required (or `points` in the [survey] section of {})", path.display()))
+    })?;
+    let runs = overrides.runs.or(cfg.survey.runs).unwrap_or(DEFAULT_RUNS);
+    let bidirectional = overrides.bidirectional || cfg.survey.bidirectional.unwrap_or(false);
+    let travel = cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi));
+    let plan = match (cfg.reference(), &cfg.polygon, travel) {
+        (ReferenceKind::Autocollimator, Some(polygon), travel) => {
+            SurveyPlan::polygon(polygon.faces, points, travel, runs, bidirectional)
+        }
+        (_, _, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, bidirectional),
+        (_, _, None) => SurveyPlan::full_circle(points, runs, bidirectional),
+    };
+    let mut plan = plan.with_context(|| path.display().to_string())?;
+    if let Some(overrun) = cfg.survey.overrun_deg {
+        plan.overrun_deg = overrun;
+    }
+    if let Some([lo, hi]) = cfg.survey.travel_deg {
+        plan.check_travel(lo, hi)?;
+    }
+    plan.scan = overrides.scan.or(cfg.survey.scan).unwrap_or_default();
+    if let (true, Some([lo, hi])) = (plan.continuous(), cfg.survey.travel_deg) {
+        let t = cfg.timing();
+        plan = survey_plan::within_travel_for_scan(&plan, (lo, hi), t.velocity_deg_s, t.accel_deg_s2, &t.scan)
+            .with_context(|| path.display().to_string())?;
+    }
+    if plan.continuous()
+        && let Err(why) = crate::instruments::continuous_support(cfg)
+    {
+        return Err(bad_input(format!("{}: --scan continuous is not possible: {why}", path.display())));
+    }
+    Ok(plan)
+}
+
+fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
+    let cfg = &setup.config;
+    let engine = configured_engine(cfg, clock.clone());
+    let instruments = serde_json::json!({
+        "positioner": engine.positioner_name(),
+        "reference": engine.reference_name(),
+    });
+    Bench {
+        engine,
+        clock,
+        estimate: configured_estimate(cfg, &setup.plan),
+        plan: setup.plan.clone(),
+        setup: Setup::Configured(setup.clone()),
+        model: None,
+        source: SurveySource::Instruments,
+        instruments,
+        plan_progress: None,
+    }
+}
+
+/// How long `plan` should take on the instruments of `cfg` (what `run` says
+/// before it starts). Every move and pass is within a day (the
+/// configuration's check), so the sum is a duration.
+pub fn configured_estimate(cfg: &SurveyConfig, plan: &SurveyPlan) -> Duration {
+    let t = cfg.timing();
+    let measure = integration(cfg).unwrap_or(Duration::from_millis(200));
+    let per_target = t.dwell + measure + t.poll_interval;
+    if plan.continuous() {
+        let d = survey_plan::budget::Dynamics {
+            velocity_deg_s: t.velocity_deg_s,
+            accel_deg_s2: t.accel_deg_s2,
+            integration_s: measure.as_secs_f64(),
+            locate_points: t.locate_points,
+        };
+        Duration::from_secs_f64(survey_plan::budget::scan_bound(plan, &d, &cfg.settle_model(), &t.scan).total())
+    } else {
+        plan.estimate_duration(t.velocity_deg_s, t.accel_deg_s2, per_target)
+    }
+}
+
+/// The reference's integration time per sample, when the configuration
+/// says it (a tracker's measurement time).
+fn integration(cfg: &SurveyConfig) -> Option<Duration> {
+    match (&cfg.tracker, cfg.reference()) {
+        (Some(survey_store::config::TrackerConfig::Emscon { settings, .. }), ReferenceKind::Tracker) => {
+            Some(Duration::from_millis(u64::from(settings.measurement_time_ms)))
+        }
+        _ => None,
+    }
+}
+
+/// The engine on the configured instruments.
+pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
+    let mut engine = Instruments::from_config(cfg)
+        .into_engine(clock, cfg)
+        .with_travel(cfg.survey.travel_deg.map(|[lo, hi]| (lo, hi)))
+        .with_physics(cfg.settle_model(), integration(cfg));
+    if let Some(arm) = &cfg.arm {
+        engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
+    }
+    engine.set_drift_control(cfg.drift_control.clone());
+    engine
+}
+
+/// The configured bench of a stored survey, its clock going on from `resume_at`.
+pub(super) fn resume(setup: &ConfiguredSetup, resume_at: Duration) -> Bench {
+    on_clock(setup, Arc::new(SystemClock::starting_at(resume_at)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every shipped example sets up a bench: its plan fits its reference
+    /// and its travel, checked before anything is stored (the elevation
+    /// example once planned 36 points over 100 deg against a 36-face polygon,
+    /// which no face matched: every run stored an empty interrupted survey).
+    #[test]
+    fn every_example_configuration_sets_up_a_bench() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config");
+        let mut seen = 0;
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let bench = Bench::configured(&path, PlanOverrides::default())
+                    .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+                assert!(bench.plan.targets_deg.len() >= 2, "{}", path.display());
+                seen += 1;
+            }
+        }
+        assert!(seen >= 5);
+        let elevation = Path::new(dir).join("scpi-serial-elevation.toml");
+        let bench = Bench::configured(&elevation, PlanOverrides::default()).unwrap();
+        assert_eq!(bench.plan.targets_deg, (0..=8).map(|k| f64::from(k) * 10.0).collect::<Vec<_>>());
+        let wrong = PlanOverrides { points: Some(24), ..PlanOverrides::default() };
+        let e = Bench::configured(&elevation, wrong).unwrap_err();
+        assert!(e.chain().any(|c| c.is::<survey_plan::PlanError>()), "a plan error (bad input, exit status 2): {e:#}");
+        // The plan's error under the file's name, as the command line prints it.
+        let shown = format!("{e:#}");
+        assert!(shown.contains("scpi-serial-elevation.toml: ") && shown.contains("--points must be 36"), "{shown}");
+    }
+}

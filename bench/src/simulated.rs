@@ -1,0 +1,229 @@
+//! The simulated bench (the embedded default): one of the paper's
+//! positioners, or a model file, with a tracker or an autocollimator, on a
+//! virtual clock.
+
+use super::Bench;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+use survey_acquire::{Engine, Reference, ReferenceKind, Timing};
+use survey_acquire::{SettleMode, SettleModel};
+use survey_drivers::{Clock, VirtualClock};
+use survey_plan::budget::{Dynamics, plan_bound};
+use survey_plan::{ScanMode, SurveyPlan, within_travel_for_scan};
+use survey_processing::model::Model;
+use survey_sims::autocollimator::AutocollimatorConfig;
+use survey_sims::servo::Servo;
+use survey_sims::{PlanProgress, Preset, SimBench};
+use survey_store::error::bad_input;
+use survey_store::survey::{Setup, SimulatedSetup, SurveySource};
+
+/// Runs when neither the command line nor the configuration says: ISO 230-2's five.
+pub const DEFAULT_RUNS: u32 = 5;
+
+/// What the user asked of the simulated bench.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulatedRequest {
+    /// Targets per revolution (or over the travel); with the autocollimator,
+    /// the polygon's faces.
+    pub points: u32,
+    /// Runs (default [`DEFAULT_RUNS`]).
+    pub runs: Option<u32>,
+    /// Measure the reverse pass too.
+    pub bidirectional: bool,
+    /// The preset (`fig1`, `fig4`, `fig8`).
+    pub preset: String,
+    /// A model file to simulate instead of the preset's model.
+    pub model_file: Option<PathBuf>,
+    /// The reference instrument.
+    pub reference: ReferenceKind,
+    /// The seed of every random draw.
+    pub seed: u64,
+    /// Step or continuous scan.
+    pub scan: ScanMode,
+    /// Faults the simulated instruments inject.
+    pub faults: Option<survey_sims::faults::FaultRates>,
+}
+
+/// The simulated bench's losses: the fraction of streamed tracker points
+/// and of captured readouts that never arrive.
+pub const TRACKER_STREAM_LOSS: f64 = 0.002;
+/// See [`TRACKER_STREAM_LOSS`].
+pub const CAPTURE_LOSS: f64 = 0.001;
+
+/// The settling the simulated axis needs, for the bound.
+pub fn settle_model(timing: &Timing) -> SettleModel {
+    SettleModel::Servo { servo: Servo::default(), window_deg: timing.settle.window_deg }
+}
+
+/// The instrument time a plan is expected to take on the simulated bench:
+/// its bound, plus what polling and commands add (3 % measured on the
+/// default bench), plus any fixed dwell.
+pub fn expected_time(plan: &SurveyPlan, timing: &Timing, integration: Duration, tracker: bool) -> Duration {
+    let d = Dynamics {
+        velocity_deg_s: timing.velocity_deg_s,
+        accel_deg_s2: timing.accel_deg_s2,
+        integration_s: integration.as_secs_f64(),
+        locate_points: if tracker { timing.locate_points } else { 0 },
+    };
+    let bound = plan_bound(plan, &d, &settle_model(timing), &timing.scan).total();
+    let steps = plan.total_steps() as f64;
+    let waits = match timing.settle.mode {
+        SettleMode::Adaptive => timing.dwell.as_secs_f64() * steps,
+        SettleMode::InPosition => (timing.dwell + timing.poll_interval).as_secs_f64() * steps,
+    };
+    Duration::from_secs_f64(bound * 1.03 + if plan.continuous() { 0.0 } else { waits })
+}
+
+/// The faces of the simulated polygon when the command line does not say
+/// (with the autocollimator, `--points` is the faces): the simulator's own.
+pub fn default_polygon_faces() -> u32 {
+    AutocollimatorConfig::default().faces
+}
+
+/// The stationary measurement time of each simulated reference.
+fn measurement_time(reference: ReferenceKind) -> Duration {
+    match reference {
+        ReferenceKind::Tracker => Duration::from_secs(1),
+        ReferenceKind::Autocollimator => Duration::from_millis(200),
+    }
+}
+
+impl Bench {
+    /// The simulated bench of a request, checked before anything is stored.
+    pub fn simulated(req: &SimulatedRequest) -> anyhow::Result<Bench> {
+        let points = req.points;
+        let runs = req.runs.unwrap_or(DEFAULT_RUNS);
+        let preset =
+            Preset::by_name(&req.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", req.preset)))?;
+        let model = match &req.model_file {
+            Some(path) => crate::inputs::read_model(path)?,
+            None => preset.model.clone(),
+        };
+        let plan = match (req.reference, preset.travel) {
+            (ReferenceKind::Autocollimator, Some((lo, hi))) => {
+                return Err(bad_input(format!(
+                    "the autocollimator reference needs a full revolution, but preset {} travels {lo}..{hi} deg",
+                    preset.name
+                )));
+            }
+            (_, None) => SurveyPlan::full_circle(points, runs, req.bidirectional)?,
+            (_, Some((lo, hi))) => SurveyPlan::within_travel(lo, hi, points, runs, req.bidirectional)?,
+        };
+        let mut plan = plan;
+        plan.scan = req.scan;
+        if plan.continuous() && req.reference == ReferenceKind::Autocollimator {
+            return Err(bad_input(
+                "--scan continuous needs a tracker that measures continuously: the autocollimator reads the                  polygon's faces only at rest (use --reference tracker, or --scan step)",
+            ));
+        }
+        let mut timing =
+            Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..Timing::default() };
+        timing.settle.window_deg = survey_acquire::default_window_deg(req.reference);
+        if let (true, Some(travel)) = (plan.continuous(), preset.travel) {
+            plan = within_travel_for_scan(&plan, travel, timing.velocity_deg_s, timing.accel_deg_s2, &timing.scan)?;
+        }
+        let tracker = req.reference == ReferenceKind::Tracker;
+        let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker) / runs;
+        let setup = SimulatedSetup {
+            preset: preset.name.to_string(),
+            model_file: req.model_file.as_ref().map(|p| p.display().to_string()),
+            reference: req.reference,
+            seed: req.seed,
+            plan,
+            timing,
+            run_period_s: run_period.as_secs_f64(),
+            faults: req.faults,
+        };
+        Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
+    }
+}
+
+/// The bench of `setup` on `clock`.
+fn on_clock(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<VirtualClock>) -> Bench {
+    let progress = plan_progress(&setup.plan);
+    let engine = simulated_engine(setup, preset, model.clone(), clock.clone(), Some(progress.clone()));
+    let instruments = serde_json::json!({
+        "positioner": format!("simulated {}", preset.name),
+        "reference": format!("simulated {}", setup.reference.as_str()),
+    });
+    Bench {
+        engine,
+        clock,
+        plan: setup.plan.clone(),
+        estimate: Duration::from_secs_f64(setup.run_period_s * setup.plan.runs as f64),
+        setup: Setup::Simulated(setup.clone()),
+        model: Some(model),
+        source: SurveySource::Simulated,
+        instruments,
+        plan_progress: Some(progress),
+    }
+}
+
+/// The drift clock of a plan: its steps a run.
+fn plan_progress(plan: &SurveyPlan) -> PlanProgress {
+    PlanProgress::new(plan.targets_deg.len() as u64 * plan.directions().len() as u64)
+}
+
+/// Build the simulated instruments of a setup on `clock`. The model's drift
+/// goes by the plan's `progress` when given (the acquisition sets it to the
+/// next step: [`crate::session::AcquireOptions::plan_progress`]), else by
+/// clock time over the setup's run period.
+pub fn simulated_engine(
+    setup: &SimulatedSetup,
+    preset: &Preset,
+    model: Model,
+    clock: Arc<VirtualClock>,
+    progress: Option<PlanProgress>,
+) -> Engine {
+    let dyn_clock: Arc<dyn Clock> = clock;
+    let mut builder = SimBench::builder(preset, setup.seed, dyn_clock.clone())
+        .model(model)
+        .drift_run_period(Duration::from_secs_f64(setup.run_period_s))
+        .servo(Servo::default())
+        .stream_losses(TRACKER_STREAM_LOSS, CAPTURE_LOSS);
+    if let Some(p) = progress {
+        builder = builder.drift_progress(p);
+    }
+    if setup.reference == ReferenceKind::Autocollimator {
+        let faces = setup.plan.targets_deg.len() as u32;
+        builder = builder.autocollimator(AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3)));
+    }
+    if let Some(rates) = &setup.faults {
+        builder = builder.fault_rates(rates);
+    }
+    let bench = builder.build();
+    let injected = bench.injected.clone();
+    let reference = match setup.reference {
+        ReferenceKind::Tracker => Reference::Tracker(Box::new(bench.tracker)),
+        ReferenceKind::Autocollimator => Reference::Autocollimator {
+            faces: bench.autocollimator.faces(),
+            certificate_arcsec: bench.autocollimator.certificate_arcsec().to_vec(),
+            instrument: Box::new(bench.autocollimator),
+        },
+    };
+    let travel = bench.positioner.config().travel;
+    let mut engine = Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
+        .with_travel(travel)
+        .with_physics(settle_model(&setup.timing), Some(measurement_time(setup.reference)));
+    engine.set_injected(Some(injected));
+    engine
+}
+
+/// The simulated bench of a stored survey, continued at step `next_seq`.
+pub(super) fn resume(
+    setup: &SimulatedSetup,
+    model: Option<Model>,
+    resume_at: Duration,
+    next_seq: u64,
+) -> anyhow::Result<Bench> {
+    let preset =
+        Preset::by_name(&setup.preset).ok_or_else(|| bad_input(format!("unknown preset '{}'", setup.preset)))?;
+    let model = model.unwrap_or_else(|| preset.model.clone());
+    let mut resumed = setup.clone();
+    resumed.seed = survey_sims::derive_seed(setup.seed, 0x5e5u64 + next_seq);
+    let mut bench = on_clock(&resumed, &preset, model, Arc::new(VirtualClock::starting_at(resume_at)));
+    // What is stored stays the original setup (its seed included).
+    bench.setup = Setup::Simulated(setup.clone());
+    Ok(bench)
+}

@@ -1,0 +1,116 @@
+//! `survey resume`: continue an interrupted survey from its first missing step.
+//!
+//! The survey's acquisition lock is taken first ([`AcquirerLock`]): a survey
+//! a live process is acquiring is refused at once, naming that process; a
+//! lock left by a dead one is taken over. A survey whose samples are all
+//! stored but whose status is not complete (stopped, killed or out of disk
+//! space while it was processed: `interrupted`, `running` or `processing`)
+//! is finished: statistics and processing, its outputs written (stale
+//! temporary files of a killed write removed), exit status 0.
+
+use super::args::UnitsArg;
+use super::support::{conclude_and_print, open_existing};
+use clap::Args;
+use std::path::Path;
+use std::time::Duration;
+use survey_acquire::Outcome;
+use survey_acquire::stop::Stop;
+use survey_bench::Bench;
+use survey_bench::session::{AcquireOptions, Acquired, acquire};
+use survey_lab::conclude::ConcludeOptions;
+use survey_lab::error::bad_input;
+use survey_store::AcquirerLock;
+use survey_store::survey::{SurveySource, SurveyStatus};
+
+#[derive(Debug, Args)]
+pub struct ResumeArgs {
+    /// Survey id or uid (default: the latest).
+    #[arg(long, value_name = "ID", allow_negative_numbers = true)]
+    pub survey: Option<survey_store::survey::SurveyRef>,
+    #[command(flatten)]
+    pub units: UnitsArg,
+    /// Print the summary as one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
+    let store = open_existing(db).await?;
+    let id = store.resolve_any(args.survey).await?.id;
+    // One acquirer per survey: refused at once while a live process holds it.
+    let lock = AcquirerLock::acquire(store.path(), id)?;
+    if let Some(previous) = &lock.took_over {
+        eprintln!("survey {id}: its last acquirer ({previous}) is gone; taking over");
+    }
+    let stop = Stop::on_signals();
+    // Read under the lock: the survey may have changed while it was held.
+    let record = store.survey(id).await?;
+    match record.status {
+        SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Processing | SurveyStatus::Failed => {}
+        SurveyStatus::Complete => {
+            return Err(bad_input(format!("survey {id} is complete: there is nothing to resume")));
+        }
+        SurveyStatus::Imported => {
+            return Err(bad_input(format!("survey {id} was imported, not acquired: it cannot be resumed")));
+        }
+    }
+    let stored = record.sample_count;
+    let next = store.last_seq(id).await?.map_or(0, |s| s + 1);
+    if next != stored {
+        return Err(anyhow::anyhow!(
+            "survey {id}: {stored} samples stored but the last step is {next}: the survey is not a dense prefix of its plan"
+        ));
+    }
+    // Instrument time goes on from where the survey stopped (drift continues).
+    let last_time = store.last_sample_time(id).await?.unwrap_or(0.0).max(record.started_at_s.unwrap_or(0.0));
+    let mut bench = Bench::resume(&record, Duration::from_secs_f64(last_time.max(0.0)), next)?;
+    bench.engine.set_stop(stop.clone());
+    let plan = bench.plan.clone();
+    if plan.continuous() {
+        // The latency between the instruments, measured by the calibration
+        // passes (none stored: measured again).
+        bench.engine.set_scan_latency(store.scan_latency(id).await?);
+        if record.source == SurveySource::Instruments && next < plan.total_steps() {
+            super::run::scan_clock_keeps_pace(&mut bench.engine).await?;
+        }
+    }
+    let options = AcquireOptions {
+        progress: !args.json,
+        crash_after: None,
+        signal_after: None,
+        plan_progress: bench.plan_progress.clone(),
+    };
+    let acquired = if next >= plan.total_steps() {
+        // Every sample is stored (the survey stopped after its acquisition):
+        // finish it, statistics and processing.
+        let message = format!("all {next} samples are stored: finishing (statistics and processing)");
+        store.log_event(id, last_time, "info", &message).await?;
+        store.set_status(id, SurveyStatus::Processing, None).await?;
+        eprintln!("survey {id}: {message}");
+        let instrument_time = Duration::from_secs_f64(last_time.max(0.0));
+        Ok(Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO })
+    } else {
+        if record.source == SurveySource::Verification {
+            let table = record.verification.as_ref().and_then(|v| v.correction.as_ref()).ok_or_else(|| {
+                bad_input(format!("survey {id} verifies a table that was not stored with it: it cannot be resumed"))
+            })?;
+            survey_lab::verify::apply_correction(&mut bench.engine, table).await?;
+        }
+        store.set_status(id, SurveyStatus::Running, None).await?;
+        let message = format!("resumed at step {next} of {}", plan.total_steps());
+        store.log_event(id, last_time, "info", &message).await?;
+        eprintln!("survey {id}: {message}");
+        acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
+    };
+    let finish = ConcludeOptions {
+        recipe: None,
+        verify: None,
+        acquire: options,
+        stop,
+        crash_when_staged: false,
+        units: args.units.units(),
+    };
+    let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
+    drop(lock);
+    done
+}

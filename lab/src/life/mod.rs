@@ -1,0 +1,292 @@
+//! A positioner's life (issue 22): the surveys of one asset measured again
+//! and again, what changed between them ([`survey_modelgap::compare`]),
+//! whether the table in force still holds, and the history
+//! ([`history`]) and the recalibration loop ([`check`]) built on it.
+//!
+//! A survey is measured here as `survey process` would process it: its
+//! samples around the axis fitted again from every SMR position (tracker
+//! surveys), corrected for drift when it asked for that, processed without a
+//! recipe with its stored model's design and its check points (quietly: no
+//! notes on stderr), and
+//! its table's uncertainty budgeted. The table of a survey, applied to
+//! another, is this table.
+
+pub mod check;
+pub mod history;
+
+use crate::load::{Axis, load};
+use serde_json::{Value, json};
+use survey_modelgap::ReferenceInfo;
+use survey_modelgap::compare::{CompareOptions, Comparison, Decision, TableCheck, compare, decide, table_on};
+use survey_processing::Sample;
+use survey_processing::iso230::{Iso230, iso230_2};
+use survey_processing::model::Design;
+use survey_processing::pipeline::{Processed, process_with_checks};
+use survey_processing::recipe::LineAction;
+use survey_store::Store;
+use survey_store::survey::{SurveyRecord, SurveyRef, SurveySource};
+
+/// The false-alarm rate every comparison is made at.
+pub const FALSE_ALARM_RATE: f64 = 0.01;
+
+/// One survey, measured for comparison.
+#[derive(Debug)]
+pub struct Measured {
+    /// The survey.
+    pub survey: SurveyRecord,
+    /// Its samples as processed (around the refitted axis, drift corrected).
+    pub samples: Vec<Sample>,
+    /// Its processing, or why there is none.
+    pub processed: Result<Processed, String>,
+    /// Its ISO 230-2 figures, when it allows them.
+    pub iso: Option<Iso230>,
+    /// Its table's expanded uncertainty `U` (k = 2), degrees.
+    pub table_u_deg: Option<f64>,
+    /// The once-per-revolution standard error of its tracker's axis, degrees (0 otherwise).
+    pub axis_se_deg: f64,
+}
+
+/// A main line of a survey's table: a line the table corrects.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct MainLine {
+    /// Its true frequency, cycles per revolution.
+    pub cycles_per_rev: f64,
+    /// Its amplitude, degrees.
+    pub amplitude_deg: f64,
+    /// Its phase, degrees (`A sin(k theta + phase)`).
+    pub phase_deg: f64,
+}
+
+impl Measured {
+    /// The lines the table corrects, largest first.
+    pub fn main_lines(&self) -> Vec<MainLine> {
+        let Ok(p) = &self.processed else { return Vec::new() };
+        let mut lines: Vec<MainLine> = p
+            .analysis
+            .lines
+            .iter()
+            .filter_map(|l| {
+                let d = p.decisions.lines.iter().find(|d| d.significant && d.cycles_per_rev == l.cycles_per_rev)?;
+                matches!(d.action, LineAction::Kept | LineAction::Relocated).then(|| MainLine {
+                    cycles_per_rev: d.true_cycles_per_rev,
+                    amplitude_deg: l.amplitude_deg,
+                    phase_deg: l.true_phase_deg,
+                })
+            })
+            .collect();
+        lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
+        lines
+    }
+
+    /// `calibration`, `check` or `verification`.
+    pub fn kind(&self) -> &'static str {
+        kind(&self.survey)
+    }
+
+    /// The history's entry of this survey (the contract's keys and more).
+    pub fn json(&self) -> Value {
+        let s = &self.survey;
+        json!({
+            "id": s.id,
+            "uid": s.uid,
+            "created_at": s.created_at,
+            "status": s.status.as_str(),
+            "kind": self.kind(),
+            "check_of": s.check_of,
+            "samples": self.samples.len(),
+            "A_deg": self.iso.as_ref().map(|i| i.a),
+            "R_deg": self.iso.as_ref().map(|i| i.r),
+            "B_deg": self.iso.as_ref().and_then(|i| i.b),
+            "table_u_deg": self.table_u_deg,
+            "lines": self.main_lines(),
+        })
+    }
+}
+
+/// `calibration`, `check` or `verification`.
+pub fn kind(s: &SurveyRecord) -> &'static str {
+    match (&s.check_of, &s.source) {
+        (Some(_), _) => "check",
+        (None, SurveySource::Verification) => "verification",
+        _ => "calibration",
+    }
+}
+
+/// Measure the survey `r` of `store` (see the module documentation).
+pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
+    let loaded = load(store, Some(r), Axis::Refitted).await?;
+    let samples = loaded.analysed().into_owned();
+    let design = loaded.survey.model.as_ref().map_or_else(Design::default, |m| m.design.clone());
+    // With its check points, as `survey process` takes them in.
+    let processed = process_with_checks(&samples, &design, None, None, &loaded.checks).map_err(|e| e.to_string());
+    let inputs = loaded.uncertainty_inputs();
+    let table_u_deg =
+        processed.as_ref().ok().map(|p| survey_processing::uncertainty::uncertainty(p, &samples, &inputs).table_u_deg);
+    let axis_se_deg = match loaded.reference_info() {
+        ReferenceInfo::Tracker { axis_se_deg, .. } => axis_se_deg,
+        _ => 0.0,
+    };
+    Ok(Measured { iso: iso230_2(&samples).ok(), survey: loaded.survey, samples, processed, table_u_deg, axis_se_deg })
+}
+
+/// What changed from `a` to `b`, and whether the table of `a` holds on `b`.
+#[derive(Debug)]
+pub struct Compared {
+    /// The tests.
+    pub comparison: Comparison,
+    /// The table of `a` applied to `b`, when `a` could be processed.
+    pub table_of_a_on_b: Option<TableCheck>,
+    /// Recalibrate, and why.
+    pub decision: Decision,
+}
+
+/// Compare `a` (the earlier, or the calibration in force) with `b`: every
+/// main line of either (and the once-per-revolution line, a mounting's),
+/// the backlash and the mean error map; the table of `a` applied to `b`.
+pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
+    if a.survey.asset != b.survey.asset {
+        return Err(crate::error::bad_input(format!(
+            "survey {} belongs to the asset {} and survey {} to {}: only surveys of one asset compare",
+            a.survey.id, a.survey.asset, b.survey.id, b.survey.asset
+        )));
+    }
+    // A verification measured the axis with a table applied: against a
+    // native survey every line the table corrects would read as a change.
+    if let Some(v) = [a, b].into_iter().find(|m| m.kind() == "verification") {
+        let of = v.survey.verification.as_ref().map_or(String::new(), |x| format!(" of survey {}", x.verifies_survey));
+        return Err(crate::error::bad_input(format!(
+            "survey {} is a verification (measured with the table{of} applied): it measures the corrected axis; \
+             compare calibrations and checks, which measure the positioner as it is",
+            v.survey.id
+        )));
+    }
+    let lines: Vec<f64> =
+        std::iter::once(1.0).chain(a.main_lines().iter().chain(&b.main_lines()).map(|l| l.cycles_per_rev)).collect();
+    let opts =
+        CompareOptions { false_alarm_rate: FALSE_ALARM_RATE, lines, axis_se_deg: [a.axis_se_deg, b.axis_se_deg] };
+    let comparison = compare(&a.samples, &b.samples, &opts).map_err(|e| {
+        crate::error::bad_input(format!("survey {} cannot be compared with survey {}: {e}", a.survey.id, b.survey.id))
+    })?;
+    let table_of_a_on_b = match (&a.processed, a.table_u_deg) {
+        (Ok(p), Some(u)) => table_on(&p.built.table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
+        _ => None,
+    };
+    let decision = decide(&comparison, table_of_a_on_b.as_ref());
+    Ok(Compared { comparison, table_of_a_on_b, decision })
+}
+
+impl Compared {
+    /// The contract's change document (`from`, `to`, `verdict`, `lines`)
+    /// and the rest of the tests.
+    pub fn change_json(&self, a: &Measured, b: &Measured) -> Value {
+        let c = &self.comparison;
+        json!({
+            "from": a.survey.id,
+            "to": b.survey.id,
+            "from_uid": a.survey.uid,
+            "to_uid": b.survey.uid,
+            "verdict": c.verdict.as_str(),
+            "lines": c.lines,
+            "lines_not_tested": c.lines_not_tested,
+            "backlash": c.backlash,
+            "map": c.map,
+            "false_alarm_rate": c.false_alarm_rate,
+            "per_test_rate": c.per_test_rate,
+            "repeatability_deg": c.repeatability_deg,
+            "recalibrate": self.decision.recalibrate,
+            "reason": self.decision.reason,
+        })
+    }
+
+    /// `survey compare --json`: the change, the table of A on B and the decision.
+    pub fn json(&self, a: &Measured, b: &Measured) -> Value {
+        let mut doc = self.change_json(a, b);
+        doc["asset"] = a.survey.asset.clone().into();
+        doc["table_of_a_on_b"] = match &self.table_of_a_on_b {
+            Some(t) => serde_json::to_value(t).unwrap_or_default(),
+            None => json!({
+                "residual_peak_deg": null, "stated_u_deg": null, "holds": null,
+                "why": a.processed.as_ref().err().cloned().unwrap_or_else(|| "no repeatability in B".into()),
+            }),
+        };
+        doc
+    }
+
+    /// For people.
+    pub fn text(&self, a: &Measured, b: &Measured) -> String {
+        let c = &self.comparison;
+        let mut s = format!(
+            "survey {} -> survey {} (asset {}): {}\n",
+            a.survey.id,
+            b.survey.id,
+            a.survey.asset,
+            c.verdict.as_str()
+        );
+        s += &format!(
+            "  {:>10}  {:>12}  {:>12}  {:>11}  {:>11}  {}\n",
+            "cycles/rev", "from, deg", "to, deg", "change, deg", "allows, deg", "changed"
+        );
+        for l in &c.lines {
+            s += &format!(
+                "  {:>10}  {:>12.4e}  {:>12.4e}  {:>11.2e}  {:>11.2e}  {}\n",
+                l.cycles_per_rev,
+                l.amplitude_from_deg,
+                l.amplitude_to_deg,
+                l.change_deg,
+                l.change_u_deg,
+                if l.significant { "yes" } else { "no" }
+            );
+        }
+        if let Some(b) = &c.backlash {
+            s += &format!(
+                "  {:>10}  {:>12.4e}  {:>12.4e}  {:>11.2e}  {:>11.2e}  {}\n",
+                "backlash",
+                b.from_deg,
+                b.to_deg,
+                (b.to_deg - b.from_deg).abs(),
+                b.change_u_deg,
+                if b.significant { "yes" } else { "no" }
+            );
+        }
+        if let Some(m) = &c.map {
+            s += &format!(
+                "  mean error map: {} cells, change {:.2e} deg rms, F = {:.2} (p = {:.2e}): {}\n",
+                m.cells,
+                m.rms_change_deg,
+                m.statistic,
+                m.p_value,
+                if m.significant { "changed" } else { "unchanged" }
+            );
+        }
+        if !c.lines_not_tested.is_empty() {
+            s += &format!("  not tested (aliased at these targets): {:?} cycles/rev\n", c.lines_not_tested);
+        }
+        s += &format!("  false-alarm rate {} ({:.2e} per test)\n", c.false_alarm_rate, c.per_test_rate);
+        match &self.table_of_a_on_b {
+            Some(t) => {
+                let predicted =
+                    t.predicted_peak_deg.map_or(String::new(), |p| format!(" (on survey {}: {p:.2e})", a.survey.id));
+                s += &format!(
+                    "table of survey {} on survey {}: leaves {:.2e} deg at most{predicted}, {:.2e} rms; stated U {:.2e} \
+                     deg; {} of {} cells beyond it ({} allowed): {}\n",
+                    a.survey.id,
+                    b.survey.id,
+                    t.residual_peak_deg,
+                    t.residual_rms_deg,
+                    t.stated_u_deg,
+                    t.cells_outside,
+                    t.cells,
+                    t.allowed_outside,
+                    if t.holds { "holds" } else { "does not hold" }
+                );
+            }
+            None => s += &format!("table of survey {}: none to apply\n", a.survey.id),
+        }
+        s += &format!(
+            "recalibrate: {}: {}\n",
+            if self.decision.recalibrate { "yes" } else { "no" },
+            self.decision.reason
+        );
+        s
+    }
+}

@@ -1,0 +1,172 @@
+//! The one way a command loads a stored survey: its record, its samples as
+//! the compact `Vec<Sample>` (read once), its drift points, and as the
+//! command asks, the actual angles of a tracker survey recomputed around the
+//! axis fitted again from every SMR position ([`crate::refit`]) or how well
+//! the axis located before the runs is known. The drift correction is
+//! applied when the samples are read for analysis ([`Loaded::analysed`]),
+//! borrowing them when the survey asked for none, and never written back.
+
+use crate::refit::{AxisRefit, AxisUsed, located_axis_knowledge, refit_survey};
+use std::borrow::Cow;
+use std::path::Path;
+use survey_modelgap::ReferenceInfo;
+use survey_plan::drift::DriftPoint;
+use survey_processing::Sample;
+use survey_processing::geometry::Refit;
+use survey_processing::uncertainty::UncertaintyInputs;
+use survey_store::Store;
+use survey_store::survey::{SurveyRecord, SurveyRef};
+
+/// Around which axis a tracker survey's actual angles are taken, and what a
+/// command learns of it. Every command that states a survey's figures uses
+/// [`Axis::Refitted`] (one set of numbers); `--located-axis` asks for
+/// [`Axis::Located`] to compare.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Axis {
+    /// As stored, around the axis located before the runs, with how well it
+    /// is known ([`Loaded::located`]).
+    Located,
+    /// Around the axis fitted again from every SMR position, when the survey
+    /// has a located axis ([`Loaded::refit`]); otherwise as [`Axis::Located`].
+    Refitted,
+}
+
+/// A stored survey, loaded for a command.
+#[derive(Debug)]
+pub struct Loaded {
+    /// The survey.
+    pub survey: SurveyRecord,
+    /// Its samples in acquisition order: as stored, or around the refitted
+    /// axis when `refit` is some. As measured: see [`Loaded::analysed`].
+    pub samples: Vec<Sample>,
+    /// The axis fitted again, when the samples are around it.
+    pub refit: Option<AxisRefit>,
+    /// How well the axis located before the runs is known (with
+    /// [`Axis::Located`], or [`Axis::Refitted`] when there was no refit).
+    pub located: Option<Refit>,
+    /// The drift-control reference measurements.
+    pub drift: Vec<DriftPoint>,
+    /// The check points measured between the targets, when the survey has
+    /// them ([`crate::resolving`]).
+    pub checks: Vec<Sample>,
+}
+
+impl Loaded {
+    /// The samples the statistics and the processing use: [`Loaded::samples`]
+    /// corrected for the drift when the survey asked for it.
+    pub fn analysed(&self) -> Cow<'_, [Sample]> {
+        self.corrected(&self.samples)
+    }
+
+    /// `samples` of this survey (the refitted ones a command made itself)
+    /// corrected for the drift when the survey asked for it.
+    pub fn corrected<'a>(&self, samples: &'a [Sample]) -> Cow<'a, [Sample]> {
+        crate::drift::for_analysis(&self.survey, samples, &self.drift)
+    }
+
+    /// Which axis the samples are around, as the output says it.
+    pub fn axis_used(&self) -> AxisUsed {
+        AxisUsed::of(&self.survey, self.refit.as_ref())
+    }
+
+    /// What model-gap is told of the survey's reference.
+    pub fn reference_info(&self) -> ReferenceInfo {
+        crate::refit::reference_info(&self.survey, self.refit.as_ref(), self.located.as_ref())
+    }
+
+    /// What the table's uncertainty budget needs beyond the samples.
+    pub fn uncertainty_inputs(&self) -> UncertaintyInputs {
+        crate::refit::uncertainty_inputs(&self.survey, self.refit.as_ref(), self.located.as_ref())
+    }
+}
+
+/// Load survey `id` (an id or a uid; the latest when `None`) from `store`,
+/// its actual angles taken around `axis`.
+pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::Result<Loaded> {
+    // Counted here, as its samples are read (not walked twice).
+    let mut survey = store.resolve_uncounted(id).await?;
+    let refitted = match axis {
+        Axis::Refitted => refit_survey(store, &survey).await?,
+        Axis::Located => None,
+    };
+    let (samples, refit) = match refitted {
+        Some((samples, refit)) => (samples, Some(refit)),
+        None => (store.samples(survey.id).await?, None),
+    };
+    survey.sample_count = samples.len() as u64;
+    let located = match refit {
+        None => located_axis_knowledge(store, &survey).await?,
+        Some(_) => None,
+    };
+    let drift = store.drift_points(survey.id).await?;
+    let checks = store.check_points(survey.id).await?;
+    Ok(Loaded { survey, samples, refit, located, drift, checks })
+}
+
+/// [`load`] from the database at `db`, opened read-only and closed again:
+/// what a command that only reads does.
+pub async fn load_read_only(db: &Path, id: Option<SurveyRef>, axis: Axis) -> anyhow::Result<Loaded> {
+    let store = Store::open_read_only(db).await?;
+    let loaded = load(&store, id, axis).await;
+    store.close().await;
+    loaded
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use survey_plan::drift::DriftMeasurement;
+    use survey_processing::Direction;
+    use survey_store::survey::{NewSurvey, Setup, SurveySource, SurveyStatus};
+
+    fn samples() -> Vec<Sample> {
+        (0..8)
+            .map(|k| Sample {
+                run: 1 + k / 4,
+                direction: if k % 4 < 2 { Direction::Forward } else { Direction::Reverse },
+                target_deg: f64::from(k % 2) * 180.0,
+                readout_deg: f64::from(k % 2) * 180.0,
+                actual_deg: f64::from(k % 2) * 180.0 - 1e-3,
+                timestamp_s: Some(f64::from(k) * 10.0),
+            })
+            .collect()
+    }
+
+    #[tokio::test]
+    async fn a_survey_loads_once_with_its_drift_and_is_analysed_without_a_copy_when_no_correction_is_asked() {
+        let dir = tempfile::tempdir().unwrap();
+        let db = dir.path().join("s.db");
+        let store = Store::open(&db).await.unwrap();
+        let new = NewSurvey {
+            status: SurveyStatus::Imported,
+            source: SurveySource::Import { file: "s.csv".into() },
+            setup: Setup::Imported { file: "s.csv".into() },
+            ..NewSurvey::default()
+        };
+        let id = store.import(&new, &samples()).await.unwrap();
+        let m = |before_seq, at_s, actual_deg| DriftMeasurement {
+            before_seq,
+            at_s,
+            reference_deg: 0.0,
+            readout_deg: 0.0,
+            actual_deg,
+        };
+        store.add_drift_measurement(id, &m(0, 0.0, 0.0)).await.unwrap();
+        store.add_drift_measurement(id, &m(8, 80.0, -0.002)).await.unwrap();
+        store.close().await;
+
+        for axis in [Axis::Located, Axis::Refitted] {
+            let loaded = load_read_only(&db, None, axis).await.unwrap();
+            assert_eq!((loaded.survey.id, loaded.samples.as_slice()), (id, samples().as_slice()), "{axis:?}");
+            assert_eq!(loaded.drift.len(), 2, "{axis:?}");
+            assert_eq!(loaded.survey.sample_count, 8, "counted as read: {axis:?}");
+            // An import has no axis, and asks for no drift correction.
+            assert!(loaded.refit.is_none() && loaded.located.is_none(), "{axis:?}");
+            assert_eq!(loaded.axis_used(), AxisUsed::None, "{axis:?}");
+            assert!(loaded.checks.is_empty(), "{axis:?}");
+            assert!(matches!(loaded.analysed(), Cow::Borrowed(s) if s == loaded.samples.as_slice()), "{axis:?}");
+        }
+        let e = load_read_only(&db, Some((id + 1).into()), Axis::Located).await.unwrap_err();
+        assert!(survey_store::is_not_found(&e), "{e:#}");
+    }
+}

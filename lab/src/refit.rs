@@ -1,0 +1,278 @@
+//! The axis from the whole survey: after a tracker survey (and on `survey
+//! process`), the axis is fitted again from every stored SMR position (the
+//! points that located it before the runs and every sample's), and the actual
+//! angles are recomputed from the raw readings around it
+//! ([`survey_processing::geometry::refit_axis`]). The stored samples are not
+//! changed (the originals are kept); what is processed is the recomputed
+//! survey, and the refit is reported with it.
+//!
+//! Why: the dozen positions that locate the axis before the runs leave an
+//! error in its centre, and every actual angle computed around a wrong centre
+//! carries a once-per-revolution error that the table would then "correct"
+//! into the positioner. The survey's thousands of positions know the centre
+//! far better.
+//!
+//! One set of numbers: every command that states a survey's figures
+//! (`stats`, `process`, `report`, the end of `run`) computes them from the
+//! same samples, loaded by [`crate::load`] with [`crate::load::Axis::Refitted`]:
+//! around the refitted axis when the survey has one (a tracker survey with SMR
+//! positions), as stored otherwise, corrected for the drift when the survey
+//! asked for it; and says which axis ([`AxisUsed`]: `"axis": "refitted" |
+//! "located" | "none"` in their JSON). `survey process --located-axis` processes around the located axis
+//! for comparison and says so.
+
+use survey_acquire::ReferenceKind;
+use survey_modelgap::ReferenceInfo;
+use survey_processing::Sample;
+use survey_processing::geometry::{AxisFit, Refit, refit_axis, refit_axis_with_angles};
+use survey_processing::uncertainty::UncertaintyInputs;
+use survey_store::Store;
+use survey_store::survey::{Setup, SurveyRecord};
+
+/// The refit and what it changed, for the output.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct AxisRefit {
+    /// SMR positions fitted (locate points and samples).
+    pub points: usize,
+    /// Positions left out as outliers.
+    pub dropped: usize,
+    /// The refitted circle's radius, mm.
+    pub radius_mm: f64,
+    /// How far the centre moved from the located one, in the plane, mm.
+    pub center_shift_mm: f64,
+    /// The once-per-revolution angle error the located centre carried, deg
+    /// (`center_shift_mm / radius`): what the refit removed from the table.
+    pub located_once_per_rev_deg: f64,
+    /// Standard error of the refitted centre in its worst-known direction, mm.
+    pub center_se_mm: f64,
+    /// The once-per-revolution angle uncertainty left, deg (standard error;
+    /// what the centre's uncertainty costs on a full circle).
+    pub once_per_rev_se_deg: f64,
+    /// The arc the SMR positions cover, deg (360 on a full circle).
+    pub arc_deg: f64,
+    /// What the centre's uncertainty costs over the measured arc, deg
+    /// (standard error, its mean over the arc removed): how far the arc
+    /// allows the axis to be known.
+    pub over_arc_se_deg: f64,
+}
+
+/// Which axis a survey's actual angles were computed around.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisUsed {
+    /// Fitted again from every SMR position of the survey.
+    Refitted,
+    /// Located before the runs (as stored).
+    Located,
+    /// No axis: an autocollimator, an import.
+    None,
+}
+
+impl AxisUsed {
+    /// The JSON word.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AxisUsed::Refitted => "refitted",
+            AxisUsed::Located => "located",
+            AxisUsed::None => "none",
+        }
+    }
+
+    /// The axis of `survey` analysed with `refit` (or without one).
+    pub fn of(survey: &SurveyRecord, refit: Option<&AxisRefit>) -> Self {
+        match (refit, &survey.axis) {
+            (Some(_), _) => AxisUsed::Refitted,
+            (None, Some(_)) => AxisUsed::Located,
+            (None, None) => AxisUsed::None,
+        }
+    }
+
+    /// One line for people: which angles the figures are of.
+    pub fn text(self) -> &'static str {
+        match self {
+            AxisUsed::Refitted => "axis: refitted (actual angles around the axis fitted again from every SMR position)",
+            AxisUsed::Located => "axis: located (actual angles as stored, around the axis located before the runs)",
+            AxisUsed::None => "axis: none (the reference measures angles directly)",
+        }
+    }
+}
+
+/// The shift between two centres, in the plane of `fit`.
+fn in_plane_shift(fit: &AxisFit, other: &AxisFit) -> f64 {
+    let d: Vec<f64> = (0..3).map(|i| fit.center_mm[i] - other.center_mm[i]).collect();
+    let h: f64 = (0..3).map(|i| d[i] * fit.normal[i]).sum();
+    (0..3).map(|i| (d[i] - h * fit.normal[i]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// The survey's samples with their actual angles recomputed around the axis
+/// fitted from all its SMR positions, and the refit; `None` for a survey
+/// without a located axis (an autocollimator survey, an import).
+pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Result<Option<(Vec<Sample>, AxisRefit)>> {
+    let Some(located) = &survey.axis else { return Ok(None) };
+    let locate = store.locate_points(survey.id).await?;
+    // The locate points first, then every sample's position.
+    let (mut samples, smr) = store.samples_with_smr(survey.id, locate.iter().map(|(_, m)| m.xyz()).collect()).await?;
+    let points = &smr.xyz_mm;
+    if points.len() < 3 {
+        return Ok(None);
+    }
+    // The readouts in the order of `points`, made anew for each pass: the
+    // first samples' in order when each has a position (a tracker survey:
+    // no index looked up a position), through the indices otherwise.
+    let at_locate = || locate.iter().map(|(readout, _)| *readout);
+    let fitted = match smr.dense() {
+        Some(n) => refit_axis_with_angles(points, || at_locate().chain(samples[..n].iter().map(|s| s.readout_deg))),
+        None => {
+            refit_axis_with_angles(points, || at_locate().chain(smr.sample_indices().map(|i| samples[i].readout_deg)))
+        }
+    };
+    let (Refit { fit, dropped, center_se_mm, once_per_rev_se_deg, arc_deg, over_arc_se_deg, .. }, raw) = fitted
+        .map_err(|e| {
+            anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
+        })?;
+    // The samples' positions follow the locate points in `raw`.
+    for (i, &raw) in smr.sample_indices().zip(&raw[locate.len()..]) {
+        let s = &mut samples[i];
+        s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
+    }
+    let center_shift_mm = in_plane_shift(&fit, located);
+    let refit = AxisRefit {
+        points: smr.xyz_mm.len(),
+        dropped,
+        radius_mm: fit.radius_mm,
+        center_shift_mm,
+        located_once_per_rev_deg: (center_shift_mm / fit.radius_mm).to_degrees(),
+        center_se_mm,
+        once_per_rev_se_deg,
+        arc_deg,
+        over_arc_se_deg,
+    };
+    tracing::info!(survey = survey.id, ?refit, "axis fitted again from the survey's SMR positions");
+    Ok(Some((samples, refit)))
+}
+
+impl AxisRefit {
+    /// Two lines for people.
+    pub fn text(&self) -> String {
+        let mut s = format!(
+            "axis fitted again from {} SMR positions ({} left out): the centre moved {:.4} mm, a once-per-revolution \
+             error of {:.6} deg removed; the centre is now known to {:.5} mm ({:.2e} deg once per revolution, 1 sigma)\n",
+            self.points,
+            self.dropped,
+            self.center_shift_mm,
+            self.located_once_per_rev_deg,
+            self.center_se_mm,
+            self.once_per_rev_se_deg
+        );
+        if self.arc_deg < 359.0 {
+            s += &format!(
+                "the positions cover {:.1} deg of arc: over it the axis location costs {:.2e} deg (1 sigma), all this \
+                 arc allows\n",
+                self.arc_deg, self.over_arc_se_deg
+            );
+        }
+        s
+    }
+}
+
+/// How well the axis located before the runs is known: the same fit from
+/// its dozen locate points alone, with their stated uncertainty (`None`
+/// without a located axis or its points).
+pub async fn located_axis_knowledge(store: &Store, survey: &SurveyRecord) -> anyhow::Result<Option<Refit>> {
+    if survey.axis.is_none() {
+        return Ok(None);
+    }
+    let locate = store.locate_points(survey.id).await?;
+    if locate.len() < 4 {
+        return Ok(None);
+    }
+    let points: Vec<[f64; 3]> = locate.iter().map(|(_, m)| m.xyz()).collect();
+    let readouts: Vec<f64> = locate.iter().map(|(r, _)| *r).collect();
+    Ok(refit_axis(&points, &readouts).ok())
+}
+
+/// What model-gap is told of the survey's reference: a tracker with the axis
+/// fitted again (`refit`) or located before the runs (`located`), an
+/// autocollimator, or unknown (an import).
+pub fn reference_info(survey: &SurveyRecord, refit: Option<&AxisRefit>, located: Option<&Refit>) -> ReferenceInfo {
+    if let Some(r) = refit {
+        return ReferenceInfo::Tracker {
+            radius_mm: r.radius_mm,
+            points: r.points,
+            axis_se_deg: r.over_arc_se_deg,
+            refitted: true,
+        };
+    }
+    if let Some(axis) = &survey.axis {
+        return ReferenceInfo::Tracker {
+            radius_mm: axis.radius_mm,
+            points: axis.points,
+            axis_se_deg: located.map_or(0.0, |l| l.over_arc_se_deg),
+            refitted: false,
+        };
+    }
+    match survey.reference() {
+        Some(ReferenceKind::Autocollimator) => ReferenceInfo::Autocollimator,
+        _ => ReferenceInfo::Unknown,
+    }
+}
+
+/// What the uncertainty budget of a survey's table needs beyond its samples:
+/// the reference instrument's stated standard uncertainty of one angle (as
+/// the report's header states it: the configuration's `[certificate]`, or
+/// the simulated bench's), and the once-per-revolution standard error of the
+/// axis the angles were computed around over the measured arc (fitted again,
+/// `refit`, or located before the runs, `located`).
+pub fn uncertainty_inputs(
+    survey: &SurveyRecord,
+    refit: Option<&AxisRefit>,
+    located: Option<&Refit>,
+) -> UncertaintyInputs {
+    let axis_u_deg = match (refit, located) {
+        (Some(r), _) => Some(r.over_arc_se_deg),
+        (None, Some(l)) => Some(l.over_arc_se_deg),
+        (None, None) => None,
+    };
+    UncertaintyInputs { reference_u_deg: stated_reference_u_deg(survey), axis_u_deg }
+}
+
+/// The reference instrument's stated standard uncertainty of one angle, as
+/// the certificate states it when no flag overrides it: the configuration's
+/// `[certificate] reference_uncertainty_deg`, else the simulated bench's own
+/// ([`simulated_reference_u_deg`]); `None` for an imported survey.
+pub fn stated_reference_u_deg(survey: &SurveyRecord) -> Option<f64> {
+    match &survey.setup {
+        Setup::Configured(c) => c.config.certificate.as_ref().and_then(|c| c.reference_uncertainty_deg),
+        Setup::Simulated(s) => Some(simulated_reference_u_deg(s.reference)),
+        _ => None,
+    }
+}
+
+/// The standard uncertainty of one angle from a simulated reference: the
+/// tracker's per-coordinate noise at the arm's centre distance, across the
+/// arm's radius; the autocollimator's noise per reading (0.1 arcsec).
+pub fn simulated_reference_u_deg(kind: ReferenceKind) -> f64 {
+    match kind {
+        ReferenceKind::Tracker => {
+            let arm = survey_sims::tracker::ArmGeometry::default();
+            let distance = arm.axis_center_mm.iter().map(|c| c * c).sum::<f64>().sqrt();
+            (survey_sims::tracker::sigma_mm(distance) / arm.radius_mm).to_degrees()
+        }
+        ReferenceKind::Autocollimator => {
+            survey_sims::autocollimator::AutocollimatorConfig::seeded(1, 0).noise_arcsec / 3600.0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_simulated_tracker_states_about_a_thousandth_of_a_degree() {
+        // (15 um + 6 um/m x 2.64 m) / 2 = 15.4 um across 1000 mm: 8.8e-4 deg.
+        let u = simulated_reference_u_deg(ReferenceKind::Tracker);
+        assert!((u - 8.84e-4).abs() < 1e-5, "{u}");
+        assert!((simulated_reference_u_deg(ReferenceKind::Autocollimator) - 0.1 / 3600.0).abs() < 1e-15);
+    }
+}

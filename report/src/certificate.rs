@@ -1,0 +1,203 @@
+//! The fields a calibration certificate states, and where each comes
+//! from ([`super::html::header`] shows them). In order of precedence: a flag of `survey report` (`--certificate-number`,
+//! `--laboratory`, `--traceability`, `--tolerance`, `--positioner`,
+//! `--reference-instrument`, `--reference-uncertainty`, `--operator`,
+//! `--customer`, `--temperature`); the `[certificate]` section of the
+//! configuration file, stored with the survey; what the bench itself says
+//! (the simulated preset's name and description, the simulated reference's
+//! noise, a configured instrument's driver and address, a simulated
+//! reference's lack of traceability); the survey (a certificate number made
+//! of its date and id when none was assigned); else "not stated".
+
+use survey_acquire::ReferenceKind;
+use survey_store::config::CertificateSection;
+use survey_store::survey::{Setup, SurveyRecord};
+
+/// What `survey report`'s flags say (each overrides the stored value): the
+/// same fields as the configuration's `[certificate]`.
+pub type CertificateFlags = survey_store::config::CertificateSection;
+
+/// A value and where it came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stated<T> {
+    pub value: T,
+    pub from: &'static str,
+}
+
+/// Every field of the header.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Certificate {
+    /// Always present: assigned, or made from the survey.
+    pub number: Stated<String>,
+    pub laboratory: Option<Stated<String>>,
+    pub traceability: Option<Stated<String>>,
+    pub tolerance_deg: Option<Stated<f64>>,
+    pub positioner: Option<Stated<String>>,
+    pub reference: Option<Stated<String>>,
+    pub reference_uncertainty_deg: Option<Stated<f64>>,
+    pub operator: Option<Stated<String>>,
+    pub customer: Option<Stated<String>>,
+    pub temperature_c: Option<Stated<f64>>,
+}
+
+const FLAG: &str = "survey report flag";
+const CONFIG: &str = "[certificate] of the configuration";
+/// Where a value the bench says came from (its sentences are the software's, errors in degrees).
+pub const BENCH: &str = "the bench";
+const SURVEY: &str = "made from the survey's date and id: no number was assigned";
+
+fn pick<T: Clone>(flag: &Option<T>, config: Option<&T>, bench: Option<T>) -> Option<Stated<T>> {
+    flag.clone()
+        .map(|value| Stated { value, from: FLAG })
+        .or_else(|| config.cloned().map(|value| Stated { value, from: CONFIG }))
+        .or_else(|| bench.map(|value| Stated { value, from: BENCH }))
+}
+
+impl Certificate {
+    /// The header of `survey`, with `flags` over what is stored (see the module documentation).
+    pub fn of(survey: &SurveyRecord, flags: &CertificateFlags) -> Certificate {
+        let stored: CertificateSection = match &survey.setup {
+            Setup::Configured(c) => c.config.certificate.clone().unwrap_or_default(),
+            _ => CertificateSection::default(),
+        };
+        let described = |key: &str| survey.instruments.get(key).and_then(|v| v.as_str()).map(str::to_string);
+        let (bench_positioner, bench_reference, bench_u) = match &survey.setup {
+            Setup::Simulated(s) => {
+                let preset = survey_sims::Preset::by_name(&s.preset);
+                let positioner = match (&s.model_file, &preset) {
+                    (Some(file), _) => format!("simulated positioner, model file {file}"),
+                    (None, Some(p)) => format!("simulated {} positioner: {}", p.name, p.description),
+                    (None, None) => format!("simulated {} positioner", s.preset),
+                };
+                let (reference, u) = match s.reference {
+                    ReferenceKind::Tracker => (
+                        "simulated laser tracker (Leica AT-class noise) on an SMR arm of 1000 mm".to_string(),
+                        survey_lab::refit::simulated_reference_u_deg(ReferenceKind::Tracker),
+                    ),
+                    ReferenceKind::Autocollimator => (
+                        "simulated autocollimator on a polygon with an exact certificate".to_string(),
+                        survey_lab::refit::simulated_reference_u_deg(ReferenceKind::Autocollimator),
+                    ),
+                };
+                (Some(positioner), Some(reference), Some(u))
+            }
+            _ => (described("positioner"), described("reference"), None),
+        };
+        let traceability = match &survey.setup {
+            Setup::Simulated(_) => Some(
+                "none: the reference is a simulated instrument, so these figures show the method and are not \
+                 traceable to the SI"
+                    .to_string(),
+            ),
+            _ => None,
+        };
+        let date: String = survey.created_at.chars().filter(char::is_ascii_digit).take(8).collect();
+        let made = if date.len() == 8 { format!("{date}-{}", survey.id) } else { survey.id.to_string() };
+        Certificate {
+            number: pick(&flags.number, stored.number.as_ref(), None).unwrap_or(Stated { value: made, from: SURVEY }),
+            laboratory: pick(&flags.laboratory, stored.laboratory.as_ref(), None),
+            traceability: pick(&flags.traceability, stored.traceability.as_ref(), traceability),
+            tolerance_deg: pick(&flags.tolerance_deg, stored.tolerance_deg.as_ref(), None),
+            positioner: pick(&flags.positioner, stored.positioner.as_ref(), bench_positioner),
+            reference: pick(&flags.reference, stored.reference.as_ref(), bench_reference),
+            reference_uncertainty_deg: pick(
+                &flags.reference_uncertainty_deg,
+                stored.reference_uncertainty_deg.as_ref(),
+                bench_u,
+            ),
+            operator: pick(&flags.operator, stored.operator.as_ref(), None),
+            customer: pick(&flags.customer, stored.customer.as_ref(), None),
+            temperature_c: pick(&flags.temperature_c, stored.temperature_c.as_ref(), None),
+        }
+    }
+
+    /// A short name of the positioner for the title.
+    pub fn positioner_name(&self, survey: &SurveyRecord) -> String {
+        match &self.positioner {
+            Some(p) if p.from != BENCH => p.value.clone(),
+            _ => match &survey.setup {
+                Setup::Simulated(s) => format!("simulated {} positioner", s.preset),
+                _ => described_or(survey, "positioner", "positioner"),
+            },
+        }
+    }
+}
+
+fn described_or(survey: &SurveyRecord, key: &str, default: &str) -> String {
+    survey.instruments.get(key).and_then(|v| v.as_str()).map(str::to_string).unwrap_or_else(|| default.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_configured_survey_states_its_certificate_section_and_flags_override_it() {
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config/modbus-emscon.toml"))
+                .unwrap();
+        let config = survey_store::config::SurveyConfig::parse(&text, "modbus-emscon.toml").unwrap();
+        let setup = survey_store::survey::ConfiguredSetup {
+            config,
+            plan: survey_plan::SurveyPlan::full_circle(360, 5, true).unwrap(),
+        };
+        let columns = survey_store::survey::StoredColumns {
+            id: 4,
+            uid: "00000000-0000-4000-8000-000000000004".into(),
+            asset: "unassigned".into(),
+            check_of: None,
+            created_at: "t".into(),
+            updated_at: "t".into(),
+            status: "complete".into(),
+            source: "instruments".into(),
+            points: Some(360),
+            runs: Some(5),
+            bidirectional: true,
+            config_json: serde_json::to_string(&setup).unwrap(),
+            model_toml: None,
+            instruments_json:
+                r#"{"positioner": "modbus-tcp 192.168.1.40:502", "reference": "emscon 192.168.1.30:700"}"#.into(),
+            axis_json: None,
+            started_at_s: None,
+            ended_at_s: None,
+            planned_samples: None,
+            sample_count: 0,
+        };
+        let survey = SurveyRecord::parse(columns, "x.db").unwrap();
+        let cert = Certificate::of(&survey, &CertificateFlags::default());
+        let positioner = cert.positioner.as_ref().unwrap();
+        assert_eq!(
+            (positioner.value.as_str(), positioner.from),
+            ("ACME AZ-200 azimuth positioner, serial 1042", CONFIG)
+        );
+        assert_eq!(cert.reference_uncertainty_deg.as_ref().map(|u| u.value), Some(0.0005));
+        assert_eq!(cert.temperature_c.as_ref().map(|t| t.value), Some(20.3));
+        assert_eq!(cert.laboratory.as_ref().map(|l| l.from), Some(CONFIG));
+        assert!(cert.traceability.as_ref().is_some_and(|t| t.value.contains("certificate 5678")));
+        // No number assigned: made from the survey (its id; `created_at` here has no date).
+        assert_eq!((cert.number.value.as_str(), cert.number.from), ("4", SURVEY));
+        let numbered = CertificateFlags { number: Some("CAL-1".into()), ..CertificateFlags::default() };
+        assert_eq!(Certificate::of(&survey, &numbered).number, Stated { value: "CAL-1".into(), from: FLAG });
+        let flags = CertificateFlags { operator: Some("K. Lee".into()), ..CertificateFlags::default() };
+        let cert = Certificate::of(&survey, &flags);
+        assert_eq!(cert.operator.as_ref().unwrap().value, "K. Lee");
+        assert_eq!(cert.positioner_name(&survey), "ACME AZ-200 azimuth positioner, serial 1042");
+        // Without a [certificate]: the configured instruments, as described.
+        let mut bare = survey.clone();
+        if let Setup::Configured(c) = &mut bare.setup {
+            c.config.certificate = None;
+        }
+        let cert = Certificate::of(&bare, &CertificateFlags::default());
+        assert_eq!(cert.reference.unwrap().value, "emscon 192.168.1.30:700");
+        assert_eq!(cert.reference_uncertainty_deg, None);
+    }
+
+    #[test]
+    fn a_flag_wins_over_the_configuration_which_wins_over_the_bench() {
+        let flag = Some("A".to_string());
+        assert_eq!(pick(&flag, Some(&"B".to_string()), Some("C".into())).unwrap().from, FLAG);
+        assert_eq!(pick(&None, Some(&"B".to_string()), Some("C".into())).unwrap().value, "B");
+        assert_eq!(pick(&None, None, Some("C".to_string())).unwrap().from, BENCH);
+        assert_eq!(pick::<String>(&None, None, None), None);
+    }
+}

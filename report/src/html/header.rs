@@ -1,0 +1,112 @@
+//! The certificate's header: its fields ([`crate::certificate`]),
+//! each with where it came from, the survey, its plan and dates.
+
+use super::{Page, Section};
+use crate::certificate::{BENCH, Certificate, Stated};
+use crate::page::escape;
+use crate::units::Units;
+use std::fmt::Write as _;
+use survey_store::survey::{Setup, SurveyRecord};
+
+/// The plan in words.
+pub fn plan_text(survey: &SurveyRecord) -> String {
+    let Some(plan) = survey.plan() else {
+        return format!(
+            "{} targets x {} runs, {} (as imported)",
+            survey.points.map_or("?".into(), |p| p.to_string()),
+            survey.runs.map_or("?".into(), |p| p.to_string()),
+            if survey.bidirectional { "bidirectional" } else { "one direction" }
+        );
+    };
+    let t = &plan.targets_deg;
+    let step = if t.len() > 1 { t[1] - t[0] } else { 0.0 };
+    let mut s = format!(
+        "{} targets from {:.4} to {:.4} deg (every {:.4} deg), {} runs, {}, overrun {:.3} deg",
+        t.len(),
+        t[0],
+        t[t.len() - 1],
+        step,
+        plan.runs,
+        if plan.bidirectional { "forward and reverse" } else { "forward only" },
+        plan.overrun_deg
+    );
+    if let Setup::Simulated(sim) = &survey.setup {
+        let _ = write!(s, "; reference {}, seed {}", sim.reference.as_str(), sim.seed);
+    }
+    s
+}
+
+/// The header as an HTML table (`tbl-header`).
+fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
+    let not_stated = "<i>not stated</i>".to_string();
+    let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
+    // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as written.
+    let text = |v: &Option<Stated<String>>| {
+        v.as_ref().map_or(not_stated.clone(), |s| {
+            let value = if s.from == BENCH { units.text(&s.value) } else { s.value.clone() };
+            escape(&value) + &from(s.from)
+        })
+    };
+    let mut rows: Vec<(&str, String)> = vec![
+        ("Certificate number", text(&Some(cert.number.clone()))),
+        ("Calibrating laboratory", text(&cert.laboratory)),
+        ("Traceability", text(&cert.traceability)),
+        ("Positioner", text(&cert.positioner)),
+        ("Reference instrument", text(&cert.reference)),
+        (
+            "Reference uncertainty",
+            cert.reference_uncertainty_deg.as_ref().map_or(not_stated.clone(), |u| {
+                format!("{} (standard uncertainty of one angle){}", units.show(u.value), from(u.from))
+            }),
+        ),
+        ("Operator", text(&cert.operator)),
+        ("Customer", text(&cert.customer)),
+        (
+            "Environment",
+            cert.temperature_c
+                .as_ref()
+                .map_or("<i>temperature not stated</i>".to_string(), |t| format!("{:.1} °C{}", t.value, from(t.from))),
+        ),
+        (
+            "Survey",
+            format!(
+                "{} ({}), status {}; {samples} samples",
+                survey.id,
+                escape(&survey.source.to_string()),
+                survey.status
+            ),
+        ),
+        ("Plan", escape(&plan_text(survey))),
+    ];
+    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
+        (Some(a), Some(b)) if b >= a => format!("; {:.1} h of instrument time", (b - a) / 3600.0),
+        _ => String::new(),
+    };
+    rows.push((
+        "Dates (UTC)",
+        format!(
+            "created {}, last changed {}{instrument_time}; report made {}",
+            escape(&survey.created_at),
+            escape(&survey.updated_at),
+            escape(generated)
+        ),
+    ));
+    rows.push(("Software", format!("survey {}", env!("CARGO_PKG_VERSION"))));
+    rows.push(("Units", format!("errors in {}; angles in degrees", units.symbol())));
+    let mut html = String::from("<table class=\"header\" id=\"tbl-header\"><tbody>\n");
+    for (k, v) in rows {
+        let _ = writeln!(html, "<tr><td>{k}</td><td>{v}</td></tr>");
+    }
+    html + "</tbody></table>\n"
+}
+
+/// The section: the certificate's fields.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let d = p.d;
+    Ok(Some(Section {
+        id: "certificate",
+        title: "Certificate".into(),
+        new_page: false,
+        body: fields(&d.survey, &p.cert, d.samples.len(), p.units, &d.generated),
+    }))
+}

@@ -1,0 +1,190 @@
+//! The page: one module per section, in the order [`BODY`] and [`APPENDIX`]
+//! list them. A section is a function of what every section shares
+//! ([`Page`]: the gathered data, the options, the certificate's fields, the
+//! error map and the ISO 230-2 figures, computed once); it returns `None`
+//! when it has nothing to show (no verification, no drift data), and
+//! otherwise always a body: a section that cannot show its figure says what
+//! it cannot show and why. Adding a section is a module and one line in a
+//! list.
+//!
+//! - [`header`]: the certificate's fields and where each comes from;
+//! - [`summary`]: the figures a customer reads first, each with its
+//!   uncertainty, and the verdict against a tolerance;
+//! - [`errors`]: error against angle, every run and direction, ±2 s band;
+//! - [`hysteresis`]: forward minus reverse against angle;
+//! - [`spectrum`]: the spectrum with its lines named and the aliases moved;
+//! - [`interpolation`]: the paper's Figure 6;
+//! - [`table`]: the correction table;
+//! - [`verification`]: native against corrected on one scale;
+//! - [`modelgap`], [`drift`], [`uncertainty`]: when there is such data;
+//! - [`history`]: the asset's earlier surveys, when it has any;
+//! - [`iso`]: ISO 230-2 and VDI/DGQ 3441 for the axis; per target in the appendix.
+
+pub mod drift;
+pub mod errors;
+pub mod header;
+pub mod history;
+pub mod hysteresis;
+pub mod interpolation;
+pub mod iso;
+pub mod modelgap;
+pub mod spectrum;
+pub mod summary;
+pub mod table;
+pub mod uncertainty;
+pub mod verification;
+
+use crate::certificate::Certificate;
+use crate::page::{self, escape};
+use crate::units::Units;
+use crate::{ReportData, ReportOptions};
+use survey_processing::errormap::ErrorMap;
+use survey_processing::iso230::{Iso230, iso230_2};
+use survey_processing::pipeline::Processed;
+use survey_store::survey::SurveySource;
+
+/// What every section reads.
+#[derive(Debug)]
+pub struct Page<'a> {
+    /// What was gathered.
+    pub d: &'a ReportData,
+    /// What was asked.
+    pub opts: &'a ReportOptions,
+    /// The unit of every error.
+    pub units: Units,
+    /// The certificate's fields, flags over the configuration over the bench.
+    pub cert: Certificate,
+    /// The error map of the survey's samples, or why there is none.
+    pub map: Result<ErrorMap, String>,
+    /// ISO 230-2 of the survey's samples, or why there are none.
+    pub iso: Result<Iso230, String>,
+}
+
+impl Page<'_> {
+    /// The processing, or `None` when the survey could not be processed.
+    pub fn processed(&self) -> Option<&Processed> {
+        self.d.processed.as_ref().ok()
+    }
+}
+
+/// One section of the page.
+#[derive(Debug)]
+pub struct Section {
+    /// Its id (the page's index and the tests find it by it).
+    pub id: &'static str,
+    /// Its heading.
+    pub title: String,
+    /// Whether it starts a printed page.
+    pub new_page: bool,
+    /// Its body, HTML.
+    pub body: String,
+}
+
+impl Section {
+    /// A section that starts a printed page.
+    pub fn page(id: &'static str, title: impl Into<String>, body: String) -> Option<Section> {
+        Some(Section { id, title: title.into(), new_page: true, body })
+    }
+}
+
+/// A section of the page, from what every section reads.
+pub type Show = fn(&Page<'_>) -> anyhow::Result<Option<Section>>;
+
+/// The sections of the certificate, in order.
+pub const BODY: &[Show] = &[
+    header::show,
+    summary::show,
+    errors::show,
+    hysteresis::show,
+    spectrum::show,
+    interpolation::show,
+    table::show,
+    verification::show,
+    modelgap::show,
+    drift::show,
+    uncertainty::show,
+    history::show,
+    iso::show_axis,
+    notes,
+];
+
+/// The appendices, after the body, lettered A, B, ... in this order.
+pub const APPENDIX: &[Show] = &[iso::show_targets];
+
+/// A note in place of what a section cannot show.
+pub fn note(text: &str) -> String {
+    format!("<p class=\"note\">{}</p>\n", escape(text))
+}
+
+/// The processing's notes and its direction model, when there are any.
+fn notes(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let Some(processed) = p.processed() else { return Ok(None) };
+    let direction = processed.built.direction_model.as_ref().map(|dm| dm.text());
+    let notes: Vec<&String> = processed.notes.iter().chain(&direction).collect();
+    if notes.is_empty() {
+        return Ok(None);
+    }
+    let items: String = notes.iter().map(|n| format!("<li>{}</li>", escape(&p.units.text(n)))).collect();
+    Ok(Some(Section {
+        id: "notes",
+        title: "Processing notes".into(),
+        new_page: false,
+        body: format!("<ul class=\"note\">{items}</ul>\n"),
+    }))
+}
+
+/// The title of the page.
+fn title(p: &Page<'_>) -> String {
+    let s = &p.d.survey;
+    let name = p.cert.positioner_name(s);
+    match (&s.source, &s.verification) {
+        (SurveySource::Verification, Some(v)) => {
+            format!("{name}: verification (survey {}) of the table of survey {}", s.id, v.verifies_survey)
+        }
+        _ => format!("{name}: calibration survey {}", s.id),
+    }
+}
+
+/// The page of `d`.
+pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
+    let p = Page {
+        d,
+        opts,
+        units: opts.units,
+        cert: Certificate::of(&d.survey, &opts.flags),
+        map: ErrorMap::from_samples(&d.samples).map_err(|e| e.to_string()),
+        iso: iso230_2(&d.samples).map_err(|e| e.to_string()),
+    };
+    let title = title(&p);
+    let number = &p.cert.number.value;
+    let laboratory = p.cert.laboratory.as_ref().map(|l| l.value.clone()).unwrap_or_default();
+    let mut body = format!(
+        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate {}{}</p>\n<h1>{}</h1>\n\
+         <p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and the accuracy \
+         figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
+        escape(number),
+        if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) },
+        escape(&title),
+        p.units.symbol()
+    );
+    for show in BODY {
+        if let Some(s) = show(&p)? {
+            body += &page::section(s.id, &s.title, if s.new_page { &["page"] } else { &[] }, &s.body);
+        }
+    }
+    for (letter, s) in ('A'..='Z').zip(APPENDIX.iter().map(|show| show(&p)).filter_map(Result::transpose)) {
+        let s = s?;
+        body += &page::section(s.id, &format!("Appendix {letter}: {}", s.title), &["page", "appendix"], &s.body);
+    }
+    body += &format!(
+        "<footer><p class=\"note\">survey {} — report made {}.</p></footer>\n",
+        env!("CARGO_PKG_VERSION"),
+        escape(&d.generated)
+    );
+    let running = page::Running {
+        top_left: format!("Calibration certificate {number}"),
+        top_right: laboratory,
+        bottom_left: format!("{}: survey {}", p.cert.positioner_name(&d.survey), d.survey.id),
+    };
+    Ok(page::document(&title, &running, &body))
+}

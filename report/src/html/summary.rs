@@ -1,0 +1,134 @@
+//! The summary: what a customer reads first, each figure with the
+//! uncertainty that belongs to it, and the verdict against a tolerance
+//! ([`crate::conformity`]) when one is given.
+
+use super::{Page, Section};
+use crate::conformity::{self, Decision};
+use crate::page::{self, escape};
+use survey_processing::Sample;
+use survey_processing::iso230::iso230_2;
+
+/// The section: the figures, their uncertainties, the verdict.
+pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let (d, units) = (p.d, p.units);
+    let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
+    let measured_u = conformity::accuracy_u_deg(reference_u, d.axis_u_deg);
+    let u_of = |u: Option<f64>| u.map_or_else(|| "not known".to_string(), |u| units.show(u));
+    let mut rows: Vec<Vec<String>> = Vec::new();
+    if let Ok(iso) = &p.iso {
+        rows.push(vec!["ISO 230-2 accuracy A, as measured".into(), units.show(iso.a), u_of(measured_u)]);
+        rows.push(vec!["ISO 230-2 repeatability R".into(), units.show(iso.r), "-".into()]);
+        rows.push(vec!["the figures' axis".into(), escape(d.axis.text()), "-".into()]);
+    }
+    let table_u = d.uncertainty.as_ref().map(|b| b.table_u_deg);
+    if let Ok(processed) = &d.processed {
+        let prediction = &processed.prediction;
+        rows.push(vec!["native peak error ±".into(), units.show(prediction.native_peak_deg), u_of(measured_u)]);
+        rows.push(vec![
+            "corrected peak error ±, predicted from this survey".into(),
+            units.show(prediction.corrected_peak_deg),
+            format!("{} (the table's)", u_of(table_u)),
+        ]);
+        if let Some(floor) = processed.floor.deg {
+            rows.push(vec![
+                format!("floor: {}", escape(&units.text(&processed.floor.what))),
+                units.show(floor),
+                "-".into(),
+            ]);
+        }
+        let own = (d.survey.id, d.samples.as_slice());
+        rows.extend(super::verification::verdict_rows(processed, table_u, d.verification.as_ref(), own, units));
+    }
+    let corrected_a =
+        d.verification.as_ref().and_then(|v| iso230_2(v.corrected(&d.samples)).ok().map(|iso| (v, iso.a)));
+    if let Some(v) = &d.verification {
+        let errors: Vec<f64> = v.corrected(&d.samples).iter().map(Sample::error_deg).collect();
+        let peak = survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg;
+        rows.push(vec![
+            format!("corrected peak error ±, measured (survey {})", v.verification_id),
+            units.show(peak),
+            u_of(measured_u),
+        ]);
+    }
+    if let Some((v, a)) = corrected_a {
+        rows.push(vec![
+            format!("ISO 230-2 accuracy A, corrected, measured (survey {})", v.verification_id),
+            units.show(a),
+            u_of(measured_u),
+        ]);
+    }
+    let mut body = String::new();
+    if let Some(tolerance) = &p.cert.tolerance_deg {
+        let (what, figure) = match corrected_a {
+            Some((v, a)) => (
+                format!(
+                    "the corrected accuracy A per ISO 230-2, measured by verification survey {} with the table of \
+                     survey {} applied",
+                    v.verification_id, v.native_id
+                ),
+                Some(a),
+            ),
+            None => (
+                "the native accuracy A per ISO 230-2 of this survey (no correction applied)".to_string(),
+                p.iso.as_ref().ok().map(|iso| iso.a),
+            ),
+        };
+        body += &verdict(figure, measured_u, tolerance.value, &what, p);
+    }
+    body += &page::table("tbl-summary", &["figure", "value", "expanded uncertainty U (k = 2)"], &rows);
+    body += &format!(
+        "<p class=\"note\">U of a measured figure: k √(u<sub>ref</sub>² + u<sub>axis</sub>²), the reference \
+         instrument's stated standard uncertainty of one angle{} and, with a tracker, the located axis's{} \
+         (ISO 230-2 Annex A's measuring instrument and set-up); the scatter over the runs is already inside A (its \
+         ±2 s bands), and the environment's contribution is not included (no temperature was measured). U of the \
+         predicted corrected peak is the table's, as a correction (section Uncertainty of the table).</p>\n",
+        reference_u.map_or(" (not stated: no U)".to_string(), |u| format!(" ({})", units.show(u))),
+        d.axis_u_deg.map_or(String::new(), |u| format!(" ({})", units.show(u))),
+    );
+    Ok(Some(Section { id: "summary", title: "Summary".into(), new_page: false, body }))
+}
+
+/// The verdict's paragraph and the rule it follows.
+fn verdict(figure: Option<f64>, u: Option<f64>, tolerance: f64, what: &str, p: &Page<'_>) -> String {
+    let units = p.units;
+    let (class, text) = match figure {
+        None => ("", format!("Verdict: not decidable: there is no ISO 230-2 accuracy A to judge ({what}).")),
+        Some(a) => {
+            let decision = conformity::decide(a, u, tolerance);
+            let why = match (decision, u) {
+                (_, None) => "its uncertainty is not known: state the reference's uncertainty \
+                              (--reference-uncertainty or [certificate] reference_uncertainty_deg)"
+                    .to_string(),
+                (Decision::Pass, Some(u)) => format!("A + U = {} ≤ {}", units.show(a + u), units.show(tolerance)),
+                (Decision::Fail, Some(u)) => format!("A − U = {} > {}", units.show(a - u), units.show(tolerance)),
+                (Decision::NotDecidable, Some(u)) => format!(
+                    "the tolerance lies between A − U = {} and A + U = {}",
+                    units.show(a - u),
+                    units.show(a + u)
+                ),
+            };
+            let class = match decision {
+                Decision::Pass => " pass",
+                Decision::Fail => " fail",
+                Decision::NotDecidable => "",
+            };
+            let u_text = u.map_or("U not known".to_string(), |u| format!("U = {} (k = 2)", units.show(u)));
+            (
+                class,
+                format!(
+                    "Verdict against the tolerance {} ({}): {}. A = {}, {u_text}, {why}. Judged: {what}.",
+                    units.show(tolerance),
+                    p.cert.tolerance_deg.as_ref().map_or("", |t| t.from),
+                    decision.word().to_uppercase(),
+                    units.show(a),
+                ),
+            )
+        }
+    };
+    format!(
+        "<p class=\"verdict{class}\" id=\"verdict\">{}</p>\n<p class=\"note\" id=\"decision-rule\">Decision rule (ISO \
+         14253-1, ILAC-G8: a guard band of the expanded uncertainty U): pass when A + U ≤ the tolerance; fail \
+         when A − U > the tolerance; otherwise not decidable (within the uncertainty).</p>\n",
+        escape(&text)
+    )
+}

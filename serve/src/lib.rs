@@ -1,0 +1,275 @@
+//! `survey serve`: the lab's pages, read-only, over HTTP (axum).
+//!
+//! - `/`: every asset with its calibration in force and its state, and the
+//!   surveys being acquired now with their progress, refreshed in place by a
+//!   small same-origin script (`/static/live.js`) that reads `/api/live`;
+//! - `/assets/<id>`: the asset's history (plots over time, each survey linked);
+//! - `/surveys/<uid>` (or an id): the survey's report, the page `survey report` writes;
+//! - `/api/...`: the commands' `--json` documents ([`api`]).
+//!
+//! Every request opens the store read-only and closes it again
+//! ([`survey_store::Store::open_read_only`]: an SQLite reader in WAL mode
+//! never blocks the station writing into the same file, and never takes its
+//! lock), so what a page shows is what is stored at that moment. Only GET and
+//! HEAD are served (anything else: 405); every response carries a
+//! Content-Security-Policy that lets a page fetch nothing but its own
+//! script and JSON. A path that names nothing is a 404 page (JSON under
+//! `/api/`); a store that cannot be read, a 503 with the reason (a lab
+//! store's URL shown without its password).
+
+mod overview;
+mod pages;
+
+use axum::Router;
+use axum::extract::Request;
+use axum::http::{HeaderValue, Method, StatusCode, Uri, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use serde_json::{Value, json};
+use std::path::PathBuf;
+use std::sync::Arc;
+use survey_store::is_not_found;
+
+/// The pages' policy, as a literal (for `concat!`).
+macro_rules! policy {
+    () => {
+        "default-src 'none'; style-src 'unsafe-inline'; script-src 'self'; connect-src 'self'; img-src 'self' data:; \
+         base-uri 'none'; form-action 'none'"
+    };
+}
+
+/// The Content-Security-Policy of the pages (in their `<meta>`): styles
+/// inline, the one same-origin script, JSON from this server only; nothing else.
+pub const POLICY: &str = policy!();
+
+/// The policy of every response's header: [`POLICY`], and no page may frame
+/// these (a directive only a header carries).
+const HEADER_POLICY: &str = concat!(policy!(), "; frame-ancestors 'none'");
+
+/// What the server is told.
+#[derive(Debug, Clone)]
+pub struct ServeOptions {
+    /// The station's SQLite file or the lab store's URL.
+    pub db: PathBuf,
+    /// A calibration older than this many days is due.
+    pub due_after_days: f64,
+    /// How often `/` refreshes the live surveys, milliseconds.
+    pub refresh_ms: u64,
+}
+
+type App = Arc<ServeOptions>;
+
+/// Why a request was not served.
+#[derive(Debug)]
+struct Failure {
+    status: StatusCode,
+    reason: String,
+    /// Answer in JSON (an `/api/` path) rather than a page.
+    api: bool,
+}
+
+impl Failure {
+    /// The store could not be opened.
+    fn unavailable(e: &anyhow::Error, api: bool) -> Failure {
+        Failure {
+            status: StatusCode::SERVICE_UNAVAILABLE,
+            reason: format!("the survey database cannot be read: {e:#}"),
+            api,
+        }
+    }
+
+    /// What was asked for is not there (404), cannot be made from what is
+    /// there (400), or the store failed while read (503).
+    fn of(e: &anyhow::Error, api: bool) -> Failure {
+        if is_not_found(e) {
+            return Failure { status: StatusCode::NOT_FOUND, reason: format!("{e:#}"), api };
+        }
+        if survey_lab::error::exit_status(e) == 2 {
+            return Failure { status: StatusCode::BAD_REQUEST, reason: format!("{e:#}"), api };
+        }
+        Failure::unavailable(e, api)
+    }
+
+    fn not_found(what: String, api: bool) -> Failure {
+        Failure { status: StatusCode::NOT_FOUND, reason: what, api }
+    }
+}
+
+impl IntoResponse for Failure {
+    fn into_response(self) -> Response {
+        if self.status.is_server_error() {
+            tracing::warn!(status = self.status.as_u16(), "{}", self.reason);
+        }
+        if self.api {
+            (self.status, json_body(&json!({"error": self.reason}))).into_response()
+        } else {
+            (self.status, html_body(pages::failure(self.status, &self.reason))).into_response()
+        }
+    }
+}
+
+fn json_body(doc: &Value) -> ([(header::HeaderName, &'static str); 1], String) {
+    ([(header::CONTENT_TYPE, "application/json")], format!("{doc}\n"))
+}
+
+fn html_body(page: String) -> ([(header::HeaderName, &'static str); 1], String) {
+    ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], page)
+}
+
+/// Open the store read-only, run `$body` with it bound to `$store`, close it;
+/// the body's error mapped to its status.
+macro_rules! read {
+    ($app:expr, $api:expr, |$store:ident| $body:expr) => {{
+        let $store = survey_store::Store::open_read_only(&$app.db).await.map_err(|e| Failure::unavailable(&e, $api))?;
+        let result: anyhow::Result<_> = async { $body }.await;
+        $store.close().await;
+        result.map_err(|e| Failure::of(&e, $api))?
+    }};
+}
+use read;
+
+/// A survey named in a path: an id or a uid (404 otherwise).
+fn survey_ref(text: &str, api: bool) -> Result<survey_store::survey::SurveyRef, Failure> {
+    text.parse().map_err(|e: String| Failure::not_found(e, api))
+}
+
+/// The server's routes, over the store `options.db`.
+pub fn router(options: ServeOptions) -> Router {
+    Router::new()
+        .route("/", get(pages::index))
+        .route("/static/live.js", get(pages::script))
+        .route("/assets/{*asset}", get(pages::asset))
+        .route("/surveys/{survey}", get(pages::survey))
+        .nest("/api", api::routes())
+        .fallback(not_found)
+        .layer(middleware::from_fn(guard))
+        .with_state(Arc::new(options))
+}
+
+async fn not_found(uri: Uri) -> Failure {
+    let api = uri.path().starts_with("/api/");
+    Failure::not_found(format!("nothing at {}", uri.path()), api)
+}
+
+/// Every request: only GET and HEAD; every response: the policy and no caching.
+async fn guard(req: Request, next: Next) -> Response {
+    let (method, path) = (req.method().clone(), req.uri().path().to_string());
+    let mut response = if method == Method::GET || method == Method::HEAD {
+        next.run(req).await
+    } else {
+        let mut r = (StatusCode::METHOD_NOT_ALLOWED, format!("{method} is not served: these pages are read-only\n"))
+            .into_response();
+        r.headers_mut().insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
+        r
+    };
+    let h = response.headers_mut();
+    h.insert(header::CONTENT_SECURITY_POLICY, HeaderValue::from_static(HEADER_POLICY));
+    h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
+    h.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    tracing::info!(%method, path = %path, status = response.status().as_u16(), "served");
+    response
+}
+
+/// Serve `options.db` on `listener` until `shutdown` resolves; the requests
+/// under way are answered first.
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    options: ServeOptions,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    axum::serve(listener, router(options)).with_graceful_shutdown(shutdown).await
+}
+
+/// A future that resolves on SIGINT or SIGTERM, the handlers installed now
+/// (before the ready line: a signal from then on ends the server gracefully).
+pub fn on_signals() -> std::io::Result<impl Future<Output = ()> + Send + 'static> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let (mut interrupt, mut terminate) = (signal(SignalKind::interrupt())?, signal(SignalKind::terminate())?);
+    Ok(async move {
+        tokio::select! {
+            _ = interrupt.recv() => {}
+            _ = terminate.recv() => {}
+        }
+    })
+}
+
+/// `/api/...`: the commands' `--json` documents, and `/`'s own.
+///
+/// | path | document |
+/// |---|---|
+/// | `/api/surveys` | `survey list --json` |
+/// | `/api/surveys/<id or uid>` | `survey show ID --json` |
+/// | `/api/surveys/<id or uid>/stats` | `survey stats --survey ID --json` |
+/// | `/api/history/<asset>` | `survey history --asset ID --json` |
+/// | `/api/compare/<a>/<b>` | `survey compare A B --json` |
+/// | `/api/assets` | the assets of `/`, each with its calibration in force and state |
+/// | `/api/live` | the surveys being acquired now, with their progress |
+pub mod api {
+    use super::{App, Failure, json_body, survey_ref};
+    use axum::Router;
+    use axum::extract::{Path as UrlPath, State};
+    use axum::response::IntoResponse;
+    use axum::routing::get;
+    use survey_lab::documents::{Stats, list_json, shown};
+    use survey_lab::load::{Axis, load};
+
+    pub(super) fn routes() -> Router<App> {
+        Router::new()
+            .route("/surveys", get(list))
+            .route("/surveys/{survey}", get(show))
+            .route("/surveys/{survey}/stats", get(stats))
+            .route("/history/{*asset}", get(history))
+            .route("/compare/{a}/{b}", get(compare))
+            .route("/assets", get(assets))
+            .route("/live", get(live))
+    }
+
+    async fn list(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
+        let surveys = read!(app, true, |store| store.list().await);
+        Ok(json_body(&list_json(&survey_store::lab::display(&app.db), &surveys)))
+    }
+
+    async fn show(State(app): State<App>, UrlPath(survey): UrlPath<String>) -> Result<impl IntoResponse, Failure> {
+        let r = survey_ref(&survey, true)?;
+        let shown = read!(app, true, |store| shown(&store, Some(r)).await);
+        Ok(json_body(&shown.json()))
+    }
+
+    async fn stats(State(app): State<App>, UrlPath(survey): UrlPath<String>) -> Result<impl IntoResponse, Failure> {
+        let r = survey_ref(&survey, true)?;
+        let loaded = read!(app, true, |store| load(&store, Some(r), Axis::Refitted).await);
+        let stats = Stats::of(&loaded).map_err(|e| Failure::of(&e, true))?;
+        Ok(json_body(&stats.json(&loaded)))
+    }
+
+    async fn history(State(app): State<App>, UrlPath(asset): UrlPath<String>) -> Result<impl IntoResponse, Failure> {
+        let h = read!(app, true, |store| survey_lab::life::history::history(&store, &asset, None).await);
+        Ok(json_body(&h.json()))
+    }
+
+    async fn compare(
+        State(app): State<App>,
+        UrlPath((a, b)): UrlPath<(String, String)>,
+    ) -> Result<impl IntoResponse, Failure> {
+        let (a, b) = (survey_ref(&a, true)?, survey_ref(&b, true)?);
+        let (a, b) = read!(app, true, |store| {
+            let a = survey_lab::life::measure(&store, a).await?;
+            let b = survey_lab::life::measure(&store, b).await?;
+            anyhow::Ok((a, b))
+        });
+        let c = survey_lab::life::compared(&a, &b).map_err(|e| Failure::of(&e, true))?;
+        Ok(json_body(&c.json(&a, &b)))
+    }
+
+    async fn assets(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
+        let assets = read!(app, true, |store| super::overview::assets(&store, app.due_after_days).await);
+        Ok(json_body(&super::overview::assets_json(&assets)))
+    }
+
+    async fn live(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
+        let live = read!(app, true, |store| super::overview::live(&store).await);
+        Ok(json_body(&super::overview::live_json(&live)))
+    }
+}

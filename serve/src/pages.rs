@@ -1,0 +1,176 @@
+//! The pages: `/`, `/assets/<id>`, `/surveys/<uid>`, the error pages, and
+//! the refresh script. Server-rendered HTML in the report's style, plots
+//! as inline SVG, no framework.
+
+use super::overview::{self, Asset, Live};
+use super::{App, Failure, POLICY, html_body, read, survey_ref};
+use axum::extract::{Path as UrlPath, State};
+use axum::http::{StatusCode, header};
+use axum::response::IntoResponse;
+use survey_report::page::{Running, document_under, escape, section};
+use survey_report::{ReportOptions, Units};
+
+/// The refresh script of `/`.
+const SCRIPT: &str = include_str!("live.js");
+
+/// A link to an asset's page (its id may hold `/`, kept as it is).
+fn asset_link(asset: &str) -> String {
+    format!("<a href=\"/assets/{0}\">{0}</a>", escape(asset))
+}
+
+/// A page of `survey serve`: the report's look, under the server's policy.
+fn page(title: &str, body: &str) -> String {
+    let nav = "<p class=\"subtitle\"><a href=\"/\">All assets and live surveys</a></p>\n";
+    document_under(POLICY, title, &Running::default(), &format!("{nav}{body}"))
+}
+
+/// The element of a survey being acquired (the script keeps it up to date).
+fn live_element(l: &Live) -> String {
+    let s = &l.survey;
+    let planned = s.planned_samples.map_or(String::new(), |p| format!(" of {p}"));
+    let bar = s.planned_samples.map_or("<progress></progress>".into(), |p| {
+        format!("<progress max=\"{p}\" value=\"{}\"></progress>", s.sample_count)
+    });
+    let left = l.time_left_s.map_or("time left: not known yet".into(), |t| {
+        let m = (t / 60.0).round();
+        if m < 1.0 {
+            format!("time left: {t:.0} s")
+        } else if m < 120.0 {
+            format!("time left: {m} min")
+        } else {
+            format!("time left: {:.1} h", m / 60.0)
+        }
+    });
+    format!(
+        "<div class=\"live\" id=\"live-{uid}\" data-samples=\"{n}\"><a href=\"/surveys/{uid}\">survey {id}</a> \
+         <span class=\"asset\">{asset}</span> {bar} <span class=\"done\">{n}{planned} samples</span>, \
+         <span class=\"left\">{left}</span>, <span class=\"faults\">{f} {fw} met</span></div>\n",
+        uid = escape(&s.uid),
+        id = s.id,
+        n = s.sample_count,
+        asset = escape(&s.asset),
+        f = l.faults,
+        fw = if l.faults == 1 { "fault" } else { "faults" },
+    )
+}
+
+/// The assets' table.
+fn assets_table(assets: &[Asset]) -> String {
+    let units = Units::Deg;
+    let rows: Vec<Vec<String>> = assets
+        .iter()
+        .map(|a| {
+            let (cal, made, iso) = match &a.calibration {
+                Some((r, iso)) => {
+                    (format!("<a href=\"/surveys/{}\">survey {}</a>", escape(&r.uid), r.id), escape(&r.created_at), iso)
+                }
+                None => ("none".into(), "-".into(), &None),
+            };
+            vec![
+                asset_link(&a.asset),
+                a.surveys.to_string(),
+                cal,
+                made,
+                units.opt(iso.as_ref().map(|i| i.a)),
+                units.opt(iso.as_ref().map(|i| i.r)),
+                format!(
+                    "<span class=\"state\" data-state=\"{0}\">{0}</span>: {1}",
+                    a.state.0.as_str(),
+                    escape(&a.state.1)
+                ),
+            ]
+        })
+        .collect();
+    let head = ["asset", "surveys", "calibration in force", "made (UTC)", "A, deg", "R, deg", "state"];
+    survey_report::page::table_left("tbl-assets", &head, &rows, &[0, 2, 3, 6])
+}
+
+/// `/`.
+pub(super) async fn index(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
+    let (assets, live) = read!(app, false, |store| {
+        let assets = overview::assets(&store, app.due_after_days).await?;
+        let live = overview::live(&store).await?;
+        anyhow::Ok((assets, live))
+    });
+    let db = survey_store::lab::display(&app.db);
+    let live_html: String = live.iter().map(live_element).collect();
+    let body = format!(
+        "<h1>Surveys of {db}</h1>\n{live}{assets}<script src=\"/static/live.js\"></script>\n",
+        db = escape(&db),
+        live = section(
+            "live",
+            "Being acquired now",
+            &[],
+            &format!(
+                "<div id=\"live-list\">{live_html}</div>\n<p id=\"live-none\"{hidden}>No survey is being acquired.</p>\n\
+                 <p class=\"note\" id=\"live-status\">refreshed every {s} s</p>\n",
+                hidden = if live.is_empty() { "" } else { " hidden" },
+                s = app.refresh_ms as f64 / 1000.0,
+            )
+        ),
+        assets = section(
+            "assets",
+            "Assets",
+            &[],
+            &if assets.is_empty() {
+                "<p>The database holds no survey yet.</p>\n".to_string()
+            } else {
+                assets_table(&assets)
+                    + &format!(
+                        "<p class=\"note\">State: <b>due</b> when it has no calibration, the calibration is older than \
+                         {} days, or a check called for a recalibration not made yet; <b>changed</b> when the last \
+                         check found the positioner changed but its table still holding; otherwise <b>in \
+                         tolerance</b>.</p>\n",
+                        app.due_after_days
+                    )
+            }
+        ),
+    );
+    let html = page(&format!("Surveys of {db}"), &body).replacen(
+        "<body>",
+        &format!("<body data-refresh-ms=\"{}\">", app.refresh_ms),
+        1,
+    );
+    Ok(html_body(html))
+}
+
+/// `/static/live.js`.
+pub(super) async fn script() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], SCRIPT)
+}
+
+/// `/assets/<id>`: the asset's history.
+pub(super) async fn asset(
+    State(app): State<App>,
+    UrlPath(asset): UrlPath<String>,
+) -> Result<impl IntoResponse, Failure> {
+    let h = read!(app, false, |store| survey_lab::life::history::history(&store, &asset, None).await);
+    let figures =
+        survey_report::html::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
+    let body = format!(
+        "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} surveys; the history as JSON: \
+         <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{s}",
+        a = escape(&h.asset),
+        n = h.surveys.len(),
+        s = section("history", "History", &[], &figures),
+    );
+    Ok(html_body(page(&format!("Asset {}", h.asset), &body)))
+}
+
+/// `/surveys/<uid>` (or an id): the survey's report, as `survey report` writes it.
+pub(super) async fn survey(
+    State(app): State<App>,
+    UrlPath(survey): UrlPath<String>,
+) -> Result<impl IntoResponse, Failure> {
+    let r = survey_ref(&survey, false)?;
+    let opts = ReportOptions::default();
+    let data = read!(app, false, |store| survey_report::gather(&store, Some(r), &opts).await);
+    let html = survey_report::html::render(&data, &opts).map_err(|e| Failure::of(&e, false))?;
+    Ok(html_body(html))
+}
+
+/// An error page.
+pub(super) fn failure(status: StatusCode, reason: &str) -> String {
+    let title = format!("{} {}", status.as_u16(), status.canonical_reason().unwrap_or(""));
+    page(&title, &format!("<h1>{}</h1>\n<p id=\"reason\">{}</p>\n", escape(&title), escape(reason)))
+}

@@ -1,0 +1,774 @@
+//! The survey configuration file (`survey run --config FILE`): which driver
+//! and address for each instrument, the reference, the polygon or arm data,
+//! travel limits and timing.
+//!
+//! ```toml
+//! [survey]
+//! points = 360
+//! runs = 5
+//! bidirectional = true
+//! reference = "tracker"          # or "autocollimator"
+//! travel_deg = [-10.0, 90.0]     # omit for continuous rotation
+//!
+//! [positioner]
+//! driver = "scpi-tcp"
+//! address = "192.168.1.20:4000"
+//!
+//! [tracker]
+//! driver = "emscon"
+//! address = "192.168.1.30:700"
+//!
+//! [timing]
+//! dwell_s = 0.5
+//! ```
+//!
+//! Unknown keys are errors, so a misspelt setting never silently falls back
+//! to a default.
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::time::Duration;
+use survey_acquire::{ReferenceKind, SettleMode, SettleModel, SettleSpec, Timing, default_window_deg};
+use survey_drivers::canopen::CanopenConfig;
+use survey_processing::num::Num;
+
+mod derived;
+use survey_drivers::emscon::EmsconConfig;
+use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
+use survey_drivers::scpi::ErrorQueryForm;
+
+/// A whole configuration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurveyConfig {
+    #[serde(default)]
+    pub survey: SurveySection,
+    pub positioner: PositionerConfig,
+    #[serde(default)]
+    pub tracker: Option<TrackerConfig>,
+    #[serde(default)]
+    pub autocollimator: Option<AutocollimatorConfig>,
+    /// The SMR arm, used to check the located axis.
+    #[serde(default)]
+    pub arm: Option<ArmSection>,
+    /// The polygon the autocollimator looks at.
+    #[serde(default)]
+    pub polygon: Option<PolygonSection>,
+    #[serde(default)]
+    pub timing: TimingSection,
+    /// What the report's header states (`survey report` flags override it).
+    #[serde(default)]
+    pub certificate: Option<CertificateSection>,
+    /// Drift control: a reference target re-measured every K steps (off by default).
+    #[serde(default)]
+    pub drift_control: Option<survey_plan::drift::DriftControl>,
+    /// The asset (the axis this configuration measures): its surveys' history.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub asset: Option<AssetSection>,
+}
+
+/// `[asset]`: the axis measured, whose surveys make one history
+/// (`survey history --asset ID`); `survey run --asset` overrides it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AssetSection {
+    /// 1-64 characters of letters, digits and `-_./`.
+    pub id: String,
+}
+
+/// `[certificate]`: what a calibration certificate states that no instrument
+/// reports. Every key optional; stored with the survey, shown in the report's
+/// header (the flags of `survey report` override each).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CertificateSection {
+    /// The positioner calibrated: make, model, serial number.
+    pub positioner: Option<String>,
+    /// The reference instrument: make, model, serial number, its calibration.
+    pub reference: Option<String>,
+    /// The reference's stated standard uncertainty of one angle, degrees.
+    pub reference_uncertainty_deg: Option<f64>,
+    /// Who measured.
+    pub operator: Option<String>,
+    /// For whom.
+    pub customer: Option<String>,
+    /// The air temperature during the survey, degrees Celsius.
+    pub temperature_c: Option<f64>,
+    /// The certificate's number, as the laboratory assigns it.
+    pub number: Option<String>,
+    /// The calibrating laboratory: name, address, accreditation.
+    pub laboratory: Option<String>,
+    /// How the measurement is traceable to the SI: the reference's calibration (by whom, certificate, date).
+    pub traceability: Option<String>,
+    /// The tolerance the positioner's ISO 230-2 accuracy A is judged against, degrees.
+    pub tolerance_deg: Option<f64>,
+}
+
+/// `[survey]`: the plan; command-line flags override these.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurveySection {
+    pub points: Option<u32>,
+    pub runs: Option<u32>,
+    pub bidirectional: Option<bool>,
+    /// The reference instrument (default: tracker).
+    pub reference: Option<ReferenceKind>,
+    /// Travel limits of a partial-range axis, degrees.
+    pub travel_deg: Option<[f64; 2]>,
+    /// Distance past a target before approaching it from the other side, degrees.
+    pub overrun_deg: Option<f64>,
+    /// `"step"` (default) or `"continuous"` (`--scan` overrides it).
+    pub scan: Option<survey_plan::ScanMode>,
+}
+
+/// `[positioner]`: the controller and how to reach it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "driver", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum PositionerConfig {
+    /// An MI-4190-style controller over TCP (SCPI-like text commands).
+    ScpiTcp {
+        /// `host:port`.
+        address: String,
+        #[serde(default = "one")]
+        controller: u32,
+        #[serde(default = "one")]
+        axis: u32,
+        /// At rest within this of the commanded position is in position, deg.
+        #[serde(default = "in_position_window")]
+        in_position_window_deg: f64,
+        /// `"all"` (`SYST:ERR:ALL?`, default) or `"next"` (`SYST:ERR?`).
+        #[serde(default)]
+        error_query: ErrorQueryForm,
+        /// Send `VEL:COMM`, `FAUL:CLE` and the `CORR:` subsystem, which the
+        /// public record does not show (default false).
+        #[serde(default)]
+        unverified_commands: bool,
+    },
+    /// The same controller over a serial port.
+    ScpiSerial {
+        port: String,
+        #[serde(default = "baud_9600")]
+        baud: u32,
+        #[serde(default = "one")]
+        controller: u32,
+        #[serde(default = "one")]
+        axis: u32,
+        #[serde(default = "in_position_window")]
+        in_position_window_deg: f64,
+        #[serde(default)]
+        error_query: ErrorQueryForm,
+        #[serde(default)]
+        unverified_commands: bool,
+    },
+    /// A servo drive over Modbus TCP, with its register map.
+    ModbusTcp {
+        /// `host:port` (port 502 on most devices).
+        address: String,
+        #[serde(default)]
+        map: RegisterMap,
+        #[serde(default)]
+        timeouts: ModbusTimeouts,
+    },
+    /// A servo drive over Modbus RTU on a serial port.
+    ModbusRtu {
+        port: String,
+        #[serde(default = "baud_9600")]
+        baud: u32,
+        #[serde(default = "one_u8")]
+        slave: u8,
+        #[serde(default)]
+        map: RegisterMap,
+        #[serde(default)]
+        timeouts: ModbusTimeouts,
+    },
+    /// A CiA 402 drive over CANopen, on a SocketCAN interface or through a
+    /// USB-CAN adapter speaking SLCAN on a serial port.
+    Canopen {
+        /// `"socketcan"` (default) or `"slcan"`.
+        #[serde(default)]
+        transport: CanTransport,
+        /// The SocketCAN interface (`can0`), with `transport = "socketcan"`.
+        #[serde(default)]
+        interface: Option<String>,
+        /// The adapter's serial port (`/dev/ttyACM0`), with `transport = "slcan"`.
+        #[serde(default)]
+        port: Option<String>,
+        /// The CAN bitrate, bit/s, with `transport = "slcan"` (default 500000).
+        #[serde(default)]
+        bitrate: Option<u32>,
+        #[serde(flatten)]
+        drive: CanopenConfig,
+    },
+}
+
+/// How a CANopen drive is reached.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CanTransport {
+    /// A SocketCAN interface (Linux).
+    #[default]
+    Socketcan,
+    /// A serial-line CAN adapter (SLCAN / Lawicel: CANable, USBtin...).
+    Slcan,
+}
+
+/// Where a CANopen drive is, resolved from the configuration.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CanLink {
+    /// SocketCAN interface name.
+    SocketCan(String),
+    /// SLCAN adapter: serial port and bitrate.
+    Slcan { port: String, bitrate: u32 },
+}
+
+/// Default SLCAN bitrate, bit/s (CANopen's most common).
+pub const DEFAULT_CAN_BITRATE: u32 = 500_000;
+
+impl PositionerConfig {
+    /// The CAN link of a CANopen positioner (`None` for other drivers), or
+    /// what is missing.
+    pub fn can_link(&self) -> Option<Result<CanLink, String>> {
+        let PositionerConfig::Canopen { transport, interface, port, bitrate, .. } = self else { return None };
+        Some(match (transport, interface, port) {
+            (CanTransport::Socketcan, Some(i), None) => Ok(CanLink::SocketCan(i.clone())),
+            (CanTransport::Socketcan, None, _) => {
+                Err("positioner: a CANopen drive on SocketCAN needs `interface` (e.g. \"can0\")".into())
+            }
+            (CanTransport::Socketcan, Some(_), Some(_)) => {
+                Err("positioner: `port` is for transport = \"slcan\"; on SocketCAN name the `interface` only".into())
+            }
+            (CanTransport::Slcan, _, None) => Err(
+                "positioner: transport = \"slcan\" needs `port`, the adapter's serial device (e.g. \"/dev/ttyACM0\")"
+                    .into(),
+            ),
+            (CanTransport::Slcan, Some(_), Some(_)) => {
+                Err("positioner: `interface` is for SocketCAN; with transport = \"slcan\" name the `port` only".into())
+            }
+            (CanTransport::Slcan, None, Some(p)) => {
+                let bitrate = bitrate.unwrap_or(DEFAULT_CAN_BITRATE);
+                match survey_drivers::canopen::slcan::bitrate_code(bitrate) {
+                    Some(_) => Ok(CanLink::Slcan { port: p.clone(), bitrate }),
+                    None => Err(format!(
+                        "positioner.bitrate = {bitrate} has no SLCAN command (10000, 20000, 50000, 100000, 125000, \
+                         250000, 500000, 750000, 800000 or 1000000)"
+                    )),
+                }
+            }
+        })
+    }
+
+    /// The positioner driver's own deadline of one request and how long it
+    /// then drains late replies (a line without transaction id: Modbus RTU,
+    /// CANopen SDO), with the key that sets the deadline; `None` for a
+    /// driver whose deadline is the engine's (`scpi-*`).
+    pub fn own_deadline(&self) -> Option<(&'static str, Duration, Duration)> {
+        match self {
+            PositionerConfig::ModbusTcp { timeouts, .. } => {
+                Some(("positioner.timeouts.request_ms", timeouts.request, Duration::ZERO))
+            }
+            PositionerConfig::ModbusRtu { timeouts, .. } => {
+                Some(("positioner.timeouts.request_ms", timeouts.request, timeouts.late_window()))
+            }
+            PositionerConfig::Canopen { drive, .. } => {
+                let t = drive.sdo_timeouts();
+                Some(("positioner.sdo_timeout_ms", t.response, t.late_window()))
+            }
+            PositionerConfig::ScpiTcp { .. } | PositionerConfig::ScpiSerial { .. } => None,
+        }
+    }
+
+    /// A short description (`canopen slcan /dev/ttyACM0 node 5`).
+    pub fn can_describe(&self) -> Option<String> {
+        let PositionerConfig::Canopen { drive, .. } = self else { return None };
+        Some(match self.can_link()? {
+            Ok(CanLink::SocketCan(i)) => format!("canopen {i} node {}", drive.node_id),
+            Ok(CanLink::Slcan { port, .. }) => format!("canopen slcan {port} node {}", drive.node_id),
+            Err(_) => format!("canopen node {}", drive.node_id),
+        })
+    }
+}
+
+/// `[tracker]`: the tracking laser.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "driver", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TrackerConfig {
+    /// A Leica tracker through its emScon server (TPI over TCP, port 700).
+    Emscon {
+        /// `host:port`.
+        address: String,
+        #[serde(flatten)]
+        settings: EmsconConfig,
+    },
+}
+
+/// `[autocollimator]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "driver", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum AutocollimatorConfig {
+    /// A Moeller-Wedel ELCOMAT on a serial port (8N1).
+    Elcomat {
+        port: String,
+        #[serde(default = "baud_9600")]
+        baud: u32,
+    },
+}
+
+/// `[arm]`: what the SMR arm is, to check the located axis against.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArmSection {
+    /// Distance of the SMR from the axis, mm.
+    pub radius_mm: f64,
+    /// How far the fitted radius may differ before the survey refuses to start, mm.
+    #[serde(default = "radius_tolerance")]
+    pub radius_tolerance_mm: f64,
+}
+
+/// `[polygon]`: the N-face polygon and its certificate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolygonSection {
+    pub faces: u32,
+    /// Face angle deviations from nominal, arcseconds, one per face (default all 0).
+    #[serde(default)]
+    pub certificate_arcsec: Vec<f64>,
+}
+
+/// `[timing]`: deadlines, waits, retries and the axis dynamics, in seconds and
+/// degrees. Every key is optional; the defaults are those of [`Timing`].
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimingSection {
+    pub call_timeout_s: Option<f64>,
+    pub measure_timeout_s: Option<f64>,
+    pub move_margin_s: Option<f64>,
+    pub poll_interval_s: Option<f64>,
+    pub dwell_s: Option<f64>,
+    pub max_retries: Option<u32>,
+    pub retry_backoff_s: Option<f64>,
+    pub locate_points: Option<u32>,
+    pub velocity_deg_s: Option<f64>,
+    pub accel_deg_s2: Option<f64>,
+    /// `"adaptive"` (default) or `"in-position"` (the default when `dwell_s` is given).
+    pub settle: Option<SettleMode>,
+    /// Adaptive settling: the readout stays this close to the target, degrees ...
+    pub settle_window_deg: Option<f64>,
+    /// ... for this long, seconds,
+    pub settle_stable_s: Option<f64>,
+    /// ... read this often, seconds.
+    pub settle_poll_s: Option<f64>,
+    /// The settling the axis needs after a move (the drive's data), seconds:
+    /// what the lower bound counts. Without it the bound counts none.
+    pub settle_time_s: Option<f64>,
+    /// Continuous scan: velocity of the survey's passes, deg/s (default half `velocity_deg_s`).
+    pub scan_velocity_deg_s: Option<f64>,
+    /// Continuous scan: velocity of the first run, which calibrates the
+    /// latency, deg/s (default `velocity_deg_s`).
+    pub calibration_velocity_deg_s: Option<f64>,
+    /// Continuous scan: the readout's capture (or polling) period, seconds.
+    pub capture_period_s: Option<f64>,
+    /// Continuous scan: the tracker's point period, seconds.
+    pub stream_period_s: Option<f64>,
+    /// Continuous scan: how often both streams are read, seconds.
+    pub fetch_interval_s: Option<f64>,
+    /// How long a survey suspended on a lost beam waits for it, s.
+    pub beam_wait_s: Option<f64>,
+    /// Wait between attempts to re-acquire a lost beam, s.
+    pub beam_retry_s: Option<f64>,
+    /// The instruments run this many times faster than the hardware they
+    /// stand for (a rehearsal on `survey sim --time-scale X`; 1, the default,
+    /// for real instruments): instrument time is reported on their clock,
+    /// the time this process measured times this.
+    pub time_scale: Option<f64>,
+}
+
+fn one() -> u32 {
+    1
+}
+fn one_u8() -> u8 {
+    1
+}
+fn baud_9600() -> u32 {
+    9600
+}
+fn in_position_window() -> f64 {
+    0.01
+}
+fn radius_tolerance() -> f64 {
+    5.0
+}
+
+/// A defect of a configuration file, naming the file and where.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}: {message}")]
+pub struct ConfigError {
+    pub file: String,
+    pub message: String,
+}
+
+impl SurveyConfig {
+    /// Read and check a configuration file.
+    pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ConfigError { file: file.clone(), message: format!("cannot read the configuration: {e}") })?;
+        Self::parse(&text, &file)
+    }
+
+    /// Parse and check configuration text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
+        let err = |message: String| ConfigError { file: file.to_string(), message };
+        // TOML has nan and inf; no setting is either (stored as JSON, they
+        // would come back as null and the survey could never resume).
+        if let Ok(table) = text.parse::<toml::Table>()
+            && let Some(key) = non_finite(&table, "")
+        {
+            let last = key.rsplit(['.', '[']).next().unwrap_or(&key).trim_end_matches(']');
+            let line = text.lines().position(|l| {
+                let l = l.trim_start();
+                l.starts_with(last) && (l.contains("nan") || l.contains("inf"))
+            });
+            let at = line.map(|l| format!("line {}: ", l + 1)).unwrap_or_default();
+            return Err(err(format!("{at}{key} is not a finite number")));
+        }
+        let cfg: SurveyConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
+            let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+            match line {
+                Some(l) => err(format!("line {l}: {}", e.message())),
+                None => err(e.message().to_string()),
+            }
+        })?;
+        cfg.check().map_err(err)?;
+        Ok(cfg)
+    }
+
+    /// The reference instrument this configuration uses.
+    pub fn reference(&self) -> ReferenceKind {
+        self.survey.reference.unwrap_or(ReferenceKind::Tracker)
+    }
+
+    /// What serde cannot check: every value within its stated range and the
+    /// sections consistent, section by section. The first defect found is the
+    /// error, in this order: the asset, the reference's instruments, the plan,
+    /// the timing, the certificate, the arm, the polygon, the positioner, the
+    /// tracker, the drift control.
+    fn check(&self) -> Result<(), String> {
+        if let Some(a) = &self.asset {
+            crate::asset::asset_id(&a.id).map_err(|e| format!("[asset] id: {e}"))?;
+        }
+        self.check_reference()?;
+        self.check_survey()?;
+        self.check_timing()?;
+        if let Some(c) = &self.certificate {
+            c.check()?;
+        }
+        if let Some(arm) = &self.arm {
+            arm.check()?;
+        }
+        if let Some(p) = &self.polygon {
+            p.check_ranges()?;
+        }
+        self.check_positioner()?;
+        if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
+            within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
+        }
+        self.check_drift_control()
+    }
+
+    /// The reference's instruments are configured: the tracker's section,
+    /// or the autocollimator's with a polygon of at least 2 faces whose
+    /// certificate, when given, holds one finite value a face.
+    fn check_reference(&self) -> Result<(), String> {
+        match self.reference() {
+            ReferenceKind::Tracker if self.tracker.is_none() => {
+                return Err("the reference is the tracker but there is no [tracker] section".into());
+            }
+            ReferenceKind::Autocollimator => {
+                if self.autocollimator.is_none() {
+                    return Err("the reference is the autocollimator but there is no [autocollimator] section".into());
+                }
+                let Some(p) = &self.polygon else {
+                    return Err(
+                        "the autocollimator reference needs a [polygon] section (faces, certificate_arcsec)".into()
+                    );
+                };
+                if p.faces < 2 {
+                    return Err(format!("polygon.faces must be at least 2, got {}", p.faces));
+                }
+                if !p.certificate_arcsec.is_empty() && p.certificate_arcsec.len() != p.faces as usize {
+                    return Err(format!(
+                        "polygon.certificate_arcsec has {} values for {} faces",
+                        p.certificate_arcsec.len(),
+                        p.faces
+                    ));
+                }
+                if p.certificate_arcsec.iter().any(|c| !c.is_finite()) {
+                    return Err("polygon.certificate_arcsec holds a value that is not a finite number".into());
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// `[survey]`: the travel is an increasing pair of angles within ten
+    /// turns either way, the overrun within 10 degrees.
+    fn check_survey(&self) -> Result<(), String> {
+        if let Some([lo, hi]) = self.survey.travel_deg
+            && !(lo.is_finite() && hi.is_finite() && hi > lo)
+        {
+            return Err(format!(
+                "survey.travel_deg = [{}, {}] is not an increasing pair of finite angles",
+                Num(lo),
+                Num(hi)
+            ));
+        }
+        if let Some(v) = self.survey.overrun_deg {
+            within("survey.overrun_deg", v, Range::Above(0.0), 10.0, "deg")?;
+        }
+        if let Some([lo, hi]) = self.survey.travel_deg {
+            within("survey.travel_deg[0]", lo, Range::From(-3600.0), 3600.0, "deg")?;
+            within("survey.travel_deg[1]", hi, Range::From(-3600.0), 3600.0, "deg")?;
+        }
+        Ok(())
+    }
+
+    /// `[timing]`: every duration, rate and period within its stated range,
+    /// the durations they make within a day ([`derived::check`]), then the
+    /// retries and the points that locate the axis.
+    fn check_timing(&self) -> Result<(), String> {
+        // Stated physical ranges: a value outside is a unit or typing error,
+        // and a time beyond an hour would overflow the clock's arithmetic or
+        // stall a survey for ever.
+        let t = &self.timing;
+        for (key, value, range, max, unit) in [
+            ("call_timeout_s", t.call_timeout_s, Range::Above(0.0), 3600.0, "s"),
+            ("measure_timeout_s", t.measure_timeout_s, Range::Above(0.0), 3600.0, "s"),
+            ("move_margin_s", t.move_margin_s, Range::From(0.0), 3600.0, "s"),
+            ("poll_interval_s", t.poll_interval_s, Range::Above(0.0), 60.0, "s"),
+            ("dwell_s", t.dwell_s, Range::From(0.0), 3600.0, "s"),
+            ("retry_backoff_s", t.retry_backoff_s, Range::From(0.0), 3600.0, "s"),
+            ("velocity_deg_s", t.velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
+            ("accel_deg_s2", t.accel_deg_s2, Range::Above(0.0), 1.0e6, "deg/s^2"),
+            ("settle_window_deg", t.settle_window_deg, Range::Above(0.0), 1.0, "deg"),
+            ("settle_stable_s", t.settle_stable_s, Range::From(0.0), 60.0, "s"),
+            ("settle_poll_s", t.settle_poll_s, Range::Above(0.0), 60.0, "s"),
+            ("settle_time_s", t.settle_time_s, Range::From(0.0), 3600.0, "s"),
+            ("scan_velocity_deg_s", t.scan_velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
+            ("calibration_velocity_deg_s", t.calibration_velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
+            ("capture_period_s", t.capture_period_s, Range::Above(0.0), 1.0, "s"),
+            ("stream_period_s", t.stream_period_s, Range::Above(0.0), 1.0, "s"),
+            ("fetch_interval_s", t.fetch_interval_s, Range::Above(0.0), 10.0, "s"),
+            ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
+            ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
+            ("time_scale", t.time_scale, Range::Above(0.0), 10_000.0, "x real time"),
+        ] {
+            if let Some(v) = value {
+                within(&format!("timing.{key}"), v, range, max, unit)?;
+            }
+        }
+        derived::check(self)?;
+        if let Some(n) = t.max_retries
+            && n > 1000
+        {
+            return Err(format!("timing.max_retries = {n} is outside 0..=1000"));
+        }
+        if let Some(n) = t.locate_points
+            && !(3..=10_000).contains(&n)
+        {
+            return Err(format!("timing.locate_points = {n} is outside 3..=10000 (a circle needs 3 points)"));
+        }
+        Ok(())
+    }
+
+    /// `[positioner]`: the in-position window of a SCPI controller, the CAN
+    /// link and the counts per degree of a CANopen drive, and the engine's
+    /// deadline of a call against the driver's own.
+    fn check_positioner(&self) -> Result<(), String> {
+        if let PositionerConfig::ScpiTcp { in_position_window_deg: w, .. }
+        | PositionerConfig::ScpiSerial { in_position_window_deg: w, .. } = &self.positioner
+        {
+            within("positioner.in_position_window_deg", *w, Range::Above(0.0), 1.0, "deg")?;
+        }
+        if let Some(Err(e)) = self.positioner.can_link() {
+            return Err(e);
+        }
+        if let PositionerConfig::Canopen { drive, .. } = &self.positioner {
+            within("positioner.counts_per_degree", drive.counts_per_degree, Range::Above(0.0), 1.0e9, "counts/deg")?;
+        }
+        // The engine's deadline of a call must be longer than the driver's
+        // own (its deadline and the drain of late replies after it): a late
+        // reply is then met, drained and matched by the driver, never left on
+        // the line by a call the engine cancelled.
+        if let Some((key, own, late)) = self.positioner.own_deadline() {
+            let call = self.timing().call_timeout;
+            if call <= own + late {
+                let drain = if late.is_zero() {
+                    String::new()
+                } else {
+                    format!(" and the {} ms it then drains late replies", late.as_millis())
+                };
+                return Err(format!(
+                    "timing.call_timeout_s = {} s must be longer than the positioner's own deadline, {key} = {} \
+                     ms{drain}: raise timing.call_timeout_s or lower {key}",
+                    call.as_secs_f64(),
+                    own.as_millis()
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// `[drift_control]`: its own keys ([`survey_plan::drift::DriftControl::check`]),
+    /// and a reference target within the travel of a partial-range axis.
+    fn check_drift_control(&self) -> Result<(), String> {
+        let Some(d) = &self.drift_control else { return Ok(()) };
+        d.check()?;
+        if let Some([lo, hi]) = self.survey.travel_deg
+            && !(lo..=hi).contains(&d.reference_deg)
+        {
+            return Err(format!(
+                "drift_control.reference_deg = {} is outside the travel {}..{} deg",
+                Num(d.reference_deg),
+                Num(lo),
+                Num(hi)
+            ));
+        }
+        Ok(())
+    }
+
+    /// How many times faster than the hardware the instruments run (`[timing] time_scale`, default 1).
+    pub fn time_scale(&self) -> f64 {
+        self.timing.time_scale.unwrap_or(1.0)
+    }
+
+    /// The engine timing: the defaults with this file's settings on top.
+    pub fn timing(&self) -> Timing {
+        let t = &self.timing;
+        let d = Timing::default();
+        let secs = |v: Option<f64>, default: Duration| v.map(Duration::from_secs_f64).unwrap_or(default);
+        let ds = d.settle;
+        // An instrument that needs a fixed dwell gets the in-position wait
+        // it was configured for, unless adaptive settling is asked as well.
+        let mode = t.settle.unwrap_or(if t.dwell_s.is_some() { SettleMode::InPosition } else { SettleMode::Adaptive });
+        let settle = SettleSpec {
+            mode,
+            window_deg: t.settle_window_deg.unwrap_or(default_window_deg(self.reference())),
+            stable_for: secs(t.settle_stable_s, ds.stable_for),
+            poll: secs(t.settle_poll_s, ds.poll),
+            ..ds
+        };
+        let dsc = d.scan;
+        let scan = survey_plan::ScanTiming {
+            velocity_deg_s: t.scan_velocity_deg_s,
+            calibration_velocity_deg_s: t.calibration_velocity_deg_s,
+            capture_period: secs(t.capture_period_s, dsc.capture_period),
+            stream_period: secs(t.stream_period_s, dsc.stream_period),
+            fetch_interval: secs(t.fetch_interval_s, dsc.fetch_interval),
+            ..dsc
+        };
+        Timing {
+            call_timeout: secs(t.call_timeout_s, d.call_timeout),
+            measure_timeout: secs(t.measure_timeout_s, d.measure_timeout),
+            move_margin: secs(t.move_margin_s, d.move_margin),
+            poll_interval: secs(t.poll_interval_s, d.poll_interval),
+            dwell: secs(t.dwell_s, d.dwell),
+            max_retries: t.max_retries.unwrap_or(d.max_retries),
+            retry_backoff: secs(t.retry_backoff_s, d.retry_backoff),
+            locate_points: t.locate_points.unwrap_or(d.locate_points),
+            velocity_deg_s: t.velocity_deg_s.unwrap_or(d.velocity_deg_s),
+            accel_deg_s2: t.accel_deg_s2.unwrap_or(d.accel_deg_s2),
+            beam_wait: secs(t.beam_wait_s, d.beam_wait),
+            beam_retry: secs(t.beam_retry_s, d.beam_retry),
+            settle,
+            scan,
+        }
+    }
+
+    /// The settling the configured axis needs, for the bound (`settle_time_s`).
+    pub fn settle_model(&self) -> SettleModel {
+        match self.timing.settle_time_s {
+            Some(s) => SettleModel::Fixed(Duration::from_secs_f64(s)),
+            None => SettleModel::Unknown,
+        }
+    }
+}
+
+impl CertificateSection {
+    /// The stated figures within their ranges: the reference's uncertainty,
+    /// the temperature, the tolerance.
+    fn check(&self) -> Result<(), String> {
+        if let Some(u) = self.reference_uncertainty_deg {
+            within("certificate.reference_uncertainty_deg", u, Range::Above(0.0), 1.0, "deg")?;
+        }
+        if let Some(t) = self.temperature_c {
+            within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
+        }
+        if let Some(t) = self.tolerance_deg {
+            within("certificate.tolerance_deg", t, Range::Above(0.0), 360.0, "deg")?;
+        }
+        Ok(())
+    }
+}
+
+impl ArmSection {
+    /// The radius within 100 m, its tolerance no larger than the radius.
+    fn check(&self) -> Result<(), String> {
+        within("arm.radius_mm", self.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
+        within("arm.radius_tolerance_mm", self.radius_tolerance_mm, Range::Above(0.0), self.radius_mm, "mm")
+    }
+}
+
+impl PolygonSection {
+    /// At most 3600 faces, each certificate value within +/-3600 arcsec
+    /// (with the autocollimator as the reference, the faces' lower bound and
+    /// the certificate's length are checked with the reference).
+    fn check_ranges(&self) -> Result<(), String> {
+        if self.faces > 3600 {
+            return Err(format!("polygon.faces = {} is outside 2..=3600", self.faces));
+        }
+        for (i, c) in self.certificate_arcsec.iter().enumerate() {
+            within(&format!("polygon.certificate_arcsec[{i}]"), *c, Range::From(-3600.0), 3600.0, "arcsec")?;
+        }
+        Ok(())
+    }
+}
+
+/// The lower end of a range: inclusive or not.
+#[derive(Debug, Clone, Copy)]
+enum Range {
+    From(f64),
+    Above(f64),
+}
+
+/// `value` lies in the range, else the key, the value and the range.
+fn within(key: &str, value: f64, low: Range, max: f64, unit: &str) -> Result<(), String> {
+    let (ok, low_text) = match low {
+        Range::From(lo) => (value >= lo, format!("{}", Num(lo))),
+        Range::Above(lo) => (value > lo, format!("above {}", Num(lo))),
+    };
+    if value.is_finite() && ok && value <= max {
+        Ok(())
+    } else {
+        Err(format!("{key} = {} is outside its range ({low_text} to {} {unit})", Num(value), Num(max)))
+    }
+}
+
+/// The key of the first float in `table` that is NaN or infinite.
+fn non_finite(table: &toml::Table, prefix: &str) -> Option<String> {
+    fn walk(value: &toml::Value, key: String) -> Option<String> {
+        match value {
+            toml::Value::Float(f) if !f.is_finite() => Some(key),
+            toml::Value::Table(t) => t.iter().find_map(|(k, v)| walk(v, format!("{key}.{k}"))),
+            toml::Value::Array(a) => a.iter().enumerate().find_map(|(i, v)| walk(v, format!("{key}[{i}]"))),
+            _ => None,
+        }
+    }
+    table.iter().find_map(|(k, v)| walk(v, if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") }))
+}
+
+#[cfg(test)]
+mod tests;
+
+#[cfg(test)]
+mod driver_tests;

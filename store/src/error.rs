@@ -1,0 +1,52 @@
+//! The error types every floor above the store shares: [`BadInput`] (the
+//! user's input is wrong: exit status 2) and [`PathError`] (an I/O error on
+//! a path the user gave: the user's or the machine's, by its kind). What an
+//! error means for the exit status is decided once, above every type it
+//! names: `survey_lab::error`.
+
+/// Bad input that has no type of its own: a missing flag, a value out of its
+/// range, a survey that cannot do what was asked.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct BadInput(pub String);
+
+/// A [`BadInput`] error.
+pub fn bad_input(message: impl Into<String>) -> anyhow::Error {
+    BadInput(message.into()).into()
+}
+
+/// An I/O error on a path the user gave: `what` was done to which path.
+/// Whether it is the user's (see [`exit_status`]) depends on its kind.
+#[derive(Debug, thiserror::Error)]
+#[error("{what}: {io}")]
+pub struct PathError {
+    /// What was done, naming the path (`cannot create out/t.csv`).
+    pub what: String,
+    /// The error.
+    pub io: std::io::Error,
+}
+
+impl PathError {
+    /// A path that cannot exist or be reached (missing folder, permission, a
+    /// folder where a file belongs) is the user's; anything else (a full
+    /// disk, a device error) is a run-time failure.
+    pub fn is_the_users(&self) -> bool {
+        use std::io::ErrorKind::*;
+        matches!(
+            self.io.kind(),
+            NotFound
+                | PermissionDenied
+                | IsADirectory
+                | NotADirectory
+                | InvalidInput
+                | InvalidFilename
+                | ReadOnlyFilesystem
+                | AlreadyExists
+        )
+    }
+}
+
+/// A [`PathError`]: `e` met doing `what`.
+pub fn path_error(e: std::io::Error, what: String) -> anyhow::Error {
+    PathError { what, io: e }.into()
+}
