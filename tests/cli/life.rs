@@ -263,7 +263,9 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
     assert!(first.stderr.contains("recalibrated: no calibration of the asset lab/ax1 is in force"), "{first}");
     assert!(!first.stderr.contains("error:"), "a recalibration is no error\n{first}");
 
-    // The same positioner: a check of 36 targets x 2 runs both ways, in tolerance: exit 0.
+    // The same positioner: a check designed to see the lines in force (1, 20
+    // and 40 cycles/rev: 16 targets would put 40 on the Nyquist bin), 48
+    // targets x 2 runs both ways, in tolerance: exit 0.
     let out = check("2", None).success();
     let doc = out.json();
     assert_eq!((doc["outcome"].as_str(), doc["recalibrate"].as_bool()), (Some("in tolerance"), Some(false)), "{out}");
@@ -272,12 +274,15 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
         (c["survey_id"].as_i64(), c["from"].as_i64(), c["verdict"].as_str()),
         (Some(2), Some(1), Some("unchanged"))
     );
-    assert_eq!(c["map"]["cells"].as_u64(), Some(72), "every check target is a calibration target: {c}");
+    assert_eq!(c["design"]["points"].as_u64(), Some(48), "{c}");
+    assert!(c["design"]["why"].as_str().unwrap().contains("half way between"), "{c}");
+    assert_eq!(c["map"]["cells"].as_u64(), Some(48), "every other check target is a calibration target: {c}");
+    assert!(out.stderr.contains("survey 2: 48 targets: the fewest"), "{out}");
     assert_eq!(doc["table_in_force"]["survey_id"].as_i64(), Some(1));
     let shown = bench.survey(&["show", "2", "--json"]).success().json();
     assert_eq!(
         (shown["points"].as_u64(), shown["runs"].as_u64(), shown["bidirectional"].as_bool()),
-        (Some(36), Some(2), Some(true))
+        (Some(48), Some(2), Some(true))
     );
 
     // A worn positioner: the check says so, a full survey with the calibration's plan, exit 3.
@@ -330,6 +335,52 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
     assert!(!fresh.exists("survey.db"));
     let shown = bench.survey(&["show", "2", "--json"]).success().json();
     assert_eq!(shown["check_of"].as_str(), Some(cal));
+}
+
+/// The loop: a 120-point calibration of Figure 8 (2 runs, both
+/// ways). Its check is designed to see the lines in force (at 40 targets the
+/// 20 cycles/rev line sits on the Nyquist bin and the 40 aliases onto the
+/// mean: the old check printed an amplitude of 2e10 deg and "in tolerance"
+/// for a worn axis): 48 targets, in tolerance when nothing changed; the 40
+/// cycles/rev line grown from 0.0025 to 0.0040 deg (wear) is caught; and a
+/// check asked for at 40 targets says what it cannot see and decides
+/// nothing (exit 1), never "in tolerance".
+#[test]
+fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_their_wear() {
+    let bench = Bench::new();
+    bench.write("worn40.toml", FIG8.replacen("amplitude_deg = 0.0025", "amplitude_deg = 0.0040", 1));
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "--check", "--asset", "lab/ax2", "--json"];
+        args.extend(extra);
+        bench.survey(&args)
+    };
+    let first = run(&["--points", "120", "--runs", "2", "--bidirectional", "--seed", "1"]);
+    assert_eq!(first.code, 3, "{first}");
+
+    let out = run(&["--seed", "2"]).success();
+    let doc = out.json();
+    assert_eq!(doc["outcome"], "in tolerance", "{doc:#}");
+    assert_eq!(doc["check"]["design"]["points"].as_u64(), Some(48), "{doc:#}");
+    let largest = doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["amplitude_to_deg"].as_f64().unwrap());
+    assert!(largest.fold(0.0, f64::max) < 0.02, "{doc:#}");
+    let tested: Vec<f64> = doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["cycles_per_rev"].as_f64().unwrap()).collect();
+    assert!(tested.contains(&20.0) && tested.contains(&40.0), "{doc:#}");
+
+    let worn = run(&["--seed", "3", "--model", "worn40.toml"]);
+    assert_eq!(worn.code, 3, "{worn}");
+    let reason = worn.json()["reason"].as_str().unwrap().to_string();
+    assert!(reason.contains("the 40 cycles/rev line changed"), "{reason}");
+
+    // Asked for 40 targets: it cannot see 20 (Nyquist) or 40 (the mean) and says so.
+    let blind = run(&["--seed", "4", "--points", "40"]);
+    assert_eq!(blind.code, 1, "{blind}");
+    let doc = blind.json();
+    assert_eq!(doc["outcome"], "not decided", "{doc:#}");
+    let unseen: Vec<f64> =
+        doc["check"]["design"]["unseen"].as_array().unwrap().iter().map(|u| u["cycles_per_rev"].as_f64().unwrap()).collect();
+    assert_eq!(unseen, [20.0, 40.0], "{doc:#}");
+    assert!(blind.stderr.contains("cannot say the asset is in tolerance") && blind.stderr.contains("Nyquist"), "{blind}");
+    assert!(!blind.stdout.contains("e10"), "no impossible number: {blind}");
 }
 
 /// The false-alarm rate on the simulated bench itself (tracker, located and

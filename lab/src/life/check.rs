@@ -11,7 +11,7 @@
 //! (a recalibration, or the asset's first calibration), 1 for a failure, 2
 //! for bad input.
 
-use super::{compared, measure};
+use super::{Compared, Measured, compared, measure};
 use crate::conclude::{ConcludeOptions, conclude};
 use crate::error::{Recalibrated, bad_input};
 use serde_json::{Value, json};
@@ -20,6 +20,7 @@ use survey_acquire::stop::Stop;
 use survey_bench::Bench;
 use survey_bench::output::Output;
 use survey_bench::session::{AcquireOptions, acquire};
+use survey_modelgap::compare::seen::{CalibrationGrid, CheckDesign, Unseen, design_check};
 use survey_plan::SurveyPlan;
 use survey_store::asset::UNASSIGNED;
 use survey_store::survey::{NewSurvey, SurveyRecord, SurveyRef};
@@ -58,21 +59,14 @@ pub struct CheckRequest {
     pub units: survey_bench::output::Units,
 }
 
-/// A few dozen of the calibration's targets: the number of targets nearest
-/// 36 that divides the calibration's full circle (so every check target is a
-/// calibration target and the mean error maps compare cell by cell); 36 when
-/// none does (a partial range: the lines are still compared); every face of
-/// an autocollimator's polygon (the faces are the targets).
-pub fn check_points(plan: &SurveyPlan, polygon: bool) -> u32 {
-    let n = plan.targets_deg.len() as u32;
-    if polygon {
-        return n;
-    }
-    let full_circle = n >= 2 && plan.targets_deg[0] == 0.0 && (plan.targets_deg[1] * f64::from(n) - 360.0).abs() < 1e-9;
-    if !full_circle {
-        return 36;
-    }
-    (24..=60).filter(|d| n.is_multiple_of(*d)).min_by_key(|d| d.abs_diff(36)).unwrap_or(36.min(n))
+/// The grid a check is designed on: the calibration's targets (a full
+/// circle, or the arc they span), or a polygon's faces.
+pub fn grid_of(plan: &SurveyPlan, polygon: bool) -> CalibrationGrid {
+    let t = &plan.targets_deg;
+    let n = t.len() as u32;
+    let full_circle = n >= 2 && t[0] == 0.0 && (t[1] * f64::from(n) - 360.0).abs() < 1e-9;
+    let arc_deg = (!full_circle && n >= 2).then(|| t[t.len() - 1] - t[0]);
+    CalibrationGrid { points: n, arc_deg, polygon }
 }
 
 /// The asset's calibration whose table is in force: its last complete calibration.
@@ -89,14 +83,20 @@ pub struct CheckOutcome {
     pub output: Output,
     /// Why a full survey was made.
     pub recalibrated: Option<String>,
+    /// What the check could not see of the table in force, when it found
+    /// no change in what it could: no "in tolerance" is then said (exit 1).
+    pub unseen: Option<String>,
 }
 
 impl CheckOutcome {
-    /// `Ok` in tolerance, [`Recalibrated`] when a full survey was made.
+    /// `Ok` in tolerance, [`Recalibrated`] when a full survey was made, a
+    /// run-time failure naming what the check could not see when it could
+    /// not decide.
     pub fn result(self) -> anyhow::Result<()> {
-        match self.recalibrated {
-            Some(why) => Err(Recalibrated(why).into()),
-            None => Ok(()),
+        match (self.recalibrated, self.unseen) {
+            (Some(why), _) => Err(Recalibrated(why).into()),
+            (None, Some(unseen)) => Err(anyhow::anyhow!("the check cannot say the asset is in tolerance: {unseen}")),
+            (None, None) => Ok(()),
         }
     }
 }
@@ -124,12 +124,13 @@ pub async fn run_check(
     let store = Store::open(db).await?;
     let done = check_with(&store, db, req, asset, bench, &stop).await;
     store.close().await;
-    let (doc, text, recalibrated) = done?;
-    Ok(CheckOutcome { output: Output { doc, text }, recalibrated })
+    let (doc, text, recalibrated, unseen) = done?;
+    Ok(CheckOutcome { output: Output { doc, text }, recalibrated, unseen })
 }
 
-/// The loop on an open store: the document, the text, and why a full survey
-/// was made (when one was).
+/// The loop on an open store: the document, the text, why a full survey
+/// was made (when one was), and what the check could not see (when it
+/// could not decide).
 async fn check_with(
     store: &Store,
     db: &Path,
@@ -137,17 +138,20 @@ async fn check_with(
     asset: &str,
     bench: &dyn Fn(PlanSize) -> anyhow::Result<Bench>,
     stop: &Stop,
-) -> anyhow::Result<(Value, String, Option<String>)> {
+) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
     let Some(cal) = in_force(store, asset).await? else {
         let why = format!("no calibration of the asset {asset} is in force: a full survey calibrates it");
         eprintln!("{why}");
         let (full, text) = full_survey(store, db, req, asset, bench(req.size)?, stop).await?;
         let doc = json!({"asset": asset, "outcome": "calibrated", "reason": why, "check": null,
             "recalibration": full["run"], "table_in_force": full["table_in_force"]});
-        return Ok((doc, format!("{why}\n{text}"), Some(why)));
+        return Ok((doc, format!("{why}\n{text}"), Some(why), None));
     };
-    let cal_plan = cal.plan().cloned();
-    let points = req.size.points.or_else(|| cal_plan.as_ref().map(|p| check_points(p, req.polygon)));
+    // The table in force first: the check is designed to see its lines.
+    let a = measure(store, SurveyRef::Id(cal.id)).await?;
+    let lines: Vec<f64> = std::iter::once(1.0).chain(a.main_lines().iter().map(|l| l.cycles_per_rev)).collect();
+    let design = cal.plan().map(|p| design_check(grid_of(p, req.polygon), &lines, req.size.points));
+    let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
     let new = NewSurvey { asset: asset.to_string(), check_of: Some(cal.uid.clone()), ..b.new_survey() };
     let (id, lock) = store.create_acquired_survey(&new).await?;
@@ -160,12 +164,29 @@ async fn check_with(
         cal.id,
         cal.uid
     );
+    if let Some(d) = &design {
+        eprintln!("survey {id}: {}", d.why);
+        for u in &d.unseen {
+            eprintln!("survey {id}: cannot see the {} cycles/rev line: {}", u.cycles_per_rev, u.why);
+        }
+    }
     let options = AcquireOptions { progress: !req.json, plan_progress: b.plan_progress.clone(), ..Default::default() };
     acquire(store, id, &mut b.engine, &b.plan, 0, options).await?;
     drop(lock);
     drop(b);
-    let (a, c) = (measure(store, SurveyRef::Id(cal.id)).await?, measure(store, SurveyRef::Id(id)).await?);
+    let c = measure(store, SurveyRef::Id(id)).await?;
     let cmp = compared(&a, &c)?;
+    // What of the table in force the check could not see: by its design, or
+    // by the comparison (a line not estimable at its targets).
+    let mut unseen: Vec<Unseen> = design.as_ref().map_or_else(Vec::new, |d| d.unseen.clone());
+    for u in &cmp.comparison.not_estimable {
+        if lines.contains(&u.cycles_per_rev) && !unseen.iter().any(|v| v.cycles_per_rev == u.cycles_per_rev) {
+            unseen.push(u.clone());
+        }
+    }
+    if !cmp.decision.recalibrate && !unseen.is_empty() {
+        return undecided(store, id, &cal, &a, &c, &cmp, design.as_ref(), &unseen).await;
+    }
     let decision = CheckDecision {
         survey_id: id,
         against_uid: cal.uid.clone(),
@@ -179,16 +200,14 @@ async fn check_with(
     store.record_check(&decision).await?;
     // A check has no outputs of its own: its decision is what completes it.
     store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
-    let mut check_doc = cmp.json(&a, &c);
-    check_doc["survey_id"] = id.into();
-    check_doc["uid"] = c.survey.uid.clone().into();
-    let mut text = cmp.text(&a, &c);
+    let check_doc = check_json(&cmp, &a, &c, design.as_ref());
+    let mut text = design_text(design.as_ref()) + &cmp.text(&a, &c);
     let table_of = |r: &SurveyRecord| json!({"survey_id": r.id, "uid": r.uid});
     if !cmp.decision.recalibrate {
         text += &format!("in tolerance: the table of survey {} stays in force\n", cal.id);
         let doc = json!({"asset": asset, "outcome": "in tolerance", "recalibrate": false,
             "reason": cmp.decision.reason, "check": check_doc, "recalibration": null, "table_in_force": table_of(&cal)});
-        return Ok((doc, text, None));
+        return Ok((doc, text, None, None));
     }
     text += &format!("recalibrating: {}\n", cmp.decision.reason);
     eprintln!("survey {id}: recalibrating: {}", cmp.decision.reason);
@@ -199,7 +218,53 @@ async fn check_with(
     text += &full_text;
     let doc = json!({"asset": asset, "outcome": "recalibrated", "recalibrate": true, "reason": cmp.decision.reason,
         "check": check_doc, "recalibration": full["run"], "table_in_force": full["table_in_force"]});
-    Ok((doc, text, Some(cmp.decision.reason)))
+    Ok((doc, text, Some(cmp.decision.reason), None))
+}
+
+/// The check's document: the comparison, its survey and its design.
+fn check_json(cmp: &Compared, a: &Measured, c: &Measured, design: Option<&CheckDesign>) -> Value {
+    let mut doc = cmp.json(a, c);
+    doc["survey_id"] = c.survey.id.into();
+    doc["uid"] = c.survey.uid.clone().into();
+    doc["design"] = match design {
+        Some(d) => json!({"points": d.points, "why": d.why, "unseen": d.unseen}),
+        None => Value::Null,
+    };
+    doc
+}
+
+/// The design's lines of the text (none without one).
+fn design_text(design: Option<&CheckDesign>) -> String {
+    design.map_or_else(String::new, |d| format!("check design: {}\n", d.why))
+}
+
+/// The check found no change in what it could see, but could not see part
+/// of the table in force: no decision is stored and nothing is said to be
+/// in tolerance (the command exits 1 naming what it could not see).
+#[allow(clippy::too_many_arguments)]
+async fn undecided(
+    store: &Store,
+    id: i64,
+    cal: &SurveyRecord,
+    a: &Measured,
+    c: &Measured,
+    cmp: &Compared,
+    design: Option<&CheckDesign>,
+    unseen: &[Unseen],
+) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
+    store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
+    let what: Vec<String> = unseen.iter().map(|u| format!("the {} cycles/rev line ({})", u.cycles_per_rev, u.why)).collect();
+    let why = format!(
+        "no change in what it could see, but it could not see {}: measure a check with more targets (--points) or \
+         recalibrate",
+        what.join("; ")
+    );
+    let mut text = design_text(design) + &cmp.text(a, c);
+    text += &format!("not decided: {why}\n");
+    let doc = json!({"asset": cal.asset, "outcome": "not decided", "recalibrate": false, "reason": why,
+        "check": check_json(cmp, a, c, design), "recalibration": null,
+        "table_in_force": {"survey_id": cal.id, "uid": cal.uid}});
+    Ok((doc, text, None, Some(why)))
 }
 
 /// A full survey of `asset` on `bench`, concluded as `survey run` concludes
@@ -243,15 +308,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_check_measures_a_few_dozen_of_the_calibration_s_targets() {
-        let circle = |n| SurveyPlan::full_circle(n, 5, true).unwrap();
-        let points = |n| check_points(&circle(n), false);
-        assert_eq!([points(360), points(1800), points(720), points(100), points(7)], [36, 36, 36, 25, 7]);
-        // Every check target is then a calibration target.
-        let (cal, check) = (circle(1800), circle(36));
-        assert!(check.targets_deg.iter().all(|t| cal.targets_deg.iter().any(|c| (c - t).abs() < 1e-9)));
-        // A partial range keeps no common grid; a polygon's faces are its targets.
-        let arc = SurveyPlan::within_travel(-10.0, 90.0, 100, 5, true).unwrap();
-        assert_eq!((check_points(&arc, false), check_points(&circle(24), true)), (36, 24));
+    fn the_grid_of_a_calibration_is_its_circle_its_arc_or_its_faces() {
+        let circle = SurveyPlan::full_circle(120, 2, true).unwrap();
+        assert_eq!(grid_of(&circle, false), CalibrationGrid { points: 120, arc_deg: None, polygon: false });
+        let arc = SurveyPlan::within_travel(-10.0, 90.0, 101, 2, true).unwrap();
+        assert_eq!(grid_of(&arc, false), CalibrationGrid { points: 101, arc_deg: Some(100.0), polygon: false });
+        assert!(grid_of(&SurveyPlan::full_circle(24, 2, true).unwrap(), true).polygon);
     }
 }

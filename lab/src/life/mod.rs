@@ -188,6 +188,7 @@ impl Compared {
             "verdict": c.verdict.as_str(),
             "lines": c.lines,
             "lines_not_tested": c.lines_not_tested,
+            "not_estimable": c.not_estimable,
             "backlash": c.backlash,
             "map": c.map,
             "false_alarm_rate": c.false_alarm_rate,
@@ -258,8 +259,8 @@ impl Compared {
                 if m.significant { "changed" } else { "unchanged" }
             );
         }
-        if !c.lines_not_tested.is_empty() {
-            s += &format!("  not tested (aliased at these targets): {:?} cycles/rev\n", c.lines_not_tested);
+        for u in &c.not_estimable {
+            s += &format!("  {} cycles/rev: not estimable: {}\n", u.cycles_per_rev, u.why);
         }
         s += &format!("  false-alarm rate {} ({:.2e} per test)\n", c.false_alarm_rate, c.per_test_rate);
         match &self.table_of_a_on_b {

@@ -59,6 +59,7 @@
 //! reason names each change with its size.
 
 mod fit;
+pub mod seen;
 #[cfg(test)]
 mod tests;
 
@@ -188,6 +189,10 @@ pub struct Comparison {
     /// Lines asked for that the surveys cannot tell apart from another line
     /// at their targets (a sparse survey's aliases), cycles per revolution.
     pub lines_not_tested: Vec<f64>,
+    /// The same lines, each with why it is not estimable (the mean, the
+    /// Nyquist bin or another line at its alias; a fit larger than the
+    /// error's span): no amplitude is computed for them.
+    pub not_estimable: Vec<seen::Unseen>,
     /// The backlash, when both surveys go both ways.
     pub backlash: Option<BacklashChange>,
     /// The mean error map, when the surveys share at least three cells.
@@ -215,8 +220,9 @@ pub fn compare(a: &[Sample], b: &[Sample], opts: &CompareOptions) -> Result<Comp
             lines.push(k);
         }
     }
-    let (layout, [fa, fb], lines_not_tested) =
+    let (layout, [fa, fb], not_estimable) =
         fit_both(a, b, bidirectional(&ca) && bidirectional(&cb), &lines).ok_or(CompareError::NoSamples)?;
+    let lines_not_tested = not_estimable.iter().map(|u| u.cycles_per_rev).collect();
     let common: Vec<(&fit::Cell, &fit::Cell)> =
         ca.cells.iter().filter_map(|(k, x)| cb.cells.get(k).map(|y| (x, y))).collect();
     let tests = layout.lines.len() + usize::from(layout.backlash) + usize::from(common.len() >= 3);
@@ -289,6 +295,7 @@ pub fn compare(a: &[Sample], b: &[Sample], opts: &CompareOptions) -> Result<Comp
         verdict: if changed { Verdict::Changed } else { Verdict::Unchanged },
         lines: lines_out,
         lines_not_tested,
+        not_estimable,
         backlash,
         map,
         false_alarm_rate: alpha,

@@ -302,3 +302,35 @@ fn the_binomial_quantile_is_exact_on_small_counts() {
     let q = binomial_isf(720, 0.05, 0.01);
     assert!((49..=52).contains(&q), "{q}");
 }
+
+/// The check: at 40 targets the 20 cycles/rev line sits on the
+/// Nyquist bin (its sine vanishes at the targets) and the 40 aliases onto
+/// the mean. Neither is estimable: no amplitude is computed for them (it was
+/// 2e10 deg), each is said with why, and the rest is still tested.
+#[test]
+fn a_line_on_the_nyquist_bin_or_the_mean_is_not_estimable_and_says_why() {
+    let truth = fig8(|_| {});
+    let a = simulate(&truth, &circle(120), 2, true, REFERENCE_SIGMA, 3);
+    let b = simulate(&truth, &circle(40), 2, true, REFERENCE_SIGMA, 4);
+    let c = compare(&a, &b, &options()).unwrap();
+    assert_eq!(c.lines.iter().map(|l| l.cycles_per_rev).collect::<Vec<_>>(), [1.0], "{c:#?}");
+    assert_eq!(c.lines_not_tested, [20.0, 40.0]);
+    let why = |k: f64| &c.not_estimable.iter().find(|u| u.cycles_per_rev == k).unwrap().why;
+    assert!(why(20.0).contains("Nyquist bin (20)") && why(20.0).contains("survey B"), "{}", why(20.0));
+    assert!(why(40.0).contains("onto the mean"), "{}", why(40.0));
+    let largest = c.lines.iter().map(|l| l.amplitude_from_deg.max(l.amplitude_to_deg)).fold(0.0, f64::max);
+    assert!(largest < 0.01, "{c:#?}");
+}
+
+/// A line the fit would make larger than the whole error's span is left out
+/// too: a line just off the Nyquist bin of a sparse grid, ill-conditioned.
+#[test]
+fn a_fitted_line_larger_than_the_error_itself_is_not_estimable() {
+    let truth = fig8(|_| {});
+    let a = full(&truth, 5);
+    let b = simulate(&truth, &circle(40), 2, true, REFERENCE_SIGMA, 6);
+    let opts = CompareOptions { lines: vec![1.0, 19.999_999], ..CompareOptions::default() };
+    let c = compare(&a, &b, &opts).unwrap();
+    assert_eq!(c.lines_not_tested, [19.999_999], "{c:#?}");
+    assert!(c.not_estimable[0].why.contains("span"), "{:?}", c.not_estimable);
+}
