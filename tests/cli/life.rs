@@ -363,7 +363,8 @@ fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_thei
     assert_eq!(doc["check"]["design"]["points"].as_u64(), Some(48), "{doc:#}");
     let largest = doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["amplitude_to_deg"].as_f64().unwrap());
     assert!(largest.fold(0.0, f64::max) < 0.02, "{doc:#}");
-    let tested: Vec<f64> = doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["cycles_per_rev"].as_f64().unwrap()).collect();
+    let tested: Vec<f64> =
+        doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["cycles_per_rev"].as_f64().unwrap()).collect();
     assert!(tested.contains(&20.0) && tested.contains(&40.0), "{doc:#}");
 
     let worn = run(&["--seed", "3", "--model", "worn40.toml"]);
@@ -376,10 +377,17 @@ fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_thei
     assert_eq!(blind.code, 1, "{blind}");
     let doc = blind.json();
     assert_eq!(doc["outcome"], "not decided", "{doc:#}");
-    let unseen: Vec<f64> =
-        doc["check"]["design"]["unseen"].as_array().unwrap().iter().map(|u| u["cycles_per_rev"].as_f64().unwrap()).collect();
+    let unseen: Vec<f64> = doc["check"]["design"]["unseen"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| u["cycles_per_rev"].as_f64().unwrap())
+        .collect();
     assert_eq!(unseen, [20.0, 40.0], "{doc:#}");
-    assert!(blind.stderr.contains("cannot say the asset is in tolerance") && blind.stderr.contains("Nyquist"), "{blind}");
+    assert!(
+        blind.stderr.contains("cannot say the asset is in tolerance") && blind.stderr.contains("Nyquist"),
+        "{blind}"
+    );
     assert!(!blind.stdout.contains("e10"), "no impossible number: {blind}");
 }
 

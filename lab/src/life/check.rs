@@ -253,7 +253,8 @@ async fn undecided(
     unseen: &[Unseen],
 ) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
     store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
-    let what: Vec<String> = unseen.iter().map(|u| format!("the {} cycles/rev line ({})", u.cycles_per_rev, u.why)).collect();
+    let what: Vec<String> =
+        unseen.iter().map(|u| format!("the {} cycles/rev line ({})", u.cycles_per_rev, u.why)).collect();
     let why = format!(
         "no change in what it could see, but it could not see {}: measure a check with more targets (--points) or \
          recalibrate",

@@ -162,9 +162,10 @@ fn left_out_why(samples: &[Sample], name: &str, before: &[f64], k: f64) -> Strin
 /// peak to peak is the fit's arithmetic, not the positioner).
 fn span(samples: &[Sample]) -> f64 {
     cells(samples).map_or(f64::INFINITY, |c| {
-        let (lo, hi) = c.cells.values().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
-            (l.min(x.mean_deg), h.max(x.mean_deg))
-        });
+        let (lo, hi) = c
+            .cells
+            .values()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| (l.min(x.mean_deg), h.max(x.mean_deg)));
         hi - lo
     })
 }

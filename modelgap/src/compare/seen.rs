@@ -71,7 +71,9 @@ pub fn unseen(lines: &[f64], n: f64, jointly: bool) -> Vec<Unseen> {
     let mut kept: Vec<(f64, f64)> = Vec::new();
     let mut out = Vec::new();
     for &k in lines {
-        if k <= 0.0 || kept.iter().any(|(l, _)| (l - k).abs() < 1e-9) || out.iter().any(|u: &Unseen| u.cycles_per_rev == k)
+        if k <= 0.0
+            || kept.iter().any(|(l, _)| (l - k).abs() < 1e-9)
+            || out.iter().any(|u: &Unseen| u.cycles_per_rev == k)
         {
             continue;
         }
@@ -297,7 +299,9 @@ mod tests {
             let half_step = (2 * points).is_multiple_of(d.points) && ((2 * points) / d.points) % 2 == 1;
             if half_step {
                 let smaller = (MIN_CHECK_POINTS..d.points).filter(|n| {
-                    (2 * points).is_multiple_of(*n) && ((2 * points) / n) % 2 == 1 && unseen(&lines, f64::from(*n), false).is_empty()
+                    (2 * points).is_multiple_of(*n)
+                        && ((2 * points) / n) % 2 == 1
+                        && unseen(&lines, f64::from(*n), false).is_empty()
                 });
                 assert_eq!(smaller.count(), 0, "{points}: {d:?}");
             }
@@ -322,6 +326,9 @@ mod tests {
         let d = design_check(arc, &[1.0, 20.0], None);
         assert!(d.unseen.is_empty(), "{d:?}");
         let spacing = 100.0 / f64::from(d.points - 1);
-        assert!(((spacing / 0.5) - (spacing / 0.5).round()).abs() < 1e-9 && (spacing / 0.5).round() % 2.0 == 1.0, "{d:?}");
+        assert!(
+            ((spacing / 0.5) - (spacing / 0.5).round()).abs() < 1e-9 && (spacing / 0.5).round() % 2.0 == 1.0,
+            "{d:?}"
+        );
     }
 }
