@@ -13,6 +13,7 @@
 
 use super::{Compared, Measured, compared, measure};
 use crate::conclude::{ConcludeOptions, conclude};
+use crate::correction::{self, Before, Choice};
 use crate::error::{Recalibrated, bad_input};
 use serde_json::{Value, json};
 use std::path::Path;
@@ -57,6 +58,10 @@ pub struct CheckRequest {
     pub recipe: Option<std::path::PathBuf>,
     /// The unit of the errors in the text.
     pub units: survey_bench::output::Units,
+    /// What the asset's first calibration does when the positioner applies
+    /// a correction (`--correction`; a recalibration after a check that found
+    /// the correction on switches it off: the table in force is replaced).
+    pub correction: Choice,
 }
 
 /// The grid a check is designed on: the calibration's targets (a full
@@ -142,18 +147,33 @@ async fn check_with(
     let Some(cal) = in_force(store, asset).await? else {
         let why = format!("no calibration of the asset {asset} is in force: a full survey calibrates it");
         eprintln!("{why}");
-        let (full, text) = full_survey(store, db, req, asset, bench(req.size)?, stop).await?;
+        let (full, text) = full_survey(store, db, req, asset, (bench(req.size)?, req.correction), stop).await?;
         let doc = json!({"asset": asset, "outcome": "calibrated", "reason": why, "check": null,
             "recalibration": full["run"], "table_in_force": full["table_in_force"]});
         return Ok((doc, format!("{why}\n{text}"), Some(why), None));
     };
     // The table in force first: the check is designed to see its lines.
     let a = measure(store, SurveyRef::Id(cal.id)).await?;
-    let lines: Vec<f64> = std::iter::once(1.0).chain(a.main_lines().iter().map(|l| l.cycles_per_rev)).collect();
+    // Lines the calibration's own targets cannot place (aliases in doubt) show
+    // elsewhere on the check's grid: the table's check judges what they leave.
+    let doubt: Vec<f64> = a.lines_in_doubt().iter().map(|(bin, _)| *bin).collect();
+    let lines: Vec<f64> = std::iter::once(1.0)
+        .chain(a.main_lines().iter().map(|l| l.cycles_per_rev))
+        .filter(|k| !doubt.contains(k))
+        .collect();
     let design = cal.plan().map(|p| design_check(grid_of(p, req.polygon), &lines, req.size.points));
     let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
-    let new = NewSurvey { asset: asset.to_string(), check_of: Some(cal.uid.clone()), ..b.new_survey() };
+    // The check measures the axis as it finds it, and leaves it so.
+    let found = match correction::read(&mut b.engine).await? {
+        Some(true) => Before::On,
+        Some(false) => Before::Off,
+        None => {
+            Before::Unknown(format!("{} cannot report whether it applies a correction", b.engine.positioner_name()))
+        }
+    };
+    let mut new = NewSurvey { asset: asset.to_string(), check_of: Some(cal.uid.clone()), ..b.new_survey() };
+    new.instruments["correction"] = found.as_str().into();
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
     b.engine.set_stop(stop.clone());
@@ -174,7 +194,11 @@ async fn check_with(
     acquire(store, id, &mut b.engine, &b.plan, 0, options).await?;
     drop(lock);
     drop(b);
-    let c = measure(store, SurveyRef::Id(id)).await?;
+    let mut c = measure(store, SurveyRef::Id(id)).await?;
+    let corrected = found == Before::On;
+    if corrected {
+        as_native(&mut c, &a)?;
+    }
     let cmp = compared(&a, &c)?;
     // What of the table in force the check could not see: by its design, or
     // by the comparison (a line not estimable at its targets).
@@ -200,8 +224,9 @@ async fn check_with(
     store.record_check(&decision).await?;
     // A check has no outputs of its own: its decision is what completes it.
     store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
-    let check_doc = check_json(&cmp, &a, &c, design.as_ref());
-    let mut text = design_text(design.as_ref()) + &cmp.text(&a, &c);
+    let mut check_doc = check_json(&cmp, &a, &c, design.as_ref());
+    check_doc["correction"] = found.as_str().into();
+    let mut text = design_text(design.as_ref()) + &measured_text(&found) + &cmp.text(&a, &c);
     let table_of = |r: &SurveyRecord| json!({"survey_id": r.id, "uid": r.uid});
     if !cmp.decision.recalibrate {
         text += &format!("in tolerance: the table of survey {} stays in force\n", cal.id);
@@ -212,13 +237,54 @@ async fn check_with(
     text += &format!("recalibrating: {}\n", cmp.decision.reason);
     eprintln!("survey {id}: recalibrating: {}", cmp.decision.reason);
     let size = PlanSize { points: cal.points, runs: cal.runs, bidirectional: cal.bidirectional };
-    let (full, full_text) = full_survey(store, db, req, asset, bench(size)?, stop).await?;
+    // A correction found on is the table being replaced: off for the calibration.
+    let choice = if corrected { Choice::Off } else { req.correction };
+    let (full, full_text) = full_survey(store, db, req, asset, (bench(size)?, choice), stop).await?;
     let new_uid = full["table_in_force"]["uid"].as_str().unwrap_or_default().to_string();
     store.set_recalibration(id, &new_uid, full["table_in_force"]["table"].as_str()).await?;
     text += &full_text;
     let doc = json!({"asset": asset, "outcome": "recalibrated", "recalibrate": true, "reason": cmp.decision.reason,
         "check": check_doc, "recalibration": full["run"], "table_in_force": full["table_in_force"]});
     Ok((doc, text, Some(cmp.decision.reason), None))
+}
+
+/// A check measured with the correction on: its samples with the table in
+/// force (the calibration's, as processed now) added back to their errors,
+/// the native axis as the controller's correction leaves it to be seen (the
+/// table the controller applies is taken to be the table in force; its
+/// second-order effect, the table's slope times the error, is below the
+/// noise). Then the lines, the backlash and the map compare with the
+/// calibration as for a native check, and the table's check is the
+/// corrected axis against the table's predicted residual and its U.
+fn as_native(check: &mut Measured, cal: &Measured) -> anyhow::Result<()> {
+    let table = match &cal.processed {
+        Ok(p) => &p.built.table,
+        Err(why) => {
+            return Err(anyhow::anyhow!(
+                "the check measured the corrected axis, and the table in force (survey {}) cannot be made again to \
+                 judge it: {why}",
+                cal.survey.id
+            ));
+        }
+    };
+    for s in &mut check.samples {
+        s.readout_deg += table.error_at(s.readout_deg, s.direction);
+    }
+    Ok(())
+}
+
+/// What the check measured, by the correction it found: the lines of the text.
+fn measured_text(found: &Before) -> String {
+    match found {
+        Before::On => "the correction at the positioner was on: the check measured the corrected axis, judged with \
+                       the table in force added back (against the calibration) and as it is (against the table's \
+                       predicted residual and U); the check leaves it on\n"
+            .into(),
+        Before::Unknown(why) => {
+            format!("correction at the positioner: unknown ({why}): the check takes the axis as native\n")
+        }
+        _ => String::new(),
+    }
 }
 
 /// The check's document: the comparison, its survey and its design.
@@ -276,12 +342,18 @@ async fn full_survey(
     db: &Path,
     req: &CheckRequest,
     asset: &str,
-    mut b: Bench,
+    (mut b, choice): (Bench, Choice),
     stop: &Stop,
 ) -> anyhow::Result<(Value, String)> {
-    let new = NewSurvey { asset: asset.to_string(), ..b.new_survey() };
+    let before = correction::before_calibration(&mut b.engine, choice).await?;
+    let mut new = NewSurvey { asset: asset.to_string(), ..b.new_survey() };
+    new.instruments["correction"] = before.as_str().into();
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
+    if before == Before::SwitchedOff {
+        let at = b.clock.now().as_secs_f64();
+        store.log_event(id, at, "info", "the positioner applied a correction: switched off before the survey").await?;
+    }
     b.engine.set_stop(stop.clone());
     eprintln!("survey {id}: a full survey, {} targets x {} runs", b.plan.targets_deg.len(), b.plan.runs);
     let options = AcquireOptions { progress: !req.json, plan_progress: b.plan_progress.clone(), ..Default::default() };

@@ -46,8 +46,12 @@
 //! difference: the table itself cancels, so a cell is outside by chance in at
 //! most 4.55 % of surveys while the error moved by less than `U`). The table
 //! holds unless more cells are outside than `p0 = 0.05 + 0.95 x 0.0455` of
-//! them allows (a binomial count at the stated rate). Without common cells,
-//! the second survey's residual itself is held to `U + 2 s / sqrt(n)`. It is
+//! them allows (a binomial count at the stated rate). The second survey's
+//! cells between the first's targets (a check designed to fall between the
+//! calibration's targets, where the table interpolates) have no measurement
+//! of the first to move from: there, and everywhere without common cells,
+//! the second survey's residual itself is held to `U + 2 s / sqrt(n)`, and
+//! counted with the rest. It is
 //! a test of a change that matters against the table's own statement; a
 //! change too small for it is what the tests of the lines and of the map are
 //! for (a change can be significant and still within `U`).
@@ -64,7 +68,7 @@ pub mod seen;
 mod tests;
 
 use crate::stats::{f_sf, normal_two_sided_sf, t_two_sided_isf, t_two_sided_sf};
-use fit::{Cells, cells, fit_both};
+use fit::{CellKey, Cells, cells, fit_both};
 use serde::Serialize;
 use survey_processing::Sample;
 use survey_processing::table::CorrectionTable;
@@ -425,7 +429,13 @@ pub fn table_on(
     };
     let (cells_tested, outside, predicted) = if common.len() >= 3 {
         let outside = common.iter().filter(|(_, d, s)| d.abs() > stated_u_deg + 2.0 * s).count();
-        (common.len(), outside, Some(peak(&mut common.iter().map(|c| c.0))))
+        // B's cells between A's targets: what the table leaves where it
+        // interpolates, held to U itself (no measurement of A to move from).
+        let between: Vec<&(CellKey, f64, usize)> =
+            residual.iter().filter(|(k, _, _)| ca.as_ref().is_some_and(|ca| !ca.cells.contains_key(k))).collect();
+        let beyond =
+            between.iter().filter(|(_, r, n)| r.abs() > stated_u_deg + 2.0 * (cb.var / *n as f64).sqrt()).count();
+        (common.len() + between.len(), outside + beyond, Some(peak(&mut common.iter().map(|c| c.0))))
     } else {
         let outside =
             residual.iter().filter(|(_, r, n)| r.abs() > stated_u_deg + 2.0 * (cb.var / *n as f64).sqrt()).count();
