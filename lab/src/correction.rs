@@ -138,7 +138,16 @@ pub async fn switch(engine: &mut Engine, on: bool) -> anyhow::Result<()> {
 /// A refusal is bad input and comes before anything is stored.
 pub async fn before_calibration(engine: &mut Engine, choice: Choice) -> anyhow::Result<Before> {
     let name = engine.positioner_name().to_string();
-    match (read(engine).await?, choice) {
+    // An instrument that does not answer now is the acquisition's to survive
+    // (or to leave interrupted, resumable): the state is then unknown.
+    let state = match read(engine).await {
+        Ok(state) => state,
+        Err(e) => {
+            tracing::warn!(instrument = %name, error = %format!("{e:#}"), "the correction state could not be read");
+            return Ok(Before::Unknown(format!("it could not be read: {e:#}")));
+        }
+    };
+    match (state, choice) {
         (None, _) => Ok(Before::Unknown(format!("{name} cannot report whether it applies a correction"))),
         (Some(false), _) => Ok(Before::Off),
         (Some(true), Choice::Refuse) => Err(bad_input(format!(

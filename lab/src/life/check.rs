@@ -165,12 +165,14 @@ async fn check_with(
     let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
     // The check measures the axis as it finds it, and leaves it so.
-    let found = match correction::read(&mut b.engine).await? {
-        Some(true) => Before::On,
-        Some(false) => Before::Off,
-        None => {
+    let found = match correction::read(&mut b.engine).await {
+        Ok(Some(true)) => Before::On,
+        Ok(Some(false)) => Before::Off,
+        Ok(None) => {
             Before::Unknown(format!("{} cannot report whether it applies a correction", b.engine.positioner_name()))
         }
+        // Not answering now: the acquisition survives it or stops the check.
+        Err(e) => Before::Unknown(format!("it could not be read: {e:#}")),
     };
     let mut new = NewSurvey { asset: asset.to_string(), check_of: Some(cal.uid.clone()), ..b.new_survey() };
     new.instruments["correction"] = found.as_str().into();
