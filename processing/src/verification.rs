@@ -14,6 +14,8 @@
 //! `M >= N` (the corrected axis is not better than the native one: whatever
 //! was predicted, the table is not a result). Otherwise it is **confirmed**.
 
+pub mod aliases;
+
 use crate::Direction;
 use crate::Sample;
 use crate::correction::ErrorFigures;
@@ -87,8 +89,11 @@ pub struct Judged {
 
 /// Judge a verification: `measured` corrected peak against the `predicted`
 /// one and the table's `u` (expanded), and against the `native` peak
-/// (degrees; see the module documentation).
-pub fn judge(predicted: f64, u: f64, measured: f64, native: f64) -> Judged {
+/// (degrees; see the module documentation). A verification that could not
+/// have seen the table fail (`blind`: plausible lines its targets sample
+/// where the table's misplaced line matches them, [`aliases::blind`])
+/// confirms nothing.
+pub fn judge(predicted: f64, u: f64, measured: f64, native: f64, blind: &[aliases::Blind]) -> Judged {
     let figures = format!(
         "measured corrected peak +/-{measured:.5} deg, predicted +/-{predicted:.5} deg with U = {u:.5} deg, native \
          +/-{native:.5} deg"
@@ -100,6 +105,17 @@ pub fn judge(predicted: f64, u: f64, measured: f64, native: f64) -> Judged {
         )
     } else if measured > predicted + u {
         (Verdict::NotConfirmed, "the corrected peak exceeds the prediction by more than the table's uncertainty U")
+    } else if let Some(b) = blind.first() {
+        let more = match blind.len() {
+            1 => String::new(),
+            n => format!(" (and {} more such lines)", n - 1),
+        };
+        let why = format!(
+            "the verification could not have seen the table fail: {}{more}; the corrected peak is within the \
+             prediction plus U, and better than native, at its targets only",
+            b.text()
+        );
+        return Judged { verdict: Verdict::NotConfirmed, reason: format!("{why} ({figures})") };
     } else {
         (Verdict::Confirmed, "the corrected peak is within the prediction plus U, and better than native")
     };
@@ -147,19 +163,24 @@ mod tests {
     #[test]
     fn the_verdict_follows_the_contract() {
         // Within P + U and better than native.
-        assert_eq!(judge(0.002, 0.0005, 0.0024, 0.015).verdict, Verdict::Confirmed);
+        assert_eq!(judge(0.002, 0.0005, 0.0024, 0.015, &[]).verdict, Verdict::Confirmed);
         // Exactly at P + U: still confirmed (the rule is "exceeds by more than U").
-        assert_eq!(judge(0.002, 0.0005, 0.0025, 0.015).verdict, Verdict::Confirmed);
+        assert_eq!(judge(0.002, 0.0005, 0.0025, 0.015, &[]).verdict, Verdict::Confirmed);
         // Above P + U.
-        let j = judge(0.002, 0.0005, 0.0026, 0.015);
+        let j = judge(0.002, 0.0005, 0.0026, 0.015, &[]);
         assert_eq!(j.verdict, Verdict::NotConfirmed);
         assert!(j.reason.contains("exceeds the prediction"), "{}", j.reason);
         // The issue's sparse survey: predicted 0.0022 with U 5.6e-4, measured 0.0205, native 0.0152.
-        let j = judge(0.0022, 5.6e-4, 0.0205, 0.0152);
+        let j = judge(0.0022, 5.6e-4, 0.0205, 0.0152, &[]);
         assert_eq!(j.verdict, Verdict::NotConfirmed);
         assert!(j.reason.contains("not better than the native"), "{}", j.reason);
         // Within the prediction but no better than native: not confirmed.
-        assert_eq!(judge(0.02, 0.005, 0.015, 0.015).verdict, Verdict::NotConfirmed);
+        assert_eq!(judge(0.02, 0.005, 0.015, 0.015, &[]).verdict, Verdict::NotConfirmed);
         assert_eq!(serde_json::to_value(Verdict::NotConfirmed).unwrap(), "not confirmed");
+        // Within P + U and better than native, but blind to a plausible alias: not confirmed.
+        let blind = [aliases::Blind { table_cycles: 3.0, true_cycles: 43.0 }];
+        let j = judge(0.002, 0.0005, 0.0024, 0.015, &blind);
+        assert_eq!(j.verdict, Verdict::NotConfirmed);
+        assert!(j.reason.contains("could not have seen the table fail: a line of 43 cycles/rev"), "{}", j.reason);
     }
 }
