@@ -387,7 +387,9 @@ mod tests {
         let circle = SurveyPlan::full_circle(120, 2, true).unwrap();
         assert_eq!(grid_of(&circle, false), CalibrationGrid { points: 120, arc_deg: None, polygon: false });
         let arc = SurveyPlan::within_travel(-10.0, 90.0, 101, 2, true).unwrap();
-        assert_eq!(grid_of(&arc, false), CalibrationGrid { points: 101, arc_deg: Some(100.0), polygon: false });
+        let span = arc.targets_deg[100] - arc.targets_deg[0];
+        assert_eq!(grid_of(&arc, false), CalibrationGrid { points: 101, arc_deg: Some(span), polygon: false });
+        assert!(span > 90.0 && span <= 100.0, "{span}");
         assert!(grid_of(&SurveyPlan::full_circle(24, 2, true).unwrap(), true).polygon);
     }
 }
