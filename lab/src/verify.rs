@@ -55,6 +55,9 @@ pub struct VerifyPlan {
     /// so that no plausible alias of the table's lines hides between them
     /// ([`VerifyPlan::seeing`]).
     pub second: usize,
+    /// The count was chosen, not one a calibration target, so that no
+    /// plausible alias of the table's lines hides between the targets.
+    pub resized: bool,
 }
 
 impl VerifyPlan {
@@ -70,11 +73,25 @@ impl VerifyPlan {
                      measures at the faces (leave --verify-points out)"
                 )));
             }
-            return Ok(VerifyPlan { plan: plan.clone(), between: false, offset_deg: 0.0, asked: false, second: 0 });
+            return Ok(VerifyPlan {
+                plan: plan.clone(),
+                between: false,
+                offset_deg: 0.0,
+                asked: false,
+                second: 0,
+                resized: false,
+            });
         }
         let verification = plan.between_targets(points)?;
         let offset_deg = offset_deg(&verification.targets_deg, &plan.targets_deg);
-        Ok(VerifyPlan { plan: verification, between: true, offset_deg, asked: points.is_some(), second: 0 })
+        Ok(VerifyPlan {
+            plan: verification,
+            between: true,
+            offset_deg,
+            asked: points.is_some(),
+            second: 0,
+            resized: false,
+        })
     }
 
     /// The plan that can see the table of `processed` (made at `calibration`'s
@@ -95,8 +112,23 @@ impl VerifyPlan {
             return self;
         }
         let (lines, f_max) = (table_lines(&processed.processed), plausible_max(survey));
-        let most = 3 * calibration.targets_deg.len();
-        match aliases::second_spacing(&calibration.targets_deg, &self.plan.targets_deg, &lines, f_max, most) {
+        let cal = &calibration.targets_deg;
+        if aliases::blind(cal, &self.plan.targets_deg, &lines, f_max).is_empty() {
+            return self;
+        }
+        // One evenly spaced set first (every move alike, about as many
+        // samples as the calibration's): the fewest targets from n to 2n,
+        // half their own step from 0, that see every plausible line.
+        let single = (cal.len() + 1..=2 * cal.len()).find_map(|p| {
+            let plan = calibration.between_targets(Some(p as u32)).ok()?;
+            aliases::blind(cal, &plan.targets_deg, &lines, f_max).is_empty().then_some(plan)
+        });
+        if let Some(plan) = single {
+            let offset_deg = offset_deg(&plan.targets_deg, cal);
+            return VerifyPlan { plan, offset_deg, resized: true, ..self };
+        }
+        let most = 3 * cal.len();
+        match aliases::second_spacing(cal, &self.plan.targets_deg, &lines, f_max, most) {
             Some((second, targets)) => {
                 let offset_deg = offset_deg(&targets, &calibration.targets_deg);
                 VerifyPlan { plan: SurveyPlan { targets_deg: targets, ..self.plan }, offset_deg, second, ..self }
@@ -242,7 +274,8 @@ pub async fn verify(
     // A verification writes no file: its figures are its outputs.
     store.set_status(id, SurveyStatus::Complete, None).await?;
     let corrected = store.samples(id).await?;
-    let predicted = processed.processed.prediction.corrected_peak_deg;
+    // The prediction for this verification: its own count of samples.
+    let predicted = survey_processing::verification::predicted_for(&processed.processed.prediction, corrected.len());
     let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
     let u = processed.uncertainty.table_u_deg;
     let blind = blind(&calibration.targets_deg, &plan.targets_deg, plausible_max(native), &processed.processed);
@@ -251,6 +284,7 @@ pub async fn verify(
     out.doc["between_targets"] = verify_plan.between.into();
     out.doc["offset_deg"] = verify_plan.offset_deg.into();
     out.doc["second_spacing_targets"] = verify_plan.second.into();
+    out.doc["resized"] = verify_plan.resized.into();
     out.doc["blind"] = serde_json::to_value(&blind).unwrap_or_default();
     out.doc["table_u_deg"] = u.into();
     out.doc["verdict"] = judged.verdict.as_str().into();
@@ -281,6 +315,14 @@ fn placement(v: &VerifyPlan) -> String {
             v.offset_deg,
             v.plan.targets_deg.len() - v.second,
             v.second
+        )
+    } else if v.between && v.resized {
+        format!(
+            "at {} targets between the calibration targets (at least {:.4} deg from each), half their own step from \
+             0: the fewest from one a target up that leave no plausible alias of the table's lines hidden between \
+             them (half a step from every target would)",
+            v.plan.targets_deg.len(),
+            v.offset_deg
         )
     } else if v.between {
         format!(

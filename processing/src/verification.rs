@@ -57,6 +57,23 @@ pub fn systematic_peak_deg(samples: &[Sample]) -> f64 {
     means.iter().map(|m| (m - mean).abs()).fold(0.0, f64::max)
 }
 
+/// The corrected peak predicted for a verification of `samples` samples,
+/// from the calibration's prediction `p` (made for a new survey of the
+/// calibration's own plan, `p.samples` samples): the peak of `M` samples'
+/// noise grows as `sqrt(2 ln 2M)` (its expected maximum), so a verification
+/// of more samples than the calibration is allowed that much more of the
+/// noise `sigma` (the one the prediction's spread was made from,
+/// [`crate::correction::Prediction::with_left`]); one of fewer is held to
+/// the prediction as it is.
+pub fn predicted_for(p: &crate::correction::Prediction, samples: usize) -> f64 {
+    if p.peak_spread_deg <= 0.0 || samples <= p.samples || p.samples == 0 {
+        return p.corrected_peak_deg;
+    }
+    let peak_of = |m: usize| (2.0 * (2.0 * m as f64).ln()).sqrt();
+    let sigma = p.peak_spread_deg * peak_of(p.samples) / 19f64.ln();
+    p.corrected_peak_deg + sigma * (peak_of(samples) - peak_of(p.samples))
+}
+
 /// The verdict of a verification.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum Verdict {
@@ -125,6 +142,7 @@ pub fn judge(predicted: f64, u: f64, measured: f64, native: f64, blind: &[aliase
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::correction::Prediction;
 
     fn sample(run: u32, direction: Direction, target_deg: f64, error: f64) -> Sample {
         Sample {
@@ -158,6 +176,28 @@ mod tests {
         assert_eq!(systematic_peak_deg(&[]), 0.0);
         // Every sample's error from the overall mean: at most 3.
         assert!((peak_deg(&s) - 3.0).abs() < 1e-12, "{}", peak_deg(&s));
+    }
+
+    #[test]
+    fn the_prediction_for_a_verification_carries_its_own_noise_peak() {
+        let p = Prediction {
+            native_peak_deg: 0.015,
+            corrected_peak_deg: 0.0036,
+            in_sample_corrected_peak_deg: 0.0028,
+            unseen_between_targets_deg: 0.0001,
+            peak_spread_deg: 0.0007,
+            native: ErrorFigures::of(&[0.0], None),
+            corrected: ErrorFigures::of(&[0.0], None),
+            floor_deg: 0.0,
+            samples: 480,
+        };
+        // sigma = 0.0007 x sqrt(2 ln 960) / ln 19 = 8.81e-4; 768 samples peak higher.
+        let sigma = 0.0007 * (2.0 * 960f64.ln()).sqrt() / 19f64.ln();
+        let want = 0.0036 + sigma * ((2.0 * 1536f64.ln()).sqrt() - (2.0 * 960f64.ln()).sqrt());
+        assert!((predicted_for(&p, 768) - want).abs() < 1e-12 && want - 0.0036 < 2e-4);
+        // As many or fewer: the prediction as it is.
+        assert_eq!((predicted_for(&p, 480), predicted_for(&p, 100)), (0.0036, 0.0036));
+        assert_eq!(predicted_for(&Prediction { peak_spread_deg: 0.0, ..p }, 768), 0.0036);
     }
 
     #[test]

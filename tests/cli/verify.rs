@@ -15,25 +15,24 @@ fn the_fig8_correction_measured_in_the_loop_beats_native_and_the_hysteresis_floo
     let v = &doc["verify"];
     let num = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("verify.{k} missing: {v}"));
     assert_eq!(v["survey_id"], 2);
-    // Measured half a step (0.5 deg) from every calibration target, and at
-    // a second spacing (a quarter of its own step from 0) so that no
-    // plausible alias of the table's lines (up to 720 cycles/rev: 719 = 2 x
-    // 360 - 1 shifts by whole turns half a step from every target) hides.
-    let second = v["second_spacing_targets"].as_u64().unwrap();
-    assert!(second > 0 && v["blind"].as_array().unwrap().is_empty(), "{v}");
-    assert_eq!((v["targets"].as_u64(), v["between_targets"].as_bool()), (Some(360 + second), Some(true)), "{v}");
+    // Half a step from every target, a plausible line of 719 or 721 cycles/rev
+    // (2 x 360 -+ 1) shifts by whole turns and would hide: the verification
+    // takes the fewest evenly spaced targets from 361 up, half their own step
+    // from 0, that see every plausible line (368), none on a calibration target.
+    let n = v["targets"].as_u64().unwrap();
+    assert!(v["resized"] == true && v["blind"].as_array().unwrap().is_empty(), "{v}");
+    assert!((361..=720).contains(&n) && v["between_targets"] == true, "{v}");
     bench.survey(&["export", "--csv", "v.csv", "--survey", "2"]).success();
     let targets = targets_of(&bench.read("v.csv"));
-    assert_eq!(targets.len(), 360 + second as usize);
-    assert!((0..360).all(|k| targets.iter().any(|t| (t - (k as f64 + 0.5)).abs() < 1e-9)), "{targets:?}");
-    let quarter = 360.0 / second as f64;
-    assert!((0..second).all(|j| targets.iter().any(|t| (t - quarter * (j as f64 + 0.25)).abs() < 1e-9)));
+    let step = 360.0 / n as f64;
+    assert_eq!(targets.len() as u64, n);
+    assert!(targets.iter().enumerate().all(|(k, t)| (t - step * (k as f64 + 0.5)).abs() < 1e-9), "{targets:?}");
     assert!(targets.iter().all(|t| (t - t.round()).abs() > 1e-6), "none on a calibration target");
     assert!((num("offset_deg") - targets.iter().map(|t| (t - t.round()).abs()).fold(1.0, f64::min)).abs() < 1e-9);
     // Its own plan is stored with it, so a resume measures the same targets.
     let shown = bench.survey(&["show", "2", "--json"]).success().json();
-    assert_eq!(shown["plan"]["targets"].as_u64(), Some(targets.len() as u64), "{shown}");
-    assert_eq!(shown["points"].as_u64(), Some(360 + second), "{shown}");
+    assert_eq!(shown["plan"]["targets"].as_u64(), Some(n), "{shown}");
+    assert_eq!(shown["points"].as_u64(), Some(n), "{shown}");
     assert_eq!(v["directional"], true, "fig8's 0.008 deg backlash makes the table direction-aware");
     // The paper: +/-0.015 -> +/-0.005, a factor of 3, limited by hysteresis.
     // Here every sample also carries the tracker's ~0.0009 deg and the

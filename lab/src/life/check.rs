@@ -231,8 +231,9 @@ async fn check_with(
     let mut text = design_text(design.as_ref()) + &measured_text(&found) + &cmp.text(&a, &c);
     let table_of = |r: &SurveyRecord| json!({"survey_id": r.id, "uid": r.uid});
     if !cmp.decision.recalibrate {
-        text += &format!("in tolerance: the table of survey {} stays in force\n", cal.id);
-        let doc = json!({"asset": asset, "outcome": "in tolerance", "recalibrate": false,
+        let outcome = if cmp.decision.changed { "changed, the table holds" } else { "in tolerance" };
+        text += &format!("{outcome}: the table of survey {} stays in force\n", cal.id);
+        let doc = json!({"asset": asset, "outcome": outcome, "recalibrate": false,
             "reason": cmp.decision.reason, "check": check_doc, "recalibration": null, "table_in_force": table_of(&cal)});
         return Ok((doc, text, None, None));
     }

@@ -207,8 +207,17 @@ pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
         (Ok(p), Some(u)) => table_on(&p.built.table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
         _ => None,
     };
-    let decision = decide(&comparison, table_of_a_on_b.as_ref());
+    let decision = decide(&comparison, table_of_a_on_b.as_ref(), asset_tolerance(a));
     Ok(Compared { comparison, table_of_a_on_b, decision })
+}
+
+/// The tolerance stated for the asset of `a` (the calibration in force, or
+/// the earlier survey): its configuration's `[certificate] tolerance_deg`.
+fn asset_tolerance(a: &Measured) -> Option<f64> {
+    match &a.survey.setup {
+        survey_store::survey::Setup::Configured(c) => c.config.certificate.as_ref().and_then(|c| c.tolerance_deg),
+        _ => None,
+    }
 }
 
 /// The lines of `a` or `b` that its own targets cannot place

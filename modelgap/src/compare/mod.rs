@@ -58,8 +58,10 @@
 //!
 //! # The decision
 //!
-//! [`decide`]: recalibrate when something changed beyond what the two
-//! surveys' repeatability allows, or when the table no longer holds; the
+//! [`decide`]: recalibrate when the table in force no longer holds, or when
+//! a change exceeds the tolerance stated for the asset; a change beyond what
+//! the two surveys' repeatability allows within a table that holds is named
+//! ("changed, the table holds") and recalibrates nothing; the
 //! reason names each change with its size.
 
 mod fit;
@@ -472,59 +474,100 @@ fn binomial_isf(n: usize, p: f64, alpha: f64) -> usize {
 /// Whether to recalibrate, and why.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Decision {
-    /// Recalibrate: something changed, or the table in force no longer holds.
+    /// Recalibrate: the table in force no longer holds, or a change exceeds
+    /// the tolerance stated for the asset.
     pub recalibrate: bool,
+    /// Something changed beyond what the two surveys' repeatability allows
+    /// (with the table still holding: "changed, the table holds").
+    pub changed: bool,
     /// Why, in words, each change named with its size.
     pub reason: String,
 }
 
-/// The decision from a comparison and, when a table was applied, its check.
-pub fn decide(c: &Comparison, table: Option<&TableCheck>) -> Decision {
-    let mut why: Vec<String> = Vec::new();
+/// The decision from a comparison and, when a table was applied, its
+/// check; `tolerance_deg`: the tolerance stated for the asset (its
+/// configuration's `[certificate] tolerance_deg`), which a change may not
+/// exceed. What a laboratory pays a recalibration for: the table in force
+/// no longer holds (its residual beyond its stated U at the stated rate), or
+/// a change exceeds the tolerance. A significant change within a table that
+/// still holds is named ("changed, the table holds") and recalibrates nothing.
+pub fn decide(c: &Comparison, table: Option<&TableCheck>, tolerance_deg: Option<f64>) -> Decision {
+    // Each significant change: its words and its size.
+    let mut changes: Vec<(String, f64)> = Vec::new();
     for l in c.lines.iter().filter(|l| l.significant) {
-        why.push(format!(
-            "the {} cycles/rev line changed from {:.3e} to {:.3e} deg (by {:.2e} deg; the repeatability allows {:.2e})",
-            fmt_cycles(l.cycles_per_rev),
-            l.amplitude_from_deg,
-            l.amplitude_to_deg,
+        changes.push((
+            format!(
+                "the {} cycles/rev line changed from {:.3e} to {:.3e} deg (by {:.2e} deg; the repeatability allows \
+                 {:.2e})",
+                fmt_cycles(l.cycles_per_rev),
+                l.amplitude_from_deg,
+                l.amplitude_to_deg,
+                l.change_deg,
+                l.change_u_deg
+            ),
             l.change_deg,
-            l.change_u_deg
         ));
     }
     if let Some(b) = c.backlash.as_ref().filter(|b| b.significant) {
-        why.push(format!(
-            "the backlash changed from {:.3e} to {:.3e} deg (the repeatability allows {:.2e})",
-            b.from_deg, b.to_deg, b.change_u_deg
+        changes.push((
+            format!(
+                "the backlash changed from {:.3e} to {:.3e} deg (the repeatability allows {:.2e})",
+                b.from_deg, b.to_deg, b.change_u_deg
+            ),
+            (b.to_deg - b.from_deg).abs(),
         ));
     }
     if let Some(m) = c.map.as_ref().filter(|m| m.significant) {
-        why.push(format!(
-            "the mean error map changed: {:.2e} deg rms, {:.2e} deg at most over {} cells (F = {:.2}, p = {:.1e})",
-            m.rms_change_deg, m.peak_change_deg, m.cells, m.statistic, m.p_value
+        changes.push((
+            format!(
+                "the mean error map changed: {:.2e} deg rms, {:.2e} deg at most over {} cells (F = {:.2}, p = {:.1e})",
+                m.rms_change_deg, m.peak_change_deg, m.cells, m.statistic, m.p_value
+            ),
+            m.peak_change_deg,
         ));
     }
-    if let Some(t) = table.filter(|t| !t.holds) {
-        let predicted = t.predicted_peak_deg.map_or(String::new(), |p| format!(" where it left {p:.2e} deg"));
-        why.push(format!(
-            "the table in force no longer holds: it leaves {:.2e} deg{predicted}, {} of {} cells beyond its stated U \
-             {:.2e} deg where {} may be",
-            t.residual_peak_deg, t.cells_outside, t.cells, t.stated_u_deg, t.allowed_outside
-        ));
+    let beyond = |size: f64| tolerance_deg.is_some_and(|t| size > t);
+    let fails = table.filter(|t| !t.holds);
+    let held = match table {
+        Some(t) => format!("; the table in force holds (it leaves {:.2e} deg)", t.residual_peak_deg),
+        None => String::new(),
+    };
+    if fails.is_some() || changes.iter().any(|(_, size)| beyond(*size)) {
+        let mut why: Vec<String> = changes
+            .iter()
+            .map(|(w, size)| match tolerance_deg.filter(|_| beyond(*size)) {
+                Some(t) => format!("{w}, beyond the asset's tolerance of {t:.2e} deg"),
+                None => w.clone(),
+            })
+            .collect();
+        if let Some(t) = fails {
+            let predicted = t.predicted_peak_deg.map_or(String::new(), |p| format!(" where it left {p:.2e} deg"));
+            why.push(format!(
+                "the table in force no longer holds: it leaves {:.2e} deg{predicted}, {} of {} cells beyond its \
+                 stated U {:.2e} deg where {} may be",
+                t.residual_peak_deg, t.cells_outside, t.cells, t.stated_u_deg, t.allowed_outside
+            ));
+        }
+        return Decision { recalibrate: true, changed: !changes.is_empty(), reason: why.join("; ") };
     }
-    if why.is_empty() {
-        let held = match table {
-            Some(t) => format!("; the table in force holds (it leaves {:.2e} deg)", t.residual_peak_deg),
-            None => String::new(),
-        };
+    if !changes.is_empty() {
+        let named: Vec<&str> = changes.iter().map(|(w, _)| w.as_str()).collect();
+        let tolerance =
+            tolerance_deg.map_or(String::new(), |t| format!(", within the asset's tolerance of {t:.2e} deg"));
         return Decision {
             recalibrate: false,
-            reason: format!(
-                "no change beyond what the two surveys' repeatability allows (false-alarm rate {}){held}",
-                c.false_alarm_rate
-            ),
+            changed: true,
+            reason: format!("changed, the table holds: {}{tolerance}{held}", named.join("; ")),
         };
     }
-    Decision { recalibrate: true, reason: why.join("; ") }
+    Decision {
+        recalibrate: false,
+        changed: false,
+        reason: format!(
+            "no change beyond what the two surveys' repeatability allows (false-alarm rate {}){held}",
+            c.false_alarm_rate
+        ),
+    }
 }
 
 /// `20` or `20.5`.

@@ -149,7 +149,7 @@ fn the_same_positioner_twice_is_unchanged_and_its_table_holds() {
     // On a check survey (its cells a tenth of the calibration's) too.
     let held = table_on(&table_of(&a, 360), table_u(), &a, &check(&truth, 3), 0.01).unwrap();
     assert!(held.holds && held.cells == 72, "{held:?}");
-    let d = decide(&c, Some(&held));
+    let d = decide(&c, Some(&held), None);
     assert!(!d.recalibrate && d.reason.starts_with("no change beyond"), "{d:?}");
 }
 
@@ -207,7 +207,7 @@ fn wear_a_disturbed_mounting_and_more_backlash_are_changes_named_with_their_size
         }
         let held = table_on(&table, table_u(), &a, &b, 0.01).unwrap();
         assert!(!held.holds, "{name}: {held:?}");
-        let d = decide(&c, Some(&held));
+        let d = decide(&c, Some(&held), None);
         let said = match name {
             "wear" => "the 20 cycles/rev line changed from 7.",
             "mounting" => "the 1 cycles/rev line changed",
@@ -250,8 +250,15 @@ fn a_table_holds_against_its_own_prediction_and_within_its_stated_u() {
     assert!(line(&c, 20.0).significant, "{c:#?}");
     let held = table_on(&table_of(&a, 360), 1e-3, &a, &b, 0.01).unwrap();
     assert!(held.holds, "{held:?}");
-    let d = decide(&c, Some(&held));
-    assert!(d.recalibrate && !d.reason.contains("no longer holds"), "{d:?}");
+    // A significant change within a table that holds recalibrates nothing:
+    // "changed, the table holds", what changed named.
+    let d = decide(&c, Some(&held), None);
+    assert!(!d.recalibrate && d.changed && d.reason.starts_with("changed, the table holds: the 20"), "{d:?}");
+    // Unless it exceeds the asset's tolerance.
+    let change = line(&c, 20.0).change_deg;
+    let d = decide(&c, Some(&held), Some(change / 2.0));
+    assert!(d.recalibrate && d.reason.contains("beyond the asset's tolerance"), "{d:?}");
+    assert!(!decide(&c, Some(&held), Some(change * 2.0)).recalibrate);
 }
 
 #[test]

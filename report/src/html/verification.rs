@@ -176,7 +176,8 @@ pub fn verdict_rows(
         let target = |s: &[Sample]| s.iter().map(|x| x.target_deg).collect::<Vec<f64>>();
         let blind =
             survey_lab::verify::blind(&target(v.native(own)), &target(v.corrected(own)), v.plausible_max_cycles, p);
-        let j = judge(p.prediction.corrected_peak_deg, u, peak_deg(v.corrected(own)), peak_deg(v.native(own)), &blind);
+        let predicted = survey_processing::verification::predicted_for(&p.prediction, v.corrected(own).len());
+        let j = judge(predicted, u, peak_deg(v.corrected(own)), peak_deg(v.native(own)), &blind);
         let reason = units.text(&j.reason);
         let words = match j.verdict {
             Verdict::Confirmed => format!("confirmed by survey {}: {reason}", v.verification_id),
