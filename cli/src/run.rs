@@ -138,17 +138,20 @@ pub struct RunArgs {
     pub correction: Option<CorrectionArg>,
     /// With --verify: measure at N targets evenly over the span, offset by half
     /// their own step (none may fall on a calibration target) [default: one
-    /// between each pair of calibration targets].
+    /// between each pair of calibration targets, or the fewest that leave no
+    /// plausible alias of the table's lines hidden].
     #[arg(long, value_name = "N", requires = "verify", allow_negative_numbers = true, value_parser = whole::<2, u32>)]
     pub verify_points: Option<u32>,
-    /// The recalibration loop: a short check survey (a few dozen targets of
-    /// the calibration in force, both ways, 2 runs; --points N sets the
-    /// targets) compared with the asset's calibration in force; a full survey
-    /// with that calibration's plan only when the check finds a change or the
-    /// table no longer holds (an asset without a calibration gets one, with
-    /// the plan of --points, --runs, --bidirectional). Exit status 0: in
-    /// tolerance; 3: a full survey was made (recalibrated, or the asset's
-    /// first calibration); 1: failure.
+    /// The recalibration loop: a short check survey (both ways, 2 runs, its
+    /// targets designed to see the lines of the table in force; --points N
+    /// sets them) compared with the asset's calibration in force; a full
+    /// survey with that calibration's plan only when the table no longer
+    /// holds or a change exceeds the asset's tolerance (an asset without a
+    /// calibration gets one, with the plan of --points, --runs,
+    /// --bidirectional). Exit status 0: in tolerance, or changed within a
+    /// table that holds; 3: a full survey was made (recalibrated, or the
+    /// asset's first calibration); 1: failure, or a line in force the check
+    /// could not see; 2: bad input.
     #[arg(long, conflicts_with_all = ["verify", "sim_crash_after", "sim_signal_after", "sim_db_max_pages"])]
     pub check: bool,
     /// Fault injection for tests: the process aborts (like a power loss)
