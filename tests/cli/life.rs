@@ -395,6 +395,51 @@ fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_thei
     assert!(!blind.stdout.contains("e10"), "no impossible number: {blind}");
 }
 
+/// Issue 37's matrix: wear (the 20 cycles/rev line a third larger), a new
+/// line (7 cycles/rev, 0.002 deg), more backlash (half as much again) and a
+/// disturbed mounting (a once-per-revolution term of 0.002 deg) are each
+/// caught by a check designed from a calibration of 60, 120 and 360 points
+/// (2 runs, both ways): never "in tolerance", the change named.
+#[test]
+fn a_designed_check_catches_every_change_after_calibrations_of_60_120_and_360_points() {
+    let bench = Bench::new();
+    let new_line = format!(
+        "{FIG8}\n[[effect]]\nkind = \"harmonic\"\ncycles_per_rev = 7\namplitude_deg = 0.002\nphase_deg = 40.0\n"
+    );
+    let changes = [
+        ("worn", worn(), "20 cycles/rev"),
+        ("new", new_line, ""),
+        ("slack", slack(), "backlash"),
+        ("moved", moved(), ""),
+    ];
+    for (name, text, _) in &changes {
+        bench.write(&format!("{name}.toml"), text);
+    }
+    for n in ["60", "120", "360"] {
+        for (name, _, named) in &changes {
+            let db = format!("{name}-{n}.db");
+            let run = |extra: &[&str]| {
+                let mut args = vec!["--db", db.as_str(), "run", "--check", "--asset", "ax", "--json"];
+                args.extend(extra);
+                bench.survey(&args)
+            };
+            let first = run(&["--points", n, "--runs", "2", "--bidirectional", "--seed", "1"]);
+            assert_eq!(first.code, 3, "{first}");
+            let model = format!("{name}.toml");
+            let out = run(&["--seed", "2", "--model", &model]);
+            assert!(out.code == 0 || out.code == 3, "{n} {name}: {out}");
+            let doc = out.json();
+            let outcome = doc["outcome"].as_str().unwrap();
+            assert!(outcome == "changed, the table holds" || outcome == "recalibrated", "{n} {name}: {doc:#}");
+            // Named: the line or the backlash that changed, or (a line the
+            // calibration's targets cannot place: at 60, 20 and 40 share a bin)
+            // the mean error map.
+            let reason = doc["reason"].as_str().unwrap();
+            assert!(reason.contains(named) || reason.contains("the mean error map changed"), "{n} {name}: {reason}");
+        }
+    }
+}
+
 /// The false-alarm rate on the simulated bench itself (tracker, located and
 /// refitted axis, settling: everything the unit test's model-only surveys
 /// lack): control pairs, the Figure 8 positioner surveyed twice (360
