@@ -76,3 +76,60 @@ fn a_calibration_refuses_a_corrected_axis_unless_told_and_a_check_says_which_axi
     sim.kill().unwrap();
     sim.wait().unwrap();
 }
+
+/// An MI-4190-style controller on the network and an emScon tracker, 24
+/// targets both ways, 2 runs; `unverified` sends the `CORR:` subsystem.
+fn scpi_config(positioner: &str, tracker: &str, unverified: bool) -> String {
+    format!(
+        "[survey]\nreference = \"tracker\"\npoints = 24\nruns = 2\nbidirectional = true\n\
+         [positioner]\ndriver = \"scpi-tcp\"\naddress = \"{positioner}\"\nunverified_commands = {unverified}\n\
+         [tracker]\ndriver = \"emscon\"\naddress = \"{tracker}\"\n\
+         [timing]\ndwell_s = 0.01\npoll_interval_s = 0.02\n"
+    )
+}
+
+/// Where the driver cannot tell (an MI-4190 without the unverified
+/// commands), the survey says the state is unknown; when a table was left
+/// applied (here by a verification through the unverified commands, as a
+/// controller's own loading would) the calibration's error is far below the
+/// asset's last one, and the survey says the axis may be corrected.
+#[test]
+fn an_unknown_correction_is_said_and_a_calibration_far_below_the_last_says_the_axis_may_be_corrected() {
+    use std::io::{BufRead as _, BufReader};
+    use std::process::Stdio;
+    let bench = Bench::new();
+    bench.write("sim.toml", scpi_config("127.0.0.1:0", "127.0.0.1:0", true));
+    let mut sim = bench
+        .command(&["sim", "--config", "sim.toml", "--time-scale", "200", "--seed", "3"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(sim.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
+    let ready: Value = serde_json::from_str(&line).expect("the simulator's ready line");
+    let at = |k: &str| ready["instruments"][k].as_str().unwrap().to_string();
+    bench.write("loads.toml", scpi_config(&at("positioner"), &at("tracker"), true));
+    bench.write("reads.toml", scpi_config(&at("positioner"), &at("tracker"), false));
+    let run = |config: &str, extra: &[&str]| {
+        let mut args = vec!["run", "--config", config, "--asset", "mi/az", "--json"];
+        args.extend(extra);
+        bench.survey(&args)
+    };
+    // The first calibration: unknown (no CORR: commands), nothing to compare with.
+    let first = run("reads.toml", &[]).success();
+    assert!(first.stderr.contains("correction at the positioner: unknown") || first.stdout.contains("unknown"));
+    let doc = first.json();
+    assert_eq!(doc["correction"], "unknown", "{doc:#}");
+    assert!(doc.get("correction_note").is_none(), "{doc:#}");
+    // A calibration and its verification through the unverified commands: the table stays applied.
+    let loaded = run("loads.toml", &["--verify"]);
+    assert!(loaded.code == 0 || loaded.code == 1, "{loaded}");
+    // The next calibration cannot read the state, and measures a corrected axis.
+    let blind = run("reads.toml", &[]).success().json();
+    assert_eq!(blind["correction"], "unknown", "{blind:#}");
+    let note = blind["correction_note"].as_str().unwrap_or_else(|| panic!("no note: {blind:#}"));
+    assert!(note.starts_with("the axis may be corrected") && note.contains("far below"), "{note}");
+    sim.kill().unwrap();
+    sim.wait().unwrap();
+}
