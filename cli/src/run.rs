@@ -267,7 +267,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     if let Some(asset) = &args.asset {
         new.asset = asset.clone();
     } else if new.asset == survey_store::asset::UNASSIGNED {
-        eprintln!(
+        survey_bench::say!(
             "note: the survey belongs to no asset (`unassigned`): give [asset] id in the configuration or --asset"
         );
     }
@@ -280,7 +280,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     let plan = bench.plan.clone();
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
     let scale = bench.setup.time_scale();
-    eprintln!(
+    survey_bench::say!(
         "survey {id}: {} targets x {} runs{}, {} scan, {}: about {} of instrument time{}",
         plan.targets_deg.len(),
         plan.runs,

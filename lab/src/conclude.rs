@@ -339,7 +339,11 @@ async fn verification(
     .await?;
     let mut result = Ok(());
     if !v.confirmed() {
-        eprintln!("warning: survey {}: the verification does not confirm the prediction: {}", v.id, v.judged.reason);
+        survey_bench::say!(
+            "warning: survey {}: the verification does not confirm the prediction: {}",
+            v.id,
+            v.judged.reason
+        );
         result = Err(anyhow::anyhow!(
             "the verification (survey {}) does not confirm the table of survey {id}: not a result; the survey and the \
              table stay stored",
@@ -402,7 +406,7 @@ async fn stopped(store: &Store, id: i64, why: Stopped, mut output: Output, mark:
         store.log_event(id, now, "warn", &message).await?;
         store.set_status(id, SurveyStatus::Interrupted, None).await?;
         output.doc["status"] = SurveyStatus::Interrupted.as_str().into();
-        eprintln!("survey {id} {message}");
+        survey_bench::say!("survey {id} {message}");
     }
     Ok(Concluded { output, result: Err(why.into()) })
 }
@@ -430,7 +434,7 @@ async fn not_processed(store: &Store, id: i64, e: anyhow::Error, mut output: Out
         Err(e) => tracing::warn!(error = %format!("{e:#}"), "the survey's status could not be stored"),
     }
     if status == SurveyStatus::Interrupted {
-        eprintln!("survey {id}: {message}");
+        survey_bench::say!("survey {id}: {message}");
     }
     Ok(Concluded { output, result: Err(e) })
 }

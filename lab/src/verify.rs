@@ -261,7 +261,7 @@ pub async fn verify(
             ..NewSurvey::default()
         })
         .await?;
-    eprintln!(
+    survey_bench::say!(
         "survey {id}: verifying the correction table of survey {} in the positioner's feedback path, {}",
         native.id,
         placement(verify_plan)

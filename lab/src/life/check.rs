@@ -146,7 +146,7 @@ async fn check_with(
 ) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
     let Some(cal) = in_force(store, asset).await? else {
         let why = format!("no calibration of the asset {asset} is in force: a full survey calibrates it");
-        eprintln!("{why}");
+        survey_bench::say!("{why}");
         let (full, text) = full_survey(store, db, req, asset, (bench(req.size)?, req.correction), stop).await?;
         let doc = json!({"asset": asset, "outcome": "calibrated", "reason": why, "check": null,
             "recalibration": full["run"], "table_in_force": full["table_in_force"]});
@@ -179,7 +179,7 @@ async fn check_with(
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
     b.engine.set_stop(stop.clone());
-    eprintln!(
+    survey_bench::say!(
         "survey {id}: a check of {} targets x {} runs both ways, against the table of survey {} ({})",
         b.plan.targets_deg.len(),
         b.plan.runs,
@@ -187,9 +187,9 @@ async fn check_with(
         cal.uid
     );
     if let Some(d) = &design {
-        eprintln!("survey {id}: {}", d.why);
+        survey_bench::say!("survey {id}: {}", d.why);
         for u in &d.unseen {
-            eprintln!("survey {id}: cannot see the {} cycles/rev line: {}", u.cycles_per_rev, u.why);
+            survey_bench::say!("survey {id}: cannot see the {} cycles/rev line: {}", u.cycles_per_rev, u.why);
         }
     }
     let options = AcquireOptions { progress: !req.json, plan_progress: b.plan_progress.clone(), ..Default::default() };
@@ -238,7 +238,7 @@ async fn check_with(
         return Ok((doc, text, None, None));
     }
     text += &format!("recalibrating: {}\n", cmp.decision.reason);
-    eprintln!("survey {id}: recalibrating: {}", cmp.decision.reason);
+    survey_bench::say!("survey {id}: recalibrating: {}", cmp.decision.reason);
     let size = PlanSize { points: cal.points, runs: cal.runs, bidirectional: cal.bidirectional };
     // A correction found on is the table being replaced: off for the calibration.
     let choice = if corrected { Choice::Off } else { req.correction };
@@ -358,7 +358,7 @@ async fn full_survey(
         store.log_event(id, at, "info", "the positioner applied a correction: switched off before the survey").await?;
     }
     b.engine.set_stop(stop.clone());
-    eprintln!("survey {id}: a full survey, {} targets x {} runs", b.plan.targets_deg.len(), b.plan.runs);
+    survey_bench::say!("survey {id}: a full survey, {} targets x {} runs", b.plan.targets_deg.len(), b.plan.runs);
     let options = AcquireOptions { progress: !req.json, plan_progress: b.plan_progress.clone(), ..Default::default() };
     let acquired = acquire(store, id, &mut b.engine, &b.plan, 0, options.clone()).await?;
     let finish = ConcludeOptions {
