@@ -274,3 +274,22 @@ fn a_closed_stderr_loses_the_lines_and_never_the_survey() {
     let shown = b.survey(&["show", "1", "--json"]).success().json();
     assert_eq!(shown["status"], "complete", "{shown}");
 }
+
+/// Issue 42: `survey sim` counts the replies it served, faults or none (it
+/// said `"replies": 0` after serving a whole survey without faults).
+#[test]
+fn survey_sim_counts_the_replies_it_served_without_faults() {
+    use std::io::Read as _;
+    let b = Bench::new();
+    let mut sim = crate::serve::slow_bench(&b, 200.0);
+    b.survey(&["run", "--config", "run.toml", "--json"]).success();
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(sim.id() as i32), nix::sys::signal::Signal::SIGTERM).unwrap();
+    let mut rest = String::new();
+    sim.stdout.take().unwrap().read_to_string(&mut rest).unwrap();
+    assert!(sim.wait().unwrap().success(), "{rest}");
+    let stopped: serde_json::Value = serde_json::from_str(rest.lines().last().unwrap()).unwrap();
+    let replies = stopped["faults"]["replies"].as_u64().unwrap();
+    // 12 targets x 2 runs both ways: at least a reply a sample from each instrument.
+    assert!(replies >= 2 * 48, "{stopped}");
+    assert_eq!(stopped["faults"]["injected"].as_u64(), Some(0), "{stopped}");
+}
