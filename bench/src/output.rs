@@ -6,6 +6,19 @@
 //! sentence, `units.text(sentence)` for the processing's sentences); JSON
 //! documents stay in degrees.
 
+/// A line for people on stderr, as `eprintln!` writes it, but a stderr
+/// that went away (a log pipe closed, `2>&1 | head -c1`) loses the line and
+/// nothing else: `eprintln!` panics there, and a panic would leave a survey
+/// `running` with nothing measured. Every note, warning and error line of
+/// the commands goes through it.
+#[macro_export]
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 use std::fmt::Write as _;
 use std::time::Duration;
 use survey_plan::budget::{Bound, Component, Spent};

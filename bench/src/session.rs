@@ -76,14 +76,14 @@ pub async fn acquire(
             .await
             .map(|n| format!("{n} samples are stored"))
             .unwrap_or_else(|e| format!("the samples stored could not be counted ({e:#})"));
-        eprintln!("survey {id} stopped: {e:#}\n{stored}; continue with `survey resume --survey {id}`");
+        crate::say!("survey {id} stopped: {e:#}\n{stored}; continue with `survey resume --survey {id}`");
     }
     let marked = store.set_status(id, status, Some(now.as_secs_f64())).await;
     if let Err(e) = &marked {
         // A full disk refuses the status too; the samples on disk are what
         // `resume` goes by, so the survey stays resumable.
         tracing::error!(error = %format!("{e:#}"), "the survey's status could not be stored");
-        eprintln!(
+        crate::say!(
             "survey {id}: its status could not be stored ({e:#}); `survey resume --survey {id}` works all the same"
         );
     }

@@ -147,7 +147,7 @@ pub fn man(args: ManArgs) -> anyhow::Result<()> {
                 let path: &Path = &dir.join(name);
                 std::fs::write(path, bytes).map_err(|e| path_error(e, format!("cannot write {}", path.display())))?;
             }
-            eprintln!("wrote {} manual pages into {}", pages.len(), dir.display());
+            survey_bench::say!("wrote {} manual pages into {}", pages.len(), dir.display());
         }
     }
     Ok(())

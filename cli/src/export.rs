@@ -34,6 +34,6 @@ pub async fn export(db: &Path, args: ExportArgs) -> anyhow::Result<()> {
     write_survey_csv(std::io::BufWriter::new(out), samples)
         .with_context(|| format!("cannot write {}", args.csv.display()))?;
     drop(progress);
-    eprintln!("wrote {} samples of survey {} to {}", samples.len(), survey.id, args.csv.display());
+    survey_bench::say!("wrote {} samples of survey {} to {}", samples.len(), survey.id, args.csv.display());
     Ok(())
 }

@@ -46,9 +46,9 @@ pub async fn import(db: &Path, args: ImportArgs) -> anyhow::Result<()> {
     let id = id?;
     emit(&format!("{id}\n"));
     if let Err(e) = iso230_2(&samples) {
-        eprintln!("note: survey {id} cannot give ISO 230-2 statistics yet: {e}");
+        survey_bench::say!("note: survey {id} cannot give ISO 230-2 statistics yet: {e}");
     }
-    eprintln!(
+    survey_bench::say!(
         "imported {} samples ({targets} targets, {runs} runs) from {name} as survey {id} in {}",
         samples.len(),
         db.display()

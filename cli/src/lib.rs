@@ -218,13 +218,13 @@ pub fn main() -> ExitCode {
                     let _ = usage.print();
                 }
                 // A recalibration is what `run --check` reports, not an error.
-                None if status == survey_lab::error::RECALIBRATED => eprintln!("{e:#}"),
-                None => eprintln!("error: {e:#}"),
+                None if status == survey_lab::error::RECALIBRATED => survey_bench::say!("{e:#}"),
+                None => survey_bench::say!("error: {e:#}"),
             }
             ExitCode::from(status)
         }
         Err(e) => {
-            eprintln!("error: cannot start the async runtime: {e}");
+            survey_bench::say!("error: cannot start the async runtime: {e}");
             ExitCode::from(1)
         }
     }

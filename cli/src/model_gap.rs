@@ -71,7 +71,7 @@ pub async fn model_gap(db: &Path, args: ModelGapArgs) -> anyhow::Result<()> {
     drop(progress);
     if let Some(out) = &args.out {
         write_model(out, &gap, &args.model, survey.id)?;
-        eprintln!("wrote the improved model to {}", out.display());
+        survey_bench::say!("wrote the improved model to {}", out.display());
     }
     if args.json {
         let mut doc = serde_json::to_value(&gap).context("the model-gap document does not serialise")?;

@@ -40,7 +40,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     // One acquirer per survey: refused at once while a live process holds it.
     let lock = AcquirerLock::acquire(store.path(), id)?;
     if let Some(previous) = &lock.took_over {
-        eprintln!("survey {id}: its last acquirer ({previous}) is gone; taking over");
+        survey_bench::say!("survey {id}: its last acquirer ({previous}) is gone; taking over");
     }
     let stop = Stop::on_signals();
     // Read under the lock: the survey may have changed while it was held.
@@ -86,7 +86,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         let message = format!("all {next} samples are stored: finishing (statistics and processing)");
         store.log_event(id, last_time, "info", &message).await?;
         store.set_status(id, SurveyStatus::Processing, None).await?;
-        eprintln!("survey {id}: {message}");
+        survey_bench::say!("survey {id}: {message}");
         let instrument_time = Duration::from_secs_f64(last_time.max(0.0));
         Ok(Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO })
     } else {
@@ -99,7 +99,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         store.set_status(id, SurveyStatus::Running, None).await?;
         let message = format!("resumed at step {next} of {}", plan.total_steps());
         store.log_event(id, last_time, "info", &message).await?;
-        eprintln!("survey {id}: {message}");
+        survey_bench::say!("survey {id}: {message}");
         acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
     };
     let finish = ConcludeOptions {

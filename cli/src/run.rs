@@ -12,10 +12,29 @@ use survey_bench::output::human;
 use survey_bench::session::{AcquireOptions, acquire};
 use survey_bench::{Bench, PlanOverrides, SimulatedRequest, default_polygon_faces};
 use survey_lab::conclude::ConcludeOptions;
+use survey_lab::correction;
 use survey_lab::life::check::{CheckRequest, PlanSize, run_check};
 use survey_lab::verify::VerifyPlan;
 use survey_plan::ScanMode;
 use survey_store::Store;
+
+/// What a calibration does with a correction the positioner applies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CorrectionArg {
+    /// Switch it off through the driver first (recorded with the survey).
+    Off,
+    /// Keep it on: measure the corrected axis on purpose (no calibration).
+    Keep,
+}
+
+/// What `--correction` asks of a calibration (refuse without it).
+fn correction_choice(arg: Option<CorrectionArg>) -> correction::Choice {
+    match arg {
+        None => correction::Choice::Refuse,
+        Some(CorrectionArg::Off) => correction::Choice::Off,
+        Some(CorrectionArg::Keep) => correction::Choice::Keep,
+    }
+}
 
 /// The reference instrument of the simulated bench.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -110,19 +129,29 @@ pub struct RunArgs {
     /// interpolates).
     #[arg(long)]
     pub verify: bool,
+    /// When the positioner applies a correction table (read through its
+    /// driver before a calibration): `off` switches it off first (recorded
+    /// with the survey); `keep` measures the corrected axis on purpose (the
+    /// survey is then no calibration). Without it such a calibration is
+    /// refused (exit 2).
+    #[arg(long, value_enum, value_name = "WHAT")]
+    pub correction: Option<CorrectionArg>,
     /// With --verify: measure at N targets evenly over the span, offset by half
     /// their own step (none may fall on a calibration target) [default: one
-    /// between each pair of calibration targets].
+    /// between each pair of calibration targets, or the fewest that leave no
+    /// plausible alias of the table's lines hidden].
     #[arg(long, value_name = "N", requires = "verify", allow_negative_numbers = true, value_parser = whole::<2, u32>)]
     pub verify_points: Option<u32>,
-    /// The recalibration loop: a short check survey (a few dozen targets of
-    /// the calibration in force, both ways, 2 runs; --points N sets the
-    /// targets) compared with the asset's calibration in force; a full survey
-    /// with that calibration's plan only when the check finds a change or the
-    /// table no longer holds (an asset without a calibration gets one, with
-    /// the plan of --points, --runs, --bidirectional). Exit status 0: in
-    /// tolerance; 3: a full survey was made (recalibrated, or the asset's
-    /// first calibration); 1: failure.
+    /// The recalibration loop: a short check survey (both ways, 2 runs, its
+    /// targets designed to see the lines of the table in force; --points N
+    /// sets them) compared with the asset's calibration in force; a full
+    /// survey with that calibration's plan only when the table no longer
+    /// holds or a change exceeds the asset's tolerance (an asset without a
+    /// calibration gets one, with the plan of --points, --runs,
+    /// --bidirectional). Exit status 0: in tolerance, or changed within a
+    /// table that holds; 3: a full survey was made (recalibrated, or the
+    /// asset's first calibration); 1: failure, or a line in force the check
+    /// could not see; 2: bad input.
     #[arg(long, conflicts_with_all = ["verify", "sim_crash_after", "sim_signal_after", "sim_db_max_pages"])]
     pub check: bool,
     /// Fault injection for tests: the process aborts (like a power loss)
@@ -201,6 +230,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             json: args.json,
             recipe: args.recipe.clone(),
             units: args.units.units(),
+            correction: correction_choice(args.correction),
         };
         let outcome = run_check(db, &req, &|size| bench(&args, size)).await?;
         emit(&outcome.output.render(args.json));
@@ -208,6 +238,12 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     }
     let size = PlanSize { points: args.points, runs: args.runs, bidirectional: args.bidirectional };
     let mut bench = bench(&args, size)?;
+    if args.verify && args.correction == Some(CorrectionArg::Keep) {
+        return Err(survey_lab::error::bad_input(
+            "--correction keep measures the corrected axis, which makes no table to verify: leave out --verify (or \
+             use --correction off to calibrate the native axis and verify its table)",
+        ));
+    }
     // A verification that cannot be measured is refused before the survey.
     let verify = match args.verify {
         true => Some(VerifyPlan::new(&bench.plan, bench.engine.reference_kind(), args.verify_points)?),
@@ -216,6 +252,9 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     if args.config.is_some() && bench.plan.continuous() {
         scan_clock_keeps_pace(&mut bench.engine).await?;
     }
+    // A calibration measures the native axis: refused (before anything is
+    // stored) when the positioner applies a correction, unless --correction says.
+    let before = correction::before_calibration(&mut bench.engine, correction_choice(args.correction)).await?;
     // From here on a signal stops the survey cleanly instead of killing the process.
     let stop = Stop::on_signals();
     bench.engine.set_stop(stop.clone());
@@ -224,19 +263,24 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
         None => Store::open(db).await?,
     };
     let mut new = bench.new_survey();
+    new.instruments["correction"] = before.as_str().into();
     if let Some(asset) = &args.asset {
         new.asset = asset.clone();
     } else if new.asset == survey_store::asset::UNASSIGNED {
-        eprintln!(
+        survey_bench::say!(
             "note: the survey belongs to no asset (`unassigned`): give [asset] id in the configuration or --asset"
         );
     }
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, bench.clock.now().as_secs_f64()).await?;
+    if before == correction::Before::SwitchedOff {
+        let at = bench.clock.now().as_secs_f64();
+        store.log_event(id, at, "info", "the positioner applied a correction: switched off before the survey").await?;
+    }
     let plan = bench.plan.clone();
     tracing::info!(survey = id, points = plan.targets_deg.len(), runs = plan.runs, "survey started");
     let scale = bench.setup.time_scale();
-    eprintln!(
+    survey_bench::say!(
         "survey {id}: {} targets x {} runs{}, {} scan, {}: about {} of instrument time{}",
         plan.targets_deg.len(),
         plan.runs,

@@ -43,7 +43,7 @@ pub async fn serve(db: &Path, args: ServeArgs) -> anyhow::Result<()> {
         .with_context(|| format!("cannot listen on {}", args.listen))?;
     let at = listener.local_addr().context("the address listened on")?;
     if !at.ip().is_loopback() {
-        eprintln!(
+        survey_bench::say!(
             "warning: serving on {at}, not loopback: whoever can reach this address reads every survey; put it \
              behind the lab's reverse proxy for access control"
         );
@@ -52,7 +52,7 @@ pub async fn serve(db: &Path, args: ServeArgs) -> anyhow::Result<()> {
     // answers 503 with the reason while it cannot be read.
     match survey_store::Store::open_read_only(db).await {
         Ok(store) => store.close().await,
-        Err(e) => eprintln!("warning: {e:#}: the pages answer 503 until it can be read"),
+        Err(e) => survey_bench::say!("warning: {e:#}: the pages answer 503 until it can be read"),
     }
     let options = ServeOptions {
         db: db.to_path_buf(),

@@ -74,16 +74,16 @@ pub async fn sim(args: SimArgs) -> anyhow::Result<()> {
     }
     emit(&format!("{ready}\n"));
     for moved in &served.stand_ins.moved {
-        eprintln!("survey sim: {moved}");
+        survey_bench::say!("survey sim: {moved}");
     }
     if opts.time_scale != 1.0 {
-        eprintln!(
+        survey_bench::say!(
             "survey sim: at {}x real time a step scan works; a continuous scan needs the instruments in real time \
              and is refused",
             opts.time_scale
         );
     }
-    eprintln!(
+    survey_bench::say!(
         "survey sim: serving {} ({}x real time, faults injected: {}); stop with Ctrl-C or SIGTERM\n\
          survey sim: run against it: survey run --config {}",
         args.config.display(),

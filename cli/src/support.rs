@@ -25,6 +25,9 @@ pub fn init_logging(verbose: u8) {
     let logs = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        // A stderr that went away loses the line; the default would report
+        // that with `eprintln!`, which panics on the same closed pipe.
+        .log_internal_errors(false)
         .with_ansi(std::io::stderr().is_terminal())
         .with_target(debugging);
     let _ = if debugging { logs.try_init() } else { logs.without_time().try_init() };

@@ -135,6 +135,9 @@ impl Positioner for Reconnecting<dyn Positioner> {
     async fn enable_correction(&mut self, enabled: bool) -> Result<()> {
         self.call(|d| d.enable_correction(enabled)).await
     }
+    async fn correction_state(&mut self) -> Result<Option<bool>> {
+        self.call(|d| d.correction_state()).await
+    }
     /// The connected driver's (false before the first connection).
     fn can_capture(&self) -> bool {
         self.current.as_ref().is_some_and(|d| d.can_capture())

@@ -84,6 +84,11 @@ pub trait Positioner: Send + Debug {
     async fn load_correction_table(&mut self, table: &CorrectionTable) -> Result<()>;
     /// Apply (or stop applying) the loaded table in the feedback path.
     async fn enable_correction(&mut self, enabled: bool) -> Result<()>;
+    /// Whether the controller applies a correction table now, as the
+    /// controller itself reports it; `Ok(None)` when this driver cannot
+    /// read it (the state is then unknown: never assumed off). A calibration
+    /// reads it before it measures: a corrected axis is not the native one.
+    async fn correction_state(&mut self) -> Result<Option<bool>>;
     /// Whether the controller records its readout at a fixed rate with its
     /// own time stamps (a position capture). Without one, a continuous scan
     /// polls [`Positioner::readout`] at a fixed rate and stamps each reading

@@ -27,7 +27,7 @@ use survey_plan::SurveyPlan;
 use survey_processing::Sample;
 use survey_processing::iso230::{Iso230, iso230_2};
 use survey_store::Store;
-use survey_store::survey::SurveyStatus;
+use survey_store::survey::{SurveyRecord, SurveyStatus};
 
 /// What to do after the acquisition.
 #[derive(Debug, Clone, Default)]
@@ -161,6 +161,7 @@ async fn statistics(
         doc["drift"] = crate::drift::json(record, drift);
     }
     doc["db"] = db.display().to_string().into();
+    let correction = correction_said(store, record, iso.a, &mut doc).await;
     let mut text = format!(
         "survey {id}: {} samples in {} of instrument time (acquired in {:.2} s){}\n",
         samples.len(),
@@ -180,12 +181,38 @@ async fn statistics(
             l.se_s * 1e3
         );
     }
+    text += &correction;
     text += &iso_text(id, iso, units);
     text += axis.text();
     text += "\n";
     text +=
         &format!("data: {} (survey {id}); `survey export --csv FILE --survey {id}` writes it as CSV\n", db.display());
     Output { doc, text }
+}
+
+/// The correction at the positioner when the survey started, as stored
+/// with it (`"correction"`; none for a survey from before it was read), and
+/// with it unknown, whether the error is so far below the asset's last
+/// calibration that the axis may have been corrected (`"correction_note"`):
+/// the lines to print.
+async fn correction_said(store: &Store, record: &SurveyRecord, a_deg: f64, doc: &mut serde_json::Value) -> String {
+    let stored = record.instruments.get("correction").and_then(|v| v.as_str());
+    let Some(before) = stored.and_then(crate::correction::Before::from_stored) else {
+        return String::new();
+    };
+    doc["correction"] = before.as_str().into();
+    let mut text = format!("{}\n", before.text());
+    if matches!(before, crate::correction::Before::Unknown(_)) {
+        match crate::correction::maybe_corrected(store, record, a_deg).await {
+            Ok(Some(note)) => {
+                text += &format!("note: {note}\n");
+                doc["correction_note"] = note.into();
+            }
+            Ok(None) => {}
+            Err(e) => tracing::warn!(error = %format!("{e:#}"), "the asset's last calibration could not be read"),
+        }
+    }
+    text
 }
 
 /// What the engine met and survived (`"faults"`). `injected` is what the
@@ -312,7 +339,11 @@ async fn verification(
     .await?;
     let mut result = Ok(());
     if !v.confirmed() {
-        eprintln!("warning: survey {}: the verification does not confirm the prediction: {}", v.id, v.judged.reason);
+        survey_bench::say!(
+            "warning: survey {}: the verification does not confirm the prediction: {}",
+            v.id,
+            v.judged.reason
+        );
         result = Err(anyhow::anyhow!(
             "the verification (survey {}) does not confirm the table of survey {id}: not a result; the survey and the \
              table stay stored",
@@ -375,7 +406,7 @@ async fn stopped(store: &Store, id: i64, why: Stopped, mut output: Output, mark:
         store.log_event(id, now, "warn", &message).await?;
         store.set_status(id, SurveyStatus::Interrupted, None).await?;
         output.doc["status"] = SurveyStatus::Interrupted.as_str().into();
-        eprintln!("survey {id} {message}");
+        survey_bench::say!("survey {id} {message}");
     }
     Ok(Concluded { output, result: Err(why.into()) })
 }
@@ -403,7 +434,7 @@ async fn not_processed(store: &Store, id: i64, e: anyhow::Error, mut output: Out
         Err(e) => tracing::warn!(error = %format!("{e:#}"), "the survey's status could not be stored"),
     }
     if status == SurveyStatus::Interrupted {
-        eprintln!("survey {id}: {message}");
+        survey_bench::say!("survey {id}: {message}");
     }
     Ok(Concluded { output, result: Err(e) })
 }

@@ -12,6 +12,7 @@
 //! pages and the command line.
 
 pub mod conclude;
+pub mod correction;
 pub mod csvio;
 pub mod documents;
 pub mod drift;

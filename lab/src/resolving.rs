@@ -87,7 +87,7 @@ pub async fn measure(
             ..NewSurvey::default()
         })
         .await?;
-    eprintln!(
+    survey_bench::say!(
         "survey {id}: {} check points between the targets of survey {} decide {} line(s) its analysis left in doubt",
         checks.targets_deg.len(),
         native.id,
@@ -105,7 +105,7 @@ pub async fn measure(
 /// Fold the complete check points of survey `from` into survey `into`.
 pub async fn fold(store: &Store, from: i64, into: i64) -> anyhow::Result<()> {
     let n = store.fold_check_points(from, into).await?;
-    eprintln!("survey {into}: {n} check points stored with it");
+    survey_bench::say!("survey {into}: {n} check points stored with it");
     Ok(())
 }
 

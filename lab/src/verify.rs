@@ -5,10 +5,13 @@
 //! interrupted verification resumes with the same table at the same targets).
 //!
 //! The verification measures *between* the calibration targets
-//! ([`SurveyPlan::between_targets`]): half a step from each by default, or
-//! `--verify-points N` targets evenly over the same span. At the calibration
-//! targets themselves the table holds what was measured there, so the error
-//! it makes interpolating between them would never show. With an
+//! ([`SurveyPlan::between_targets`]): half a step from each by default,
+//! joined by a second spacing where that alone would share the calibration's
+//! alias ([`VerifyPlan::seeing`]), or `--verify-points N` targets evenly over
+//! the same span. At the calibration targets themselves the table holds what
+//! was measured there, so the error it makes interpolating between them
+//! would never show; and a verification that could not have seen the table
+//! fail ([`blind`]) confirms nothing. With an
 //! autocollimator the only angles measured are the polygon's faces: the
 //! verification stays at the faces and says so.
 //!
@@ -25,9 +28,12 @@ use survey_bench::session::{AcquireOptions, acquire};
 use survey_drivers::clock::with_timeout;
 use survey_plan::SurveyPlan;
 use survey_processing::Sample;
+use survey_processing::analysis::{AnalysisOptions, design_candidates};
 use survey_processing::iso230::iso230_2;
+use survey_processing::pipeline::Processed;
+use survey_processing::recipe::LineAction;
 use survey_processing::table::CorrectionTable;
-use survey_processing::verification::{Judged, Verdict, judge, offset_deg, peak_deg, systematic_peak_deg};
+use survey_processing::verification::{Judged, Verdict, aliases, judge, offset_deg, peak_deg, systematic_peak_deg};
 use survey_store::Store;
 use survey_store::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus, VerificationOf};
 
@@ -43,6 +49,15 @@ pub struct VerifyPlan {
     /// The smallest distance from a verification target to a calibration
     /// target, degrees (0 at the faces).
     pub offset_deg: f64,
+    /// The targets were asked for (`--verify-points`): measured as asked.
+    pub asked: bool,
+    /// Targets of a second spacing joined to the half-step ones (0: none),
+    /// so that no plausible alias of the table's lines hides between them
+    /// ([`VerifyPlan::seeing`]).
+    pub second: usize,
+    /// The count was chosen, not one a calibration target, so that no
+    /// plausible alias of the table's lines hides between the targets.
+    pub resized: bool,
 }
 
 impl VerifyPlan {
@@ -58,12 +73,109 @@ impl VerifyPlan {
                      measures at the faces (leave --verify-points out)"
                 )));
             }
-            return Ok(VerifyPlan { plan: plan.clone(), between: false, offset_deg: 0.0 });
+            return Ok(VerifyPlan {
+                plan: plan.clone(),
+                between: false,
+                offset_deg: 0.0,
+                asked: false,
+                second: 0,
+                resized: false,
+            });
         }
         let verification = plan.between_targets(points)?;
         let offset_deg = offset_deg(&verification.targets_deg, &plan.targets_deg);
-        Ok(VerifyPlan { plan: verification, between: true, offset_deg })
+        Ok(VerifyPlan {
+            plan: verification,
+            between: true,
+            offset_deg,
+            asked: points.is_some(),
+            second: 0,
+            resized: false,
+        })
     }
+
+    /// The plan that can see the table of `processed` (made at `calibration`'s
+    /// targets, of `survey`) fail: half a step from a full circle's targets
+    /// is blind to a plausible line in an even band of the calibration's
+    /// count (`2 k N +- t`, a whole turn of phase there: issue 37's 43 cycles/rev
+    /// line at 20 targets), so a second set of targets at a quarter of its
+    /// own step is joined, the fewest that see every plausible line
+    /// ([`survey_processing::verification::aliases`]). Targets asked for, a
+    /// polygon's faces, a partial range and a continuous scan are kept as
+    /// they are (the verdict says what they could not see).
+    pub fn seeing(self, calibration: &SurveyPlan, survey: &SurveyRecord, processed: &ProcessOutcome) -> VerifyPlan {
+        let full_circle =
+            (calibration.targets_deg.len() as f64 * calibration.targets_deg.get(1).copied().unwrap_or(0.0) - 360.0)
+                .abs()
+                < 1e-9;
+        if !self.between || self.asked || self.plan.continuous() || !full_circle {
+            return self;
+        }
+        let (lines, f_max) = (table_lines(&processed.processed), plausible_max(survey));
+        let cal = &calibration.targets_deg;
+        if aliases::blind(cal, &self.plan.targets_deg, &lines, f_max).is_empty() {
+            return self;
+        }
+        // One evenly spaced set first (every move alike, about as many
+        // samples as the calibration's): the fewest targets from n to 2n,
+        // half their own step from 0, that see every plausible line.
+        let single = (cal.len() + 1..=2 * cal.len()).find_map(|p| {
+            let plan = calibration.between_targets(Some(p as u32)).ok()?;
+            aliases::blind(cal, &plan.targets_deg, &lines, f_max).is_empty().then_some(plan)
+        });
+        if let Some(plan) = single {
+            let offset_deg = offset_deg(&plan.targets_deg, cal);
+            return VerifyPlan { plan, offset_deg, resized: true, ..self };
+        }
+        let most = 3 * cal.len();
+        match aliases::second_spacing(cal, &self.plan.targets_deg, &lines, f_max, most) {
+            Some((second, targets)) => {
+                let offset_deg = offset_deg(&targets, &calibration.targets_deg);
+                VerifyPlan { plan: SurveyPlan { targets_deg: targets, ..self.plan }, offset_deg, second, ..self }
+            }
+            None => self,
+        }
+    }
+}
+
+/// The lines the table of `p` corrects, at the frequencies it corrects them
+/// (cycles per revolution).
+pub fn table_lines(p: &Processed) -> Vec<f64> {
+    p.decisions
+        .lines
+        .iter()
+        .filter(|d| d.significant && matches!(d.action, LineAction::Kept | LineAction::Relocated))
+        .map(|d| d.true_cycles_per_rev)
+        .collect()
+}
+
+/// The highest line the positioner of `survey` plausibly has: its design's
+/// highest line when it has a model, at least
+/// [`aliases::PLAUSIBLE_MAX_CYCLES`].
+pub fn plausible_max(survey: &SurveyRecord) -> f64 {
+    let design_max = survey.model.as_ref().and_then(|m| {
+        let c = design_candidates(&m.design, &AnalysisOptions::default());
+        c.iter().map(|c| c.cycles_per_rev).reduce(f64::max)
+    });
+    aliases::plausible_max_cycles(design_max)
+}
+
+/// The plausible lines (up to `f_max` cycles/rev, [`plausible_max`]) a
+/// verification at `verification` could not see the table of `p` (made at
+/// `calibration`) miss: none at a polygon's faces, where the verification
+/// measures what the calibration did. Targets may repeat (samples').
+pub fn blind(calibration: &[f64], verification: &[f64], f_max: f64, p: &Processed) -> Vec<aliases::Blind> {
+    let distinct = |t: &[f64]| {
+        let mut d = t.to_vec();
+        d.sort_by(f64::total_cmp);
+        d.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+        d
+    };
+    let (calibration, verification) = (distinct(calibration), distinct(verification));
+    if offset_deg(&verification, &calibration) < 1e-6 {
+        return Vec::new();
+    }
+    aliases::blind(&calibration, &verification, &table_lines(p), f_max)
 }
 
 /// Load `table` into the engine's positioner and apply it in the feedback path.
@@ -111,6 +223,8 @@ pub async fn verify(
     units: Units,
 ) -> anyhow::Result<Verified> {
     let table = &processed.processed.built.table;
+    let calibration = native.plan().cloned().with_context(|| format!("survey {} has no stored plan", native.id))?;
+    let verify_plan = &verify_plan.clone().seeing(&calibration, native, processed);
     let plan = &verify_plan.plan;
     apply_correction(engine, table).await?;
     // The verification's own plan is stored with it (a resume measures it).
@@ -147,7 +261,7 @@ pub async fn verify(
             ..NewSurvey::default()
         })
         .await?;
-    eprintln!(
+    survey_bench::say!(
         "survey {id}: verifying the correction table of survey {} in the positioner's feedback path, {}",
         native.id,
         placement(verify_plan)
@@ -160,13 +274,18 @@ pub async fn verify(
     // A verification writes no file: its figures are its outputs.
     store.set_status(id, SurveyStatus::Complete, None).await?;
     let corrected = store.samples(id).await?;
-    let predicted = processed.processed.prediction.corrected_peak_deg;
+    // The prediction for this verification: its own count of samples.
+    let predicted = survey_processing::verification::predicted_for(&processed.processed.prediction, corrected.len());
     let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
     let u = processed.uncertainty.table_u_deg;
-    let judged = judge(predicted, u, peak_deg(&corrected), peak_deg(native_samples));
+    let blind = blind(&calibration.targets_deg, &plan.targets_deg, plausible_max(native), &processed.processed);
+    let judged = judge(predicted, u, peak_deg(&corrected), peak_deg(native_samples), &blind);
     out.doc["targets"] = plan.targets_deg.len().into();
     out.doc["between_targets"] = verify_plan.between.into();
     out.doc["offset_deg"] = verify_plan.offset_deg.into();
+    out.doc["second_spacing_targets"] = verify_plan.second.into();
+    out.doc["resized"] = verify_plan.resized.into();
+    out.doc["blind"] = serde_json::to_value(&blind).unwrap_or_default();
     out.doc["table_u_deg"] = u.into();
     out.doc["verdict"] = judged.verdict.as_str().into();
     out.doc["reason"] = judged.reason.clone().into();
@@ -187,7 +306,25 @@ pub fn verdict_text(j: &Judged) -> String {
 
 /// Where the verification measured, in words.
 fn placement(v: &VerifyPlan) -> String {
-    if v.between {
+    if v.between && v.second > 0 {
+        format!(
+            "at {} targets between the calibration targets (at least {:.4} deg from each): {} half a step from each, \
+             and {} of a second spacing at a quarter of their own step, so that no plausible alias of the table's \
+             lines hides between them",
+            v.plan.targets_deg.len(),
+            v.offset_deg,
+            v.plan.targets_deg.len() - v.second,
+            v.second
+        )
+    } else if v.between && v.resized {
+        format!(
+            "at {} targets between the calibration targets (at least {:.4} deg from each), half their own step from \
+             0: the fewest from one a target up that leave no plausible alias of the table's lines hidden between \
+             them (half a step from every target would)",
+            v.plan.targets_deg.len(),
+            v.offset_deg
+        )
+    } else if v.between {
         format!(
             "at {} targets between the calibration targets (at least {:.4} deg from each)",
             v.plan.targets_deg.len(),

@@ -14,6 +14,8 @@
 //! `M >= N` (the corrected axis is not better than the native one: whatever
 //! was predicted, the table is not a result). Otherwise it is **confirmed**.
 
+pub mod aliases;
+
 use crate::Direction;
 use crate::Sample;
 use crate::correction::ErrorFigures;
@@ -55,6 +57,23 @@ pub fn systematic_peak_deg(samples: &[Sample]) -> f64 {
     means.iter().map(|m| (m - mean).abs()).fold(0.0, f64::max)
 }
 
+/// The corrected peak predicted for a verification of `samples` samples,
+/// from the calibration's prediction `p` (made for a new survey of the
+/// calibration's own plan, `p.samples` samples): the peak of `M` samples'
+/// noise grows as `sqrt(2 ln 2M)` (its expected maximum), so a verification
+/// of more samples than the calibration is allowed that much more of the
+/// noise `sigma` (the one the prediction's spread was made from,
+/// [`crate::correction::Prediction::with_left`]); one of fewer is held to
+/// the prediction as it is.
+pub fn predicted_for(p: &crate::correction::Prediction, samples: usize) -> f64 {
+    if p.peak_spread_deg <= 0.0 || samples <= p.samples || p.samples == 0 {
+        return p.corrected_peak_deg;
+    }
+    let peak_of = |m: usize| (2.0 * (2.0 * m as f64).ln()).sqrt();
+    let sigma = p.peak_spread_deg * peak_of(p.samples) / 19f64.ln();
+    p.corrected_peak_deg + sigma * (peak_of(samples) - peak_of(p.samples))
+}
+
 /// The verdict of a verification.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum Verdict {
@@ -87,8 +106,11 @@ pub struct Judged {
 
 /// Judge a verification: `measured` corrected peak against the `predicted`
 /// one and the table's `u` (expanded), and against the `native` peak
-/// (degrees; see the module documentation).
-pub fn judge(predicted: f64, u: f64, measured: f64, native: f64) -> Judged {
+/// (degrees; see the module documentation). A verification that could not
+/// have seen the table fail (`blind`: plausible lines its targets sample
+/// where the table's misplaced line matches them, [`aliases::blind`])
+/// confirms nothing.
+pub fn judge(predicted: f64, u: f64, measured: f64, native: f64, blind: &[aliases::Blind]) -> Judged {
     let figures = format!(
         "measured corrected peak +/-{measured:.5} deg, predicted +/-{predicted:.5} deg with U = {u:.5} deg, native \
          +/-{native:.5} deg"
@@ -100,6 +122,17 @@ pub fn judge(predicted: f64, u: f64, measured: f64, native: f64) -> Judged {
         )
     } else if measured > predicted + u {
         (Verdict::NotConfirmed, "the corrected peak exceeds the prediction by more than the table's uncertainty U")
+    } else if let Some(b) = blind.first() {
+        let more = match blind.len() {
+            1 => String::new(),
+            n => format!(" (and {} more such lines)", n - 1),
+        };
+        let why = format!(
+            "the verification could not have seen the table fail: {}{more}; the corrected peak is within the \
+             prediction plus U, and better than native, at its targets only",
+            b.text()
+        );
+        return Judged { verdict: Verdict::NotConfirmed, reason: format!("{why} ({figures})") };
     } else {
         (Verdict::Confirmed, "the corrected peak is within the prediction plus U, and better than native")
     };
@@ -109,6 +142,7 @@ pub fn judge(predicted: f64, u: f64, measured: f64, native: f64) -> Judged {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::correction::Prediction;
 
     fn sample(run: u32, direction: Direction, target_deg: f64, error: f64) -> Sample {
         Sample {
@@ -145,21 +179,48 @@ mod tests {
     }
 
     #[test]
+    fn the_prediction_for_a_verification_carries_its_own_noise_peak() {
+        let p = Prediction {
+            native_peak_deg: 0.015,
+            corrected_peak_deg: 0.0036,
+            in_sample_corrected_peak_deg: 0.0028,
+            unseen_between_targets_deg: 0.0001,
+            peak_spread_deg: 0.0007,
+            native: ErrorFigures::of(&[0.0], None),
+            corrected: ErrorFigures::of(&[0.0], None),
+            floor_deg: 0.0,
+            samples: 480,
+        };
+        // sigma = 0.0007 x sqrt(2 ln 960) / ln 19 = 8.81e-4; 768 samples peak higher.
+        let sigma = 0.0007 * (2.0 * 960f64.ln()).sqrt() / 19f64.ln();
+        let want = 0.0036 + sigma * ((2.0 * 1536f64.ln()).sqrt() - (2.0 * 960f64.ln()).sqrt());
+        assert!((predicted_for(&p, 768) - want).abs() < 1e-12 && want - 0.0036 < 2e-4);
+        // As many or fewer: the prediction as it is.
+        assert_eq!((predicted_for(&p, 480), predicted_for(&p, 100)), (0.0036, 0.0036));
+        assert_eq!(predicted_for(&Prediction { peak_spread_deg: 0.0, ..p }, 768), 0.0036);
+    }
+
+    #[test]
     fn the_verdict_follows_the_contract() {
         // Within P + U and better than native.
-        assert_eq!(judge(0.002, 0.0005, 0.0024, 0.015).verdict, Verdict::Confirmed);
+        assert_eq!(judge(0.002, 0.0005, 0.0024, 0.015, &[]).verdict, Verdict::Confirmed);
         // Exactly at P + U: still confirmed (the rule is "exceeds by more than U").
-        assert_eq!(judge(0.002, 0.0005, 0.0025, 0.015).verdict, Verdict::Confirmed);
+        assert_eq!(judge(0.002, 0.0005, 0.0025, 0.015, &[]).verdict, Verdict::Confirmed);
         // Above P + U.
-        let j = judge(0.002, 0.0005, 0.0026, 0.015);
+        let j = judge(0.002, 0.0005, 0.0026, 0.015, &[]);
         assert_eq!(j.verdict, Verdict::NotConfirmed);
         assert!(j.reason.contains("exceeds the prediction"), "{}", j.reason);
         // The issue's sparse survey: predicted 0.0022 with U 5.6e-4, measured 0.0205, native 0.0152.
-        let j = judge(0.0022, 5.6e-4, 0.0205, 0.0152);
+        let j = judge(0.0022, 5.6e-4, 0.0205, 0.0152, &[]);
         assert_eq!(j.verdict, Verdict::NotConfirmed);
         assert!(j.reason.contains("not better than the native"), "{}", j.reason);
         // Within the prediction but no better than native: not confirmed.
-        assert_eq!(judge(0.02, 0.005, 0.015, 0.015).verdict, Verdict::NotConfirmed);
+        assert_eq!(judge(0.02, 0.005, 0.015, 0.015, &[]).verdict, Verdict::NotConfirmed);
         assert_eq!(serde_json::to_value(Verdict::NotConfirmed).unwrap(), "not confirmed");
+        // Within P + U and better than native, but blind to a plausible alias: not confirmed.
+        let blind = [aliases::Blind { table_cycles: 3.0, true_cycles: 43.0 }];
+        let j = judge(0.002, 0.0005, 0.0024, 0.015, &blind);
+        assert_eq!(j.verdict, Verdict::NotConfirmed);
+        assert!(j.reason.contains("could not have seen the table fail: a line of 43 cycles/rev"), "{}", j.reason);
     }
 }

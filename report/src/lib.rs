@@ -177,7 +177,9 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
     };
     if survey.source == SurveySource::Verification {
         let Some(of) = &survey.verification else { return Ok(None) };
-        let native = load(store, Some(of.verifies_survey.into()), Axis::Refitted).await?.samples;
+        let native_loaded = load(store, Some(of.verifies_survey.into()), Axis::Refitted).await?;
+        let plausible_max_cycles = survey_lab::verify::plausible_max(&native_loaded.survey);
+        let native = native_loaded.samples;
         if native.is_empty() {
             return Ok(None);
         }
@@ -192,6 +194,7 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
             verification_id: survey.id,
             corrected,
             directional: directional(survey),
+            plausible_max_cycles,
         }));
     }
     let all = store.list().await?;
@@ -206,6 +209,7 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
         verification_id: v.id,
         corrected: Some(store.samples(v.id).await?),
         directional: directional(v),
+        plausible_max_cycles: survey_lab::verify::plausible_max(survey),
     }))
 }
 

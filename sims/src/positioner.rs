@@ -674,6 +674,11 @@ impl Positioner for SimPositioner {
         Ok(())
     }
 
+    async fn correction_state(&mut self) -> Result<Option<bool>> {
+        self.link("correction_state").await?;
+        Ok(Some(self.correction))
+    }
+
     fn can_capture(&self) -> bool {
         true
     }

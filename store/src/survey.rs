@@ -512,9 +512,17 @@ impl SurveyRecord {
         matches!(self.status, SurveyStatus::Complete | SurveyStatus::Imported)
     }
 
-    /// Whether the survey is a calibration (neither a check nor a verification).
+    /// Whether the survey is a calibration (neither a check nor a
+    /// verification, nor a survey of the corrected axis kept on purpose).
     pub fn is_calibration(&self) -> bool {
-        self.check_of.is_none() && self.source != SurveySource::Verification
+        self.check_of.is_none() && self.source != SurveySource::Verification && !self.measured_corrected()
+    }
+
+    /// Whether the positioner's correction was kept on for this survey on
+    /// purpose (`survey run --correction keep`): it measured the corrected
+    /// axis, as a verification does.
+    pub fn measured_corrected(&self) -> bool {
+        self.instruments.get("correction").and_then(|v| v.as_str()) == Some("kept on")
     }
 }
 

@@ -174,7 +174,7 @@ fn the_report_opens_in_chromium_with_every_figure_and_no_error() {
     };
     let bench = Bench::new();
     bench.write("model.toml", super::CONTRACT_MODEL);
-    bench.survey(&["run", "--points", "72", "--runs", "3", "--bidirectional", "--verify", "--json"]).success();
+    bench.survey(&["run", "--points", "90", "--runs", "3", "--bidirectional", "--verify", "--json"]).success();
     bench
         .survey(&[
             "report",

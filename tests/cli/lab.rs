@@ -179,7 +179,7 @@ fn read_commands_give_the_same_answers_from_the_lab_store_as_from_the_station() 
     bench.write("fig8.toml", include_str!("../../sims/presets/fig8.toml"));
     bench.write("edge.csv", EDGE_CSV);
     // A calibration and its verification, a check, an import of edge values, a continuous scan.
-    bench.survey(&["run", "--points", "72", "--runs", "3", "--bidirectional", "--verify", "--json"]).success();
+    bench.survey(&["run", "--points", "90", "--runs", "3", "--bidirectional", "--verify", "--json"]).success();
     bench.survey(&["run", "--check", "--seed", "2", "--json"]).success();
     bench.survey(&["import", "edge.csv", "--asset", "edge"]).success();
     let scan = [

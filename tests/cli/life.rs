@@ -263,7 +263,9 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
     assert!(first.stderr.contains("recalibrated: no calibration of the asset lab/ax1 is in force"), "{first}");
     assert!(!first.stderr.contains("error:"), "a recalibration is no error\n{first}");
 
-    // The same positioner: a check of 36 targets x 2 runs both ways, in tolerance: exit 0.
+    // The same positioner: a check designed to see the lines in force (1, 20
+    // and 40 cycles/rev: 16 targets would put 40 on the Nyquist bin), 48
+    // targets x 2 runs both ways, in tolerance: exit 0.
     let out = check("2", None).success();
     let doc = out.json();
     assert_eq!((doc["outcome"].as_str(), doc["recalibrate"].as_bool()), (Some("in tolerance"), Some(false)), "{out}");
@@ -272,12 +274,15 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
         (c["survey_id"].as_i64(), c["from"].as_i64(), c["verdict"].as_str()),
         (Some(2), Some(1), Some("unchanged"))
     );
-    assert_eq!(c["map"]["cells"].as_u64(), Some(72), "every check target is a calibration target: {c}");
+    assert_eq!(c["design"]["points"].as_u64(), Some(48), "{c}");
+    assert!(c["design"]["why"].as_str().unwrap().contains("half way between"), "{c}");
+    assert_eq!(c["map"]["cells"].as_u64(), Some(48), "every other check target is a calibration target: {c}");
+    assert!(out.stderr.contains("survey 2: 48 targets: the fewest"), "{out}");
     assert_eq!(doc["table_in_force"]["survey_id"].as_i64(), Some(1));
     let shown = bench.survey(&["show", "2", "--json"]).success().json();
     assert_eq!(
         (shown["points"].as_u64(), shown["runs"].as_u64(), shown["bidirectional"].as_bool()),
-        (Some(36), Some(2), Some(true))
+        (Some(48), Some(2), Some(true))
     );
 
     // A worn positioner: the check says so, a full survey with the calibration's plan, exit 3.
@@ -330,6 +335,109 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
     assert!(!fresh.exists("survey.db"));
     let shown = bench.survey(&["show", "2", "--json"]).success().json();
     assert_eq!(shown["check_of"].as_str(), Some(cal));
+}
+
+/// The issue's loop: a 120-point calibration of Figure 8 (2 runs, both
+/// ways). Its check is designed to see the lines in force (at 40 targets the
+/// 20 cycles/rev line sits on the Nyquist bin and the 40 aliases onto the
+/// mean: the old check printed an amplitude of 2e10 deg and "in tolerance"
+/// for a worn axis): 48 targets, in tolerance when nothing changed; the 40
+/// cycles/rev line grown from 0.0025 to 0.0040 deg (wear) is caught; and a
+/// check asked for at 40 targets says what it cannot see and decides
+/// nothing (exit 1), never "in tolerance".
+#[test]
+fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_their_wear() {
+    let bench = Bench::new();
+    bench.write("worn40.toml", FIG8.replacen("amplitude_deg = 0.0025", "amplitude_deg = 0.0040", 1));
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "--check", "--asset", "lab/ax2", "--json"];
+        args.extend(extra);
+        bench.survey(&args)
+    };
+    let first = run(&["--points", "120", "--runs", "2", "--bidirectional", "--seed", "1"]);
+    assert_eq!(first.code, 3, "{first}");
+
+    let out = run(&["--seed", "2"]).success();
+    let doc = out.json();
+    assert_eq!(doc["outcome"], "in tolerance", "{doc:#}");
+    assert_eq!(doc["check"]["design"]["points"].as_u64(), Some(48), "{doc:#}");
+    let largest = doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["amplitude_to_deg"].as_f64().unwrap());
+    assert!(largest.fold(0.0, f64::max) < 0.02, "{doc:#}");
+    let tested: Vec<f64> =
+        doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["cycles_per_rev"].as_f64().unwrap()).collect();
+    assert!(tested.contains(&20.0) && tested.contains(&40.0), "{doc:#}");
+
+    // Worn: caught, never "in tolerance". The table still holds within its U
+    // (the change is 1.5e-3 deg), so it stays in force: "changed, the table
+    // holds", the change named, exit 0.
+    let worn = run(&["--seed", "3", "--model", "worn40.toml"]).success();
+    let doc = worn.json();
+    assert_eq!(doc["outcome"], "changed, the table holds", "{doc:#}");
+    let reason = doc["reason"].as_str().unwrap().to_string();
+    assert!(reason.starts_with("changed, the table holds: the 40 cycles/rev line changed"), "{reason}");
+
+    // Asked for 40 targets: it cannot see 20 (Nyquist) or 40 (the mean) and says so.
+    let blind = run(&["--seed", "4", "--points", "40"]);
+    assert_eq!(blind.code, 1, "{blind}");
+    let doc = blind.json();
+    assert_eq!(doc["outcome"], "not decided", "{doc:#}");
+    let unseen: Vec<f64> = doc["check"]["design"]["unseen"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| u["cycles_per_rev"].as_f64().unwrap())
+        .collect();
+    assert_eq!(unseen, [20.0, 40.0], "{doc:#}");
+    assert!(
+        blind.stderr.contains("cannot say the asset is in tolerance") && blind.stderr.contains("Nyquist"),
+        "{blind}"
+    );
+    assert!(!blind.stdout.contains("e10"), "no impossible number: {blind}");
+}
+
+/// Issue 37's matrix: wear (the 20 cycles/rev line a third larger), a new
+/// line (7 cycles/rev, 0.002 deg), more backlash (half as much again) and a
+/// disturbed mounting (a once-per-revolution term of 0.002 deg) are each
+/// caught by a check designed from a calibration of 60, 120 and 360 points
+/// (2 runs, both ways): never "in tolerance", the change named.
+#[test]
+fn a_designed_check_catches_every_change_after_calibrations_of_60_120_and_360_points() {
+    let bench = Bench::new();
+    let new_line = format!(
+        "{FIG8}\n[[effect]]\nkind = \"harmonic\"\ncycles_per_rev = 7\namplitude_deg = 0.002\nphase_deg = 40.0\n"
+    );
+    let changes = [
+        ("worn", worn(), "20 cycles/rev"),
+        ("new", new_line, ""),
+        ("slack", slack(), "backlash"),
+        ("moved", moved(), ""),
+    ];
+    for (name, text, _) in &changes {
+        bench.write(&format!("{name}.toml"), text);
+    }
+    for n in ["60", "120", "360"] {
+        for (name, _, named) in &changes {
+            let db = format!("{name}-{n}.db");
+            let run = |extra: &[&str]| {
+                let mut args = vec!["--db", db.as_str(), "run", "--check", "--asset", "ax", "--json"];
+                args.extend(extra);
+                bench.survey(&args)
+            };
+            let first = run(&["--points", n, "--runs", "2", "--bidirectional", "--seed", "1"]);
+            assert_eq!(first.code, 3, "{first}");
+            let model = format!("{name}.toml");
+            let out = run(&["--seed", "2", "--model", &model]);
+            assert!(out.code == 0 || out.code == 3, "{n} {name}: {out}");
+            let doc = out.json();
+            let outcome = doc["outcome"].as_str().unwrap();
+            assert!(outcome == "changed, the table holds" || outcome == "recalibrated", "{n} {name}: {doc:#}");
+            // Named: the line or the backlash that changed, or (a line the
+            // calibration's targets cannot place: at 60, 20 and 40 share a bin)
+            // the mean error map.
+            let reason = doc["reason"].as_str().unwrap();
+            assert!(reason.contains(named) || reason.contains("the mean error map changed"), "{n} {name}: {reason}");
+        }
+    }
 }
 
 /// The false-alarm rate on the simulated bench itself (tracker, located and

@@ -15,6 +15,7 @@
 
 mod browser;
 mod budget;
+mod correction;
 mod docs;
 mod drift;
 mod everyday;

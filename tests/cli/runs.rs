@@ -250,3 +250,46 @@ fn a_survey_that_cannot_give_iso_statistics_is_bad_input_from_resume_as_from_sta
     b.survey(&["resume"]).bad_input(&["ISO 230-2 statistics", "run 1 appears 2 times"]);
     b.survey(&["stats"]).bad_input(&["survey 1 cannot give ISO 230-2 statistics", "run 1 appears 2 times"]);
 }
+
+/// Issue 42: a log pipe that goes away must not stop a survey. With stderr
+/// a pipe whose reader is gone before the first line (`survey -v run ...
+/// 2>&1 >/dev/null | head -c1`), every note and log line meets a broken pipe:
+/// the survey goes on, every sample is stored, the command exits 0 (it
+/// exited 101, "failed printing to stderr", leaving the survey `running`).
+#[test]
+fn a_closed_stderr_loses_the_lines_and_never_the_survey() {
+    use std::process::Stdio;
+    let b = Bench::new();
+    let mut child = b
+        .command(&["-v", "run", "--points", "360", "--runs", "2", "--bidirectional", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stderr.take());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stdout));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((doc["status"].as_str(), doc["samples"].as_u64()), (Some("complete"), Some(360 * 2 * 2)), "{doc}");
+    let shown = b.survey(&["show", "1", "--json"]).success().json();
+    assert_eq!(shown["status"], "complete", "{shown}");
+}
+
+/// Issue 42: `survey sim` counts the replies it served, faults or none (it
+/// said `"replies": 0` after serving a whole survey without faults).
+#[test]
+fn survey_sim_counts_the_replies_it_served_without_faults() {
+    use std::io::Read as _;
+    let b = Bench::new();
+    let mut sim = crate::serve::slow_bench(&b, 200.0);
+    b.survey(&["run", "--config", "run.toml", "--json"]).success();
+    nix::sys::signal::kill(nix::unistd::Pid::from_raw(sim.id() as i32), nix::sys::signal::Signal::SIGTERM).unwrap();
+    let mut rest = String::new();
+    sim.stdout.take().unwrap().read_to_string(&mut rest).unwrap();
+    assert!(sim.wait().unwrap().success(), "{rest}");
+    let stopped: serde_json::Value = serde_json::from_str(rest.lines().last().unwrap()).unwrap();
+    let replies = stopped["faults"]["replies"].as_u64().unwrap();
+    // 12 targets x 2 runs both ways: at least a reply a sample from each instrument.
+    assert!(replies >= 2 * 48, "{stopped}");
+    assert_eq!(stopped["faults"]["injected"].as_u64(), Some(0), "{stopped}");
+}

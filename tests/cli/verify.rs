@@ -15,17 +15,24 @@ fn the_fig8_correction_measured_in_the_loop_beats_native_and_the_hysteresis_floo
     let v = &doc["verify"];
     let num = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("verify.{k} missing: {v}"));
     assert_eq!(v["survey_id"], 2);
-    // Measured half a step (0.5 deg) from every calibration target.
-    assert_eq!((v["targets"].as_u64(), v["between_targets"].as_bool()), (Some(360), Some(true)), "{v}");
-    assert!((num("offset_deg") - 0.5).abs() < 1e-9, "{v}");
+    // Half a step from every target, a plausible line of 719 or 721 cycles/rev
+    // (2 x 360 -+ 1) shifts by whole turns and would hide: the verification
+    // takes the fewest evenly spaced targets from 361 up, half their own step
+    // from 0, that see every plausible line (368), none on a calibration target.
+    let n = v["targets"].as_u64().unwrap();
+    assert!(v["resized"] == true && v["blind"].as_array().unwrap().is_empty(), "{v}");
+    assert!((361..=720).contains(&n) && v["between_targets"] == true, "{v}");
     bench.survey(&["export", "--csv", "v.csv", "--survey", "2"]).success();
     let targets = targets_of(&bench.read("v.csv"));
-    assert_eq!(targets.len(), 360);
-    assert!(targets.iter().enumerate().all(|(k, t)| (t - (k as f64 + 0.5)).abs() < 1e-9), "{targets:?}");
+    let step = 360.0 / n as f64;
+    assert_eq!(targets.len() as u64, n);
+    assert!(targets.iter().enumerate().all(|(k, t)| (t - step * (k as f64 + 0.5)).abs() < 1e-9), "{targets:?}");
+    assert!(targets.iter().all(|t| (t - t.round()).abs() > 1e-6), "none on a calibration target");
+    assert!((num("offset_deg") - targets.iter().map(|t| (t - t.round()).abs()).fold(1.0, f64::min)).abs() < 1e-9);
     // Its own plan is stored with it, so a resume measures the same targets.
     let shown = bench.survey(&["show", "2", "--json"]).success().json();
-    assert_eq!(shown["plan"]["targets_deg"][0].as_f64(), Some(0.5), "{shown}");
-    assert_eq!(shown["points"].as_u64(), Some(360), "{shown}");
+    assert_eq!(shown["plan"]["targets"].as_u64(), Some(n), "{shown}");
+    assert_eq!(shown["points"].as_u64(), Some(n), "{shown}");
     assert_eq!(v["directional"], true, "fig8's 0.008 deg backlash makes the table direction-aware");
     // The paper: +/-0.015 -> +/-0.005, a factor of 3, limited by hysteresis.
     // Here every sample also carries the tracker's ~0.0009 deg and the
@@ -267,14 +274,26 @@ fn verify_points_measures_a_denser_set_between_the_targets_and_refuses_one_on_th
         args.extend_from_slice(extra);
         bench.survey(&args)
     };
-    // 72 targets every 5 deg from 2.5: the calibration targets are every 10 deg.
-    let out = run(&["--verify-points", "72"]).success();
+    // 72 targets every 5 deg from 2.5: the calibration targets are every 10
+    // deg. Measured as asked; but there a plausible line (143 = 4 x 36 - 1
+    // cycles/rev, which 36 targets see where the table corrects 1) shifts by
+    // whole turns: the verification could not have seen the table fail, so
+    // it confirms nothing (exit 1).
+    let out = run(&["--verify-points", "72"]);
+    assert_eq!(out.code, 1, "{out}");
     let v = &out.json()["verify"];
     assert_eq!((v["targets"].as_u64(), v["between_targets"].as_bool()), (Some(72), Some(true)), "{v}");
     assert!((v["offset_deg"].as_f64().unwrap() - 2.5).abs() < 1e-9, "{v}");
+    assert_eq!(v["verdict"], "not confirmed", "{v}");
+    assert!(v["reason"].as_str().unwrap().contains("could not have seen the table fail: a line of 143"), "{v}");
     bench.survey(&["export", "--csv", "v.csv", "--survey", "2"]).success();
     let targets = targets_of(&bench.read("v.csv"));
     assert_eq!(targets, (0..72).map(|k| 2.5 + 5.0 * k as f64).collect::<Vec<_>>());
+    // 132 targets (every 2.73 deg from half that), none on a calibration
+    // target, see every plausible alias of this table: confirmed.
+    let v = run(&["--verify-points", "132"]).success().json()["verify"].clone();
+    assert_eq!((v["targets"].as_u64(), v["verdict"].as_str()), (Some(132), Some("confirmed")), "{v}");
+    assert!(v["blind"].as_array().unwrap().is_empty(), "{v}");
     // 18 targets every 20 deg from 10 deg fall on the calibration targets:
     // refused before anything is measured or stored.
     let before = bench.stored();
@@ -303,4 +322,40 @@ fn with_an_autocollimator_the_verification_stays_at_the_faces_and_says_so() {
         ])
         .success();
     assert!(out.stdout.contains("at the 24 calibration targets (the polygon's faces"), "{out}");
+}
+
+/// The issue's aliased table: a 20-point survey of an axis with a 43
+/// cycles/rev line and no design. The line aliases onto 3 cycles/rev, the
+/// table "corrects" 3 cycles/rev and is worse than native on the true axis.
+/// Half a step from every target 43 = 2 x 20 + 3 shifts by whole turns, so
+/// that verification alone "confirmed" it (3x better); joined with a second
+/// spacing the verification sees the table fail: not confirmed, exit 1.
+#[test]
+fn a_verification_cannot_share_the_calibration_s_alias() {
+    let bench = Bench::new();
+    bench.write(
+        "m43.toml",
+        "[[effect]]\nkind = \"harmonic\"\ncycles_per_rev = 43\namplitude_deg = 0.006\nphase_deg = 30.0\n\n\
+         [[effect]]\nkind = \"noise\"\nsigma_deg = 0.0003\n",
+    );
+    let out = bench.survey(&[
+        "run",
+        "--points",
+        "20",
+        "--runs",
+        "2",
+        "--bidirectional",
+        "--model",
+        "m43.toml",
+        "--verify",
+        "--json",
+    ]);
+    assert_eq!(out.code, 1, "{out}");
+    let v = &out.json()["verify"];
+    assert_eq!(v["verdict"], "not confirmed", "{v}");
+    let second = v["second_spacing_targets"].as_u64().unwrap();
+    assert!(second > 0 && v["targets"].as_u64() == Some(20 + second), "{v}");
+    // What the verification measured is the truth: the table makes the axis worse.
+    assert!(v["corrected_peak_deg"].as_f64().unwrap() > v["native_peak_deg"].as_f64().unwrap(), "{v}");
+    assert!(v["reason"].as_str().unwrap().contains("not better than the native"), "{v}");
 }

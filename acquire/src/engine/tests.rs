@@ -123,6 +123,9 @@ impl Positioner for Spy {
         self.push(Call::EnableCorrection);
         self.inner.enable_correction(enabled).await
     }
+    async fn correction_state(&mut self) -> survey_drivers::Result<Option<bool>> {
+        self.inner.correction_state().await
+    }
 }
 
 /// A sink that fails on its `fail_on`-th `record` (1-based) and counts flushes.

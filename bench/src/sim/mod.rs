@@ -331,7 +331,7 @@ impl<'a> Relays<'a> {
         }
     }
 
-    /// The relay in front of `what` (`None`: no fault reaches it), sharing
+    /// The relay in front of `what` (`None`: not on a wire of ours), sharing
     /// `faults` with its simulator; `device`: whether the relay arms the
     /// instrument's device faults (the autocollimator's are its own). Each
     /// call takes the next seed, whether or not it makes a relay.
@@ -350,9 +350,8 @@ impl<'a> Relays<'a> {
             device: if device { f.device } else { 0.0 },
             ..FaultRates::default()
         };
-        if !rates.any() {
-            return None;
-        }
+        // Without fault rates the relay passes every reply as it is, and
+        // counts it: `replies` says what was served.
         let stall_for = match what {
             "positioner" => self.positioner_stall,
             "autocollimator" => self.elcomat_stall,

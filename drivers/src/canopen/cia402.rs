@@ -527,6 +527,15 @@ impl<B: CanBus> Positioner for Cia402Positioner<B> {
         self.require_correction_objects(if enabled { "apply the correction" } else { "switch the correction off" })?;
         self.download(index::CORRECTION_ENABLE, 0, &[u8::from(enabled)]).await
     }
+
+    /// 0x2101 with the correction objects; without them the standard
+    /// objects say nothing of a correction: unknown, nothing is read.
+    async fn correction_state(&mut self) -> Result<Option<bool>> {
+        if !self.cfg.correction_objects {
+            return Ok(None);
+        }
+        Ok(Some(self.read_fixed::<1>(index::CORRECTION_ENABLE).await?[0] != 0))
+    }
 }
 
 #[cfg(test)]

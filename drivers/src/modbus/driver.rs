@@ -415,6 +415,12 @@ impl Positioner for ModbusPositioner {
         let code = if enabled { codes.correction_enable } else { codes.correction_disable };
         self.command("enable_correction", code).await
     }
+
+    /// The status register's `correction_enabled` bit.
+    async fn correction_state(&mut self) -> Result<Option<bool>> {
+        let word = self.read("correction state (status)", self.map.status, 1).await?[0];
+        Ok(Some(word & (1 << self.map.status_bits.correction_enabled) != 0))
+    }
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! [`ScpiPositioner`]: the [`Positioner`] driver over any async byte stream.
 
 use super::codec::{
-    Address, CodecError, Column, Command, Decoder, ErrorEntry, parse_count, parse_number, parse_status,
+    Address, CodecError, Column, Command, Decoder, ErrorEntry, parse_bool, parse_count, parse_number, parse_status,
 };
 use super::codes::{DEVICE_SPECIFIC_ERROR, StatusWord};
 use crate::error::{DriverError, ErrorKind, Result};
@@ -610,5 +610,16 @@ where
         self.command(&[Command::SetCorrection(enabled)], "enable_correction (CORR:STAT)").await?;
         self.correction_on = enabled;
         Ok(())
+    }
+
+    /// `CORR:STAT?` with `unverified_commands` (the `CORR:` subsystem is
+    /// this project's guess); without, unknown: nothing is sent.
+    async fn correction_state(&mut self) -> Result<Option<bool>> {
+        if !self.cfg.unverified_commands {
+            return Ok(None);
+        }
+        let what = "correction_state (CORR:STAT?)";
+        let line = self.query(&[], Command::CorrectionQuery, what).await?;
+        parse_bool(&line).map(Some).map_err(|e| self.garbled(what, e))
     }
 }

@@ -226,6 +226,47 @@ async fn driver_over_an_in_memory_stream() {
     assert!(!p.is_connected());
 }
 
+/// `correction_state`: `CORR:STAT?` only with the unverified commands (else
+/// unknown, and nothing is sent); `1`/`0` read as on/off, anything else is
+/// a garbled reply.
+#[tokio::test]
+async fn the_correction_state_is_asked_only_with_the_unverified_commands() {
+    let (ours, mut theirs) = tokio::io::duplex(4096);
+    let cfg = ScpiConfig { unverified_commands: true, ..ScpiConfig::default() };
+    let mut p = ScpiPositioner::with_config(ours, cfg).named("duplex");
+    let peer = tokio::spawn(async move {
+        let mut d = Decoder::default();
+        let mut buf = [0u8; 256];
+        let mut seen = Vec::new();
+        for reply in ["1\n", "OFF\n", "maybe\n"] {
+            let line = loop {
+                if let Some(l) = d.next_line() {
+                    break l.unwrap();
+                }
+                let n = theirs.read(&mut buf).await.unwrap();
+                d.push(&buf[..n]);
+            };
+            theirs.write_all(reply.as_bytes()).await.unwrap();
+            seen.push(line);
+        }
+        seen
+    });
+    assert_eq!(p.correction_state().await.unwrap(), Some(true));
+    assert_eq!(p.correction_state().await.unwrap(), Some(false));
+    let e = p.correction_state().await.unwrap_err();
+    assert!(e.kind == ErrorKind::Garbled && e.message.contains("CORR:STAT?"), "{e}");
+    assert_eq!(peer.await.unwrap(), vec!["CONT1:AXIS(1):CORR:STAT?"; 3]);
+
+    // Without them: unknown, and the line stays silent.
+    let (ours, mut theirs) = tokio::io::duplex(4096);
+    let mut p = ScpiPositioner::from_stream(ours).named("duplex");
+    assert_eq!(p.correction_state().await.unwrap(), None);
+    drop(p);
+    let mut rest = Vec::new();
+    theirs.read_to_end(&mut rest).await.unwrap();
+    assert!(rest.is_empty(), "sent {rest:?}");
+}
+
 fn arb_f64() -> impl Strategy<Value = f64> {
     prop_oneof![
         -1e4f64..1e4,

@@ -11,8 +11,9 @@
 //! (a recalibration, or the asset's first calibration), 1 for a failure, 2
 //! for bad input.
 
-use super::{compared, measure};
+use super::{Compared, Measured, compared, measure};
 use crate::conclude::{ConcludeOptions, conclude};
+use crate::correction::{self, Before, Choice};
 use crate::error::{Recalibrated, bad_input};
 use serde_json::{Value, json};
 use std::path::Path;
@@ -20,6 +21,7 @@ use survey_acquire::stop::Stop;
 use survey_bench::Bench;
 use survey_bench::output::Output;
 use survey_bench::session::{AcquireOptions, acquire};
+use survey_modelgap::compare::seen::{CalibrationGrid, CheckDesign, Unseen, design_check};
 use survey_plan::SurveyPlan;
 use survey_store::asset::UNASSIGNED;
 use survey_store::survey::{NewSurvey, SurveyRecord, SurveyRef};
@@ -56,23 +58,20 @@ pub struct CheckRequest {
     pub recipe: Option<std::path::PathBuf>,
     /// The unit of the errors in the text.
     pub units: survey_bench::output::Units,
+    /// What the asset's first calibration does when the positioner applies
+    /// a correction (`--correction`; a recalibration after a check that found
+    /// the correction on switches it off: the table in force is replaced).
+    pub correction: Choice,
 }
 
-/// A few dozen of the calibration's targets: the number of targets nearest
-/// 36 that divides the calibration's full circle (so every check target is a
-/// calibration target and the mean error maps compare cell by cell); 36 when
-/// none does (a partial range: the lines are still compared); every face of
-/// an autocollimator's polygon (the faces are the targets).
-pub fn check_points(plan: &SurveyPlan, polygon: bool) -> u32 {
-    let n = plan.targets_deg.len() as u32;
-    if polygon {
-        return n;
-    }
-    let full_circle = n >= 2 && plan.targets_deg[0] == 0.0 && (plan.targets_deg[1] * f64::from(n) - 360.0).abs() < 1e-9;
-    if !full_circle {
-        return 36;
-    }
-    (24..=60).filter(|d| n.is_multiple_of(*d)).min_by_key(|d| d.abs_diff(36)).unwrap_or(36.min(n))
+/// The grid a check is designed on: the calibration's targets (a full
+/// circle, or the arc they span), or a polygon's faces.
+pub fn grid_of(plan: &SurveyPlan, polygon: bool) -> CalibrationGrid {
+    let t = &plan.targets_deg;
+    let n = t.len() as u32;
+    let full_circle = n >= 2 && t[0] == 0.0 && (t[1] * f64::from(n) - 360.0).abs() < 1e-9;
+    let arc_deg = (!full_circle && n >= 2).then(|| t[t.len() - 1] - t[0]);
+    CalibrationGrid { points: n, arc_deg, polygon }
 }
 
 /// The asset's calibration whose table is in force: its last complete calibration.
@@ -89,14 +88,20 @@ pub struct CheckOutcome {
     pub output: Output,
     /// Why a full survey was made.
     pub recalibrated: Option<String>,
+    /// What the check could not see of the table in force, when it found
+    /// no change in what it could: no "in tolerance" is then said (exit 1).
+    pub unseen: Option<String>,
 }
 
 impl CheckOutcome {
-    /// `Ok` in tolerance, [`Recalibrated`] when a full survey was made.
+    /// `Ok` in tolerance, [`Recalibrated`] when a full survey was made, a
+    /// run-time failure naming what the check could not see when it could
+    /// not decide.
     pub fn result(self) -> anyhow::Result<()> {
-        match self.recalibrated {
-            Some(why) => Err(Recalibrated(why).into()),
-            None => Ok(()),
+        match (self.recalibrated, self.unseen) {
+            (Some(why), _) => Err(Recalibrated(why).into()),
+            (None, Some(unseen)) => Err(anyhow::anyhow!("the check cannot say the asset is in tolerance: {unseen}")),
+            (None, None) => Ok(()),
         }
     }
 }
@@ -124,12 +129,13 @@ pub async fn run_check(
     let store = Store::open(db).await?;
     let done = check_with(&store, db, req, asset, bench, &stop).await;
     store.close().await;
-    let (doc, text, recalibrated) = done?;
-    Ok(CheckOutcome { output: Output { doc, text }, recalibrated })
+    let (doc, text, recalibrated, unseen) = done?;
+    Ok(CheckOutcome { output: Output { doc, text }, recalibrated, unseen })
 }
 
-/// The loop on an open store: the document, the text, and why a full survey
-/// was made (when one was).
+/// The loop on an open store: the document, the text, why a full survey
+/// was made (when one was), and what the check could not see (when it
+/// could not decide).
 async fn check_with(
     store: &Store,
     db: &Path,
@@ -137,35 +143,76 @@ async fn check_with(
     asset: &str,
     bench: &dyn Fn(PlanSize) -> anyhow::Result<Bench>,
     stop: &Stop,
-) -> anyhow::Result<(Value, String, Option<String>)> {
+) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
     let Some(cal) = in_force(store, asset).await? else {
         let why = format!("no calibration of the asset {asset} is in force: a full survey calibrates it");
-        eprintln!("{why}");
-        let (full, text) = full_survey(store, db, req, asset, bench(req.size)?, stop).await?;
+        survey_bench::say!("{why}");
+        let (full, text) = full_survey(store, db, req, asset, (bench(req.size)?, req.correction), stop).await?;
         let doc = json!({"asset": asset, "outcome": "calibrated", "reason": why, "check": null,
             "recalibration": full["run"], "table_in_force": full["table_in_force"]});
-        return Ok((doc, format!("{why}\n{text}"), Some(why)));
+        return Ok((doc, format!("{why}\n{text}"), Some(why), None));
     };
-    let cal_plan = cal.plan().cloned();
-    let points = req.size.points.or_else(|| cal_plan.as_ref().map(|p| check_points(p, req.polygon)));
+    // The table in force first: the check is designed to see its lines.
+    let a = measure(store, SurveyRef::Id(cal.id)).await?;
+    // Lines the calibration's own targets cannot place (aliases in doubt) show
+    // elsewhere on the check's grid: the table's check judges what they leave.
+    let doubt: Vec<f64> = a.lines_in_doubt().iter().map(|(bin, _)| *bin).collect();
+    let lines: Vec<f64> = std::iter::once(1.0)
+        .chain(a.main_lines().iter().map(|l| l.cycles_per_rev))
+        .filter(|k| !doubt.contains(k))
+        .collect();
+    let design = cal.plan().map(|p| design_check(grid_of(p, req.polygon), &lines, req.size.points));
+    let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
-    let new = NewSurvey { asset: asset.to_string(), check_of: Some(cal.uid.clone()), ..b.new_survey() };
+    // The check measures the axis as it finds it, and leaves it so.
+    let found = match correction::read(&mut b.engine).await {
+        Ok(Some(true)) => Before::On,
+        Ok(Some(false)) => Before::Off,
+        Ok(None) => {
+            Before::Unknown(format!("{} cannot report whether it applies a correction", b.engine.positioner_name()))
+        }
+        // Not answering now: the acquisition survives it or stops the check.
+        Err(e) => Before::Unknown(format!("it could not be read: {e:#}")),
+    };
+    let mut new = NewSurvey { asset: asset.to_string(), check_of: Some(cal.uid.clone()), ..b.new_survey() };
+    new.instruments["correction"] = found.as_str().into();
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
     b.engine.set_stop(stop.clone());
-    eprintln!(
+    survey_bench::say!(
         "survey {id}: a check of {} targets x {} runs both ways, against the table of survey {} ({})",
         b.plan.targets_deg.len(),
         b.plan.runs,
         cal.id,
         cal.uid
     );
+    if let Some(d) = &design {
+        survey_bench::say!("survey {id}: {}", d.why);
+        for u in &d.unseen {
+            survey_bench::say!("survey {id}: cannot see the {} cycles/rev line: {}", u.cycles_per_rev, u.why);
+        }
+    }
     let options = AcquireOptions { progress: !req.json, plan_progress: b.plan_progress.clone(), ..Default::default() };
     acquire(store, id, &mut b.engine, &b.plan, 0, options).await?;
     drop(lock);
     drop(b);
-    let (a, c) = (measure(store, SurveyRef::Id(cal.id)).await?, measure(store, SurveyRef::Id(id)).await?);
+    let mut c = measure(store, SurveyRef::Id(id)).await?;
+    let corrected = found == Before::On;
+    if corrected {
+        as_native(&mut c, &a)?;
+    }
     let cmp = compared(&a, &c)?;
+    // What of the table in force the check could not see: by its design, or
+    // by the comparison (a line not estimable at its targets).
+    let mut unseen: Vec<Unseen> = design.as_ref().map_or_else(Vec::new, |d| d.unseen.clone());
+    for u in &cmp.comparison.not_estimable {
+        if lines.contains(&u.cycles_per_rev) && !unseen.iter().any(|v| v.cycles_per_rev == u.cycles_per_rev) {
+            unseen.push(u.clone());
+        }
+    }
+    if !cmp.decision.recalibrate && !unseen.is_empty() {
+        return undecided(store, id, &cal, &a, &c, &cmp, design.as_ref(), &unseen).await;
+    }
     let decision = CheckDecision {
         survey_id: id,
         against_uid: cal.uid.clone(),
@@ -179,27 +226,115 @@ async fn check_with(
     store.record_check(&decision).await?;
     // A check has no outputs of its own: its decision is what completes it.
     store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
-    let mut check_doc = cmp.json(&a, &c);
-    check_doc["survey_id"] = id.into();
-    check_doc["uid"] = c.survey.uid.clone().into();
-    let mut text = cmp.text(&a, &c);
+    let mut check_doc = check_json(&cmp, &a, &c, design.as_ref());
+    check_doc["correction"] = found.as_str().into();
+    let mut text = design_text(design.as_ref()) + &measured_text(&found) + &cmp.text(&a, &c);
     let table_of = |r: &SurveyRecord| json!({"survey_id": r.id, "uid": r.uid});
     if !cmp.decision.recalibrate {
-        text += &format!("in tolerance: the table of survey {} stays in force\n", cal.id);
-        let doc = json!({"asset": asset, "outcome": "in tolerance", "recalibrate": false,
+        let outcome = if cmp.decision.changed { "changed, the table holds" } else { "in tolerance" };
+        text += &format!("{outcome}: the table of survey {} stays in force\n", cal.id);
+        let doc = json!({"asset": asset, "outcome": outcome, "recalibrate": false,
             "reason": cmp.decision.reason, "check": check_doc, "recalibration": null, "table_in_force": table_of(&cal)});
-        return Ok((doc, text, None));
+        return Ok((doc, text, None, None));
     }
     text += &format!("recalibrating: {}\n", cmp.decision.reason);
-    eprintln!("survey {id}: recalibrating: {}", cmp.decision.reason);
+    survey_bench::say!("survey {id}: recalibrating: {}", cmp.decision.reason);
     let size = PlanSize { points: cal.points, runs: cal.runs, bidirectional: cal.bidirectional };
-    let (full, full_text) = full_survey(store, db, req, asset, bench(size)?, stop).await?;
+    // A correction found on is the table being replaced: off for the calibration.
+    let choice = if corrected { Choice::Off } else { req.correction };
+    let (full, full_text) = full_survey(store, db, req, asset, (bench(size)?, choice), stop).await?;
     let new_uid = full["table_in_force"]["uid"].as_str().unwrap_or_default().to_string();
     store.set_recalibration(id, &new_uid, full["table_in_force"]["table"].as_str()).await?;
     text += &full_text;
     let doc = json!({"asset": asset, "outcome": "recalibrated", "recalibrate": true, "reason": cmp.decision.reason,
         "check": check_doc, "recalibration": full["run"], "table_in_force": full["table_in_force"]});
-    Ok((doc, text, Some(cmp.decision.reason)))
+    Ok((doc, text, Some(cmp.decision.reason), None))
+}
+
+/// A check measured with the correction on: its samples with the table in
+/// force (the calibration's, as processed now) added back to their errors,
+/// the native axis as the controller's correction leaves it to be seen (the
+/// table the controller applies is taken to be the table in force; its
+/// second-order effect, the table's slope times the error, is below the
+/// noise). Then the lines, the backlash and the map compare with the
+/// calibration as for a native check, and the table's check is the
+/// corrected axis against the table's predicted residual and its U.
+fn as_native(check: &mut Measured, cal: &Measured) -> anyhow::Result<()> {
+    let table = match &cal.processed {
+        Ok(p) => &p.built.table,
+        Err(why) => {
+            return Err(anyhow::anyhow!(
+                "the check measured the corrected axis, and the table in force (survey {}) cannot be made again to \
+                 judge it: {why}",
+                cal.survey.id
+            ));
+        }
+    };
+    for s in &mut check.samples {
+        s.readout_deg += table.error_at(s.readout_deg, s.direction);
+    }
+    Ok(())
+}
+
+/// What the check measured, by the correction it found: the lines of the text.
+fn measured_text(found: &Before) -> String {
+    match found {
+        Before::On => "the correction at the positioner was on: the check measured the corrected axis, judged with \
+                       the table in force added back (against the calibration) and as it is (against the table's \
+                       predicted residual and U); the check leaves it on\n"
+            .into(),
+        Before::Unknown(why) => {
+            format!("correction at the positioner: unknown ({why}): the check takes the axis as native\n")
+        }
+        _ => String::new(),
+    }
+}
+
+/// The check's document: the comparison, its survey and its design.
+fn check_json(cmp: &Compared, a: &Measured, c: &Measured, design: Option<&CheckDesign>) -> Value {
+    let mut doc = cmp.json(a, c);
+    doc["survey_id"] = c.survey.id.into();
+    doc["uid"] = c.survey.uid.clone().into();
+    doc["design"] = match design {
+        Some(d) => json!({"points": d.points, "why": d.why, "unseen": d.unseen}),
+        None => Value::Null,
+    };
+    doc
+}
+
+/// The design's lines of the text (none without one).
+fn design_text(design: Option<&CheckDesign>) -> String {
+    design.map_or_else(String::new, |d| format!("check design: {}\n", d.why))
+}
+
+/// The check found no change in what it could see, but could not see part
+/// of the table in force: no decision is stored and nothing is said to be
+/// in tolerance (the command exits 1 naming what it could not see).
+#[allow(clippy::too_many_arguments)]
+async fn undecided(
+    store: &Store,
+    id: i64,
+    cal: &SurveyRecord,
+    a: &Measured,
+    c: &Measured,
+    cmp: &Compared,
+    design: Option<&CheckDesign>,
+    unseen: &[Unseen],
+) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
+    store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
+    let what: Vec<String> =
+        unseen.iter().map(|u| format!("the {} cycles/rev line ({})", u.cycles_per_rev, u.why)).collect();
+    let why = format!(
+        "no change in what it could see, but it could not see {}: measure a check with more targets (--points) or \
+         recalibrate",
+        what.join("; ")
+    );
+    let mut text = design_text(design) + &cmp.text(a, c);
+    text += &format!("not decided: {why}\n");
+    let doc = json!({"asset": cal.asset, "outcome": "not decided", "recalibrate": false, "reason": why,
+        "check": check_json(cmp, a, c, design), "recalibration": null,
+        "table_in_force": {"survey_id": cal.id, "uid": cal.uid}});
+    Ok((doc, text, None, Some(why)))
 }
 
 /// A full survey of `asset` on `bench`, concluded as `survey run` concludes
@@ -210,14 +345,20 @@ async fn full_survey(
     db: &Path,
     req: &CheckRequest,
     asset: &str,
-    mut b: Bench,
+    (mut b, choice): (Bench, Choice),
     stop: &Stop,
 ) -> anyhow::Result<(Value, String)> {
-    let new = NewSurvey { asset: asset.to_string(), ..b.new_survey() };
+    let before = correction::before_calibration(&mut b.engine, choice).await?;
+    let mut new = NewSurvey { asset: asset.to_string(), ..b.new_survey() };
+    new.instruments["correction"] = before.as_str().into();
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
+    if before == Before::SwitchedOff {
+        let at = b.clock.now().as_secs_f64();
+        store.log_event(id, at, "info", "the positioner applied a correction: switched off before the survey").await?;
+    }
     b.engine.set_stop(stop.clone());
-    eprintln!("survey {id}: a full survey, {} targets x {} runs", b.plan.targets_deg.len(), b.plan.runs);
+    survey_bench::say!("survey {id}: a full survey, {} targets x {} runs", b.plan.targets_deg.len(), b.plan.runs);
     let options = AcquireOptions { progress: !req.json, plan_progress: b.plan_progress.clone(), ..Default::default() };
     let acquired = acquire(store, id, &mut b.engine, &b.plan, 0, options.clone()).await?;
     let finish = ConcludeOptions {
@@ -243,15 +384,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_check_measures_a_few_dozen_of_the_calibration_s_targets() {
-        let circle = |n| SurveyPlan::full_circle(n, 5, true).unwrap();
-        let points = |n| check_points(&circle(n), false);
-        assert_eq!([points(360), points(1800), points(720), points(100), points(7)], [36, 36, 36, 25, 7]);
-        // Every check target is then a calibration target.
-        let (cal, check) = (circle(1800), circle(36));
-        assert!(check.targets_deg.iter().all(|t| cal.targets_deg.iter().any(|c| (c - t).abs() < 1e-9)));
-        // A partial range keeps no common grid; a polygon's faces are its targets.
-        let arc = SurveyPlan::within_travel(-10.0, 90.0, 100, 5, true).unwrap();
-        assert_eq!((check_points(&arc, false), check_points(&circle(24), true)), (36, 24));
+    fn the_grid_of_a_calibration_is_its_circle_its_arc_or_its_faces() {
+        let circle = SurveyPlan::full_circle(120, 2, true).unwrap();
+        assert_eq!(grid_of(&circle, false), CalibrationGrid { points: 120, arc_deg: None, polygon: false });
+        let arc = SurveyPlan::within_travel(-10.0, 90.0, 101, 2, true).unwrap();
+        let span = arc.targets_deg[100] - arc.targets_deg[0];
+        assert_eq!(grid_of(&arc, false), CalibrationGrid { points: 101, arc_deg: Some(span), polygon: false });
+        assert!(span > 90.0 && span <= 100.0, "{span}");
+        assert!(grid_of(&SurveyPlan::full_circle(24, 2, true).unwrap(), true).polygon);
     }
 }

@@ -40,9 +40,8 @@ pub async fn history(store: &Store, asset: &str, up_to: Option<i64>) -> anyhow::
     for r in records {
         surveys.push(measure(store, SurveyRef::Id(r.id)).await?);
     }
-    let native: Vec<usize> = (0..surveys.len())
-        .filter(|&i| surveys[i].survey.is_complete() && surveys[i].kind() != "verification")
-        .collect();
+    let native: Vec<usize> =
+        (0..surveys.len()).filter(|&i| surveys[i].survey.is_complete() && surveys[i].is_native()).collect();
     let (mut changes, mut not_compared) = (Vec::new(), Vec::new());
     for pair in native.windows(2) {
         let (a, b) = (&surveys[pair[0]], &surveys[pair[1]]);

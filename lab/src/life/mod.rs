@@ -17,6 +17,7 @@ pub mod history;
 use crate::load::{Axis, load};
 use serde_json::{Value, json};
 use survey_modelgap::ReferenceInfo;
+use survey_modelgap::compare::seen::Unseen;
 use survey_modelgap::compare::{CompareOptions, Comparison, Decision, TableCheck, compare, decide, table_on};
 use survey_processing::Sample;
 use survey_processing::iso230::{Iso230, iso230_2};
@@ -78,9 +79,31 @@ impl Measured {
         lines
     }
 
-    /// `calibration`, `check` or `verification`.
+    /// The lines its own targets cannot place: seen at a bin that more than
+    /// one frequency could alias onto (an unknown design's line that may be
+    /// an alias, two design harmonics at one bin), by the bin they were seen
+    /// at, with the candidates. On another grid of targets the true line
+    /// shows at another bin: such a line compares only on the same grid.
+    pub fn lines_in_doubt(&self) -> Vec<(f64, Vec<f64>)> {
+        let Ok(p) = &self.processed else { return Vec::new() };
+        p.left
+            .lines
+            .iter()
+            .filter(|l| l.candidates.len() > 1)
+            .map(|l| (l.observed_cycles, l.candidates.clone()))
+            .collect()
+    }
+
+    /// `calibration`, `check`, `verification` or `corrected`.
     pub fn kind(&self) -> &'static str {
         kind(&self.survey)
+    }
+
+    /// Whether it measured the positioner as it is (a calibration or a
+    /// check), not with a table applied (a verification, a survey of the
+    /// corrected axis kept on purpose): only those compare.
+    pub fn is_native(&self) -> bool {
+        !matches!(self.kind(), "verification" | "corrected")
     }
 
     /// The history's entry of this survey (the contract's keys and more).
@@ -103,11 +126,13 @@ impl Measured {
     }
 }
 
-/// `calibration`, `check` or `verification`.
+/// `calibration`, `check`, `verification` or `corrected` (the corrected
+/// axis measured on purpose: `--correction keep`).
 pub fn kind(s: &SurveyRecord) -> &'static str {
     match (&s.check_of, &s.source) {
         (Some(_), _) => "check",
         (None, SurveySource::Verification) => "verification",
+        _ if s.measured_corrected() => "corrected",
         _ => "calibration",
     }
 }
@@ -152,27 +177,82 @@ pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
     }
     // A verification measured the axis with a table applied: against a
     // native survey every line the table corrects would read as a change.
-    if let Some(v) = [a, b].into_iter().find(|m| m.kind() == "verification") {
-        let of = v.survey.verification.as_ref().map_or(String::new(), |x| format!(" of survey {}", x.verifies_survey));
+    if let Some(v) = [a, b].into_iter().find(|m| !m.is_native()) {
+        let what = match &v.survey.verification {
+            Some(x) => format!("a verification (measured with the table of survey {} applied)", x.verifies_survey),
+            None if v.kind() == "verification" => "a verification (measured with the table applied)".into(),
+            None => "a survey of the corrected axis (the correction kept on: --correction keep)".into(),
+        };
         return Err(crate::error::bad_input(format!(
-            "survey {} is a verification (measured with the table{of} applied): it measures the corrected axis; \
-             compare calibrations and checks, which measure the positioner as it is",
+            "survey {} is {what}: it measures the corrected axis; compare calibrations and checks, which measure the \
+             positioner as it is",
             v.survey.id
         )));
     }
     let lines: Vec<f64> =
         std::iter::once(1.0).chain(a.main_lines().iter().chain(&b.main_lines()).map(|l| l.cycles_per_rev)).collect();
+    // A line either survey's targets cannot place compares only on one grid.
+    let doubt = in_doubt_across_grids(a, b);
+    let lines: Vec<f64> = lines.into_iter().filter(|k| !doubt.iter().any(|u| u.cycles_per_rev == *k)).collect();
     let opts =
         CompareOptions { false_alarm_rate: FALSE_ALARM_RATE, lines, axis_se_deg: [a.axis_se_deg, b.axis_se_deg] };
-    let comparison = compare(&a.samples, &b.samples, &opts).map_err(|e| {
+    let mut comparison = compare(&a.samples, &b.samples, &opts).map_err(|e| {
         crate::error::bad_input(format!("survey {} cannot be compared with survey {}: {e}", a.survey.id, b.survey.id))
     })?;
+    for u in doubt {
+        comparison.lines_not_tested.push(u.cycles_per_rev);
+        comparison.not_estimable.push(u);
+    }
     let table_of_a_on_b = match (&a.processed, a.table_u_deg) {
         (Ok(p), Some(u)) => table_on(&p.built.table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
         _ => None,
     };
-    let decision = decide(&comparison, table_of_a_on_b.as_ref());
+    let decision = decide(&comparison, table_of_a_on_b.as_ref(), asset_tolerance(a));
     Ok(Compared { comparison, table_of_a_on_b, decision })
+}
+
+/// The tolerance stated for the asset of `a` (the calibration in force, or
+/// the earlier survey): its configuration's `[certificate] tolerance_deg`.
+fn asset_tolerance(a: &Measured) -> Option<f64> {
+    match &a.survey.setup {
+        survey_store::survey::Setup::Configured(c) => c.config.certificate.as_ref().and_then(|c| c.tolerance_deg),
+        _ => None,
+    }
+}
+
+/// The lines of `a` or `b` that its own targets cannot place
+/// ([`Measured::lines_in_doubt`]), when the two surveys' targets differ:
+/// seen at one bin on one grid and at another on the other, their phasors do
+/// not compare (the table's check judges what they leave).
+fn in_doubt_across_grids(a: &Measured, b: &Measured) -> Vec<Unseen> {
+    let grid = |m: &Measured| -> Vec<u64> {
+        let mut t: Vec<u64> = m.samples.iter().map(|s| (s.target_deg * 1e6).round() as u64).collect();
+        t.sort_unstable();
+        t.dedup();
+        t
+    };
+    if grid(a) == grid(b) {
+        return Vec::new();
+    }
+    let mut out: Vec<Unseen> = Vec::new();
+    for (m, name) in [(a, "A"), (b, "B")] {
+        for (bin, candidates) in m.lines_in_doubt() {
+            if out.iter().any(|u| u.cycles_per_rev == bin) {
+                continue;
+            }
+            let c: Vec<String> = candidates.iter().map(|c| format!("{c}")).collect();
+            out.push(Unseen {
+                cycles_per_rev: bin,
+                why: format!(
+                    "survey {name}'s targets cannot place the line seen at bin {bin} (it may be {} cycles/rev): on \
+                     the other survey's targets it shows at another bin, so the two do not compare line for line; \
+                     the table's check judges what it leaves",
+                    c.join(" or ")
+                ),
+            });
+        }
+    }
+    out
 }
 
 impl Compared {
@@ -188,6 +268,7 @@ impl Compared {
             "verdict": c.verdict.as_str(),
             "lines": c.lines,
             "lines_not_tested": c.lines_not_tested,
+            "not_estimable": c.not_estimable,
             "backlash": c.backlash,
             "map": c.map,
             "false_alarm_rate": c.false_alarm_rate,
@@ -258,8 +339,8 @@ impl Compared {
                 if m.significant { "changed" } else { "unchanged" }
             );
         }
-        if !c.lines_not_tested.is_empty() {
-            s += &format!("  not tested (aliased at these targets): {:?} cycles/rev\n", c.lines_not_tested);
+        for u in &c.not_estimable {
+            s += &format!("  {} cycles/rev: not estimable: {}\n", u.cycles_per_rev, u.why);
         }
         s += &format!("  false-alarm rate {} ({:.2e} per test)\n", c.false_alarm_rate, c.per_test_rate);
         match &self.table_of_a_on_b {

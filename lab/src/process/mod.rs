@@ -166,7 +166,7 @@ pub fn compute(
         None => match &survey.model {
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
-                eprintln!(
+                survey_bench::say!(
                     "note: survey {id} has no stored model and no design was given: lines are named without a design \
                      (`survey process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth \
                      harmonics)"
@@ -206,7 +206,7 @@ pub fn compute(
         processed.notes.push(t);
     }
     for n in &processed.notes {
-        eprintln!("note: {n}");
+        survey_bench::say!("note: {n}");
     }
     // How the table was made, not something to act on: under -v or RUST_LOG=info.
     if let Some(dm) = &processed.built.direction_model {

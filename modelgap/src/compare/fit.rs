@@ -108,11 +108,17 @@ pub(super) struct Fit {
 }
 
 /// Fit `samples` with `layout`; `Err(column)` when a column cannot be told
-/// apart from those before it at these targets (an alias of another line).
+/// apart from those before it at these targets (an alias of another line or
+/// of the offset), or vanishes there (a line's sine on the Nyquist bin).
+/// Every column's values are of order one (an offset of 1, the backlash's
+/// `1/2`, a cosine or a sine), so a column is degenerate when what it adds
+/// is below `1e-6 sqrt(n)`, whatever its own norm (a vanishing column's
+/// norm is rounding noise: measured against itself it would pass, and its
+/// coefficient be noise over noise).
 pub(super) fn fit(samples: &[Sample], layout: &Layout) -> Result<Fit, usize> {
     let cols = layout.columns(samples);
-    let norms = survey_processing::lstsq::column_norms(&cols);
-    let qr = Qr::new(cols, |j| 1e-6 * norms[j])?;
+    let scale = (samples.len() as f64).sqrt();
+    let qr = Qr::new(cols, |_| 1e-6 * scale)?;
     let y: Vec<f64> = samples.iter().map(Sample::error_deg).collect();
     let (coef, _) = qr.solve(&y);
     Ok(Fit { coef, unit_cov: unit_covariance(&qr) })
@@ -136,26 +142,81 @@ fn unit_covariance(qr: &Qr) -> Vec<Vec<f64>> {
     (0..p).map(|i| (0..p).map(|j| columns.iter().map(|col| col[i] * col[j]).sum()).collect()).collect()
 }
 
+/// Why line `k` was left out of the fit of `samples` (survey `name`), the
+/// lines `before` it kept.
+fn left_out_why(samples: &[Sample], name: &str, before: &[f64], k: f64) -> String {
+    let targets: Vec<f64> = samples.iter().map(|s| s.target_deg).collect();
+    let mut lines = before.to_vec();
+    lines.push(k);
+    match super::seen::points_per_rev(&targets).and_then(|n| super::seen::unseen(&lines, n, false).pop()) {
+        Some(u) if u.cycles_per_rev == k => format!("survey {name}: {}", u.why),
+        _ => format!(
+            "survey {name}: at its targets the {k} cycles/rev line cannot be told apart from the offset, the backlash \
+             and the lines before it"
+        ),
+    }
+}
+
+/// The largest amplitude a fit of `samples` can honestly give a line: the
+/// span of the survey's cell means (a line larger than the whole error's
+/// peak to peak is the fit's arithmetic, not the positioner).
+fn span(samples: &[Sample]) -> f64 {
+    cells(samples).map_or(f64::INFINITY, |c| {
+        let (lo, hi) = c
+            .cells
+            .values()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| (l.min(x.mean_deg), h.max(x.mean_deg)));
+        hi - lo
+    })
+}
+
 /// Fit both surveys with the lines of `lines` that both resolve (a line
-/// that one of them cannot tell from the lines before it is left out, and
-/// returned in the last list); the backlash only when both resolve it.
-/// `None` when not even the offset can be fitted (no samples).
+/// that one of them cannot tell from the lines before it, or whose fitted
+/// amplitude exceeds the span of that survey's cell means, is left out and
+/// returned with why in the last list); the backlash only when both resolve
+/// it. `None` when not even the offset can be fitted (no samples).
 pub(super) fn fit_both(
     a: &[Sample],
     b: &[Sample],
     backlash: bool,
     lines: &[f64],
-) -> Option<(Layout, [Fit; 2], Vec<f64>)> {
+) -> Option<(Layout, [Fit; 2], Vec<super::seen::Unseen>)> {
     let mut layout = Layout { backlash, lines: lines.to_vec() };
     let mut left_out = Vec::new();
+    let spans = [span(a), span(b)];
     loop {
-        let j = match (fit(a, &layout), fit(b, &layout)) {
-            (Ok(fa), Ok(fb)) => return Some((layout, [fa, fb], left_out)),
-            (Err(j), _) | (_, Err(j)) => j,
+        let (j, name, samples) = match (fit(a, &layout), fit(b, &layout)) {
+            (Ok(fa), Ok(fb)) => {
+                // A line the fit made larger than the error itself is ill-conditioned there.
+                let first_line = layout.line_index(0);
+                let too_large = (0..layout.lines.len()).find_map(|i| {
+                    let j = first_line + 2 * i;
+                    [(&fa, "A", 0), (&fb, "B", 1)]
+                        .into_iter()
+                        .find(|(f, _, s)| f.coef[j].hypot(f.coef[j + 1]) > spans[*s])
+                        .map(|(f, name, s)| (i, name, f.coef[j].hypot(f.coef[j + 1]), spans[s]))
+                });
+                let Some((i, name, amplitude, span)) = too_large else {
+                    return Some((layout, [fa, fb], left_out));
+                };
+                let k = layout.lines.remove(i);
+                left_out.push(super::seen::Unseen {
+                    cycles_per_rev: k,
+                    why: format!(
+                        "survey {name}: the fit gives the {k} cycles/rev line {amplitude:.2e} deg, more than the whole \
+                         error's span ({span:.2e} deg): at these targets it is not estimable"
+                    ),
+                });
+                continue;
+            }
+            (Err(j), _) => (j, "A", a),
+            (_, Err(j)) => (j, "B", b),
         };
         let first_line = layout.line_index(0);
         if j >= first_line && (j - first_line) / 2 < layout.lines.len() {
-            left_out.push(layout.lines.remove((j - first_line) / 2));
+            let i = (j - first_line) / 2;
+            let why = left_out_why(samples, name, &layout.lines[..i], layout.lines[i]);
+            left_out.push(super::seen::Unseen { cycles_per_rev: layout.lines.remove(i), why });
         } else if j >= 1 && layout.backlash {
             layout.backlash = false;
         } else {

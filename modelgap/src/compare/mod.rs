@@ -46,24 +46,31 @@
 //! difference: the table itself cancels, so a cell is outside by chance in at
 //! most 4.55 % of surveys while the error moved by less than `U`). The table
 //! holds unless more cells are outside than `p0 = 0.05 + 0.95 x 0.0455` of
-//! them allows (a binomial count at the stated rate). Without common cells,
-//! the second survey's residual itself is held to `U + 2 s / sqrt(n)`. It is
+//! them allows (a binomial count at the stated rate). The second survey's
+//! cells between the first's targets (a check designed to fall between the
+//! calibration's targets, where the table interpolates) have no measurement
+//! of the first to move from: there, and everywhere without common cells,
+//! the second survey's residual itself is held to `U + 2 s / sqrt(n)`, and
+//! counted with the rest. It is
 //! a test of a change that matters against the table's own statement; a
 //! change too small for it is what the tests of the lines and of the map are
 //! for (a change can be significant and still within `U`).
 //!
 //! # The decision
 //!
-//! [`decide`]: recalibrate when something changed beyond what the two
-//! surveys' repeatability allows, or when the table no longer holds; the
+//! [`decide`]: recalibrate when the table in force no longer holds, or when
+//! a change exceeds the tolerance stated for the asset; a change beyond what
+//! the two surveys' repeatability allows within a table that holds is named
+//! ("changed, the table holds") and recalibrates nothing; the
 //! reason names each change with its size.
 
 mod fit;
+pub mod seen;
 #[cfg(test)]
 mod tests;
 
 use crate::stats::{f_sf, normal_two_sided_sf, t_two_sided_isf, t_two_sided_sf};
-use fit::{Cells, cells, fit_both};
+use fit::{CellKey, Cells, cells, fit_both};
 use serde::Serialize;
 use survey_processing::Sample;
 use survey_processing::table::CorrectionTable;
@@ -188,6 +195,10 @@ pub struct Comparison {
     /// Lines asked for that the surveys cannot tell apart from another line
     /// at their targets (a sparse survey's aliases), cycles per revolution.
     pub lines_not_tested: Vec<f64>,
+    /// The same lines, each with why it is not estimable (the mean, the
+    /// Nyquist bin or another line at its alias; a fit larger than the
+    /// error's span): no amplitude is computed for them.
+    pub not_estimable: Vec<seen::Unseen>,
     /// The backlash, when both surveys go both ways.
     pub backlash: Option<BacklashChange>,
     /// The mean error map, when the surveys share at least three cells.
@@ -215,8 +226,9 @@ pub fn compare(a: &[Sample], b: &[Sample], opts: &CompareOptions) -> Result<Comp
             lines.push(k);
         }
     }
-    let (layout, [fa, fb], lines_not_tested) =
+    let (layout, [fa, fb], not_estimable) =
         fit_both(a, b, bidirectional(&ca) && bidirectional(&cb), &lines).ok_or(CompareError::NoSamples)?;
+    let lines_not_tested = not_estimable.iter().map(|u| u.cycles_per_rev).collect();
     let common: Vec<(&fit::Cell, &fit::Cell)> =
         ca.cells.iter().filter_map(|(k, x)| cb.cells.get(k).map(|y| (x, y))).collect();
     let tests = layout.lines.len() + usize::from(layout.backlash) + usize::from(common.len() >= 3);
@@ -289,6 +301,7 @@ pub fn compare(a: &[Sample], b: &[Sample], opts: &CompareOptions) -> Result<Comp
         verdict: if changed { Verdict::Changed } else { Verdict::Unchanged },
         lines: lines_out,
         lines_not_tested,
+        not_estimable,
         backlash,
         map,
         false_alarm_rate: alpha,
@@ -418,7 +431,13 @@ pub fn table_on(
     };
     let (cells_tested, outside, predicted) = if common.len() >= 3 {
         let outside = common.iter().filter(|(_, d, s)| d.abs() > stated_u_deg + 2.0 * s).count();
-        (common.len(), outside, Some(peak(&mut common.iter().map(|c| c.0))))
+        // B's cells between A's targets: what the table leaves where it
+        // interpolates, held to U itself (no measurement of A to move from).
+        let between: Vec<&(CellKey, f64, usize)> =
+            residual.iter().filter(|(k, _, _)| ca.as_ref().is_some_and(|ca| !ca.cells.contains_key(k))).collect();
+        let beyond =
+            between.iter().filter(|(_, r, n)| r.abs() > stated_u_deg + 2.0 * (cb.var / *n as f64).sqrt()).count();
+        (common.len() + between.len(), outside + beyond, Some(peak(&mut common.iter().map(|c| c.0))))
     } else {
         let outside =
             residual.iter().filter(|(_, r, n)| r.abs() > stated_u_deg + 2.0 * (cb.var / *n as f64).sqrt()).count();
@@ -455,59 +474,100 @@ fn binomial_isf(n: usize, p: f64, alpha: f64) -> usize {
 /// Whether to recalibrate, and why.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Decision {
-    /// Recalibrate: something changed, or the table in force no longer holds.
+    /// Recalibrate: the table in force no longer holds, or a change exceeds
+    /// the tolerance stated for the asset.
     pub recalibrate: bool,
+    /// Something changed beyond what the two surveys' repeatability allows
+    /// (with the table still holding: "changed, the table holds").
+    pub changed: bool,
     /// Why, in words, each change named with its size.
     pub reason: String,
 }
 
-/// The decision from a comparison and, when a table was applied, its check.
-pub fn decide(c: &Comparison, table: Option<&TableCheck>) -> Decision {
-    let mut why: Vec<String> = Vec::new();
+/// The decision from a comparison and, when a table was applied, its
+/// check; `tolerance_deg`: the tolerance stated for the asset (its
+/// configuration's `[certificate] tolerance_deg`), which a change may not
+/// exceed. What a laboratory pays a recalibration for: the table in force
+/// no longer holds (its residual beyond its stated U at the stated rate), or
+/// a change exceeds the tolerance. A significant change within a table that
+/// still holds is named ("changed, the table holds") and recalibrates nothing.
+pub fn decide(c: &Comparison, table: Option<&TableCheck>, tolerance_deg: Option<f64>) -> Decision {
+    // Each significant change: its words and its size.
+    let mut changes: Vec<(String, f64)> = Vec::new();
     for l in c.lines.iter().filter(|l| l.significant) {
-        why.push(format!(
-            "the {} cycles/rev line changed from {:.3e} to {:.3e} deg (by {:.2e} deg; the repeatability allows {:.2e})",
-            fmt_cycles(l.cycles_per_rev),
-            l.amplitude_from_deg,
-            l.amplitude_to_deg,
+        changes.push((
+            format!(
+                "the {} cycles/rev line changed from {:.3e} to {:.3e} deg (by {:.2e} deg; the repeatability allows \
+                 {:.2e})",
+                fmt_cycles(l.cycles_per_rev),
+                l.amplitude_from_deg,
+                l.amplitude_to_deg,
+                l.change_deg,
+                l.change_u_deg
+            ),
             l.change_deg,
-            l.change_u_deg
         ));
     }
     if let Some(b) = c.backlash.as_ref().filter(|b| b.significant) {
-        why.push(format!(
-            "the backlash changed from {:.3e} to {:.3e} deg (the repeatability allows {:.2e})",
-            b.from_deg, b.to_deg, b.change_u_deg
+        changes.push((
+            format!(
+                "the backlash changed from {:.3e} to {:.3e} deg (the repeatability allows {:.2e})",
+                b.from_deg, b.to_deg, b.change_u_deg
+            ),
+            (b.to_deg - b.from_deg).abs(),
         ));
     }
     if let Some(m) = c.map.as_ref().filter(|m| m.significant) {
-        why.push(format!(
-            "the mean error map changed: {:.2e} deg rms, {:.2e} deg at most over {} cells (F = {:.2}, p = {:.1e})",
-            m.rms_change_deg, m.peak_change_deg, m.cells, m.statistic, m.p_value
+        changes.push((
+            format!(
+                "the mean error map changed: {:.2e} deg rms, {:.2e} deg at most over {} cells (F = {:.2}, p = {:.1e})",
+                m.rms_change_deg, m.peak_change_deg, m.cells, m.statistic, m.p_value
+            ),
+            m.peak_change_deg,
         ));
     }
-    if let Some(t) = table.filter(|t| !t.holds) {
-        let predicted = t.predicted_peak_deg.map_or(String::new(), |p| format!(" where it left {p:.2e} deg"));
-        why.push(format!(
-            "the table in force no longer holds: it leaves {:.2e} deg{predicted}, {} of {} cells beyond its stated U \
-             {:.2e} deg where {} may be",
-            t.residual_peak_deg, t.cells_outside, t.cells, t.stated_u_deg, t.allowed_outside
-        ));
+    let beyond = |size: f64| tolerance_deg.is_some_and(|t| size > t);
+    let fails = table.filter(|t| !t.holds);
+    let held = match table {
+        Some(t) => format!("; the table in force holds (it leaves {:.2e} deg)", t.residual_peak_deg),
+        None => String::new(),
+    };
+    if fails.is_some() || changes.iter().any(|(_, size)| beyond(*size)) {
+        let mut why: Vec<String> = changes
+            .iter()
+            .map(|(w, size)| match tolerance_deg.filter(|_| beyond(*size)) {
+                Some(t) => format!("{w}, beyond the asset's tolerance of {t:.2e} deg"),
+                None => w.clone(),
+            })
+            .collect();
+        if let Some(t) = fails {
+            let predicted = t.predicted_peak_deg.map_or(String::new(), |p| format!(" where it left {p:.2e} deg"));
+            why.push(format!(
+                "the table in force no longer holds: it leaves {:.2e} deg{predicted}, {} of {} cells beyond its \
+                 stated U {:.2e} deg where {} may be",
+                t.residual_peak_deg, t.cells_outside, t.cells, t.stated_u_deg, t.allowed_outside
+            ));
+        }
+        return Decision { recalibrate: true, changed: !changes.is_empty(), reason: why.join("; ") };
     }
-    if why.is_empty() {
-        let held = match table {
-            Some(t) => format!("; the table in force holds (it leaves {:.2e} deg)", t.residual_peak_deg),
-            None => String::new(),
-        };
+    if !changes.is_empty() {
+        let named: Vec<&str> = changes.iter().map(|(w, _)| w.as_str()).collect();
+        let tolerance =
+            tolerance_deg.map_or(String::new(), |t| format!(", within the asset's tolerance of {t:.2e} deg"));
         return Decision {
             recalibrate: false,
-            reason: format!(
-                "no change beyond what the two surveys' repeatability allows (false-alarm rate {}){held}",
-                c.false_alarm_rate
-            ),
+            changed: true,
+            reason: format!("changed, the table holds: {}{tolerance}{held}", named.join("; ")),
         };
     }
-    Decision { recalibrate: true, reason: why.join("; ") }
+    Decision {
+        recalibrate: false,
+        changed: false,
+        reason: format!(
+            "no change beyond what the two surveys' repeatability allows (false-alarm rate {}){held}",
+            c.false_alarm_rate
+        ),
+    }
 }
 
 /// `20` or `20.5`.

@@ -25,6 +25,10 @@ pub struct Verification {
     pub corrected: Option<Vec<Sample>>,
     /// Whether the table had forward and reverse columns.
     pub directional: bool,
+    /// The highest line the native survey's positioner plausibly has
+    /// (`survey_lab::verify::plausible_max`): what the verdict asks the
+    /// verification to have been able to see.
+    pub plausible_max_cycles: f64,
 }
 
 impl Verification {
@@ -169,7 +173,11 @@ pub fn verdict_rows(
     if let (Some(v), Some(u)) = (v, u_deg)
         && v.native_id == survey_id
     {
-        let j = judge(p.prediction.corrected_peak_deg, u, peak_deg(v.corrected(own)), peak_deg(v.native(own)));
+        let target = |s: &[Sample]| s.iter().map(|x| x.target_deg).collect::<Vec<f64>>();
+        let blind =
+            survey_lab::verify::blind(&target(v.native(own)), &target(v.corrected(own)), v.plausible_max_cycles, p);
+        let predicted = survey_processing::verification::predicted_for(&p.prediction, v.corrected(own).len());
+        let j = judge(predicted, u, peak_deg(v.corrected(own)), peak_deg(v.native(own)), &blind);
         let reason = units.text(&j.reason);
         let words = match j.verdict {
             Verdict::Confirmed => format!("confirmed by survey {}: {reason}", v.verification_id),

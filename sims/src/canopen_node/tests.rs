@@ -395,8 +395,10 @@ async fn correction_table_segmented_download_upload_and_effect() {
     assert_eq!(held, decode_table(&encode_table(&table).unwrap()).unwrap());
     assert!(held.is_directional() && held.len() == 720);
     assert!(!d.status().await.unwrap().correction_enabled);
+    assert_eq!(d.correction_state().await.unwrap(), Some(false), "0x2101 read");
     d.enable_correction(true).await.unwrap();
     assert!(d.status().await.unwrap().correction_enabled);
+    assert_eq!(d.correction_state().await.unwrap(), Some(true));
     // At rest at 0: the display is raw - error(raw), in counts.
     let want = counts_to_degrees(degrees_to_counts(-held.error_at(0.0, Direction::Forward), CPD).unwrap(), CPD);
     assert_eq!(d.readout().await.unwrap(), want);
@@ -704,6 +706,8 @@ async fn a_drive_with_only_the_standard_objects() {
     let table = CorrectionTable::new(vec![0.001; 16]).unwrap();
     assert_error(d.load_correction_table(&table).await, ErrorKind::Usage, None);
     assert_error(d.enable_correction(true).await, ErrorKind::Usage, None);
+    // The standard objects say nothing of a correction: unknown, not off.
+    assert_eq!(d.correction_state().await.unwrap(), None);
 }
 
 /// A response held past the SDO deadline (a stall) and delivered after the

@@ -271,8 +271,10 @@ async fn correction_like_the_sims_own(rig: &mut Rig, table: CorrectionTable) {
     assert_eq!((e.kind, e.code), (ErrorKind::Usage, Some(3)), "no table yet: {e}");
     rig.drv.load_correction_table(&table).await.unwrap();
     assert!(!rig.drv.status().await.unwrap().correction_enabled, "loaded, not applied");
+    assert_eq!(rig.drv.correction_state().await.unwrap(), Some(false), "read from the status register");
     rig.drv.enable_correction(true).await.unwrap();
     assert!(rig.drv.status().await.unwrap().correction_enabled);
+    assert_eq!(rig.drv.correction_state().await.unwrap(), Some(true));
 
     let sent = f32_table(&table);
     let (clock_b, clock_c) = (VirtualClock::new(), VirtualClock::new());
@@ -303,6 +305,7 @@ async fn correction_like_the_sims_own(rig: &mut Rig, table: CorrectionTable) {
     }
     rig.drv.enable_correction(false).await.unwrap();
     assert!(!rig.drv.status().await.unwrap().correction_enabled);
+    assert_eq!(rig.drv.correction_state().await.unwrap(), Some(false));
 }
 
 #[tokio::test]

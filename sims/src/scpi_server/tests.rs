@@ -163,6 +163,7 @@ async fn usage_errors_carry_the_controllers_code() {
     let s = settle(&mut p, &rig.clock).await;
     assert_eq!(s.limit, Some(Limit::Upper));
     // A correction table with nothing loaded: settings conflict.
+    assert_eq!(p.correction_state().await.unwrap(), Some(false));
     let e = p.enable_correction(true).await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Usage, Some(-221)), "{e}");
     // An axis the controller does not have (one client at a time: the
@@ -198,8 +199,10 @@ async fn correction_over_the_wire_moves_the_axis_as_the_simulators_own() {
     // Load (12 chunks per column) and enable, on both.
     wire.load_correction_table(&table).await.unwrap();
     assert!(!wire.status().await.unwrap().correction_enabled, "loaded, not yet applied");
+    assert_eq!(wire.correction_state().await.unwrap(), Some(false), "CORR:STAT? asked");
     wire.enable_correction(true).await.unwrap();
     assert!(wire.status().await.unwrap().correction_enabled);
+    assert_eq!(wire.correction_state().await.unwrap(), Some(true));
     direct.load_correction_table(&table).await.unwrap();
     direct.enable_correction(true).await.unwrap();
 
@@ -218,6 +221,7 @@ async fn correction_over_the_wire_moves_the_axis_as_the_simulators_own() {
     }
     wire.enable_correction(false).await.unwrap();
     assert!(!wire.status().await.unwrap().correction_enabled);
+    assert_eq!(wire.correction_state().await.unwrap(), Some(false));
 }
 
 /// Send raw lines, then `*IDN?`; the replies before the identification.
@@ -441,6 +445,8 @@ async fn the_driver_works_with_only_the_publicly_recorded_commands() {
     // No public fault-clear command: only the queue is cleared, the fault stays.
     p.clear_fault().await.unwrap();
     assert!(p.status().await.unwrap().fault.is_some());
+    // Without the unverified commands the state is unknown (nothing asked).
+    assert_eq!(p.correction_state().await.unwrap(), None);
     for e in [
         p.load_correction_table(&CorrectionTable::new(vec![0.0; 4]).unwrap()).await.unwrap_err(),
         p.enable_correction(true).await.unwrap_err(),

@@ -59,6 +59,9 @@ impl Positioner for Watched {
     async fn enable_correction(&mut self, on: bool) -> survey_drivers::Result<()> {
         self.inner.enable_correction(on).await
     }
+    async fn correction_state(&mut self) -> survey_drivers::Result<Option<bool>> {
+        self.inner.correction_state().await
+    }
 }
 
 struct Rig {

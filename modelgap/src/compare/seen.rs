@@ -1,0 +1,334 @@
+//! What a grid of targets can see, and a check survey designed to see what
+//! it decides about.
+//!
+//! Evenly spaced targets `360 / N` apart (a full circle of `N`, or an arc at
+//! that spacing) see a line of `k` cycles per revolution at its alias, the
+//! distance from `k` to the nearest multiple of `N` (`0..=N/2`). A line whose
+//! alias is the mean (0) cannot be told from an offset; one on the Nyquist
+//! bin (`N/2`) shows only its cosine at the targets, so neither its
+//! amplitude nor its phase is estimable; two lines at one alias cannot be
+//! told apart. "Near" is within one bin (one cycle per revolution): on a
+//! full circle distinct integer bins are orthogonal, and a line that is not
+//! an integer needs a bin of room to stay well conditioned.
+//!
+//! [`design_check`] chooses the fewest targets, at least [`MIN_CHECK_POINTS`],
+//! that see every line asked for (the lines in force, the mounting's once
+//! per revolution, the design's) and that test the table between the
+//! calibration's own targets: spaced an odd number of half calibration steps
+//! apart (`2 N_cal / N` odd), every other check target is a calibration
+//! target (the mean error maps compare there, cell by cell) and the ones
+//! between fall half way between two (where the table interpolates).
+
+use survey_processing::analysis::alias;
+
+/// The fewest targets of a check survey: 16 targets, both ways, two runs,
+/// give 64 samples and 32 cells (16 shared with a calibration on the
+/// half-step grid), enough for the map's F test and the table's binomial
+/// count at the stated false-alarm rate to see a change of a few
+/// repeatabilities.
+pub const MIN_CHECK_POINTS: u32 = 16;
+
+/// A line the targets cannot see, and why.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Unseen {
+    /// The line, cycles per revolution.
+    pub cycles_per_rev: f64,
+    /// Why, in words.
+    pub why: String,
+}
+
+/// The targets' points per revolution when they are evenly spaced (`360 /
+/// step`: a full circle's count, or an arc's at its spacing); `None` for
+/// fewer than two targets or an uneven grid.
+pub fn points_per_rev(targets_deg: &[f64]) -> Option<f64> {
+    let mut t: Vec<f64> = targets_deg.to_vec();
+    t.sort_by(f64::total_cmp);
+    t.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    if t.len() < 2 {
+        return None;
+    }
+    let step = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    let even = step > 0.0 && t.windows(2).all(|w| ((w[1] - w[0]) - step).abs() < 1e-6 * step.max(1e-9));
+    even.then(|| 360.0 / step)
+}
+
+/// `20` or `20.5`.
+fn cycles(k: f64) -> String {
+    if k.fract() == 0.0 { format!("{k:.0}") } else { format!("{k}") }
+}
+
+/// `N` as a count when it is one.
+fn count(n: f64) -> String {
+    if (n - n.round()).abs() < 1e-9 { format!("{:.0}", n.round()) } else { format!("{n:.2}") }
+}
+
+/// The lines of `lines` (positive, duplicates once, in order) that targets
+/// at `n` points per revolution cannot see, each with why; a line that
+/// shares its alias with an earlier one is unseen unless `jointly` (a
+/// polygon's faces, the calibration's own grid: the two are tested together,
+/// as the calibration saw them).
+pub fn unseen(lines: &[f64], n: f64, jointly: bool) -> Vec<Unseen> {
+    let mut kept: Vec<(f64, f64)> = Vec::new();
+    let mut out = Vec::new();
+    for &k in lines {
+        if k <= 0.0
+            || kept.iter().any(|(l, _)| (l - k).abs() < 1e-9)
+            || out.iter().any(|u: &Unseen| u.cycles_per_rev == k)
+        {
+            continue;
+        }
+        let a = alias(k, n).observed;
+        let why = if a < 1.0 {
+            Some(format!(
+                "at {} points per revolution the {} cycles/rev line aliases onto the mean (bin {}): it cannot be told \
+                 from an offset",
+                count(n),
+                cycles(k),
+                count(a)
+            ))
+        } else if n / 2.0 - a < 1.0 {
+            Some(format!(
+                "at {} points per revolution the {} cycles/rev line sits {} the Nyquist bin ({}): only its cosine is \
+                 seen, so neither its amplitude nor its phase can be estimated",
+                count(n),
+                cycles(k),
+                if (n / 2.0 - a).abs() < 1e-9 { "on" } else { "next to" },
+                count(n / 2.0)
+            ))
+        } else if let Some((l, _)) = kept.iter().find(|(_, b)| (b - a).abs() < 1.0) {
+            (!jointly).then(|| {
+                format!(
+                    "at {} points per revolution the {} cycles/rev line aliases onto the {} cycles/rev line (bin {}): \
+                     the two cannot be told apart",
+                    count(n),
+                    cycles(k),
+                    cycles(*l),
+                    count(a)
+                )
+            })
+        } else {
+            None
+        };
+        match why {
+            Some(why) => out.push(Unseen { cycles_per_rev: k, why }),
+            None => kept.push((k, a)),
+        }
+    }
+    out
+}
+
+/// The calibration a check is designed from: its targets' grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibrationGrid {
+    /// Its targets.
+    pub points: u32,
+    /// The arc they span, degrees; `None` for a full circle (`360 / points` apart).
+    pub arc_deg: Option<f64>,
+    /// The reference is a polygon: its faces are the targets, of the check too.
+    pub polygon: bool,
+}
+
+/// A check survey's design: how many targets, why, and what it cannot see.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckDesign {
+    /// Targets (evenly spaced over the calibration's circle or arc, from its first target).
+    pub points: u32,
+    /// Why this many, in words.
+    pub why: String,
+    /// The lines asked for that these targets cannot see.
+    pub unseen: Vec<Unseen>,
+}
+
+impl CalibrationGrid {
+    /// Points per revolution of `n` targets on this grid's circle or arc.
+    fn per_rev(&self, n: u32) -> f64 {
+        match self.arc_deg {
+            None => f64::from(n),
+            Some(arc) => 360.0 * f64::from(n.max(2) - 1) / arc,
+        }
+    }
+
+    /// The calibration's own intervals: `points` on a full circle, `points - 1` on an arc.
+    fn intervals(&self, n: u32) -> u32 {
+        if self.arc_deg.is_some() { n.saturating_sub(1) } else { n }
+    }
+}
+
+/// The check survey for a calibration on `grid` whose table corrects (or
+/// whose history has seen) `lines` (see the module documentation).
+/// `requested`: the targets the command line asked for, used as they are.
+pub fn design_check(grid: CalibrationGrid, lines: &[f64], requested: Option<u32>) -> CheckDesign {
+    let names = |ls: &[f64]| {
+        let mut seen: Vec<f64> = Vec::new();
+        for &k in ls.iter().filter(|k| **k > 0.0) {
+            if !seen.contains(&k) {
+                seen.push(k);
+            }
+        }
+        seen.iter().map(|k| cycles(*k)).collect::<Vec<_>>().join(", ")
+    };
+    if grid.polygon {
+        let n = grid.points;
+        return CheckDesign {
+            points: n,
+            why: format!("every face of the polygon ({n}): the faces are the targets"),
+            unseen: unseen(lines, grid.per_rev(n), true),
+        };
+    }
+    if let Some(n) = requested {
+        return CheckDesign {
+            points: n,
+            why: format!("{n} targets, as asked (--points)"),
+            unseen: unseen(lines, grid.per_rev(n), false),
+        };
+    }
+    let cal = grid.intervals(grid.points);
+    let first = |n: u32| if grid.arc_deg.is_some() { n + 1 } else { n };
+    // Spacings of an odd number of half steps: 2 cal / (2m + 1) intervals.
+    let mut half_steps: Vec<u32> = (0..)
+        .map(|m| 2 * m + 1)
+        .take_while(|d| *d <= 2 * cal)
+        .filter(|d| (2 * cal).is_multiple_of(*d))
+        .map(|d| first(2 * cal / d))
+        .filter(|&n| n >= MIN_CHECK_POINTS)
+        .collect();
+    half_steps.sort_unstable();
+    if let Some(&n) = half_steps.iter().find(|&&n| unseen(lines, grid.per_rev(n), false).is_empty()) {
+        let spacing = (2 * cal) / grid.intervals(n);
+        return CheckDesign {
+            points: n,
+            why: format!(
+                "{n} targets: the fewest (at least {MIN_CHECK_POINTS}) that see every line in force and seen before \
+                 ({} cycles/rev) away from the mean, the Nyquist bin and each other, spaced {spacing} half steps of the \
+                 calibration apart: every other target is a calibration target, the rest fall half way between two, \
+                 where the table interpolates",
+                names(lines)
+            ),
+            unseen: Vec::new(),
+        };
+    }
+    // No half-step grid sees them all: the fewest evenly spaced targets that do.
+    let limit = first(2 * cal).max(MIN_CHECK_POINTS);
+    if let Some(n) = (MIN_CHECK_POINTS..=limit).find(|&n| unseen(lines, grid.per_rev(n), false).is_empty()) {
+        let (m, c) = (grid.intervals(n), cal);
+        let shared = (0..n).filter(|j| (u64::from(*j) * u64::from(c)).is_multiple_of(u64::from(m.max(1)))).count();
+        return CheckDesign {
+            points: n,
+            why: format!(
+                "{n} targets: the fewest (at least {MIN_CHECK_POINTS}) that see every line in force and seen before \
+                 ({} cycles/rev) away from the mean, the Nyquist bin and each other (no spacing of whole half steps of \
+                 the calibration does); {shared} of them are calibration targets, the rest fall between",
+                names(lines)
+            ),
+            unseen: Vec::new(),
+        };
+    }
+    CheckDesign {
+        points: limit,
+        why: format!(
+            "{limit} targets, every calibration target and every point half way between: no smaller grid sees every \
+             line in force and seen before ({} cycles/rev)",
+            names(lines)
+        ),
+        unseen: unseen(lines, grid.per_rev(limit), false),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn full(points: u32) -> CalibrationGrid {
+        CalibrationGrid { points, arc_deg: None, polygon: false }
+    }
+
+    #[test]
+    fn the_mean_the_nyquist_bin_and_a_shared_alias_are_unseen() {
+        let u = unseen(&[1.0, 20.0, 40.0], 40.0, false);
+        assert_eq!(u.iter().map(|u| u.cycles_per_rev).collect::<Vec<_>>(), [20.0, 40.0]);
+        assert!(u[0].why.contains("on the Nyquist bin (20)") && u[1].why.contains("onto the mean"), "{u:?}");
+        // At 36, 16 is 20's alias; on a polygon's faces the two are tested together.
+        let u = unseen(&[20.0, 16.0], 36.0, false);
+        assert!(u.len() == 1 && u[0].why.contains("onto the 20 cycles/rev line (bin 16)"), "{u:?}");
+        assert!(unseen(&[20.0, 16.0], 36.0, true).is_empty());
+        // Near is within a bin; duplicates and the zero frequency are skipped.
+        assert!(unseen(&[19.5, 0.0, 1.0, 1.0], 40.0, false)[0].why.contains("next to the Nyquist"));
+        assert!(unseen(&[1.0, 2.0, 3.0, 17.0], 36.0, false).is_empty());
+    }
+
+    #[test]
+    fn evenly_spaced_targets_give_their_points_per_revolution() {
+        let circle: Vec<f64> = (0..40).map(|j| 9.0 * f64::from(j)).collect();
+        assert_eq!(points_per_rev(&circle), Some(40.0));
+        // Repeated targets (runs, directions) count once; an arc at 2.5 deg is 144 a turn.
+        let arc: Vec<f64> = (0..10).flat_map(|j| [2.5 * f64::from(j) - 5.0; 3]).collect();
+        assert_eq!(points_per_rev(&arc), Some(144.0));
+        assert_eq!(points_per_rev(&[0.0, 1.0, 3.0]), None);
+        assert_eq!(points_per_rev(&[5.0]), None);
+    }
+
+    /// The issue's 120-point calibration with its lines in force (1, 20 and
+    /// 40 cycles/rev): 16 targets put 40 on the Nyquist bin, so the check
+    /// takes 48 (five half steps apart): every other one a calibration
+    /// target, every other half way between.
+    #[test]
+    fn a_check_of_a_120_point_calibration_sees_its_lines_with_48_targets() {
+        let d = design_check(full(120), &[1.0, 20.0, 40.0], None);
+        assert_eq!(d.points, 48, "{d:?}");
+        assert!(d.unseen.is_empty() && d.why.contains("5 half steps"), "{d:?}");
+        let step = 3.0;
+        let shared = (0..48).filter(|j| (7.5 * f64::from(*j) / step).fract() == 0.0).count();
+        assert_eq!(shared, 24);
+        // Every line seen, with a bin of room, at the design.
+        assert!(unseen(&[1.0, 20.0, 40.0], 48.0, false).is_empty());
+    }
+
+    #[test]
+    fn checks_of_other_calibrations_see_every_line_in_force() {
+        for (points, lines) in [
+            (60, vec![1.0, 20.0, 40.0]),
+            (360, vec![1.0, 20.0, 40.0]),
+            (1800, vec![1.0, 20.0, 40.0, 100.0]),
+            (36, vec![1.0, 16.0, 4.0]),
+            (720, vec![1.0, 2.0, 3.0, 24.0, 48.0, 72.0]),
+        ] {
+            let d = design_check(full(points), &lines, None);
+            assert!(d.unseen.is_empty() && d.points >= MIN_CHECK_POINTS, "{points}: {d:?}");
+            assert!(unseen(&lines, f64::from(d.points), false).is_empty(), "{points}: {d:?}");
+            // Fewest: no smaller count of at least 16 on the half-step grid sees them.
+            let half_step = (2 * points).is_multiple_of(d.points) && ((2 * points) / d.points) % 2 == 1;
+            if half_step {
+                let smaller = (MIN_CHECK_POINTS..d.points).filter(|n| {
+                    (2 * points).is_multiple_of(*n)
+                        && ((2 * points) / n) % 2 == 1
+                        && unseen(&lines, f64::from(*n), false).is_empty()
+                });
+                assert_eq!(smaller.count(), 0, "{points}: {d:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_polygon_is_checked_at_its_faces_and_an_asked_count_as_asked() {
+        let faces = CalibrationGrid { points: 24, arc_deg: None, polygon: true };
+        let d = design_check(faces, &[1.0, 20.0, 100.0, 12.0], None);
+        assert_eq!(d.points, 24);
+        // 100 shares 20's bin (4): tested together; 12 is the Nyquist bin of 24 faces.
+        assert_eq!(d.unseen.iter().map(|u| u.cycles_per_rev).collect::<Vec<_>>(), [12.0]);
+        let asked = design_check(full(120), &[1.0, 20.0, 40.0], Some(40));
+        assert_eq!((asked.points, asked.unseen.len()), (40, 2));
+    }
+
+    #[test]
+    fn a_check_of_an_arc_keeps_the_arc_s_half_steps() {
+        // 101 targets over 100 deg (1 deg apart): 67 targets 1.5 deg apart (3 half steps).
+        let arc = CalibrationGrid { points: 101, arc_deg: Some(100.0), polygon: false };
+        let d = design_check(arc, &[1.0, 20.0], None);
+        assert!(d.unseen.is_empty(), "{d:?}");
+        let spacing = 100.0 / f64::from(d.points - 1);
+        assert!(
+            ((spacing / 0.5) - (spacing / 0.5).round()).abs() < 1e-9 && (spacing / 0.5).round() % 2.0 == 1.0,
+            "{d:?}"
+        );
+    }
+}
