@@ -60,23 +60,19 @@ impl<D: ?Sized + Send> Reconnecting<D> {
     }
 
     /// Open the connection now (to fail early, before a survey starts). A
-    /// set-up the instrument answered but did not finish (a fault in reply to
-    /// an initialising request, a garbled or missing reply: every request of
-    /// a set-up meets the link's faults like any other) is tried again, up to
-    /// [`SETUP_TRIES`] times in all; a connection refused is reported at once
-    /// (the engine's retry decides when to come back).
+    /// set-up the instrument refused (a device fault in reply to an
+    /// initialising request: an SDO abort, an emScon mode refused) is tried
+    /// again, up to [`SETUP_TRIES`] times in all, each refusal logged; a link
+    /// fault (refused, dropped, garbled) is reported at once, for the engine
+    /// to count and retry.
     pub async fn connect(&mut self) -> Result<()> {
         if self.current.is_none() {
             let mut tries = 1;
             let driver = loop {
                 match self.connector.connect().await {
                     Ok(d) => break d,
-                    Err(e)
-                        if tries < SETUP_TRIES
-                            && e.kind != crate::error::ErrorKind::Disconnected
-                            && e.kind != crate::error::ErrorKind::Usage =>
-                    {
-                        tracing::warn!(instrument = %self.name, error = %e, tries, "the set-up did not finish: trying again");
+                    Err(e) if tries < SETUP_TRIES && e.kind == crate::error::ErrorKind::Device => {
+                        tracing::warn!(instrument = %self.name, error = %e, tries, "the set-up was refused: trying again");
                         tries += 1;
                     }
                     Err(e) => return Err(self.connect_error(e)),
