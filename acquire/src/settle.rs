@@ -34,9 +34,50 @@
 
 use super::settings::{SettleMode, Timing};
 use std::time::Duration;
-use survey_drivers::clock::with_timeout;
 use survey_drivers::{Clock, DriverError, ErrorKind, Limit, Positioner};
 use survey_plan::budget::{Component, Ledger};
+
+/// How many faults a step's requests may have retried in place, in all:
+/// four times `max_retries`. A step makes many requests (a move: its
+/// command and every poll of its status and readout), so at a few faults in
+/// a hundred requests a step meets several; each is retried where it
+/// happened (a status poll asked again, the move not commanded again), and
+/// only a request that fails `max_retries` times in a row, or a step past
+/// this budget, fails the step (then retried as a whole, with recovery, up
+/// to `max_retries` times).
+pub(crate) fn step_budget(t: &Timing) -> usize {
+    4 * t.max_retries as usize
+}
+
+/// Whether a request that failed with `e`, after `failed` failures of its
+/// own in a row and `spent` retries of its step, is asked again in place:
+/// any fault but bad usage, within both budgets.
+pub(crate) fn again(e: &DriverError, failed: u32, spent: usize, t: &Timing) -> bool {
+    e.kind != ErrorKind::Usage && failed < t.max_retries && spent < step_budget(t)
+}
+
+/// A positioner request (`$call`, evaluated again for each try) bounded by
+/// the call timeout and retried in place ([`again`]): each fault retried is
+/// pushed on `$survived` (the engine records and counts them), after the
+/// retry backoff. The last fault, when the request is given up, is the result.
+macro_rules! retried {
+    ($clock:expr, $t:expr, $name:expr, $what:expr, $survived:expr, $call:expr) => {{
+        let mut failed = 0u32;
+        loop {
+            match survey_drivers::clock::with_timeout($clock, $t.call_timeout, $name, $what, $call).await {
+                Ok(v) => break Ok(v),
+                Err(e) if !$crate::settle::again(&e, failed, $survived.len(), $t) => break Err(e),
+                Err(e) => {
+                    failed += 1;
+                    tracing::debug!(error = %e, failed, what = $what, "retrying the request in place");
+                    $survived.push(e);
+                    $clock.sleep($t.retry_backoff).await;
+                }
+            }
+        }
+    }};
+}
+pub(crate) use retried;
 
 /// Settling observed after measured moves.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -158,14 +199,28 @@ pub struct Wait<'a> {
     pub deadline: Duration,
     /// Whether a sample is taken at the end of this move.
     pub measured: bool,
+    /// The faults its requests met and retried in place ([`retried`]).
+    pub survived: &'a mut Vec<DriverError>,
 }
 
 impl Wait<'_> {
     /// Wait until the axis is at rest (see the module documentation); the
     /// settling observed after the profile's end, for adaptive measured moves.
     pub async fn run(self) -> Result<Option<Duration>, DriverError> {
-        let Wait { positioner: p, clock, timing: t, ledger, target, end, deadline, measured } = self;
+        let Wait { positioner: p, clock, timing: t, ledger, target, end, mut deadline, measured, survived } = self;
         let name = p.name().to_string();
+        // A request asked again in place: the time its faults took is not
+        // the axis's, so the deadline moves on by it.
+        macro_rules! polled {
+            ($what:expr, $call:expr) => {{
+                let (before, faults) = (clock.now(), survived.len());
+                let r = retried!(clock, t, &name, $what, survived, $call);
+                if survived.len() > faults {
+                    deadline += clock.now().saturating_sub(before);
+                }
+                r
+            }};
+        }
         // Until the profile's predicted end the status is read every
         // `poll_interval` (and once at the end): an axis faster than the
         // configured velocity (or a simulator on a faster clock) is not
@@ -175,7 +230,7 @@ impl Wait<'_> {
             if clock.now() >= end {
                 break;
             }
-            let s = with_timeout(clock, t.call_timeout, &name, "status", p.status()).await?;
+            let s = polled!("status", p.status())?;
             if let Some(f) = s.fault {
                 return Err(DriverError::device(name, f.code, f.text));
             }
@@ -193,7 +248,7 @@ impl Wait<'_> {
         loop {
             let asked = clock.now();
             if adaptive && measured {
-                let r = with_timeout(clock, t.call_timeout, &name, "readout", p.readout()).await?;
+                let r = polled!("readout", p.readout())?;
                 let at = clock.now();
                 polls += 1;
                 ringing.push(at.as_secs_f64(), r - target, w);
@@ -214,7 +269,7 @@ impl Wait<'_> {
                     None => first_in.is_some_and(|f| at - f >= t.settle.stable_for),
                 };
                 if stable || polls.is_multiple_of(STATUS_EVERY) {
-                    let s = with_timeout(clock, t.call_timeout, &name, "status", p.status()).await?;
+                    let s = polled!("status", p.status())?;
                     if let Some(f) = s.fault {
                         return Err(DriverError::device(name, f.code, f.text));
                     }
@@ -227,7 +282,7 @@ impl Wait<'_> {
                     }
                 }
             } else {
-                let s = with_timeout(clock, t.call_timeout, &name, "status", p.status()).await?;
+                let s = polled!("status", p.status())?;
                 if let Some(f) = s.fault {
                     return Err(DriverError::device(name, f.code, f.text));
                 }
@@ -242,7 +297,7 @@ impl Wait<'_> {
                 }
             }
             if clock.now() > deadline {
-                let s = with_timeout(clock, t.call_timeout, &name, "status", p.status()).await?;
+                let s = polled!("status", p.status())?;
                 // A limit switch is reported at a target on the end of the
                 // travel too, so it only explains a move that never arrived.
                 if let Some(limit) = s.limit {

@@ -235,6 +235,14 @@ impl Instruments {
 /// configuration alone, before anything is connected.
 pub fn continuous_support(cfg: &SurveyConfig) -> Result<String, String> {
     let timing = cfg.timing();
+    let scale = cfg.time_scale();
+    if scale != 1.0 {
+        return Err(format!(
+            "the instruments run at {}x real time ([timing] time_scale: a simulator): a continuous scan pairs the \
+             instruments' streams by their clocks, which needs them in real time",
+            survey_processing::num::Num(scale)
+        ));
+    }
     let capture_ms = timing.scan.capture_period.as_secs_f64() * 1e3;
     let stream_ms = timing.scan.stream_period.as_secs_f64() * 1e3;
     let tracker = match (cfg.reference(), &cfg.tracker) {

@@ -29,15 +29,23 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<()> {
     drop(progress);
     let failed = lines.iter().filter(|l| !l.ok).count();
     // What a continuous scan would be on these instruments (from the
-    // configuration: it does not change whether the check passes).
-    let continuous = survey_bench::instruments::continuous_support(&cfg);
+    // configuration: it does not change whether the check passes), once
+    // they answer.
+    // What the configuration allows is not a scan the instruments were seen to make.
+    let continuous = match (survey_bench::instruments::continuous_support(&cfg), failed) {
+        (Ok(how), 0) => Ok(how),
+        (Ok(how), _) => {
+            Err((None, format!("not known: the instruments did not all answer (the configuration allows it: {how})")))
+        }
+        (Err(why), _) => Err((Some(false), why)),
+    };
     if args.json {
         let doc = serde_json::json!({
             "ok": failed == 0,
             "instruments": lines,
             "continuous_scan": match &continuous {
                 Ok(how) => serde_json::json!({"possible": true, "detail": how}),
-                Err(why) => serde_json::json!({"possible": false, "detail": why}),
+                Err((possible, why)) => serde_json::json!({"possible": possible, "detail": why}),
             },
         });
         emit(&format!("{doc}\n"));
@@ -48,7 +56,8 @@ pub async fn check(args: CheckArgs) -> anyhow::Result<()> {
         }
         text += &match &continuous {
             Ok(how) => format!("continuous scan: possible ({how})\n"),
-            Err(why) => format!("continuous scan: not possible: {why}\n"),
+            Err((None, why)) => format!("continuous scan: {why}\n"),
+            Err((_, why)) => format!("continuous scan: not possible: {why}\n"),
         };
         emit(&text);
     }

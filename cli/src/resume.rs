@@ -36,12 +36,15 @@ pub struct ResumeArgs {
 
 pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let store = open_existing(db).await?;
-    let id = store.resolve_any(args.survey).await?.id;
+    let mut id = store.resolve_any(args.survey).await?.id;
+    // A survey whose check points were stopped before they were folded into
+    // it: they are resumed first, and it is finished with them.
+    if let Some(checks) = store.list().await?.iter().find(|r| r.resolves == Some(id)).map(|r| r.id) {
+        survey_bench::say!("survey {id}: its check points were stopped before they were all measured: resuming them");
+        id = checks;
+    }
     // One acquirer per survey: refused at once while a live process holds it.
     let lock = AcquirerLock::acquire(store.path(), id)?;
-    if let Some(previous) = &lock.took_over {
-        survey_bench::say!("survey {id}: its last acquirer ({previous}) is gone; taking over");
-    }
     let stop = Stop::on_signals();
     // Read under the lock: the survey may have changed while it was held.
     let record = store.survey(id).await?;
@@ -53,6 +56,17 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         SurveyStatus::Imported => {
             return Err(bad_input(format!("survey {id} was imported, not acquired: it cannot be resumed")));
         }
+    }
+    // Check points (a survey of source `resolving`) belong to the survey
+    // they resolve: its lock too, and it is finished with them.
+    let native = record.resolves;
+    let _native_lock = native.map(|n| AcquirerLock::acquire(store.path(), n)).transpose()?;
+    let label = match native {
+        Some(n) => format!("survey {n}: its check points"),
+        None => format!("survey {id}"),
+    };
+    if let Some(previous) = &lock.took_over {
+        survey_bench::say!("{label}: the last acquirer ({previous}) is gone; taking over");
     }
     let stored = record.sample_count;
     let next = store.last_seq(id).await?.map_or(0, |s| s + 1);
@@ -86,7 +100,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         let message = format!("all {next} samples are stored: finishing (statistics and processing)");
         store.log_event(id, last_time, "info", &message).await?;
         store.set_status(id, SurveyStatus::Processing, None).await?;
-        survey_bench::say!("survey {id}: {message}");
+        survey_bench::say!("{label}: {message}");
         let instrument_time = Duration::from_secs_f64(last_time.max(0.0));
         Ok(Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO })
     } else {
@@ -99,7 +113,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         store.set_status(id, SurveyStatus::Running, None).await?;
         let message = format!("resumed at step {next} of {}", plan.total_steps());
         store.log_event(id, last_time, "info", &message).await?;
-        survey_bench::say!("survey {id}: {message}");
+        survey_bench::say!("{label}: {message}");
         acquire(&store, id, &mut bench.engine, &plan, next, options.clone()).await
     };
     let finish = ConcludeOptions {
@@ -110,7 +124,42 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
         crash_when_staged: false,
         units: args.units.units(),
     };
-    let done = conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await;
+    let done = match native {
+        None => conclude_and_print(store, id, &mut bench.engine, acquired, (finish, db, args.json)).await,
+        Some(n) => finish_resolved(store, (id, n), &mut bench.engine, acquired, (finish, db, args.json)).await,
+    };
     drop(lock);
     done
+}
+
+/// The check points `id` of survey `native`, acquired: folded into it, then
+/// the survey they resolve finished with them (statistics, its processing
+/// with the check points, its outputs written, `complete`), as `survey run`
+/// would have finished it had it not been stopped. What is printed is that
+/// survey's: the check points' own survey no longer exists once folded.
+async fn finish_resolved(
+    store: survey_store::Store,
+    (id, native): (i64, i64),
+    engine: &mut survey_acquire::Engine,
+    acquired: anyhow::Result<Acquired>,
+    finish: (ConcludeOptions, &Path, bool),
+) -> anyhow::Result<()> {
+    let acquired = match acquired {
+        Ok(a) => a,
+        Err(e) => return conclude_and_print(store, id, engine, Err(e), finish).await,
+    };
+    let (options, db, json) = finish;
+    let folded = survey_lab::conclude::conclude(&store, id, engine, &acquired, db, options.clone()).await;
+    if let Err(e) = folded {
+        store.close().await;
+        return Err(e);
+    }
+    let at = store.last_sample_time(native).await?.unwrap_or(0.0);
+    let message = "its check points stored with it: finishing (statistics and processing with them)";
+    store.log_event(native, at, "info", message).await?;
+    store.set_status(native, SurveyStatus::Processing, None).await?;
+    survey_bench::say!("survey {native}: {message}");
+    let instrument_time = Duration::from_secs_f64(at.max(0.0));
+    let done = Acquired { outcome: Outcome { instrument_time, ..Outcome::default() }, real: Duration::ZERO };
+    conclude_and_print(store, native, engine, Ok(done), (options, db, json)).await
 }

@@ -28,6 +28,10 @@ pub trait Connect<D: ?Sized>: Send + Sync {
     fn describe(&self) -> String;
 }
 
+/// How many times a connection's set-up is tried before its fault is
+/// reported ([`Reconnecting::connect`]).
+pub const SETUP_TRIES: u32 = 8;
+
 /// A driver that reconnects after a link fault.
 pub struct Reconnecting<D: ?Sized> {
     connector: Box<dyn Connect<D>>,
@@ -55,10 +59,25 @@ impl<D: ?Sized + Send> Reconnecting<D> {
         Self { connector, current: None, name, connects: 0 }
     }
 
-    /// Open the connection now (to fail early, before a survey starts).
+    /// Open the connection now (to fail early, before a survey starts). A
+    /// set-up the instrument refused (a device fault in reply to an
+    /// initialising request: an SDO abort, an emScon mode refused) is tried
+    /// again, up to [`SETUP_TRIES`] times in all, each refusal logged; a link
+    /// fault (refused, dropped, garbled) is reported at once, for the engine
+    /// to count and retry.
     pub async fn connect(&mut self) -> Result<()> {
         if self.current.is_none() {
-            let driver = self.connector.connect().await.map_err(|e| self.connect_error(e))?;
+            let mut tries = 1;
+            let driver = loop {
+                match self.connector.connect().await {
+                    Ok(d) => break d,
+                    Err(e) if tries < SETUP_TRIES && e.kind == crate::error::ErrorKind::Device => {
+                        tracing::warn!(instrument = %self.name, error = %e, tries, "the set-up was refused: trying again");
+                        tries += 1;
+                    }
+                    Err(e) => return Err(self.connect_error(e)),
+                }
+            };
             self.connects += 1;
             if self.connects > 1 {
                 tracing::info!(instrument = %self.name, connects = self.connects, "reconnected");

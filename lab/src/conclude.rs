@@ -264,6 +264,18 @@ async fn process(
         crash_when_staged: options.crash_when_staged,
         ..ProcessOptions::default()
     };
+    // Check points already stored with it (a survey finished by `survey
+    // resume` after they were measured): processed with them, none measured again.
+    if !survey.loaded.checks.is_empty() {
+        let points = survey.loaded.checks.len();
+        let with = ProcessOptions { checks: survey.loaded.checks.clone(), ..processing };
+        let processed = process_survey(record, survey.samples, with).map_err(Unprocessed::Failed)?;
+        let o = crate::resolving::output(points, &processed);
+        output.doc["resolving"] = o.doc;
+        output.text += "\n";
+        output.text += &o.text;
+        return Ok(processed);
+    }
     let processed = process_survey(record, survey.samples, processing.clone()).map_err(Unprocessed::Failed)?;
     let Some(checks) = crate::resolving::checks_plan(&survey.plan, engine.reference_kind(), &processed) else {
         return Ok(processed);

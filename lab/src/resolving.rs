@@ -87,15 +87,20 @@ pub async fn measure(
             ..NewSurvey::default()
         })
         .await?;
+    // Named by the survey they belong to: their own survey is folded into it.
     survey_bench::say!(
-        "survey {id}: {} check points between the targets of survey {} decide {} line(s) its analysis left in doubt",
-        checks.targets_deg.len(),
+        "survey {}: {} check points between its targets decide {} line(s) its analysis left in doubt",
         native.id,
+        checks.targets_deg.len(),
         doubts.len()
     );
     if let Some(progress) = &options.plan_progress {
         progress.continue_with(checks.targets_deg.len() as u64 * checks.directions().len() as u64);
     }
+    // A test's simulated power loss counts every sample of the run, the
+    // survey's own first.
+    let done = native.plan().map_or(0, SurveyPlan::total_steps);
+    let options = AcquireOptions { crash_after: options.crash_after.map(|n| n.saturating_sub(done)), ..options };
     acquire(store, id, engine, checks, 0, options).await?;
     store.set_status(id, SurveyStatus::Complete, None).await?;
     fold(store, id, native.id).await?;

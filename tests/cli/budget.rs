@@ -127,16 +127,27 @@ fn the_configuration_check_says_whether_a_continuous_scan_is_possible() {
     ];
     for (positioner, possible, word) in cases {
         b.write("c.toml", format!("{positioner}{tracker}[timing]\ncall_timeout_s = 0.2\n"));
-        // Nothing answers on port 1: the check fails (exit 1) but still says
-        // what a continuous scan would be, from the configuration.
+        // Nothing answers on port 1: the check fails (exit 1); what the
+        // configuration allows is said, but no scan is called possible on
+        // instruments that did not answer (`possible`: null).
         let out = b.survey(&["check", "--config", "c.toml", "--json"]);
         assert_eq!(out.code, 1, "{out}");
         let doc = out.json();
-        assert_eq!(doc["continuous_scan"]["possible"], possible, "{positioner}\n{out}");
+        let said = if possible { serde_json::Value::Null } else { false.into() };
+        assert_eq!(doc["continuous_scan"]["possible"], said, "{positioner}\n{out}");
+        if possible {
+            assert!(doc["continuous_scan"]["detail"].as_str().unwrap().contains("did not all answer"), "{out}");
+        }
         assert!(doc["continuous_scan"]["detail"].as_str().unwrap().contains(word), "{word}\n{out}");
         if !possible {
             b.survey(&["run", "--config", "c.toml", "--points", "12", "--scan", "continuous"])
                 .bad_input(&["c.toml", "--scan continuous is not possible"]);
         }
     }
+    // Instruments 50 times faster than real time (a simulator's): never a continuous scan.
+    let (positioner, _, _) = &cases[0];
+    b.write("c.toml", format!("{positioner}{tracker}[timing]\ncall_timeout_s = 0.2\ntime_scale = 50\n"));
+    let doc = b.survey(&["check", "--config", "c.toml", "--json"]).json();
+    assert_eq!(doc["continuous_scan"]["possible"], false, "{doc}");
+    assert!(doc["continuous_scan"]["detail"].as_str().unwrap().contains("50x real time"), "{doc}");
 }

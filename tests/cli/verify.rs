@@ -359,3 +359,37 @@ fn a_verification_cannot_share_the_calibration_s_alias() {
     assert!(v["corrected_peak_deg"].as_f64().unwrap() > v["native_peak_deg"].as_f64().unwrap(), "{v}");
     assert!(v["reason"].as_str().unwrap().contains("not better than the native"), "{v}");
 }
+
+/// Issue 42: a kill while the check points are measured (the sparse survey
+/// above: 144 samples, then 96 check points; killed after 30 of them).
+/// `survey resume` measures the rest, folds them into the survey they
+/// resolve and finishes it with them: complete, its table made with the
+/// check points, the message and the document of that survey (the check
+/// points' own survey no longer exists), and nothing left to resume.
+#[test]
+fn a_kill_while_the_check_points_are_measured_is_finished_by_one_resume() {
+    let bench = Bench::new();
+    bench.write("no-design.toml", NO_DESIGN);
+    let args = ["run", "--model", "no-design.toml", "--points", "36", "--runs", "2", "--bidirectional"];
+    let mut crash = args.to_vec();
+    crash.extend(["--sim-crash-after", "174"]);
+    let killed = bench.command(&crash).output().unwrap();
+    assert!(!killed.status.success(), "a simulated power loss: {killed:?}");
+    let listed = bench.survey(&["list", "--json"]).success().json();
+    let statuses: Vec<&str> =
+        listed["surveys"].as_array().unwrap().iter().map(|s| s["status"].as_str().unwrap()).collect();
+    assert_eq!(statuses.len(), 2, "the survey and its check points: {listed:#}");
+    let out = bench.survey(&["resume", "--json"]);
+    assert_eq!(out.code, 0, "{out}");
+    let doc = out.json();
+    assert_eq!((doc["survey_id"].as_i64(), doc["status"].as_str()), (Some(1), Some("complete")), "{doc:#}");
+    let decided: Vec<f64> =
+        doc["process"]["table"]["kept_cycles"].as_array().unwrap().iter().map(|c| c.as_f64().unwrap()).collect();
+    assert!(decided.contains(&20.0) && decided.contains(&40.0), "{decided:?}");
+    assert!(out.stderr.contains("survey 1: its check points") && !out.stderr.contains("survey 2:"), "{out}");
+    let shown = bench.survey(&["show", "1", "--json"]).success().json();
+    assert_eq!((shown["status"].as_str(), shown["check_points"]["samples"].as_u64()), (Some("complete"), Some(96)));
+    let listed = bench.survey(&["list", "--json"]).success().json();
+    assert_eq!(listed["surveys"].as_array().map(|a| a.len()), Some(1), "{listed:#}");
+    bench.survey(&["resume"]).bad_input(&["complete", "nothing to resume"]);
+}

@@ -612,8 +612,13 @@ impl Engine {
     /// taken there, so it must have settled), retrying faults.
     async fn move_to(&mut self, target: f64, measured: bool, sink: &mut dyn SampleSink) -> Result<(), EngineError> {
         let mut attempt = 0;
+        // Every fault the step's requests retried in place (its budget), and how many are recorded.
+        let (mut survived, mut recorded) = (Vec::new(), 0);
         loop {
-            match self.try_move(target, measured).await {
+            let moved = self.try_move(target, measured, &mut survived).await;
+            self.retried_in_place(&survived[recorded..], &format!("move to {target} deg"), sink).await?;
+            recorded = survived.len();
+            match moved {
                 Ok(()) => {
                     self.commanded = Some(target);
                     return Ok(());
@@ -633,7 +638,14 @@ impl Engine {
         }
     }
 
-    async fn try_move(&mut self, target: f64, measured: bool) -> Result<(), DriverError> {
+    /// One try of a move: each request retried in place (`survived` gets the
+    /// faults it met), the move commanded once unless its command fails.
+    async fn try_move(
+        &mut self,
+        target: f64,
+        measured: bool,
+        survived: &mut Vec<DriverError>,
+    ) -> Result<(), DriverError> {
         if let Some((lo, hi)) = self.travel
             && !(lo..=hi).contains(&target)
         {
@@ -648,10 +660,10 @@ impl Engine {
         // After a start, a resume or a fault the axis may be anywhere: ask it.
         let from = match self.commanded {
             Some(c) => c,
-            None => with_timeout(&*clock, t.call_timeout, &name, "readout", self.positioner.readout()).await?,
+            None => crate::settle::retried!(&*clock, t, &name, "readout", survived, self.positioner.readout())?,
         };
         self.ledger.switch(clock.now(), Component::CommandLatency);
-        with_timeout(&*clock, t.call_timeout, &name, "move command", self.positioner.move_to(target)).await?;
+        crate::settle::retried!(&*clock, t, &name, "move command", survived, self.positioner.move_to(target))?;
         let started = clock.now();
         self.ledger.switch(started, Component::Move);
         let expected = Duration::from_secs_f64(move_time(target - from, t.velocity_deg_s, t.accel_deg_s2));
@@ -664,9 +676,29 @@ impl Engine {
             end: started + expected,
             deadline: started + expected + t.move_margin,
             measured,
+            survived,
         };
         if let Some(settled) = wait.run().await? {
             self.settled.add(settled.as_secs_f64());
+        }
+        Ok(())
+    }
+
+    /// The faults a step's requests met and retried in place
+    /// ([`crate::settle::retried`]): each logged, recorded as an event and
+    /// counted as survived, as [`Engine::survive`] does a step's.
+    async fn retried_in_place(
+        &mut self,
+        survived: &[DriverError],
+        what: &str,
+        sink: &mut dyn SampleSink,
+    ) -> Result<(), EngineError> {
+        let now = self.clock.now().as_secs_f64();
+        for error in survived {
+            self.faults_met.add(error.kind);
+            self.faults_survived += 1;
+            tracing::warn!(%error, what, kind = %error.kind, "instrument fault, request asked again");
+            sink.event(now, "warn", &format!("{what}: {error} (asked again)")).await.map_err(EngineError::Sink)?;
         }
         Ok(())
     }

@@ -27,6 +27,8 @@ impl Engine {
     ) -> Result<(f64, RawReading), EngineError> {
         let mut attempt = 0;
         let mut unsteady = 0;
+        // The faults this reading's requests retried in place, and how many are recorded.
+        let (mut survived, mut recorded): (Vec<survey_drivers::DriverError>, usize) = (Vec::new(), 0);
         loop {
             if self.commanded.is_none() {
                 self.approach(target, direction, overrun, sink).await?;
@@ -36,9 +38,41 @@ impl Engine {
             let pos_name = self.positioner.name().to_string();
             let near = target;
             self.ledger.switch(clock.now(), Component::Measure);
-            let readout = with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout());
-            let reference = read_reference(&*clock, &t, &mut self.reference, near);
+            // Each asked again in place after a link fault (an instrument at
+            // rest reads the same a moment later); a device fault, a lost beam
+            // among them, is the step's to handle.
+            let spent = survived.len();
+            let (mut readout_faults, mut reference_faults) = (Vec::new(), Vec::new());
+            let readout = async {
+                let mut failed = 0u32;
+                loop {
+                    match with_timeout(&*clock, t.call_timeout, &pos_name, "readout", self.positioner.readout()).await {
+                        Err(e) if e.kind.is_link() && crate::settle::again(&e, failed, spent + failed as usize, &t) => {
+                            failed += 1;
+                            readout_faults.push(e);
+                            clock.sleep(t.retry_backoff).await;
+                        }
+                        other => break other,
+                    }
+                }
+            };
+            let reference = async {
+                let mut failed = 0u32;
+                loop {
+                    match read_reference(&*clock, &t, &mut self.reference, near).await {
+                        Err(e) if e.kind.is_link() && crate::settle::again(&e, failed, spent + failed as usize, &t) => {
+                            failed += 1;
+                            reference_faults.push(e);
+                            clock.sleep(t.retry_backoff).await;
+                        }
+                        other => break other,
+                    }
+                }
+            };
             let (readout, reference) = tokio::join!(readout, reference);
+            survived.extend(readout_faults.into_iter().chain(reference_faults));
+            self.retried_in_place(&survived[recorded..], "reading", sink).await?;
+            recorded = survived.len();
             let (error, failed) = match (readout, reference) {
                 (Ok(r), Ok(raw)) if t.settle.mode == SettleMode::InPosition => return Ok((r, raw)),
                 (Ok(r0), Ok(raw)) => {

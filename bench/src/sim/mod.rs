@@ -223,6 +223,7 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         links: Vec::new(),
         _slaves: Vec::new(),
     };
+    served.stand_ins.time_scale(opts.time_scale);
     served.positioner(cfg, bench.positioner, &mut relays).await?;
     // The reference instruments (both may be configured; each is served).
     if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {

@@ -29,7 +29,7 @@ use survey_store::error::bad_input;
 pub struct StandIns {
     dir: tempfile::TempDir,
     /// `(section, key, value)`: the value served (`None`: the key removed).
-    rewrites: Vec<(&'static str, &'static str, Option<String>)>,
+    rewrites: Vec<(&'static str, &'static str, Option<toml::Value>)>,
     /// What was moved, for the operator: `positioner: 192.168.1.40:502 -> 127.0.0.1:40123`.
     pub moved: Vec<String>,
 }
@@ -74,7 +74,18 @@ impl StandIns {
         if configured != served {
             self.moved.push(format!("{section}: {configured} -> {served}"));
         }
-        self.rewrites.push((section, key, Some(served.into())));
+        self.rewrites.push((section, key, Some(toml::Value::String(served.into()))));
+    }
+
+    /// The instruments run `scale` times faster than the hardware: the
+    /// configuration to run against says so (`[timing] time_scale`), so a
+    /// survey reports its instrument time on the instruments' clock (and
+    /// refuses what needs real time, a continuous scan). Nothing is written
+    /// at 1.
+    pub fn time_scale(&mut self, scale: f64) {
+        if scale != 1.0 {
+            self.rewrites.push(("timing", "time_scale", Some(toml::Value::Float(scale))));
+        }
     }
 
     /// `section.key` is left out of the configuration to run against.
@@ -94,7 +105,7 @@ impl StandIns {
                 .as_table_mut()
                 .ok_or_else(|| bad_input(format!("{}: [{section}] is not a table", source.display())))?;
             match value {
-                Some(v) => table.insert((*key).into(), toml::Value::String(v.clone())),
+                Some(v) => table.insert((*key).into(), v.clone()),
                 None => table.remove(*key),
             };
         }

@@ -98,6 +98,26 @@ pub fn link_error_kind(e: &tokio_modbus::Error) -> ErrorKind {
     }
 }
 
+/// A tokio-modbus link error in words: its own text shows the mismatched
+/// reply in Rust's debug notation (`mismatching function codes: 4
+/// Ok(Custom(94, ...))`), which is no message for an event log.
+pub fn link_error_words(e: &tokio_modbus::Error) -> String {
+    use tokio_modbus::ProtocolError;
+    match e {
+        tokio_modbus::Error::Protocol(ProtocolError::HeaderMismatch { message, .. }) => {
+            format!("the reply's header does not match the request ({message})")
+        }
+        tokio_modbus::Error::Protocol(ProtocolError::FunctionCodeMismatch { request, result }) => {
+            let got = match result {
+                Ok(r) => format!("function {}", r.function_code().value()),
+                Err(x) => format!("an exception to function {}", x.function.value()),
+            };
+            format!("the reply is to another function: asked function {}, got {got}", request.value())
+        }
+        tokio_modbus::Error::Transport(io) => format!("the link failed: {io}"),
+    }
+}
+
 /// A positioner controller on Modbus TCP or RTU. See the [module
 /// documentation](super) for the protocol and the fault handling.
 pub struct ModbusPositioner {
@@ -261,7 +281,7 @@ impl ModbusPositioner {
             }
             Ok(Err(e)) => {
                 let kind = link_error_kind(&e);
-                Err(self.link_fault(kind, what, format!("{what}: {e}")))
+                Err(self.link_fault(kind, what, format!("{what}: {}", link_error_words(&e))))
             }
             Ok(Ok(Err(exc))) => {
                 let kind = exception_kind(exc);
@@ -450,6 +470,14 @@ mod tests {
         assert_eq!(link_error_kind(&io(std::io::ErrorKind::InvalidData)), ErrorKind::Garbled);
         assert_eq!(link_error_kind(&io(std::io::ErrorKind::BrokenPipe)), ErrorKind::Disconnected);
         assert_eq!(link_error_kind(&io(std::io::ErrorKind::UnexpectedEof)), ErrorKind::Disconnected);
+        // In words, not in Rust's debug notation.
+        let mismatch = tokio_modbus::Error::Protocol(tokio_modbus::ProtocolError::FunctionCodeMismatch {
+            request: tokio_modbus::FunctionCode::new(4),
+            result: Ok(tokio_modbus::Response::Custom(94, vec![4, 0].into())),
+        });
+        let words = link_error_words(&mismatch);
+        assert_eq!(words, "the reply is to another function: asked function 4, got function 94");
+        assert!(!words.contains("Ok(") && !words.contains("Custom"));
     }
 
     #[tokio::test]
