@@ -41,16 +41,22 @@ pub async fn import(db: &Path, args: ImportArgs) -> anyhow::Result<()> {
         ..NewSurvey::default()
     };
     let id = store.import(&survey, &samples).await;
+    // What is said of the samples, then they go: the history of the asset
+    // (kept now, [`survey_lab::life::cache`]) measures one survey at a time.
+    let (count, note) = (samples.len(), iso230_2(&samples).err());
+    drop(samples);
+    if let Ok(id) = id {
+        super::support::keep_history(&store, id).await;
+    }
     store.close().await;
     drop(progress);
     let id = id?;
     emit(&format!("{id}\n"));
-    if let Err(e) = iso230_2(&samples) {
+    if let Some(e) = note {
         survey_bench::say!("note: survey {id} cannot give ISO 230-2 statistics yet: {e}");
     }
     survey_bench::say!(
-        "imported {} samples ({targets} targets, {runs} runs) from {name} as survey {id} in {}",
-        samples.len(),
+        "imported {count} samples ({targets} targets, {runs} runs) from {name} as survey {id} in {}",
         db.display()
     );
     Ok(())

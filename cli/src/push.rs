@@ -27,6 +27,24 @@ pub struct PushArgs {
     pub json: bool,
 }
 
+/// What the lab store's history lacks of the assets of the surveys pushed
+/// (or found there already), made there and kept (each survey's own entries
+/// came with it; a pair of surveys from two stations, or entries of another
+/// version, are made here): [`survey_lab::life::cache`].
+async fn keep_history(lab_store: &survey_store::Store, report: &lab::PushReport) {
+    let mut assets: Vec<(String, i64)> = Vec::new();
+    for uid in report.pushed.iter().chain(&report.already) {
+        match lab_store.resolve_uncounted(Some(SurveyRef::Uid(uid.clone()))).await {
+            Ok(r) if !assets.iter().any(|a| a.0 == r.asset) => assets.push((r.asset, r.id)),
+            Ok(_) => {}
+            Err(e) => tracing::warn!("survey {uid}: its asset's history could not be kept ({e:#})"),
+        }
+    }
+    for (asset, id) in assets {
+        survey_lab::life::cache::fill_after(lab_store, &asset, id).await;
+    }
+}
+
 pub async fn push(db: &Path, args: PushArgs) -> anyhow::Result<()> {
     let Some(url) = lab::url_of(Path::new(&args.to)) else {
         return Err(survey_lab::error::bad_input(format!(
@@ -49,6 +67,9 @@ pub async fn push(db: &Path, args: PushArgs) -> anyhow::Result<()> {
     let pushed = async {
         let lab_store = lab::open(url, true).await?;
         let report = lab::push(&station, &lab_store, which).await;
+        if let Ok(r) = &report {
+            keep_history(&lab_store, r).await;
+        }
         lab_store.close().await;
         report
     }

@@ -75,9 +75,29 @@ pub async fn conclude_and_print(
             return Err(e);
         }
     };
-    let concluded = conclude(&store, id, engine, &acquired, db, options).await;
-    store.close().await;
-    let concluded = concluded?;
+    let stop = options.stop.clone();
+    let concluded = match conclude(&store, id, engine, &acquired, db, options).await {
+        Ok(c) => c,
+        Err(e) => {
+            store.close().await;
+            return Err(e);
+        }
+    };
     emit(&concluded.output.render(json));
+    // The history of the survey's asset kept, unless a signal asked to stop.
+    if stop.check().is_ok() {
+        keep_history(&store, id).await;
+    }
+    store.close().await;
     concluded.result
+}
+
+/// After a command that completed survey `id` of `store`: what the history
+/// of its asset lacks is made and kept ([`survey_lab::life::cache`]); a
+/// failure is said on stderr, the command's work is done.
+pub async fn keep_history(store: &Store, id: i64) {
+    match store.resolve_uncounted(Some(id.into())).await {
+        Ok(r) => survey_lab::life::cache::fill_after(store, &r.asset, id).await,
+        Err(e) => tracing::warn!("survey {id}: its asset's history could not be kept ({e:#})"),
+    }
 }

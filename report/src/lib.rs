@@ -197,7 +197,8 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
             plausible_max_cycles,
         }));
     }
-    let all = store.list().await?;
+    // A verification is of its survey's asset: the asset's surveys, not the store's.
+    let all = store.surveys_of_asset(&survey.asset).await?;
     let latest = all
         .iter()
         .filter(|r| r.verification.as_ref().is_some_and(|v| v.verifies_survey == survey.id) && r.sample_count > 0)

@@ -58,7 +58,43 @@ pub struct ServeOptions {
     pub refresh_ms: u64,
 }
 
-type App = Arc<ServeOptions>;
+/// The server's state: what it was told, and the bound on the work done off
+/// the async workers.
+#[derive(Debug)]
+struct AppState {
+    options: ServeOptions,
+    /// Pages and documents computed at once on blocking threads ([`offload`]).
+    heavy: tokio::sync::Semaphore,
+}
+
+impl std::ops::Deref for AppState {
+    type Target = ServeOptions;
+
+    fn deref(&self) -> &ServeOptions {
+        &self.options
+    }
+}
+
+type App = Arc<AppState>;
+
+/// Run `work` (a page's or a document's reads and computing: a history, a
+/// report, plots) on a blocking thread, as many at once as there are cores
+/// (the others wait their turn): the async workers stay free, so `/api/live`
+/// and the static script answer at once whatever the pages cost.
+async fn offload<T: Send + 'static>(
+    app: App,
+    api: bool,
+    work: impl Future<Output = Result<T, Failure>> + Send + 'static,
+) -> Result<T, Failure> {
+    let stopped = |why: String| Failure {
+        status: StatusCode::SERVICE_UNAVAILABLE,
+        reason: format!("the request's work stopped: {why}"),
+        api,
+    };
+    let _turn = app.heavy.acquire().await.map_err(|e| stopped(e.to_string()))?;
+    let runtime = tokio::runtime::Handle::current();
+    tokio::task::spawn_blocking(move || runtime.block_on(work)).await.map_err(|e| stopped(e.to_string()))?
+}
 
 /// Why a request was not served.
 #[derive(Debug)]
@@ -144,7 +180,10 @@ pub fn router(options: ServeOptions) -> Router {
         .nest("/api", api::routes())
         .fallback(not_found)
         .layer(middleware::from_fn(guard))
-        .with_state(Arc::new(options))
+        .with_state(Arc::new(AppState {
+            options,
+            heavy: tokio::sync::Semaphore::new(std::thread::available_parallelism().map_or(2, |n| n.get())),
+        }))
 }
 
 async fn not_found(uri: Uri) -> Failure {
@@ -195,7 +234,8 @@ pub fn on_signals() -> std::io::Result<impl Future<Output = ()> + Send + 'static
     })
 }
 
-/// `/api/...`: the commands' `--json` documents, and `/`'s own.
+/// `/api/...`: the commands' `--json` documents, and `/`'s own (each but
+/// `/api/live` made off the async workers: [`offload`]).
 ///
 /// | path | document |
 /// |---|---|
@@ -207,7 +247,7 @@ pub fn on_signals() -> std::io::Result<impl Future<Output = ()> + Send + 'static
 /// | `/api/assets` | the assets of `/`, each with its calibration in force and state |
 /// | `/api/live` | the surveys being acquired now, with their progress |
 pub mod api {
-    use super::{App, Failure, json_body, survey_ref};
+    use super::{App, Failure, json_body, offload, survey_ref};
     use axum::Router;
     use axum::extract::{Path as UrlPath, State};
     use axum::response::IntoResponse;
@@ -227,26 +267,38 @@ pub mod api {
     }
 
     async fn list(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
-        let surveys = read!(app, true, |store| store.list().await);
-        Ok(json_body(&list_json(&survey_store::lab::display(&app.db), &surveys)))
+        let doc = offload(app.clone(), true, async move {
+            let surveys = read!(app, true, |store| store.list().await);
+            Ok(list_json(&survey_store::lab::display(&app.db), &surveys))
+        });
+        Ok(json_body(&doc.await?))
     }
 
     async fn show(State(app): State<App>, UrlPath(survey): UrlPath<String>) -> Result<impl IntoResponse, Failure> {
         let r = survey_ref(&survey, true)?;
-        let shown = read!(app, true, |store| shown(&store, Some(r)).await);
-        Ok(json_body(&shown.json()))
+        let doc = offload(app.clone(), true, async move {
+            let shown = read!(app, true, |store| shown(&store, Some(r)).await);
+            Ok(shown.json())
+        });
+        Ok(json_body(&doc.await?))
     }
 
     async fn stats(State(app): State<App>, UrlPath(survey): UrlPath<String>) -> Result<impl IntoResponse, Failure> {
         let r = survey_ref(&survey, true)?;
-        let loaded = read!(app, true, |store| load(&store, Some(r), Axis::Refitted).await);
-        let stats = Stats::of(&loaded).map_err(|e| Failure::of(&e, true))?;
-        Ok(json_body(&stats.json(&loaded)))
+        let doc = offload(app.clone(), true, async move {
+            let loaded = read!(app, true, |store| load(&store, Some(r), Axis::Refitted).await);
+            let stats = Stats::of(&loaded).map_err(|e| Failure::of(&e, true))?;
+            Ok(stats.json(&loaded))
+        });
+        Ok(json_body(&doc.await?))
     }
 
     async fn history(State(app): State<App>, UrlPath(asset): UrlPath<String>) -> Result<impl IntoResponse, Failure> {
-        let h = read!(app, true, |store| survey_lab::life::history::history(&store, &asset, None).await);
-        Ok(json_body(&h.json()))
+        let doc = offload(app.clone(), true, async move {
+            let h = read!(app, true, |store| survey_lab::life::history::history(&store, &asset, None).await);
+            Ok(h.json())
+        });
+        Ok(json_body(&doc.await?))
     }
 
     async fn compare(
@@ -254,18 +306,24 @@ pub mod api {
         UrlPath((a, b)): UrlPath<(String, String)>,
     ) -> Result<impl IntoResponse, Failure> {
         let (a, b) = (survey_ref(&a, true)?, survey_ref(&b, true)?);
-        let (a, b) = read!(app, true, |store| {
-            let a = survey_lab::life::measure(&store, a).await?;
-            let b = survey_lab::life::measure(&store, b).await?;
-            anyhow::Ok((a, b))
+        let doc = offload(app.clone(), true, async move {
+            let (a, b) = read!(app, true, |store| {
+                let a = survey_lab::life::measure(&store, a).await?;
+                let b = survey_lab::life::measure(&store, b).await?;
+                anyhow::Ok((a, b))
+            });
+            let c = survey_lab::life::compared(&a, &b).map_err(|e| Failure::of(&e, true))?;
+            Ok(c.json(&a, &b))
         });
-        let c = survey_lab::life::compared(&a, &b).map_err(|e| Failure::of(&e, true))?;
-        Ok(json_body(&c.json(&a, &b)))
+        Ok(json_body(&doc.await?))
     }
 
     async fn assets(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
-        let assets = read!(app, true, |store| super::overview::assets(&store, app.due_after_days).await);
-        Ok(json_body(&super::overview::assets_json(&assets)))
+        let doc = offload(app.clone(), true, async move {
+            let assets = read!(app, true, |store| super::overview::assets(&store, app.due_after_days).await);
+            Ok(super::overview::assets_json(&assets))
+        });
+        Ok(json_body(&doc.await?))
     }
 
     async fn live(State(app): State<App>) -> Result<impl IntoResponse, Failure> {

@@ -5,9 +5,10 @@
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::time::SystemTime;
+use survey_lab::life::cache::{Figures, kept_summary};
 use survey_lab::load::{Axis, load};
-use survey_processing::iso230::{Iso230, iso230_2};
-use survey_store::survey::{SurveyRecord, SurveyRef, SurveyStatus};
+use survey_processing::iso230::iso230_2;
+use survey_store::survey::{SurveyRecord, SurveyRef};
 use survey_store::{CheckDecision, Store};
 
 /// An asset's state.
@@ -41,7 +42,7 @@ pub struct Asset {
     /// How many surveys it has.
     pub surveys: usize,
     /// Its calibration in force (its last complete calibration) and that survey's ISO 230-2 figures.
-    pub calibration: Option<(SurveyRecord, Option<Iso230>)>,
+    pub calibration: Option<(SurveyRecord, Option<Figures>)>,
     /// Its state, and why.
     pub state: (State, String),
 }
@@ -78,7 +79,7 @@ fn state(
 /// Every asset of `store`, by id.
 pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<Asset>> {
     let mut by_asset: BTreeMap<String, Vec<SurveyRecord>> = BTreeMap::new();
-    for r in store.list().await? {
+    for r in store.list_uncounted().await? {
         by_asset.entry(r.asset.clone()).or_default().push(r);
     }
     let now = SystemTime::now();
@@ -90,14 +91,24 @@ pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<As
         let state = state(in_force.as_ref(), &checks, due_after_days, now);
         let calibration = match in_force {
             Some(r) => {
-                let loaded = load(store, Some(SurveyRef::Id(r.id)), Axis::Refitted).await?;
-                Some((r, iso230_2(&loaded.analysed()).ok()))
+                let iso = in_force_figures(store, &r).await?;
+                Some((r, iso))
             }
             None => None,
         };
         out.push(Asset { asset, surveys: records.len(), calibration, state });
     }
     Ok(out)
+}
+
+/// The ISO 230-2 figures of the calibration in force `r`: its history's
+/// summary (kept when it completed), else computed from its samples.
+async fn in_force_figures(store: &Store, r: &SurveyRecord) -> anyhow::Result<Option<Figures>> {
+    if let Some(s) = kept_summary(store, r).await? {
+        return Ok(s.iso);
+    }
+    let loaded = load(store, Some(SurveyRef::Id(r.id)), Axis::Refitted).await?;
+    Ok(iso230_2(&loaded.analysed()).ok().map(|i| Figures { a: i.a, r: i.r, b: i.b }))
 }
 
 /// `/api/assets`.
@@ -137,7 +148,7 @@ pub struct Live {
 /// The surveys of `store` being acquired (status `running`), oldest first.
 pub async fn live(store: &Store) -> anyhow::Result<Vec<Live>> {
     let mut out = Vec::new();
-    for survey in store.list().await?.into_iter().filter(|r| r.status == SurveyStatus::Running) {
+    for survey in store.running().await? {
         let faults = store.events(survey.id).await?.iter().filter(|e| e.level == "warn" || e.level == "error").count();
         let last = store.last_sample_time(survey.id).await?;
         let done = survey.sample_count;
@@ -177,6 +188,7 @@ pub fn live_json(live: &[Live]) -> Value {
 mod tests {
     use super::*;
     use std::time::Duration;
+    use survey_store::survey::SurveyStatus;
 
     fn check(against: &str, verdict: &str, recalibrate: bool, made: Option<&str>) -> CheckDecision {
         CheckDecision {

@@ -3,7 +3,7 @@
 //! as inline SVG, no framework.
 
 use super::overview::{self, Asset, Live};
-use super::{App, Failure, POLICY, html_body, read, survey_ref};
+use super::{App, Failure, POLICY, html_body, offload, read, survey_ref};
 use axum::extract::{Path as UrlPath, State};
 use axum::http::{StatusCode, header};
 use axum::response::IntoResponse;
@@ -87,6 +87,11 @@ fn assets_table(assets: &[Asset]) -> String {
 
 /// `/`.
 pub(super) async fn index(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
+    Ok(html_body(offload(app.clone(), false, index_page(app)).await?))
+}
+
+/// `/`'s page.
+async fn index_page(app: App) -> Result<String, Failure> {
     let (assets, live) = read!(app, false, |store| {
         let assets = overview::assets(&store, app.due_after_days).await?;
         let live = overview::live(&store).await?;
@@ -126,12 +131,11 @@ pub(super) async fn index(State(app): State<App>) -> Result<impl IntoResponse, F
             }
         ),
     );
-    let html = page(&format!("Surveys of {db}"), &body).replacen(
+    Ok(page(&format!("Surveys of {db}"), &body).replacen(
         "<body>",
         &format!("<body data-refresh-ms=\"{}\">", app.refresh_ms),
         1,
-    );
-    Ok(html_body(html))
+    ))
 }
 
 /// `/static/live.js`.
@@ -144,17 +148,20 @@ pub(super) async fn asset(
     State(app): State<App>,
     UrlPath(asset): UrlPath<String>,
 ) -> Result<impl IntoResponse, Failure> {
-    let h = read!(app, false, |store| survey_lab::life::history::history(&store, &asset, None).await);
-    let figures =
-        survey_report::html::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
-    let body = format!(
-        "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} surveys; the history as JSON: \
-         <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{s}",
-        a = escape(&h.asset),
-        n = h.surveys.len(),
-        s = section("history", "History", &[], &figures),
-    );
-    Ok(html_body(page(&format!("Asset {}", h.asset), &body)))
+    let html = offload(app.clone(), false, async move {
+        let h = read!(app, false, |store| survey_lab::life::history::history(&store, &asset, None).await);
+        let figures =
+            survey_report::html::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
+        let body = format!(
+            "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} surveys; the history as JSON: \
+             <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{s}",
+            a = escape(&h.asset),
+            n = h.surveys.len(),
+            s = section("history", "History", &[], &figures),
+        );
+        Ok(page(&format!("Asset {}", h.asset), &body))
+    });
+    Ok(html_body(html.await?))
 }
 
 /// `/surveys/<uid>` (or an id): the survey's report, as `survey report` writes it.
@@ -163,10 +170,12 @@ pub(super) async fn survey(
     UrlPath(survey): UrlPath<String>,
 ) -> Result<impl IntoResponse, Failure> {
     let r = survey_ref(&survey, false)?;
-    let opts = ReportOptions::default();
-    let data = read!(app, false, |store| survey_report::gather(&store, Some(r), &opts).await);
-    let html = survey_report::html::render(&data, &opts).map_err(|e| Failure::of(&e, false))?;
-    Ok(html_body(html))
+    let html = offload(app.clone(), false, async move {
+        let opts = ReportOptions::default();
+        let data = read!(app, false, |store| survey_report::gather(&store, Some(r), &opts).await);
+        survey_report::html::render(&data, &opts).map_err(|e| Failure::of(&e, false))
+    });
+    Ok(html_body(html.await?))
 }
 
 /// An error page.

@@ -10,6 +10,8 @@ use survey_processing::{Direction, Sample};
 
 /// The tables a survey's rows live in, children first.
 const SURVEY_TABLES: &[&str] = &[
+    "survey_summaries",
+    "survey_changes",
     "sample_packs",
     "raw_readings",
     "samples",
@@ -31,6 +33,15 @@ impl Store {
         let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let folded = async {
             sqlx::query("DELETE FROM check_points WHERE survey_id = ?").bind(into).execute(tx.conn()).await?;
+            // What the history kept of `into` was measured without them.
+            sqlx::query("DELETE FROM survey_summaries WHERE survey_id = ?").bind(into).execute(tx.conn()).await?;
+            sqlx::query(
+                "DELETE FROM survey_changes WHERE survey_id = ? OR from_uid = (SELECT uid FROM surveys WHERE id = ?)",
+            )
+            .bind(into)
+            .bind(into)
+            .execute(tx.conn())
+            .await?;
             let n = sqlx::query(
                 "INSERT INTO check_points (survey_id, seq, run, direction, target_deg, readout_deg, actual_deg, \
                  timestamp_s) SELECT ?, seq, run, direction, target_deg, readout_deg, actual_deg, timestamp_s \

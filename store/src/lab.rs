@@ -41,7 +41,12 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (4, "check points", include_str!("../../migrations/postgres/0004_check_points.sql")),
     (5, "assets", include_str!("../../migrations/postgres/0005_assets.sql")),
     (6, "processing", include_str!("../../migrations/postgres/0006_processing.sql")),
+    (8, "history cache", include_str!("../../migrations/postgres/0008_history_cache.sql")),
 ];
+
+/// The oldest lab store schema a read command reads as it is (migration 8
+/// adds only the history's cache; there is no migration 7 here).
+const READS_FROM: i64 = 6;
 
 fn migrator() -> sqlx::migrate::Migrator {
     use sqlx::SqlSafeStr as _;
@@ -118,11 +123,17 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         .connect_with(options)
         .await
         .map_err(|e| connect_error(&e, &shown, &host, port, &user))?;
-    let store = Store { backend: Backend::Lab(pool.clone()), path: PathBuf::from(&shown), immutable: false };
+    let mut store = Store {
+        backend: Backend::Lab(pool.clone()),
+        path: PathBuf::from(&shown),
+        immutable: false,
+        writable: setup,
+        cache: setup,
+    };
     let ready = if setup {
         migrator().run(&pool).await.map_err(|e| anyhow::anyhow!("cannot set up the lab store {shown}: {e}"))
     } else {
-        check_schema(&pool, &shown).await
+        check_schema(&pool, &shown).await.map(|version| store.cache = version >= super::CACHE_SCHEMA)
     };
     if let Err(e) = ready {
         store.close().await;
@@ -131,8 +142,10 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
     Ok(store)
 }
 
-/// The lab store's schema is there and current (a read command never sets it up).
-async fn check_schema(pool: &sqlx::PgPool, shown: &str) -> anyhow::Result<()> {
+/// The lab store's schema is there and one this version reads (its own,
+/// or one from [`READS_FROM`] on, which lacks only the history's cache; a
+/// read command never sets it up): its version.
+async fn check_schema(pool: &sqlx::PgPool, shown: &str) -> anyhow::Result<i64> {
     let set_up: bool = sqlx::query_scalar("SELECT to_regclass('_sqlx_migrations') IS NOT NULL").fetch_one(pool).await?;
     let version: Option<i64> = if set_up {
         sqlx::query_scalar("SELECT MAX(version) FROM _sqlx_migrations WHERE success").fetch_one(pool).await?
@@ -149,11 +162,11 @@ async fn check_schema(pool: &sqlx::PgPool, shown: &str) -> anyhow::Result<()> {
             "{shown} was set up by a newer version of survey (schema {v}; this version reads up to {known})"
         ))
         .into()),
-        Some(v) if v < known => Err(NotFound(format!(
+        Some(v) if v < READS_FROM => Err(NotFound(format!(
             "{shown} has an older schema ({v}; this version reads {known}): `survey push --to URL` upgrades it"
         ))
         .into()),
-        Some(_) => Ok(()),
+        Some(v) => Ok(v),
     }
 }
 

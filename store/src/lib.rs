@@ -37,6 +37,7 @@ pub mod error;
 pub mod runtime;
 pub mod survey;
 
+mod cache;
 mod check_points;
 mod checks;
 mod drift;
@@ -112,7 +113,17 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (5, "assets", include_str!("../../migrations/0005_assets.sql")),
     (6, "processing", include_str!("../../migrations/0006_processing.sql")),
     (7, "sample packs", include_str!("../../migrations/0007_sample_packs.sql")),
+    (8, "history cache", include_str!("../../migrations/0008_history_cache.sql")),
 ];
+
+/// The schema that brings the history's cache (`survey_summaries`,
+/// `survey_changes`): a file of an older schema has none.
+const CACHE_SCHEMA: i64 = 8;
+
+/// The oldest schema a command that only reads reads as it is: the
+/// migrations after it add only the history's cache, which a reader then
+/// does without (computing on read what it would have read).
+const READS_FROM: i64 = 7;
 
 fn migrator() -> Migrator {
     Migrator::with_migrations(
@@ -158,6 +169,12 @@ pub struct Store {
     path: PathBuf,
     /// Opened `immutable` (read-only media): the bulk reader must be too.
     immutable: bool,
+    /// Opened to write: a station's file by a command that writes, the lab
+    /// store by `survey push`.
+    writable: bool,
+    /// The history's cache tables are there (schema 8: every store opened
+    /// to write; a file of schema 7 read as it is has none).
+    cache: bool,
 }
 
 /// The database behind a [`Store`].
@@ -234,16 +251,27 @@ impl Store {
             return Err(foreign(path));
         }
         let (pool, immutable) = connect_read_only(path).await?;
-        let store = Store { backend: Backend::Sqlite(pool), path: path.to_path_buf(), immutable };
-        if let Err(e) = store.check_schema().await {
-            store.close().await;
-            return Err(e);
+        let mut store = Store {
+            backend: Backend::Sqlite(pool),
+            path: path.to_path_buf(),
+            immutable,
+            writable: false,
+            cache: false,
+        };
+        match store.check_schema().await {
+            Ok(version) => store.cache = version >= CACHE_SCHEMA,
+            Err(e) => {
+                store.close().await;
+                return Err(e);
+            }
         }
         Ok(store)
     }
 
-    /// The file is a survey database of a schema this version reads.
-    async fn check_schema(&self) -> anyhow::Result<()> {
+    /// The file is a survey database of a schema this version reads (this
+    /// version's, or one from [`READS_FROM`] on, which lacks only the
+    /// history's cache): its version.
+    async fn check_schema(&self) -> anyhow::Result<i64> {
         let path = self.path.display();
         let known = MIGRATIONS.last().map_or(0, |m| m.0);
         match schema(self.sqlite()?, &self.path).await? {
@@ -254,12 +282,12 @@ impl Store {
             Schema::Survey(None) => {
                 Err(NotFound(format!("{path} is not a survey database (its schema was never set up)")).into())
             }
-            Schema::Survey(Some(v)) if v < known => Err(NotFound(format!(
+            Schema::Survey(Some(v)) if v < READS_FROM => Err(NotFound(format!(
                 "{path} has an older schema ({v}; this version reads {known}): any command that writes \
                  (`survey resume`, `survey import`) upgrades it"
             ))
             .into()),
-            Schema::Survey(Some(_)) => Ok(()),
+            Schema::Survey(Some(v)) => Ok(v),
             Schema::Foreign => Err(foreign(&self.path)),
         }
     }
@@ -367,6 +395,8 @@ impl Store {
                             backend: Backend::Sqlite(pool),
                             path: path.to_path_buf(),
                             immutable: false,
+                            writable: true,
+                            cache: true,
                         });
                     }
                     Err(e) => {
@@ -431,6 +461,13 @@ impl Store {
         matches!(self.backend, Backend::Lab(_))
     }
 
+    /// Whether this store was opened to write (a station's file by a
+    /// command that writes, the lab store by `survey push`): a read-only
+    /// open never writes, not even the history's cache.
+    pub fn can_write(&self) -> bool {
+        self.writable
+    }
+
     fn no_survey(&self, id: i64) -> NotFound {
         NotFound(format!("no survey with id {id} in {}", self.path.display()))
     }
@@ -465,11 +502,24 @@ fn sqlite_code(e: &sqlx::Error) -> Option<u32> {
 /// Bring the schema up to date on a connection of its own with foreign keys
 /// off, as SQLite's procedure for rebuilding a table asks (migration 4
 /// rebuilds `surveys` to change its CHECK; each migration commits with its
-/// record), then check them (`PRAGMA foreign_key_check`, the procedure's
-/// last step): a row left without the row it refers to fails the open.
+/// record), then, when a migration was applied, check them (`PRAGMA
+/// foreign_key_check`, the procedure's last step): a row left without the
+/// row it refers to fails the open. (The check reads every row of the
+/// database: made on every open, it made each `survey run` on a station of
+/// 3000 surveys cost 0.3 s more than on a new one.)
 async fn migrate(options: &SqliteConnectOptions) -> Result<(), sqlx::migrate::MigrateError> {
     let pool = single_connection_pool().connect_with(options.clone().foreign_keys(false)).await?;
+    // The schema applied (none when the migrations table is not there yet).
+    let applied = || async {
+        sqlx::query_scalar::<_, Option<i64>>("SELECT MAX(version) FROM _sqlx_migrations WHERE success")
+            .fetch_one(&pool)
+            .await
+            .ok()
+            .flatten()
+    };
+    let before = applied().await;
     let checked = match migrator().run(&pool).await {
+        Ok(()) if applied().await == before => Ok(()),
         Ok(()) => match sqlx::query("PRAGMA foreign_key_check").fetch_all(&pool).await {
             Ok(rows) if rows.is_empty() => Ok(()),
             Ok(rows) => Err(sqlx::migrate::MigrateError::Source(

@@ -369,7 +369,7 @@ pub(super) async fn insert_samples(
 
 /// A read-only rusqlite connection to the database at `path` (with
 /// `immutable=1` on read-only media).
-fn open_reader(path: &std::path::Path, immutable: bool) -> anyhow::Result<rusqlite::Connection> {
+pub(crate) fn open_reader(path: &std::path::Path, immutable: bool) -> anyhow::Result<rusqlite::Connection> {
     use rusqlite::OpenFlags;
     let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
     let conn = if immutable {

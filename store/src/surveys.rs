@@ -390,8 +390,22 @@ impl Store {
 
     /// Every survey, oldest first.
     pub async fn list(&self) -> anyhow::Result<Vec<SurveyRecord>> {
+        self.list_counted(true).await
+    }
+
+    /// [`Store::list`] with every `sample_count` left 0: no walk of every
+    /// sample of the store (what `survey serve`'s `/` needs of the surveys).
+    pub async fn list_uncounted(&self) -> anyhow::Result<Vec<SurveyRecord>> {
+        self.list_counted(false).await
+    }
+
+    async fn list_counted(&self, counted: bool) -> anyhow::Result<Vec<SurveyRecord>> {
+        let query = match counted {
+            true => select_surveys!(" ORDER BY s.id"),
+            false => select_surveys!(uncounted; " ORDER BY s.id"),
+        };
         let columns = on_pool!(self, |pool| {
-            let rows = sqlx::query(select_surveys!(" ORDER BY s.id")).fetch_all(pool).await?;
+            let rows = sqlx::query(query).fetch_all(pool).await?;
             columns_of!(rows)?
         });
         columns.into_iter().map(|c| self.record(c)).collect()
@@ -399,11 +413,35 @@ impl Store {
 
     /// The surveys of an asset, in the order they were made (oldest first).
     pub async fn surveys_of_asset(&self, asset: &str) -> anyhow::Result<Vec<SurveyRecord>> {
+        self.surveys_of_asset_counted(asset, true).await
+    }
+
+    /// [`Store::surveys_of_asset`] with every `sample_count` left 0: no walk
+    /// of the asset's samples (the history counts a survey's samples as it
+    /// measures it, or reads the count it kept).
+    pub async fn surveys_of_asset_uncounted(&self, asset: &str) -> anyhow::Result<Vec<SurveyRecord>> {
+        self.surveys_of_asset_counted(asset, false).await
+    }
+
+    async fn surveys_of_asset_counted(&self, asset: &str, counted: bool) -> anyhow::Result<Vec<SurveyRecord>> {
+        let query = match counted {
+            true => select_surveys!(" WHERE s.asset = $1 ORDER BY s.created_at, s.id"),
+            false => select_surveys!(uncounted; " WHERE s.asset = $1 ORDER BY s.created_at, s.id"),
+        };
         let columns = on_pool!(self, |pool| {
-            let rows = sqlx::query(select_surveys!(" WHERE s.asset = $1 ORDER BY s.created_at, s.id"))
-                .bind(asset)
-                .fetch_all(pool)
-                .await?;
+            let rows = sqlx::query(query).bind(asset).fetch_all(pool).await?;
+            columns_of!(rows)?
+        });
+        columns.into_iter().map(|c| self.record(c)).collect()
+    }
+
+    /// The surveys being acquired (status `running`), oldest first, each
+    /// with its samples counted: what `survey serve`'s live paths poll,
+    /// without reading (or counting the samples of) every other survey.
+    pub async fn running(&self) -> anyhow::Result<Vec<SurveyRecord>> {
+        let columns = on_pool!(self, |pool| {
+            let rows =
+                sqlx::query(select_surveys!(" WHERE s.status = 'running' ORDER BY s.id")).fetch_all(pool).await?;
             columns_of!(rows)?
         });
         columns.into_iter().map(|c| self.record(c)).collect()

@@ -265,6 +265,38 @@ fn read_commands_give_the_same_answers_from_the_lab_store_as_from_the_station() 
     assert!(html.contains("id=\"verification\"") && html.contains("ISO 230-2"), "the lab's report");
 }
 
+/// A survey of more rows than a push writes with `INSERT`s goes by binary
+/// `COPY`, a chunk at a time: every value the same bits in the lab store.
+#[test]
+fn a_large_survey_is_pushed_by_copy_bit_for_bit() {
+    let Some(server) = server() else { return };
+    let lab = server.database("large_copy");
+    let bench = Bench::new();
+    // 2 runs x 2 directions x 1100 targets = 4400 rows, with edge values.
+    let edges = ["-0", "5e-324", "2.2250738585072014e-308", "0.30000000000000004", "1e-300"];
+    let mut csv = String::from("run,direction,target_deg,readout_deg,actual_deg,timestamp_s\n");
+    for run in 1..=2 {
+        for direction in ["forward", "reverse"] {
+            for k in 0..1100 {
+                let target = f64::from(k) * 360.0 / 1100.0;
+                let edge = edges[k as usize % edges.len()];
+                csv += &format!("{run},{direction},{target},{target},{}, {edge}\n", target + 1e-3 / f64::from(k + 1));
+            }
+        }
+    }
+    bench.write("large.csv", csv);
+    bench.survey(&["import", "large.csv", "--asset", "large"]).success();
+    bench.survey(&["push", "--to", &lab, "--json"]).success();
+    let rows: usize = server.psql("large_copy", "SELECT COUNT(*) FROM samples").trim().parse().unwrap();
+    assert_eq!(rows, 4400);
+    bench.survey(&["export", "--csv", "s.csv"]).success();
+    on_lab(&bench, &lab, &["export", "--csv", "l.csv"]).success();
+    assert_eq!(bench.read("s.csv"), bench.read("l.csv"));
+    let s = bench.survey(&["history", "--asset", "large", "--json"]).success().json();
+    let l = on_lab(&bench, &lab, &["history", "--asset", "large", "--json"]).success().json();
+    assert_eq!(without_ids(&s), without_ids(&l));
+}
+
 /// The uids `push --json` listed under `key`.
 fn uids(doc: &Value, key: &str) -> Vec<String> {
     doc[key].as_array().unwrap_or_else(|| panic!("{key} in {doc}")).iter().map(|u| u.as_str().unwrap().into()).collect()
@@ -352,6 +384,21 @@ fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and
     // Every survey whole: its samples as many as the station's.
     let samples: usize = server.psql("exactly_once", "SELECT COUNT(*) FROM samples").trim().parse().unwrap();
     assert_eq!(samples, 8 * 144);
+    // The lab store keeps the asset's whole history (issue 40): each
+    // survey's summary copied with it, the pairs of surveys from two
+    // stations made by the push; read from it, what computing it gives.
+    let kept = |table: &str| server.psql("exactly_once", &format!("SELECT COUNT(*) FROM {table}")).trim().to_string();
+    assert_eq!(kept("survey_summaries"), "8");
+    // Every consecutive pair of the lab store's order (a station's own pair
+    // whose first survey is not the one before it here is kept, unused).
+    let pairs = "(SELECT p.id FROM (SELECT id, LAG(uid) OVER (ORDER BY created_at, id) AS prev FROM surveys) AS p \
+                 JOIN survey_changes AS c ON c.survey_id = p.id AND c.from_uid = p.prev) AS kept";
+    assert_eq!(kept(pairs), "7");
+    let history = || on_lab(&c, &lab, &["history", "--asset", "sim-fig8", "--json"]).success().stdout;
+    let read = history();
+    server.psql("exactly_once", "DELETE FROM survey_changes; DELETE FROM survey_summaries");
+    assert_eq!(history(), read, "computed on read");
+    assert_eq!(kept("survey_summaries"), "0", "a read command writes nothing");
 }
 
 #[test]

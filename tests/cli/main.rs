@@ -20,6 +20,7 @@ mod docs;
 mod drift;
 mod everyday;
 mod files;
+mod history;
 mod instruments;
 mod lab;
 mod life;

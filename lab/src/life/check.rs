@@ -157,10 +157,16 @@ async fn check_with(
     // Lines the calibration's own targets cannot place (aliases in doubt) show
     // elsewhere on the check's grid: the table's check judges what they leave.
     let doubt: Vec<f64> = a.lines_in_doubt().iter().map(|(bin, _)| *bin).collect();
-    let lines: Vec<f64> = std::iter::once(1.0)
+    let mut lines: Vec<f64> = std::iter::once(1.0)
         .chain(a.main_lines().iter().map(|l| l.cycles_per_rev))
         .filter(|k| !doubt.contains(k))
         .collect();
+    // And every line the asset's history has seen (its kept summaries).
+    for k in super::lines_seen(store, asset).await? {
+        if !lines.contains(&k) && !doubt.contains(&k) {
+            lines.push(k);
+        }
+    }
     let design = cal.plan().map(|p| design_check(grid_of(p, req.polygon), &lines, req.size.points));
     let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
@@ -226,6 +232,7 @@ async fn check_with(
     store.record_check(&decision).await?;
     // A check has no outputs of its own: its decision is what completes it.
     store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
+    keep_history(store, &a, &c, asset, id).await;
     let mut check_doc = check_json(&cmp, &a, &c, design.as_ref());
     check_doc["correction"] = found.as_str().into();
     let mut text = design_text(design.as_ref()) + &measured_text(&found) + &cmp.text(&a, &c);
@@ -260,8 +267,8 @@ async fn check_with(
 /// calibration as for a native check, and the table's check is the
 /// corrected axis against the table's predicted residual and its U.
 fn as_native(check: &mut Measured, cal: &Measured) -> anyhow::Result<()> {
-    let table = match &cal.processed {
-        Ok(p) => &p.built.table,
+    let table = match &cal.table {
+        Ok(table) => table,
         Err(why) => {
             return Err(anyhow::anyhow!(
                 "the check measured the corrected axis, and the table in force (survey {}) cannot be made again to \
@@ -288,6 +295,16 @@ fn measured_text(found: &Before) -> String {
         }
         _ => String::new(),
     }
+}
+
+/// Keep the history of the check `c` (survey `id`) compared with the
+/// calibration in force `a`, and what else its asset's history lacks: a
+/// failure is said, not returned (the check is decided and stored).
+async fn keep_history(store: &Store, a: &Measured, c: &Measured, asset: &str, id: i64) {
+    if let Err(e) = super::cache::keep_compared(store, a, c).await {
+        tracing::warn!("survey {id}: its comparison could not be kept in the history of {asset} ({e:#})");
+    }
+    super::cache::fill_after(store, asset, id).await;
 }
 
 /// The check's document: the comparison, its survey and its design.
@@ -322,6 +339,7 @@ async fn undecided(
     unseen: &[Unseen],
 ) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
     store.set_status(id, survey_store::survey::SurveyStatus::Complete, None).await?;
+    keep_history(store, a, c, &cal.asset, id).await;
     let what: Vec<String> =
         unseen.iter().map(|u| format!("the {} cycles/rev line ({})", u.cycles_per_rev, u.why)).collect();
     let why = format!(
@@ -371,6 +389,7 @@ async fn full_survey(
     };
     let concluded = conclude(store, id, &mut b.engine, &acquired, db, finish).await?;
     drop(lock);
+    super::cache::fill_after(store, asset, id).await;
     concluded.result?;
     let output = concluded.output;
     let record = store.survey(id).await?;

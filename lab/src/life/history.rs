@@ -5,11 +5,46 @@
 //! checks: the native measurements; a verification is measured with a table
 //! applied, so it is listed but not compared).
 
-use super::{Compared, Measured, compared, measure};
+use super::cache::{Change, Pair, Summary, made};
 use serde_json::{Value, json};
 use std::fmt::Write as _;
-use survey_store::survey::SurveyRef;
+use survey_store::survey::SurveyRecord;
 use survey_store::{CheckDecision, NotFound, Store};
+
+/// One survey of a history: its record and its summary.
+#[derive(Debug, Clone)]
+pub struct Entry {
+    /// The survey.
+    pub survey: SurveyRecord,
+    /// What measuring it gives (read from the history's cache, or measured).
+    pub summary: Summary,
+}
+
+impl Entry {
+    /// `calibration`, `check` or `verification`.
+    pub fn kind(&self) -> &'static str {
+        super::kind(&self.survey)
+    }
+
+    /// The history's entry of this survey (the contract's keys and more).
+    pub fn json(&self) -> Value {
+        let (s, m) = (&self.survey, &self.summary);
+        json!({
+            "id": s.id,
+            "uid": s.uid,
+            "created_at": s.created_at,
+            "status": s.status.as_str(),
+            "kind": self.kind(),
+            "check_of": s.check_of,
+            "samples": m.samples,
+            "A_deg": m.iso.as_ref().map(|i| i.a),
+            "R_deg": m.iso.as_ref().map(|i| i.r),
+            "B_deg": m.iso.as_ref().and_then(|i| i.b),
+            "table_u_deg": m.table_u_deg,
+            "lines": m.lines,
+        })
+    }
+}
 
 /// An asset's history.
 #[derive(Debug)]
@@ -17,10 +52,10 @@ pub struct History {
     /// The asset.
     pub asset: String,
     /// Its surveys, oldest first.
-    pub surveys: Vec<Measured>,
+    pub surveys: Vec<Entry>,
     /// What changed from one complete survey to the next: indices into
-    /// `surveys` and the comparison.
-    pub changes: Vec<(usize, usize, Compared)>,
+    /// `surveys` and the change.
+    pub changes: Vec<(usize, usize, Change)>,
     /// Pairs that could not be compared, and why.
     pub not_compared: Vec<String>,
     /// What the check surveys decided.
@@ -28,28 +63,27 @@ pub struct History {
 }
 
 /// The history of `asset` in `store`, up to and including survey `up_to`
-/// when given (a report shows what was known when its survey was made).
+/// when given (a report shows what was known when its survey was made):
+/// read from the history's cache, what it lacks measured
+/// ([`super::cache`]).
 pub async fn history(store: &Store, asset: &str, up_to: Option<i64>) -> anyhow::Result<History> {
-    let records = store.surveys_of_asset(asset).await?;
+    let records = store.surveys_of_asset_uncounted(asset).await?;
     let last = up_to.and_then(|id| records.iter().position(|r| r.id == id));
-    let records = &records[..last.map_or(records.len(), |i| i + 1)];
+    let mut records = records;
+    records.truncate(last.map_or(records.len(), |i| i + 1));
     if records.is_empty() {
         return Err(NotFound(format!("no survey of the asset {asset} in {}", store.path().display())).into());
     }
-    let mut surveys = Vec::with_capacity(records.len());
-    for r in records {
-        surveys.push(measure(store, SurveyRef::Id(r.id)).await?);
-    }
-    let native: Vec<usize> =
-        (0..surveys.len()).filter(|&i| surveys[i].survey.is_complete() && surveys[i].is_native()).collect();
+    let made = made(store, &records).await?;
     let (mut changes, mut not_compared) = (Vec::new(), Vec::new());
-    for pair in native.windows(2) {
-        let (a, b) = (&surveys[pair[0]], &surveys[pair[1]]);
-        match compared(a, b) {
-            Ok(c) => changes.push((pair[0], pair[1], c)),
-            Err(e) => not_compared.push(format!("{e:#}")),
+    for (a, b, pair) in made.pairs {
+        match pair {
+            Ok(Pair::Compared(c)) => changes.push((a, b, c)),
+            Ok(Pair::NotComparable(why)) => not_compared.push(Pair::not_compared(&why, &records[a], &records[b])),
+            Err(message) => not_compared.push(message),
         }
     }
+    let surveys = records.into_iter().zip(made.summaries).map(|(survey, summary)| Entry { survey, summary }).collect();
     let checks = store.checks_of_asset(asset).await?;
     Ok(History { asset: asset.to_string(), surveys, changes, not_compared, checks })
 }
@@ -72,7 +106,7 @@ impl History {
             })
             .collect();
         let changes: Vec<Value> =
-            self.changes.iter().map(|(a, b, c)| c.change_json(&self.surveys[*a], &self.surveys[*b])).collect();
+            self.changes.iter().map(|(a, b, c)| c.json(&self.surveys[*a].survey, &self.surveys[*b].survey)).collect();
         json!({
             "asset": self.asset,
             "surveys": surveys,
@@ -92,7 +126,8 @@ impl History {
         let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3e}"));
         for m in &self.surveys {
             let lines: Vec<String> = m
-                .main_lines()
+                .summary
+                .lines
                 .iter()
                 .take(4)
                 .map(|l| format!("{}: {:.2e}", l.cycles_per_rev, l.amplitude_deg))
@@ -104,10 +139,10 @@ impl History {
                 m.survey.created_at,
                 m.kind(),
                 m.survey.status.as_str(),
-                num(m.iso.as_ref().map(|i| i.a)),
-                num(m.iso.as_ref().map(|i| i.r)),
-                num(m.iso.as_ref().and_then(|i| i.b)),
-                num(m.table_u_deg),
+                num(m.summary.iso.as_ref().map(|i| i.a)),
+                num(m.summary.iso.as_ref().map(|i| i.r)),
+                num(m.summary.iso.as_ref().and_then(|i| i.b)),
+                num(m.summary.table_u_deg),
                 if lines.is_empty() { "-".to_string() } else { lines.join(", ") }
             );
             if let Some(c) = self.check(m.survey.id) {
@@ -135,8 +170,8 @@ impl History {
                 "  {} -> {}: {}{}",
                 self.surveys[*a].survey.id,
                 self.surveys[*b].survey.id,
-                c.comparison.verdict.as_str(),
-                if c.decision.recalibrate { format!(": {}", c.decision.reason) } else { String::new() }
+                c.verdict.as_str(),
+                if c.recalibrate { format!(": {}", c.reason) } else { String::new() }
             );
         }
         for n in &self.not_compared {

@@ -11,34 +11,48 @@
 //! its table's uncertainty budgeted. The table of a survey, applied to
 //! another, is this table.
 
+pub mod cache;
 pub mod check;
+mod codec;
 pub mod history;
+
+pub use cache::lines_seen;
 
 use crate::load::{Axis, load};
 use serde_json::{Value, json};
+use std::borrow::Cow;
 use survey_modelgap::ReferenceInfo;
 use survey_modelgap::compare::seen::Unseen;
-use survey_modelgap::compare::{CompareOptions, Comparison, Decision, TableCheck, compare, decide, table_on};
+use survey_modelgap::compare::{
+    CompareError, CompareOptions, Comparison, Decision, TableCheck, compare, decide, table_on,
+};
 use survey_processing::Sample;
 use survey_processing::iso230::{Iso230, iso230_2};
 use survey_processing::model::Design;
 use survey_processing::pipeline::{Processed, process_with_checks};
 use survey_processing::recipe::LineAction;
+use survey_processing::table::CorrectionTable;
 use survey_store::Store;
 use survey_store::survey::{SurveyRecord, SurveyRef, SurveySource};
 
 /// The false-alarm rate every comparison is made at.
 pub const FALSE_ALARM_RATE: f64 = 0.01;
 
-/// One survey, measured for comparison.
+/// One survey, measured for comparison: its samples and what a comparison
+/// takes of its processing (the table and the lines it corrects), not the
+/// processing itself.
 #[derive(Debug)]
 pub struct Measured {
     /// The survey.
     pub survey: SurveyRecord,
     /// Its samples as processed (around the refitted axis, drift corrected).
     pub samples: Vec<Sample>,
-    /// Its processing, or why there is none.
-    pub processed: Result<Processed, String>,
+    /// Its processing's table, or why there is none.
+    pub table: Result<CorrectionTable, String>,
+    /// The lines its table corrects, largest first.
+    pub lines: Vec<MainLine>,
+    /// The lines its own targets cannot place ([`Measured::lines_in_doubt`]).
+    pub doubt: Vec<(f64, Vec<f64>)>,
     /// Its ISO 230-2 figures, when it allows them.
     pub iso: Option<Iso230>,
     /// Its table's expanded uncertainty `U` (k = 2), degrees.
@@ -58,25 +72,29 @@ pub struct MainLine {
     pub phase_deg: f64,
 }
 
+/// The lines the table of `p` corrects, largest first.
+fn main_lines(p: &Processed) -> Vec<MainLine> {
+    let mut lines: Vec<MainLine> = p
+        .analysis
+        .lines
+        .iter()
+        .filter_map(|l| {
+            let d = p.decisions.lines.iter().find(|d| d.significant && d.cycles_per_rev == l.cycles_per_rev)?;
+            matches!(d.action, LineAction::Kept | LineAction::Relocated).then(|| MainLine {
+                cycles_per_rev: d.true_cycles_per_rev,
+                amplitude_deg: l.amplitude_deg,
+                phase_deg: l.true_phase_deg,
+            })
+        })
+        .collect();
+    lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
+    lines
+}
+
 impl Measured {
     /// The lines the table corrects, largest first.
-    pub fn main_lines(&self) -> Vec<MainLine> {
-        let Ok(p) = &self.processed else { return Vec::new() };
-        let mut lines: Vec<MainLine> = p
-            .analysis
-            .lines
-            .iter()
-            .filter_map(|l| {
-                let d = p.decisions.lines.iter().find(|d| d.significant && d.cycles_per_rev == l.cycles_per_rev)?;
-                matches!(d.action, LineAction::Kept | LineAction::Relocated).then(|| MainLine {
-                    cycles_per_rev: d.true_cycles_per_rev,
-                    amplitude_deg: l.amplitude_deg,
-                    phase_deg: l.true_phase_deg,
-                })
-            })
-            .collect();
-        lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
-        lines
+    pub fn main_lines(&self) -> &[MainLine] {
+        &self.lines
     }
 
     /// The lines its own targets cannot place: seen at a bin that more than
@@ -84,14 +102,8 @@ impl Measured {
     /// an alias, two design harmonics at one bin), by the bin they were seen
     /// at, with the candidates. On another grid of targets the true line
     /// shows at another bin: such a line compares only on the same grid.
-    pub fn lines_in_doubt(&self) -> Vec<(f64, Vec<f64>)> {
-        let Ok(p) = &self.processed else { return Vec::new() };
-        p.left
-            .lines
-            .iter()
-            .filter(|l| l.candidates.len() > 1)
-            .map(|l| (l.observed_cycles, l.candidates.clone()))
-            .collect()
+    pub fn lines_in_doubt(&self) -> &[(f64, Vec<f64>)] {
+        &self.doubt
     }
 
     /// `calibration`, `check`, `verification` or `corrected`.
@@ -104,25 +116,6 @@ impl Measured {
     /// corrected axis kept on purpose): only those compare.
     pub fn is_native(&self) -> bool {
         !matches!(self.kind(), "verification" | "corrected")
-    }
-
-    /// The history's entry of this survey (the contract's keys and more).
-    pub fn json(&self) -> Value {
-        let s = &self.survey;
-        json!({
-            "id": s.id,
-            "uid": s.uid,
-            "created_at": s.created_at,
-            "status": s.status.as_str(),
-            "kind": self.kind(),
-            "check_of": s.check_of,
-            "samples": self.samples.len(),
-            "A_deg": self.iso.as_ref().map(|i| i.a),
-            "R_deg": self.iso.as_ref().map(|i| i.r),
-            "B_deg": self.iso.as_ref().and_then(|i| i.b),
-            "table_u_deg": self.table_u_deg,
-            "lines": self.main_lines(),
-        })
     }
 }
 
@@ -139,8 +132,13 @@ pub fn kind(s: &SurveyRecord) -> &'static str {
 
 /// Measure the survey `r` of `store` (see the module documentation).
 pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
-    let loaded = load(store, Some(r), Axis::Refitted).await?;
-    let samples = loaded.analysed().into_owned();
+    let mut loaded = load(store, Some(r), Axis::Refitted).await?;
+    // The samples as analysed, taken over (not copied) when no drift
+    // correction makes new ones.
+    let samples = match loaded.analysed() {
+        Cow::Owned(corrected) => corrected,
+        Cow::Borrowed(_) => std::mem::take(&mut loaded.samples),
+    };
     let design = loaded.survey.model.as_ref().map_or_else(Design::default, |m| m.design.clone());
     // With its check points, as `survey process` takes them in.
     let processed = process_with_checks(&samples, &design, None, None, &loaded.checks).map_err(|e| e.to_string());
@@ -151,7 +149,25 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
         ReferenceInfo::Tracker { axis_se_deg, .. } => axis_se_deg,
         _ => 0.0,
     };
-    Ok(Measured { iso: iso230_2(&samples).ok(), survey: loaded.survey, samples, processed, table_u_deg, axis_se_deg })
+    let lines = processed.as_ref().map_or_else(|_| Vec::new(), main_lines);
+    let doubt = processed.as_ref().map_or_else(
+        |_| Vec::new(),
+        |p| {
+            let doubtful = p.left.lines.iter().filter(|l| l.candidates.len() > 1);
+            doubtful.map(|l| (l.observed_cycles, l.candidates.clone())).collect()
+        },
+    );
+    let table = processed.map(|p| p.built.table);
+    Ok(Measured {
+        iso: iso230_2(&samples).ok(),
+        survey: loaded.survey,
+        samples,
+        table,
+        lines,
+        doubt,
+        table_u_deg,
+        axis_se_deg,
+    })
 }
 
 /// What changed from `a` to `b`, and whether the table of `a` holds on `b`.
@@ -169,6 +185,18 @@ pub struct Compared {
 /// main line of either (and the once-per-revolution line, a mounting's),
 /// the backlash and the mean error map; the table of `a` applied to `b`.
 pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
+    comparable(a, b)?;
+    tested(a, b).map_err(|e| not_comparable(a.survey.id, b.survey.id, &e.to_string()))
+}
+
+/// Why survey `a` cannot be compared with survey `b` (bad input): `why`,
+/// the comparison's own reason.
+pub(crate) fn not_comparable(a: i64, b: i64, why: &str) -> anyhow::Error {
+    crate::error::bad_input(format!("survey {a} cannot be compared with survey {b}: {why}"))
+}
+
+/// `a` and `b` are surveys that compare: of one asset, neither a verification.
+fn comparable(a: &Measured, b: &Measured) -> anyhow::Result<()> {
     if a.survey.asset != b.survey.asset {
         return Err(crate::error::bad_input(format!(
             "survey {} belongs to the asset {} and survey {} to {}: only surveys of one asset compare",
@@ -189,22 +217,26 @@ pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
             v.survey.id
         )));
     }
+    Ok(())
+}
+
+/// The tests of `a` against `b` (surveys that compare), or why the
+/// comparison could not be made.
+fn tested(a: &Measured, b: &Measured) -> Result<Compared, CompareError> {
     let lines: Vec<f64> =
-        std::iter::once(1.0).chain(a.main_lines().iter().chain(&b.main_lines()).map(|l| l.cycles_per_rev)).collect();
+        std::iter::once(1.0).chain(a.main_lines().iter().chain(b.main_lines()).map(|l| l.cycles_per_rev)).collect();
     // A line either survey's targets cannot place compares only on one grid.
     let doubt = in_doubt_across_grids(a, b);
     let lines: Vec<f64> = lines.into_iter().filter(|k| !doubt.iter().any(|u| u.cycles_per_rev == *k)).collect();
     let opts =
         CompareOptions { false_alarm_rate: FALSE_ALARM_RATE, lines, axis_se_deg: [a.axis_se_deg, b.axis_se_deg] };
-    let mut comparison = compare(&a.samples, &b.samples, &opts).map_err(|e| {
-        crate::error::bad_input(format!("survey {} cannot be compared with survey {}: {e}", a.survey.id, b.survey.id))
-    })?;
+    let mut comparison = compare(&a.samples, &b.samples, &opts)?;
     for u in doubt {
         comparison.lines_not_tested.push(u.cycles_per_rev);
         comparison.not_estimable.push(u);
     }
-    let table_of_a_on_b = match (&a.processed, a.table_u_deg) {
-        (Ok(p), Some(u)) => table_on(&p.built.table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
+    let table_of_a_on_b = match (&a.table, a.table_u_deg) {
+        (Ok(table), Some(u)) => table_on(table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
         _ => None,
     };
     let decision = decide(&comparison, table_of_a_on_b.as_ref(), asset_tolerance(a));
@@ -237,12 +269,12 @@ fn in_doubt_across_grids(a: &Measured, b: &Measured) -> Vec<Unseen> {
     let mut out: Vec<Unseen> = Vec::new();
     for (m, name) in [(a, "A"), (b, "B")] {
         for (bin, candidates) in m.lines_in_doubt() {
-            if out.iter().any(|u| u.cycles_per_rev == bin) {
+            if out.iter().any(|u| u.cycles_per_rev == *bin) {
                 continue;
             }
             let c: Vec<String> = candidates.iter().map(|c| format!("{c}")).collect();
             out.push(Unseen {
-                cycles_per_rev: bin,
+                cycles_per_rev: *bin,
                 why: format!(
                     "survey {name}'s targets cannot place the line seen at bin {bin} (it may be {} cycles/rev): on \
                      the other survey's targets it shows at another bin, so the two do not compare line for line; \
@@ -287,7 +319,7 @@ impl Compared {
             Some(t) => serde_json::to_value(t).unwrap_or_default(),
             None => json!({
                 "residual_peak_deg": null, "stated_u_deg": null, "holds": null,
-                "why": a.processed.as_ref().err().cloned().unwrap_or_else(|| "no repeatability in B".into()),
+                "why": a.table.as_ref().err().cloned().unwrap_or_else(|| "no repeatability in B".into()),
             }),
         };
         doc

@@ -10,6 +10,7 @@ use crate::plot::{
 };
 use crate::units::Units;
 use plotters::prelude::*;
+use survey_lab::life::cache::Figures;
 use survey_lab::life::history::History;
 
 /// Days since the first survey of the history, from `created_at` (UTC, RFC 3339).
@@ -45,7 +46,7 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
     // The lines: the largest few of the surveys' main lines, each followed over time.
     let mut cycles: Vec<f64> = Vec::new();
     for m in h.surveys.iter().rev() {
-        for l in m.main_lines() {
+        for l in &m.summary.lines {
             if cycles.len() < 5 && !cycles.contains(&l.cycles_per_rev) {
                 cycles.push(l.cycles_per_rev);
             }
@@ -60,7 +61,7 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
                 .iter()
                 .zip(&t)
                 .filter_map(|(m, &d)| {
-                    let l = m.main_lines().into_iter().find(|l| l.cycles_per_rev == k)?;
+                    let l = m.summary.lines.iter().find(|l| l.cycles_per_rev == k)?;
                     Some((d, units.of(l.amplitude_deg)))
                 })
                 .collect();
@@ -91,8 +92,8 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
             escape(units.symbol())
         ),
     );
-    let iso = |f: fn(&survey_processing::iso230::Iso230) -> f64| -> Vec<(f64, f64)> {
-        h.surveys.iter().zip(&t).filter_map(|(m, &d)| m.iso.as_ref().map(|i| (d, units.of(f(i))))).collect()
+    let iso = |f: fn(&Figures) -> f64| -> Vec<(f64, f64)> {
+        h.surveys.iter().zip(&t).filter_map(|(m, &d)| m.summary.iso.as_ref().map(|i| (d, units.of(f(i))))).collect()
     };
     let (a, r) = (iso(|i| i.a), iso(|i| i.r));
     let (lo, hi) = extent(a.iter().chain(&r).map(|p| p.1));
@@ -134,9 +135,9 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
                 format!("{id}{mark}"),
                 escape(&s.created_at),
                 m.kind().to_string(),
-                units.opt(m.iso.as_ref().map(|i| i.a)),
-                units.opt(m.iso.as_ref().map(|i| i.r)),
-                units.opt(m.table_u_deg),
+                units.opt(m.summary.iso.as_ref().map(|i| i.a)),
+                units.opt(m.summary.iso.as_ref().map(|i| i.r)),
+                units.opt(m.summary.table_u_deg),
                 escape(&decided),
             ]
         })
@@ -144,12 +145,12 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
     let head = ["survey", "made (UTC)", "kind", "A", "R", "table U", "check"];
     html += &table_left("tbl-history", &head, &rows, &[1, 2, 6]);
     for (a, b, c) in &h.changes {
-        if c.comparison.verdict == survey_modelgap::compare::Verdict::Changed {
+        if c.verdict == survey_modelgap::compare::Verdict::Changed {
             html += &format!(
                 "<p class=\"note\">From survey {} to survey {}: {}.</p>\n",
                 h.surveys[*a].survey.id,
                 h.surveys[*b].survey.id,
-                escape(&c.decision.reason)
+                escape(&c.reason)
             );
         }
     }

@@ -10,7 +10,11 @@
 //! keyed by its id in the lab store. A verification names the survey it
 //! verifies by that survey's id, so the verified survey is copied first and
 //! the verification is rewritten to its lab id; a check's recalibration,
-//! copied after the check, completes the check's row there.
+//! copied after the check, completes the check's row there. The history's
+//! cache of a survey (its summary, its comparison with the survey before it
+//! on the station) is copied with it, as made: what the lab store lacks of
+//! an asset's history (a pair of surveys from two stations) is made there
+//! by `survey push` itself after the copy (`survey_lab::life::cache::fill`).
 
 use super::super::tx::WriteTx;
 use super::super::{Backend, Store};
@@ -201,6 +205,15 @@ const ROWS: &[Table] = &[
         columns: &[("pass", Int), ("stream", Text), ("chunk", Int), ("records", Int), ("data", Blob)],
         order: "pass, stream, chunk",
     },
+    // The history's cache of the survey, made by the station (its
+    // summary, and its comparison with the survey before it there): what
+    // the lab store would compute the same from the rows copied.
+    Table { name: "survey_summaries", columns: &[("version", Text), ("data", Blob)], order: "version" },
+    Table {
+        name: "survey_changes",
+        columns: &[("from_uid", Text), ("version", Text), ("data", Blob)],
+        order: "from_uid, version",
+    },
     Table {
         name: "checks",
         columns: &[
@@ -217,6 +230,7 @@ const ROWS: &[Table] = &[
 ];
 
 /// Every table of a survey, with the column that keys it to the survey.
+#[cfg(test)]
 fn tables() -> impl Iterator<Item = (&'static Table, &'static str)> {
     std::iter::once((&SURVEY, "id")).chain(ROWS.iter().map(|t| (t, "survey_id")))
 }
@@ -304,20 +318,17 @@ async fn copy(
         Box::pin(copy(station, from, to, &native, report)).await?;
         verified_lab_id = lab_id(to, &native.uid).await?;
     }
-    let mut rows = Vec::new();
-    for (t, key) in tables() {
-        rows.push(read(from, t, key, s.id).await?);
-    }
-    if let Some(id) = verified_lab_id {
+    let mut survey_row = read(from, &SURVEY, "id", s.id).await?;
+    if let (Some(id), Some(row)) = (verified_lab_id, survey_row.first_mut()) {
         let instruments = SURVEY.columns.iter().position(|c| c.0 == "instruments_json").expect("a column");
-        if let Cell::Text(Some(text)) = &mut rows[0][0][instruments] {
+        if let Cell::Text(Some(text)) = &mut row[instruments] {
             let mut doc: serde_json::Value = serde_json::from_str(text)?;
             doc["verifies_survey"] = id.into();
             *text = doc.to_string();
         }
     }
     let mut tx = WriteTx::begin(to).await?;
-    let written = write(&mut tx, &rows).await;
+    let written = write(&mut tx, station, s.id, &survey_row).await;
     match written {
         Ok(true) => {
             if std::env::var(ABORT_AT).is_ok_and(|n| n == (report.pushed.len() + 1).to_string()) {
@@ -339,43 +350,47 @@ async fn copy(
     Ok(())
 }
 
-/// The rows of table `t` of survey `id` in the station's file.
-async fn read(from: &SqlitePool, t: &Table, key: &str, id: i64) -> anyhow::Result<Vec<Vec<Cell>>> {
+/// The `SELECT` of table `t`'s rows of one survey (`$1`, by `key`), in its order.
+fn select(t: &Table, key: &str) -> String {
     let columns: Vec<&str> = t.columns.iter().map(|c| c.0).collect();
-    let sql = format!("SELECT {} FROM {} WHERE {key} = $1 ORDER BY {}", columns.join(", "), t.name, t.order);
-    let rows = sqlx::query(AssertSqlSafe(sql)).bind(id).fetch_all(from).await?;
-    rows.iter()
-        .map(|r| {
-            t.columns
-                .iter()
-                .map(|&(c, kind)| {
-                    Ok(match kind {
-                        Int => Cell::Int(r.try_get(c)?),
-                        Real => Cell::Real(r.try_get(c)?),
-                        Text => Cell::Text(r.try_get(c)?),
-                        Bool => Cell::Bool(r.try_get(c)?),
-                        Blob => Cell::Blob(r.try_get(c)?),
-                    })
-                })
-                .collect::<Result<Vec<Cell>, sqlx::Error>>()
-                .map_err(anyhow::Error::from)
+    format!("SELECT {} FROM {} WHERE {key} = $1 ORDER BY {}", columns.join(", "), t.name, t.order)
+}
+
+/// The cells of a row of table `t`, as stored.
+fn cells(t: &Table, r: &sqlx::sqlite::SqliteRow) -> Result<Vec<Cell>, sqlx::Error> {
+    t.columns
+        .iter()
+        .map(|&(c, kind)| {
+            Ok(match kind {
+                Int => Cell::Int(r.try_get(c)?),
+                Real => Cell::Real(r.try_get(c)?),
+                Text => Cell::Text(r.try_get(c)?),
+                Bool => Cell::Bool(r.try_get(c)?),
+                Blob => Cell::Blob(r.try_get(c)?),
+            })
         })
         .collect()
 }
 
-/// PostgreSQL binds at most 65 535 values a statement; a stream's chunk is
-/// up to 640 kB, so blobs go a few rows at a time.
-fn rows_per_statement(t: &Table) -> usize {
-    if t.columns.iter().any(|c| c.1 == Blob) { 8 } else { 60_000 / (t.columns.len() + 1) }
+/// The rows of table `t` of survey `id` in the station's file (the
+/// survey's own row, read whole).
+async fn read(from: &SqlitePool, t: &Table, key: &str, id: i64) -> anyhow::Result<Vec<Vec<Cell>>> {
+    let rows = sqlx::query(AssertSqlSafe(select(t, key))).bind(id).fetch_all(from).await?;
+    rows.iter().map(|r| cells(t, r).map_err(anyhow::Error::from)).collect()
 }
 
-/// Write the survey's rows (`rows[0]`: the survey's own) in the open
-/// transaction; `false` when its uid is there already (another push got
-/// there first).
-async fn write(tx: &mut WriteTx<Postgres>, rows: &[Vec<Vec<Cell>>]) -> anyhow::Result<bool> {
+/// Write the survey (its own row `survey_row`, then its rows of every other
+/// table, streamed from the station's file) in the open transaction;
+/// `false` when its uid is there already (another push got there first).
+async fn write(
+    tx: &mut WriteTx<Postgres>,
+    station: &Store,
+    station_id: i64,
+    survey_row: &[Vec<Cell>],
+) -> anyhow::Result<bool> {
     let columns: Vec<&str> = SURVEY.columns.iter().map(|c| c.0).collect();
     let mut qb: QueryBuilder<Postgres> = QueryBuilder::new(format!("INSERT INTO surveys ({}) ", columns.join(", ")));
-    qb.push_values(&rows[0], |mut b, row| {
+    qb.push_values(survey_row, |mut b, row| {
         for cell in row {
             bind(&mut b, cell);
         }
@@ -384,27 +399,252 @@ async fn write(tx: &mut WriteTx<Postgres>, rows: &[Vec<Vec<Cell>>]) -> anyhow::R
     let Some(id) = qb.build_query_scalar::<i64>().fetch_optional(&mut *tx.conn()).await? else {
         return Ok(false);
     };
-    for (t, table_rows) in ROWS.iter().zip(&rows[1..]) {
-        let columns: Vec<&str> = t.columns.iter().map(|c| c.0).collect();
-        for chunk in table_rows.chunks(rows_per_statement(t)) {
-            let mut qb: QueryBuilder<Postgres> =
-                QueryBuilder::new(format!("INSERT INTO {} (survey_id, {}) ", t.name, columns.join(", ")));
-            qb.push_values(chunk, |mut b, row| {
-                b.push_bind(id);
-                for cell in row {
-                    bind(&mut b, cell);
-                }
-            });
-            qb.build().execute(&mut *tx.conn()).await?;
+    for t in ROWS {
+        // A station's file of schema 7 has no history cache to copy.
+        if t.name.starts_with("survey_") && !station.has_history_cache() {
+            continue;
         }
+        copy_rows(tx, station, t, station_id, id).await.map_err(|e| e.context(format!("copying its {}", t.name)))?;
     }
     Ok(true)
+}
+
+/// What a binary `COPY` stream is sent in, bytes at a time.
+const COPY_CHUNK: usize = 1 << 20;
+
+/// A table of no more rows than this is written with multi-row `INSERT`s,
+/// a larger one with a binary `COPY`: a `COPY` ends with a message of a few
+/// bytes after its data, which TCP holds back until the data is
+/// acknowledged (Nagle's algorithm against the server's delayed
+/// acknowledgement: about 40 ms a table, most of a small survey's push),
+/// while a statement's answer carries the acknowledgement with it.
+const FEW_ROWS: usize = 4096;
+
+/// What the reader of a table sends the writer.
+enum Batch {
+    /// Every row of a table of few rows.
+    Rows(Vec<Vec<Cell>>),
+    /// A chunk of binary `COPY` data (the first with the header, the last
+    /// with the trailer).
+    Copy(Vec<u8>),
+}
+
+/// Write the rows of table `t` of the station's survey `station_id` into
+/// the lab store's survey `lab_id`: a blocking thread reads them through a
+/// read-only rusqlite connection (as the samples are read) and sends them a
+/// batch at a time, a large table as binary `COPY` data (no text between
+/// the two stores: every value goes as it is stored, an f64 by its bits).
+/// A survey's rows are never all in memory; a table without rows sends
+/// nothing.
+async fn copy_rows(
+    tx: &mut WriteTx<Postgres>,
+    station: &Store,
+    t: &'static Table,
+    station_id: i64,
+    lab_id: i64,
+) -> anyhow::Result<()> {
+    let (path, immutable) = (station.path.clone(), station.immutable);
+    let (batches_in, mut batches) = tokio::sync::mpsc::channel::<Batch>(2);
+    let reader =
+        tokio::task::spawn_blocking(move || binary::read_rows(&path, immutable, t, station_id, lab_id, &batches_in));
+    let written = match batches.recv().await {
+        // No row: nothing to write.
+        None => Ok(None),
+        Some(Batch::Rows(rows)) => insert_rows(tx, t, lab_id, &rows).await.map(|()| None),
+        Some(Batch::Copy(first)) => {
+            let columns: Vec<&str> = t.columns.iter().map(|c| c.0).collect();
+            let statement = format!("COPY {} (survey_id, {}) FROM STDIN (FORMAT binary)", t.name, columns.join(", "));
+            match tx.conn().copy_in_raw(&statement).await {
+                Ok(mut copy) => {
+                    let mut sent = copy.send(first).await.map(|_| ());
+                    while sent.is_ok()
+                        && let Some(Batch::Copy(chunk)) = batches.recv().await
+                    {
+                        sent = copy.send(chunk).await.map(|_| ());
+                    }
+                    Ok(Some((copy, sent)))
+                }
+                Err(e) => Err(e.into()),
+            }
+        }
+    };
+    drop(batches);
+    let read = match reader.await {
+        Ok(read) => read,
+        Err(e) => Err(anyhow::anyhow!("the reader of {} stopped: {e}", t.name)),
+    };
+    match written {
+        Err(e) => Err(e),
+        Ok(None) => read,
+        Ok(Some((copy, sent))) => match sent.map_err(anyhow::Error::from).and(read) {
+            Ok(()) => {
+                copy.finish().await?;
+                Ok(())
+            }
+            Err(e) => {
+                // The transaction is rolled back and its connection retired by the caller.
+                let _ = copy.abort(format!("{e:#}")).await;
+                Err(e)
+            }
+        },
+    }
+}
+
+/// PostgreSQL binds at most 65 535 values a statement; a stream's chunk is
+/// up to 640 kB, so blobs go a few rows at a time.
+fn rows_per_statement(t: &Table) -> usize {
+    if t.columns.iter().any(|c| c.1 == Blob) { 8 } else { 60_000 / (t.columns.len() + 1) }
+}
+
+/// Insert `rows` of table `t` for the lab store's survey `lab_id`.
+async fn insert_rows(tx: &mut WriteTx<Postgres>, t: &Table, lab_id: i64, rows: &[Vec<Cell>]) -> anyhow::Result<()> {
+    let columns: Vec<&str> = t.columns.iter().map(|c| c.0).collect();
+    for chunk in rows.chunks(rows_per_statement(t)) {
+        let mut qb: QueryBuilder<Postgres> =
+            QueryBuilder::new(format!("INSERT INTO {} (survey_id, {}) ", t.name, columns.join(", ")));
+        qb.push_values(chunk, |mut b, row| {
+            b.push_bind(lab_id);
+            for cell in row {
+                bind(&mut b, cell);
+            }
+        });
+        qb.build().execute(&mut *tx.conn()).await?;
+    }
+    Ok(())
+}
+
+/// PostgreSQL's binary `COPY` format: a header, each row as its field count
+/// and each field's length (-1: NULL) and bytes in network order, a
+/// trailer; and the rows read for it.
+mod binary {
+    use super::{Batch, Cell, FEW_ROWS, Kind, Table};
+
+    /// The signature, no flags, no header extension.
+    fn header() -> Vec<u8> {
+        let mut buf = Vec::with_capacity(super::COPY_CHUNK + 4096);
+        buf.extend_from_slice(b"PGCOPY\n\xff\r\n\0");
+        buf.extend_from_slice(&0i32.to_be_bytes());
+        buf.extend_from_slice(&0i32.to_be_bytes());
+        buf
+    }
+
+    fn field(buf: &mut Vec<u8>, bytes: Option<&[u8]>) {
+        match bytes {
+            Some(b) => {
+                buf.extend_from_slice(&(b.len() as i32).to_be_bytes());
+                buf.extend_from_slice(b);
+            }
+            None => buf.extend_from_slice(&(-1i32).to_be_bytes()),
+        }
+    }
+
+    /// A row: the survey's key, then its cells (BIGINT, DOUBLE PRECISION,
+    /// TEXT, BOOLEAN, BYTEA as the columns are).
+    fn row(buf: &mut Vec<u8>, key: i64, cells: &[Cell]) {
+        buf.extend_from_slice(&(1 + cells.len() as i16).to_be_bytes());
+        field(buf, Some(&key.to_be_bytes()));
+        for c in cells {
+            match c {
+                Cell::Int(v) => field(buf, v.map(i64::to_be_bytes).as_ref().map(|b| &b[..])),
+                Cell::Real(v) => field(buf, v.map(|x| x.to_bits().to_be_bytes()).as_ref().map(|b| &b[..])),
+                Cell::Text(v) => field(buf, v.as_deref().map(str::as_bytes)),
+                Cell::Bool(v) => field(buf, v.map(|b| [u8::from(b)]).as_ref().map(|b| &b[..])),
+                Cell::Blob(v) => field(buf, v.as_deref()),
+            }
+        }
+    }
+
+    /// The cells of a row of table `t` as stored; a value of another kind
+    /// than its column's is an error naming the column.
+    fn cells(t: &Table, r: &rusqlite::Row<'_>) -> anyhow::Result<Vec<Cell>> {
+        use rusqlite::types::ValueRef as V;
+        let mut out = Vec::with_capacity(t.columns.len());
+        for (i, &(name, kind)) in t.columns.iter().enumerate() {
+            let v = r.get_ref(i)?;
+            out.push(match (kind, v) {
+                (Kind::Int, V::Null) => Cell::Int(None),
+                (Kind::Int, V::Integer(x)) => Cell::Int(Some(x)),
+                (Kind::Real, V::Null) => Cell::Real(None),
+                (Kind::Real, V::Real(x)) => Cell::Real(Some(x)),
+                (Kind::Real, V::Integer(x)) => Cell::Real(Some(x as f64)),
+                (Kind::Bool, V::Null) => Cell::Bool(None),
+                (Kind::Bool, V::Integer(x @ (0 | 1))) => Cell::Bool(Some(x == 1)),
+                (Kind::Text, V::Null) => Cell::Text(None),
+                (Kind::Text, V::Text(x)) => Cell::Text(Some(std::str::from_utf8(x)?.to_string())),
+                (Kind::Blob, V::Null) => Cell::Blob(None),
+                (Kind::Blob, V::Blob(x)) => Cell::Blob(Some(x.to_vec())),
+                (_, v) => anyhow::bail!("{}.{name} holds a {:?} where a {kind:?} belongs", t.name, v.data_type()),
+            });
+        }
+        Ok(out)
+    }
+
+    /// Read the rows of table `t` of survey `station_id` from the station's
+    /// file at `path` and send them for the lab store's survey `lab_id`:
+    /// [`FEW_ROWS`] or fewer as one batch of rows, more as binary `COPY`
+    /// data a chunk at a time; nothing when there is no row. Stops early
+    /// when nobody receives any more.
+    pub(super) fn read_rows(
+        path: &std::path::Path,
+        immutable: bool,
+        t: &Table,
+        station_id: i64,
+        lab_id: i64,
+        out: &tokio::sync::mpsc::Sender<Batch>,
+    ) -> anyhow::Result<()> {
+        let conn = crate::samples::open_reader(path, immutable)?;
+        let mut statement = conn.prepare(&super::select(t, "survey_id"))?;
+        let mut rows = statement.query([station_id])?;
+        let (mut few, mut copy): (Vec<Vec<Cell>>, Option<Vec<u8>>) = (Vec::new(), None);
+        while let Some(r) = rows.next()? {
+            let c = cells(t, r)?;
+            match &mut copy {
+                None if few.len() < FEW_ROWS => few.push(c),
+                None => {
+                    let mut buf = header();
+                    for earlier in few.drain(..) {
+                        row(&mut buf, lab_id, &earlier);
+                    }
+                    row(&mut buf, lab_id, &c);
+                    copy = Some(buf);
+                }
+                Some(buf) => {
+                    row(buf, lab_id, &c);
+                    if buf.len() >= super::COPY_CHUNK && out.blocking_send(Batch::Copy(std::mem::take(buf))).is_err() {
+                        return Ok(());
+                    }
+                }
+            }
+        }
+        let last = match copy {
+            Some(mut buf) => {
+                buf.extend_from_slice(&(-1i16).to_be_bytes());
+                Batch::Copy(buf)
+            }
+            None if few.is_empty() => return Ok(()),
+            None => Batch::Rows(few),
+        };
+        let _ = out.blocking_send(last);
+        Ok(())
+    }
 }
 
 /// A check copied before the recalibration it called for was recorded: the
 /// station's record of the recalibration completes the lab's (once; a
 /// check's recalibration is never changed after).
 async fn sync_checks(from: &SqlitePool, to: &PgPool) -> anyhow::Result<()> {
+    // Only the lab's checks still waiting for theirs are written (a push
+    // costs one read of each side, not a transaction a check).
+    let waiting: std::collections::HashSet<String> = sqlx::query_scalar(
+        "SELECT s.uid FROM checks AS c JOIN surveys AS s ON s.id = c.survey_id WHERE c.recalibration_uid IS NULL",
+    )
+    .fetch_all(to)
+    .await?
+    .into_iter()
+    .collect();
+    if waiting.is_empty() {
+        return Ok(());
+    }
     let done = sqlx::query(
         "SELECT s.uid, c.recalibration_uid, c.table_file FROM checks AS c JOIN surveys AS s ON s.id = c.survey_id \
          WHERE c.recalibration_uid IS NOT NULL",
@@ -413,6 +653,9 @@ async fn sync_checks(from: &SqlitePool, to: &PgPool) -> anyhow::Result<()> {
     .await?;
     for r in done {
         let (check, recal, table): (String, String, Option<String>) = (r.try_get(0)?, r.try_get(1)?, r.try_get(2)?);
+        if !waiting.contains(&check) {
+            continue;
+        }
         let mut tx = WriteTx::begin(to).await?;
         let updated = sqlx::query(
             "UPDATE checks SET recalibration_uid = $1, table_file = $2 \
