@@ -2,7 +2,33 @@
 //! number is parsed.
 
 use clap::{Args, ValueEnum};
+use std::path::PathBuf;
 use survey_bench::output::Units;
+
+/// The environment variable naming the survey database when `--db` is not given.
+pub const DB_ENV: &str = "SURVEY_DB";
+
+/// `--db`, on every command that reads or writes the survey database (and
+/// on `survey` itself, before the command, as `survey --db FILE list`); the
+/// commands that never open it (`check`, `sim`, `completions`, `man`) do not
+/// offer it.
+#[derive(Debug, Clone, Default, Args)]
+pub struct DbArg {
+    /// The SQLite database that holds the surveys, or a lab store's postgres:// URL (read commands) [default: survey.db; env: SURVEY_DB].
+    #[arg(long = "db", value_name = "PATH|URL", value_hint = clap::ValueHint::FilePath)]
+    db: Option<PathBuf>,
+}
+
+impl DbArg {
+    /// The database: this command's `--db`, else `survey --db`, else
+    /// `SURVEY_DB` (when set and not empty), else `survey.db`.
+    pub fn or(self, top: Option<PathBuf>) -> PathBuf {
+        self.db
+            .or(top)
+            .or_else(|| std::env::var_os(DB_ENV).filter(|v| !v.is_empty()).map(PathBuf::from))
+            .unwrap_or_else(|| PathBuf::from(survey_lab::process::DEFAULT_DB))
+    }
+}
 
 /// `--units deg|arcsec|urad`, the same on every command that prints an
 /// error: flatten it into the command's arguments (`#[command(flatten)]`)
@@ -11,7 +37,7 @@ use survey_bench::output::Units;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Args)]
 pub struct UnitsArg {
     /// The unit of the errors printed: degrees, arcseconds or microradians (angles along the axis stay in degrees; --json is always degrees).
-    #[arg(long = "units", value_enum, value_name = "UNIT", default_value_t = UnitChoice::Deg, env = "SURVEY_UNITS")]
+    #[arg(long = "units", value_enum, value_name = "UNIT", default_value_t = UnitChoice::Deg, env = "SURVEY_UNITS", hide_env_values = true)]
     choice: UnitChoice,
 }
 

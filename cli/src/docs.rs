@@ -95,6 +95,7 @@ fn page(cmd: clap::Command, see_also: &[String]) -> anyhow::Result<Vec<u8>> {
         }
         buf.extend(b".fi\n");
     }
+    buf.extend(ENVIRONMENT_AND_EXIT_STATUS.as_bytes());
     if !see_also.is_empty() {
         let pages: Vec<String> = see_also.iter().map(|p| format!("\\fB{}\\fR(1)", roff_text(p))).collect();
         buf.extend(format!(".SH \"SEE ALSO\"\n{}\n", pages.join(", ")).as_bytes());
@@ -107,6 +108,39 @@ fn page(cmd: clap::Command, see_also: &[String]) -> anyhow::Result<Vec<u8>> {
     let rest: String = parts.collect();
     Ok(if rest.is_empty() { first.into() } else { format!("{first}{ROFF_PREAMBLE}{rest}").into_bytes() })
 }
+
+/// The environment a command reads and the exit statuses it gives, the same
+/// on every page (roff).
+const ENVIRONMENT_AND_EXIT_STATUS: &str = r#".SH ENVIRONMENT
+.TP
+\fBSURVEY_DB\fR
+The survey database (a SQLite file, or a lab store's postgres:// URL) when \fB\-\-db\fR is not given; \fBsurvey.db\fR when neither is.
+.TP
+\fBSURVEY_UNITS\fR
+The default of \fB\-\-units\fR: deg, arcsec or urad.
+.TP
+\fBSURVEY_LAB\fR
+The lab store \fBsurvey push\fR copies to when \fB\-\-to\fR is not given (its password never printed).
+.TP
+\fBSURVEY_CHROMIUM\fR, \fBSURVEY_PDF_TIMEOUT_S\fR
+The browser \fBsurvey report \-\-pdf\fR prints with, and how long one print may take (seconds, default 120).
+.TP
+\fBRUST_LOG\fR
+When set, decides what is logged on stderr instead of \fB\-v\fR (tracing's filter syntax).
+.SH "EXIT STATUS"
+.TP
+\fB0\fR
+Success (\fBsurvey run \-\-check\fR: in tolerance, or changed within a table that holds).
+.TP
+\fB1\fR
+The work failed at run time: an instrument, the disk, an interrupted survey, a verification not confirmed, a check that could not decide.
+.TP
+\fB2\fR
+Bad usage or bad input (a flag, a file, a configuration, a damaged database); nothing stored was changed.
+.TP
+\fB3\fR
+\fBsurvey run \-\-check\fR made a full survey (recalibrated, or the asset's first calibration).
+"#;
 
 /// What clap_mangen writes before every piece of roff it renders.
 const ROFF_PREAMBLE: &str = ".ie \\n(.g .ds Aq \\(aq\n.el .ds Aq '\n";

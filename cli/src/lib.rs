@@ -47,17 +47,9 @@ use std::process::ExitCode;
 #[derive(Debug, Parser)]
 #[command(name = "survey", version, propagate_version = true, max_term_width = 100, after_help = EXAMPLES)]
 pub struct Cli {
-    /// The SQLite database that holds the surveys, or a lab store's postgres:// URL (read commands).
-    #[arg(
-        long,
-        global = true,
-        value_name = "PATH|URL",
-        value_hint = clap::ValueHint::FilePath,
-        default_value = survey_lab::process::DEFAULT_DB,
-        env = "SURVEY_DB",
-        hide_env_values = true
-    )]
-    pub db: PathBuf,
+    /// The SQLite database that holds the surveys, or a lab store's postgres:// URL (read commands) [default: survey.db; env: SURVEY_DB].
+    #[arg(long, value_name = "PATH|URL", value_hint = clap::ValueHint::FilePath)]
+    pub db: Option<PathBuf>,
 
     /// Say more on stderr: -v how the work is done, -vv debug, -vvv trace (RUST_LOG, when set, decides instead).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
@@ -85,7 +77,12 @@ Examples:
   survey run --points 720 --runs 3 --bidirectional --preset fig4 --json
   survey run --points 24 --reference autocollimator       # a 24-face polygon
   survey run --config bench.toml --points 360 --bidirectional --verify")]
-    Run(run::RunArgs),
+    Run {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: run::RunArgs,
+    },
     /// Connect to every configured instrument and say plainly what is wrong.
     #[command(after_help = "\
 Examples:
@@ -97,37 +94,67 @@ Examples:
 Examples:
   survey resume                   # the latest survey
   survey resume --survey 3 --json")]
-    Resume(resume::ResumeArgs),
+    Resume {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: resume::ResumeArgs,
+    },
     /// Write the survey's report, its calibration certificate: one self-contained HTML page into --out DIR.
     #[command(after_help = "\
 Examples:
   survey report --out report/               # report/index.html of the latest survey
   survey report --survey 3 --out survey-3/")]
-    Report(report::ReportArgs),
+    Report {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: report::ReportArgs,
+    },
     /// Store measured data from a CSV file as a new survey; prints its id.
     #[command(after_help = "\
 Examples:
   survey import measured.csv
   survey --db lab.db import measured.csv && survey --db lab.db stats")]
-    Import(import::ImportArgs),
+    Import {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: import::ImportArgs,
+    },
     /// Write a survey in the import CSV format.
     #[command(after_help = "\
 Examples:
   survey export --csv survey.csv              # the latest survey
   survey export --csv survey-3.csv --survey 3")]
-    Export(export::ExportArgs),
+    Export {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: export::ExportArgs,
+    },
     /// ISO 230-2 statistics across runs.
     #[command(after_help = "\
 Examples:
   survey stats
   survey stats --survey 3 --json")]
-    Stats(stats::StatsArgs),
+    Stats {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: stats::StatsArgs,
+    },
     /// Find where a model and the measured data disagree, name what the model lacks, and close the gap.
     #[command(after_help = "\
 Examples:
   survey model-gap --model positioner.toml
   survey model-gap --model positioner.toml --out improved.toml --json")]
-    ModelGap(model_gap::ModelGapArgs),
+    ModelGap {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: model_gap::ModelGapArgs,
+    },
     /// The paper's DSP processing: spectrum, lines, aliases, the correction table and its exports.
     #[command(after_help = "\
 Examples:
@@ -137,44 +164,79 @@ Examples:
   survey process --controller 840d --sinumerik-axis A1 --sinumerik-absolute
   survey process --controller fanuc --table-interval 5 --table-directions separate
   survey process --controller generic --table-sign correction --table-values incremental")]
-    Process(process::ProcessArgs),
+    Process {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: process::ProcessArgs,
+    },
     /// Every survey in the database: id, status, source, plan, samples stored of planned, dates.
     #[command(after_help = "\
 Examples:
   survey list
   survey --db lab.db list --json")]
-    List(list::ListArgs),
+    List {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: list::ListArgs,
+    },
     /// One survey in full: plan, instruments, located axis, model and event log.
     #[command(after_help = "\
 Examples:
   survey show          # the latest survey
   survey show 3 --json")]
-    Show(list::ShowArgs),
+    Show {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: list::ShowArgs,
+    },
     /// An asset's surveys in time order, and what changed from each complete survey to the next.
     #[command(after_help = "\
 Examples:
   survey history                          # the asset of the latest survey
   survey history --asset bay-2/az --json")]
-    History(history::HistoryArgs),
+    History {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: history::HistoryArgs,
+    },
     /// Has the positioner changed from survey A to survey B, and does A's table still hold?
     #[command(after_help = "\
 Examples:
   survey compare 3 7
   survey compare 3 7 --json")]
-    Compare(compare::CompareArgs),
+    Compare {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: compare::CompareArgs,
+    },
     /// Copy complete surveys from this station's SQLite file to the lab store, each once by its uid.
     #[command(after_help = "\
 Examples:
   survey push --to postgres://station1:PASSWORD@lab-db:5432/surveys --all
   survey push --json        # the latest survey, to the lab store SURVEY_LAB names")]
-    Push(push::PushArgs),
+    Push {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: push::PushArgs,
+    },
     /// Serve the lab's pages, read-only: assets, live surveys, histories, reports and the JSON documents.
     #[command(after_help = "\
 Examples:
   survey serve                                          # survey.db on http://127.0.0.1:8080
   survey --db lab.db serve --listen 127.0.0.1:0         # any free port: the ready line says which
   survey --db postgres://viewer:PASSWORD@lab-db/surveys serve --due-after 180   # the lab store")]
-    Serve(serve::ServeArgs),
+    Serve {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: serve::ServeArgs,
+    },
     /// Serve the simulated instruments of a configuration over their real protocols, until a signal.
     #[command(after_help = "\
 Examples:
@@ -246,23 +308,24 @@ fn wedge_a_worker() {
 
 /// Run the command.
 pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
-    let db = &cli.db;
+    let top = cli.db;
+    let pick = |arg: args::DbArg| arg.or(top.clone());
     match cli.command {
-        Command::Run(args) => run::run(db, args).await,
+        Command::Run { db, args } => run::run(&pick(db), args).await,
         Command::Check(args) => check::check(args).await,
-        Command::Resume(args) => resume::resume(db, args).await,
-        Command::Report(args) => report::report(db, args).await,
-        Command::Import(args) => import::import(db, args).await,
-        Command::Export(args) => export::export(db, args).await,
-        Command::Stats(args) => stats::stats(db, args).await,
-        Command::ModelGap(args) => model_gap::model_gap(db, args).await,
-        Command::Process(args) => process::process(db, args).await,
-        Command::List(args) => list::list(db, args).await,
-        Command::Show(args) => list::show(db, args).await,
-        Command::History(args) => history::history(db, args).await,
-        Command::Compare(args) => compare::compare(db, args).await,
-        Command::Push(args) => push::push(db, args).await,
-        Command::Serve(args) => serve::serve(db, args).await,
+        Command::Resume { db, args } => resume::resume(&pick(db), args).await,
+        Command::Report { db, args } => report::report(&pick(db), args).await,
+        Command::Import { db, args } => import::import(&pick(db), args).await,
+        Command::Export { db, args } => export::export(&pick(db), args).await,
+        Command::Stats { db, args } => stats::stats(&pick(db), args).await,
+        Command::ModelGap { db, args } => model_gap::model_gap(&pick(db), args).await,
+        Command::Process { db, args } => process::process(&pick(db), args).await,
+        Command::List { db, args } => list::list(&pick(db), args).await,
+        Command::Show { db, args } => list::show(&pick(db), args).await,
+        Command::History { db, args } => history::history(&pick(db), args).await,
+        Command::Compare { db, args } => compare::compare(&pick(db), args).await,
+        Command::Push { db, args } => push::push(&pick(db), args).await,
+        Command::Serve { db, args } => serve::serve(&pick(db), args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),

@@ -216,6 +216,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         uncertainty,
         crash_when_staged: false,
         checks: loaded.checks.clone(),
+        quiet: false,
     };
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
     let outcome = process_survey(survey, &to_process, opts)?;

@@ -276,8 +276,12 @@ async fn process(
         output.text += &o.text;
         return Ok(processed);
     }
-    let processed = process_survey(record, survey.samples, processing.clone()).map_err(Unprocessed::Failed)?;
+    // Quiet: when check points follow, what this processing would note is
+    // not yet decided; the final processing says its own notes.
+    let first = ProcessOptions { quiet: true, ..processing.clone() };
+    let processed = process_survey(record, survey.samples, first).map_err(Unprocessed::Failed)?;
     let Some(checks) = crate::resolving::checks_plan(&survey.plan, engine.reference_kind(), &processed) else {
+        crate::process::say_notes(&processed);
         return Ok(processed);
     };
     let left = &processed.processed.left;

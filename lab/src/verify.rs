@@ -319,7 +319,7 @@ fn placement(v: &VerifyPlan) -> String {
     } else if v.between && v.resized {
         format!(
             "at {} targets between the calibration targets (at least {:.4} deg from each), half their own step from \
-             0: the fewest from one a target up that leave no plausible alias of the table's lines hidden between \
+             0: the fewest above the calibration's own count that leave no plausible alias of the table's lines hidden between \
              them (half a step from every target would)",
             v.plan.targets_deg.len(),
             v.offset_deg

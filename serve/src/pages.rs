@@ -153,10 +153,11 @@ pub(super) async fn asset(
         let figures =
             survey_report::html::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
         let body = format!(
-            "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} surveys; the history as JSON: \
+            "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} {noun}; the history as JSON: \
              <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{s}",
             a = escape(&h.asset),
             n = h.surveys.len(),
+            noun = if h.surveys.len() == 1 { "survey" } else { "surveys" },
             s = section("history", "History", &[], &figures),
         );
         Ok(page(&format!("Asset {}", h.asset), &body))

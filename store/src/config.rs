@@ -667,19 +667,28 @@ impl SurveyConfig {
             fetch_interval: secs(t.fetch_interval_s, dsc.fetch_interval),
             ..dsc
         };
+        // The engine waits on the wall clock; the instruments of a rehearsal
+        // (`survey sim --time-scale X`) run X times faster, so the waits that
+        // pace them (polls, settling, dwell, back-off) shrink with them and
+        // the rehearsal's instrument time is the hardware's. The bounds
+        // (timeouts, the move's margin, the beam's wait) stay on the wall
+        // clock: a loaded machine must not turn them into faults.
+        let scale = self.time_scale();
+        let paced = |d: Duration| if scale == 1.0 { d } else { d.div_f64(scale) };
+        let settle = SettleSpec { stable_for: paced(settle.stable_for), poll: paced(settle.poll), ..settle };
         Timing {
             call_timeout: secs(t.call_timeout_s, d.call_timeout),
             measure_timeout: secs(t.measure_timeout_s, d.measure_timeout),
             move_margin: secs(t.move_margin_s, d.move_margin),
-            poll_interval: secs(t.poll_interval_s, d.poll_interval),
-            dwell: secs(t.dwell_s, d.dwell),
+            poll_interval: paced(secs(t.poll_interval_s, d.poll_interval)),
+            dwell: paced(secs(t.dwell_s, d.dwell)),
             max_retries: t.max_retries.unwrap_or(d.max_retries),
-            retry_backoff: secs(t.retry_backoff_s, d.retry_backoff),
+            retry_backoff: paced(secs(t.retry_backoff_s, d.retry_backoff)),
             locate_points: t.locate_points.unwrap_or(d.locate_points),
             velocity_deg_s: t.velocity_deg_s.unwrap_or(d.velocity_deg_s),
             accel_deg_s2: t.accel_deg_s2.unwrap_or(d.accel_deg_s2),
             beam_wait: secs(t.beam_wait_s, d.beam_wait),
-            beam_retry: secs(t.beam_retry_s, d.beam_retry),
+            beam_retry: paced(secs(t.beam_retry_s, d.beam_retry)),
             settle,
             scan,
         }

@@ -33,6 +33,7 @@ mod serve;
 mod tables;
 mod usage;
 mod verify;
+mod walk;
 
 use serde_json::Value;
 use std::fmt;

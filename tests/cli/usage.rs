@@ -330,3 +330,35 @@ fn a_rehearsal_on_a_scaled_sim_reports_instrument_time_on_the_instruments_clock(
     drop(sim);
     assert!(text.stdout.contains("below the bound") && text.stdout.contains("time_scale = X"), "{text}");
 }
+
+/// Issue 41: `--db` is offered where it means something (and works before or
+/// after the command, as the contract says), never by `sim`, `check`,
+/// `completions` or `man`; an unset variable is not shown as set to nothing;
+/// the manual page has its ENVIRONMENT and EXIT STATUS.
+#[test]
+fn each_command_offers_the_options_it_uses_and_the_manual_says_its_environment_and_exit_statuses() {
+    let b = Bench::new();
+    for command in ["run", "stats", "list", "show", "history", "report", "serve", "push", "import", "export"] {
+        let help = b.survey(&[command, "--help"]).success();
+        assert!(help.stdout.contains("--db <PATH|URL>"), "{help}");
+        assert!(!help.stdout.contains("SURVEY_UNITS=") && !help.stdout.contains("SURVEY_DB="), "{help}");
+    }
+    for command in ["sim", "check", "completions", "man"] {
+        let help = b.survey(&[command, "--help"]).success();
+        assert!(!help.stdout.contains("--db"), "{help}");
+    }
+    b.survey(&["sim", "--db", "x.db", "--config", "none.toml"]).bad_input(&["--db"]);
+    b.survey(&["--db", "a.db", "run", "--points", "12", "--runs", "2"]).success();
+    b.survey(&["stats", "--db", "a.db"]).success();
+    b.survey(&["--db", "a.db", "stats"]).success();
+    b.survey_with_env(&["stats"], "SURVEY_DB", "a.db").success();
+    // The command's own --db before survey's, before the environment's.
+    b.survey_with_env(&["--db", "none.db", "stats", "--db", "a.db"], "SURVEY_DB", "none.db").success();
+    b.survey_with_env(&["stats"], "SURVEY_DB", "none.db").stderr_mentions(&["none.db"]);
+    let history = b.survey(&["--db", "a.db", "history"]).success();
+    assert!(history.stdout.contains(": 1 survey\n"), "{history}");
+    let man = b.survey(&["man"]).success();
+    for section in [".SH ENVIRONMENT", ".SH \"EXIT STATUS\"", "SURVEY_DB", "SURVEY_UNITS", "SURVEY_LAB"] {
+        assert!(man.stdout.contains(section), "{section}\n{man}");
+    }
+}

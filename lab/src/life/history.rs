@@ -117,7 +117,8 @@ impl History {
 
     /// For people: one line per survey, then the changes.
     pub fn text(&self) -> String {
-        let mut s = format!("asset {}: {} surveys\n", self.asset, self.surveys.len());
+        let n = self.surveys.len();
+        let mut s = format!("asset {}: {n} {}\n", self.asset, if n == 1 { "survey" } else { "surveys" });
         let _ = writeln!(
             s,
             "{:>4}  {:<20}  {:<12} {:<11} {:>9} {:>9} {:>9} {:>9}  main lines (cycles/rev: amplitude, deg)",

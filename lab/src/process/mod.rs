@@ -82,6 +82,31 @@ pub struct ProcessOptions {
     /// Check points measured between the targets to decide the lines in
     /// doubt ([`crate::resolving`]; empty when there are none).
     pub checks: Vec<Sample>,
+    /// Print no notes: the caller says them once it has decided what stands
+    /// ([`say_notes`]; a survey that measures check points next says the
+    /// notes of its final processing only).
+    pub quiet: bool,
+}
+
+/// The notes of a processing on stderr, as [`compute`] says them unless
+/// `quiet`: the missing design, then the processing's own.
+pub fn say_notes(outcome: &ProcessOutcome) {
+    if outcome.design.from == NO_DESIGN {
+        survey_bench::say!("{}", no_design_note(outcome.survey_id));
+    }
+    for n in &outcome.processed.notes {
+        survey_bench::say!("note: {n}");
+    }
+}
+
+/// [`DesignSource::from`] when the survey has no model and none was given.
+const NO_DESIGN: &str = "none";
+
+fn no_design_note(id: i64) -> String {
+    format!(
+        "note: survey {id} has no stored model and no design was given: lines are named without a design (`survey \
+         process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth harmonics)"
+    )
 }
 
 /// Where the design came from.
@@ -166,12 +191,10 @@ pub fn compute(
         None => match &survey.model {
             Some(model) => (model.design.clone(), "the survey's stored model".to_string()),
             None => {
-                survey_bench::say!(
-                    "note: survey {id} has no stored model and no design was given: lines are named without a design \
-                     (`survey process --design MODEL.toml` or `survey report --design MODEL.toml` names gear and tooth \
-                     harmonics)"
-                );
-                (Design::default(), "none".to_string())
+                if !opts.quiet {
+                    survey_bench::say!("{}", no_design_note(id));
+                }
+                (Design::default(), NO_DESIGN.to_string())
             }
         },
     };
@@ -205,8 +228,10 @@ pub fn compute(
     {
         processed.notes.push(t);
     }
-    for n in &processed.notes {
-        survey_bench::say!("note: {n}");
+    if !opts.quiet {
+        for n in &processed.notes {
+            survey_bench::say!("note: {n}");
+        }
     }
     // How the table was made, not something to act on: under -v or RUST_LOG=info.
     if let Some(dm) = &processed.built.direction_model {
