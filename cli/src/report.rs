@@ -112,6 +112,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
         design: args.design,
         recipe: args.recipe,
         model: args.model,
+        quiet: false,
     };
     let progress = crate::progress::Progress::spinner("writing the report", crate::progress::visible(false));
     let store = open_read_only(db).await?;

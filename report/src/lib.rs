@@ -54,6 +54,9 @@ pub struct ReportOptions {
     pub recipe: Option<PathBuf>,
     /// Compare the survey with this model (model-gap) and show the steps.
     pub model: Option<PathBuf>,
+    /// Say no processing notes on stderr (`survey serve`: a page view is not
+    /// a command, and its notes are on the page).
+    pub quiet: bool,
 }
 
 /// Everything the page shows.
@@ -126,6 +129,7 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
         recipe: opts.recipe.clone(),
         table_out: None,
         checks: loaded.checks.clone(),
+        quiet: opts.quiet,
         ..Default::default()
     };
     let processed = match survey_lab::process::compute(survey, &analysed, &process_opts) {

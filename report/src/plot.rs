@@ -100,6 +100,64 @@ pub fn axes<'a, 'b>(
     Ok(chart)
 }
 
+/// Axes over a time `x` (seconds since 1970, UTC) and `y`: the x ticks are
+/// UTC dates (and times when the span is short), never fractions of a day.
+pub fn time_axes<'a, 'b>(
+    area: &'a Area<'b>,
+    x: Range<f64>,
+    y: Range<f64>,
+    y_desc: &str,
+) -> anyhow::Result<Chart<'a, 'b>> {
+    let span = x.end - x.start;
+    // YYYY-MM-DD over weeks, MM-DD HH:MM over days, HH:MM:SS within hours.
+    let (from, to, x_desc) = if span > 7.0 * 86_400.0 {
+        (0, 10, "date (UTC)")
+    } else if span > 6.0 * 3_600.0 {
+        (5, 16, "date and time (UTC)")
+    } else {
+        (11, 19, "time of day (UTC)")
+    };
+    let x_fmt = move |v: &f64| {
+        let at = std::time::UNIX_EPOCH + std::time::Duration::from_secs_f64(v.max(0.0));
+        let text = humantime::format_rfc3339_seconds(at).to_string();
+        text.get(from..to).unwrap_or(&text).replace('T', " ")
+    };
+    let yd = tick_decimals(y.end - y.start);
+    let y_fmt = move |v: &f64| format!("{v:.yd$}");
+    let mut chart = ChartBuilder::on(area)
+        .margin_top(14)
+        .margin_right(48)
+        .margin_left(8)
+        .x_label_area_size(58)
+        .y_label_area_size(96)
+        .build_cartesian_2d(x, y)
+        .map_err(plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style(("sans-serif", TICK_FONT).into_font().color(&INK))
+        .axis_desc_style(("sans-serif", DESC_FONT).into_font().color(&INK))
+        .light_line_style(WHITE)
+        .bold_line_style(RGBColor(212, 212, 212))
+        .axis_style(INK)
+        .x_labels(5)
+        .y_labels(8)
+        .x_label_formatter(&x_fmt)
+        .y_label_formatter(&y_fmt)
+        .draw()
+        .map_err(plot_err)?;
+    Ok(chart)
+}
+
+/// A time range (seconds) with room each side: 5 % of its span, at least a
+/// minute (surveys made within one second still get an axis).
+pub fn padded_time(lo: f64, hi: f64) -> Range<f64> {
+    let (lo, hi) = if lo.is_finite() && hi.is_finite() { (lo, hi) } else { (0.0, 86_400.0) };
+    let pad = ((hi - lo) * 0.05).max(60.0);
+    (lo - pad)..(hi + pad)
+}
+
 /// `lo..hi` widened by `pad` of its span each side (a flat range gets a
 /// small span of its own, so the axis still has ticks).
 pub fn padded(lo: f64, hi: f64, pad: f64) -> Range<f64> {

@@ -52,7 +52,7 @@
       none.hidden = doc.surveys.length > 0;
       refreshes += 1;
       document.body.dataset.refreshes = String(refreshes);
-      status.textContent = 'up to date at ' + new Date().toLocaleTimeString();
+      status.textContent = 'up to date at ' + new Date().toISOString().slice(11, 19) + ' UTC';
     } catch (err) {
       status.textContent = 'cannot refresh: ' + err.message;
     }

@@ -21,15 +21,19 @@ pub enum State {
     /// It needs a calibration: none yet, the last is older than the lab's
     /// interval, or a check called for one that was not made.
     Due,
+    /// Not an asset: the surveys made without one (`unassigned`), which no
+    /// calibration or check follows.
+    Unassigned,
 }
 
 impl State {
-    /// `in tolerance`, `changed` or `due`.
+    /// `in tolerance`, `changed`, `due` or `not an asset`.
     pub fn as_str(self) -> &'static str {
         match self {
             State::InTolerance => "in tolerance",
             State::Changed => "changed",
             State::Due => "due",
+            State::Unassigned => "not an asset",
         }
     }
 }
@@ -88,7 +92,12 @@ pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<As
         records.sort_by(|a, b| (&a.created_at, a.id).cmp(&(&b.created_at, b.id)));
         let in_force = records.iter().rev().find(|r| r.is_complete() && r.is_calibration()).cloned();
         let checks = store.checks_of_asset(&asset).await?;
-        let state = state(in_force.as_ref(), &checks, due_after_days, now);
+        let state = if asset == survey_store::asset::UNASSIGNED {
+            let why = "surveys made without an asset ([asset] id or --asset): no calibration or check follows them";
+            (State::Unassigned, why.to_string())
+        } else {
+            state(in_force.as_ref(), &checks, due_after_days, now)
+        };
         let calibration = match in_force {
             Some(r) => {
                 let iso = in_force_figures(store, &r).await?;

@@ -172,11 +172,27 @@ pub(super) async fn survey(
 ) -> Result<impl IntoResponse, Failure> {
     let r = survey_ref(&survey, false)?;
     let html = offload(app.clone(), false, async move {
-        let opts = ReportOptions::default();
+        let opts = ReportOptions { quiet: true, ..ReportOptions::default() };
         let data = read!(app, false, |store| survey_report::gather(&store, Some(r), &opts).await);
-        survey_report::html::render(&data, &opts).map_err(|e| Failure::of(&e, false))
+        let html = survey_report::html::render(&data, &opts).map_err(|e| Failure::of(&e, false))?;
+        Ok::<_, Failure>(with_way_back(html, &data.survey.asset))
     });
     Ok(html_body(html.await?))
+}
+
+/// A survey's report with the way back at its top: home, and its asset's
+/// history (the report itself is the certificate `survey report` writes,
+/// which has no links).
+fn with_way_back(html: String, asset: &str) -> String {
+    let nav = format!(
+        "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> &middot; \
+         the history of {}</nav>\n",
+        asset_link(asset)
+    );
+    match html.find("<body").and_then(|at| html[at..].find('>').map(|end| at + end + 1)) {
+        Some(at) => format!("{}\n{nav}{}", &html[..at], &html[at..]),
+        None => format!("{nav}{html}"),
+    }
 }
 
 /// An error page.

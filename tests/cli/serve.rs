@@ -48,8 +48,19 @@ impl Server {
         Server::start(bench.command(&args))
     }
 
+    /// SIGTERM, the exit status, and every line it wrote on stderr.
+    pub fn stop_and_log(mut self) -> (Option<i32>, Vec<String>) {
+        let code = self.terminate();
+        // The process is gone: its stderr ends, and with it the reader.
+        (code, self.log.iter().collect())
+    }
+
     /// SIGTERM, and the exit status.
     pub fn stop(mut self) -> Option<i32> {
+        self.terminate()
+    }
+
+    fn terminate(&mut self) -> Option<i32> {
         let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
         nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).unwrap();
         let deadline = Instant::now() + Duration::from_secs(20);
@@ -197,7 +208,11 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
     bench.survey(&["report", "--survey", &uid, "--out", "r"]).success();
     let report = get(&url, &format!("/surveys/{uid}"));
     assert_eq!(report.status, 200);
-    assert_eq!(undated(&report.body), undated(&bench.read("r/index.html")));
+    // The report `survey report` writes, with the way back at its top (home, the asset's history).
+    let way_back = "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> \
+                    &middot; the history of <a href=\"/assets/sim-fig8\">sim-fig8</a></nav>\n";
+    assert!(report.body.contains(way_back), "{}", report.body);
+    assert_eq!(undated(&report.body.replacen(way_back, "", 1)), undated(&bench.read("r/index.html")));
     assert_eq!(get(&url, "/surveys/2").status, 200, "an id names it too");
 
     // The script, same-origin.
@@ -416,4 +431,64 @@ fn the_lab_store_is_served_as_a_station_s_file_is() {
         "push copies complete surveys"
     );
     assert_eq!(server.stop(), Some(0));
+}
+
+/// The figure with `id` of an HTML page.
+fn figure_of<'a>(html: &'a str, id: &str) -> &'a str {
+    let at = html.find(&format!("<figure id=\"{id}\">")).unwrap_or_else(|| panic!("no figure {id}"));
+    let end = at + html[at..].find("</figure>").expect("the figure's end");
+    &html[at..end]
+}
+
+/// Issue 41: an asset's page plots every calibration's lines on a time axis
+/// in UTC dates (never fractions of a day since the first survey), tells its
+/// checks from its calibrations, a survey's page leads back to its asset and
+/// home, `unassigned` is not an asset in tolerance, and page views print no
+/// processing notes on the server's stderr.
+#[test]
+fn the_asset_page_plots_every_calibration_on_a_date_axis_and_tells_checks_apart() {
+    let bench = Bench::new();
+    for seed in ["1", "2", "3"] {
+        let args = ["run", "--asset", "lab/ax", "--points", "120", "--runs", "2", "--bidirectional", "--seed", seed];
+        bench.survey(&args).success();
+    }
+    let check = bench.survey(&["run", "--check", "--asset", "lab/ax", "--seed", "4", "--json"]);
+    assert_eq!(check.json()["check"]["to"], 4, "{check}");
+    bench.export(Some(1), "one.csv");
+    bench.import("one.csv");
+    let uid = bench.survey(&["show", "3", "--json"]).success().json()["uid"].as_str().unwrap().to_string();
+    let server = Server::on(&bench, "survey.db", &[]);
+    let url = server.url.clone();
+
+    let page = get(&url, "/assets/lab/ax");
+    assert_eq!(page.status, 200, "{}", page.body);
+    let lines = figure_of(&page.body, "fig-history-lines");
+    // Made within a minute: the axis reads times of day, UTC.
+    assert!(lines.contains("time of day (UTC)") && !page.body.contains("days since"), "{lines}");
+    let is_time = |t: &str| {
+        t.len() == 8
+            && t.bytes().enumerate().all(|(i, b)| if i == 2 || i == 5 { b == b':' } else { b.is_ascii_digit() })
+    };
+    let ticks = lines.split('>').filter(|part| is_time(part.split('<').next().unwrap_or_default().trim())).count();
+    assert!(ticks >= 2, "ticks in HH:MM:SS: {lines}");
+    assert!(!lines.contains("-0.000"), "{lines}");
+    // The 20 cycles/rev line (the largest, drawn first) of each of the three calibrations.
+    assert!(lines.contains("20 cycles/rev"), "{lines}");
+    assert_eq!(lines.matches("fill=\"#0072B2\"").count(), 3, "{lines}");
+    let a = figure_of(&page.body, "fig-history-a");
+    assert!(a.contains("A of a calibration") && a.contains("A of a check"), "{a}");
+
+    let survey = get(&url, &format!("/surveys/{uid}"));
+    assert!(survey.body.contains("id=\"way-back\"><a href=\"/\">"), "{}", survey.body);
+    assert!(survey.body.contains("<a href=\"/assets/lab/ax\">lab/ax</a>"), "{}", survey.body);
+
+    let assets = get(&url, "/api/assets").json();
+    let unassigned = assets["assets"].as_array().unwrap().iter().find(|a| a["asset"] == "unassigned").unwrap();
+    assert_eq!(unassigned["state"], "not an asset", "{assets:#}");
+    let home = get(&url, "/");
+    assert!(home.body.contains("data-state=\"not an asset\""), "{}", home.body);
+
+    let (_, log) = server.stop_and_log();
+    let notes: Vec<&String> = log.iter().filter(|l| l.starts_with("note:")).collect();
+    assert!(notes.is_empty(), "page views print no processing notes: {notes:#?}");
 }

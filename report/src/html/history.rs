@@ -6,27 +6,26 @@
 use super::{Page, Section};
 use crate::page::{Key, escape, figure, legend, table_left};
 use crate::plot::{
-    self, BLUE, GREEN, HEIGHT, ORANGE, PURPLE, SKY, VERMILLION, WIDTH, axes, extent, hex, padded, render,
+    self, BLUE, GREEN, HEIGHT, ORANGE, PURPLE, SKY, VERMILLION, WIDTH, extent, hex, padded, padded_time, render,
+    time_axes,
 };
 use crate::units::Units;
 use plotters::prelude::*;
 use survey_lab::life::cache::Figures;
 use survey_lab::life::history::History;
 
-/// Days since the first survey of the history, from `created_at` (UTC, RFC 3339).
-fn days(h: &History) -> Vec<f64> {
-    let at: Vec<f64> = h
-        .surveys
+/// When each survey of the history was made: seconds since 1970 (UTC),
+/// from `created_at` (RFC 3339); NaN where it does not parse.
+fn times(h: &History) -> Vec<f64> {
+    h.surveys
         .iter()
         .map(|m| {
             humantime::parse_rfc3339(&m.survey.created_at)
                 .ok()
                 .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-                .map_or(f64::NAN, |d| d.as_secs_f64() / 86_400.0)
+                .map_or(f64::NAN, |d| d.as_secs_f64())
         })
-        .collect();
-    let first = at.iter().copied().find(|v| v.is_finite()).unwrap_or(0.0);
-    at.iter().map(|t| t - first).collect()
+        .collect()
 }
 
 /// The section of survey `this` (the last of `h`); `None` when it is the
@@ -38,20 +37,38 @@ pub fn section(h: &History, this: i64, units: Units) -> anyhow::Result<Option<St
     figures(h, Some(this), units, false).map(Some)
 }
 
-/// The history's figures (the main lines, A and R over time) and its table,
-/// survey `this` marked; with `links`, each survey links to its page
-/// (`/surveys/<uid>`, `survey serve`'s).
-pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> anyhow::Result<String> {
-    let t = days(h);
-    // The lines: the largest few of the surveys' main lines, each followed over time.
-    let mut cycles: Vec<f64> = Vec::new();
-    for m in h.surveys.iter().rev() {
+/// The most lines the lines plot follows.
+const MAX_LINES: usize = 5;
+
+/// The main lines the calibrations found, the largest first (each by its
+/// largest amplitude over the calibrations), at most [`MAX_LINES`].
+fn main_cycles(h: &History) -> Vec<f64> {
+    let mut largest: Vec<(f64, f64)> = Vec::new();
+    for m in h.surveys.iter().filter(|m| m.kind() == "calibration") {
         for l in &m.summary.lines {
-            if cycles.len() < 5 && !cycles.contains(&l.cycles_per_rev) {
-                cycles.push(l.cycles_per_rev);
+            match largest.iter_mut().find(|(k, _)| same_line(*k, l.cycles_per_rev)) {
+                Some((_, a)) => *a = a.max(l.amplitude_deg),
+                None => largest.push((l.cycles_per_rev, l.amplitude_deg)),
             }
         }
     }
+    largest.sort_by(|a, b| b.1.total_cmp(&a.1));
+    largest.into_iter().take(MAX_LINES).map(|(k, _)| k).collect()
+}
+
+fn same_line(a: f64, b: f64) -> bool {
+    (a - b).abs() < 1e-6
+}
+
+/// The history's figures (the main lines, A and R over time, calibrations
+/// and checks told apart) and its table, survey `this` marked; with `links`,
+/// each survey links to its page (`/surveys/<uid>`, `survey serve`'s).
+pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> anyhow::Result<String> {
+    let t = times(h);
+    let of_kind = |kind: &'static str| move |(m, _): &(&survey_lab::life::history::Entry, &f64)| m.kind() == kind;
+    // The lines: every calibration's, each followed over time (a check's
+    // fewer targets see its lines at other bins: they are not plotted here).
+    let cycles = main_cycles(h);
     let colours = [BLUE, VERMILLION, GREEN, PURPLE, ORANGE];
     let series: Vec<(f64, Vec<(f64, f64)>)> = cycles
         .iter()
@@ -60,20 +77,19 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
                 .surveys
                 .iter()
                 .zip(&t)
+                .filter(of_kind("calibration"))
                 .filter_map(|(m, &d)| {
-                    let l = m.summary.lines.iter().find(|l| l.cycles_per_rev == k)?;
+                    let l = m.summary.lines.iter().find(|l| same_line(l.cycles_per_rev, k))?;
                     Some((d, units.of(l.amplitude_deg)))
                 })
                 .collect();
             (k, points)
         })
         .collect();
-    let (t0, t1) = extent(t.iter().copied());
+    let x = padded_time(extent(t.iter().copied()).0, extent(t.iter().copied()).1);
     let (_, hi) = extent(series.iter().flat_map(|(_, p)| p.iter().map(|q| q.1)));
-    let x_desc = "days since the asset's first survey";
     let lines_svg = render((WIDTH, HEIGHT), |root| {
-        let mut chart =
-            axes(root, padded(t0, t1, 0.03), padded(0.0, hi, 0.08), x_desc, &format!("amplitude, {}", units.symbol()))?;
+        let mut chart = time_axes(root, x.clone(), padded(0.0, hi, 0.08), &format!("amplitude, {}", units.symbol()))?;
         for ((_, points), colour) in series.iter().zip(colours) {
             chart.draw_series(LineSeries::new(points.clone(), colour.stroke_width(2))).map_err(plot::plot_err)?;
             chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(plot::plot_err)?;
@@ -87,38 +103,54 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
         &lines_svg,
         &legend(&entries),
         &format!(
-            "The main lines of the asset {} over time: each survey's lines that its table corrects ({}).",
+            "The main lines of the asset {} over time: the lines each calibration's table corrects ({}); a line \
+             missing at a calibration was below its detection threshold there.",
             escape(&h.asset),
             escape(units.symbol())
         ),
     );
-    let iso = |f: fn(&Figures) -> f64| -> Vec<(f64, f64)> {
-        h.surveys.iter().zip(&t).filter_map(|(m, &d)| m.summary.iso.as_ref().map(|i| (d, units.of(f(i))))).collect()
+    let iso = |kind: &'static str, f: fn(&Figures) -> f64| -> Vec<(f64, f64)> {
+        h.surveys
+            .iter()
+            .zip(&t)
+            .filter(of_kind(kind))
+            .filter_map(|(m, &d)| m.summary.iso.as_ref().map(|i| (d, units.of(f(i)))))
+            .collect()
     };
-    let (a, r) = (iso(|i| i.a), iso(|i| i.r));
-    let (lo, hi) = extent(a.iter().chain(&r).map(|p| p.1));
+    let (a, r) = (iso("calibration", |i| i.a), iso("calibration", |i| i.r));
+    let (check_a, check_r) = (iso("check", |i| i.a), iso("check", |i| i.r));
+    let (lo, hi) = extent(a.iter().chain(&r).chain(&check_a).chain(&check_r).map(|p| p.1));
     let a_svg = render((WIDTH, HEIGHT * 3 / 4), |root| {
-        let mut chart = axes(
-            root,
-            padded(t0, t1, 0.03),
-            padded(lo.min(0.0), hi, 0.08),
-            x_desc,
-            &format!("A and R, {}", units.symbol()),
-        )?;
+        let mut chart =
+            time_axes(root, x.clone(), padded(lo.min(0.0), hi, 0.08), &format!("A and R, {}", units.symbol()))?;
         for (points, colour) in [(&a, SKY), (&r, ORANGE)] {
             chart.draw_series(LineSeries::new(points.clone(), colour.stroke_width(2))).map_err(plot::plot_err)?;
             chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(plot::plot_err)?;
         }
+        for (points, colour) in [(&check_a, SKY), (&check_r, ORANGE)] {
+            chart
+                .draw_series(points.iter().map(|&p| TriangleMarker::new(p, 6, colour.stroke_width(2))))
+                .map_err(plot::plot_err)?;
+        }
         Ok(())
     })?;
+    let mut keys = vec![
+        (hex(SKY), Key::Line, "A of a calibration".to_string()),
+        (hex(ORANGE), Key::Line, "R of a calibration".to_string()),
+    ];
+    if !check_a.is_empty() {
+        keys.push((hex(SKY), Key::Ring, "A of a check (its own, fewer targets: not comparable)".to_string()));
+        keys.push((hex(ORANGE), Key::Ring, "R of a check".to_string()));
+    }
     html += &figure(
         "fig-history-a",
         &a_svg,
-        &legend(&[
-            (hex(SKY), Key::Line, "ISO 230-2 accuracy A".into()),
-            (hex(ORANGE), Key::Line, "ISO 230-2 repeatability R".into()),
-        ]),
-        &format!("ISO 230-2 accuracy A and repeatability R of each survey of the asset ({}).", escape(units.symbol())),
+        &legend(&keys),
+        &format!(
+            "ISO 230-2 accuracy A and repeatability R of the asset's calibrations (joined) and checks (open \
+             triangles) ({}).",
+            escape(units.symbol())
+        ),
     );
     let rows: Vec<Vec<String>> = h
         .surveys
