@@ -255,6 +255,9 @@ fn defects(file: &str, text: &str, kind: &Kind, message: &str) -> Vec<&'static s
             }
         }
     }
+    if message.contains("is not accepted here") {
+        found.push("serde refused what the schema let through");
+    }
     let words: Vec<&str> = message.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).collect();
     if words.iter().any(|w| TYPE_WORDS.contains(w)) || words.iter().any(|w| camel_case(w) && !text.contains(w)) {
         found.push("a Rust type name");

@@ -334,9 +334,11 @@ fn number(v: &DeValue<'_>) -> Option<Result<f64, &'static str>> {
     match v {
         DeValue::Integer(i) => {
             let digits = i.as_str().replace('_', "");
-            Some(match i128::from_str_radix(&digits, i.radix()) {
+            // Past 64 bits serde reads no whole number into a float behind
+            // a tagged table: refused everywhere alike.
+            Some(match i64::from_str_radix(&digits, i.radix()) {
                 Ok(n) => Ok(n as f64),
-                Err(_) => digits.parse::<f64>().map_err(|_| "is too large"),
+                Err(_) => Err("is too large for a whole number (write it with an exponent)"),
             })
         }
         DeValue::Float(f) => {
@@ -440,6 +442,8 @@ impl<'a> Walk<'a> {
     /// A number: finite, within its range.
     fn number(&mut self, key: &str, v: &Spanned<DeValue<'_>>, ty: Ty) {
         let problem = match (number(v.get_ref()), ty) {
+            // A whole number past 64 bits is past every range too.
+            (Some(Err(_)), Ty::Number(..)) if v.get_ref().is_integer() => Some("is out of range"),
             (Some(Err(why)), _) => Some(why),
             (Some(Ok(x)), Ty::Number(low, max, _)) if !in_range(x, low, max) => Some("is out of range"),
             _ => None,

@@ -147,6 +147,16 @@ fn a_wrong_value_is_named_as_written_with_what_its_key_takes_in_words() {
             format!("{TRACKER_BENCH}[survey]\nbidirectional = 1\n"),
             "c.toml:8: survey.bidirectional: 1 is a whole number: it takes true or false",
         ),
+        (
+            format!(
+                "{modbus}map = {{ position_encoding = {{ kind = \"counts\", counts_per_degree = 123456789012345678901234567890 }} }}\n{tracker}"
+            ),
+            "c.toml:4: positioner.map.position_encoding.counts_per_degree: 123456789012345678901234567890 is too large for a whole number (write it with an exponent): it takes a finite number",
+        ),
+        (
+            format!("{TRACKER_BENCH}[timing]\ndwell_s = -123456789012345678901234567890\n"),
+            "c.toml:8: timing.dwell_s: -123456789012345678901234567890 is out of range: it takes a number from 0 to 3600 s",
+        ),
         // The radius made smaller than its default tolerance: the radius is named.
         (
             format!("{TRACKER_BENCH}[arm]\nradius_mm = 4.5\n"),
