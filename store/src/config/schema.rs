@@ -304,7 +304,7 @@ fn allowed(ty: Ty, key: &str) -> String {
 fn shown(text: &str, v: &Spanned<DeValue<'_>>) -> String {
     match v.get_ref() {
         DeValue::Table(_) => "a table".into(),
-        DeValue::Array(_) => "a list".into(),
+        DeValue::Array(a) => format!("a list of {}", a.len()),
         _ => {
             let written = text.get(v.span()).unwrap_or_default().trim();
             if written.chars().count() > 40 {
@@ -325,6 +325,7 @@ fn kind(v: &DeValue<'_>, ty: Ty) -> &'static str {
         (DeValue::Float(_), _) => "is a number",
         (DeValue::Boolean(_), _) => "is a yes-or-no value",
         (DeValue::Datetime(_), _) => "is a date or time",
+        (DeValue::Array(_), Ty::Pair(..)) => "is not two values",
         (DeValue::Array(_) | DeValue::Table(_), _) => "is not allowed here",
     }
 }
@@ -416,7 +417,8 @@ impl<'a> Walk<'a> {
             (Ty::Text, DeValue::String(_)) | (Ty::Flag, DeValue::Boolean(_)) => {}
             (Ty::Choice(words), DeValue::String(s)) => {
                 if !words.contains(&s.as_ref()) {
-                    let text = format!("{} is not one of them: it takes {}", shown(self.text, v), allowed(ty, key));
+                    let text =
+                        format!("{} is not among the choices: it takes {}", shown(self.text, v), allowed(ty, key));
                     self.push(at, key, text);
                 }
             }
@@ -475,7 +477,7 @@ impl<'a> Walk<'a> {
         };
         let Some((name, fields)) = variants.iter().find(|(w, _)| word.get_ref().as_str() == Some(w)) else {
             let choice = Ty::Choice(&[]);
-            let why = if word.get_ref().is_str() { "is not one of them" } else { kind(word.get_ref(), choice) };
+            let why = if word.get_ref().is_str() { "is not among the choices" } else { kind(word.get_ref(), choice) };
             let text = format!("{} {why}: it takes one of {}", shown(self.text, word), one_of(&words));
             return self.push(word.span().start, &tag_key, text);
         };

@@ -85,7 +85,10 @@ fn every_number_is_finite_and_within_its_stated_range() {
 #[test]
 fn defects_are_named_with_the_file_and_line() {
     let e = error_of("[positioner]\ndriver = \"warp-drive\"\naddress = \"x\"\n");
-    assert!(e.starts_with("c.toml:2: positioner.driver: \"warp-drive\" is not one of them: it takes one of"), "{e}");
+    assert!(
+        e.starts_with("c.toml:2: positioner.driver: \"warp-drive\" is not among the choices: it takes one of"),
+        "{e}"
+    );
     let e = error_of("[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\nadress = \"x\"\n\n[tracker]\n");
     assert!(
         e.starts_with(
