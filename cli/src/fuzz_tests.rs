@@ -238,7 +238,8 @@ proptest! {
                 // The timing turns into durations (this panicked on 1e19 s).
                 let _ = cfg.timing();
             }
-            Err(e) => prop_assert!(e.to_string().starts_with("c.toml: "), "{e}"),
+            // The file, the line and the dotted key (issue 42).
+            Err(e) => prop_assert!(e.to_string().starts_with("c.toml:"), "{e}"),
         }
     }
 
@@ -261,9 +262,9 @@ proptest! {
             }
             Err(e) => {
                 let e = e.to_string();
-                prop_assert!(e.starts_with("c.toml: "), "{e}");
-                // A bad value is named by its key (a value of the wrong type by its line).
-                prop_assert!(keys.iter().any(|k| e.contains(k)) || e.contains(": line "), "{keys:?}: {e}");
+                prop_assert!(e.starts_with("c.toml:"), "{e}");
+                // A bad value is named by its key, whatever is wrong with it.
+                prop_assert!(keys.iter().any(|k| e.contains(k)), "{keys:?}: {e}");
             }
         }
     }

@@ -30,9 +30,12 @@ use std::path::Path;
 use std::time::Duration;
 use survey_acquire::{ReferenceKind, SettleMode, SettleModel, SettleSpec, Timing, default_window_deg};
 use survey_drivers::canopen::CanopenConfig;
-use survey_processing::num::Num;
 
+mod consistency;
 mod derived;
+mod place;
+mod schema;
+use place::{Defect, Places};
 use survey_drivers::emscon::EmsconConfig;
 use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
 use survey_drivers::scpi::ErrorQueryForm;
@@ -398,243 +401,58 @@ fn radius_tolerance() -> f64 {
     5.0
 }
 
-/// A defect of a configuration file, naming the file and where.
+/// A defect of a configuration file, naming the file and where: the line
+/// and the dotted key (`c.toml:12: timing.dwell_s: ...`), or the file alone
+/// when it cannot be read.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{file}: {message}")]
+#[error("{file}:{}{message}", self.place())]
 pub struct ConfigError {
     pub file: String,
+    /// The line (1-based) and the dotted key the message is about.
+    pub at: Option<(usize, String)>,
     pub message: String,
+}
+
+impl ConfigError {
+    fn place(&self) -> String {
+        match &self.at {
+            Some((line, key)) => format!("{line}: {key}: "),
+            None => " ".into(),
+        }
+    }
 }
 
 impl SurveyConfig {
     /// Read and check a configuration file.
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| ConfigError { file: file.clone(), message: format!("cannot read the configuration: {e}") })?;
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            file: file.clone(),
+            at: None,
+            message: format!("cannot read the configuration: {e}"),
+        })?;
         Self::parse(&text, &file)
     }
 
-    /// Parse and check configuration text; `file` names it in errors.
+    /// Parse and check configuration text; `file` names it in errors. The
+    /// keys are checked against what each takes ([`schema`]) before serde
+    /// reads them, then the sections' ranges and consistency ([`Self::check`]);
+    /// every defect is named with its line and dotted key ([`place`]).
     pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
-        let err = |message: String| ConfigError { file: file.to_string(), message };
-        // TOML has nan and inf; no setting is either (stored as JSON, they
-        // would come back as null and the survey could never resume).
-        if let Ok(table) = text.parse::<toml::Table>()
-            && let Some(key) = non_finite(&table, "")
-        {
-            let last = key.rsplit(['.', '[']).next().unwrap_or(&key).trim_end_matches(']');
-            let line = text.lines().position(|l| {
-                let l = l.trim_start();
-                l.starts_with(last) && (l.contains("nan") || l.contains("inf"))
-            });
-            let at = line.map(|l| format!("line {}: ", l + 1)).unwrap_or_default();
-            return Err(err(format!("{at}{key} is not a finite number")));
+        let err = |d: Defect| ConfigError { file: file.to_string(), at: Some((d.line, d.key)), message: d.text };
+        let doc = toml::de::DeTable::parse(text).map_err(|e| err(place::syntax(text, &e)))?;
+        let places = Places::of(text, doc.get_ref());
+        if let Some(d) = schema::Walk::first(text, doc.get_ref()) {
+            return Err(err(d));
         }
-        let cfg: SurveyConfig = toml::from_str(text).map_err(|e: toml::de::Error| {
-            let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1));
-            match line {
-                Some(l) => err(format!("line {l}: {}", e.message())),
-                None => err(e.message().to_string()),
-            }
-        })?;
-        cfg.check().map_err(err)?;
+        let cfg: SurveyConfig = toml::from_str(text).map_err(|e| err(place::unexpected(text, &places, &e)))?;
+        cfg.check(&places).map_err(err)?;
         Ok(cfg)
     }
 
     /// The reference instrument this configuration uses.
     pub fn reference(&self) -> ReferenceKind {
         self.survey.reference.unwrap_or(ReferenceKind::Tracker)
-    }
-
-    /// What serde cannot check: every value within its stated range and the
-    /// sections consistent, section by section. The first defect found is the
-    /// error, in this order: the asset, the reference's instruments, the plan,
-    /// the timing, the certificate, the arm, the polygon, the positioner, the
-    /// tracker, the drift control.
-    fn check(&self) -> Result<(), String> {
-        if let Some(a) = &self.asset {
-            crate::asset::asset_id(&a.id).map_err(|e| format!("[asset] id: {e}"))?;
-        }
-        self.check_reference()?;
-        self.check_survey()?;
-        self.check_timing()?;
-        if let Some(c) = &self.certificate {
-            c.check()?;
-        }
-        if let Some(arm) = &self.arm {
-            arm.check()?;
-        }
-        if let Some(p) = &self.polygon {
-            p.check_ranges()?;
-        }
-        self.check_positioner()?;
-        if let Some(TrackerConfig::Emscon { settings, .. }) = &self.tracker {
-            within("tracker.approx_distance_mm", settings.approx_distance_mm, Range::Above(0.0), 1.0e6, "mm")?;
-        }
-        self.check_drift_control()
-    }
-
-    /// The reference's instruments are configured: the tracker's section,
-    /// or the autocollimator's with a polygon of at least 2 faces whose
-    /// certificate, when given, holds one finite value a face.
-    fn check_reference(&self) -> Result<(), String> {
-        match self.reference() {
-            ReferenceKind::Tracker if self.tracker.is_none() => {
-                return Err("the reference is the tracker but there is no [tracker] section".into());
-            }
-            ReferenceKind::Autocollimator => {
-                if self.autocollimator.is_none() {
-                    return Err("the reference is the autocollimator but there is no [autocollimator] section".into());
-                }
-                let Some(p) = &self.polygon else {
-                    return Err(
-                        "the autocollimator reference needs a [polygon] section (faces, certificate_arcsec)".into()
-                    );
-                };
-                if p.faces < 2 {
-                    return Err(format!("polygon.faces must be at least 2, got {}", p.faces));
-                }
-                if !p.certificate_arcsec.is_empty() && p.certificate_arcsec.len() != p.faces as usize {
-                    return Err(format!(
-                        "polygon.certificate_arcsec has {} values for {} faces",
-                        p.certificate_arcsec.len(),
-                        p.faces
-                    ));
-                }
-                if p.certificate_arcsec.iter().any(|c| !c.is_finite()) {
-                    return Err("polygon.certificate_arcsec holds a value that is not a finite number".into());
-                }
-            }
-            _ => {}
-        }
-        Ok(())
-    }
-
-    /// `[survey]`: the travel is an increasing pair of angles within ten
-    /// turns either way, the overrun within 10 degrees.
-    fn check_survey(&self) -> Result<(), String> {
-        if let Some([lo, hi]) = self.survey.travel_deg
-            && !(lo.is_finite() && hi.is_finite() && hi > lo)
-        {
-            return Err(format!(
-                "survey.travel_deg = [{}, {}] is not an increasing pair of finite angles",
-                Num(lo),
-                Num(hi)
-            ));
-        }
-        if let Some(v) = self.survey.overrun_deg {
-            within("survey.overrun_deg", v, Range::Above(0.0), 10.0, "deg")?;
-        }
-        if let Some([lo, hi]) = self.survey.travel_deg {
-            within("survey.travel_deg[0]", lo, Range::From(-3600.0), 3600.0, "deg")?;
-            within("survey.travel_deg[1]", hi, Range::From(-3600.0), 3600.0, "deg")?;
-        }
-        Ok(())
-    }
-
-    /// `[timing]`: every duration, rate and period within its stated range,
-    /// the durations they make within a day ([`derived::check`]), then the
-    /// retries and the points that locate the axis.
-    fn check_timing(&self) -> Result<(), String> {
-        // Stated physical ranges: a value outside is a unit or typing error,
-        // and a time beyond an hour would overflow the clock's arithmetic or
-        // stall a survey for ever.
-        let t = &self.timing;
-        for (key, value, range, max, unit) in [
-            ("call_timeout_s", t.call_timeout_s, Range::Above(0.0), 3600.0, "s"),
-            ("measure_timeout_s", t.measure_timeout_s, Range::Above(0.0), 3600.0, "s"),
-            ("move_margin_s", t.move_margin_s, Range::From(0.0), 3600.0, "s"),
-            ("poll_interval_s", t.poll_interval_s, Range::Above(0.0), 60.0, "s"),
-            ("dwell_s", t.dwell_s, Range::From(0.0), 3600.0, "s"),
-            ("retry_backoff_s", t.retry_backoff_s, Range::From(0.0), 3600.0, "s"),
-            ("velocity_deg_s", t.velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
-            ("accel_deg_s2", t.accel_deg_s2, Range::Above(0.0), 1.0e6, "deg/s^2"),
-            ("settle_window_deg", t.settle_window_deg, Range::Above(0.0), 1.0, "deg"),
-            ("settle_stable_s", t.settle_stable_s, Range::From(0.0), 60.0, "s"),
-            ("settle_poll_s", t.settle_poll_s, Range::Above(0.0), 60.0, "s"),
-            ("settle_time_s", t.settle_time_s, Range::From(0.0), 3600.0, "s"),
-            ("scan_velocity_deg_s", t.scan_velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
-            ("calibration_velocity_deg_s", t.calibration_velocity_deg_s, Range::Above(0.0), 3600.0, "deg/s"),
-            ("capture_period_s", t.capture_period_s, Range::Above(0.0), 1.0, "s"),
-            ("stream_period_s", t.stream_period_s, Range::Above(0.0), 1.0, "s"),
-            ("fetch_interval_s", t.fetch_interval_s, Range::Above(0.0), 10.0, "s"),
-            ("beam_wait_s", t.beam_wait_s, Range::From(0.0), 86_400.0, "s"),
-            ("beam_retry_s", t.beam_retry_s, Range::Above(0.0), 3600.0, "s"),
-            ("time_scale", t.time_scale, Range::Above(0.0), 10_000.0, "x real time"),
-        ] {
-            if let Some(v) = value {
-                within(&format!("timing.{key}"), v, range, max, unit)?;
-            }
-        }
-        derived::check(self)?;
-        if let Some(n) = t.max_retries
-            && n > 1000
-        {
-            return Err(format!("timing.max_retries = {n} is outside 0..=1000"));
-        }
-        if let Some(n) = t.locate_points
-            && !(3..=10_000).contains(&n)
-        {
-            return Err(format!("timing.locate_points = {n} is outside 3..=10000 (a circle needs 3 points)"));
-        }
-        Ok(())
-    }
-
-    /// `[positioner]`: the in-position window of a SCPI controller, the CAN
-    /// link and the counts per degree of a CANopen drive, and the engine's
-    /// deadline of a call against the driver's own.
-    fn check_positioner(&self) -> Result<(), String> {
-        if let PositionerConfig::ScpiTcp { in_position_window_deg: w, .. }
-        | PositionerConfig::ScpiSerial { in_position_window_deg: w, .. } = &self.positioner
-        {
-            within("positioner.in_position_window_deg", *w, Range::Above(0.0), 1.0, "deg")?;
-        }
-        if let Some(Err(e)) = self.positioner.can_link() {
-            return Err(e);
-        }
-        if let PositionerConfig::Canopen { drive, .. } = &self.positioner {
-            within("positioner.counts_per_degree", drive.counts_per_degree, Range::Above(0.0), 1.0e9, "counts/deg")?;
-        }
-        // The engine's deadline of a call must be longer than the driver's
-        // own (its deadline and the drain of late replies after it): a late
-        // reply is then met, drained and matched by the driver, never left on
-        // the line by a call the engine cancelled.
-        if let Some((key, own, late)) = self.positioner.own_deadline() {
-            let call = self.timing().call_timeout;
-            if call <= own + late {
-                let drain = if late.is_zero() {
-                    String::new()
-                } else {
-                    format!(" and the {} ms it then drains late replies", late.as_millis())
-                };
-                return Err(format!(
-                    "timing.call_timeout_s = {} s must be longer than the positioner's own deadline, {key} = {} \
-                     ms{drain}: raise timing.call_timeout_s or lower {key}",
-                    call.as_secs_f64(),
-                    own.as_millis()
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// `[drift_control]`: its own keys ([`survey_plan::drift::DriftControl::check`]),
-    /// and a reference target within the travel of a partial-range axis.
-    fn check_drift_control(&self) -> Result<(), String> {
-        let Some(d) = &self.drift_control else { return Ok(()) };
-        d.check()?;
-        if let Some([lo, hi]) = self.survey.travel_deg
-            && !(lo..=hi).contains(&d.reference_deg)
-        {
-            return Err(format!(
-                "drift_control.reference_deg = {} is outside the travel {}..{} deg",
-                Num(d.reference_deg),
-                Num(lo),
-                Num(hi)
-            ));
-        }
-        Ok(())
     }
 
     /// How many times faster than the hardware the instruments run (`[timing] time_scale`, default 1).
@@ -703,81 +521,11 @@ impl SurveyConfig {
     }
 }
 
-impl CertificateSection {
-    /// The stated figures within their ranges: the reference's uncertainty,
-    /// the temperature, the tolerance.
-    fn check(&self) -> Result<(), String> {
-        if let Some(u) = self.reference_uncertainty_deg {
-            within("certificate.reference_uncertainty_deg", u, Range::Above(0.0), 1.0, "deg")?;
-        }
-        if let Some(t) = self.temperature_c {
-            within("certificate.temperature_c", t, Range::From(-50.0), 100.0, "°C")?;
-        }
-        if let Some(t) = self.tolerance_deg {
-            within("certificate.tolerance_deg", t, Range::Above(0.0), 360.0, "deg")?;
-        }
-        Ok(())
-    }
-}
-
-impl ArmSection {
-    /// The radius within 100 m, its tolerance no larger than the radius.
-    fn check(&self) -> Result<(), String> {
-        within("arm.radius_mm", self.radius_mm, Range::Above(0.0), 100_000.0, "mm")?;
-        within("arm.radius_tolerance_mm", self.radius_tolerance_mm, Range::Above(0.0), self.radius_mm, "mm")
-    }
-}
-
-impl PolygonSection {
-    /// At most 3600 faces, each certificate value within +/-3600 arcsec
-    /// (with the autocollimator as the reference, the faces' lower bound and
-    /// the certificate's length are checked with the reference).
-    fn check_ranges(&self) -> Result<(), String> {
-        if self.faces > 3600 {
-            return Err(format!("polygon.faces = {} is outside 2..=3600", self.faces));
-        }
-        for (i, c) in self.certificate_arcsec.iter().enumerate() {
-            within(&format!("polygon.certificate_arcsec[{i}]"), *c, Range::From(-3600.0), 3600.0, "arcsec")?;
-        }
-        Ok(())
-    }
-}
-
-/// The lower end of a range: inclusive or not.
-#[derive(Debug, Clone, Copy)]
-enum Range {
-    From(f64),
-    Above(f64),
-}
-
-/// `value` lies in the range, else the key, the value and the range.
-fn within(key: &str, value: f64, low: Range, max: f64, unit: &str) -> Result<(), String> {
-    let (ok, low_text) = match low {
-        Range::From(lo) => (value >= lo, format!("{}", Num(lo))),
-        Range::Above(lo) => (value > lo, format!("above {}", Num(lo))),
-    };
-    if value.is_finite() && ok && value <= max {
-        Ok(())
-    } else {
-        Err(format!("{key} = {} is outside its range ({low_text} to {} {unit})", Num(value), Num(max)))
-    }
-}
-
-/// The key of the first float in `table` that is NaN or infinite.
-fn non_finite(table: &toml::Table, prefix: &str) -> Option<String> {
-    fn walk(value: &toml::Value, key: String) -> Option<String> {
-        match value {
-            toml::Value::Float(f) if !f.is_finite() => Some(key),
-            toml::Value::Table(t) => t.iter().find_map(|(k, v)| walk(v, format!("{key}.{k}"))),
-            toml::Value::Array(a) => a.iter().enumerate().find_map(|(i, v)| walk(v, format!("{key}[{i}]"))),
-            _ => None,
-        }
-    }
-    table.iter().find_map(|(k, v)| walk(v, if prefix.is_empty() { k.clone() } else { format!("{prefix}.{k}") }))
-}
-
 #[cfg(test)]
 mod tests;
 
 #[cfg(test)]
 mod driver_tests;
+
+#[cfg(test)]
+mod message_tests;

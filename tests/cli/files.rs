@@ -465,7 +465,7 @@ fn large_and_tiny_numbers_in_messages_read_as_written_and_never_panic() {
     for (args, shown) in [
         (vec!["model-gap", "--model", "m.toml"], "sigma_deg = 1e308"),
         (vec!["process", "--design", "d.toml"], "1e308 is not a gear ratio"),
-        (vec!["run", "--config", "c.toml", "--points", "36"], "timing.dwell_s = 1e308"),
+        (vec!["run", "--config", "c.toml", "--points", "36"], "c.toml:8: timing.dwell_s: 1e308"),
         (vec!["process", "--recipe", "r.toml"], "got -1e308"),
         (vec!["process", "--table-interval", "1e-300"], "1e-300 deg intervals"),
         (vec!["process", "--table-start", "1e308"], "got 1e308"),

@@ -1,6 +1,7 @@
 //! The durations a configuration's timing makes, checked where it is read.
 
 use super::SurveyConfig;
+use super::place::{Defect, Places};
 use survey_plan::move_time;
 use survey_processing::num::Num;
 
@@ -15,7 +16,7 @@ const MAX_DERIVED_S: f64 = 86_400.0;
 /// `accel_deg_s2`, and a pass of a continuous scan at
 /// `scan_velocity_deg_s` or `calibration_velocity_deg_s`. Every other
 /// duration is a sum of these and of keys bounded by their range.
-pub(super) fn check(cfg: &SurveyConfig) -> Result<(), String> {
+pub(super) fn check(cfg: &SurveyConfig, at: &Places) -> Result<(), Defect> {
     let timing = cfg.timing();
     let t = &cfg.timing;
     let overrun = cfg.survey.overrun_deg.unwrap_or(1.0);
@@ -23,12 +24,13 @@ pub(super) fn check(cfg: &SurveyConfig) -> Result<(), String> {
     let (v, a) = (timing.velocity_deg_s, timing.accel_deg_s2);
     let day = |s: f64| s.is_finite() && s <= MAX_DERIVED_S;
     let too_long = |key: &str, value: f64, what: &str, seconds: f64| {
-        format!(
-            "timing.{key} = {} makes {what} take {} s, more than a day ({MAX_DERIVED_S} s): is the value in the \
-             right unit?",
-            Num(value),
+        let key = format!("timing.{key}");
+        let written = at.written(&key).map_or_else(|| Num(value).to_string(), str::to_string);
+        let text = format!(
+            "{written} makes {what} take {} s, more than a day ({MAX_DERIVED_S} s): is the value in the right unit?",
             Num(seconds)
-        )
+        );
+        at.defect(&key, text)
     };
     let what = format!("a move of {} deg", Num(span));
     let move_s = move_time(span, v, a);
@@ -67,16 +69,22 @@ mod tests {
     #[test]
     fn a_rate_that_makes_a_duration_too_long_is_refused_naming_its_key() {
         for (timing, named) in [
-            ("velocity_deg_s = 1e-300", "timing.velocity_deg_s = 1e-300 makes a move of 362 deg take 3.62e302 s"),
-            ("accel_deg_s2 = 1e-300", "timing.accel_deg_s2 = 1e-300 makes a move of 362 deg take"),
-            ("velocity_deg_s = 1e-12", "timing.velocity_deg_s = 1e-12"),
-            ("velocity_deg_s = 0.001", "timing.velocity_deg_s = 0.001"),
-            ("accel_deg_s2 = 1e-9", "timing.accel_deg_s2 = 1e-9"),
-            ("scan_velocity_deg_s = 1e-300", "timing.scan_velocity_deg_s = 1e-300 makes a scan pass of 362 deg"),
-            ("calibration_velocity_deg_s = 1e-300", "timing.calibration_velocity_deg_s = 1e-300"),
+            (
+                "velocity_deg_s = 1e-300",
+                "c.toml:8: timing.velocity_deg_s: 1e-300 makes a move of 362 deg take 3.62e302 s",
+            ),
+            ("accel_deg_s2 = 1e-300", "c.toml:8: timing.accel_deg_s2: 1e-300 makes a move of 362 deg take"),
+            ("velocity_deg_s = 1e-12", "c.toml:8: timing.velocity_deg_s: 1e-12"),
+            ("velocity_deg_s = 0.001", "c.toml:8: timing.velocity_deg_s: 0.001"),
+            ("accel_deg_s2 = 1e-9", "c.toml:8: timing.accel_deg_s2: 1e-9"),
+            (
+                "scan_velocity_deg_s = 1e-300",
+                "c.toml:8: timing.scan_velocity_deg_s: 1e-300 makes a scan pass of 362 deg",
+            ),
+            ("calibration_velocity_deg_s = 1e-300", "c.toml:8: timing.calibration_velocity_deg_s: 1e-300"),
         ] {
             let e = parsed(timing).unwrap_err();
-            assert!(e.starts_with("c.toml: ") && e.contains(named) && e.contains("more than a day"), "{timing}: {e}");
+            assert!(e.starts_with(named) && e.contains("more than a day"), "{timing}: {e}");
             assert!(e.len() < 300, "no number spelled out in full: {e}");
         }
         // The travel and the overrun set the span.
