@@ -190,7 +190,7 @@ fn with_way_back(html: String, asset: &str) -> String {
         asset_link(asset)
     );
     match html.find("<body").and_then(|at| html[at..].find('>').map(|end| at + end + 1)) {
-        Some(at) => format!("{}\n{nav}{}", &html[..at], &html[at..]),
+        Some(at) => format!("{}{nav}{}", &html[..at], &html[at..]),
         None => format!("{nav}{html}"),
     }
 }
