@@ -17,6 +17,7 @@ mod browser;
 mod budget;
 mod correction;
 mod docs;
+mod doors;
 mod drift;
 mod everyday;
 mod files;
