@@ -24,6 +24,7 @@ mod files;
 mod history;
 mod instruments;
 mod lab;
+mod lab_tls;
 mod life;
 mod list;
 mod modelgap;
