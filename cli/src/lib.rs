@@ -247,7 +247,7 @@ fn wedge_a_worker() {
 /// Run the command.
 pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
     let db = &cli.db;
-    match cli.command {
+    let done = match cli.command {
         Command::Run(args) => run::run(db, args).await,
         Command::Check(args) => check::check(args).await,
         Command::Resume(args) => resume::resume(db, args).await,
@@ -266,5 +266,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),
-    }
+    };
+    // A lab store that went away, refused or timed out: said in words, naming it.
+    done.map_err(|e| survey_store::lab::explained_at(db, e, "reading the lab store"))
 }

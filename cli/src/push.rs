@@ -76,7 +76,7 @@ pub async fn push(db: &Path, args: PushArgs) -> anyhow::Result<()> {
     .await;
     station.close().await;
     let report = match lab::Server::of(url) {
-        Some(at) => pushed.map_err(|e| lab::explained(e, &at, "pushing"))?,
+        Some(at) => pushed.map_err(|e| lab::explained(e, &at, lab::PUSHING))?,
         None => pushed?,
     };
     if args.json {

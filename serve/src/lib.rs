@@ -199,6 +199,8 @@ macro_rules! read {
         let $store = survey_store::Store::open_read_only(&$app.db).await.map_err(|e| Failure::unavailable(&e, $api))?;
         let result: anyhow::Result<_> = async { $body }.await;
         $store.close().await;
+        // A lab store that went away: said in words, naming it.
+        let result = result.map_err(|e| survey_store::lab::explained_at(&$app.db, e, "reading the lab store"));
         result.map_err(|e| Failure::of(&e, $api))?
     }};
 }

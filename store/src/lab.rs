@@ -151,7 +151,7 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
     } else {
         check_schema(&pool, &shown).await.map(|version| store.cache = version >= super::CACHE_SCHEMA)
     };
-    let ready = ready.map_err(|e| explained(e, &at, "reading its schema"));
+    let ready = ready.map_err(|e| explained(e, &at, if setup { PUSHING } else { "reading its schema" }));
     if let Err(e) = ready {
         store.close().await;
         return Err(e);
@@ -189,6 +189,18 @@ impl Server {
     }
 }
 
+/// What [`explained`] is told while pushing (a missing privilege is then one to write).
+pub const PUSHING: &str = "pushing";
+
+/// [`explained`] where `db` is the lab store's URL; `e` as it is otherwise
+/// (a station's file).
+pub fn explained_at(db: &Path, e: anyhow::Error, doing: &str) -> anyhow::Error {
+    match url_of(db).and_then(Server::of) {
+        Some(at) => explained(e, &at, doing),
+        None => e,
+    }
+}
+
 /// `e` (or what its chain holds: a migration's sqlx error) with the lab store's failure said in words, once: the server gone
 /// away (shut down, restarted, the connection closed or reset), a connection
 /// refused, a privilege missing (what to grant, bad input); the contexts
@@ -201,7 +213,7 @@ pub fn explained(e: anyhow::Error, at: &Server, doing: &str) -> anyhow::Error {
     else {
         return e;
     };
-    let Some((words, bad)) = in_words(sqlx_error, at) else { return e };
+    let Some((words, bad)) = in_words(sqlx_error, at, doing == PUSHING) else { return e };
     // A migration's error repeats the database's words: left out.
     let above: Vec<String> =
         e.chain().take(depth).filter(|c| !c.is::<sqlx::migrate::MigrateError>()).map(|c| c.to_string()).collect();
@@ -259,10 +271,20 @@ fn link_in_words(e: &sqlx::Error) -> Option<String> {
 }
 
 /// `e` in words naming the server, and whether it is the user's (bad input).
-fn in_words(e: &sqlx::Error, at: &Server) -> Option<(String, bool)> {
+fn in_words(e: &sqlx::Error, at: &Server, pushing: bool) -> Option<(String, bool)> {
     let Server { host, port, user } = at;
     if let Some(db) = e.as_database_error() {
         let code = db.code().unwrap_or_default();
+        if code == "42501" && !pushing {
+            return Some((
+                format!(
+                    "the role {user} may not read the lab store at {host}:{port} ({}): docs/lab.md, \"Roles\": \
+                     `GRANT USAGE ON SCHEMA public TO {user}; GRANT SELECT ON ALL TABLES IN SCHEMA public TO {user}`",
+                    db.message()
+                ),
+                true,
+            ));
+        }
         if code == "42501" {
             return Some((
                 format!(

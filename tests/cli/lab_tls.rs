@@ -100,6 +100,16 @@ fn a_role_that_may_only_read_is_told_what_to_grant_and_pushes_once_granted() {
         let url = lab.replace(&format!("survey:{PASSWORD}"), &format!("grants_reader:{READER_PW}"));
         format!("{}{db}", url.strip_suffix("/grants").unwrap())
     };
+    // A role that may not even read: what to grant for that.
+    pg.psql("grants", &format!("CREATE ROLE grants_none LOGIN PASSWORD '{READER_PW}'"));
+    let none = reader("/grants").replace("grants_reader:", "grants_none:");
+    let out = bench.survey(&["--db", &none, "list"]);
+    clean(&out, &[READER_PW]);
+    out.bad_input(&[
+        "the role grants_none may not read the lab store at 127.0.0.1",
+        "permission denied for",
+        "GRANT SELECT ON ALL TABLES IN SCHEMA public TO grants_none",
+    ]);
     // Reading: fine. Pushing into the store set up: the privilege missing, what to grant.
     bench.survey(&["--db", &reader("/grants"), "list", "--json"]).success();
     let out = bench.survey(&["push", "--to", &reader("/grants"), "--all"]);
