@@ -258,6 +258,29 @@ Examples:
     Man(docs::ManArgs),
 }
 
+impl Command {
+    /// The `--db` of a command that opens the survey database.
+    fn db_arg(&self) -> Option<&args::DbArg> {
+        match self {
+            Command::Run { db, .. }
+            | Command::Resume { db, .. }
+            | Command::Report { db, .. }
+            | Command::Import { db, .. }
+            | Command::Export { db, .. }
+            | Command::Stats { db, .. }
+            | Command::ModelGap { db, .. }
+            | Command::Process { db, .. }
+            | Command::List { db, .. }
+            | Command::Show { db, .. }
+            | Command::History { db, .. }
+            | Command::Compare { db, .. }
+            | Command::Push { db, .. }
+            | Command::Serve { db, .. } => Some(db),
+            Command::Check(_) | Command::Sim(_) | Command::Completions(_) | Command::Man(_) => None,
+        }
+    }
+}
+
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -308,26 +331,27 @@ fn wedge_a_worker() {
 
 /// Run the command.
 pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
-    let top = cli.db;
-    let pick = |arg: args::DbArg| arg.or(top.clone());
-    match cli.command {
-        Command::Run { db, args } => run::run(&pick(db), args).await,
+    let db = cli.command.db_arg().cloned().unwrap_or_default().or(cli.db);
+    let done = match cli.command {
+        Command::Run { args, .. } => run::run(&db, args).await,
         Command::Check(args) => check::check(args).await,
-        Command::Resume { db, args } => resume::resume(&pick(db), args).await,
-        Command::Report { db, args } => report::report(&pick(db), args).await,
-        Command::Import { db, args } => import::import(&pick(db), args).await,
-        Command::Export { db, args } => export::export(&pick(db), args).await,
-        Command::Stats { db, args } => stats::stats(&pick(db), args).await,
-        Command::ModelGap { db, args } => model_gap::model_gap(&pick(db), args).await,
-        Command::Process { db, args } => process::process(&pick(db), args).await,
-        Command::List { db, args } => list::list(&pick(db), args).await,
-        Command::Show { db, args } => list::show(&pick(db), args).await,
-        Command::History { db, args } => history::history(&pick(db), args).await,
-        Command::Compare { db, args } => compare::compare(&pick(db), args).await,
-        Command::Push { db, args } => push::push(&pick(db), args).await,
-        Command::Serve { db, args } => serve::serve(&pick(db), args).await,
+        Command::Resume { args, .. } => resume::resume(&db, args).await,
+        Command::Report { args, .. } => report::report(&db, args).await,
+        Command::Import { args, .. } => import::import(&db, args).await,
+        Command::Export { args, .. } => export::export(&db, args).await,
+        Command::Stats { args, .. } => stats::stats(&db, args).await,
+        Command::ModelGap { args, .. } => model_gap::model_gap(&db, args).await,
+        Command::Process { args, .. } => process::process(&db, args).await,
+        Command::List { args, .. } => list::list(&db, args).await,
+        Command::Show { args, .. } => list::show(&db, args).await,
+        Command::History { args, .. } => history::history(&db, args).await,
+        Command::Compare { args, .. } => compare::compare(&db, args).await,
+        Command::Push { args, .. } => push::push(&db, args).await,
+        Command::Serve { args, .. } => serve::serve(&db, args).await,
         Command::Sim(args) => sim::sim(args).await,
         Command::Completions(args) => docs::completions(args),
         Command::Man(args) => docs::man(args),
-    }
+    };
+    // A lab store that went away, refused or timed out: said in words, naming it.
+    done.map_err(|e| survey_store::lab::explained_at(&db, e, "reading the lab store"))
 }

@@ -75,7 +75,10 @@ pub async fn push(db: &Path, args: PushArgs) -> anyhow::Result<()> {
     }
     .await;
     station.close().await;
-    let report = pushed?;
+    let report = match lab::Server::of(url) {
+        Some(at) => pushed.map_err(|e| lab::explained(e, &at, lab::PUSHING))?,
+        None => pushed?,
+    };
     if args.json {
         emit(&format!("{}\n", serde_json::to_value(&report)?));
         return Ok(());

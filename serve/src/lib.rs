@@ -17,8 +17,11 @@
 //! `/api/`); a store that cannot be read, a 503 with the reason (a lab
 //! store's URL shown without its password).
 
+mod doors;
 mod overview;
 mod pages;
+
+pub use doors::{Limits, connection_bound};
 
 use axum::Router;
 use axum::extract::Request;
@@ -56,6 +59,8 @@ pub struct ServeOptions {
     pub due_after_days: f64,
     /// How often `/` refreshes the live surveys, milliseconds.
     pub refresh_ms: u64,
+    /// The bounds on connections, on the work done at once, on shutdown.
+    pub limits: Limits,
 }
 
 /// The server's state: what it was told, and the bound on the work done off
@@ -65,6 +70,8 @@ struct AppState {
     options: ServeOptions,
     /// Pages and documents computed at once on blocking threads ([`offload`]).
     heavy: tokio::sync::Semaphore,
+    /// Pages and documents computed or waiting their turn ([`offload`]).
+    admitted: tokio::sync::Semaphore,
 }
 
 impl std::ops::Deref for AppState {
@@ -78,9 +85,12 @@ impl std::ops::Deref for AppState {
 type App = Arc<AppState>;
 
 /// Run `work` (a page's or a document's reads and computing: a history, a
-/// report, plots) on a blocking thread, as many at once as there are cores
-/// (the others wait their turn): the async workers stay free, so `/api/live`
-/// and the static script answer at once whatever the pages cost.
+/// report, plots) on a blocking thread, [`Limits::heavy_at_once`] at once
+/// (as many as there are cores), up to [`Limits::heavy_queue`] more waiting
+/// their turn, and beyond those a 503 with `Retry-After` at once: the async
+/// workers stay free, so `/api/live` and the static script answer at once
+/// whatever the pages cost, and a burst of requests costs the memory of a
+/// few pages, not of all of them at once.
 async fn offload<T: Send + 'static>(
     app: App,
     api: bool,
@@ -91,10 +101,23 @@ async fn offload<T: Send + 'static>(
         reason: format!("the request's work stopped: {why}"),
         api,
     };
+    let Ok(_admitted) = app.admitted.try_acquire() else {
+        return Err(Failure::busy(&app.limits, api));
+    };
     let _turn = app.heavy.acquire().await.map_err(|e| stopped(e.to_string()))?;
     let runtime = tokio::runtime::Handle::current();
-    tokio::task::spawn_blocking(move || runtime.block_on(work)).await.map_err(|e| stopped(e.to_string()))?
+    let hold = app.limits.hold;
+    tokio::task::spawn_blocking(move || {
+        let done = runtime.block_on(work);
+        std::thread::sleep(hold);
+        done
+    })
+    .await
+    .map_err(|e| stopped(e.to_string()))?
 }
+
+/// What a 503 asks the client to wait, seconds.
+const RETRY_AFTER_S: u64 = 2;
 
 /// Why a request was not served.
 #[derive(Debug)]
@@ -127,6 +150,18 @@ impl Failure {
         Failure::unavailable(e, api)
     }
 
+    /// Too many pages and documents asked for at once: come back later.
+    fn busy(limits: &Limits, api: bool) -> Failure {
+        Failure {
+            status: StatusCode::SERVICE_UNAVAILABLE,
+            reason: format!(
+                "busy: {} pages are being made and {} wait their turn; try again in {} s",
+                limits.heavy_at_once, limits.heavy_queue, RETRY_AFTER_S
+            ),
+            api,
+        }
+    }
+
     fn not_found(what: String, api: bool) -> Failure {
         Failure { status: StatusCode::NOT_FOUND, reason: what, api }
     }
@@ -137,11 +172,15 @@ impl IntoResponse for Failure {
         if self.status.is_server_error() {
             tracing::warn!(status = self.status.as_u16(), "{}", self.reason);
         }
-        if self.api {
+        let mut response = if self.api {
             (self.status, json_body(&json!({"error": self.reason}))).into_response()
         } else {
             (self.status, html_body(pages::failure(self.status, &self.reason))).into_response()
+        };
+        if self.status == StatusCode::SERVICE_UNAVAILABLE {
+            response.headers_mut().insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_S));
         }
+        response
     }
 }
 
@@ -160,6 +199,8 @@ macro_rules! read {
         let $store = survey_store::Store::open_read_only(&$app.db).await.map_err(|e| Failure::unavailable(&e, $api))?;
         let result: anyhow::Result<_> = async { $body }.await;
         $store.close().await;
+        // A lab store that went away: said in words, naming it.
+        let result = result.map_err(|e| survey_store::lab::explained_at(&$app.db, e, "reading the lab store"));
         result.map_err(|e| Failure::of(&e, $api))?
     }};
 }
@@ -181,8 +222,9 @@ pub fn router(options: ServeOptions) -> Router {
         .fallback(not_found)
         .layer(middleware::from_fn(guard))
         .with_state(Arc::new(AppState {
+            heavy: tokio::sync::Semaphore::new(options.limits.heavy_at_once.max(1)),
+            admitted: tokio::sync::Semaphore::new(options.limits.heavy_at_once.max(1) + options.limits.heavy_queue),
             options,
-            heavy: tokio::sync::Semaphore::new(std::thread::available_parallelism().map_or(2, |n| n.get())),
         }))
 }
 
@@ -212,13 +254,14 @@ async fn guard(req: Request, next: Next) -> Response {
 }
 
 /// Serve `options.db` on `listener` until `shutdown` resolves; the requests
-/// under way are answered first.
+/// under way are answered first, within [`Limits::stop_within`] ([`doors`]).
 pub async fn serve(
     listener: tokio::net::TcpListener,
     options: ServeOptions,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    axum::serve(listener, router(options)).with_graceful_shutdown(shutdown).await
+    let limits = options.limits.clone();
+    doors::serve(listener, router(options), &limits, shutdown).await
 }
 
 /// A future that resolves on SIGINT or SIGTERM, the handlers installed now

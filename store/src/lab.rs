@@ -12,10 +12,16 @@
 //!
 //! A password in the URL never leaves this module: messages, logs and the
 //! store's name ([`Store::path`]) show the URL without it ([`redacted`]).
-//! A URL that cannot be parsed, credentials the server refuses or a
-//! database that does not exist are bad input (exit status 2, naming what);
-//! a server that cannot be reached is a run-time failure (exit status 1,
-//! naming the host).
+//! A URL that cannot be parsed, credentials the server refuses, a database
+//! that does not exist or a role without the privilege to push are bad
+//! input (exit status 2, naming what, and for a privilege what to grant); a
+//! server that cannot be reached, refuses the connection or goes away is a
+//! run-time failure (exit status 1, naming the host): each said in words
+//! once ([`explained`]), never as the driver's or the server's internals.
+//!
+//! TLS is rustls (sqlx's `tls-rustls-ring-native-roots`): the URL's
+//! `sslmode` (`require`, `verify-ca`, `verify-full`) and `sslrootcert` (a
+//! CA's PEM file; the system's roots otherwise) as libpq reads them.
 
 mod push;
 
@@ -112,6 +118,15 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         .map_err(|e| bad_input(format!("--db {shown}: not a PostgreSQL URL ({})", reason(&e))))?;
     let (host, port) = (options.get_host().to_string(), options.get_port());
     let user = options.get_username().to_string();
+    // One connection first, on its own: the pool retries a refused one until
+    // its timeout, where a refusal is said at once.
+    match tokio::time::timeout(CONNECT_TIMEOUT, sqlx::ConnectOptions::connect(&options)).await {
+        Ok(Ok(first)) => {
+            let _ = sqlx::Connection::close(first).await;
+        }
+        Ok(Err(e)) => return Err(connect_error(&e, &shown, &host, port, &user)),
+        Err(_) => return Err(connect_error(&sqlx::Error::PoolTimedOut, &shown, &host, port, &user)),
+    }
     // No maintenance task (see `single_connection_pool`): one connection,
     // no idle timeout, no maximum lifetime, no minimum.
     let pool = PgPoolOptions::new()
@@ -130,16 +145,174 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         writable: setup,
         cache: setup,
     };
+    let at = Server { host, port, user };
     let ready = if setup {
-        migrator().run(&pool).await.map_err(|e| anyhow::anyhow!("cannot set up the lab store {shown}: {e}"))
+        set_up(&pool, &shown).await
     } else {
         check_schema(&pool, &shown).await.map(|version| store.cache = version >= super::CACHE_SCHEMA)
     };
+    let ready = ready.map_err(|e| explained(e, &at, if setup { PUSHING } else { "reading its schema" }));
     if let Err(e) = ready {
         store.close().await;
         return Err(e);
     }
     Ok(store)
+}
+
+/// Set the lab store's schema up or bring it up to date; one already
+/// current is left as it is (so a role that may write the tables but not
+/// create any pushes into a store set up before).
+async fn set_up(pool: &sqlx::PgPool, shown: &str) -> anyhow::Result<()> {
+    let known = MIGRATIONS.last().map_or(0, |m| m.0);
+    if matches!(check_schema(pool, shown).await, Ok(v) if v == known) {
+        return Ok(());
+    }
+    migrator()
+        .run(pool)
+        .await
+        .map_err(|e| anyhow::Error::new(e).context(format!("cannot set up the lab store {shown}")))
+}
+
+/// Where the lab store is and who connects: what its messages name.
+#[derive(Debug, Clone)]
+pub struct Server {
+    host: String,
+    port: u16,
+    user: String,
+}
+
+impl Server {
+    /// The server of the lab store `url` (`None`: not a PostgreSQL URL).
+    pub fn of(url: &str) -> Option<Server> {
+        let o = PgConnectOptions::from_str(url).ok()?;
+        Some(Server { host: o.get_host().to_string(), port: o.get_port(), user: o.get_username().to_string() })
+    }
+}
+
+/// What [`explained`] is told while pushing (a missing privilege is then one to write).
+pub const PUSHING: &str = "pushing";
+
+/// [`explained`] where `db` is the lab store's URL; `e` as it is otherwise
+/// (a station's file).
+pub fn explained_at(db: &Path, e: anyhow::Error, doing: &str) -> anyhow::Error {
+    match url_of(db).and_then(Server::of) {
+        Some(at) => explained(e, &at, doing),
+        None => e,
+    }
+}
+
+/// `e` (or what its chain holds: a migration's sqlx error) with the lab store's failure said in words, once: the server gone
+/// away (shut down, restarted, the connection closed or reset), a connection
+/// refused, a privilege missing (what to grant, bad input); the contexts
+/// above it (`cannot push survey 3 (uid)`, `copying its samples`) kept.
+/// Anything else is `e` as it was. `doing` says what was under way when
+/// nothing above says it.
+pub fn explained(e: anyhow::Error, at: &Server, doing: &str) -> anyhow::Error {
+    let Some((depth, sqlx_error)) =
+        e.chain().enumerate().find_map(|(i, c)| c.downcast_ref::<sqlx::Error>().map(|s| (i, s)))
+    else {
+        return e;
+    };
+    let Some((words, bad)) = in_words(sqlx_error, at, doing == PUSHING) else { return e };
+    // A migration's error repeats the database's words: left out.
+    let above: Vec<String> =
+        e.chain().take(depth).filter(|c| !c.is::<sqlx::migrate::MigrateError>()).map(|c| c.to_string()).collect();
+    let text = if above.is_empty() { format!("{doing}: {words}") } else { format!("{}: {words}", above.join(": ")) };
+    if bad { bad_input(text) } else { anyhow::anyhow!(text) }
+}
+
+/// What PostgreSQL's code says happened to the connection, in words (`None`:
+/// not the connection's end).
+fn gone_in_words(code: &str) -> Option<&'static str> {
+    Some(match code {
+        // admin_shutdown: the server is stopping, or the backend was terminated.
+        "57P01" => "the server ended the connection (it is shutting down, or an administrator terminated the session)",
+        "57P02" => "the server ended the connection (it crashed and is restarting)",
+        "57P03" => "the server does not take connections now (it is starting up or shutting down)",
+        "57P05" => "the server ended the connection (idle for too long)",
+        c if c.starts_with("08") => "the connection to the server failed",
+        _ => return None,
+    })
+}
+
+/// An I/O failure on the connection in words (`None`: not one of those).
+fn io_in_words(kind: std::io::ErrorKind) -> Option<&'static str> {
+    use std::io::ErrorKind as K;
+    Some(match kind {
+        K::ConnectionRefused => "the connection was refused (no server listens there, or a firewall refuses it)",
+        K::UnexpectedEof | K::ConnectionReset | K::ConnectionAborted | K::BrokenPipe => {
+            "the server closed the connection (it went away: stopped, restarted, or the network dropped it)"
+        }
+        K::TimedOut => "the connection timed out (the network or the server does not answer)",
+        _ => return None,
+    })
+}
+
+/// A failure of the connection itself (not the server's answer) in words:
+/// I/O, TLS, a reply that is not PostgreSQL's.
+fn link_in_words(e: &sqlx::Error) -> Option<String> {
+    match e {
+        sqlx::Error::Io(io) => {
+            let text = io.to_string();
+            if text.contains("certificate") || text.contains("TLS") || text.contains("tls") {
+                return Some(tls_in_words(&text));
+            }
+            io_in_words(io.kind()).map(str::to_string)
+        }
+        sqlx::Error::Tls(t) => Some(tls_in_words(&t.to_string())),
+        // The first reply to TLS's request read as 0 bytes: the connection was closed.
+        sqlx::Error::Protocol(p) if p.contains("SSLRequest") => Some(
+            "the server closed the connection as soon as it was made (it went away, or is not a PostgreSQL \
+             server)"
+                .into(),
+        ),
+        _ => None,
+    }
+}
+
+/// `e` in words naming the server, and whether it is the user's (bad input).
+fn in_words(e: &sqlx::Error, at: &Server, pushing: bool) -> Option<(String, bool)> {
+    let Server { host, port, user } = at;
+    if let Some(db) = e.as_database_error() {
+        let code = db.code().unwrap_or_default();
+        if code == "42501" && !pushing {
+            return Some((
+                format!(
+                    "the role {user} may not read the lab store at {host}:{port} ({}): docs/lab.md, \"Roles\": \
+                     `GRANT USAGE ON SCHEMA public TO {user}; GRANT SELECT ON ALL TABLES IN SCHEMA public TO {user}`",
+                    db.message()
+                ),
+                true,
+            ));
+        }
+        if code == "42501" {
+            return Some((
+                format!(
+                    "the role {user} may not write the lab store at {host}:{port} ({}): `survey push` needs a role that \
+                     may create tables in the database for the first push (its owner: `createdb --owner {user} ...`), \
+                     and SELECT, INSERT and UPDATE on its tables and USAGE on its sequences for every push (docs/lab.md, \
+                     \"Roles\": `GRANT SELECT, INSERT, UPDATE ON ALL TABLES IN SCHEMA public TO {user}; GRANT USAGE ON \
+                     ALL SEQUENCES IN SCHEMA public TO {user}`)",
+                    db.message()
+                ),
+                true,
+            ));
+        }
+        return gone_in_words(&code).map(|w| (format!("the lab store at {host}:{port}: {w}"), false));
+    }
+    if let Some(w) = link_in_words(e) {
+        return Some((format!("the lab store at {host}:{port}: {w}"), false));
+    }
+    match e {
+        sqlx::Error::PoolTimedOut => Some((
+            format!("the lab store at {host}:{port} gave no connection within {} s", CONNECT_TIMEOUT.as_secs()),
+            false,
+        )),
+        sqlx::Error::PoolClosed | sqlx::Error::WorkerCrashed => {
+            Some((format!("the connection to the lab store at {host}:{port} was lost"), false))
+        }
+        _ => None,
+    }
 }
 
 /// The lab store's schema is there and one this version reads (its own,
@@ -187,20 +360,52 @@ fn connect_error(e: &sqlx::Error, shown: &str, host: &str, port: u16, user: &str
         let code = db.code().unwrap_or_default();
         // 28000 invalid authorization, 28P01 invalid password, 3D000 no such database.
         if code.starts_with("28") || code == "3D000" {
+            // pg_hba.conf's `hostnossl ... reject`: a server that takes TLS only.
+            let hint = if db.message().contains("no encryption") {
+                ": the server takes only encrypted connections; add `?sslmode=require` to the URL (or \
+                 `?sslmode=verify-full&sslrootcert=CA.pem` to check its certificate)"
+            } else {
+                ""
+            };
             return bad_input(format!(
-                "the lab store at {host}:{port} refused the connection of {user} ({shown}): {}",
+                "the lab store at {host}:{port} refused the connection of {user} ({shown}): {}{hint}",
                 db.message()
             ));
+        }
+        if let Some(w) = gone_in_words(&code) {
+            return anyhow::anyhow!("cannot reach the lab store at {host}:{port} ({shown}): {w}");
         }
         return anyhow::anyhow!("the lab store at {host}:{port} ({shown}) failed: {}", db.message());
     }
     let why = match e {
         sqlx::Error::PoolTimedOut => format!("no answer within {} s", CONNECT_TIMEOUT.as_secs()),
-        sqlx::Error::Io(io) => io.to_string(),
-        sqlx::Error::Tls(t) => format!("TLS: {t}"),
-        other => reason(other),
+        other => match link_in_words(other) {
+            Some(w) => w,
+            None => reason(other),
+        },
     };
     anyhow::anyhow!("cannot reach the lab store at {host}:{port} ({shown}): {why}")
+}
+
+/// A TLS failure in words: what the server's certificate lacks, what the URL can say.
+fn tls_in_words(t: &str) -> String {
+    let why = if t.contains("UnknownIssuer") {
+        "the server's certificate is not signed by a known authority: give its CA's PEM file with \
+         `sslrootcert=PATH` in the URL"
+            .to_string()
+    } else if t.contains("NotValidForName") {
+        "the server's certificate is not made out to this host name (`sslmode=verify-ca` checks the authority only)"
+            .to_string()
+    } else if t.contains("Expired") {
+        "the server's certificate has expired".to_string()
+    } else if t.contains("server does not support TLS") {
+        "the server does not take encrypted connections (ssl = off): remove `sslmode` from the URL or turn TLS on \
+         at the server"
+            .to_string()
+    } else {
+        t.to_string()
+    };
+    format!("TLS: {why}")
 }
 
 #[cfg(test)]
@@ -216,6 +421,30 @@ mod tests {
         assert_eq!(display(Path::new("postgres://u:pw@h/d")), "postgres://u@h/d");
         assert_eq!(display(Path::new("station.db")), "station.db");
         assert!(url_of(Path::new("postgres.db")).is_none() && url_of(Path::new("postgres://h/d")).is_some());
+    }
+
+    #[test]
+    fn a_server_going_away_is_said_in_words_once_naming_the_host() {
+        let at = Server::of("postgres://lab:s3cret@db.example:5433/x").unwrap();
+        let eof =
+            std::io::Error::new(std::io::ErrorKind::UnexpectedEof, "expected to read 5 bytes, got 0 bytes at EOF");
+        let e = anyhow::Error::new(sqlx::Error::Io(eof)).context("copying its samples").context("cannot push survey 3");
+        let text = format!("{:#}", explained(e, &at, "pushing"));
+        assert_eq!(
+            text,
+            "cannot push survey 3: copying its samples: the lab store at db.example:5433: the server closed the \
+             connection (it went away: stopped, restarted, or the network dropped it)"
+        );
+        let e = explained(anyhow::Error::new(sqlx::Error::PoolTimedOut), &at, "listing its surveys");
+        assert_eq!(
+            format!("{e:#}"),
+            "listing its surveys: the lab store at db.example:5433 gave no connection within 10 s"
+        );
+        assert!(gone_in_words("57P01").unwrap().contains("shutting down") && gone_in_words("42P01").is_none());
+        // Anything else is left as it was.
+        let e = explained(anyhow::anyhow!("no such survey"), &at, "x");
+        assert_eq!(format!("{e:#}"), "no such survey");
+        assert!(!text.contains("s3cret"));
     }
 
     #[tokio::test]

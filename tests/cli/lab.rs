@@ -19,14 +19,30 @@ pub(super) const PASSWORD: &str = "lab-s3cret-pw";
 pub(super) struct Server {
     bin: PathBuf,
     port: u16,
+    /// Its folder: the TLS cluster's CA certificate is `ca.crt` there.
+    pub(super) dir: PathBuf,
+    /// It takes only TLS connections.
+    tls: bool,
 }
 
 static SERVER: OnceLock<Result<Server, String>> = OnceLock::new();
+static TLS_SERVER: OnceLock<Result<Server, String>> = OnceLock::new();
 
 /// The cluster, started on first use; `None` (with the reason printed) where
 /// PostgreSQL is not installed.
 pub(super) fn server() -> Option<&'static Server> {
-    match SERVER.get_or_init(start) {
+    started(SERVER.get_or_init(|| start(false)))
+}
+
+/// A second cluster that takes only TLS connections (`hostssl`, plain ones
+/// rejected by pg_hba.conf), its certificate signed by a CA made for it
+/// (`ca.crt` in its folder, for `sslrootcert`), started on first use.
+pub(super) fn tls_server() -> Option<&'static Server> {
+    started(TLS_SERVER.get_or_init(|| start(true)))
+}
+
+fn started(server: &'static Result<Server, String>) -> Option<&'static Server> {
+    match server {
         Ok(s) => Some(s),
         Err(why) => {
             eprintln!("skipped: {why}");
@@ -46,7 +62,48 @@ fn as_server_user(program: &Path, root: bool) -> Command {
     }
 }
 
-fn start() -> Result<Server, String> {
+/// A CA and a server certificate it signs for 127.0.0.1 in `dir` (`ca.crt`,
+/// `server.crt`, `server.key`), by the `openssl` command.
+fn certificates(dir: &Path) -> Result<(), String> {
+    let openssl = |args: &[&str]| -> Result<(), String> {
+        let out = Command::new("openssl").current_dir(dir).args(args).output().map_err(|e| format!("openssl: {e}"))?;
+        if out.status.success() {
+            Ok(())
+        } else {
+            Err(format!("openssl {args:?}: {}", String::from_utf8_lossy(&out.stderr)))
+        }
+    };
+    let ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"];
+    let mut ca =
+        vec!["req", "-x509", "-days", "2", "-subj", "/CN=survey test CA", "-keyout", "ca.key", "-out", "ca.crt"];
+    ca.extend(ec);
+    ca.extend(["-addext", "basicConstraints=critical,CA:TRUE", "-addext", "keyUsage=critical,keyCertSign,cRLSign"]);
+    openssl(&ca)?;
+    let mut csr = vec!["req", "-subj", "/CN=127.0.0.1", "-keyout", "server.key", "-out", "server.csr"];
+    csr.extend(ec);
+    openssl(&csr)?;
+    std::fs::write(dir.join("ext"), "subjectAltName=IP:127.0.0.1,DNS:localhost\nextendedKeyUsage=serverAuth\n")
+        .map_err(|e| e.to_string())?;
+    openssl(&[
+        "x509",
+        "-req",
+        "-in",
+        "server.csr",
+        "-CA",
+        "ca.crt",
+        "-CAkey",
+        "ca.key",
+        "-CAcreateserial",
+        "-days",
+        "2",
+        "-extfile",
+        "ext",
+        "-out",
+        "server.crt",
+    ])
+}
+
+fn start(tls: bool) -> Result<Server, String> {
     let bin = std::fs::read_dir("/usr/lib/postgresql")
         .map_err(|_| {
             "PostgreSQL is not installed (/usr/lib/postgresql is absent): the lab store tests skipped".to_string()
@@ -87,11 +144,34 @@ fn start() -> Result<Server, String> {
     initdb.arg("-D").arg(&data).args(["-U", "survey", "-A", "scram-sha-256", "--no-sync"]);
     initdb.arg(format!("--pwfile={}", dir.join("pw").display()));
     run(initdb, "initdb")?;
+    let mut ssl = String::new();
+    if tls {
+        certificates(&dir)?;
+        for f in ["server.crt", "server.key"] {
+            std::fs::copy(dir.join(f), data.join(f)).map_err(|e| format!("{f}: {e}"))?;
+        }
+        use std::os::unix::fs::PermissionsExt as _;
+        std::fs::set_permissions(data.join("server.key"), std::fs::Permissions::from_mode(0o600)).unwrap();
+        if root {
+            let nobody = uid(&["nobody"]).ok_or("no user nobody to run the server as")?;
+            for f in ["server.crt", "server.key"] {
+                std::os::unix::fs::chown(data.join(f), Some(nobody), None).map_err(|e| format!("chown {f}: {e}"))?;
+            }
+        }
+        // TLS or nothing from the network; the socket in the folder for psql.
+        std::fs::write(
+            data.join("pg_hba.conf"),
+            "local all all scram-sha-256\nhostssl all all 127.0.0.1/32 scram-sha-256\n\
+             hostnossl all all 127.0.0.1/32 reject\n",
+        )
+        .map_err(|e| format!("pg_hba.conf: {e}"))?;
+        ssl = " -c ssl=on".into();
+    }
     // An ephemeral port: the kernel's choice, free again once the listener closes.
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let mut pg_ctl = as_server_user(&bin.join("pg_ctl"), root);
     pg_ctl.arg("-D").arg(&data).arg("-o").arg(format!(
-        "-p {port} -k {} -c listen_addresses=127.0.0.1 -c fsync=off -c max_connections=40",
+        "-p {port} -k {} -c listen_addresses=127.0.0.1 -c fsync=off -c max_connections=40{ssl}",
         dir.display()
     ));
     pg_ctl.arg("-l").arg(dir.join("log")).args(["-w", "start"]);
@@ -113,19 +193,25 @@ fn start() -> Result<Server, String> {
         .stderr(Stdio::null())
         .spawn()
         .map_err(|e| format!("cannot start the watchdog: {e}"))?;
-    Ok(Server { bin, port })
+    Ok(Server { bin, port, dir, tls })
 }
 
 impl Server {
     /// The URL of `database` with the cluster's password.
-    fn url(&self, database: &str) -> String {
+    pub(super) fn url(&self, database: &str) -> String {
         format!("postgres://survey:{PASSWORD}@127.0.0.1:{}/{database}", self.port)
     }
 
+    /// The URL psql connects with (TLS where the cluster takes nothing else).
+    fn psql_url(&self, database: &str) -> String {
+        let url = self.url(database);
+        if self.tls { format!("{url}?sslmode=require") } else { url }
+    }
+
     /// `psql -At -c sql` on `database`: the rows, one a line, `|` between columns.
-    fn psql(&self, database: &str, sql: &str) -> String {
+    pub(super) fn psql(&self, database: &str, sql: &str) -> String {
         let out = Command::new(self.bin.join("psql"))
-            .args(["-X", "-At", "-v", "ON_ERROR_STOP=1", "-d", &self.url(database), "-c", sql])
+            .args(["-X", "-At", "-v", "ON_ERROR_STOP=1", "-d", &self.psql_url(database), "-c", sql])
             .output()
             .expect("psql runs");
         assert!(out.status.success(), "psql {sql}: {}", String::from_utf8_lossy(&out.stderr));

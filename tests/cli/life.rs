@@ -324,6 +324,17 @@ fn the_recalibration_loop_checks_and_recalibrates_only_when_the_check_says_so() 
     assert_eq!(surveys[4]["check"]["against_uid"].as_str(), Some(recal));
     let text = bench.survey(&["history", "--asset", "lab/ax1"]).success().stdout;
     assert!(text.contains(&format!("recalibrated by {recal}, table survey-4/table-4.csv in force")), "{text}");
+    // Pushed to the lab store, the history names the table by its survey, not by a path on the station.
+    if let Some(pg) = super::lab::server() {
+        let lab = pg.database("life_history");
+        bench.survey(&["push", "--to", &lab, "--all"]).success();
+        let text = bench.survey(&["--db", &lab, "history", "--asset", "lab/ax1"]).success().stdout;
+        assert!(
+            text.contains(&format!("recalibrated by {recal}, whose table is in force (in the lab store")),
+            "{text}"
+        );
+        assert!(!text.contains("table-4.csv"), "{text}");
+    }
 
     // Bad input stores nothing: a check of a survey plan that cannot be made,
     // and a first calibration that cannot be made creates no database.

@@ -60,6 +60,9 @@ pub struct History {
     pub not_compared: Vec<String>,
     /// What the check surveys decided.
     pub checks: Vec<CheckDecision>,
+    /// Read from the lab store: a check's table file is a path on the
+    /// station that made it, not shown as one here.
+    pub in_lab_store: bool,
 }
 
 /// The history of `asset` in `store`, up to and including survey `up_to`
@@ -85,7 +88,8 @@ pub async fn history(store: &Store, asset: &str, up_to: Option<i64>) -> anyhow::
     }
     let surveys = records.into_iter().zip(made.summaries).map(|(survey, summary)| Entry { survey, summary }).collect();
     let checks = store.checks_of_asset(asset).await?;
-    Ok(History { asset: asset.to_string(), surveys, changes, not_compared, checks })
+    let in_lab_store = survey_store::lab::url_of(store.path()).is_some();
+    Ok(History { asset: asset.to_string(), surveys, changes, not_compared, checks, in_lab_store })
 }
 
 impl History {
@@ -155,6 +159,10 @@ impl History {
                     if c.table_holds { "holds" } else { "does not hold" },
                     if c.recalibrate { "recalibrate" } else { "in tolerance" },
                     match (&c.recalibration_uid, &c.table_file) {
+                        (Some(u), Some(_)) if self.in_lab_store => format!(
+                            ": recalibrated by {u}, whose table is in force (in the lab store: `survey process --survey \
+                             {u}` makes it)"
+                        ),
                         (Some(u), Some(t)) => format!(": recalibrated by {u}, table {t} in force"),
                         (Some(u), None) => format!(": recalibrated by {u}"),
                         _ => String::new(),
