@@ -16,6 +16,7 @@
 mod browser;
 mod budget;
 mod correction;
+mod damage;
 mod docs;
 mod drift;
 mod everyday;
@@ -30,6 +31,7 @@ mod process;
 mod report;
 mod runs;
 mod serve;
+mod stale;
 mod tables;
 mod usage;
 mod verify;
