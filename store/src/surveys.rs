@@ -135,8 +135,9 @@ impl Store {
                 // checkpoint the log into the database file and take the
                 // space given back. A reader held open meanwhile keeps it
                 // from being the last.
-                let guard = crate::samples::open_reader(&self.path, false)
-                    .and_then(|c| Ok(c.query_row("SELECT COUNT(*) FROM sqlite_master", [], |_| Ok(())).map(|()| c)?));
+                let guard =
+                    rusqlite::Connection::open_with_flags(&self.path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+                        .and_then(|c| c.query_row("SELECT COUNT(*) FROM sqlite_master", [], |_| Ok(())).map(|()| c));
                 if !crate::lock::release_reserve(&self.path, id) {
                     return Err(e);
                 }
