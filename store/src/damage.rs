@@ -241,6 +241,34 @@ pub(crate) async fn problems(pool: &SqlitePool, path: &Path, version: i64) -> an
 /// A file as found: device, inode, length, modification time.
 type Stamp = (u64, u64, u64, Option<std::time::SystemTime>);
 
+/// An error met reading the file at `path` (a bulk read of samples): when
+/// SQLite found a page it cannot parse (`SQLITE_CORRUPT`, `SQLITE_NOTADB`),
+/// the refusal of a damaged file (bad input, exit status 2) rather than a
+/// run-time failure; any other error as it is. The pages of the samples'
+/// tables of a file larger than [`WHOLE_CHECK_BYTES`] are not checked on
+/// open: this is where their damage is met.
+pub(crate) fn on_read(path: &Path, what: &str, e: anyhow::Error) -> anyhow::Error {
+    let corrupt = e.chain().find_map(|c| {
+        if let Some(rusqlite::Error::SqliteFailure(f, message)) = c.downcast_ref::<rusqlite::Error>() {
+            let said = message.clone().unwrap_or_else(|| f.to_string());
+            return matches!(f.code, rusqlite::ErrorCode::DatabaseCorrupt | rusqlite::ErrorCode::NotADatabase)
+                .then_some(said);
+        }
+        let d = c.downcast_ref::<sqlx::Error>()?.as_database_error()?;
+        let code: u32 = d.code()?.parse().ok()?;
+        matches!(code & 0xff, 11 | 26).then(|| d.message().to_string())
+    });
+    match corrupt {
+        Some(said) if !e.chain().any(|c| c.is::<NotFound>()) => NotFound(format!(
+            "{} is damaged: SQLite cannot read {what} ({said}); nothing was written to it: restore it from a backup \
+             (docs/integrity.md)",
+            path.display()
+        ))
+        .into(),
+        _ => e,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -273,5 +301,59 @@ mod tests {
             ]
         );
         assert!(shape.missing_from(&shape).is_empty());
+    }
+
+    /// A page of the samples damaged after the file was checked (what a
+    /// large file's unchecked bulk tables can hold): the read that meets it
+    /// refuses the file as damaged (exit status 2), not a raw SQLite error.
+    #[tokio::test]
+    async fn a_damaged_page_met_while_reading_the_samples_is_the_file_s_damage() {
+        use crate::survey::NewSurvey;
+        use survey_acquire::{RawReading, RecordedSample};
+        use survey_processing::{Direction, Sample};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d.db");
+        let store = crate::Store::open(&path).await.unwrap();
+        let id = store.create_survey(&NewSurvey::default()).await.unwrap();
+        let samples: Vec<RecordedSample> = (0..2000u64)
+            .map(|seq| RecordedSample {
+                seq,
+                sample: Sample {
+                    run: 1,
+                    direction: Direction::Forward,
+                    target_deg: seq as f64 * 0.18,
+                    readout_deg: seq as f64 * 0.18,
+                    actual_deg: seq as f64 * 0.18 + 1e-4,
+                    timestamp_s: None,
+                },
+                raw: RawReading::None,
+            })
+            .collect();
+        store.append(id, &samples).await.unwrap();
+        store.close().await;
+        let store = crate::Store::open_read_only(&path).await.unwrap();
+        // A leaf page of `samples` (not its root), overwritten with noise.
+        let conn = rusqlite::Connection::open_with_flags(&path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY).unwrap();
+        let root: i64 =
+            conn.query_row("SELECT rootpage FROM sqlite_master WHERE name = 'samples'", [], |r| r.get(0)).unwrap();
+        let leaf: i64 = conn
+            .query_row(
+                "SELECT pageno FROM dbstat WHERE name = 'samples' AND pagetype = 'leaf' LIMIT 1 OFFSET 3",
+                [],
+                |r| r.get(0),
+            )
+            .unwrap_or(root + 1);
+        drop(conn);
+        let noise: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect();
+        let mut bytes = std::fs::read(&path).unwrap();
+        let at = (leaf as usize - 1) * 4096;
+        bytes[at..at + 4096].copy_from_slice(&noise);
+        std::fs::write(&path, bytes).unwrap();
+        let e = store.samples(id).await.unwrap_err();
+        assert!(crate::is_not_found(&e), "{e:#}");
+        let text = format!("{e:#}");
+        assert!(text.contains("d.db is damaged: SQLite cannot read the samples of survey 1 ("), "{text}");
+        assert!(text.contains("malformed"), "{text}");
+        store.close().await;
     }
 }
