@@ -50,6 +50,10 @@ use super::{MIGRATIONS, NotFound};
 /// larger ones on every table but the samples' (see the module's documentation).
 pub const WHOLE_CHECK_BYTES: u64 = 32 * 1024 * 1024;
 
+/// What is said of a file whose pages SQLite cannot read at all
+/// (`SQLITE_CORRUPT`).
+pub(crate) const MALFORMED: &str = "SQLite cannot read it (database disk image is malformed)";
+
 /// The tables that hold the samples: the bulk of a large file.
 const BULK_TABLES: [&str; 3] = ["samples", "raw_readings", "sample_packs"];
 
@@ -233,7 +237,7 @@ pub(crate) async fn problems(pool: &SqlitePool, path: &Path, version: i64) -> an
             }
             Ok(Vec::new())
         }
-        Ok(lines) => Ok(lines.into_iter().map(|l| format!("SQLite's quick_check: {l}")).collect()),
+        Ok(lines) => Ok(lines.into_iter().map(|l| format!("SQLite's quick_check: {}", l.replace('\n', " "))).collect()),
         Err(e) => corrupt(e),
     }
 }

@@ -607,6 +607,8 @@ async fn inspect(path: &Path) -> anyhow::Result<()> {
             return Err(foreign(path));
         }
         Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v).await,
+        // Pages of the schema or the migrations' table that do not read.
+        Err(e) if e.to_string().contains(damage::MALFORMED) => Ok(vec![damage::MALFORMED.to_string()]),
         _ => Ok(Vec::new()),
     };
     pool.close().await;
@@ -699,11 +701,7 @@ fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
         Some(26) => {
             NotFound(format!("{} is not a survey database (SQLite: file is not a database)", path.display())).into()
         }
-        Some(11) => NotFound(format!(
-            "{} is damaged (SQLite: database disk image is malformed); restore it from a backup",
-            path.display()
-        ))
-        .into(),
+        Some(11) => damage::damaged(path, &[damage::MALFORMED.to_string()]),
         _ => anyhow::Error::new(e).context(format!("cannot open the database {}", path.display())),
     }
 }

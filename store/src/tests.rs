@@ -587,7 +587,7 @@ async fn a_full_file_system_fails_every_write_and_claims_only_what_is_on_disk() 
 /// reserve its lock file kept is given back for it); once space is freed, the
 /// survey is resumed from its last stored sample to the end.
 async fn a_full_file_system_still_stores_the_status_and_resumes(dir: &std::path::Path) {
-    let path = dir.join(format!("status-{}.db", std::process::id()));
+    let path = dir.join(format!("full-status-{}.db", std::process::id()));
     let ballast = dir.join(format!("ballast-status-{}", std::process::id()));
     std::fs::write(&ballast, vec![1u8; 256 * 1024]).unwrap();
     let store = Store::open(&path).await.unwrap();

@@ -71,10 +71,9 @@ fn a_dropped_table_is_refused_by_every_command_which_names_it() {
     bench.survey(&["stats", "--json"]).success();
 }
 
-/// The page of the table `table`'s root, as a file offset.
-fn root_page_offset(conn: &rusqlite::Connection, table: &str) -> u64 {
-    let page: i64 =
-        conn.query_row("SELECT rootpage FROM sqlite_master WHERE name = ?1", [table], |r| r.get(0)).unwrap();
+/// The root page of the table or index `name`, as a file offset.
+fn root_page_offset(conn: &rusqlite::Connection, name: &str) -> u64 {
+    let page: i64 = conn.query_row("SELECT rootpage FROM sqlite_master WHERE name = ?1", [name], |r| r.get(0)).unwrap();
     let size: i64 = conn.query_row("PRAGMA page_size", [], |r| r.get(0)).unwrap();
     ((page - 1) * size) as u64
 }
@@ -83,7 +82,14 @@ fn root_page_offset(conn: &rusqlite::Connection, table: &str) -> u64 {
 fn an_overwritten_page_is_refused_by_the_readers() {
     use std::io::{Seek as _, SeekFrom, Write as _};
     let bench = Bench::new();
-    for table in ["samples", "sample_packs", "surveys"] {
+    for table in [
+        "samples",
+        "sample_packs",
+        "surveys",
+        "_sqlx_migrations",
+        "sqlite_autoindex__sqlx_migrations_1",
+        "events_by_survey",
+    ] {
         let db = format!("page-{table}.db");
         damaged_copy(&bench, &db, |_| {});
         let at = root_page_offset(&rusqlite::Connection::open(bench.path(&db)).unwrap(), table);
