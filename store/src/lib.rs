@@ -40,6 +40,7 @@ pub mod survey;
 mod cache;
 mod check_points;
 mod checks;
+mod damage;
 mod drift;
 pub mod lab;
 mod lock;
@@ -53,7 +54,8 @@ mod tests;
 mod tx;
 
 pub use checks::CheckDecision;
-pub use lock::{AcquirerLock, Holder, SurveyBusy, lock_path};
+pub use damage::WHOLE_CHECK_BYTES;
+pub use lock::{AcquirerLock, Holder, RESERVE_BYTES, SurveyBusy, is_held, lock_path};
 pub use pack::SmrPositions;
 pub use scan::StoredPass;
 pub use sink::StoreSink;
@@ -245,11 +247,9 @@ impl Store {
             return lab::open(url, false).await;
         }
         existing_file(path)?;
-        // Another application's file is refused before a connection that
-        // could make a WAL or shared-memory file beside it.
-        if looks_foreign(path).await {
-            return Err(foreign(path));
-        }
+        // Another application's file and a damaged one are refused before a
+        // connection that could make a WAL or shared-memory file beside it.
+        inspect(path).await?;
         let (pool, immutable) = connect_read_only(path).await?;
         let mut store = Store {
             backend: Backend::Sqlite(pool),
@@ -324,9 +324,7 @@ impl Store {
         if meta.len() == 0 {
             return Ok(true);
         }
-        if looks_foreign(path).await {
-            return Err(foreign(path));
-        }
+        inspect(path).await?;
         let (pool, _) = connect_read_only(path).await?;
         let found = schema(&pool, path).await;
         pool.close().await;
@@ -587,20 +585,51 @@ async fn schema(pool: &SqlitePool, path: &Path) -> anyhow::Result<Schema> {
     Ok(Schema::Foreign)
 }
 
-/// Whether the SQLite file at `path` is another application's database, as
-/// far as can be told without leaving a trace: opened `immutable` (no lock,
-/// no WAL or shared-memory file made beside it, which even a read-only
-/// connection to a WAL database makes), it shows its last checkpoint. A
-/// survey database never looks foreign that way (every checkpoint is a
-/// committed state of it); anything this glance cannot read (a checkpoint
-/// under way, a file that is not SQLite) is left to the connection that
-/// follows, which decides.
-async fn looks_foreign(path: &Path) -> bool {
+/// Refuse the SQLite file at `path` if it is another application's database
+/// or a damaged survey database (see `damage`), as far as can be told without
+/// leaving a trace: opened `immutable` (no lock, no WAL or shared-memory file
+/// made beside it, which even a read-only connection to a WAL database
+/// makes), it shows its last checkpoint. A survey database never looks
+/// foreign that way (every checkpoint is a committed state of it); anything
+/// this glance cannot read (a checkpoint under way, a file that is not
+/// SQLite) is left to the connection that follows, which decides. Damage
+/// seen while a write-ahead log is there (a writer's checkpoint may have
+/// changed the file under the glance) is confirmed on an ordinary read-only
+/// connection first.
+async fn inspect(path: &Path) -> anyhow::Result<()> {
     let options = SqliteConnectOptions::new().filename(path).read_only(true).immutable(true);
-    let Ok(pool) = single_connection_pool().connect_with(options).await else { return false };
+    let Ok(pool) = single_connection_pool().connect_with(options).await else { return Ok(()) };
     let found = schema(&pool, path).await;
+    let known = MIGRATIONS.last().map_or(0, |m| m.0);
+    let problems = match found {
+        Ok(Schema::Foreign) => {
+            pool.close().await;
+            return Err(foreign(path));
+        }
+        Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v).await,
+        // Pages of the schema or the migrations' table that do not read.
+        Err(e) if e.to_string().contains(damage::MALFORMED) => Ok(vec![damage::MALFORMED.to_string()]),
+        _ => Ok(Vec::new()),
+    };
     pool.close().await;
-    matches!(found, Ok(Schema::Foreign))
+    let problems = problems?;
+    if problems.is_empty() {
+        return Ok(());
+    }
+    let mut wal = path.as_os_str().to_os_string();
+    wal.push("-wal");
+    if std::fs::metadata(&wal).is_ok_and(|m| m.len() > 0) {
+        let (pool, _) = connect_read_only(path).await?;
+        let again = match schema(&pool, path).await {
+            Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v).await,
+            _ => Ok(problems.clone()),
+        };
+        pool.close().await;
+        if again?.is_empty() {
+            return Ok(());
+        }
+    }
+    Err(damage::damaged(path, &problems))
 }
 
 /// A read-only connection to the SQLite file at `path` that has read its
@@ -672,11 +701,7 @@ fn open_error(path: &Path, e: sqlx::Error) -> anyhow::Error {
         Some(26) => {
             NotFound(format!("{} is not a survey database (SQLite: file is not a database)", path.display())).into()
         }
-        Some(11) => NotFound(format!(
-            "{} is damaged (SQLite: database disk image is malformed); restore it from a backup",
-            path.display()
-        ))
-        .into(),
+        Some(11) => damage::damaged(path, &[damage::MALFORMED.to_string()]),
         _ => anyhow::Error::new(e).context(format!("cannot open the database {}", path.display())),
     }
 }

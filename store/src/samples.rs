@@ -149,6 +149,7 @@ impl Store {
             }
         };
         read.with_context(|| format!("cannot read the samples of survey {survey_id}"))
+            .map_err(|e| crate::damage::on_read(&self.path, &format!("the samples of survey {survey_id}"), e))
     }
 
     /// The samples of a survey as [`Store::samples`] reads them, with the SMR
@@ -180,6 +181,7 @@ impl Store {
             .await
             .context("the sample reader stopped")?
             .with_context(|| format!("cannot read the samples of survey {survey_id}"))
+            .map_err(|e| crate::damage::on_read(&self.path, &format!("the samples of survey {survey_id}"), e))
     }
 
     /// The samples of a survey, ordered by seq, with their raw readings and

@@ -9,7 +9,7 @@ use survey_drivers::SmrMeasurement;
 use survey_processing::geometry::AxisFit;
 
 use super::tx::WriteTx;
-use super::{AcquirerLock, CHUNK_ROWS, NotFound, Store, on_pool, real};
+use super::{AcquirerLock, Backend, CHUNK_ROWS, NotFound, Store, on_pool, real};
 use crate::survey::{NewSurvey, StoredColumns, SurveyRecord, SurveyRef, SurveyStatus};
 
 /// One entry of a survey's event log.
@@ -122,7 +122,41 @@ impl Store {
 
     /// Set a survey's status and, when given, the instrument time it ended.
     /// A [`NotFound`] error when there is no such survey.
+    ///
+    /// On a full disk, the space the survey's acquisition lock keeps for
+    /// this write ([`crate::RESERVE_BYTES`]) is given back and the write
+    /// tried once more: a survey stopped by a full disk is stored as what
+    /// it is, not left `running`.
     pub async fn set_status(&self, id: i64, status: SurveyStatus, ended_at_s: Option<f64>) -> anyhow::Result<()> {
+        match self.write_status(id, status, ended_at_s).await {
+            Err(e) if is_full(&e) => {
+                // The failed write's connection is being closed (in the
+                // background): were it the last one, its close would
+                // checkpoint the log into the database file and take the
+                // space given back. A reader held open meanwhile keeps it
+                // from being the last.
+                let guard =
+                    rusqlite::Connection::open_with_flags(&self.path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+                        .and_then(|c| c.query_row("SELECT COUNT(*) FROM sqlite_master", [], |_| Ok(())).map(|()| c));
+                if !crate::lock::release_reserve(&self.path, id) {
+                    return Err(e);
+                }
+                tracing::warn!(survey = id, error = %format!("{e:#}"), "the disk is full: the status is written into the reserve");
+                let written = self.write_status(id, status, ended_at_s).await;
+                drop(guard);
+                written
+            }
+            other => other,
+        }
+    }
+
+    /// [`Store::set_status`] without the reserve (tests of a full disk).
+    pub(crate) async fn write_status(
+        &self,
+        id: i64,
+        status: SurveyStatus,
+        ended_at_s: Option<f64>,
+    ) -> anyhow::Result<()> {
         let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let done = sqlx::query(
             "UPDATE surveys SET status = ?, ended_at_s = COALESCE(?, ended_at_s), \
@@ -303,7 +337,7 @@ impl Store {
             columns_of!(rows)?
         });
         match columns.into_iter().next() {
-            Some(c) => self.record(c),
+            Some(c) => self.shown(self.record(c)?).await,
             None => Err(self.no_survey(id).into()),
         }
     }
@@ -332,7 +366,7 @@ impl Store {
             columns_of!(rows)?
         });
         match columns.into_iter().next() {
-            Some(c) => self.record(c),
+            Some(c) => self.shown(self.record(c)?).await,
             None => Err(NotFound(format!("no survey with uid {uid} in {}", self.path.display())).into()),
         }
     }
@@ -408,7 +442,7 @@ impl Store {
             let rows = sqlx::query(query).fetch_all(pool).await?;
             columns_of!(rows)?
         });
-        columns.into_iter().map(|c| self.record(c)).collect()
+        self.records(columns).await
     }
 
     /// The surveys of an asset, in the order they were made (oldest first).
@@ -432,10 +466,11 @@ impl Store {
             let rows = sqlx::query(query).bind(asset).fetch_all(pool).await?;
             columns_of!(rows)?
         });
-        columns.into_iter().map(|c| self.record(c)).collect()
+        self.records(columns).await
     }
 
-    /// The surveys being acquired (status `running`), oldest first, each
+    /// The surveys being acquired (stored as `running`, and a live process
+    /// holds their acquisition lock: [`Store::shown`]), oldest first, each
     /// with its samples counted: what `survey serve`'s live paths poll,
     /// without reading (or counting the samples of) every other survey.
     pub async fn running(&self) -> anyhow::Result<Vec<SurveyRecord>> {
@@ -444,7 +479,47 @@ impl Store {
                 sqlx::query(select_surveys!(" WHERE s.status = 'running' ORDER BY s.id")).fetch_all(pool).await?;
             columns_of!(rows)?
         });
-        columns.into_iter().map(|c| self.record(c)).collect()
+        let mut live = self.records(columns).await?;
+        live.retain(|r| r.status == SurveyStatus::Running);
+        Ok(live)
+    }
+
+    /// Records of the columns `columns`, each as readers must show it ([`Store::shown`]).
+    async fn records(&self, columns: Vec<StoredColumns>) -> anyhow::Result<Vec<SurveyRecord>> {
+        let mut out = Vec::with_capacity(columns.len());
+        for c in columns {
+            out.push(self.shown(self.record(c)?).await?);
+        }
+        Ok(out)
+    }
+
+    /// The survey `record` as every reader must show it (`list`, `show`,
+    /// `history`, the pages): a survey stored as `running` that no live
+    /// process acquires (its acquisition lock is free: [`crate::is_held`])
+    /// is `interrupted`, whatever killed its acquirer (a kill, a crash, a
+    /// power loss, a disk too full to store the status). The one place this
+    /// is decided: every look-up of surveys goes through it.
+    ///
+    /// The lock is asked about without being taken, so no acquirer is ever
+    /// refused for it. An acquisition that ends between the read of the row
+    /// and the question (its lock released, its final status stored) is
+    /// caught by reading the status again: a free lock and a stored `running`
+    /// together mean the acquirer is gone. Where the question cannot be
+    /// answered (the lock file cannot be opened), the stored status is
+    /// shown. The lab store holds only complete surveys (`survey push`):
+    /// its statuses are shown as stored.
+    pub async fn shown(&self, mut record: SurveyRecord) -> anyhow::Result<SurveyRecord> {
+        let Backend::Sqlite(pool) = &self.backend else { return Ok(record) };
+        if record.status != SurveyStatus::Running || crate::is_held(&self.path, record.id) != Some(false) {
+            return Ok(record);
+        }
+        let now: Option<String> =
+            sqlx::query_scalar("SELECT status FROM surveys WHERE id = ?").bind(record.id).fetch_optional(pool).await?;
+        record.status = match now.as_deref().and_then(SurveyStatus::from_column) {
+            Some(SurveyStatus::Running) | None => SurveyStatus::Interrupted,
+            Some(other) => other,
+        };
+        Ok(record)
     }
 
     /// A survey's columns, typed (see [`crate::survey`]): a column that does
@@ -452,6 +527,15 @@ impl Store {
     fn record(&self, columns: StoredColumns) -> anyhow::Result<SurveyRecord> {
         Ok(SurveyRecord::parse(columns, &self.path.display().to_string())?)
     }
+}
+
+/// The disk (or the database's page limit) is full: `SQLITE_FULL` anywhere
+/// in the chain, or an I/O error of no space left.
+fn is_full(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<sqlx::Error>().and_then(super::sqlite_code).is_some_and(|code| code & 0xff == 13)
+            || c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::StorageFull)
+    })
 }
 
 pub(super) async fn insert_survey(conn: &mut SqliteConnection, s: &NewSurvey) -> anyhow::Result<i64> {

@@ -266,9 +266,9 @@ async fn resolve_latest_and_not_found() {
 #[tokio::test]
 async fn survey_fields_status_axis_events_locate_points() {
     let (_dir, store) = temp_store().await;
-    let id = store.create_survey(&new_survey()).await.unwrap();
+    let (id, lock) = store.create_acquired_survey(&new_survey()).await.unwrap();
     let row = store.survey(id).await.unwrap();
-    assert_eq!(row.status, SurveyStatus::Running);
+    assert_eq!(row.status, SurveyStatus::Running, "its acquirer holds it");
     assert_eq!(row.points, Some(36));
     assert_eq!(row.runs, Some(2));
     assert!(row.bidirectional);
@@ -279,6 +279,7 @@ async fn survey_fields_status_axis_events_locate_points() {
     assert_eq!(row.sample_count, 0);
     assert!(row.created_at.ends_with('Z') && row.created_at.contains('T'), "{}", row.created_at);
 
+    drop(lock);
     store.set_started(id, 0.5).await.unwrap();
     store.set_axis(id, &axis_fit()).await.unwrap();
     store.set_status(id, SurveyStatus::Interrupted, None).await.unwrap();
@@ -317,6 +318,50 @@ async fn survey_fields_status_axis_events_locate_points() {
     ] {
         assert_eq!(SurveyStatus::from_column(st.as_str()), Some(st));
     }
+    store.close().await;
+}
+
+/// A survey stored as `running` that no live process holds reads as
+/// `interrupted` through every look-up, and is not among the live ones; its
+/// stored row is left as it is (readers never write).
+#[tokio::test]
+async fn a_running_survey_no_process_holds_reads_as_interrupted_everywhere() {
+    let (_dir, store) = temp_store().await;
+    let stale = store.create_survey(&new_survey()).await.unwrap();
+    let (live, lock) = store.create_acquired_survey(&new_survey()).await.unwrap();
+    let uid_of = |id: i64| {
+        let store = store.clone();
+        async move { store.survey(id).await.unwrap().uid }
+    };
+    let (stale_uid, live_uid) = (uid_of(stale).await, uid_of(live).await);
+    let asset = store.survey(stale).await.unwrap().asset;
+    let check = |held: bool| {
+        let store = store.clone();
+        let (stale_uid, live_uid, asset) = (stale_uid.clone(), live_uid.clone(), asset.clone());
+        async move {
+            let live_status = if held { SurveyStatus::Running } else { SurveyStatus::Interrupted };
+            assert_eq!(store.survey(stale).await.unwrap().status, SurveyStatus::Interrupted);
+            assert_eq!(store.survey_by_uid(&stale_uid).await.unwrap().status, SurveyStatus::Interrupted);
+            assert_eq!(store.survey(live).await.unwrap().status, live_status);
+            assert_eq!(store.survey_by_uid(&live_uid).await.unwrap().status, live_status);
+            let listed: Vec<_> = store.list().await.unwrap().iter().map(|r| r.status).collect();
+            assert_eq!(listed, [SurveyStatus::Interrupted, live_status]);
+            let of_asset: Vec<_> = store.surveys_of_asset_uncounted(&asset).await.unwrap();
+            assert_eq!(of_asset.iter().map(|r| r.status).collect::<Vec<_>>(), [SurveyStatus::Interrupted, live_status]);
+            let running: Vec<i64> = store.running().await.unwrap().iter().map(|r| r.id).collect();
+            assert_eq!(running, if held { vec![live] } else { vec![] });
+        }
+    };
+    check(true).await;
+    drop(lock);
+    check(false).await;
+    let stored: Vec<String> =
+        sqlx::query_scalar("SELECT status FROM surveys ORDER BY id").fetch_all(store.sqlite().unwrap()).await.unwrap();
+    assert_eq!(stored, ["running", "running"], "a reader changes nothing stored");
+    // An acquirer that takes the lock again (a resume) is live again.
+    let again = AcquirerLock::acquire(store.path(), stale).unwrap();
+    assert_eq!(store.survey(stale).await.unwrap().status, SurveyStatus::Running);
+    drop(again);
     store.close().await;
 }
 
@@ -530,6 +575,68 @@ async fn a_full_file_system_fails_every_write_and_claims_only_what_is_on_disk() 
     let ballast = std::path::Path::new(&dir).join(format!("ballast-{}", std::process::id()));
     std::fs::write(&ballast, vec![1u8; 256 * 1024]).unwrap();
     fill_until_full(&path, Store::open(&path).await.unwrap(), || std::fs::remove_file(&ballast).unwrap()).await;
+    for suffix in ["", "-wal", "-shm"] {
+        let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
+    }
+    // In the same test: the two share the small file system.
+    a_full_file_system_still_stores_the_status_and_resumes(std::path::Path::new(&dir)).await;
+}
+
+/// An acquisition whose disk fills up: every write fails, a status write
+/// too, and yet the survey's status is stored as `interrupted` (the
+/// reserve its lock file kept is given back for it); once space is freed, the
+/// survey is resumed from its last stored sample to the end.
+async fn a_full_file_system_still_stores_the_status_and_resumes(dir: &std::path::Path) {
+    let path = dir.join(format!("full-status-{}.db", std::process::id()));
+    let ballast = dir.join(format!("ballast-status-{}", std::process::id()));
+    std::fs::write(&ballast, vec![1u8; 256 * 1024]).unwrap();
+    let store = Store::open(&path).await.unwrap();
+    let (id, lock) = store.create_acquired_survey(&new_survey()).await.unwrap();
+    let mut sink = StoreSink::new(store.clone(), id).with_batch(100);
+    let mut planned = None;
+    for seq in 0..1_000_000 {
+        if sink.record(recorded(seq)).await.is_err() {
+            planned = Some(seq + 100);
+            break;
+        }
+    }
+    let planned = planned.expect("the disk filled up");
+    // Whatever status write still fits (into the log's slack) is made, until
+    // none does: the disk has no room left for the status.
+    let mut refused = false;
+    for n in 0..10_000 {
+        if store.write_status(id, SurveyStatus::Running, Some(f64::from(n))).await.is_err() {
+            refused = true;
+            break;
+        }
+    }
+    assert!(refused, "the disk is full");
+    store.set_status(id, SurveyStatus::Interrupted, Some(7.0)).await.expect("the reserve holds the status");
+    drop(sink);
+    store.close().await;
+    let stored = || async {
+        let conn = rusqlite::Connection::open_with_flags(&path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY).unwrap();
+        conn.query_row("SELECT status FROM surveys WHERE id = ?1", [id], |r| r.get::<_, String>(0)).unwrap()
+    };
+    assert_eq!(stored().await, "interrupted", "the status on disk");
+    drop(lock);
+
+    // Space freed: a resume takes the lock (and its reserve) again and
+    // stores the rest, each sample once.
+    std::fs::remove_file(&ballast).unwrap();
+    let lock = AcquirerLock::acquire(&path, id).unwrap();
+    assert!(std::fs::metadata(lock.path()).unwrap().len() > RESERVE_BYTES, "the reserve is kept again");
+    let store = Store::open_existing(&path).await.unwrap();
+    let next = store.last_seq(id).await.unwrap().map_or(0, |s| s + 1);
+    store.set_status(id, SurveyStatus::Running, None).await.unwrap();
+    let rest: Vec<RecordedSample> = (next..planned).map(recorded).collect();
+    store.append(id, &rest).await.unwrap();
+    store.set_status(id, SurveyStatus::Complete, None).await.unwrap();
+    assert_eq!(store.sample_count(id).await.unwrap(), planned);
+    assert_eq!(store.survey(id).await.unwrap().status, SurveyStatus::Complete);
+    store.close().await;
+    drop(lock);
+    assert_eq!(stored().await, "complete");
     for suffix in ["", "-wal", "-shm"] {
         let _ = std::fs::remove_file(format!("{}{suffix}", path.display()));
     }

@@ -471,11 +471,14 @@ fn a_survey_being_acquired_moves_on_the_open_page_without_a_reload() {
             asset: "rig-9".into(),
             ..NewSurvey::default()
         };
-        let id = store.create_survey(&new).await.unwrap();
+        // Acquired by this process: its lock held to the end of the test
+        // (a `running` survey no process holds is not live).
+        let (id, lock) = store.create_acquired_survey(&new).await.unwrap();
         store.set_started(id, 0.0).await.unwrap();
         store.append(id, &(0..5).map(sample).collect::<Vec<_>>()).await.unwrap();
-        (store, id)
+        (store, (id, lock))
     });
+    let (id, _lock) = id;
     let mut cmd = bench.command(&["serve", "--listen", "127.0.0.1:0", "--refresh", "0.1"]);
     cmd.env("RUST_LOG", "warn,survey_serve=info");
     let server = super::serve::Server::start(cmd);

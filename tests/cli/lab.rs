@@ -432,8 +432,8 @@ fn push_copies_each_complete_survey_exactly_once_again_from_several_stations_and
     let one = a.survey(&["push", "--to", &lab, "--survey", &uids(&first, "pushed")[1], "--json"]).success().json();
     assert_eq!(uids(&one, "already"), [uids(&first, "pushed")[1].clone()], "{one}");
     a.survey(&["push", "--to", &lab, "--survey", &running])
-        .bad_input(&["is running", "only complete surveys are pushed"]);
-    a.survey(&["push", "--to", &lab]).bad_input(&["survey 4 of survey.db is running"]);
+        .bad_input(&["is interrupted", "only complete surveys are pushed"]);
+    a.survey(&["push", "--to", &lab]).bad_input(&["survey 4 of survey.db is interrupted"]);
     assert_eq!(count(), 3);
 
     // The latest survey by default.

@@ -16,6 +16,7 @@
 mod browser;
 mod budget;
 mod correction;
+mod damage;
 mod docs;
 mod doors;
 mod drift;
@@ -32,6 +33,7 @@ mod process;
 mod report;
 mod runs;
 mod serve;
+mod stale;
 mod tables;
 mod usage;
 mod verify;

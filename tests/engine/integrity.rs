@@ -218,11 +218,14 @@ async fn resume_is_refused_while_another_process_holds_the_survey_and_takes_over
     assert_ne!(out.status.code(), Some(0), "the run was to crash");
     assert!(lock_path(&db, 1).exists(), "a crashed acquirer leaves its lock file (the kernel freed the lock)");
 
-    let before = dense_prefix(&db).await;
-    assert_eq!((before.0, before.1), (SurveyStatus::Running, 90), "the first pass was committed before the crash");
+    let stale = dense_prefix(&db).await;
+    // Stored `running`, its lock free: read as interrupted.
+    assert_eq!((stale.0, stale.1), (SurveyStatus::Interrupted, 90), "the first pass was committed before the crash");
     // This test process holds the survey: resume is refused, naming it.
     let held = AcquirerLock::acquire(&db, 1).unwrap();
     assert!(held.took_over.is_some(), "the crashed run's lock was recognised as dead and taken over");
+    let before = dense_prefix(&db).await;
+    assert_eq!(before.0, SurveyStatus::Running, "a live process holds it");
     let out = survey(&db, &["resume"]);
     let all = text(&out);
     assert_eq!(out.status.code(), Some(1), "{all}");

@@ -24,7 +24,8 @@ async fn a_killed_survey_resumes_without_losing_or_duplicating_a_sample() {
 
     let store = Store::open_existing(&db).await.unwrap();
     let before = store.survey(1).await.unwrap();
-    assert_eq!(before.status, SurveyStatus::Running, "a killed survey is left running");
+    // Stored `running`, and no process holds it: read as interrupted.
+    assert_eq!(before.status, SurveyStatus::Interrupted, "a killed survey reads as interrupted");
     let kept = store.recorded_samples(1).await.unwrap();
     // Batches of 256 and the end of the first pass (1800) were committed
     // before the crash; the samples in the last unfinished batch are lost, as
