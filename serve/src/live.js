@@ -20,7 +20,7 @@
     e.id = 'live-' + s.uid;
     const a = document.createElement('a');
     a.href = '/surveys/' + encodeURIComponent(s.uid);
-    a.textContent = 'survey ' + s.id;
+    a.textContent = 'survey ' + s.id + (s.check_points ? ': its check points' : '');
     const bar = document.createElement('progress');
     e.append(a, ' ', span('asset'), ' ', bar, ' ', span('done'), ', ', span('left'), ', ', span('faults'));
     return e;

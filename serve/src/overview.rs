@@ -83,7 +83,8 @@ fn state(
 /// Every asset of `store`, by id.
 pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<Asset>> {
     let mut by_asset: BTreeMap<String, Vec<SurveyRecord>> = BTreeMap::new();
-    for r in store.list_uncounted().await? {
+    // A survey's check points being measured are that survey's, not one of their own.
+    for r in store.list_uncounted().await?.into_iter().filter(|r| r.resolves.is_none()) {
         by_asset.entry(r.asset.clone()).or_default().push(r);
     }
     let now = SystemTime::now();
@@ -152,6 +153,10 @@ pub struct Live {
     pub faults: usize,
     /// The time left at the pace so far, instrument seconds, once a sample is stored.
     pub time_left_s: Option<f64>,
+    /// When these are a survey's check points (measured after its targets
+    /// to decide the lines its analysis left in doubt, stored apart until
+    /// they are folded into it): that survey, which the pages name instead.
+    pub check_points_of: Option<SurveyRecord>,
 }
 
 /// The surveys of `store` being acquired (status `running`), oldest first.
@@ -167,7 +172,11 @@ pub async fn live(store: &Store) -> anyhow::Result<Vec<Live>> {
             }
             _ => None,
         };
-        out.push(Live { survey, faults, time_left_s });
+        let check_points_of = match survey.resolves {
+            Some(native) => Some(store.survey(native).await?),
+            None => None,
+        };
+        out.push(Live { survey, faults, time_left_s, check_points_of });
     }
     Ok(out)
 }
@@ -178,10 +187,13 @@ pub fn live_json(live: &[Live]) -> Value {
         .iter()
         .map(|l| {
             let s = &l.survey;
+            // A survey's check points are that survey's, on its asset.
+            let named = l.check_points_of.as_ref().unwrap_or(s);
             json!({
-                "id": s.id,
-                "uid": s.uid,
-                "asset": s.asset,
+                "id": named.id,
+                "uid": named.uid,
+                "asset": named.asset,
+                "check_points": l.check_points_of.is_some(),
                 "samples": s.sample_count,
                 "planned_samples": s.planned_samples,
                 "time_left_s": l.time_left_s,

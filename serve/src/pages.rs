@@ -41,14 +41,17 @@ fn live_element(l: &Live) -> String {
             format!("time left: {:.1} h", m / 60.0)
         }
     });
+    // A survey's check points are shown as that survey's (`/api/live` names it too).
+    let named = l.check_points_of.as_ref().unwrap_or(s);
     format!(
-        "<div class=\"live\" id=\"live-{uid}\" data-samples=\"{n}\"><a href=\"/surveys/{uid}\">survey {id}</a> \
+        "<div class=\"live\" id=\"live-{uid}\" data-samples=\"{n}\"><a href=\"/surveys/{uid}\">survey {id}{what}</a> \
          <span class=\"asset\">{asset}</span> {bar} <span class=\"done\">{n}{planned} samples</span>, \
          <span class=\"left\">{left}</span>, <span class=\"faults\">{f} {fw} met</span></div>\n",
-        uid = escape(&s.uid),
-        id = s.id,
+        uid = escape(&named.uid),
+        id = named.id,
+        what = if l.check_points_of.is_some() { ": its check points" } else { "" },
         n = s.sample_count,
-        asset = escape(&s.asset),
+        asset = escape(&named.asset),
         f = l.faults,
         fw = if l.faults == 1 { "fault" } else { "faults" },
     )

@@ -492,3 +492,41 @@ fn the_asset_page_plots_every_calibration_on_a_date_axis_and_tells_checks_apart(
     let notes: Vec<&String> = log.iter().filter(|l| l.starts_with("note:")).collect();
     assert!(notes.is_empty(), "page views print no processing notes: {notes:#?}");
 }
+
+/// Issue 41: while a survey's check points are measured (stored apart, as a
+/// `resolving` survey, until they are folded into it), `/api/live` and `/`
+/// show that survey, on its asset, measuring its check points: never a
+/// survey of `unassigned` that `survey list` does not know.
+#[test]
+fn check_points_being_measured_are_shown_as_their_survey_s() {
+    use survey_store::Store;
+    use survey_store::survey::{NewSurvey, SurveySource};
+    let bench = Bench::new();
+    let db = bench.path("survey.db");
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    let (store, native, _lock) = rt.block_on(async {
+        let store = Store::open(&db).await.unwrap();
+        let native = NewSurvey { points: Some(24), runs: Some(2), asset: "rig-3".into(), ..NewSurvey::default() };
+        let native = store.create_survey(&native).await.unwrap();
+        let checks = NewSurvey {
+            source: SurveySource::Resolving,
+            instruments: serde_json::json!({"resolves_survey": native}),
+            planned_samples: Some(96),
+            ..NewSurvey::default()
+        };
+        // Acquired by this process: its lock held to the end of the test.
+        let (_, lock) = store.create_acquired_survey(&checks).await.unwrap();
+        (store, native, lock)
+    });
+    let uid =
+        bench.survey(&["show", &native.to_string(), "--json"]).success().json()["uid"].as_str().unwrap().to_string();
+    let server = Server::on(&bench, "survey.db", &[]);
+    let live = get(&server.url, "/api/live").json();
+    let shown = &live["surveys"][0];
+    assert_eq!((shown["id"].as_i64(), shown["uid"].as_str()), (Some(native), Some(uid.as_str())), "{live:#}");
+    assert_eq!((shown["asset"].as_str(), shown["check_points"].as_bool()), (Some("rig-3"), Some(true)), "{live:#}");
+    let home = get(&server.url, "/");
+    assert!(home.body.contains(&format!("survey {native}: its check points</a>")), "{}", home.body);
+    assert!(!home.body.contains("unassigned"), "{}", home.body);
+    rt.block_on(store.close());
+}
