@@ -384,10 +384,16 @@ fn the_lab_pages_open_in_chromium_with_their_elements_and_no_error() {
     bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--json"]).success();
     bench.survey(&["run", "--points", "36", "--runs", "2", "--bidirectional", "--seed", "2", "--json"]).success();
     let uid = bench.survey(&["list", "--json"]).success().json()["surveys"][1]["uid"].as_str().unwrap().to_string();
+    // A survey whose process died (like a power loss) stays stored `running`:
+    // no process holds it, so no page shows it being acquired.
+    let killed = bench.command(&["run", "--points", "36", "--runs", "2", "--sim-crash-after", "20"]).output().unwrap();
+    assert!(!killed.status.success(), "the survey was killed");
     let server = super::serve::Server::on(&bench, "survey.db", &["--refresh", "0.5"]);
 
     let (dom, console) = open_live(&browser, &format!("{}/", server.url), 3000);
     assert!(console.is_empty(), "/ logged: {console:#?}");
+    assert!(!dom.contains("class=\"live\""), "a survey no process holds is not live:\n{dom}");
+    assert_eq!(attribute(&dom, "live-none", "hidden"), None, "'none being acquired' is shown:\n{dom}");
     for id in ["live", "live-list", "live-none", "live-status", "assets", "tbl-assets"] {
         assert!(dom.contains(&format!("id=\"{id}\"")), "/ in the browser lacks {id}");
     }
@@ -406,9 +412,13 @@ fn the_lab_pages_open_in_chromium_with_their_elements_and_no_error() {
         assert!(dom.contains(&format!("id=\"{id}\"")), "the asset's page lacks {id}");
     }
     assert!(dom.contains(&format!("href=\"/surveys/{uid}\"")));
+    // The plots' time axis in UTC, never fractions of a day.
+    assert!(dom.contains("time of day (UTC)") && !dom.contains("days since"), "the asset's page:\n{dom}");
 
     let (dom, console) = open_live(&browser, &format!("{}/surveys/{uid}", server.url), 1000);
     assert!(console.is_empty(), "the survey's page logged: {console:#?}");
+    // The way back: home and the asset's history.
+    assert!(dom.contains("<a href=\"/assets/sim-fig8\">sim-fig8</a>") && dom.contains("id=\"way-back\""), "{dom}");
     for id in ALWAYS {
         assert!(dom.contains(&format!("id=\"{id}\"")), "the survey's page lacks {id}");
     }
