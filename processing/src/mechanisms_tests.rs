@@ -439,7 +439,7 @@ fn measure(m: Mechanism, seeds: impl Iterator<Item = u64>) -> Vec<String> {
 
 /// The mechanisms whose `U` is fixed so far (the rest are measured and
 /// printed; their verdicts are held to one voice all the same).
-const HELD: [Mechanism; 0] = [];
+const HELD: [Mechanism; 1] = [Mechanism::BelowThreshold];
 
 #[test]
 fn every_mechanism_on_two_seeds() {
@@ -475,14 +475,52 @@ fn debug_case() {
         _ => Mechanism::SparseUnknown,
     };
     let seed: u64 = std::env::var("S").unwrap().parse().unwrap();
-    let case = m.case(seed);
+    let mut case = m.case(seed);
+    if std::env::var("NOLINE").is_ok() {
+        case.model.effects.retain(|e| {
+            !matches!(e, crate::model::Effect::Periodic { kind: crate::model::PeriodicKind::Harmonic, .. })
+        });
+    }
+    if std::env::var("NONOISE").is_ok() {
+        case.model.effects.retain(|e| !matches!(e, crate::model::Effect::Noise { .. }));
+    }
     eprintln!("{}\n{}", case.what, case.model.to_toml());
+    if std::env::var("LOOP").is_ok() {
+        let mut quiet = case.clone();
+        quiet.model.effects.retain(|e| !matches!(e, crate::model::Effect::Noise { .. }));
+        let (q, _, _) = survey(&quiet, &mut Normal::new(1));
+        let phasor = |p: &Processed, k: f64| {
+            let l = p.analysis.lines.iter().find(|l| l.cycles_per_rev == k).unwrap();
+            let ph = l.phase_deg.to_radians();
+            (l.amplitude_deg * ph.cos(), l.amplitude_deg * ph.sin(), l.noise_sd_deg)
+        };
+        for k in [1.0, 6.0, 12.0] {
+            let t = phasor(&q, k);
+            let mut z = Vec::new();
+            for s in 0..40u64 {
+                let (p, _, _) = survey(&case, &mut Normal::new(s + 100));
+                let m = phasor(&p, k);
+                z.push(((m.0 - t.0) / m.2, (m.1 - t.1) / m.2));
+            }
+            let rms =
+                |f: &dyn Fn(&(f64, f64)) -> f64| (z.iter().map(|v| f(v).powi(2)).sum::<f64>() / z.len() as f64).sqrt();
+            eprintln!("k {k}: z rms {:.2} {:.2}", rms(&|v| v.0), rms(&|v| v.1));
+        }
+        return;
+    }
     let mut rng = Normal::new(seed.wrapping_mul(0x9E37_79B9) ^ 0xC0FFEE);
     let (p, _s, u) = survey(&case, &mut rng);
     for l in &p.analysis.lines {
         eprintln!(
-            "line {} amp {:.3e} ph {:.1} true {} kind {:?} rep {}",
-            l.cycles_per_rev, l.amplitude_deg, l.phase_deg, l.true_cycles_per_rev, l.kind, l.repeatable
+            "line {} amp {:.3e} ph {:.1} true {} kind {:?} rep {} sd {:.2e} {:.2e}",
+            l.cycles_per_rev,
+            l.amplitude_deg,
+            l.phase_deg,
+            l.true_cycles_per_rev,
+            l.kind,
+            l.repeatable,
+            l.noise_sd_deg,
+            p.analysis.noise.line_sd_mean_deg
         );
     }
     for d in &p.decisions.lines {
@@ -502,4 +540,27 @@ fn debug_case() {
         u.method
     );
     eprintln!("{:?}", p.prediction);
+    for d in [Direction::Forward, Direction::Reverse] {
+        let e: Vec<f64> = (0..2048)
+            .map(|i| {
+                let r = 360.0 * (i as f64 + 0.5) / 2048.0;
+                true_error(&case.model, r, d) - p.built.table.error_at(r, d)
+            })
+            .collect();
+        let mean = e.iter().sum::<f64>() / 2048.0;
+        let mut line = String::new();
+        for k in 1..40 {
+            let (mut c, mut sn) = (0.0, 0.0);
+            for (i, v) in e.iter().enumerate() {
+                let r = (360.0 * (i as f64 + 0.5) / 2048.0f64).to_radians() * k as f64;
+                c += v * r.cos();
+                sn += v * r.sin();
+            }
+            let a = 2.0 * c.hypot(sn) / 2048.0;
+            if a > 5e-6 {
+                line += &format!(" {k}:{a:.1e}");
+            }
+        }
+        eprintln!("{d:?} mean {mean:.2e}{line}");
+    }
 }

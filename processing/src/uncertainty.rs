@@ -46,9 +46,12 @@
 //!
 //! - **a line below the detection threshold** (the model of the table): the
 //!   table holds the lines the analysis found; one it could not find is at
-//!   most about the threshold of its test (`coherent_threshold_deg`). One
-//!   such line, its amplitude rectangular between 0 and the threshold `T`, at
-//!   any phase: `T / sqrt(6)`.
+//!   most about the threshold of its test (`coherent_threshold_deg`) and the
+//!   table leaves it whole. Its size is one for every readout (systematic),
+//!   so it is not averaged over the amplitudes it may have (`T / sqrt(6)`
+//!   did, and a line just below `T` then left more than `U` allowed for):
+//!   the budget covers a sinusoid of amplitude `T` at any phase, propagated
+//!   as its distribution with the rest (below).
 //!
 //! - **what the table leaves** ([`crate::correction::left`]): a repeatable
 //!   line the survey saw and the table does not carry (nulled: two design
@@ -253,11 +256,11 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         None => 0.0,
     };
     budget.push(Contribution { source: "drift".into(), u_deg: drift_var.sqrt() });
-    // A line below the detection threshold is left out of the table: one
-    // such line, its amplitude anywhere from 0 to the threshold (rectangular),
-    // at a random phase: `T / sqrt(3)` amplitude, `1 / sqrt(2)` of it rms.
-    let threshold = a.noise.coherent_threshold_deg;
-    budget.push(Contribution { source: "a line below the detection threshold".into(), u_deg: threshold / 6f64.sqrt() });
+    // A line below the detection threshold is left out of the table whole:
+    // a sinusoid of any amplitude up to the threshold `T`, at any phase. Its
+    // size is one for every readout (systematic), so it is not averaged
+    // over amplitudes: it enters the distribution as a sinusoid of `T`.
+    let unseen = a.noise.coherent_threshold_deg;
     let normal_u = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
         "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
@@ -267,12 +270,7 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         samples.len(),
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
-    let left = &processed.left;
-    let u = if left.is_empty() {
-        Uncertainty { k: K, table_u_deg: K * normal_u, combined_u_deg: normal_u, budget, method }
-    } else {
-        with_left(left, normal_u, budget, method)
-    };
+    let u = with_left(&processed.left, unseen, normal_u, budget, method);
     match processed.measured_left_deg {
         Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
         _ => u,
@@ -299,58 +297,88 @@ fn at_least_measured(mut u: Uncertainty, measured: f64) -> Uncertainty {
     u
 }
 
-/// The budget with what the table leaves, and its coverage interval from the
-/// distribution (see the module documentation).
-fn with_left(left: &Left, normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
-    budget.push(Contribution {
-        source: "the lines left, through the readout (their products with the error, second order)".into(),
-        u_deg: left.second_order_deg,
-    });
-    let normal_u = normal_u.hypot(left.second_order_deg);
+/// The values of one sinusoid of amplitude `amplitude` at a phase
+/// independent of the readout, paired with `count` readouts (a Weyl sequence
+/// of its own, so its values have the arcsine distribution and are
+/// independent of another sequence's).
+fn unseen_line(amplitude: f64, count: usize) -> impl Iterator<Item = f64> {
+    let step = std::f64::consts::SQRT_2 - 1.0;
+    (0..count).map(move |j| amplitude * (std::f64::consts::TAU * ((j as f64 + 0.5) * step).fract()).sin())
+}
+
+/// The budget with what the table leaves (the lines the survey saw and
+/// `unseen`, a line up to the detection threshold it could not see), and
+/// its coverage interval from the distribution (see the module
+/// documentation): `U` solves the coverage of `|left + unseen line +
+/// normal|`; the budget's entries for what is left and for the unseen line
+/// are the effective standard uncertainties that expand with `k` to it.
+fn with_left(left: &Left, unseen: f64, normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
+    let p = coverage_probability();
+    let readouts = Left::readouts();
+    let normal_u = if left.is_empty() {
+        normal_u
+    } else {
+        budget.push(Contribution {
+            source: "the lines left, through the readout (their products with the error, second order)".into(),
+            u_deg: left.second_order_deg,
+        });
+        normal_u.hypot(left.second_order_deg)
+    };
     // Their sizes at the upper end of what the survey allows (systematic: one
     // size for every readout).
     let upper = left.at_upper_size(K);
-    let p = coverage_probability();
-    let readouts = Left::readouts();
-    let (table_u_deg, rms, hypothesis) = upper
-        .hypotheses()
+    let hypotheses = if left.is_empty() { vec![Vec::new()] } else { upper.hypotheses() };
+    let (table_u_deg, seen_u_deg, rms, hypothesis) = hypotheses
         .into_iter()
         .map(|h| {
-            let s = upper.values(&h, &readouts);
+            let s = if left.is_empty() { vec![0.0; readouts.len()] } else { upper.values(&h, &readouts) };
             let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64).sqrt();
-            (coverage_interval(&s, normal_u, p), rms, h)
+            let with_unseen: Vec<f64> = s.iter().zip(unseen_line(unseen, s.len())).map(|(a, b)| a + b).collect();
+            (coverage_interval(&with_unseen, normal_u, p), coverage_interval(&s, normal_u, p), rms, h)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0))
-        .expect("a non-empty left has a hypothesis");
-    // The entry that makes the budget expand (k = 2, in quadrature) to the
+        .expect("at least one hypothesis");
+    // The entries that make the budget expand (k = 2, in quadrature) to the
     // coverage interval of the distribution: U / k less the normal part.
-    let effective = ((table_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
-    let lines: Vec<String> = left
-        .lines
-        .iter()
-        .zip(&hypothesis)
-        .map(|(l, f)| match l.kind {
-            LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
-            LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
-        })
-        .collect();
+    let effective_seen = ((seen_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
+    let effective_unseen = ((table_u_deg / K).powi(2) - (seen_u_deg / K).powi(2).max(normal_u.powi(2))).max(0.0).sqrt();
     budget.push(Contribution {
-        source: format!("left by the table, from its distribution: {}", lines.join("; ")),
-        u_deg: effective,
+        source: "a line below the detection threshold (a sinusoid up to the threshold, from its distribution)".into(),
+        u_deg: effective_unseen,
     });
-    let method = format!(
-        "{method}; the table leaves {} line(s) the survey saw: evaluated as functions of the readout at {} readouts \
-         over the table's range for each hypothesis of their true frequencies (sizes at A + {K} u_A), the rest added \
-         as a normal distribution, and U the coverage interval of |left + rest| for {:.2} % (what k = {K} gives a \
-         normal distribution) computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms: \
-         what is left has rms {:.2e} deg, {:.2e} deg in quadrature with the rest), the least favourable hypothesis \
-         stated; its budget entry is the effective standard uncertainty that expands with k = {K} to that interval",
-        left.lines.len(),
-        readouts.len(),
-        100.0 * p,
-        rms,
-        normal_u.hypot(rms),
+    let mut method = format!(
+        "{method}; a line below the detection threshold T = {unseen:.2e} deg is left whole by the table: a sinusoid \
+         of amplitude T at a phase independent of the readout, its values (arcsine-distributed) added to the rest, \
+         and U the coverage interval of the sum for {:.2} % (what k = {K} gives a normal distribution) computed \
+         from that distribution (GUM Supplement 1, propagated exactly, not by its rms); its budget entry is the \
+         effective standard uncertainty that expands with k = {K} to that interval",
+        100.0 * p
     );
+    if !left.is_empty() {
+        let lines: Vec<String> = left
+            .lines
+            .iter()
+            .zip(&hypothesis)
+            .map(|(l, f)| match l.kind {
+                LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
+                LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
+            })
+            .collect();
+        budget.push(Contribution {
+            source: format!("left by the table, from its distribution: {}", lines.join("; ")),
+            u_deg: effective_seen,
+        });
+        method += &format!(
+            "; the table leaves {} line(s) the survey saw: evaluated as functions of the readout at {} readouts \
+             over the table's range for each hypothesis of their true frequencies (sizes at A + {K} u_A), added to \
+             the rest, the least favourable hypothesis stated (what is left has rms {:.2e} deg, {:.2e} deg in \
+             quadrature with the rest)",
+            left.lines.len(),
+            readouts.len(),
+            rms,
+            normal_u.hypot(rms),
+        );
+    }
     Uncertainty { k: K, table_u_deg, combined_u_deg: table_u_deg / K, budget, method }
 }
 
