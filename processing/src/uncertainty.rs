@@ -36,13 +36,14 @@
 //!   rows by linear interpolation: a line of amplitude `A` and angular
 //!   frequency `w` (rad/deg) leaves `A w^2 h^2 / sqrt(240)` rms between rows
 //!   `h` deg apart.
-//! - **drift**: a ramp over the survey (the slope of the run means per run,
-//!   and its standard error) is not in the model of the table: within a run
-//!   of one direction it is a sawtooth over the circle whose lines at the
-//!   kept frequencies (`D / (pi k)`) the table takes in; in a bidirectional
-//!   survey the two passes cancel it in the mean, and it biases the
-//!   difference of the directions by about half a run's drift (a quarter in
-//!   each column). Its estimate and its standard error are both counted.
+//! - **drift**: by what it leaves in the table, whatever its shape, as the
+//!   runs' own tables show it: each kept line fitted to each run alone, the
+//!   trend of its phasor over the runs beyond what their noise makes, the
+//!   table (their mean) wrong by that trend over half the survey. A drift
+//!   of the whole map (a step or a ramp of the zero between runs) changes no
+//!   line and leaves nothing; one that changes the lines is counted by how
+//!   much it does. (It was a ramp assumed from the run means' slope: a step
+//!   drift, which leaves nothing, made `U` 20 to 55 times the true error.)
 //!
 //! - **a line below the detection threshold** (the model of the table): the
 //!   table holds the lines the analysis found; one it could not find is at
@@ -146,31 +147,56 @@ pub struct Uncertainty {
 
 pub use crate::coverage::{K, coverage_interval, coverage_probability};
 
-/// The slope of the run means per run and its standard error, per
-/// direction measured (`None` with fewer than three runs).
-fn drift_per_run(samples: &[Sample]) -> Option<(f64, f64)> {
-    let runs = samples.iter().map(|s| s.run).max()? as usize + 1;
-    if runs < 3 {
+/// What drift leaves in the table, as the runs' own tables show it (a
+/// variance, degrees squared): each kept line fitted to each run's series
+/// (the table made from that run alone), its phasor's trend over the runs
+/// (least squares, complex), when its noise would make it one time in
+/// twenty at most (`|b|^2 > 6 se^2`), less what its noise makes of a trend
+/// (`2 se^2` for the two components), and the table (their mean) taken as wrong by
+/// that trend over half the survey at either end: `|b|^2 ((R - 1) / 2)^2 / 2`
+/// a line. A drift that moves the whole error map (a ramp or a step of the
+/// zero, the same in every run) changes no line of the runs' tables and
+/// leaves nothing (the table's zero is its reference's choice); one that
+/// changes the lines from run to run is counted by how much it changes them.
+/// `None` with fewer than three runs.
+fn drift_from_runs(a: &crate::analysis::Analysis, kept: &[f64]) -> Option<f64> {
+    let map = &a.error_map;
+    let runs = map.run_series(a.series)?;
+    let r = runs.len();
+    if r < 3 || kept.is_empty() {
         return None;
     }
-    let mut sum = vec![0.0; runs];
-    let mut count = vec![0usize; runs];
-    for s in samples {
-        sum[s.run as usize] += s.error_deg();
-        count[s.run as usize] += 1;
-    }
-    let pts: Vec<(f64, f64)> =
-        (0..runs).filter(|&r| count[r] > 0).map(|r| (r as f64, sum[r] / count[r] as f64)).collect();
-    let n = pts.len() as f64;
-    if n < 3.0 {
+    let fits: Vec<crate::spectrum::SinusoidFit> =
+        runs.iter().filter_map(|y| crate::spectrum::fit_sinusoids(&map.targets_deg, y, kept).ok()).collect();
+    if fits.len() != r {
         return None;
     }
-    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
-    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
-    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
-    let rss: f64 = pts.iter().map(|p| (p.1 - my - slope * (p.0 - mx)).powi(2)).sum();
-    Some((slope, (rss / (n - 2.0) / sxx).sqrt()))
+    let x: Vec<f64> = (0..r).map(|i| i as f64 - (r - 1) as f64 / 2.0).collect();
+    let sxx: f64 = x.iter().map(|v| v * v).sum();
+    let mut var = 0.0;
+    for k in 0..kept.len() {
+        let c: Vec<(f64, f64)> = fits
+            .iter()
+            .map(|f| {
+                let t = &f.terms[k];
+                let ph = t.phase_deg.to_radians();
+                (t.amplitude_deg * ph.cos(), t.amplitude_deg * ph.sin())
+            })
+            .collect();
+        let mean = |i: usize| c.iter().map(|v| if i == 0 { v.0 } else { v.1 }).sum::<f64>() / r as f64;
+        let (m0, m1) = (mean(0), mean(1));
+        let b0 = x.iter().zip(&c).map(|(x, v)| x * (v.0 - m0)).sum::<f64>() / sxx;
+        let b1 = x.iter().zip(&c).map(|(x, v)| x * (v.1 - m1)).sum::<f64>() / sxx;
+        let rss: f64 = x.iter().zip(&c).map(|(x, v)| (v.0 - m0 - b0 * x).powi(2) + (v.1 - m1 - b1 * x).powi(2)).sum();
+        // Each component's residual variance over r - 2 degrees of freedom.
+        let se2 = rss / (2.0 * (r as f64 - 2.0)) / sxx;
+        // A trend its noise makes one time in twenty (chi-square of two
+        // degrees of freedom beyond 6) is counted, less what noise makes.
+        let b2 = b0 * b0 + b1 * b1;
+        let excess = if b2 > 6.0 * se2 { b2 - 2.0 * se2 } else { 0.0 };
+        var += excess * ((r - 1) as f64 / 2.0).powi(2) / 2.0;
+    }
+    Some(var)
 }
 
 /// The budget of `processed`, the table made from `samples`.
@@ -244,17 +270,13 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         })
         .sum();
     budget.push(Contribution { source: "table resolution and interpolation".into(), u_deg: interp_var.sqrt() });
-    let drift_var = match drift_per_run(samples) {
-        Some((d, se)) => {
-            let d = d.abs() + se;
-            if bidirectional && a.series == Series::Bidirectional {
-                (d / 4.0).powi(2)
-            } else {
-                kept.iter().map(|k| (d / (std::f64::consts::PI * k)).powi(2) / 2.0).sum()
-            }
+    let in_range_kept: Vec<f64> = match map.coverage {
+        Coverage::FullCircle { .. } => kept.clone(),
+        Coverage::Partial { start, end, .. } => {
+            kept.iter().copied().filter(|f| f * (end - start) / 360.0 >= 0.5).collect()
         }
-        None => 0.0,
     };
+    let drift_var = drift_from_runs(a, &in_range_kept).unwrap_or(0.0);
     budget.push(Contribution { source: "drift".into(), u_deg: drift_var.sqrt() });
     // A line below the detection threshold is left out of the table whole:
     // a sinusoid of any amplitude up to the threshold `T`, at any phase. Its
