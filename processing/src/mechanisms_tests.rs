@@ -438,15 +438,23 @@ fn measure(m: Mechanism, seeds: impl Iterator<Item = u64>) -> Vec<String> {
     failures
 }
 
-/// The mechanisms whose `U` is fixed so far (the rest are measured and
-/// printed; their verdicts are held to one voice all the same).
-const HELD: [Mechanism; 2] = [Mechanism::BelowThreshold, Mechanism::StepDrift];
+/// The mechanisms whose `U` covers the truth so far (the rest are measured
+/// and printed; every verdict is held to one voice all the same), and those
+/// whose `U` also stays within 4 x the truth's p95 on the CI's seeds.
+const COVERED: [Mechanism; 3] = [Mechanism::BelowThreshold, Mechanism::NoiseOverLines, Mechanism::StepDrift];
+const NOT_INFLATED: [Mechanism; 2] = [Mechanism::BelowThreshold, Mechanism::StepDrift];
 
 #[test]
 fn every_mechanism_on_two_seeds() {
     let failures: Vec<String> = MECHANISMS
         .iter()
-        .flat_map(|&m| measure(m, 1..=2).into_iter().filter(move |f| HELD.contains(&m) || f.contains("confirmed (")))
+        .flat_map(|&m| {
+            measure(m, 1..=2).into_iter().filter(move |f| {
+                f.contains("confirmed (")
+                    || (COVERED.contains(&m) && f.contains("within U"))
+                    || (NOT_INFLATED.contains(&m) && f.contains("x p95"))
+            })
+        })
         .collect();
     assert!(failures.is_empty(), "{failures:#?}");
 }
@@ -564,4 +572,32 @@ fn debug_case() {
         }
         eprintln!("{d:?} mean {mean:.2e}{line}");
     }
+}
+
+/// A kept line of no design part just above the threshold may be noise
+/// selected for being large: `U` allows for the table carrying it wholly
+/// wrongly (issue 38, noise much larger than the lines: a false line at 1.1 T
+/// beside a true one under T left 75 % of the circle within `U`).
+#[test]
+fn a_kept_line_under_twice_the_threshold_is_counted_as_possibly_false() {
+    let case = Case {
+        what: "72 points, noise 0.005 deg, a harmonic at 9".into(),
+        model: model(
+            "gear_ratios = [5]",
+            &[("harmonic", 9.0, 1.4e-3, 30.0)],
+            "[[effect]]\nkind = \"noise\"\nsigma_deg = 0.005\n",
+        ),
+        plan: Plan { points: 72, runs: 5, bidirectional: true, tracker: false, verify: false },
+    };
+    let (p, _, u) = survey(&case, &mut Normal::new(3));
+    let t = p.analysis.noise.coherent_threshold_deg;
+    let line = p.analysis.lines.iter().find(|l| l.cycles_per_rev == 9.0).expect("the line is kept");
+    assert!(line.amplitude_deg > t && line.amplitude_deg < 2.0 * t, "{} against T {t}", line.amplitude_deg);
+    assert!(u.budget.iter().any(|c| c.source.contains("possible false alarms")), "{:?}", u.budget);
+    assert!(
+        u.table_u_deg > t + line.amplitude_deg * 0.9,
+        "U {} against T {t} and the line {}",
+        u.table_u_deg,
+        line.amplitude_deg
+    );
 }

@@ -282,7 +282,23 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     // a sinusoid of any amplitude up to the threshold `T`, at any phase. Its
     // size is one for every readout (systematic), so it is not averaged
     // over amplitudes: it enters the distribution as a sinusoid of `T`.
-    let unseen = a.noise.coherent_threshold_deg;
+    let threshold = a.noise.coherent_threshold_deg;
+    // A kept line that matches no part of the design and stands less than
+    // twice the threshold may be noise selected for being large (a false
+    // alarm, about one survey in a hundred when noise dominates): the table
+    // then carries it wholly wrongly, a sinusoid of its size.
+    let doubtful: Vec<f64> = a
+        .lines
+        .iter()
+        .filter(|l| {
+            l.repeatable
+                && l.kind == crate::model::PeriodicKind::Harmonic
+                && l.amplitude_deg < 2.0 * threshold
+                && kept.iter().any(|k| (k - l.true_cycles_per_rev).abs() < 1e-9)
+        })
+        .map(|l| l.amplitude_deg)
+        .collect();
+    let unseen: Vec<f64> = std::iter::once(threshold).chain(doubtful).collect();
     let normal_u = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
         "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
@@ -292,7 +308,7 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         samples.len(),
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
-    let u = with_left(&processed.left, unseen, normal_u, budget, method);
+    let u = with_left(&processed.left, &unseen, normal_u, budget, method);
     match processed.measured_left_deg {
         Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
         _ => u,
@@ -319,13 +335,28 @@ fn at_least_measured(mut u: Uncertainty, measured: f64) -> Uncertainty {
     u
 }
 
-/// The values of one sinusoid of amplitude `amplitude` at a phase
-/// independent of the readout, paired with `count` readouts (a Weyl sequence
-/// of its own, so its values have the arcsine distribution and are
-/// independent of another sequence's).
-fn unseen_line(amplitude: f64, count: usize) -> impl Iterator<Item = f64> {
-    let step = std::f64::consts::SQRT_2 - 1.0;
-    (0..count).map(move |j| amplitude * (std::f64::consts::TAU * ((j as f64 + 0.5) * step).fract()).sin())
+/// The values of sinusoids of `amplitudes` at phases independent of the
+/// readout and of each other, paired with `count` readouts (a Weyl sequence
+/// of its own each, so each one's values have the arcsine distribution and
+/// are independent of another sequence's).
+fn unseen_lines(amplitudes: &[f64], count: usize) -> Vec<f64> {
+    const STEPS: [f64; 6] = [
+        std::f64::consts::SQRT_2 - 1.0,
+        1.732_050_807_568_877_2 - 1.0,
+        2.645_751_311_064_590_6 - 2.0,
+        3.316_624_790_355_4 - 3.0,
+        3.605_551_275_463_989 - 3.0,
+        4.123_105_625_617_66 - 4.0,
+    ];
+    (0..count)
+        .map(|j| {
+            amplitudes
+                .iter()
+                .zip(STEPS.iter().cycle())
+                .map(|(a, step)| a * (std::f64::consts::TAU * ((j as f64 + 0.5) * step).fract()).sin())
+                .sum()
+        })
+        .collect()
 }
 
 /// The budget with what the table leaves (the lines the survey saw and
@@ -334,7 +365,7 @@ fn unseen_line(amplitude: f64, count: usize) -> impl Iterator<Item = f64> {
 /// documentation): `U` solves the coverage of `|left + unseen line +
 /// normal|`; the budget's entries for what is left and for the unseen line
 /// are the effective standard uncertainties that expand with `k` to it.
-fn with_left(left: &Left, unseen: f64, normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
+fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
     let p = coverage_probability();
     let readouts = Left::readouts();
     let normal_u = if left.is_empty() {
@@ -350,12 +381,13 @@ fn with_left(left: &Left, unseen: f64, normal_u: f64, mut budget: Vec<Contributi
     // size for every readout).
     let upper = left.at_upper_size(K);
     let hypotheses = if left.is_empty() { vec![Vec::new()] } else { upper.hypotheses() };
+    let sines = unseen_lines(unseen, readouts.len());
     let (table_u_deg, seen_u_deg, rms, hypothesis) = hypotheses
         .into_iter()
         .map(|h| {
             let s = if left.is_empty() { vec![0.0; readouts.len()] } else { upper.values(&h, &readouts) };
             let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64).sqrt();
-            let with_unseen: Vec<f64> = s.iter().zip(unseen_line(unseen, s.len())).map(|(a, b)| a + b).collect();
+            let with_unseen: Vec<f64> = s.iter().zip(&sines).map(|(a, b)| a + b).collect();
             (coverage_interval(&with_unseen, normal_u, p), coverage_interval(&s, normal_u, p), rms, h)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0))
@@ -364,16 +396,32 @@ fn with_left(left: &Left, unseen: f64, normal_u: f64, mut budget: Vec<Contributi
     // coverage interval of the distribution: U / k less the normal part.
     let effective_seen = ((seen_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
     let effective_unseen = ((table_u_deg / K).powi(2) - (seen_u_deg / K).powi(2).max(normal_u.powi(2))).max(0.0).sqrt();
+    let (threshold, doubtful) = (unseen[0], &unseen[1..]);
+    let false_alarms = match doubtful.len() {
+        0 => String::new(),
+        n => format!(", and {n} kept line(s) of no design part under twice it (possible false alarms, whole)"),
+    };
     budget.push(Contribution {
-        source: "a line below the detection threshold (a sinusoid up to the threshold, from its distribution)".into(),
+        source: format!(
+            "a line below the detection threshold (a sinusoid up to the threshold, from its distribution){false_alarms}"
+        ),
         u_deg: effective_unseen,
     });
     let mut method = format!(
-        "{method}; a line below the detection threshold T = {unseen:.2e} deg is left whole by the table: a sinusoid \
-         of amplitude T at a phase independent of the readout, its values (arcsine-distributed) added to the rest, \
-         and U the coverage interval of the sum for {:.2} % (what k = {K} gives a normal distribution) computed \
-         from that distribution (GUM Supplement 1, propagated exactly, not by its rms); its budget entry is the \
-         effective standard uncertainty that expands with k = {K} to that interval",
+        "{method}; a line below the detection threshold T = {threshold:.2e} deg is left whole by the table: a \
+         sinusoid of amplitude T at a phase independent of the readout, its values (arcsine-distributed) added to \
+         the rest{}, and U the coverage interval of the sum for {:.2} % (what k = {K} gives a normal distribution) \
+         computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms); its budget entry is \
+         the effective standard uncertainty that expands with k = {K} to that interval",
+        if doubtful.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; so is each kept line that matches no design part and stands under 2 T (noise selected for being \
+                 large, which the table would carry wholly wrongly): {}",
+                doubtful.iter().map(|a| format!("{a:.2e} deg")).collect::<Vec<_>>().join(", ")
+            )
+        },
         100.0 * p
     );
     if !left.is_empty() {
