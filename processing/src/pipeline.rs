@@ -189,7 +189,19 @@ pub fn process_with_checks(
         }
         left = Left::of(&analysis, &decisions, &stays).with_rest(&left, &resolutions, &analysis.error_map.targets_deg);
         notes.extend(resolutions.iter().map(|r| r.why.clone()));
-        if resolutions.iter().any(|r| !r.explained) {
+        // A line on the Nyquist bin: the check points measure the quadrature
+        // component the targets do not see (as they measure what no
+        // hypothesis explains).
+        let nyquist = resolutions.iter().any(|r| 2.0 * r.observed_cycles == left.points as f64);
+        if nyquist {
+            left = crate::correction::resolve::measure_nyquist(
+                left,
+                &built.table,
+                checks,
+                &analysis.error_map.targets_deg,
+            );
+        }
+        if nyquist || resolutions.iter().any(|r| !r.explained) {
             measured_left = measured_left_deg_of(&built.table, checks);
         }
     }

@@ -308,7 +308,22 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         samples.len(),
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
-    let u = with_left(&processed.left, &unseen, normal_u, budget, method);
+    // A line on the Nyquist bin that no check point measured between the
+    // targets is bounded as a whole line ([`Left::nyquist_bounded`]).
+    let nyquist_measured = processed.measured_left_deg.is_some()
+        && processed.resolutions.iter().any(|r| 2.0 * r.observed_cycles == processed.left.points as f64);
+    let left = if nyquist_measured { processed.left.clone() } else { processed.left.nyquist_bounded() };
+    let method = if !nyquist_measured && (0..left.lines.len()).any(|i| left.on_nyquist(i)) {
+        format!(
+            "{method}; a line on the Nyquist bin that no check point measured between the targets is taken whole as \
+             the part the targets see over sin(pi/40) (its phase against the targets is unknown: all but the 5 % of \
+             phases nearest their zeros): check points between the targets (a tracker) or a survey at another count \
+             measure it"
+        )
+    } else {
+        method
+    };
+    let u = with_left(&left, &unseen, normal_u, budget, method);
     match processed.measured_left_deg {
         Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
         _ => u,

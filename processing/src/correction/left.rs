@@ -210,6 +210,31 @@ impl Left {
         out
     }
 
+    /// Whether line `i` sits on the Nyquist bin (half the points per
+    /// revolution): the targets see `A sin psi` of it, nothing of the rest.
+    pub fn on_nyquist(&self, i: usize) -> bool {
+        self.points > 0 && 2.0 * self.lines[i].observed_cycles == self.points as f64
+    }
+
+    /// The same lines, each on the Nyquist bin bounded as a whole line when
+    /// nothing measured it between the targets: the targets see `A |sin
+    /// psi|` of a line whose phase `psi` against them is unknown, so the line
+    /// is taken as the seen part over `sin(pi / 40)`, what all but the 5 %
+    /// of phases nearest the targets' zeros allow (its size is otherwise
+    /// `sqrt 2` times what is seen, the rms over the phases, which a line
+    /// near a zero exceeds many times).
+    pub fn nyquist_bounded(&self) -> Left {
+        let mut out = self.clone();
+        let bound = 1.0 / (std::f64::consts::PI / 40.0).sin() / std::f64::consts::SQRT_2;
+        for i in 0..out.lines.len() {
+            if out.on_nyquist(i) {
+                out.lines[i].amplitude_deg *= bound;
+                out.lines[i].noise_sd_deg *= bound;
+            }
+        }
+        out
+    }
+
     /// Whether anything is left.
     pub fn is_empty(&self) -> bool {
         self.lines.is_empty()

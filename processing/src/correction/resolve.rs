@@ -115,9 +115,11 @@ pub fn plan_checks(left: &Left, targets: &[f64]) -> Vec<f64> {
     out
 }
 
-/// Whether line `i` of `left` has more than one candidate frequency.
+/// Whether line `i` of `left` has more than one candidate frequency, or
+/// sits on the Nyquist bin (its size is in doubt: the targets see one
+/// quadrature component of it, the check points between them the other).
 fn in_doubt(left: &Left, i: usize) -> bool {
-    left.lines[i].candidates.len() > 1
+    left.lines[i].candidates.len() > 1 || left.on_nyquist(i)
 }
 
 /// What the check points decided about one line.
@@ -268,6 +270,65 @@ pub fn measured_left_deg(table: &CorrectionTable, checks: &[Sample]) -> Option<(
     let q = size[at.clamp(1, size.len()) - 1];
     let noise = noise_var(checks, table).map_or(0.0, |v| crate::coverage::K * crate::coverage::K * v);
     Some(((q * q - noise).max(0.0).sqrt(), size[size.len() - 1]))
+}
+
+/// What check points measure of the lines on the Nyquist bin of `left`
+/// that the table leaves (the targets see one quadrature component of such
+/// a line; between them the check points see both): for each, and each of
+/// its candidate frequencies, the amplitude of `d = error - table` at that
+/// frequency fitted to the check points with an offset and a
+/// once-per-revolution term, at the upper end of its interval (`+ k` its
+/// standard deviation, from the fit's residual); the largest over the
+/// candidates replaces the line's size, which was the seen part's `sqrt 2`
+/// (the rms over a phase nothing fixed). `left` unchanged without enough
+/// check points; `targets` the survey's (for the least favourable hypothesis).
+pub fn measure_nyquist(mut left: Left, table: &CorrectionTable, checks: &[Sample], targets: &[f64]) -> Left {
+    if checks.len() < MIN_CHECKS {
+        return left;
+    }
+    let d: Vec<(f64, f64)> =
+        checks.iter().map(|s| (s.readout_deg, s.error_deg() - table.error_at(s.readout_deg, s.direction))).collect();
+    let amplitude_at = |f: f64| -> Option<f64> {
+        let rad = |r: f64, k: f64| (k * r).to_radians();
+        let columns = vec![
+            vec![1.0; d.len()],
+            d.iter().map(|(r, _)| rad(*r, 1.0).sin()).collect(),
+            d.iter().map(|(r, _)| rad(*r, 1.0).cos()).collect(),
+            d.iter().map(|(r, _)| rad(*r, f).sin()).collect(),
+            d.iter().map(|(r, _)| rad(*r, f).cos()).collect(),
+        ];
+        let scale = (d.len() as f64).sqrt();
+        let qr = crate::lstsq::Qr::new(columns, |_| 1e-9 * scale).ok()?;
+        let (x, ssr) = qr.solve(&d.iter().map(|p| p.1).collect::<Vec<_>>());
+        let dof = d.len().checked_sub(5).filter(|&n| n > 0)? as f64;
+        let var = qr.unit_var();
+        let sd = (ssr / dof * var[3].max(var[4])).sqrt();
+        Some(x[3].hypot(x[4]) + crate::coverage::K * sd)
+    };
+    for i in 0..left.lines.len() {
+        if !left.on_nyquist(i) {
+            continue;
+        }
+        let measured = left.lines[i]
+            .candidates
+            .clone()
+            .into_iter()
+            .filter_map(amplitude_at)
+            .fold(None, |m: Option<f64>, a| Some(m.map_or(a, |m| m.max(a))));
+        if let Some(a) = measured {
+            let l = &mut left.lines[i];
+            l.why = format!(
+                "{}; the {} check points measure it whole between the targets: up to {a:.2e} deg",
+                l.why,
+                d.len()
+            );
+            l.amplitude_deg = a;
+            l.noise_sd_deg = 0.0;
+        }
+    }
+    left.lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
+    left.worst = left.least_favourable(targets);
+    left
 }
 
 /// The residual sum of squares of `y(r)` fitted by `c + a sin r + b cos r`
