@@ -171,11 +171,15 @@ pub fn judge_peak(claim: &Claim, measured: f64, spread: f64, blind: &[aliases::B
          verification's own peak spread {spread:.5} deg (together {allowed:.5} deg), native +/-{native:.5} deg"
     );
     if not_a_result {
+        let better = if measured >= native {
+            "not better than the native one".to_string()
+        } else {
+            format!("{:.1}x better", native / measured)
+        };
         let why = format!(
             "nothing to confirm: the processing predicted this table no better than the native axis (NOT A \
              RESULT), and the verification measured the corrected axis at +/-{measured:.5} deg against native \
-             +/-{native:.5} deg ({:.1}x)",
-            native / measured
+             +/-{native:.5} deg ({better})"
         );
         return Judged { verdict: Verdict::NotConfirmed, reason: format!("{why} ({figures})") };
     }
@@ -315,7 +319,7 @@ mod tests {
         // The issue's survey: NOT A RESULT, then 1.2x better: nothing to confirm.
         let j = judge_peak(&Claim { not_a_result: true, ..c }, 0.0125, 0.0004, &[]);
         assert_eq!(j.verdict, Verdict::NotConfirmed);
-        assert!(j.reason.starts_with("nothing to confirm") && j.reason.contains("1.2x"), "{}", j.reason);
+        assert!(j.reason.starts_with("nothing to confirm") && j.reason.contains("1.2x better"), "{}", j.reason);
         // The spread: its own noise about the per-target means, at its count.
         let s: Vec<Sample> = (0..200)
             .map(|i| sample(i % 2, Direction::Forward, (i / 2) as f64, if i % 2 == 0 { 1e-3 } else { -1e-3 }))
