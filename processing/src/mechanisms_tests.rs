@@ -287,15 +287,20 @@ impl Mechanism {
                 let points = pick(r, &[48usize, 72, 96, 120]);
                 let mesh = points as f64 / 2.0;
                 let mut lines = base(r, 1.0);
-                lines.push(("tooth_mesh", mesh, between(r, 0.001, 0.003), between(r, 0.0, 360.0)));
+                // Named by the design (its harmonics alias to the bin: the
+                // table nulls it) or not (the table keeps what it sees).
+                let named = seed % 4 < 2;
+                let kind = if named { "tooth_mesh" } else { "harmonic" };
+                lines.push((kind, mesh, between(r, 0.001, 0.003), between(r, 0.0, 360.0)));
                 let tracker = seed.is_multiple_of(2);
+                let teeth = if named { format!("{mesh}") } else { String::new() };
                 Case {
                     what: format!(
-                        "{points} points, a tooth mesh at {mesh}, {}",
+                        "{points} points, a {kind} line at {mesh}, {}",
                         if tracker { "tracker" } else { "autocollimator" }
                     ),
                     model: model(
-                        &format!("gear_ratios = [{gear}]\ntooth_counts = [{mesh}]"),
+                        &format!("gear_ratios = [{gear}]\ntooth_counts = [{teeth}]"),
                         &lines,
                         &(backlash(0.004) + &noise(between(r, 0.0002, 0.0004))),
                     ),

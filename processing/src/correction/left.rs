@@ -197,6 +197,17 @@ impl Left {
                     };
                     (LeftKind::MaybeAlias, vec![bin, low, high], why)
                 }
+                // Kept on the Nyquist bin: the table carries the quadrature
+                // component the targets see; the other, unseen, it leaves.
+                LineAction::Kept | LineAction::Relocated if nyquist => {
+                    let why = format!(
+                        "the repeatable line at bin {bin} sits on the Nyquist bin: the table carries the part the \
+                         targets see ({:.2e} deg) and leaves the quadrature component they cannot see, taken as \
+                         {amplitude_deg:.2e} deg (sqrt 2 times what they see) until check points measure it",
+                        l.amplitude_deg
+                    );
+                    (LeftKind::NotCarried, vec![bin], why)
+                }
                 _ => continue,
             };
             lines.push(LeftLine {
