@@ -33,7 +33,9 @@ use survey_processing::iso230::iso230_2;
 use survey_processing::pipeline::Processed;
 use survey_processing::recipe::LineAction;
 use survey_processing::table::CorrectionTable;
-use survey_processing::verification::{Judged, Verdict, aliases, judge, offset_deg, peak_deg, systematic_peak_deg};
+use survey_processing::verification::{
+    Claim, Judged, Verdict, aliases, judge, offset_deg, peak_deg, systematic_peak_deg,
+};
 use survey_store::Store;
 use survey_store::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus, VerificationOf};
 
@@ -279,7 +281,13 @@ pub async fn verify(
     let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
     let u = processed.uncertainty.table_u_deg;
     let blind = blind(&calibration.targets_deg, &plan.targets_deg, plausible_max(native), &processed.processed);
-    let judged = judge(predicted, u, peak_deg(&corrected), peak_deg(native_samples), &blind);
+    let claim = Claim {
+        predicted_deg: predicted,
+        u_deg: u,
+        native_deg: peak_deg(native_samples),
+        not_a_result: processed.processed.prediction.no_better_than_native(),
+    };
+    let judged = judge(&claim, &corrected, &blind);
     out.doc["targets"] = plan.targets_deg.len().into();
     out.doc["between_targets"] = verify_plan.between.into();
     out.doc["offset_deg"] = verify_plan.offset_deg.into();
@@ -297,6 +305,9 @@ pub async fn verify(
 pub fn verdict_text(j: &Judged) -> String {
     match j.verdict {
         Verdict::Confirmed => format!("verdict: the prediction is confirmed: {}", j.reason),
+        Verdict::NotConfirmed if j.reason.starts_with("nothing to confirm") => {
+            format!("verdict: not confirmed: {} (the survey and the table stay stored)", j.reason)
+        }
         Verdict::NotConfirmed => format!(
             "verdict: NOT CONFIRMED: {}; do not use this table as a result (the survey and the table stay stored)",
             j.reason

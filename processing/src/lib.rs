@@ -31,6 +31,9 @@ pub mod verification;
 pub use types::{Direction, Sample};
 
 #[cfg(test)]
+mod mechanisms_tests;
+
+#[cfg(test)]
 mod purity {
     //! The crate's promise, and `survey-plan`'s and `survey-modelgap`'s: data
     //! in, data out. Their non-test code names no file system, environment,

@@ -176,7 +176,8 @@ pub fn process_with_checks(
     }
     let mut decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
     let mut built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
-    let mut left = Left::of(&analysis, &decisions, &[]);
+    let unknown_design = design.gear_ratios.is_empty() && design.tooth_counts.is_empty();
+    let mut left = Left::of(&analysis, &decisions, &[], unknown_design);
     let mut resolutions = Vec::new();
     let mut measured_left = None;
     if !checks.is_empty() && !left.is_empty() {
@@ -187,9 +188,25 @@ pub fn process_with_checks(
             decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
             built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
         }
-        left = Left::of(&analysis, &decisions, &stays).with_rest(&left, &resolutions, &analysis.error_map.targets_deg);
+        left = Left::of(&analysis, &decisions, &stays, unknown_design).with_rest(
+            &left,
+            &resolutions,
+            &analysis.error_map.targets_deg,
+        );
         notes.extend(resolutions.iter().map(|r| r.why.clone()));
-        if resolutions.iter().any(|r| !r.explained) {
+        // A line on the Nyquist bin: the check points measure the quadrature
+        // component the targets do not see (as they measure what no
+        // hypothesis explains).
+        let nyquist = resolutions.iter().any(|r| 2.0 * r.observed_cycles == left.points as f64);
+        if nyquist {
+            left = crate::correction::resolve::measure_nyquist(
+                left,
+                &built.table,
+                checks,
+                &analysis.error_map.targets_deg,
+            );
+        }
+        if nyquist || resolutions.iter().any(|r| !r.explained) {
             measured_left = measured_left_deg_of(&built.table, checks);
         }
     }

@@ -36,19 +36,23 @@
 //!   rows by linear interpolation: a line of amplitude `A` and angular
 //!   frequency `w` (rad/deg) leaves `A w^2 h^2 / sqrt(240)` rms between rows
 //!   `h` deg apart.
-//! - **drift**: a ramp over the survey (the slope of the run means per run,
-//!   and its standard error) is not in the model of the table: within a run
-//!   of one direction it is a sawtooth over the circle whose lines at the
-//!   kept frequencies (`D / (pi k)`) the table takes in; in a bidirectional
-//!   survey the two passes cancel it in the mean, and it biases the
-//!   difference of the directions by about half a run's drift (a quarter in
-//!   each column). Its estimate and its standard error are both counted.
+//! - **drift**: by what it leaves in the table, whatever its shape, as the
+//!   runs' own tables show it: each kept line fitted to each run alone, the
+//!   trend of its phasor over the runs beyond what their noise makes, the
+//!   table (their mean) wrong by that trend over half the survey. A drift
+//!   of the whole map (a step or a ramp of the zero between runs) changes no
+//!   line and leaves nothing; one that changes the lines is counted by how
+//!   much it does. (It was a ramp assumed from the run means' slope: a step
+//!   drift, which leaves nothing, made `U` 20 to 55 times the true error.)
 //!
 //! - **a line below the detection threshold** (the model of the table): the
 //!   table holds the lines the analysis found; one it could not find is at
-//!   most about the threshold of its test (`coherent_threshold_deg`). One
-//!   such line, its amplitude rectangular between 0 and the threshold `T`, at
-//!   any phase: `T / sqrt(6)`.
+//!   most about the threshold of its test (`coherent_threshold_deg`) and the
+//!   table leaves it whole. Its size is one for every readout (systematic),
+//!   so it is not averaged over the amplitudes it may have (`T / sqrt(6)`
+//!   did, and a line just below `T` then left more than `U` allowed for):
+//!   the budget covers a sinusoid of amplitude `T` at any phase, propagated
+//!   as its distribution with the rest (below).
 //!
 //! - **what the table leaves** ([`crate::correction::left`]): a repeatable
 //!   line the survey saw and the table does not carry (nulled: two design
@@ -143,31 +147,56 @@ pub struct Uncertainty {
 
 pub use crate::coverage::{K, coverage_interval, coverage_probability};
 
-/// The slope of the run means per run and its standard error, per
-/// direction measured (`None` with fewer than three runs).
-fn drift_per_run(samples: &[Sample]) -> Option<(f64, f64)> {
-    let runs = samples.iter().map(|s| s.run).max()? as usize + 1;
-    if runs < 3 {
+/// What drift leaves in the table, as the runs' own tables show it (a
+/// variance, degrees squared): each kept line fitted to each run's series
+/// (the table made from that run alone), its phasor's trend over the runs
+/// (least squares, complex), when its noise would make it one time in
+/// twenty at most (`|b|^2 > 6 se^2`), less what its noise makes of a trend
+/// (`2 se^2` for the two components), and the table (their mean) taken as wrong by
+/// that trend over half the survey at either end: `|b|^2 ((R - 1) / 2)^2 / 2`
+/// a line. A drift that moves the whole error map (a ramp or a step of the
+/// zero, the same in every run) changes no line of the runs' tables and
+/// leaves nothing (the table's zero is its reference's choice); one that
+/// changes the lines from run to run is counted by how much it changes them.
+/// `None` with fewer than three runs.
+fn drift_from_runs(a: &crate::analysis::Analysis, kept: &[f64]) -> Option<f64> {
+    let map = &a.error_map;
+    let runs = map.run_series(a.series)?;
+    let r = runs.len();
+    if r < 3 || kept.is_empty() {
         return None;
     }
-    let mut sum = vec![0.0; runs];
-    let mut count = vec![0usize; runs];
-    for s in samples {
-        sum[s.run as usize] += s.error_deg();
-        count[s.run as usize] += 1;
-    }
-    let pts: Vec<(f64, f64)> =
-        (0..runs).filter(|&r| count[r] > 0).map(|r| (r as f64, sum[r] / count[r] as f64)).collect();
-    let n = pts.len() as f64;
-    if n < 3.0 {
+    let fits: Vec<crate::spectrum::SinusoidFit> =
+        runs.iter().filter_map(|y| crate::spectrum::fit_sinusoids(&map.targets_deg, y, kept).ok()).collect();
+    if fits.len() != r {
         return None;
     }
-    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
-    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
-    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let slope = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
-    let rss: f64 = pts.iter().map(|p| (p.1 - my - slope * (p.0 - mx)).powi(2)).sum();
-    Some((slope, (rss / (n - 2.0) / sxx).sqrt()))
+    let x: Vec<f64> = (0..r).map(|i| i as f64 - (r - 1) as f64 / 2.0).collect();
+    let sxx: f64 = x.iter().map(|v| v * v).sum();
+    let mut var = 0.0;
+    for k in 0..kept.len() {
+        let c: Vec<(f64, f64)> = fits
+            .iter()
+            .map(|f| {
+                let t = &f.terms[k];
+                let ph = t.phase_deg.to_radians();
+                (t.amplitude_deg * ph.cos(), t.amplitude_deg * ph.sin())
+            })
+            .collect();
+        let mean = |i: usize| c.iter().map(|v| if i == 0 { v.0 } else { v.1 }).sum::<f64>() / r as f64;
+        let (m0, m1) = (mean(0), mean(1));
+        let b0 = x.iter().zip(&c).map(|(x, v)| x * (v.0 - m0)).sum::<f64>() / sxx;
+        let b1 = x.iter().zip(&c).map(|(x, v)| x * (v.1 - m1)).sum::<f64>() / sxx;
+        let rss: f64 = x.iter().zip(&c).map(|(x, v)| (v.0 - m0 - b0 * x).powi(2) + (v.1 - m1 - b1 * x).powi(2)).sum();
+        // Each component's residual variance over r - 2 degrees of freedom.
+        let se2 = rss / (2.0 * (r as f64 - 2.0)) / sxx;
+        // A trend its noise makes one time in twenty (chi-square of two
+        // degrees of freedom beyond 6) is counted, less what noise makes.
+        let b2 = b0 * b0 + b1 * b1;
+        let excess = if b2 > 6.0 * se2 { b2 - 2.0 * se2 } else { 0.0 };
+        var += excess * ((r - 1) as f64 / 2.0).powi(2) / 2.0;
+    }
+    Some(var)
 }
 
 /// The budget of `processed`, the table made from `samples`.
@@ -241,23 +270,35 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         })
         .sum();
     budget.push(Contribution { source: "table resolution and interpolation".into(), u_deg: interp_var.sqrt() });
-    let drift_var = match drift_per_run(samples) {
-        Some((d, se)) => {
-            let d = d.abs() + se;
-            if bidirectional && a.series == Series::Bidirectional {
-                (d / 4.0).powi(2)
-            } else {
-                kept.iter().map(|k| (d / (std::f64::consts::PI * k)).powi(2) / 2.0).sum()
-            }
+    let in_range_kept: Vec<f64> = match map.coverage {
+        Coverage::FullCircle { .. } => kept.clone(),
+        Coverage::Partial { start, end, .. } => {
+            kept.iter().copied().filter(|f| f * (end - start) / 360.0 >= 0.5).collect()
         }
-        None => 0.0,
     };
+    let drift_var = drift_from_runs(a, &in_range_kept).unwrap_or(0.0);
     budget.push(Contribution { source: "drift".into(), u_deg: drift_var.sqrt() });
-    // A line below the detection threshold is left out of the table: one
-    // such line, its amplitude anywhere from 0 to the threshold (rectangular),
-    // at a random phase: `T / sqrt(3)` amplitude, `1 / sqrt(2)` of it rms.
+    // A line below the detection threshold is left out of the table whole:
+    // a sinusoid of any amplitude up to the threshold `T`, at any phase. Its
+    // size is one for every readout (systematic), so it is not averaged
+    // over amplitudes: it enters the distribution as a sinusoid of `T`.
     let threshold = a.noise.coherent_threshold_deg;
-    budget.push(Contribution { source: "a line below the detection threshold".into(), u_deg: threshold / 6f64.sqrt() });
+    // A kept line that matches no part of the design and stands less than
+    // twice the threshold may be noise selected for being large (a false
+    // alarm, about one survey in a hundred when noise dominates): the table
+    // then carries it wholly wrongly, a sinusoid of its size.
+    let doubtful: Vec<f64> = a
+        .lines
+        .iter()
+        .filter(|l| {
+            l.repeatable
+                && l.kind == crate::model::PeriodicKind::Harmonic
+                && l.amplitude_deg < 2.0 * threshold
+                && kept.iter().any(|k| (k - l.true_cycles_per_rev).abs() < 1e-9)
+        })
+        .map(|l| l.amplitude_deg)
+        .collect();
+    let unseen: Vec<f64> = std::iter::once(threshold).chain(doubtful).collect();
     let normal_u = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
         "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
@@ -267,12 +308,22 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         samples.len(),
         if samples.iter().any(|s| s.direction == Direction::Reverse) { ", both directions" } else { "" }
     );
-    let left = &processed.left;
-    let u = if left.is_empty() {
-        Uncertainty { k: K, table_u_deg: K * normal_u, combined_u_deg: normal_u, budget, method }
+    // A line on the Nyquist bin that no check point measured between the
+    // targets is bounded as a whole line ([`Left::nyquist_bounded`]).
+    let nyquist_measured = processed.measured_left_deg.is_some()
+        && processed.resolutions.iter().any(|r| 2.0 * r.observed_cycles == processed.left.points as f64);
+    let left = if nyquist_measured { processed.left.clone() } else { processed.left.nyquist_bounded() };
+    let method = if !nyquist_measured && (0..left.lines.len()).any(|i| left.on_nyquist(i)) {
+        format!(
+            "{method}; a line on the Nyquist bin that no check point measured between the targets is taken whole as \
+             the part the targets see over sin(pi/40) (its phase against the targets is unknown: all but the 5 % of \
+             phases nearest their zeros): check points between the targets (a tracker) or a survey at another count \
+             measure it"
+        )
     } else {
-        with_left(left, normal_u, budget, method)
+        method
     };
+    let u = with_left(&left, &unseen, normal_u, budget, method);
     match processed.measured_left_deg {
         Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
         _ => u,
@@ -299,58 +350,120 @@ fn at_least_measured(mut u: Uncertainty, measured: f64) -> Uncertainty {
     u
 }
 
-/// The budget with what the table leaves, and its coverage interval from the
-/// distribution (see the module documentation).
-fn with_left(left: &Left, normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
-    budget.push(Contribution {
-        source: "the lines left, through the readout (their products with the error, second order)".into(),
-        u_deg: left.second_order_deg,
-    });
-    let normal_u = normal_u.hypot(left.second_order_deg);
+/// The values of sinusoids of `amplitudes` at phases independent of the
+/// readout and of each other, paired with `count` readouts (a Weyl sequence
+/// of its own each, so each one's values have the arcsine distribution and
+/// are independent of another sequence's).
+fn unseen_lines(amplitudes: &[f64], count: usize) -> Vec<f64> {
+    const STEPS: [f64; 6] = [
+        std::f64::consts::SQRT_2 - 1.0,
+        1.732_050_807_568_877_2 - 1.0,
+        2.645_751_311_064_590_6 - 2.0,
+        3.316_624_790_355_4 - 3.0,
+        3.605_551_275_463_989 - 3.0,
+        4.123_105_625_617_66 - 4.0,
+    ];
+    (0..count)
+        .map(|j| {
+            amplitudes
+                .iter()
+                .zip(STEPS.iter().cycle())
+                .map(|(a, step)| a * (std::f64::consts::TAU * ((j as f64 + 0.5) * step).fract()).sin())
+                .sum()
+        })
+        .collect()
+}
+
+/// The budget with what the table leaves (the lines the survey saw and
+/// `unseen`, a line up to the detection threshold it could not see), and
+/// its coverage interval from the distribution (see the module
+/// documentation): `U` solves the coverage of `|left + unseen line +
+/// normal|`; the budget's entries for what is left and for the unseen line
+/// are the effective standard uncertainties that expand with `k` to it.
+fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
+    let p = coverage_probability();
+    let readouts = Left::readouts();
+    let normal_u = if left.is_empty() {
+        normal_u
+    } else {
+        budget.push(Contribution {
+            source: "the lines left, through the readout (their products with the error, second order)".into(),
+            u_deg: left.second_order_deg,
+        });
+        normal_u.hypot(left.second_order_deg)
+    };
     // Their sizes at the upper end of what the survey allows (systematic: one
     // size for every readout).
     let upper = left.at_upper_size(K);
-    let p = coverage_probability();
-    let readouts = Left::readouts();
-    let (table_u_deg, rms, hypothesis) = upper
-        .hypotheses()
+    let hypotheses = if left.is_empty() { vec![Vec::new()] } else { upper.hypotheses() };
+    let sines = unseen_lines(unseen, readouts.len());
+    let (table_u_deg, seen_u_deg, rms, hypothesis) = hypotheses
         .into_iter()
         .map(|h| {
-            let s = upper.values(&h, &readouts);
+            let s = if left.is_empty() { vec![0.0; readouts.len()] } else { upper.values(&h, &readouts) };
             let rms = (s.iter().map(|x| x * x).sum::<f64>() / s.len() as f64).sqrt();
-            (coverage_interval(&s, normal_u, p), rms, h)
+            let with_unseen: Vec<f64> = s.iter().zip(&sines).map(|(a, b)| a + b).collect();
+            (coverage_interval(&with_unseen, normal_u, p), coverage_interval(&s, normal_u, p), rms, h)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0))
-        .expect("a non-empty left has a hypothesis");
-    // The entry that makes the budget expand (k = 2, in quadrature) to the
+        .expect("at least one hypothesis");
+    // The entries that make the budget expand (k = 2, in quadrature) to the
     // coverage interval of the distribution: U / k less the normal part.
-    let effective = ((table_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
-    let lines: Vec<String> = left
-        .lines
-        .iter()
-        .zip(&hypothesis)
-        .map(|(l, f)| match l.kind {
-            LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
-            LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
-        })
-        .collect();
+    let effective_seen = ((seen_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
+    let effective_unseen = ((table_u_deg / K).powi(2) - (seen_u_deg / K).powi(2).max(normal_u.powi(2))).max(0.0).sqrt();
+    let (threshold, doubtful) = (unseen[0], &unseen[1..]);
+    let false_alarms = match doubtful.len() {
+        0 => String::new(),
+        n => format!(", and {n} kept line(s) of no design part under twice it (possible false alarms, whole)"),
+    };
     budget.push(Contribution {
-        source: format!("left by the table, from its distribution: {}", lines.join("; ")),
-        u_deg: effective,
+        source: format!(
+            "a line below the detection threshold (a sinusoid up to the threshold, from its distribution){false_alarms}"
+        ),
+        u_deg: effective_unseen,
     });
-    let method = format!(
-        "{method}; the table leaves {} line(s) the survey saw: evaluated as functions of the readout at {} readouts \
-         over the table's range for each hypothesis of their true frequencies (sizes at A + {K} u_A), the rest added \
-         as a normal distribution, and U the coverage interval of |left + rest| for {:.2} % (what k = {K} gives a \
-         normal distribution) computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms: \
-         what is left has rms {:.2e} deg, {:.2e} deg in quadrature with the rest), the least favourable hypothesis \
-         stated; its budget entry is the effective standard uncertainty that expands with k = {K} to that interval",
-        left.lines.len(),
-        readouts.len(),
-        100.0 * p,
-        rms,
-        normal_u.hypot(rms),
+    let mut method = format!(
+        "{method}; a line below the detection threshold T = {threshold:.2e} deg is left whole by the table: a \
+         sinusoid of amplitude T at a phase independent of the readout, its values (arcsine-distributed) added to \
+         the rest{}, and U the coverage interval of the sum for {:.2} % (what k = {K} gives a normal distribution) \
+         computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms); its budget entry is \
+         the effective standard uncertainty that expands with k = {K} to that interval",
+        if doubtful.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; so is each kept line that matches no design part and stands under 2 T (noise selected for being \
+                 large, which the table would carry wholly wrongly): {}",
+                doubtful.iter().map(|a| format!("{a:.2e} deg")).collect::<Vec<_>>().join(", ")
+            )
+        },
+        100.0 * p
     );
+    if !left.is_empty() {
+        let lines: Vec<String> = left
+            .lines
+            .iter()
+            .zip(&hypothesis)
+            .map(|(l, f)| match l.kind {
+                LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
+                LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
+            })
+            .collect();
+        budget.push(Contribution {
+            source: format!("left by the table, from its distribution: {}", lines.join("; ")),
+            u_deg: effective_seen,
+        });
+        method += &format!(
+            "; the table leaves {} line(s) the survey saw: evaluated as functions of the readout at {} readouts \
+             over the table's range for each hypothesis of their true frequencies (sizes at A + {K} u_A), added to \
+             the rest, the least favourable hypothesis stated (what is left has rms {:.2e} deg, {:.2e} deg in \
+             quadrature with the rest)",
+            left.lines.len(),
+            readouts.len(),
+            rms,
+            normal_u.hypot(rms),
+        );
+    }
     Uncertainty { k: K, table_u_deg, combined_u_deg: table_u_deg / K, budget, method }
 }
 

@@ -7,12 +7,22 @@
 //! The processing predicted a corrected peak `P` and stated the table's
 //! expanded uncertainty `U`. The verification measures the corrected peak
 //! `M` with the table applied, and the native peak `N` is the calibration
-//! survey's. The prediction is **not confirmed** when `M > P + U` (the
-//! table does worse than what was promised, beyond what its uncertainty
-//! allows: `U` bounds the table's error at a readout, so a corrected peak
-//! more than `U` above the prediction is not the table's noise) or when
-//! `M >= N` (the corrected axis is not better than the native one: whatever
-//! was predicted, the table is not a result). Otherwise it is **confirmed**.
+//! survey's. Two uncertainties stand between `P` and `M`: the prediction's,
+//! `U` (the table's error at a readout), and the verification's own: its
+//! peak is the largest of `M'` samples' noise, a Gumbel variable whose 95th
+//! percentile lies `ln 19` scales (`sigma / sqrt(2 ln 2M')`, `sigma` the
+//! verification's own scatter about its per-target, per-direction means)
+//! above its mode, so a good table's verification peaks that much higher
+//! one time in twenty on noise alone, `S`. Independent, they combine in
+//! quadrature. The prediction is **not confirmed** when `M > P + sqrt(U^2 +
+//! S^2)` (the table does worse than promised beyond what both allow) or
+//! when `M >= N` (the corrected axis is not better than the native one:
+//! whatever was predicted, the table is not a result). Otherwise it is
+//! **confirmed**, unless the processing itself predicted the table no better
+//! than native (`NOT A RESULT`): then there was nothing to confirm, the
+//! verdict is "not confirmed" and says so with what the verification
+//! measured (one voice: a table is never both "not a result" and
+//! "confirmed").
 
 pub mod aliases;
 
@@ -104,24 +114,86 @@ pub struct Judged {
     pub reason: String,
 }
 
-/// Judge a verification: `measured` corrected peak against the `predicted`
-/// one and the table's `u` (expanded), and against the `native` peak
-/// (degrees; see the module documentation). A verification that could not
-/// have seen the table fail (`blind`: plausible lines its targets sample
-/// where the table's misplaced line matches them, [`aliases::blind`])
-/// confirms nothing.
-pub fn judge(predicted: f64, u: f64, measured: f64, native: f64, blind: &[aliases::Blind]) -> Judged {
+/// What the processing claimed of a table, that a verification judges.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Claim {
+    /// The corrected peak predicted for the verification's count of samples
+    /// ([`predicted_for`]), degrees.
+    pub predicted_deg: f64,
+    /// The table's expanded uncertainty `U`, degrees.
+    pub u_deg: f64,
+    /// The native peak (the calibration survey's), degrees.
+    pub native_deg: f64,
+    /// The processing predicted the table no better than native: not a result.
+    pub not_a_result: bool,
+}
+
+/// The pooled standard deviation of `samples`' errors about the mean of each
+/// target and direction (`None` without a repeated target).
+pub fn own_noise_deg(samples: &[Sample]) -> Option<f64> {
+    let mut groups: BTreeMap<(u64, Direction), (f64, f64, usize)> = BTreeMap::new();
+    for s in samples {
+        let g = groups.entry((s.target_deg.to_bits(), s.direction)).or_default();
+        let e = s.error_deg();
+        *g = (g.0 + e, g.1 + e * e, g.2 + 1);
+    }
+    let (ss, dof) = groups
+        .values()
+        .filter(|g| g.2 > 1)
+        .fold((0.0, 0usize), |(ss, dof), &(s1, s2, n)| (ss + (s2 - s1 * s1 / n as f64).max(0.0), dof + n - 1));
+    (dof > 0).then(|| (ss / dof as f64).sqrt())
+}
+
+/// The spread of a verification's own peak of noise: how much higher than
+/// its typical value the peak of its `samples` lies one time in twenty (a
+/// Gumbel variable of scale `sigma / sqrt(2 ln 2M)`: `ln 19` scales), degrees.
+pub fn own_peak_spread_deg(samples: &[Sample]) -> f64 {
+    let m = samples.len().max(1) as f64;
+    own_noise_deg(samples).map_or(0.0, |sigma| sigma * 19f64.ln() / (2.0 * (2.0 * m).ln()).sqrt())
+}
+
+/// Judge a verification of `samples` (the corrected axis measured) against
+/// the processing's `claim` (see the module documentation). A verification
+/// that could not have seen the table fail (`blind`: plausible lines its
+/// targets sample where the table's misplaced line matches them,
+/// [`aliases::blind`]) confirms nothing.
+pub fn judge(claim: &Claim, samples: &[Sample], blind: &[aliases::Blind]) -> Judged {
+    judge_peak(claim, peak_deg(samples), own_peak_spread_deg(samples), blind)
+}
+
+/// [`judge`] from the measured corrected peak and the verification's own
+/// peak spread `spread` (degrees).
+pub fn judge_peak(claim: &Claim, measured: f64, spread: f64, blind: &[aliases::Blind]) -> Judged {
+    let Claim { predicted_deg: predicted, u_deg: u, native_deg: native, not_a_result } = *claim;
+    let allowed = u.hypot(spread);
     let figures = format!(
-        "measured corrected peak +/-{measured:.5} deg, predicted +/-{predicted:.5} deg with U = {u:.5} deg, native \
-         +/-{native:.5} deg"
+        "measured corrected peak +/-{measured:.5} deg, predicted +/-{predicted:.5} deg with U = {u:.5} deg and the \
+         verification's own peak spread {spread:.5} deg (together {allowed:.5} deg), native +/-{native:.5} deg"
     );
+    if not_a_result {
+        let better = if measured >= native {
+            "not better than the native one".to_string()
+        } else {
+            format!("{:.1}x better", native / measured)
+        };
+        let why = format!(
+            "nothing to confirm: the processing predicted this table no better than the native axis (NOT A \
+             RESULT), and the verification measured the corrected axis at +/-{measured:.5} deg against native \
+             +/-{native:.5} deg ({better})"
+        );
+        return Judged { verdict: Verdict::NotConfirmed, reason: format!("{why} ({figures})") };
+    }
     let (verdict, why) = if measured >= native {
         (
             Verdict::NotConfirmed,
             "the corrected axis is not better than the native one: the table makes it worse or no better",
         )
-    } else if measured > predicted + u {
-        (Verdict::NotConfirmed, "the corrected peak exceeds the prediction by more than the table's uncertainty U")
+    } else if measured > predicted + allowed {
+        (
+            Verdict::NotConfirmed,
+            "the corrected peak exceeds the prediction by more than the table's uncertainty U and the \
+             verification's own peak spread allow",
+        )
     } else if let Some(b) = blind.first() {
         let more = match blind.len() {
             1 => String::new(),
@@ -200,6 +272,14 @@ mod tests {
         assert_eq!(predicted_for(&Prediction { peak_spread_deg: 0.0, ..p }, 768), 0.0036);
     }
 
+    fn claim(predicted_deg: f64, u_deg: f64, native_deg: f64) -> Claim {
+        Claim { predicted_deg, u_deg, native_deg, not_a_result: false }
+    }
+
+    fn judge(predicted: f64, u: f64, measured: f64, native: f64, blind: &[aliases::Blind]) -> Judged {
+        judge_peak(&claim(predicted, u, native), measured, 0.0, blind)
+    }
+
     #[test]
     fn the_verdict_follows_the_contract() {
         // Within P + U and better than native.
@@ -222,5 +302,31 @@ mod tests {
         let j = judge(0.002, 0.0005, 0.0024, 0.015, &blind);
         assert_eq!(j.verdict, Verdict::NotConfirmed);
         assert!(j.reason.contains("could not have seen the table fail: a line of 43 cycles/rev"), "{}", j.reason);
+    }
+
+    /// Issue 38: the verification's own peak spread widens what is allowed
+    /// (in quadrature with U), and a table that is not a result is never
+    /// confirmed: there is nothing to confirm, and the reason says what was
+    /// measured.
+    #[test]
+    fn the_verdict_carries_the_verifications_own_spread_and_one_voice() {
+        // 0.0026 > 0.002 + 0.0005 fails on U alone; with a spread of 0.0004
+        // the allowance is 0.00064.
+        let c = claim(0.002, 0.0005, 0.015);
+        assert_eq!(judge_peak(&c, 0.0026, 0.0, &[]).verdict, Verdict::NotConfirmed);
+        assert_eq!(judge_peak(&c, 0.0026, 0.0004, &[]).verdict, Verdict::Confirmed);
+        assert_eq!(judge_peak(&c, 0.0027, 0.0004, &[]).verdict, Verdict::NotConfirmed);
+        // The issue's survey: NOT A RESULT, then 1.2x better: nothing to confirm.
+        let j = judge_peak(&Claim { not_a_result: true, ..c }, 0.0125, 0.0004, &[]);
+        assert_eq!(j.verdict, Verdict::NotConfirmed);
+        assert!(j.reason.starts_with("nothing to confirm") && j.reason.contains("1.2x better"), "{}", j.reason);
+        // The spread: its own noise about the per-target means, at its count.
+        let s: Vec<Sample> = (0..200)
+            .map(|i| sample(i % 2, Direction::Forward, (i / 2) as f64, if i % 2 == 0 { 1e-3 } else { -1e-3 }))
+            .collect();
+        let sigma = (2e-6f64 * 100.0 / 100.0).sqrt();
+        assert!((own_noise_deg(&s).unwrap() - sigma).abs() < 1e-12, "{:?}", own_noise_deg(&s));
+        let want = sigma * 19f64.ln() / (2.0 * 400f64.ln()).sqrt();
+        assert!((own_peak_spread_deg(&s) - want).abs() < 1e-12);
     }
 }

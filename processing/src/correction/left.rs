@@ -118,12 +118,21 @@ impl Left {
     /// What the table `decisions` made from `analysis` leaves (see the module
     /// documentation); `resolved` are bins whose line check points showed to
     /// be where it is seen ([`crate::correction::resolve`]).
-    pub fn of(analysis: &Analysis, decisions: &Decisions, resolved: &[f64]) -> Self {
+    ///
+    /// `unknown_design`: the positioner's design names no part (no gear
+    /// ratio, no tooth count). Then nothing but the spectrum's reach says a
+    /// line is where it is seen, and a strong line above the sampling's
+    /// resolution aliased to a low bin defeats that (the spectrum then looks
+    /// as if it had died out): every line it sees may be an alias while the
+    /// sampling's resolution, `N / 2`, lies below the highest line a
+    /// positioner plausibly has ([`crate::verification::aliases::PLAUSIBLE_MAX_CYCLES`]).
+    pub fn of(analysis: &Analysis, decisions: &Decisions, resolved: &[f64], unknown_design: bool) -> Self {
         let Coverage::FullCircle { n } = analysis.error_map.coverage else { return Left::none() };
         let start_deg = analysis.error_map.targets_deg.first().copied().unwrap_or(0.0);
         let nf = n as f64;
         let highest = analysis.lines.iter().filter(|l| l.repeatable).map(|l| l.cycles_per_rev).fold(0.0, f64::max);
-        let sparse = highest > nf / 4.0;
+        let unresolved = unknown_design && nf / 2.0 < crate::verification::aliases::PLAUSIBLE_MAX_CYCLES;
+        let sparse = highest > nf / 4.0 || unresolved;
         let mut lines = Vec::new();
         for l in analysis.lines.iter().filter(|l| l.repeatable) {
             let bin = l.cycles_per_rev.round();
@@ -163,19 +172,41 @@ impl Left {
                 LineAction::Kept
                     if sparse
                         && !nyquist
-                        && l.kind == PeriodicKind::Harmonic
+                        && (l.kind == PeriodicKind::Harmonic || unresolved)
                         && !l.aliased
                         && !resolved.contains(&bin) =>
                 {
                     let (low, high) = (nf - bin, nf + bin);
-                    let why = format!(
-                        "the line at bin {bin} ({:.2e} deg) matches no design part and the spectrum reaches {highest} of \
-                         the {} cycles/rev {n} points resolve: it may be the alias of {low} or {high} cycles/rev, which \
-                         the table would correct at the targets only (up to twice the line between them)",
-                        l.amplitude_deg,
-                        nf / 2.0
-                    );
+                    let why = if highest > nf / 4.0 {
+                        format!(
+                            "the line at bin {bin} ({:.2e} deg) matches no design part and the spectrum reaches \
+                             {highest} of the {} cycles/rev {n} points resolve: it may be the alias of {low} or {high} \
+                             cycles/rev, which the table would correct at the targets only (up to twice the line \
+                             between them)",
+                            l.amplitude_deg,
+                            nf / 2.0
+                        )
+                    } else {
+                        format!(
+                            "the line at bin {bin} ({:.2e} deg) is of a positioner whose design names no part, and {n} \
+                             points resolve only {} cycles/rev: it may be the alias of {low} or {high} cycles/rev, which \
+                             the table would correct at the targets only (up to twice the line between them)",
+                            l.amplitude_deg,
+                            nf / 2.0
+                        )
+                    };
                     (LeftKind::MaybeAlias, vec![bin, low, high], why)
+                }
+                // Kept on the Nyquist bin: the table carries the quadrature
+                // component the targets see; the other, unseen, it leaves.
+                LineAction::Kept | LineAction::Relocated if nyquist => {
+                    let why = format!(
+                        "the repeatable line at bin {bin} sits on the Nyquist bin: the table carries the part the \
+                         targets see ({:.2e} deg) and leaves the quadrature component they cannot see, taken as \
+                         {amplitude_deg:.2e} deg (sqrt 2 times what they see) until check points measure it",
+                        l.amplitude_deg
+                    );
+                    (LeftKind::NotCarried, vec![bin], why)
                 }
                 _ => continue,
             };
@@ -206,6 +237,31 @@ impl Left {
         let mut out = self.clone();
         for l in &mut out.lines {
             l.amplitude_deg += k * l.noise_sd_deg;
+        }
+        out
+    }
+
+    /// Whether line `i` sits on the Nyquist bin (half the points per
+    /// revolution): the targets see `A sin psi` of it, nothing of the rest.
+    pub fn on_nyquist(&self, i: usize) -> bool {
+        self.points > 0 && 2.0 * self.lines[i].observed_cycles == self.points as f64
+    }
+
+    /// The same lines, each on the Nyquist bin bounded as a whole line when
+    /// nothing measured it between the targets: the targets see `A |sin
+    /// psi|` of a line whose phase `psi` against them is unknown, so the line
+    /// is taken as the seen part over `sin(pi / 40)`, what all but the 5 %
+    /// of phases nearest the targets' zeros allow (its size is otherwise
+    /// `sqrt 2` times what is seen, the rms over the phases, which a line
+    /// near a zero exceeds many times).
+    pub fn nyquist_bounded(&self) -> Left {
+        let mut out = self.clone();
+        let bound = 1.0 / (std::f64::consts::PI / 40.0).sin() / std::f64::consts::SQRT_2;
+        for i in 0..out.lines.len() {
+            if out.on_nyquist(i) {
+                out.lines[i].amplitude_deg *= bound;
+                out.lines[i].noise_sd_deg *= bound;
+            }
         }
         out
     }

@@ -83,6 +83,15 @@ pub fn plan_checks(left: &Left, targets: &[f64]) -> Vec<f64> {
             (0..cs.len()).flat_map(move |p| (p + 1..cs.len()).map(move |q| (i, cs[p], cs[q])))
         })
         .map(|(i, c1, c2)| grid.iter().map(|&(_, r)| alone(i, c1, r) - alone(i, c2, r)).collect())
+        .chain(
+            // A line on the Nyquist bin: the component the targets do not
+            // see, which the check points must tell from their offset (half
+            // steps of both parities).
+            doubtful.iter().filter(|&&i| left.on_nyquist(i)).map(|&i| {
+                let l = &left.lines[i];
+                grid.iter().map(|&(_, r)| (l.observed_cycles * r + l.phase_deg).to_radians().cos()).collect()
+            }),
+        )
         .collect();
     // Greedy, at most one angle per gap: each next angle the one after which
     // the pair told apart least is told apart most, what separates a pair
@@ -115,9 +124,11 @@ pub fn plan_checks(left: &Left, targets: &[f64]) -> Vec<f64> {
     out
 }
 
-/// Whether line `i` of `left` has more than one candidate frequency.
+/// Whether line `i` of `left` has more than one candidate frequency, or
+/// sits on the Nyquist bin (its size is in doubt: the targets see one
+/// quadrature component of it, the check points between them the other).
 fn in_doubt(left: &Left, i: usize) -> bool {
-    left.lines[i].candidates.len() > 1
+    left.lines[i].candidates.len() > 1 || left.on_nyquist(i)
 }
 
 /// What the check points decided about one line.
@@ -268,6 +279,100 @@ pub fn measured_left_deg(table: &CorrectionTable, checks: &[Sample]) -> Option<(
     let q = size[at.clamp(1, size.len()) - 1];
     let noise = noise_var(checks, table).map_or(0.0, |v| crate::coverage::K * crate::coverage::K * v);
     Some(((q * q - noise).max(0.0).sqrt(), size[size.len() - 1]))
+}
+
+/// What check points measure of the lines on the Nyquist bin of `left`
+/// that the table leaves: the targets see one quadrature component of such
+/// a line, `A sin psi`, and the check points between them (at a half step,
+/// where that component is zero) the other. Each line's size becomes the
+/// part of the seen component the table does not carry (what it shows at
+/// the targets, `(-1)^j`, against what the survey saw), its noise counted
+/// (`+ k u_A`), with the component the check points measure: the amplitude
+/// of `d = error - table` at the line's frequency, fitted to them with an
+/// offset and a once-per-revolution term (the quadrature column they cannot
+/// resolve left out), `+ k` its standard deviation; the largest over its
+/// candidate frequencies; one they cannot resolve (all at half steps of
+/// one parity, where it is their offset) is bounded as if none measured it
+/// ([`Left::nyquist_bounded`]). `left` unchanged without enough check
+/// points; `targets` the survey's.
+pub fn measure_nyquist(mut left: Left, table: &CorrectionTable, checks: &[Sample], targets: &[f64]) -> Left {
+    if checks.len() < MIN_CHECKS || targets.is_empty() {
+        return left;
+    }
+    let d: Vec<(f64, f64)> =
+        checks.iter().map(|s| (s.readout_deg, s.error_deg() - table.error_at(s.readout_deg, s.direction))).collect();
+    let y: Vec<f64> = d.iter().map(|p| p.1).collect();
+    let scale = (d.len() as f64).sqrt();
+    let column = |f: &dyn Fn(f64) -> f64| -> Vec<f64> { d.iter().map(|(r, _)| f(*r)).collect() };
+    // One fit: offset, once per revolution and `extra` columns; the
+    // amplitude of the extra terms, + k its standard deviation.
+    let fit = |extra: Vec<Vec<f64>>| -> Option<f64> {
+        let mut columns =
+            vec![vec![1.0; d.len()], column(&|r| r.to_radians().sin()), column(&|r| r.to_radians().cos())];
+        let n = extra.len();
+        columns.extend(extra);
+        let qr = crate::lstsq::Qr::new(columns, |_| 1e-6 * scale).ok()?;
+        let (x, ssr) = qr.solve(&y);
+        let dof = d.len().checked_sub(3 + n).filter(|&k| k > 0)? as f64;
+        let var = qr.unit_var();
+        let a = x[3..].iter().map(|v| v * v).sum::<f64>().sqrt();
+        let sd = (ssr / dof * var[3..].iter().fold(0.0f64, |m, v| m.max(*v))).sqrt();
+        Some(a + crate::coverage::K * sd)
+    };
+    let amplitude_at = |f: f64| -> Option<f64> {
+        let (s, c) = (column(&|r| (f * r).to_radians().sin()), column(&|r| (f * r).to_radians().cos()));
+        fit(vec![s.clone(), c.clone()]).or_else(|| match (fit(vec![s]), fit(vec![c])) {
+            (Some(a), Some(b)) => Some(a.max(b)),
+            (a, b) => a.or(b),
+        })
+    };
+    // What the table holds at the targets on the Nyquist bin.
+    let carried = (targets
+        .iter()
+        .enumerate()
+        .map(|(j, &t)| if j % 2 == 0 { 1.0 } else { -1.0 } * table.error_at(t, crate::types::Direction::Forward))
+        .sum::<f64>()
+        / targets.len() as f64)
+        .abs();
+    for i in 0..left.lines.len() {
+        if !left.on_nyquist(i) {
+            continue;
+        }
+        let candidates = left.lines[i].candidates.clone();
+        let hidden = candidates
+            .into_iter()
+            .filter_map(amplitude_at)
+            .fold(None, |m: Option<f64>, a| Some(m.map_or(a, |m| m.max(a))));
+        if let Some(h) = hidden {
+            let l = &mut left.lines[i];
+            let seen = l.amplitude_deg / std::f64::consts::SQRT_2;
+            let seen_left = (seen - carried).abs() + crate::coverage::K * l.noise_sd_deg;
+            let a = seen_left.hypot(h);
+            l.why = format!(
+                "{}; the {} check points measure the component the targets do not see, up to {h:.2e} deg: the line \
+                 left is up to {a:.2e} deg",
+                l.why,
+                d.len()
+            );
+            l.amplitude_deg = a;
+            l.noise_sd_deg = 0.0;
+        } else {
+            // The check points cannot tell it from their offset (all at
+            // half steps of one parity): bounded as if none measured it.
+            let bound = 1.0 / (std::f64::consts::PI / 40.0).sin() / std::f64::consts::SQRT_2;
+            let l = &mut left.lines[i];
+            l.amplitude_deg *= bound;
+            l.noise_sd_deg *= bound;
+            l.why = format!(
+                "{}; the check points cannot separate the component the targets do not see from their own offset: \
+                 bounded as the seen part over sin(pi/40), {:.2e} deg",
+                l.why, l.amplitude_deg
+            );
+        }
+    }
+    left.lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
+    left.worst = left.least_favourable(targets);
+    left
 }
 
 /// The residual sum of squares of `y(r)` fitted by `c + a sin r + b cos r`

@@ -156,7 +156,7 @@ pub fn verdict_rows(
     (survey_id, own): (i64, &[Sample]),
     units: Units,
 ) -> Vec<Vec<String>> {
-    use survey_processing::verification::{Verdict, judge, peak_deg};
+    use survey_processing::verification::{Claim, Verdict, judge, peak_deg};
     let mut rows = Vec::new();
     if p.prediction.no_better_than_native() {
         rows.push(vec![
@@ -177,7 +177,13 @@ pub fn verdict_rows(
         let blind =
             survey_lab::verify::blind(&target(v.native(own)), &target(v.corrected(own)), v.plausible_max_cycles, p);
         let predicted = survey_processing::verification::predicted_for(&p.prediction, v.corrected(own).len());
-        let j = judge(predicted, u, peak_deg(v.corrected(own)), peak_deg(v.native(own)), &blind);
+        let claim = Claim {
+            predicted_deg: predicted,
+            u_deg: u,
+            native_deg: peak_deg(v.native(own)),
+            not_a_result: p.prediction.no_better_than_native(),
+        };
+        let j = judge(&claim, v.corrected(own), &blind);
         let reason = units.text(&j.reason);
         let words = match j.verdict {
             Verdict::Confirmed => format!("confirmed by survey {}: {reason}", v.verification_id),
