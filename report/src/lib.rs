@@ -22,6 +22,7 @@ pub mod html;
 pub mod page;
 pub mod pdf;
 pub mod plot;
+pub mod rounding;
 /// The units and numbers of the page (the processing's, shared with every command's text).
 pub use survey_processing::units;
 
@@ -54,6 +55,8 @@ pub struct ReportOptions {
     pub recipe: Option<PathBuf>,
     /// Compare the survey with this model (model-gap) and show the steps.
     pub model: Option<PathBuf>,
+    /// Print the appendix (every target) too; the page always holds it, folded.
+    pub appendix: bool,
 }
 
 /// Everything the page shows.

@@ -36,6 +36,33 @@ pub fn plan_text(survey: &SurveyRecord) -> String {
     s
 }
 
+/// ISO 230-2's edition, and the procedure this program follows.
+pub fn method_text(survey: &SurveyRecord) -> String {
+    format!(
+        "ISO 230-2:2014 (accuracy and repeatability of positioning of numerically controlled axes), a rotary axis \
+         measured against the reference instrument; procedure and processing of survey {} (plan: {})",
+        env!("CARGO_PKG_VERSION"),
+        plan_text(survey)
+    )
+}
+
+/// The environment in words: what was stated, or "not measured".
+pub fn environment_text(cert: &Certificate) -> String {
+    match &cert.temperature_c {
+        Some(t) => format!(
+            "air temperature {:.1} °C, stated ({}), not measured by this program; its uncertainty is not stated",
+            t.value, t.from
+        ),
+        None => "not measured: no air temperature was measured or stated".into(),
+    }
+}
+
+/// The calibration's dates: the survey's first and last stored change, as dates.
+pub fn performed(survey: &SurveyRecord) -> (String, String) {
+    let day = |t: &str| t.get(..10).unwrap_or(t).to_string();
+    (day(&survey.created_at), day(&survey.updated_at))
+}
+
 /// The header as an HTML table (`tbl-header`).
 fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
     let not_stated = "<i>not stated</i>".to_string();
@@ -47,11 +74,21 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
             escape(&value) + &from(s.from)
         })
     };
-    let mut rows: Vec<(&str, String)> = vec![
-        ("Certificate number", text(&Some(cert.number.clone()))),
+    let (begin, end) = performed(survey);
+    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
+        (Some(a), Some(b)) if b >= a => format!(" ({:.1} h of instrument time)", (b - a) / 3600.0),
+        _ => String::new(),
+    };
+    let rows: Vec<(&str, String)> = vec![
         ("Calibrating laboratory", text(&cert.laboratory)),
-        ("Traceability", text(&cert.traceability)),
-        ("Positioner", text(&cert.positioner)),
+        ("Laboratory's country", text(&cert.country)),
+        ("Customer (name, address)", text(&cert.customer)),
+        ("Item calibrated", text(&cert.positioner)),
+        ("Item's condition", text(&cert.item_condition)),
+        ("Date received", text(&cert.received)),
+        ("Date of calibration", format!("{begin} to {end}{instrument_time}")),
+        ("Location of calibration", text(&cert.location)),
+        ("Method", escape(&method_text(survey))),
         ("Reference instrument", text(&cert.reference)),
         (
             "Reference uncertainty",
@@ -59,40 +96,23 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
                 format!("{} (standard uncertainty of one angle){}", units.show(u.value), from(u.from))
             }),
         ),
+        ("Traceability", text(&cert.traceability)),
+        ("Environment", escape(&environment_text(cert))),
         ("Operator", text(&cert.operator)),
-        ("Customer", text(&cert.customer)),
-        (
-            "Environment",
-            cert.temperature_c
-                .as_ref()
-                .map_or("<i>temperature not stated</i>".to_string(), |t| format!("{:.1} °C{}", t.value, from(t.from))),
-        ),
         (
             "Survey",
             format!(
-                "{} ({}), status {}; {samples} samples",
+                "{} ({}), status {}; {samples} samples; created {}, last changed {}",
                 survey.id,
                 escape(&survey.source.to_string()),
-                survey.status
+                survey.status,
+                escape(&survey.created_at),
+                escape(&survey.updated_at),
             ),
         ),
-        ("Plan", escape(&plan_text(survey))),
+        ("Issued", format!("report made {} by survey {}", escape(generated), env!("CARGO_PKG_VERSION"))),
+        ("Units", format!("errors in {}; angles in degrees", units.symbol())),
     ];
-    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
-        (Some(a), Some(b)) if b >= a => format!("; {:.1} h of instrument time", (b - a) / 3600.0),
-        _ => String::new(),
-    };
-    rows.push((
-        "Dates (UTC)",
-        format!(
-            "created {}, last changed {}{instrument_time}; report made {}",
-            escape(&survey.created_at),
-            escape(&survey.updated_at),
-            escape(generated)
-        ),
-    ));
-    rows.push(("Software", format!("survey {}", env!("CARGO_PKG_VERSION"))));
-    rows.push(("Units", format!("errors in {}; angles in degrees", units.symbol())));
     let mut html = String::from("<table class=\"header\" id=\"tbl-header\"><tbody>\n");
     for (k, v) in rows {
         let _ = writeln!(html, "<tr><td>{k}</td><td>{v}</td></tr>");

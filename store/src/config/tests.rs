@@ -58,6 +58,10 @@ fn every_number_is_finite_and_within_its_stated_range() {
         ("[certificate]\ntemperature_c = 293.15\n", "certificate.temperature_c = 293.15 is outside"),
         ("[certificate]\nreference_uncertainty_deg = 0\n", "certificate.reference_uncertainty_deg = 0 is outside"),
         ("[certificate]\ntolerance_deg = -0.01\n", "certificate.tolerance_deg = -0.01 is outside"),
+        ("[certificate]\nreceived = \"2026-02-30\"\n", "certificate.received = \"2026-02-30\": not a date"),
+        ("[certificate]\nreceived = \"1 May 2026\"\n", "certificate.received = \"1 May 2026\": not a date"),
+        ("[certificate]\ncountry = \"de\"\n", "certificate.country = \"de\": not an ISO 3166-1"),
+        ("[certificate]\ncountry = \"XX\"\n", "certificate.country = \"XX\": not an ISO 3166-1"),
     ] {
         let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
         assert!(e.starts_with("c.toml: ") && e.contains(key), "{extra}: {e}");
