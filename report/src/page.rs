@@ -31,7 +31,7 @@ p.note,ul.note{color:#444;font-size:.92em}.subtitle{color:#444;margin:0 0 1em}\
 p.verdict{font-size:1.1em;padding:.4em .7em;border-left:5px solid #999;background:#f4f4f4}\
 p.verdict.pass{border-color:#009e73}p.verdict.fail{border-color:#d55e00}\
 section.appendix table{font-size:.82em}details>summary{cursor:pointer;color:#444}\
-table#tbl-summary td.l{min-width:15em}ul.statements{font-size:.92em;padding-left:1.2em}\
+table#tbl-summary td{white-space:normal}table#tbl-summary td.l{min-width:15em}ul.statements{font-size:.92em;padding-left:1.2em}\
 span.signature{display:inline-block;width:20em;border-bottom:1px solid #333;height:1.8em}\
 p.end{font-weight:bold;text-align:center;margin-top:1.4em;border-top:1px solid #999;padding-top:.4em}\
 @media print{body{max-width:none;margin:0;padding:0;font-size:10pt}.screen-only{display:none}\
