@@ -1,4 +1,5 @@
-//! `survey report --out DIR`: the survey's report as one HTML page.
+//! `survey report --out DIR`: the survey's report as one HTML page, and the
+//! certificate as a DCC (`DIR/dcc.xml`).
 
 use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
@@ -152,8 +153,10 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let store = open_read_only(db).await?;
     let data = survey_report::gather(&store, args.survey, &opts).await;
     store.close().await;
-    let html = survey_report::html::render(&data?, &opts)?;
-    let path = survey_report::write(&args.out, &html)?;
+    let data = data?;
+    let html = survey_report::html::render(&data, &opts)?;
+    let dcc = survey_report::dcc::document(&survey_report::html::page(&data, &opts))?;
+    let path = survey_report::write(&args.out, &html, &dcc)?;
     let printed = match pdf_bound {
         Some(bound) => {
             let pdf = path.with_extension("pdf");

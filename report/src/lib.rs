@@ -10,7 +10,8 @@
 //! written), the verification survey of its table (or, for a verification,
 //! the survey it verifies), and the model-gap steps when `--model` is given.
 //! [`html`] lays it out, one module per section ([`html::BODY`] lists them);
-//! [`conformity`] decides a tolerance's verdict; [`page`] is the skeleton and
+//! [`dcc`] writes the same certificate as a Digital Calibration Certificate
+//! (`dcc.xml`); [`conformity`] decides a tolerance's verdict; [`page`] is the skeleton and
 //! the stylesheet, [`plot`] what every figure shares.
 //!
 //! Every error is shown in the unit chosen ([`units::Units`]), by
@@ -18,6 +19,7 @@
 
 pub mod certificate;
 pub mod conformity;
+pub mod dcc;
 pub mod html;
 pub mod page;
 pub mod pdf;
@@ -217,10 +219,13 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
     }))
 }
 
-/// Write `html` as `index.html` into the folder `out` (created if missing); returns the file's path.
-pub fn write(out: &Path, html: &str) -> anyhow::Result<PathBuf> {
+/// Write `html` as `index.html` and `dcc` as `dcc.xml` into the folder `out`
+/// (created if missing); returns the page's path.
+pub fn write(out: &Path, html: &str, dcc: &str) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(out).map_err(|e| path_error(e, format!("cannot create the folder {}", out.display())))?;
-    let path = out.join("index.html");
-    std::fs::write(&path, html).map_err(|e| path_error(e, format!("cannot write {}", path.display())))?;
-    Ok(path)
+    for (name, text) in [("dcc.xml", dcc), ("index.html", html)] {
+        let path = out.join(name);
+        std::fs::write(&path, text).map_err(|e| path_error(e, format!("cannot write {}", path.display())))?;
+    }
+    Ok(out.join("index.html"))
 }

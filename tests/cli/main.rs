@@ -16,6 +16,7 @@
 mod browser;
 mod budget;
 mod correction;
+mod dcc;
 mod docs;
 mod drift;
 mod everyday;

@@ -171,16 +171,21 @@ fn title(p: &Page<'_>) -> String {
     }
 }
 
-/// The page of `d`.
-pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
-    let p = Page {
+/// What every section (and the DCC) reads, of `d`.
+pub fn page<'a>(d: &'a ReportData, opts: &'a ReportOptions) -> Page<'a> {
+    Page {
         d,
         opts,
         units: opts.units,
         cert: Certificate::of(&d.survey, &opts.flags),
         map: ErrorMap::from_samples(&d.samples).map_err(|e| e.to_string()),
         iso: iso230_2(&d.samples).map_err(|e| e.to_string()),
-    };
+    }
+}
+
+/// The page of `d`.
+pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
+    let p = page(d, opts);
     let title = title(&p);
     let number = &p.cert.number.value;
     let laboratory = p.cert.laboratory.as_ref().map(|l| l.value.clone()).unwrap_or_default();
