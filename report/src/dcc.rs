@@ -28,6 +28,7 @@ use crate::rounding;
 use anyhow::Context as _;
 use quick_xml::Writer;
 use quick_xml::events::{BytesDecl, BytesEnd, BytesStart, BytesText, Event};
+use survey_lab::environment::Environment;
 use survey_processing::Direction;
 use survey_processing::iso230::iso230_2;
 
@@ -345,11 +346,36 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.close("dcc:measuringEquipments")?;
     x.open("dcc:influenceConditions", &[])?;
     x.open("dcc:influenceCondition", &[("refType", "basic_temperature")])?;
-    x.words("dcc:name", "Ambient air temperature")?;
-    x.words("dcc:description", &environment_text(&p.cert))?;
+    x.words("dcc:name", "Ambient air (temperature; with a tracker, pressure and relative humidity too)")?;
+    let simulated = matches!(p.d.survey.setup, survey_store::survey::Setup::Simulated(_));
+    x.words("dcc:description", &environment_text(&p.cert, &p.d.environment, simulated))?;
     x.open("dcc:data", &[])?;
-    match &p.cert.temperature_c {
-        Some(t) => {
+    match (&p.cert.temperature_c, &p.d.environment) {
+        (_, Environment::Tracker(m)) => {
+            let quantities = [
+                ("basic_temperatureMin", "air temperature, least measured", m.temperature_c.min, "\\degreecelsius"),
+                ("basic_temperatureMax", "air temperature, greatest measured", m.temperature_c.max, "\\degreecelsius"),
+                ("basic_pressureMin", "air pressure, least measured", m.pressure_hpa.min, "\\hecto\\pascal"),
+                ("basic_pressureMax", "air pressure, greatest measured", m.pressure_hpa.max, "\\hecto\\pascal"),
+                ("basic_humidityRelativeMin", "relative humidity, least measured", m.humidity_pct.min / 100.0, "\\one"),
+                (
+                    "basic_humidityRelativeMax",
+                    "relative humidity, greatest measured",
+                    m.humidity_pct.max / 100.0,
+                    "\\one",
+                ),
+            ];
+            for (ref_type, name, value, unit) in quantities {
+                x.open("dcc:quantity", &[("refType", ref_type)])?;
+                x.words("dcc:name", name)?;
+                x.open("si:real", &[])?;
+                x.leaf("si:value", &format!("{value}"))?;
+                x.leaf("si:unit", unit)?;
+                x.close("si:real")?;
+                x.close("dcc:quantity")?;
+            }
+        }
+        (Some(t), _) => {
             x.open("dcc:quantity", &[("refType", "basic_temperatureStated")])?;
             x.words("dcc:name", "air temperature, stated")?;
             x.open("si:real", &[])?;
@@ -358,7 +384,7 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
             x.close("si:real")?;
             x.close("dcc:quantity")?;
         }
-        None => x.words("dcc:text", "not measured")?,
+        (None, _) => x.words("dcc:text", "not measured")?,
     }
     x.close("dcc:data")?;
     x.close("dcc:influenceCondition")?;

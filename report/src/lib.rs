@@ -87,6 +87,10 @@ pub struct ReportData {
     pub generated: String,
     /// The asset's history up to this survey, when it has one.
     pub history: Option<survey_lab::life::history::History>,
+    /// The air measured with the samples, or stated by the configuration.
+    pub environment: survey_lab::environment::Environment,
+    /// The air temperature against the samples' time, `(s, °C)`, when measured.
+    pub temperature: Vec<(f64, f64)>,
 }
 
 /// Read what the report of survey `id` (the latest when `None`) shows.
@@ -101,6 +105,8 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
     let history = survey_lab::life::history::history(store, &loaded.survey.asset, Some(loaded.survey.id)).await.ok();
     let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
     let axis_u_deg = loaded.uncertainty_inputs().axis_u_deg;
+    let environment = survey_lab::environment::Environment::of(store, &loaded.survey).await?;
+    let temperature = store.temperature_series(loaded.survey.id).await?;
     let axis = loaded.axis_used();
     let Loaded { survey, samples, drift, .. } = loaded;
     Ok(ReportData {
@@ -115,6 +121,8 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
         axis_u_deg,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
         history,
+        environment,
+        temperature,
     })
 }
 

@@ -42,6 +42,7 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (5, "assets", include_str!("../../migrations/postgres/0005_assets.sql")),
     (6, "processing", include_str!("../../migrations/postgres/0006_processing.sql")),
     (8, "history cache", include_str!("../../migrations/postgres/0008_history_cache.sql")),
+    (9, "environment", include_str!("../../migrations/postgres/0009_environment.sql")),
 ];
 
 /// The oldest lab store schema a read command reads as it is (migration 8
@@ -129,11 +130,15 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         immutable: false,
         writable: setup,
         cache: setup,
+        environment: setup,
     };
     let ready = if setup {
         migrator().run(&pool).await.map_err(|e| anyhow::anyhow!("cannot set up the lab store {shown}: {e}"))
     } else {
-        check_schema(&pool, &shown).await.map(|version| store.cache = version >= super::CACHE_SCHEMA)
+        check_schema(&pool, &shown).await.map(|version| {
+            store.cache = version >= super::CACHE_SCHEMA;
+            store.environment = version >= super::ENVIRONMENT_SCHEMA;
+        })
     };
     if let Err(e) = ready {
         store.close().await;

@@ -109,7 +109,8 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
         "Date received</td><td><i>not stated</i>",
         "Location of calibration</td><td><i>not stated</i>",
         "Method</td><td>ISO 230-2:2014",
-        "Environment</td><td>not measured: no air temperature was measured or stated",
+        "Environment</td><td>air temperature ",
+        "measurements by the simulated tracker's room (this program's own model",
         "Authorised by (name, function)</td><td><i>not stated</i>",
         "id=\"end-of-certificate\">End of the certificate",
         "The results relate only to the item calibrated",
@@ -460,4 +461,38 @@ fn report_pdf_without_a_working_browser_exits_1_says_why_and_keeps_the_page() {
         .survey_with_env(&["report", "--out", "bad", "--pdf"], "SURVEY_PDF_TIMEOUT_S", "soon")
         .bad_input(&["SURVEY_PDF_TIMEOUT_S"]);
     assert!(!bench.exists("bad/index.html"), "bad input writes nothing");
+}
+
+/// The environment measured (issue 39): the simulated tracker reports the room
+/// with every measurement; `run --json` and `show --json` give its ranges, the
+/// certificate states them and plots the temperature against time, the DCC
+/// carries them. An autocollimator reports none.
+#[test]
+fn the_air_the_tracker_measured_is_in_run_show_the_certificate_and_its_dcc() {
+    let bench = Bench::new();
+    let run = bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--json"]).success().json();
+    let env = &run["environment"];
+    assert_eq!(env["source"], "tracker", "{env}");
+    assert_eq!(env["measurements"], 288, "one a sample: {env}");
+    let t = &env["temperature_c"];
+    let (lo, hi, mean) = (t["min"].as_f64().unwrap(), t["max"].as_f64().unwrap(), t["mean"].as_f64().unwrap());
+    assert!(19.0 < lo && lo < mean && mean < hi && hi < 21.0, "a room near 20 °C that changes: {t}");
+    for (key, low, high) in [("pressure_hpa", 1000.0, 1030.0), ("humidity_pct", 30.0, 60.0)] {
+        let r = &env[key];
+        assert!(r["min"].as_f64().unwrap() > low && r["max"].as_f64().unwrap() < high, "{key}: {r}");
+    }
+    assert_eq!(bench.survey(&["show", "--json"]).success().json()["environment"], *env, "show says the same");
+    bench.survey(&["report", "--out", "r"]).success();
+    let html = bench.read("r/index.html");
+    assert!(html.contains("id=\"fig-environment\""), "the temperature against time");
+    assert!(html.contains(&format!("air temperature {lo:.2} to {hi:.2} °C")), "the range measured");
+    assert!(bench.read("r/dcc.xml").contains("refType=\"basic_temperatureMin\""), "the DCC's range");
+    // An autocollimator measures no air: none, and the certificate says not measured.
+    let ac = bench
+        .survey(&["run", "--points", "24", "--runs", "2", "--reference", "autocollimator", "--json"])
+        .success()
+        .json();
+    assert_eq!(ac["environment"]["source"], "none");
+    bench.survey(&["report", "--out", "ac"]).success();
+    assert!(bench.read("ac/index.html").contains("not measured: no air temperature was measured or stated"));
 }

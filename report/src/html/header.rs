@@ -4,8 +4,8 @@
 use super::{Page, Section};
 use crate::certificate::{BENCH, Certificate, Stated};
 use crate::page::escape;
-use crate::units::Units;
 use std::fmt::Write as _;
+use survey_lab::environment::Environment;
 use survey_store::survey::{Setup, SurveyRecord};
 
 /// The plan in words.
@@ -46,14 +46,40 @@ pub fn method_text(survey: &SurveyRecord) -> String {
     )
 }
 
-/// The environment in words: what was stated, or "not measured".
-pub fn environment_text(cert: &Certificate) -> String {
-    match &cert.temperature_c {
-        Some(t) => format!(
+/// The environment in words: the ranges the tracker measured, else what
+/// was stated (marked so), else "not measured".
+pub fn environment_text(cert: &Certificate, measured: &Environment, simulated: bool) -> String {
+    let stated = cert.temperature_c.as_ref().map(|t| {
+        format!(
             "air temperature {:.1} °C, stated ({}), not measured by this program; its uncertainty is not stated",
             t.value, t.from
-        ),
-        None => "not measured: no air temperature was measured or stated".into(),
+        )
+    });
+    match measured {
+        Environment::Tracker(m) => {
+            let station = if simulated {
+                "the simulated tracker's room (this program's own model of a laboratory, exact)"
+            } else {
+                "the tracker's weather station (its uncertainty as its manufacturer states it, not stated here)"
+            };
+            let mut s = format!(
+                "air temperature {:.2} to {:.2} °C (mean {:.2} °C), pressure {:.1} to {:.1} hPa, relative humidity \
+                 {:.1} to {:.1} %, measured with each of the {} measurements by {station}",
+                m.temperature_c.min,
+                m.temperature_c.max,
+                m.temperature_c.mean,
+                m.pressure_hpa.min,
+                m.pressure_hpa.max,
+                m.humidity_pct.min,
+                m.humidity_pct.max,
+                m.count
+            );
+            if let Some(t) = stated {
+                s += &format!("; also {t}");
+            }
+            s
+        }
+        _ => stated.unwrap_or_else(|| "not measured: no air temperature was measured or stated".into()),
     }
 }
 
@@ -64,7 +90,10 @@ pub fn performed(survey: &SurveyRecord) -> (String, String) {
 }
 
 /// The header as an HTML table (`tbl-header`).
-fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
+fn fields(p: &Page<'_>) -> String {
+    let (survey, cert, samples, units, generated) =
+        (&p.d.survey, &p.cert, p.d.samples.len(), p.units, p.d.generated.as_str());
+    let environment = &p.d.environment;
     let not_stated = "<i>not stated</i>".to_string();
     let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
     // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as written.
@@ -97,7 +126,7 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
             }),
         ),
         ("Traceability", text(&cert.traceability)),
-        ("Environment", escape(&environment_text(cert))),
+        ("Environment", escape(&environment_text(cert, environment, matches!(survey.setup, Setup::Simulated(_))))),
         ("Operator", text(&cert.operator)),
         (
             "Survey",
@@ -122,11 +151,5 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
 
 /// The section: the certificate's fields.
 pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
-    let d = p.d;
-    Ok(Some(Section {
-        id: "certificate",
-        title: "Certificate".into(),
-        new_page: false,
-        body: fields(&d.survey, &p.cert, d.samples.len(), p.units, &d.generated),
-    }))
+    Ok(Some(Section { id: "certificate", title: "Certificate".into(), new_page: false, body: fields(p) }))
 }

@@ -16,11 +16,12 @@
 //! - [`interpolation`]: the paper's Figure 6;
 //! - [`table`]: the correction table;
 //! - [`verification`]: native against corrected on one scale;
-//! - [`modelgap`], [`drift`], [`uncertainty`]: when there is such data;
+//! - [`modelgap`], [`drift`], [`environment`], [`uncertainty`]: when there is such data;
 //! - [`history`]: the asset's earlier surveys, when it has any;
 //! - [`iso`]: ISO 230-2 and VDI/DGQ 3441 for the axis; per target in the appendix.
 
 pub mod drift;
+pub mod environment;
 pub mod errors;
 pub mod header;
 pub mod history;
@@ -102,6 +103,7 @@ pub const BODY: &[Show] = &[
     verification::show,
     modelgap::show,
     drift::show,
+    environment::show,
     uncertainty::show,
     history::show,
     iso::show_axis,

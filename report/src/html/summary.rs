@@ -96,13 +96,20 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
         &["figure", "value", "expanded uncertainty U (k = 2, coverage probability about 95 %)"],
         &rows,
     );
-    let environment = match &p.cert.temperature_c {
-        Some(t) => format!(
+    let measured = match &d.environment {
+        survey_lab::environment::Environment::Tracker(m) => Some(m.temperature_c),
+        _ => None,
+    };
+    let environment = match (&p.cert.temperature_c, measured) {
+        (_, Some(t)) => {
+            format!("the environment's contribution is not included (the air measured {:.2} to {:.2} °C)", t.min, t.max)
+        }
+        (Some(t), None) => format!(
             "the environment's contribution is not included (the air temperature was stated as {:.1} °C, not \
              measured)",
             t.value
         ),
-        None => "the environment's contribution is not included (no air temperature was measured)".to_string(),
+        (None, None) => "the environment's contribution is not included (no air temperature was measured)".to_string(),
     };
     body += &format!(
         "<p class=\"note\">U of a measured figure: k √(u<sub>ref</sub>² + u<sub>axis</sub>²), the reference \
