@@ -1,4 +1,5 @@
-//! `survey report --out DIR`: the survey's report as one HTML page.
+//! `survey report --out DIR`: the survey's report as one HTML page, and the
+//! certificate as a DCC (`DIR/dcc.xml`).
 
 use super::args::UnitsArg;
 use super::support::{emit, open_read_only};
@@ -57,6 +58,24 @@ pub struct ReportArgs {
     /// Judge the ISO 230-2 accuracy A against this tolerance, degrees: pass, fail or not decidable within the uncertainty [default: [certificate] tolerance_deg].
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
+    /// Who authorises the certificate: name and function [default: [certificate] signatory].
+    #[arg(long, value_name = "TEXT")]
+    pub signatory: Option<String>,
+    /// Where the calibration was performed [default: [certificate] location].
+    #[arg(long, value_name = "TEXT")]
+    pub location: Option<String>,
+    /// The item's condition when received [default: [certificate] item_condition].
+    #[arg(long, value_name = "TEXT")]
+    pub item_condition: Option<String>,
+    /// The date the item was received, YYYY-MM-DD [default: [certificate] received].
+    #[arg(long, value_name = "DATE")]
+    pub received: Option<String>,
+    /// The laboratory's country, ISO 3166-1 alpha-2 (DE, GB) [default: [certificate] country].
+    #[arg(long, value_name = "CODE")]
+    pub country: Option<String>,
+    /// Print the appendix (every target's figures) too; the HTML page always holds it, folded.
+    #[arg(long)]
+    pub appendix: bool,
     /// Print the page to DIR/index.pdf with Chromium, headless (SURVEY_CHROMIUM names the browser; else chromium on PATH).
     #[arg(long)]
     pub pdf: bool,
@@ -88,10 +107,21 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
         ("--certificate-number", &args.certificate_number),
         ("--laboratory", &args.laboratory),
         ("--traceability", &args.traceability),
+        ("--signatory", &args.signatory),
+        ("--location", &args.location),
+        ("--item-condition", &args.item_condition),
     ] {
         if text.as_ref().is_some_and(|t| t.trim().is_empty()) {
             return Err(survey_lab::error::bad_input(format!("{flag}: empty")));
         }
+    }
+    if let Some(d) = &args.received {
+        survey_store::config::check_date(d)
+            .map_err(|e| survey_lab::error::bad_input(format!("--received {d}: {e}")))?;
+    }
+    if let Some(c) = &args.country {
+        survey_store::config::check_country(c)
+            .map_err(|e| survey_lab::error::bad_input(format!("--country {c}: {e}")))?;
     }
     // Checked before anything is written.
     let pdf_bound = if args.pdf { Some(survey_report::pdf::timeout()?) } else { None };
@@ -108,18 +138,26 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             laboratory: args.laboratory,
             traceability: args.traceability,
             tolerance_deg: args.tolerance,
+            signatory: args.signatory,
+            location: args.location,
+            item_condition: args.item_condition,
+            received: args.received,
+            country: args.country,
         },
         design: args.design,
         recipe: args.recipe,
         model: args.model,
         quiet: false,
+        appendix: args.appendix,
     };
     let progress = crate::progress::Progress::spinner("writing the report", crate::progress::visible(false));
     let store = open_read_only(db).await?;
     let data = survey_report::gather(&store, args.survey, &opts).await;
     store.close().await;
-    let html = survey_report::html::render(&data?, &opts)?;
-    let path = survey_report::write(&args.out, &html)?;
+    let data = data?;
+    let html = survey_report::html::render(&data, &opts)?;
+    let dcc = survey_report::dcc::document(&survey_report::html::page(&data, &opts))?;
+    let path = survey_report::write(&args.out, &html, &dcc)?;
     let printed = match pdf_bound {
         Some(bound) => {
             let pdf = path.with_extension("pdf");

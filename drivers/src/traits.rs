@@ -120,6 +120,51 @@ pub struct SmrMeasurement {
     pub std_dev_mm: [f64; 3],
     /// How long the stationary measurement took, seconds.
     pub measurement_time_s: f64,
+    /// The air the tracker's weather station measured with it (emScon's
+    /// `dTemperature`, `dPressure`, `dHumidity`), where it reports them.
+    #[serde(default)]
+    pub environment: Option<AirEnvironment>,
+}
+
+/// The air around a measurement, as a tracker's weather station reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AirEnvironment {
+    /// Air temperature, degrees Celsius.
+    pub temperature_c: f64,
+    /// Air pressure, hPa (= mbar).
+    pub pressure_hpa: f64,
+    /// Relative humidity, percent.
+    pub humidity_pct: f64,
+}
+
+#[cfg(test)]
+mod air_tests {
+    use super::AirEnvironment;
+
+    #[test]
+    fn a_station_that_reports_nothing_is_no_environment() {
+        assert!(AirEnvironment::of_emscon(20.5, 1013.25, 45.0).is_some());
+        assert_eq!(AirEnvironment::of_emscon(0.0, 0.0, 0.0), None, "zeros: no weather station");
+        assert_eq!(AirEnvironment::of_emscon(f64::NAN, 1013.0, 45.0), None);
+        assert_eq!(AirEnvironment::of_emscon(20.0, 1013.0, 130.0), None);
+    }
+}
+
+impl AirEnvironment {
+    /// The environment of an emScon result in the units `survey` sets
+    /// (`ES_TU_Celsius`, `ES_PU_Mbar`, `ES_HU_RH`), when each is finite and
+    /// plausible for a room (a tracker without a station sends zeros).
+    pub fn of_emscon(temperature: f64, pressure: f64, humidity: f64) -> Option<AirEnvironment> {
+        let plausible = (-40.0..=80.0).contains(&temperature)
+            && (500.0..=1200.0).contains(&pressure)
+            && (0.0..=100.0).contains(&humidity)
+            && pressure != 0.0;
+        plausible.then_some(AirEnvironment {
+            temperature_c: temperature,
+            pressure_hpa: pressure,
+            humidity_pct: humidity,
+        })
+    }
 }
 
 impl SmrMeasurement {

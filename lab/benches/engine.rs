@@ -65,6 +65,7 @@ fn samples(n: u64) -> Vec<RecordedSample> {
                 z_mm: 12.5,
                 std_dev_mm: [0.012; 3],
                 measurement_time_s: 1.0,
+                environment: None,
             };
             RecordedSample {
                 seq,

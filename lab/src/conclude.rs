@@ -143,6 +143,10 @@ async fn statistics(
     doc["real_time_s"] = acquired.real.as_secs_f64().into();
     doc["faults_survived"] = outcome.faults_survived.into();
     doc["faults"] = faults_json(engine, outcome);
+    doc["environment"] = match crate::environment::Environment::of(store, record).await {
+        Ok(e) => e.json(),
+        Err(e) => serde_json::json!({"source": "none", "error": format!("{e:#}")}),
+    };
     let budget = budget(store, id, engine, plan, (outcome.instrument_time, record.setup.time_scale())).await;
     doc["instrument_time_s"] = budget.instrument_time_s.into();
     doc["time_scale"] = budget.time_scale.into();

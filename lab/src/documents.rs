@@ -48,6 +48,8 @@ pub struct Shown {
     pub drift: Vec<DriftPoint>,
     /// Its check points between the targets (issue 20), when it has them.
     pub checks: Vec<Sample>,
+    /// The air measured with its samples, or stated.
+    pub environment: crate::environment::Environment,
 }
 
 /// Read what `survey show` shows of survey `r` (the latest when `None`).
@@ -56,7 +58,8 @@ pub async fn shown(store: &Store, r: Option<SurveyRef>) -> anyhow::Result<Shown>
     let events = store.events(survey.id).await?;
     let drift = store.drift_points(survey.id).await?;
     let checks = store.check_points(survey.id).await?;
-    Ok(Shown { survey, events, drift, checks })
+    let environment = crate::environment::Environment::of(store, &survey).await?;
+    Ok(Shown { survey, events, drift, checks, environment })
 }
 
 impl Shown {
@@ -83,6 +86,7 @@ impl Shown {
         doc["model"] = json!(r.model.as_ref().map(|m| m.to_toml()));
         doc["verifies_survey"] = json!(r.verification.as_ref().map(|v| v.verifies_survey));
         doc["check_of"] = json!(r.check_of);
+        doc["environment"] = self.environment.json();
         doc["events"] = json!(
             self.events
                 .iter()

@@ -16,6 +16,7 @@ pub mod correction;
 pub mod csvio;
 pub mod documents;
 pub mod drift;
+pub mod environment;
 pub mod error;
 pub mod life;
 pub mod load;

@@ -2,7 +2,8 @@
 //! from ([`super::html::header`] shows them). In order of precedence: a flag of `survey report` (`--certificate-number`,
 //! `--laboratory`, `--traceability`, `--tolerance`, `--positioner`,
 //! `--reference-instrument`, `--reference-uncertainty`, `--operator`,
-//! `--customer`, `--temperature`); the `[certificate]` section of the
+//! `--customer`, `--temperature`, `--signatory`, `--location`,
+//! `--item-condition`, `--received`, `--country`); the `[certificate]` section of the
 //! configuration file, stored with the survey; what the bench itself says
 //! (the simulated preset's name and description, the simulated reference's
 //! noise, a configured instrument's driver and address, a simulated
@@ -38,6 +39,16 @@ pub struct Certificate {
     pub operator: Option<Stated<String>>,
     pub customer: Option<Stated<String>>,
     pub temperature_c: Option<Stated<f64>>,
+    /// Who authorises the certificate: name and function.
+    pub signatory: Option<Stated<String>>,
+    /// Where the calibration was performed.
+    pub location: Option<Stated<String>>,
+    /// The item's condition.
+    pub item_condition: Option<Stated<String>>,
+    /// The date the item was received, `YYYY-MM-DD`.
+    pub received: Option<Stated<String>>,
+    /// The laboratory's country, ISO 3166-1 alpha-2.
+    pub country: Option<Stated<String>>,
 }
 
 const FLAG: &str = "survey report flag";
@@ -108,6 +119,11 @@ impl Certificate {
             operator: pick(&flags.operator, stored.operator.as_ref(), None),
             customer: pick(&flags.customer, stored.customer.as_ref(), None),
             temperature_c: pick(&flags.temperature_c, stored.temperature_c.as_ref(), None),
+            signatory: pick(&flags.signatory, stored.signatory.as_ref(), None),
+            location: pick(&flags.location, stored.location.as_ref(), None),
+            item_condition: pick(&flags.item_condition, stored.item_condition.as_ref(), None),
+            received: pick(&flags.received, stored.received.as_ref(), None),
+            country: pick(&flags.country, stored.country.as_ref(), None),
         }
     }
 
@@ -178,9 +194,21 @@ mod tests {
         assert_eq!((cert.number.value.as_str(), cert.number.from), ("4", SURVEY));
         let numbered = CertificateFlags { number: Some("CAL-1".into()), ..CertificateFlags::default() };
         assert_eq!(Certificate::of(&survey, &numbered).number, Stated { value: "CAL-1".into(), from: FLAG });
-        let flags = CertificateFlags { operator: Some("K. Lee".into()), ..CertificateFlags::default() };
+        let flags = CertificateFlags {
+            operator: Some("K. Lee".into()),
+            signatory: Some("A. Smith, head of laboratory".into()),
+            received: Some("2026-11-30".into()),
+            ..CertificateFlags::default()
+        };
         let cert = Certificate::of(&survey, &flags);
         assert_eq!(cert.operator.as_ref().unwrap().value, "K. Lee");
+        assert_eq!(
+            cert.signatory.as_ref().map(|s| (s.value.as_str(), s.from)),
+            Some(("A. Smith, head of laboratory", FLAG))
+        );
+        assert_eq!(cert.received.as_ref().unwrap().value, "2026-11-30");
+        assert_eq!(cert.location.as_ref().map(|l| l.from), Some(CONFIG), "the example states its location");
+        assert_eq!(cert.country.as_ref().map(|c| c.value.as_str()), Some("DE"));
         assert_eq!(cert.positioner_name(&survey), "ACME AZ-200 azimuth positioner, serial 1042");
         // Without a [certificate]: the configured instruments, as described.
         let mut bare = survey.clone();

@@ -14,6 +14,12 @@
 //! scatter over the runs is already inside A (its ±2 s bands) and is not
 //! counted twice.
 
+/// The rule in words, as every verdict states it.
+pub const RULE: &str = "Decision rule: ILAC-G8:09/2019 guarded acceptance and guarded rejection with a guard band \
+    w = U (ISO 14253-1): pass when A + U ≤ the tolerance (the probability of a false pass is at most about 2.5 %); \
+    fail when A − U > the tolerance; otherwise not decidable within the uncertainty, and no pass or fail is stated. \
+    Without a stated U nothing is decidable.";
+
 /// The coverage factor of the stated uncertainty.
 pub const K: f64 = 2.0;
 

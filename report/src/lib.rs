@@ -10,7 +10,8 @@
 //! written), the verification survey of its table (or, for a verification,
 //! the survey it verifies), and the model-gap steps when `--model` is given.
 //! [`html`] lays it out, one module per section ([`html::BODY`] lists them);
-//! [`conformity`] decides a tolerance's verdict; [`page`] is the skeleton and
+//! [`dcc`] writes the same certificate as a Digital Calibration Certificate
+//! (`dcc.xml`); [`conformity`] decides a tolerance's verdict; [`page`] is the skeleton and
 //! the stylesheet, [`plot`] what every figure shares.
 //!
 //! Every error is shown in the unit chosen ([`units::Units`]), by
@@ -18,10 +19,12 @@
 
 pub mod certificate;
 pub mod conformity;
+pub mod dcc;
 pub mod html;
 pub mod page;
 pub mod pdf;
 pub mod plot;
+pub mod rounding;
 /// The units and numbers of the page (the processing's, shared with every command's text).
 pub use survey_processing::units;
 
@@ -57,6 +60,8 @@ pub struct ReportOptions {
     /// Say no processing notes on stderr (`survey serve`: a page view is not
     /// a command, and its notes are on the page).
     pub quiet: bool,
+    /// Print the appendix (every target) too; the page always holds it, folded.
+    pub appendix: bool,
 }
 
 /// Everything the page shows.
@@ -85,6 +90,10 @@ pub struct ReportData {
     pub generated: String,
     /// The asset's history up to this survey, when it has one.
     pub history: Option<survey_lab::life::history::History>,
+    /// The air measured with the samples, or stated by the configuration.
+    pub environment: survey_lab::environment::Environment,
+    /// The air temperature against the samples' time, `(s, °C)`, when measured.
+    pub temperature: Vec<(f64, f64)>,
 }
 
 /// Read what the report of survey `id` (the latest when `None`) shows.
@@ -99,6 +108,8 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
     let history = survey_lab::life::history::history(store, &loaded.survey.asset, Some(loaded.survey.id)).await.ok();
     let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
     let axis_u_deg = loaded.uncertainty_inputs().axis_u_deg;
+    let environment = survey_lab::environment::Environment::of(store, &loaded.survey).await?;
+    let temperature = store.temperature_series(loaded.survey.id).await?;
     let axis = loaded.axis_used();
     let Loaded { survey, samples, drift, .. } = loaded;
     Ok(ReportData {
@@ -113,6 +124,8 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
         axis_u_deg,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
         history,
+        environment,
+        temperature,
     })
 }
 
@@ -218,10 +231,13 @@ async fn find_verification(store: &Store, loaded: &Loaded) -> anyhow::Result<Opt
     }))
 }
 
-/// Write `html` as `index.html` into the folder `out` (created if missing); returns the file's path.
-pub fn write(out: &Path, html: &str) -> anyhow::Result<PathBuf> {
+/// Write `html` as `index.html` and `dcc` as `dcc.xml` into the folder `out`
+/// (created if missing); returns the page's path.
+pub fn write(out: &Path, html: &str, dcc: &str) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(out).map_err(|e| path_error(e, format!("cannot create the folder {}", out.display())))?;
-    let path = out.join("index.html");
-    std::fs::write(&path, html).map_err(|e| path_error(e, format!("cannot write {}", path.display())))?;
-    Ok(path)
+    for (name, text) in [("dcc.xml", dcc), ("index.html", html)] {
+        let path = out.join(name);
+        std::fs::write(&path, text).map_err(|e| path_error(e, format!("cannot write {}", path.display())))?;
+    }
+    Ok(out.join("index.html"))
 }

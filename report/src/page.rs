@@ -7,7 +7,10 @@
 //! across pages, SVG scaled to the page width, and on every page the
 //! certificate's running head and "page x of y" (CSS paged media: `@page`
 //! margin boxes with `counter(page)` and `counter(pages)`, which Chromium
-//! prints from version 131 on).
+//! prints from version 131 on). The first page leaves the running head's
+//! number out: its title states it (the number once a page). What is
+//! marked `screen-only` (the folded appendix without `--appendix`) is not
+//! printed.
 
 use std::fmt::Write as _;
 
@@ -27,8 +30,11 @@ table.header td{text-align:left;white-space:normal;border:none;padding:1px 12px 
 p.note,ul.note{color:#444;font-size:.92em}.subtitle{color:#444;margin:0 0 1em}\
 p.verdict{font-size:1.1em;padding:.4em .7em;border-left:5px solid #999;background:#f4f4f4}\
 p.verdict.pass{border-color:#009e73}p.verdict.fail{border-color:#d55e00}\
-section.appendix table{font-size:.82em}\
-@media print{body{max-width:none;margin:0;padding:0;font-size:10pt}\
+section.appendix table{font-size:.82em}details>summary{cursor:pointer;color:#444}\
+table#tbl-summary td{white-space:normal}table#tbl-summary td.l{min-width:15em}ul.statements{font-size:.92em;padding-left:1.2em}\
+span.signature{display:inline-block;width:20em;border-bottom:1px solid #333;height:1.8em}\
+p.end{font-weight:bold;text-align:center;margin-top:1.4em;border-top:1px solid #999;padding-top:.4em}\
+@media print{body{max-width:none;margin:0;padding:0;font-size:10pt}.screen-only{display:none}\
 section.page{break-before:page}figure,tr,table.header,ul.legend{break-inside:avoid}h2,h3{break-after:avoid}\
 thead{display:table-header-group}}";
 
@@ -74,7 +80,8 @@ fn page_rule(running: &Running) -> String {
         let _ =
             write!(rule, "@{place}{{content:{};font:8pt 'DejaVu Sans',Arial,sans-serif;color:#444}}", css_string(text));
     }
-    rule + "}"
+    // Page 1 states the number in its title: its running head leaves it out (the number once a page).
+    rule + "}@page :first{@top-left{content:none}}"
 }
 
 /// Escape text for HTML.

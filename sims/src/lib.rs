@@ -47,6 +47,7 @@ pub mod modbus_server;
 pub mod positioner;
 pub mod presets;
 pub mod relay;
+pub mod room;
 pub mod scpi_server;
 pub mod serve;
 pub mod servo;

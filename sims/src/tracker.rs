@@ -292,6 +292,8 @@ impl Tracker for SimTracker {
             z_mm: noisy[2],
             std_dev_mm: [reported; 3],
             measurement_time_s: self.cfg.measurement_time.as_secs_f64(),
+            // The room when the measurement ends ([`crate::room`], our own model).
+            environment: Some(crate::room::air_at(self.clock.now().as_secs_f64())),
         })
     }
 

@@ -105,6 +105,21 @@ pub struct CertificateSection {
     pub traceability: Option<String>,
     /// The tolerance the positioner's ISO 230-2 accuracy A is judged against, degrees.
     pub tolerance_deg: Option<f64>,
+    /// Who authorises the certificate: name and function.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub signatory: Option<String>,
+    /// Where the calibration was performed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub location: Option<String>,
+    /// The condition of the item when received (or calibrated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub item_condition: Option<String>,
+    /// The date the item was received, `YYYY-MM-DD`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub received: Option<String>,
+    /// The laboratory's country, ISO 3166-1 alpha-2 (`DE`, `GB`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub country: Option<String>,
 }
 
 /// `[survey]`: the plan; command-line flags override these.
@@ -518,6 +533,35 @@ impl SurveyConfig {
             Some(s) => SettleModel::Fixed(Duration::from_secs_f64(s)),
             None => SettleModel::Unknown,
         }
+    }
+}
+
+/// A calendar date `YYYY-MM-DD` that exists (`2026-02-30` does not).
+pub fn check_date(text: &str) -> Result<(), String> {
+    let shaped = text.len() == 10
+        && text.char_indices().all(|(i, c)| if i == 4 || i == 7 { c == '-' } else { c.is_ascii_digit() });
+    if shaped && humantime::parse_rfc3339(&format!("{text}T00:00:00Z")).is_ok() {
+        Ok(())
+    } else {
+        Err("not a date of the form YYYY-MM-DD".into())
+    }
+}
+
+/// The officially assigned ISO 3166-1 alpha-2 country codes (249).
+const ISO3166_ALPHA2: &str = "AD AE AF AG AI AL AM AO AQ AR AS AT AU AW AX AZ BA BB BD BE BF BG BH BI BJ BL BM BN BO \
+    BQ BR BS BT BV BW BY BZ CA CC CD CF CG CH CI CK CL CM CN CO CR CU CV CW CX CY CZ DE DJ DK DM DO DZ EC EE EG EH ER \
+    ES ET FI FJ FK FM FO FR GA GB GD GE GF GG GH GI GL GM GN GP GQ GR GS GT GU GW GY HK HM HN HR HT HU ID IE IL IM IN \
+    IO IQ IR IS IT JE JM JO JP KE KG KH KI KM KN KP KR KW KY KZ LA LB LC LI LK LR LS LT LU LV LY MA MC MD ME MF MG MH \
+    MK ML MM MN MO MP MQ MR MS MT MU MV MW MX MY MZ NA NC NE NF NG NI NL NO NP NR NU NZ OM PA PE PF PG PH PK PL PM PN \
+    PR PS PT PW PY QA RE RO RS RU RW SA SB SC SD SE SG SH SI SJ SK SL SM SN SO SR SS ST SV SX SY SZ TC TD TF TG TH TJ \
+    TK TL TM TN TO TR TT TV TW TZ UA UG UM US UY UZ VA VC VE VG VI VN VU WF WS YE YT ZA ZM ZW";
+
+/// An officially assigned ISO 3166-1 alpha-2 code, two upper-case letters (`DE`, `GB`).
+pub fn check_country(code: &str) -> Result<(), String> {
+    if code.len() == 2 && ISO3166_ALPHA2.split_whitespace().any(|c| c == code) {
+        Ok(())
+    } else {
+        Err("not an ISO 3166-1 alpha-2 country code (two upper-case letters, such as DE or GB)".into())
     }
 }
 

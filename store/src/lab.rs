@@ -48,6 +48,7 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (5, "assets", include_str!("../../migrations/postgres/0005_assets.sql")),
     (6, "processing", include_str!("../../migrations/postgres/0006_processing.sql")),
     (8, "history cache", include_str!("../../migrations/postgres/0008_history_cache.sql")),
+    (9, "environment", include_str!("../../migrations/postgres/0009_environment.sql")),
 ];
 
 /// The oldest lab store schema a read command reads as it is (migration 8
@@ -144,12 +145,16 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         immutable: false,
         writable: setup,
         cache: setup,
+        environment: setup,
     };
     let at = Server { host, port, user };
     let ready = if setup {
         set_up(&pool, &shown).await
     } else {
-        check_schema(&pool, &shown).await.map(|version| store.cache = version >= super::CACHE_SCHEMA)
+        check_schema(&pool, &shown).await.map(|version| {
+            store.cache = version >= super::CACHE_SCHEMA;
+            store.environment = version >= super::ENVIRONMENT_SCHEMA;
+        })
     };
     let ready = ready.map_err(|e| explained(e, &at, if setup { PUSHING } else { "reading its schema" }));
     if let Err(e) = ready {

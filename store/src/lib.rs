@@ -42,6 +42,7 @@ mod check_points;
 mod checks;
 mod damage;
 mod drift;
+pub mod environment;
 pub mod lab;
 mod lock;
 mod pack;
@@ -101,8 +102,8 @@ pub(crate) fn single_connection_pool() -> SqlitePoolOptions {
     SqlitePoolOptions::new().max_connections(1).min_connections(0).idle_timeout(None).max_lifetime(None)
 }
 
-/// Rows per multi-row `INSERT`: the widest row (a raw reading) binds 12 values,
-/// so a statement binds at most 4 800, far under SQLite's limit of 32 766.
+/// Rows per multi-row `INSERT`: the widest row (a raw reading) binds 15 values,
+/// so a statement binds at most 6 000, far under SQLite's limit of 32 766.
 const CHUNK_ROWS: usize = 400;
 
 /// The schema migrations, embedded in the binary (the same versions,
@@ -116,7 +117,11 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (6, "processing", include_str!("../../migrations/0006_processing.sql")),
     (7, "sample packs", include_str!("../../migrations/0007_sample_packs.sql")),
     (8, "history cache", include_str!("../../migrations/0008_history_cache.sql")),
+    (9, "environment", include_str!("../../migrations/0009_environment.sql")),
 ];
+
+/// The schema that keeps the air of every tracker measurement (`raw_readings.air_*`).
+const ENVIRONMENT_SCHEMA: i64 = 9;
 
 /// The schema that brings the history's cache (`survey_summaries`,
 /// `survey_changes`): a file of an older schema has none.
@@ -177,6 +182,8 @@ pub struct Store {
     /// The history's cache tables are there (schema 8: every store opened
     /// to write; a file of schema 7 read as it is has none).
     cache: bool,
+    /// The environment's columns are there (schema 9; an older file read as it is has none).
+    environment: bool,
 }
 
 /// The database behind a [`Store`].
@@ -257,9 +264,13 @@ impl Store {
             immutable,
             writable: false,
             cache: false,
+            environment: false,
         };
         match store.check_schema().await {
-            Ok(version) => store.cache = version >= CACHE_SCHEMA,
+            Ok(version) => {
+                store.cache = version >= CACHE_SCHEMA;
+                store.environment = version >= ENVIRONMENT_SCHEMA;
+            }
             Err(e) => {
                 store.close().await;
                 return Err(e);
@@ -395,6 +406,7 @@ impl Store {
                             immutable: false,
                             writable: true,
                             cache: true,
+                            environment: true,
                         });
                     }
                     Err(e) => {

@@ -276,6 +276,7 @@ mod tests {
                 z_mm: 0.1 + 0.2,
                 std_dev_mm: [1e-3; 3],
                 measurement_time_s: 2.5,
+                environment: None,
             }),
         };
         let sample = Sample {

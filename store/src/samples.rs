@@ -46,6 +46,8 @@ macro_rules! sample_from_row {
                     z_mm: real(row, "smr_z_mm")?,
                     std_dev_mm: [real(row, "smr_sx_mm")?, real(row, "smr_sy_mm")?, real(row, "smr_sz_mm")?],
                     measurement_time_s: real(row, "measurement_time_s")?,
+                    // The air is read by `Store::environment`, not with the samples.
+                    environment: None,
                 }),
                 Some("autocollimator") => {
                     let face: i64 = row.try_get("ac_face")?;
@@ -336,7 +338,7 @@ pub(super) async fn insert_samples(
         let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(
             "INSERT INTO raw_readings (survey_id, seq, kind, smr_x_mm, smr_y_mm, smr_z_mm, \
              smr_sx_mm, smr_sy_mm, smr_sz_mm, measurement_time_s, ac_face, ac_x_arcsec, \
-             ac_y_arcsec) ",
+             ac_y_arcsec, air_temperature_c, air_pressure_hpa, air_humidity_pct) ",
         );
         qb.push_values(raws, |mut b, r| {
             b.push_bind(survey_id).push_bind(r.seq as i64);
@@ -352,7 +354,10 @@ pub(super) async fn insert_samples(
                         .push_bind(m.measurement_time_s)
                         .push_bind(None::<i64>)
                         .push_bind(None::<f64>)
-                        .push_bind(None::<f64>);
+                        .push_bind(None::<f64>)
+                        .push_bind(m.environment.map(|a| a.temperature_c))
+                        .push_bind(m.environment.map(|a| a.pressure_hpa))
+                        .push_bind(m.environment.map(|a| a.humidity_pct));
                 }
                 RawReading::Autocollimator { face, reading } => {
                     b.push_bind("autocollimator");
@@ -360,6 +365,7 @@ pub(super) async fn insert_samples(
                         b.push_bind(None::<f64>);
                     }
                     b.push_bind(i64::from(face)).push_bind(reading.x_arcsec).push_bind(reading.y_arcsec);
+                    b.push_bind(None::<f64>).push_bind(None::<f64>).push_bind(None::<f64>);
                 }
                 RawReading::None => unreachable!("filtered out above"),
             }

@@ -276,6 +276,8 @@ impl Store {
                             z_mm: real(r, "z_mm")?,
                             std_dev_mm: [real(r, "sx")?, real(r, "sy")?, real(r, "sz")?],
                             measurement_time_s: real(r, "measurement_time_s")?,
+                            // The air is read by `Store::environment`, not with the samples.
+                            environment: None,
                         },
                     ))
                 })

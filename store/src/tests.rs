@@ -38,6 +38,7 @@ fn recorded(seq: u64) -> RecordedSample {
             z_mm: 0.1 + 0.2,
             std_dev_mm: [1e-3, 2e-3, f64::NAN],
             measurement_time_s: 2.5,
+            environment: None,
         }),
         _ => RawReading::Autocollimator {
             face: (seq % 24) as u32,
@@ -303,6 +304,7 @@ async fn survey_fields_status_axis_events_locate_points() {
         z_mm: -i,
         std_dev_mm: [0.001, 0.002, 0.003],
         measurement_time_s: 2.0,
+        environment: None,
     };
     store.add_locate_points(id, &[(0.0, m(1.0)), (120.0, m(2.0))]).await.unwrap();
     store.add_locate_points(id, &[(240.0, m(3.0))]).await.unwrap();
@@ -443,7 +445,14 @@ async fn store_sink_flushes_by_age_and_keeps_failed_batches() {
 
     // events and the located axis go straight to the store
     sink.event(4.5, "warn", "beam broken").await.unwrap();
-    let m = SmrMeasurement { x_mm: 1.0, y_mm: 2.0, z_mm: 3.0, std_dev_mm: [0.01; 3], measurement_time_s: 2.0 };
+    let m = SmrMeasurement {
+        x_mm: 1.0,
+        y_mm: 2.0,
+        z_mm: 3.0,
+        std_dev_mm: [0.01; 3],
+        measurement_time_s: 2.0,
+        environment: None,
+    };
     let fit = axis_fit();
     let pts = [(0.0, m), (120.0, m), (240.0, m)];
     sink.axis_located(&pts, &fit).await.unwrap();
@@ -744,7 +753,15 @@ async fn the_processing_migration_rebuilds_surveys_keeping_every_row_and_foreign
         let c = rusqlite::Connection::open(path).unwrap();
         let mut all = Vec::new();
         for table in ["surveys", "samples", "raw_readings", "events"] {
-            let mut stmt = c.prepare(&format!("SELECT * FROM {table} ORDER BY 1, 2")).unwrap();
+            // The columns of migration 5 (migration 9 adds the air's, NULL for every row before it).
+            let columns = match table {
+                "raw_readings" => {
+                    "survey_id, seq, kind, smr_x_mm, smr_y_mm, smr_z_mm, smr_sx_mm, smr_sy_mm, smr_sz_mm, \
+                     measurement_time_s, ac_face, ac_x_arcsec, ac_y_arcsec"
+                }
+                _ => "*",
+            };
+            let mut stmt = c.prepare(&format!("SELECT {columns} FROM {table} ORDER BY 1, 2")).unwrap();
             let n = stmt.column_count();
             let rows = stmt
                 .query_map([], |r| Ok((0..n).map(|i| format!("{:?}", r.get_ref(i).unwrap())).collect::<Vec<_>>()))
@@ -818,4 +835,39 @@ async fn check_points_fold_into_their_survey_and_free_their_id() {
     assert_eq!(store.create_survey(&new_survey()).await.unwrap(), checks, "its id is free again");
     assert!(store.check_points(checks).await.unwrap().is_empty());
     store.close().await;
+}
+
+#[tokio::test]
+async fn the_air_of_every_tracker_measurement_is_kept_and_summarised() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    assert_eq!(store.environment(id).await.unwrap(), None, "nothing measured yet");
+    let air =
+        |t: f64| survey_drivers::AirEnvironment { temperature_c: t, pressure_hpa: 1000.0 + t, humidity_pct: 40.0 };
+    let batch: Vec<RecordedSample> = (0..6u64)
+        .map(|seq| {
+            let mut r = recorded(seq);
+            if let RawReading::Smr(m) = &mut r.raw {
+                m.environment = Some(air(20.0 + seq as f64 / 10.0));
+            }
+            r
+        })
+        .collect();
+    store.append(id, &batch).await.unwrap();
+    // Seqs 1 and 4 are tracker measurements (see `recorded`).
+    let measured: Vec<f64> = batch
+        .iter()
+        .filter_map(|r| match &r.raw {
+            RawReading::Smr(m) => m.environment.map(|a| a.temperature_c),
+            _ => None,
+        })
+        .collect();
+    let m = store.environment(id).await.unwrap().expect("the air measured");
+    assert_eq!(m.count as usize, measured.len());
+    let mean = measured.iter().sum::<f64>() / measured.len() as f64;
+    assert_eq!((m.temperature_c.min, m.temperature_c.max), (measured[0], *measured.last().unwrap()));
+    assert!((m.temperature_c.mean - mean).abs() < 1e-12 && (m.pressure_hpa.mean - 1000.0 - mean).abs() < 1e-9);
+    assert_eq!(m.humidity_pct.max, 40.0);
+    let series = store.temperature_series(id).await.unwrap();
+    assert_eq!(series.iter().map(|p| p.1).collect::<Vec<_>>(), measured, "against time, in seq order");
 }

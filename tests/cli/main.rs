@@ -17,6 +17,7 @@ mod browser;
 mod budget;
 mod correction;
 mod damage;
+mod dcc;
 mod docs;
 mod doors;
 mod drift;

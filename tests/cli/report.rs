@@ -100,7 +100,30 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     }
     // A certificate: its number (made from the survey when none was assigned), the
     // traceability a simulated reference has (none), page x of y in print.
-    assert!(html.contains("id=\"certificate-number\">Calibration certificate 20"), "the number on top");
+    assert!(html.contains("id=\"certificate-number\">Calibration certificate <b>20"), "the number on top");
+    // ISO/IEC 17025 7.8.2.1 and 7.8.4.1: every item, stated or said to be not stated.
+    for row in [
+        "Calibrating laboratory</td><td><i>not stated</i>",
+        "Customer (name, address)</td><td><i>not stated</i>",
+        "Item&#x27;s condition</td><td><i>not stated</i>",
+        "Date received</td><td><i>not stated</i>",
+        "Location of calibration</td><td><i>not stated</i>",
+        "Method</td><td>ISO 230-2:2014",
+        "Environment</td><td>air temperature ",
+        "measurements by the simulated tracker's room (this program's own model",
+        "Authorised by (name, function)</td><td><i>not stated</i>",
+        "id=\"end-of-certificate\">End of the certificate",
+        "The results relate only to the item calibrated",
+        "coverage probability of about 95 %",
+    ] {
+        assert!(html.replace("Item's", "Item&#x27;s").contains(row), "the certificate should state {row:?}");
+    }
+    // The spectrum's sources in words; the table excerpt at an eighth of the shortest period
+    // (the fig8 preset's 40 cycles/rev line: 9 deg, so every 1 deg), not every 10 deg.
+    assert!(!html.contains("gear_pass:") && html.contains("gear pass: 20:1 pinion"), "sources in words");
+    assert!(html.contains("The excerpt: every 1 deg, an eighth or less of the shortest significant period (9 deg"));
+    // The appendix is in the page, folded, and not printed without --appendix.
+    assert!(html.contains("class=\"appendix screen-only\">") && html.contains("<details><summary>"), "folded");
     assert!(
         html.contains("made from the survey&#x27;s date and id") || html.contains("made from the survey's date and id")
     );
@@ -168,9 +191,20 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
             "Metrology Lab \"North\", Bay 3",
             "--traceability",
             "Polygon calibrated by PTB, certificate 12345, 2026-01",
+            "--signatory",
+            "A. Jones, head of the laboratory",
+            "--location",
+            "Bay 3",
+            "--item-condition",
+            "as received, no damage",
+            "--received",
+            "2026-11-20",
+            "--country",
+            "DE",
         ])
         .success();
-    let html = bench.read("r/index.html");
+    let html = bench.read("r/index.html").replace("Item's", "Item&#x27;s").replace("Laboratory's", "Laboratory&#x27;s");
+    assert!(!html.contains("no air temperature was measured"), "a stated temperature is stated");
     // ISO A in the axis table, in arcsec with 3 significant digits.
     let shown = html.split("A, accuracy</td><td>").nth(1).and_then(|s| s.split('<').next()).expect("A");
     let value: f64 = shown.parse().expect("a number");
@@ -185,7 +219,15 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         "(survey report flag)",
         "simulated autocollimator",
         "0.100 arcsec (standard uncertainty of one angle)",
-        "Calibration certificate CAL-2026-0042 · Metrology Lab &quot;North&quot;, Bay 3",
+        "Calibration certificate <b>CAL-2026-0042</b> · Metrology Lab &quot;North&quot;, Bay 3",
+        // A stated temperature is shown as stated, never as "not measured at all".
+        "air temperature 20.5 °C, stated (survey report flag), not measured",
+        "the air temperature was stated as 20.5 °C, not measured",
+        "Authorised by (name, function)</td><td>A. Jones, head of the laboratory",
+        "Location of calibration</td><td>Bay 3",
+        "Item&#x27;s condition</td><td>as received, no damage",
+        "Date received</td><td>2026-11-20",
+        "Laboratory&#x27;s country</td><td>DE",
         "Polygon calibrated by PTB, certificate 12345, 2026-01",
         // The running head and foot of every printed page.
         "@top-left{content:\"Calibration certificate CAL-2026-0042\"",
@@ -210,6 +252,11 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         (vec!["--tolerance", "-0.01"], vec!["--tolerance"]),
         (vec!["--certificate-number", " "], vec!["--certificate-number"]),
         (vec!["--model", "missing.toml"], vec!["missing.toml"]),
+        (vec!["--received", "2026-02-30"], vec!["--received 2026-02-30", "YYYY-MM-DD"]),
+        (vec!["--received", "20.11.2026"], vec!["--received"]),
+        (vec!["--country", "Germany"], vec!["--country Germany", "ISO 3166-1 alpha-2"]),
+        (vec!["--country", "XK"], vec!["--country XK"]),
+        (vec!["--signatory", ""], vec!["--signatory"]),
     ] {
         let mut all = vec!["report", "--out", "bad"];
         all.extend(args);
@@ -247,7 +294,10 @@ fn verdict(bench: &Bench, tolerance: f64, extra: &[&str]) -> String {
     args.extend(extra);
     bench.survey(&args).success();
     let html = bench.read("v/index.html");
-    assert!(html.contains("id=\"decision-rule\">Decision rule (ISO 14253-1, ILAC-G8"), "the rule is stated");
+    assert!(
+        html.contains("id=\"decision-rule\">Decision rule: ILAC-G8:09/2019 guarded acceptance and guarded rejection with a guard band w = U"),
+        "the rule is stated"
+    );
     html.split("id=\"verdict\">").nth(1).and_then(|s| s.split("</p>").next()).expect("a verdict").to_string()
 }
 
@@ -275,7 +325,11 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
     // The figures carry their uncertainties: U beside A, the table's beside the prediction.
     let html = bench.read("v/index.html");
     let summary = html.split("id=\"tbl-summary\"").nth(1).unwrap().split("</table>").next().unwrap();
-    assert!(summary.contains("expanded uncertainty U (k = 2)") && summary.contains("(the table's)"), "{summary}");
+    assert!(
+        summary.contains("expanded uncertainty U (k = 2, coverage probability about 95 %)")
+            && summary.contains("(the table's)"),
+        "{summary}"
+    );
     assert!(summary.contains("ISO 230-2 accuracy A, corrected, measured (survey 2)"), "{summary}");
     let u_in_summary = summary.split("as measured</td><td>").nth(1).unwrap().split("</td><td>").nth(1).unwrap();
     let u_in_summary = u_in_summary.split('<').next().unwrap();
@@ -407,4 +461,38 @@ fn report_pdf_without_a_working_browser_exits_1_says_why_and_keeps_the_page() {
         .survey_with_env(&["report", "--out", "bad", "--pdf"], "SURVEY_PDF_TIMEOUT_S", "soon")
         .bad_input(&["SURVEY_PDF_TIMEOUT_S"]);
     assert!(!bench.exists("bad/index.html"), "bad input writes nothing");
+}
+
+/// The environment measured (issue 39): the simulated tracker reports the room
+/// with every measurement; `run --json` and `show --json` give its ranges, the
+/// certificate states them and plots the temperature against time, the DCC
+/// carries them. An autocollimator reports none.
+#[test]
+fn the_air_the_tracker_measured_is_in_run_show_the_certificate_and_its_dcc() {
+    let bench = Bench::new();
+    let run = bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--json"]).success().json();
+    let env = &run["environment"];
+    assert_eq!(env["source"], "tracker", "{env}");
+    assert_eq!(env["measurements"], 288, "one a sample: {env}");
+    let t = &env["temperature_c"];
+    let (lo, hi, mean) = (t["min"].as_f64().unwrap(), t["max"].as_f64().unwrap(), t["mean"].as_f64().unwrap());
+    assert!(19.0 < lo && lo < mean && mean < hi && hi < 21.0, "a room near 20 °C that changes: {t}");
+    for (key, low, high) in [("pressure_hpa", 1000.0, 1030.0), ("humidity_pct", 30.0, 60.0)] {
+        let r = &env[key];
+        assert!(r["min"].as_f64().unwrap() > low && r["max"].as_f64().unwrap() < high, "{key}: {r}");
+    }
+    assert_eq!(bench.survey(&["show", "--json"]).success().json()["environment"], *env, "show says the same");
+    bench.survey(&["report", "--out", "r"]).success();
+    let html = bench.read("r/index.html");
+    assert!(html.contains("id=\"fig-environment\""), "the temperature against time");
+    assert!(html.contains(&format!("air temperature {lo:.2} to {hi:.2} °C")), "the range measured");
+    assert!(bench.read("r/dcc.xml").contains("refType=\"basic_temperatureMin\""), "the DCC's range");
+    // An autocollimator measures no air: none, and the certificate says not measured.
+    let ac = bench
+        .survey(&["run", "--points", "24", "--runs", "2", "--reference", "autocollimator", "--json"])
+        .success()
+        .json();
+    assert_eq!(ac["environment"]["source"], "none");
+    bench.survey(&["report", "--out", "ac"]).success();
+    assert!(bench.read("ac/index.html").contains("not measured: no air temperature was measured or stated"));
 }

@@ -12,7 +12,7 @@ use super::packets::{
 use crate::error::{DriverError, ErrorKind, Result};
 use crate::reconnect::Connect;
 use crate::stream::Drain;
-use crate::traits::{SmrMeasurement, StreamedPoint, Tracker, TrackerState};
+use crate::traits::{AirEnvironment, SmrMeasurement, StreamedPoint, Tracker, TrackerState};
 use async_trait::async_trait;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -629,6 +629,7 @@ where
             z_mm: m.val[2],
             std_dev_mm: m.std,
             measurement_time_s: f64::from(self.cfg.measurement_time_ms) / 1000.0,
+            environment: AirEnvironment::of_emscon(m.temperature, m.pressure, m.humidity),
         })
     }
 

@@ -493,6 +493,9 @@ async fn status_changes_and_stale_packets_around_an_answer() {
     assert_eq!((m.x_mm, m.y_mm, m.z_mm), (1500.0, -2.5, 3.25));
     assert_eq!(m.std_dev_mm, [0.01, 0.02, 0.03]);
     assert_eq!(m.measurement_time_s, 0.02);
+    // The weather station's air, kept with the measurement (dTemperature, dPressure, dHumidity).
+    let air = m.environment.expect("the air the result carries");
+    assert_eq!((air.temperature_c, air.pressure_hpa, air.humidity_pct), (20.5, 1013.25, 45.0));
     assert_eq!(t.state(), TrackerState::TargetLocked);
     assert_eq!(t.status_changes_seen(), 1);
     let e = t.measure().await.unwrap_err();

@@ -4,8 +4,8 @@
 use super::{Page, Section};
 use crate::certificate::{BENCH, Certificate, Stated};
 use crate::page::escape;
-use crate::units::Units;
 use std::fmt::Write as _;
+use survey_lab::environment::Environment;
 use survey_store::survey::{Setup, SurveyRecord};
 
 /// The plan in words.
@@ -36,8 +36,64 @@ pub fn plan_text(survey: &SurveyRecord) -> String {
     s
 }
 
+/// ISO 230-2's edition, and the procedure this program follows.
+pub fn method_text(survey: &SurveyRecord) -> String {
+    format!(
+        "ISO 230-2:2014 (accuracy and repeatability of positioning of numerically controlled axes), a rotary axis \
+         measured against the reference instrument; procedure and processing of survey {} (plan: {})",
+        env!("CARGO_PKG_VERSION"),
+        plan_text(survey)
+    )
+}
+
+/// The environment in words: the ranges the tracker measured, else what
+/// was stated (marked so), else "not measured".
+pub fn environment_text(cert: &Certificate, measured: &Environment, simulated: bool) -> String {
+    let stated = cert.temperature_c.as_ref().map(|t| {
+        format!(
+            "air temperature {:.1} °C, stated ({}), not measured by this program; its uncertainty is not stated",
+            t.value, t.from
+        )
+    });
+    match measured {
+        Environment::Tracker(m) => {
+            let station = if simulated {
+                "the simulated tracker's room (this program's own model of a laboratory, exact)"
+            } else {
+                "the tracker's weather station (its uncertainty as its manufacturer states it, not stated here)"
+            };
+            let mut s = format!(
+                "air temperature {:.2} to {:.2} °C (mean {:.2} °C), pressure {:.1} to {:.1} hPa, relative humidity \
+                 {:.1} to {:.1} %, measured with each of the {} measurements by {station}",
+                m.temperature_c.min,
+                m.temperature_c.max,
+                m.temperature_c.mean,
+                m.pressure_hpa.min,
+                m.pressure_hpa.max,
+                m.humidity_pct.min,
+                m.humidity_pct.max,
+                m.count
+            );
+            if let Some(t) = stated {
+                s += &format!("; also {t}");
+            }
+            s
+        }
+        _ => stated.unwrap_or_else(|| "not measured: no air temperature was measured or stated".into()),
+    }
+}
+
+/// The calibration's dates: the survey's first and last stored change, as dates.
+pub fn performed(survey: &SurveyRecord) -> (String, String) {
+    let day = |t: &str| t.get(..10).unwrap_or(t).to_string();
+    (day(&survey.created_at), day(&survey.updated_at))
+}
+
 /// The header as an HTML table (`tbl-header`).
-fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Units, generated: &str) -> String {
+fn fields(p: &Page<'_>) -> String {
+    let (survey, cert, samples, units, generated) =
+        (&p.d.survey, &p.cert, p.d.samples.len(), p.units, p.d.generated.as_str());
+    let environment = &p.d.environment;
     let not_stated = "<i>not stated</i>".to_string();
     let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
     // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as written.
@@ -47,11 +103,21 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
             escape(&value) + &from(s.from)
         })
     };
-    let mut rows: Vec<(&str, String)> = vec![
-        ("Certificate number", text(&Some(cert.number.clone()))),
+    let (begin, end) = performed(survey);
+    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
+        (Some(a), Some(b)) if b >= a => format!(" ({:.1} h of instrument time)", (b - a) / 3600.0),
+        _ => String::new(),
+    };
+    let rows: Vec<(&str, String)> = vec![
         ("Calibrating laboratory", text(&cert.laboratory)),
-        ("Traceability", text(&cert.traceability)),
-        ("Positioner", text(&cert.positioner)),
+        ("Laboratory's country", text(&cert.country)),
+        ("Customer (name, address)", text(&cert.customer)),
+        ("Item calibrated", text(&cert.positioner)),
+        ("Item's condition", text(&cert.item_condition)),
+        ("Date received", text(&cert.received)),
+        ("Date of calibration", format!("{begin} to {end}{instrument_time}")),
+        ("Location of calibration", text(&cert.location)),
+        ("Method", escape(&method_text(survey))),
         ("Reference instrument", text(&cert.reference)),
         (
             "Reference uncertainty",
@@ -59,40 +125,23 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
                 format!("{} (standard uncertainty of one angle){}", units.show(u.value), from(u.from))
             }),
         ),
+        ("Traceability", text(&cert.traceability)),
+        ("Environment", escape(&environment_text(cert, environment, matches!(survey.setup, Setup::Simulated(_))))),
         ("Operator", text(&cert.operator)),
-        ("Customer", text(&cert.customer)),
-        (
-            "Environment",
-            cert.temperature_c
-                .as_ref()
-                .map_or("<i>temperature not stated</i>".to_string(), |t| format!("{:.1} °C{}", t.value, from(t.from))),
-        ),
         (
             "Survey",
             format!(
-                "{} ({}), status {}; {samples} samples",
+                "{} ({}), status {}; {samples} samples; created {}, last changed {}",
                 survey.id,
                 escape(&survey.source.to_string()),
-                survey.status
+                survey.status,
+                escape(&survey.created_at),
+                escape(&survey.updated_at),
             ),
         ),
-        ("Plan", escape(&plan_text(survey))),
+        ("Issued", format!("report made {} by survey {}", escape(generated), env!("CARGO_PKG_VERSION"))),
+        ("Units", format!("errors in {}; angles in degrees", units.symbol())),
     ];
-    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
-        (Some(a), Some(b)) if b >= a => format!("; {:.1} h of instrument time", (b - a) / 3600.0),
-        _ => String::new(),
-    };
-    rows.push((
-        "Dates (UTC)",
-        format!(
-            "created {}, last changed {}{instrument_time}; report made {}",
-            escape(&survey.created_at),
-            escape(&survey.updated_at),
-            escape(generated)
-        ),
-    ));
-    rows.push(("Software", format!("survey {}", env!("CARGO_PKG_VERSION"))));
-    rows.push(("Units", format!("errors in {}; angles in degrees", units.symbol())));
     let mut html = String::from("<table class=\"header\" id=\"tbl-header\"><tbody>\n");
     for (k, v) in rows {
         let _ = writeln!(html, "<tr><td>{k}</td><td>{v}</td></tr>");
@@ -102,11 +151,5 @@ fn fields(survey: &SurveyRecord, cert: &Certificate, samples: usize, units: Unit
 
 /// The section: the certificate's fields.
 pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
-    let d = p.d;
-    Ok(Some(Section {
-        id: "certificate",
-        title: "Certificate".into(),
-        new_page: false,
-        body: fields(&d.survey, &p.cert, d.samples.len(), p.units, &d.generated),
-    }))
+    Ok(Some(Section { id: "certificate", title: "Certificate".into(), new_page: false, body: fields(p) }))
 }

@@ -118,7 +118,7 @@ pub fn show_axis(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
                 Some(u) => format!(
                     "The measured figures A, E and M carry the expanded uncertainty U = {} (k = 2) of the \
                      measurement (see the summary).",
-                    p.units.show(u)
+                    crate::rounding::show_u(p.units, u)
                 ),
                 None => "The reference's uncertainty is not stated: the figures' uncertainty is not known.".into(),
             };

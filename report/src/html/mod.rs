@@ -16,11 +16,12 @@
 //! - [`interpolation`]: the paper's Figure 6;
 //! - [`table`]: the correction table;
 //! - [`verification`]: native against corrected on one scale;
-//! - [`modelgap`], [`drift`], [`uncertainty`]: when there is such data;
+//! - [`modelgap`], [`drift`], [`environment`], [`uncertainty`]: when there is such data;
 //! - [`history`]: the asset's earlier surveys, when it has any;
 //! - [`iso`]: ISO 230-2 and VDI/DGQ 3441 for the axis; per target in the appendix.
 
 pub mod drift;
+pub mod environment;
 pub mod errors;
 pub mod header;
 pub mod history;
@@ -102,10 +103,12 @@ pub const BODY: &[Show] = &[
     verification::show,
     modelgap::show,
     drift::show,
+    environment::show,
     uncertainty::show,
     history::show,
     iso::show_axis,
     notes,
+    end,
 ];
 
 /// The appendices, after the body, lettered A, B, ... in this order.
@@ -133,6 +136,31 @@ fn notes(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     }))
 }
 
+/// The statements every certificate closes with, the authorisation and
+/// its signature line, and the end of the certificate (what follows is
+/// the appendix).
+fn end(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let signatory = p.cert.signatory.as_ref().map_or("<i>not stated</i>".to_string(), |s| {
+        format!("{} <span class=\"note\">({})</span>", escape(&s.value), s.from)
+    });
+    let body = format!(
+        "<ul class=\"statements\">\n\
+         <li>The results relate only to the item calibrated, as it was when calibrated (ISO/IEC 17025:2017, \
+         7.8.2.1).</li>\n\
+         <li>{}</li>\n\
+         <li>This certificate may not be reproduced other than in full without the written approval of the \
+         calibrating laboratory.</li>\n</ul>\n\
+         <table class=\"header\" id=\"tbl-authorisation\"><tbody>\n\
+         <tr><td>Authorised by (name, function)</td><td>{signatory}</td></tr>\n\
+         <tr><td>Signature</td><td><span class=\"signature\"></span></td></tr>\n\
+         <tr><td>Date</td><td><span class=\"signature\"></span></td></tr>\n\
+         </tbody></table>\n<p class=\"end\" id=\"end-of-certificate\">End of the certificate{}</p>\n",
+        escape(crate::rounding::COVERAGE),
+        if APPENDIX.is_empty() { "" } else { " (the appendix that follows is its supporting data)" },
+    );
+    Ok(Some(Section { id: "authorisation", title: "Statements and authorisation".into(), new_page: false, body }))
+}
+
 /// The title of the page.
 fn title(p: &Page<'_>) -> String {
     let s = &p.d.survey;
@@ -145,25 +173,35 @@ fn title(p: &Page<'_>) -> String {
     }
 }
 
-/// The page of `d`.
-pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
-    let p = Page {
+/// What every section (and the DCC) reads, of `d`.
+pub fn page<'a>(d: &'a ReportData, opts: &'a ReportOptions) -> Page<'a> {
+    Page {
         d,
         opts,
         units: opts.units,
         cert: Certificate::of(&d.survey, &opts.flags),
         map: ErrorMap::from_samples(&d.samples).map_err(|e| e.to_string()),
         iso: iso230_2(&d.samples).map_err(|e| e.to_string()),
-    };
+    }
+}
+
+/// The page of `d`.
+pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
+    let p = page(d, opts);
     let title = title(&p);
     let number = &p.cert.number.value;
     let laboratory = p.cert.laboratory.as_ref().map(|l| l.value.clone()).unwrap_or_default();
+    let origin = format!(
+        "{} <span class=\"note\">(number: {})</span>",
+        if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) },
+        p.cert.number.from
+    );
     let mut body = format!(
-        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate {}{}</p>\n<h1>{}</h1>\n\
+        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate <b>{}</b>{}</p>\n<h1>{}</h1>\n\
          <p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and the accuracy \
          figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
         escape(number),
-        if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) },
+        origin,
         escape(&title),
         p.units.symbol()
     );
@@ -172,12 +210,16 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
             body += &page::section(s.id, &s.title, if s.new_page { &["page"] } else { &[] }, &s.body);
         }
     }
+    // The appendix: always in the page, folded; printed only when asked for (`--appendix`).
+    let (classes, open): (&[&str], &str) =
+        if opts.appendix { (&["page", "appendix"], " open") } else { (&["appendix", "screen-only"], "") };
     for (letter, s) in ('A'..='Z').zip(APPENDIX.iter().map(|show| show(&p)).filter_map(Result::transpose)) {
         let s = s?;
-        body += &page::section(s.id, &format!("Appendix {letter}: {}", s.title), &["page", "appendix"], &s.body);
+        let folded = format!("<details{open}><summary>the table (open to read it)</summary>\n{}</details>\n", s.body);
+        body += &page::section(s.id, &format!("Appendix {letter}: {}", s.title), classes, &folded);
     }
     body += &format!(
-        "<footer><p class=\"note\">survey {} — report made {}.</p></footer>\n",
+        "<footer class=\"screen-only\"><p class=\"note\">survey {} — report made {}.</p></footer>\n",
         env!("CARGO_PKG_VERSION"),
         escape(&d.generated)
     );

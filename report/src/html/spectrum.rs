@@ -49,6 +49,22 @@ pub fn short_name(line: &Line) -> String {
     cut(&name, LABEL_CHARS)
 }
 
+/// A line's source in words: the processing's `kind: explanation` with the
+/// kind as a reader says it (`gear_pass: 20:1 pinion, harmonic 2` becomes
+/// `gear pass: 20:1 pinion, harmonic 2`).
+pub fn source_words(source: &str) -> String {
+    let Some((kind, rest)) = source.split_once(": ") else { return source.to_string() };
+    let word = match kind.trim() {
+        "eccentricity" => "eccentricity (once a revolution)",
+        "ellipticity" => "ellipticity (twice a revolution)",
+        "gear_pass" => "gear pass",
+        "tooth_mesh" => "tooth mesh",
+        "harmonic" => "periodic error",
+        _ => return source.to_string(),
+    };
+    format!("{word}: {rest}")
+}
+
 fn cut(s: &str, n: usize) -> String {
     if s.chars().count() <= n { s.to_string() } else { s.chars().take(n - 1).collect::<String>() + "…" }
 }
@@ -307,7 +323,7 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
                 if l.repeatable { "yes" } else { "no" }.to_string(),
                 percent(l.share),
                 fate_word(fate(p, l)).to_string(),
-                escape(&units.text(&l.source)),
+                escape(&units.text(&source_words(&l.source))),
             ]
         })
         .collect();
@@ -334,7 +350,7 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         };
         html += &format!(
             "<p class=\"note\">Alias: {} at {} cycles/rev is seen at {}; {action}.</p>\n",
-            escape(&units.text(&alias.source)),
+            escape(&units.text(&source_words(&alias.source))),
             num(alias.true_cycles),
             num(alias.observed_cycles),
         );
@@ -361,6 +377,20 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_source_is_in_words() {
+        assert_eq!(
+            source_words("gear_pass: 12:1 pinion, harmonic 1 (fundamental)"),
+            "gear pass: 12:1 pinion, harmonic 1 (fundamental)"
+        );
+        assert_eq!(source_words("tooth_mesh: 216-tooth gear, harmonic 3"), "tooth mesh: 216-tooth gear, harmonic 3");
+        assert_eq!(
+            source_words("harmonic: matches no part of the design"),
+            "periodic error: matches no part of the design"
+        );
+        assert_eq!(source_words("no kind here"), "no kind here");
+    }
 
     #[test]
     fn the_axis_ends_just_past_the_highest_line() {

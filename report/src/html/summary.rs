@@ -5,6 +5,7 @@
 use super::{Page, Section};
 use crate::conformity::{self, Decision};
 use crate::page::{self, escape};
+use crate::rounding;
 use survey_processing::Sample;
 use survey_processing::iso230::iso230_2;
 
@@ -13,25 +14,38 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let (d, units) = (p.d, p.units);
     let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
     let measured_u = conformity::accuracy_u_deg(reference_u, d.axis_u_deg);
-    let u_of = |u: Option<f64>| u.map_or_else(|| "not known".to_string(), |u| units.show(u));
+    // ILAC-P14: U to two significant digits at most, the figure to U's last decimal place.
+    let row = |what: String, value: f64, u: Option<f64>, whose: &str| -> Vec<String> {
+        let (v, u) = rounding::show(units, value, u);
+        vec![what, v, u.map_or_else(|| "not known".to_string(), |u| u + whose)]
+    };
     let mut rows: Vec<Vec<String>> = Vec::new();
     if let Ok(iso) = &p.iso {
-        rows.push(vec!["ISO 230-2 accuracy A, as measured".into(), units.show(iso.a), u_of(measured_u)]);
+        rows.push(row("ISO 230-2 accuracy A, as measured".into(), iso.a, measured_u, ""));
         rows.push(vec!["ISO 230-2 repeatability R".into(), units.show(iso.r), "-".into()]);
-        rows.push(vec!["the figures' axis".into(), escape(d.axis.text()), "-".into()]);
     }
     let table_u = d.uncertainty.as_ref().map(|b| b.table_u_deg);
     if let Ok(processed) = &d.processed {
         let prediction = &processed.prediction;
-        rows.push(vec!["native peak error ±".into(), units.show(prediction.native_peak_deg), u_of(measured_u)]);
-        rows.push(vec![
-            "corrected peak error ±, predicted from this survey".into(),
-            units.show(prediction.corrected_peak_deg),
-            format!("{} (the table's)", u_of(table_u)),
-        ]);
+        rows.push(row(
+            "native peak error ± (the largest error of any sample from the mean, no correction)".into(),
+            prediction.native_peak_deg,
+            measured_u,
+            "",
+        ));
+        rows.push(row(
+            "corrected peak error ±, predicted from this survey (the same, the table applied)".into(),
+            prediction.corrected_peak_deg,
+            table_u,
+            " (the table's)",
+        ));
         if let Some(floor) = processed.floor.deg {
             rows.push(vec![
-                format!("floor: {}", escape(&units.text(&processed.floor.what))),
+                format!(
+                    "repeatability floor: {}; a scale of the scatter no table removes, not a bound on the peak \
+                     (R is the worst target's ± 2 s band, the peak one sample's error)",
+                    escape(&units.text(&processed.floor.what))
+                ),
                 units.show(floor),
                 "-".into(),
             ]);
@@ -44,18 +58,20 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     if let Some(v) = &d.verification {
         let errors: Vec<f64> = v.corrected(&d.samples).iter().map(Sample::error_deg).collect();
         let peak = survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg;
-        rows.push(vec![
+        rows.push(row(
             format!("corrected peak error ±, measured (survey {})", v.verification_id),
-            units.show(peak),
-            u_of(measured_u),
-        ]);
+            peak,
+            measured_u,
+            "",
+        ));
     }
     if let Some((v, a)) = corrected_a {
-        rows.push(vec![
+        rows.push(row(
             format!("ISO 230-2 accuracy A, corrected, measured (survey {})", v.verification_id),
-            units.show(a),
-            u_of(measured_u),
-        ]);
+            a,
+            measured_u,
+            "",
+        ));
     }
     let mut body = String::new();
     if let Some(tolerance) = &p.cert.tolerance_deg {
@@ -75,15 +91,36 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
         };
         body += &verdict(figure, measured_u, tolerance.value, &what, p);
     }
-    body += &page::table("tbl-summary", &["figure", "value", "expanded uncertainty U (k = 2)"], &rows);
+    body += &page::table(
+        "tbl-summary",
+        &["figure", "value", "expanded uncertainty U (k = 2, coverage probability about 95 %)"],
+        &rows,
+    );
+    let measured = match &d.environment {
+        survey_lab::environment::Environment::Tracker(m) => Some(m.temperature_c),
+        _ => None,
+    };
+    let environment = match (&p.cert.temperature_c, measured) {
+        (_, Some(t)) => {
+            format!("the environment's contribution is not included (the air measured {:.2} to {:.2} °C)", t.min, t.max)
+        }
+        (Some(t), None) => format!(
+            "the environment's contribution is not included (the air temperature was stated as {:.1} °C, not \
+             measured)",
+            t.value
+        ),
+        (None, None) => "the environment's contribution is not included (no air temperature was measured)".to_string(),
+    };
     body += &format!(
         "<p class=\"note\">U of a measured figure: k √(u<sub>ref</sub>² + u<sub>axis</sub>²), the reference \
          instrument's stated standard uncertainty of one angle{} and, with a tracker, the located axis's{} \
          (ISO 230-2 Annex A's measuring instrument and set-up); the scatter over the runs is already inside A (its \
-         ±2 s bands), and the environment's contribution is not included (no temperature was measured). U of the \
-         predicted corrected peak is the table's, as a correction (section Uncertainty of the table).</p>\n",
+         ±2 s bands), and {environment}. U of the predicted corrected peak is the table's, as a correction (section \
+         Uncertainty of the table). The figures' {}. {}</p>\n",
         reference_u.map_or(" (not stated: no U)".to_string(), |u| format!(" ({})", units.show(u))),
         d.axis_u_deg.map_or(String::new(), |u| format!(" ({})", units.show(u))),
+        escape(d.axis.text()),
+        escape(rounding::COVERAGE),
     );
     Ok(Some(Section { id: "summary", title: "Summary".into(), new_page: false, body }))
 }
@@ -95,24 +132,24 @@ fn verdict(figure: Option<f64>, u: Option<f64>, tolerance: f64, what: &str, p: &
         None => ("", format!("Verdict: not decidable: there is no ISO 230-2 accuracy A to judge ({what}).")),
         Some(a) => {
             let decision = conformity::decide(a, u, tolerance);
+            // Each figure as P14 rounds it beside U.
+            let at_u = |v: f64| rounding::show(units, v, u).0;
             let why = match (decision, u) {
                 (_, None) => "its uncertainty is not known: state the reference's uncertainty \
                               (--reference-uncertainty or [certificate] reference_uncertainty_deg)"
                     .to_string(),
-                (Decision::Pass, Some(u)) => format!("A + U = {} ≤ {}", units.show(a + u), units.show(tolerance)),
-                (Decision::Fail, Some(u)) => format!("A − U = {} > {}", units.show(a - u), units.show(tolerance)),
-                (Decision::NotDecidable, Some(u)) => format!(
-                    "the tolerance lies between A − U = {} and A + U = {}",
-                    units.show(a - u),
-                    units.show(a + u)
-                ),
+                (Decision::Pass, Some(u)) => format!("A + U = {} ≤ {}", at_u(a + u), units.show(tolerance)),
+                (Decision::Fail, Some(u)) => format!("A − U = {} > {}", at_u(a - u), units.show(tolerance)),
+                (Decision::NotDecidable, Some(u)) => {
+                    format!("the tolerance lies between A − U = {} and A + U = {}", at_u(a - u), at_u(a + u))
+                }
             };
             let class = match decision {
                 Decision::Pass => " pass",
                 Decision::Fail => " fail",
                 Decision::NotDecidable => "",
             };
-            let u_text = u.map_or("U not known".to_string(), |u| format!("U = {} (k = 2)", units.show(u)));
+            let u_text = u.map_or("U not known".to_string(), |u| format!("U = {} (k = 2)", rounding::show_u(units, u)));
             (
                 class,
                 format!(
@@ -120,15 +157,15 @@ fn verdict(figure: Option<f64>, u: Option<f64>, tolerance: f64, what: &str, p: &
                     units.show(tolerance),
                     p.cert.tolerance_deg.as_ref().map_or("", |t| t.from),
                     decision.word().to_uppercase(),
-                    units.show(a),
+                    at_u(a),
                 ),
             )
         }
     };
-    format!(
-        "<p class=\"verdict{class}\" id=\"verdict\">{}</p>\n<p class=\"note\" id=\"decision-rule\">Decision rule (ISO \
-         14253-1, ILAC-G8: a guard band of the expanded uncertainty U): pass when A + U ≤ the tolerance; fail \
-         when A − U > the tolerance; otherwise not decidable (within the uncertainty).</p>\n",
-        escape(&text)
-    )
+    format!("<p class=\"verdict{class}\" id=\"verdict\">{}</p>\n{}", escape(&text), decision_rule())
+}
+
+/// The decision rule, stated with every verdict against a tolerance.
+pub fn decision_rule() -> String {
+    format!("<p class=\"note\" id=\"decision-rule\">{}</p>\n", escape(conformity::RULE))
 }

@@ -78,6 +78,61 @@ fn svg(p: &Processed, units: Units) -> anyhow::Result<String> {
     })
 }
 
+/// The excerpt's entries are laid out in this many blocks side by side.
+const BLOCKS: usize = 3;
+/// At most this many entries (a page beside the figure).
+const MAX_ENTRIES: usize = 60;
+/// The spacings an excerpt may take, degrees.
+const NICE: [f64; 16] = [0.001, 0.002, 0.005, 0.01, 0.02, 0.025, 0.05, 0.1, 0.2, 0.25, 0.5, 1.0, 2.0, 2.5, 5.0, 10.0];
+
+/// Which rows the excerpt shows, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Excerpt {
+    pub from: f64,
+    pub step: f64,
+    pub count: usize,
+    pub why: String,
+}
+
+/// The excerpt of the table: a spacing of at most an eighth of the shortest
+/// significant period (so the values trace its shape instead of sampling it
+/// at random phases), and at most [`MAX_ENTRIES`] rows from the start of the
+/// span; without any line, 36 rows over the span.
+pub fn excerpt(p: &Processed) -> Excerpt {
+    let (lo, hi) = span(p);
+    let shortest = p.analysis.lines.iter().map(|l| l.true_cycles_per_rev).filter(|c| *c > 0.0).fold(0.0, f64::max);
+    let (step, reason) = if shortest > 0.0 {
+        let period = 360.0 / shortest;
+        let step = NICE.iter().copied().filter(|s| *s <= period / 8.0).fold(NICE[0], f64::max);
+        (
+            step,
+            format!(
+                "every {} deg, an eighth or less of the shortest significant period ({} deg, the {} cycles/rev line), \
+                 so that the values show the error's shape",
+                angle(step),
+                angle(period),
+                angle(shortest)
+            ),
+        )
+    } else {
+        let step = NICE.iter().copied().filter(|s| *s <= (hi - lo) / 36.0).fold(NICE[0], f64::max);
+        (step, format!("every {} deg (no significant line)", angle(step)))
+    };
+    let whole = ((hi - lo) / step).round() as usize + usize::from(hi - lo < 360.0);
+    let count = whole.min(MAX_ENTRIES);
+    let covered = if count < whole {
+        format!(
+            "from {} to {} deg ({count} of the {whole} rows such a spacing gives; the figure above plots the whole \
+             table)",
+            angle(lo),
+            angle(lo + (count - 1) as f64 * step)
+        )
+    } else {
+        format!("over the whole span, {} to {} deg", angle(lo), angle(lo + (count - 1) as f64 * step))
+    };
+    Excerpt { from: lo, step, count, why: format!("The excerpt: {reason}, {covered}.") }
+}
+
 fn capitalised(s: &str) -> String {
     let mut c = s.chars();
     c.next().map_or(String::new(), |f| {
@@ -101,33 +156,44 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
         escape(&capitalised(&units.text(&p.built.directional_reason))),
     );
     let mut html = figure("fig-table", &svg(p, units)?, &legend(&entries), &caption);
-    let (lo, hi) = span(p);
-    let step = if hi - lo >= 180.0 { 10.0 } else { ((hi - lo) / 10.0).max(1e-3) };
-    let count = ((hi - lo) / step).round() as usize + usize::from(hi - lo < 360.0);
+    let ex = excerpt(p);
     let u = units.symbol();
-    let mut head = vec!["readout, deg".to_string()];
     let cols = columns(p);
-    for (d, _, _) in &cols {
-        head.push(format!("error {d}, {u}"));
-        head.push(format!("correction {d}, {u}"));
+    let mut head = vec![];
+    for _ in 0..BLOCKS {
+        head.push("readout, deg".to_string());
+        for (d, _, _) in &cols {
+            head.push(d.to_string());
+        }
     }
-    let rows: Vec<Vec<String>> = (0..count)
-        .map(|k| {
-            let x = lo + k as f64 * step;
-            let mut row = vec![angle(x)];
-            for (d, _, _) in &cols {
-                let e = t.error_at(x, *d);
-                row.push(units.num(e));
-                row.push(units.num(-e));
+    let per_block = ex.count.div_ceil(BLOCKS);
+    let rows: Vec<Vec<String>> = (0..per_block)
+        .map(|r| {
+            let mut row = Vec::new();
+            for block in 0..BLOCKS {
+                let k = block * per_block + r;
+                if k >= ex.count {
+                    row.extend(std::iter::repeat_n(String::new(), 1 + cols.len()));
+                    continue;
+                }
+                let x = ex.from + k as f64 * ex.step;
+                row.push(angle(x));
+                for (d, _, _) in &cols {
+                    row.push(units.num(t.error_at(x, *d)));
+                }
             }
             row
         })
         .collect();
     let head: Vec<&str> = head.iter().map(String::as_str).collect();
-    html += "<h3>Table values (excerpt)</h3>\n";
+    html += &format!("<h3>Table values (excerpt): the error of each column, {u}</h3>\n");
     html += &table("tbl-table", &head, &rows);
-    html += "<p class=\"note\">Every row of the table is in the files `survey process` writes beside it (CSV, \
-             controller files, the binary table); the correction is the value added to the readout.</p>\n";
+    html += &format!(
+        "<p class=\"note\" id=\"table-excerpt\">{} The correction is the error with its sign changed (the value \
+         added to the readout). Every row of the table is in the files `survey process` writes beside it (CSV, \
+         controller files, the binary table).</p>\n",
+        escape(&ex.why)
+    );
     Ok(html)
 }
 

@@ -192,7 +192,9 @@ pub fn verdict_rows(
                 v.verification_id
             ),
         };
-        rows.push(vec!["verification verdict".into(), escape(&words), "-".into()]);
+        let rule = "decision rule: confirmed unless the measured corrected peak exceeds the prediction by more than \
+                    the table's U, or is not better than native (no guard band beyond U)";
+        rows.push(vec!["verification verdict".into(), escape(&format!("{words} ({rule})")), "-".into()]);
     }
     rows
 }

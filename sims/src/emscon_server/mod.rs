@@ -95,7 +95,7 @@ use tokio::net::TcpListener;
 
 mod continuous;
 
-/// `dTemperature` of every result, °C.
+/// `dTemperature` of a result whose measurement carries no room, and of the continuous stream's packets, °C.
 pub const SIM_TEMPERATURE_C: f64 = 20.0;
 /// `dPressure` of every result, mbar.
 pub const SIM_PRESSURE_MBAR: f64 = 1013.25;
@@ -437,9 +437,15 @@ impl Server {
         let k = per_mm(self.units.length);
         let std = m.std_dev_mm.map(|s| s * k);
         let total = std.iter().map(|s| s * s).sum::<f64>().sqrt();
+        // The simulated room ([`crate::room`]) the measurement reports.
+        let air = m.environment.unwrap_or(survey_drivers::AirEnvironment {
+            temperature_c: SIM_TEMPERATURE_C,
+            pressure_hpa: SIM_PRESSURE_MBAR,
+            humidity_pct: SIM_HUMIDITY_RH,
+        });
         let temperature = match self.units.temperature {
-            temperature_unit::FAHRENHEIT => SIM_TEMPERATURE_C * 9.0 / 5.0 + 32.0,
-            _ => SIM_TEMPERATURE_C,
+            temperature_unit::FAHRENHEIT => air.temperature_c * 9.0 / 5.0 + 32.0,
+            _ => air.temperature_c,
         };
         SingleMeasResult {
             status: status::ALL_OK,
@@ -452,8 +458,8 @@ impl Server {
             apriori_std: std,
             apriori_std_total: total,
             temperature,
-            pressure: SIM_PRESSURE_MBAR * per_mbar(self.units.pressure),
-            humidity: SIM_HUMIDITY_RH,
+            pressure: air.pressure_hpa * per_mbar(self.units.pressure),
+            humidity: air.humidity_pct,
         }
     }
 }

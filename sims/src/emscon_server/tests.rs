@@ -15,6 +15,11 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 use tokio::task::JoinHandle;
 
+/// A measurement without its air (two measurements at different moments see different rooms).
+fn dry(m: SmrMeasurement) -> SmrMeasurement {
+    SmrMeasurement { environment: None, ..m }
+}
+
 const ANGLE: f64 = 30.0;
 
 fn sim_cfg(seed: u64, break_on: Option<usize>) -> TrackerConfig {
@@ -99,15 +104,20 @@ async fn connect_sets_up_and_measures_as_the_simulator_does() {
     assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
     let s = t.system_status().await.unwrap();
     assert_eq!((s.tracker_serial_number, s.version), (SIM_SERIAL_NUMBER, [3, 6, 0]));
+    let mut last_air = None;
     for _ in 0..3 {
         let t0 = rig.clock.now();
         let wire = t.measure().await.unwrap();
         assert_eq!(rig.clock.now() - t0, Duration::from_millis(50), "the sim's measurement time");
-        // Same seed, same angle, mm on the wire: bit for bit the same.
-        assert_eq!(wire, rig.direct.measure().await.unwrap());
+        // The room when the measurement ended, on the wire bit for bit.
+        assert_eq!(wire.environment, Some(crate::room::air_at(rig.clock.now().as_secs_f64())));
+        last_air = wire.environment;
+        // Same seed, same angle, mm on the wire: bit for bit the same (the room a moment later).
+        assert_eq!(dry(wire), dry(rig.direct.measure().await.unwrap()));
     }
     let r = *t.last_result().unwrap();
-    assert_eq!((r.temperature, r.pressure, r.humidity), (20.0, 1013.25, 50.0));
+    let air = last_air.expect("the room");
+    assert_eq!((r.temperature, r.pressure, r.humidity), (air.temperature_c, air.pressure_hpa, air.humidity_pct));
     assert!((r.std_total - r.std[0] * 3f64.sqrt()).abs() < 1e-15);
 }
 
@@ -178,8 +188,9 @@ async fn raw_packets_follow_the_header_layout() {
     let m = ask(&mut s, &le(&[12, 0, 49])).await;
     let direct = rig.direct.measure().await.unwrap();
     assert_eq!([f(&m, 20), f(&m, 28), f(&m, 36)], direct.xyz());
-    assert_eq!(f(&m, 132), 68.0);
-    assert!((f(&m, 140) - 14.6959).abs() < 1e-3, "{}", f(&m, 140));
+    // The simulated room (about 20 °C, 1013 hPa) in Fahrenheit and psi.
+    assert!(((f(&m, 132) - 32.0) * 5.0 / 9.0 - 20.0).abs() < 0.5, "{}", f(&m, 132));
+    assert!((f(&m, 140) - 14.6959).abs() < 0.03, "{}", f(&m, 140));
     // Undefined unit in field 4 (pressure): ES_RS_WrongParameter4.
     assert_eq!(ask(&mut s, &le(&[32, 0, 5, 1, 1, 0, 9, 0])).await, le(&[16, 0, 5, 7]));
     // A command not modelled, a packet that is no command, a wrong size.
@@ -195,7 +206,7 @@ async fn raw_packets_follow_the_header_layout() {
 async fn beam_break_is_a_device_error_and_reacquire_restores_measurements() {
     let mut rig = Rig::new(sim_cfg(11, Some(2))).await;
     let mut t = rig.connect().await;
-    assert_eq!(t.measure().await.unwrap(), rig.direct.measure().await.unwrap());
+    assert_eq!(dry(t.measure().await.unwrap()), dry(rig.direct.measure().await.unwrap()));
     let e = t.measure().await.unwrap_err();
     assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(i64::from(status::NO_STATIONARY_RESULT))), "{e}");
     assert!(e.message.contains("ES_RS_NoStationaryResult"), "{e}");
@@ -215,7 +226,7 @@ async fn beam_break_is_a_device_error_and_reacquire_restores_measurements() {
     assert_eq!(t.last_status_change(), Some(status_change::MEAS_STATUS_READY));
     assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
     rig.direct.reacquire().await.unwrap();
-    assert_eq!(t.measure().await.unwrap(), rig.direct.measure().await.unwrap());
+    assert_eq!(dry(t.measure().await.unwrap()), dry(rig.direct.measure().await.unwrap()));
 }
 
 #[tokio::test]
@@ -263,7 +274,7 @@ async fn status_changes_before_an_answer_are_applied_not_taken_for_it() {
     let mut rig = Rig::new(sim_cfg(9, None)).await;
     let mut t = rig.connect().await;
     rig.faults.arm(Fault::Event(i64::from(status_change::MEAS_STATUS_NOT_READY)));
-    assert_eq!(t.measure().await.unwrap(), rig.direct.measure().await.unwrap());
+    assert_eq!(dry(t.measure().await.unwrap()), dry(rig.direct.measure().await.unwrap()));
     assert_eq!((t.last_status_change(), t.status_changes_seen()), (Some(25), 1));
     assert_eq!(t.state(), TrackerState::TargetLocked, "a result proves the lock");
     rig.faults.arm(Fault::Event(i64::from(status_change::LASER_WARMED_UP)));

@@ -34,6 +34,8 @@ pub(super) enum Ty {
     Pair(Low, f64, &'static str),
     /// A list of numbers, each within the range.
     Numbers(Low, f64, &'static str),
+    /// Text a function accepts (it says why not), with what it takes in words.
+    Checked(fn(&str) -> Result<(), String>, &'static str),
     Table(&'static [Field]),
     /// A table whose keys depend on its tag key's word.
     Tagged(&'static str, &'static [(&'static str, &'static [Field])]),
@@ -248,6 +250,11 @@ const CERTIFICATE: &[Field] = &[
     opt("laboratory", Ty::Text),
     opt("traceability", Ty::Text),
     opt("tolerance_deg", Ty::Number(Low::Above(0.0), 360.0, "deg")),
+    opt("signatory", Ty::Text),
+    opt("location", Ty::Text),
+    opt("item_condition", Ty::Text),
+    opt("received", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
+    opt("country", Ty::Checked(crate::config::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
 ];
 
 /// A range of numbers in words: `from 0 to 3600 s`, `above 0, at most 1 deg`.
@@ -285,6 +292,7 @@ fn allowed(ty: Ty, key: &str) -> String {
         Ty::Number(low, max, unit) => format!("a number {}", range_words(low, max, unit)),
         Ty::AnyNumber => "a finite number".into(),
         Ty::Text => "text in quotes".into(),
+        Ty::Checked(_, words) => words.into(),
         Ty::Flag => "true or false".into(),
         Ty::Choice(words) => format!("one of {}", one_of(words)),
         Ty::Pair(low, max, unit) => format!("two numbers [low, high], each {}", range_words(low, max, unit)),
@@ -415,6 +423,12 @@ impl<'a> Walk<'a> {
             }
             (Ty::Number(..) | Ty::AnyNumber, DeValue::Integer(_) | DeValue::Float(_)) => self.number(key, v, ty),
             (Ty::Text, DeValue::String(_)) | (Ty::Flag, DeValue::Boolean(_)) => {}
+            (Ty::Checked(check, words), DeValue::String(text)) => {
+                if let Err(why) = check(text) {
+                    let why = why.strip_prefix("not ").map_or(why.clone(), |rest| format!("is not {rest}"));
+                    self.push(at, key, format!("{} {why}: it takes {words}", shown(self.text, v)));
+                }
+            }
             (Ty::Choice(words), DeValue::String(s)) => {
                 if !words.contains(&s.as_ref()) {
                     let text =

@@ -63,6 +63,10 @@ fn every_number_is_finite_and_within_its_stated_range() {
         ("[certificate]\ntemperature_c = 293.15\n", "8: certificate.temperature_c: 293.15 is out of range"),
         ("[certificate]\nreference_uncertainty_deg = 0\n", "8: certificate.reference_uncertainty_deg: 0 is out"),
         ("[certificate]\ntolerance_deg = -0.01\n", "8: certificate.tolerance_deg: -0.01 is out of range"),
+        ("[certificate]\nreceived = \"2026-02-30\"\n", "8: certificate.received: \"2026-02-30\" is not a date"),
+        ("[certificate]\nreceived = \"1 May 2026\"\n", "8: certificate.received: \"1 May 2026\" is not a date"),
+        ("[certificate]\ncountry = \"de\"\n", "8: certificate.country: \"de\" is not an ISO 3166-1"),
+        ("[certificate]\ncountry = \"XX\"\n", "8: certificate.country: \"XX\" is not an ISO 3166-1"),
     ] {
         let e = error_of(&format!("{TRACKER_BENCH}{extra}"));
         assert!(e.starts_with(&format!("c.toml:{says}")), "{extra}: {e}");

@@ -135,6 +135,9 @@ const ROWS: &[Table] = &[
             ("ac_face", Int),
             ("ac_x_arcsec", Real),
             ("ac_y_arcsec", Real),
+            ("air_temperature_c", Real),
+            ("air_pressure_hpa", Real),
+            ("air_humidity_pct", Real),
         ],
         order: "seq",
     },
@@ -351,8 +354,13 @@ async fn copy(
 }
 
 /// The `SELECT` of table `t`'s rows of one survey (`$1`, by `key`), in its order.
-fn select(t: &Table, key: &str) -> String {
-    let columns: Vec<&str> = t.columns.iter().map(|c| c.0).collect();
+/// A station file of a schema before 9 has no air columns: they are read as NULL.
+fn select(t: &Table, key: &str, has_air: bool) -> String {
+    let columns: Vec<String> = t
+        .columns
+        .iter()
+        .map(|c| if !has_air && c.0.starts_with("air_") { format!("NULL AS {}", c.0) } else { c.0.to_string() })
+        .collect();
     format!("SELECT {} FROM {} WHERE {key} = $1 ORDER BY {}", columns.join(", "), t.name, t.order)
 }
 
@@ -375,7 +383,7 @@ fn cells(t: &Table, r: &sqlx::sqlite::SqliteRow) -> Result<Vec<Cell>, sqlx::Erro
 /// The rows of table `t` of survey `id` in the station's file (the
 /// survey's own row, read whole).
 async fn read(from: &SqlitePool, t: &Table, key: &str, id: i64) -> anyhow::Result<Vec<Vec<Cell>>> {
-    let rows = sqlx::query(AssertSqlSafe(select(t, key))).bind(id).fetch_all(from).await?;
+    let rows = sqlx::query(AssertSqlSafe(select(t, key, true))).bind(id).fetch_all(from).await?;
     rows.iter().map(|r| cells(t, r).map_err(anyhow::Error::from)).collect()
 }
 
@@ -443,10 +451,11 @@ async fn copy_rows(
     station_id: i64,
     lab_id: i64,
 ) -> anyhow::Result<()> {
-    let (path, immutable) = (station.path.clone(), station.immutable);
+    let (path, immutable, has_air) = (station.path.clone(), station.immutable, station.environment);
     let (batches_in, mut batches) = tokio::sync::mpsc::channel::<Batch>(2);
-    let reader =
-        tokio::task::spawn_blocking(move || binary::read_rows(&path, immutable, t, station_id, lab_id, &batches_in));
+    let reader = tokio::task::spawn_blocking(move || {
+        binary::read_rows(&path, immutable, has_air, t, station_id, lab_id, &batches_in)
+    });
     let written = match batches.recv().await {
         // No row: nothing to write.
         None => Ok(None),
@@ -587,13 +596,14 @@ mod binary {
     pub(super) fn read_rows(
         path: &std::path::Path,
         immutable: bool,
+        has_air: bool,
         t: &Table,
         station_id: i64,
         lab_id: i64,
         out: &tokio::sync::mpsc::Sender<Batch>,
     ) -> anyhow::Result<()> {
         let conn = crate::samples::open_reader(path, immutable)?;
-        let mut statement = conn.prepare(&super::select(t, "survey_id"))?;
+        let mut statement = conn.prepare(&super::select(t, "survey_id", has_air))?;
         let mut rows = statement.query([station_id])?;
         let (mut few, mut copy): (Vec<Vec<Cell>>, Option<Vec<u8>>) = (Vec::new(), None);
         while let Some(r) = rows.next()? {

@@ -329,6 +329,7 @@ pub(super) fn pair(
             z_mm: xyz[2],
             std_dev_mm: [f64::NAN; 3],
             measurement_time_s: period,
+            environment: None,
         });
         samples.push(RecordedSample { seq, sample, raw });
     }

@@ -1,0 +1,492 @@
+//! `DIR/dcc.xml`: the certificate as a Digital Calibration Certificate, PTB's
+//! DCC schema 3.2.0 with D-SI 2.1.0 quantities (`../shared/data/dcc`). The
+//! same fields and figures as the page ([`crate::html`] reads the same
+//! [`Page`]): the administrative data (this software, the core data with the
+//! certificate number as `uniqueIdentifier`, the item, the laboratory, the
+//! responsible persons, the customer, the statements: results relate to the
+//! item, traceability, the item's condition, the location, the decision rule
+//! and its verdict), then one measurement result: the method (ISO 230-2:2014,
+//! this program's procedure, the GUM's expanded uncertainty), the reference
+//! instrument, the environment as an influence condition, ISO 230-2's A, R,
+//! B, E and M, the native and the predicted corrected peak (and, after a
+//! verification, the corrected peak and A measured), and the correction
+//! table as list quantities. Angles in `\degree`; each figure rounded as the
+//! page rounds it (ILAC-P14) with its expanded uncertainty, coverage factor
+//! and coverage probability.
+//!
+//! A field the laboratory did not state is written as "not stated" where
+//! the schema needs text; the country, which the schema needs as two
+//! capital letters, is then `ZZ` (the user-assigned code for an unknown
+//! country) and a statement says so.
+//!
+//! Written with quick-xml's [`Writer`] (every text escaped by it).
+
+use crate::conformity::{self, Decision};
+use crate::html::Page;
+use crate::html::header::{environment_text, method_text, performed};
+use crate::rounding;
+use anyhow::Context as _;
+use quick_xml::Writer;
+use quick_xml::events::{BytesDecl, BytesEnd, BytesStart, BytesText, Event};
+use survey_lab::environment::Environment;
+use survey_processing::Direction;
+use survey_processing::iso230::iso230_2;
+
+/// The D-SI unit of every angle.
+const DEGREE: &str = "\\degree";
+/// The coverage factor and probability of every expanded uncertainty.
+const K: &str = "2";
+const PROBABILITY: &str = "0.95";
+/// What a field the laboratory did not state says.
+const NOT_STATED: &str = "not stated";
+
+/// The XML being written.
+struct Xml {
+    w: Writer<Vec<u8>>,
+}
+
+type Attrs<'a> = &'a [(&'a str, &'a str)];
+
+impl Xml {
+    fn open(&mut self, name: &str, attrs: Attrs<'_>) -> anyhow::Result<()> {
+        let start = BytesStart::new(name).with_attributes(attrs.iter().copied());
+        self.w.write_event(Event::Start(start)).context("writing the DCC")?;
+        Ok(())
+    }
+
+    fn close(&mut self, name: &str) -> anyhow::Result<()> {
+        self.w.write_event(Event::End(BytesEnd::new(name))).context("writing the DCC")?;
+        Ok(())
+    }
+
+    /// `<name>text</name>`.
+    fn leaf(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
+        self.open(name, &[])?;
+        self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
+        self.close(name)
+    }
+
+    /// A `textType`/`richContentType` element: `<name><dcc:content lang="en">text</dcc:content></name>`.
+    fn words(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
+        self.open(name, &[])?;
+        self.open("dcc:content", &[("lang", "en")])?;
+        self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
+        self.close("dcc:content")?;
+        self.close(name)
+    }
+
+    /// A quantity: name, one `si:real` in degrees, its expanded uncertainty when known.
+    fn angle(&mut self, ref_type: &str, name: &str, value: &str, u: Option<&str>) -> anyhow::Result<()> {
+        self.open("dcc:quantity", &[("refType", ref_type)])?;
+        self.words("dcc:name", name)?;
+        self.open("si:real", &[])?;
+        self.leaf("si:value", value)?;
+        self.leaf("si:unit", DEGREE)?;
+        if let Some(u) = u {
+            self.open("si:expandedUnc", &[])?;
+            self.leaf("si:uncertainty", u)?;
+            self.leaf("si:coverageFactor", K)?;
+            self.leaf("si:coverageProbability", PROBABILITY)?;
+            self.leaf("si:distribution", "normal")?;
+            self.close("si:expandedUnc")?;
+        }
+        self.close("si:real")?;
+        self.close("dcc:quantity")
+    }
+
+    /// A list quantity (`si:realListXMLList`) in `unit`, with one expanded uncertainty for every value.
+    fn list(
+        &mut self,
+        ref_type: &str,
+        name: &str,
+        values: &[String],
+        unit: &str,
+        u: Option<&str>,
+    ) -> anyhow::Result<()> {
+        self.open("dcc:quantity", &[("refType", ref_type)])?;
+        self.words("dcc:name", name)?;
+        self.open("si:realListXMLList", &[])?;
+        self.leaf("si:valueXMLList", &values.join(" "))?;
+        self.leaf("si:unitXMLList", unit)?;
+        if let Some(u) = u {
+            self.open("si:expandedUncXMLList", &[])?;
+            self.leaf("si:uncertaintyXMLList", u)?;
+            self.leaf("si:coverageFactorXMLList", K)?;
+            self.leaf("si:coverageProbabilityXMLList", PROBABILITY)?;
+            self.leaf("si:distributionXMLList", "normal")?;
+            self.close("si:expandedUncXMLList")?;
+        }
+        self.close("si:realListXMLList")?;
+        self.close("dcc:quantity")
+    }
+
+    /// A statement: its declaration, and the norm and clause it answers.
+    fn statement(&mut self, ref_type: &str, norm: Option<(&str, &str)>, declaration: &str) -> anyhow::Result<()> {
+        self.open("dcc:statement", &[("refType", ref_type)])?;
+        if let Some((norm, clause)) = norm {
+            self.leaf("dcc:norm", norm)?;
+            self.leaf("dcc:reference", clause)?;
+        }
+        self.words("dcc:declaration", declaration)?;
+        self.close("dcc:statement")
+    }
+
+    /// A contact with a name and, as free text, where it is.
+    fn contact(&mut self, name: &str, who: &str, country: Option<&str>) -> anyhow::Result<()> {
+        self.open(name, &[])?;
+        self.words("dcc:name", who)?;
+        self.open("dcc:location", &[])?;
+        if let Some(c) = country {
+            self.leaf("dcc:countryCode", c)?;
+        }
+        self.words("dcc:further", who)?;
+        self.close("dcc:location")?;
+        self.close(name)
+    }
+}
+
+/// A value of the page's number format, as the D-SI writes it (`1e-5`, `0.0350`).
+fn decimal(shown: &str) -> String {
+    shown.split_whitespace().next().unwrap_or(shown).to_string()
+}
+
+/// `value` and `u` (degrees) as ILAC-P14 rounds them, for the XML.
+fn rounded(value: f64, u: Option<f64>) -> (String, Option<String>) {
+    let (v, u) = rounding::show(crate::units::Units::Deg, value, u);
+    match u {
+        Some(u) => (decimal(&v), Some(decimal(&u))),
+        // Without a U: the value as computed (no rounding to a place that is not known).
+        None => (format!("{value:e}"), None),
+    }
+}
+
+/// The certificate of `p` as DCC 3.2.0 XML.
+pub fn document(p: &Page<'_>) -> anyhow::Result<String> {
+    let mut x = Xml { w: Writer::new_with_indent(Vec::new(), b' ', 1) };
+    x.w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None))).context("writing the DCC")?;
+    x.open(
+        "dcc:digitalCalibrationCertificate",
+        &[
+            ("xmlns:dcc", "https://ptb.de/dcc"),
+            ("xmlns:si", "https://ptb.de/si"),
+            ("xmlns:xsi", "http://www.w3.org/2001/XMLSchema-instance"),
+            ("xsi:schemaLocation", "https://ptb.de/dcc https://ptb.de/dcc/v3.2.0/dcc.xsd"),
+            ("schemaVersion", "3.2.0"),
+        ],
+    )?;
+    administrative(&mut x, p)?;
+    results(&mut x, p)?;
+    x.close("dcc:digitalCalibrationCertificate")?;
+    String::from_utf8(x.w.into_inner()).context("the DCC is not UTF-8")
+}
+
+fn stated(v: &Option<crate::certificate::Stated<String>>) -> &str {
+    v.as_ref().map_or(NOT_STATED, |s| s.value.as_str())
+}
+
+/// `dcc:administrativeData`.
+fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let (cert, survey) = (&p.cert, &p.d.survey);
+    x.open("dcc:administrativeData", &[])?;
+    x.open("dcc:dccSoftware", &[])?;
+    x.open("dcc:software", &[])?;
+    x.words("dcc:name", "survey")?;
+    x.leaf("dcc:release", env!("CARGO_PKG_VERSION"))?;
+    x.leaf("dcc:type", "application")?;
+    x.close("dcc:software")?;
+    x.close("dcc:dccSoftware")?;
+
+    let (begin, end) = performed(survey);
+    x.open("dcc:coreData", &[])?;
+    x.leaf("dcc:countryCodeISO3166_1", cert.country.as_ref().map_or("ZZ", |c| c.value.as_str()))?;
+    x.leaf("dcc:usedLangCodeISO639_1", "en")?;
+    x.leaf("dcc:mandatoryLangCodeISO639_1", "en")?;
+    x.leaf("dcc:uniqueIdentifier", &cert.number.value)?;
+    x.open("dcc:identifications", &[])?;
+    x.open("dcc:identification", &[])?;
+    x.leaf("dcc:issuer", "calibrationLaboratory")?;
+    x.leaf("dcc:value", &survey.uid)?;
+    x.words("dcc:name", "survey uid (the measurement's record)")?;
+    x.close("dcc:identification")?;
+    x.close("dcc:identifications")?;
+    if let Some(r) = &cert.received {
+        x.leaf("dcc:receiptDate", &r.value)?;
+    }
+    x.leaf("dcc:beginPerformanceDate", &begin)?;
+    x.leaf("dcc:endPerformanceDate", &end)?;
+    x.leaf("dcc:performanceLocation", "other")?;
+    x.leaf("dcc:issueDate", p.d.generated.get(..10).unwrap_or(&p.d.generated))?;
+    x.close("dcc:coreData")?;
+
+    x.open("dcc:items", &[])?;
+    x.open("dcc:item", &[])?;
+    x.words("dcc:name", &p.cert.positioner_name(survey))?;
+    x.words("dcc:description", stated(&cert.positioner))?;
+    x.open("dcc:manufacturer", &[])?;
+    x.words("dcc:name", NOT_STATED)?;
+    x.close("dcc:manufacturer")?;
+    x.open("dcc:identifications", &[])?;
+    x.open("dcc:identification", &[])?;
+    x.leaf("dcc:issuer", "calibrationLaboratory")?;
+    x.leaf("dcc:value", &survey.asset)?;
+    x.words("dcc:name", "asset (the axis calibrated)")?;
+    x.close("dcc:identification")?;
+    x.close("dcc:identifications")?;
+    x.close("dcc:item")?;
+    x.close("dcc:items")?;
+
+    x.open("dcc:calibrationLaboratory", &[])?;
+    x.contact("dcc:contact", stated(&cert.laboratory), cert.country.as_ref().map(|c| c.value.as_str()))?;
+    x.close("dcc:calibrationLaboratory")?;
+
+    x.open("dcc:respPersons", &[])?;
+    x.open("dcc:respPerson", &[])?;
+    x.open("dcc:person", &[])?;
+    x.words("dcc:name", stated(&cert.signatory))?;
+    x.close("dcc:person")?;
+    x.leaf("dcc:role", "authorises the certificate (name and function)")?;
+    x.leaf("dcc:mainSigner", "true")?;
+    x.close("dcc:respPerson")?;
+    if let Some(op) = &cert.operator {
+        x.open("dcc:respPerson", &[])?;
+        x.open("dcc:person", &[])?;
+        x.words("dcc:name", &op.value)?;
+        x.close("dcc:person")?;
+        x.leaf("dcc:role", "operator (measured)")?;
+        x.close("dcc:respPerson")?;
+    }
+    x.close("dcc:respPersons")?;
+    x.contact("dcc:customer", stated(&cert.customer), None)?;
+    statements(x, p)?;
+    x.close("dcc:administrativeData")
+}
+
+/// `dcc:statements`: what the page's header and closing statements say.
+fn statements(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let cert = &p.cert;
+    x.open("dcc:statements", &[])?;
+    x.statement(
+        "basic_validity",
+        Some(("ISO/IEC 17025:2017", "7.8.2.1")),
+        "The results relate only to the item calibrated, as it was when calibrated.",
+    )?;
+    x.statement("basic_traceability", None, stated(&cert.traceability))?;
+    x.statement("survey_itemCondition", None, &format!("Condition of the item: {}", stated(&cert.item_condition)))?;
+    x.statement("survey_location", None, &format!("Location of the calibration: {}", stated(&cert.location)))?;
+    if cert.country.is_none() {
+        x.statement("survey_country", None, "The laboratory's country is not stated: ZZ stands for it.")?;
+    }
+    x.statement("basic_uncertainty", Some(("GUM", "ILAC-P14")), rounding::COVERAGE)?;
+    if let Some(tolerance) = &cert.tolerance_deg {
+        let (figure, what) = judged(p);
+        let u = measured_u(p);
+        let decision = figure.map_or(Decision::NotDecidable, |a| conformity::decide(a, u, tolerance.value));
+        x.open("dcc:statement", &[("refType", "basic_conformity")])?;
+        x.leaf("dcc:norm", "ILAC-G8:09/2019")?;
+        x.words(
+            "dcc:declaration",
+            &format!(
+                "Verdict against the tolerance {} deg on {what}: {}. {}",
+                tolerance.value,
+                decision.word(),
+                conformity::RULE
+            ),
+        )?;
+        match decision {
+            Decision::Pass => x.leaf("dcc:conformity", "pass")?,
+            Decision::Fail => x.leaf("dcc:conformity", "fail")?,
+            Decision::NotDecidable => {}
+        }
+        x.close("dcc:statement")?;
+    }
+    x.close("dcc:statements")
+}
+
+/// The measured figures' expanded uncertainty (k = 2), degrees.
+fn measured_u(p: &Page<'_>) -> Option<f64> {
+    conformity::accuracy_u_deg(p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value), p.d.axis_u_deg)
+}
+
+/// The accuracy a tolerance judges, as the summary does: the corrected A measured, else the native A.
+fn judged(p: &Page<'_>) -> (Option<f64>, String) {
+    let d = p.d;
+    match d.verification.as_ref().and_then(|v| iso230_2(v.corrected(&d.samples)).ok().map(|iso| (v, iso.a))) {
+        Some((v, a)) => (
+            Some(a),
+            format!("the corrected accuracy A per ISO 230-2, measured by verification survey {}", v.verification_id),
+        ),
+        None => (p.iso.as_ref().ok().map(|i| i.a), "the native accuracy A per ISO 230-2 of this survey".into()),
+    }
+}
+
+/// `dcc:measurementResults`.
+fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    x.open("dcc:measurementResults", &[])?;
+    x.open("dcc:measurementResult", &[])?;
+    x.words("dcc:name", "Readout error and positioning accuracy of a rotary axis")?;
+    x.open("dcc:usedMethods", &[])?;
+    x.open("dcc:usedMethod", &[("refType", "basic_uncertainty")])?;
+    x.words("dcc:name", "Expanded uncertainty")?;
+    x.words("dcc:description", rounding::COVERAGE)?;
+    x.leaf("dcc:norm", "GUM")?;
+    x.close("dcc:usedMethod")?;
+    x.open("dcc:usedMethod", &[("refType", "survey_iso230_2")])?;
+    x.words("dcc:name", "ISO 230-2:2014 and the procedure of survey")?;
+    x.words("dcc:description", &method_text(&p.d.survey))?;
+    x.leaf("dcc:norm", "ISO 230-2:2014")?;
+    x.close("dcc:usedMethod")?;
+    x.close("dcc:usedMethods")?;
+    x.open("dcc:measuringEquipments", &[])?;
+    x.open("dcc:measuringEquipment", &[("refType", "basic_normalUsed")])?;
+    x.words("dcc:name", stated(&p.cert.reference))?;
+    if let Some(u) = &p.cert.reference_uncertainty_deg {
+        x.words("dcc:description", &format!("standard uncertainty of one angle: {} deg ({})", u.value, u.from))?;
+    }
+    x.close("dcc:measuringEquipment")?;
+    x.close("dcc:measuringEquipments")?;
+    x.open("dcc:influenceConditions", &[])?;
+    x.open("dcc:influenceCondition", &[("refType", "basic_temperature")])?;
+    x.words("dcc:name", "Ambient air (temperature; with a tracker, pressure and relative humidity too)")?;
+    let simulated = matches!(p.d.survey.setup, survey_store::survey::Setup::Simulated(_));
+    x.words("dcc:description", &environment_text(&p.cert, &p.d.environment, simulated))?;
+    x.open("dcc:data", &[])?;
+    match (&p.cert.temperature_c, &p.d.environment) {
+        (_, Environment::Tracker(m)) => {
+            let quantities = [
+                ("basic_temperatureMin", "air temperature, least measured", m.temperature_c.min, "\\degreecelsius"),
+                ("basic_temperatureMax", "air temperature, greatest measured", m.temperature_c.max, "\\degreecelsius"),
+                ("basic_pressureMin", "air pressure, least measured", m.pressure_hpa.min, "\\hecto\\pascal"),
+                ("basic_pressureMax", "air pressure, greatest measured", m.pressure_hpa.max, "\\hecto\\pascal"),
+                ("basic_humidityRelativeMin", "relative humidity, least measured", m.humidity_pct.min / 100.0, "\\one"),
+                (
+                    "basic_humidityRelativeMax",
+                    "relative humidity, greatest measured",
+                    m.humidity_pct.max / 100.0,
+                    "\\one",
+                ),
+            ];
+            for (ref_type, name, value, unit) in quantities {
+                x.open("dcc:quantity", &[("refType", ref_type)])?;
+                x.words("dcc:name", name)?;
+                x.open("si:real", &[])?;
+                x.leaf("si:value", &format!("{value}"))?;
+                x.leaf("si:unit", unit)?;
+                x.close("si:real")?;
+                x.close("dcc:quantity")?;
+            }
+        }
+        (Some(t), _) => {
+            x.open("dcc:quantity", &[("refType", "basic_temperatureStated")])?;
+            x.words("dcc:name", "air temperature, stated")?;
+            x.open("si:real", &[])?;
+            x.leaf("si:value", &format!("{:.1}", t.value))?;
+            x.leaf("si:unit", "\\degreecelsius")?;
+            x.close("si:real")?;
+            x.close("dcc:quantity")?;
+        }
+        (None, _) => x.words("dcc:text", "not measured")?,
+    }
+    x.close("dcc:data")?;
+    x.close("dcc:influenceCondition")?;
+    x.close("dcc:influenceConditions")?;
+    x.open("dcc:results", &[])?;
+    figures(x, p)?;
+    table(x, p)?;
+    x.close("dcc:results")?;
+    x.close("dcc:measurementResult")?;
+    x.close("dcc:measurementResults")
+}
+
+/// The ISO 230-2 figures and the peaks, one result.
+fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let u = measured_u(p);
+    x.open("dcc:result", &[("refType", "survey_figures")])?;
+    x.words("dcc:name", "ISO 230-2 figures of the axis and the peak errors")?;
+    x.words(
+        "dcc:description",
+        "Deviation x = actual - target (ISO 230-2); the peaks are of the error readout - actual. A, E, M and the \
+         peaks carry the measurement's expanded uncertainty; R and B are given to the same decimal place.",
+    )?;
+    x.open("dcc:data", &[])?;
+    if let Ok(iso) = &p.iso {
+        let place = |v: f64| rounded(v, u).0;
+        let (a, ua) = rounded(iso.a, u);
+        x.angle("survey_iso230_2_A", "A, accuracy of positioning (ISO 230-2)", &a, ua.as_deref())?;
+        x.angle("survey_iso230_2_R", "R, repeatability of positioning (ISO 230-2)", &place(iso.r), None)?;
+        if let Some(b) = iso.b {
+            x.angle("survey_iso230_2_B", "B, reversal value (ISO 230-2)", &place(b), None)?;
+        }
+        let (e, ue) = rounded(iso.e, u);
+        x.angle("survey_iso230_2_E", "E, systematic positional deviation (ISO 230-2)", &e, ue.as_deref())?;
+        if let Some(m) = iso.m {
+            let (m, um) = rounded(m, u);
+            x.angle("survey_iso230_2_M", "M, mean positional deviation (ISO 230-2)", &m, um.as_deref())?;
+        }
+    }
+    if let Ok(processed) = &p.d.processed {
+        let prediction = &processed.prediction;
+        let (v, uv) = rounded(prediction.native_peak_deg, u);
+        x.angle("survey_nativePeak", "native peak error (no correction)", &v, uv.as_deref())?;
+        let table_u = p.d.uncertainty.as_ref().map(|b| b.table_u_deg);
+        let (v, uv) = rounded(prediction.corrected_peak_deg, table_u);
+        x.angle(
+            "survey_correctedPeakPredicted",
+            "corrected peak error, predicted from this survey (the table's uncertainty)",
+            &v,
+            uv.as_deref(),
+        )?;
+    }
+    if let Some(v) = &p.d.verification {
+        let errors: Vec<f64> = v.corrected(&p.d.samples).iter().map(|s| s.error_deg()).collect();
+        let peak = survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg;
+        let (value, uv) = rounded(peak, u);
+        let name = format!("corrected peak error, measured by verification survey {}", v.verification_id);
+        x.angle("survey_correctedPeakMeasured", &name, &value, uv.as_deref())?;
+        if let Ok(iso) = iso230_2(v.corrected(&p.d.samples)) {
+            let (a, ua) = rounded(iso.a, u);
+            let name = format!("A, corrected, measured by verification survey {}", v.verification_id);
+            x.angle("survey_correctedAMeasured", &name, &a, ua.as_deref())?;
+        }
+    }
+    x.close("dcc:data")?;
+    x.close("dcc:result")
+}
+
+/// The correction table, one list: the readout of each row and the error of each column.
+fn table(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let Ok(processed) = &p.d.processed else { return Ok(()) };
+    let t = &processed.built.table;
+    let u = p.d.uncertainty.as_ref().map(|b| rounding::show_u(crate::units::Units::Deg, b.table_u_deg));
+    let u = u.as_deref().map(decimal);
+    let h = t.spacing_deg();
+    let readouts: Vec<String> = (0..t.len()).map(|i| format!("{}", i as f64 * h)).collect();
+    x.open("dcc:result", &[("refType", "survey_correctionTable")])?;
+    x.words("dcc:name", "Correction table")?;
+    x.words(
+        "dcc:description",
+        &format!(
+            "{} rows every {h} deg of readout, from 0, wrapping at 360 deg; the corrected angle is readout - \
+             error(readout), read with linear interpolation between rows; the uncertainty is the table's as a \
+             correction of the positioner (k = 2).",
+            t.len()
+        ),
+    )?;
+    x.open("dcc:data", &[])?;
+    x.open("dcc:list", &[("refType", "survey_table")])?;
+    x.list("survey_readout", "readout", &readouts, DEGREE, None)?;
+    let columns: &[(Direction, &str, &str)] = if t.is_directional() {
+        &[
+            (Direction::Forward, "survey_errorForward", "error, forward"),
+            (Direction::Reverse, "survey_errorReverse", "error, reverse"),
+        ]
+    } else {
+        &[(Direction::Forward, "survey_error", "error (both directions)")]
+    };
+    for (d, ref_type, name) in columns {
+        let values: Vec<String> = (0..t.len()).map(|i| format!("{:e}", t.error_at(i as f64 * h, *d))).collect();
+        x.list(ref_type, name, &values, DEGREE, u.as_deref())?;
+    }
+    x.close("dcc:list")?;
+    x.close("dcc:data")?;
+    x.close("dcc:result")
+}
