@@ -388,7 +388,8 @@ fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contrib
     } else {
         budget.push(Contribution {
             source: "the lines left, through the readout (their products with the error, second order)".into(),
-            u_deg: left.second_order_deg,
+            // A standard uncertainty is a size: never a signed zero ("-0.00e0 deg").
+            u_deg: left.second_order_deg.abs(),
         });
         normal_u.hypot(left.second_order_deg)
     };
