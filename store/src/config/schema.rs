@@ -92,8 +92,8 @@ pub(super) const ROOT: &[Field] = &[
 ];
 
 const SURVEY: &[Field] = &[
-    opt("points", U32),
-    opt("runs", U32),
+    opt("points", Ty::Whole(2, u32::MAX as i128)),
+    opt("runs", Ty::Whole(2, u32::MAX as i128)),
     opt("bidirectional", Ty::Flag),
     opt("reference", Ty::Choice(&["tracker", "autocollimator"])),
     opt("travel_deg", Ty::Pair(Low::From(-3600.0), 3600.0, "deg")),

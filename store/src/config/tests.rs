@@ -63,6 +63,8 @@ fn every_number_is_finite_and_within_its_stated_range() {
         ("[certificate]\ntemperature_c = 293.15\n", "8: certificate.temperature_c: 293.15 is out of range"),
         ("[certificate]\nreference_uncertainty_deg = 0\n", "8: certificate.reference_uncertainty_deg: 0 is out"),
         ("[certificate]\ntolerance_deg = -0.01\n", "8: certificate.tolerance_deg: -0.01 is out of range"),
+        ("[survey]\npoints = 1\n", "8: survey.points: 1 is out of range: it takes a whole number from 2 to"),
+        ("[survey]\nruns = 1\n", "8: survey.runs: 1 is out of range: it takes a whole number from 2 to"),
         ("[certificate]\nreceived = \"2026-02-30\"\n", "8: certificate.received: \"2026-02-30\" is not a date"),
         ("[certificate]\nreceived = \"1 May 2026\"\n", "8: certificate.received: \"1 May 2026\" is not a date"),
         ("[certificate]\ncountry = \"de\"\n", "8: certificate.country: \"de\" is not an ISO 3166-1"),
@@ -124,7 +126,7 @@ fn a_wrong_value_is_named_as_written_with_what_its_key_takes_in_words() {
     for (text, want) in [
         (
             format!("[survey]\npoints = 4.5\n{TRACKER_BENCH}"),
-            "c.toml:2: survey.points: 4.5 is not a whole number: it takes a whole number from 0 to 4294967295",
+            "c.toml:2: survey.points: 4.5 is not a whole number: it takes a whole number from 2 to 4294967295",
         ),
         (
             format!("{modbus}timeouts = 5\n{tracker}"),
