@@ -71,33 +71,9 @@ pub fn axes<'a, 'b>(
     x_desc: &str,
     y_desc: &str,
 ) -> anyhow::Result<Chart<'a, 'b>> {
-    let (xd, yd) = (tick_decimals(x.end - x.start), tick_decimals(y.end - y.start));
-    let mut chart = ChartBuilder::on(area)
-        .margin_top(14)
-        .margin_right(24)
-        .margin_left(8)
-        .x_label_area_size(58)
-        .y_label_area_size(96)
-        .build_cartesian_2d(x, y)
-        .map_err(plot_err)?;
-    let x_fmt = move |v: &f64| format!("{v:.xd$}");
-    let y_fmt = move |v: &f64| format!("{v:.yd$}");
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .label_style(("sans-serif", TICK_FONT).into_font().color(&INK))
-        .axis_desc_style(("sans-serif", DESC_FONT).into_font().color(&INK))
-        .light_line_style(WHITE)
-        .bold_line_style(RGBColor(212, 212, 212))
-        .axis_style(INK)
-        .x_labels(10)
-        .y_labels(8)
-        .x_label_formatter(&x_fmt)
-        .y_label_formatter(&y_fmt)
-        .draw()
-        .map_err(plot_err)?;
-    Ok(chart)
+    let xd = tick_decimals(x.end - x.start);
+    let x_ticks = XTicks { labels: 10, margin_right: 24, format: &move |v: &f64| format!("{v:.xd$}") };
+    framed(area, x, y, x_desc, y_desc, x_ticks)
 }
 
 /// Axes over a time `x` (seconds since 1970, UTC) and `y`: the x ticks are
@@ -122,11 +98,32 @@ pub fn time_axes<'a, 'b>(
         let text = humantime::format_rfc3339_seconds(at).to_string();
         text.get(from..to).unwrap_or(&text).replace('T', " ")
     };
+    // Fewer, wider labels, and room on the right for the last one.
+    framed(area, x, y, x_desc, y_desc, XTicks { labels: 5, margin_right: 48, format: &x_fmt })
+}
+
+/// How the x axis is labelled.
+struct XTicks<'f> {
+    labels: usize,
+    margin_right: u32,
+    format: &'f dyn Fn(&f64) -> String,
+}
+
+/// The chart every plot shares: margins, fonts, the light grid, and y ticks
+/// with as many decimals as their spacing needs.
+fn framed<'a, 'b>(
+    area: &'a Area<'b>,
+    x: Range<f64>,
+    y: Range<f64>,
+    x_desc: &str,
+    y_desc: &str,
+    x_ticks: XTicks<'_>,
+) -> anyhow::Result<Chart<'a, 'b>> {
     let yd = tick_decimals(y.end - y.start);
     let y_fmt = move |v: &f64| format!("{v:.yd$}");
     let mut chart = ChartBuilder::on(area)
         .margin_top(14)
-        .margin_right(48)
+        .margin_right(x_ticks.margin_right)
         .margin_left(8)
         .x_label_area_size(58)
         .y_label_area_size(96)
@@ -141,9 +138,9 @@ pub fn time_axes<'a, 'b>(
         .light_line_style(WHITE)
         .bold_line_style(RGBColor(212, 212, 212))
         .axis_style(INK)
-        .x_labels(5)
+        .x_labels(x_ticks.labels)
         .y_labels(8)
-        .x_label_formatter(&x_fmt)
+        .x_label_formatter(x_ticks.format)
         .y_label_formatter(&y_fmt)
         .draw()
         .map_err(plot_err)?;
