@@ -305,6 +305,8 @@ fn resolved_recipe(recipe: &Recipe, left: &Left, resolutions: &[Resolution]) -> 
         };
         let bin = r.observed_cycles;
         match r.kind {
+            // Never in doubt: a possible line is what check points left.
+            LeftKind::Possible => {}
             LeftKind::MaybeAlias if f == bin => stays.push(bin),
             LeftKind::MaybeAlias => {
                 out.lines.keep.retain(|k| *k != bin);

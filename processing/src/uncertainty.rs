@@ -151,7 +151,8 @@ pub use crate::coverage::{K, coverage_interval, coverage_probability};
 /// variance, degrees squared): each kept line fitted to each run's series
 /// (the table made from that run alone), its phasor's trend over the runs
 /// (least squares, complex), when its noise would make it one time in
-/// twenty at most (`|b|^2 > 6 se^2`), less what its noise makes of a trend
+/// twenty at most (`|b|^2 / (2 se^2)` beyond the 95th percentile of
+/// `F(2, 2 (R - 2))`, the noise estimated from the same runs), less what its noise makes of a trend
 /// (`2 se^2` for the two components), and the table (their mean) taken as wrong by
 /// that trend over half the survey at either end: `|b|^2 ((R - 1) / 2)^2 / 2`
 /// a line. A drift that moves the whole error map (a ramp or a step of the
@@ -190,10 +191,17 @@ fn drift_from_runs(a: &crate::analysis::Analysis, kept: &[f64]) -> Option<f64> {
         let rss: f64 = x.iter().zip(&c).map(|(x, v)| (v.0 - m0 - b0 * x).powi(2) + (v.1 - m1 - b1 * x).powi(2)).sum();
         // Each component's residual variance over r - 2 degrees of freedom.
         let se2 = rss / (2.0 * (r as f64 - 2.0)) / sxx;
-        // A trend its noise makes one time in twenty (chi-square of two
-        // degrees of freedom beyond 6) is counted, less what noise makes.
+        // A trend its noise makes one time in twenty is counted, less what
+        // noise makes. The noise is estimated from the same few runs, so the
+        // test is F(2, nu), nu = 2 (r - 2), not a chi-square: its 95th
+        // percentile `x = nu/2 (0.05^(-2/nu) - 1)` is 19 at three runs (a
+        // chi-square's 3, i.e. `b^2 > 6 se^2`, alarmed one time in four
+        // there and put a drift into U where there was none), 6.9 at four,
+        // 5.1 at five, and tends to 3 with many.
+        let nu = 2.0 * (r as f64 - 2.0);
+        let x = nu / 2.0 * (0.05f64.powf(-2.0 / nu) - 1.0);
         let b2 = b0 * b0 + b1 * b1;
-        let excess = if b2 > 6.0 * se2 { b2 - 2.0 * se2 } else { 0.0 };
+        let excess = if b2 > 2.0 * x * se2 { b2 - 2.0 * se2 } else { 0.0 };
         var += excess * ((r - 1) as f64 / 2.0).powi(2) / 2.0;
     }
     Some(var)
@@ -298,7 +306,15 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         })
         .map(|l| l.amplitude_deg)
         .collect();
-    let unseen: Vec<f64> = std::iter::once(threshold).chain(doubtful).collect();
+    // A line the survey could have missed: below the threshold, or sharing a
+    // bin the check points decided beyond what they exclude (a possible
+    // line). At most one line is missed: the largest of them, one sinusoid
+    // (the possible lines were each a sinusoid of their own, added together:
+    // three decided bins of a 360-point survey of an unknown design made `U`
+    // ten times the truth's p95).
+    let possible = processed.left.lines.iter().filter(|l| l.kind == LeftKind::Possible);
+    let missed = possible.clone().map(|l| l.amplitude_deg).fold(threshold, f64::max);
+    let unseen: Vec<f64> = std::iter::once(missed).chain(doubtful).collect();
     let normal_u = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
         "GUM (JCGM 100) budget, ISO/TR 230-9 sources: independent standard uncertainties combined in quadrature, \
@@ -312,7 +328,11 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     // targets is bounded as a whole line ([`Left::nyquist_bounded`]).
     let nyquist_measured = processed.measured_left_deg.is_some()
         && processed.resolutions.iter().any(|r| 2.0 * r.observed_cycles == processed.left.points as f64);
-    let left = if nyquist_measured { processed.left.clone() } else { processed.left.nyquist_bounded() };
+    let measured_left = Left {
+        lines: processed.left.lines.iter().filter(|l| l.kind != LeftKind::Possible).cloned().collect(),
+        ..processed.left.clone()
+    };
+    let left = if nyquist_measured { measured_left } else { measured_left.nyquist_bounded() };
     let method = if !nyquist_measured && (0..left.lines.len()).any(|i| left.on_nyquist(i)) {
         format!(
             "{method}; a line on the Nyquist bin that no check point measured between the targets is taken whole as \
@@ -323,7 +343,14 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     } else {
         method
     };
-    let u = with_left(&left, &unseen, normal_u, budget, method);
+    let method = match possible.map(|l| l.amplitude_deg).fold(0.0, f64::max) {
+        p if p > threshold => format!(
+            "{method}; the line the survey could have missed is the largest that check points could not exclude \
+             sharing a bin they decided, {p:.2e} deg, above the detection threshold (at most one line missed)"
+        ),
+        _ => method,
+    };
+    let u = with_left(&left, threshold, &unseen, normal_u, budget, method);
     match processed.measured_left_deg {
         Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
         _ => u,
@@ -375,12 +402,20 @@ fn unseen_lines(amplitudes: &[f64], count: usize) -> Vec<f64> {
 }
 
 /// The budget with what the table leaves (the lines the survey saw and
-/// `unseen`, a line up to the detection threshold it could not see), and
+/// `unseen`: first the line it could have missed, at least the detection
+/// threshold `threshold`, then kept lines that may be false alarms), and
 /// its coverage interval from the distribution (see the module
 /// documentation): `U` solves the coverage of `|left + unseen line +
 /// normal|`; the budget's entries for what is left and for the unseen line
 /// are the effective standard uncertainties that expand with `k` to it.
-fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contribution>, method: String) -> Uncertainty {
+fn with_left(
+    left: &Left,
+    threshold: f64,
+    unseen: &[f64],
+    normal_u: f64,
+    mut budget: Vec<Contribution>,
+    method: String,
+) -> Uncertainty {
     let p = coverage_probability();
     let readouts = Left::readouts();
     let normal_u = if left.is_empty() {
@@ -388,8 +423,7 @@ fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contrib
     } else {
         budget.push(Contribution {
             source: "the lines left, through the readout (their products with the error, second order)".into(),
-            // A standard uncertainty is a size: never a signed zero ("-0.00e0 deg").
-            u_deg: left.second_order_deg.abs(),
+            u_deg: left.second_order_deg,
         });
         normal_u.hypot(left.second_order_deg)
     };
@@ -412,7 +446,7 @@ fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contrib
     // coverage interval of the distribution: U / k less the normal part.
     let effective_seen = ((seen_u_deg / K).powi(2) - normal_u.powi(2)).max(0.0).sqrt();
     let effective_unseen = ((table_u_deg / K).powi(2) - (seen_u_deg / K).powi(2).max(normal_u.powi(2))).max(0.0).sqrt();
-    let (threshold, doubtful) = (unseen[0], &unseen[1..]);
+    let (missed, doubtful) = (unseen[0], &unseen[1..]);
     let false_alarms = match doubtful.len() {
         0 => String::new(),
         n => format!(", and {n} kept line(s) of no design part under twice it (possible false alarms, whole)"),
@@ -425,8 +459,8 @@ fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contrib
     });
     let mut method = format!(
         "{method}; a line below the detection threshold T = {threshold:.2e} deg is left whole by the table: a \
-         sinusoid of amplitude T at a phase independent of the readout, its values (arcsine-distributed) added to \
-         the rest{}, and U the coverage interval of the sum for {:.2} % (what k = {K} gives a normal distribution) \
+         sinusoid of amplitude {missed:.2e} deg (T, or a larger line the survey could have missed) at a phase \
+         independent of the readout, its values (arcsine-distributed) added to the rest{}, and U the coverage interval of the sum for {:.2} % (what k = {K} gives a normal distribution) \
          computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms); its budget entry is \
          the effective standard uncertainty that expands with k = {K} to that interval",
         if doubtful.is_empty() {
@@ -448,6 +482,7 @@ fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contrib
             .map(|(l, f)| match l.kind {
                 LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
                 LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
+                LeftKind::Possible => format!("bin {} possibly shared (at {f} cycles/rev)", l.observed_cycles),
             })
             .collect();
         budget.push(Contribution {
@@ -464,6 +499,11 @@ fn with_left(left: &Left, unseen: &[f64], normal_u: f64, mut budget: Vec<Contrib
             rms,
             normal_u.hypot(rms),
         );
+    }
+    // A standard uncertainty is a size: never a signed zero (an empty sum is
+    // -0.0 in Rust, and `sqrt(-0.0)` printed "-0.00e0 deg").
+    for c in &mut budget {
+        c.u_deg = c.u_deg.abs();
     }
     Uncertainty { k: K, table_u_deg, combined_u_deg: table_u_deg / K, budget, method }
 }

@@ -57,6 +57,13 @@ pub enum LeftKind {
     NotCarried,
     /// The table holds it at its bin, which may be the alias of its true frequency.
     MaybeAlias,
+    /// A line that may be there and was not excluded, up to its size: a
+    /// second line sharing a bin the check points decided, at another of its
+    /// candidates (the table would miss it wholly). A line the survey could
+    /// have missed, like one below the detection threshold: the uncertainty
+    /// counts at most one missed line, the largest of these and the
+    /// threshold's.
+    Possible,
 }
 
 /// One line the table leaves, wholly or possibly.
@@ -299,7 +306,7 @@ impl Left {
                 let line = |cycles: f64, phase: f64| l.amplitude_deg * (cycles * r + phase).to_radians().sin();
                 let phase_f = unalias_phase_deg(l.phase_deg, alias(f, nf), nf, self.start_deg);
                 match l.kind {
-                    LeftKind::NotCarried => line(f, phase_f),
+                    LeftKind::NotCarried | LeftKind::Possible => line(f, phase_f),
                     LeftKind::MaybeAlias if f == l.observed_cycles => 0.0,
                     LeftKind::MaybeAlias => line(f, phase_f) - line(l.observed_cycles, l.phase_deg),
                 }

@@ -427,7 +427,7 @@ impl Left {
                 amplitude_deg: r.rest_deg,
                 phase_deg: l.phase_deg,
                 noise_sd_deg: 0.0,
-                kind: LeftKind::NotCarried,
+                kind: LeftKind::Possible,
                 candidates: others,
                 why: format!(
                     "bin {}: decided {f} cycles/rev; the check points cannot exclude a line of up to {:.2e} deg at {} \
@@ -491,6 +491,7 @@ fn describe(l: &LeftLine) -> String {
     let what = match l.kind {
         LeftKind::NotCarried => "not carried",
         LeftKind::MaybeAlias => "kept where it is seen",
+        LeftKind::Possible => "possible, not excluded",
     };
     format!("the line at bin {} ({} cycles/rev, {what})", l.observed_cycles, c.join(" or "))
 }
