@@ -339,7 +339,7 @@ pub fn slow_bench(bench: &Bench, scale: f64) -> Child {
 #[test]
 fn a_survey_acquired_in_another_process_is_seen_moving_on_the_live_paths() {
     let bench = Bench::new();
-    let mut sim = slow_bench(&bench, 10.0);
+    let mut sim = slow_bench(&bench, 40.0);
     let run = bench
         .command(&["run", "--config", "run.toml", "--asset", "bay-1/az", "--json"])
         .stdout(Stdio::piped())
