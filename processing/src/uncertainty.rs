@@ -451,12 +451,13 @@ fn with_left(
         0 => String::new(),
         n => format!(", and {n} kept line(s) of no design part under twice it (possible false alarms, whole)"),
     };
-    budget.push(Contribution {
-        source: format!(
-            "a line below the detection threshold (a sinusoid up to the threshold, from its distribution){false_alarms}"
-        ),
-        u_deg: effective_unseen,
-    });
+    let missed_line = if missed > threshold {
+        "a line the survey could have missed (the largest the check points could not exclude beside a line they \
+         decided, above the detection threshold; one line, from its distribution)"
+    } else {
+        "a line below the detection threshold (a sinusoid up to the threshold, from its distribution)"
+    };
+    budget.push(Contribution { source: format!("{missed_line}{false_alarms}"), u_deg: effective_unseen });
     let mut method = format!(
         "{method}; a line below the detection threshold T = {threshold:.2e} deg is left whole by the table: a \
          sinusoid of amplitude {missed:.2e} deg (T, or a larger line the survey could have missed) at a phase \

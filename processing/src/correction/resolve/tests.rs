@@ -130,6 +130,15 @@ fn check_points_decide_the_unknown_designs_aliases_and_the_table_corrects_them()
     assert!(rms <= unresolved_rms / 20.0, "{rms:e} against unresolved {unresolved_rms:e}");
     // And the prediction and U now say so.
     assert!(resolved.prediction.corrected_peak_deg < resolved.prediction.native_peak_deg / 2.0);
+    // The possible lines are lines the survey could have missed, like one
+    // below the threshold: U counts one missed line, the largest of them and
+    // the threshold's. Here they are under the threshold and add nothing.
+    let u = crate::uncertainty::uncertainty(&resolved, &sparse, &Default::default());
+    assert!(resolved.left.lines.iter().all(|l| l.amplitude_deg < resolved.analysis.noise.coherent_threshold_deg));
+    let mut without = resolved;
+    without.left.lines.retain(|l| l.kind != LeftKind::Possible);
+    let u_without = crate::uncertainty::uncertainty(&without, &sparse, &Default::default());
+    assert_eq!(u.table_u_deg, u_without.table_u_deg, "{}", u.text());
 }
 
 #[test]
@@ -189,4 +198,32 @@ fn a_second_orientation_says_what_twice_the_faces_resolve() {
     let t = second_orientation(&l).unwrap();
     assert!(t.contains("would not separate the line at bin 16"), "{t}");
     assert_eq!(second_orientation(&left(24, &[])), None);
+}
+
+#[test]
+fn of_the_lines_check_points_cannot_exclude_u_counts_one_the_largest() {
+    // 360 points of the same positioner: every line of a design that names no
+    // part is in doubt (N / 2 < 720), the check points decide each where it
+    // is seen, and what they cannot exclude beside each (three possible
+    // lines) is above the survey's threshold.
+    let m = Model::parse(FIG8_NO_DESIGN, "fig8-no-design").unwrap();
+    let design = Design::default();
+    let targets: Vec<f64> = (0..360).map(|j| j as f64).collect();
+    let mut rng = Gauss(36);
+    let samples = survey(&m, &targets, 2, &mut rng);
+    let first = process(&samples, &design, None).unwrap();
+    let checks = survey(&m, &plan_checks(&first.left, &targets), 2, &mut rng);
+    let resolved = process_with_checks(&samples, &design, None, None, &checks).unwrap();
+    let t = resolved.analysis.noise.coherent_threshold_deg;
+    let sizes: Vec<f64> =
+        resolved.left.lines.iter().filter(|l| l.kind == LeftKind::Possible).map(|l| l.amplitude_deg).collect();
+    let largest = sizes.iter().copied().fold(0.0, f64::max);
+    assert!(sizes.len() >= 2 && largest > t, "possible lines {sizes:?} against T {t}");
+    let u = crate::uncertainty::uncertainty(&resolved, &samples, &Default::default());
+    // At least the largest (its coverage interval is about its size) ...
+    assert!(u.table_u_deg >= 0.95 * largest, "U {} against {sizes:?}", u.table_u_deg);
+    // ... but not every one at once (U was their sum and more: 8.3e-4 deg
+    // against three of 3.4e-4).
+    assert!(u.table_u_deg < 0.6 * sizes.iter().sum::<f64>(), "U {} against {sizes:?}", u.table_u_deg);
+    assert!(u.budget.iter().any(|c| c.source.starts_with("a line the survey could have missed")), "{}", u.text());
 }
