@@ -207,6 +207,7 @@ fn run(case: &Case, seed: u64) -> Outcome {
     let p95 = quantile(e.iter().map(|x| x.abs()).collect(), 0.95);
     // A standard uncertainty is a size ("-0.00e0 deg" was printed).
     assert!(u.budget.iter().all(|c| c.u_deg.is_sign_positive()), "{}: {:?}", case.what, u.budget);
+    assert!(processed.left.second_order_deg.is_sign_positive(), "{}: {:?}", case.what, processed.left);
     // SURVEY_MECHANISM_BUDGET=1: every survey's budget beside its truth.
     if std::env::var_os("SURVEY_MECHANISM_BUDGET").is_some() {
         eprintln!(

@@ -314,12 +314,18 @@ fn a_rehearsal_on_a_scaled_sim_reports_instrument_time_on_the_instruments_clock(
     assert!(!text.stdout.contains("below the bound"), "{text}");
     // run has no --design: its note names the commands that have one.
     assert!(text.stderr.contains("no design was given") && text.stderr.contains("`survey process --design"), "{text}");
-    let doc = b.survey(&["--db", "b.db", "run", "--config", "scaled.toml", "--json"]).success().json();
+    let out = b.survey(&["--db", "b.db", "run", "--config", "scaled.toml", "--json"]).success();
+    // A size is never a signed zero (its `left` wrote `"second_order_deg":-0.0`).
+    assert!(!out.stdout.contains(":-0.0,") && !out.stdout.contains(":-0.0}"), "{out}");
+    let doc = out.json();
     let num = |k: &str| doc[k].as_f64().unwrap_or_else(|| panic!("{k} in {doc}"));
     assert_eq!(num("time_scale"), SCALE);
     assert!(num("instrument_time_s") >= num("bound_s"), "{doc}");
     let real = num("real_time_s");
-    assert!((num("instrument_time_s") / SCALE - real).abs() < 0.1 * real, "{doc}");
+    // The instruments' clock runs at SCALE x real time: within a tenth of the
+    // run's real time (under a second), and 0.1 s of scheduling on a loaded
+    // machine (eight test threads on two cores put it 0.087 s apart, 11 %).
+    assert!((num("instrument_time_s") / SCALE - real).abs() < 0.1 * real + 0.1, "{doc}");
     let components: f64 =
         doc["time_budget"]["components"].as_array().unwrap().iter().map(|c| c["time_s"].as_f64().unwrap()).sum();
     assert!((components - num("instrument_time_s")).abs() < 1e-6 * components, "{doc}");

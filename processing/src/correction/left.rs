@@ -372,7 +372,9 @@ fn second_order(lines: &[LeftLine], analysis: &Analysis) -> f64 {
             let s2 = (l.amplitude_deg * f * rad).powi(2) / 2.0;
             s2 * e2 + l.amplitude_deg.powi(2) / 2.0 * d2
         })
-        .sum::<f64>()
+        // From +0.0: an empty `sum` is -0.0, and a standard deviation is a
+        // size (`process --json` wrote `"second_order_deg": -0.0`).
+        .fold(0.0, |a, b| a + b)
         .sqrt()
 }
 
