@@ -33,7 +33,8 @@
 //! each (default 20, from seed `SURVEY_MECHANISM_FIRST`, default 101: the
 //! fixes were made on seeds 1 to 16) and prints the figures of
 //! `docs/validation/uncertainty.md`; `SURVEY_MECHANISM=word` keeps the
-//! mechanisms whose name holds it.
+//! mechanisms whose name holds it; `SURVEY_MECHANISM_BUDGET=1` prints every
+//! survey's budget beside its truth.
 
 use crate::analysis::testutil::Normal;
 use crate::correction::resolve::plan_checks;

@@ -152,10 +152,10 @@ pub use crate::coverage::{K, coverage_interval, coverage_probability};
 /// (the table made from that run alone), its phasor's trend over the runs
 /// (least squares, complex), when its noise would make it one time in
 /// twenty at most (`|b|^2 / (2 se^2)` beyond the 95th percentile of
-/// `F(2, 2 (R - 2))`, the noise estimated from the same runs), less what its noise makes of a trend
-/// (`2 se^2` for the two components), and the table (their mean) taken as wrong by
-/// that trend over half the survey at either end: `|b|^2 ((R - 1) / 2)^2 / 2`
-/// a line. A drift that moves the whole error map (a ramp or a step of the
+/// `F(2, 2 (R - 2))`, the noise estimated from the same runs), less what its
+/// noise makes of a trend (`2 se^2` for the two components), and the table
+/// (their mean) taken as wrong by that trend over half the survey at either
+/// end: `|b|^2 ((R - 1) / 2)^2 / 2` a line. A drift that moves the whole error map (a ramp or a step of the
 /// zero, the same in every run) changes no line of the runs' tables and
 /// leaves nothing (the table's zero is its reference's choice); one that
 /// changes the lines from run to run is counted by how much it changes them.
@@ -313,7 +313,7 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     // three decided bins of a 360-point survey of an unknown design made `U`
     // ten times the truth's p95).
     let possible = processed.left.lines.iter().filter(|l| l.kind == LeftKind::Possible);
-    let missed = possible.clone().map(|l| l.amplitude_deg).fold(threshold, f64::max);
+    let missed = possible.map(|l| l.amplitude_deg).fold(threshold, f64::max);
     let unseen: Vec<f64> = std::iter::once(missed).chain(doubtful).collect();
     let normal_u = budget.iter().map(|c| c.u_deg * c.u_deg).sum::<f64>().sqrt();
     let method = format!(
@@ -342,13 +342,6 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
         )
     } else {
         method
-    };
-    let method = match possible.map(|l| l.amplitude_deg).fold(0.0, f64::max) {
-        p if p > threshold => format!(
-            "{method}; the line the survey could have missed is the largest that check points could not exclude \
-             sharing a bin they decided, {p:.2e} deg, above the detection threshold (at most one line missed)"
-        ),
-        _ => method,
     };
     let u = with_left(&left, threshold, &unseen, normal_u, budget, method);
     match processed.measured_left_deg {
@@ -451,18 +444,22 @@ fn with_left(
         0 => String::new(),
         n => format!(", and {n} kept line(s) of no design part under twice it (possible false alarms, whole)"),
     };
-    let missed_line = if missed > threshold {
-        "a line the survey could have missed (the largest the check points could not exclude beside a line they \
-         decided, above the detection threshold; one line, from its distribution)"
+    let (missed_line, amplitude) = if missed > threshold {
+        (
+            "a line the survey could have missed (the largest the check points could not exclude beside a line they \
+             decided, above the detection threshold; one line, from its distribution)",
+            "the largest line check points could not exclude sharing a bin they decided, above T: at most one line \
+             is missed",
+        )
     } else {
-        "a line below the detection threshold (a sinusoid up to the threshold, from its distribution)"
+        ("a line below the detection threshold (a sinusoid up to the threshold, from its distribution)", "T")
     };
     budget.push(Contribution { source: format!("{missed_line}{false_alarms}"), u_deg: effective_unseen });
     let mut method = format!(
         "{method}; a line below the detection threshold T = {threshold:.2e} deg is left whole by the table: a \
-         sinusoid of amplitude {missed:.2e} deg (T, or a larger line the survey could have missed) at a phase \
-         independent of the readout, its values (arcsine-distributed) added to the rest{}, and U the coverage interval of the sum for {:.2} % (what k = {K} gives a normal distribution) \
-         computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms); its budget entry is \
+         sinusoid of amplitude {missed:.2e} deg ({amplitude}) at a phase independent of the readout, its values \
+         (arcsine-distributed) added to the rest{}, and U the coverage interval of the sum for {:.2} % (what k = \
+         {K} gives a normal distribution) computed from that distribution (GUM Supplement 1, propagated exactly, not by its rms); its budget entry is \
          the effective standard uncertainty that expands with k = {K} to that interval",
         if doubtful.is_empty() {
             String::new()
