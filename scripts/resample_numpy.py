@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Time scipy.signal.resample of 1800 points to 131072 on this machine.
 
-The reference for the Rust figure of `cargo bench -p survey-processing --bench
+The reference for the Rust figure of `cargo bench -p survey-tables --bench
 pipeline` ("spectral resampling 1800 -> 131072"): the same band-limited
 (FFT zero-padding) resampling, the same sizes, a signal like the paper's
 Figure 8 positioner (20:1 gear pass, its 2nd harmonic, eccentricity).

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 use survey_processing::model::{Model, ModelError};
-use survey_processing::recipe::{Recipe, RecipeError};
+use survey_tables::recipe::{Recipe, RecipeError};
 
 /// Read and validate a model file.
 pub fn read_model(path: &Path) -> Result<Model, ModelError> {

@@ -14,8 +14,8 @@ use survey_bench::{PlanOverrides, configured_estimate, configured_plan};
 use survey_lab::csvio::{MAX_ABS_ANGLE_DEG, parse_survey_csv};
 use survey_plan::ScanMode;
 use survey_processing::model::Model;
-use survey_processing::recipe::Recipe;
 use survey_store::config::SurveyConfig;
+use survey_tables::recipe::Recipe;
 
 const CONFIGS: [&str; 5] = [
     include_str!("../../examples/config/canopen-emscon.toml"),
@@ -209,7 +209,7 @@ proptest! {
                 }
                 // What imports can be processed, or refused, without a panic.
                 let _ = survey_processing::iso230::iso230_2(&samples);
-                let _ = survey_processing::pipeline::process(&samples, &Default::default(), None);
+                let _ = survey_tables::pipeline::process(&samples, &Default::default(), None);
             }
             Err(e) => prop_assert!(e.to_string().starts_with("in.csv"), "{e}"),
         }

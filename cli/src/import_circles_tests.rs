@@ -2,9 +2,12 @@
 //! circle, checked on every crate of the workspace.
 //!
 //! The definition is `../shared/tools/cycles.py`'s, reimplemented: a file
-//! uses another when it names a `crate::`, `super::` or `self::` path that
-//! resolves to the other's module (the longest prefix of the path that is a
-//! module of the crate). Test code is left out as the tool leaves it out:
+//! uses another when it names a `crate::`, `super::` or `self::` path, or a
+//! path through a child it declares with `mod child;`, that resolves to the
+//! other's module (the longest prefix of the path that is a module of the
+//! crate). Circles are counted between sibling modules, each with its
+//! descendants: `a::x` using `b` and `b::y` using `a` is a circle of `a` and
+//! `b`; a module and its own children are not. Test code is left out as the tool leaves it out:
 //! files under a `tests` or `benches` folder, files named `*tests`,
 //! `tests_*` or `testutil`, and `#[cfg(test)] mod name { ... }` blocks.
 //! Comments, string and character literals are removed first by the
@@ -220,6 +223,30 @@ fn word_path(text: &[char], i: usize) -> Option<usize> {
     Some(end)
 }
 
+/// What follows `prefix::` at `rest`: a path's end and its one head, or a
+/// braced list's end and every path inside it up to its first `}`.
+fn path_rest(text: &[char], rest: usize) -> Option<(usize, Vec<String>)> {
+    if let Some(end) = word_path(text, rest) {
+        return Some((end, vec![text[rest..end].iter().collect()]));
+    }
+    if text.get(rest) != Some(&'{') {
+        return None;
+    }
+    let end = (rest..text.len()).find(|&k| text[k] == '}')? + 1;
+    let mut heads = Vec::new();
+    let mut k = rest;
+    while k < end {
+        match word_path(&text[..end], k) {
+            Some(e) => {
+                heads.push(text[k..e].iter().collect());
+                k = e;
+            }
+            None => k += 1,
+        }
+    }
+    Some((end, heads))
+}
+
 /// The `crate::`, `super::` and `self::` paths of `text`: `(kind, heads)`,
 /// a braced list giving every path inside it up to its first `}`.
 fn named_paths(text: &[char]) -> Vec<(String, Vec<String>)> {
@@ -235,31 +262,70 @@ fn named_paths(text: &[char]) -> Vec<(String, Vec<String>)> {
             i += 1;
             continue;
         };
-        let rest = i + kind.len() + 2;
-        let braced = (text.get(rest) == Some(&'{'))
-            .then(|| (rest..text.len()).find(|&k| text[k] == '}').map(|close| close + 1))
-            .flatten();
-        let (end, heads) = if let Some(end) = word_path(text, rest) {
-            (end, vec![text[rest..end].iter().collect()])
-        } else if let Some(end) = braced {
-            let mut heads = Vec::new();
-            let mut k = rest;
-            while k < end {
-                match word_path(&text[..end], k) {
-                    Some(e) => {
-                        heads.push(text[k..e].iter().collect());
-                        k = e;
-                    }
-                    None => k += 1,
-                }
-            }
-            (end, heads)
-        } else {
+        let Some((end, heads)) = path_rest(text, i + kind.len() + 2) else {
             i += 1;
             continue;
         };
         found.push((kind.to_string(), heads));
         i = end;
+    }
+    found
+}
+
+/// The children `text` declares with `mod child;` (a file of their own).
+fn declared_children(text: &[char]) -> BTreeSet<String> {
+    let mut kids = BTreeSet::new();
+    let mut i = 0;
+    while i + 3 < text.len() {
+        let boundary = i == 0 || !is_word(text[i - 1]);
+        if !(boundary && text[i..i + 3] == ['m', 'o', 'd'] && text[i + 3].is_whitespace()) {
+            i += 1;
+            continue;
+        }
+        let mut j = i + 3;
+        while j < text.len() && text[j].is_whitespace() {
+            j += 1;
+        }
+        let name = j;
+        while j < text.len() && is_word(text[j]) {
+            j += 1;
+        }
+        let word: String = text[name..j].iter().collect();
+        while j < text.len() && text[j].is_whitespace() {
+            j += 1;
+        }
+        if j > name && text.get(j) == Some(&';') {
+            kids.insert(word);
+        }
+        i = j.max(i + 1);
+    }
+    kids
+}
+
+/// The paths through a declared child (`use child::x`, 2018 paths relative
+/// to this module): `(child, heads)` for a word not after a word or a `:`.
+fn child_paths(text: &[char], kids: &BTreeSet<String>) -> Vec<(String, Vec<String>)> {
+    let mut found = Vec::new();
+    let mut i = 0;
+    while i < text.len() {
+        let starts = is_word(text[i]) && (i == 0 || !(is_word(text[i - 1]) || text[i - 1] == ':'));
+        if !starts {
+            i += 1;
+            continue;
+        }
+        let mut j = i;
+        while j < text.len() && is_word(text[j]) {
+            j += 1;
+        }
+        let word: String = text[i..j].iter().collect();
+        let colons = text.get(j..j + 2) == Some(&[':', ':'][..]);
+        match (colons && kids.contains(&word)).then(|| path_rest(text, j + 2)).flatten() {
+            Some((end, heads)) => {
+                found.push((word, heads));
+                i = end;
+            }
+            None => i = j,
+        }
     }
     found
 }
@@ -275,30 +341,57 @@ fn resolve(mut path: Module, mods: &BTreeMap<Module, PathBuf>) -> Option<Module>
     None
 }
 
-/// Which modules each module uses.
+/// Which modules each module uses: its `crate::`, `super::` and `self::`
+/// paths, and its paths through a child it declares.
 fn edges(mods: &BTreeMap<Module, PathBuf>) -> BTreeMap<Module, BTreeSet<Module>> {
     let mut g = BTreeMap::new();
     for (m, path) in mods {
         let text: Vec<char> = std::fs::read_to_string(path).expect("readable").chars().collect();
         let code = code_only(&strip_test_modules(&text));
         let mut used = BTreeSet::new();
+        let mut add = |base: &Module, head: &str| {
+            let mut full = base.clone();
+            full.extend(head.split("::").map(String::from));
+            if let Some(t) = resolve(full, mods).filter(|t| t != m) {
+                used.insert(t);
+            }
+        };
         for (kind, heads) in named_paths(&code) {
             let base: Module = match kind.as_str() {
                 "crate" => Vec::new(),
                 "super" => m[..m.len().saturating_sub(1)].to_vec(),
                 _ => m.clone(),
             };
-            for h in heads {
-                let mut full = base.clone();
-                full.extend(h.split("::").map(String::from));
-                if let Some(t) = resolve(full, mods).filter(|t| t != m) {
-                    used.insert(t);
-                }
-            }
+            heads.iter().for_each(|h| add(&base, h));
+        }
+        for (child, heads) in child_paths(&code, &declared_children(&code)) {
+            let mut base = m.clone();
+            base.push(child);
+            heads.iter().for_each(|h| add(&base, h));
         }
         g.insert(m.clone(), used);
     }
     g
+}
+
+/// The graph between sibling modules: an edge `a -> b` is lifted to the two
+/// children of their common parent that hold them (a module with its
+/// descendants is one node there); an edge between a module and its own
+/// descendant (a facade re-exporting a child, a child using its parent's
+/// types) is no edge.
+fn lifted(g: &BTreeMap<Module, BTreeSet<Module>>) -> BTreeMap<Module, BTreeSet<Module>> {
+    let mut h: BTreeMap<Module, BTreeSet<Module>> = BTreeMap::new();
+    for (a, bs) in g {
+        for b in bs {
+            let k = a.iter().zip(b).take_while(|(x, y)| x == y).count();
+            if k == a.len() || k == b.len() {
+                continue;
+            }
+            h.entry(a[..=k].to_vec()).or_default().insert(b[..=k].to_vec());
+            h.entry(b[..=k].to_vec()).or_default();
+        }
+    }
+    h
 }
 
 /// The strongly connected components of more than one module (Tarjan).
@@ -362,16 +455,18 @@ fn circles(g: &BTreeMap<Module, BTreeSet<Module>>) -> Vec<Vec<Module>> {
     t.out
 }
 
-/// Every circle of the crate whose sources are `src`, each as its files'
-/// paths from the workspace root, sorted.
+/// Every circle between sibling modules of the crate whose sources are
+/// `src`, each as the paths from the workspace root of its modules' files
+/// and their descendants', sorted.
 fn circles_of(root: &Path, src: &Path) -> Vec<Vec<String>> {
     let mods = modules(src);
-    let mut out: Vec<Vec<String>> = circles(&edges(&mods))
+    let mut out: Vec<Vec<String>> = circles(&lifted(&edges(&mods)))
         .into_iter()
         .map(|c| {
-            let mut files: Vec<String> = c
+            let mut files: Vec<String> = mods
                 .iter()
-                .map(|m| mods[m].strip_prefix(root).expect("in the workspace").to_string_lossy().into_owned())
+                .filter(|(m, _)| c.iter().any(|node| m.starts_with(node)))
+                .map(|(_, p)| p.strip_prefix(root).expect("in the workspace").to_string_lossy().into_owned())
                 .collect();
             files.sort();
             files
@@ -438,4 +533,105 @@ fn the_rules_read_paths_as_the_tool_does() {
     let found = circles(&g);
     assert_eq!(found.len(), 1);
     assert_eq!(found[0].iter().collect::<BTreeSet<_>>(), [m("a"), m("b")].iter().collect());
+    // Between siblings: a child of `a` naming `b` and a child of `b` naming
+    // `a` is a circle of `a` and `b`; a parent and its child are none.
+    let g: BTreeMap<Module, BTreeSet<Module>> = [
+        (m("a/x"), [m("b")].into()),
+        (m("b/y"), [m("a/z")].into()),
+        (m("c"), [m("c/k")].into()),
+        (m("c/k"), [m("c")].into()),
+    ]
+    .into();
+    let found = circles(&lifted(&g));
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert_eq!(found[0].iter().collect::<BTreeSet<_>>(), [m("a"), m("b")].iter().collect());
+    // Paths through a declared child, and only a declared one.
+    let code =
+        code_only(&chars("mod kid;\npub mod open { }\nuse kid::{x, y::z};\nuse other::w;\nlet v = a::kid::no;\n"));
+    let kids = declared_children(&code);
+    assert_eq!(kids, ["kid".to_string()].into());
+    let through = child_paths(&code, &kids);
+    assert_eq!(through, [("kid".to_string(), vec!["x".to_string(), "y::z".to_string()])]);
+}
+
+/// A small crate on disk with the circle the tool found in `processing`
+/// (a child of one module naming a sibling that names the module back) is
+/// found, with its modules' files; the same crate without the back edge is not.
+#[test]
+fn a_circle_through_a_child_is_found_on_disk() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let src = dir.path().join("src");
+    std::fs::create_dir_all(src.join("recipe")).expect("folders");
+    let write = |p: &str, t: &str| std::fs::write(src.join(p), t).expect("written");
+    write("lib.rs", "pub mod correction;\npub mod recipe;\n");
+    write("correction.rs", "mod left;\npub use left::Left;\n");
+    std::fs::create_dir_all(src.join("correction")).expect("folders");
+    write("correction/left.rs", "use crate::recipe::Decisions;\npub struct Left;\n");
+    write("recipe.rs", "mod build;\npub struct Decisions;\n");
+    write("recipe/build.rs", "use crate::correction::Left;\n");
+    let found = circles_of(dir.path(), &src);
+    assert_eq!(
+        found,
+        [vec!["src/correction.rs", "src/correction/left.rs", "src/recipe.rs", "src/recipe/build.rs"]]
+            .map(|v| v.into_iter().map(String::from).collect::<Vec<_>>())
+    );
+    write("recipe/build.rs", "pub struct Build;\n");
+    assert!(circles_of(dir.path(), &src).is_empty());
+}
+
+/// The graph of a crate's top-level modules as ARCHITECTURE.md draws it: a
+/// header `DIR/src (N modules)`, then one line a module, `  name -> the
+/// modules it uses` (`(none)` for a leaf).
+fn module_graph_text(root: &Path, dir: &str) -> String {
+    let mods = modules(&root.join(dir).join("src"));
+    let mut top: BTreeMap<String, BTreeSet<String>> =
+        mods.keys().filter_map(|m| m.first()).map(|t| (t.clone(), BTreeSet::new())).collect();
+    for (a, bs) in edges(&mods) {
+        for b in bs {
+            if let (Some(x), Some(y)) = (a.first(), b.first())
+                && x != y
+            {
+                top.entry(x.clone()).or_default().insert(y.clone());
+            }
+        }
+    }
+    let width = top.keys().map(String::len).max().unwrap_or(0);
+    let mut out = format!("{dir}/src ({} modules)\n", top.len());
+    for (m, uses) in &top {
+        let uses =
+            if uses.is_empty() { "(none)".to_string() } else { uses.iter().cloned().collect::<Vec<_>>().join(", ") };
+        out.push_str(&format!("  {m:width$} -> {uses}\n"));
+    }
+    out
+}
+
+/// ARCHITECTURE.md shows the module graph of every crate with more than
+/// five top-level modules, as the code has it now.
+#[test]
+fn architecture_shows_each_large_crates_module_graph() {
+    let root = root();
+    let doc = std::fs::read_to_string(root.join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let mut dirs: Vec<String> = std::fs::read_dir(&root)
+        .expect("the workspace root")
+        .map(|e| e.expect("an entry").path())
+        .filter(|p| p.join("Cargo.toml").is_file() && p.join("src").is_dir() && p != &root)
+        .map(|p| p.file_name().expect("a name").to_string_lossy().into_owned())
+        .collect();
+    dirs.sort();
+    let mut shown = 0;
+    let mut missing = String::new();
+    for dir in &dirs {
+        let count = modules(&root.join(dir).join("src")).keys().filter(|m| m.len() == 1).count();
+        if count <= 5 {
+            continue;
+        }
+        let want = module_graph_text(&root, dir);
+        if !doc.contains(&want) {
+            missing.push_str(&want);
+            missing.push('\n');
+        }
+        shown += 1;
+    }
+    assert!(missing.is_empty(), "ARCHITECTURE.md does not show these module graphs as the code has them:\n\n{missing}");
+    assert!(shown >= 8, "only {shown} crates have more than five modules: the crates moved?");
 }

@@ -14,12 +14,12 @@ use std::borrow::Cow;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use survey_bench::output::{iso_figures_json, iso_text};
+use survey_controllers::export::Controller;
+use survey_controllers::generic::{Sign, Values};
+use survey_controllers::layout::Directions;
 use survey_lab::load::{Axis, load_read_only};
-use survey_lab::process::overrides::ExportOverrides;
+use survey_lab::overrides::ExportOverrides;
 use survey_lab::process::{ProcessOptions, default_table_path, process_survey};
-use survey_processing::export::controllers::Controller;
-use survey_processing::export::generic::{Sign, Values};
-use survey_processing::export::layout::Directions;
 
 #[derive(Debug, Args)]
 pub struct ProcessArgs {

@@ -9,17 +9,17 @@
 //! [`exit_status`] and nowhere else.
 
 use crate::csvio::CsvError;
-use crate::process::overrides::FlagError;
+use crate::overrides::FlagError;
 use survey_modelgap::ModelGapError;
 use survey_plan::PlanError;
 use survey_processing::iso230::StatsError;
 use survey_processing::model::ModelError;
-use survey_processing::pipeline::PipelineError;
-use survey_processing::recipe::{ChoiceError, RecipeError};
 use survey_store::NotFound;
 use survey_store::config::ConfigError;
 pub use survey_store::error::{BadInput, PathError, bad_input, path_error};
 use survey_store::survey::Damaged;
+use survey_tables::pipeline::PipelineError;
+use survey_tables::recipe::{ChoiceError, RecipeError};
 
 /// Whether the user's input caused `err`: some cause in its chain is an input
 /// error ([`BadInput`], a usage error the command line found after parsing

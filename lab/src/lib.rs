@@ -20,6 +20,7 @@ pub mod environment;
 pub mod error;
 pub mod life;
 pub mod load;
+pub mod overrides;
 pub mod process;
 pub mod refit;
 pub mod resolving;

@@ -13,9 +13,9 @@ use survey_modelgap::ReferenceInfo;
 use survey_plan::drift::DriftPoint;
 use survey_processing::Sample;
 use survey_processing::geometry::Refit;
-use survey_processing::uncertainty::UncertaintyInputs;
 use survey_store::Store;
 use survey_store::survey::{SurveyRecord, SurveyRef};
+use survey_tables::uncertainty::UncertaintyInputs;
 
 /// Around which axis a tracker survey's actual angles are taken, and what a
 /// command learns of it. Every command that states a survey's figures uses

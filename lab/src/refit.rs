@@ -25,9 +25,9 @@ use survey_acquire::ReferenceKind;
 use survey_modelgap::ReferenceInfo;
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit, refit_axis, refit_axis_with_angles};
-use survey_processing::uncertainty::UncertaintyInputs;
 use survey_store::Store;
 use survey_store::survey::{Setup, SurveyRecord};
+use survey_tables::uncertainty::UncertaintyInputs;
 
 /// The refit and what it changed, for the output.
 #[derive(Debug, Clone, serde::Serialize)]

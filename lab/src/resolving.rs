@@ -1,9 +1,9 @@
 //! The survey resolves its own doubts, unattended: when the processing of a
 //! tracker survey leaves a line in doubt (two design harmonics at its bin,
 //! or an unknown design's line that may be an alias:
-//! [`survey_processing::correction::left`]), `survey run` measures check
+//! [`survey_tables::left`]), `survey run` measures check
 //! points between the targets where the candidates differ most
-//! ([`survey_processing::correction::resolve::plan_checks`]), within the same
+//! ([`survey_tables::resolve::plan_checks`]), within the same
 //! run, and processes the survey again with them: a line decided is
 //! relocated and corrected, the rest stays in `U`.
 //!
@@ -18,7 +18,7 @@
 //! ([`survey_store::Store::check_points`]). An autocollimator measures only at its polygon's faces:
 //! there the processing says what a second orientation of the polygon would
 //! resolve
-//! ([`survey_processing::correction::resolve::second_orientation`]) instead.
+//! ([`survey_tables::resolve::second_orientation`]) instead.
 
 use crate::process::ProcessOutcome;
 use survey_acquire::{Engine, ReferenceKind};
@@ -26,10 +26,10 @@ use survey_bench::output::Output;
 use survey_bench::session::{AcquireOptions, acquire};
 use survey_plan::SurveyPlan;
 use survey_processing::Sample;
-use survey_processing::correction::left::Left;
-use survey_processing::correction::resolve::plan_checks;
 use survey_store::Store;
 use survey_store::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus};
+use survey_tables::left::Left;
+use survey_tables::resolve::plan_checks;
 
 /// Runs of the check points (enough for their own noise).
 const RUNS: u32 = 2;

@@ -15,7 +15,7 @@
 //! autocollimator the only angles measured are the polygon's faces: the
 //! verification stays at the faces and says so.
 //!
-//! It ends with a verdict ([`survey_processing::verification::judge`]): the
+//! It ends with a verdict ([`survey_tables::verification::judge`]): the
 //! prediction is confirmed, or not (the measured corrected peak exceeds the
 //! prediction by more than the table's `U`, or is not better than native).
 
@@ -30,14 +30,12 @@ use survey_plan::SurveyPlan;
 use survey_processing::Sample;
 use survey_processing::analysis::{AnalysisOptions, design_candidates};
 use survey_processing::iso230::iso230_2;
-use survey_processing::pipeline::Processed;
-use survey_processing::recipe::LineAction;
 use survey_processing::table::CorrectionTable;
-use survey_processing::verification::{
-    Claim, Judged, Verdict, aliases, judge, offset_deg, peak_deg, systematic_peak_deg,
-};
 use survey_store::Store;
 use survey_store::survey::{NewSurvey, Setup, SurveyRecord, SurveySource, SurveyStatus, VerificationOf};
+use survey_tables::pipeline::Processed;
+use survey_tables::recipe::LineAction;
+use survey_tables::verification::{Claim, Judged, Verdict, aliases, judge, offset_deg, peak_deg, systematic_peak_deg};
 
 /// Where a verification measures, decided before the calibration survey
 /// starts (a bad `--verify-points` is refused before hours of measuring).
@@ -102,7 +100,7 @@ impl VerifyPlan {
     /// count (`2 k N +- t`, a whole turn of phase there: issue 37's 43 cycles/rev
     /// line at 20 targets), so a second set of targets at a quarter of its
     /// own step is joined, the fewest that see every plausible line
-    /// ([`survey_processing::verification::aliases`]). Targets asked for, a
+    /// ([`survey_tables::verification::aliases`]). Targets asked for, a
     /// polygon's faces, a partial range and a continuous scan are kept as
     /// they are (the verdict says what they could not see).
     pub fn seeing(self, calibration: &SurveyPlan, survey: &SurveyRecord, processed: &ProcessOutcome) -> VerifyPlan {
@@ -277,7 +275,7 @@ pub async fn verify(
     store.set_status(id, SurveyStatus::Complete, None).await?;
     let corrected = store.samples(id).await?;
     // The prediction for this verification: its own count of samples.
-    let predicted = survey_processing::verification::predicted_for(&processed.processed.prediction, corrected.len());
+    let predicted = survey_tables::verification::predicted_for(&processed.processed.prediction, corrected.len());
     let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
     let u = processed.uncertainty.table_u_deg;
     let blind = blind(&calibration.targets_deg, &plan.targets_deg, plausible_max(native), &processed.processed);

@@ -203,7 +203,7 @@ pub fn iso230_2_figures_grouped(samples: &[Sample], groups: &TargetGroups) -> Re
 /// [`iso230_2_figures_grouped`] and [`iso230_2_a_with_actual`] of
 /// `actual` together, from one walk of the groups (each as the function
 /// gives it alone, to the bit; either fails alone where the function does).
-pub(crate) fn iso230_2_figures_and_a_with_actual(
+pub fn iso230_2_figures_and_a_with_actual(
     samples: &[Sample],
     groups: &TargetGroups,
     actual: impl Fn(usize) -> f64,
@@ -272,7 +272,7 @@ fn iso230_2_with_actual(
 /// statistics kept (a hundred bytes a target): the largest `x̄ + 2s` less the
 /// smallest `x̄ - 2s` over every target and direction, as [`axis_figures`]
 /// finds it (a largest and a smallest: the same bits in any order).
-pub(crate) fn iso230_2_a_with_actual(
+pub fn iso230_2_a_with_actual(
     samples: &[Sample],
     groups: &TargetGroups,
     actual: impl Fn(usize) -> f64,

@@ -107,7 +107,7 @@ impl CorrectionTable {
 /// branch on the table size; `as usize` saturates (a negative or NaN position
 /// gives row 0), so no input can index out of range.
 #[inline(always)]
-pub(crate) fn row_position(readout_deg: f64, rows: usize, rows_f: f64, scale: f64, inv_rows: f64) -> (usize, f64) {
+pub fn row_position(readout_deg: f64, rows: usize, rows_f: f64, scale: f64, inv_rows: f64) -> (usize, f64) {
     let p = readout_deg * scale;
     let p = p - rows_f * (p * inv_rows).floor();
     // Rounding can give p == rows: clamped to the last row, fraction 1.

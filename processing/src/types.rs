@@ -79,7 +79,8 @@ impl Sample {
 
 /// `deg.rem_euclid(360.0)`, without its division for an angle in `[0,
 /// 360)` already (which it returns unchanged): the per-sample paths call it.
-pub(crate) fn rem_euclid_360(deg: f64) -> f64 {
+#[inline]
+pub fn rem_euclid_360(deg: f64) -> f64 {
     if (0.0..360.0).contains(&deg) { deg } else { deg.rem_euclid(360.0) }
 }
 

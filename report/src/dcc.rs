@@ -438,7 +438,7 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     }
     if let Some(v) = &p.d.verification {
         let errors: Vec<f64> = v.corrected(&p.d.samples).iter().map(|s| s.error_deg()).collect();
-        let peak = survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg;
+        let peak = survey_tables::correction::ErrorFigures::of(&errors, None).peak_deg;
         let (value, uv) = rounded(peak, u);
         let name = format!("corrected peak error, measured by verification survey {}", v.verification_id);
         x.angle("survey_correctedPeakMeasured", &name, &value, uv.as_deref())?;

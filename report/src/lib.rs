@@ -39,9 +39,9 @@ use survey_lab::load::{Axis, Loaded, load};
 use survey_lab::process::ProcessOptions;
 use survey_modelgap::{ModelGap, ModelGapOptions};
 use survey_processing::Sample;
-use survey_processing::pipeline::{PipelineError, Processed};
 use survey_store::Store;
 use survey_store::survey::{SurveyRecord, SurveyRef, SurveySource};
+use survey_tables::pipeline::{PipelineError, Processed};
 pub use units::Units;
 
 /// What the report is asked for, besides the survey.
@@ -166,7 +166,7 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
     // The reference's uncertainty the certificate states (`--reference-uncertainty` over the stored one).
     inputs.reference_u_deg = opts.flags.reference_uncertainty_deg.or(inputs.reference_u_deg);
     let uncertainty = processed.as_ref().ok().map(|p| {
-        let u = survey_processing::uncertainty::uncertainty(p, &analysed, &inputs);
+        let u = survey_tables::uncertainty::uncertainty(p, &analysed, &inputs);
         uncertainty::UncertaintyBudget {
             k: u.k,
             table_u_deg: u.table_u_deg,

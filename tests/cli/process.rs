@@ -4,8 +4,8 @@
 
 use super::{Bench, CONTRACT_MODEL};
 use serde_json::Value;
-use survey_processing::corrector;
-use survey_processing::recipe::Recipe;
+use survey_controllers::corrector;
+use survey_tables::recipe::Recipe;
 
 /// `survey run` of the Figure 4 positioner, 360 points x 3 bidirectional runs; its id.
 fn fig4_survey(bench: &Bench, seed: &str) -> i64 {

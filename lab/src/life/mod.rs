@@ -29,11 +29,11 @@ use survey_modelgap::compare::{
 use survey_processing::Sample;
 use survey_processing::iso230::{Iso230, iso230_2};
 use survey_processing::model::Design;
-use survey_processing::pipeline::{Processed, process_with_checks};
-use survey_processing::recipe::LineAction;
 use survey_processing::table::CorrectionTable;
 use survey_store::Store;
 use survey_store::survey::{SurveyRecord, SurveyRef, SurveySource};
+use survey_tables::pipeline::{Processed, process_with_checks};
+use survey_tables::recipe::LineAction;
 
 /// The false-alarm rate every comparison is made at.
 pub const FALSE_ALARM_RATE: f64 = 0.01;
@@ -144,7 +144,7 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
     let processed = process_with_checks(&samples, &design, None, None, &loaded.checks).map_err(|e| e.to_string());
     let inputs = loaded.uncertainty_inputs();
     let table_u_deg =
-        processed.as_ref().ok().map(|p| survey_processing::uncertainty::uncertainty(p, &samples, &inputs).table_u_deg);
+        processed.as_ref().ok().map(|p| survey_tables::uncertainty::uncertainty(p, &samples, &inputs).table_u_deg);
     let axis_se_deg = match loaded.reference_info() {
         ReferenceInfo::Tracker { axis_se_deg, .. } => axis_se_deg,
         _ => 0.0,

@@ -6,13 +6,13 @@
 //! survey was simulated with; else an empty design, said on stderr), and the
 //! processing recipe (`--recipe FILE` replays one; else a new one is derived
 //! from this survey's analysis, [`Recipe::from_analysis`]). Then, all pure
-//! ([`survey_processing::pipeline`]): the spectral analysis, the recipe's decisions, the table,
+//! ([`survey_tables::pipeline`]): the spectral analysis, the recipe's decisions, the table,
 //! the predicted accuracy (native and corrected peak, ISO 230-2 `A`, the
 //! repeatability floor), the paper's Figure 6 interpolation comparison. Last,
 //! the files ([`outputs`]): the table CSV (`--table-out`, default
 //! `table-<id>.csv` in the survey's folder, [`default_table_path`]), and beside it, named from its stem, the controller
 //! files the recipe's `[export]` asks for (with the command line's choices
-//! laid over it, [`overrides`]): LinuxCNC `<stem>.comp0` and `<stem>.comp1`,
+//! laid over it, [`crate::overrides`]): LinuxCNC `<stem>.comp0` and `<stem>.comp1`,
 //! Siemens 840D `<stem>.840d.ini`, Fanuc `<stem>.fanuc.txt`, the generic
 //! `<stem>.generic.csv`; the binary table `<stem>.bin` and the recipe used,
 //! `<stem>.recipe.toml`.
@@ -25,17 +25,16 @@
 //! and prints [`ProcessOutcome::text`] or embeds [`ProcessOutcome::json`].
 
 pub mod outputs;
-pub mod overrides;
 mod summary;
 
 use anyhow::Context as _;
 use std::path::{Path, PathBuf};
 use survey_processing::Sample;
 use survey_processing::model::Design;
-use survey_processing::pipeline::{PipelineError, Processed, Replay};
-use survey_processing::recipe::Recipe;
-use survey_processing::uncertainty::{Uncertainty, UncertaintyInputs};
 use survey_store::survey::SurveyRecord;
+use survey_tables::pipeline::{PipelineError, Processed, Replay};
+use survey_tables::recipe::Recipe;
+use survey_tables::uncertainty::{Uncertainty, UncertaintyInputs};
 
 /// The database `survey` uses when `--db` is not given.
 pub const DEFAULT_DB: &str = "survey.db";
@@ -72,7 +71,7 @@ pub struct ProcessOptions {
     /// [`default_table_path`]); a folder the user named must exist.
     pub make_folder: bool,
     /// Export choices laid over the recipe's `[export]` (the command line's).
-    pub export: overrides::ExportOverrides,
+    pub export: crate::overrides::ExportOverrides,
     /// What the uncertainty budget needs beyond the samples (the reference
     /// instrument's noise, the axis fit's standard error).
     pub uncertainty: UncertaintyInputs,
@@ -173,7 +172,7 @@ pub fn process_survey(
     }
     let paths = outputs::OutputPaths::beside(&table_out, &processed.recipe.export);
     outputs::write_all(&paths, &processed, id, opts.crash_when_staged)?;
-    let uncertainty = survey_processing::uncertainty::uncertainty(&processed, samples, &opts.uncertainty);
+    let uncertainty = survey_tables::uncertainty::uncertainty(&processed, samples, &opts.uncertainty);
     Ok(ProcessOutcome { survey_id: id, processed, design, recipe_from: opts.recipe, files: paths, uncertainty })
 }
 
@@ -215,16 +214,15 @@ pub fn compute(
         Some(opts.export.resolve(&base)?)
     };
     let processed =
-        match survey_processing::pipeline::process_with_checks(samples, &design, replay, export.as_ref(), &opts.checks)
-        {
-            Err(PipelineError::Export(e)) => return Err(overrides::choice_error(&e)),
+        match survey_tables::pipeline::process_with_checks(samples, &design, replay, export.as_ref(), &opts.checks) {
+            Err(PipelineError::Export(e)) => return Err(crate::overrides::choice_error(&e)),
             other => other.with_context(|| format!("survey {id} cannot be processed"))?,
         };
     let mut processed = processed;
     // An autocollimator's faces fix the sampling: say what a second
     // orientation of the polygon would resolve.
     if survey.reference() == Some(survey_acquire::ReferenceKind::Autocollimator)
-        && let Some(t) = survey_processing::correction::resolve::second_orientation(&processed.left)
+        && let Some(t) = survey_tables::resolve::second_orientation(&processed.left)
     {
         processed.notes.push(t);
     }

@@ -7,10 +7,10 @@
 //! - `<stem>.840d.ini`: Siemens 840D measuring-system error compensation.
 //! - `<stem>.fanuc.txt`: Fanuc pitch-error compensation values and parameters.
 //! - `<stem>.generic.csv`: the generic table (when asked for).
-//! - `<stem>.bin`: the binary table of `survey_processing::corrector`.
+//! - `<stem>.bin`: the binary table of `survey_controllers::corrector`.
 //! - `<stem>.recipe.toml`: the recipe used; `--recipe` replays it.
 //!
-//! The bytes of every format come from `survey_processing::export` (pure);
+//! The bytes of every format come from `survey_controllers` (pure);
 //! this module only names the files and puts them on disk.
 //!
 //! `<stem>` is the CSV path without its `.csv` extension. Everything is
@@ -21,10 +21,10 @@
 
 use crate::error::{bad_input, path_error};
 use std::path::{Path, PathBuf};
-use survey_processing::corrector;
-use survey_processing::export::table_csv;
-use survey_processing::pipeline::Processed;
-use survey_processing::recipe::ExportChoices;
+use survey_controllers::corrector;
+use survey_controllers::table_csv;
+use survey_tables::pipeline::Processed;
+use survey_tables::recipe::ExportChoices;
 
 /// The paths of every file written.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

@@ -22,8 +22,8 @@ use super::ProcessOutcome;
 use serde_json::{Value, json};
 use std::fmt::Write as _;
 use survey_bench::output::Units;
-use survey_processing::export::controllers::{Controller, ControllerExport};
-use survey_processing::recipe::LineAction;
+use survey_controllers::export::{Controller, ControllerExport};
+use survey_tables::recipe::LineAction;
 
 /// The controller files written (none when the table went to a device or a pipe).
 fn written(o: &ProcessOutcome) -> impl Iterator<Item = (&ControllerExport, Vec<String>)> {

@@ -10,8 +10,8 @@ use crate::plot::{self, BLUE, GREEN, HEIGHT, INK, ORANGE, SKY, WIDTH, axes, exte
 use crate::units::{Units, angle};
 use plotters::prelude::*;
 use survey_processing::errormap::Coverage;
-use survey_processing::pipeline::Processed;
 use survey_processing::resample::{Method, Resampler, upsample};
+use survey_tables::pipeline::Processed;
 
 /// Points drawn between two kept samples.
 const FACTOR: usize = 16;

@@ -41,8 +41,8 @@ use crate::units::Units;
 use crate::{ReportData, ReportOptions};
 use survey_processing::errormap::ErrorMap;
 use survey_processing::iso230::{Iso230, iso230_2};
-use survey_processing::pipeline::Processed;
 use survey_store::survey::SurveySource;
+use survey_tables::pipeline::Processed;
 
 /// What every section reads.
 #[derive(Debug)]

@@ -10,8 +10,8 @@ use crate::units::{Units, percent};
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use survey_processing::analysis::{Line, Method};
-use survey_processing::pipeline::Processed;
-use survey_processing::recipe::{AliasOutcome, LineAction};
+use survey_tables::pipeline::Processed;
+use survey_tables::recipe::{AliasOutcome, LineAction};
 
 /// Canvas height: the top part is the lane the labels stand in.
 const HEIGHT: u32 = 600;

@@ -57,7 +57,7 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
         d.verification.as_ref().and_then(|v| iso230_2(v.corrected(&d.samples)).ok().map(|iso| (v, iso.a)));
     if let Some(v) = &d.verification {
         let errors: Vec<f64> = v.corrected(&d.samples).iter().map(Sample::error_deg).collect();
-        let peak = survey_processing::correction::ErrorFigures::of(&errors, None).peak_deg;
+        let peak = survey_tables::correction::ErrorFigures::of(&errors, None).peak_deg;
         rows.push(row(
             format!("corrected peak error ±, measured (survey {})", v.verification_id),
             peak,

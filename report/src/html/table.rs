@@ -10,7 +10,7 @@ use crate::units::{Units, angle};
 use plotters::prelude::*;
 use survey_processing::Direction;
 use survey_processing::errormap::Coverage;
-use survey_processing::pipeline::Processed;
+use survey_tables::pipeline::Processed;
 
 /// At most this many points of a column are drawn (the page width holds fewer).
 const MAX_DRAWN: usize = 4000;

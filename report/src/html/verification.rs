@@ -150,13 +150,13 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
 /// made, stated with `u_deg`; `own` are the report's samples), in plain
 /// words, and a table predicted to make the axis no better.
 pub fn verdict_rows(
-    p: &survey_processing::pipeline::Processed,
+    p: &survey_tables::pipeline::Processed,
     u_deg: Option<f64>,
     v: Option<&Verification>,
     (survey_id, own): (i64, &[Sample]),
     units: Units,
 ) -> Vec<Vec<String>> {
-    use survey_processing::verification::{Claim, Verdict, judge, peak_deg};
+    use survey_tables::verification::{Claim, Verdict, judge, peak_deg};
     let mut rows = Vec::new();
     if p.prediction.no_better_than_native() {
         rows.push(vec![
@@ -176,7 +176,7 @@ pub fn verdict_rows(
         let target = |s: &[Sample]| s.iter().map(|x| x.target_deg).collect::<Vec<f64>>();
         let blind =
             survey_lab::verify::blind(&target(v.native(own)), &target(v.corrected(own)), v.plausible_max_cycles, p);
-        let predicted = survey_processing::verification::predicted_for(&p.prediction, v.corrected(own).len());
+        let predicted = survey_tables::verification::predicted_for(&p.prediction, v.corrected(own).len());
         let claim = Claim {
             predicted_deg: predicted,
             u_deg: u,
