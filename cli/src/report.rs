@@ -143,6 +143,9 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             item_condition: args.item_condition,
             received: args.received,
             country: args.country,
+            // The tracker's MPE is the survey's (its U at every command), not the report's to change.
+            reference_mpe_um: None,
+            reference_mpe_um_per_m: None,
         },
         design: args.design,
         recipe: args.recipe,

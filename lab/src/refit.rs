@@ -25,6 +25,7 @@ use survey_acquire::ReferenceKind;
 use survey_modelgap::ReferenceInfo;
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit, refit_axis, refit_axis_with_angles};
+use survey_processing::tracker_errors::TransverseMpe;
 use survey_store::Store;
 use survey_store::survey::{Setup, SurveyRecord};
 use survey_tables::uncertainty::UncertaintyInputs;
@@ -233,7 +234,46 @@ pub fn uncertainty_inputs(
         (None, Some(l)) => Some(l.over_arc_se_deg),
         (None, None) => None,
     };
-    UncertaintyInputs { reference_u_deg: stated_reference_u_deg(survey), axis_u_deg }
+    UncertaintyInputs {
+        reference_u_deg: stated_reference_u_deg(survey),
+        reference_systematic_u_deg: reference_systematic_u_deg(survey),
+        axis_u_deg,
+    }
+}
+
+/// The tracker reference's transverse MPE: the configuration's
+/// `[certificate] reference_mpe_um` and `reference_mpe_um_per_m`, each
+/// defaulting to the AT-class specification (the simulated tracker's).
+pub fn tracker_mpe(survey: &SurveyRecord) -> TransverseMpe {
+    let stated = match &survey.setup {
+        Setup::Configured(c) => c.config.certificate.as_ref(),
+        _ => None,
+    };
+    let at = TransverseMpe::AT_CLASS;
+    TransverseMpe {
+        constant_um: stated.and_then(|c| c.reference_mpe_um).unwrap_or(at.constant_um),
+        per_m_um: stated.and_then(|c| c.reference_mpe_um_per_m).unwrap_or(at.per_m_um),
+    }
+}
+
+/// The reference's systematic standard uncertainty at an angle of the
+/// table, degrees: a tracker's from its MPE through the survey's geometry
+/// (the located axis in the tracker's frame, over the plan's targets:
+/// [`TransverseMpe::systematic_angle_u_deg`]); `None` without a located
+/// axis (an autocollimator, an import).
+pub fn reference_systematic_u_deg(survey: &SurveyRecord) -> Option<f64> {
+    let axis = survey.axis.as_ref()?;
+    let arc = match survey.setup.plan().map(|p| &p.targets_deg) {
+        Some(t) if !t.is_empty() => {
+            let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let step = if t.len() > 1 { (hi - lo) / (t.len() - 1) as f64 } else { 0.0 };
+            // A full circle's targets stop one step short of 360.
+            if hi - lo + step >= 360.0 - 1e-6 { (0.0, 360.0) } else { (lo, hi) }
+        }
+        _ => (0.0, 360.0),
+    };
+    Some(tracker_mpe(survey).systematic_angle_u_deg(axis, arc))
 }
 
 /// The reference instrument's stated standard uncertainty of one angle, as
@@ -248,9 +288,10 @@ pub fn stated_reference_u_deg(survey: &SurveyRecord) -> Option<f64> {
     }
 }
 
-/// The standard uncertainty of one angle from a simulated reference: the
-/// tracker's per-coordinate noise at the arm's centre distance, across the
-/// arm's radius; the autocollimator's noise per reading (0.1 arcsec).
+/// The standard uncertainty of one angle from a simulated reference (its
+/// random part): the typical tracker's random error per coordinate at the
+/// arm's centre distance, across the arm's radius; the autocollimator's
+/// noise per reading (0.1 arcsec).
 pub fn simulated_reference_u_deg(kind: ReferenceKind) -> f64 {
     match kind {
         ReferenceKind::Tracker => {
@@ -269,10 +310,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_simulated_tracker_states_about_a_thousandth_of_a_degree() {
-        // (15 um + 6 um/m x 2.64 m) / 2 = 15.4 um across 1000 mm: 8.8e-4 deg.
+    fn the_simulated_tracker_states_its_random_part() {
+        // 1.5 urad of each angle at 2.64 m = 3.96 um across 1000 mm: 2.3e-4 deg.
         let u = simulated_reference_u_deg(ReferenceKind::Tracker);
-        assert!((u - 8.84e-4).abs() < 1e-5, "{u}");
+        assert!((u - 2.27e-4).abs() < 1e-6, "{u}");
         assert!((simulated_reference_u_deg(ReferenceKind::Autocollimator) - 0.1 / 3600.0).abs() < 1e-15);
     }
 }

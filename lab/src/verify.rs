@@ -284,6 +284,8 @@ pub async fn verify(
         u_deg: u,
         native_deg: peak_deg(native_samples),
         not_a_result: processed.processed.prediction.no_better_than_native(),
+        // The verification is made with the calibration's own reference.
+        shared_reference_u_deg: processed.uncertainty.reference_systematic_u_deg().map(|u| u * processed.uncertainty.k),
     };
     let judged = judge(&claim, &corrected, &blind);
     out.doc["targets"] = plan.targets_deg.len().into();

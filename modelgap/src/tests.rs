@@ -80,12 +80,13 @@ pub(crate) fn model(gears: &[f64], teeth: &[u32], effects: Vec<Effect>) -> Model
             encoder_heads: None,
         },
         effects,
+        ..Model::default()
     }
 }
 
 /// The model without the effects for which `drop` holds.
 pub(super) fn lacking(m: &Model, drop: impl Fn(&Effect) -> bool) -> Model {
-    Model { design: m.design.clone(), effects: m.effects.iter().filter(|e| !drop(e)).cloned().collect() }
+    Model { design: m.design.clone(), effects: m.effects.iter().filter(|e| !drop(e)).cloned().collect(), ..m.clone() }
 }
 
 /// The contract's JSON keys are there.

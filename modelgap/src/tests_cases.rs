@@ -339,7 +339,8 @@ fn control_nothing_missing_names_nothing() {
 fn the_figure_4_model_from_its_design_alone() {
     let truth = survey_processing::analysis::testutil::fig4();
     let s = simulate(&truth, &circle(720), 3, true, 0.0, 22);
-    let empty = Model { design: truth.design.clone(), effects: vec![Effect::Noise { sigma_deg: 0.0002 }] };
+    let empty =
+        Model { design: truth.design.clone(), effects: vec![Effect::Noise { sigma_deg: 0.0002 }], ..Model::default() };
     let g = model_gap(&s, &empty, &ModelGapOptions::default()).unwrap();
     let mut want: Vec<Effect> = truth
         .effects

@@ -17,6 +17,7 @@ pub mod resample;
 pub mod special;
 pub mod spectrum;
 pub mod table;
+pub mod tracker_errors;
 pub mod types;
 pub mod units;
 pub mod vdi3441;

@@ -9,6 +9,7 @@
 //! elapsed; noise is a normal, non-repeatable error of `sigma_deg`.
 
 use crate::num::Num;
+use crate::tracker_errors::{TrackerErrorSpec, TrackerErrors};
 use crate::types::Direction;
 use std::fmt::Write as _;
 
@@ -146,11 +147,15 @@ impl Effect {
     }
 }
 
-/// A positioner error model: its design and its effects.
+/// A positioner error model: its design and its effects; and, for a
+/// simulated bench, the reference instrument's own error (`[tracker_errors]`).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Model {
     pub design: Design,
     pub effects: Vec<Effect>,
+    /// The simulated tracker's own error ([`crate::tracker_errors`]); the
+    /// processing of a survey never reads it.
+    pub tracker_errors: TrackerErrorSpec,
 }
 
 /// A defect of a model file, naming where it is.
@@ -178,10 +183,10 @@ impl Model {
         })?;
         let locate = Locator { text };
         for key in table.keys() {
-            if key != "design" && key != "effect" {
+            if !["design", "effect", "tracker_errors"].contains(&key.as_str()) {
                 return Err(err(
                     locate.top_key(key),
-                    format!("unknown top-level key '{key}' (expected [design] and [[effect]])"),
+                    format!("unknown top-level key '{key}' (expected [design], [[effect]] and [tracker_errors])"),
                 ));
             }
         }
@@ -205,7 +210,15 @@ impl Model {
                 return Err(err(locate.top_key("effect"), "'effect' must be an array of tables ([[effect]])".into()));
             }
         }
-        Ok(Model { design, effects })
+        let tracker_errors = match table.get("tracker_errors") {
+            None => TrackerErrorSpec::Typical,
+            Some(toml::Value::Table(t)) => {
+                let header = locate.section_header("tracker_errors");
+                TrackerErrors::parse_spec(t, &|key| locate.key_in_table(header, key)).map_err(|(l, m)| err(l, m))?
+            }
+            Some(_) => return Err(err(locate.top_key("tracker_errors"), "'tracker_errors' must be a table".into())),
+        };
+        Ok(Model { design, effects, tracker_errors })
     }
 
     /// The model as a model file (TOML), which [`Model::parse`] reads back.
@@ -238,6 +251,14 @@ impl Model {
                 Effect::Noise { sigma_deg } => {
                     let _ = writeln!(s, "sigma_deg = {}", fmt_num(*sigma_deg));
                 }
+            }
+        }
+        match &self.tracker_errors {
+            TrackerErrorSpec::Typical => {}
+            TrackerErrorSpec::None => s.push_str("\n[tracker_errors]\nnone = true\n"),
+            TrackerErrorSpec::Given(e) => {
+                s.push('\n');
+                s.push_str(&e.to_toml());
             }
         }
         s
@@ -395,7 +416,12 @@ impl Locator<'_> {
     }
 
     fn design_header(&self) -> Option<usize> {
-        self.lines().find(|(_, l)| l.starts_with("[design]")).map(|(n, _)| n)
+        self.section_header("design")
+    }
+
+    /// The line of `[name]`.
+    fn section_header(&self, name: &str) -> Option<usize> {
+        self.lines().find(|(_, l)| l.starts_with(&format!("[{name}]"))).map(|(n, _)| n)
     }
 }
 
@@ -730,7 +756,7 @@ sigma_deg = 0.0005
             reverse in proptest::bool::ANY,
             runs_elapsed in 0.0f64..6.0,
         ) {
-            let model = Model { design: Design::default(), effects };
+            let model = Model { design: Design::default(), effects, ..Model::default() };
             let direction = if reverse { Direction::Reverse } else { Direction::Forward };
             let t = DriftTime::elapsed(runs_elapsed);
             let made = model.systematic().at(theta_deg, direction, t);

@@ -82,7 +82,7 @@ impl Certificate {
                 };
                 let (reference, u) = match s.reference {
                     ReferenceKind::Tracker => (
-                        "simulated laser tracker (Leica AT-class noise) on an SMR arm of 1000 mm".to_string(),
+                        "simulated laser tracker (an AT-class tracker's own error, systematic and random) on an SMR arm of 1000 mm".to_string(),
                         survey_lab::refit::simulated_reference_u_deg(ReferenceKind::Tracker),
                     ),
                     ReferenceKind::Autocollimator => (

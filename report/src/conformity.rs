@@ -55,10 +55,17 @@ pub fn decide(figure: f64, u: Option<f64>, tolerance: f64) -> Decision {
 }
 
 /// The expanded uncertainty (k = 2) of a measured ISO 230-2 accuracy A, from
-/// the reference's standard uncertainty of one angle and the axis
-/// location's (a tracker), degrees; `None` when the reference's is not stated.
-pub fn accuracy_u_deg(reference_u_deg: Option<f64>, axis_u_deg: Option<f64>) -> Option<f64> {
-    reference_u_deg.map(|r| K * (r * r + axis_u_deg.unwrap_or(0.0).powi(2)).sqrt())
+/// the reference's standard uncertainty of one angle (random), its
+/// systematic part at an angle (a tracker's own error, the same at a
+/// target in every run) and the axis location's (a tracker), degrees;
+/// `None` when the reference's is not stated.
+pub fn accuracy_u_deg(
+    reference_u_deg: Option<f64>,
+    systematic_u_deg: Option<f64>,
+    axis_u_deg: Option<f64>,
+) -> Option<f64> {
+    let square = |u: Option<f64>| u.unwrap_or(0.0).powi(2);
+    reference_u_deg.map(|r| K * (r * r + square(systematic_u_deg) + square(axis_u_deg)).sqrt())
 }
 
 #[cfg(test)]
@@ -78,8 +85,9 @@ mod tests {
 
     #[test]
     fn the_accuracy_uncertainty_combines_reference_and_axis() {
-        assert_eq!(accuracy_u_deg(None, Some(1e-4)), None);
-        assert!((accuracy_u_deg(Some(3e-4), Some(4e-4)).unwrap() - 1e-3).abs() < 1e-15);
-        assert!((accuracy_u_deg(Some(5e-4), None).unwrap() - 1e-3).abs() < 1e-15);
+        assert_eq!(accuracy_u_deg(None, None, Some(1e-4)), None);
+        assert!((accuracy_u_deg(Some(3e-4), None, Some(4e-4)).unwrap() - 1e-3).abs() < 1e-15);
+        assert!((accuracy_u_deg(Some(5e-4), None, None).unwrap() - 1e-3).abs() < 1e-15);
+        assert!((accuracy_u_deg(Some(2e-4), Some(4e-4), Some(4e-4)).unwrap() - 1.2e-3).abs() < 1e-15);
     }
 }

@@ -304,7 +304,11 @@ fn statements(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
 
 /// The measured figures' expanded uncertainty (k = 2), degrees.
 fn measured_u(p: &Page<'_>) -> Option<f64> {
-    conformity::accuracy_u_deg(p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value), p.d.axis_u_deg)
+    conformity::accuracy_u_deg(
+        p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value),
+        p.d.reference_systematic_u_deg,
+        p.d.axis_u_deg,
+    )
 }
 
 /// The accuracy a tolerance judges, as the summary does: the corrected A measured, else the native A.

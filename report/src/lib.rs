@@ -86,6 +86,9 @@ pub struct ReportData {
     pub uncertainty: Option<uncertainty::UncertaintyBudget>,
     /// The axis location's standard uncertainty (a tracker), degrees: a part of a measured figure's.
     pub axis_u_deg: Option<f64>,
+    /// The reference's systematic standard uncertainty at an angle (a
+    /// tracker's own error, from its MPE), degrees: a part of a measured figure's.
+    pub reference_systematic_u_deg: Option<f64>,
     /// When the report was made (UTC, RFC 3339).
     pub generated: String,
     /// The asset's history up to this survey, when it has one.
@@ -107,7 +110,8 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
     // does not keep the report from being written.
     let history = survey_lab::life::history::history(store, &loaded.survey.asset, Some(loaded.survey.id)).await.ok();
     let (processed, model_gap, uncertainty) = analyse(&loaded, opts)?;
-    let axis_u_deg = loaded.uncertainty_inputs().axis_u_deg;
+    let inputs = loaded.uncertainty_inputs();
+    let (axis_u_deg, reference_systematic_u_deg) = (inputs.axis_u_deg, inputs.reference_systematic_u_deg);
     let environment = survey_lab::environment::Environment::of(store, &loaded.survey).await?;
     let temperature = store.temperature_series(loaded.survey.id).await?;
     let axis = loaded.axis_used();
@@ -122,6 +126,7 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
         drift: drift.iter().map(|p| (p.at_s, p.drift_deg)).collect(),
         uncertainty,
         axis_u_deg,
+        reference_systematic_u_deg,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
         history,
         environment,

@@ -77,8 +77,10 @@ pub struct SimBenchBuilder {
 }
 
 impl SimBenchBuilder {
-    /// Replace the positioner's error model.
+    /// Replace the positioner's error model, and the tracker's own error
+    /// with the model file's `[tracker_errors]` (omitted: the typical one).
     pub fn model(mut self, model: Model) -> Self {
+        self.tracker.errors = model.tracker_errors.clone();
         self.positioner.model = model;
         self
     }
@@ -160,10 +162,12 @@ impl SimBenchBuilder {
     }
 
     /// No noise anywhere: the positioner model loses its noise effects, the
-    /// tracker and the autocollimator read exact values. For exact tests.
+    /// tracker (an ideal one, without its own error) and the autocollimator
+    /// read exact values. For exact tests.
     pub fn without_noise(mut self) -> Self {
         self.positioner.model = without_noise(&self.positioner.model);
         self.tracker.noise_scale = 0.0;
+        self.tracker.errors = survey_processing::tracker_errors::TrackerErrorSpec::None;
         self.autocollimator.noise_arcsec = 0.0;
         self
     }

@@ -91,6 +91,14 @@ pub struct CertificateSection {
     pub reference: Option<String>,
     /// The reference's stated standard uncertainty of one angle, degrees.
     pub reference_uncertainty_deg: Option<f64>,
+    /// A tracker reference's transverse MPE, its constant part, um (default
+    /// the AT-class 15): the bound of its systematic error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_mpe_um: Option<f64>,
+    /// A tracker reference's transverse MPE, its part per metre of
+    /// distance, um/m (default the AT-class 6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_mpe_um_per_m: Option<f64>,
     /// Who measured.
     pub operator: Option<String>,
     /// For whom.

@@ -234,6 +234,7 @@ fn run(case: &Case, seed: u64) -> Outcome {
             u_deg: u.table_u_deg,
             native_deg: peak_deg(&samples),
             not_a_result: processed.prediction.no_better_than_native(),
+            shared_reference_u_deg: u.reference_systematic_u_deg().map(|s| s * u.k),
         };
         let j = judge(&claim, &corrected, &[]);
         // The table's true error on the axis verified.

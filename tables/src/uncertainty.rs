@@ -12,11 +12,18 @@
 //! an error of the table). It is the uncertainty of the table the
 //! processing made, from this survey:
 //!
-//! - **reference instrument**: the reference's random error of one angle
-//!   (`reference_u_deg`, stated by the bench or the configuration) through
-//!   the fit: a table of `p` fitted terms (two per kept line of a full
-//!   circle; the polynomial and the lines of a partial range) from `N`
+//! - **reference instrument, random**: the reference's random error of one
+//!   angle (`reference_u_deg`, stated by the bench or the configuration)
+//!   through the fit: a table of `p` fitted terms (two per kept line of a
+//!   full circle; the polynomial and the lines of a partial range) from `N`
 //!   readings carries `p u^2 / N` of it at an angle, on average.
+//! - **reference instrument, systematic**: the reference's own error that
+//!   repeats at the same place on every reading (a tracker's encoder
+//!   harmonics, offsets and tilts; `reference_systematic_u_deg`, from the
+//!   instrument's specification through the survey's geometry:
+//!   `survey_processing::tracker_errors::TransverseMpe::systematic_angle_u_deg`).
+//!   The survey cannot tell it from the positioner's error: the table
+//!   absorbs it whole, and no number of readings divides it.
 //! - **repeatability over the runs**: what the survey's own scatter from run
 //!   to run puts into the fitted terms (Type A: for a full circle, each kept
 //!   line's quadrature components have the standard deviation the spread of
@@ -100,8 +107,8 @@
 //! the coverage interval of `|d - mean d|` over them
 //! ([`crate::resolve::measured_left_deg`]).
 //!
-//! What is not: the reference's calibration (a scale error of the reference
-//! instrument: it has no stated value here), more than one line missed.
+//! What is not: more than one line missed; a reference whose own error
+//! exceeds what its specification states.
 
 use crate::left::{Left, LeftKind};
 use crate::pipeline::Processed;
@@ -115,6 +122,10 @@ pub struct UncertaintyInputs {
     /// The reference instrument's standard uncertainty of one angle
     /// (random), degrees; `None` when not stated.
     pub reference_u_deg: Option<f64>,
+    /// The reference instrument's systematic standard uncertainty at an
+    /// angle of the table (the same on every reading there), degrees;
+    /// `None` when not stated.
+    pub reference_systematic_u_deg: Option<f64>,
     /// The axis location's once-per-revolution standard error over the
     /// measured arc (a tracker), degrees; `None` without a fitted axis.
     pub axis_u_deg: Option<f64>,
@@ -146,6 +157,17 @@ pub struct Uncertainty {
 }
 
 pub use survey_processing::coverage::{K, coverage_interval, coverage_probability};
+
+/// The budget's entry of the reference's systematic part.
+pub const REFERENCE_SYSTEMATIC: &str = "reference instrument, systematic";
+
+impl Uncertainty {
+    /// The reference's systematic standard uncertainty at an angle, when
+    /// the budget has one: a verification with the same reference shares it.
+    pub fn reference_systematic_u_deg(&self) -> Option<f64> {
+        self.budget.iter().find(|c| c.source == REFERENCE_SYSTEMATIC).map(|c| c.u_deg)
+    }
+}
 
 /// What drift leaves in the table, as the runs' own tables show it (a
 /// variance, degrees squared): each kept line fitted to each run's series
@@ -236,7 +258,10 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     let reference_var = inputs.reference_u_deg.map(|u| p * u * u / readings);
     let mut budget = Vec::new();
     if let Some(v) = reference_var {
-        budget.push(Contribution { source: "reference instrument".into(), u_deg: v.sqrt() });
+        budget.push(Contribution { source: "reference instrument, random".into(), u_deg: v.sqrt() });
+    }
+    if let Some(u) = inputs.reference_systematic_u_deg {
+        budget.push(Contribution { source: REFERENCE_SYSTEMATIC.into(), u_deg: u });
     }
     budget.push(Contribution {
         source: "repeatability over the runs".into(),

@@ -126,6 +126,11 @@ pub struct Claim {
     pub native_deg: f64,
     /// The processing predicted the table no better than native: not a result.
     pub not_a_result: bool,
+    /// The expanded uncertainty (k = 2) of the reference's systematic part,
+    /// degrees, when the verification is made with the same reference as
+    /// the calibration: its own error is in both alike, the table absorbed
+    /// it, and the verification cannot see it.
+    pub shared_reference_u_deg: Option<f64>,
 }
 
 /// The pooled standard deviation of `samples`' errors about the mean of each
@@ -164,7 +169,7 @@ pub fn judge(claim: &Claim, samples: &[Sample], blind: &[aliases::Blind]) -> Jud
 /// [`judge`] from the measured corrected peak and the verification's own
 /// peak spread `spread` (degrees).
 pub fn judge_peak(claim: &Claim, measured: f64, spread: f64, blind: &[aliases::Blind]) -> Judged {
-    let Claim { predicted_deg: predicted, u_deg: u, native_deg: native, not_a_result } = *claim;
+    let Claim { predicted_deg: predicted, u_deg: u, native_deg: native, not_a_result, shared_reference_u_deg } = *claim;
     let allowed = u.hypot(spread);
     let figures = format!(
         "measured corrected peak +/-{measured:.5} deg, predicted +/-{predicted:.5} deg with U = {u:.5} deg and the \
@@ -205,6 +210,13 @@ pub fn judge_peak(claim: &Claim, measured: f64, spread: f64, blind: &[aliases::B
             b.text()
         );
         return Judged { verdict: Verdict::NotConfirmed, reason: format!("{why} ({figures})") };
+    } else if let Some(shared) = shared_reference_u_deg.filter(|s| *s > 0.0) {
+        let why = format!(
+            "the corrected peak is within the prediction plus U, and better than native, as the calibration's \
+             reference measures it: the same reference measured both, so its own systematic error (U = {shared:.5} \
+             deg of the table's) is in both alike and this confirms the table to within it, not past it"
+        );
+        return Judged { verdict: Verdict::Confirmed, reason: format!("{why} ({figures})") };
     } else {
         (Verdict::Confirmed, "the corrected peak is within the prediction plus U, and better than native")
     };
@@ -273,7 +285,7 @@ mod tests {
     }
 
     fn claim(predicted_deg: f64, u_deg: f64, native_deg: f64) -> Claim {
-        Claim { predicted_deg, u_deg, native_deg, not_a_result: false }
+        Claim { predicted_deg, u_deg, native_deg, not_a_result: false, shared_reference_u_deg: None }
     }
 
     fn judge(predicted: f64, u: f64, measured: f64, native: f64, blind: &[aliases::Blind]) -> Judged {

@@ -119,7 +119,11 @@ fn compare_finds_wear_a_disturbed_mounting_and_more_backlash_and_nothing_in_the_
     assert_eq!(doc["false_alarm_rate"].as_f64(), Some(0.01));
     let cycles: Vec<f64> =
         doc["lines"].as_array().unwrap().iter().map(|l| l["cycles_per_rev"].as_f64().unwrap()).collect();
-    assert_eq!(cycles, [1.0, 20.0, 40.0], "the main lines and the mounting's");
+    // The main lines and the mounting's; beyond them, only low orders (the
+    // bench's tracker's own error, which one SMR reads as the positioner's,
+    // lands on the first few cycles/rev).
+    assert_eq!(cycles[..3], [1.0, 20.0, 40.0], "the main lines and the mounting's");
+    assert!(cycles[3..].iter().all(|c| *c <= 4.0), "{cycles:?}");
 
     let line = |doc: &Value, k: f64| -> Value {
         doc["lines"].as_array().unwrap().iter().find(|l| l["cycles_per_rev"].as_f64() == Some(k)).cloned().unwrap()
@@ -378,14 +382,16 @@ fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_thei
         doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["cycles_per_rev"].as_f64().unwrap()).collect();
     assert!(tested.contains(&20.0) && tested.contains(&40.0), "{doc:#}");
 
-    // Worn: caught, never "in tolerance". The table still holds within its U
-    // (the change is 1.5e-3 deg), so it stays in force: "changed, the table
-    // holds", the change named, exit 0.
-    let worn = run(&["--seed", "3", "--model", "worn40.toml"]).success();
+    // Worn: caught, never "in tolerance". The change (1.5e-3 deg) leaves more
+    // than the table's U beside its reference's own error (the same tracker
+    // in both surveys) in more cells than the rate allows: recalibrated, the
+    // change named, exit 3.
+    let worn = run(&["--seed", "3", "--model", "worn40.toml"]);
+    assert_eq!(worn.code, 3, "{worn}");
     let doc = worn.json();
-    assert_eq!(doc["outcome"], "changed, the table holds", "{doc:#}");
+    assert_eq!(doc["outcome"], "recalibrated", "{doc:#}");
     let reason = doc["reason"].as_str().unwrap().to_string();
-    assert!(reason.starts_with("changed, the table holds: the 40 cycles/rev line changed"), "{reason}");
+    assert!(reason.contains("the 40 cycles/rev line changed"), "{reason}");
 
     // Asked for 40 targets: it cannot see 20 (Nyquist) or 40 (the mean) and says so.
     let blind = run(&["--seed", "4", "--points", "40"]);

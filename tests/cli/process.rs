@@ -86,7 +86,13 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
     let sum: f64 = budget.iter().map(|b| num(&b["u_deg"], "u_deg").powi(2)).sum();
     assert!(combined > 0.0 && (sum.sqrt() / combined - 1.0).abs() < 1e-9, "{u}");
     assert!((table_u / (2.0 * combined) - 1.0).abs() < 1e-12, "{u}");
-    for source in ["reference instrument", "repeatability over the runs", "direction model", "drift"] {
+    for source in [
+        "reference instrument, random",
+        "reference instrument, systematic",
+        "repeatability over the runs",
+        "direction model",
+        "drift",
+    ] {
         assert!(budget.iter().any(|b| b["source"] == source), "{source} missing: {u}");
     }
     assert!(budget.iter().any(|b| b["source"] == "table resolution and interpolation"), "{u}");

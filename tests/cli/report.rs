@@ -85,7 +85,13 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     }
     // The table's uncertainty budget (issue 14), with the tracker's axis location in it.
     assert!(html.contains("id=\"tbl-uncertainty\""), "the page should hold the uncertainty budget");
-    for source in ["reference instrument", "axis location", "direction model", "expanded uncertainty U = k u (k = 2)"] {
+    for source in [
+        "reference instrument, random",
+        "reference instrument, systematic",
+        "axis location",
+        "direction model",
+        "expanded uncertainty U = k u (k = 2)",
+    ] {
         assert!(html.contains(source), "the budget should name {source:?}");
     }
     // Nothing without a verification, a model or drift data.
@@ -94,8 +100,8 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     }
     // The title names the positioner and the survey.
     assert!(html.contains("<title>simulated fig8 positioner: calibration survey 1</title>"), "title");
-    // The simulated default's header: the preset, the tracker's noise (8.8e-4 deg).
-    for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.000884 deg", "survey 0.1.0"] {
+    // The simulated default's header: the preset, the tracker's random part (2.3e-4 deg).
+    for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.000227 deg", "survey 0.1.0"] {
         assert!(html.contains(words), "the header should say {words:?}");
     }
     // A certificate: its number (made from the survey when none was assigned), the
@@ -342,15 +348,18 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
     // The stated reference uncertainty enters the table's budget too (as the header states it).
     let budget_u = |dir: &str| {
         let html = bench.read(&format!("{dir}/index.html"));
-        let row =
-            html.split("<td class=\"l\">reference instrument</td><td>").nth(1).expect("the budget's row").to_string();
+        let row = html
+            .split("<td class=\"l\">reference instrument, random</td><td>")
+            .nth(1)
+            .expect("the budget's row")
+            .to_string();
         row.split('<').next().unwrap().parse::<f64>().unwrap()
     };
     bench.survey(&["report", "--survey", "1", "--out", "coarse", "--reference-uncertainty", "0.01"]).success();
     bench.survey(&["report", "--survey", "1", "--out", "none"]).success();
-    // The simulated tracker's 0.000884 deg against 0.01 deg: about 11 times the contribution.
+    // The simulated tracker's random 0.000227 deg against 0.01 deg: about 44 times the contribution.
     let ratio = budget_u("coarse") / budget_u("none");
-    assert!((ratio - 0.01 / 0.000_884).abs() < 0.5, "{ratio}");
+    assert!((ratio - 0.01 / 0.000_227).abs() < 0.5, "{ratio}");
     // Without a tolerance, no verdict.
     assert!(!bench.read("none/index.html").contains("id=\"verdict\""));
 }

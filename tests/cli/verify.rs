@@ -96,7 +96,12 @@ fn the_sparse_unknown_design_survey_resolves_its_doubts_and_the_verification_con
             .collect()
     };
     assert_eq!(doc["resolving"]["check_points"], 144, "36 angles, 2 runs, both ways: {}", doc["resolving"]);
-    assert_eq!(decided(&doc["resolving"]["resolutions"]), [(16.0, Some(20.0)), (4.0, Some(40.0)), (1.0, Some(1.0))]);
+    // The positioner's lines, and beyond them only low orders decided where
+    // they are seen (the bench's tracker's own error, which one SMR reads as
+    // the positioner's, lands on the first few cycles/rev).
+    let resolved = decided(&doc["resolving"]["resolutions"]);
+    assert_eq!(resolved[..3], [(16.0, Some(20.0)), (4.0, Some(40.0)), (1.0, Some(1.0))]);
+    assert!(resolved[3..].iter().all(|(seen, decided)| *seen <= 4.0 && *decided == Some(*seen)), "{resolved:?}");
     let kept = &doc["process"]["table"]["kept_cycles"];
     assert!(kept.as_array().unwrap().iter().any(|c| c == 20.0) && kept.as_array().unwrap().iter().any(|c| c == 40.0));
     let v = &doc["verify"];

@@ -12,7 +12,11 @@
 //! `|true error - table|` within `U` (the contract's definition), and `U` at
 //! most 3 times the 95th percentile of those sizes (not inflated: the
 //! brief's "about 3 times"; a sinusoid left whole has `U / p95` near 1, a
-//! possible alias counted as one near 1.5 when it is one). The predicted
+//! possible alias counted as one near 1.5 when it is one), less the
+//! reference's systematic part: that is its specification's bound (the
+//! tracker's MPE through the survey's geometry), which one SMR cannot
+//! separate from the positioner's error, not the simulated tracker's own
+//! error (the bench's typical tracker is well inside its MPE). The predicted
 //! corrected peak must not be better than the table's true peak error in
 //! its range less the noise the prediction carries (it is made at the
 //! targets, with the noise of one sample; the true error is of the mean).
@@ -156,6 +160,8 @@ pub struct Figures {
     pub coverage: f64,
     pub p95: f64,
     pub widest_u: f64,
+    /// The widest `U` without the reference's systematic part (`sqrt(U^2 - (k u_sys)^2)`).
+    pub widest_u_beside_reference: f64,
     pub narrowest_u: f64,
     /// The smallest predicted corrected peak over the largest true peak of the table (per seed).
     pub prediction_ratio: f64,
@@ -172,6 +178,7 @@ pub fn run_case(case: &Case, seeds: std::ops::RangeInclusive<u64>) -> Figures {
     let (mut within, mut total) = (0usize, 0usize);
     let mut sizes = Vec::new();
     let mut us = Vec::new();
+    let mut beside = 0.0f64;
     let mut prediction_ratio = f64::INFINITY;
     for seed in seeds {
         let db = dir.path().join(format!("s{seed}.db"));
@@ -186,6 +193,13 @@ pub fn run_case(case: &Case, seeds: std::ops::RangeInclusive<u64>) -> Figures {
             let k = p["uncertainty"]["k"].as_f64().unwrap();
             let combined = p["uncertainty"]["combined_u_deg"].as_f64().unwrap();
             assert!((u / (k * combined) - 1.0).abs() < 1e-9, "U = k u: {}", p["uncertainty"]);
+            let systematic = p["uncertainty"]["budget"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|c| c["source"] == "reference instrument, systematic")
+                .map_or(0.0, |c| c["u_deg"].as_f64().unwrap());
+            beside = beside.max((u * u - (k * systematic).powi(2)).max(0.0).sqrt());
             let predicted = p["predicted"]["corrected_peak_deg"].as_f64().unwrap();
             // The table's range: the measured span (a full circle: all of it).
             let (lo, hi) = span(&db);
@@ -212,6 +226,7 @@ pub fn run_case(case: &Case, seeds: std::ops::RangeInclusive<u64>) -> Figures {
         coverage: within as f64 / total as f64,
         p95,
         widest_u: us.iter().fold(0.0f64, |m, u| m.max(*u)),
+        widest_u_beside_reference: beside,
         narrowest_u: us.iter().fold(f64::INFINITY, |m, u| m.min(*u)),
         prediction_ratio,
     }
@@ -231,17 +246,25 @@ fn span(db: &Path) -> (f64, f64) {
 
 fn check(case: &Case, f: &Figures) {
     eprintln!(
-        "{}: coverage {:.2} %, p95 {:.2e} deg, U {:.2e}..{:.2e} deg ({:.2} x p95), predicted / true peak >= {:.2}",
+        "{}: coverage {:.2} %, p95 {:.2e} deg, U {:.2e}..{:.2e} deg ({:.2} x p95; {:.2} x beside the reference's \
+         systematic part), predicted / true peak >= {:.2}",
         case.name,
         100.0 * f.coverage,
         f.p95,
         f.narrowest_u,
         f.widest_u,
         f.widest_u / f.p95,
+        f.widest_u_beside_reference / f.p95,
         f.prediction_ratio
     );
     assert!(f.coverage >= 0.95, "{}: only {:.2} % of the true errors within U", case.name, 100.0 * f.coverage);
-    assert!(f.widest_u <= 3.0 * f.p95, "{}: U {:.2e} is more than 3 x the p95 {:.2e}", case.name, f.widest_u, f.p95);
+    assert!(
+        f.widest_u_beside_reference <= 3.0 * f.p95,
+        "{}: U beside the reference's systematic part {:.2e} is more than 3 x the p95 {:.2e}",
+        case.name,
+        f.widest_u_beside_reference,
+        f.p95
+    );
 }
 
 #[test]

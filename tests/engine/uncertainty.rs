@@ -7,7 +7,11 @@
 //! table's mean residual removed: the zero reference) is set beside the
 //! expanded uncertainty `U = k u` the processing stated for that table.
 //! Required: at least 95 % of the residuals within `U`, and `U` not inflated:
-//! at most 2.5 times the 95th percentile of the residuals' size.
+//! beside the reference's systematic part (its specification's bound, the
+//! tracker's MPE through the survey's geometry, which one SMR cannot tell
+//! from the positioner's error; the bench's tracker is well inside it), at
+//! most 2.5 times the 95th percentile of the residuals' size. The residuals
+//! include the bench's tracker's own error, which the table absorbed.
 
 use std::path::Path;
 use std::process::Command;
@@ -59,7 +63,13 @@ fn the_stated_uncertainty_covers_the_tables_true_residuals_and_is_not_inflated()
         assert!((big_u / (u["k"].as_f64().unwrap() * combined) - 1.0).abs() < 1e-12, "{u}");
         let sources: Vec<&str> =
             u["budget"].as_array().unwrap().iter().map(|b| b["source"].as_str().unwrap()).collect();
-        for s in ["reference instrument", "axis location", "repeatability over the runs", "direction model"] {
+        for s in [
+            "reference instrument, random",
+            "reference instrument, systematic",
+            "axis location",
+            "repeatability over the runs",
+            "direction model",
+        ] {
             assert!(sources.contains(&s), "{s} missing from {u}");
         }
         for s in ["table resolution and interpolation", "drift"] {
@@ -75,17 +85,30 @@ fn the_stated_uncertainty_covers_the_tables_true_residuals_and_is_not_inflated()
         within += inside;
         total += r.len();
         sizes.extend(r.iter().map(|x| x.abs()));
-        expanded.push(big_u);
+        // The reference's systematic part is its specification's bound (the
+        // tracker's MPE through the geometry), not this tracker's own error:
+        // `U` beside it is held to the truth's percentile.
+        let systematic = u["budget"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["source"] == "reference instrument, systematic")
+            .map_or(0.0, |c| c["u_deg"].as_f64().unwrap());
+        expanded.push((big_u * big_u - (2.0 * systematic).powi(2)).max(0.0).sqrt());
     }
     sizes.sort_by(f64::total_cmp);
     let p95 = sizes[(0.95 * sizes.len() as f64) as usize];
     let coverage = within as f64 / total as f64;
     let widest = expanded.iter().fold(0.0f64, |m, u| m.max(*u));
     eprintln!(
-        "coverage {:.2} %, 95th percentile {p95:.2e} deg, U up to {widest:.2e} deg ({:.2} x)",
+        "coverage {:.2} %, 95th percentile {p95:.2e} deg, U beside the reference's systematic part up to \
+         {widest:.2e} deg ({:.2} x)",
         100.0 * coverage,
         widest / p95
     );
     assert!(coverage >= 0.95, "only {:.2} % of the true residuals within U", 100.0 * coverage);
-    assert!(widest <= 2.5 * p95, "U {widest:.2e} deg is more than 2.5 x the 95th percentile {p95:.2e}");
+    assert!(
+        widest <= 2.5 * p95,
+        "U beside the reference's systematic part {widest:.2e} deg is more than 2.5 x the 95th percentile {p95:.2e}"
+    );
 }

@@ -57,6 +57,10 @@ pub struct Measured {
     pub iso: Option<Iso230>,
     /// Its table's expanded uncertainty `U` (k = 2), degrees.
     pub table_u_deg: Option<f64>,
+    /// `U` beside the reference's systematic part (`sqrt(U^2 - (k
+    /// u_sys)^2)`), degrees: what a later survey with the same reference can
+    /// hold the table to, its reference's own error being in both alike.
+    pub table_u_beside_reference_deg: Option<f64>,
     /// The once-per-revolution standard error of its tracker's axis, degrees (0 otherwise).
     pub axis_se_deg: f64,
 }
@@ -143,8 +147,12 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
     // With its check points, as `survey process` takes them in.
     let processed = process_with_checks(&samples, &design, None, None, &loaded.checks).map_err(|e| e.to_string());
     let inputs = loaded.uncertainty_inputs();
-    let table_u_deg =
-        processed.as_ref().ok().map(|p| survey_tables::uncertainty::uncertainty(p, &samples, &inputs).table_u_deg);
+    let u = processed.as_ref().ok().map(|p| survey_tables::uncertainty::uncertainty(p, &samples, &inputs));
+    let table_u_deg = u.as_ref().map(|u| u.table_u_deg);
+    let table_u_beside_reference_deg = u.as_ref().map(|u| {
+        let shared = u.reference_systematic_u_deg().unwrap_or(0.0) * u.k;
+        (u.table_u_deg.powi(2) - shared * shared).max(0.0).sqrt()
+    });
     let axis_se_deg = match loaded.reference_info() {
         ReferenceInfo::Tracker { axis_se_deg, .. } => axis_se_deg,
         _ => 0.0,
@@ -166,6 +174,7 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
         lines,
         doubt,
         table_u_deg,
+        table_u_beside_reference_deg,
         axis_se_deg,
     })
 }
@@ -235,12 +244,29 @@ fn tested(a: &Measured, b: &Measured) -> Result<Compared, CompareError> {
         comparison.lines_not_tested.push(u.cycles_per_rev);
         comparison.not_estimable.push(u);
     }
-    let table_of_a_on_b = match (&a.table, a.table_u_deg) {
+    // Both surveys measured with the same reference set up in the same place
+    // (the axis where the tracker located it, within 1 mm and 1 mrad): its
+    // own systematic error is in both alike, and the table is held to its U
+    // beside it; a reference set up anew adds the difference of its errors
+    // at two places, and the table is held to its whole U.
+    let held_to =
+        if same_reference_setup(&a.survey, &b.survey) { a.table_u_beside_reference_deg } else { a.table_u_deg };
+    let table_of_a_on_b = match (&a.table, held_to) {
         (Ok(table), Some(u)) => table_on(table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
         _ => None,
     };
     let decision = decide(&comparison, table_of_a_on_b.as_ref(), asset_tolerance(a));
     Ok(Compared { comparison, table_of_a_on_b, decision })
+}
+
+/// Whether two tracker surveys located the axis at the same place in the
+/// tracker's frame (centres within 1 mm, normals within 1 mrad): the same
+/// tracker set up in the same place, whose own error is the same in both.
+fn same_reference_setup(a: &SurveyRecord, b: &SurveyRecord) -> bool {
+    let (Some(x), Some(y)) = (&a.axis, &b.axis) else { return false };
+    let moved = x.center_mm.iter().zip(&y.center_mm).map(|(p, q)| (p - q).powi(2)).sum::<f64>().sqrt();
+    let cos = x.normal.iter().zip(&y.normal).map(|(p, q)| p * q).sum::<f64>();
+    moved <= 1.0 && cos >= (1e-3f64).cos()
 }
 
 /// The tolerance stated for the asset of `a` (the calibration in force, or

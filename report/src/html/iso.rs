@@ -114,7 +114,7 @@ pub fn show_axis(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let body = match &p.iso {
         Ok(iso) => {
             let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
-            let u = match conformity::accuracy_u_deg(reference_u, p.d.axis_u_deg) {
+            let u = match conformity::accuracy_u_deg(reference_u, p.d.reference_systematic_u_deg, p.d.axis_u_deg) {
                 Some(u) => format!(
                     "The measured figures A, E and M carry the expanded uncertainty U = {} (k = 2) of the \
                      measurement (see the summary).",

@@ -13,7 +13,7 @@ use survey_processing::iso230::iso230_2;
 pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let (d, units) = (p.d, p.units);
     let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
-    let measured_u = conformity::accuracy_u_deg(reference_u, d.axis_u_deg);
+    let measured_u = conformity::accuracy_u_deg(reference_u, d.reference_systematic_u_deg, d.axis_u_deg);
     // ILAC-P14: U to two significant digits at most, the figure to U's last decimal place.
     let row = |what: String, value: f64, u: Option<f64>, whose: &str| -> Vec<String> {
         let (v, u) = rounding::show(units, value, u);
@@ -51,7 +51,13 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
             ]);
         }
         let own = (d.survey.id, d.samples.as_slice());
-        rows.extend(super::verification::verdict_rows(processed, table_u, d.verification.as_ref(), own, units));
+        rows.extend(super::verification::verdict_rows(
+            processed,
+            (table_u, d.reference_systematic_u_deg.map(|u| survey_tables::uncertainty::K * u)),
+            d.verification.as_ref(),
+            own,
+            units,
+        ));
     }
     let corrected_a =
         d.verification.as_ref().and_then(|v| iso230_2(v.corrected(&d.samples)).ok().map(|iso| (v, iso.a)));
@@ -112,12 +118,14 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
         (None, None) => "the environment's contribution is not included (no air temperature was measured)".to_string(),
     };
     body += &format!(
-        "<p class=\"note\">U of a measured figure: k √(u<sub>ref</sub>² + u<sub>axis</sub>²), the reference \
-         instrument's stated standard uncertainty of one angle{} and, with a tracker, the located axis's{} \
+        "<p class=\"note\">U of a measured figure: k √(u<sub>ref</sub>² + u<sub>sys</sub>² + u<sub>axis</sub>²), the \
+         reference instrument's stated standard uncertainty of one angle{}, its systematic part at an angle (a \
+         tracker's own error from its MPE, the same in every run{}) and, with a tracker, the located axis's{} \
          (ISO 230-2 Annex A's measuring instrument and set-up); the scatter over the runs is already inside A (its \
          ±2 s bands), and {environment}. U of the predicted corrected peak is the table's, as a correction (section \
          Uncertainty of the table). The figures' {}. {}</p>\n",
         reference_u.map_or(" (not stated: no U)".to_string(), |u| format!(" ({})", units.show(u))),
+        d.reference_systematic_u_deg.map_or(String::new(), |u| format!(": {}", units.show(u))),
         d.axis_u_deg.map_or(String::new(), |u| format!(" ({})", units.show(u))),
         escape(d.axis.text()),
         escape(rounding::COVERAGE),

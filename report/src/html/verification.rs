@@ -147,11 +147,13 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
 
 /// The summary's rows (figure, value, its U) on whether the table is a
 /// result: the verification's verdict (when `v` verifies the table `p`
-/// made, stated with `u_deg`; `own` are the report's samples), in plain
+/// made, stated with `u_deg`, its reference's systematic part's expanded
+/// uncertainty `shared_reference_u_deg` shared with a verification made
+/// with the same reference; `own` are the report's samples), in plain
 /// words, and a table predicted to make the axis no better.
 pub fn verdict_rows(
     p: &survey_tables::pipeline::Processed,
-    u_deg: Option<f64>,
+    (u_deg, shared_reference_u_deg): (Option<f64>, Option<f64>),
     v: Option<&Verification>,
     (survey_id, own): (i64, &[Sample]),
     units: Units,
@@ -182,6 +184,7 @@ pub fn verdict_rows(
             u_deg: u,
             native_deg: peak_deg(v.native(own)),
             not_a_result: p.prediction.no_better_than_native(),
+            shared_reference_u_deg,
         };
         let j = judge(&claim, v.corrected(own), &blind);
         let reason = units.text(&j.reason);

@@ -3,10 +3,10 @@
 //!
 //! Point `k` integrates the SMR over `[start + k P, start + (k + 1) P]` and is
 //! taken at the true angle of the middle of that interval (the mean for an
-//! axis turning steadily); it carries the instrument's noise, the same
-//! per-coordinate sigma as a stationary measurement (our own model choice: the
-//! specification's typical value per point; on a real tracker a 1 s
-//! stationary point is quieter than one streamed point). It is stamped by
+//! axis turning steadily); it carries the tracker's own error, the same
+//! systematic part and random part as a stationary measurement (our own model
+//! choice: on a real tracker a 1 s stationary point is quieter than one
+//! streamed point). It is stamped by
 //! the tracker's clock ([`StreamSim::clock`]) at the end of its interval plus
 //! [`StreamSim::stamp_latency`], and it is delivered once that stamp is
 //! due: the engine sees the point's time lag the motion by half the
@@ -94,13 +94,8 @@ impl SimTracker {
                 continue;
             }
             let theta = self.turntable.actual_deg(begin + period / 2);
-            let pos = self.cfg.arm.smr_position_mm(theta);
-            let sigma = super::sigma_mm(super::dot(pos, pos).sqrt());
-            let mut xyz = [0.0; 3];
-            for (out, x) in xyz.iter_mut().zip(pos) {
-                let z: f64 = StandardNormal.sample(&mut self.noise_rng);
-                *out = x + z * sigma * self.cfg.noise_scale;
-            }
+            let z: [f64; 3] = std::array::from_fn(|_| StandardNormal.sample(&mut self.noise_rng));
+            let xyz = self.read_at(theta, z);
             out.push(StreamedPoint { device_time_s: cfg.clock.at(stamped), xyz_mm: xyz, status: 0 });
         }
         Ok(out)

@@ -243,6 +243,8 @@ const CERTIFICATE: &[Field] = &[
     opt("positioner", Ty::Text),
     opt("reference", Ty::Text),
     opt("reference_uncertainty_deg", Ty::Number(Low::Above(0.0), 1.0, "deg")),
+    opt("reference_mpe_um", Ty::Number(Low::From(0.0), 1000.0, "um")),
+    opt("reference_mpe_um_per_m", Ty::Number(Low::From(0.0), 1000.0, "um/m")),
     opt("operator", Ty::Text),
     opt("customer", Ty::Text),
     opt("temperature_c", Ty::Number(Low::From(-50.0), 100.0, "°C")),

@@ -21,6 +21,7 @@ fn gears() -> Model {
     Model {
         design: Design { gear_ratios: vec![20.0], tooth_counts: vec![], encoder_heads: None },
         effects: vec![p(20.0, 0.0078, 0.0), p(40.0, 0.0025, 60.0)],
+        ..Model::default()
     }
 }
 
