@@ -1,67 +1,591 @@
 #!/usr/bin/env python3
-"""`survey process` written with numpy and scipy: the reference the Rust
-command is timed against, whole process against whole process.
+"""`survey process` written with numpy: the reference the Rust command is
+timed against, whole process against whole process.
 
     python scripts/process_numpy.py DB [SURVEY_ID] [OUT_DIR]
 
-It does what `survey process` does on a full-circle survey, vectorised the
-way a numpy user would write it:
+It does what `survey process` does on a full-circle survey, as a numpy user
+would write it (no Python loop over samples, targets or bins):
 
 1. read the samples from the SQLite database (the standard library's sqlite3,
-   read-only), in acquisition order;
-2. the error map (readout - actual) per direction, run and target, and the
-   ISO 230-2 figures (mean, s, B, R with the bidirectional term, E, M, A);
-3. the noise of one sample from the scatter between runs, the spectrum of the
-   mean maps in cycles per revolution (real FFT), the per-run spectra and an
-   F test of each bin's run-to-run coherence (scipy.stats), the lines named
-   from a design (gear and tooth harmonics, eccentricity, ellipticity);
-4. the table: the significant lines kept (spectral edit), band-limited
-   resampling to 131072 points and decimation to 16384 rows, directional when
-   the hysteresis stands 5 standard deviations out of its noise;
-5. the predicted accuracy: the table applied to every sample with linear
-   interpolation (native and corrected peak and RMS, ISO A of the corrected
-   samples), the Figure 6 interpolation comparison (linear, periodic cubic
-   spline, spectral on the map decimated by 2), the LinuxCNC decimation to
-   255 + 1 points;
-6. the files: the table CSV (shortest round-trip numbers), the two LinuxCNC
-   COMP_FILEs, the binary table (little-endian f64) and a small recipe.
+   read-only): the survey's sample pack (`sample_packs`, migration 7: 72-byte
+   little-endian records, store/src/pack.rs) decoded with np.frombuffer, or,
+   without a valid pack, its rows in one column-wise fetch;
+2. a tracker survey's axis fitted again from every SMR position (the locate
+   points and each sample's: plane by eigen-decomposition, Kasa circle refined
+   by Gauss-Newton, one pass dropping points beyond 5 robust sd) and the
+   actual angles recomputed around it (processing/src/geometry.rs), with how
+   well the centre is known;
+3. the error map (readout - actual) as a [direction, run, target] cube, by a
+   reshape of the sweeps (a survey stores whole sweeps in acquisition order),
+   and the ISO 230-2 figures (A, R, B, E, M, per direction too);
+4. the spectral analysis of the runs' bidirectional series: the noise floor
+   from the run-to-run scatter of the spectra, the coherent and incoherent
+   tests of every bin (F tails in closed form), coherence, repeatability
+   (processing/src/analysis); the recipe derived from it (the repeatable
+   lines kept);
+5. the table: directional when the hysteresis stands 5 sd out of its noise,
+   then forward and reverse are the mean's kept lines taken as lines of the
+   TRUE angle (fixed-point change of variable, two correction passes) plus and
+   minus half the hysteresis model (its mean and its significant lines); 16384
+   rows (tables/src/recipe/build.rs, true_angle.rs, direction.rs);
+6. the predicted accuracy: the table applied to every sample (native and
+   corrected peak and RMS, ISO A of the corrected samples, the repeatability
+   floor, the peak spread of a new survey's noise), the Figure 6 interpolation
+   comparison (fixed, linear, quadratic, spectral on the map decimated by 2),
+   the LinuxCNC table (low-passed to its 255 intervals) and its corrected peak;
+7. the files: the table CSV (shortest round-trip numbers, as Rust prints
+   them), the two LinuxCNC COMP_FILEs, the binary table (`SVCT` header and
+   CRC-32, little-endian f64) and the recipe.
 
-Needs numpy and scipy from PyPI:
+Not done here (the Rust command does them too): the Sinumerik 840D and Fanuc
+files and their predicted peaks, the uncertainty budget, the line names'
+long explanations, aliased design lines (a design frequency at or above the
+survey's Nyquist: refused), partial ranges, drift correction, check points.
 
-    python3 -m venv /tmp/np && /tmp/np/bin/pip install numpy scipy
+Needs numpy from PyPI (measured with numpy 2.4.6, Python 3.11; scipy is not
+needed: importing scipy.stats alone took 0.6-0.9 s, its F tail has a closed
+form here):
+
+    python3 -m venv /tmp/np && /tmp/np/bin/pip install numpy==2.4.6
     /tmp/np/bin/python scripts/process_numpy.py survey.db
 
 `scripts/compare_process.sh` times both at several sizes.
 """
 
 import json
+import math
 import os
 import sqlite3
 import sys
+import zlib
 
 import numpy as np
-from scipy import stats
-from scipy.interpolate import CubicSpline
 
-DENSE = 131072
 ROWS = 16384
+DENSE = 131072
 LINUXCNC = 256
 ALPHA = 0.01
+HYSTERESIS_FACTOR = 5.0
+GEAR_HARMONICS, TOOTH_HARMONICS, SIDEBAND_ORDERS, SIDEBAND_TOOTH_HARMONICS = 6, 3, 2, 1
+ORIENTATION_POSITIONS = 4096
+THETA_ITERATIONS = 6
+GRID_FACTOR = 4
+PASSES = 2
+
+# A pack record (migration 7, store/src/pack.rs): 72 bytes, little-endian.
+RECORD = np.dtype(
+    [
+        ("seq", "<i8"),
+        ("run", "<u4"),
+        ("direction", "u1"),
+        ("flags", "u1"),
+        ("pad", "V2"),
+        ("target", "<f8"),
+        ("readout", "<f8"),
+        ("actual", "<f8"),
+        ("time", "<f8"),
+        ("xyz", "<f8", (3,)),
+    ]
+)
+HAS_SMR = 2
+
+
+# ----------------------------------------------------------------------------
+# Reading
+
+
+class Samples:
+    """The survey's samples in seq order, column by column, with the SMR
+    position behind each sample that has one (`has_smr`, `xyz`)."""
+
+    def __init__(self, m):
+        self.run = np.empty(m, np.int64)
+        self.reverse = np.empty(m, bool)
+        self.target = np.empty(m)
+        self.readout = np.empty(m)
+        self.actual = np.empty(m)
+        self.has_smr = np.empty(m, bool)
+        self.xyz = np.empty((m, 3))
+
+
+def read_pack(con, survey_id, last):
+    """The samples from the survey's pack, or None when it has none or one
+    that does not hold every sample in seq order (the rows are read then)."""
+    heads = con.execute(
+        "SELECT first_seq, count, format FROM sample_packs WHERE survey_id = ? ORDER BY first_seq", (survey_id,)
+    ).fetchall()
+    if not heads or last is None or any(f != 1 or c <= 0 for _, c, f in heads):
+        return None
+    s = Samples(sum(c for _, c, _ in heads))
+    at, previous = 0, -1
+    blobs = con.execute("SELECT data FROM sample_packs WHERE survey_id = ? ORDER BY first_seq", (survey_id,))
+    for (first, count, _), (data,) in zip(heads, blobs):
+        if len(data) != RECORD.itemsize * count:
+            return None
+        r = np.frombuffer(data, RECORD)
+        seq = r["seq"]
+        if seq[0] != first or seq[0] <= previous or (count > 1 and not (seq[1:] > seq[:-1]).all()):
+            return None
+        if not (r["run"] > 0).all() or (r["direction"] > 1).any() or (r["flags"] & ~np.uint8(3)).any():
+            return None
+        previous = seq[-1]
+        part = slice(at, at + count)
+        s.run[part], s.reverse[part] = r["run"], r["direction"] == 1
+        s.target[part], s.readout[part], s.actual[part] = r["target"], r["readout"], r["actual"]
+        s.has_smr[part] = (r["flags"] & HAS_SMR) != 0
+        s.xyz[part] = r["xyz"]
+        at += count
+    return s if previous == last else None
+
+
+def read_rows(con, survey_id):
+    """The samples from their rows and the SMR positions from the raw
+    readings: each query fetched column-wise into one flat array."""
+
+    def fetch(sql, width):
+        cur = con.execute(sql, (survey_id,))
+        return np.fromiter((np.nan if v is None else v for row in cur for v in row), np.float64).reshape(-1, width)
+
+    a = fetch(
+        "SELECT seq, run, direction = 'reverse', target_deg, readout_deg, actual_deg FROM samples "
+        "WHERE survey_id = ? ORDER BY seq",
+        6,
+    )
+    s = Samples(len(a))
+    s.run[:], s.reverse[:] = a[:, 1], a[:, 2] == 1
+    s.target[:], s.readout[:], s.actual[:] = a[:, 3], a[:, 4], a[:, 5]
+    raw = fetch(
+        "SELECT seq, smr_x_mm, smr_y_mm, smr_z_mm FROM raw_readings WHERE survey_id = ? AND kind = 'smr' ORDER BY seq",
+        4,
+    )
+    at = np.searchsorted(a[:, 0], raw[:, 0])
+    found = at < len(a)
+    found[found] &= a[at[found], 0] == raw[found, 0]
+    s.has_smr[:] = False
+    s.has_smr[at[found]] = True
+    s.xyz[at[found]] = raw[found, 1:]
+    return s
 
 
 def load(db, survey_id):
     con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
     if survey_id is None:
         survey_id = con.execute("SELECT MAX(id) FROM surveys").fetchone()[0]
-    model = con.execute("SELECT model_toml FROM surveys WHERE id = ?", (survey_id,)).fetchone()[0] or ""
-    rows = con.execute(
-        "SELECT run, direction = 'reverse', target_deg, readout_deg, actual_deg "
-        "FROM samples WHERE survey_id = ? ORDER BY seq",
-        (survey_id,),
+    model, axis_json = con.execute("SELECT model_toml, axis_json FROM surveys WHERE id = ?", (survey_id,)).fetchone()
+    last = con.execute("SELECT MAX(seq) FROM samples WHERE survey_id = ?", (survey_id,)).fetchone()[0]
+    s = read_pack(con, survey_id, last)
+    if s is None:
+        s = read_rows(con, survey_id)
+    locate = con.execute(
+        "SELECT readout_deg, x_mm, y_mm, z_mm FROM locate_points WHERE survey_id = ? ORDER BY idx", (survey_id,)
     ).fetchall()
     con.close()
-    a = np.array(rows, dtype=np.float64)
-    return survey_id, model, a[:, 0].astype(np.int64), a[:, 1].astype(bool), a[:, 2], a[:, 3], a[:, 4]
+    locate = np.array(locate, dtype=np.float64).reshape(-1, 4)  # NULL -> nan
+    return survey_id, model or "", json.loads(axis_json) if axis_json else None, s, locate
+
+
+# ----------------------------------------------------------------------------
+# The axis fitted again (processing/src/geometry.rs)
+
+
+def wrap_180(x):
+    return np.mod(x + 180.0, 360.0) - 180.0
+
+
+def circle_pass(x, y, a, b, r):
+    """Cost and Gauss-Newton normal equations of the circle (a, b, r)."""
+    dx, dy = x - a, y - b
+    dist = np.sqrt(dx * dx + dy * dy)
+    res = dist - r
+    cost = res @ res
+    ok = dist != 0
+    if not ok.all():
+        dx, dy, dist, res = dx[ok], dy[ok], dist[ok], res[ok]
+    jx, jy = -dx / dist, -dy / dist
+    sx, sy = jx.sum(), jy.sum()
+    jtj = np.array([[jx @ jx, jx @ jy, -sx], [jx @ jy, jy @ jy, -sy], [-sx, -sy, float(len(dist))]])
+    jtr = np.array([-(jx @ res), -(jy @ res), res.sum()])
+    return cost, jtj, jtr
+
+
+def solve3(m, rhs):
+    try:
+        if np.linalg.cond(m) > 1e13:
+            return None
+        return np.linalg.solve(m, rhs)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def fit_circle(x, y):
+    """Kasa's algebraic fit refined by Gauss-Newton (halving a step that does
+    not reduce the cost), as fit_circle in geometry.rs."""
+    w = x * x + y * y
+    cols = np.stack([x, y, np.ones_like(x)])
+    sol = solve3(cols @ cols.T, -(cols @ w))
+    if sol is None:
+        return None
+    a, b = -sol[0] / 2, -sol[1] / 2
+    r2 = a * a + b * b - sol[2]
+    if not r2 > 0:
+        return None
+    r = math.sqrt(r2)
+    cost, jtj, jtr = circle_pass(x, y, a, b, r)
+    for _ in range(50):
+        step = solve3(jtj, jtr)
+        if step is None:
+            break
+        norm, tol = math.sqrt(step @ step), 1e-14 * (1 + r)
+        if norm <= tol:
+            break
+        k, accepted = 1.0, False
+        for _ in range(20):
+            na, nb, nr = a + k * step[0], b + k * step[1], r + k * step[2]
+            nxt = circle_pass(x, y, na, nb, nr)
+            if nxt[0] <= cost:
+                a, b, r = na, nb, nr
+                cost, jtj, jtr = nxt
+                accepted = True
+                break
+            if norm * k <= tol:
+                break
+            k /= 2
+        if not accepted or norm * k <= 1e-14 * (1 + r):
+            break
+    if r < 0:
+        cost = circle_pass(x, y, a, b, -r)[0]
+    return a, b, abs(r), cost
+
+
+def fit_axis(p, readouts):
+    """The axis from positions p (m x 3) taken at readouts: (fit, raw angles
+    in radians around it)."""
+    n = len(p)
+    if not (np.isfinite(p).all() and np.isfinite(readouts).all()):
+        raise SystemExit("the axis cannot be fitted again: a position or readout is not a finite number")
+    centroid = p.sum(axis=0) / n
+    d = p - centroid
+    values, vectors = np.linalg.eigh(d.T @ d / n)
+    if values[2] <= 0 or values[1] <= 1e-12 * values[2]:
+        raise SystemExit("the SMR positions do not locate an axis")
+    normal = vectors[:, 0] / np.linalg.norm(vectors[:, 0])
+    u = vectors[:, 2] - normal * (vectors[:, 2] @ normal)
+    u /= np.linalg.norm(u)
+    v = np.cross(normal, u)
+    spread = math.sqrt(values[1] + values[2])
+    x, y = d @ (u / spread), d @ (v / spread)
+    circle = fit_circle(x, y)
+    if circle is None:
+        raise SystemExit("the projected positions do not determine a circle")
+    a, b, r, cost = circle
+    # Orientation and zero: every stride-th position's direction against its
+    # readout (all of them when the subset does not tell the direction).
+    dx, dy = x - a, y - b
+    raw = np.arctan2(dy, dx)
+    rr = np.radians(readouts)
+
+    def sums(stride):
+        sx, sy, sr = dx[::stride], dy[::stride], rr[::stride]
+        rho = np.sqrt(sx * sx + sy * sy)
+        st, ct = sy / rho, sx / rho
+        sn, cs = np.sin(sr), np.cos(sr)
+        minus = ((st * cs - ct * sn).sum(), (ct * cs + st * sn).sum())
+        plus = ((st * cs + ct * sn).sum(), (ct * cs - st * sn).sum())
+        return minus, plus, len(sx)
+
+    def resultant(z):
+        return z[0] * z[0] + z[1] * z[1]
+
+    stride = max(n // ORIENTATION_POSITIONS, 1)
+    minus, plus, taken = sums(stride)
+    if stride > 1 and not abs(resultant(minus) - resultant(plus)) >= taken * taken / 2:
+        minus, plus, taken = sums(1)
+    orientation = (resultant(minus) - resultant(plus)) / 4
+    if abs(orientation) <= 1e-9 * taken * taken:
+        raise SystemExit("the readouts do not vary enough to tell the direction of rotation")
+    if orientation < 0:
+        normal, v, b, raw = -normal, -v, -b, -raw
+        s, c = -plus[0], plus[1]
+    else:
+        s, c = minus
+    z0 = math.degrees(math.atan2(s, c))
+    z = z0 + wrap_180(np.degrees(raw) - readouts - z0).sum() / n
+    fit = {
+        "center_mm": centroid + u * (a * spread) + v * (b * spread),
+        "normal": normal,
+        "u": u,
+        "v": v,
+        "radius_mm": r * spread,
+        "zero_offset_deg": float(wrap_180(z)),
+    }
+    return fit, raw
+
+
+def raw_angle(fit, p):
+    d = p - fit["center_mm"]
+    return np.arctan2(d @ fit["v"], d @ fit["u"])
+
+
+def largest_gap(angles):
+    """The largest gap between angles (radians within a turn), across the
+    turn's end too: buckets first, a sort only when they cannot tell."""
+    lo, hi = angles.min(), angles.max()
+    count = len(angles)
+    buckets = max(count // 4, 1)
+    scale = buckets / (hi - lo) if hi > lo else 0.0
+    b = np.minimum(((angles - lo) * scale).astype(np.int64), buckets - 1)
+    least, largest = np.full(buckets, np.inf), np.full(buckets, -np.inf)
+    np.minimum.at(least, b, angles)
+    np.maximum.at(largest, b, angles)
+    full = least <= largest
+    least, largest = least[full], largest[full]
+    best = max(lo + 2 * math.pi - hi, 0.0)
+    if len(least) > 1:
+        best = max(best, (least[1:] - largest[:-1]).max())
+    if best >= (largest - least).max():
+        return best
+    s = np.sort(angles)
+    return max(np.diff(s).max(initial=0.0), s[0] + 2 * math.pi - s[-1])
+
+
+def center_knowledge(fit, p, raw):
+    """How well the refitted centre is known (center_knowledge in geometry.rs)."""
+    d = p - fit["center_mm"]
+    x, y = d @ fit["u"], d @ fit["v"]
+    dist = np.sqrt(x * x + y * y)
+    ok = dist != 0
+    x, y, dist, raw = x[ok], y[ok], dist[ok], raw[ok]
+    c, s = x / dist, y / dist
+    count = len(dist)
+    jtj = np.array([[c @ c, c @ s, c.sum()], [c @ s, s @ s, s.sum()], [c.sum(), s.sum(), float(count)]])
+    res = dist - fit["radius_mm"]
+    s2 = (res @ res) / max(count - 3, 1)
+    try:
+        inv = np.linalg.inv(jtj)
+        cov = s2 * inv[:2, :2]
+    except np.linalg.LinAlgError:
+        cov = np.array([[np.inf, 0.0], [0.0, np.inf]])
+    a, bb, cc = cov[0, 0], 0.5 * (cov[0, 1] + cov[1, 0]), cov[1, 1]
+    worst = 0.5 * (a + cc) + math.sqrt(0.25 * (a - cc) ** 2 + bb * bb)
+    worst_se = math.sqrt(max(worst, 0.0))
+    r = fit["radius_mm"]
+    gs, gc = s.sum() / max(count, 1), c.sum() / max(count, 1)
+    g0, g1 = (s - gs) / r, (-c + gc) / r
+    over_arc = (g0 * g0 * a + 2 * g0 * g1 * bb + g1 * g1 * cc).max()
+    arc = max(math.degrees(2 * math.pi - largest_gap(raw)), 0.0)
+    return {
+        "center_se_mm": worst_se,
+        "once_per_rev_se_deg": math.degrees(worst_se / r),
+        "arc_deg": arc,
+        "over_arc_se_deg": math.degrees(math.sqrt(max(over_arc, 0.0))),
+    }
+
+
+def refit(s, locate, located):
+    """The actual angles around the axis fitted again from every SMR
+    position (the locate points first, then each sample's), and the refit."""
+    idx = np.flatnonzero(s.has_smr)
+    p = np.concatenate([locate[:, 1:], s.xyz[idx]])
+    if len(p) < 3:
+        return None
+    readouts = np.concatenate([locate[:, 0], s.readout[idx]])
+    fit, raw = fit_axis(p, readouts)
+    # Positions beyond 5 robust sd of the circle and plane: dropped, refitted.
+    d = p - fit["center_mm"]
+    h = d @ fit["normal"]
+    inplane = d - h[:, None] * fit["normal"]
+    sq = (np.sqrt(np.einsum("ij,ij->i", inplane, inplane)) - fit["radius_mm"]) ** 2 + h * h
+    mad = math.sqrt(np.partition(sq, len(sq) // 2)[len(sq) // 2])
+    limit = 5 * 1.4826 * mad
+    beyond = sq > limit * limit if limit > 0 else np.zeros(len(p), bool)
+    dropped = int(beyond.sum())
+    if dropped and len(p) - dropped >= 3:
+        fit, _ = fit_axis(p[~beyond], readouts[~beyond])
+        raw = raw_angle(fit, p)
+        knowledge = center_knowledge(fit, p[~beyond], raw[~beyond])
+    else:
+        dropped = 0
+        knowledge = center_knowledge(fit, p, raw)
+    t = s.target[idx]
+    s.actual[idx] = t + wrap_180(np.degrees(raw[len(locate) :]) - fit["zero_offset_deg"] - t)
+    dc = fit["center_mm"] - np.asarray(located["center_mm"])
+    shift = float(np.linalg.norm(dc - (dc @ fit["normal"]) * fit["normal"]))
+    return {
+        "points": len(p),
+        "dropped": dropped,
+        "radius_mm": fit["radius_mm"],
+        "center_shift_mm": shift,
+        "located_once_per_rev_deg": math.degrees(shift / fit["radius_mm"]),
+        **knowledge,
+    }
+
+
+# ----------------------------------------------------------------------------
+# Grouping
+
+
+class Layout:
+    """Where each sample sits in the [direction, run, target] cube.
+
+    A survey stores whole sweeps in acquisition order (run 1 forward with the
+    targets ascending, run 1 reverse descending, run 2 ...): `cube` is then a
+    reshape and a flip of the reverse sweeps. Any other order is grouped by
+    index arrays (np.unique)."""
+
+    def __init__(self, run, reverse, target):
+        m = len(run)
+        self.runs = int(run.max())
+        self.dirs = 2 if (reverse.any() and not reverse.all()) else 1
+        per = self.runs * self.dirs
+        n = m // per
+        self.sweeps = False
+        if n * per == m and n > 1 and not reverse[0]:
+            t0 = target[:n]
+            sweep = np.arange(per)
+            ok = (
+                (t0[1:] > t0[:-1]).all()
+                and np.array_equal(run, np.repeat(sweep // self.dirs + 1, n))
+                and np.array_equal(reverse, np.repeat(sweep % self.dirs == 1, n))
+            )
+            if ok:
+                t = target.reshape(self.runs, self.dirs, n)
+                ok = (t[:, 0] == t0).all() and (self.dirs == 1 or (t[:, 1, ::-1] == t0).all())
+            if ok:
+                self.sweeps, self.n, self.targets = True, n, t0.copy()
+        if not self.sweeps:
+            self.targets, t_index = np.unique(target, return_inverse=True)
+            self.n = len(self.targets)
+            d_index = reverse.astype(np.int64) if self.dirs == 2 else np.zeros(m, np.int64)
+            self.index = (d_index, run - 1, t_index)
+            if np.bincount(np.ravel_multi_index(self.index, (self.dirs, self.runs, self.n))).max(initial=0) != 1 or (
+                m != self.dirs * self.runs * self.n
+            ):
+                raise SystemExit("the error map is not complete: one sample per run, target and direction is needed")
+
+    def cube(self, x):
+        """x (a value per sample, acquisition order) as [direction, run, target]."""
+        if self.sweeps:
+            c = x.reshape(self.runs, self.dirs, self.n)
+            out = np.empty((self.dirs, self.runs, self.n))
+            out[0] = c[:, 0]
+            if self.dirs == 2:
+                out[1] = c[:, 1, ::-1]
+            return out
+        out = np.empty((self.dirs, self.runs, self.n))
+        out[self.index] = x
+        return out
+
+    def per_sample(self, cube):
+        """The inverse of `cube`."""
+        if self.sweeps:
+            out = np.empty((self.runs, self.dirs, self.n))
+            out[:, 0] = cube[0]
+            if self.dirs == 2:
+                out[:, 1] = cube[1][:, ::-1]
+            return out.reshape(-1)
+        return cube[self.index]
+
+
+def iso230(x):
+    """ISO 230-2 figures of deviations x[direction, run, target] (actual - target)."""
+    mean = x.mean(axis=1)
+    s = x.std(axis=1, ddof=1)
+    hi, lo = mean + 2 * s, mean - 2 * s
+    f = {"runs": x.shape[1]}
+    r_dir = (4 * s).max(axis=1)
+    if len(x) == 2:
+        b = mean[0] - mean[1]
+        f["A"] = hi.max() - lo.min()
+        f["A_up"], f["A_down"] = hi[0].max() - lo[0].min(), hi[1].max() - lo[1].min()
+        f["B"], f["B_mean"] = np.abs(b).max(), b.mean()
+        f["E"] = mean.max() - mean.min()
+        f["E_up"], f["E_down"] = np.ptp(mean[0]), np.ptp(mean[1])
+        f["M"] = np.ptp((mean[0] + mean[1]) / 2)
+        f["R"] = np.maximum(2 * s[0] + 2 * s[1] + np.abs(b), np.maximum(4 * s[0], 4 * s[1])).max()
+        f["R_up"], f["R_down"] = r_dir[0], r_dir[1]
+    else:
+        f["A"], f["E"], f["R"] = hi.max() - lo.min(), np.ptp(mean), r_dir[0]
+    return {k: (float(v) if k != "runs" else v) for k, v in f.items()}
+
+
+def iso_a(x):
+    mean = x.mean(axis=1)
+    s = x.std(axis=1, ddof=1)
+    return float((mean + 2 * s).max() - (mean - 2 * s).min())
+
+
+# ----------------------------------------------------------------------------
+# Spectra (processing/src/resample: C_0 = X_0 / N, C_k = 2 X_k / N, the
+# Nyquist line X_{N/2} / N; a series evaluated at M points)
+
+
+def analyze(y):
+    n = y.shape[-1]
+    c = np.fft.rfft(y) * (2.0 / n)
+    c[..., 0] = c[..., 0].real / 2
+    if n % 2 == 0:
+        c[..., -1] = c[..., -1].real / 2
+    return c
+
+
+def synthesize(c, m):
+    half = m // 2
+    spec = np.zeros(half + 1, complex)
+    k = min(len(c), half + 1)
+    spec[:k] = c[:k] * 0.5
+    spec[0] = c[0].real
+    if m % 2 == 0 and len(c) > half:
+        spec[half] = c[half].real
+    return np.fft.irfft(spec, m) * m
+
+
+def f_even_sf(m, d, f):
+    """P(F > f) for F(2m, d) (d None: the chi-square limit), in closed form."""
+    if f <= 0:
+        return 1.0
+    m = max(m, 1)
+    logs, acc = [], 0.0
+    if d is None:
+        h = m * f
+        for j in range(m):
+            if j:
+                acc += math.log(h) - math.log(j)
+            logs.append(acc)
+        lead = -h
+    else:
+        x = d / (d + 2.0 * m * f)
+        for j in range(m):
+            if j:
+                acc += math.log(d / 2 + j - 1) - math.log(j) + math.log(1 - x)
+            logs.append(acc)
+        lead = d / 2 * math.log(x)
+    top = max(logs)
+    return min(math.exp(lead + top + math.log(sum(math.exp(v - top) for v in logs))), 1.0)
+
+
+def f_even_isf(m, d, p):
+    lo, hi = 0.0, 4.0
+    while f_even_sf(m, d, hi) > p and hi < 1e300:
+        hi *= 2
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if f_even_sf(m, d, mid) > p:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def normal_two_sided_isf(p):
+    lo, hi = 0.0, 40.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if math.erfc(mid / math.sqrt(2)) > p:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 def design_from(model_toml):
@@ -75,180 +599,420 @@ def design_from(model_toml):
     return gears, teeth
 
 
-def name_line(k, gears, teeth):
-    if k == 1:
-        return "eccentricity"
-    if k == 2:
-        return "ellipticity"
+def candidates(gears, teeth):
+    """The design's frequencies: (cycles/rev, rank, kind, description)."""
+    c = [(1.0, (0, 1, 0), "eccentricity", "once per revolution"), (2.0, (1, 1, 0), "ellipticity", "twice per revolution")]
     for g in gears:
-        if g > 0 and abs(k / g - round(k / g)) < 1e-9:
-            return f"gear pass {g:g}:1, harmonic {round(k / g)}"
+        c += [(g * h, (2, h, 0), "gear_pass", f"{g:g}:1 pinion, harmonic {h}") for h in range(1, GEAR_HARMONICS + 1)]
     for t in teeth:
-        if t > 0 and abs(k / t - round(k / t)) < 1e-9:
-            return f"tooth mesh {t:g}, harmonic {round(k / t)}"
-    return "unknown"
+        c += [(t * h, (3, h, 0), "tooth_mesh", f"{t:g}-tooth gear, harmonic {h}") for h in range(1, TOOTH_HARMONICS + 1)]
+        for h in range(1, SIDEBAND_TOOTH_HARMONICS + 1):
+            for g in gears:
+                for m in range(1, SIDEBAND_ORDERS + 1):
+                    for mm in (-m, m):
+                        if t * h + g * mm > 0:
+                            c.append((t * h + g * mm, (4, h, m), "tooth_mesh", f"sideband {mm:+} x {g:g}:1 of {t:g}-tooth"))
+    return c
 
 
-def iso230(x):
-    """x[direction, run, target]: deviations actual - target."""
-    mean = x.mean(axis=1)
-    s = x.std(axis=1, ddof=1)
-    up, down = mean[0], mean[-1]
-    b = up - down
-    r_i = np.maximum(2 * s[0] + 2 * s[-1] + np.abs(b), np.maximum(4 * s[0], 4 * s[-1]))
-    a = (mean + 2 * s).max() - (mean - 2 * s).min()
-    return {
-        "A": a,
-        "R": r_i.max(),
-        "B": np.abs(b).max(),
-        "B_mean": b.mean(),
-        "E": mean.max() - mean.min(),
-        "M": ((up + down) / 2).max() - ((up + down) / 2).min(),
-    }
+def name_line(k, cands):
+    matched = sorted((c for c in cands if abs(c[0] - k) <= 0.5), key=lambda c: (c[1], c[0]))
+    return f"{matched[0][2]}: {matched[0][3]}" if matched else f"harmonic: {k} cycles/rev matches no part of the design"
 
 
-def resample(y, m):
-    """Band-limited resampling of one period to m points (up or down)."""
-    n = len(y)
-    spec = np.fft.rfft(y)
-    out = np.zeros(m // 2 + 1, dtype=complex)
-    h = min(n, m) // 2
-    out[: h + 1] = spec[: h + 1]
-    if min(n, m) % 2 == 0:
-        out[h] *= 0.5
-    return np.fft.irfft(out, m) * (m / n)
+# ----------------------------------------------------------------------------
+# The table through the true angle (tables/src/true_angle.rs)
 
 
-def periodic_interp(table, readout):
-    n = len(table)
-    grid = np.arange(n + 1) * 360.0 / n
-    return np.interp(np.mod(readout, 360.0), grid, np.append(table, table[0]))
+def cubic_at(grid_padded, m, theta):
+    """4-point Lagrange interpolation of a periodic grid of m points over 360
+    deg (grid_padded: the grid with one point before and two after)."""
+    x = np.mod(theta, 360.0) * (m / 360.0)
+    k = np.minimum(x.astype(np.int64), m - 1)
+    f = x - k
+    a, b, c, d = grid_padded[k], grid_padded[k + 1], grid_padded[k + 2], grid_padded[k + 3]
+    fm1, fp1, fm2 = f - 1.0, f + 1.0, f - 2.0
+    return (
+        (-f * fm1 * fm2 / 6.0) * a
+        + (fp1 * fm1 * fm2 / 2.0) * b
+        + (-fp1 * f * fm2 / 2.0) * c
+        + (fp1 * f * fm1 / 6.0) * d
+    )
+
+
+def through_true_angle(grid, readouts, offset):
+    """T_g at the readouts: theta solving theta = r - offset - (g(theta) - mean g)."""
+    m = len(grid)
+    mean = grid.sum() / m
+    gp = np.concatenate([grid[-1:], grid, grid[:2]])
+    base = readouts - offset
+    theta = base
+    for _ in range(THETA_ITERATIONS):
+        nxt = base - (cubic_at(gp, m, theta) - mean)
+        if np.array_equal(nxt, theta):
+            break
+        theta = nxt
+    return cubic_at(gp, m, theta)
+
+
+class TrueLines:
+    """The kept lines as lines of the true angle behind a measured column."""
+
+    def __init__(self, column, targets, keep_mask, rows):
+        edit = lambda y: analyze(y) * keep_mask  # noqa: E731
+        edited = edit(column)
+        self.mean = edited[0].real
+        top = (rows + 1) // 2
+        g = edited.copy()
+        g[0] = 0
+        g = g[:top]
+        kept = np.flatnonzero(g != 0)
+        if len(kept):
+            for _ in range(PASSES):
+                got = edit(through_true_angle(synthesize(g, GRID_FACTOR * rows), targets, 0.0))
+                g[kept] += edited[kept] - got[kept]
+        self.g = g
+
+    def column(self, extra, offset, rows):
+        g = self.g.copy()
+        if extra is not None:
+            k = min(len(extra), len(g))
+            g[1:k] += extra[1:k]
+        readouts = 360.0 * np.arange(rows) / rows
+        table = through_true_angle(synthesize(g, GRID_FACTOR * rows), readouts, offset)
+        return table + (self.mean + offset - table.sum() / rows)
+
+
+def error_at(col, readout):
+    """A table column read at readouts (linear between rows, wrapping at 360),
+    as CorrectionTable::error_at."""
+    n = len(col)
+    p = readout * (n / 360.0)
+    p = p - n * np.floor(p * (1.0 / n))
+    i = np.clip(p.astype(np.int64), 0, n - 1)
+    a = col[i]
+    nxt = col[(i + 1) % n]
+    return a + (nxt - a) * (p - i)
+
+
+# ----------------------------------------------------------------------------
+# Output formats
+
+
+def rust_float(x):
+    """A float as Rust's `{}` prints it: shortest round trip, never an exponent."""
+    s = repr(x)
+    if "e" in s or "E" in s:
+        s = np.format_float_positional(x, unique=True, trim="-")
+    elif s.endswith(".0"):
+        s = s[:-2]
+    return s
+
+
+def floats(values):
+    out = list(map(repr, values))
+    for i, s in enumerate(out):
+        if s.endswith(".0") or "e" in s:
+            out[i] = rust_float(values[i])
+    return out
+
+
+def recipe_text(survey_id, keep):
+    keep = ", ".join(f"{k:g}" for k in keep)
+    return f"""# Made by `survey process` from survey {survey_id}.
+# survey processing recipe (format 1): every choice of `survey process`.
+# Replay it on a new survey with `survey process --recipe FILE`. Frequencies are cycles
+# per revolution (true frequencies); `[[alias]]` entries say what happens to aliased lines.
+
+version = 1
+alias = []
+
+[analysis]
+series = "bidirectional"
+gear_harmonics = {GEAR_HARMONICS}
+tooth_harmonics = {TOOTH_HARMONICS}
+sideband_orders = {SIDEBAND_ORDERS}
+sideband_tooth_harmonics = {SIDEBAND_TOOTH_HARMONICS}
+false_alarm_rate = {ALPHA}
+partial_window = "hann"
+
+[lines]
+keep = [{keep}]
+remove = []
+unlisted = "keep_repeatable"
+min_amplitude_deg = 0.0
+
+[table]
+dense_points = {DENSE}
+rows = {ROWS}
+directional = "auto"
+hysteresis_factor = {HYSTERESIS_FACTOR}
+remove_mean = false
+interpolation = "spectral"
+
+[export]
+linuxcnc = true
+linuxcnc_points = {LINUXCNC}
+sinumerik_840d = true
+fanuc = true
+generic = false
+binary = true
+binary_format = "f64"
+directions = "auto"
+zero_at_reference = false
+sinumerik_absolute = false
+sign = "error"
+values = "absolute"
+sinumerik_axis = "C1"
+sinumerik_measuring_system = 0
+fanuc_unit_deg = 0.001
+fanuc_magnification = 1
+"""
+
+
+# ----------------------------------------------------------------------------
 
 
 def main():
     db = sys.argv[1]
     survey_id = int(sys.argv[2]) if len(sys.argv) > 2 else None
     out_dir = sys.argv[3] if len(sys.argv) > 3 else "."
-    survey_id, model, run, reverse, target, readout, actual = load(db, survey_id)
+    survey_id, model, located, s, locate = load(db, survey_id)
     gears, teeth = design_from(model)
+    axis_refit = refit(s, locate, located) if located else None
+    axis = "refitted" if axis_refit else ("located" if located else "none")
 
-    # The error map: [direction, run, target].
-    targets, t_index = np.unique(target, return_inverse=True)
-    runs = int(run.max())
-    dirs = 2 if reverse.any() else 1
-    n = len(targets)
-    err = np.zeros((dirs, runs, n))
-    dev = np.zeros((dirs, runs, n))
-    d_index = reverse.astype(np.int64) if dirs == 2 else np.zeros(len(run), dtype=np.int64)
-    err[d_index, run - 1, t_index] = readout - actual
-    dev[d_index, run - 1, t_index] = actual - target
-    iso = iso230(dev)
+    # The error map and the ISO 230-2 figures.
+    lay = Layout(s.run, s.reverse, s.target)
+    runs, dirs, n, targets = lay.runs, lay.dirs, lay.n, lay.targets
+    if abs(np.diff(targets) - 360.0 / n).max(initial=0.0) > 1e-6 or runs < 2:
+        raise SystemExit("a uniform full circle of two runs or more is needed")
+    native = s.readout - s.actual
+    err = lay.cube(native)  # [direction, run, target]
+    iso = iso230(lay.cube(s.actual - s.target))
+    dir_mean = err.sum(axis=1) / runs  # [direction, target]
 
-    # Noise, spectra and the F test of each bin.
-    mean_map = err.mean(axis=1)  # [direction, target]
-    resid = err - mean_map[:, None, :] - (err.mean(axis=2, keepdims=True) - err.mean(axis=(1, 2), keepdims=True))
-    dof = dirs * (runs - 1) * (n - 1)
-    sigma = np.sqrt((resid**2).sum() / dof)
-    bi = mean_map.mean(axis=0)
-    spectrum = np.fft.rfft(bi) / n * 2
-    amplitude = np.abs(spectrum)
-    per_run = np.fft.rfft(err, axis=2) / n * 2  # [direction, run, bin]
-    coherent = np.abs(per_run.mean(axis=1)) ** 2
-    scatter = (np.abs(per_run - per_run.mean(axis=1, keepdims=True)) ** 2).sum(axis=1) / (runs - 1)
-    f = coherent / np.maximum(scatter / runs, 1e-300)
-    p = stats.f.sf(f.mean(axis=0), 2, 2 * (runs - 1) * dirs)
-    threshold = sigma * np.sqrt(2.0 / (n * runs * dirs)) * 4.0
-    significant = [k for k in range(1, len(amplitude)) if p[k] < ALPHA / len(amplitude) and amplitude[k] > threshold]
+    # The analysis of the runs' series (the mean of their two passes).
+    rows_ = (err[0] + err[1]) / 2 if dirs == 2 else err[0]
+    z = analyze(rows_)  # [run, bin]: cos part real, sin part -imag
+    zbar = z.sum(axis=0) * (1.0 / runs)
+    regular = (n - 1) // 2
+    dev = z[:, 1 : regular + 1] - zbar[1 : regular + 1]
+    dof = 2 * regular * (runs - 1)
+    sd_run = math.sqrt((dev.real**2 + dev.imag**2).sum() / dof)
+    floor = max(1e-12 * math.sqrt((rows_**2).mean()), 8 * np.finfo(float).eps * max(1.0, np.abs(targets).max()))
+    sd_run = max(sd_run, floor * math.sqrt(2.0 / n))
+    tests = regular + (n % 2 == 0)
+    p = min(ALPHA / (2 * tests), 0.5)
+    coh_2d = math.sqrt(2 * f_even_isf(1, dof, p))
+    coh_1d = normal_two_sided_isf(p)
+    inc = 2 * runs * f_even_isf(runs, dof, p)
+    min_coherence = (1 + 1 / runs) / 2
+    ks = np.arange(1, n // 2 + 1)
+    one_dim = 2 * ks == n
+    sd = np.where(one_dim, sd_run / math.sqrt(2), sd_run)
+    sd_mean = sd / math.sqrt(runs)
+    zk = z[:, 1:]
+    amp = np.hypot(zbar.real, zbar.imag)[1:]
+    coherent = amp > np.where(one_dim, coh_1d, coh_2d) * sd_mean
+    power = (zk.real**2 + zk.imag**2).sum(axis=0)
+    incoherent = ~one_dim & (power / (sd * sd) > inc)
+    mean_pow = (zbar.real**2 + zbar.imag**2)[1:]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coherence = np.where(power > 0, np.minimum(runs * mean_pow / power, 1.0), 0.0)
+    repeatable = coherent & (coherence >= min_coherence)
+    lines = ks[coherent | incoherent]
+    cands = candidates(gears, teeth)
+    if any(c[0] >= n / 2 for c in cands):
+        raise SystemExit("a design frequency at or above the Nyquist: aliases are not handled here")
+    keep = [int(k) for k in lines if repeatable[k - 1]]
+    phase = np.mod(np.degrees(np.arctan2(zbar.real, -zbar.imag)), 360.0)
+    total = (mean_pow / np.where(one_dim, 1.0, 2.0)).sum()
     peaks = [
         {
-            "cycles_per_rev": k,
-            "amplitude_deg": float(amplitude[k]),
-            "phase_deg": float(np.degrees(np.angle(spectrum[k])) + 90.0),
-            "source": name_line(k, gears, teeth),
-            "repeatable": True,
+            "cycles_per_rev": float(k),
+            "amplitude_deg": float(amp[k - 1] if repeatable[k - 1] else math.sqrt(power[k - 1] / runs)),
+            "phase_deg": float(phase[k]),
+            "coherence": float(coherence[k - 1]),
+            "repeatable": bool(repeatable[k - 1]),
+            "share": float(mean_pow[k - 1] / (1 if one_dim[k - 1] else 2) / total) if total > 0 else 0.0,
+            "source": name_line(int(k), cands),
+            "kept": bool(repeatable[k - 1]),
         }
-        for k in significant
+        for k in lines
+    ]
+    sample_sd = sd_run * math.sqrt(n / 2)
+    noise = {
+        "method": "spectrum_scatter",
+        "line_sd_run_deg": sd_run,
+        "line_sd_mean_deg": sd_run / math.sqrt(runs),
+        "sample_sd_deg": sample_sd,
+        "dof": dof,
+        "tests": tests,
+        "false_alarm_rate": ALPHA,
+        "coherent_threshold_deg": coh_2d * sd_run / math.sqrt(runs),
+        "incoherent_threshold_deg": sd_run * math.sqrt(inc / runs),
+        "min_coherence": min_coherence,
+    }
+
+    # The table: directional when the hysteresis stands out of its noise.
+    keep_mask = np.zeros(n // 2 + 1)
+    keep_mask[0] = 1
+    keep_mask[keep] = 1
+    hysteresis = None
+    if dirs == 2:
+        hyst = dir_mean[0] - dir_mean[1]
+        h_noise = sample_sd * math.sqrt(2) * math.sqrt(2.0 / runs)
+        h_max = float(np.abs(hyst).max())
+        hysteresis = {
+            "factor": HYSTERESIS_FACTOR,
+            "max_deg": h_max,
+            "mean_deg": float(hyst.sum() / n),
+            "noise_deg": h_noise,
+            "significant": h_max > HYSTERESIS_FACTOR * h_noise,
+        }
+    directional = bool(hysteresis and hysteresis["significant"])
+    grid_targets = targets[0] + 360.0 * np.arange(n) / n
+    direction_model = None
+    if directional:
+        d = analyze(hyst)
+        bins = max((n - 1) // 2, 1)
+        threshold = h_noise * math.sqrt(2.0 / n) * math.sqrt(-2 * math.log(min(max(ALPHA, 1e-12), 1.0) / bins))
+        d_amp = np.abs(d[1 : bins + 1])
+        d_lines = np.flatnonzero(d_amp > threshold) + 1
+        half = np.zeros(d_lines[-1] + 1 if len(d_lines) else 1, complex)
+        half[d_lines] = d[d_lines] / 2
+        direction_model = {
+            "lines": [[int(k), float(d_amp[k - 1])] for k in d_lines],
+            "mean_deg": float(d[0].real),
+            "noise_deg": h_noise,
+            "targets": n,
+            "threshold_deg": threshold,
+        }
+        lines_ = TrueLines((dir_mean[0] + dir_mean[1]) / 2, grid_targets, keep_mask, ROWS)
+        m = d[0].real
+        columns = [lines_.column(half, m / 2, ROWS), lines_.column(-half, -m / 2, ROWS)]
+    else:
+        single = (dir_mean[0] + dir_mean[1]) / 2 if dirs == 2 else dir_mean[0]
+        columns = [TrueLines(single, grid_targets, keep_mask, ROWS).column(None, 0.0, ROWS)]
+
+    # The predicted accuracy: each sample corrected by its direction's column.
+    applied = np.empty_like(native)
+    if directional:
+        fwd = ~s.reverse
+        applied[fwd] = error_at(columns[0], s.readout[fwd])
+        applied[s.reverse] = error_at(columns[1], s.readout[s.reverse])
+    else:
+        applied = error_at(columns[0], s.readout)
+    corrected = (s.readout - applied) - s.actual
+    nm, cm = native.mean(), corrected.mean()
+    cube_c = lay.cube(corrected)
+    residual = cube_c - cube_c.mean(axis=1, keepdims=True)
+    noise_sd = math.sqrt((residual**2).sum() / (dirs * n * (runs - 1)))
+    m_samples = len(native)
+    spread = noise_sd * math.log(19) / math.sqrt(2 * math.log(2 * m_samples))
+    in_sample = float(np.abs(corrected - cm).max())
+    floor_deg = (
+        max(iso.get("R_up", iso["R"]), iso.get("R_down", 0.0)) / 2 if directional else iso["R"] / 2
+    )
+    t_cube = lay.cube(s.target)
+    prediction = {
+        "native_peak_deg": float(np.abs(native - nm).max()),
+        "corrected_peak_deg": in_sample + spread,
+        "in_sample_corrected_peak_deg": in_sample,
+        "native_rms_deg": float(np.sqrt(((native - nm) ** 2).mean())),
+        "corrected_rms_deg": float(np.sqrt(((corrected - cm) ** 2).mean())),
+        "native_iso230_a_deg": iso["A"],
+        "corrected_iso230_a_deg": iso_a((t_cube - cube_c) - t_cube),
+        "floor_deg": floor_deg,
+        "peak_spread_deg": spread,
+        "samples": m_samples,
+    }
+
+    # Figure 6: the bidirectional mean map decimated by 2, interpolated back.
+    bi = (dir_mean[0] + dir_mean[1]) / 2 if dirs == 2 else dir_mean[0]
+    kept, odd = bi[::2], bi[1::2]
+    nxt = np.roll(kept, -1)
+    predicted = {
+        "fixed": kept,
+        "linear": kept + (nxt - kept) * 0.5,
+        "quadratic": -0.125 * np.roll(kept, 1) + 0.75 * kept + 0.375 * nxt,
+        "spectral": synthesize(analyze(kept), n)[1::2],
+    }
+    interpolation = [
+        {"method": k, "rms_deg": float(np.sqrt(((v - odd) ** 2).sum() / len(odd))), "peak_deg": float(np.abs(v - odd).max())}
+        for k, v in predicted.items()
     ]
 
-    # The table.
-    keep = np.zeros(len(amplitude), dtype=bool)
-    keep[0] = True
-    keep[significant] = True
-    hysteresis = mean_map[0] - mean_map[-1]
-    h_noise = sigma * np.sqrt(2.0 / runs)
-    directional = dirs == 2 and np.abs(hysteresis).max() > 5 * h_noise
-
-    def table_of(m):
-        spec = np.fft.rfft(m)
-        spec[~keep] = 0
-        dense = resample(np.fft.irfft(spec, n), DENSE)
-        return dense[:: DENSE // ROWS]
-
-    columns = [table_of(mean_map[0]), table_of(mean_map[-1])] if directional else [table_of(bi)]
-
-    # The predicted accuracy.
-    native = readout - actual
-    if directional:
-        applied = np.where(reverse, periodic_interp(columns[1], readout), periodic_interp(columns[0], readout))
-    else:
-        applied = periodic_interp(columns[0], readout)
-    corrected = native - applied
-    shifted = dev.copy()
-    shifted[d_index, run - 1, t_index] = -corrected
-    prediction = {
-        "native_peak_deg": float(np.abs(native - native.mean()).max()),
-        "corrected_peak_deg": float(np.abs(corrected - corrected.mean()).max()),
-        "native_rms_deg": float(np.sqrt(((native - native.mean()) ** 2).mean())),
-        "corrected_rms_deg": float(np.sqrt(((corrected - corrected.mean()) ** 2).mean())),
-        "corrected_iso230_a_deg": float(iso230(shifted)["A"]),
-    }
-
-    # Figure 6: the map decimated by 2, interpolated back.
-    half = bi[::2]
-    x_half = targets[::2]
-    odd = targets[1::2]
-    scores = {
-        "linear": np.interp(odd, np.append(x_half, 360.0), np.append(half, half[0])) - bi[1::2],
-        "cubic": CubicSpline(np.append(x_half, 360.0), np.append(half, half[0]), bc_type="periodic")(odd) - bi[1::2],
-        "spectral": resample(half, n)[1::2] - bi[1::2],
-    }
-    interpolation = {k: float(np.sqrt((v**2).mean())) for k, v in scores.items()}
-
-    # LinuxCNC: 255 rows low-passed, the first repeated at 360.
-    comp_f = resample(columns[0], LINUXCNC - 1)
-    comp_r = resample(columns[-1], LINUXCNC - 1)
-    nominal = np.arange(LINUXCNC) * 360.0 / (LINUXCNC - 1)
-    comp_f = np.append(comp_f, comp_f[0])
-    comp_r = np.append(comp_r, comp_r[0])
+    # LinuxCNC: the columns low-passed to what 255 intervals hold, read at
+    # the grid's 256 points; its corrected peak on every turn a sample falls.
+    interval = 360.0 / (LINUXCNC - 1)
+    keep_cycles = (int(360.0 / interval + 1e-9) - 1) // 2
+    low = [synthesize(analyze(c)[: keep_cycles + 1], ROWS) if keep_cycles < ROWS // 2 else c for c in columns]
+    nominal = np.arange(LINUXCNC) * interval
+    comp = [error_at(c, nominal) for c in low]
+    comp_f, comp_r = comp[0], comp[-1]
+    lo_r, hi_r = s.readout.min(), s.readout.max()
+    worst = None
+    for k in range(-1, 3):
+        pos = s.readout + 360.0 * k
+        inside = (pos >= -1e-9) & (pos <= nominal[-1] + 1e-9)
+        if not inside.any():
+            continue
+        t = pos * (1.0 / interval)
+        i = np.clip(t.astype(np.int64), 0, LINUXCNC - 2)
+        removed = np.empty_like(t)
+        for col, mask in ((comp_f, ~s.reverse), (comp_r, s.reverse)):
+            sel = inside & mask
+            ti, ii = t[sel], i[sel]
+            v = col[ii] + (col[ii + 1] - col[ii]) * (ti - ii)
+            v = np.where(ti <= 0, col[0], np.where(ti >= LINUXCNC - 1, col[-1], v))
+            removed[sel] = v
+        e = native[inside] - removed[inside]
+        mean = e.mean()
+        peak = max(e.max() - mean, mean - e.min())
+        worst = peak if worst is None else max(worst, peak)
+    prediction["linuxcnc_corrected_peak_deg"] = worst
+    del lo_r, hi_r
 
     # The files.
     os.makedirs(out_dir, exist_ok=True)
     stem = os.path.join(out_dir, f"table-{survey_id}")
-    readouts = np.arange(ROWS) * 360.0 / ROWS
+    readouts = (np.arange(ROWS) * (360.0 / ROWS)).tolist()
+    cols = [floats(readouts)] + [floats(c.tolist()) for c in columns]
     with open(stem + ".csv", "w") as fh:
-        if directional:
-            fh.write("readout_deg,error_forward_deg,error_reverse_deg\n")
-            fh.write("".join(f"{r!r},{a!r},{b!r}\n" for r, a, b in zip(readouts.tolist(), columns[0].tolist(), columns[1].tolist())))
-        else:
-            fh.write("readout_deg,error_deg\n")
-            fh.write("".join(f"{r!r},{a!r}\n" for r, a in zip(readouts.tolist(), columns[0].tolist())))
+        fh.write("readout_deg,error_forward_deg,error_reverse_deg\n" if directional else "readout_deg,error_deg\n")
+        fh.write("\n".join(map(",".join, zip(*cols))) + "\n")
+    nom = nominal.tolist()
     with open(stem + ".comp0", "w") as fh:
-        fh.write("".join(f"{x:.10f} {x - a:.10f} {x - b:.10f}\n" for x, a, b in zip(nominal, comp_f, comp_r)))
+        fh.write("".join(f"{x:.10f} {x - a:.10f} {x - b:.10f}\n" for x, a, b in zip(nom, comp_f.tolist(), comp_r.tolist())))
     with open(stem + ".comp1", "w") as fh:
-        fh.write("".join(f"{x:.10f} {a:.10f} {b:.10f}\n" for x, a, b in zip(nominal, comp_f, comp_r)))
+        fh.write("".join(f"{x:.10f} {a:.10f} {b:.10f}\n" for x, a, b in zip(nom, comp_f.tolist(), comp_r.tolist())))
+    values = np.concatenate(columns).astype("<f8").tobytes()
+    header = b"SVCT" + np.array([1], "<u2").tobytes() + bytes([8, len(columns)])
+    header += np.array([ROWS, zlib.crc32(values)], "<u4").tobytes()
     with open(stem + ".bin", "wb") as fh:
-        fh.write(np.asarray(np.concatenate(columns), dtype="<f8").tobytes())
+        fh.write(header + values)
     with open(stem + ".recipe.toml", "w") as fh:
-        fh.write(f"[lines]\nkeep = {significant}\n[table]\nrows = {ROWS}\ndense_points = {DENSE}\n")
+        fh.write(recipe_text(survey_id, keep))
 
     print(
         json.dumps(
             {
                 "survey_id": survey_id,
-                "iso230_2": {k: float(v) for k, v in iso.items()},
-                "noise_deg": float(sigma),
+                "axis": axis,
+                "axis_refit": axis_refit,
+                "iso230_2": iso,
+                "noise": noise,
                 "peaks": peaks,
-                "table": {"path": stem + ".csv", "points": ROWS, "directional": bool(directional)},
+                "table": {
+                    "path": stem + ".csv",
+                    "points": ROWS,
+                    "directional": directional,
+                    "kept_cycles": [float(k) for k in keep],
+                    "hysteresis": hysteresis,
+                    "direction_model": direction_model,
+                },
                 "predicted": prediction,
                 "interpolation": interpolation,
             }

@@ -187,6 +187,13 @@ impl Tracker for Reconnecting<dyn Tracker> {
         self.call(|d| d.reacquire()).await
     }
     /// The connected driver's (false before the first connection).
+    fn can_point(&self) -> bool {
+        self.current.as_ref().is_some_and(|d| d.can_point())
+    }
+    async fn point_at(&mut self, xyz_mm: [f64; 3]) -> Result<()> {
+        self.call(|d| d.point_at(xyz_mm)).await
+    }
+    /// The connected driver's (false before the first connection).
     fn can_stream(&self) -> bool {
         self.current.as_ref().is_some_and(|d| d.can_stream())
     }

@@ -193,6 +193,16 @@ pub trait Tracker: Send + Debug {
     async fn status(&mut self) -> Result<TrackerState>;
     /// Find the reflector again after a beam break.
     async fn reacquire(&mut self) -> Result<()>;
+    /// Whether the tracker can be pointed at a position to lock onto another
+    /// reflector there ([`Tracker::point_at`]), as a survey of several SMRs needs.
+    fn can_point(&self) -> bool {
+        false
+    }
+    /// Turn the beam to `xyz_mm` (the tracker's frame, mm) and lock onto the
+    /// reflector there: the next measurements are of it.
+    async fn point_at(&mut self, _xyz_mm: [f64; 3]) -> Result<()> {
+        Err(DriverError::usage(self.name(), "this tracker cannot be pointed at another reflector"))
+    }
     /// Whether the tracker measures continuously (a time-triggered stream
     /// of stamped points), as a continuous scan needs.
     fn can_stream(&self) -> bool {

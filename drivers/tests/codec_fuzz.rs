@@ -99,6 +99,7 @@ fn seeds(target: &str) -> Vec<Vec<u8>> {
                 EmsconRequest::StartMeasurement,
                 EmsconRequest::GoLastMeasuredPoint,
                 EmsconRequest::FindReflector { approx_distance: 2500.0 },
+                EmsconRequest::GoPosition { position: [2500.0, 800.0, -300.0], use_adm: false },
                 EmsconRequest::SetStatisticMode { stationary: 0, continuous: 0 },
             ] {
                 v.extend(r.encode());

@@ -87,6 +87,28 @@ pub struct ArmGeometry {
     pub arm_phase_deg: f64,
     /// Height of the SMR above `axis_center_mm` along the normal, mm (default 50).
     pub smr_height_mm: f64,
+    /// The SMRs on the table (default one, at the arm's phase and height):
+    /// each at its own phase and height from SMR 0's, on the same radius.
+    pub smrs: Vec<SmrMount>,
+}
+
+/// Where an SMR sits on the table, relative to the arm's first SMR.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SmrMount {
+    /// Its angle from the first SMR's, around the axis, degrees.
+    pub phase_deg: f64,
+    /// Its height above the first SMR's, along the axis, mm.
+    pub height_mm: f64,
+}
+
+impl SmrMount {
+    /// The first SMR itself.
+    pub const FIRST: SmrMount = SmrMount { phase_deg: 0.0, height_mm: 0.0 };
+
+    /// `n` SMRs at equal spacing, one height.
+    pub fn equal(n: usize) -> Vec<SmrMount> {
+        (0..n.max(1)).map(|i| SmrMount { phase_deg: 360.0 * i as f64 / n.max(1) as f64, height_mm: 0.0 }).collect()
+    }
 }
 
 impl Default for ArmGeometry {
@@ -99,6 +121,7 @@ impl Default for ArmGeometry {
             axis_normal: [tilt.sin() * toward.cos(), tilt.sin() * toward.sin(), tilt.cos()],
             arm_phase_deg: 37.0,
             smr_height_mm: 50.0,
+            smrs: vec![SmrMount::FIRST],
         }
     }
 }
@@ -136,13 +159,20 @@ impl ArmGeometry {
         std::array::from_fn(|i| self.axis_center_mm[i] + self.smr_height_mm * n[i])
     }
 
-    /// The SMR position at true axis angle `theta_deg`, mm, tracker frame.
+    /// The (first) SMR's position at true axis angle `theta_deg`, mm, tracker frame.
     pub fn smr_position_mm(&self, theta_deg: f64) -> [f64; 3] {
-        let (u, v, _) = self.basis();
+        self.smr_position_of(0, theta_deg)
+    }
+
+    /// SMR `k`'s position at true axis angle `theta_deg`, mm, tracker frame
+    /// (the first one's for an SMR the arm does not have).
+    pub fn smr_position_of(&self, k: usize, theta_deg: f64) -> [f64; 3] {
+        let mount = self.smrs.get(k).copied().unwrap_or(SmrMount::FIRST);
+        let (u, v, n) = self.basis();
         let c = self.circle_center_mm();
-        let phi = (theta_deg + self.arm_phase_deg).to_radians();
+        let phi = (theta_deg + self.arm_phase_deg + mount.phase_deg).to_radians();
         let (s, k) = phi.sin_cos();
-        std::array::from_fn(|i| c[i] + self.radius_mm * (k * u[i] + s * v[i]))
+        std::array::from_fn(|i| c[i] + mount.height_mm * n[i] + self.radius_mm * (k * u[i] + s * v[i]))
     }
 }
 
@@ -245,6 +275,18 @@ pub struct TrackerConfig {
     /// The tracker's own error (default: an AT-class tracker's typical,
     /// the bench's own, [`typical_errors`] of [`BENCH_TRACKER`]).
     pub errors: TrackerErrorSpec,
+    /// Pointing at a position ([`SimTracker::go_position`]): the beam turns
+    /// at this rate, degrees per second (default 180: an AT-class tracker's
+    /// angular speed), after the link latency.
+    pub slew_deg_s: f64,
+    /// A search for a reflector ([`SimTracker::find_reflector`]) takes this
+    /// long (default 500 ms) and finds an SMR within `capture_mm` of where
+    /// the beam points (default 25 mm: the search radius our model gives the
+    /// tracker; our own choice, an emScon server's `SetSearchParams` sets a
+    /// real one's).
+    pub find_time: Duration,
+    /// See `find_time`.
+    pub capture_mm: f64,
 }
 
 impl Default for TrackerConfig {
@@ -260,6 +302,9 @@ impl Default for TrackerConfig {
             noise_scale: 1.0,
             stream: stream::StreamSim::default(),
             errors: TrackerErrorSpec::Typical,
+            slew_deg_s: 180.0,
+            find_time: Duration::from_millis(500),
+            capture_mm: 25.0,
         }
     }
 }
@@ -281,6 +326,11 @@ pub struct SimTracker {
     injected: Option<Injected>,
     /// The error set in use (the configuration's, or drawn).
     errors: TrackerErrors,
+    /// The SMR the beam is on (or was on, when it broke).
+    target: usize,
+    /// Where the beam points since a [`SimTracker::go_position`], until a
+    /// reflector is found there.
+    aim: Option<[f64; 3]>,
 }
 
 impl SimTracker {
@@ -293,6 +343,8 @@ impl SimTracker {
         };
         Self {
             errors,
+            target: 0,
+            aim: None,
             noise_rng: seeded_rng(cfg.seed, NOISE_STREAM),
             fault_rng: seeded_rng(cfg.seed, FAULT_STREAM),
             clock,
@@ -327,11 +379,78 @@ impl SimTracker {
         &self.errors
     }
 
-    /// Where this tracker reads the SMR at true axis angle `theta_deg`, with
-    /// the random part's standard normals `z` (scaled by `noise_scale`).
+    /// Where this tracker reads the SMR it is locked on at true axis angle
+    /// `theta_deg`, with the random part's standard normals `z` (scaled by
+    /// `noise_scale`).
     fn read_at(&self, theta_deg: f64, z: [f64; 3]) -> [f64; 3] {
-        let p = self.cfg.arm.smr_position_mm(theta_deg);
+        let p = self.cfg.arm.smr_position_of(self.target, theta_deg);
         self.errors.measured(p, z.map(|v| v * self.cfg.noise_scale))
+    }
+
+    /// The SMR the beam is locked on (0-based, the arm's order).
+    pub fn target(&self) -> usize {
+        self.target
+    }
+
+    /// Turn the beam to `xyz_mm` (the tracker's frame, as it reads it):
+    /// emScon's `GoPosition`. The beam leaves the SMR it was on; the time
+    /// is the link latency and the turn at `slew_deg_s`.
+    pub async fn go_position(&mut self, xyz_mm: [f64; 3]) -> Result<()> {
+        if self.streaming.is_some() {
+            self.clock.sleep(LINK_LATENCY).await;
+            return Err(DriverError::usage(INSTRUMENT, "measuring continuously: stop the stream first"));
+        }
+        if !xyz_mm.iter().all(|v| v.is_finite()) || dot(xyz_mm, xyz_mm) == 0.0 {
+            self.clock.sleep(LINK_LATENCY).await;
+            return Err(DriverError::usage(INSTRUMENT, format!("cannot point at {xyz_mm:?}")));
+        }
+        let theta = self.turntable.actual_deg(self.clock.now());
+        let from = self.aim.unwrap_or_else(|| self.cfg.arm.smr_position_of(self.target, theta));
+        let cos = dot(from, xyz_mm) / (dot(from, from) * dot(xyz_mm, xyz_mm)).sqrt();
+        let turn_deg = cos.clamp(-1.0, 1.0).acos().to_degrees();
+        self.clock.sleep(LINK_LATENCY + Duration::from_secs_f64(turn_deg / self.cfg.slew_deg_s.max(1e-6))).await;
+        self.aim = Some(xyz_mm);
+        if self.state == TrackerState::TargetLocked {
+            self.state = TrackerState::BeamBroken;
+        }
+        Ok(())
+    }
+
+    /// Search for a reflector where the beam points (emScon's
+    /// `FindReflector`): the SMR nearest the aim within `capture_mm` (its
+    /// true position at the axis's true angle), locked after `find_time`;
+    /// none there (or the beam still blocked) is a device fault with
+    /// [`CODE_BEAM_BROKEN`]. Without an aim, the SMR the beam was on.
+    pub async fn find_reflector(&mut self) -> Result<()> {
+        let Some(aim) = self.aim else { return self.reacquire().await };
+        self.clock.sleep(self.cfg.find_time).await;
+        if self.clock.now() < self.blocked_until {
+            return Err(DriverError::device(INSTRUMENT, CODE_BEAM_BROKEN, "no reflector found: the beam is blocked"));
+        }
+        let theta = self.turntable.actual_deg(self.clock.now());
+        let nearest = (0..self.cfg.arm.smrs.len().max(1))
+            .map(|k| {
+                let p = self.cfg.arm.smr_position_of(k, theta);
+                let d: [f64; 3] = std::array::from_fn(|i| p[i] - aim[i]);
+                (k, dot(d, d).sqrt())
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        match nearest {
+            Some((k, d)) if d <= self.cfg.capture_mm => {
+                self.target = k;
+                self.aim = None;
+                self.state = TrackerState::TargetLocked;
+                Ok(())
+            }
+            _ => Err(DriverError::device(
+                INSTRUMENT,
+                CODE_BEAM_BROKEN,
+                format!(
+                    "no reflector found within {} mm of ({:.1}, {:.1}, {:.1}) mm",
+                    self.cfg.capture_mm, aim[0], aim[1], aim[2]
+                ),
+            )),
+        }
     }
 
     /// Measurements attempted so far (broken ones included).
@@ -402,6 +521,7 @@ impl Tracker for SimTracker {
     }
 
     async fn reacquire(&mut self) -> Result<()> {
+        self.aim = None;
         if self.state == TrackerState::TargetLocked {
             self.clock.sleep(LINK_LATENCY).await;
             return Ok(());
@@ -416,6 +536,15 @@ impl Tracker for SimTracker {
         }
         self.state = TrackerState::TargetLocked;
         Ok(())
+    }
+
+    async fn point_at(&mut self, xyz_mm: [f64; 3]) -> Result<()> {
+        self.go_position(xyz_mm).await?;
+        self.find_reflector().await
+    }
+
+    fn can_point(&self) -> bool {
+        true
     }
 
     fn can_stream(&self) -> bool {

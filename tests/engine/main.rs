@@ -7,6 +7,7 @@ mod examples;
 mod instrument_time;
 mod integrity;
 mod interop_canopen;
+mod interop_emscon;
 mod modelgap;
 mod resume;
 mod scan_latency;
@@ -182,6 +183,7 @@ async fn the_circle_fit_recovers_a_tilted_off_centre_arm() {
         axis_normal: [tilt.sin() * 0.6, tilt.sin() * 0.8, tilt.cos()],
         arm_phase_deg: -71.0,
         smr_height_mm: 120.0,
+        ..ArmGeometry::default()
     };
     // A perfect positioner: the true angle is the readout, so every deviation
     // of the measured angle is the tracker's noise plus the fit's error.

@@ -54,6 +54,9 @@ pub mod command {
     pub const GO_LAST_MEASURED_POINT: i32 = 62;
     /// `ES_C_FindReflector`.
     pub const FIND_REFLECTOR: i32 = 63;
+    /// `ES_C_GoPosition`: turn the beam to a position (the current
+    /// coordinate system's values).
+    pub const GO_POSITION: i32 = 55;
     /// `ES_C_Unknown`.
     pub const UNKNOWN: i32 = 64;
     /// `ES_C_GetMeasurementStatusInfo`.
@@ -81,6 +84,7 @@ pub mod command {
             START_MEASUREMENT => "ES_C_StartMeasurement",
             GO_LAST_MEASURED_POINT => "ES_C_GoLastMeasuredPoint",
             FIND_REFLECTOR => "ES_C_FindReflector",
+            GO_POSITION => "ES_C_GoPosition",
             UNKNOWN => "ES_C_Unknown",
             GET_MEASUREMENT_STATUS_INFO => "ES_C_GetMeasurementStatusInfo",
             SET_STATISTIC_MODE => "ES_C_SetStatisticMode",

@@ -328,7 +328,9 @@ where
         match request {
             Request::Initialize => ms(t.initialize_ms),
             Request::StartMeasurement => ms(u64::from(self.cfg.measurement_time_ms) + t.measurement_margin_ms),
-            Request::GoLastMeasuredPoint | Request::FindReflector { .. } => ms(t.reacquire_ms),
+            Request::GoLastMeasuredPoint | Request::FindReflector { .. } | Request::GoPosition { .. } => {
+                ms(t.reacquire_ms)
+            }
             _ => ms(t.request_ms),
         }
     }
@@ -690,6 +692,52 @@ where
             );
             tracing::warn!(instrument = %self.name, error = %e, "re-acquisition failed");
             Err(e)
+        }
+    }
+
+    fn can_point(&self) -> bool {
+        true
+    }
+
+    /// `GoPosition` to `xyz_mm` (the right-handed rectangular frame this
+    /// driver sets, in mm), then `FindReflector` at its distance: locked on
+    /// the reflector there, or a device fault (no reflector locked). Each
+    /// command under its own deadline (`reacquire_ms`: a turn and a search).
+    async fn point_at(&mut self, xyz_mm: [f64; 3]) -> Result<()> {
+        if self.streamed.is_some() {
+            return Err(DriverError::usage(&self.name, "measuring continuously: stop the stream before pointing"));
+        }
+        let at = format!("({:.1}, {:.1}, {:.1}) mm", xyz_mm[0], xyz_mm[1], xyz_mm[2]);
+        // A device's refusal is said with the position it was asked about.
+        let placed = |mut e: DriverError| {
+            if e.kind == ErrorKind::Device {
+                e.message = format!("{} (pointing at {at})", e.message);
+            }
+            e
+        };
+        self.command(Request::GoPosition { position: xyz_mm, use_adm: false }).await.map_err(placed)?;
+        let approx_distance = xyz_mm.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let found = self.command(Request::FindReflector { approx_distance }).await.map_err(placed);
+        if let Err(e) = found {
+            if e.kind == ErrorKind::Device {
+                self.state = TrackerState::BeamBroken;
+            }
+            return Err(e);
+        }
+        if self.reflector_locked().await? {
+            self.state = TrackerState::TargetLocked;
+            Ok(())
+        } else {
+            self.state = TrackerState::BeamBroken;
+            let code = status::MEASUREMENT_STATUS_NOT_READY;
+            Err(DriverError::device(
+                &self.name,
+                i64::from(code),
+                format!(
+                    "{} ({code}): no reflector locked at {at} after ES_C_GoPosition and ES_C_FindReflector",
+                    status::describe(code)
+                ),
+            ))
         }
     }
 

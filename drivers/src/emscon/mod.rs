@@ -27,6 +27,7 @@
 //! | `ES_C_GetMeasurementStatusInfo` (122) | `...CT` | `...RT` (`lastResultStatus`, `lMeasurementStatusInfo`) | 12 / 24 |
 //! | `ES_C_GoLastMeasuredPoint` (62) | `GoLastMeasuredPointCT` | `...RT` | 12 / 16 |
 //! | `ES_C_FindReflector` (63) | `FindReflectorCT` (`double dAproxDistance`) | `...RT` | 20 / 16 |
+//! | `ES_C_GoPosition` (55) | `GoPositionCT` (`double dVal1, dVal2, dVal3; ES_BOOL bUseADM`) | `...RT` | 40 / 16 |
 //!
 //! Also from the server, at any time: `SystemStatusChangeT { PacketHeaderT;
 //! enum ES_SystemStatusChange systemStatusChange; }` (type

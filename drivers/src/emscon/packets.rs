@@ -40,6 +40,9 @@ pub const ONE_ENUM_CT_LEN: usize = BASIC_COMMAND_CT_LEN + 4;
 pub const SET_STATIONARY_MODE_PARAMS_CT_LEN: usize = BASIC_COMMAND_CT_LEN + 8;
 /// `sizeof(struct FindReflectorCT)`: `BasicCommandCT` + `double dAproxDistance`.
 pub const FIND_REFLECTOR_CT_LEN: usize = BASIC_COMMAND_CT_LEN + 8;
+/// `sizeof(struct GoPositionCT)`: `BasicCommandCT` + three doubles + `ES_BOOL bUseADM`
+/// (packed to 4: no padding before the doubles).
+pub const GO_POSITION_CT_LEN: usize = BASIC_COMMAND_CT_LEN + 3 * 8 + 4;
 /// `sizeof(struct GetSystemStatusRT)`: `BasicCommandRT` + four enums +
 /// `ESVersionNumberT` (3 ints) + an enum + two longs.
 pub const GET_SYSTEM_STATUS_RT_LEN: usize = BASIC_COMMAND_RT_LEN + 40;
@@ -101,6 +104,15 @@ pub enum Request {
     FindReflector {
         /// Approximate distance to the reflector.
         approx_distance: f64,
+    },
+    /// `GoPositionCT`: `double dVal1, dVal2, dVal3` (the current coordinate
+    /// system's values: x, y, z in the length unit for the right-handed
+    /// rectangular one), `ES_BOOL bUseADM`.
+    GoPosition {
+        /// `dVal1..3`.
+        position: [f64; 3],
+        /// `bUseADM`.
+        use_adm: bool,
     },
     /// `SetStatisticModeCT`: `enum ES_StatisticMode` for stationary and for
     /// continuous measurements.
@@ -375,6 +387,7 @@ impl Request {
             Request::GetMeasurementStatusInfo => cmd::GET_MEASUREMENT_STATUS_INFO,
             Request::GoLastMeasuredPoint => cmd::GO_LAST_MEASURED_POINT,
             Request::FindReflector { .. } => cmd::FIND_REFLECTOR,
+            Request::GoPosition { .. } => cmd::GO_POSITION,
             Request::SetStatisticMode { .. } => cmd::SET_STATISTIC_MODE,
             Request::SetContinuousTimeModeParams(_) => cmd::SET_CONTINUOUS_TIME_MODE_PARAMS,
             Request::StopMeasurement => cmd::STOP_MEASUREMENT,
@@ -397,6 +410,12 @@ impl Request {
                 w.i32(i32::from(p.use_adm));
             }
             Request::FindReflector { approx_distance } => w.f64(approx_distance),
+            Request::GoPosition { position, use_adm } => {
+                for v in position {
+                    w.f64(v);
+                }
+                w.i32(i32::from(use_adm));
+            }
             Request::SetStatisticMode { stationary, continuous } => {
                 w.i32(stationary);
                 w.i32(continuous);
@@ -469,6 +488,11 @@ impl Request {
             cmd::FIND_REFLECTOR => {
                 expect_len("FindReflectorCT", frame, FIND_REFLECTOR_CT_LEN)?;
                 Ok(Request::FindReflector { approx_distance: r.f64() })
+            }
+            cmd::GO_POSITION => {
+                expect_len("GoPositionCT", frame, GO_POSITION_CT_LEN)?;
+                let position = [r.f64(), r.f64(), r.f64()];
+                Ok(Request::GoPosition { position, use_adm: r.i32() != 0 })
             }
             cmd::SET_STATISTIC_MODE => {
                 expect_len("SetStatisticModeCT", frame, SET_STATISTIC_MODE_CT_LEN)?;
@@ -670,6 +694,7 @@ fn decode_answer(frame: &[u8]) -> Result<Reply, DecodeError> {
         | cmd::GO_LAST_MEASURED_POINT
         | cmd::SET_CONTINUOUS_TIME_MODE_PARAMS
         | cmd::STOP_MEASUREMENT
+        | cmd::GO_POSITION
         | cmd::FIND_REFLECTOR => {
             expect_len("BasicCommandRT", frame, BASIC_COMMAND_RT_LEN)?;
             AnswerBody::Empty

@@ -43,6 +43,13 @@ fn requests_have_the_header_layouts() {
     let mut find = le(&[20, 0, 63]);
     find.extend(2500.5f64.to_le_bytes());
     assert_eq!(Request::FindReflector { approx_distance: 2500.5 }.encode(), find);
+    // GoPositionCT, 40 bytes: the three doubles right after the command (pack(4)), then bUseADM.
+    // The bytes cesapi 1.1.3 sends for GoPosition(0, 3500, 1000, -250) (captured from it).
+    let go = Request::GoPosition { position: [3500.0, 1000.0, -250.0], use_adm: false }.encode();
+    let captured = "280000000000000037000000000000000058ab400000000000408f400000000000406fc000000000";
+    let hex: String = go.iter().map(|b| format!("{b:02x}")).collect();
+    assert_eq!(hex, captured);
+    assert_eq!(go.len(), GO_POSITION_CT_LEN);
 }
 
 #[test]
@@ -180,6 +187,8 @@ fn arb_request() -> impl Strategy<Value = Request> {
         Just(Request::GetMeasurementStatusInfo),
         Just(Request::GoLastMeasuredPoint),
         finite().prop_map(|approx_distance| Request::FindReflector { approx_distance }),
+        ([finite(), finite(), finite()], any::<bool>())
+            .prop_map(|(position, use_adm)| Request::GoPosition { position, use_adm }),
         (any::<i32>(), any::<i32>())
             .prop_map(|(stationary, continuous)| Request::SetStatisticMode { stationary, continuous }),
         (any::<i32>(), any::<i32>(), any::<bool>(), any::<i32>()).prop_map(
@@ -637,4 +646,57 @@ async fn an_extended_result_is_decoded_like_a_standard_one() {
     assert_eq!(got, SingleMeasResult::from(extended));
     assert_eq!(got.val, standard.val);
     script.await.unwrap();
+}
+
+/// `point_at`: GoPosition with the position, FindReflector at its distance,
+/// then whether a reflector is locked; each refusal or a search that locks
+/// nothing is a device fault naming the position.
+#[tokio::test]
+async fn pointing_goes_to_the_position_searches_and_checks_the_lock() {
+    let (mut t, mut peer, mut d) = set_up().await;
+    let p = [2500.0, 800.0, -300.0];
+    let distance = (2500f64.powi(2) + 800f64.powi(2) + 300f64.powi(2)).sqrt();
+    let info = |found: bool| {
+        let info = if found { super::codes::measurement_status_info::REFLECTOR_FOUND } else { 0 };
+        Reply::Answer(Answer {
+            command: cmd::GET_MEASUREMENT_STATUS_INFO,
+            status: 0,
+            body: AnswerBody::MeasurementStatusInfo(MeasurementStatusInfo { last_result_status: 0, info }),
+        })
+        .encode()
+    };
+    let script = tokio::spawn(async move {
+        // Locked.
+        assert_eq!(next_request(&mut peer, &mut d).await, Some(Request::GoPosition { position: p, use_adm: false }));
+        peer.write_all(&Reply::answer(cmd::GO_POSITION, 0).encode()).await.unwrap();
+        assert_eq!(next_request(&mut peer, &mut d).await, Some(Request::FindReflector { approx_distance: distance }));
+        peer.write_all(&Reply::answer(cmd::FIND_REFLECTOR, 0).encode()).await.unwrap();
+        assert_eq!(next_request(&mut peer, &mut d).await, Some(Request::GetMeasurementStatusInfo));
+        peer.write_all(&info(true)).await.unwrap();
+        // The search answers AllOK but nothing is locked.
+        for (r, answer) in [(cmd::GO_POSITION, 0), (cmd::FIND_REFLECTOR, 0)] {
+            assert_eq!(next_request(&mut peer, &mut d).await.map(|q| q.command()), Some(r));
+            peer.write_all(&Reply::answer(r, answer).encode()).await.unwrap();
+        }
+        assert_eq!(next_request(&mut peer, &mut d).await, Some(Request::GetMeasurementStatusInfo));
+        peer.write_all(&info(false)).await.unwrap();
+        // The turn refused (a position out of the tracker's range).
+        assert_eq!(next_request(&mut peer, &mut d).await.map(|q| q.command()), Some(cmd::GO_POSITION));
+        peer.write_all(&Reply::answer(cmd::GO_POSITION, status::PARAMETER1_OUT_OF_RANGE_NOK).encode()).await.unwrap();
+        peer
+    });
+    t.point_at(p).await.unwrap();
+    assert_eq!(t.state(), TrackerState::TargetLocked);
+    let e = t.point_at(p).await.unwrap_err();
+    assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(i64::from(status::MEASUREMENT_STATUS_NOT_READY))), "{e}");
+    assert!(e.message.contains("no reflector locked at (2500.0, 800.0, -300.0) mm"), "{e}");
+    assert_eq!(t.state(), TrackerState::BeamBroken);
+    let e = t.point_at(p).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Device, "{e}");
+    assert!(
+        e.message.contains("ES_C_GoPosition") && e.message.contains("(pointing at (2500.0, 800.0, -300.0) mm)"),
+        "{e}"
+    );
+    assert!(t.can_point());
+    drop(script.await.unwrap());
 }

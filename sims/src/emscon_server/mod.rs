@@ -341,6 +341,20 @@ impl Server {
                 fail(status::PARAMETER1_OUT_OF_RANGE_NOK)
             }
             Request::FindReflector { .. } => self.relock(c, &mut events).await,
+            Request::GoPosition { position, .. } => match self.sim.go_position(position).await {
+                Ok(()) => {
+                    if self.locked {
+                        // The beam left the reflector it was on.
+                        events.push(status_change::MEAS_STATUS_NOT_READY);
+                        self.locked = false;
+                    }
+                    ok(c)
+                }
+                Err(e) => {
+                    tracing::info!(error = %e, "emscon simulator: GoPosition refused");
+                    fail(status::PARAMETER1_OUT_OF_RANGE_NOK)
+                }
+            },
             Request::SetStatisticMode { stationary, continuous } => {
                 let valid = |m: i32| m == statistic_mode::STANDARD || m == statistic_mode::EXTENDED;
                 if !valid(stationary) {
@@ -394,7 +408,10 @@ impl Server {
     }
 
     async fn relock(&mut self, c: i32, events: &mut Vec<i32>) -> Reply {
-        match self.sim.reacquire().await {
+        // After a GoPosition the search is where the beam points, else the
+        // reflector it was on is found again.
+        let found = if c == cmd::FIND_REFLECTOR { self.sim.find_reflector().await } else { self.sim.reacquire().await };
+        match found {
             Ok(()) => {
                 if !self.locked {
                     events.push(status_change::MEAS_STATUS_READY);

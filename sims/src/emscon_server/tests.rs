@@ -389,3 +389,35 @@ async fn a_second_client_is_refused_while_the_first_is_served() {
     drop(first);
     EmsconTracker::connect(rig.server_addr, driver_cfg()).await.unwrap().measure().await.unwrap();
 }
+
+#[tokio::test]
+async fn pointed_at_another_smr_over_the_wire_it_measures_that_one() {
+    use crate::tracker::{ArmGeometry, SmrMount};
+    use survey_processing::tracker_errors::TrackerErrorSpec;
+    let arm = ArmGeometry { smrs: SmrMount::equal(2), ..ArmGeometry::default() };
+    let cfg = TrackerConfig { arm: arm.clone(), errors: TrackerErrorSpec::None, noise_scale: 0.0, ..sim_cfg(3, None) };
+    let rig = Rig::new(cfg).await;
+    let mut t = rig.connect().await;
+    assert!(t.can_point());
+    let first = t.measure().await.unwrap().xyz();
+    assert_eq!(first, arm.smr_position_of(0, ANGLE));
+    let second = arm.smr_position_of(1, ANGLE);
+    t.point_at(second).await.unwrap();
+    assert_eq!(t.status().await.unwrap(), TrackerState::TargetLocked);
+    assert_eq!(t.measure().await.unwrap().xyz(), second);
+    // The requests on the wire: GoPosition with the position, FindReflector at its distance.
+    let sent = rig.requests.get();
+    let go = sent.iter().position(|r| matches!(r, Request::GoPosition { .. })).expect("a GoPosition");
+    assert_eq!(sent[go], Request::GoPosition { position: second, use_adm: false });
+    let distance = second.iter().map(|v| v * v).sum::<f64>().sqrt();
+    assert_eq!(sent[go + 1], Request::FindReflector { approx_distance: distance });
+    // Nothing there: a device fault, the tracker not locked, nothing measured.
+    let e = t.point_at([100.0, 200.0, 300.0]).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Device, "{e}");
+    assert!(e.to_string().contains("ES_C_FindReflector (pointing at (100.0, 200.0, 300.0) mm)"), "{e}");
+    assert_eq!(t.status().await.unwrap(), TrackerState::BeamBroken);
+    assert_eq!(t.measure().await.unwrap_err().kind, ErrorKind::Device);
+    // Back on the first.
+    t.point_at(first).await.unwrap();
+    assert_eq!(t.measure().await.unwrap().xyz(), first);
+}

@@ -223,14 +223,15 @@ fn angle_error_of(errors: &TrackerErrors) -> (f64, Vec<f64>) {
     let mean = e.iter().sum::<f64>() / e.len() as f64;
     let e: Vec<f64> = e.iter().map(|x| x - mean).collect();
     let peak = e.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let fit = survey_processing::spectrum::fit_sinusoids(&theta, &e, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]).unwrap();
+    let fit =
+        survey_processing::spectrum::fit_sinusoids(&theta, &e, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]).unwrap();
     (peak, fit.terms.iter().map(|t| t.amplitude_deg).collect())
 }
 
 #[test]
 fn the_benchs_tracker_puts_a_few_tenths_of_a_millidegree_into_the_low_orders() {
     let (peak, lines) = angle_error_of(&typical_errors(BENCH_TRACKER, &ArmGeometry::default()));
-    eprintln!("the bench's tracker: peak {peak:.2e} deg, lines 1-8: {lines:.1e?}");
+    eprintln!("the bench's tracker: peak {peak:.2e} deg, lines 1-8: {lines:?}");
     // What docs/files.md states: about 3e-4 deg, on the first few cycles/rev.
     assert!((1.5e-4..5e-4).contains(&peak), "{peak}");
     let low: f64 = lines[..4].iter().map(|a| a * a).sum::<f64>().sqrt();
@@ -238,4 +239,58 @@ fn the_benchs_tracker_puts_a_few_tenths_of_a_millidegree_into_the_low_orders() {
     assert!(high < 0.3 * low, "low orders {low:.2e}, higher {high:.2e}");
     // An ideal tracker: none.
     assert!(angle_error_of(&TrackerErrors::ideal().without_noise()).0 < 1e-12);
+}
+
+/// An arm with two SMRs, 90 deg apart and 40 mm higher, and an ideal tracker.
+fn two_smrs() -> TrackerConfig {
+    let arm = ArmGeometry {
+        smrs: vec![SmrMount::FIRST, SmrMount { phase_deg: 90.0, height_mm: 40.0 }],
+        ..Default::default()
+    };
+    TrackerConfig { arm, noise_scale: 0.0, errors: TrackerErrorSpec::None, ..TrackerConfig::default() }
+}
+
+#[tokio::test]
+async fn pointed_at_another_smr_it_measures_that_one_and_takes_the_turn_and_search() {
+    let (clock, table, mut t) = setup(two_smrs());
+    table.place(10.0);
+    let arm = t.config().arm.clone();
+    assert_eq!(t.measure().await.unwrap().xyz(), arm.smr_position_mm(10.0));
+    let second = arm.smr_position_of(1, 10.0);
+    let (_, _, n) = arm.basis();
+    let above = arm.smr_position_mm(100.0);
+    assert!((0..3).all(|i| (second[i] - (above[i] + 40.0 * n[i])).abs() < 1e-9), "{second:?}");
+    // Pointed a few millimetres off: the search finds it.
+    let t0 = clock.now();
+    t.point_at([second[0] + 5.0, second[1] - 5.0, second[2]]).await.unwrap();
+    let spent = clock.now() - t0;
+    let turn = {
+        let a = arm.smr_position_mm(10.0);
+        (dot(a, second) / (dot(a, a) * dot(second, second)).sqrt()).acos().to_degrees()
+    };
+    assert!(turn > 1.0, "the beam turned {turn} deg");
+    let want = LINK_LATENCY + Duration::from_secs_f64(turn / 180.0) + Duration::from_millis(500);
+    assert!(spent.abs_diff(want) < Duration::from_millis(5), "{spent:?} against {want:?}");
+    assert_eq!(t.target(), 1);
+    assert_eq!(t.measure().await.unwrap().xyz(), second);
+    // The table turns: the tracker follows the SMR it is on.
+    table.place(20.0);
+    assert_eq!(t.measure().await.unwrap().xyz(), arm.smr_position_of(1, 20.0));
+    // Nothing there: no reflector found, nothing measured until one is.
+    let e = t.point_at([1000.0, -2000.0, 500.0]).await.unwrap_err();
+    assert_eq!((e.kind, e.code), (ErrorKind::Device, Some(CODE_BEAM_BROKEN)));
+    assert!(e.to_string().contains("no reflector found within 25 mm"), "{e}");
+    assert_eq!(t.status().await.unwrap(), TrackerState::BeamBroken);
+    assert!(t.measure().await.is_err());
+    // Back to the first.
+    t.point_at(arm.smr_position_mm(20.0)).await.unwrap();
+    assert_eq!((t.target(), t.measure().await.unwrap().xyz()), (0, arm.smr_position_mm(20.0)));
+    assert!(t.can_point());
+}
+
+#[test]
+fn equal_smrs_are_spaced_around_the_turn() {
+    let m = SmrMount::equal(3);
+    assert_eq!(m.iter().map(|s| s.phase_deg).collect::<Vec<_>>(), [0.0, 120.0, 240.0]);
+    assert_eq!(SmrMount::equal(1), [SmrMount::FIRST]);
 }
