@@ -18,12 +18,16 @@ pub enum RawReading {
 }
 
 /// One acquired sample: its place in the survey plan (`seq`, 0-based and
-/// dense), the paired readout/actual values and the raw reference reading.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// dense), the paired readout/actual values and the raw reference reading
+/// (the first SMR's, with a tracker), and the other SMRs' readings at the
+/// same target (a survey of several SMRs; empty otherwise), in the arm's order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordedSample {
     pub seq: u64,
     pub sample: Sample,
     pub raw: RawReading,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub others: Vec<SmrMeasurement>,
 }
 
 /// One pass of a continuous scan as it is stored: its samples (a dense run

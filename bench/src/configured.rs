@@ -25,13 +25,34 @@ pub struct PlanOverrides {
     pub bidirectional: bool,
     /// `--scan` (over `[survey] scan`).
     pub scan: Option<survey_plan::ScanMode>,
+    /// `--smrs N`: N SMRs at equal spacing (over `[smrs]`; 1: one).
+    pub smrs: Option<u32>,
 }
 
 impl Bench {
     /// The bench of the configuration file at `path`, checked before anything is stored.
     pub fn configured(path: &Path, overrides: PlanOverrides) -> anyhow::Result<Bench> {
-        let cfg = SurveyConfig::from_file(path)?;
+        let mut cfg = SurveyConfig::from_file(path)?;
+        if let Some(n) = overrides.smrs {
+            let max = survey_processing::smrs::MAX_SMRS;
+            if n as usize > max {
+                return Err(bad_input(format!("--smrs {n}: a survey measures at most {max} SMRs at a target")));
+            }
+            // Stored with the survey as its configuration says it.
+            cfg.smrs = (n > 1).then(|| survey_store::config::SmrsSection {
+                phases_deg: survey_processing::smrs::SmrMount::equal(n as usize).iter().map(|m| m.phase_deg).collect(),
+                heights_mm: None,
+            });
+            if n > 1 && cfg.reference() != ReferenceKind::Tracker {
+                return Err(bad_input(format!("--smrs {n}: several SMRs need the tracker as the reference")));
+            }
+        }
         let plan = configured_plan(&cfg, overrides, path)?;
+        if cfg.smrs.is_some() && plan.continuous() {
+            return Err(bad_input(
+                "several SMRs are measured one after the other at rest: use --scan step (a continuous scan follows one SMR)",
+            ));
+        }
         let setup = ConfiguredSetup { config: cfg, plan };
         let mut bench = on_clock(&setup, Arc::new(SystemClock::new()));
         if let Some(obj) = bench.instruments.as_object_mut() {
@@ -106,13 +127,19 @@ fn on_clock(setup: &ConfiguredSetup, clock: Arc<dyn Clock>) -> Bench {
 pub fn configured_estimate(cfg: &SurveyConfig, plan: &SurveyPlan) -> Duration {
     let t = cfg.timing();
     let measure = integration(cfg).unwrap_or(Duration::from_millis(200));
-    let per_target = t.dwell + measure + t.poll_interval;
+    let others = cfg.smrs.as_ref().map_or(0, |s| s.phases_deg.len().saturating_sub(1) as u32);
+    // Each other SMR pointed at, found and measured; then the first again.
+    let pointing =
+        if others > 0 { (CONFIGURED_POINT_BOUND + measure) * others + CONFIGURED_POINT_BOUND } else { Duration::ZERO };
+    let per_target = t.dwell + measure + t.poll_interval + pointing;
     if plan.continuous() {
         let d = survey_plan::budget::Dynamics {
             velocity_deg_s: t.velocity_deg_s,
             accel_deg_s2: t.accel_deg_s2,
             integration_s: measure.as_secs_f64(),
             locate_points: t.locate_points,
+            other_smrs: cfg.smrs.as_ref().map_or(0, |s| s.phases_deg.len().saturating_sub(1) as u32),
+            point_s: CONFIGURED_POINT_BOUND.as_secs_f64(),
         };
         Duration::from_secs_f64(survey_plan::budget::scan_bound(plan, &d, &cfg.settle_model(), &t.scan).total())
     } else {
@@ -141,8 +168,18 @@ pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
         engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
     }
     engine.set_drift_control(cfg.drift_control.clone());
-    engine
+    match &cfg.smrs {
+        // A real tracker's search time is its own: the simulated tracker's
+        // (ours, half a second) stands as the bound's.
+        Some(s) => engine.with_smrs(s.mounts(), CONFIGURED_POINT_BOUND),
+        None => engine,
+    }
 }
+
+/// The least time a configured tracker is taken to need to point at another
+/// SMR and find it, for the plan's bound: the simulated tracker's search
+/// (our own figure; a tracker's is not in its public specification).
+pub const CONFIGURED_POINT_BOUND: Duration = Duration::from_millis(500);
 
 /// The configured bench of a stored survey, its clock going on from `resume_at`.
 pub(super) fn resume(setup: &ConfiguredSetup, resume_at: Duration) -> Bench {

@@ -43,6 +43,15 @@ pub struct SimulatedRequest {
     pub scan: ScanMode,
     /// Faults the simulated instruments inject.
     pub faults: Option<survey_sims::faults::FaultRates>,
+    /// SMRs at equal spacing on the table (`--smrs N`; 0: the model file's
+    /// `[smrs]`, else one).
+    pub smrs: u32,
+}
+
+/// The least time the simulated tracker takes to point at another SMR and
+/// find it: its search (the turn adds to it).
+pub fn simulated_point_bound() -> Duration {
+    survey_sims::tracker::TrackerConfig::default().find_time
 }
 
 /// The simulated bench's losses: the fraction of streamed tracker points
@@ -59,12 +68,20 @@ pub fn settle_model(timing: &Timing) -> SettleModel {
 /// The instrument time a plan is expected to take on the simulated bench:
 /// its bound, plus what polling and commands add (3 % measured on the
 /// default bench), plus any fixed dwell.
-pub fn expected_time(plan: &SurveyPlan, timing: &Timing, integration: Duration, tracker: bool) -> Duration {
+pub fn expected_time(
+    plan: &SurveyPlan,
+    timing: &Timing,
+    integration: Duration,
+    tracker: bool,
+    smrs: usize,
+) -> Duration {
     let d = Dynamics {
         velocity_deg_s: timing.velocity_deg_s,
         accel_deg_s2: timing.accel_deg_s2,
         integration_s: integration.as_secs_f64(),
         locate_points: if tracker { timing.locate_points } else { 0 },
+        other_smrs: smrs.saturating_sub(1) as u32,
+        point_s: simulated_point_bound().as_secs_f64(),
     };
     let bound = plan_bound(plan, &d, &settle_model(timing), &timing.scan).total();
     let steps = plan.total_steps() as f64;
@@ -124,7 +141,28 @@ impl Bench {
             plan = within_travel_for_scan(&plan, travel, timing.velocity_deg_s, timing.accel_deg_s2, &timing.scan)?;
         }
         let tracker = req.reference == ReferenceKind::Tracker;
-        let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker) / runs;
+        if req.smrs as usize > survey_processing::smrs::MAX_SMRS {
+            return Err(bad_input(format!(
+                "--smrs {}: a survey measures at most {} SMRs at a target",
+                req.smrs,
+                survey_processing::smrs::MAX_SMRS
+            )));
+        }
+        let smrs = match (req.smrs, &model.smrs) {
+            (0, Some(m)) => m.clone(),
+            (0, None) => Vec::new(),
+            (n, _) => survey_processing::smrs::SmrMount::equal(n as usize),
+        };
+        let smrs = if smrs.len() > 1 { smrs } else { Vec::new() };
+        if !smrs.is_empty() && !tracker {
+            return Err(bad_input("several SMRs (--smrs, [smrs]) need the tracker as the reference"));
+        }
+        if !smrs.is_empty() && plan.continuous() {
+            return Err(bad_input(
+                "several SMRs are measured one after the other at rest: use --scan step (a continuous scan follows one SMR)",
+            ));
+        }
+        let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker, smrs.len()) / runs;
         let setup = SimulatedSetup {
             preset: preset.name.to_string(),
             model_file: req.model_file.as_ref().map(|p| p.display().to_string()),
@@ -134,6 +172,7 @@ impl Bench {
             timing,
             run_period_s: run_period.as_secs_f64(),
             faults: req.faults,
+            smrs,
         };
         Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
     }
@@ -192,6 +231,9 @@ pub fn simulated_engine(
     if let Some(rates) = &setup.faults {
         builder = builder.fault_rates(rates);
     }
+    if setup.smrs.len() > 1 {
+        builder.tracker.arm.smrs = setup.smrs.clone();
+    }
     let bench = builder.build();
     let injected = bench.injected.clone();
     let reference = match setup.reference {
@@ -205,7 +247,8 @@ pub fn simulated_engine(
     let travel = bench.positioner.config().travel;
     let mut engine = Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
         .with_travel(travel)
-        .with_physics(settle_model(&setup.timing), Some(measurement_time(setup.reference)));
+        .with_physics(settle_model(&setup.timing), Some(measurement_time(setup.reference)))
+        .with_smrs(setup.smrs.clone(), simulated_point_bound());
     engine.set_injected(Some(injected));
     engine
 }

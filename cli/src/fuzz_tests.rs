@@ -254,7 +254,8 @@ proptest! {
                 let longest = survey_plan::move_time(362.0, t.velocity_deg_s, t.accel_deg_s2);
                 prop_assert!(std::time::Duration::try_from_secs_f64(longest).is_ok(), "{longest}");
                 for scan in [ScanMode::Step, ScanMode::Continuous] {
-                    let overrides = PlanOverrides { points: Some(360), runs: Some(5), bidirectional: true, scan: Some(scan) };
+                    let overrides =
+                        PlanOverrides { points: Some(360), runs: Some(5), bidirectional: true, scan: Some(scan), smrs: None };
                     if let Ok(plan) = configured_plan(&cfg, overrides, std::path::Path::new("c.toml")) {
                         let _ = configured_estimate(&cfg, &plan);
                     }

@@ -236,6 +236,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         }
         if let Some(r) = &loaded.refit {
             doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
+            doc["reference_error"] = serde_json::to_value(&r.reference_error).unwrap_or_default();
         }
         format!("{doc}\n")
     } else {

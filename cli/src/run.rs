@@ -101,6 +101,12 @@ pub struct RunArgs {
     /// Seed of every random draw of the simulated instruments.
     #[arg(long, default_value_t = 1, allow_negative_numbers = true, value_parser = whole::<0, u64>)]
     pub seed: u64,
+    /// SMRs on the table at equal spacing, each measured at every target (the
+    /// tracker pointed at each in turn), so that the tracker's own error is
+    /// separated from the axis's: 2 to 12 [default: the configuration's or
+    /// the model file's [smrs], else 1].
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = whole::<1, u32>)]
+    pub smrs: Option<u32>,
     /// Stop at every target (step, the default) or turn steadily while the
     /// reference streams (continuous) [default: step, or `scan` in the
     /// configuration's [survey]].
@@ -183,6 +189,7 @@ fn bench(args: &RunArgs, size: PlanSize) -> anyhow::Result<Bench> {
                 runs: size.runs,
                 bidirectional: size.bidirectional,
                 scan: args.scan.map(Into::into),
+                smrs: args.smrs,
             },
         )?,
         None => Bench::simulated(&SimulatedRequest {
@@ -194,6 +201,7 @@ fn bench(args: &RunArgs, size: PlanSize) -> anyhow::Result<Bench> {
             reference: args.reference.into(),
             seed: args.seed,
             scan: args.scan.map_or(ScanMode::Step, Into::into),
+            smrs: args.smrs.unwrap_or(0),
             faults: match &args.fault_rates {
                 Some(spec) => Some(
                     survey_sims::faults::FaultRates::default()

@@ -38,6 +38,7 @@ fn bench_of(scan: ScanMode) -> Bench {
         seed: 1,
         scan,
         faults: None,
+        smrs: 0,
     })
     .expect("the simulated bench")
 }
@@ -69,6 +70,7 @@ fn samples(n: u64) -> Vec<RecordedSample> {
             };
             RecordedSample {
                 seq,
+                others: Vec::new(),
                 sample: Sample {
                     run: (pass / 2 + 1) as u32,
                     direction,

@@ -321,6 +321,7 @@ async fn complete(
     *text += "\n";
     if let Some(r) = &survey.loaded.refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
+        doc["process"]["reference_error"] = serde_json::to_value(&r.reference_error).unwrap_or_default();
         *text += &units.text(&r.text());
         // Recorded with the survey (`survey show` lists it); a failed write
         // loses only this line, the refit is made again from the raw readings.
@@ -392,6 +393,8 @@ async fn budget(
         accel_deg_s2: t.accel_deg_s2,
         integration_s: engine.integration().map_or(0.0, |i| i.as_secs_f64()),
         locate_points: if tracker { t.locate_points } else { 0 },
+        other_smrs: engine.smrs().len().saturating_sub(1) as u32,
+        point_s: engine.point_bound().as_secs_f64(),
     };
     let measured = store.survey_time(id).await.unwrap_or_else(|e| {
         tracing::warn!(error = %format!("{e:#}"), "the stored instrument time could not be read");

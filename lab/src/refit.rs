@@ -55,6 +55,38 @@ pub struct AxisRefit {
     /// (standard error, its mean over the arc removed): how far the arc
     /// allows the axis to be known.
     pub over_arc_se_deg: f64,
+    /// What the survey's SMRs say of the tracker's own error (the
+    /// contract's `reference_error`).
+    pub reference_error: ReferenceError,
+}
+
+/// The tracker's own error as the survey's SMRs separated it from the
+/// axis's (`survey_processing::smrs`): the contract's `reference_error`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ReferenceError {
+    /// Whether it was measured (several SMRs over a full circle).
+    pub separated: bool,
+    /// `none`, `equal-division` or `separation`.
+    pub method: &'static str,
+    /// The SMRs measured at every target.
+    pub smrs: usize,
+    /// The orders of the tracker's error the SMRs separated, as they land on
+    /// the first SMR's angles (taken out of the survey's angles).
+    pub lines: Vec<ReferenceLine>,
+    /// The standard uncertainty of what stays of the tracker's systematic
+    /// error in the angles (rms over the circle), degrees: the budget's
+    /// "reference instrument, systematic".
+    pub u_deg: f64,
+    /// In words.
+    pub notes: Vec<String>,
+}
+
+/// One order of the tracker's separated error.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ReferenceLine {
+    pub cycles_per_rev: f64,
+    pub amplitude_deg: f64,
+    pub phase_deg: f64,
 }
 
 /// Which axis a survey's actual angles were computed around.
@@ -136,6 +168,7 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         let s = &mut samples[i];
         s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
     }
+    let reference_error = combine_smrs(store, survey, &mut samples).await?;
     let center_shift_mm = in_plane_shift(&fit, located);
     let refit = AxisRefit {
         points: smr.xyz_mm.len(),
@@ -147,9 +180,75 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         once_per_rev_se_deg,
         arc_deg,
         over_arc_se_deg,
+        reference_error,
     };
     tracing::info!(survey = survey.id, ?refit, "axis fitted again from the survey's SMR positions");
     Ok(Some((samples, refit)))
+}
+
+/// The samples' angles from every SMR of the survey (each located by its own
+/// circle, the first's already in `samples`), combined and the tracker's
+/// error separated ([`survey_processing::smrs::combine`]); with one SMR,
+/// what the specification bounds.
+async fn combine_smrs(store: &Store, survey: &SurveyRecord, samples: &mut [Sample]) -> anyhow::Result<ReferenceError> {
+    let mounts = survey.smrs();
+    let u_spec = reference_systematic_u_deg(survey).unwrap_or(0.0);
+    let alone = |notes: Vec<String>| ReferenceError {
+        separated: false,
+        method: survey_processing::smrs::Method::None.as_str(),
+        smrs: mounts.len(),
+        lines: Vec::new(),
+        u_deg: u_spec,
+        notes,
+    };
+    if mounts.len() <= 1 {
+        return Ok(alone(Vec::new()));
+    }
+    let n = samples.len();
+    let others = store.other_smr_positions(survey.id).await?;
+    let mut points: Vec<Vec<Option<[f64; 3]>>> = vec![vec![None; n]; mounts.len()];
+    for (seq, k, xyz) in others {
+        if let Some(slot) = points.get_mut(k).and_then(|p| p.get_mut(seq as usize)) {
+            *slot = Some(xyz);
+        }
+    }
+    let missing = (1..mounts.len()).map(|k| points[k].iter().filter(|p| p.is_none()).count()).sum::<usize>();
+    if missing > 0 {
+        return Ok(alone(vec![format!(
+            "{missing} readings of the other SMRs are missing: the first SMR's angles alone are used, and the \
+             tracker's error is not separated"
+        )]));
+    }
+    let readouts: Vec<f64> = samples.iter().map(|s| s.readout_deg).collect();
+    let mut angles = vec![samples.iter().map(|s| s.actual_deg).collect::<Vec<f64>>()];
+    for (k, pts) in points.iter().enumerate().skip(1) {
+        let xyz: Vec<[f64; 3]> = pts.iter().map(|p| p.expect("checked above")).collect();
+        let fit = survey_processing::geometry::fit_axis(&xyz, &readouts)
+            .map_err(|e| anyhow::anyhow!("survey {}: SMR {} cannot be located: {e}", survey.id, k + 1))?;
+        angles.push(xyz.iter().zip(samples.iter()).map(|(p, s)| fit.angle_deg(*p, s.target_deg)).collect());
+    }
+    let targets: Vec<f64> = samples.iter().map(|s| s.target_deg).collect();
+    let phases: Vec<f64> = mounts.iter().map(|m| m.phase_deg).collect();
+    let c = survey_processing::smrs::combine(&targets, &angles, &phases, u_spec);
+    for (s, a) in samples.iter_mut().zip(&c.angles_deg) {
+        s.actual_deg = *a;
+    }
+    Ok(ReferenceError {
+        separated: c.separated,
+        method: c.method.as_str(),
+        smrs: mounts.len(),
+        lines: c
+            .lines
+            .iter()
+            .map(|l| ReferenceLine {
+                cycles_per_rev: l.cycles_per_rev,
+                amplitude_deg: l.amplitude_deg,
+                phase_deg: l.phase_deg,
+            })
+            .collect(),
+        u_deg: c.u_deg,
+        notes: c.notes,
+    })
 }
 
 impl AxisRefit {
@@ -165,6 +264,34 @@ impl AxisRefit {
             self.center_se_mm,
             self.once_per_rev_se_deg
         );
+        let e = &self.reference_error;
+        if e.smrs > 1 {
+            s += &format!(
+                "{} SMRs ({}): the tracker's own error {}; what stays of it: {:.2e} deg (1 sigma)\n",
+                e.smrs,
+                e.method,
+                if e.separated {
+                    let orders: Vec<String> = e
+                        .lines
+                        .iter()
+                        .take(6)
+                        .map(|l| format!("{} cycles/rev {:.2e} deg", l.cycles_per_rev, l.amplitude_deg))
+                        .collect();
+                    format!(
+                        "separated ({}{})",
+                        if orders.is_empty() { "nothing significant".into() } else { orders.join(", ") },
+                        if e.lines.len() > 6 { ", ..." } else { "" }
+                    )
+                } else {
+                    "not separated".to_string()
+                },
+                e.u_deg
+            );
+            for note in &e.notes {
+                s += note;
+                s += "\n";
+            }
+        }
         if self.arc_deg < 359.0 {
             s += &format!(
                 "the positions cover {:.1} deg of arc: over it the axis location costs {:.2e} deg (1 sigma), all this \
@@ -234,9 +361,17 @@ pub fn uncertainty_inputs(
         (None, Some(l)) => Some(l.over_arc_se_deg),
         (None, None) => None,
     };
+    // With several SMRs, what stays of the tracker's error once they
+    // separated it; with one, what its specification bounds.
+    let systematic = match refit {
+        Some(r) => Some(r.reference_error.u_deg),
+        None => reference_systematic_u_deg(survey),
+    };
+    // Each angle is the mean of the SMRs' readings: its random part too.
+    let smrs = survey.smrs().len() as f64;
     UncertaintyInputs {
-        reference_u_deg: stated_reference_u_deg(survey),
-        reference_systematic_u_deg: reference_systematic_u_deg(survey),
+        reference_u_deg: stated_reference_u_deg(survey).map(|u| u / smrs.sqrt()),
+        reference_systematic_u_deg: systematic,
         axis_u_deg,
     }
 }

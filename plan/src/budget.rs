@@ -45,6 +45,9 @@ pub enum Component {
     Dwell,
     /// The reference instrument measuring (the readout is read meanwhile).
     Measure,
+    /// The tracker pointed at the other SMRs on the table and back (a survey
+    /// of several SMRs: each turned to and searched for at every target).
+    Point,
     /// Waiting to see what already happened: polling granularity, and the
     /// time the readout must stay in the window to count as stable.
     PollLag,
@@ -60,12 +63,13 @@ pub enum Component {
 
 impl Component {
     /// Every component, in report order.
-    pub const ALL: [Component; 10] = [
+    pub const ALL: [Component; 11] = [
         Component::Locate,
         Component::Move,
         Component::Settle,
         Component::Dwell,
         Component::Measure,
+        Component::Point,
         Component::PollLag,
         Component::CommandLatency,
         Component::Scan,
@@ -81,6 +85,7 @@ impl Component {
             Component::Settle => "settle",
             Component::Dwell => "dwell",
             Component::Measure => "measure",
+            Component::Point => "point",
             Component::PollLag => "poll_lag",
             Component::CommandLatency => "command_latency",
             Component::Scan => "scan",
@@ -102,7 +107,7 @@ impl Component {
 /// Instrument time per component, seconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Spent {
-    seconds: [f64; 10],
+    seconds: [f64; Component::ALL.len()],
 }
 
 impl Spent {
@@ -204,13 +209,14 @@ pub struct Bound {
     pub move_s: f64,
     pub settle_s: f64,
     pub measure_s: f64,
+    pub point_s: f64,
     pub scan_s: f64,
 }
 
 impl Bound {
     /// All of it.
     pub fn total(&self) -> f64 {
-        self.locate_s + self.move_s + self.settle_s + self.measure_s + self.scan_s
+        self.locate_s + self.move_s + self.settle_s + self.measure_s + self.point_s + self.scan_s
     }
 
     /// The bound of one component.
@@ -220,6 +226,7 @@ impl Bound {
             Component::Move => self.move_s,
             Component::Settle => self.settle_s,
             Component::Measure => self.measure_s,
+            Component::Point => self.point_s,
             Component::Scan => self.scan_s,
             _ => 0.0,
         }
@@ -236,6 +243,11 @@ pub struct Dynamics {
     pub integration_s: f64,
     /// SMR positions that locate the axis (0: no locate).
     pub locate_points: u32,
+    /// The SMRs measured at every target beside the first (0: one SMR).
+    pub other_smrs: u32,
+    /// The least time to point the tracker at another SMR and find it,
+    /// seconds (each other SMR, and back to the first, at every target).
+    pub point_s: f64,
 }
 
 /// One move of a plan and whether a sample is taken at its end.
@@ -281,7 +293,10 @@ pub fn step_bound(plan: &SurveyPlan, d: &Dynamics, settle: &dyn Settling) -> Bou
         b.move_s += move_time(distance, d.velocity_deg_s, d.accel_deg_s2);
         if measured {
             b.settle_s += settle.needed_s(distance, d.velocity_deg_s, d.accel_deg_s2);
-            b.measure_s += d.integration_s;
+            b.measure_s += d.integration_s * f64::from(1 + d.other_smrs);
+            if d.other_smrs > 0 {
+                b.point_s += d.point_s * f64::from(d.other_smrs + 1);
+            }
         }
     }
     b
@@ -365,7 +380,14 @@ mod tests {
     fn the_step_bound_counts_moves_settling_and_integration() {
         // 4 targets, 2 runs, both directions, overrun 45 deg: by hand.
         let plan = SurveyPlan::full_circle(4, 2, true).unwrap();
-        let d = Dynamics { velocity_deg_s: 10.0, accel_deg_s2: 20.0, integration_s: 1.0, locate_points: 0 };
+        let d = Dynamics {
+            velocity_deg_s: 10.0,
+            accel_deg_s2: 20.0,
+            integration_s: 1.0,
+            locate_points: 0,
+            other_smrs: 0,
+            point_s: 0.0,
+        };
         let b = step_bound(&plan, &d, &Fixed(0.3));
         let mt = |x: f64| move_time(x, 10.0, 20.0);
         // The overrun is 1 deg. Measured: 4 approaches of 1 deg (the first
@@ -376,6 +398,11 @@ mod tests {
         assert_eq!(b.measure_s, 16.0);
         assert!((b.settle_s - 16.0 * 0.3).abs() < 1e-12);
         assert_eq!(b.locate_s, 0.0);
+        // Three SMRs: each target measures three, and points at two and back.
+        let three = step_bound(&plan, &Dynamics { other_smrs: 2, point_s: 0.7, ..d }, &Fixed(0.3));
+        assert_eq!(three.measure_s, 48.0);
+        assert!((three.point_s - 16.0 * 3.0 * 0.7).abs() < 1e-9, "{three:?}");
+        assert_eq!((three.move_s, three.settle_s), (b.move_s, b.settle_s));
     }
 
     #[test]
@@ -383,7 +410,14 @@ mod tests {
         use crate::ScanMode;
         let mut plan = SurveyPlan::full_circle(36, 2, true).unwrap();
         plan.scan = ScanMode::Continuous;
-        let d = Dynamics { velocity_deg_s: 10.0, accel_deg_s2: 20.0, integration_s: 0.0, locate_points: 0 };
+        let d = Dynamics {
+            velocity_deg_s: 10.0,
+            accel_deg_s2: 20.0,
+            integration_s: 0.0,
+            locate_points: 0,
+            other_smrs: 0,
+            point_s: 0.0,
+        };
         let t = ScanTiming::default();
         let mt = |x: f64, v: f64| move_time(x, v, 20.0);
         // At 10 deg/s the ramps are 2.5 deg, at 2.5 deg/s 0.15625 deg: the

@@ -14,6 +14,7 @@ pub mod lstsq;
 pub mod model;
 pub mod num;
 pub mod resample;
+pub mod smrs;
 pub mod special;
 pub mod spectrum;
 pub mod table;

@@ -156,6 +156,8 @@ pub struct Model {
     /// The simulated tracker's own error ([`crate::tracker_errors`]); the
     /// processing of a survey never reads it.
     pub tracker_errors: TrackerErrorSpec,
+    /// The SMRs on the simulated table (`[smrs]`), when given.
+    pub smrs: Option<Vec<crate::smrs::SmrMount>>,
 }
 
 /// A defect of a model file, naming where it is.
@@ -183,10 +185,12 @@ impl Model {
         })?;
         let locate = Locator { text };
         for key in table.keys() {
-            if !["design", "effect", "tracker_errors"].contains(&key.as_str()) {
+            if !["design", "effect", "tracker_errors", "smrs"].contains(&key.as_str()) {
                 return Err(err(
                     locate.top_key(key),
-                    format!("unknown top-level key '{key}' (expected [design], [[effect]] and [tracker_errors])"),
+                    format!(
+                        "unknown top-level key '{key}' (expected [design], [[effect]], [tracker_errors] and [smrs])"
+                    ),
                 ));
             }
         }
@@ -218,7 +222,18 @@ impl Model {
             }
             Some(_) => return Err(err(locate.top_key("tracker_errors"), "'tracker_errors' must be a table".into())),
         };
-        Ok(Model { design, effects, tracker_errors })
+        let smrs = match table.get("smrs") {
+            None => None,
+            Some(toml::Value::Table(t)) => {
+                let header = locate.section_header("smrs");
+                Some(
+                    crate::smrs::parse_section(t, "smrs", &|key| locate.key_in_table(header, key))
+                        .map_err(|(l, m)| err(l, m))?,
+                )
+            }
+            Some(_) => return Err(err(locate.top_key("smrs"), "'smrs' must be a table".into())),
+        };
+        Ok(Model { design, effects, tracker_errors, smrs })
     }
 
     /// The model as a model file (TOML), which [`Model::parse`] reads back.
@@ -252,6 +267,10 @@ impl Model {
                     let _ = writeln!(s, "sigma_deg = {}", fmt_num(*sigma_deg));
                 }
             }
+        }
+        if let Some(smrs) = &self.smrs {
+            s.push('\n');
+            s.push_str(&crate::smrs::section_toml(smrs));
         }
         match &self.tracker_errors {
             TrackerErrorSpec::Typical => {}

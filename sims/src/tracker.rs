@@ -63,6 +63,7 @@ use std::time::Duration;
 use survey_drivers::clock::Clock;
 use survey_drivers::error::{DriverError, Result};
 use survey_drivers::traits::{SmrMeasurement, StreamedPoint, Tracker, TrackerState};
+pub use survey_processing::smrs::SmrMount;
 use survey_processing::tracker_errors::{
     EncoderHarmonic, TYPICAL_ANGLE_NOISE_URAD, TrackerErrorSpec, TrackerErrors, transverse_mpe_um,
 };
@@ -90,25 +91,6 @@ pub struct ArmGeometry {
     /// The SMRs on the table (default one, at the arm's phase and height):
     /// each at its own phase and height from SMR 0's, on the same radius.
     pub smrs: Vec<SmrMount>,
-}
-
-/// Where an SMR sits on the table, relative to the arm's first SMR.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SmrMount {
-    /// Its angle from the first SMR's, around the axis, degrees.
-    pub phase_deg: f64,
-    /// Its height above the first SMR's, along the axis, mm.
-    pub height_mm: f64,
-}
-
-impl SmrMount {
-    /// The first SMR itself.
-    pub const FIRST: SmrMount = SmrMount { phase_deg: 0.0, height_mm: 0.0 };
-
-    /// `n` SMRs at equal spacing, one height.
-    pub fn equal(n: usize) -> Vec<SmrMount> {
-        (0..n.max(1)).map(|i| SmrMount { phase_deg: 360.0 * i as f64 / n.max(1) as f64, height_mm: 0.0 }).collect()
-    }
 }
 
 impl Default for ArmGeometry {

@@ -13,6 +13,7 @@ const SURVEY_TABLES: &[&str] = &[
     "survey_summaries",
     "survey_changes",
     "sample_packs",
+    "smr_readings",
     "raw_readings",
     "samples",
     "events",

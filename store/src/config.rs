@@ -68,6 +68,36 @@ pub struct SurveyConfig {
     /// The asset (the axis this configuration measures): its surveys' history.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub asset: Option<AssetSection>,
+    /// `[smrs]`: several SMRs on the table, each measured at every target.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub smrs: Option<SmrsSection>,
+}
+
+/// `[smrs]`: the SMRs on the table beside the arm's first (its phase and
+/// height 0): each one's angle from the first's in the direction the readout
+/// increases, and its height above it, mm (default all 0).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SmrsSection {
+    pub phases_deg: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heights_mm: Option<Vec<f64>>,
+}
+
+impl SmrsSection {
+    /// The mounts, each relative to the first SMR's.
+    pub fn mounts(&self) -> Vec<survey_processing::smrs::SmrMount> {
+        let heights = self.heights_mm.clone().unwrap_or_else(|| vec![0.0; self.phases_deg.len()]);
+        let (p0, h0) = (self.phases_deg.first().copied().unwrap_or(0.0), heights.first().copied().unwrap_or(0.0));
+        self.phases_deg
+            .iter()
+            .zip(heights.iter().chain(std::iter::repeat(&0.0)))
+            .map(|(p, h)| survey_processing::smrs::SmrMount {
+                phase_deg: (p - p0).rem_euclid(360.0),
+                height_mm: h - h0,
+            })
+            .collect()
+    }
 }
 
 /// `[asset]`: the axis measured, whose surveys make one history

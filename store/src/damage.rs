@@ -322,6 +322,7 @@ mod tests {
         let samples: Vec<RecordedSample> = (0..2000u64)
             .map(|seq| RecordedSample {
                 seq,
+                others: Vec::new(),
                 sample: Sample {
                     run: 1,
                     direction: Direction::Forward,

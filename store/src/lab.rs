@@ -49,6 +49,7 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (6, "processing", include_str!("../../migrations/postgres/0006_processing.sql")),
     (8, "history cache", include_str!("../../migrations/postgres/0008_history_cache.sql")),
     (9, "environment", include_str!("../../migrations/postgres/0009_environment.sql")),
+    (10, "smr readings", include_str!("../../migrations/postgres/0010_smr_readings.sql")),
 ];
 
 /// The oldest lab store schema a read command reads as it is (migration 8

@@ -118,6 +118,7 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (7, "sample packs", include_str!("../../migrations/0007_sample_packs.sql")),
     (8, "history cache", include_str!("../../migrations/0008_history_cache.sql")),
     (9, "environment", include_str!("../../migrations/0009_environment.sql")),
+    (10, "smr readings", include_str!("../../migrations/0010_smr_readings.sql")),
 ];
 
 /// The schema that keeps the air of every tracker measurement (`raw_readings.air_*`).

@@ -287,7 +287,7 @@ mod tests {
             actual_deg: -0.0 + f * 0.36 - 1.0 / 3.0 * 1e-5,
             timestamp_s: (!seq.is_multiple_of(5)).then_some(f * 1.25),
         };
-        RecordedSample { seq, sample, raw }
+        RecordedSample { seq, sample, raw, others: Vec::new() }
     }
 
     /// The samples and SMR positions as bits: compared bit for bit (NaN

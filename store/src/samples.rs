@@ -58,7 +58,12 @@ macro_rules! sample_from_row {
                 }
                 Some(other) => bail!("seq {seq}: unknown raw reading kind '{other}'"),
             };
-            Ok(RecordedSample { seq: u64::try_from(seq).with_context(|| format!("negative seq {seq}"))?, sample, raw })
+            Ok(RecordedSample {
+                seq: u64::try_from(seq).with_context(|| format!("negative seq {seq}"))?,
+                sample,
+                raw,
+                others: Vec::new(),
+            })
         })()
     };
 }
@@ -98,7 +103,12 @@ impl Store {
         let recorded: Vec<RecordedSample> = samples
             .iter()
             .enumerate()
-            .map(|(i, sample)| RecordedSample { seq: i as u64, sample: *sample, raw: RawReading::None })
+            .map(|(i, sample)| RecordedSample {
+                seq: i as u64,
+                sample: *sample,
+                raw: RawReading::None,
+                others: Vec::new(),
+            })
             .collect();
         let mut tx = WriteTx::begin(self.sqlite()?).await?;
         let inserted = match insert_survey(tx.conn(), s).await {
@@ -152,6 +162,59 @@ impl Store {
         };
         read.with_context(|| format!("cannot read the samples of survey {survey_id}"))
             .map_err(|e| crate::damage::on_read(&self.path, &format!("the samples of survey {survey_id}"), e))
+    }
+
+    /// The positions of the SMRs beside the first (a survey of several SMRs,
+    /// `smr_readings`): `(seq, smr, [x, y, z])` in seq then SMR order (`smr`
+    /// 1 for the second); empty for a survey of one SMR, or of a store whose
+    /// schema predates them.
+    pub async fn other_smr_positions(&self, survey_id: i64) -> anyhow::Result<Vec<(u64, usize, [f64; 3])>> {
+        const QUERY: &str =
+            "SELECT seq, smr, x_mm, y_mm, z_mm FROM smr_readings WHERE survey_id = ?1 ORDER BY seq, smr";
+        let read = match &self.backend {
+            super::Backend::Sqlite(_) => {
+                let (path, immutable) = (self.path.clone(), self.immutable);
+                tokio::task::spawn_blocking(move || -> anyhow::Result<Vec<(u64, usize, [f64; 3])>> {
+                    let conn = open_reader(&path, immutable)?;
+                    let has: bool = conn
+                        .query_row("SELECT count(*) FROM sqlite_schema WHERE name = 'smr_readings'", [], |r| {
+                            r.get::<_, i64>(0)
+                        })
+                        .map(|n| n > 0)?;
+                    if !has {
+                        return Ok(Vec::new());
+                    }
+                    let mut stmt = conn.prepare(QUERY)?;
+                    let rows = stmt.query_map([survey_id], |r| {
+                        Ok((
+                            r.get::<_, i64>(0)? as u64,
+                            r.get::<_, i64>(1)? as usize,
+                            [r.get(2)?, r.get(3)?, r.get(4)?],
+                        ))
+                    })?;
+                    Ok(rows.collect::<Result<Vec<_>, _>>()?)
+                })
+                .await
+                .context("the SMR reader stopped")?
+            }
+            super::Backend::Lab(pool) => {
+                let rows = sqlx::query(
+                    "SELECT seq, smr, x_mm, y_mm, z_mm FROM smr_readings WHERE survey_id = $1 ORDER BY seq, smr",
+                )
+                .bind(survey_id)
+                .fetch_all(pool)
+                .await?;
+                rows.iter()
+                    .map(|row| -> anyhow::Result<(u64, usize, [f64; 3])> {
+                        let seq: i64 = row.try_get(0)?;
+                        let smr: i64 = row.try_get(1)?;
+                        Ok((seq as u64, smr as usize, [row.try_get(2)?, row.try_get(3)?, row.try_get(4)?]))
+                    })
+                    .collect()
+            }
+        };
+        read.with_context(|| format!("cannot read the other SMRs' positions of survey {survey_id}"))
+            .map_err(|e| crate::damage::on_read(&self.path, &format!("the SMR readings of survey {survey_id}"), e))
     }
 
     /// The samples of a survey as [`Store::samples`] reads them, with the SMR
@@ -369,6 +432,41 @@ pub(super) async fn insert_samples(
                 }
                 RawReading::None => unreachable!("filtered out above"),
             }
+        });
+        qb.build().execute(&mut *conn).await?;
+        insert_other_smrs(conn, survey_id, chunk).await?;
+    }
+    Ok(())
+}
+
+/// The readings of the SMRs beside the first (`smr_readings`, migration 10)
+/// of `samples`, in bounded multi-row statements.
+async fn insert_other_smrs(
+    conn: &mut SqliteConnection,
+    survey_id: i64,
+    samples: &[RecordedSample],
+) -> anyhow::Result<()> {
+    let rows: Vec<(u64, usize, &survey_drivers::SmrMeasurement)> =
+        samples.iter().flat_map(|r| r.others.iter().enumerate().map(move |(k, m)| (r.seq, k + 1, m))).collect();
+    for chunk in rows.chunks(CHUNK_ROWS) {
+        let mut qb: QueryBuilder<Sqlite> = QueryBuilder::new(
+            "INSERT INTO smr_readings (survey_id, seq, smr, x_mm, y_mm, z_mm, sx_mm, sy_mm, sz_mm, \
+             measurement_time_s, air_temperature_c, air_pressure_hpa, air_humidity_pct) ",
+        );
+        qb.push_values(chunk, |mut b, (seq, k, m)| {
+            b.push_bind(survey_id)
+                .push_bind(*seq as i64)
+                .push_bind(*k as i64)
+                .push_bind(m.x_mm)
+                .push_bind(m.y_mm)
+                .push_bind(m.z_mm)
+                .push_bind(m.std_dev_mm[0])
+                .push_bind(m.std_dev_mm[1])
+                .push_bind(m.std_dev_mm[2])
+                .push_bind(m.measurement_time_s)
+                .push_bind(m.environment.map(|a| a.temperature_c))
+                .push_bind(m.environment.map(|a| a.pressure_hpa))
+                .push_bind(m.environment.map(|a| a.humidity_pct));
         });
         qb.build().execute(&mut *conn).await?;
     }

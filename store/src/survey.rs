@@ -107,6 +107,10 @@ pub struct SimulatedSetup {
     /// The faults the simulated instruments inject (`run --fault-rates`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub faults: Option<survey_sims::faults::FaultRates>,
+    /// The SMRs on the table (`run --smrs`, a model file's `[smrs]`);
+    /// empty: one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub smrs: Vec<survey_processing::smrs::SmrMount>,
 }
 
 /// What a survey of real instruments was made from, stored with it.
@@ -425,6 +429,17 @@ pub struct StoredColumns {
 }
 
 impl SurveyRecord {
+    /// The SMRs on the table: the simulated bench's (`--smrs`, a model
+    /// file's `[smrs]`) or the configuration's `[smrs]`; one otherwise.
+    pub fn smrs(&self) -> Vec<survey_processing::smrs::SmrMount> {
+        let smrs = match &self.setup {
+            Setup::Simulated(s) => s.smrs.clone(),
+            Setup::Configured(c) => c.config.smrs.as_ref().map(|s| s.mounts()).unwrap_or_default(),
+            _ => Vec::new(),
+        };
+        if smrs.len() > 1 { smrs } else { vec![survey_processing::smrs::SmrMount::FIRST] }
+    }
+
     /// The reference instrument the survey was measured with, when recorded
     /// (a simulated or configured bench; not an imported survey).
     pub fn reference(&self) -> Option<ReferenceKind> {

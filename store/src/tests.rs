@@ -47,6 +47,7 @@ fn recorded(seq: u64) -> RecordedSample {
     };
     RecordedSample {
         seq,
+        others: Vec::new(),
         sample: Sample {
             run: 1 + (seq / 1000) as u32,
             direction: if seq.is_multiple_of(2) { Direction::Forward } else { Direction::Reverse },
@@ -188,7 +189,7 @@ async fn negative_zero_and_extremes_survive_the_database() {
     s.sample.readout_deg = 5e-324;
     s.sample.actual_deg = f64::MAX;
     s.sample.timestamp_s = Some(f64::MIN_POSITIVE);
-    store.append(id, &[s]).await.unwrap();
+    store.append(id, &[s.clone()]).await.unwrap();
     let back = store.recorded_samples(id).await.unwrap();
     assert_eq!(back[0].sample.target_deg.to_bits(), (-0.0f64).to_bits());
     assert_same(&back, &[s]);
@@ -870,4 +871,36 @@ async fn the_air_of_every_tracker_measurement_is_kept_and_summarised() {
     assert_eq!(m.humidity_pct.max, 40.0);
     let series = store.temperature_series(id).await.unwrap();
     assert_eq!(series.iter().map(|p| p.1).collect::<Vec<_>>(), measured, "against time, in seq order");
+}
+
+#[tokio::test]
+async fn the_other_smrs_readings_are_stored_with_their_sample_and_read_back_in_order() {
+    let (_dir, store) = temp_store().await;
+    let id = store.create_survey(&new_survey()).await.unwrap();
+    assert!(store.other_smr_positions(id).await.unwrap().is_empty(), "one SMR: none");
+    let smr = |x: f64| SmrMeasurement {
+        x_mm: x,
+        y_mm: 2.0 * x,
+        z_mm: -x,
+        std_dev_mm: [0.004; 3],
+        measurement_time_s: 1.0,
+        environment: None,
+    };
+    let samples: Vec<RecordedSample> = (0..5u64)
+        .map(|seq| RecordedSample { others: vec![smr(seq as f64 + 0.5), smr(seq as f64 + 0.25)], ..recorded(seq) })
+        .collect();
+    store.append(id, &samples).await.unwrap();
+    let back = store.other_smr_positions(id).await.unwrap();
+    assert_eq!(back.len(), 10);
+    assert_eq!(back[0], (0, 1, [0.5, 1.0, -0.5]));
+    assert_eq!(back[1], (0, 2, [0.25, 0.5, -0.25]));
+    assert_eq!(back[9], (4, 2, [4.25, 8.5, -4.25]));
+    // A sample whose other SMR's reading cannot be stored is not stored either.
+    let bad = RecordedSample { others: vec![smr(1.0)], ..recorded(5) };
+    let dup = RecordedSample { seq: 6, others: vec![smr(1.0)], ..recorded(5) };
+    store.append(id, &[bad, dup.clone()]).await.unwrap();
+    let e = store.append(id, &[dup]).await.unwrap_err();
+    assert!(format!("{e:#}").contains("UNIQUE constraint failed"), "{e:#}");
+    assert_eq!(store.other_smr_positions(id).await.unwrap().len(), 12);
+    store.close().await;
 }

@@ -546,6 +546,7 @@ fn a_survey_being_acquired_moves_on_the_open_page_without_a_reload() {
             if k < 10 { (Direction::Forward, k as f64 * 36.0) } else { (Direction::Reverse, (19 - k) as f64 * 36.0) };
         RecordedSample {
             seq,
+            others: Vec::new(),
             sample: Sample {
                 run,
                 direction,

@@ -94,8 +94,8 @@ fn history_read_from_what_the_commands_keep_is_what_computing_it_gives_bit_for_b
     // A database of schema 7 (before the cache) is read as it is.
     execute(
         &bench,
-        "DROP TABLE survey_summaries; DROP TABLE survey_changes; ALTER TABLE raw_readings DROP COLUMN \
-         air_temperature_c; ALTER TABLE raw_readings DROP COLUMN air_pressure_hpa; ALTER TABLE raw_readings DROP \
+        "DROP TABLE survey_summaries; DROP TABLE survey_changes; DROP TABLE smr_readings; ALTER TABLE \
+         raw_readings DROP COLUMN air_temperature_c; ALTER TABLE raw_readings DROP COLUMN air_pressure_hpa; ALTER TABLE raw_readings DROP \
          COLUMN air_humidity_pct; DELETE FROM _sqlx_migrations WHERE version >= 8;",
     );
     assert_eq!(history(&bench, "sim-fig8", &last), kept, "schema 7, read-only");

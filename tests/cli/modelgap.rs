@@ -54,6 +54,7 @@ fn lacking() -> String {
         design: m.design.clone(),
         effects: m.effects.into_iter().filter(keep).collect(),
         tracker_errors: m.tracker_errors,
+        smrs: m.smrs,
     }
     .to_toml()
 }

@@ -62,6 +62,14 @@ fn process_json_has_the_contract_keys_and_the_files_are_well_formed() {
         peaks.iter().max_by(|a, b| num(&a["amplitude_deg"], "a").total_cmp(&num(&b["amplitude_deg"], "b"))).unwrap();
     assert_eq!((num(&top["cycles_per_rev"], "c"), &top["repeatable"]), (12.0, &Value::Bool(true)), "{top}");
     assert!(top["source"].as_str().unwrap().starts_with("gear_pass"), "{top}");
+    // The tracker's own error: one SMR separates nothing, its MPE bounds it.
+    let r = &doc["reference_error"];
+    assert_eq!(
+        (r["separated"].as_bool(), r["method"].as_str(), r["smrs"].as_u64()),
+        (Some(false), Some("none"), Some(1)),
+        "{r}"
+    );
+    assert!(r["lines"].as_array().is_some_and(Vec::is_empty) && num(&r["u_deg"], "u_deg") > 0.0, "{r}");
     // With 360 points the 216-tooth ring gear appears at 144 and is relocated.
     let aliases = doc["aliases"].as_array().expect("aliases is an array");
     for a in aliases {
@@ -338,4 +346,53 @@ fn run_stats_process_and_the_report_give_one_set_of_numbers_and_name_the_axis() 
     // An autocollimator survey has no axis to fit.
     bench.survey(&["run", "--points", "24", "--reference", "autocollimator", "--runs", "2", "--json"]).success();
     assert_eq!(bench.survey(&["stats", "--json"]).success().json()["axis"], "none");
+}
+
+/// `--smrs 3` on the simulated bench: every target measured with three SMRs,
+/// `reference_error` says what they separated, `U`'s systematic part is what
+/// stays of the tracker's error, below one SMR's bound.
+#[test]
+fn three_smrs_separate_the_trackers_error_and_say_so() {
+    let bench = Bench::new();
+    let doc = bench.survey(&["run", "--points", "90", "--runs", "2", "--smrs", "3", "--json"]).success().json();
+    let r = &doc["process"]["reference_error"];
+    assert_eq!(
+        (r["separated"].as_bool(), r["method"].as_str(), r["smrs"].as_u64()),
+        (Some(true), Some("equal-division"), Some(3)),
+        "{r}"
+    );
+    for l in r["lines"].as_array().expect("lines") {
+        for key in ["cycles_per_rev", "amplitude_deg", "phase_deg"] {
+            num(&l[key], key);
+        }
+    }
+    let systematic = |doc: &Value| {
+        doc["uncertainty"]["budget"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["source"] == "reference instrument, systematic")
+            .map(|c| num(&c["u_deg"], "u_deg"))
+            .unwrap()
+    };
+    assert_eq!(systematic(&doc["process"]), num(&r["u_deg"], "u_deg"));
+    // The pointing is in the instrument time.
+    let point =
+        doc["time_budget"]["components"].as_array().unwrap().iter().find(|c| c["component"] == "point").cloned();
+    assert!(
+        point.is_some_and(|p| num(&p["time_s"], "time_s") > 0.0 && num(&p["bound_s"], "bound_s") > 0.0),
+        "{}",
+        doc["time_budget"]
+    );
+    // One SMR's bound is larger.
+    let one = bench.survey(&["--db", "one.db", "run", "--points", "90", "--runs", "2", "--json"]).success().json();
+    assert!(systematic(&one["process"]) > 1.5 * systematic(&doc["process"]));
+    // Out of range, or with an autocollimator: refused before anything is stored.
+    let out = bench.survey(&["--db", "bad.db", "run", "--points", "90", "--smrs", "13"]);
+    assert_eq!(out.code, 2, "{out}");
+    assert!(out.stderr.contains("--smrs 13: a survey measures at most 12 SMRs"), "{out}");
+    let out =
+        bench.survey(&["--db", "bad.db", "run", "--points", "24", "--smrs", "2", "--reference", "autocollimator"]);
+    assert_eq!(out.code, 2, "{out}");
+    assert!(out.stderr.contains("need the tracker"), "{out}");
 }

@@ -11,6 +11,7 @@ mod interop_emscon;
 mod modelgap;
 mod resume;
 mod scan_latency;
+mod smrs;
 mod soak;
 mod uncertainty;
 mod wire;

@@ -27,6 +27,7 @@ use survey_drivers::{
 use survey_plan::budget::{Component, Ledger};
 use survey_plan::{SurveyPlan, locate_readouts, move_time};
 use survey_processing::geometry::{AxisFit, GeometryError, fit_axis};
+use survey_processing::smrs::SmrMount;
 use survey_processing::{Direction, Sample};
 
 /// The independent instrument that measures the actual angle.
@@ -167,6 +168,10 @@ pub struct Engine {
     drift: Option<survey_plan::drift::DriftControl>,
     /// What simulated instruments in this process injected, when they are.
     injected: Option<survey_sims::faults::Injected>,
+    /// The SMRs on the table (the first one locates the axis), and the
+    /// least time to point at one, for the bound ([`smrs`]).
+    smrs: Vec<SmrMount>,
+    point_bound: Duration,
 }
 
 impl Engine {
@@ -191,6 +196,8 @@ impl Engine {
             scan: scan::ScanState::default(),
             drift: None,
             injected: None,
+            smrs: vec![SmrMount::FIRST],
+            point_bound: Duration::ZERO,
         }
     }
 
@@ -517,10 +524,11 @@ impl Engine {
                 r = async {
                     let drift = self.drift_reference(step.seq, from_seq, plan.overrun_deg, sink).await?;
                     let pair = self.measure(step.target_deg, step.direction, plan.overrun_deg, sink).await?;
-                    Ok::<_, EngineError>((drift, pair))
+                    let others = self.read_other_smrs(step.target_deg, sink).await?;
+                    Ok::<_, EngineError>((drift, pair, others))
                 } => Ok(r),
             };
-            let (drift, (readout, raw)) = match measured {
+            let (drift, (readout, raw), others) = match measured {
                 Ok(r) => r?,
                 Err(why) => return Err(self.halt(why).await),
             };
@@ -536,7 +544,7 @@ impl Engine {
                 actual_deg: actual,
                 timestamp_s: Some(self.clock.now().as_secs_f64()),
             };
-            sink.record(RecordedSample { seq: step.seq, sample, raw }).await.map_err(EngineError::Sink)?;
+            sink.record(RecordedSample { seq: step.seq, sample, raw, others }).await.map_err(EngineError::Sink)?;
             outcome.samples_recorded += 1;
             progress(&Progress {
                 done: step.seq + 1,
@@ -811,6 +819,7 @@ fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> 
 mod drift;
 mod read;
 mod scan;
+mod smrs;
 mod suspend;
 
 pub use scan::ScanReport;

@@ -89,6 +89,13 @@ pub(super) const ROOT: &[Field] = &[
         ]),
     ),
     opt("asset", Ty::Table(&[req("id", Ty::Text)])),
+    opt(
+        "smrs",
+        Ty::Table(&[
+            req("phases_deg", Ty::Numbers(Low::From(-360.0), 360.0, "deg")),
+            opt("heights_mm", Ty::Numbers(Low::From(-10_000.0), 10_000.0, "mm")),
+        ]),
+    ),
 ];
 
 const SURVEY: &[Field] = &[

@@ -142,6 +142,24 @@ const ROWS: &[Table] = &[
         order: "seq",
     },
     Table {
+        name: "smr_readings",
+        columns: &[
+            ("seq", Int),
+            ("smr", Int),
+            ("x_mm", Real),
+            ("y_mm", Real),
+            ("z_mm", Real),
+            ("sx_mm", Real),
+            ("sy_mm", Real),
+            ("sz_mm", Real),
+            ("measurement_time_s", Real),
+            ("air_temperature_c", Real),
+            ("air_pressure_hpa", Real),
+            ("air_humidity_pct", Real),
+        ],
+        order: "seq, smr",
+    },
+    Table {
         name: "locate_points",
         columns: &[
             ("idx", Int),

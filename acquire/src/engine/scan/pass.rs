@@ -331,7 +331,7 @@ pub(super) fn pair(
             measurement_time_s: period,
             environment: None,
         });
-        samples.push(RecordedSample { seq, sample, raw });
+        samples.push(RecordedSample { seq, sample, raw, others: Vec::new() });
     }
     Ok(Paired { samples, errors, readout_clock, tracker_clock })
 }
