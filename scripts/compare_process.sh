@@ -19,7 +19,7 @@
 #
 #   scripts/compare_process.sh [PYTHON]
 #
-# PYTHON is an interpreter with numpy and scipy (default python3). ROUNDS
+# PYTHON is an interpreter with numpy (default python3). ROUNDS
 # (default 3) sets the number of alternations. Needs GNU time (/usr/bin/time)
 # and a release build (`cargo build --release`).
 set -euo pipefail
@@ -62,7 +62,7 @@ for points in "${sizes[@]}"; do
   done
 done
 
-printf '%-9s %-32s %-32s %s\n' samples "survey process (wall, CPU, MiB)" "numpy/scipy (wall, CPU, MiB)" \
+printf '%-9s %-32s %-32s %s\n' samples "survey process (wall, CPU, MiB)" "numpy (wall, CPU, MiB)" \
   "faster (wall, CPU)"
 for points in "${sizes[@]}"; do
   read -r rt rm rc _ <<<"$(best "survey$points")"

@@ -189,10 +189,10 @@ fn drift_from_runs(a: &survey_processing::analysis::Analysis, kept: &[f64]) -> O
     if r < 3 || kept.is_empty() {
         return None;
     }
-    let fits: Vec<survey_processing::spectrum::SinusoidFit> = runs
-        .iter()
-        .filter_map(|y| survey_processing::spectrum::fit_sinusoids(&map.targets_deg, y, kept).ok())
-        .collect();
+    // One basis for every run: the runs share their targets (its QR is the
+    // cost; each run's fit is a solve).
+    let basis = survey_processing::spectrum::SinusoidBasis::new(&map.targets_deg, kept).ok()?;
+    let fits: Vec<survey_processing::spectrum::SinusoidFit> = runs.iter().filter_map(|y| basis.fit(y).ok()).collect();
     if fits.len() != r {
         return None;
     }
