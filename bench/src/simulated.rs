@@ -141,6 +141,15 @@ impl Bench {
             plan = within_travel_for_scan(&plan, travel, timing.velocity_deg_s, timing.accel_deg_s2, &timing.scan)?;
         }
         let tracker = req.reference == ReferenceKind::Tracker;
+        if let (false, Some(p)) = (tracker, &model.polygon)
+            && p.face_errors_arcsec.len() != points as usize
+        {
+            return Err(bad_input(format!(
+                "the model file's [polygon] has {} faces, but the survey measures {points} (--points is the \
+                 polygon's faces with the autocollimator)",
+                p.face_errors_arcsec.len()
+            )));
+        }
         if req.smrs as usize > survey_processing::smrs::MAX_SMRS {
             return Err(bad_input(format!(
                 "--smrs {}: a survey measures at most {} SMRs at a target",
@@ -216,6 +225,9 @@ pub fn simulated_engine(
     progress: Option<PlanProgress>,
 ) -> Engine {
     let dyn_clock: Arc<dyn Clock> = clock;
+    // The polygon the model file states (its true faces, its certificate)
+    // and the autocollimator's scale error.
+    let (polygon, scale_ppm) = (model.polygon.clone(), model.autocollimator_scale_ppm);
     let mut builder = SimBench::builder(preset, setup.seed, dyn_clock.clone())
         .model(model)
         .drift_run_period(Duration::from_secs_f64(setup.run_period_s))
@@ -226,7 +238,13 @@ pub fn simulated_engine(
     }
     if setup.reference == ReferenceKind::Autocollimator {
         let faces = setup.plan.targets_deg.len() as u32;
-        builder = builder.autocollimator(AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3)));
+        let mut ac = AutocollimatorConfig::seeded(faces, survey_sims::derive_seed(setup.seed, 3));
+        ac.scale_ppm = scale_ppm;
+        if let Some(p) = polygon.filter(|p| p.face_errors_arcsec.len() == faces as usize) {
+            ac.certificate_arcsec = p.certificate().to_vec();
+            ac.face_errors_arcsec = Some(p.face_errors_arcsec);
+        }
+        builder = builder.autocollimator(ac);
     }
     if let Some(rates) = &setup.faults {
         builder = builder.fault_rates(rates);

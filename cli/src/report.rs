@@ -117,7 +117,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     }
     if let Some(d) = &args.received {
         survey_store::config::check_date(d)
-            .map_err(|e| survey_lab::error::bad_input(format!("--received {d}: {e}")))?;
+            .map_err(|e| survey_lab::error::bad_input(format!("--received {d}: {d} is {e}")))?;
     }
     if let Some(c) = &args.country {
         survey_store::config::check_country(c)
@@ -170,6 +170,8 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
         None => String::new(),
     };
     drop(progress);
-    emit(&format!("{}\n{printed}", path.display()));
+    // Every file written: the page, the DCC beside it, the PDF.
+    let dcc = path.with_file_name("dcc.xml");
+    emit(&format!("{}\n{}\n{printed}", path.display(), dcc.display()));
     Ok(())
 }

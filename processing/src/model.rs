@@ -158,6 +158,29 @@ pub struct Model {
     pub tracker_errors: TrackerErrorSpec,
     /// The SMRs on the simulated table (`[smrs]`), when given.
     pub smrs: Option<Vec<crate::smrs::SmrMount>>,
+    /// The simulated polygon's true face errors and its certificate
+    /// (`[polygon]`), when given.
+    pub polygon: Option<PolygonTruth>,
+    /// The simulated autocollimator's scale error, parts per million
+    /// (`[autocollimator_errors] scale_ppm`; 0 when not given).
+    pub autocollimator_scale_ppm: f64,
+}
+
+/// A simulated polygon: what its faces truly are and what its certificate
+/// says (a certificate that is not the truth is a stale one).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolygonTruth {
+    /// Each face's true deviation from its nominal angle, arcsec.
+    pub face_errors_arcsec: Vec<f64>,
+    /// What the certificate states, arcsec (`None`: the truth).
+    pub certificate_arcsec: Option<Vec<f64>>,
+}
+
+impl PolygonTruth {
+    /// What the certificate states.
+    pub fn certificate(&self) -> &[f64] {
+        self.certificate_arcsec.as_deref().unwrap_or(&self.face_errors_arcsec)
+    }
 }
 
 /// A defect of a model file, naming where it is.
@@ -185,11 +208,14 @@ impl Model {
         })?;
         let locate = Locator { text };
         for key in table.keys() {
-            if !["design", "effect", "tracker_errors", "smrs"].contains(&key.as_str()) {
+            if !["design", "effect", "tracker_errors", "smrs", "polygon", "autocollimator_errors"]
+                .contains(&key.as_str())
+            {
                 return Err(err(
                     locate.top_key(key),
                     format!(
-                        "unknown top-level key '{key}' (expected [design], [[effect]], [tracker_errors] and [smrs])"
+                        "unknown top-level key '{key}' (expected [design], [[effect]], [tracker_errors], [smrs], \
+                         [polygon] and [autocollimator_errors])"
                     ),
                 ));
             }
@@ -233,7 +259,42 @@ impl Model {
             }
             Some(_) => return Err(err(locate.top_key("smrs"), "'smrs' must be a table".into())),
         };
-        Ok(Model { design, effects, tracker_errors, smrs })
+        let polygon = match table.get("polygon") {
+            None => None,
+            Some(toml::Value::Table(t)) => {
+                let header = locate.section_header("polygon");
+                Some(parse_polygon(t, &|key| locate.key_in_table(header, key)).map_err(|(l, m)| err(l, m))?)
+            }
+            Some(_) => return Err(err(locate.top_key("polygon"), "'polygon' must be a table".into())),
+        };
+        let autocollimator_scale_ppm = match table.get("autocollimator_errors") {
+            None => 0.0,
+            Some(toml::Value::Table(t)) => {
+                let header = locate.section_header("autocollimator_errors");
+                let at = |key: &str| locate.key_in_table(header, key);
+                if let Some(k) = t.keys().find(|k| *k != "scale_ppm") {
+                    return Err(err(at(k), format!("autocollimator_errors: unknown key '{k}' (expected scale_ppm)")));
+                }
+                match t.get("scale_ppm").map(number) {
+                    None => 0.0,
+                    Some(Some(v)) if v.is_finite() && v.abs() <= 100_000.0 => v,
+                    Some(_) => {
+                        return Err(err(
+                            at("scale_ppm"),
+                            "autocollimator_errors.scale_ppm must be a number within +/-100000 (parts per million)"
+                                .into(),
+                        ));
+                    }
+                }
+            }
+            Some(_) => {
+                return Err(err(
+                    locate.top_key("autocollimator_errors"),
+                    "'autocollimator_errors' must be a table".into(),
+                ));
+            }
+        };
+        Ok(Model { design, effects, tracker_errors, smrs, polygon, autocollimator_scale_ppm })
     }
 
     /// The model as a model file (TOML), which [`Model::parse`] reads back.
@@ -271,6 +332,16 @@ impl Model {
         if let Some(smrs) = &self.smrs {
             s.push('\n');
             s.push_str(&crate::smrs::section_toml(smrs));
+        }
+        if let Some(p) = &self.polygon {
+            let list = |v: &[f64]| v.iter().map(|x| fmt_num(*x)).collect::<Vec<_>>().join(", ");
+            let _ = write!(s, "\n[polygon]\nface_errors_arcsec = [{}]\n", list(&p.face_errors_arcsec));
+            if let Some(c) = &p.certificate_arcsec {
+                let _ = writeln!(s, "certificate_arcsec = [{}]", list(c));
+            }
+        }
+        if self.autocollimator_scale_ppm != 0.0 {
+            let _ = write!(s, "\n[autocollimator_errors]\nscale_ppm = {}\n", fmt_num(self.autocollimator_scale_ppm));
         }
         match &self.tracker_errors {
             TrackerErrorSpec::Typical => {}
@@ -456,6 +527,43 @@ fn number(v: &toml::Value) -> Option<f64> {
         toml::Value::Integer(i) => Some(*i as f64),
         _ => None,
     }
+}
+
+/// A `[polygon]` table: `face_errors_arcsec` (2 to 3600 faces, each within
+/// +/-3600 arcsec) and optionally `certificate_arcsec`, one per face.
+fn parse_polygon(t: &toml::Table, at: &dyn Fn(&str) -> Option<usize>) -> Result<PolygonTruth, Fail> {
+    if let Some(k) = t.keys().find(|k| *k != "face_errors_arcsec" && *k != "certificate_arcsec") {
+        return Err((at(k), format!("polygon: unknown key '{k}' (expected face_errors_arcsec, certificate_arcsec)")));
+    }
+    let list = |key: &str| -> Result<Option<Vec<f64>>, Fail> {
+        let Some(v) = t.get(key) else { return Ok(None) };
+        let arr = v.as_array().ok_or((at(key), format!("polygon.{key} must be an array of numbers (arcsec)")))?;
+        arr.iter()
+            .map(|x| match number(x) {
+                Some(f) if f.is_finite() && f.abs() <= 3600.0 => Ok(f),
+                _ => Err((at(key), format!("polygon.{key}: {} is not a face error within +/-3600 arcsec", shown(x)))),
+            })
+            .collect::<Result<Vec<f64>, _>>()
+            .map(Some)
+    };
+    let truth = list("face_errors_arcsec")?
+        .ok_or((at("face_errors_arcsec"), "polygon: missing key 'face_errors_arcsec' (one per face, arcsec)".into()))?;
+    if !(2..=3600).contains(&truth.len()) {
+        return Err((
+            at("face_errors_arcsec"),
+            format!("polygon.face_errors_arcsec: {} faces; a polygon has 2 to 3600", truth.len()),
+        ));
+    }
+    let certificate = list("certificate_arcsec")?;
+    if let Some(c) = &certificate
+        && c.len() != truth.len()
+    {
+        return Err((
+            at("certificate_arcsec"),
+            format!("polygon.certificate_arcsec: {} values for {} faces (one per face)", c.len(), truth.len()),
+        ));
+    }
+    Ok(PolygonTruth { face_errors_arcsec: truth, certificate_arcsec: certificate })
 }
 
 fn parse_design(t: &toml::Table, loc: &Locator) -> Result<Design, Fail> {
@@ -730,6 +838,34 @@ sigma_deg = 0.0005
         let syntax = error_of("[design\n");
         assert_eq!(syntax.line, Some(1));
         assert!(error_of("[[effect]]\namplitude_deg = 1\n").message.contains("missing key 'kind'"));
+    }
+
+    #[test]
+    fn the_benchs_sections_parse_write_back_and_name_their_defects() {
+        let text = "[design]\ngear_ratios = [20]\n\n[tracker_errors]\nnone = true\n\n[smrs]\nphases_deg = [10, 47, 141]\n\n\
+                    [polygon]\nface_errors_arcsec = [0.5, -0.5, 0.25, 0.0]\ncertificate_arcsec = [0.4, -0.5, 0.25, 0.1]\n\n\
+                    [autocollimator_errors]\nscale_ppm = 500\n";
+        let m = Model::parse(text, "m.toml").unwrap();
+        assert_eq!(m.tracker_errors, TrackerErrorSpec::None);
+        let smrs = m.smrs.clone().unwrap();
+        assert_eq!(smrs.iter().map(|s| s.phase_deg).collect::<Vec<_>>(), [0.0, 37.0, 131.0], "from the first's");
+        let p = m.polygon.clone().unwrap();
+        assert_eq!((p.face_errors_arcsec.len(), p.certificate()[0]), (4, 0.4));
+        assert_eq!(m.autocollimator_scale_ppm, 500.0);
+        assert_eq!(Model::parse(&m.to_toml(), "again").unwrap(), m);
+        for (bad, line, says) in [
+            ("[smrs]\nphases_deg = [0]\n", 2, "1 SMRs; a survey measures 2 to 12"),
+            ("[smrs]\nphases_deg = [0, 360]\n", 2, "two SMRs at the same place"),
+            ("[smrs]\nphases_deg = [0, 90]\nheights_mm = [1]\n", 3, "1 heights for 2 SMRs"),
+            ("[polygon]\nface_errors_arcsec = [1, 2]\ncertificate_arcsec = [1]\n", 3, "1 values for 2 faces"),
+            ("[polygon]\nface_errors_arcsec = [1, 4000]\n", 2, "4000 is not a face error"),
+            ("[autocollimator_errors]\nscale = 3\n", 2, "unknown key 'scale'"),
+            ("[turntable]\nx = 1\n", 1, "unknown top-level key 'turntable'"),
+        ] {
+            let e = Model::parse(bad, "bad.toml").unwrap_err();
+            assert_eq!(e.line, Some(line), "{bad}: {e}");
+            assert!(e.message.contains(says), "{bad}: {e}");
+        }
     }
 
     #[test]

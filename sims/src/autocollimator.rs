@@ -9,6 +9,11 @@
 //!
 //! - `X = 3600 * (theta - phi_k) - c_k + noise` (with `theta - phi_k` wrapped
 //!   into [-180, 180)), so the engine recovers `theta = phi_k + (X + c_k) / 3600`;
+//!   where the face's true deviation `t_k` is not its certificate's (a stale
+//!   certificate, [`AutocollimatorConfig::face_errors_arcsec`]), `X` reads
+//!   `t_k`, and the engine, given `c_k`, errs by `c_k - t_k` at that face;
+//!   with a scale error `s` ([`AutocollimatorConfig::scale_ppm`]) `X` is
+//!   `(1 + s)` times the above (the noise aside);
 //! - `Y = pyramidal_k + noise` (the face's pyramidal error; no axis dependence).
 //!
 //! The noise of each coordinate is Gaussian with sigma `noise_arcsec`. When
@@ -67,6 +72,13 @@ pub struct AutocollimatorConfig {
     /// Probability that a read finds no reflection although the face is in
     /// range (default 0).
     pub blocked_probability: f64,
+    /// The faces' true deviations from nominal, arcsec, one per face, when
+    /// they are not what the certificate says (a stale certificate; `None`:
+    /// the certificate is the truth).
+    pub face_errors_arcsec: Option<Vec<f64>>,
+    /// The autocollimator's scale error, parts per million: it reads
+    /// `(1 + scale)` times the true angle from the optical axis (default 0).
+    pub scale_ppm: f64,
 }
 
 impl AutocollimatorConfig {
@@ -87,6 +99,8 @@ impl AutocollimatorConfig {
             read_time: Duration::from_millis(200),
             seed,
             blocked_probability: 0.0,
+            face_errors_arcsec: None,
+            scale_ppm: 0.0,
         }
     }
 
@@ -132,6 +146,7 @@ impl SimAutocollimator {
         let n = cfg.faces as usize;
         assert_eq!(cfg.certificate_arcsec.len(), n, "one certificate entry per face");
         assert_eq!(cfg.pyramidal_arcsec.len(), n, "one pyramidal entry per face");
+        assert!(cfg.face_errors_arcsec.as_ref().is_none_or(|t| t.len() == n), "one true deviation per face");
         Self {
             noise_rng: seeded_rng(cfg.seed, NOISE_STREAM),
             fault_rng: seeded_rng(cfg.seed, FAULT_STREAM),
@@ -203,8 +218,11 @@ impl Autocollimator for SimAutocollimator {
         let zx: f64 = StandardNormal.sample(&mut self.noise_rng);
         let zy: f64 = StandardNormal.sample(&mut self.noise_rng);
         let sigma = self.cfg.noise_arcsec;
+        // The face's true deviation: its certificate's, unless stale.
+        let deviation = self.cfg.face_errors_arcsec.as_ref().map_or(self.cfg.certificate_arcsec[k], |t| t[k]);
+        let scale = 1.0 + self.cfg.scale_ppm * 1e-6;
         Ok(AcReading {
-            x_arcsec: 3600.0 * offset - self.cfg.certificate_arcsec[k] + sigma * zx,
+            x_arcsec: (3600.0 * offset - deviation) * scale + sigma * zx,
             y_arcsec: self.cfg.pyramidal_arcsec[k] + sigma * zy,
         })
     }
@@ -327,5 +345,31 @@ mod tests {
         let tol = 4.0 / (2.0 * (n - 1) as f64).sqrt();
         assert!((sd / 0.1 - 1.0).abs() < tol, "sd {sd}");
         assert!((mean + ac.certificate_arcsec()[2]).abs() < 4.0 * 0.1 / (n as f64).sqrt());
+    }
+
+    #[tokio::test]
+    async fn a_stale_certificate_and_a_scale_error_read_as_their_causes_do() {
+        let clock = VirtualClock::new();
+        let table = Turntable::new(0.0);
+        let mut cfg = AutocollimatorConfig { noise_arcsec: 0.0, ..AutocollimatorConfig::seeded(24, 3) };
+        let stated = cfg.certificate_arcsec.clone();
+        // Face 5 truly 1.5 arcsec off what its certificate states.
+        let mut truth = stated.clone();
+        truth[5] += 1.5;
+        cfg.face_errors_arcsec = Some(truth.clone());
+        let mut ac = SimAutocollimator::new(cfg.clone(), Arc::new(clock.clone()), table.clone());
+        assert_eq!(ac.certificate_arcsec(), &stated[..], "the engine is given the certificate");
+        // At face 5's nominal angle plus 100 arcsec: the reading is of the true face.
+        table.place(5.0 * 15.0 + 100.0 / 3600.0);
+        let x = ac.read().await.unwrap().x_arcsec;
+        assert!((x - (100.0 - truth[5])).abs() < 1e-6, "{x}");
+        // The engine's angle, from the certificate, errs by certificate - truth.
+        let angle = 75.0 + (x + stated[5]) / 3600.0;
+        assert!(((angle - (75.0 + 100.0 / 3600.0)) * 3600.0 + 1.5).abs() < 1e-6, "{angle}");
+        // A scale error of 1000 ppm: 1000 ppm of what the face shows.
+        cfg.scale_ppm = 1000.0;
+        let mut scaled = SimAutocollimator::new(cfg, Arc::new(clock.clone()), table.clone());
+        let y = scaled.read().await.unwrap().x_arcsec;
+        assert!((y - x * 1.001).abs() < 1e-6, "{y} against {x}");
     }
 }

@@ -137,8 +137,7 @@ pub fn without_noise(model: &Model) -> Model {
     Model {
         design: model.design.clone(),
         effects: model.effects.iter().filter(|e| !matches!(e, Effect::Noise { .. })).cloned().collect(),
-        tracker_errors: model.tracker_errors.clone(),
-        smrs: model.smrs.clone(),
+        ..model.clone()
     }
 }
 

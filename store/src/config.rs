@@ -578,10 +578,13 @@ impl SurveyConfig {
 pub fn check_date(text: &str) -> Result<(), String> {
     let shaped = text.len() == 10
         && text.char_indices().all(|(i, c)| if i == 4 || i == 7 { c == '-' } else { c.is_ascii_digit() });
-    if shaped && humantime::parse_rfc3339(&format!("{text}T00:00:00Z")).is_ok() {
+    if !shaped {
+        Err("not a date of the form YYYY-MM-DD".into())
+    } else if humantime::parse_rfc3339(&format!("{text}T00:00:00Z")).is_ok() {
         Ok(())
     } else {
-        Err("not a date of the form YYYY-MM-DD".into())
+        // The form is right: the day is not one of the calendar's.
+        Err("not a date (no such day in the calendar)".into())
     }
 }
 

@@ -50,13 +50,7 @@ sigma_deg = 0.0003
 fn lacking() -> String {
     let m = Model::parse(TRUE_MODEL, "true.toml").unwrap();
     let keep = |e: &Effect| !matches!(e, Effect::Periodic { cycles_per_rev, .. } if *cycles_per_rev == 150.0);
-    Model {
-        design: m.design.clone(),
-        effects: m.effects.into_iter().filter(keep).collect(),
-        tracker_errors: m.tracker_errors,
-        smrs: m.smrs,
-    }
-    .to_toml()
+    Model { design: m.design.clone(), effects: m.effects.into_iter().filter(keep).collect(), ..m }.to_toml()
 }
 
 fn run(bench: &Bench, model: &str, seed: &str) -> i64 {

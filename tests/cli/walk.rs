@@ -88,7 +88,7 @@ fn the_readme_walk_runs_as_written_against_survey_sim() {
         "survey --db rehearsal.db report --out rehearsal/",
         "survey run --config bench.toml",
         "survey resume",
-        "survey report --out report/",
+        "survey report --out certificate/",
         "survey run --config bench.toml --verify",
         "survey run --config bench.toml --recipe survey-1/table-1.recipe.toml --correction off --verify",
     ];
@@ -151,7 +151,8 @@ fn the_readme_walk_runs_as_written_against_survey_sim() {
         "rehearsal/index.html",
         "rehearsal.db.survey-1/table-1.csv",
         "survey.db",
-        "report/index.html",
+        "certificate/index.html",
+        "certificate/dcc.xml",
         "survey-1/table-1.recipe.toml",
         "survey-1/table-1.comp1",
         "survey-1/table-1.840d.ini",
