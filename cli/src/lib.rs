@@ -283,7 +283,21 @@ impl Command {
 
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // Help and version go to stdout, usage errors to stderr (clap's exit
+        // codes); a help whose write failed is not a silent success.
+        Err(e) => {
+            let code = e.exit_code();
+            return match e.print() {
+                Err(w) if w.kind() != std::io::ErrorKind::BrokenPipe && code == 0 => {
+                    survey_bench::say!("error: the help could not be written to stdout: {w}");
+                    ExitCode::from(1)
+                }
+                _ => ExitCode::from(u8::try_from(code).unwrap_or(2)),
+            };
+        }
+    };
     support::init_logging(cli.verbose);
     // The command awaits its work and every write; a background task that
     // never yields cannot keep the process alive (`survey_store::runtime`).
@@ -294,7 +308,14 @@ pub fn main() -> ExitCode {
         dispatch(cli).await
     });
     match outcome {
-        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Ok(())) => match support::output_lost() {
+            None => ExitCode::SUCCESS,
+            // The work is done (stored, written), but what it printed is lost.
+            Some(why) => {
+                survey_bench::say!("error: the command's output could not be written to stdout: {why}");
+                ExitCode::from(1)
+            }
+        },
         Ok(Err(e)) => {
             let status = survey_lab::error::exit_status(&e);
             match e.downcast_ref::<clap::Error>() {

@@ -34,11 +34,27 @@ pub fn init_logging(verbose: u8) {
 }
 
 /// Write command output to stdout. A closed pipe (`survey stats | head`) is
-/// not an error worth a panic: the reader has what it wanted.
+/// not an error worth a panic: the reader has what it wanted. Any other
+/// failure (a full disk behind `> file`, `/dev/full`) loses the output: it
+/// is kept for [`output_lost`], which makes the command's exit status 1
+/// with the reason in words, never a silent 0.
 pub fn emit(text: &str) {
     use std::io::Write as _;
     let mut out = std::io::stdout().lock();
-    let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush())
+        && e.kind() != std::io::ErrorKind::BrokenPipe
+    {
+        let mut lost = LOST.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        lost.get_or_insert_with(|| e.to_string());
+    }
+}
+
+/// The first failure to write the output, other than a closed pipe.
+static LOST: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
+/// Why the command's output could not be written, when it could not.
+pub fn output_lost() -> Option<String> {
+    LOST.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone()
 }
 
 /// Open an existing database for a command that writes to it (`resume`): a

@@ -368,3 +368,30 @@ fn each_command_offers_the_options_it_uses_and_the_manual_says_its_environment_a
         assert!(man.stdout.contains(section), "{section}\n{man}");
     }
 }
+
+/// Output that cannot be written (stdout on a full device) is never a silent
+/// success: exit status 1 and the reason on stderr; a closed pipe (a reader
+/// that had enough) is not an error. What the command stored stays.
+#[test]
+fn output_that_cannot_be_written_is_exit_1_with_the_reason() {
+    if !std::path::Path::new("/dev/full").exists() {
+        eprintln!("skipped: this machine has no /dev/full");
+        return;
+    }
+    let bench = Bench::new();
+    let full = || std::process::Stdio::from(std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap());
+    for args in [vec!["run", "--points", "24", "--runs", "2", "--json"], vec!["list"], vec!["stats", "--help"]] {
+        let mut cmd = bench.command(&args);
+        cmd.stdout(full());
+        let out = Bench::output_of(&args, cmd);
+        assert_eq!(out.code, 1, "{out}");
+        assert!(out.stderr.contains("could not be written to stdout: No space left on device"), "{out}");
+    }
+    // The survey the first one ran is stored and whole.
+    let doc = bench.survey(&["show", "1", "--json"]).success().json();
+    assert_eq!(doc["status"], "complete", "{doc}");
+    // A reader that closes the pipe early: no error.
+    let mut child = bench.command(&["list"]).stdout(std::process::Stdio::piped()).spawn().unwrap();
+    drop(child.stdout.take());
+    assert!(child.wait().unwrap().success());
+}
