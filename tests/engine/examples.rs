@@ -21,6 +21,11 @@ fn rehearsal(example: &str) -> toml::Table {
     cfg
 }
 
+/// Whether a configuration puts several SMRs on the table.
+fn run_cfg_has_smrs(cfg: &toml::Table) -> bool {
+    cfg.get("smrs").is_some()
+}
+
 /// The configuration `survey sim` wrote to run against (its ready line's `config`).
 fn sim_config(ready: &serde_json::Value) -> (std::path::PathBuf, toml::Table) {
     let path = std::path::PathBuf::from(ready["config"].as_str().unwrap_or_else(|| panic!("no config: {ready}")));
@@ -97,10 +102,17 @@ fn every_example_configuration_runs_against_survey_sim() {
         let last = String::from_utf8_lossy(&sim_out.stdout);
         assert!(last.lines().last().is_some_and(|l| l.contains("\"stopped\":true")), "{name}: {last}");
         assert!(!run_cfg.parent().unwrap().exists(), "{name}: the sim removed its folder, links and configuration");
+        if run_cfg_has_smrs(&cfg) {
+            // Three SMRs, each pointed at over the wire at every target:
+            // the tracker's error separated from the axis's.
+            let r = &doc["process"]["reference_error"];
+            assert_eq!((r["separated"].as_bool(), r["smrs"].as_u64()), (Some(true), Some(3)), "{name}: {r}");
+            assert_eq!(r["method"], "separation", "{name}: {r}");
+        }
         eprintln!("{name}: {} samples in {:.1} s", doc["samples"], started.elapsed().as_secs_f64());
         ran += 1;
     }
-    assert!(ran >= 6, "every example runs here (a SocketCAN drive behind a simulated adapter where no interface is)");
+    assert!(ran >= 7, "every example runs here (a SocketCAN drive behind a simulated adapter where no interface is)");
 }
 
 #[test]

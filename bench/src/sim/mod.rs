@@ -259,6 +259,10 @@ fn simulated_bench(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<(Sim
     if let Some(arm) = &cfg.arm {
         builder = builder.arm(ArmGeometry { radius_mm: arm.radius_mm, ..ArmGeometry::default() });
     }
+    // The configured SMRs on the simulated table (each where `[smrs]` puts it).
+    if let Some(smrs) = &cfg.smrs {
+        builder.tracker.arm.smrs = smrs.mounts();
+    }
     let drift_run = drift_run_period(cfg, &preset, &builder)?;
     if let Some(period) = drift_run {
         builder = builder.drift_run_period(period);

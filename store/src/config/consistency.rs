@@ -43,13 +43,18 @@ impl SurveyConfig {
         let Some(s) = &self.smrs else { return Ok(()) };
         let max = survey_processing::smrs::MAX_SMRS;
         if !(2..=max).contains(&s.phases_deg.len()) {
-            let text = format!("{} SMRs: a survey measures 2 to {max} at a target", s.phases_deg.len());
+            let text = format!("{} phases: a survey measures 2 to {max} reflectors at a target", s.phases_deg.len());
             return Err(at.defect("smrs.phases_deg", text));
         }
         if let Some(h) = &s.heights_mm
             && h.len() != s.phases_deg.len()
         {
-            let text = format!("{} heights for {} SMRs in smrs.phases_deg (one per SMR)", h.len(), s.phases_deg.len());
+            let text = format!(
+                "{} heights for {} phases in {}: one height per reflector",
+                h.len(),
+                s.phases_deg.len(),
+                at.cite("smrs.phases_deg", "required")
+            );
             return Err(at.defect("smrs.heights_mm", text));
         }
         let mounts = s.mounts();
@@ -58,17 +63,19 @@ impl SurveyConfig {
                 survey_processing::types::wrap_180(a.phase_deg - b.phase_deg).abs() < 1e-6
                     && (a.height_mm - b.height_mm).abs() < 1e-6
             }) {
-                let text = format!("two SMRs at the same place ({} deg)", Num(s.phases_deg[i]));
+                let text = format!("two reflectors at the same place ({} deg)", Num(s.phases_deg[i]));
                 return Err(at.defect("smrs.phases_deg", text));
             }
         }
         if self.tracker.is_none() || self.survey.reference.is_some_and(|r| r == ReferenceKind::Autocollimator) {
-            return Err(at.defect("smrs.phases_deg", "several SMRs need the tracker as the reference ([tracker])"));
+            return Err(
+                at.defect("smrs.phases_deg", "several reflectors need the tracker as the reference ([tracker])")
+            );
         }
         if self.survey.scan == Some(survey_plan::ScanMode::Continuous) {
             return Err(at.defect(
                 "smrs.phases_deg",
-                "several SMRs are measured one after the other at rest: survey.scan must be \"step\"",
+                "several reflectors are measured one after the other at rest: survey.scan must be \"step\"",
             ));
         }
         Ok(())
