@@ -6,6 +6,7 @@
 //! measured data.
 
 pub mod analysis;
+pub mod closure;
 pub mod coverage;
 pub mod errormap;
 pub mod geometry;
