@@ -18,7 +18,7 @@ mod record;
 mod settings;
 mod settle;
 
-pub use engine::{Engine, EngineError, FaultCounts, Outcome, Progress, Reference, ScanReport};
+pub use engine::{Engine, EngineError, FaultCounts, Outcome, PolygonStage, Progress, Reference, ScanReport};
 pub use record::{MemorySink, RawReading, RecordedSample, SampleSink, ScanPassRecord};
 pub use settings::{ReferenceKind, SettleMode, SettleModel, SettleSpec, Timing, default_window_deg};
 pub use settle::SettleStats;

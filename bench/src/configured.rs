@@ -53,6 +53,11 @@ impl Bench {
                 "several SMRs are measured one after the other at rest: use --scan step (a continuous scan follows one SMR)",
             ));
         }
+        if let Some(p) = cfg.polygon.as_ref().filter(|p| !p.turns.is_empty()) {
+            let (tracker, directions) = (cfg.reference() == ReferenceKind::Tracker, plan.directions().len() as u32);
+            let name = format!("{}: [polygon] turns", path.display());
+            crate::simulated::check_polygon_turns(&name, &p.turns, tracker, p.faces, plan.runs, directions)?;
+        }
         let setup = ConfiguredSetup { config: cfg, plan };
         let mut bench = on_clock(&setup, Arc::new(SystemClock::new()));
         if let Some(obj) = bench.instruments.as_object_mut() {
@@ -168,6 +173,10 @@ pub fn configured_engine(cfg: &SurveyConfig, clock: Arc<dyn Clock>) -> Engine {
         engine = engine.with_arm_check(arm.radius_mm, arm.radius_tolerance_mm);
     }
     engine.set_drift_control(cfg.drift_control.clone());
+    let turns = cfg.polygon.as_ref().map(|p| p.turns.clone()).unwrap_or_default();
+    if !turns.is_empty() && cfg.reference() == ReferenceKind::Autocollimator {
+        engine = engine.with_polygon_stage(survey_acquire::PolygonStage::by_operator(turns));
+    }
     match &cfg.smrs {
         // A real tracker's search time is its own: the simulated tracker's
         // (ours, half a second) stands as the bound's.

@@ -6,6 +6,7 @@ use super::Bench;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
+use survey_acquire::PolygonStage;
 use survey_acquire::{Engine, Reference, ReferenceKind, Timing};
 use survey_acquire::{SettleMode, SettleModel};
 use survey_drivers::{Clock, VirtualClock};
@@ -46,6 +47,9 @@ pub struct SimulatedRequest {
     /// SMRs at equal spacing on the table (`--smrs N`; 0: the model file's
     /// `[smrs]`, else one).
     pub smrs: u32,
+    /// The polygon on a stage, turned by these faces in run 1, 2, …
+    /// (`--polygon-turns`; empty: on the table).
+    pub polygon_turns: Vec<u32>,
 }
 
 /// The least time the simulated tracker takes to point at another SMR and
@@ -131,7 +135,7 @@ impl Bench {
         plan.scan = req.scan;
         if plan.continuous() && req.reference == ReferenceKind::Autocollimator {
             return Err(bad_input(
-                "--scan continuous needs a tracker that measures continuously: the autocollimator reads the                  polygon's faces only at rest (use --reference tracker, or --scan step)",
+                "--scan continuous needs a tracker that measures continuously: the autocollimator reads the polygon's faces only at rest (use --reference tracker, or --scan step)",
             ));
         }
         let mut timing =
@@ -171,6 +175,14 @@ impl Bench {
                 "several SMRs are measured one after the other at rest: use --scan step (a continuous scan follows one SMR)",
             ));
         }
+        check_polygon_turns(
+            "--polygon-turns",
+            &req.polygon_turns,
+            tracker,
+            points,
+            runs,
+            plan.directions().len() as u32,
+        )?;
         let run_period = expected_time(&plan, &timing, measurement_time(req.reference), tracker, smrs.len()) / runs;
         let setup = SimulatedSetup {
             preset: preset.name.to_string(),
@@ -182,9 +194,75 @@ impl Bench {
             run_period_s: run_period.as_secs_f64(),
             faults: req.faults,
             smrs,
+            polygon_turns: req.polygon_turns.clone(),
         };
         Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
     }
+}
+
+/// `--polygon-turns`: the faces the polygon turns in each run, checked
+/// before anything is measured: an autocollimator's polygon, each turn
+/// within its faces, a run for each, and turns that link every face to
+/// every other (the closure's condition, `survey_processing::closure`).
+pub fn check_polygon_turns(
+    name: &str,
+    turns: &[u32],
+    tracker: bool,
+    faces: u32,
+    runs: u32,
+    directions: u32,
+) -> anyhow::Result<()> {
+    if turns.is_empty() {
+        return Ok(());
+    }
+    if tracker {
+        return Err(bad_input(format!(
+            "{name} turns the polygon an autocollimator reads, and the reference is a tracker (on the simulated \
+             bench: --reference autocollimator)"
+        )));
+    }
+    if let Some(t) = turns.iter().find(|t| **t >= faces) {
+        return Err(bad_input(format!("{name}: {t} faces is past the polygon's {faces} (0 to {})", faces - 1)));
+    }
+    if (runs as usize) < turns.len() {
+        return Err(bad_input(format!(
+            "{name} names {} turns but the survey has {runs} runs: one run at least for each",
+            turns.len()
+        )));
+    }
+    // The closure's unknowns: the table's error at each face each way, the
+    // faces but one, an offset per run but the first; the readings must
+    // outnumber them to tell the noise.
+    let (readings, unknowns) = (runs * directions * faces, directions * faces + faces - 1 + runs - 1);
+    if readings <= unknowns {
+        return Err(bad_input(format!(
+            "{name} with {runs} runs {}: {readings} readings for the {unknowns} unknowns of the closure \
+             leave nothing to tell the noise by: add a run, or measure both ways (--bidirectional)",
+            if directions == 2 { "both ways" } else { "one way" }
+        )));
+    }
+    let mut distinct = turns.to_vec();
+    distinct.sort_unstable();
+    distinct.dedup();
+    if distinct.len() < 2 {
+        return Err(bad_input(format!(
+            "{name} needs two turns or more (e.g. 0,1): at one the table's and the polygon's errors are seen only together"
+        )));
+    }
+    let gcd = |mut a: u32, mut b: u32| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    if distinct.iter().skip(1).fold(faces, |g, t| gcd(g, t - distinct[0])) != 1 {
+        return Err(bad_input(format!(
+            "{name} {}: the turns between them share a divisor with the {faces} faces, so some faces are never \
+             compared with others: turn the polygon by one face (e.g. 0,1)",
+            turns.iter().map(u32::to_string).collect::<Vec<_>>().join(",")
+        )));
+    }
+    Ok(())
 }
 
 /// The bench of `setup` on `clock`.
@@ -252,8 +330,12 @@ pub fn simulated_engine(
     if setup.smrs.len() > 1 {
         builder.tracker.arm.smrs = setup.smrs.clone();
     }
-    let bench = builder.build();
+    if !setup.polygon_turns.is_empty() {
+        builder = builder.polygon_stage(survey_sims::bench::index_stage(survey_sims::derive_seed(setup.seed, 5)));
+    }
+    let mut bench = builder.build();
     let injected = bench.injected.clone();
+    let polygon_stage = bench.polygon_stage.take();
     let reference = match setup.reference {
         ReferenceKind::Tracker => Reference::Tracker(Box::new(bench.tracker)),
         ReferenceKind::Autocollimator => Reference::Autocollimator {
@@ -263,10 +345,14 @@ pub fn simulated_engine(
         },
     };
     let travel = bench.positioner.config().travel;
-    let mut engine = Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
+    let engine = Engine::new(dyn_clock, Box::new(bench.positioner), reference, setup.timing.clone())
         .with_travel(travel)
         .with_physics(settle_model(&setup.timing), Some(measurement_time(setup.reference)))
         .with_smrs(setup.smrs.clone(), simulated_point_bound());
+    let mut engine = match polygon_stage {
+        Some(stage) => engine.with_polygon_stage(PolygonStage::new(Box::new(stage), setup.polygon_turns.clone())),
+        None => engine,
+    };
     engine.set_injected(Some(injected));
     engine
 }

@@ -238,9 +238,13 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
             doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
             doc["reference_error"] = serde_json::to_value(&r.reference_error).unwrap_or_default();
         }
+        if let Some(p) = &loaded.polygon {
+            p.put_in(&mut doc);
+        }
         format!("{doc}\n")
     } else {
         let mut text = loaded.refit.as_ref().map(|r| units.text(&r.text())).unwrap_or_default();
+        text += &loaded.polygon.as_ref().map(|p| p.text()).unwrap_or_default();
         if let Some(iso) = &iso {
             text += &iso_text(survey.id, iso, units);
         }

@@ -107,6 +107,14 @@ pub struct RunArgs {
     /// the model file's [smrs], else 1].
     #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = whole::<1, u32>)]
     pub smrs: Option<u32>,
+    /// The polygon stands on an indexing stage that turns it by these faces
+    /// relative to the table in run 1, 2, … (repeated), so that the survey
+    /// measures the polygon's face errors in place instead of trusting its
+    /// certificate (closure): e.g. `0,1`. The autocollimator reference of the
+    /// simulated bench; with a configuration, its [polygon] turns (turned by
+    /// hand).
+    #[arg(long, value_name = "FACES,...", value_delimiter = ',', value_parser = whole::<0, u32>)]
+    pub polygon_turns: Vec<u32>,
     /// Stop at every target (step, the default) or turn steadily while the
     /// reference streams (continuous) [default: step, or `scan` in the
     /// configuration's [survey]].
@@ -182,6 +190,12 @@ pub struct RunArgs {
 /// The bench of the command line's flags, with a plan of `size`.
 fn bench(args: &RunArgs, size: PlanSize) -> anyhow::Result<Bench> {
     Ok(match &args.config {
+        Some(_) if !args.polygon_turns.is_empty() => {
+            return Err(survey_lab::error::bad_input(
+                "--polygon-turns is the simulated bench's: with a configuration, the turns are its [polygon] turns \
+                 (the operator turns the polygon between runs)",
+            ));
+        }
         Some(path) => Bench::configured(
             path,
             PlanOverrides {
@@ -202,6 +216,7 @@ fn bench(args: &RunArgs, size: PlanSize) -> anyhow::Result<Bench> {
             seed: args.seed,
             scan: args.scan.map_or(ScanMode::Step, Into::into),
             smrs: args.smrs.unwrap_or(0),
+            polygon_turns: args.polygon_turns.clone(),
             faults: match &args.fault_rates {
                 Some(spec) => Some(
                     survey_sims::faults::FaultRates::default()

@@ -39,6 +39,7 @@ fn bench_of(scan: ScanMode) -> Bench {
         scan,
         faults: None,
         smrs: 0,
+        polygon_turns: Vec::new(),
     })
     .expect("the simulated bench")
 }

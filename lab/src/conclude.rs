@@ -258,7 +258,10 @@ async fn process(
 ) -> Result<ProcessOutcome, Unprocessed> {
     let record = &survey.loaded.survey;
     let table_out = Some(default_table_path(survey.db, survey.id));
-    let uncertainty = crate::refit::uncertainty_inputs(record, survey.loaded.refit.as_ref(), None);
+    let mut uncertainty = crate::refit::uncertainty_inputs(record, survey.loaded.refit.as_ref(), None);
+    if let Some(p) = &survey.loaded.polygon {
+        uncertainty.reference_systematic_u_deg = Some(p.u_deg);
+    }
     let processing = ProcessOptions {
         recipe: options.recipe.clone(),
         design: None,
@@ -329,6 +332,10 @@ async fn complete(
         if let Err(e) = store.log_event(id, at, "info", &r.text().trim_end().replace('\n', "; ")).await {
             tracing::warn!(error = %format!("{e:#}"), "the axis refit could not be recorded");
         }
+    }
+    if let Some(p) = &survey.loaded.polygon {
+        p.put_in(&mut doc["process"]);
+        *text += &p.text();
     }
     *text += &processed.text(units);
     Ok(())

@@ -21,6 +21,7 @@ pub mod error;
 pub mod life;
 pub mod load;
 pub mod overrides;
+pub mod polygon;
 pub mod process;
 pub mod refit;
 pub mod resolving;

@@ -6,6 +6,7 @@
 //! applied when the samples are read for analysis ([`Loaded::analysed`]),
 //! borrowing them when the survey asked for none, and never written back.
 
+use crate::polygon::{PolygonClosure, close_polygon};
 use crate::refit::{AxisRefit, AxisUsed, located_axis_knowledge, refit_survey};
 use std::borrow::Cow;
 use std::path::Path;
@@ -49,6 +50,10 @@ pub struct Loaded {
     /// The check points measured between the targets, when the survey has
     /// them ([`crate::resolving`]).
     pub checks: Vec<Sample>,
+    /// The polygon calibrated in place, when the survey turned it
+    /// ([`crate::polygon`]): the samples are then corrected to its measured
+    /// faces.
+    pub polygon: Option<PolygonClosure>,
 }
 
 impl Loaded {
@@ -76,7 +81,11 @@ impl Loaded {
 
     /// What the table's uncertainty budget needs beyond the samples.
     pub fn uncertainty_inputs(&self) -> UncertaintyInputs {
-        crate::refit::uncertainty_inputs(&self.survey, self.refit.as_ref(), self.located.as_ref())
+        let mut inputs = crate::refit::uncertainty_inputs(&self.survey, self.refit.as_ref(), self.located.as_ref());
+        if let Some(p) = &self.polygon {
+            inputs.reference_systematic_u_deg = Some(p.u_deg);
+        }
+        inputs
     }
 }
 
@@ -93,6 +102,8 @@ pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::R
         Some((samples, refit)) => (samples, Some(refit)),
         None => (store.samples(survey.id).await?, None),
     };
+    let mut samples = samples;
+    let polygon = close_polygon(store, &survey, &mut samples).await?;
     survey.sample_count = samples.len() as u64;
     let located = match refit {
         None => located_axis_knowledge(store, &survey).await?,
@@ -100,7 +111,7 @@ pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::R
     };
     let drift = store.drift_points(survey.id).await?;
     let checks = store.check_points(survey.id).await?;
-    Ok(Loaded { survey, samples, refit, located, drift, checks })
+    Ok(Loaded { survey, samples, refit, located, drift, checks, polygon })
 }
 
 /// [`load`] from the database at `db`, opened read-only and closed again:

@@ -16,6 +16,13 @@
 //!   `(1 + s)` times the above (the noise aside);
 //! - `Y = pyramidal_k + noise` (the face's pyramidal error; no axis dependence).
 //!
+//! When the polygon stands on a stage ([`SimAutocollimator::on_stage`], a
+//! second turntable on the table, driven by its own simulated positioner),
+//! the polygon's angle is the table's less the stage's, `theta - sigma`:
+//! turned by `s` faces (`sigma = s * 360 / faces`, whatever the stage's own
+//! error makes of it), face `k` meets the optical axis with the table at
+//! `(k + s)` faces.
+//!
 //! The noise of each coordinate is Gaussian with sigma `noise_arcsec`. When
 //! `|3600 * (theta - phi_k)| > range_arcsec` no reflection comes back:
 //! `status()` is `NoReflection` and `read()` fails with the device code
@@ -47,6 +54,12 @@ const INSTRUMENT: &str = "autocollimator";
 
 /// Device code of a read with no face in range (the simulator's own code).
 pub const CODE_NO_REFLECTION: i64 = 2;
+
+/// The standard uncertainty the simulated polygon's certificate states for
+/// each face, arcsec: a calibrated polygon's certificate typically states
+/// `U = 0.2` arcsec (`k = 2`). Our own choice, for the closure's weighing of
+/// the certificate against the faces measured in place.
+pub const CERTIFICATE_U_ARCSEC: f64 = 0.1;
 
 /// The RNG stream that draws a default certificate and pyramidal errors.
 const CERTIFICATE_STREAM: u64 = 2;
@@ -130,6 +143,8 @@ pub struct SimAutocollimator {
     clock: Arc<dyn Clock>,
     cfg: AutocollimatorConfig,
     turntable: Turntable,
+    /// The stage the polygon stands on, when it does.
+    stage: Option<Turntable>,
     noise_rng: ChaCha8Rng,
     fault_rng: ChaCha8Rng,
     injected: Option<Injected>,
@@ -153,8 +168,21 @@ impl SimAutocollimator {
             clock,
             cfg,
             turntable,
+            stage: None,
             injected: None,
         }
+    }
+
+    /// The polygon stands on a stage whose true angle `stage` gives (a
+    /// turntable driven by its own positioner): see the module documentation.
+    pub fn on_stage(&mut self, stage: Turntable) {
+        self.stage = Some(stage);
+    }
+
+    /// The polygon's angle now: the table's less the stage's.
+    fn polygon_deg(&self) -> f64 {
+        let now = self.clock.now();
+        self.turntable.actual_deg(now) - self.stage.as_ref().map_or(0.0, |s| s.actual_deg(now))
     }
 
     /// Count every fault this instrument injects in `injected`.
@@ -189,7 +217,7 @@ impl Autocollimator for SimAutocollimator {
     }
 
     async fn read(&mut self) -> Result<AcReading> {
-        let theta = self.turntable.actual_deg(self.clock.now());
+        let theta = self.polygon_deg();
         self.clock.sleep(self.cfg.read_time).await;
         let (k, offset) = self.cfg.face_in_view(theta);
         let blocked =
@@ -229,7 +257,7 @@ impl Autocollimator for SimAutocollimator {
 
     async fn status(&mut self) -> Result<AcState> {
         self.clock.sleep(LINK_LATENCY).await;
-        let (_, offset) = self.cfg.face_in_view(self.turntable.actual_deg(self.clock.now()));
+        let (_, offset) = self.cfg.face_in_view(self.polygon_deg());
         Ok(if self.in_range(offset) { AcState::InRange } else { AcState::NoReflection })
     }
 }

@@ -305,9 +305,17 @@ pub struct SimPositioner {
     noise_rng: ChaCha8Rng,
     fault_rng: ChaCha8Rng,
     injected: Option<Injected>,
+    name: &'static str,
 }
 
 impl SimPositioner {
+    /// Call this positioner `name` in logs and errors (default
+    /// `sim-positioner`; a polygon's stage is `sim-polygon-stage`).
+    pub fn named(mut self, name: &'static str) -> Self {
+        self.name = name;
+        self
+    }
+
     /// Count every fault this positioner injects in `injected`.
     pub fn count_injected(&mut self, injected: Injected) {
         self.injected = Some(injected);
@@ -353,6 +361,7 @@ impl SimPositioner {
             moves: 0,
             calls: 0,
             injected: None,
+            name: "sim-positioner",
             model: Arc::new(cfg.model.clone()),
             cfg,
         };
@@ -573,7 +582,7 @@ impl SimPositioner {
 #[async_trait]
 impl Positioner for SimPositioner {
     fn name(&self) -> &str {
-        "sim-positioner"
+        self.name
     }
 
     async fn move_to(&mut self, target_deg: f64) -> Result<()> {

@@ -388,6 +388,12 @@ pub struct PolygonSection {
     /// Face angle deviations from nominal, arcseconds, one per face (default all 0).
     #[serde(default)]
     pub certificate_arcsec: Vec<f64>,
+    /// The polygon turned by hand between runs: by `turns[r - 1]` faces
+    /// relative to the table in run `r` (repeated), the operator asked for
+    /// each turn (the survey stops for it; `survey resume` confirms it).
+    /// Empty: never turned.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub turns: Vec<u32>,
 }
 
 /// `[timing]`: deadlines, waits, retries and the axis dynamics, in seconds and

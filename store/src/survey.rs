@@ -111,6 +111,11 @@ pub struct SimulatedSetup {
     /// empty: one.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub smrs: Vec<survey_processing::smrs::SmrMount>,
+    /// The polygon on a stage, turned by these faces relative to the table
+    /// in run 1, 2, … (repeated; `run --polygon-turns`): the polygon
+    /// calibrated in place. Empty: on the table, never turned.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub polygon_turns: Vec<u32>,
 }
 
 /// What a survey of real instruments was made from, stored with it.

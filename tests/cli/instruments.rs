@@ -175,3 +175,32 @@ fn a_connection_error_names_the_instrument_and_the_cause_once() {
     assert_eq!(line.matches("refused").count(), 1, "{line}");
     assert_eq!(line.matches("cannot connect").count() + line.matches("connect failed").count(), 1, "{line}");
 }
+
+/// `[polygon] turns`: the operator turns the polygon between runs; turns
+/// that cannot close it are refused before anything is connected or
+/// stored, naming the file; `--polygon-turns` is the simulated bench's.
+#[test]
+fn polygon_turns_in_a_configuration_are_checked_before_anything_is_stored() {
+    let bench = Bench::new();
+    let with = |turns: &str| {
+        config("127.0.0.1:1", "/nonexistent/ttyX").replace("faces = 24\n", &format!("faces = 24\nturns = {turns}\n"))
+    };
+    for (turns, said) in [
+        ("[0, 12]", "c.toml: [polygon] turns 0,12: the turns between them share a divisor with the 24 faces"),
+        ("[0]", "c.toml: [polygon] turns needs two turns or more"),
+        ("[0, 1, 2]", "c.toml: [polygon] turns names 3 turns but the survey has 2 runs"),
+        ("[0, 30]", "c.toml: [polygon] turns: 30 faces is past the polygon's 24"),
+        ("[0, -1]", "polygon.turns[1]: -1 is out of range"),
+        ("[0, 1.5]", "polygon.turns[1]: 1.5 is not a whole number"),
+    ] {
+        bench.write("c.toml", with(turns));
+        let out = bench.survey(&["run", "--config", "c.toml"]);
+        assert_eq!(out.code, 2, "{turns}: {out}");
+        assert!(out.stderr.contains(said), "{turns}: {out}");
+    }
+    bench.write("c.toml", config("127.0.0.1:1", "/nonexistent/ttyX"));
+    let out = bench.survey(&["run", "--config", "c.toml", "--polygon-turns", "0,1"]);
+    assert_eq!(out.code, 2, "{out}");
+    assert!(out.stderr.contains("[polygon] turns"), "{out}");
+    assert!(!bench.exists("survey.db"), "nothing stored");
+}

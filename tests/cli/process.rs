@@ -396,3 +396,46 @@ fn three_smrs_separate_the_trackers_error_and_say_so() {
     assert_eq!(out.code, 2, "{out}");
     assert!(out.stderr.contains("need the tracker"), "{out}");
 }
+
+/// `--polygon-turns 0,1` on the simulated bench: the polygon turned between
+/// runs, measured in place; `polygon` and `reference_error` say so, and
+/// `process` gives the same; turns that cannot work are refused before
+/// anything is stored.
+#[test]
+fn a_polygon_turned_between_runs_is_measured_in_place() {
+    let bench = Bench::new();
+    let ac = ["run", "--reference", "autocollimator", "--points", "24", "--runs", "2", "--bidirectional"];
+    let doc = bench.survey(&[&ac[..], &["--polygon-turns", "0,1", "--json"]].concat()).success().json();
+    let p = &doc["process"]["polygon"];
+    assert_eq!((p["faces"].as_u64(), p["turns"].clone()), (Some(24), serde_json::json!([0, 1])), "{p}");
+    for key in ["face_errors_arcsec", "face_u_arcsec", "certificate_arcsec", "en", "faces_used_arcsec"] {
+        assert_eq!(p[key].as_array().map(Vec::len), Some(24), "{key}: {p}");
+    }
+    for key in ["reading_sd_arcsec", "largest_certificate_error_arcsec", "certificate_u_arcsec", "u_deg"] {
+        num(&p[key], key);
+    }
+    assert!(doc["process"]["reference_error"].is_null(), "a tracker's key");
+    let again = bench.survey(&["process", "--json"]).success().json();
+    assert_eq!(again["polygon"], *p, "process finds the same");
+    // Refused, exit 2, nothing stored.
+    for (turns, extra, said) in [
+        ("0,12", &[][..], "share a divisor with the 24 faces"),
+        ("0", &[][..], "two turns or more"),
+        ("0,24", &[][..], "24 faces is past the polygon's 24"),
+        ("0,1,2", &[][..], "3 turns but the survey has 2 runs"),
+    ] {
+        let out = bench.survey(&[&["--db", "bad.db"][..], &ac[..], &["--polygon-turns", turns], extra].concat());
+        assert_eq!(out.code, 2, "{turns}: {out}");
+        assert!(out.stderr.contains(said), "{turns}: {out}");
+    }
+    let out = bench.survey(&["--db", "bad.db", "run", "--points", "24", "--polygon-turns", "0,1"]);
+    assert_eq!(out.code, 2, "{out}");
+    assert!(out.stderr.contains("the reference is a tracker"), "{out}");
+    let one_way = ["--db", "bad.db", "run", "--reference", "autocollimator", "--points", "24", "--runs", "2"];
+    let out = bench.survey(&[&one_way[..], &["--polygon-turns", "0,1"]].concat());
+    assert_eq!(out.code, 2, "{out}");
+    assert!(out.stderr.contains("leave nothing to tell the noise by"), "{out}");
+    let out = bench.survey(&["--db", "bad.db", "run", "--points", "24", "--polygon-turns", "0,x"]);
+    assert_eq!(out.code, 2, "{out}");
+    assert!(!bench.path("bad.db").exists(), "nothing stored");
+}

@@ -36,7 +36,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_survey");
 /// The fig8 positioner with no `[design]`: the processing does not know its parts.
 const FIG8_NO_DESIGN: &str = include_str!("../fixtures/fig8-no-design.toml");
 
-fn survey(db: &Path, args: &[&str]) -> serde_json::Value {
+pub fn survey(db: &Path, args: &[&str]) -> serde_json::Value {
     let out = Command::new(BIN).arg("--db").arg(db).args(args).env_remove("RUST_LOG").output().unwrap();
     assert!(out.status.success(), "survey {args:?}: {}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).expect("one JSON document")

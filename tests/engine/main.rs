@@ -9,6 +9,7 @@ mod integrity;
 mod interop_canopen;
 mod interop_emscon;
 mod modelgap;
+mod polygon;
 mod resume;
 mod scan_latency;
 mod smrs;

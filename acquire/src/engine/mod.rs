@@ -172,6 +172,8 @@ pub struct Engine {
     /// least time to point at one, for the bound ([`smrs`]).
     smrs: Vec<SmrMount>,
     point_bound: Duration,
+    /// The stage the polygon stands on, turned between runs ([`polygon`]).
+    polygon: Option<PolygonStage>,
 }
 
 impl Engine {
@@ -198,6 +200,7 @@ impl Engine {
             injected: None,
             smrs: vec![SmrMount::FIRST],
             point_bound: Duration::ZERO,
+            polygon: None,
         }
     }
 
@@ -470,6 +473,16 @@ impl Engine {
     ) -> Result<Outcome, EngineError> {
         if let Reference::Autocollimator { faces, .. } = &self.reference {
             check_polygon_plan(plan, *faces)?;
+        } else if self.polygon.is_some() {
+            return Err(EngineError::Plan(
+                "a polygon's stage turns the polygon an autocollimator reads: the reference is a tracker".into(),
+            ));
+        }
+        if plan.continuous() && self.polygon.is_some() {
+            return Err(EngineError::Plan(
+                "a polygon is read at its faces, a step at a time: a continuous scan has no faces (use --scan step)"
+                    .into(),
+            ));
         }
         self.check_plan_travel(plan)?;
         if plan.continuous() && self.drift.is_some() {
@@ -515,6 +528,7 @@ impl Engine {
             if let Err(why) = self.stop.check() {
                 return Err(self.halt(why).await);
             }
+            self.turn_polygon_for(step.run, sink).await?;
             // The moves and reads of a step race the stop request; the write
             // of its sample below does not.
             let stop = self.stop.waiter();
@@ -574,7 +588,9 @@ impl Engine {
                 RawReading::Autocollimator { face, reading },
                 Reference::Autocollimator { faces, certificate_arcsec, .. },
             ) => {
-                let nominal = *face as f64 * 360.0 / *faces as f64;
+                // The face's place on the table: turned by the stage's faces.
+                let place = (*face + self.polygon_turn()) % *faces;
+                let nominal = place as f64 * 360.0 / *faces as f64;
                 let nominal = nominal + ((target_deg - nominal) / 360.0).round() * 360.0;
                 let cert = certificate_arcsec.get(*face as usize).copied().unwrap_or(0.0);
                 Ok(nominal + (reading.x_arcsec + cert) / 3600.0)
@@ -784,6 +800,7 @@ async fn read_reference(
     t: &Timing,
     reference: &mut Reference,
     near_deg: f64,
+    turned: u32,
 ) -> Result<RawReading, DriverError> {
     match reference {
         Reference::Tracker(tracker) => {
@@ -796,7 +813,7 @@ async fn read_reference(
             let name = instrument.name().to_string();
             let reading: AcReading =
                 with_timeout(clock, t.measure_timeout, &name, "reading", instrument.read()).await?;
-            let face = (near_deg / 360.0 * *faces as f64).round().rem_euclid(*faces as f64) as u32;
+            let face = polygon::face_seen(near_deg, *faces, turned);
             Ok(RawReading::Autocollimator { face, reading })
         }
     }
@@ -817,11 +834,13 @@ fn check_polygon_plan(plan: &SurveyPlan, faces: u32) -> Result<(), EngineError> 
 }
 
 mod drift;
+mod polygon;
 mod read;
 mod scan;
 mod smrs;
 mod suspend;
 
+pub use polygon::PolygonStage;
 pub use scan::ScanReport;
 
 #[cfg(test)]

@@ -37,6 +37,7 @@ impl Engine {
             let t = self.timing.clone();
             let pos_name = self.positioner.name().to_string();
             let near = target;
+            let turned = self.polygon_turn();
             self.ledger.switch(clock.now(), Component::Measure);
             // Each asked again in place after a link fault (an instrument at
             // rest reads the same a moment later); a device fault, a lost beam
@@ -59,7 +60,7 @@ impl Engine {
             let reference = async {
                 let mut failed = 0u32;
                 loop {
-                    match read_reference(&*clock, &t, &mut self.reference, near).await {
+                    match read_reference(&*clock, &t, &mut self.reference, near, turned).await {
                         Err(e) if e.kind.is_link() && crate::settle::again(&e, failed, spent + failed as usize, &t) => {
                             failed += 1;
                             reference_faults.push(e);

@@ -82,7 +82,7 @@ impl Engine {
                 Ok(()) if !read => return Ok(None),
                 Ok(()) => {
                     self.ledger.switch(clock.now(), Component::Measure);
-                    match read_reference(&*clock, &t, &mut self.reference, target).await {
+                    match read_reference(&*clock, &t, &mut self.reference, target, 0).await {
                         Ok(RawReading::Smr(m)) => return Ok(Some(m)),
                         Ok(_) => unreachable!("a tracker gives SMR readings"),
                         Err(e) => e,

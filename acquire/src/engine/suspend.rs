@@ -111,8 +111,9 @@ impl Engine {
             (failed, error.kind, &self.reference)
         {
             let near = self.commanded.unwrap_or(0.0);
-            let face = (near / 360.0 * *faces as f64).round().rem_euclid(*faces as f64) as u32;
-            let nominal = face as f64 * 360.0 / *faces as f64;
+            let face = self.face_at(near, *faces);
+            let place = (near / 360.0 * *faces as f64).round().rem_euclid(*faces as f64);
+            let nominal = place * 360.0 / *faces as f64;
             error.message = format!("face {face} (nominal {nominal} deg) out of range: {}", error.message);
         }
         error

@@ -34,6 +34,8 @@ pub(super) enum Ty {
     Pair(Low, f64, &'static str),
     /// A list of numbers, each within the range.
     Numbers(Low, f64, &'static str),
+    /// A list of whole numbers, each in `min..=max`.
+    Wholes(i128, i128),
     /// Text a function accepts (it says why not), with what it takes in words.
     Checked(fn(&str) -> Result<(), String>, &'static str),
     Table(&'static [Field]),
@@ -76,6 +78,7 @@ pub(super) const ROOT: &[Field] = &[
         Ty::Table(&[
             req("faces", Ty::Whole(0, 3600)),
             opt("certificate_arcsec", Ty::Numbers(Low::From(-3600.0), 3600.0, "arcsec")),
+            opt("turns", Ty::Wholes(0, 3599)),
         ]),
     ),
     opt("timing", Ty::Table(TIMING)),
@@ -306,6 +309,7 @@ fn allowed(ty: Ty, key: &str) -> String {
         Ty::Choice(words) => format!("one of {}", one_of(words)),
         Ty::Pair(low, max, unit) => format!("two numbers [low, high], each {}", range_words(low, max, unit)),
         Ty::Numbers(low, max, unit) => format!("a list of numbers [a, b, ...], each {}", range_words(low, max, unit)),
+        Ty::Wholes(lo, hi) => format!("a list of whole numbers [a, b, ...], each from {lo} to {hi}"),
         Ty::Table(fields) => {
             let keys: Vec<&str> = fields.iter().map(|f| f.key).collect();
             format!("a table [{key}] with the keys {}", keys.join(", "))
@@ -449,6 +453,7 @@ impl<'a> Walk<'a> {
                 self.numbers(key, a, Ty::Number(low, max, unit));
             }
             (Ty::Numbers(low, max, unit), DeValue::Array(a)) => self.numbers(key, a, Ty::Number(low, max, unit)),
+            (Ty::Wholes(lo, hi), DeValue::Array(a)) => self.numbers(key, a, Ty::Whole(lo, hi)),
             (Ty::Table(fields), DeValue::Table(t)) => self.table(key, at, t, fields, &format!("[{key}]")),
             (Ty::Tagged(tag, variants), DeValue::Table(t)) => self.tagged(key, v, t, tag, variants),
             _ => {
