@@ -54,7 +54,11 @@
 //! counted with the rest. It is
 //! a test of a change that matters against the table's own statement; a
 //! change too small for it is what the tests of the lines and of the map are
-//! for (a change can be significant and still within `U`).
+//! for (a change can be significant and still within `U`). A check's few
+//! noisy cells test little, so [`decide`] also holds the best estimate of
+//! what the table now leaves to `U` ([`changes_left`]: every significant
+//! change at the least the test's rate allows): beyond `U` at more than 5 %
+//! of the readouts, the table no longer holds.
 //!
 //! # The decision
 //!
@@ -527,12 +531,16 @@ pub fn decide(c: &Comparison, table: Option<&TableCheck>, tolerance_deg: Option<
         ));
     }
     let beyond = |size: f64| tolerance_deg.is_some_and(|t| size > t);
+    // The cells' test has little power on a check's few noisy cells; the
+    // changes the tests found are the best estimate of what the table now
+    // leaves: held to U at the same rate, the table fails on either.
+    let estimate = table.map(|t| (t, changes_left(c, t.stated_u_deg))).filter(|(_, l)| l.share > MAY_EXCEED);
     let fails = table.filter(|t| !t.holds);
     let held = match table {
         Some(t) => format!("; the table in force holds (it leaves {:.2e} deg)", t.residual_peak_deg),
         None => String::new(),
     };
-    if fails.is_some() || changes.iter().any(|(_, size)| beyond(*size)) {
+    if fails.is_some() || estimate.is_some() || changes.iter().any(|(_, size)| beyond(*size)) {
         let mut why: Vec<String> = changes
             .iter()
             .map(|(w, size)| match tolerance_deg.filter(|_| beyond(*size)) {
@@ -546,6 +554,15 @@ pub fn decide(c: &Comparison, table: Option<&TableCheck>, tolerance_deg: Option<
                 "the table in force no longer holds: it leaves {:.2e} deg{predicted}, {} of {} cells beyond its \
                  stated U {:.2e} deg where {} may be",
                 t.residual_peak_deg, t.cells_outside, t.cells, t.stated_u_deg, t.allowed_outside
+            ));
+        } else if let Some((t, left)) = estimate {
+            why.push(format!(
+                "the table in force no longer holds: what changed leaves at least {:.2e} deg ({:.2e} rms), beyond \
+                 its stated U {:.2e} deg at {:.0} % of readouts where 5 % may be",
+                left.peak_deg,
+                left.rms_deg,
+                t.stated_u_deg,
+                100.0 * left.share
             ));
         }
         return Decision { recalibrate: true, changed: !changes.is_empty(), reason: why.join("; ") };
@@ -571,6 +588,64 @@ pub fn decide(c: &Comparison, table: Option<&TableCheck>, tolerance_deg: Option<
 }
 
 /// `20` or `20.5`.
+/// The share of readouts at which a table may leave more than its `U`.
+const MAY_EXCEED: f64 = 0.05;
+
+/// What the significant changes leave where the table in force was exact:
+/// the least each is at the test's rate (a changed line's phasor change
+/// less what the repeatability allows, the backlash's likewise, half to
+/// each direction), summed over a turn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChangesLeft {
+    /// The largest magnitude, degrees.
+    pub peak_deg: f64,
+    /// The rms over the readouts, degrees.
+    pub rms_deg: f64,
+    /// The share of readouts (both directions where the backlash changed)
+    /// where it is beyond `u_deg`.
+    pub share: f64,
+}
+
+/// [`ChangesLeft`] of comparison `c` against a table's `u_deg`.
+pub fn changes_left(c: &Comparison, u_deg: f64) -> ChangesLeft {
+    let lines: Vec<(f64, f64, f64)> = c
+        .lines
+        .iter()
+        .filter(|l| l.significant)
+        .filter_map(|l| {
+            let (pa, pb) = (l.phase_from_deg.to_radians(), l.phase_to_deg.to_radians());
+            // A sin(k t + p) = A cos p sin(k t) + A sin p cos(k t).
+            let (s, co) = (
+                l.amplitude_to_deg * pb.cos() - l.amplitude_from_deg * pa.cos(),
+                l.amplitude_to_deg * pb.sin() - l.amplitude_from_deg * pa.sin(),
+            );
+            let size = s.hypot(co);
+            let least = size - l.change_u_deg;
+            (least > 0.0).then(|| (l.cycles_per_rev, s * least / size, co * least / size))
+        })
+        .collect();
+    let half_backlash = c
+        .backlash
+        .as_ref()
+        .filter(|b| b.significant)
+        .map_or(0.0, |b| ((b.to_deg - b.from_deg).abs() - b.change_u_deg).max(0.0) / 2.0);
+    const READOUTS: usize = 3600;
+    let (mut peak, mut sum2, mut beyond, mut n) = (0.0f64, 0.0, 0usize, 0usize);
+    for i in 0..READOUTS {
+        let t = std::f64::consts::TAU * i as f64 / READOUTS as f64;
+        let v: f64 = lines.iter().map(|(k, s, co)| s * (k * t).sin() + co * (k * t).cos()).sum();
+        let sides: &[f64] = if half_backlash > 0.0 { &[1.0, -1.0] } else { &[0.0] };
+        for side in sides {
+            let r = v + side * half_backlash;
+            peak = peak.max(r.abs());
+            sum2 += r * r;
+            beyond += usize::from(r.abs() > u_deg);
+            n += 1;
+        }
+    }
+    ChangesLeft { peak_deg: peak, rms_deg: (sum2 / n as f64).sqrt(), share: beyond as f64 / n as f64 }
+}
+
 fn fmt_cycles(k: f64) -> String {
     if k.fract() == 0.0 { format!("{k:.0}") } else { format!("{k}") }
 }

@@ -80,7 +80,7 @@ fn false_alarms_on_control_pairs() {
     let truth = fig8(|_| {});
     let pairs: u64 = std::env::var("COMPARE_FALSE_ALARM_PAIRS").ok().and_then(|v| v.parse().ok()).unwrap_or(60);
     for (what, second) in [("full", full as fn(&Model, u64) -> Vec<Sample>), ("check", check)] {
-        let (mut changed, mut low, mut tests, mut failed) = (0u64, 0usize, 0usize, 0u64);
+        let (mut changed, mut low, mut tests, mut failed, mut recalibrated) = (0u64, 0usize, 0usize, 0u64, 0u64);
         // Which test said "changed": a line, the backlash, the map.
         let mut by = [0usize; 3];
         for seed in 0..pairs {
@@ -88,7 +88,9 @@ fn false_alarms_on_control_pairs() {
             let b = second(&truth, 1001 + 2 * seed);
             let c = compare(&a, &b, &options()).unwrap();
             changed += u64::from(c.verdict == Verdict::Changed);
-            failed += u64::from(!table_on(&table_of(&a, 360), table_u(), &a, &b, 0.01).unwrap().holds);
+            let held = table_on(&table_of(&a, 360), table_u(), &a, &b, 0.01).unwrap();
+            failed += u64::from(!held.holds);
+            recalibrated += u64::from(decide(&c, Some(&held), None).recalibrate);
             by[0] += c.lines.iter().filter(|l| l.significant).count();
             by[1] += usize::from(c.backlash.as_ref().is_some_and(|b| b.significant));
             by[2] += usize::from(c.map.as_ref().is_some_and(|m| m.significant));
@@ -105,7 +107,7 @@ fn false_alarms_on_control_pairs() {
         let expected = 0.01 * pairs as f64;
         eprintln!(
             "{what}: {changed} of {pairs} control pairs changed ({:.4}: a line {}, the backlash {}, the map {}); {low} of \
-             {tests} tests with p < 0.1; the table failed in {failed}",
+             {tests} tests with p < 0.1; the table failed in {failed}, recalibrated {recalibrated}",
             changed as f64 / pairs as f64,
             by[0],
             by[1],
@@ -113,6 +115,12 @@ fn false_alarms_on_control_pairs() {
         );
         assert!(failed as f64 <= expected + 4.5 * expected.sqrt().max(1.0), "{what}: the table failed in {failed}");
         assert!(changed as f64 <= expected + 4.5 * expected.sqrt().max(1.0), "{what}: {changed} of {pairs}");
+        // The decision (the cells' test and the best estimate of what
+        // changed, each at the rate) recalibrates no more often.
+        assert!(
+            recalibrated as f64 <= 2.0 * expected + 4.5 * (2.0 * expected).sqrt().max(1.0),
+            "{what}: {recalibrated}"
+        );
         let share = low as f64 / tests as f64;
         let sd = (0.09 / tests as f64).sqrt();
         assert!((share - 0.1).abs() < 4.5 * sd, "{what}: p < 0.1 in {share:.3} of tests");
@@ -259,6 +267,36 @@ fn a_table_holds_against_its_own_prediction_and_within_its_stated_u() {
     let d = decide(&c, Some(&held), Some(change / 2.0));
     assert!(d.recalibrate && d.reason.contains("beyond the asset's tolerance"), "{d:?}");
     assert!(!decide(&c, Some(&held), Some(change * 2.0)).recalibrate);
+}
+
+/// Issue 49: the Figure 8 positioner worn (its 40 cycles/rev line 0.0025 ->
+/// 0.0040 deg) checked at 36 targets. Whatever the few noisy cells say, the
+/// change the line's test measured (1.5e-3 deg, less what the repeatability
+/// allows) is what the table now leaves at most readouts, far beyond its U:
+/// the table no longer holds. Held to a U above the change, it does.
+#[test]
+fn the_table_fails_on_the_best_estimate_of_what_changed() {
+    let truth = fig8(|_| {});
+    let a = full(&truth, 1);
+    let worn = fig8(|e| e[1] = periodic(PeriodicKind::GearPass, 40.0, 0.0040, 60.0));
+    let b = check(&worn, 9);
+    let c = compare(&a, &b, &options()).unwrap();
+    let l = line(&c, 40.0);
+    assert!(l.significant && (l.change_deg - 0.0015).abs() < l.change_u_deg, "{l:?}");
+    let left = changes_left(&c, table_u());
+    eprintln!("{l:?}\n{left:?}, U {:.2e}", table_u());
+    // The least the change is at the rate, and where it exceeds U (4.8e-4).
+    assert!(left.peak_deg > 0.0015 - 1.5 * l.change_u_deg && left.peak_deg < 0.0015, "{left:?}");
+    assert!(left.share > 0.5, "{left:?}");
+    let cells_hold =
+        TableCheck { holds: true, cells_outside: 0, ..table_on(&table_of(&a, 360), table_u(), &a, &b, 0.01).unwrap() };
+    let d = decide(&c, Some(&cells_hold), None);
+    assert!(d.recalibrate && d.reason.contains("what changed leaves at least"), "{d:?}");
+    eprintln!("{}", d.reason);
+    let wide = TableCheck { stated_u_deg: 0.003, ..cells_hold };
+    assert_eq!(changes_left(&c, 0.003).share, 0.0);
+    let d = decide(&c, Some(&wide), None);
+    assert!(!d.recalibrate && d.reason.starts_with("changed, the table holds"), "{d:?}");
 }
 
 #[test]
