@@ -270,7 +270,12 @@ fn on_clock(setup: &SimulatedSetup, preset: &Preset, model: Model, clock: Arc<Vi
     let progress = plan_progress(&setup.plan);
     let engine = simulated_engine(setup, preset, model.clone(), clock.clone(), Some(progress.clone()));
     let instruments = serde_json::json!({
-        "positioner": format!("simulated {}", preset.name),
+        // A model file is the positioner: named by it, never by the preset
+        // whose instruments it borrows.
+        "positioner": match &setup.model_file {
+            Some(file) => format!("simulated {}", file.rsplit('/').next().unwrap_or(file)),
+            None => format!("simulated {}", preset.name),
+        },
         "reference": format!("simulated {}", setup.reference.as_str()),
     });
     Bench {

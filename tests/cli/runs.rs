@@ -293,3 +293,14 @@ fn survey_sim_counts_the_replies_it_served_without_faults() {
     assert!(replies >= 2 * 48, "{stopped}");
     assert_eq!(stopped["faults"]["injected"].as_u64(), Some(0), "{stopped}");
 }
+
+/// Issue 49: a survey of a model file's positioner is named by the file,
+/// never by the preset whose instruments it borrows.
+#[test]
+fn a_model_files_survey_is_named_by_its_file() {
+    let b = Bench::new();
+    b.write("mine.toml", include_str!("../../sims/presets/fig4.toml"));
+    let out = b.survey(&["run", "--points", "36", "--runs", "2", "--model", "mine.toml"]).success();
+    assert!(out.stderr.contains("simulated mine.toml positioner, simulated tracker reference"), "{out}");
+    assert!(!out.stderr.contains("fig8"), "{out}");
+}
