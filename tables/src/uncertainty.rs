@@ -154,6 +154,10 @@ pub struct Uncertainty {
     pub budget: Vec<Contribution>,
     /// How it was estimated, in words.
     pub method: String,
+    /// The approaches `U` holds for: `"both directions"`, or a one-way
+    /// survey's `"forward approaches only"` / `"reverse approaches only"`
+    /// (from the other side the reversal, which it did not measure, adds).
+    pub holds_for: String,
 }
 
 pub use survey_processing::coverage::{K, coverage_interval, coverage_probability};
@@ -370,7 +374,8 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     } else {
         method
     };
-    let u = with_left(&left, threshold, &unseen, normal_u, budget, method);
+    let mut u = with_left(&left, threshold, &unseen, normal_u, budget, method);
+    u.holds_for = holds_for(samples);
     match processed.measured_left_deg {
         Some(measured) if measured > u.table_u_deg => at_least_measured(u, measured),
         _ => u,
@@ -530,14 +535,35 @@ fn with_left(
     for c in &mut budget {
         c.u_deg = c.u_deg.abs();
     }
-    Uncertainty { k: K, table_u_deg, combined_u_deg: table_u_deg / K, budget, method }
+    Uncertainty { k: K, table_u_deg, combined_u_deg: table_u_deg / K, budget, method, holds_for: String::new() }
+}
+
+/// The approaches a table made from `samples` holds for (see
+/// [`Uncertainty::holds_for`]).
+fn holds_for(samples: &[Sample]) -> String {
+    let forward = samples.iter().any(|s| s.direction == Direction::Forward);
+    let reverse = samples.iter().any(|s| s.direction == Direction::Reverse);
+    match (forward, reverse) {
+        (true, false) => "forward approaches only",
+        (false, true) => "reverse approaches only",
+        _ => "both directions",
+    }
+    .to_string()
 }
 
 impl Uncertainty {
     /// Lines for people.
     pub fn text(&self) -> String {
+        let one_way = if self.holds_for == "both directions" || self.holds_for.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ", for {}: the survey measured one way, and from the other side the reversal it did not measure adds",
+                self.holds_for
+            )
+        };
         let mut s = format!(
-            "table uncertainty (GUM): u = {:.2e} deg, U = {:.2e} deg (k = {})\n",
+            "table uncertainty (GUM): u = {:.2e} deg, U = {:.2e} deg (k = {}){one_way}\n",
             self.combined_u_deg, self.table_u_deg, self.k
         );
         for c in &self.budget {

@@ -439,3 +439,18 @@ fn a_polygon_turned_between_runs_is_measured_in_place() {
     assert_eq!(out.code, 2, "{out}");
     assert!(!bench.path("bad.db").exists(), "nothing stored");
 }
+
+/// Issue 49: a one-way survey's U says which approaches it holds for; a
+/// survey both ways says both.
+#[test]
+fn a_one_way_tables_u_says_which_approaches_it_holds_for() {
+    let bench = Bench::new();
+    bench.small_survey(false);
+    let doc = process_json(&bench, &[]);
+    assert_eq!(doc["uncertainty"]["holds_for"], "forward approaches only", "{doc:#}");
+    let text = bench.survey(&["process"]).success();
+    assert!(text.stdout.contains("for forward approaches only: the survey measured one way"), "{text}");
+    bench.small_survey(true);
+    let doc = process_json(&bench, &[]);
+    assert_eq!(doc["uncertainty"]["holds_for"], "both directions", "{doc:#}");
+}
