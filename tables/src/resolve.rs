@@ -28,8 +28,9 @@
 //! `SSR_h` is set against the noise `sigma` of the check points (the scatter
 //! of their runs about their per-point, per-direction means): the best
 //! hypothesis is **decided** when its residual is what the noise makes
-//! (`SSR / dof <= sigma^2 (1 + 3 sqrt(2 / dof))`, three standard deviations
-//! of a chi-square per degree of freedom) and every other is worse by more
+//! (`SSR / dof <= sigma^2 (1 + 3 sqrt(2 / dof + 2 / dof_sigma))`, three
+//! standard deviations of the ratio, an `F(dof, dof_sigma)`: `sigma^2` is
+//! itself estimated from `dof_sigma` degrees of freedom) and every other is worse by more
 //! than `25 sigma^2` (a likelihood ratio of 5 standard deviations);
 //! otherwise nothing is decided and the table states what it leaves. A line
 //! decided at a frequency above `N/2` is relocated there; one decided where
@@ -182,7 +183,7 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
             })
             .collect()
     };
-    let Some(sigma2) = sigma2.filter(|v| *v > 0.0 && dof >= 3) else {
+    let Some((sigma2, noise_dof)) = sigma2.filter(|(v, _)| *v > 0.0 && dof >= 3) else {
         return undecided("the check points do not give their own noise (one run, or too few points)".into());
     };
     let fits: Vec<(Vec<f64>, f64)> = left
@@ -194,7 +195,9 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
         })
         .collect();
     let (best_h, best) = fits.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map(|(h, s)| (h.clone(), *s)).unwrap();
-    let consistent = best / dof as f64 <= sigma2 * (1.0 + 3.0 * (2.0 / dof as f64).sqrt());
+    // The noise is itself estimated (from `noise_dof` degrees of freedom):
+    // the ratio is an F(dof, noise_dof), whose spread both add to.
+    let consistent = best / dof as f64 <= sigma2 * (1.0 + 3.0 * (2.0 / dof as f64 + 2.0 / noise_dof as f64).sqrt());
     doubtful
         .iter()
         .map(|&i| {
@@ -277,8 +280,8 @@ pub fn measured_left_deg(table: &CorrectionTable, checks: &[Sample]) -> Option<(
     // Their own noise (one sample's, from the scatter of their runs) removed
     // in quadrature from the interval: what is left of the table's error.
     let q = size[at.clamp(1, size.len()) - 1];
-    let noise =
-        noise_var(checks, table).map_or(0.0, |v| survey_processing::coverage::K * survey_processing::coverage::K * v);
+    let noise = noise_var(checks, table)
+        .map_or(0.0, |(v, _)| survey_processing::coverage::K * survey_processing::coverage::K * v);
     Some(((q * q - noise).max(0.0).sqrt(), size[size.len() - 1]))
 }
 
@@ -394,7 +397,7 @@ fn ssr_offset_once_per_rev(y: &[(f64, f64)]) -> f64 {
 
 /// The variance of one check sample's error about its point's and
 /// direction's mean over the runs (`None` without repeated points).
-fn noise_var(checks: &[Sample], table: &CorrectionTable) -> Option<f64> {
+fn noise_var(checks: &[Sample], table: &CorrectionTable) -> Option<(f64, usize)> {
     let mut groups: std::collections::BTreeMap<(u64, bool), Vec<f64>> = Default::default();
     for s in checks {
         let e = s.error_deg() - table.error_at(s.readout_deg, s.direction);
@@ -407,7 +410,7 @@ fn noise_var(checks: &[Sample], table: &CorrectionTable) -> Option<f64> {
         let m = v.iter().sum::<f64>() / v.len() as f64;
         (ss + v.iter().map(|x| (x - m).powi(2)).sum::<f64>(), dof + v.len() - 1)
     });
-    (dof > 0).then(|| ss / dof as f64)
+    (dof > 0).then(|| (ss / dof as f64, dof))
 }
 
 impl Left {
