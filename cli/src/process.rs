@@ -215,7 +215,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         export: args.tables.into(),
         uncertainty,
         crash_when_staged: false,
-        checks: loaded.checks.clone(),
+        checks: loaded.checks_corrected(&loaded.checks),
         quiet: false,
     };
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
@@ -241,10 +241,16 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         if let Some(p) = &loaded.polygon {
             p.put_in(&mut doc);
         }
+        doc["gross_readings"] = serde_json::to_value(&loaded.gross).unwrap_or_default();
+        doc["drift_in_time"] = serde_json::to_value(&loaded.time_drift).unwrap_or_default();
         format!("{doc}\n")
     } else {
         let mut text = loaded.refit.as_ref().map(|r| units.text(&r.text())).unwrap_or_default();
         text += &loaded.polygon.as_ref().map(|p| p.text()).unwrap_or_default();
+        text += &loaded.time_drift.as_ref().map(|d| d.text()).unwrap_or_default();
+        for note in loaded.gross.notes() {
+            text += &format!("{note}\n");
+        }
         if let Some(iso) = &iso {
             text += &iso_text(survey.id, iso, units);
         }

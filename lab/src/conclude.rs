@@ -275,7 +275,7 @@ async fn process(
     // resume` after they were measured): processed with them, none measured again.
     if !survey.loaded.checks.is_empty() {
         let points = survey.loaded.checks.len();
-        let with = ProcessOptions { checks: survey.loaded.checks.clone(), ..processing };
+        let with = ProcessOptions { checks: survey.loaded.checks_corrected(&survey.loaded.checks), ..processing };
         let processed = process_survey(record, survey.samples, with).map_err(Unprocessed::Failed)?;
         let o = crate::resolving::output(points, &processed);
         output.doc["resolving"] = o.doc;
@@ -296,8 +296,12 @@ async fn process(
         crate::resolving::measure(engine, survey.store, record, &checks, left, options.acquire.clone()).await;
     let check_samples = measured.map_err(Unprocessed::ChecksNotMeasured)?;
     let points = check_samples.len();
-    let processed = process_survey(record, survey.samples, ProcessOptions { checks: check_samples, ..processing })
-        .map_err(Unprocessed::Failed)?;
+    let processed = process_survey(
+        record,
+        survey.samples,
+        ProcessOptions { checks: survey.loaded.checks_corrected(&check_samples), ..processing },
+    )
+    .map_err(Unprocessed::Failed)?;
     let o = crate::resolving::output(points, &processed);
     output.doc["resolving"] = o.doc;
     output.text += "\n";
@@ -336,6 +340,12 @@ async fn complete(
     if let Some(p) = &survey.loaded.polygon {
         p.put_in(&mut doc["process"]);
         *text += &p.text();
+    }
+    doc["process"]["gross_readings"] = serde_json::to_value(&survey.loaded.gross).unwrap_or_default();
+    doc["process"]["drift_in_time"] = serde_json::to_value(&survey.loaded.time_drift).unwrap_or_default();
+    *text += &survey.loaded.time_drift.as_ref().map(|d| d.text()).unwrap_or_default();
+    for note in survey.loaded.gross.notes() {
+        *text += &format!("{note}\n");
     }
     *text += &processed.text(units);
     Ok(())

@@ -14,6 +14,8 @@ use survey_modelgap::ReferenceInfo;
 use survey_plan::drift::DriftPoint;
 use survey_processing::Sample;
 use survey_processing::geometry::Refit;
+use survey_processing::gross::{self, GrossTest};
+use survey_processing::timedrift::{self, TimeDrift};
 use survey_store::Store;
 use survey_store::survey::{SurveyRecord, SurveyRef};
 use survey_tables::uncertainty::UncertaintyInputs;
@@ -54,6 +56,15 @@ pub struct Loaded {
     /// ([`crate::polygon`]): the samples are then corrected to its measured
     /// faces.
     pub polygon: Option<PolygonClosure>,
+    /// Gross readings found in the drift-corrected samples
+    /// ([`survey_processing::gross`]): those replaced are left out of
+    /// [`Loaded::analysed`].
+    pub gross: GrossTest,
+    /// A drift in time measured from the same targets read at different
+    /// times ([`survey_processing::timedrift`]), when the survey tells one
+    /// and drift control did not correct it: corrected in
+    /// [`Loaded::analysed`] when significant.
+    pub time_drift: Option<TimeDrift>,
 }
 
 impl Loaded {
@@ -66,7 +77,24 @@ impl Loaded {
     /// `samples` of this survey (the refitted ones a command made itself)
     /// corrected for the drift when the survey asked for it.
     pub fn corrected<'a>(&self, samples: &'a [Sample]) -> Cow<'a, [Sample]> {
-        crate::drift::for_analysis(&self.survey, samples, &self.drift)
+        let mut drifted = crate::drift::for_analysis(&self.survey, samples, &self.drift);
+        if let Some(d) = self.time_drift.as_ref().filter(|d| d.corrected) {
+            drifted = Cow::Owned(timedrift::corrected(&drifted, d));
+        }
+        if self.gross.readings.iter().any(|g| g.replaced) && samples.len() == self.samples.len() {
+            Cow::Owned(gross::without(&drifted, &self.gross))
+        } else {
+            drifted
+        }
+    }
+
+    /// Check points `checks` of this survey (on its clock) corrected for the
+    /// drift in time the survey measured, as its samples are.
+    pub fn checks_corrected(&self, checks: &[Sample]) -> Vec<Sample> {
+        match self.time_drift.as_ref().filter(|d| d.corrected) {
+            Some(d) => timedrift::corrected(checks, d),
+            None => checks.to_vec(),
+        }
     }
 
     /// Which axis the samples are around, as the output says it.
@@ -111,7 +139,21 @@ pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::R
     };
     let drift = store.drift_points(survey.id).await?;
     let checks = store.check_points(survey.id).await?;
-    Ok(Loaded { survey, samples, refit, located, drift, checks, polygon })
+    let controlled = crate::drift::for_analysis(&survey, &samples, &drift);
+    // Drift control's own correction, when it made one, is the survey's.
+    let time_drift = match &controlled {
+        Cow::Borrowed(_) => timedrift::estimate(&samples),
+        Cow::Owned(_) => None,
+    };
+    let in_time = match time_drift.as_ref().filter(|d| d.corrected) {
+        Some(d) => Cow::Owned(timedrift::corrected(&controlled, d)),
+        None => controlled,
+    };
+    let gross = gross::find(&in_time, gross::ALPHA);
+    for note in gross.notes() {
+        tracing::info!(survey = survey.id, "{note}");
+    }
+    Ok(Loaded { survey, samples, refit, located, drift, checks, polygon, gross, time_drift })
 }
 
 /// [`load`] from the database at `db`, opened read-only and closed again:

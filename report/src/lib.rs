@@ -146,7 +146,7 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
         design: opts.design.clone(),
         recipe: opts.recipe.clone(),
         table_out: None,
-        checks: loaded.checks.clone(),
+        checks: loaded.checks_corrected(&loaded.checks),
         quiet: opts.quiet,
         ..Default::default()
     };

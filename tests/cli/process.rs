@@ -454,3 +454,41 @@ fn a_one_way_tables_u_says_which_approaches_it_holds_for() {
     let doc = process_json(&bench, &[]);
     assert_eq!(doc["uncertainty"]["holds_for"], "both directions", "{doc:#}");
 }
+
+/// Issue 49: one gross reading (0.05 deg, a beam that grazed an edge) in a
+/// good survey is named (run, direction, target, by the stated test) and the
+/// survey decides without it: the same prediction and U as without it, to
+/// 1e-5 deg, where it otherwise sets the corrected peak.
+#[test]
+fn a_gross_reading_is_named_and_the_survey_decides_without_it() {
+    let bench = Bench::new();
+    bench.survey(&["--db", "a.db", "run", "--points", "72", "--runs", "3", "--bidirectional", "--seed", "2"]).success();
+    bench.survey(&["--db", "a.db", "export", "--csv", "clean.csv"]).success();
+    let clean = bench.read("clean.csv");
+    let mut rows: Vec<String> = clean.lines().map(str::to_string).collect();
+    // Run 2, forward, the 11th target (50 deg): its actual angle 0.05 deg short.
+    let row = 1 + 2 * 72 + 10;
+    let mut cells: Vec<String> = rows[row].split(',').map(str::to_string).collect();
+    assert_eq!((cells[0].as_str(), cells[1].as_str(), cells[2].as_str()), ("2", "forward", "50"), "{}", rows[row]);
+    cells[4] = format!("{}", cells[4].parse::<f64>().unwrap() - 0.05);
+    rows[row] = cells.join(",");
+    bench.write("gross.csv", rows.join("\n") + "\n");
+    let mut docs = Vec::new();
+    for (db, csv) in [("c.db", "clean.csv"), ("g.db", "gross.csv")] {
+        bench.survey(&["--db", db, "import", csv]).success();
+        docs.push(bench.survey(&["--db", db, "process", "--json"]).success().json());
+    }
+    assert_eq!(docs[0]["gross_readings"]["readings"].as_array().map(Vec::len), Some(0), "{:#}", docs[0]);
+    let named = &docs[1]["gross_readings"]["readings"];
+    assert_eq!(named.as_array().map(Vec::len), Some(1), "{:#}", docs[1]);
+    assert_eq!((named[0]["run"].as_u64(), named[0]["target_deg"].as_f64()), (Some(2), Some(50.0)), "{named:#}");
+    assert_eq!((named[0]["direction"].as_str(), named[0]["replaced"].as_bool()), (Some("forward"), Some(true)));
+    for key in ["in_sample_corrected_peak_deg", "corrected_peak_deg"] {
+        let (a, b) = (num(&docs[0]["predicted"][key], key), num(&docs[1]["predicted"][key], key));
+        assert!((a - b).abs() < 1e-5, "{key}: {a} clean, {b} with the gross reading");
+    }
+    let (a, b) = (num(&docs[0]["uncertainty"]["table_u_deg"], "U"), num(&docs[1]["uncertainty"]["table_u_deg"], "U"));
+    assert!((a - b).abs() < 1e-5 * a.max(1.0), "U {a} clean, {b} with the gross reading");
+    let text = bench.survey(&["--db", "g.db", "process"]).success();
+    assert!(text.stdout.contains("gross reading: run 2 forward at 50.0000 deg"), "{text}");
+}

@@ -145,7 +145,8 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
     };
     let design = loaded.survey.model.as_ref().map_or_else(Design::default, |m| m.design.clone());
     // With its check points, as `survey process` takes them in.
-    let processed = process_with_checks(&samples, &design, None, None, &loaded.checks).map_err(|e| e.to_string());
+    let processed = process_with_checks(&samples, &design, None, None, &loaded.checks_corrected(&loaded.checks))
+        .map_err(|e| e.to_string());
     let inputs = loaded.uncertainty_inputs();
     let u = processed.as_ref().ok().map(|p| survey_tables::uncertainty::uncertainty(p, &samples, &inputs));
     let table_u_deg = u.as_ref().map(|u| u.table_u_deg);
