@@ -162,8 +162,11 @@ pub fn plausible_max(survey: &SurveyRecord) -> f64 {
 
 /// The plausible lines (up to `f_max` cycles/rev, [`plausible_max`]) a
 /// verification at `verification` could not see the table of `p` (made at
-/// `calibration`) miss: none at a polygon's faces, where the verification
-/// measures what the calibration did. Targets may repeat (samples').
+/// `calibration`) miss. At the calibration's own targets (a polygon's
+/// faces) it measures what the calibration did and sees every alias the
+/// table may have taken for its line as the calibration saw it: blind to
+/// all of them, with either reference (one rule: it confirms nothing there).
+/// Targets may repeat (samples').
 pub fn blind(calibration: &[f64], verification: &[f64], f_max: f64, p: &Processed) -> Vec<aliases::Blind> {
     let distinct = |t: &[f64]| {
         let mut d = t.to_vec();
@@ -172,9 +175,6 @@ pub fn blind(calibration: &[f64], verification: &[f64], f_max: f64, p: &Processe
         d
     };
     let (calibration, verification) = (distinct(calibration), distinct(verification));
-    if offset_deg(&verification, &calibration) < 1e-6 {
-        return Vec::new();
-    }
     aliases::blind(&calibration, &verification, &table_lines(p), f_max)
 }
 
