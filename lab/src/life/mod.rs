@@ -14,7 +14,10 @@
 pub mod cache;
 pub mod check;
 mod codec;
+pub mod control;
+pub mod due;
 pub mod history;
+pub mod interval;
 
 pub use cache::lines_seen;
 
