@@ -18,6 +18,8 @@ pub mod control;
 pub mod due;
 pub mod history;
 pub mod interval;
+#[cfg(test)]
+mod year_tests;
 
 pub use cache::lines_seen;
 
