@@ -600,3 +600,59 @@ fn due_says_when_each_asset_is_checked_next_and_run_check_due_checks_only_the_du
     bench.survey(&["run", "--due", "--points", "36"]).bad_input(&["--check"]);
     bench.assert_unchanged(&before, &out);
 }
+
+/// A knock inside tolerance: after a calibration and five checks of the
+/// same Figure 8 positioner (the chart's baseline), a 3 cycles/rev line of
+/// 0.0005 deg appears (the simulators' truth). The table in force still
+/// holds and no line the check can place changed, but the check's
+/// statistic (its cells beyond the table's U) is far above the chart's
+/// upper limit: out of control, recalibrated (exit 3).
+#[test]
+fn a_knock_inside_tolerance_is_caught_by_the_control_chart_and_recalibrated() {
+    let bench = Bench::new();
+    bench.write(
+        "knock.toml",
+        format!(
+            "{FIG8}\n[[effect]]\nkind = \"harmonic\"\ncycles_per_rev = 3\namplitude_deg = 0.0005\nphase_deg = 30.0\n"
+        ),
+    );
+    let check = |seed: &str, model: Option<&str>| {
+        let mut args = vec!["run", "--check", "--asset", "lab/k", "--seed", seed, "--json"];
+        args.extend(["--points", "360", "--runs", "3", "--bidirectional"].iter().filter(|_| seed == "1"));
+        if let Some(m) = model {
+            args.extend(["--model", m]);
+        }
+        bench.survey(&args)
+    };
+    assert_eq!(check("1", None).code, 3, "the first calibration");
+    let mut statistics = Vec::new();
+    for seed in ["2", "3", "4", "5", "6"] {
+        let doc = check(seed, None).success().json();
+        assert_eq!(doc["outcome"].as_str(), Some("in tolerance"), "{doc}");
+        statistics.push(doc["check"]["control"]["statistic"].as_f64().unwrap());
+    }
+    let out = check("9", Some("knock.toml"));
+    assert_eq!(out.code, 3, "{out}");
+    let doc = out.json();
+    let control = &doc["check"]["control"];
+    let table = &doc["check"]["table_of_a_on_b"];
+    assert_eq!(table["holds"].as_bool(), Some(true), "inside tolerance: {table}");
+    assert_eq!(
+        (control["out_of_control"].as_bool(), control["rules"][0].as_str()),
+        (Some(true), Some("beyond 3 sigma"))
+    );
+    let mean = statistics.iter().sum::<f64>() / 5.0;
+    assert!((control["centre"].as_f64().unwrap() - mean).abs() < 1e-12, "the five checks' mean: {control}");
+    assert!(control["statistic"].as_f64().unwrap() > control["upper"].as_f64().unwrap(), "{control}");
+    assert_eq!(doc["outcome"].as_str(), Some("recalibrated"));
+    assert!(
+        doc["reason"].as_str().unwrap().starts_with("out of control on the control chart (beyond 3 sigma)"),
+        "{doc}"
+    );
+    // The interval halves after it; the history's check carries its point.
+    let due = bench.survey(&["due", "--asset", "lab/k", "--json"]).success().json();
+    assert_eq!(due["assets"][0]["reliability"]["in_tolerance"].as_u64(), Some(5), "{due}");
+    let h = bench.survey(&["history", "--asset", "lab/k", "--json"]).success().json();
+    let knocked = h["surveys"].as_array().unwrap().iter().rev().find(|s| s["kind"] == "check").unwrap();
+    assert_eq!(knocked["check"]["control"], *control);
+}

@@ -224,10 +224,12 @@ async fn check_with(
             unseen.push(u.clone());
         }
     }
-    if !cmp.decision.recalibrate && !unseen.is_empty() {
+    // Out of control on the asset's chart, a check decides even what it
+    // could not see line by line: the table in force no longer behaves.
+    let (point, recalibrate, reason) = charted(store, asset, &cal, &cmp).await?;
+    if !recalibrate && !unseen.is_empty() {
         return undecided(store, id, &cal, &a, &c, &cmp, design.as_ref(), &unseen).await;
     }
-    let (point, recalibrate, reason) = charted(store, asset, &cal, &cmp).await?;
     let held = cmp.table_of_a_on_b.as_ref();
     let decision = CheckDecision {
         survey_id: id,
