@@ -381,7 +381,8 @@ pub fn due(events: &[Event], now_days: f64) -> Due {
     let after = events.iter().position(|e| e.survey_id == last.survey_id).map_or(events.len(), |i| i + 1);
     let revolutions_since: f64 = events[after..].iter().map(|e| e.revolutions).sum();
     // A check that called for a recalibration not made since.
-    let pending = matches!(events.last().map(|e| e.outcome), Some(Outcome::OutOfTolerance | Outcome::OutOfControl));
+    let reviewed = events.iter().rev().find(|e| e.outcome != Outcome::Other).map(|e| e.outcome);
+    let pending = matches!(reviewed, Some(Outcome::OutOfTolerance | Outcome::OutOfControl));
     let mut next_due_days = last.at_days + last.interval_days;
     let mut reason = last.reason.clone();
     if pending {
@@ -467,9 +468,12 @@ mod tests {
         let d = due(&events, 150.0);
         assert_eq!((d.next_due_days, d.overdue, d.reliability), (203.0, false, (1, 1)));
         assert!(due(&events, 203.0).overdue);
-        let pending = [ev(1, 0.0, Outcome::Calibration, s), ev(2, 90.0, Outcome::OutOfTolerance, s)];
+        let mut pending = vec![ev(1, 0.0, Outcome::Calibration, s), ev(2, 90.0, Outcome::OutOfTolerance, s)];
         let d = due(&pending, 91.0);
         assert!(d.overdue && d.next_due_days == 90.0 && d.reason.contains("not made"), "{d:?}");
+        // A verification since is no recalibration.
+        pending.push(ev(3, 90.5, Outcome::Other, s));
+        assert!(due(&pending, 91.0).reason.contains("not made"));
         assert_eq!(d.reliability, (1, 0));
     }
 
