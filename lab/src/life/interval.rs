@@ -7,7 +7,8 @@
 //!
 //! The methods:
 //! - `staircase` (M1, the default): after a check in tolerance the interval
-//!   is lengthened by [`LENGTHEN`] (a quarter), after one out of tolerance
+//!   is lengthened by [`LENGTHEN`] (a quarter; a check made before three
+//!   quarters of the interval, [`EARLY`], keeps it), after one out of tolerance
 //!   or out of control shortened by [`SHORTEN`] (to half), always within
 //!   `interval_min_days`..`interval_max_days`; a calibration keeps it.
 //! - `control-chart` (M2): as the staircase when it shortens; after a check
@@ -30,6 +31,10 @@ use survey_store::config::AssetSection;
 
 /// The factor a staircase lengthens the interval by after a check in tolerance.
 pub const LENGTHEN: f64 = 1.25;
+
+/// The share of its interval a check in tolerance must come after to
+/// lengthen it (a check made early says nothing of the whole interval).
+pub const EARLY: f64 = 0.75;
 
 /// The factor a staircase shortens the interval by after a check out of
 /// tolerance or out of control.
@@ -196,7 +201,7 @@ pub fn reviews(events: &[Event]) -> Vec<Review> {
             (None, Some(_)) if s.method == Method::Fixed => {
                 (s.interval_days, format!("fixed: interval_days, {} days, whatever the outcome", num(s.interval_days)))
             }
-            (None, Some(b)) => moved(b.interval_days, &events[..=i], s),
+            (None, Some(b)) => moved(b, &events[..=i], s),
             (None, None) => unreachable!("the first review starts from interval_days"),
         };
         let (interval_days, reason, revolutions) = match s.method {
@@ -220,10 +225,12 @@ fn previous_settings(events: &[Event], i: usize) -> Option<Settings> {
     events[..i].iter().rev().find(|e| e.outcome != Outcome::Other).map(|e| e.settings)
 }
 
-/// The interval after the last of `events`, from the one before (`prev`
-/// days), by the staircase or the control chart.
-fn moved(prev: f64, events: &[Event], s: &Settings) -> (f64, String) {
+/// The interval after the last of `events`, from the review before
+/// (`before`), by the staircase or the control chart.
+fn moved(before: &Review, events: &[Event], s: &Settings) -> (f64, String) {
     let e = events.last().expect("an event to review");
+    let prev = before.interval_days;
+    let elapsed = e.at_days - before.at_days;
     let shorten = |what: &str| {
         let (d, held) = s.bounded(prev * SHORTEN);
         let mut why = format!("{what}: shortened by half, from {} to {} days", num(prev), num(d));
@@ -233,6 +240,15 @@ fn moved(prev: f64, events: &[Event], s: &Settings) -> (f64, String) {
         (d, why)
     };
     let lengthen = |what: &str| {
+        // A check made early says nothing of the whole interval.
+        if elapsed < EARLY * prev {
+            let why = format!(
+                "{what}, but checked {} days into its {} days (less than three quarters): the interval stays",
+                num(elapsed.round()),
+                num(prev)
+            );
+            return (prev, why);
+        }
         let (d, held) = s.bounded(prev * LENGTHEN);
         let mut why = format!("{what}: lengthened by a quarter, from {} to {} days", num(prev), num(d));
         if let Some(h) = held {
@@ -379,7 +395,7 @@ pub fn due(events: &[Event], now_days: f64) -> Due {
         };
     };
     let after = events.iter().position(|e| e.survey_id == last.survey_id).map_or(events.len(), |i| i + 1);
-    let revolutions_since: f64 = events[after..].iter().map(|e| e.revolutions).sum();
+    let revolutions_since = events[after..].iter().fold(0.0, |sum, e| sum + e.revolutions);
     // A check that called for a recalibration not made since.
     let reviewed = events.iter().rev().find(|e| e.outcome != Outcome::Other).map(|e| e.outcome);
     let pending = matches!(reviewed, Some(Outcome::OutOfTolerance | Outcome::OutOfControl));
@@ -433,6 +449,13 @@ mod tests {
         assert_eq!(r[3].reason, "out of tolerance: shortened by half, from 141 to 71 days");
         assert_eq!(r[4].reason, "calibrated: the interval stays 71 days");
         assert!(r[5].reason.starts_with("out of control on the control chart: shortened"), "{}", r[5].reason);
+        // A check made early keeps the interval.
+        let early = reviews(&[ev(1, 0.0, Outcome::Calibration, s), ev(2, 30.0, Outcome::InTolerance, s)]);
+        assert_eq!(early[1].interval_days, 90.0);
+        assert_eq!(
+            early[1].reason,
+            "in tolerance, but checked 30 days into its 90 days (less than three quarters): the interval stays"
+        );
         // The bounds hold it.
         let tight = Settings { min_days: 60.0, max_days: 100.0, ..s };
         let r = reviews(&[
