@@ -18,6 +18,7 @@ mod args;
 mod check;
 mod compare;
 mod docs;
+mod due;
 mod export;
 mod history;
 mod import;
@@ -203,6 +204,18 @@ Examples:
         #[command(flatten)]
         args: history::HistoryArgs,
     },
+    /// What is due: each asset's next check, by its interval's method (ILAC-G24), when and why.
+    #[command(after_help = "\
+Examples:
+  survey due                              # every asset, as of now
+  survey due --asset bay-2/az --json
+  survey due --at 2026-07-01              # what will be due by the first of July")]
+    Due {
+        #[command(flatten)]
+        db: args::DbArg,
+        #[command(flatten)]
+        args: due::DueArgs,
+    },
     /// Has the positioner changed from survey A to survey B, and does A's table still hold?
     #[command(after_help = "\
 Examples:
@@ -273,6 +286,7 @@ impl Command {
             | Command::List { db, .. }
             | Command::Show { db, .. }
             | Command::History { db, .. }
+            | Command::Due { db, .. }
             | Command::Compare { db, .. }
             | Command::Push { db, .. }
             | Command::Serve { db, .. } => Some(db),
@@ -366,6 +380,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::List { args, .. } => list::list(&db, args).await,
         Command::Show { args, .. } => list::show(&db, args).await,
         Command::History { args, .. } => history::history(&db, args).await,
+        Command::Due { args, .. } => due::due(&db, args).await,
         Command::Compare { args, .. } => compare::compare(&db, args).await,
         Command::Push { args, .. } => push::push(&db, args).await,
         Command::Serve { args, .. } => serve::serve(&db, args).await,

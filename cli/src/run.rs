@@ -168,6 +168,13 @@ pub struct RunArgs {
     /// could not see; 2: bad input.
     #[arg(long, conflicts_with_all = ["verify", "sim_crash_after", "sim_signal_after", "sim_db_max_pages"])]
     pub check: bool,
+    /// With --check: check only when the asset's next check is due (`survey
+    /// due`: its interval's method, ILAC-G24); otherwise measure nothing and
+    /// exit 0 saying when it is due. A cron line or systemd timer running
+    /// `survey run --check --due` for each asset's configuration checks
+    /// exactly the due assets.
+    #[arg(long, requires = "check")]
+    pub due: bool,
     /// Fault injection for tests: the process aborts (like a power loss)
     /// once N samples have been measured on the simulated bench.
     #[arg(long, value_name = "N", hide = true, conflicts_with = "config")]
@@ -254,6 +261,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             recipe: args.recipe.clone(),
             units: args.units.units(),
             correction: correction_choice(args.correction),
+            only_due: args.due,
         };
         let outcome = run_check(db, &req, &|size| bench(&args, size)).await?;
         emit(&outcome.output.render(args.json));

@@ -306,7 +306,18 @@ pub mod api {
             .route("/history/{*asset}", get(history))
             .route("/compare/{a}/{b}", get(compare))
             .route("/assets", get(assets))
+            .route("/due", get(due))
             .route("/live", get(live))
+    }
+
+    /// `/api/due`: `survey due --json`, as of now.
+    async fn due(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
+        let doc = offload(app.clone(), true, async move {
+            let now = std::time::SystemTime::now();
+            let all = read!(app, true, |store| survey_lab::life::due::due(&store, None, now).await);
+            Ok(survey_lab::life::due::json(&all))
+        });
+        Ok(json_body(&doc.await?))
     }
 
     async fn list(State(app): State<App>) -> Result<impl IntoResponse, Failure> {

@@ -80,6 +80,15 @@ fn state(
     }
 }
 
+/// Why the asset's next check is due by its interval's method
+/// ([`survey_lab::life::due`]), when it is.
+async fn overdue(store: &Store, asset: &str, now: SystemTime) -> anyhow::Result<Option<String>> {
+    let due = survey_lab::life::due::due(store, Some(asset), now).await?;
+    Ok(due.into_iter().find(|d| d.due.overdue).map(|d| {
+        format!("its next check was due at {} ({})", survey_lab::life::due::date_of(d.due.next_due_days), d.due.reason)
+    }))
+}
+
 /// Every asset of `store`, by id.
 pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<Asset>> {
     let mut by_asset: BTreeMap<String, Vec<SurveyRecord>> = BTreeMap::new();
@@ -97,7 +106,14 @@ pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<As
             let why = "surveys made without an asset ([asset] id or --asset): no calibration or check follows them";
             (State::Unassigned, why.to_string())
         } else {
-            state(in_force.as_ref(), &checks, due_after_days, now)
+            let st = state(in_force.as_ref(), &checks, due_after_days, now);
+            match (st.0, &in_force) {
+                // Its interval's method (`survey due`) may say its next check is due.
+                (State::InTolerance | State::Changed, Some(_)) => {
+                    overdue(store, &asset, now).await?.map_or(st, |why| (State::Due, why))
+                }
+                _ => st,
+            }
         };
         let calibration = match in_force {
             Some(r) => {
@@ -221,6 +237,10 @@ mod tests {
             reason: "the 12 cycles/rev line moved".into(),
             recalibration_uid: made.map(Into::into),
             table_file: None,
+            residual_peak_deg: None,
+            stated_u_deg: None,
+            cells_outside: None,
+            allowed_outside: None,
         }
     }
 

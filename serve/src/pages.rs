@@ -126,7 +126,8 @@ async fn index_page(app: App) -> Result<String, Failure> {
                 assets_table(&assets)
                     + &format!(
                         "<p class=\"note\">State: <b>due</b> when it has no calibration, the calibration is older than \
-                         {} days, or a check called for a recalibration not made yet; <b>changed</b> when the last \
+                         {} days, its interval says its next check is due (<code>survey due</code>), or a check called for a \
+                         recalibration not made yet; <b>changed</b> when the last \
                          check found the positioner changed but its table still holding; otherwise <b>in \
                          tolerance</b>.</p>\n",
                         app.due_after_days
@@ -152,20 +153,71 @@ pub(super) async fn asset(
     UrlPath(asset): UrlPath<String>,
 ) -> Result<impl IntoResponse, Failure> {
     let html = offload(app.clone(), false, async move {
-        let h = read!(app, false, |store| survey_lab::life::history::history(&store, &asset, None).await);
+        let now = std::time::SystemTime::now();
+        let (h, due) = read!(app, false, |store| {
+            let h = survey_lab::life::history::history(&store, &asset, None).await?;
+            let due = survey_lab::life::due::due(&store, Some(&asset), now).await?;
+            anyhow::Ok((h, due))
+        });
         let figures =
             survey_report::html::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
         let body = format!(
             "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} {noun}; the history as JSON: \
-             <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{s}",
+             <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{d}{c}{s}",
             a = escape(&h.asset),
             n = h.surveys.len(),
             noun = if h.surveys.len() == 1 { "survey" } else { "surveys" },
+            d = section("due", "When it is due", &[], &due_html(&due, now)),
+            c = section("control", "Control chart of the checks", &[], &control_table(&h)),
             s = section("history", "History", &[], &figures),
         );
         Ok(page(&format!("Asset {}", h.asset), &body))
     });
     Ok(html_body(html.await?))
+}
+
+/// What is due for the asset: `survey due`'s text, as a paragraph each.
+fn due_html(due: &[survey_lab::life::due::AssetDue], now: std::time::SystemTime) -> String {
+    let text = survey_lab::life::due::text(due, now);
+    let mut lines = text.lines().skip(1);
+    let head = lines.next().unwrap_or_default();
+    let state = if due.iter().any(|d| d.due.overdue) { "due" } else { "in tolerance" };
+    let rest: String = lines.map(|l| format!("<p>{}</p>\n", escape(l.trim()))).collect();
+    format!("<p><span class=\"state\" data-state=\"{state}\">{}</span></p>\n{rest}", escape(head.trim()))
+}
+
+/// The checks' control chart: one row a check.
+fn control_table(h: &survey_lab::life::history::History) -> String {
+    let chart = h.control();
+    if chart.is_empty() {
+        return "<p>No check yet.</p>\n".into();
+    }
+    let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+    let rows: Vec<Vec<String>> = h
+        .checks
+        .iter()
+        .zip(&chart)
+        .map(|(c, p)| {
+            let when = h.surveys.iter().find(|e| e.survey.id == c.survey_id).map(|e| e.survey.created_at.clone());
+            vec![
+                format!("survey {}", c.survey_id),
+                escape(&when.unwrap_or_default()),
+                num(p.statistic),
+                num(p.centre),
+                num(p.lower()),
+                num(p.upper()),
+                match p.out_of_control() {
+                    true => format!("out of control: {}", escape(&p.rules.join(", "))),
+                    false => "in control".into(),
+                },
+            ]
+        })
+        .collect();
+    let head = ["check", "made (UTC)", "statistic", "centre", "lower", "upper", "state"];
+    survey_report::page::table_left("tbl-control", &head, &rows, &[0, 1, 6])
+        + "<p class=\"note\">The statistic: the check's cells where the error moved by more than the table's U, over \
+           one more than the most that may while the table holds (at 1 it no longer holds); the centre and limits from \
+           the asset's earlier checks in control (docs/lab.md).</p>\n"
 }
 
 /// `/surveys/<uid>` (or an id): the survey's report, as `survey report` writes it.

@@ -27,6 +27,14 @@ pub struct CheckDecision {
     pub recalibration_uid: Option<String>,
     /// The table file written for that survey (then the one in force).
     pub table_file: Option<String>,
+    /// The largest residual the table in force left on the check's data, degrees.
+    pub residual_peak_deg: Option<f64>,
+    /// The `U` that table was held to, degrees.
+    pub stated_u_deg: Option<f64>,
+    /// The cells where the error moved by more than that `U`.
+    pub cells_outside: Option<i64>,
+    /// The most cells that may while the table holds.
+    pub allowed_outside: Option<i64>,
 }
 
 impl Store {
@@ -35,7 +43,8 @@ impl Store {
         let mut tx = WriteTx::begin(self.sqlite()?).await?;
         sqlx::query(
             "INSERT INTO checks (survey_id, against_uid, verdict, table_holds, recalibrate, reason, \
-             recalibration_uid, table_file) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+             recalibration_uid, table_file, residual_peak_deg, stated_u_deg, cells_outside, allowed_outside) \
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         )
         .bind(d.survey_id)
         .bind(&d.against_uid)
@@ -45,6 +54,10 @@ impl Store {
         .bind(&d.reason)
         .bind(&d.recalibration_uid)
         .bind(&d.table_file)
+        .bind(d.residual_peak_deg)
+        .bind(d.stated_u_deg)
+        .bind(d.cells_outside)
+        .bind(d.allowed_outside)
         .execute(tx.conn())
         .await
         .map_err(|e| self.fk_to_not_found(d.survey_id, e))?;
@@ -70,16 +83,22 @@ impl Store {
     }
 
     /// The decisions of the check surveys of `asset`, oldest first.
+    /// A file of an older schema read as it is has no control figures: NULL.
     pub async fn checks_of_asset(&self, asset: &str) -> anyhow::Result<Vec<CheckDecision>> {
+        let figures = match self.control {
+            true => "c.residual_peak_deg, c.stated_u_deg, c.cells_outside, c.allowed_outside",
+            false => {
+                "CAST(NULL AS DOUBLE PRECISION) AS residual_peak_deg, CAST(NULL AS DOUBLE PRECISION) AS stated_u_deg, \
+                 CAST(NULL AS BIGINT) AS cells_outside, CAST(NULL AS BIGINT) AS allowed_outside"
+            }
+        };
+        let sql = format!(
+            "SELECT c.survey_id, c.against_uid, c.verdict, c.table_holds, c.recalibrate, c.reason, \
+             c.recalibration_uid, c.table_file, {figures} FROM checks AS c JOIN surveys AS s ON s.id = c.survey_id \
+             WHERE s.asset = $1 ORDER BY c.survey_id"
+        );
         on_pool!(self, |pool| {
-            let rows = sqlx::query(
-                "SELECT c.survey_id, c.against_uid, c.verdict, c.table_holds, c.recalibrate, c.reason, \
-                 c.recalibration_uid, c.table_file FROM checks AS c JOIN surveys AS s ON s.id = c.survey_id \
-                 WHERE s.asset = $1 ORDER BY c.survey_id",
-            )
-            .bind(asset)
-            .fetch_all(pool)
-            .await?;
+            let rows = sqlx::query(sqlx::AssertSqlSafe(sql.clone())).bind(asset).fetch_all(pool).await?;
             rows.iter()
                 .map(|r| -> anyhow::Result<CheckDecision> {
                     Ok(CheckDecision {
@@ -91,6 +110,10 @@ impl Store {
                         reason: r.try_get("reason")?,
                         recalibration_uid: r.try_get("recalibration_uid")?,
                         table_file: r.try_get("table_file")?,
+                        residual_peak_deg: r.try_get("residual_peak_deg")?,
+                        stated_u_deg: r.try_get("stated_u_deg")?,
+                        cells_outside: r.try_get("cells_outside")?,
+                        allowed_outside: r.try_get("allowed_outside")?,
                     })
                 })
                 .collect()
@@ -144,7 +167,8 @@ mod tests {
         schema_3_database(&path).await;
         let e = Store::open_read_only(&path).await.unwrap_err();
         assert!(
-            format!("{e:#}").contains(&format!("older schema (3; this version reads {})", MIGRATIONS.len())),
+            format!("{e:#}")
+                .contains(&format!("older schema (3; this version reads {})", MIGRATIONS.last().unwrap().0)),
             "{e:#}"
         );
         let store = Store::open(&path).await.unwrap();
@@ -184,6 +208,10 @@ mod tests {
             reason: "the 20 cycles/rev line grew".into(),
             recalibration_uid: None,
             table_file: None,
+            residual_peak_deg: Some(0.0012),
+            stated_u_deg: Some(0.003),
+            cells_outside: Some(3),
+            allowed_outside: Some(9),
         };
         store.record_check(&d).await.unwrap();
         store.set_recalibration(id, &all_uids[4], Some("t.csv")).await.unwrap();

@@ -107,6 +107,36 @@ impl SmrsSection {
 pub struct AssetSection {
     /// 1-64 characters of letters, digits and `-_./`.
     pub id: String,
+    /// The first interval between checks, days (default
+    /// [`AssetSection::DEFAULT_INTERVAL_DAYS`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_days: Option<f64>,
+    /// How the interval is reviewed after each check or calibration:
+    /// `staircase` (the default), `control-chart`, `in-use` or `fixed`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_method: Option<String>,
+    /// The shortest interval a review may set, days (default 7).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_min_days: Option<f64>,
+    /// The longest interval a review may set, days (default 365).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_max_days: Option<f64>,
+    /// `in-use`: the revolutions of travel between checks (default 1000).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_revolutions: Option<f64>,
+}
+
+impl AssetSection {
+    /// `interval_days` unless stated.
+    pub const DEFAULT_INTERVAL_DAYS: f64 = 90.0;
+    /// `interval_min_days` unless stated.
+    pub const DEFAULT_MIN_DAYS: f64 = 7.0;
+    /// `interval_max_days` unless stated.
+    pub const DEFAULT_MAX_DAYS: f64 = 365.0;
+    /// `interval_revolutions` unless stated.
+    pub const DEFAULT_REVOLUTIONS: f64 = 1000.0;
+    /// `interval_method` unless stated.
+    pub const DEFAULT_METHOD: &str = "staircase";
 }
 
 /// `[certificate]`: what a calibration certificate states that no instrument

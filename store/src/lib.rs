@@ -119,10 +119,16 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (8, "history cache", include_str!("../../migrations/0008_history_cache.sql")),
     (9, "environment", include_str!("../../migrations/0009_environment.sql")),
     (10, "smr readings", include_str!("../../migrations/0010_smr_readings.sql")),
+    // 11 is another change's (not in this build).
+    (12, "intervals", include_str!("../../migrations/0012_intervals.sql")),
 ];
 
 /// The schema that keeps the air of every tracker measurement (`raw_readings.air_*`).
 const ENVIRONMENT_SCHEMA: i64 = 9;
+
+/// The schema that keeps what each check measured of the table in force
+/// (`checks.residual_peak_deg`, `stated_u_deg`: the control chart's).
+const CONTROL_SCHEMA: i64 = 12;
 
 /// The schema that brings the history's cache (`survey_summaries`,
 /// `survey_changes`): a file of an older schema has none.
@@ -185,6 +191,8 @@ pub struct Store {
     cache: bool,
     /// The environment's columns are there (schema 9; an older file read as it is has none).
     environment: bool,
+    /// The checks' control figures are there (schema 12; an older file read as it is has none).
+    control: bool,
 }
 
 /// The database behind a [`Store`].
@@ -266,11 +274,13 @@ impl Store {
             writable: false,
             cache: false,
             environment: false,
+            control: false,
         };
         match store.check_schema().await {
             Ok(version) => {
                 store.cache = version >= CACHE_SCHEMA;
                 store.environment = version >= ENVIRONMENT_SCHEMA;
+                store.control = version >= CONTROL_SCHEMA;
             }
             Err(e) => {
                 store.close().await;
@@ -408,6 +418,7 @@ impl Store {
                             writable: true,
                             cache: true,
                             environment: true,
+                            control: true,
                         });
                     }
                     Err(e) => {

@@ -91,12 +91,26 @@ fn history_read_from_what_the_commands_keep_is_what_computing_it_gives_bit_for_b
     assert_eq!(history(&bench, "sim-fig8", &last), kept, "computed on read");
     assert_eq!((count(&bench, "survey_summaries"), count(&bench, "survey_changes")), (0, 0), "a reader writes nothing");
 
+    // A check stored before the control chart (schema 11 and older) has no
+    // figures: its point is null, and the history says so.
+    let charted = h["surveys"].as_array().unwrap().iter().find(|s| s["kind"] == "check").unwrap()["check"].clone();
+    assert!(charted["control"]["statistic"].as_f64().is_some(), "{charted}");
+    execute(
+        &bench,
+        "UPDATE checks SET residual_peak_deg = NULL, stated_u_deg = NULL, cells_outside = NULL, allowed_outside = NULL;",
+    );
+    let kept = history(&bench, "sim-fig8", &last);
+    assert!(kept.1.contains("control chart: not measured (a check stored before the chart)"), "{}", kept.1);
+    let h = bench.survey(&["history", "--asset", "sim-fig8", "--json"]).success().json();
+
     // A database of schema 7 (before the cache) is read as it is.
     execute(
         &bench,
         "DROP TABLE survey_summaries; DROP TABLE survey_changes; DROP TABLE smr_readings; ALTER TABLE \
          raw_readings DROP COLUMN air_temperature_c; ALTER TABLE raw_readings DROP COLUMN air_pressure_hpa; ALTER TABLE raw_readings DROP \
-         COLUMN air_humidity_pct; DELETE FROM _sqlx_migrations WHERE version >= 8;",
+         COLUMN air_humidity_pct; ALTER TABLE checks DROP COLUMN residual_peak_deg; ALTER TABLE checks DROP COLUMN \
+         stated_u_deg; ALTER TABLE checks DROP COLUMN cells_outside; ALTER TABLE checks DROP COLUMN allowed_outside; \
+         DELETE FROM _sqlx_migrations WHERE version >= 8;",
     );
     assert_eq!(history(&bench, "sim-fig8", &last), kept, "schema 7, read-only");
     bench.survey(&["list"]).success();

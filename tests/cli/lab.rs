@@ -342,6 +342,18 @@ fn read_commands_give_the_same_answers_from_the_lab_store_as_from_the_station() 
     let s = bench.survey(&["compare", &uids[0], &uids[2], "--json"]).success().json();
     let l = on_lab(&bench, &lab, &["compare", &uids[0], &uids[2], "--json"]).success().json();
     assert_eq!(without_ids(&s), without_ids(&l));
+    // What is due, from the dates, decisions and control figures pushed (the last survey: each store's own id).
+    let due = |out: Output| {
+        let mut doc = out.success().json();
+        for a in doc["assets"].as_array_mut().unwrap() {
+            a.as_object_mut().unwrap().remove("last_survey");
+        }
+        doc
+    };
+    let s = due(bench.survey(&["due", "--json"]));
+    assert_eq!(s, due(on_lab(&bench, &lab, &["due", "--json"])), "due");
+    assert_eq!(s["assets"][2]["asset"], "sim-fig8");
+    assert_eq!(s["assets"][2]["reliability"]["checks"].as_u64(), Some(1), "{s}");
     // The verification names the lab's id of the survey it verifies; the report shows the pair.
     let v = on_lab(&bench, &lab, &["show", &uids[1], "--json"]).success().json();
     let native = on_lab(&bench, &lab, &["show", &uids[0], "--json"]).success().json();

@@ -496,3 +496,163 @@ fn control_pairs_on_the_simulated_bench_are_unchanged_at_the_stated_rate() {
     assert!(changed.len() as f64 <= allowed, "{} of {pairs}: {changed:#?}", changed.len());
     assert!(failed as f64 <= allowed, "the table failed in {failed} of {pairs}");
 }
+
+/// Move every survey of `bench`'s database `days` into the past (the
+/// intervals' virtual clock: a survey's date is its `created_at`).
+fn age_surveys(bench: &Bench, days: u32) {
+    let conn = rusqlite::Connection::open(bench.path("survey.db")).unwrap();
+    let sql = format!(
+        "UPDATE surveys SET created_at = strftime('%Y-%m-%dT%H:%M:%SZ', created_at, '-{days} days'), \
+         updated_at = strftime('%Y-%m-%dT%H:%M:%SZ', updated_at, '-{days} days')"
+    );
+    conn.execute(&sql, []).unwrap();
+}
+
+/// Days from one RFC 3339 UTC time to another (whole seconds, as stored), by SQLite's clock arithmetic.
+fn days_between(a: &str, b: &str) -> f64 {
+    let conn = rusqlite::Connection::open_in_memory().unwrap();
+    conn.query_row("SELECT round((julianday(?2) - julianday(?1)) * 86400) / 86400", [a, b], |r| r.get(0)).unwrap()
+}
+
+/// `days` after an RFC 3339 UTC time, as the store writes one.
+fn days_after(t: &str, days: u32) -> String {
+    let conn = rusqlite::Connection::open_in_memory().unwrap();
+    conn.query_row("SELECT strftime('%Y-%m-%dT%H:%M:%SZ', ?1, ?2)", [t, &format!("+{days} days")], |r| r.get(0))
+        .unwrap()
+}
+
+#[test]
+fn due_says_when_each_asset_is_checked_next_and_run_check_due_checks_only_the_due() {
+    let bench = Bench::new();
+    let check_due = |seed: &str| {
+        bench.survey(&[
+            "run",
+            "--check",
+            "--due",
+            "--asset",
+            "lab/d1",
+            "--points",
+            "360",
+            "--runs",
+            "3",
+            "--bidirectional",
+            "--seed",
+            seed,
+            "--json",
+        ])
+    };
+    // Never calibrated: due, and the check calibrates it (exit 3).
+    let first = check_due("1");
+    assert_eq!((first.code, first.json()["outcome"].as_str()), (3, Some("calibrated")), "{first}");
+    bench.small_survey(true); // sim-fig8: another asset
+    let doc = bench.survey(&["due", "--json"]).success().json();
+    let assets = doc["assets"].as_array().unwrap();
+    assert_eq!(assets.iter().map(|a| a["asset"].as_str().unwrap()).collect::<Vec<_>>(), ["lab/d1", "sim-fig8"]);
+    let a = &assets[0];
+    for key in ["asset", "last", "interval_days", "next_due", "overdue", "method", "reason"] {
+        assert!(a.get(key).is_some(), "due --json's asset has {key}: {a}");
+    }
+    let created = bench.survey(&["show", "1", "--json"]).success().json()["created_at"].as_str().unwrap().to_string();
+    assert_eq!(a["last"].as_str(), Some(created.as_str()));
+    assert_eq!((a["interval_days"].as_f64(), a["method"].as_str()), (Some(90.0), Some("staircase")));
+    assert_eq!(days_between(&created, a["next_due"].as_str().unwrap()), 90.0);
+    assert_eq!(a["overdue"].as_bool(), Some(false));
+    assert!(a["reason"].as_str().unwrap().contains("the first interval stated (interval_days, 90 days)"), "{a}");
+    // As of 91 days on, it is overdue.
+    let later = days_after(&created, 91);
+    let doc = bench.survey(&["due", "--asset", "lab/d1", "--at", &later, "--json"]).success().json();
+    assert_eq!((doc["assets"].as_array().unwrap().len(), doc["assets"][0]["overdue"].as_bool()), (1, Some(true)));
+    let text = bench.survey(&["due", "--at", &later]).success().stdout;
+    assert!(text.contains("lab/d1") && text.contains("overdue by 1 days") && text.contains("sim-fig8"), "{text}");
+
+    // Not due: nothing measured, exit 0.
+    let before = bench.stored();
+    let out = check_due("2").success();
+    assert_eq!(out.json()["outcome"].as_str(), Some("not due"), "{out}");
+    assert!(out.json()["reason"].as_str().unwrap().contains("not due: the next check of lab/d1 is due at"), "{out}");
+    bench.assert_unchanged(&before, &out);
+
+    // 100 days later (the surveys dated back): due, checked, in tolerance; the staircase lengthens.
+    age_surveys(&bench, 100);
+    let out = check_due("2").success();
+    let doc = out.json();
+    assert_eq!(doc["outcome"].as_str(), Some("in tolerance"), "{out}");
+    // Its point of the control chart: no limits yet (a first check), the statistic measured.
+    let control = &doc["check"]["control"];
+    let statistic = control["statistic"].as_f64().unwrap();
+    assert!(statistic > 0.0 && statistic < 1.0, "{control}");
+    assert_eq!((control["centre"].is_null(), control["out_of_control"].as_bool()), (true, Some(false)), "{control}");
+    let h = bench.survey(&["history", "--asset", "lab/d1", "--json"]).success().json();
+    let charted = &h["surveys"][1]["check"]["control"];
+    for key in ["statistic", "centre", "lower", "upper", "out_of_control", "rules"] {
+        assert!(charted.get(key).is_some(), "history's check has control.{key}: {charted}");
+    }
+    assert_eq!(charted["statistic"].as_f64(), Some(statistic));
+    let a = bench.survey(&["due", "--asset", "lab/d1", "--json"]).success().json()["assets"][0].clone();
+    assert_eq!(a["interval_days"].as_f64(), Some(113.0), "{a}");
+    assert_eq!(a["reason"].as_str(), Some("in tolerance: lengthened by a quarter, from 90 to 113 days"));
+    assert_eq!(a["reliability"]["fraction"].as_f64(), Some(1.0), "{a}");
+
+    // Bad input: exit 2, nothing stored.
+    let before = bench.stored();
+    bench.survey(&["due", "--at", "yesterday"]).bad_input(&["--at", "'yesterday' is not a UTC time"]);
+    bench.survey(&["due", "--asset", "lab/none"]).bad_input(&["no survey of the asset lab/none"]);
+    bench.survey(&["run", "--due", "--points", "36"]).bad_input(&["--check"]);
+    bench.assert_unchanged(&before, &out);
+}
+
+/// A knock inside tolerance: after a calibration and five checks of the
+/// same Figure 8 positioner (the chart's baseline), a 3 cycles/rev line of
+/// 0.0005 deg appears (the simulators' truth). The table in force still
+/// holds and no line the check can place changed, but the check's
+/// statistic (its cells beyond the table's U) is far above the chart's
+/// upper limit: out of control, recalibrated (exit 3).
+#[test]
+fn a_knock_inside_tolerance_is_caught_by_the_control_chart_and_recalibrated() {
+    let bench = Bench::new();
+    bench.write(
+        "knock.toml",
+        format!(
+            "{FIG8}\n[[effect]]\nkind = \"harmonic\"\ncycles_per_rev = 3\namplitude_deg = 0.0005\nphase_deg = 30.0\n"
+        ),
+    );
+    let check = |seed: &str, model: Option<&str>| {
+        let mut args = vec!["run", "--check", "--asset", "lab/k", "--seed", seed, "--json"];
+        args.extend(["--points", "360", "--runs", "3", "--bidirectional"].iter().filter(|_| seed == "1"));
+        if let Some(m) = model {
+            args.extend(["--model", m]);
+        }
+        bench.survey(&args)
+    };
+    assert_eq!(check("1", None).code, 3, "the first calibration");
+    let mut statistics = Vec::new();
+    for seed in ["2", "3", "4", "5", "6"] {
+        let doc = check(seed, None).success().json();
+        assert_eq!(doc["outcome"].as_str(), Some("in tolerance"), "{doc}");
+        statistics.push(doc["check"]["control"]["statistic"].as_f64().unwrap());
+    }
+    let out = check("9", Some("knock.toml"));
+    assert_eq!(out.code, 3, "{out}");
+    let doc = out.json();
+    let control = &doc["check"]["control"];
+    let table = &doc["check"]["table_of_a_on_b"];
+    assert_eq!(table["holds"].as_bool(), Some(true), "inside tolerance: {table}");
+    assert_eq!(
+        (control["out_of_control"].as_bool(), control["rules"][0].as_str()),
+        (Some(true), Some("beyond 3 sigma"))
+    );
+    let mean = statistics.iter().sum::<f64>() / 5.0;
+    assert!((control["centre"].as_f64().unwrap() - mean).abs() < 1e-12, "the five checks' mean: {control}");
+    assert!(control["statistic"].as_f64().unwrap() > control["upper"].as_f64().unwrap(), "{control}");
+    assert_eq!(doc["outcome"].as_str(), Some("recalibrated"));
+    assert!(
+        doc["reason"].as_str().unwrap().starts_with("out of control on the control chart (beyond 3 sigma)"),
+        "{doc}"
+    );
+    // The interval halves after it; the history's check carries its point.
+    let due = bench.survey(&["due", "--asset", "lab/k", "--json"]).success().json();
+    assert_eq!(due["assets"][0]["reliability"]["in_tolerance"].as_u64(), Some(5), "{due}");
+    let h = bench.survey(&["history", "--asset", "lab/k", "--json"]).success().json();
+    let knocked = h["surveys"].as_array().unwrap().iter().rev().find(|s| s["kind"] == "check").unwrap();
+    assert_eq!(knocked["check"]["control"], *control);
+}

@@ -168,6 +168,7 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
     same(&format!("/api/surveys/{}/stats", uid.to_uppercase()), &["stats", "--survey", "2", "--json"]);
     same("/api/history/sim-fig8", &["history", "--asset", "sim-fig8", "--json"]);
     same("/api/compare/1/2", &["compare", "1", "2", "--json"]);
+    same("/api/due", &["due", "--json"]);
 
     // `/`: the asset, its calibration in force (the last) and its state; nothing live.
     let home = get(&url, "/");
@@ -197,7 +198,16 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
     // The asset's history: plotted, every survey linked.
     let page = get(&url, "/assets/sim-fig8");
     assert_eq!(page.status, 200);
-    for part in ["id=\"fig-history-lines\"", "id=\"fig-history-a\"", "<svg", "repeatability R", "/surveys/"] {
+    for part in [
+        "id=\"fig-history-lines\"",
+        "id=\"fig-history-a\"",
+        "<svg",
+        "repeatability R",
+        "/surveys/",
+        "<section id=\"due\">",
+        "staircase",
+        "<section id=\"control\">",
+    ] {
         assert!(page.body.contains(part), "/assets/sim-fig8 lacks {part}");
     }
     for s in list["surveys"].as_array().unwrap() {

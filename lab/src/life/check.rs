@@ -11,7 +11,7 @@
 //! (a recalibration, or the asset's first calibration), 1 for a failure, 2
 //! for bad input.
 
-use super::{Compared, Measured, compared, measure};
+use super::{Compared, Measured, compared, control, measure};
 use crate::conclude::{ConcludeOptions, conclude};
 use crate::correction::{self, Before, Choice};
 use crate::error::{Recalibrated, bad_input};
@@ -62,6 +62,9 @@ pub struct CheckRequest {
     /// a correction (`--correction`; a recalibration after a check that found
     /// the correction on switches it off: the table in force is replaced).
     pub correction: Choice,
+    /// Only when the asset's next check is due (`--due`: [`super::due`]);
+    /// otherwise nothing is measured and the outcome is `not due`.
+    pub only_due: bool,
 }
 
 /// The grid a check is designed on: the calibration's targets (a full
@@ -144,6 +147,11 @@ async fn check_with(
     bench: &dyn Fn(PlanSize) -> anyhow::Result<Bench>,
     stop: &Stop,
 ) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
+    if req.only_due
+        && let Some((doc, text)) = not_due(store, asset).await?
+    {
+        return Ok((doc, text, None, None));
+    }
     let Some(cal) = in_force(store, asset).await? else {
         let why = format!("no calibration of the asset {asset} is in force: a full survey calibrates it");
         survey_bench::say!("{why}");
@@ -216,18 +224,26 @@ async fn check_with(
             unseen.push(u.clone());
         }
     }
-    if !cmp.decision.recalibrate && !unseen.is_empty() {
+    // Out of control on the asset's chart, a check decides even what it
+    // could not see line by line: the table in force no longer behaves.
+    let (point, recalibrate, reason) = charted(store, asset, &cal, &cmp).await?;
+    if !recalibrate && !unseen.is_empty() {
         return undecided(store, id, &cal, &a, &c, &cmp, design.as_ref(), &unseen).await;
     }
+    let held = cmp.table_of_a_on_b.as_ref();
     let decision = CheckDecision {
         survey_id: id,
         against_uid: cal.uid.clone(),
         verdict: cmp.comparison.verdict.as_str().into(),
-        table_holds: cmp.table_of_a_on_b.as_ref().is_some_and(|t| t.holds),
-        recalibrate: cmp.decision.recalibrate,
-        reason: cmp.decision.reason.clone(),
+        table_holds: held.is_some_and(|t| t.holds),
+        recalibrate,
+        reason: reason.clone(),
         recalibration_uid: None,
         table_file: None,
+        residual_peak_deg: held.map(|t| t.residual_peak_deg),
+        stated_u_deg: held.map(|t| t.stated_u_deg),
+        cells_outside: held.map(|t| t.cells_outside as i64),
+        allowed_outside: held.map(|t| t.allowed_outside as i64),
     };
     store.record_check(&decision).await?;
     // A check has no outputs of its own: its decision is what completes it.
@@ -235,17 +251,18 @@ async fn check_with(
     keep_history(store, &a, &c, asset, id).await;
     let mut check_doc = check_json(&cmp, &a, &c, design.as_ref());
     check_doc["correction"] = found.as_str().into();
+    check_doc["control"] = point.json();
     let mut text = design_text(design.as_ref()) + &measured_text(&found) + &cmp.text(&a, &c);
     let table_of = |r: &SurveyRecord| json!({"survey_id": r.id, "uid": r.uid});
-    if !cmp.decision.recalibrate {
+    if !recalibrate {
         let outcome = if cmp.decision.changed { "changed, the table holds" } else { "in tolerance" };
         text += &format!("{outcome}: the table of survey {} stays in force\n", cal.id);
         let doc = json!({"asset": asset, "outcome": outcome, "recalibrate": false,
-            "reason": cmp.decision.reason, "check": check_doc, "recalibration": null, "table_in_force": table_of(&cal)});
+            "reason": reason, "check": check_doc, "recalibration": null, "table_in_force": table_of(&cal)});
         return Ok((doc, text, None, None));
     }
-    text += &format!("recalibrating: {}\n", cmp.decision.reason);
-    survey_bench::say!("survey {id}: recalibrating: {}", cmp.decision.reason);
+    text += &format!("recalibrating: {reason}\n");
+    survey_bench::say!("survey {id}: recalibrating: {reason}");
     let size = PlanSize { points: cal.points, runs: cal.runs, bidirectional: cal.bidirectional };
     // A correction found on is the table being replaced: off for the calibration.
     let choice = if corrected { Choice::Off } else { req.correction };
@@ -253,9 +270,52 @@ async fn check_with(
     let new_uid = full["table_in_force"]["uid"].as_str().unwrap_or_default().to_string();
     store.set_recalibration(id, &new_uid, full["table_in_force"]["table"].as_str()).await?;
     text += &full_text;
-    let doc = json!({"asset": asset, "outcome": "recalibrated", "recalibrate": true, "reason": cmp.decision.reason,
+    let doc = json!({"asset": asset, "outcome": "recalibrated", "recalibrate": true, "reason": reason,
         "check": check_doc, "recalibration": full["run"], "table_in_force": full["table_in_force"]});
-    Ok((doc, text, Some(cmp.decision.reason), None))
+    Ok((doc, text, Some(reason), None))
+}
+
+/// With `--due`: the document and text saying the asset is not due yet
+/// (nothing measured), or `None` when it is due.
+async fn not_due(store: &Store, asset: &str) -> anyhow::Result<Option<(Value, String)>> {
+    let due = super::due::due(store, Some(asset), std::time::SystemTime::now()).await?;
+    let Some(d) = due.first().filter(|d| !d.due.overdue) else { return Ok(None) };
+    let why = format!(
+        "not due: the next check of {asset} is due at {} ({})",
+        super::due::date_of(d.due.next_due_days),
+        d.due.reason
+    );
+    let doc = json!({"asset": asset, "outcome": "not due", "recalibrate": false, "reason": why,
+        "due": d.json(), "check": null, "recalibration": null});
+    Ok(Some((doc, format!("{why}: nothing measured\n"))))
+}
+
+/// The check `cmp` against the calibration in force `cal` on the asset's
+/// control chart, and what to do: recalibrate (by the comparison, or out
+/// of control even inside tolerance) and why.
+async fn charted(
+    store: &Store,
+    asset: &str,
+    cal: &SurveyRecord,
+    cmp: &Compared,
+) -> anyhow::Result<(control::Point, bool, String)> {
+    let held = cmp.table_of_a_on_b.as_ref();
+    let statistic = held.map(|t| control::statistic(t.cells_outside, t.allowed_outside));
+    let earlier: Vec<control::Check> = store.checks_of_asset(asset).await?.iter().map(control::Check::of).collect();
+    let point = control::next(&earlier, &control::chart(&earlier), statistic, &cal.uid);
+    if cmp.decision.recalibrate || !point.out_of_control() {
+        return Ok((point, cmp.decision.recalibrate, cmp.decision.reason.clone()));
+    }
+    let reason = format!(
+        "{} ({}): the table holds, but this check is unlike the asset's earlier ones (statistic {:.3}, limits {} \
+         to {}): recalibrating",
+        control::OUT_OF_CONTROL,
+        point.rules.join(", "),
+        point.statistic.unwrap_or(f64::NAN),
+        point.lower().map_or("-".into(), |v| format!("{v:.3}")),
+        point.upper().map_or("-".into(), |v| format!("{v:.3}")),
+    );
+    Ok((point, true, reason))
 }
 
 /// A check measured with the correction on: its samples with the table in

@@ -92,20 +92,48 @@ pub async fn history(store: &Store, asset: &str, up_to: Option<i64>) -> anyhow::
     Ok(History { asset: asset.to_string(), surveys, changes, not_compared, checks, in_lab_store })
 }
 
+/// A check's point of the control chart, in words.
+fn control_text(p: &super::control::Point) -> String {
+    match (p.statistic, p.centre, p.lower(), p.upper()) {
+        (None, ..) => "not measured (a check stored before the chart)".into(),
+        (Some(x), Some(c), Some(lo), Some(hi)) => format!(
+            "statistic {x:.3}, centre {c:.3}, limits {lo:.3} to {hi:.3}: {}",
+            if p.out_of_control() { format!("OUT OF CONTROL ({})", p.rules.join(", ")) } else { "in control".into() }
+        ),
+        (Some(x), ..) => format!("statistic {x:.3} (no limits before {} checks in control)", super::control::BASELINE),
+    }
+}
+
 impl History {
     /// The check decision of survey `id`, if it is a check.
     fn check(&self, id: i64) -> Option<&CheckDecision> {
         self.checks.iter().find(|c| c.survey_id == id)
     }
 
-    /// `survey history --json` (the contract's keys and more).
+    /// The control chart of the checks, one point each, in their order.
+    pub fn control(&self) -> Vec<super::control::Point> {
+        let checks: Vec<super::control::Check> = self.checks.iter().map(super::control::Check::of).collect();
+        super::control::chart(&checks)
+    }
+
+    /// `survey history --json` (the contract's keys and more): a check's
+    /// decision carries its point of the control chart (`control`).
     pub fn json(&self) -> Value {
+        let chart = self.control();
         let surveys: Vec<Value> = self
             .surveys
             .iter()
             .map(|m| {
                 let mut doc = m.json();
-                doc["check"] = serde_json::to_value(self.check(m.survey.id)).unwrap_or_default();
+                let at = self.checks.iter().position(|c| c.survey_id == m.survey.id);
+                doc["check"] = match at {
+                    Some(i) => {
+                        let mut c = serde_json::to_value(&self.checks[i]).unwrap_or_default();
+                        c["control"] = chart[i].json();
+                        c
+                    }
+                    None => Value::Null,
+                };
                 doc
             })
             .collect();
@@ -121,6 +149,7 @@ impl History {
 
     /// For people: one line per survey, then the changes.
     pub fn text(&self) -> String {
+        let chart = self.control();
         let n = self.surveys.len();
         let mut s = format!("asset {}: {n} {}\n", self.asset, if n == 1 { "survey" } else { "surveys" });
         let _ = writeln!(
@@ -168,6 +197,9 @@ impl History {
                         _ => String::new(),
                     }
                 );
+                if let Some(p) = self.checks.iter().position(|d| d.survey_id == c.survey_id).map(|i| &chart[i]) {
+                    let _ = writeln!(s, "      control chart: {}", control_text(p));
+                }
             }
         }
         if !self.changes.is_empty() {

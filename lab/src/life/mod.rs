@@ -14,7 +14,12 @@
 pub mod cache;
 pub mod check;
 mod codec;
+pub mod control;
+pub mod due;
 pub mod history;
+pub mod interval;
+#[cfg(test)]
+mod year_tests;
 
 pub use cache::lines_seen;
 

@@ -12,6 +12,44 @@ fn shown(at: &Places, key: &str, value: f64) -> String {
     at.written(key).map_or_else(|| Num(value).to_string(), str::to_string)
 }
 
+/// `[asset]`'s interval within its bounds: `interval_min_days` <=
+/// `interval_days` <= `interval_max_days` (defaults 7, 90, 365).
+fn check_interval(a: &super::AssetSection, at: &Places) -> Result<(), Defect> {
+    use super::AssetSection as A;
+    let min = a.interval_min_days.unwrap_or(A::DEFAULT_MIN_DAYS);
+    let max = a.interval_max_days.unwrap_or(A::DEFAULT_MAX_DAYS);
+    let days = a.interval_days.unwrap_or(A::DEFAULT_INTERVAL_DAYS);
+    let bound = |key: &str, default: f64| at.cite(key, &Num(default).to_string());
+    if max < min {
+        let text = format!(
+            "{} is below {}: the longest interval cannot be shorter than the shortest",
+            shown(at, "asset.interval_max_days", max),
+            bound("asset.interval_min_days", A::DEFAULT_MIN_DAYS)
+        );
+        let key = if at.written("asset.interval_max_days").is_some() {
+            "asset.interval_max_days"
+        } else {
+            "asset.interval_min_days"
+        };
+        return Err(at.defect(key, text));
+    }
+    if !(min..=max).contains(&days) {
+        let (side, key, default) = if days < min {
+            ("below", "asset.interval_min_days", A::DEFAULT_MIN_DAYS)
+        } else {
+            ("above", "asset.interval_max_days", A::DEFAULT_MAX_DAYS)
+        };
+        let text = format!(
+            "{} days is {side} {}: the first interval lies within the bounds a review keeps to",
+            shown(at, "asset.interval_days", days),
+            bound(key, default)
+        );
+        let key = if at.written("asset.interval_days").is_some() { "asset.interval_days" } else { key };
+        return Err(at.defect(key, text));
+    }
+    Ok(())
+}
+
 impl SurveyConfig {
     /// The sections consistent, in this order: the asset, the reference's
     /// instruments, the plan, the durations the timing makes, the arm, the
@@ -19,6 +57,7 @@ impl SurveyConfig {
     pub(super) fn check(&self, at: &Places) -> Result<(), Defect> {
         if let Some(a) = &self.asset {
             crate::asset::asset_id(&a.id).map_err(|e| at.defect("asset.id", e))?;
+            check_interval(a, at)?;
         }
         self.check_reference(at)?;
         if let Some([lo, hi]) = self.survey.travel_deg

@@ -91,7 +91,7 @@ pub(super) const ROOT: &[Field] = &[
             opt("correct", Ty::Flag),
         ]),
     ),
-    opt("asset", Ty::Table(&[req("id", Ty::Text)])),
+    opt("asset", Ty::Table(ASSET)),
     opt(
         "smrs",
         Ty::Table(&[
@@ -100,6 +100,20 @@ pub(super) const ROOT: &[Field] = &[
         ]),
     ),
 ];
+
+/// `[asset]`: the axis, and how the interval between its checks is set
+/// (ILAC-G24; `survey due`).
+const ASSET: &[Field] = &[
+    req("id", Ty::Text),
+    opt("interval_days", DAYS),
+    opt("interval_method", Ty::Choice(&["staircase", "control-chart", "in-use", "fixed"])),
+    opt("interval_min_days", DAYS),
+    opt("interval_max_days", DAYS),
+    opt("interval_revolutions", Ty::Number(Low::Above(0.0), 1e9, "revolutions")),
+];
+
+/// An interval in days: a day to ten years.
+const DAYS: Ty = Ty::Number(Low::From(1.0), 3650.0, "days");
 
 const SURVEY: &[Field] = &[
     opt("points", Ty::Whole(2, u32::MAX as i128)),

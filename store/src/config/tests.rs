@@ -42,6 +42,48 @@ fn the_asset_section_names_the_surveys_asset_and_is_checked() {
 }
 
 #[test]
+fn the_asset_s_interval_keys_are_checked_against_each_other() {
+    let with = |keys: &str| format!("{TRACKER_BENCH}[asset]\nid = \"a\"\n{keys}");
+    let cfg = SurveyConfig::parse(
+        &with("interval_days = 30\ninterval_method = \"control-chart\"\ninterval_max_days = 60\n"),
+        "c.toml",
+    )
+    .unwrap();
+    let a = cfg.asset.clone().unwrap();
+    assert_eq!((a.interval_days, a.interval_method.as_deref()), (Some(30.0), Some("control-chart")));
+    assert_eq!((a.interval_min_days, a.interval_max_days), (None, Some(60.0)));
+    let text = serde_json::to_string(&cfg).unwrap();
+    assert_eq!(serde_json::from_str::<SurveyConfig>(&text).unwrap(), cfg);
+    for (keys, says) in [
+        (
+            "interval_method = \"weekly\"\n",
+            "c.toml:9: asset.interval_method: \"weekly\" is not among the choices: it takes one of \"staircase\"",
+        ),
+        ("interval_days = 0.5\n", "c.toml:9: asset.interval_days: 0.5 is out of range"),
+        ("interval_revolutions = 0\n", "c.toml:9: asset.interval_revolutions: 0 is out of range"),
+        (
+            "interval_days = 400\n",
+            "c.toml:9: asset.interval_days: 400 days is above asset.interval_max_days (not given: 365)",
+        ),
+        (
+            "interval_days = 10\ninterval_min_days = 14\n",
+            "c.toml:9: asset.interval_days: 10 days is below asset.interval_min_days = 14 (line 10)",
+        ),
+        (
+            "interval_min_days = 120\n",
+            "c.toml:9: asset.interval_min_days: 90 days is below asset.interval_min_days = 120",
+        ),
+        (
+            "interval_min_days = 30\ninterval_max_days = 20\n",
+            "c.toml:10: asset.interval_max_days: 20 is below asset.interval_min_days = 30 (line 9)",
+        ),
+    ] {
+        let e = error_of(&with(keys));
+        assert!(e.starts_with(says), "{keys}: {e}");
+    }
+}
+
+#[test]
 fn every_number_is_finite_and_within_its_stated_range() {
     assert!(SurveyConfig::parse(TRACKER_BENCH, "c.toml").is_ok());
     for (extra, says) in [
