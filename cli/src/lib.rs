@@ -339,7 +339,7 @@ pub fn main() -> ExitCode {
                 }
                 // A recalibration is what `run --check` reports, not an error.
                 None if status == survey_lab::error::RECALIBRATED => survey_bench::say!("{e:#}"),
-                None => survey_bench::say!("error: {e:#}"),
+                None => survey_bench::say!("error: {}", survey_store::error::said(&e)),
             }
             ExitCode::from(status)
         }

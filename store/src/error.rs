@@ -50,3 +50,31 @@ impl PathError {
 pub fn path_error(e: std::io::Error, what: String) -> anyhow::Error {
     PathError { what, io: e }.into()
 }
+
+/// An error's chain for people: as `{e:#}` prints it, but a SQLite
+/// failure the user can act on said in words where its codes would stand
+/// (`(code: 13) database or disk is full`, twice: sqlx's error and its
+/// source), and nothing of it beneath.
+pub fn said(e: &anyhow::Error) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    for c in e.chain() {
+        let words = c.downcast_ref::<sqlx::Error>().and_then(crate::sqlite_code).and_then(|code| match code & 0xff {
+            13 => Some(
+                "the disk is full (SQLite could not write: free some space; a survey stopped by it is kept and \
+                 `survey resume` continues it)",
+            ),
+            11 => Some("the database file is damaged (SQLite found its pages malformed)"),
+            10 => Some("the disk could not be read or written (an I/O error beneath SQLite)"),
+            _ => None,
+        });
+        match words {
+            Some(w) => {
+                parts.push(w.to_string());
+                break;
+            }
+            None => parts.push(c.to_string()),
+        }
+    }
+    parts.dedup();
+    parts.join(": ")
+}

@@ -121,6 +121,7 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         .map_err(|e| bad_input(format!("--db {shown}: not a PostgreSQL URL ({})", reason(&e))))?;
     let (host, port) = (options.get_host().to_string(), options.get_port());
     let user = options.get_username().to_string();
+    root_certificate_readable(url, &shown)?;
     // One connection first, on its own: the pool retries a refused one until
     // its timeout, where a refusal is said at once.
     match tokio::time::timeout(CONNECT_TIMEOUT, sqlx::ConnectOptions::connect(&options)).await {
@@ -352,6 +353,25 @@ async fn check_schema(pool: &sqlx::PgPool, shown: &str) -> anyhow::Result<i64> {
     }
 }
 
+/// The URL's `sslrootcert` (a CA's PEM file) named when it cannot serve:
+/// missing, unreadable or not a PEM certificate, before any connection is
+/// tried (the TLS library would say only "No such file or directory" or
+/// "not signed by a known authority").
+fn root_certificate_readable(url: &str, shown: &str) -> anyhow::Result<()> {
+    let Ok(parsed) = url::Url::parse(url) else { return Ok(()) };
+    let Some((_, path)) = parsed.query_pairs().find(|(k, _)| k == "sslrootcert") else { return Ok(()) };
+    let text = std::fs::read(path.as_ref()).map_err(|e| {
+        bad_input(format!("--db {shown}: sslrootcert={path}: cannot read the CA's certificate file: {e}"))
+    })?;
+    if !String::from_utf8_lossy(&text).contains("-----BEGIN CERTIFICATE-----") {
+        return Err(bad_input(format!(
+            "--db {shown}: sslrootcert={path} is not a PEM certificate file (no \"-----BEGIN CERTIFICATE-----\" \
+             line): give the CA's certificate in PEM form"
+        )));
+    }
+    Ok(())
+}
+
 /// What a configuration error says, without its debug form (which would
 /// show the options, the password among them).
 fn reason(e: &sqlx::Error) -> String {
@@ -430,6 +450,25 @@ mod tests {
         assert_eq!(display(Path::new("postgres://u:pw@h/d")), "postgres://u@h/d");
         assert_eq!(display(Path::new("station.db")), "station.db");
         assert!(url_of(Path::new("postgres.db")).is_none() && url_of(Path::new("postgres://h/d")).is_some());
+    }
+
+    /// Issue 51: a missing or non-PEM `sslrootcert` is named before any
+    /// connection, with the URL shown without its password; a PEM file passes.
+    #[test]
+    fn a_root_certificate_that_cannot_serve_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let url = |f: &str| format!("postgres://lab:s3cret@db/x?sslmode=verify-full&sslrootcert={f}");
+        let missing = dir.path().join("none.pem").display().to_string();
+        let e = format!("{:#}", root_certificate_readable(&url(&missing), "postgres://lab@db/x").unwrap_err());
+        assert!(e.contains(&format!("sslrootcert={missing}: cannot read")) && !e.contains("s3cret"), "{e}");
+        let der = dir.path().join("ca.der");
+        std::fs::write(&der, [0x30u8, 0x82, 0x01, 0x0a]).unwrap();
+        let e = format!("{:#}", root_certificate_readable(&url(&der.display().to_string()), "x").unwrap_err());
+        assert!(e.contains("is not a PEM certificate file"), "{e}");
+        let pem = dir.path().join("ca.pem");
+        std::fs::write(&pem, "-----BEGIN CERTIFICATE-----\nMIIB\n-----END CERTIFICATE-----\n").unwrap();
+        root_certificate_readable(&url(&pem.display().to_string()), "x").unwrap();
+        root_certificate_readable("postgres://lab@db/x?sslmode=require", "x").unwrap();
     }
 
     #[test]

@@ -517,7 +517,7 @@ fn is_foreign_key_error(e: &sqlx::Error) -> bool {
 }
 
 /// SQLite's (extended) result code of a database error.
-fn sqlite_code(e: &sqlx::Error) -> Option<u32> {
+pub(crate) fn sqlite_code(e: &sqlx::Error) -> Option<u32> {
     e.as_database_error().and_then(|d| d.code()).and_then(|c| c.parse().ok())
 }
 

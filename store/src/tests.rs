@@ -509,6 +509,9 @@ async fn fill_until_full(path: &std::path::Path, store: Store, free_space: impl 
     for seq in 0..1_000_000 {
         if let Err(e) = sink.record(recorded(seq)).await {
             assert!(format!("{e:#}").contains("full"), "{e:#}");
+            // Said in words, once, without SQLite's codes (issue 51).
+            let said = crate::error::said(&e);
+            assert!(said.contains("the disk is full") && !said.contains("code: 13"), "{said}");
             failed_at = Some(seq);
             break;
         }
