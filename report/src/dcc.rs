@@ -21,6 +21,7 @@
 //!
 //! Written with quick-xml's [`Writer`] (every text escaped by it).
 
+use crate::certificate::Issue;
 use crate::conformity::{self, Decision};
 use crate::html::Page;
 use crate::html::header::{environment_text, method_text, performed};
@@ -61,6 +62,7 @@ impl Xml {
 
     /// `<name>text</name>`.
     fn leaf(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
+        xml_text(name, text)?;
         self.open(name, &[])?;
         self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
         self.close(name)
@@ -68,6 +70,7 @@ impl Xml {
 
     /// A `textType`/`richContentType` element: `<name><dcc:content lang="en">text</dcc:content></name>`.
     fn words(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
+        xml_text(name, text)?;
         self.open(name, &[])?;
         self.open("dcc:content", &[("lang", "en")])?;
         self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
@@ -145,6 +148,27 @@ impl Xml {
     }
 }
 
+/// Refuse text that XML 1.0 cannot hold as written or that a certificate
+/// cannot print: a control character but tab and line feed (NUL and most C0
+/// controls are not XML characters; a carriage return would be read back as
+/// a line feed), U+FFFE and U+FFFF. What XML can hold, quick-xml escapes
+/// (`&`, `<`, `>`, quotes). The configuration and the flags refuse these
+/// first; this is for what reaches the writer otherwise (a survey stored
+/// before they did).
+fn xml_text(element: &str, text: &str) -> anyhow::Result<()> {
+    let bad = |c: char| (c.is_control() && c != '\n' && c != '\t') || c == '\u{FFFE}' || c == '\u{FFFF}';
+    match text.chars().enumerate().find(|(_, c)| bad(*c)) {
+        None => Ok(()),
+        Some((i, c)) => Err(survey_lab::error::bad_input(format!(
+            "the DCC cannot hold {element}'s text {:?}: the character U+{:04X} at character {} is not printable \
+             (state the field again with its survey report flag)",
+            text.chars().take(40).collect::<String>(),
+            c as u32,
+            i + 1
+        ))),
+    }
+}
+
 /// A value of the page's number format, as the D-SI writes it (`1e-5`, `0.0350`).
 fn decimal(shown: &str) -> String {
     shown.split_whitespace().next().unwrap_or(shown).to_string()
@@ -215,7 +239,26 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.leaf("dcc:beginPerformanceDate", &begin)?;
     x.leaf("dcc:endPerformanceDate", &end)?;
     x.leaf("dcc:performanceLocation", "other")?;
-    x.leaf("dcc:issueDate", p.d.generated.get(..10).unwrap_or(&p.d.generated))?;
+    let issued = match &p.d.issue {
+        Issue::Issued { issued_at, .. } => issued_at,
+        Issue::Draft(_) => &p.d.generated,
+    };
+    x.leaf("dcc:issueDate", issued.get(..10).unwrap_or(issued))?;
+    if let Issue::Issued { replaces: Some(r), .. } = &p.d.issue {
+        x.open("dcc:previousReport", &[])?;
+        x.words(
+            "dcc:referral",
+            &format!(
+                "calibration certificate {} issued {}, withdrawn: this certificate replaces it",
+                r.number, r.issued_at
+            ),
+        )?;
+        x.leaf("dcc:referralID", &r.number)?;
+        x.leaf("dcc:procedure", "SHA-256 of its dcc.xml as issued")?;
+        x.leaf("dcc:value", &r.dcc_sha256)?;
+        x.words("dcc:description", &format!("Reason for the amendment: {}", r.reason))?;
+        x.close("dcc:previousReport")?;
+    }
     x.close("dcc:coreData")?;
 
     x.open("dcc:items", &[])?;
@@ -270,6 +313,18 @@ fn statements(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         Some(("ISO/IEC 17025:2017", "7.8.2.1")),
         "The results relate only to the item calibrated, as it was when calibrated.",
     )?;
+    match &p.d.issue {
+        Issue::Issued { replaces: Some(r), .. } => x.statement(
+            "survey_amendment",
+            Some(("ISO/IEC 17025:2017", "7.8.8")),
+            &format!(
+                "This certificate replaces certificate {} issued {}, which is withdrawn. Reason: {}",
+                r.number, r.issued_at, r.reason
+            ),
+        )?,
+        Issue::Draft(why) => x.statement("survey_draft", None, &format!("Draft, not issued: {why}."))?,
+        Issue::Issued { .. } => {}
+    }
     x.statement("basic_traceability", None, stated(&cert.traceability))?;
     x.statement("survey_itemCondition", None, &format!("Condition of the item: {}", stated(&cert.item_condition)))?;
     x.statement("survey_location", None, &format!("Location of the calibration: {}", stated(&cert.location)))?;
@@ -493,4 +548,36 @@ fn table(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.close("dcc:list")?;
     x.close("dcc:data")?;
     x.close("dcc:result")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_xml_cannot_hold_is_refused_and_the_rest_is_escaped() {
+        for bad in ["J. Smith\u{7}", "a\u{0}b", "a\rb", "\u{1b}[31m", "a\u{85}", "\u{FFFF}"] {
+            let e = xml_text("dcc:content", bad).unwrap_err();
+            assert!(survey_lab::error::is_bad_input(&e), "{e:#}");
+            assert!(format!("{e:#}").contains("U+"), "{e:#}");
+        }
+        let hostile = "<a b=\"c\">&amp; ]]> '\u{202E}x\ty\nz \u{1F600}";
+        xml_text("dcc:content", hostile).unwrap();
+        let mut x = Xml { w: Writer::new(Vec::new()) };
+        x.words("dcc:name", hostile).unwrap();
+        let written = String::from_utf8(x.w.into_inner()).unwrap();
+        let mut reader = quick_xml::Reader::from_str(&written);
+        let mut text = String::new();
+        loop {
+            match reader.read_event().unwrap() {
+                Event::Eof => break,
+                Event::Text(t) => text += &t.xml10_content(),
+                Event::GeneralRef(r) => {
+                    text += &quick_xml::escape::unescape(&format!("&{};", r.xml10_content())).unwrap();
+                }
+                _ => {}
+            }
+        }
+        assert_eq!(text, hostile, "read back as written: {written}");
+    }
 }

@@ -218,6 +218,8 @@ pub fn router(options: ServeOptions) -> Router {
         .route("/static/live.js", get(pages::script))
         .route("/assets/{*asset}", get(pages::asset))
         .route("/surveys/{survey}", get(pages::survey))
+        .route("/surveys/{survey}/dcc.xml", get(pages::survey_dcc))
+        .route("/surveys/{survey}/certificate.html", get(pages::survey_certificate))
         .nest("/api", api::routes())
         .fallback(not_found)
         .layer(middleware::from_fn(guard))

@@ -580,6 +580,53 @@ impl SurveyConfig {
     }
 }
 
+/// The most characters a text field of the certificate holds (`laboratory`,
+/// `traceability`, `signatory`, ...): about six lines of the header's value
+/// column on A4 at 10 pt (some 67 characters a line), or two of a DCC
+/// reader's screen; a longer text is not a field but a document.
+pub const FIELD_MAX_CHARS: usize = 400;
+
+/// The most characters a certificate number holds: one line of the running
+/// head printed at the top of every page.
+pub const NUMBER_MAX_CHARS: usize = 64;
+
+/// The first control character of `text` (NUL, tab, a line break, escape,
+/// the C1 controls), with its place, counted in characters from 1.
+pub fn control_character(text: &str) -> Option<(usize, char)> {
+    text.chars().enumerate().find(|(_, c)| c.is_control()).map(|(i, c)| (i + 1, c))
+}
+
+/// Text a certificate can print on its line: not empty (nor only spaces), no
+/// control character (a field is one line: an address's parts are separated
+/// by commas), at most `max` characters. The reason, as a predicate of the
+/// text (`is empty`).
+pub fn check_printable(text: &str, max: usize) -> Result<(), String> {
+    let count = text.chars().count();
+    if text.trim().is_empty() {
+        Err("is empty: a key that is given must state something (leave it out to have \"not stated\")".into())
+    } else if let Some((at, c)) = control_character(text) {
+        Err(format!(
+            "holds the control character U+{:04X} at character {at}, which a certificate cannot print (one line, \
+             no tab, no line break)",
+            c as u32
+        ))
+    } else if count > max {
+        Err(format!("is {count} characters long: a certificate's field holds at most {max}"))
+    } else {
+        Ok(())
+    }
+}
+
+/// A text field of the certificate: [`check_printable`] with [`FIELD_MAX_CHARS`].
+pub fn check_field(text: &str) -> Result<(), String> {
+    check_printable(text, FIELD_MAX_CHARS)
+}
+
+/// A certificate number: [`check_printable`] with [`NUMBER_MAX_CHARS`].
+pub fn check_number(text: &str) -> Result<(), String> {
+    check_printable(text, NUMBER_MAX_CHARS)
+}
+
 /// A calendar date `YYYY-MM-DD` that exists (`2026-02-30` does not).
 pub fn check_date(text: &str) -> Result<(), String> {
     let shaped = text.len() == 10

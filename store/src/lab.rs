@@ -50,6 +50,7 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (8, "history cache", include_str!("../../migrations/postgres/0008_history_cache.sql")),
     (9, "environment", include_str!("../../migrations/postgres/0009_environment.sql")),
     (10, "smr readings", include_str!("../../migrations/postgres/0010_smr_readings.sql")),
+    (11, "certificates", include_str!("../../migrations/postgres/0011_certificates.sql")),
 ];
 
 /// The oldest lab store schema a read command reads as it is (migration 8
@@ -147,6 +148,7 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         writable: setup,
         cache: setup,
         environment: setup,
+        certificates: setup,
     };
     let at = Server { host, port, user };
     let ready = if setup {
@@ -155,6 +157,7 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         check_schema(&pool, &shown).await.map(|version| {
             store.cache = version >= super::CACHE_SCHEMA;
             store.environment = version >= super::ENVIRONMENT_SCHEMA;
+            store.certificates = version >= super::CERTIFICATE_SCHEMA;
         })
     };
     let ready = ready.map_err(|e| explained(e, &at, if setup { PUSHING } else { "reading its schema" }));

@@ -38,6 +38,7 @@ pub mod runtime;
 pub mod survey;
 
 mod cache;
+mod certificates;
 mod check_points;
 mod checks;
 mod damage;
@@ -54,6 +55,7 @@ mod surveys;
 mod tests;
 mod tx;
 
+pub use certificates::Issued;
 pub use checks::CheckDecision;
 pub use damage::WHOLE_CHECK_BYTES;
 pub use lock::{AcquirerLock, Holder, RESERVE_BYTES, SurveyBusy, is_held, lock_path};
@@ -119,7 +121,11 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (8, "history cache", include_str!("../../migrations/0008_history_cache.sql")),
     (9, "environment", include_str!("../../migrations/0009_environment.sql")),
     (10, "smr readings", include_str!("../../migrations/0010_smr_readings.sql")),
+    (11, "certificates", include_str!("../../migrations/0011_certificates.sql")),
 ];
+
+/// The schema that keeps the certificates issued (`certificates`).
+const CERTIFICATE_SCHEMA: i64 = 11;
 
 /// The schema that keeps the air of every tracker measurement (`raw_readings.air_*`).
 const ENVIRONMENT_SCHEMA: i64 = 9;
@@ -185,6 +191,8 @@ pub struct Store {
     cache: bool,
     /// The environment's columns are there (schema 9; an older file read as it is has none).
     environment: bool,
+    /// The certificates' table is there (schema 11; an older file read as it is has none).
+    certificates: bool,
 }
 
 /// The database behind a [`Store`].
@@ -266,11 +274,13 @@ impl Store {
             writable: false,
             cache: false,
             environment: false,
+            certificates: false,
         };
         match store.check_schema().await {
             Ok(version) => {
                 store.cache = version >= CACHE_SCHEMA;
                 store.environment = version >= ENVIRONMENT_SCHEMA;
+                store.certificates = version >= CERTIFICATE_SCHEMA;
             }
             Err(e) => {
                 store.close().await;
@@ -408,6 +418,7 @@ impl Store {
                             writable: true,
                             cache: true,
                             environment: true,
+                            certificates: true,
                         });
                     }
                     Err(e) => {
@@ -445,6 +456,12 @@ impl Store {
     /// The database file.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Whether it was opened to write (a station's file by a command that
+    /// writes, the lab store by `survey push`).
+    pub fn is_writable(&self) -> bool {
+        self.writable
     }
 
     /// The SQLite journal mode in force (`"wal"`).

@@ -420,7 +420,8 @@ fn report_pdf_prints_the_certificate_in_at_most_12_pages_with_page_x_of_y_on_eve
         }
     }
     // With --appendix the appendix is printed after the end of the certificate, open.
-    bench.survey(&["report", "--out", "a", "--appendix"]).success();
+    // (The certificate is issued: printing its appendix too is an amendment.)
+    bench.survey(&["report", "--out", "a", "--appendix", "--amend", "the appendix printed too"]).success();
     let html = bench.read("a/index.html");
     assert!(
         html.contains("<section id=\"iso230-targets\" class=\"page appendix\">") && html.contains("<details open>")

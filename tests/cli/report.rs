@@ -133,7 +133,8 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     // The appendix is in the page, folded, and not printed without --appendix.
     assert!(html.contains("class=\"appendix screen-only\">") && html.contains("<details><summary>"), "folded");
     assert!(
-        html.contains("made from the survey&#x27;s date and id") || html.contains("made from the survey's date and id")
+        html.contains("made from the survey&#x27;s date and uid")
+            || html.contains("made from the survey's date and uid")
     );
     assert!(html.contains("not traceable to the SI"), "a simulated reference is not traceable");
     assert!(html.contains("counter(page) \" of \" counter(pages)"), "page x of y in print");
@@ -259,7 +260,8 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         (vec!["--tolerance", "0"], vec!["--tolerance"]),
         (vec!["--tolerance", "-0.01"], vec!["--tolerance"]),
         (vec!["--certificate-number", " "], vec!["--certificate-number"]),
-        (vec!["--model", "missing.toml"], vec!["missing.toml"]),
+        // The certificate is issued: a flag that would change it is refused (an amendment says why).
+        (vec!["--model", "missing.toml"], vec!["--model would change it", "--amend"]),
         (vec!["--received", "2026-02-30"], vec!["--received 2026-02-30: 2026-02-30 is not a date (no such day"]),
         (
             vec!["--received", "20.11.2026"],
@@ -302,6 +304,11 @@ fn a_verified_survey_shows_native_and_corrected_on_one_scale() {
 fn verdict(bench: &Bench, tolerance: f64, extra: &[&str]) -> String {
     let t = tolerance.to_string();
     let mut args = vec!["report", "--survey", "1", "--out", "v", "--tolerance", &t];
+    // The first report issues the certificate; another tolerance is an amendment.
+    let amend = format!("judged against {t} deg");
+    if bench.exists("v/index.html") {
+        args.extend(["--amend", &amend]);
+    }
     args.extend(extra);
     bench.survey(&args).success();
     let html = bench.read("v/index.html");
@@ -360,8 +367,9 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
             .to_string();
         row.split('<').next().unwrap().parse::<f64>().unwrap()
     };
-    bench.survey(&["report", "--survey", "1", "--out", "coarse", "--reference-uncertainty", "0.01"]).success();
-    bench.survey(&["report", "--survey", "1", "--out", "none"]).success();
+    let coarse = ["--reference-uncertainty", "0.01", "--amend", "a coarser reference"];
+    bench.survey(&[&["report", "--survey", "1", "--out", "coarse"][..], &coarse].concat()).success();
+    bench.survey(&["report", "--survey", "1", "--out", "none", "--amend", "nothing stated"]).success();
     // The simulated tracker's random 0.000227 deg against 0.01 deg: about 44 times the contribution.
     let ratio = budget_u("coarse") / budget_u("none");
     assert!((ratio - 0.01 / 0.000_227).abs() < 0.5, "{ratio}");

@@ -127,22 +127,6 @@ pub fn get(url: &str, path: &str) -> Response {
     request(url, "GET", path)
 }
 
-/// The report page without the moment it was made (`report made <RFC 3339>`).
-fn undated(html: &str) -> String {
-    let mut parts = html.split("report made ");
-    let mut out = parts.next().unwrap_or_default().to_string();
-    for p in parts {
-        assert!(
-            p.len() >= 20 && p.as_bytes()[19] == b'Z',
-            "a time stamp after 'report made': {}",
-            &p[..30.min(p.len())]
-        );
-        out += "report made (when)";
-        out += &p[20..];
-    }
-    out
-}
-
 #[test]
 fn every_path_answers_with_its_status_and_the_commands_documents() {
     let bench = Bench::new();
@@ -204,15 +188,30 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
         assert!(page.body.contains(&format!("href=\"/surveys/{}\"", s["uid"].as_str().unwrap())));
     }
 
-    // The survey's page is the report `survey report` writes.
+    // Before a certificate is issued the survey's page is its draft, and says so.
+    let draft = get(&url, &format!("/surveys/{uid}"));
+    assert!(draft.body.contains("id=\"draft\"><b>Draft, not issued</b>"), "{}", draft.body);
+    // Once issued, the survey's page is the certificate `survey report` wrote, byte for byte.
     bench.survey(&["report", "--survey", &uid, "--out", "r"]).success();
     let report = get(&url, &format!("/surveys/{uid}"));
     assert_eq!(report.status, 200);
-    // The report `survey report` writes, with the way back at its top (home, the asset's history).
-    let way_back = "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> \
-                    &middot; the history of <a href=\"/assets/sim-fig8\">sim-fig8</a></nav>\n";
-    assert!(report.body.contains(way_back), "{}", report.body);
-    assert_eq!(undated(&report.body.replacen(way_back, "", 1)), undated(&bench.read("r/index.html")));
+    // The certificate, with the way back at its top (home, the asset's history) and its files.
+    let way_back = format!(
+        "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> &middot; the \
+         history of <a href=\"/assets/sim-fig8\">sim-fig8</a> &middot; this certificate as issued: <a \
+         href=\"/surveys/{uid}/certificate.html\">the page</a>, <a href=\"/surveys/{uid}/dcc.xml\">its DCC \
+         (dcc.xml)</a></nav>\n"
+    );
+    assert!(report.body.contains(&way_back), "{}", report.body);
+    assert_eq!(report.body.replacen(&way_back, "", 1), bench.read("r/index.html"));
+    for (path, file, kind) in [
+        ("certificate.html", "r/index.html", "text/html; charset=utf-8"),
+        ("dcc.xml", "r/dcc.xml", "application/xml; charset=utf-8"),
+    ] {
+        let got = get(&url, &format!("/surveys/{uid}/{path}"));
+        assert_eq!((got.status, got.header("content-type")), (200, Some(kind)), "{path}");
+        assert!(got.body == bench.read(file), "{path} is {file} byte for byte");
+    }
     assert_eq!(get(&url, "/surveys/2").status, 200, "an id names it too");
 
     // The script, same-origin.

@@ -2,6 +2,7 @@
 //! each with where it came from, the survey, its plan and dates.
 
 use super::{Page, Section};
+use crate::certificate::Issue;
 use crate::certificate::{BENCH, Certificate, Stated};
 use crate::page::escape;
 use std::fmt::Write as _;
@@ -139,7 +140,7 @@ fn fields(p: &Page<'_>) -> String {
                 escape(&survey.updated_at),
             ),
         ),
-        ("Issued", format!("report made {} by survey {}", escape(generated), env!("CARGO_PKG_VERSION"))),
+        ("Issued", issued_text(&p.d.issue, generated)),
         ("Units", format!("errors in {}; angles in degrees", units.symbol())),
     ];
     let mut html = String::from("<table class=\"header\" id=\"tbl-header\"><tbody>\n");
@@ -147,6 +148,23 @@ fn fields(p: &Page<'_>) -> String {
         let _ = writeln!(html, "<tr><td>{k}</td><td>{v}</td></tr>");
     }
     html + "</tbody></table>\n"
+}
+
+/// When the certificate was issued and what it replaces, or that it is a draft.
+fn issued_text(issue: &Issue, generated: &str) -> String {
+    let by = format!("by survey {}", env!("CARGO_PKG_VERSION"));
+    match issue {
+        Issue::Issued { issued_at, replaces: None, .. } => format!("{} {by}", escape(issued_at)),
+        Issue::Issued { issued_at, replaces: Some(r), seq, .. } => format!(
+            "{} {by}: amendment {} replacing certificate {} of {} ({})",
+            escape(issued_at),
+            seq - 1,
+            escape(&r.number),
+            escape(&r.issued_at),
+            escape(&r.reason)
+        ),
+        Issue::Draft(why) => format!("not issued: a draft made {} {by} ({})", escape(generated), escape(why)),
+    }
 }
 
 /// The section: the certificate's fields.

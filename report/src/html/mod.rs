@@ -35,7 +35,8 @@ pub mod table;
 pub mod uncertainty;
 pub mod verification;
 
-use crate::certificate::Certificate;
+use crate::certificate::Issue;
+use crate::certificate::{Certificate, Stated};
 use crate::page::{self, escape};
 use crate::units::Units;
 use crate::{ReportData, ReportOptions};
@@ -161,6 +162,24 @@ fn end(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     Ok(Some(Section { id: "authorisation", title: "Statements and authorisation".into(), new_page: false, body }))
 }
 
+/// Under the number: what this certificate replaces and why (an
+/// amendment), or that the page is a draft and why.
+fn issue_note(issue: &Issue) -> String {
+    match issue {
+        Issue::Issued { replaces: Some(r), .. } => format!(
+            "<p class=\"verdict\" id=\"amendment\">This certificate replaces certificate <b>{}</b> issued {}, \
+             which is withdrawn. Reason: {}</p>\n",
+            escape(&r.number),
+            escape(&r.issued_at),
+            escape(&r.reason)
+        ),
+        Issue::Issued { .. } => String::new(),
+        Issue::Draft(why) => {
+            format!("<p class=\"verdict fail\" id=\"draft\"><b>Draft, not issued</b>: {}.</p>\n", escape(why))
+        }
+    }
+}
+
 /// The title of the page.
 fn title(p: &Page<'_>) -> String {
     let s = &p.d.survey;
@@ -175,11 +194,17 @@ fn title(p: &Page<'_>) -> String {
 
 /// What every section (and the DCC) reads, of `d`.
 pub fn page<'a>(d: &'a ReportData, opts: &'a ReportOptions) -> Page<'a> {
+    let mut cert = Certificate::of(&d.survey, &opts.flags);
+    cert.number = match &d.issue {
+        Issue::Issued { number, .. } => Stated { value: number.clone(), from: cert.number.from },
+        // A draft's number says what it is, on every page and in the DCC.
+        Issue::Draft(_) => Stated { value: format!("DRAFT-{}", cert.number.value), from: cert.number.from },
+    };
     Page {
         d,
         opts,
         units: opts.units,
-        cert: Certificate::of(&d.survey, &opts.flags),
+        cert,
         map: ErrorMap::from_samples(&d.samples).map_err(|e| e.to_string()),
         iso: iso230_2(&d.samples).map_err(|e| e.to_string()),
     }
@@ -197,11 +222,12 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
         p.cert.number.from
     );
     let mut body = format!(
-        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate <b>{}</b>{}</p>\n<h1>{}</h1>\n\
+        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate <b>{}</b>{}</p>\n{}<h1>{}</h1>\n\
          <p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and the accuracy \
          figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
         escape(number),
         origin,
+        issue_note(&d.issue),
         escape(&title),
         p.units.symbol()
     );
