@@ -80,7 +80,13 @@ pub struct Certificate {
     pub received: Option<Stated<String>>,
     /// The laboratory's country, ISO 3166-1 alpha-2.
     pub country: Option<Stated<String>>,
+    /// Why the survey is a rehearsal on simulated instruments, not a
+    /// calibration, when it is ([`survey_store::survey::Setup::rehearsal`]).
+    pub rehearsal: Option<String>,
 }
+
+/// What a rehearsal's certificate says on every page, in its title and in its DCC.
+pub const REHEARSAL: &str = "rehearsal on simulated instruments, not a calibration";
 
 const FLAG: &str = "survey report flag";
 const CONFIG: &str = "[certificate] of the configuration";
@@ -134,7 +140,7 @@ impl Certificate {
             _ => None,
         };
         let made = made_number(survey);
-        Certificate {
+        let cert = Certificate {
             number: pick(&flags.number, stored.number.as_ref(), None).unwrap_or(Stated { value: made, from: SURVEY }),
             laboratory: pick(&flags.laboratory, stored.laboratory.as_ref(), None),
             traceability: pick(&flags.traceability, stored.traceability.as_ref(), traceability),
@@ -154,7 +160,31 @@ impl Certificate {
             item_condition: pick(&flags.item_condition, stored.item_condition.as_ref(), None),
             received: pick(&flags.received, stored.received.as_ref(), None),
             country: pick(&flags.country, stored.country.as_ref(), None),
+            rehearsal: None,
+        };
+        match survey.setup.rehearsal() {
+            Some(why) => cert.rehearsal_of(why),
+            None => cert,
         }
+    }
+
+    /// A rehearsal's certificate: no traceability claimed whatever was
+    /// stated, and the instruments named as simulated stand-ins.
+    fn rehearsal_of(mut self, why: String) -> Certificate {
+        self.traceability = Some(Stated {
+            value: format!(
+                "none: a {REHEARSAL} ({why}); nothing on this certificate is traceable to the SI, whatever the \
+                 configuration or a flag states"
+            ),
+            from: BENCH,
+        });
+        for field in [&mut self.positioner, &mut self.reference] {
+            if let Some(s) = field.as_mut().filter(|s| s.from != BENCH) {
+                s.value = format!("simulated, standing in for: {}", s.value);
+            }
+        }
+        self.rehearsal = Some(why);
+        self
     }
 
     /// A short name of the positioner for the title.

@@ -21,7 +21,7 @@
 //!
 //! Written with quick-xml's [`Writer`] (every text escaped by it).
 
-use crate::certificate::Issue;
+use crate::certificate::{Issue, REHEARSAL};
 use crate::conformity::{self, Decision};
 use crate::html::Page;
 use crate::html::header::{environment_text, method_text, performed};
@@ -167,6 +167,12 @@ fn xml_text(element: &str, text: &str) -> anyhow::Result<()> {
             i + 1
         ))),
     }
+}
+
+/// `s` with its first letter a capital.
+fn capitalised(s: &str) -> String {
+    let mut c = s.chars();
+    c.next().map_or_else(String::new, |f| f.to_uppercase().chain(c).collect())
 }
 
 /// A value of the page's number format, as the D-SI writes it (`1e-5`, `0.0350`).
@@ -325,6 +331,16 @@ fn statements(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         Issue::Draft(why) => x.statement("survey_draft", None, &format!("Draft, not issued: {why}."))?,
         Issue::Issued { .. } => {}
     }
+    if let Some(why) = &cert.rehearsal {
+        x.statement(
+            "survey_rehearsal",
+            None,
+            &format!(
+                "This is a {REHEARSAL}: {why}. Its figures show the method; they certify no instrument and are \
+                 traceable to nothing."
+            ),
+        )?;
+    }
     x.statement("basic_traceability", None, stated(&cert.traceability))?;
     x.statement("survey_itemCondition", None, &format!("Condition of the item: {}", stated(&cert.item_condition)))?;
     x.statement("survey_location", None, &format!("Location of the calibration: {}", stated(&cert.location)))?;
@@ -382,7 +398,11 @@ fn judged(p: &Page<'_>) -> (Option<f64>, String) {
 fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:measurementResults", &[])?;
     x.open("dcc:measurementResult", &[])?;
-    x.words("dcc:name", "Readout error and positioning accuracy of a rotary axis")?;
+    let title = "Readout error and positioning accuracy of a rotary axis";
+    match &p.cert.rehearsal {
+        None => x.words("dcc:name", title)?,
+        Some(_) => x.words("dcc:name", &format!("{}: {title}", capitalised(REHEARSAL)))?,
+    }
     x.open("dcc:usedMethods", &[])?;
     x.open("dcc:usedMethod", &[("refType", "basic_uncertainty")])?;
     x.words("dcc:name", "Expanded uncertainty")?;

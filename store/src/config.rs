@@ -71,6 +71,18 @@ pub struct SurveyConfig {
     /// `[smrs]`: several SMRs on the table, each measured at every target.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub smrs: Option<SmrsSection>,
+    /// `[rehearsal]`: the instruments are simulated (`survey sim` writes it
+    /// into the configuration it serves): a survey of them is never a calibration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rehearsal: Option<RehearsalSection>,
+}
+
+/// `[rehearsal]`: what simulates the instruments.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RehearsalSection {
+    /// The simulator, in words (`survey sim 0.1.0, preset fig8, seed 1, 1x real time`).
+    pub simulator: String,
 }
 
 /// `[smrs]`: the SMRs on the table beside the arm's first (its phase and

@@ -314,7 +314,7 @@ fn a_certificate_is_issued_once_and_amended_by_a_new_one() {
     let uid = bench.survey(&["show", "--json"]).success().json()["uid"].as_str().unwrap().replace('-', "");
     let number = number_of(&dcc);
     assert!(number.len() == 21 && number.ends_with(&uid[..12]), "{number} of the uid {uid}");
-    assert!(page.contains(&format!("Calibration certificate <b>{number}</b>")));
+    assert!(page.contains(&format!("certificate <b>{number}</b>")));
     // Later reports reproduce it byte for byte (the issue date included).
     std::thread::sleep(std::time::Duration::from_millis(1100));
     let again = bench.survey(&["report", "--out", "b"]).success();

@@ -101,14 +101,22 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
         assert!(!html.contains(&format!("id=\"{id}\"")), "{id} has no data");
     }
     // The title names the positioner and the survey.
-    assert!(html.contains("<title>simulated fig8 positioner: calibration survey 1</title>"), "title");
+    assert!(
+        html.contains(
+            "<title>simulated fig8 positioner: rehearsal on simulated instruments, not a calibration (survey 1)</title>"
+        ),
+        "title"
+    );
     // The simulated default's header: the preset, the tracker's random part (2.3e-4 deg).
     for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.000227 deg", "survey 0.1.0"] {
         assert!(html.contains(words), "the header should say {words:?}");
     }
     // A certificate: its number (made from the survey when none was assigned), the
     // traceability a simulated reference has (none), page x of y in print.
-    assert!(html.contains("id=\"certificate-number\">Calibration certificate <b>20"), "the number on top");
+    assert!(
+        html.contains("id=\"certificate-number\">Rehearsal, not a calibration: certificate <b>20"),
+        "the number on top"
+    );
     // ISO/IEC 17025 7.8.2.1 and 7.8.4.1: every item, stated or said to be not stated.
     for row in [
         "Calibrating laboratory</td><td><i>not stated</i>",
@@ -136,7 +144,15 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
         html.contains("made from the survey&#x27;s date and uid")
             || html.contains("made from the survey's date and uid")
     );
-    assert!(html.contains("not traceable to the SI"), "a simulated reference is not traceable");
+    assert!(html.contains("Traceability</td><td>none: a rehearsal on simulated instruments"), "not traceable");
+    // A rehearsal says so under its number, on every printed page (the running foot) and in its DCC.
+    assert!(html.contains("id=\"rehearsal\"><b>Rehearsal on simulated instruments, not a calibration</b>"));
+    assert!(html.contains("@bottom-left{content:\"REHEARSAL ON SIMULATED INSTRUMENTS, NOT A CALIBRATION: survey 1\""));
+    let dcc = bench.read("r/dcc.xml");
+    assert!(
+        dcc.contains("refType=\"survey_rehearsal\"")
+            && dcc.contains("Rehearsal on simulated instruments, not a calibration: Readout error")
+    );
     assert!(html.contains("counter(page) \" of \" counter(pages)"), "page x of y in print");
     // The definitions the VDI figures use, without a remark about sources to a customer.
     assert!(!html.contains("No public text") && html.contains("with these definitions"));
@@ -228,7 +244,7 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         "(survey report flag)",
         "simulated autocollimator",
         "0.100 arcsec (standard uncertainty of one angle)",
-        "Calibration certificate <b>CAL-2026-0042</b> · Metrology Lab &quot;North&quot;, Bay 3",
+        "Rehearsal, not a calibration: certificate <b>CAL-2026-0042</b> · Metrology Lab &quot;North&quot;, Bay 3",
         // A stated temperature is shown as stated, never as "not measured at all".
         "air temperature 20.5 °C, stated (survey report flag), not measured",
         "the air temperature was stated as 20.5 °C, not measured",
@@ -237,15 +253,18 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         "Item&#x27;s condition</td><td>as received, no damage",
         "Date received</td><td>2026-11-20",
         "Laboratory&#x27;s country</td><td>DE",
-        "Polygon calibrated by PTB, certificate 12345, 2026-01",
         // The running head and foot of every printed page.
-        "@top-left{content:\"Calibration certificate CAL-2026-0042\"",
+        "@top-left{content:\"Rehearsal, not a calibration: certificate CAL-2026-0042\"",
         "@top-right{content:\"Metrology Lab \\\"North\\\", Bay 3\"",
     ] {
         assert!(html.contains(words), "the page should show {words:?}");
     }
-    assert!(html.contains("<title>ACME AZ-200 &lt;serial 7&gt;: calibration survey 1</title>"));
+    assert!(html.contains("<title>simulated, standing in for: ACME AZ-200 &lt;serial 7&gt;: rehearsal on simulated instruments, not a calibration (survey 1)</title>"));
     assert!(html.contains("id=\"fig-modelgap\""), "the model-gap section");
+    // A rehearsal claims no traceability, whatever a flag states.
+    assert!(
+        !html.contains("Polygon calibrated by PTB") && html.contains("whatever the configuration or a flag states")
+    );
     // 24 faces see the 20 cycles/rev gear pass at 4: its true frequency lies in the shaded band.
     assert_shading_as_drawn(&html, true);
     // The processing's sentences take the unit too: the table's caption says why it has two columns.
@@ -282,7 +301,9 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
 fn a_verified_survey_shows_native_and_corrected_on_one_scale() {
     let bench = Bench::new();
     bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--verify", "--json"]).success();
-    for (id, title) in [("1", "calibration survey 1"), ("2", "verification (survey 2) of the table of survey 1")] {
+    let rehearsal = "rehearsal on simulated instruments, not a calibration";
+    let verification = format!("verification (survey 2) of the table of survey 1, a {rehearsal}");
+    for (id, title) in [("1", format!("{rehearsal} (survey 1)")), ("2", verification)] {
         let dir = format!("r{id}");
         bench.survey(&["report", "--survey", id, "--out", &dir]).success();
         let html = bench.read(&format!("{dir}/index.html"));

@@ -84,6 +84,27 @@ pub fn environment_text(cert: &Certificate, measured: &Environment, simulated: b
     }
 }
 
+/// The time the survey measured on the instruments' clock, seconds: its
+/// first to its last stored moment, times the instruments' speed-up (a
+/// rehearsal at `[timing] time_scale`), as `survey run --json` says it.
+pub fn instrument_time_s(survey: &SurveyRecord) -> Option<f64> {
+    match (survey.started_at_s, survey.ended_at_s) {
+        (Some(a), Some(b)) if b >= a => Some((b - a) * survey.setup.time_scale()),
+        _ => None,
+    }
+}
+
+/// A duration in words a reader takes in: seconds, minutes or hours.
+pub fn duration_words(s: f64) -> String {
+    if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.1} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
+    }
+}
+
 /// The calibration's dates: the survey's first and last stored change, as dates.
 pub fn performed(survey: &SurveyRecord) -> (String, String) {
     let day = |t: &str| t.get(..10).unwrap_or(t).to_string();
@@ -105,9 +126,9 @@ fn fields(p: &Page<'_>) -> String {
         })
     };
     let (begin, end) = performed(survey);
-    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
-        (Some(a), Some(b)) if b >= a => format!(" ({:.1} h of instrument time)", (b - a) / 3600.0),
-        _ => String::new(),
+    let instrument_time = match instrument_time_s(survey) {
+        Some(t) => format!(" ({} of instrument time)", duration_words(t)),
+        None => String::new(),
     };
     let rows: Vec<(&str, String)> = vec![
         ("Calibrating laboratory", text(&cert.laboratory)),

@@ -36,7 +36,7 @@ pub mod uncertainty;
 pub mod verification;
 
 use crate::certificate::Issue;
-use crate::certificate::{Certificate, Stated};
+use crate::certificate::{Certificate, REHEARSAL, Stated};
 use crate::page::{self, escape};
 use crate::units::Units;
 use crate::{ReportData, ReportOptions};
@@ -184,12 +184,31 @@ fn issue_note(issue: &Issue) -> String {
 fn title(p: &Page<'_>) -> String {
     let s = &p.d.survey;
     let name = p.cert.positioner_name(s);
-    match (&s.source, &s.verification) {
-        (SurveySource::Verification, Some(v)) => {
+    match (&s.source, &s.verification, &p.cert.rehearsal) {
+        (SurveySource::Verification, Some(v), None) => {
             format!("{name}: verification (survey {}) of the table of survey {}", s.id, v.verifies_survey)
         }
-        _ => format!("{name}: calibration survey {}", s.id),
+        (SurveySource::Verification, Some(v), Some(_)) => {
+            format!(
+                "{name}: verification (survey {}) of the table of survey {}, a {REHEARSAL}",
+                s.id, v.verifies_survey
+            )
+        }
+        (_, _, None) => format!("{name}: calibration survey {}", s.id),
+        (_, _, Some(_)) => format!("{name}: {REHEARSAL} (survey {})", s.id),
     }
+}
+
+/// A rehearsal's banner under the number (its running foot says it on every printed page).
+fn rehearsal_note(p: &Page<'_>) -> String {
+    p.cert.rehearsal.as_ref().map_or(String::new(), |why| {
+        format!(
+            "<p class=\"verdict fail\" id=\"rehearsal\"><b>Rehearsal on simulated instruments, not a \
+             calibration</b>: {}. Its figures show the method and this program at work; they certify no instrument \
+             and are traceable to nothing.</p>\n",
+            escape(why)
+        )
+    })
 }
 
 /// What every section (and the DCC) reads, of `d`.
@@ -221,12 +240,19 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
         if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) },
         p.cert.number.from
     );
+    let kind = if p.cert.rehearsal.is_some() {
+        "Rehearsal, not a calibration: certificate"
+    } else {
+        "Calibration certificate"
+    };
     let mut body = format!(
-        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate <b>{}</b>{}</p>\n{}<h1>{}</h1>\n\
+        "<p class=\"subtitle\" id=\"certificate-number\">{} <b>{}</b>{}</p>\n{}{}<h1>{}</h1>\n\
          <p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and the accuracy \
          figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
+        kind,
         escape(number),
         origin,
+        rehearsal_note(&p),
         issue_note(&d.issue),
         escape(&title),
         p.units.symbol()
@@ -250,9 +276,12 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
         escape(&d.generated)
     );
     let running = page::Running {
-        top_left: format!("Calibration certificate {number}"),
+        top_left: format!("{kind} {number}"),
         top_right: laboratory,
-        bottom_left: format!("{}: survey {}", p.cert.positioner_name(&d.survey), d.survey.id),
+        bottom_left: match &p.cert.rehearsal {
+            None => format!("{}: survey {}", p.cert.positioner_name(&d.survey), d.survey.id),
+            Some(_) => format!("{}: survey {}", REHEARSAL.to_uppercase(), d.survey.id),
+        },
     };
     Ok(page::document(&title, &running, &body))
 }

@@ -92,6 +92,7 @@ pub(super) const ROOT: &[Field] = &[
         ]),
     ),
     opt("asset", Ty::Table(&[req("id", Ty::Text)])),
+    opt("rehearsal", Ty::Table(&[req("simulator", Ty::Checked(crate::config::check_field, FIELD_WORDS))])),
     opt(
         "smrs",
         Ty::Table(&[
