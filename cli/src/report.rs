@@ -185,14 +185,13 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     };
     let changes = changes(&opts);
     let progress = crate::progress::Progress::spinner("writing the report", crate::progress::visible(false));
-    // A station's file is opened to write: the first report issues the certificate into it.
-    // A file this process cannot write (read-only media, another's file) is read: the certificate issued, or a draft.
-    let writable = || std::fs::OpenOptions::new().write(true).open(db).is_ok();
-    let store = match survey_store::lab::url_of(db) {
-        None if writable() => super::support::open_existing(db).await?,
-        _ => open_read_only(db).await?,
-    };
-    let written = survey_report::issue::report(&store, args.survey, &opts, args.amend.as_deref(), &changes).await;
+    // Read as every reader does; a certificate issued is kept in the station's file, opened to write for that
+    // alone. A file this process cannot write (read-only media, another's) and the lab store give a draft.
+    let writable = std::fs::OpenOptions::new().write(true).open(db).is_ok();
+    let writer = (writable && survey_store::lab::url_of(db).is_none()).then_some(db);
+    let store = open_read_only(db).await?;
+    let amend = args.amend.as_deref();
+    let written = survey_report::issue::report(&store, writer, args.survey, &opts, amend, &changes).await;
     store.close().await;
     let (html, dcc, said) = match written? {
         Written::IssuedNow(c) => {

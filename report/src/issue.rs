@@ -23,6 +23,7 @@
 
 use crate::certificate::{Issue, Replaced};
 use crate::{ReportData, ReportOptions};
+use std::path::Path;
 use survey_lab::error::bad_input;
 use survey_store::survey::{SurveyRecord, SurveyRef, SurveyStatus};
 use survey_store::{Issued, Store};
@@ -38,18 +39,14 @@ pub enum Written {
     Draft { page: String, dcc: String, why: String },
 }
 
-/// Why survey `s` in `store` can get no certificate, if it cannot.
-fn not_issuable(store: &Store, s: &SurveyRecord) -> Option<String> {
+/// Why survey `s` in `store` can get no certificate, if it cannot
+/// (`writer`: the station's file to keep it in, when there is one).
+fn not_issuable(store: &Store, s: &SurveyRecord, writer: Option<&Path>) -> Option<String> {
     if s.status != SurveyStatus::Complete {
         Some(format!("survey {} is {}: a certificate is issued for a complete survey", s.id, s.status))
-    } else if !store.keeps_certificates() {
+    } else if writer.is_none() {
         Some(format!(
-            "{} keeps no certificates (an older schema: a command that writes upgrades it)",
-            store.path().display()
-        ))
-    } else if !store.is_writable() {
-        Some(format!(
-            "{} is read here: a certificate is issued by `survey report` on the station's file, then pushed",
+            "{} is only read here: a certificate is issued by `survey report` on the station's file (then pushed)",
             store.path().display()
         ))
     } else {
@@ -58,11 +55,15 @@ fn not_issuable(store: &Store, s: &SurveyRecord) -> Option<String> {
 }
 
 /// `survey report` of survey `r` (the latest when `None`): the certificate
-/// issued before, or issued now, or a draft. `changes` names the flags given
-/// that would change what a certificate states (refused once it is issued,
-/// but with `amend`).
+/// issued before, or issued now, or a draft. `store` is read (opened
+/// read-only: a report computes what it shows as a reader does, and writes
+/// no cache); a certificate issued now is kept in `writer`, the station's
+/// file opened to write for that alone (`None`: nothing can be issued, a
+/// draft). `changes` names the flags given that would change what a
+/// certificate states (refused once it is issued, but with `amend`).
 pub async fn report(
     store: &Store,
+    writer: Option<&Path>,
     r: Option<SurveyRef>,
     opts: &ReportOptions,
     amend: Option<&str>,
@@ -95,7 +96,7 @@ pub async fn report(
         _ => {}
     }
     let mut data = crate::gather(store, Some(SurveyRef::Id(survey.id)), opts).await?;
-    if let Some(why) = not_issuable(store, &survey) {
+    if let Some(why) = not_issuable(store, &survey, writer) {
         if amend.is_some() {
             return Err(bad_input(format!("--amend: {why}")));
         }
@@ -137,7 +138,12 @@ pub async fn report(
         page,
         dcc,
     };
-    store.issue(&c).await?;
+    if let Some(path) = writer {
+        let kept = Store::open_existing(path).await?;
+        let issued = kept.issue(&c).await;
+        kept.close().await;
+        issued?;
+    }
     Ok(Written::IssuedNow(c))
 }
 

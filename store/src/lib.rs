@@ -458,12 +458,6 @@ impl Store {
         &self.path
     }
 
-    /// Whether it was opened to write (a station's file by a command that
-    /// writes, the lab store by `survey push`).
-    pub fn is_writable(&self) -> bool {
-        self.writable
-    }
-
     /// The SQLite journal mode in force (`"wal"`).
     pub async fn journal_mode(&self) -> anyhow::Result<String> {
         let mode: String = sqlx::query_scalar("PRAGMA journal_mode").fetch_one(self.sqlite()?).await?;
