@@ -37,13 +37,16 @@ use survey_processing::iso230::iso230_2;
 const DEGREE: &str = "\\degree";
 /// The coverage factor and probability of every expanded uncertainty.
 const K: &str = "2";
-const PROBABILITY: &str = "0.95";
+use crate::rounding::{NORMAL, PROBABILITY, TABLE_DISTRIBUTION};
 /// What a field the laboratory did not state says.
 const NOT_STATED: &str = "not stated";
 
 /// The XML being written.
 struct Xml {
     w: Writer<Vec<u8>>,
+    /// The distribution of the expanded uncertainties being written: the
+    /// measured figures' ([`NORMAL`]) or the table's ([`TABLE_DISTRIBUTION`]).
+    distribution: &'static str,
 }
 
 type Attrs<'a> = &'a [(&'a str, &'a str)];
@@ -90,7 +93,7 @@ impl Xml {
             self.leaf("si:uncertainty", u)?;
             self.leaf("si:coverageFactor", K)?;
             self.leaf("si:coverageProbability", PROBABILITY)?;
-            self.leaf("si:distribution", "normal")?;
+            self.leaf("si:distribution", self.distribution)?;
             self.close("si:expandedUnc")?;
         }
         self.close("si:real")?;
@@ -116,7 +119,7 @@ impl Xml {
             self.leaf("si:uncertaintyXMLList", u)?;
             self.leaf("si:coverageFactorXMLList", K)?;
             self.leaf("si:coverageProbabilityXMLList", PROBABILITY)?;
-            self.leaf("si:distributionXMLList", "normal")?;
+            self.leaf("si:distributionXMLList", self.distribution)?;
             self.close("si:expandedUncXMLList")?;
         }
         self.close("si:realListXMLList")?;
@@ -183,16 +186,17 @@ fn decimal(shown: &str) -> String {
 /// `value` and `u` (degrees) as ILAC-P14 rounds them, for the XML.
 fn rounded(value: f64, u: Option<f64>) -> (String, Option<String>) {
     let (v, u) = rounding::show(crate::units::Units::Deg, value, u);
+    let v = decimal(&v);
     match u {
-        Some(u) => (decimal(&v), Some(decimal(&u))),
-        // Without a U: the value as computed (no rounding to a place that is not known).
-        None => (format!("{value:e}"), None),
+        Some(u) => (v, Some(decimal(&u))),
+        // Without a U: by significance, as the page shows it (no place is known to round to).
+        None => (v, None),
     }
 }
 
 /// The certificate of `p` as DCC 3.2.0 XML.
 pub fn document(p: &Page<'_>) -> anyhow::Result<String> {
-    let mut x = Xml { w: Writer::new_with_indent(Vec::new(), b' ', 1) };
+    let mut x = Xml { w: Writer::new_with_indent(Vec::new(), b' ', 1), distribution: NORMAL };
     x.w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None))).context("writing the DCC")?;
     x.open(
         "dcc:digitalCalibrationCertificate",
@@ -508,12 +512,14 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         x.angle("survey_nativePeak", "native peak error (no correction)", &v, uv.as_deref())?;
         let table_u = p.d.uncertainty.as_ref().map(|b| b.table_u_deg);
         let (v, uv) = rounded(prediction.corrected_peak_deg, table_u);
+        x.distribution = TABLE_DISTRIBUTION;
         x.angle(
             "survey_correctedPeakPredicted",
             "corrected peak error, predicted from this survey (the table's uncertainty)",
             &v,
             uv.as_deref(),
         )?;
+        x.distribution = NORMAL;
     }
     if let Some(v) = &p.d.verification {
         let errors: Vec<f64> = v.corrected(&p.d.samples).iter().map(|s| s.error_deg()).collect();
@@ -561,10 +567,16 @@ fn table(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     } else {
         &[(Direction::Forward, "survey_error", "error (both directions)")]
     };
+    // Each value to the table's U's decimal place, as the page's excerpt (one rounding).
+    let table_u = p.d.uncertainty.as_ref().map(|b| b.table_u_deg);
+    x.distribution = TABLE_DISTRIBUTION;
     for (d, ref_type, name) in columns {
-        let values: Vec<String> = (0..t.len()).map(|i| format!("{:e}", t.error_at(i as f64 * h, *d))).collect();
+        let values: Vec<String> = (0..t.len())
+            .map(|i| rounding::num(crate::units::Units::Deg, t.error_at(i as f64 * h, *d), table_u))
+            .collect();
         x.list(ref_type, name, &values, DEGREE, u.as_deref())?;
     }
+    x.distribution = NORMAL;
     x.close("dcc:list")?;
     x.close("dcc:data")?;
     x.close("dcc:result")
@@ -583,7 +595,7 @@ mod tests {
         }
         let hostile = "<a b=\"c\">&amp; ]]> '\u{202E}x\ty\nz \u{1F600}";
         xml_text("dcc:content", hostile).unwrap();
-        let mut x = Xml { w: Writer::new(Vec::new()) };
+        let mut x = Xml { w: Writer::new(Vec::new()), distribution: NORMAL };
         x.words("dcc:name", hostile).unwrap();
         let written = String::from_utf8(x.w.into_inner()).unwrap();
         let mut reader = quick_xml::Reader::from_str(&written);

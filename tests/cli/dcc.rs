@@ -133,7 +133,9 @@ fn every_dcc_written_validates_against_the_dcc_3_2_0_schema() {
         "<si:unit>\\degreecelsius</si:unit>",
         "<si:unit>\\degree</si:unit>",
         "<si:coverageFactor>2</si:coverageFactor>",
-        "<si:coverageProbability>0.95</si:coverageProbability>",
+        "<si:coverageProbability>0.9545</si:coverageProbability>",
+        "<si:distribution>normal</si:distribution>",
+        "<si:distribution>other: a normal part plus the sinusoids the table may leave",
         "refType=\"survey_correctedAMeasured\"",
         "<si:realListXMLList>",
     ] {
@@ -170,6 +172,22 @@ fn the_dccs_values_are_survey_stats_and_process() {
     ] {
         assert_equal(&xml, ref_type, iso[key].as_f64().unwrap_or_else(|| panic!("stats' {key}")));
     }
+    // One rounding (ILAC-P14): the page states each figure as the DCC does, to the place of the U beside it.
+    let page = bench.read("r/index.html");
+    for (row, ref_type) in [
+        ("A, accuracy", "survey_iso230_2_A"),
+        ("R, repeatability", "survey_iso230_2_R"),
+        ("E, systematic positional deviation", "survey_iso230_2_E"),
+        ("M, mean positional deviation", "survey_iso230_2_M"),
+        ("B, reversal value", "survey_iso230_2_B"),
+    ] {
+        let shown = page.split(&format!("{row}</td><td>")).nth(1).and_then(|s| s.split('<').next()).unwrap();
+        assert_eq!(Some(shown.to_string()), after(&xml, ref_type, "si:value"), "{row}: the page and the DCC");
+    }
+    for ref_type in ["survey_nativePeak", "survey_correctedPeakPredicted"] {
+        let (v, u) = (after(&xml, ref_type, "si:value").unwrap(), after(&xml, ref_type, "si:uncertainty").unwrap());
+        assert!(page.contains(&format!("<td>{v} deg</td><td>{u} deg")), "{ref_type} {v} ± {u} on the page");
+    }
     // A, E and M carry the measurement's U; the corrected A is the verification survey's.
     assert!(after(&xml, "survey_iso230_2_A", "si:uncertainty").is_some());
     assert_equal(&xml, "survey_correctedAMeasured", bench.stats_json(Some(2))["iso230_2"]["A"].as_f64().unwrap());
@@ -184,16 +202,20 @@ fn the_dccs_values_are_survey_stats_and_process() {
     let readouts = after(&xml, "survey_readout", "si:valueXMLList").expect("the table's readouts");
     let rows = process["table"]["points"].as_u64().unwrap() as usize;
     assert_eq!(readouts.split_whitespace().count(), rows, "one readout a row of the table");
-    // The table's values are the CSV's, row by row.
+    // The table's values are the CSV's, row by row, each rounded to the decimal place of the table's U.
     let path = process["table"]["path"].as_str().unwrap();
     let csv = std::fs::read_to_string(bench.path(path)).unwrap();
-    let forward = after(&xml, "survey_errorForward", "si:valueXMLList")
-        .or_else(|| after(&xml, "survey_error", "si:valueXMLList"))
+    let (column, list) = ["survey_errorForward", "survey_error"]
+        .iter()
+        .find_map(|r| Some((*r, after(&xml, r, "si:valueXMLList")?)))
         .expect("the table's errors");
-    for (line, value) in csv.lines().skip(1).zip(forward.split_whitespace()) {
+    let u = after(&xml, column, "si:uncertaintyXMLList").expect("the table's U");
+    let half = 0.5 * 10f64.powi(-(u.split('.').nth(1).map_or(0, str::len) as i32)) + 1e-12;
+    for (line, value) in csv.lines().skip(1).zip(list.split_whitespace()) {
         let in_csv: f64 = line.split(',').nth(1).unwrap().parse().unwrap();
         let in_dcc: f64 = value.parse().unwrap();
-        assert!((in_csv - in_dcc).abs() <= 1e-9, "{line} against {value}");
+        assert!((in_csv - in_dcc).abs() <= half, "{line} against {value} (U {u})");
+        assert!(value == "0" || value.split('.').nth(1).map_or(0, str::len) == u.split('.').nth(1).map_or(0, str::len));
     }
 }
 

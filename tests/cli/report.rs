@@ -230,11 +230,13 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         .success();
     let html = bench.read("r/index.html").replace("Item's", "Item&#x27;s").replace("Laboratory's", "Laboratory&#x27;s");
     assert!(!html.contains("no air temperature was measured"), "a stated temperature is stated");
-    // ISO A in the axis table, in arcsec with 3 significant digits.
+    // ISO A in the axis table, in arcsec, to the decimal place of its U (ILAC-P14), as in the summary.
     let shown = html.split("A, accuracy</td><td>").nth(1).and_then(|s| s.split('<').next()).expect("A");
     let value: f64 = shown.parse().expect("a number");
-    let digits = shown.trim_start_matches(['-', '0', '.']).replace('.', "");
-    assert_eq!(digits.len(), 3, "3 significant digits: {shown}");
+    let u = html.split("carry the expanded uncertainty U = ").nth(1).and_then(|s| s.split(' ').next()).expect("U");
+    let places = |s: &str| s.split('.').nth(1).map_or(0, str::len);
+    assert_eq!(places(shown), places(u), "A {shown} to the place of U {u}");
+    assert!(html.contains(&format!("ISO 230-2 accuracy A, as measured</td><td>{shown} arcsec</td><td>{u} arcsec")));
     assert!((value - a_deg * 3600.0).abs() <= 5e-3 * a_deg * 3600.0, "A in arcsec {shown} against stats' {a_deg} deg");
     for words in [
         "error (readout − actual), arcsec",

@@ -22,7 +22,8 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let mut rows: Vec<Vec<String>> = Vec::new();
     if let Ok(iso) = &p.iso {
         rows.push(row("ISO 230-2 accuracy A, as measured".into(), iso.a, measured_u, ""));
-        rows.push(vec!["ISO 230-2 repeatability R".into(), units.show(iso.r), "-".into()]);
+        // R has no U of its own: to the place of the U beside it (ILAC-P14: one rounding).
+        rows.push(vec!["ISO 230-2 repeatability R".into(), rounding::show(units, iso.r, measured_u).0, "-".into()]);
     }
     let table_u = d.uncertainty.as_ref().map(|b| b.table_u_deg);
     if let Ok(processed) = &d.processed {
