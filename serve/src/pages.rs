@@ -128,7 +128,8 @@ async fn index_page(app: App) -> Result<String, Failure> {
                         "<p class=\"note\">State: <b>due</b> when it has no calibration, the calibration is older than \
                          {} days, or a check called for a recalibration not made yet; <b>changed</b> when the last \
                          check found the positioner changed but its table still holding; otherwise <b>in \
-                         tolerance</b>.</p>\n",
+                         force</b> (the calibration holds; no tolerance is judged here: a certificate judges \
+                         against a stated one).</p>\n",
                         app.due_after_days
                     )
             }

@@ -161,7 +161,8 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
         "id=\"tbl-assets\"",
         "<a href=\"/assets/sim-fig8\">sim-fig8</a>",
         &format!("<a href=\"/surveys/{uid}\">survey 2</a>"),
-        "data-state=\"in tolerance\"",
+        // In force, never "in tolerance": no tolerance was stated.
+        "data-state=\"in force\"",
         "<p id=\"live-none\">",
         "<script src=\"/static/live.js\"></script>",
     ] {
@@ -170,8 +171,20 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
     let assets = get(&url, "/api/assets").json();
     assert_eq!(assets["assets"][0]["asset"], "sim-fig8");
     assert_eq!(assets["assets"][0]["calibration"]["uid"], uid.as_str());
-    assert_eq!(assets["assets"][0]["state"], "in tolerance");
+    assert_eq!(assets["assets"][0]["state"], "in force");
+    assert!(!home.body.contains("in tolerance"), "no tolerance judged");
     assert_eq!(get(&url, "/api/live").json(), serde_json::json!({"surveys": []}));
+    // `/api/` lists what it serves, each path answering.
+    let index = get(&url, "/api/");
+    assert_eq!(index.status, 200, "{}", index.body);
+    let paths: Vec<String> =
+        index.json()["paths"].as_array().unwrap().iter().map(|p| p["path"].as_str().unwrap().to_string()).collect();
+    for path in ["/api/surveys", "/api/assets", "/api/live", "/surveys/<id or uid>/dcc.xml"] {
+        assert!(paths.iter().any(|p| p == path), "/api/ lists {path}: {paths:?}");
+    }
+    for path in paths.iter().filter(|p| !p.contains('<')) {
+        assert_eq!(get(&url, path).status, 200, "{path}");
+    }
     // With an interval shorter than the calibration's age (0.000001 days: 0.09 s), it is due.
     let strict = Server::on(&bench, "survey.db", &["--due-after", "0.000001"]);
     std::thread::sleep(Duration::from_millis(100));
@@ -464,6 +477,9 @@ fn the_asset_page_plots_every_calibration_on_a_date_axis_and_tells_checks_apart(
     let lines = figure_of(&page.body, "fig-history-lines");
     // Made within a minute: the axis reads times of day, UTC.
     assert!(lines.contains("time of day (UTC)") && !page.body.contains("days since"), "{lines}");
+    // ... on the date named beside it (a time is never without its date).
+    assert!(lines.contains("time of day (UTC) on 20") || lines.contains("time of day (UTC) from 20"), "{lines}");
+    assert!(page.body.contains("<th>A, deg</th><th>R, deg</th><th>table U, deg</th>"), "units in every column");
     let is_time = |t: &str| {
         t.len() == 8
             && t.bytes().enumerate().all(|(i, b)| if i == 2 || i == 5 { b == b':' } else { b.is_ascii_digit() })
