@@ -83,7 +83,12 @@ impl Xml {
 
     /// A quantity: name, one `si:real` in degrees, its expanded uncertainty when known.
     fn angle(&mut self, ref_type: &str, name: &str, value: &str, u: Option<&str>) -> anyhow::Result<()> {
-        self.open("dcc:quantity", &[("refType", ref_type)])?;
+        // PTB's own refType beside ours (refType is a list): a consumer finds the measured values by it.
+        let ref_type = match ref_type {
+            r if r.starts_with("survey_") => format!("basic_measuredValue {r}"),
+            r => r.to_string(),
+        };
+        self.open("dcc:quantity", &[("refType", ref_type.as_str())])?;
         self.words("dcc:name", name)?;
         self.open("si:real", &[])?;
         self.leaf("si:value", value)?;
@@ -298,7 +303,10 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.words("dcc:name", stated(&cert.signatory))?;
     x.close("dcc:person")?;
     x.leaf("dcc:role", "authorises the certificate (name and function)")?;
-    x.leaf("dcc:mainSigner", "true")?;
+    // The main signer only when one is stated (a signatory "not stated" signs nothing).
+    if cert.signatory.is_some() {
+        x.leaf("dcc:mainSigner", "true")?;
+    }
     x.close("dcc:respPerson")?;
     if let Some(op) = &cert.operator {
         x.open("dcc:respPerson", &[])?;
@@ -532,6 +540,16 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
             let name = format!("A, corrected, measured by verification survey {}", v.verification_id);
             x.angle("survey_correctedAMeasured", &name, &a, ua.as_deref())?;
         }
+    }
+    if let Some(t) = &p.cert.tolerance_deg {
+        // The tolerance the accuracy A is judged against, as a quantity (its verdict is a statement).
+        x.open("dcc:quantity", &[("refType", "basic_acceptanceLimitUpper survey_toleranceA")])?;
+        x.words("dcc:name", "tolerance on the accuracy A (ISO 230-2), the upper acceptance limit")?;
+        x.open("si:real", &[])?;
+        x.leaf("si:value", &format!("{}", t.value))?;
+        x.leaf("si:unit", DEGREE)?;
+        x.close("si:real")?;
+        x.close("dcc:quantity")?;
     }
     x.close("dcc:data")?;
     x.close("dcc:result")

@@ -55,9 +55,12 @@ fn validate(bench: &Bench, files: &[&str]) {
     assert_eq!(text.matches(": 0 errors").count(), files.len(), "{text}");
 }
 
-/// The text of the first `<tag>` after `refType="ref"` in `xml`.
+/// The text of the first `<tag>` in the quantity whose refType list (`refType="a b"`) holds `ref_type` in `xml`.
 fn after(xml: &str, ref_type: &str, tag: &str) -> Option<String> {
-    let rest = xml.split(&format!("refType=\"{ref_type}\"")).nth(1)?;
+    let rest = xml
+        .split("refType=\"")
+        .skip(1)
+        .find(|r| r.split('"').next().is_some_and(|l| l.split(' ').any(|t| t == ref_type)))?;
     let end = rest.find("</dcc:quantity>").unwrap_or(rest.len());
     let inner = rest[..end].split(&format!("<{tag}>")).nth(1)?;
     Some(inner.split(&format!("</{tag}>")).next()?.to_string())
@@ -136,12 +139,17 @@ fn every_dcc_written_validates_against_the_dcc_3_2_0_schema() {
         "<si:coverageProbability>0.9545</si:coverageProbability>",
         "<si:distribution>normal</si:distribution>",
         "<si:distribution>other: a normal part plus the sinusoids the table may leave",
-        "refType=\"survey_correctedAMeasured\"",
+        " survey_correctedAMeasured\"",
+        // PTB's refTypes beside ours: the measured values, the tolerance as the upper acceptance limit.
+        "refType=\"basic_measuredValue survey_iso230_2_A\"",
+        "refType=\"basic_acceptanceLimitUpper survey_toleranceA\"",
         "<si:realListXMLList>",
     ] {
         assert!(full.contains(words), "the DCC should hold {words}");
     }
     let bare = bench.read("bare/dcc.xml");
+    assert!(!bare.contains("mainSigner"), "no main signer when none is stated");
+    assert_eq!(after(&full, "basic_acceptanceLimitUpper", "si:value").as_deref(), Some("0.05"));
     assert!(bare.contains("<dcc:countryCodeISO3166_1>ZZ</dcc:countryCodeISO3166_1>"));
     assert!(bare.contains("refType=\"basic_temperatureMax\"") && bare.contains("<si:unit>\\hecto\\pascal</si:unit>"));
     let one_way = bench.read("one-way/dcc.xml");
