@@ -482,6 +482,7 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.close("dcc:influenceConditions")?;
     x.open("dcc:results", &[])?;
     figures(x, p)?;
+    per_target(x, p)?;
     table(x, p)?;
     x.close("dcc:results")?;
     x.close("dcc:measurementResult")?;
@@ -513,6 +514,7 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
             let (m, um) = rounded(m, u);
             x.angle("survey_iso230_2_M", "M, mean positional deviation (ISO 230-2)", &m, um.as_deref())?;
         }
+        directions_and_vdi(x, iso, u)?;
     }
     if let Ok(processed) = &p.d.processed {
         let prediction = &processed.prediction;
@@ -551,6 +553,70 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         x.close("si:real")?;
         x.close("dcc:quantity")?;
     }
+    x.close("dcc:data")?;
+    x.close("dcc:result")
+}
+
+/// ISO 230-2's figures each way (forward: increasing angle) and VDI/DGQ
+/// 3441's P, Pa and Ps, each to the place of the measured figures' U (with
+/// it where the figure is of the deviations themselves: A, E, P, Pa).
+fn directions_and_vdi(x: &mut Xml, iso: &survey_processing::iso230::Iso230, u: Option<f64>) -> anyhow::Result<()> {
+    let with_u = |v: f64| rounded(v, u);
+    let figures = [
+        ("survey_iso230_2_A_forward", "A, forward (ISO 230-2)", iso.a_up, true),
+        ("survey_iso230_2_A_reverse", "A, reverse (ISO 230-2)", iso.a_down, true),
+        ("survey_iso230_2_R_forward", "R, forward (ISO 230-2)", iso.r_up, false),
+        ("survey_iso230_2_R_reverse", "R, reverse (ISO 230-2)", iso.r_down, false),
+        ("survey_iso230_2_E_forward", "E, forward (ISO 230-2)", iso.e_up, true),
+        ("survey_iso230_2_E_reverse", "E, reverse (ISO 230-2)", iso.e_down, true),
+        ("survey_iso230_2_Bmean", "B mean, mean reversal value (ISO 230-2)", iso.b_mean, false),
+    ];
+    let vdi = survey_processing::vdi3441::vdi3441(iso);
+    let vdi_figures = [
+        ("survey_vdi3441_P", "P, positional uncertainty (VDI/DGQ 3441)", Some(vdi.p_deg), true),
+        ("survey_vdi3441_Pa", "Pa, position deviation (VDI/DGQ 3441)", Some(vdi.pa_deg), true),
+        ("survey_vdi3441_Ps", "Ps, largest positional scatter (VDI/DGQ 3441)", Some(vdi.ps_deg), false),
+    ];
+    for (ref_type, name, value, carries_u) in figures.into_iter().chain(vdi_figures) {
+        let Some(v) = value else { continue };
+        let (v, uv) = with_u(v);
+        x.angle(ref_type, name, &v, if carries_u { uv.as_deref() } else { None })?;
+    }
+    Ok(())
+}
+
+/// The mean error at each target and direction (readout - actual, the
+/// table's sign: the negative of ISO 230-2's mean deviation), with the
+/// measured figures' U, as lists: what a consumer compares its own
+/// measurements with.
+fn per_target(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let Ok(iso) = &p.iso else { return Ok(()) };
+    let u = measured_u(p);
+    let u_text = u.map(|u| decimal(&rounding::show_u(crate::units::Units::Deg, u)));
+    x.open("dcc:result", &[("refType", "survey_perTarget")])?;
+    x.words("dcc:name", "Mean error at each target, each direction")?;
+    x.words(
+        "dcc:description",
+        "The error readout - actual averaged over the runs at each target (the negative of ISO 230-2's mean \
+         positional deviation), forward (increasing angle) and reverse; a direction not measured is left out.",
+    )?;
+    x.open("dcc:data", &[])?;
+    x.open("dcc:list", &[("refType", "survey_perTargetList")])?;
+    let targets: Vec<String> = iso.targets.iter().map(|t| crate::units::angle(t.target_deg)).collect();
+    x.list("basic_referenceValue survey_target", "target (the readout commanded)", &targets, DEGREE, None)?;
+    type Side = fn(&survey_processing::iso230::TargetStats) -> Option<&survey_processing::iso230::DirStats>;
+    let sides: [(&str, &str, Side); 2] = [
+        ("basic_measurementError survey_meanErrorForward", "mean error, forward", |t| t.up.as_ref()),
+        ("basic_measurementError survey_meanErrorReverse", "mean error, reverse", |t| t.down.as_ref()),
+    ];
+    for (ref_type, name, side) in sides {
+        let means: Option<Vec<String>> =
+            iso.targets.iter().map(|t| side(t).map(|d| rounding::num(crate::units::Units::Deg, -d.mean, u))).collect();
+        if let Some(means) = means {
+            x.list(ref_type, name, &means, DEGREE, u_text.as_deref())?;
+        }
+    }
+    x.close("dcc:list")?;
     x.close("dcc:data")?;
     x.close("dcc:result")
 }

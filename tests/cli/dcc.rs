@@ -196,6 +196,22 @@ fn the_dccs_values_are_survey_stats_and_process() {
         let (v, u) = (after(&xml, ref_type, "si:value").unwrap(), after(&xml, ref_type, "si:uncertainty").unwrap());
         assert!(page.contains(&format!("<td>{v} deg</td><td>{u} deg")), "{ref_type} {v} ± {u} on the page");
     }
+    // Each way, as stats says; the mean error at every target and direction, found by PTB's refTypes.
+    for (key, ref_type) in [
+        ("A_up", "survey_iso230_2_A_forward"),
+        ("A_down", "survey_iso230_2_A_reverse"),
+        ("R_up", "survey_iso230_2_R_forward"),
+        ("E_down", "survey_iso230_2_E_reverse"),
+    ] {
+        assert_equal(&xml, ref_type, iso[key].as_f64().unwrap_or_else(|| panic!("stats' {key}")));
+    }
+    assert!(after(&xml, "survey_vdi3441_P", "si:uncertainty").is_some(), "VDI/DGQ 3441's P with U");
+    let targets = after(&xml, "basic_referenceValue", "si:valueXMLList").expect("the targets");
+    assert_eq!(targets.split_whitespace().count(), 72, "one a target");
+    let errors = xml.matches("refType=\"basic_measurementError survey_meanError").count();
+    assert_eq!(errors, 2, "forward and reverse");
+    let forward = after(&xml, "survey_meanErrorForward", "si:valueXMLList").unwrap();
+    assert_eq!(forward.split_whitespace().count(), 72);
     // A, E and M carry the measurement's U; the corrected A is the verification survey's.
     assert!(after(&xml, "survey_iso230_2_A", "si:uncertainty").is_some());
     assert_equal(&xml, "survey_correctedAMeasured", bench.stats_json(Some(2))["iso230_2"]["A"].as_f64().unwrap());
