@@ -431,7 +431,7 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:measuringEquipment", &[("refType", "basic_normalUsed")])?;
     x.words("dcc:name", stated(&p.cert.reference))?;
     if let Some(u) = &p.cert.reference_uncertainty_deg {
-        x.words("dcc:description", &format!("standard uncertainty of one angle: {} deg ({})", u.value, u.from))?;
+        x.words("dcc:description", &format!("standard uncertainty of one angle: {} deg", u.value))?;
     }
     x.close("dcc:measuringEquipment")?;
     x.close("dcc:measuringEquipments")?;

@@ -243,12 +243,13 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         "J. Smith",
         "20.5 °C",
         "ACME AZ-200 &lt;serial 7&gt;",
-        "(survey report flag)",
+        // Where each field came from: the appendix's, not the customer's pages.
+        "<td class=\"l\">Operator</td><td class=\"l\">survey report flag</td>",
         "simulated autocollimator",
         "0.100 arcsec (standard uncertainty of one angle)",
         "Rehearsal, not a calibration: certificate <b>CAL-2026-0042</b> · Metrology Lab &quot;North&quot;, Bay 3",
         // A stated temperature is shown as stated, never as "not measured at all".
-        "air temperature 20.5 °C, stated (survey report flag), not measured",
+        "air temperature 20.5 °C, stated, not measured",
         "the air temperature was stated as 20.5 °C, not measured",
         "Authorised by (name, function)</td><td>A. Jones, head of the laboratory",
         "Location of calibration</td><td>Bay 3",
@@ -263,6 +264,7 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
     }
     assert!(html.contains("<title>simulated, standing in for: ACME AZ-200 &lt;serial 7&gt;: rehearsal on simulated instruments, not a calibration (survey 1)</title>"));
     assert!(html.contains("id=\"fig-modelgap\""), "the model-gap section");
+    assert!(!html.contains("(survey report flag)") && !html.contains("(the bench)"), "no provenance beside a field");
     // A rehearsal claims no traceability, whatever a flag states.
     assert!(
         !html.contains("Polygon calibrated by PTB") && html.contains("whatever the configuration or a flag states")
@@ -352,7 +354,7 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
     let pass = verdict(&bench, 10.0 * a, &[]);
     assert!(pass.starts_with("Verdict against the tolerance") && pass.contains(": PASS. A = "), "{pass}");
     assert!(pass.contains("the corrected accuracy A per ISO 230-2, measured by verification survey 2"), "{pass}");
-    assert!(pass.contains("(survey report flag)"), "{pass}");
+    assert!(!pass.contains("survey report flag"), "no provenance on the customer's page: {pass}");
     let fail = verdict(&bench, a / 10.0, &[]);
     assert!(fail.contains(": FAIL. ") && fail.contains("A − U = "), "{fail}");
     let open = verdict(&bench, a, &[]);

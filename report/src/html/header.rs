@@ -52,8 +52,8 @@ pub fn method_text(survey: &SurveyRecord) -> String {
 pub fn environment_text(cert: &Certificate, measured: &Environment, simulated: bool) -> String {
     let stated = cert.temperature_c.as_ref().map(|t| {
         format!(
-            "air temperature {:.1} °C, stated ({}), not measured by this program; its uncertainty is not stated",
-            t.value, t.from
+            "air temperature {:.1} °C, stated, not measured by this program; its uncertainty is not stated",
+            t.value
         )
     });
     match measured {
@@ -117,12 +117,11 @@ fn fields(p: &Page<'_>) -> String {
         (&p.d.survey, &p.cert, p.d.samples.len(), p.units, p.d.generated.as_str());
     let environment = &p.d.environment;
     let not_stated = "<i>not stated</i>".to_string();
-    let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
-    // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as written.
+    // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as
+    // written. Where each came from is not the customer's: the appendix says it ([`show_sources`]).
     let text = |v: &Option<Stated<String>>| {
         v.as_ref().map_or(not_stated.clone(), |s| {
-            let value = if s.from == BENCH { units.text(&s.value) } else { s.value.clone() };
-            escape(&value) + &from(s.from)
+            escape(&if s.from == BENCH { units.text(&s.value) } else { s.value.clone() })
         })
     };
     let (begin, end) = performed(survey);
@@ -143,9 +142,9 @@ fn fields(p: &Page<'_>) -> String {
         ("Reference instrument", text(&cert.reference)),
         (
             "Reference uncertainty",
-            cert.reference_uncertainty_deg.as_ref().map_or(not_stated.clone(), |u| {
-                format!("{} (standard uncertainty of one angle){}", units.show(u.value), from(u.from))
-            }),
+            cert.reference_uncertainty_deg
+                .as_ref()
+                .map_or(not_stated.clone(), |u| format!("{} (standard uncertainty of one angle)", units.show(u.value))),
         ),
         ("Traceability", text(&cert.traceability)),
         ("Environment", escape(&environment_text(cert, environment, matches!(survey.setup, Setup::Simulated(_))))),
@@ -186,6 +185,36 @@ fn issued_text(issue: &Issue, generated: &str) -> String {
         ),
         Issue::Draft(why) => format!("not issued: a draft made {} {by} ({})", escape(generated), escape(why)),
     }
+}
+
+/// Where each field of the certificate came from: a flag of `survey
+/// report`, the configuration's `[certificate]`, the bench, the survey
+/// (an appendix: the customer's pages state the fields, not their provenance).
+pub fn show_sources(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let c = &p.cert;
+    let fields: [(&str, Option<&'static str>); 17] = [
+        ("Certificate number", Some(c.number.from)),
+        ("Calibrating laboratory", c.laboratory.as_ref().map(|s| s.from)),
+        ("Laboratory's country", c.country.as_ref().map(|s| s.from)),
+        ("Customer", c.customer.as_ref().map(|s| s.from)),
+        ("Item calibrated", c.positioner.as_ref().map(|s| s.from)),
+        ("Item's condition", c.item_condition.as_ref().map(|s| s.from)),
+        ("Date received", c.received.as_ref().map(|s| s.from)),
+        ("Location of calibration", c.location.as_ref().map(|s| s.from)),
+        ("Reference instrument", c.reference.as_ref().map(|s| s.from)),
+        ("Reference uncertainty", c.reference_uncertainty_deg.as_ref().map(|s| s.from)),
+        ("Traceability", c.traceability.as_ref().map(|s| s.from)),
+        ("Stated air temperature", c.temperature_c.as_ref().map(|s| s.from)),
+        ("Tolerance", c.tolerance_deg.as_ref().map(|s| s.from)),
+        ("Operator", c.operator.as_ref().map(|s| s.from)),
+        ("Authorised by", c.signatory.as_ref().map(|s| s.from)),
+        ("Method, dates, environment measured, survey", Some("the survey as stored")),
+        ("Issued", Some("the store's record of the certificate (or a draft's time)")),
+    ];
+    let rows: Vec<Vec<String>> =
+        fields.iter().map(|(k, f)| vec![k.to_string(), escape(f.unwrap_or("not stated anywhere"))]).collect();
+    let body = crate::page::table_left("tbl-sources", &["field", "where it came from"], &rows, &[1]);
+    Ok(Section::page("sources", "Where each field came from", body))
 }
 
 /// The section: the certificate's fields.

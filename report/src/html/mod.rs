@@ -113,7 +113,7 @@ pub const BODY: &[Show] = &[
 ];
 
 /// The appendices, after the body, lettered A, B, ... in this order.
-pub const APPENDIX: &[Show] = &[iso::show_targets];
+pub const APPENDIX: &[Show] = &[iso::show_targets, header::show_sources];
 
 /// A note in place of what a section cannot show.
 pub fn note(text: &str) -> String {
@@ -141,9 +141,7 @@ fn notes(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
 /// its signature line, and the end of the certificate (what follows is
 /// the appendix).
 fn end(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
-    let signatory = p.cert.signatory.as_ref().map_or("<i>not stated</i>".to_string(), |s| {
-        format!("{} <span class=\"note\">({})</span>", escape(&s.value), s.from)
-    });
+    let signatory = p.cert.signatory.as_ref().map_or("<i>not stated</i>".to_string(), |s| escape(&s.value));
     let body = format!(
         "<ul class=\"statements\">\n\
          <li>The results relate only to the item calibrated, as it was when calibrated (ISO/IEC 17025:2017, \
@@ -235,11 +233,7 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
     let title = title(&p);
     let number = &p.cert.number.value;
     let laboratory = p.cert.laboratory.as_ref().map(|l| l.value.clone()).unwrap_or_default();
-    let origin = format!(
-        "{} <span class=\"note\">(number: {})</span>",
-        if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) },
-        p.cert.number.from
-    );
+    let origin = if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) };
     let kind = if p.cert.rehearsal.is_some() {
         "Rehearsal, not a calibration: certificate"
     } else {

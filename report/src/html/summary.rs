@@ -162,9 +162,8 @@ fn verdict(figure: Option<f64>, u: Option<f64>, tolerance: f64, what: &str, p: &
             (
                 class,
                 format!(
-                    "Verdict against the tolerance {} ({}): {}. A = {}, {u_text}, {why}. Judged: {what}.",
+                    "Verdict against the tolerance {}: {}. A = {}, {u_text}, {why}. Judged: {what}.",
                     units.show(tolerance),
-                    p.cert.tolerance_deg.as_ref().map_or("", |t| t.from),
                     decision.word().to_uppercase(),
                     at_u(a),
                 ),
