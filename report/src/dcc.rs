@@ -177,6 +177,27 @@ fn xml_text(element: &str, text: &str) -> anyhow::Result<()> {
     }
 }
 
+/// The DCC's `performanceLocation` from the location stated: the
+/// customer's site (or branch) when it says so, the laboratory's when it
+/// names a laboratory (or lab), else `other` (not stated, or not said).
+fn performance_location(location: Option<&str>) -> &'static str {
+    let Some(l) = location.map(str::to_lowercase) else { return "other" };
+    let words: Vec<&str> = l.split(|c: char| !c.is_alphanumeric()).filter(|w| !w.is_empty()).collect();
+    let has = |w: &[&str]| words.iter().any(|x| w.contains(x));
+    match (has(&["customer", "customers", "client", "site", "onsite"]), has(&["branch"])) {
+        (true, true) => "customerBranch",
+        (true, false) => "customer",
+        (false, branch) if has(&["laboratory", "lab", "laboratories", "labs"]) => {
+            if branch {
+                "laboratoryBranch"
+            } else {
+                "laboratory"
+            }
+        }
+        _ => "other",
+    }
+}
+
 /// `s` with its first letter a capital.
 fn capitalised(s: &str) -> String {
     let mut c = s.chars();
@@ -253,7 +274,7 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     }
     x.leaf("dcc:beginPerformanceDate", &begin)?;
     x.leaf("dcc:endPerformanceDate", &end)?;
-    x.leaf("dcc:performanceLocation", "other")?;
+    x.leaf("dcc:performanceLocation", performance_location(cert.location.as_ref().map(|l| l.value.as_str())))?;
     let issued = match &p.d.issue {
         Issue::Issued { issued_at, .. } => issued_at,
         Issue::Draft(_) => &p.d.generated,
@@ -432,6 +453,16 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.words("dcc:name", stated(&p.cert.reference))?;
     if let Some(u) = &p.cert.reference_uncertainty_deg {
         x.words("dcc:description", &format!("standard uncertainty of one angle: {} deg", u.value))?;
+        // The same as a quantity a machine reads.
+        x.open("dcc:measuringEquipmentQuantities", &[])?;
+        x.open("dcc:measuringEquipmentQuantity", &[("refType", "survey_referenceStandardUncertainty")])?;
+        x.words("dcc:name", "the reference's standard uncertainty of one angle (k = 1)")?;
+        x.open("si:real", &[])?;
+        x.leaf("si:value", &format!("{}", u.value))?;
+        x.leaf("si:unit", DEGREE)?;
+        x.close("si:real")?;
+        x.close("dcc:measuringEquipmentQuantity")?;
+        x.close("dcc:measuringEquipmentQuantities")?;
     }
     x.close("dcc:measuringEquipment")?;
     x.close("dcc:measuringEquipments")?;
@@ -669,6 +700,15 @@ fn table(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_performance_location_follows_the_location_stated() {
+        assert_eq!(performance_location(Some("Metrology Lab North, room 2 (permanent laboratory)")), "laboratory");
+        assert_eq!(performance_location(Some("at the customer's site, ACME Ltd")), "customer");
+        assert_eq!(performance_location(Some("Customer branch office, Leeds")), "customerBranch");
+        assert_eq!(performance_location(Some("Bay 3")), "other");
+        assert_eq!(performance_location(None), "other");
+    }
 
     #[test]
     fn text_xml_cannot_hold_is_refused_and_the_rest_is_escaped() {

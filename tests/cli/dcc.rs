@@ -149,6 +149,9 @@ fn every_dcc_written_validates_against_the_dcc_3_2_0_schema() {
     }
     let bare = bench.read("bare/dcc.xml");
     assert!(!bare.contains("mainSigner"), "no main signer when none is stated");
+    // The reference's uncertainty as a quantity; the location "Bay 3" says neither laboratory nor customer.
+    assert!(after(&full, "survey_referenceStandardUncertainty", "si:value").is_some());
+    assert!(full.contains("<dcc:performanceLocation>other</dcc:performanceLocation>"));
     assert_eq!(after(&full, "basic_acceptanceLimitUpper", "si:value").as_deref(), Some("0.05"));
     assert!(bare.contains("<dcc:countryCodeISO3166_1>ZZ</dcc:countryCodeISO3166_1>"));
     assert!(bare.contains("refType=\"basic_temperatureMax\"") && bare.contains("<si:unit>\\hecto\\pascal</si:unit>"));
