@@ -514,6 +514,7 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:results", &[])?;
     figures(x, p)?;
     per_target(x, p)?;
+    budget(x, p)?;
     table(x, p)?;
     x.close("dcc:results")?;
     x.close("dcc:measurementResult")?;
@@ -648,6 +649,38 @@ fn per_target(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         }
     }
     x.close("dcc:list")?;
+    x.close("dcc:data")?;
+    x.close("dcc:result")
+}
+
+/// The table's uncertainty budget: each contribution's standard
+/// uncertainty (k = 1), the combined u and the expanded U, as the page's
+/// budget states them (degrees: the contributions by significance, U to two digits).
+fn budget(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let Some(b) = &p.d.uncertainty else { return Ok(()) };
+    let deg = crate::units::Units::Deg;
+    x.open("dcc:result", &[("refType", "survey_uncertaintyBudget")])?;
+    x.words("dcc:name", "Uncertainty budget of the correction table")?;
+    x.words(
+        "dcc:description",
+        "Each contribution a standard uncertainty (k = 1) at an angle of the table; combined in quadrature; the \
+         expanded uncertainty U the table's coverage interval (k = 2, 95.45 %).",
+    )?;
+    x.open("dcc:data", &[])?;
+    let plain = |x: &mut Xml, ref_type: &str, name: &str, value: String| -> anyhow::Result<()> {
+        x.open("dcc:quantity", &[("refType", ref_type)])?;
+        x.words("dcc:name", name)?;
+        x.open("si:real", &[])?;
+        x.leaf("si:value", &value)?;
+        x.leaf("si:unit", DEGREE)?;
+        x.close("si:real")?;
+        x.close("dcc:quantity")
+    };
+    for c in &b.budget {
+        plain(x, "survey_budgetEntry", &c.source, deg.num(c.u_deg))?;
+    }
+    plain(x, "survey_budgetCombined", "combined standard uncertainty u", deg.num(b.combined_u_deg))?;
+    plain(x, "survey_budgetExpanded", "expanded uncertainty U (k = 2)", rounding::num_u(deg, b.table_u_deg))?;
     x.close("dcc:data")?;
     x.close("dcc:result")
 }

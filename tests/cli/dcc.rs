@@ -215,6 +215,9 @@ fn the_dccs_values_are_survey_stats_and_process() {
     assert_eq!(errors, 2, "forward and reverse");
     let forward = after(&xml, "survey_meanErrorForward", "si:valueXMLList").unwrap();
     assert_eq!(forward.split_whitespace().count(), 72);
+    // The budget as process --json gives it: each contribution, by its source.
+    let entries = xml.matches("refType=\"survey_budgetEntry\"").count();
+    assert_eq!(entries, process_budget_len(&bench), "one quantity a contribution");
     // A, E and M carry the measurement's U; the corrected A is the verification survey's.
     assert!(after(&xml, "survey_iso230_2_A", "si:uncertainty").is_some());
     assert_equal(&xml, "survey_correctedAMeasured", bench.stats_json(Some(2))["iso230_2"]["A"].as_f64().unwrap());
@@ -345,6 +348,12 @@ fn hostile_fields_are_refused_or_written_as_they_read() {
     bench.survey(&["run", "--config", "c.toml"]).bad_input(&["c.toml:41: certificate.signatory: \"\" is empty"]);
     bench.write("c.toml", example.replace("192.168.1.40:502", "192.168.1.40:502\\u001b"));
     bench.survey(&["run", "--config", "c.toml"]).bad_input(&["positioner.address", "U+001B"]);
+}
+
+/// How many contributions `survey process --survey 1 --json`'s budget has.
+fn process_budget_len(bench: &Bench) -> usize {
+    let process: Value = bench.survey(&["process", "--survey", "1", "--json"]).success().json();
+    process["uncertainty"]["budget"].as_array().map_or(0, Vec::len)
 }
 
 /// The DCC's `uniqueIdentifier`.
