@@ -138,6 +138,15 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     // (the fig8 preset's 40 cycles/rev line: 9 deg, so every 1 deg), not every 10 deg.
     assert!(!html.contains("gear_pass:") && html.contains("gear pass: 20:1 pinion"), "sources in words");
     assert!(html.contains("The excerpt: every 1 deg, an eighth or less of the shortest significant period (9 deg"));
+    // The hysteresis figure tells its series apart: the mean, each run and the band each in its own colour.
+    let hysteresis = html.split("<figure id=\"fig-hysteresis\">").nth(1).unwrap().split("</figure>").next().unwrap();
+    let legend = hysteresis.split("<ul class=\"legend\">").nth(1).unwrap();
+    let colour = |label: &str| {
+        let item = legend.split("<li>").find(|i| i.contains(label)).unwrap_or_else(|| panic!("{label} in {legend}"));
+        item.split(['"']).find(|w| w.starts_with('#')).unwrap().to_string()
+    };
+    let colours = [colour("mean over the runs"), colour("each run"), colour("mean ± 2 s")];
+    assert!(colours[0] != colours[1] && colours[1] != colours[2] && colours[0] != colours[2], "{colours:?}");
     // The appendix is in the page, folded, and not printed without --appendix.
     assert!(html.contains("class=\"appendix screen-only\">") && html.contains("<details><summary>"), "folded");
     assert!(
