@@ -223,7 +223,8 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
 }
 
 /// The flags given that would change what a certificate states (refused
-/// once it is issued, but with `--amend`).
+/// once it is issued, but with `--amend`; `--units` and `--appendix` only
+/// when they differ from the certificate as issued: `survey_report::issue`).
 fn changes(opts: &ReportOptions) -> Vec<&'static str> {
     let f = &opts.flags;
     let given = [
@@ -242,11 +243,9 @@ fn changes(opts: &ReportOptions) -> Vec<&'static str> {
         ("--item-condition", f.item_condition.is_some()),
         ("--received", f.received.is_some()),
         ("--country", f.country.is_some()),
-        ("--units", opts.units != survey_report::Units::Deg),
         ("--design", opts.design.is_some()),
         ("--recipe", opts.recipe.is_some()),
         ("--model", opts.model.is_some()),
-        ("--appendix", opts.appendix),
     ];
     given.into_iter().filter(|(_, g)| *g).map(|(flag, _)| flag).collect()
 }

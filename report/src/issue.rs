@@ -75,6 +75,7 @@ pub async fn report(
     let latest = issued.last();
     match (latest, amend) {
         (Some(c), None) => {
+            let changes = with_presentation(changes, c, opts);
             if !changes.is_empty() {
                 return Err(bad_input(format!(
                     "survey {}'s certificate {} was issued {}: what it states is fixed, and {} would change it; \
@@ -145,6 +146,20 @@ pub async fn report(
         issued?;
     }
     Ok(Written::IssuedNow(c))
+}
+
+/// `changes` and what of the presentation asked for differs from the
+/// certificate `c` as issued: its unit (`--units`, or `SURVEY_UNITS`), its
+/// appendix printed (`--appendix`). Asking for what it was issued with is no change.
+fn with_presentation<'a>(changes: &[&'a str], c: &Issued, opts: &ReportOptions) -> Vec<&'a str> {
+    let mut all = changes.to_vec();
+    if !c.page.contains(&format!("Errors are readout − actual, in {}.", opts.units.symbol())) {
+        all.push("--units (or SURVEY_UNITS)");
+    }
+    if opts.appendix && !c.page.contains("<details open>") {
+        all.push("--appendix");
+    }
+    all
 }
 
 /// The page and the DCC of `data`.

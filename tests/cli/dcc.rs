@@ -378,6 +378,11 @@ fn a_certificate_is_issued_once_and_amended_by_a_new_one() {
     let again = bench.survey(&["report", "--out", "b"]).success();
     assert!(again.stderr.contains("as issued"), "{again}");
     assert!(bench.read("b/index.html") == page && bench.read("b/dcc.xml") == dcc, "reproduced byte for byte");
+    // Asking for what it was issued with is no change; another unit would be.
+    bench.survey(&["report", "--out", "b", "--units", "deg"]).success();
+    bench
+        .survey_with_env(&["report", "--out", "c"], "SURVEY_UNITS", "arcsec")
+        .bad_input(&["--units (or SURVEY_UNITS)"]);
     // What would change it is refused: exit 2, nothing written.
     bench
         .survey(&["report", "--out", "c", "--operator", "K. Lee"])

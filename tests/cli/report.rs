@@ -293,7 +293,7 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         (vec!["--tolerance", "-0.01"], vec!["--tolerance"]),
         (vec!["--certificate-number", " "], vec!["--certificate-number"]),
         // The certificate is issued: a flag that would change it is refused (an amendment says why).
-        (vec!["--model", "missing.toml"], vec!["--model would change it", "--amend"]),
+        (vec!["--model", "missing.toml"], vec!["--model", "would change it", "--amend"]),
         (vec!["--received", "2026-02-30"], vec!["--received 2026-02-30: 2026-02-30 is not a date (no such day"]),
         (
             vec!["--received", "20.11.2026"],
