@@ -184,6 +184,9 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
         appendix: args.appendix,
     };
     let changes = changes(&opts);
+    // Where the files go, checked before a certificate is issued (an issued one is never left unwritten by a
+    // folder that cannot be).
+    check_out(&args.out)?;
     let progress = crate::progress::Progress::spinner("writing the report", crate::progress::visible(false));
     // Read as every reader does; a certificate issued is kept in the station's file, opened to write for that
     // alone. A file this process cannot write (read-only media, another's) and the lab store give a draft.
@@ -220,6 +223,20 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let dcc = path.with_file_name("dcc.xml");
     emit(&format!("{}\n{}\n{printed}", path.display(), dcc.display()));
     Ok(())
+}
+
+/// `out` is a folder, or can be made: the nearest part of it that exists is a folder.
+fn check_out(out: &Path) -> anyhow::Result<()> {
+    let existing = out.ancestors().find(|a| !a.as_os_str().is_empty() && a.exists()).unwrap_or(Path::new("."));
+    if existing.is_dir() {
+        Ok(())
+    } else {
+        Err(survey_lab::error::bad_input(format!(
+            "--out {}: {} is not a folder: the report's files cannot be written there",
+            out.display(),
+            existing.display()
+        )))
+    }
 }
 
 /// The flags given that would change what a certificate states (refused

@@ -403,8 +403,11 @@ fn a_certificate_is_issued_once_and_amended_by_a_new_one() {
     assert!(dcc_d.contains("refType=\"survey_amendment\"") && dcc_d.contains("<dcc:reference>7.8.8</dcc:reference>"));
     bench.survey(&["report", "--out", "e"]).success();
     assert!(bench.read("e/dcc.xml") == dcc_d, "the current certificate is the amendment");
-    // Nothing to amend before a certificate is issued; a number is issued once in a store.
+    // A folder the files cannot go to: refused before the certificate is issued.
     bench.small_survey(true);
+    bench.write("file", "not a folder");
+    bench.survey(&["report", "--survey", "2", "--out", "file/r"]).bad_input(&["--out file/r", "is not a folder"]);
+    // Nothing to amend before a certificate is issued (survey 2's was not); a number is issued once in a store.
     bench.survey(&["report", "--survey", "2", "--out", "f", "--amend", "x"]).bad_input(&["no certificate issued"]);
     bench
         .survey(&["report", "--survey", "2", "--out", "f", "--certificate-number", &number])
