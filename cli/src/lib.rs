@@ -109,8 +109,9 @@ Examples:
     Report {
         #[command(flatten)]
         db: args::DbArg,
+        // Boxed: the report's flags are many (clippy's large_enum_variant).
         #[command(flatten)]
-        args: report::ReportArgs,
+        args: Box<report::ReportArgs>,
     },
     /// Store measured data from a CSV file as a new survey; prints its id.
     #[command(after_help = "\
@@ -371,7 +372,7 @@ pub async fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Run { args, .. } => run::run(&db, args).await,
         Command::Check(args) => check::check(args).await,
         Command::Resume { args, .. } => resume::resume(&db, args).await,
-        Command::Report { args, .. } => report::report(&db, args).await,
+        Command::Report { args, .. } => report::report(&db, *args).await,
         Command::Import { args, .. } => import::import(&db, args).await,
         Command::Export { args, .. } => export::export(&db, args).await,
         Command::Stats { args, .. } => stats::stats(&db, args).await,

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use survey_processing::num::Num;
 use survey_report::ReportOptions;
 use survey_report::certificate::CertificateFlags;
+use survey_report::issue::Written;
 
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -46,7 +47,7 @@ pub struct ReportArgs {
     /// The air temperature during the survey, degrees Celsius [default: [certificate] of the configuration].
     #[arg(long, value_name = "C", allow_negative_numbers = true)]
     pub temperature: Option<f64>,
-    /// The certificate's number [default: [certificate] number, or made from the survey's date and id].
+    /// The certificate's number [default: [certificate] number, or made from the survey's date and uid].
     #[arg(long, value_name = "TEXT")]
     pub certificate_number: Option<String>,
     /// The calibrating laboratory: name, address, accreditation [default: [certificate] laboratory].
@@ -76,9 +77,49 @@ pub struct ReportArgs {
     /// Print the appendix (every target's figures) too; the HTML page always holds it, folded.
     #[arg(long)]
     pub appendix: bool,
+    /// Issue a new certificate of the survey that replaces the one issued, saying why (ISO/IEC 17025 7.8.8): its own number (the first's with -A1, -A2, ... unless --certificate-number), the fields and flags given now.
+    #[arg(long, value_name = "REASON")]
+    pub amend: Option<String>,
     /// Print the page to DIR/index.pdf with Chromium, headless (SURVEY_CHROMIUM names the browser; else chromium on PATH).
     #[arg(long)]
     pub pdf: bool,
+}
+
+/// Every text flag printed on the certificate: not empty, one line without
+/// control characters, within what a field holds (as the configuration's
+/// `[certificate]` keys).
+fn check_texts(args: &ReportArgs) -> anyhow::Result<()> {
+    use survey_store::config::{check_field, check_number};
+    let number = ("--certificate-number", &args.certificate_number, check_number as fn(&str) -> Result<(), String>);
+    let fields = [
+        ("--positioner", &args.positioner),
+        ("--reference-instrument", &args.reference_instrument),
+        ("--operator", &args.operator),
+        ("--customer", &args.customer),
+        ("--laboratory", &args.laboratory),
+        ("--traceability", &args.traceability),
+        ("--signatory", &args.signatory),
+        ("--location", &args.location),
+        ("--item-condition", &args.item_condition),
+    ];
+    let fields = fields.into_iter().chain([("--amend", &args.amend)]);
+    let all = std::iter::once(number).chain(fields.map(|(f, t)| (f, t, check_field as fn(&str) -> _)));
+    for (flag, text, check) in all {
+        if let Some(t) = text
+            && let Err(why) = check(t)
+        {
+            return Err(survey_lab::error::bad_input(format!("{flag} {}: {why}", shown(t))));
+        }
+    }
+    Ok(())
+}
+
+/// A flag's text as a message quotes it: escaped (a control character as
+/// `\u{7}`), cut at 40 characters.
+fn shown(text: &str) -> String {
+    let cut: String = text.chars().take(40).collect();
+    let more = if text.chars().count() > 40 { "..." } else { "" };
+    format!("{:?}{more}", cut)
 }
 
 pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
@@ -103,18 +144,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             Num(t)
         )));
     }
-    for (flag, text) in [
-        ("--certificate-number", &args.certificate_number),
-        ("--laboratory", &args.laboratory),
-        ("--traceability", &args.traceability),
-        ("--signatory", &args.signatory),
-        ("--location", &args.location),
-        ("--item-condition", &args.item_condition),
-    ] {
-        if text.as_ref().is_some_and(|t| t.trim().is_empty()) {
-            return Err(survey_lab::error::bad_input(format!("{flag}: empty")));
-        }
-    }
+    check_texts(&args)?;
     if let Some(d) = &args.received {
         survey_store::config::check_date(d)
             .map_err(|e| survey_lab::error::bad_input(format!("--received {d}: {d} is {e}")))?;
@@ -153,13 +183,31 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
         quiet: false,
         appendix: args.appendix,
     };
+    let changes = changes(&opts);
+    // Where the files go, checked before a certificate is issued (an issued one is never left unwritten by a
+    // folder that cannot be).
+    check_out(&args.out)?;
     let progress = crate::progress::Progress::spinner("writing the report", crate::progress::visible(false));
+    // Read as every reader does; a certificate issued is kept in the station's file, opened to write for that
+    // alone. A file this process cannot write (read-only media, another's) and the lab store give a draft.
+    let writable = std::fs::OpenOptions::new().write(true).open(db).is_ok();
+    let writer = (writable && survey_store::lab::url_of(db).is_none()).then_some(db);
     let store = open_read_only(db).await?;
-    let data = survey_report::gather(&store, args.survey, &opts).await;
+    let amend = args.amend.as_deref();
+    let written = survey_report::issue::report(&store, writer, args.survey, &opts, amend, &changes).await;
     store.close().await;
-    let data = data?;
-    let html = survey_report::html::render(&data, &opts)?;
-    let dcc = survey_report::dcc::document(&survey_report::html::page(&data, &opts))?;
+    let (html, dcc, said) = match written? {
+        Written::IssuedNow(c) => {
+            let what = if c.replaces.is_some() { "issued (an amendment)" } else { "issued" };
+            (c.page, c.dcc, format!("certificate {} of survey {} {what} {}", c.number, c.survey_id, c.issued_at))
+        }
+        Written::Reproduced(c) => (
+            c.page,
+            c.dcc,
+            format!("certificate {} as issued {} (written again from the store)", c.number, c.issued_at),
+        ),
+        Written::Draft { page, dcc, why } => (page, dcc, format!("a draft, not issued: {why}")),
+    };
     let path = survey_report::write(&args.out, &html, &dcc)?;
     let printed = match pdf_bound {
         Some(bound) => {
@@ -170,8 +218,51 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
         None => String::new(),
     };
     drop(progress);
+    eprintln!("{said}");
     // Every file written: the page, the DCC beside it, the PDF.
     let dcc = path.with_file_name("dcc.xml");
     emit(&format!("{}\n{}\n{printed}", path.display(), dcc.display()));
     Ok(())
+}
+
+/// `out` is a folder, or can be made: the nearest part of it that exists is a folder.
+fn check_out(out: &Path) -> anyhow::Result<()> {
+    let existing = out.ancestors().find(|a| !a.as_os_str().is_empty() && a.exists()).unwrap_or(Path::new("."));
+    if existing.is_dir() {
+        Ok(())
+    } else {
+        Err(survey_lab::error::bad_input(format!(
+            "--out {}: {} is not a folder: the report's files cannot be written there",
+            out.display(),
+            existing.display()
+        )))
+    }
+}
+
+/// The flags given that would change what a certificate states (refused
+/// once it is issued, but with `--amend`; `--units` and `--appendix` only
+/// when they differ from the certificate as issued: `survey_report::issue`).
+fn changes(opts: &ReportOptions) -> Vec<&'static str> {
+    let f = &opts.flags;
+    let given = [
+        ("--positioner", f.positioner.is_some()),
+        ("--reference-instrument", f.reference.is_some()),
+        ("--reference-uncertainty", f.reference_uncertainty_deg.is_some()),
+        ("--operator", f.operator.is_some()),
+        ("--customer", f.customer.is_some()),
+        ("--temperature", f.temperature_c.is_some()),
+        ("--certificate-number", f.number.is_some()),
+        ("--laboratory", f.laboratory.is_some()),
+        ("--traceability", f.traceability.is_some()),
+        ("--tolerance", f.tolerance_deg.is_some()),
+        ("--signatory", f.signatory.is_some()),
+        ("--location", f.location.is_some()),
+        ("--item-condition", f.item_condition.is_some()),
+        ("--received", f.received.is_some()),
+        ("--country", f.country.is_some()),
+        ("--design", opts.design.is_some()),
+        ("--recipe", opts.recipe.is_some()),
+        ("--model", opts.model.is_some()),
+    ];
+    given.into_iter().filter(|(_, g)| *g).map(|(flag, _)| flag).collect()
 }

@@ -8,7 +8,7 @@
 //! (the simulated preset's name and description, the simulated reference's
 //! noise, a configured instrument's driver and address, a simulated
 //! reference's lack of traceability); the survey (a certificate number made
-//! of its date and id when none was assigned); else "not stated".
+//! of its date and uid when none was assigned, [`crate::issue`]); else "not stated".
 
 use survey_acquire::ReferenceKind;
 use survey_store::config::CertificateSection;
@@ -17,6 +17,37 @@ use survey_store::survey::{Setup, SurveyRecord};
 /// What `survey report`'s flags say (each overrides the stored value): the
 /// same fields as the configuration's `[certificate]`.
 pub type CertificateFlags = survey_store::config::CertificateSection;
+
+/// What a page states of its issue.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Issue {
+    /// The certificate as issued: its number, when, and what it replaces.
+    Issued { number: String, issued_at: String, seq: i64, replaces: Option<Replaced> },
+    /// Not issued, and why.
+    Draft(String),
+}
+
+/// The certificate an amendment replaces.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Replaced {
+    pub number: String,
+    pub issued_at: String,
+    pub reason: String,
+    /// Its DCC's SHA-256, hexadecimal (the DCC's `previousReport` names it by it).
+    pub dcc_sha256: String,
+}
+
+/// The number made from a survey: its date and the first 12 hexadecimal
+/// digits of its uid (see [`crate::issue`]).
+pub fn made_number(survey: &SurveyRecord) -> String {
+    number_from(&survey.created_at, &survey.uid)
+}
+
+fn number_from(created_at: &str, uid: &str) -> String {
+    let date: String = created_at.chars().filter(char::is_ascii_digit).take(8).collect();
+    let hex: String = uid.chars().filter(char::is_ascii_hexdigit).take(12).collect::<String>().to_lowercase();
+    if date.len() == 8 { format!("{date}-{hex}") } else { hex }
+}
 
 /// A value and where it came from.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,13 +80,19 @@ pub struct Certificate {
     pub received: Option<Stated<String>>,
     /// The laboratory's country, ISO 3166-1 alpha-2.
     pub country: Option<Stated<String>>,
+    /// Why the survey is a rehearsal on simulated instruments, not a
+    /// calibration, when it is ([`survey_store::survey::Setup::rehearsal`]).
+    pub rehearsal: Option<String>,
 }
+
+/// What a rehearsal's certificate says on every page, in its title and in its DCC.
+pub const REHEARSAL: &str = "rehearsal on simulated instruments, not a calibration";
 
 const FLAG: &str = "survey report flag";
 const CONFIG: &str = "[certificate] of the configuration";
 /// Where a value the bench says came from (its sentences are the software's, errors in degrees).
 pub const BENCH: &str = "the bench";
-const SURVEY: &str = "made from the survey's date and id: no number was assigned";
+const SURVEY: &str = "made from the survey's date and uid: no number was assigned";
 
 fn pick<T: Clone>(flag: &Option<T>, config: Option<&T>, bench: Option<T>) -> Option<Stated<T>> {
     flag.clone()
@@ -102,9 +139,8 @@ impl Certificate {
             ),
             _ => None,
         };
-        let date: String = survey.created_at.chars().filter(char::is_ascii_digit).take(8).collect();
-        let made = if date.len() == 8 { format!("{date}-{}", survey.id) } else { survey.id.to_string() };
-        Certificate {
+        let made = made_number(survey);
+        let cert = Certificate {
             number: pick(&flags.number, stored.number.as_ref(), None).unwrap_or(Stated { value: made, from: SURVEY }),
             laboratory: pick(&flags.laboratory, stored.laboratory.as_ref(), None),
             traceability: pick(&flags.traceability, stored.traceability.as_ref(), traceability),
@@ -124,7 +160,31 @@ impl Certificate {
             item_condition: pick(&flags.item_condition, stored.item_condition.as_ref(), None),
             received: pick(&flags.received, stored.received.as_ref(), None),
             country: pick(&flags.country, stored.country.as_ref(), None),
+            rehearsal: None,
+        };
+        match survey.setup.rehearsal() {
+            Some(why) => cert.rehearsal_of(why),
+            None => cert,
         }
+    }
+
+    /// A rehearsal's certificate: no traceability claimed whatever was
+    /// stated, and the instruments named as simulated stand-ins.
+    fn rehearsal_of(mut self, why: String) -> Certificate {
+        self.traceability = Some(Stated {
+            value: format!(
+                "none: a {REHEARSAL} ({why}); nothing on this certificate is traceable to the SI, whatever the \
+                 configuration or a flag states"
+            ),
+            from: BENCH,
+        });
+        for field in [&mut self.positioner, &mut self.reference] {
+            if let Some(s) = field.as_mut().filter(|s| s.from != BENCH) {
+                s.value = format!("simulated, standing in for: {}", s.value);
+            }
+        }
+        self.rehearsal = Some(why);
+        self
     }
 
     /// A short name of the positioner for the title.
@@ -190,8 +250,8 @@ mod tests {
         assert_eq!(cert.temperature_c.as_ref().map(|t| t.value), Some(20.3));
         assert_eq!(cert.laboratory.as_ref().map(|l| l.from), Some(CONFIG));
         assert!(cert.traceability.as_ref().is_some_and(|t| t.value.contains("certificate 5678")));
-        // No number assigned: made from the survey (its id; `created_at` here has no date).
-        assert_eq!((cert.number.value.as_str(), cert.number.from), ("4", SURVEY));
+        // No number assigned: made from the survey (its uid; `created_at` here has no date).
+        assert_eq!((cert.number.value.as_str(), cert.number.from), ("000000000000", SURVEY));
         let numbered = CertificateFlags { number: Some("CAL-1".into()), ..CertificateFlags::default() };
         assert_eq!(Certificate::of(&survey, &numbered).number, Stated { value: "CAL-1".into(), from: FLAG });
         let flags = CertificateFlags {
@@ -218,6 +278,13 @@ mod tests {
         let cert = Certificate::of(&bare, &CertificateFlags::default());
         assert_eq!(cert.reference.unwrap().value, "emscon 192.168.1.30:700");
         assert_eq!(cert.reference_uncertainty_deg, None);
+    }
+
+    #[test]
+    fn a_made_number_is_the_date_and_twelve_digits_of_the_uid() {
+        let uid = "0B6C1A2E-4F3D-4a1b-8c9d-0123456789ab";
+        assert_eq!(number_from("2026-12-06T13:49:26Z", uid), "20261206-0b6c1a2e4f3d");
+        assert_eq!(number_from("t", uid), "0b6c1a2e4f3d");
     }
 
     #[test]

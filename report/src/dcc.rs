@@ -21,6 +21,7 @@
 //!
 //! Written with quick-xml's [`Writer`] (every text escaped by it).
 
+use crate::certificate::{Issue, REHEARSAL};
 use crate::conformity::{self, Decision};
 use crate::html::Page;
 use crate::html::header::{environment_text, method_text, performed};
@@ -36,13 +37,16 @@ use survey_processing::iso230::iso230_2;
 const DEGREE: &str = "\\degree";
 /// The coverage factor and probability of every expanded uncertainty.
 const K: &str = "2";
-const PROBABILITY: &str = "0.95";
+use crate::rounding::{NORMAL, PROBABILITY, TABLE_DISTRIBUTION};
 /// What a field the laboratory did not state says.
 const NOT_STATED: &str = "not stated";
 
 /// The XML being written.
 struct Xml {
     w: Writer<Vec<u8>>,
+    /// The distribution of the expanded uncertainties being written: the
+    /// measured figures' ([`NORMAL`]) or the table's ([`TABLE_DISTRIBUTION`]).
+    distribution: &'static str,
 }
 
 type Attrs<'a> = &'a [(&'a str, &'a str)];
@@ -61,6 +65,7 @@ impl Xml {
 
     /// `<name>text</name>`.
     fn leaf(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
+        xml_text(name, text)?;
         self.open(name, &[])?;
         self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
         self.close(name)
@@ -68,6 +73,7 @@ impl Xml {
 
     /// A `textType`/`richContentType` element: `<name><dcc:content lang="en">text</dcc:content></name>`.
     fn words(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
+        xml_text(name, text)?;
         self.open(name, &[])?;
         self.open("dcc:content", &[("lang", "en")])?;
         self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
@@ -77,7 +83,12 @@ impl Xml {
 
     /// A quantity: name, one `si:real` in degrees, its expanded uncertainty when known.
     fn angle(&mut self, ref_type: &str, name: &str, value: &str, u: Option<&str>) -> anyhow::Result<()> {
-        self.open("dcc:quantity", &[("refType", ref_type)])?;
+        // PTB's own refType beside ours (refType is a list): a consumer finds the measured values by it.
+        let ref_type = match ref_type {
+            r if r.starts_with("survey_") => format!("basic_measuredValue {r}"),
+            r => r.to_string(),
+        };
+        self.open("dcc:quantity", &[("refType", ref_type.as_str())])?;
         self.words("dcc:name", name)?;
         self.open("si:real", &[])?;
         self.leaf("si:value", value)?;
@@ -87,7 +98,7 @@ impl Xml {
             self.leaf("si:uncertainty", u)?;
             self.leaf("si:coverageFactor", K)?;
             self.leaf("si:coverageProbability", PROBABILITY)?;
-            self.leaf("si:distribution", "normal")?;
+            self.leaf("si:distribution", self.distribution)?;
             self.close("si:expandedUnc")?;
         }
         self.close("si:real")?;
@@ -113,7 +124,7 @@ impl Xml {
             self.leaf("si:uncertaintyXMLList", u)?;
             self.leaf("si:coverageFactorXMLList", K)?;
             self.leaf("si:coverageProbabilityXMLList", PROBABILITY)?;
-            self.leaf("si:distributionXMLList", "normal")?;
+            self.leaf("si:distributionXMLList", self.distribution)?;
             self.close("si:expandedUncXMLList")?;
         }
         self.close("si:realListXMLList")?;
@@ -145,6 +156,54 @@ impl Xml {
     }
 }
 
+/// Refuse text that XML 1.0 cannot hold as written or that a certificate
+/// cannot print: a control character but tab and line feed (NUL and most C0
+/// controls are not XML characters; a carriage return would be read back as
+/// a line feed), U+FFFE and U+FFFF. What XML can hold, quick-xml escapes
+/// (`&`, `<`, `>`, quotes). The configuration and the flags refuse these
+/// first; this is for what reaches the writer otherwise (a survey stored
+/// before they did).
+fn xml_text(element: &str, text: &str) -> anyhow::Result<()> {
+    let bad = |c: char| (c.is_control() && c != '\n' && c != '\t') || c == '\u{FFFE}' || c == '\u{FFFF}';
+    match text.chars().enumerate().find(|(_, c)| bad(*c)) {
+        None => Ok(()),
+        Some((i, c)) => Err(survey_lab::error::bad_input(format!(
+            "the DCC cannot hold {element}'s text {:?}: the character U+{:04X} at character {} is not printable \
+             (state the field again with its survey report flag)",
+            text.chars().take(40).collect::<String>(),
+            c as u32,
+            i + 1
+        ))),
+    }
+}
+
+/// The DCC's `performanceLocation` from the location stated: the
+/// customer's site (or branch) when it says so, the laboratory's when it
+/// names a laboratory (or lab), else `other` (not stated, or not said).
+fn performance_location(location: Option<&str>) -> &'static str {
+    let Some(l) = location.map(str::to_lowercase) else { return "other" };
+    let words: Vec<&str> = l.split(|c: char| !c.is_alphanumeric()).filter(|w| !w.is_empty()).collect();
+    let has = |w: &[&str]| words.iter().any(|x| w.contains(x));
+    match (has(&["customer", "customers", "client", "site", "onsite"]), has(&["branch"])) {
+        (true, true) => "customerBranch",
+        (true, false) => "customer",
+        (false, branch) if has(&["laboratory", "lab", "laboratories", "labs"]) => {
+            if branch {
+                "laboratoryBranch"
+            } else {
+                "laboratory"
+            }
+        }
+        _ => "other",
+    }
+}
+
+/// `s` with its first letter a capital.
+fn capitalised(s: &str) -> String {
+    let mut c = s.chars();
+    c.next().map_or_else(String::new, |f| f.to_uppercase().chain(c).collect())
+}
+
 /// A value of the page's number format, as the D-SI writes it (`1e-5`, `0.0350`).
 fn decimal(shown: &str) -> String {
     shown.split_whitespace().next().unwrap_or(shown).to_string()
@@ -153,16 +212,17 @@ fn decimal(shown: &str) -> String {
 /// `value` and `u` (degrees) as ILAC-P14 rounds them, for the XML.
 fn rounded(value: f64, u: Option<f64>) -> (String, Option<String>) {
     let (v, u) = rounding::show(crate::units::Units::Deg, value, u);
+    let v = decimal(&v);
     match u {
-        Some(u) => (decimal(&v), Some(decimal(&u))),
-        // Without a U: the value as computed (no rounding to a place that is not known).
-        None => (format!("{value:e}"), None),
+        Some(u) => (v, Some(decimal(&u))),
+        // Without a U: by significance, as the page shows it (no place is known to round to).
+        None => (v, None),
     }
 }
 
 /// The certificate of `p` as DCC 3.2.0 XML.
 pub fn document(p: &Page<'_>) -> anyhow::Result<String> {
-    let mut x = Xml { w: Writer::new_with_indent(Vec::new(), b' ', 1) };
+    let mut x = Xml { w: Writer::new_with_indent(Vec::new(), b' ', 1), distribution: NORMAL };
     x.w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None))).context("writing the DCC")?;
     x.open(
         "dcc:digitalCalibrationCertificate",
@@ -214,8 +274,27 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     }
     x.leaf("dcc:beginPerformanceDate", &begin)?;
     x.leaf("dcc:endPerformanceDate", &end)?;
-    x.leaf("dcc:performanceLocation", "other")?;
-    x.leaf("dcc:issueDate", p.d.generated.get(..10).unwrap_or(&p.d.generated))?;
+    x.leaf("dcc:performanceLocation", performance_location(cert.location.as_ref().map(|l| l.value.as_str())))?;
+    let issued = match &p.d.issue {
+        Issue::Issued { issued_at, .. } => issued_at,
+        Issue::Draft(_) => &p.d.generated,
+    };
+    x.leaf("dcc:issueDate", issued.get(..10).unwrap_or(issued))?;
+    if let Issue::Issued { replaces: Some(r), .. } = &p.d.issue {
+        x.open("dcc:previousReport", &[])?;
+        x.words(
+            "dcc:referral",
+            &format!(
+                "calibration certificate {} issued {}, withdrawn: this certificate replaces it",
+                r.number, r.issued_at
+            ),
+        )?;
+        x.leaf("dcc:referralID", &r.number)?;
+        x.leaf("dcc:procedure", "SHA-256 of its dcc.xml as issued")?;
+        x.leaf("dcc:value", &r.dcc_sha256)?;
+        x.words("dcc:description", &format!("Reason for the amendment: {}", r.reason))?;
+        x.close("dcc:previousReport")?;
+    }
     x.close("dcc:coreData")?;
 
     x.open("dcc:items", &[])?;
@@ -245,7 +324,10 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.words("dcc:name", stated(&cert.signatory))?;
     x.close("dcc:person")?;
     x.leaf("dcc:role", "authorises the certificate (name and function)")?;
-    x.leaf("dcc:mainSigner", "true")?;
+    // The main signer only when one is stated (a signatory "not stated" signs nothing).
+    if cert.signatory.is_some() {
+        x.leaf("dcc:mainSigner", "true")?;
+    }
     x.close("dcc:respPerson")?;
     if let Some(op) = &cert.operator {
         x.open("dcc:respPerson", &[])?;
@@ -270,6 +352,28 @@ fn statements(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         Some(("ISO/IEC 17025:2017", "7.8.2.1")),
         "The results relate only to the item calibrated, as it was when calibrated.",
     )?;
+    match &p.d.issue {
+        Issue::Issued { replaces: Some(r), .. } => x.statement(
+            "survey_amendment",
+            Some(("ISO/IEC 17025:2017", "7.8.8")),
+            &format!(
+                "This certificate replaces certificate {} issued {}, which is withdrawn. Reason: {}",
+                r.number, r.issued_at, r.reason
+            ),
+        )?,
+        Issue::Draft(why) => x.statement("survey_draft", None, &format!("Draft, not issued: {why}."))?,
+        Issue::Issued { .. } => {}
+    }
+    if let Some(why) = &cert.rehearsal {
+        x.statement(
+            "survey_rehearsal",
+            None,
+            &format!(
+                "This is a {REHEARSAL}: {why}. Its figures show the method; they certify no instrument and are \
+                 traceable to nothing."
+            ),
+        )?;
+    }
     x.statement("basic_traceability", None, stated(&cert.traceability))?;
     x.statement("survey_itemCondition", None, &format!("Condition of the item: {}", stated(&cert.item_condition)))?;
     x.statement("survey_location", None, &format!("Location of the calibration: {}", stated(&cert.location)))?;
@@ -327,7 +431,11 @@ fn judged(p: &Page<'_>) -> (Option<f64>, String) {
 fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:measurementResults", &[])?;
     x.open("dcc:measurementResult", &[])?;
-    x.words("dcc:name", "Readout error and positioning accuracy of a rotary axis")?;
+    let title = "Readout error and positioning accuracy of a rotary axis";
+    match &p.cert.rehearsal {
+        None => x.words("dcc:name", title)?,
+        Some(_) => x.words("dcc:name", &format!("{}: {title}", capitalised(REHEARSAL)))?,
+    }
     x.open("dcc:usedMethods", &[])?;
     x.open("dcc:usedMethod", &[("refType", "basic_uncertainty")])?;
     x.words("dcc:name", "Expanded uncertainty")?;
@@ -344,7 +452,17 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:measuringEquipment", &[("refType", "basic_normalUsed")])?;
     x.words("dcc:name", stated(&p.cert.reference))?;
     if let Some(u) = &p.cert.reference_uncertainty_deg {
-        x.words("dcc:description", &format!("standard uncertainty of one angle: {} deg ({})", u.value, u.from))?;
+        x.words("dcc:description", &format!("standard uncertainty of one angle: {} deg", u.value))?;
+        // The same as a quantity a machine reads.
+        x.open("dcc:measuringEquipmentQuantities", &[])?;
+        x.open("dcc:measuringEquipmentQuantity", &[("refType", "survey_referenceStandardUncertainty")])?;
+        x.words("dcc:name", "the reference's standard uncertainty of one angle (k = 1)")?;
+        x.open("si:real", &[])?;
+        x.leaf("si:value", &format!("{}", u.value))?;
+        x.leaf("si:unit", DEGREE)?;
+        x.close("si:real")?;
+        x.close("dcc:measuringEquipmentQuantity")?;
+        x.close("dcc:measuringEquipmentQuantities")?;
     }
     x.close("dcc:measuringEquipment")?;
     x.close("dcc:measuringEquipments")?;
@@ -395,6 +513,8 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.close("dcc:influenceConditions")?;
     x.open("dcc:results", &[])?;
     figures(x, p)?;
+    per_target(x, p)?;
+    budget(x, p)?;
     table(x, p)?;
     x.close("dcc:results")?;
     x.close("dcc:measurementResult")?;
@@ -426,6 +546,7 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
             let (m, um) = rounded(m, u);
             x.angle("survey_iso230_2_M", "M, mean positional deviation (ISO 230-2)", &m, um.as_deref())?;
         }
+        directions_and_vdi(x, iso, u)?;
     }
     if let Ok(processed) = &p.d.processed {
         let prediction = &processed.prediction;
@@ -433,12 +554,14 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         x.angle("survey_nativePeak", "native peak error (no correction)", &v, uv.as_deref())?;
         let table_u = p.d.uncertainty.as_ref().map(|b| b.table_u_deg);
         let (v, uv) = rounded(prediction.corrected_peak_deg, table_u);
+        x.distribution = TABLE_DISTRIBUTION;
         x.angle(
             "survey_correctedPeakPredicted",
             "corrected peak error, predicted from this survey (the table's uncertainty)",
             &v,
             uv.as_deref(),
         )?;
+        x.distribution = NORMAL;
     }
     if let Some(v) = &p.d.verification {
         let errors: Vec<f64> = v.corrected(&p.d.samples).iter().map(|s| s.error_deg()).collect();
@@ -452,6 +575,112 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
             x.angle("survey_correctedAMeasured", &name, &a, ua.as_deref())?;
         }
     }
+    if let Some(t) = &p.cert.tolerance_deg {
+        // The tolerance the accuracy A is judged against, as a quantity (its verdict is a statement).
+        x.open("dcc:quantity", &[("refType", "basic_acceptanceLimitUpper survey_toleranceA")])?;
+        x.words("dcc:name", "tolerance on the accuracy A (ISO 230-2), the upper acceptance limit")?;
+        x.open("si:real", &[])?;
+        x.leaf("si:value", &format!("{}", t.value))?;
+        x.leaf("si:unit", DEGREE)?;
+        x.close("si:real")?;
+        x.close("dcc:quantity")?;
+    }
+    x.close("dcc:data")?;
+    x.close("dcc:result")
+}
+
+/// ISO 230-2's figures each way (forward: increasing angle) and VDI/DGQ
+/// 3441's P, Pa and Ps, each to the place of the measured figures' U (with
+/// it where the figure is of the deviations themselves: A, E, P, Pa).
+fn directions_and_vdi(x: &mut Xml, iso: &survey_processing::iso230::Iso230, u: Option<f64>) -> anyhow::Result<()> {
+    let with_u = |v: f64| rounded(v, u);
+    let figures = [
+        ("survey_iso230_2_A_forward", "A, forward (ISO 230-2)", iso.a_up, true),
+        ("survey_iso230_2_A_reverse", "A, reverse (ISO 230-2)", iso.a_down, true),
+        ("survey_iso230_2_R_forward", "R, forward (ISO 230-2)", iso.r_up, false),
+        ("survey_iso230_2_R_reverse", "R, reverse (ISO 230-2)", iso.r_down, false),
+        ("survey_iso230_2_E_forward", "E, forward (ISO 230-2)", iso.e_up, true),
+        ("survey_iso230_2_E_reverse", "E, reverse (ISO 230-2)", iso.e_down, true),
+        ("survey_iso230_2_Bmean", "B mean, mean reversal value (ISO 230-2)", iso.b_mean, false),
+    ];
+    let vdi = survey_processing::vdi3441::vdi3441(iso);
+    let vdi_figures = [
+        ("survey_vdi3441_P", "P, positional uncertainty (VDI/DGQ 3441)", Some(vdi.p_deg), true),
+        ("survey_vdi3441_Pa", "Pa, position deviation (VDI/DGQ 3441)", Some(vdi.pa_deg), true),
+        ("survey_vdi3441_Ps", "Ps, largest positional scatter (VDI/DGQ 3441)", Some(vdi.ps_deg), false),
+    ];
+    for (ref_type, name, value, carries_u) in figures.into_iter().chain(vdi_figures) {
+        let Some(v) = value else { continue };
+        let (v, uv) = with_u(v);
+        x.angle(ref_type, name, &v, if carries_u { uv.as_deref() } else { None })?;
+    }
+    Ok(())
+}
+
+/// The mean error at each target and direction (readout - actual, the
+/// table's sign: the negative of ISO 230-2's mean deviation), with the
+/// measured figures' U, as lists: what a consumer compares its own
+/// measurements with.
+fn per_target(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let Ok(iso) = &p.iso else { return Ok(()) };
+    let u = measured_u(p);
+    let u_text = u.map(|u| decimal(&rounding::show_u(crate::units::Units::Deg, u)));
+    x.open("dcc:result", &[("refType", "survey_perTarget")])?;
+    x.words("dcc:name", "Mean error at each target, each direction")?;
+    x.words(
+        "dcc:description",
+        "The error readout - actual averaged over the runs at each target (the negative of ISO 230-2's mean \
+         positional deviation), forward (increasing angle) and reverse; a direction not measured is left out.",
+    )?;
+    x.open("dcc:data", &[])?;
+    x.open("dcc:list", &[("refType", "survey_perTargetList")])?;
+    let targets: Vec<String> = iso.targets.iter().map(|t| crate::units::angle(t.target_deg)).collect();
+    x.list("basic_referenceValue survey_target", "target (the readout commanded)", &targets, DEGREE, None)?;
+    type Side = fn(&survey_processing::iso230::TargetStats) -> Option<&survey_processing::iso230::DirStats>;
+    let sides: [(&str, &str, Side); 2] = [
+        ("basic_measurementError survey_meanErrorForward", "mean error, forward", |t| t.up.as_ref()),
+        ("basic_measurementError survey_meanErrorReverse", "mean error, reverse", |t| t.down.as_ref()),
+    ];
+    for (ref_type, name, side) in sides {
+        let means: Option<Vec<String>> =
+            iso.targets.iter().map(|t| side(t).map(|d| rounding::num(crate::units::Units::Deg, -d.mean, u))).collect();
+        if let Some(means) = means {
+            x.list(ref_type, name, &means, DEGREE, u_text.as_deref())?;
+        }
+    }
+    x.close("dcc:list")?;
+    x.close("dcc:data")?;
+    x.close("dcc:result")
+}
+
+/// The table's uncertainty budget: each contribution's standard
+/// uncertainty (k = 1), the combined u and the expanded U, as the page's
+/// budget states them (degrees: the contributions by significance, U to two digits).
+fn budget(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let Some(b) = &p.d.uncertainty else { return Ok(()) };
+    let deg = crate::units::Units::Deg;
+    x.open("dcc:result", &[("refType", "survey_uncertaintyBudget")])?;
+    x.words("dcc:name", "Uncertainty budget of the correction table")?;
+    x.words(
+        "dcc:description",
+        "Each contribution a standard uncertainty (k = 1) at an angle of the table; combined in quadrature; the \
+         expanded uncertainty U the table's coverage interval (k = 2, 95.45 %).",
+    )?;
+    x.open("dcc:data", &[])?;
+    let plain = |x: &mut Xml, ref_type: &str, name: &str, value: String| -> anyhow::Result<()> {
+        x.open("dcc:quantity", &[("refType", ref_type)])?;
+        x.words("dcc:name", name)?;
+        x.open("si:real", &[])?;
+        x.leaf("si:value", &value)?;
+        x.leaf("si:unit", DEGREE)?;
+        x.close("si:real")?;
+        x.close("dcc:quantity")
+    };
+    for c in &b.budget {
+        plain(x, "survey_budgetEntry", &c.source, deg.num(c.u_deg))?;
+    }
+    plain(x, "survey_budgetCombined", "combined standard uncertainty u", deg.num(b.combined_u_deg))?;
+    plain(x, "survey_budgetExpanded", "expanded uncertainty U (k = 2)", rounding::num_u(deg, b.table_u_deg))?;
     x.close("dcc:data")?;
     x.close("dcc:result")
 }
@@ -486,11 +715,58 @@ fn table(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     } else {
         &[(Direction::Forward, "survey_error", "error (both directions)")]
     };
+    // Each value to the table's U's decimal place, as the page's excerpt (one rounding).
+    let table_u = p.d.uncertainty.as_ref().map(|b| b.table_u_deg);
+    x.distribution = TABLE_DISTRIBUTION;
     for (d, ref_type, name) in columns {
-        let values: Vec<String> = (0..t.len()).map(|i| format!("{:e}", t.error_at(i as f64 * h, *d))).collect();
+        let values: Vec<String> = (0..t.len())
+            .map(|i| rounding::num(crate::units::Units::Deg, t.error_at(i as f64 * h, *d), table_u))
+            .collect();
         x.list(ref_type, name, &values, DEGREE, u.as_deref())?;
     }
+    x.distribution = NORMAL;
     x.close("dcc:list")?;
     x.close("dcc:data")?;
     x.close("dcc:result")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_performance_location_follows_the_location_stated() {
+        assert_eq!(performance_location(Some("Metrology Lab North, room 2 (permanent laboratory)")), "laboratory");
+        assert_eq!(performance_location(Some("at the customer's site, ACME Ltd")), "customer");
+        assert_eq!(performance_location(Some("Customer branch office, Leeds")), "customerBranch");
+        assert_eq!(performance_location(Some("Bay 3")), "other");
+        assert_eq!(performance_location(None), "other");
+    }
+
+    #[test]
+    fn text_xml_cannot_hold_is_refused_and_the_rest_is_escaped() {
+        for bad in ["J. Smith\u{7}", "a\u{0}b", "a\rb", "\u{1b}[31m", "a\u{85}", "\u{FFFF}"] {
+            let e = xml_text("dcc:content", bad).unwrap_err();
+            assert!(survey_lab::error::is_bad_input(&e), "{e:#}");
+            assert!(format!("{e:#}").contains("U+"), "{e:#}");
+        }
+        let hostile = "<a b=\"c\">&amp; ]]> '\u{202E}x\ty\nz \u{1F600}";
+        xml_text("dcc:content", hostile).unwrap();
+        let mut x = Xml { w: Writer::new(Vec::new()), distribution: NORMAL };
+        x.words("dcc:name", hostile).unwrap();
+        let written = String::from_utf8(x.w.into_inner()).unwrap();
+        let mut reader = quick_xml::Reader::from_str(&written);
+        let mut text = String::new();
+        loop {
+            match reader.read_event().unwrap() {
+                Event::Eof => break,
+                Event::Text(t) => text += &t.xml10_content(),
+                Event::GeneralRef(r) => {
+                    text += &quick_xml::escape::unescape(&format!("&{};", r.xml10_content())).unwrap();
+                }
+                _ => {}
+            }
+        }
+        assert_eq!(text, hostile, "read back as written: {written}");
+    }
 }

@@ -21,6 +21,7 @@ pub mod certificate;
 pub mod conformity;
 pub mod dcc;
 pub mod html;
+pub mod issue;
 pub mod page;
 pub mod pdf;
 pub mod plot;
@@ -89,8 +90,10 @@ pub struct ReportData {
     /// The reference's systematic standard uncertainty at an angle (a
     /// tracker's own error, from its MPE), degrees: a part of a measured figure's.
     pub reference_systematic_u_deg: Option<f64>,
-    /// When the report was made (UTC, RFC 3339).
+    /// When the report was made (UTC, RFC 3339): the issue date of a certificate issued now.
     pub generated: String,
+    /// The certificate's issue ([`issue`]), or why the page is a draft.
+    pub issue: certificate::Issue,
     /// The asset's history up to this survey, when it has one.
     pub history: Option<survey_lab::life::history::History>,
     /// The air measured with the samples, or stated by the configuration.
@@ -128,6 +131,9 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
         axis_u_deg,
         reference_systematic_u_deg,
         generated: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+        issue: certificate::Issue::Draft(
+            "no certificate is issued yet: `survey report` on the station's file issues it".into(),
+        ),
         history,
         environment,
         temperature,

@@ -36,6 +36,7 @@ span.signature{display:inline-block;width:20em;border-bottom:1px solid #333;heig
 p.end{font-weight:bold;text-align:center;margin-top:1.4em;border-top:1px solid #999;padding-top:.4em}\
 @media print{body{max-width:none;margin:0;padding:0;font-size:10pt}.screen-only{display:none}\
 section.page{break-before:page}figure,tr,table.header,ul.legend{break-inside:avoid}h2,h3{break-after:avoid}\
+table#tbl-table{break-inside:avoid}\
 thead{display:table-header-group}}";
 
 /// The print margins' own rule: A4, and the boxes' type.

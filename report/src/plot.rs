@@ -85,21 +85,28 @@ pub fn time_axes<'a, 'b>(
     y_desc: &str,
 ) -> anyhow::Result<Chart<'a, 'b>> {
     let span = x.end - x.start;
-    // YYYY-MM-DD over weeks, MM-DD HH:MM over days, HH:MM:SS within hours.
+    let stamp = |v: f64| {
+        let at = std::time::UNIX_EPOCH + std::time::Duration::from_secs_f64(v.max(0.0));
+        humantime::format_rfc3339_seconds(at).to_string()
+    };
+    // YYYY-MM-DD over weeks, MM-DD HH:MM over days (the year named), HH:MM:SS within hours (the date named):
+    // never a time without its date.
+    let (first, last) = (stamp(x.start), stamp(x.end));
     let (from, to, x_desc) = if span > 7.0 * 86_400.0 {
-        (0, 10, "date (UTC)")
+        (0, 10, "date (UTC)".to_string())
     } else if span > 6.0 * 3_600.0 {
-        (5, 16, "date and time (UTC)")
+        (5, 16, format!("date and time (UTC), {}", &first[..4]))
+    } else if first[..10] == last[..10] {
+        (11, 19, format!("time of day (UTC) on {}", &first[..10]))
     } else {
-        (11, 19, "time of day (UTC)")
+        (11, 19, format!("time of day (UTC) from {} to {}", &first[..10], &last[..10]))
     };
     let x_fmt = move |v: &f64| {
-        let at = std::time::UNIX_EPOCH + std::time::Duration::from_secs_f64(v.max(0.0));
-        let text = humantime::format_rfc3339_seconds(at).to_string();
+        let text = stamp(*v);
         text.get(from..to).unwrap_or(&text).replace('T', " ")
     };
     // Fewer, wider labels, and room on the right for the last one.
-    framed(area, x, y, x_desc, y_desc, XTicks { labels: 5, margin_right: 48, format: &x_fmt })
+    framed(area, x, y, &x_desc, y_desc, XTicks { labels: 5, margin_right: 48, format: &x_fmt })
 }
 
 /// How the x axis is labelled.

@@ -218,6 +218,11 @@ pub fn router(options: ServeOptions) -> Router {
         .route("/static/live.js", get(pages::script))
         .route("/assets/{*asset}", get(pages::asset))
         .route("/surveys/{survey}", get(pages::survey))
+        .route("/surveys/{survey}/dcc.xml", get(pages::survey_dcc))
+        .route("/surveys/{survey}/certificate.html", get(pages::survey_certificate))
+        // `/api/` and `/api` (the nest's own "/" would answer only the latter).
+        .route("/api/", get(api::index))
+        .route("/api", get(api::index))
         .nest("/api", api::routes())
         .fallback(not_found)
         .layer(middleware::from_fn(guard))
@@ -289,6 +294,7 @@ pub fn on_signals() -> std::io::Result<impl Future<Output = ()> + Send + 'static
 /// | `/api/compare/<a>/<b>` | `survey compare A B --json` |
 /// | `/api/assets` | the assets of `/`, each with its calibration in force and state |
 /// | `/api/live` | the surveys being acquired now, with their progress |
+/// | `/api/` | this list (`{"paths": [{"path", "document"}]}`) |
 pub mod api {
     use super::{App, Failure, json_body, offload, survey_ref};
     use axum::Router;
@@ -297,6 +303,21 @@ pub mod api {
     use axum::routing::get;
     use survey_lab::documents::{Stats, list_json, shown};
     use survey_lab::load::{Axis, load};
+
+    /// What `/api/` serves: every path with its document (the table above), and the pages beside it.
+    pub const INDEX: &[(&str, &str)] = &[
+        ("/api/surveys", "survey list --json"),
+        ("/api/surveys/<id or uid>", "survey show ID --json"),
+        ("/api/surveys/<id or uid>/stats", "survey stats --survey ID --json"),
+        ("/api/history/<asset>", "survey history --asset ID --json"),
+        ("/api/compare/<a>/<b>", "survey compare A B --json"),
+        ("/api/assets", "the assets of /, each with its calibration in force and state"),
+        ("/api/due", "survey due --json, as of now"),
+        ("/api/live", "the surveys being acquired now, with their progress"),
+        ("/surveys/<id or uid>", "the survey's certificate as issued (a page; its draft before)"),
+        ("/surveys/<id or uid>/certificate.html", "the certificate's page as issued, byte for byte"),
+        ("/surveys/<id or uid>/dcc.xml", "the certificate's DCC as issued, byte for byte"),
+    ];
 
     pub(super) fn routes() -> Router<App> {
         Router::new()
@@ -318,6 +339,13 @@ pub mod api {
             Ok(survey_lab::life::due::json(&all))
         });
         Ok(json_body(&doc.await?))
+    }
+
+    /// `/api/`: what it serves.
+    pub(super) async fn index() -> impl IntoResponse {
+        let paths: Vec<serde_json::Value> =
+            INDEX.iter().map(|(path, what)| serde_json::json!({"path": path, "document": what})).collect();
+        json_body(&serde_json::json!({ "paths": paths }))
     }
 
     async fn list(State(app): State<App>) -> Result<impl IntoResponse, Failure> {

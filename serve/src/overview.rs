@@ -14,8 +14,9 @@ use survey_store::{CheckDecision, Store};
 /// An asset's state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum State {
-    /// Its table is in force and its last check (if any) found it unchanged.
-    InTolerance,
+    /// Its calibration (and table) is in force and its last check (if any)
+    /// found it unchanged. Not "in tolerance": no tolerance is judged here.
+    InForce,
     /// Its last check found the positioner changed, its table still holding.
     Changed,
     /// It needs a calibration: none yet, the last is older than the lab's
@@ -27,10 +28,10 @@ pub enum State {
 }
 
 impl State {
-    /// `in tolerance`, `changed`, `due` or `not an asset`.
+    /// `in force`, `changed`, `due` or `not an asset`.
     pub fn as_str(self) -> &'static str {
         match self {
-            State::InTolerance => "in tolerance",
+            State::InForce => "in force",
             State::Changed => "changed",
             State::Due => "due",
             State::Unassigned => "not an asset",
@@ -75,8 +76,8 @@ fn state(
     }
     match last_check {
         Some(c) if c.verdict == "changed" => (State::Changed, format!("check survey {}: {}", c.survey_id, c.reason)),
-        Some(c) => (State::InTolerance, format!("check survey {}: {}", c.survey_id, c.verdict)),
-        None => (State::InTolerance, format!("calibrated by survey {}, not checked since", cal.id)),
+        Some(c) => (State::InForce, format!("check survey {}: {}", c.survey_id, c.verdict)),
+        None => (State::InForce, format!("calibrated by survey {}, not checked since", cal.id)),
     }
 }
 
@@ -109,7 +110,7 @@ pub async fn assets(store: &Store, due_after_days: f64) -> anyhow::Result<Vec<As
             let st = state(in_force.as_ref(), &checks, due_after_days, now);
             match (st.0, &in_force) {
                 // Its interval's method (`survey due`) may say its next check is due.
-                (State::InTolerance | State::Changed, Some(_)) => {
+                (State::InForce | State::Changed, Some(_)) => {
                     overdue(store, &asset, now).await?.map_or(st, |why| (State::Due, why))
                 }
                 _ => st,
@@ -272,16 +273,16 @@ mod tests {
         };
         let recent = record("2026-01-01T00:00:00Z");
         assert_eq!(state(None, &[], 365.0, now).0, State::Due);
-        assert_eq!(state(Some(&recent), &[], 365.0, now).0, State::InTolerance);
+        assert_eq!(state(Some(&recent), &[], 365.0, now).0, State::InForce);
         assert_eq!(state(Some(&recent), &[], 20.0, now).0, State::Due, "30 days old, interval 20");
         let changed = check("u-cal", "changed", false, None);
         assert_eq!(state(Some(&recent), std::slice::from_ref(&changed), 365.0, now).0, State::Changed);
         let unchanged = check("u-cal", "unchanged", false, None);
-        assert_eq!(state(Some(&recent), &[changed, unchanged], 365.0, now).0, State::InTolerance, "the last check");
+        assert_eq!(state(Some(&recent), &[changed, unchanged], 365.0, now).0, State::InForce, "the last check");
         let called = check("u-cal", "changed", true, None);
         assert_eq!(state(Some(&recent), &[called], 365.0, now).0, State::Due);
         let other = check("u-older", "changed", true, None);
-        assert_eq!(state(Some(&recent), &[other], 365.0, now).0, State::InTolerance, "a check of another table");
+        assert_eq!(state(Some(&recent), &[other], 365.0, now).0, State::InForce, "a check of another table");
         assert_eq!(age_days("2026-01-30T00:00:00Z", now + Duration::ZERO), Some(1.0));
     }
 }

@@ -129,7 +129,8 @@ async fn index_page(app: App) -> Result<String, Failure> {
                          {} days, its interval says its next check is due (<code>survey due</code>), or a check called for a \
                          recalibration not made yet; <b>changed</b> when the last \
                          check found the positioner changed but its table still holding; otherwise <b>in \
-                         tolerance</b>.</p>\n",
+                         force</b> (the calibration holds; no tolerance is judged here: a certificate judges \
+                         against a stated one).</p>\n",
                         app.due_after_days
                     )
             }
@@ -181,7 +182,7 @@ fn due_html(due: &[survey_lab::life::due::AssetDue], now: std::time::SystemTime)
     let text = survey_lab::life::due::text(due, now);
     let mut lines = text.lines().skip(1);
     let head = lines.next().unwrap_or_default();
-    let state = if due.iter().any(|d| d.due.overdue) { "due" } else { "in tolerance" };
+    let state = if due.iter().any(|d| d.due.overdue) { "due" } else { "in force" };
     let rest: String = lines.map(|l| format!("<p>{}</p>\n", escape(l.trim()))).collect();
     format!("<p><span class=\"state\" data-state=\"{state}\">{}</span></p>\n{rest}", escape(head.trim()))
 }
@@ -221,29 +222,101 @@ fn control_table(h: &survey_lab::life::history::History) -> String {
 }
 
 /// `/surveys/<uid>` (or an id): the survey's report, as `survey report` writes it.
+/// `/surveys/<uid>` (or an id): the survey's certificate as issued (the
+/// page `survey report` wrote, byte for byte, under the way back and the
+/// list of the certificates it replaced), or, before one is issued, the
+/// draft `survey report` would write.
 pub(super) async fn survey(
     State(app): State<App>,
     UrlPath(survey): UrlPath<String>,
 ) -> Result<impl IntoResponse, Failure> {
     let r = survey_ref(&survey, false)?;
     let html = offload(app.clone(), false, async move {
-        let opts = ReportOptions { quiet: true, ..ReportOptions::default() };
-        let data = read!(app, false, |store| survey_report::gather(&store, Some(r), &opts).await);
-        let html = survey_report::html::render(&data, &opts).map_err(|e| Failure::of(&e, false))?;
-        Ok::<_, Failure>(with_way_back(html, &data.survey.asset))
+        let c = read!(app, false, |store| certificate(&store, r).await);
+        Ok::<_, Failure>(with_way_back(c.page, &c.asset, &c.uid, &c.replaced))
     });
     Ok(html_body(html.await?))
+}
+
+/// `/surveys/<uid>/dcc.xml`: the DCC as issued (or the draft's).
+pub(super) async fn survey_dcc(
+    State(app): State<App>,
+    UrlPath(survey): UrlPath<String>,
+) -> Result<impl IntoResponse, Failure> {
+    let r = survey_ref(&survey, false)?;
+    let xml = offload(app.clone(), false, async move {
+        let c = read!(app, false, |store| certificate(&store, r).await);
+        Ok::<_, Failure>(c.dcc)
+    });
+    Ok(([(header::CONTENT_TYPE, "application/xml; charset=utf-8")], xml.await?))
+}
+
+/// `/surveys/<uid>/certificate.html`: the page as issued, byte for byte (or the draft's).
+pub(super) async fn survey_certificate(
+    State(app): State<App>,
+    UrlPath(survey): UrlPath<String>,
+) -> Result<impl IntoResponse, Failure> {
+    let r = survey_ref(&survey, false)?;
+    let html = offload(app.clone(), false, async move {
+        let c = read!(app, false, |store| certificate(&store, r).await);
+        Ok::<_, Failure>(c.page)
+    });
+    Ok(html_body(html.await?))
+}
+
+/// A survey's certificate: the page and the DCC as issued, or its draft's.
+#[derive(Debug)]
+pub(super) struct Shown {
+    page: String,
+    dcc: String,
+    asset: String,
+    uid: String,
+    /// The certificates it replaced: number, issued, and the reason of the one after it.
+    replaced: Vec<(String, String, String)>,
+}
+
+/// The current certificate of survey `r` in `store`, with those it replaced.
+async fn certificate(store: &survey_store::Store, r: survey_store::survey::SurveyRef) -> anyhow::Result<Shown> {
+    let s = store.resolve(Some(r)).await?;
+    let issued = store.certificates(s.id).await?;
+    if let Some((current, earlier)) = issued.split_last() {
+        // Each replaced certificate with the reason the next one gave.
+        let replaced = earlier
+            .iter()
+            .zip(&issued[1..])
+            .map(|(c, next)| (c.number.clone(), c.issued_at.clone(), next.reason.clone().unwrap_or_default()))
+            .collect();
+        let shown =
+            Shown { page: current.page.clone(), dcc: current.dcc.clone(), asset: s.asset, uid: s.uid, replaced };
+        return Ok(shown);
+    }
+    let opts = ReportOptions { quiet: true, ..ReportOptions::default() };
+    let data = survey_report::gather(store, Some(survey_store::survey::SurveyRef::Id(s.id)), &opts).await?;
+    let (page, dcc) = survey_report::issue::render(&data, &opts)?;
+    Ok(Shown { page, dcc, asset: s.asset, uid: s.uid, replaced: Vec::new() })
 }
 
 /// A survey's report with the way back at its top: home, and its asset's
 /// history (the report itself is the certificate `survey report` writes,
 /// which has no links).
-fn with_way_back(html: String, asset: &str) -> String {
-    let nav = format!(
+fn with_way_back(html: String, asset: &str, uid: &str, replaced: &[(String, String, String)]) -> String {
+    let mut nav = format!(
         "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> &middot; \
-         the history of {}</nav>\n",
-        asset_link(asset)
+         the history of {} &middot; this certificate as issued: <a href=\"/surveys/{uid}/certificate.html\">the \
+         page</a>, <a href=\"/surveys/{uid}/dcc.xml\">its DCC (dcc.xml)</a></nav>\n",
+        asset_link(asset),
+        uid = escape(uid)
     );
+    if !replaced.is_empty() {
+        let items: String = replaced
+            .iter()
+            .map(|(number, issued, why)| {
+                format!("<li>{} issued {}, replaced: {}</li>", escape(number), escape(issued), escape(why))
+            })
+            .collect();
+        nav +=
+            &format!("<div class=\"subtitle\" id=\"replaced\">Certificates this one replaced:<ul>{items}</ul></div>\n");
+    }
     match html.find("<body").and_then(|at| html[at..].find('>').map(|end| at + end + 1)) {
         Some(at) => format!("{}{nav}{}", &html[..at], &html[at..]),
         None => format!("{nav}{html}"),

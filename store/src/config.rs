@@ -71,6 +71,18 @@ pub struct SurveyConfig {
     /// `[smrs]`: several SMRs on the table, each measured at every target.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub smrs: Option<SmrsSection>,
+    /// `[rehearsal]`: the instruments are simulated (`survey sim` writes it
+    /// into the configuration it serves): a survey of them is never a calibration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rehearsal: Option<RehearsalSection>,
+}
+
+/// `[rehearsal]`: what simulates the instruments.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RehearsalSection {
+    /// The simulator, in words (`survey sim 0.1.0, preset fig8, seed 1, 1x real time`).
+    pub simulator: String,
 }
 
 /// `[smrs]`: the SMRs on the table beside the arm's first (its phase and
@@ -608,6 +620,53 @@ impl SurveyConfig {
             None => SettleModel::Unknown,
         }
     }
+}
+
+/// The most characters a text field of the certificate holds (`laboratory`,
+/// `traceability`, `signatory`, ...): about six lines of the header's value
+/// column on A4 at 10 pt (some 67 characters a line), or two of a DCC
+/// reader's screen; a longer text is not a field but a document.
+pub const FIELD_MAX_CHARS: usize = 400;
+
+/// The most characters a certificate number holds: one line of the running
+/// head printed at the top of every page.
+pub const NUMBER_MAX_CHARS: usize = 64;
+
+/// The first control character of `text` (NUL, tab, a line break, escape,
+/// the C1 controls), with its place, counted in characters from 1.
+pub fn control_character(text: &str) -> Option<(usize, char)> {
+    text.chars().enumerate().find(|(_, c)| c.is_control()).map(|(i, c)| (i + 1, c))
+}
+
+/// Text a certificate can print on its line: not empty (nor only spaces), no
+/// control character (a field is one line: an address's parts are separated
+/// by commas), at most `max` characters. The reason, as a predicate of the
+/// text (`is empty`).
+pub fn check_printable(text: &str, max: usize) -> Result<(), String> {
+    let count = text.chars().count();
+    if text.trim().is_empty() {
+        Err("is empty: a key that is given must state something (leave it out to have \"not stated\")".into())
+    } else if let Some((at, c)) = control_character(text) {
+        Err(format!(
+            "holds the control character U+{:04X} at character {at}, which a certificate cannot print (one line, \
+             no tab, no line break)",
+            c as u32
+        ))
+    } else if count > max {
+        Err(format!("is {count} characters long: a certificate's field holds at most {max}"))
+    } else {
+        Ok(())
+    }
+}
+
+/// A text field of the certificate: [`check_printable`] with [`FIELD_MAX_CHARS`].
+pub fn check_field(text: &str) -> Result<(), String> {
+    check_printable(text, FIELD_MAX_CHARS)
+}
+
+/// A certificate number: [`check_printable`] with [`NUMBER_MAX_CHARS`].
+pub fn check_number(text: &str) -> Result<(), String> {
+    check_printable(text, NUMBER_MAX_CHARS)
 }
 
 /// A calendar date `YYYY-MM-DD` that exists (`2026-02-30` does not).

@@ -50,6 +50,7 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (8, "history cache", include_str!("../../migrations/postgres/0008_history_cache.sql")),
     (9, "environment", include_str!("../../migrations/postgres/0009_environment.sql")),
     (10, "smr readings", include_str!("../../migrations/postgres/0010_smr_readings.sql")),
+    (11, "certificates", include_str!("../../migrations/postgres/0011_certificates.sql")),
     (12, "intervals", include_str!("../../migrations/postgres/0012_intervals.sql")),
 ];
 
@@ -150,6 +151,7 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         cache: setup,
         environment: setup,
         control: setup,
+        certificates: setup,
     };
     let at = Server { host, port, user };
     let ready = if setup {
@@ -159,6 +161,7 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
             store.cache = version >= super::CACHE_SCHEMA;
             store.environment = version >= super::ENVIRONMENT_SCHEMA;
             store.control = version >= super::CONTROL_SCHEMA;
+            store.certificates = version >= super::CERTIFICATE_SCHEMA;
         })
     };
     let ready = ready.map_err(|e| explained(e, &at, if setup { PUSHING } else { "reading its schema" }));

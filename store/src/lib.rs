@@ -38,6 +38,7 @@ pub mod runtime;
 pub mod survey;
 
 mod cache;
+mod certificates;
 mod check_points;
 mod checks;
 mod damage;
@@ -54,6 +55,7 @@ mod surveys;
 mod tests;
 mod tx;
 
+pub use certificates::Issued;
 pub use checks::CheckDecision;
 pub use damage::WHOLE_CHECK_BYTES;
 pub use lock::{AcquirerLock, Holder, RESERVE_BYTES, SurveyBusy, is_held, lock_path};
@@ -119,9 +121,12 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (8, "history cache", include_str!("../../migrations/0008_history_cache.sql")),
     (9, "environment", include_str!("../../migrations/0009_environment.sql")),
     (10, "smr readings", include_str!("../../migrations/0010_smr_readings.sql")),
-    // 11 is another change's (not in this build).
+    (11, "certificates", include_str!("../../migrations/0011_certificates.sql")),
     (12, "intervals", include_str!("../../migrations/0012_intervals.sql")),
 ];
+
+/// The schema that keeps the certificates issued (`certificates`).
+const CERTIFICATE_SCHEMA: i64 = 11;
 
 /// The schema that keeps the air of every tracker measurement (`raw_readings.air_*`).
 const ENVIRONMENT_SCHEMA: i64 = 9;
@@ -193,6 +198,8 @@ pub struct Store {
     environment: bool,
     /// The checks' control figures are there (schema 12; an older file read as it is has none).
     control: bool,
+    /// The certificates' table is there (schema 11; an older file read as it is has none).
+    certificates: bool,
 }
 
 /// The database behind a [`Store`].
@@ -275,12 +282,14 @@ impl Store {
             cache: false,
             environment: false,
             control: false,
+            certificates: false,
         };
         match store.check_schema().await {
             Ok(version) => {
                 store.cache = version >= CACHE_SCHEMA;
                 store.environment = version >= ENVIRONMENT_SCHEMA;
                 store.control = version >= CONTROL_SCHEMA;
+                store.certificates = version >= CERTIFICATE_SCHEMA;
             }
             Err(e) => {
                 store.close().await;
@@ -419,6 +428,7 @@ impl Store {
                             cache: true,
                             environment: true,
                             control: true,
+                            certificates: true,
                         });
                     }
                     Err(e) => {

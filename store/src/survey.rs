@@ -145,6 +145,28 @@ pub enum Setup {
 }
 
 impl Setup {
+    /// Why a survey of this setup is a rehearsal on simulated instruments,
+    /// never a calibration, when it is: the built-in simulated bench; a
+    /// configuration `survey sim` served (its `[rehearsal]`); instruments
+    /// that ran faster than real time (`[timing] time_scale`: only a
+    /// simulator does).
+    pub fn rehearsal(&self) -> Option<String> {
+        match self {
+            Setup::Simulated(s) => {
+                Some(format!("the built-in simulated instruments (preset {}, seed {})", s.preset, s.seed))
+            }
+            Setup::Configured(c) => match &c.config.rehearsal {
+                Some(r) => Some(format!("instruments simulated by {}", r.simulator)),
+                None if c.config.time_scale() != 1.0 => Some(format!(
+                    "instruments that ran at {}x real time ([timing] time_scale): only a simulator does",
+                    c.config.time_scale()
+                )),
+                None => None,
+            },
+            _ => None,
+        }
+    }
+
     /// How many times faster than real time the instruments ran: a
     /// configuration's `[timing] time_scale` (a rehearsal on `survey sim
     /// --time-scale X`); 1 for the simulated bench, whose virtual clock is

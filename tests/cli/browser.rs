@@ -283,12 +283,12 @@ fn the_report_opens_in_chromium_with_every_figure_and_no_error() {
     assert!(html.contains(
         "<section id=\"iso230-targets\" class=\"appendix screen-only\">\n<h2>Appendix A: ISO 230-2 per target"
     ));
-    assert!(html.contains("Calibration certificate <b>CAL-2026-0042</b> · Metrology Lab North"));
+    assert!(html.contains("Rehearsal, not a calibration: certificate <b>CAL-2026-0042</b> · Metrology Lab North"));
     // Printed, nothing is wider than the page (every section of the certificate is here).
     assert_fits_the_page(&layout(&browser, &artifacts, &html));
     // Page x of y and the running head in print.
     assert!(html.contains("@bottom-right{content:\"page \" counter(page) \" of \" counter(pages)"));
-    assert!(html.contains("@top-left{content:\"Calibration certificate CAL-2026-0042\""));
+    assert!(html.contains("@top-left{content:\"Rehearsal, not a calibration: certificate CAL-2026-0042\""));
     // Every figure is drawn at a readable size (not collapsed, not overflowing).
     let figures = seen["figures"].as_array().unwrap();
     assert!(figures.len() >= 8, "{figures:?}");
@@ -370,7 +370,9 @@ fn page_text(pdf: &Path, page: usize) -> Option<String> {
 fn body_lines(text: &str) -> Vec<&str> {
     text.lines()
         .map(str::trim)
-        .filter(|l| !l.is_empty() && !l.starts_with("Calibration certificate CAL-9") && !l.contains(" of "))
+        .filter(|l| {
+            !l.is_empty() && !l.starts_with("Rehearsal, not a calibration: certificate CAL-9") && !l.contains(" of ")
+        })
         .collect()
 }
 
@@ -413,14 +415,15 @@ fn report_pdf_prints_the_certificate_in_at_most_12_pages_with_page_x_of_y_on_eve
                 assert!(body_lines(&text).len() >= 3, "page {page} is blank but for a line or two:\n{text}");
             }
             let first = page_text(&pdf, 1).unwrap();
-            assert!(first.contains("Calibration certificate CAL-9"), "the title: {first}");
+            assert!(first.contains("Rehearsal, not a calibration: certificate CAL-9"), "the title: {first}");
             let last = page_text(&pdf, pages).unwrap();
             assert!(last.contains("End of the certificate"), "the certificate ends on its last page:\n{last}");
             assert!(!last.contains("Appendix A"), "no appendix without --appendix");
         }
     }
     // With --appendix the appendix is printed after the end of the certificate, open.
-    bench.survey(&["report", "--out", "a", "--appendix"]).success();
+    // (The certificate is issued: printing its appendix too is an amendment.)
+    bench.survey(&["report", "--out", "a", "--appendix", "--amend", "the appendix printed too"]).success();
     let html = bench.read("a/index.html");
     assert!(
         html.contains("<section id=\"iso230-targets\" class=\"page appendix\">") && html.contains("<details open>")

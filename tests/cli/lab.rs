@@ -286,6 +286,8 @@ fn read_commands_give_the_same_answers_from_the_lab_store_as_from_the_station() 
     let uids: Vec<String> = station.iter().map(|s| s["uid"].as_str().unwrap().to_string()).collect();
     assert_eq!(uids.len(), 5);
 
+    // A certificate issued at the station goes with its survey.
+    bench.survey(&["report", "--survey", &uids[0], "--out", "issued"]).success();
     let out = bench.survey(&["push", "--to", &lab, "--all", "--json"]).success();
     let doc = out.json();
     let pushed: Vec<&str> = doc["pushed"].as_array().unwrap().iter().map(|u| u.as_str().unwrap()).collect();
@@ -361,6 +363,18 @@ fn read_commands_give_the_same_answers_from_the_lab_store_as_from_the_station() 
     on_lab(&bench, &lab, &["report", "--survey", &uids[0], "--out", "lab-report"]).success();
     let html = bench.read("lab-report/index.html");
     assert!(html.contains("id=\"verification\"") && html.contains("ISO 230-2"), "the lab's report");
+    // The certificate as the station issued it, byte for byte; one amended after the push goes with the next.
+    for file in ["index.html", "dcc.xml"] {
+        assert!(bench.read(&format!("lab-report/{file}")) == bench.read(&format!("issued/{file}")), "{file}");
+    }
+    bench.survey(&["report", "--survey", &uids[0], "--out", "amended", "--amend", "a second look"]).success();
+    bench.survey(&["push", "--to", &lab, "--all", "--json"]).success();
+    on_lab(&bench, &lab, &["report", "--survey", &uids[0], "--out", "lab-amended"]).success();
+    assert!(bench.read("lab-amended/dcc.xml") == bench.read("amended/dcc.xml"), "the amendment pushed");
+    // Nothing is issued in the lab store: a survey without a certificate gets a draft there.
+    let draft = on_lab(&bench, &lab, &["report", "--survey", &uids[3], "--out", "lab-draft"]).success();
+    assert!(draft.stderr.contains("a draft, not issued"), "{draft}");
+    assert!(bench.read("lab-draft/index.html").contains("<b>Draft, not issued</b>"));
 }
 
 /// A survey of more rows than a push writes with `INSERT`s goes by binary

@@ -101,14 +101,22 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
         assert!(!html.contains(&format!("id=\"{id}\"")), "{id} has no data");
     }
     // The title names the positioner and the survey.
-    assert!(html.contains("<title>simulated fig8 positioner: calibration survey 1</title>"), "title");
+    assert!(
+        html.contains(
+            "<title>simulated fig8 positioner: rehearsal on simulated instruments, not a calibration (survey 1)</title>"
+        ),
+        "title"
+    );
     // The simulated default's header: the preset, the tracker's random part (2.3e-4 deg).
     for words in ["simulated fig8 positioner: azimuth", "simulated laser tracker", "0.000227 deg", "survey 0.1.0"] {
         assert!(html.contains(words), "the header should say {words:?}");
     }
     // A certificate: its number (made from the survey when none was assigned), the
     // traceability a simulated reference has (none), page x of y in print.
-    assert!(html.contains("id=\"certificate-number\">Calibration certificate <b>20"), "the number on top");
+    assert!(
+        html.contains("id=\"certificate-number\">Rehearsal, not a calibration: certificate <b>20"),
+        "the number on top"
+    );
     // ISO/IEC 17025 7.8.2.1 and 7.8.4.1: every item, stated or said to be not stated.
     for row in [
         "Calibrating laboratory</td><td><i>not stated</i>",
@@ -130,12 +138,30 @@ fn report_writes_a_self_contained_page_with_every_figure_and_table() {
     // (the fig8 preset's 40 cycles/rev line: 9 deg, so every 1 deg), not every 10 deg.
     assert!(!html.contains("gear_pass:") && html.contains("gear pass: 20:1 pinion"), "sources in words");
     assert!(html.contains("The excerpt: every 1 deg, an eighth or less of the shortest significant period (9 deg"));
+    // The hysteresis figure tells its series apart: the mean, each run and the band each in its own colour.
+    let hysteresis = html.split("<figure id=\"fig-hysteresis\">").nth(1).unwrap().split("</figure>").next().unwrap();
+    let legend = hysteresis.split("<ul class=\"legend\">").nth(1).unwrap();
+    let colour = |label: &str| {
+        let item = legend.split("<li>").find(|i| i.contains(label)).unwrap_or_else(|| panic!("{label} in {legend}"));
+        item.split(['"']).find(|w| w.starts_with('#')).unwrap().to_string()
+    };
+    let colours = [colour("mean over the runs"), colour("each run"), colour("mean ± 2 s")];
+    assert!(colours[0] != colours[1] && colours[1] != colours[2] && colours[0] != colours[2], "{colours:?}");
     // The appendix is in the page, folded, and not printed without --appendix.
     assert!(html.contains("class=\"appendix screen-only\">") && html.contains("<details><summary>"), "folded");
     assert!(
-        html.contains("made from the survey&#x27;s date and id") || html.contains("made from the survey's date and id")
+        html.contains("made from the survey&#x27;s date and uid")
+            || html.contains("made from the survey's date and uid")
     );
-    assert!(html.contains("not traceable to the SI"), "a simulated reference is not traceable");
+    assert!(html.contains("Traceability</td><td>none: a rehearsal on simulated instruments"), "not traceable");
+    // A rehearsal says so under its number, on every printed page (the running foot) and in its DCC.
+    assert!(html.contains("id=\"rehearsal\"><b>Rehearsal on simulated instruments, not a calibration</b>"));
+    assert!(html.contains("@bottom-left{content:\"REHEARSAL ON SIMULATED INSTRUMENTS, NOT A CALIBRATION: survey 1\""));
+    let dcc = bench.read("r/dcc.xml");
+    assert!(
+        dcc.contains("refType=\"survey_rehearsal\"")
+            && dcc.contains("Rehearsal on simulated instruments, not a calibration: Readout error")
+    );
     assert!(html.contains("counter(page) \" of \" counter(pages)"), "page x of y in print");
     // The definitions the VDI figures use, without a remark about sources to a customer.
     assert!(!html.contains("No public text") && html.contains("with these definitions"));
@@ -213,38 +239,45 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         .success();
     let html = bench.read("r/index.html").replace("Item's", "Item&#x27;s").replace("Laboratory's", "Laboratory&#x27;s");
     assert!(!html.contains("no air temperature was measured"), "a stated temperature is stated");
-    // ISO A in the axis table, in arcsec with 3 significant digits.
+    // ISO A in the axis table, in arcsec, to the decimal place of its U (ILAC-P14), as in the summary.
     let shown = html.split("A, accuracy</td><td>").nth(1).and_then(|s| s.split('<').next()).expect("A");
     let value: f64 = shown.parse().expect("a number");
-    let digits = shown.trim_start_matches(['-', '0', '.']).replace('.', "");
-    assert_eq!(digits.len(), 3, "3 significant digits: {shown}");
+    let u = html.split("carry the expanded uncertainty U = ").nth(1).and_then(|s| s.split(' ').next()).expect("U");
+    let places = |s: &str| s.split('.').nth(1).map_or(0, str::len);
+    assert_eq!(places(shown), places(u), "A {shown} to the place of U {u}");
+    assert!(html.contains(&format!("ISO 230-2 accuracy A, as measured</td><td>{shown} arcsec</td><td>{u} arcsec")));
     assert!((value - a_deg * 3600.0).abs() <= 5e-3 * a_deg * 3600.0, "A in arcsec {shown} against stats' {a_deg} deg");
     for words in [
         "error (readout − actual), arcsec",
         "J. Smith",
         "20.5 °C",
         "ACME AZ-200 &lt;serial 7&gt;",
-        "(survey report flag)",
+        // Where each field came from: the appendix's, not the customer's pages.
+        "<td class=\"l\">Operator</td><td class=\"l\">survey report flag</td>",
         "simulated autocollimator",
         "0.100 arcsec (standard uncertainty of one angle)",
-        "Calibration certificate <b>CAL-2026-0042</b> · Metrology Lab &quot;North&quot;, Bay 3",
+        "Rehearsal, not a calibration: certificate <b>CAL-2026-0042</b> · Metrology Lab &quot;North&quot;, Bay 3",
         // A stated temperature is shown as stated, never as "not measured at all".
-        "air temperature 20.5 °C, stated (survey report flag), not measured",
+        "air temperature 20.5 °C, stated, not measured",
         "the air temperature was stated as 20.5 °C, not measured",
         "Authorised by (name, function)</td><td>A. Jones, head of the laboratory",
         "Location of calibration</td><td>Bay 3",
         "Item&#x27;s condition</td><td>as received, no damage",
         "Date received</td><td>2026-11-20",
         "Laboratory&#x27;s country</td><td>DE",
-        "Polygon calibrated by PTB, certificate 12345, 2026-01",
         // The running head and foot of every printed page.
-        "@top-left{content:\"Calibration certificate CAL-2026-0042\"",
+        "@top-left{content:\"Rehearsal, not a calibration: certificate CAL-2026-0042\"",
         "@top-right{content:\"Metrology Lab \\\"North\\\", Bay 3\"",
     ] {
         assert!(html.contains(words), "the page should show {words:?}");
     }
-    assert!(html.contains("<title>ACME AZ-200 &lt;serial 7&gt;: calibration survey 1</title>"));
+    assert!(html.contains("<title>simulated, standing in for: ACME AZ-200 &lt;serial 7&gt;: rehearsal on simulated instruments, not a calibration (survey 1)</title>"));
     assert!(html.contains("id=\"fig-modelgap\""), "the model-gap section");
+    assert!(!html.contains("(survey report flag)") && !html.contains("(the bench)"), "no provenance beside a field");
+    // A rehearsal claims no traceability, whatever a flag states.
+    assert!(
+        !html.contains("Polygon calibrated by PTB") && html.contains("whatever the configuration or a flag states")
+    );
     // 24 faces see the 20 cycles/rev gear pass at 4: its true frequency lies in the shaded band.
     assert_shading_as_drawn(&html, true);
     // The processing's sentences take the unit too: the table's caption says why it has two columns.
@@ -259,7 +292,8 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
         (vec!["--tolerance", "0"], vec!["--tolerance"]),
         (vec!["--tolerance", "-0.01"], vec!["--tolerance"]),
         (vec!["--certificate-number", " "], vec!["--certificate-number"]),
-        (vec!["--model", "missing.toml"], vec!["missing.toml"]),
+        // The certificate is issued: a flag that would change it is refused (an amendment says why).
+        (vec!["--model", "missing.toml"], vec!["--model", "would change it", "--amend"]),
         (vec!["--received", "2026-02-30"], vec!["--received 2026-02-30: 2026-02-30 is not a date (no such day"]),
         (
             vec!["--received", "20.11.2026"],
@@ -280,7 +314,9 @@ fn units_flags_and_a_model_reach_the_page_and_bad_ones_write_nothing() {
 fn a_verified_survey_shows_native_and_corrected_on_one_scale() {
     let bench = Bench::new();
     bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--verify", "--json"]).success();
-    for (id, title) in [("1", "calibration survey 1"), ("2", "verification (survey 2) of the table of survey 1")] {
+    let rehearsal = "rehearsal on simulated instruments, not a calibration";
+    let verification = format!("verification (survey 2) of the table of survey 1, a {rehearsal}");
+    for (id, title) in [("1", format!("{rehearsal} (survey 1)")), ("2", verification)] {
         let dir = format!("r{id}");
         bench.survey(&["report", "--survey", id, "--out", &dir]).success();
         let html = bench.read(&format!("{dir}/index.html"));
@@ -302,6 +338,11 @@ fn a_verified_survey_shows_native_and_corrected_on_one_scale() {
 fn verdict(bench: &Bench, tolerance: f64, extra: &[&str]) -> String {
     let t = tolerance.to_string();
     let mut args = vec!["report", "--survey", "1", "--out", "v", "--tolerance", &t];
+    // The first report issues the certificate; another tolerance is an amendment.
+    let amend = format!("judged against {t} deg");
+    if bench.exists("v/index.html") {
+        args.extend(["--amend", &amend]);
+    }
     args.extend(extra);
     bench.survey(&args).success();
     let html = bench.read("v/index.html");
@@ -322,7 +363,7 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
     let pass = verdict(&bench, 10.0 * a, &[]);
     assert!(pass.starts_with("Verdict against the tolerance") && pass.contains(": PASS. A = "), "{pass}");
     assert!(pass.contains("the corrected accuracy A per ISO 230-2, measured by verification survey 2"), "{pass}");
-    assert!(pass.contains("(survey report flag)"), "{pass}");
+    assert!(!pass.contains("survey report flag"), "no provenance on the customer's page: {pass}");
     let fail = verdict(&bench, a / 10.0, &[]);
     assert!(fail.contains(": FAIL. ") && fail.contains("A − U = "), "{fail}");
     let open = verdict(&bench, a, &[]);
@@ -360,8 +401,9 @@ fn a_tolerance_gives_a_verdict_on_the_corrected_accuracy_by_the_decision_rule() 
             .to_string();
         row.split('<').next().unwrap().parse::<f64>().unwrap()
     };
-    bench.survey(&["report", "--survey", "1", "--out", "coarse", "--reference-uncertainty", "0.01"]).success();
-    bench.survey(&["report", "--survey", "1", "--out", "none"]).success();
+    let coarse = ["--reference-uncertainty", "0.01", "--amend", "a coarser reference"];
+    bench.survey(&[&["report", "--survey", "1", "--out", "coarse"][..], &coarse].concat()).success();
+    bench.survey(&["report", "--survey", "1", "--out", "none", "--amend", "nothing stated"]).success();
     // The simulated tracker's random 0.000227 deg against 0.01 deg: about 44 times the contribution.
     let ratio = budget_u("coarse") / budget_u("none");
     assert!((ratio - 0.01 / 0.000_227).abs() < 0.5, "{ratio}");

@@ -127,22 +127,6 @@ pub fn get(url: &str, path: &str) -> Response {
     request(url, "GET", path)
 }
 
-/// The report page without the moment it was made (`report made <RFC 3339>`).
-fn undated(html: &str) -> String {
-    let mut parts = html.split("report made ");
-    let mut out = parts.next().unwrap_or_default().to_string();
-    for p in parts {
-        assert!(
-            p.len() >= 20 && p.as_bytes()[19] == b'Z',
-            "a time stamp after 'report made': {}",
-            &p[..30.min(p.len())]
-        );
-        out += "report made (when)";
-        out += &p[20..];
-    }
-    out
-}
-
 #[test]
 fn every_path_answers_with_its_status_and_the_commands_documents() {
     let bench = Bench::new();
@@ -178,7 +162,8 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
         "id=\"tbl-assets\"",
         "<a href=\"/assets/sim-fig8\">sim-fig8</a>",
         &format!("<a href=\"/surveys/{uid}\">survey 2</a>"),
-        "data-state=\"in tolerance\"",
+        // In force, never "in tolerance": no tolerance was stated.
+        "data-state=\"in force\"",
         "<p id=\"live-none\">",
         "<script src=\"/static/live.js\"></script>",
     ] {
@@ -187,8 +172,20 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
     let assets = get(&url, "/api/assets").json();
     assert_eq!(assets["assets"][0]["asset"], "sim-fig8");
     assert_eq!(assets["assets"][0]["calibration"]["uid"], uid.as_str());
-    assert_eq!(assets["assets"][0]["state"], "in tolerance");
+    assert_eq!(assets["assets"][0]["state"], "in force");
+    assert!(!home.body.contains("in tolerance"), "no tolerance judged");
     assert_eq!(get(&url, "/api/live").json(), serde_json::json!({"surveys": []}));
+    // `/api/` lists what it serves, each path answering.
+    let index = get(&url, "/api/");
+    assert_eq!(index.status, 200, "{}", index.body);
+    let paths: Vec<String> =
+        index.json()["paths"].as_array().unwrap().iter().map(|p| p["path"].as_str().unwrap().to_string()).collect();
+    for path in ["/api/surveys", "/api/assets", "/api/live", "/surveys/<id or uid>/dcc.xml"] {
+        assert!(paths.iter().any(|p| p == path), "/api/ lists {path}: {paths:?}");
+    }
+    for path in paths.iter().filter(|p| !p.contains('<')) {
+        assert_eq!(get(&url, path).status, 200, "{path}");
+    }
     // With an interval shorter than the calibration's age (0.000001 days: 0.09 s), it is due.
     let strict = Server::on(&bench, "survey.db", &["--due-after", "0.000001"]);
     std::thread::sleep(Duration::from_millis(100));
@@ -214,15 +211,30 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
         assert!(page.body.contains(&format!("href=\"/surveys/{}\"", s["uid"].as_str().unwrap())));
     }
 
-    // The survey's page is the report `survey report` writes.
+    // Before a certificate is issued the survey's page is its draft, and says so.
+    let draft = get(&url, &format!("/surveys/{uid}"));
+    assert!(draft.body.contains("id=\"draft\"><b>Draft, not issued</b>"), "{}", draft.body);
+    // Once issued, the survey's page is the certificate `survey report` wrote, byte for byte.
     bench.survey(&["report", "--survey", &uid, "--out", "r"]).success();
     let report = get(&url, &format!("/surveys/{uid}"));
     assert_eq!(report.status, 200);
-    // The report `survey report` writes, with the way back at its top (home, the asset's history).
-    let way_back = "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> \
-                    &middot; the history of <a href=\"/assets/sim-fig8\">sim-fig8</a></nav>\n";
-    assert!(report.body.contains(way_back), "{}", report.body);
-    assert_eq!(undated(&report.body.replacen(way_back, "", 1)), undated(&bench.read("r/index.html")));
+    // The certificate, with the way back at its top (home, the asset's history) and its files.
+    let way_back = format!(
+        "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> &middot; the \
+         history of <a href=\"/assets/sim-fig8\">sim-fig8</a> &middot; this certificate as issued: <a \
+         href=\"/surveys/{uid}/certificate.html\">the page</a>, <a href=\"/surveys/{uid}/dcc.xml\">its DCC \
+         (dcc.xml)</a></nav>\n"
+    );
+    assert!(report.body.contains(&way_back), "{}", report.body);
+    assert_eq!(report.body.replacen(&way_back, "", 1), bench.read("r/index.html"));
+    for (path, file, kind) in [
+        ("certificate.html", "r/index.html", "text/html; charset=utf-8"),
+        ("dcc.xml", "r/dcc.xml", "application/xml; charset=utf-8"),
+    ] {
+        let got = get(&url, &format!("/surveys/{uid}/{path}"));
+        assert_eq!((got.status, got.header("content-type")), (200, Some(kind)), "{path}");
+        assert!(got.body == bench.read(file), "{path} is {file} byte for byte");
+    }
     assert_eq!(get(&url, "/surveys/2").status, 200, "an id names it too");
 
     // The script, same-origin.
@@ -475,6 +487,9 @@ fn the_asset_page_plots_every_calibration_on_a_date_axis_and_tells_checks_apart(
     let lines = figure_of(&page.body, "fig-history-lines");
     // Made within a minute: the axis reads times of day, UTC.
     assert!(lines.contains("time of day (UTC)") && !page.body.contains("days since"), "{lines}");
+    // ... on the date named beside it (a time is never without its date).
+    assert!(lines.contains("time of day (UTC) on 20") || lines.contains("time of day (UTC) from 20"), "{lines}");
+    assert!(page.body.contains("<th>A, deg</th><th>R, deg</th><th>table U, deg</th>"), "units in every column");
     let is_time = |t: &str| {
         t.len() == 8
             && t.bytes().enumerate().all(|(i, b)| if i == 2 || i == 5 { b == b':' } else { b.is_ascii_digit() })

@@ -160,6 +160,20 @@ fn the_readme_walk_runs_as_written_against_survey_sim() {
     ] {
         assert!(bench.exists(file), "the walk leaves {file}");
     }
+    // Every survey of the walk is of survey sim's instruments: a rehearsal, never a calibration, on
+    // every page and in the DCC; the example's traceability is not claimed; the time the survey measured.
+    for page in ["rehearsal/index.html", "certificate/index.html"] {
+        let html = bench.read(page);
+        let banner = "id=\"rehearsal\"><b>Rehearsal on simulated instruments, not a calibration</b>: instruments \
+                      simulated by survey sim";
+        assert!(html.contains(banner) && html.contains("@bottom-left{content:\"REHEARSAL ON SIMULATED"), "{page}");
+        assert!(!html.contains("national metrology institute"), "{page} claims no traceability");
+        assert!(html.contains("simulated, standing in for: Leica AT960"), "{page}");
+        let time = html.split(" of instrument time)").next().and_then(|s| s.rsplit('(').next()).expect("its time");
+        assert!(time.ends_with(" min") || time.ends_with(" h"), "{page}: {time}");
+    }
+    let dcc = bench.read("certificate/dcc.xml");
+    assert!(dcc.contains("refType=\"survey_rehearsal\"") && !dcc.contains("national metrology institute"));
 }
 
 /// The lines of the README's first output block after `marker`.

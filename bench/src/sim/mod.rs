@@ -224,6 +224,14 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         _slaves: Vec::new(),
     };
     served.stand_ins.time_scale(opts.time_scale);
+    served.stand_ins.rehearsal(format!(
+        "survey sim {}, preset {}{}, seed {}, {}x real time",
+        env!("CARGO_PKG_VERSION"),
+        opts.preset,
+        if opts.model.is_some() { " (a model file)" } else { "" },
+        opts.seed,
+        opts.time_scale
+    ));
     served.positioner(cfg, bench.positioner, &mut relays).await?;
     // The reference instruments (both may be configured; each is served).
     if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {

@@ -88,6 +88,13 @@ impl StandIns {
         }
     }
 
+    /// The configuration to run against says its instruments are simulated
+    /// (`[rehearsal] simulator`), and the survey records it: a rehearsal,
+    /// never a calibration.
+    pub fn rehearsal(&mut self, simulator: String) {
+        self.rewrites.push(("rehearsal", "simulator", Some(toml::Value::String(simulator))));
+    }
+
     /// `section.key` is left out of the configuration to run against.
     pub fn removed(&mut self, section: &'static str, key: &'static str) {
         self.rewrites.push((section, key, None));

@@ -2,6 +2,7 @@
 //! each with where it came from, the survey, its plan and dates.
 
 use super::{Page, Section};
+use crate::certificate::Issue;
 use crate::certificate::{BENCH, Certificate, Stated};
 use crate::page::escape;
 use std::fmt::Write as _;
@@ -51,8 +52,8 @@ pub fn method_text(survey: &SurveyRecord) -> String {
 pub fn environment_text(cert: &Certificate, measured: &Environment, simulated: bool) -> String {
     let stated = cert.temperature_c.as_ref().map(|t| {
         format!(
-            "air temperature {:.1} °C, stated ({}), not measured by this program; its uncertainty is not stated",
-            t.value, t.from
+            "air temperature {:.1} °C, stated, not measured by this program; its uncertainty is not stated",
+            t.value
         )
     });
     match measured {
@@ -83,6 +84,27 @@ pub fn environment_text(cert: &Certificate, measured: &Environment, simulated: b
     }
 }
 
+/// The time the survey measured on the instruments' clock, seconds: its
+/// first to its last stored moment, times the instruments' speed-up (a
+/// rehearsal at `[timing] time_scale`), as `survey run --json` says it.
+pub fn instrument_time_s(survey: &SurveyRecord) -> Option<f64> {
+    match (survey.started_at_s, survey.ended_at_s) {
+        (Some(a), Some(b)) if b >= a => Some((b - a) * survey.setup.time_scale()),
+        _ => None,
+    }
+}
+
+/// A duration in words a reader takes in: seconds, minutes or hours.
+pub fn duration_words(s: f64) -> String {
+    if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.1} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
+    }
+}
+
 /// The calibration's dates: the survey's first and last stored change, as dates.
 pub fn performed(survey: &SurveyRecord) -> (String, String) {
     let day = |t: &str| t.get(..10).unwrap_or(t).to_string();
@@ -95,18 +117,17 @@ fn fields(p: &Page<'_>) -> String {
         (&p.d.survey, &p.cert, p.d.samples.len(), p.units, p.d.generated.as_str());
     let environment = &p.d.environment;
     let not_stated = "<i>not stated</i>".to_string();
-    let from = |f: &'static str| format!(" <span class=\"note\">({f})</span>");
-    // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as written.
+    // What the bench says is the software's sentence (its errors in degrees); what a person stated stays as
+    // written. Where each came from is not the customer's: the appendix says it ([`show_sources`]).
     let text = |v: &Option<Stated<String>>| {
         v.as_ref().map_or(not_stated.clone(), |s| {
-            let value = if s.from == BENCH { units.text(&s.value) } else { s.value.clone() };
-            escape(&value) + &from(s.from)
+            escape(&if s.from == BENCH { units.text(&s.value) } else { s.value.clone() })
         })
     };
     let (begin, end) = performed(survey);
-    let instrument_time = match (survey.started_at_s, survey.ended_at_s) {
-        (Some(a), Some(b)) if b >= a => format!(" ({:.1} h of instrument time)", (b - a) / 3600.0),
-        _ => String::new(),
+    let instrument_time = match instrument_time_s(survey) {
+        Some(t) => format!(" ({} of instrument time)", duration_words(t)),
+        None => String::new(),
     };
     let rows: Vec<(&str, String)> = vec![
         ("Calibrating laboratory", text(&cert.laboratory)),
@@ -121,9 +142,9 @@ fn fields(p: &Page<'_>) -> String {
         ("Reference instrument", text(&cert.reference)),
         (
             "Reference uncertainty",
-            cert.reference_uncertainty_deg.as_ref().map_or(not_stated.clone(), |u| {
-                format!("{} (standard uncertainty of one angle){}", units.show(u.value), from(u.from))
-            }),
+            cert.reference_uncertainty_deg
+                .as_ref()
+                .map_or(not_stated.clone(), |u| format!("{} (standard uncertainty of one angle)", units.show(u.value))),
         ),
         ("Traceability", text(&cert.traceability)),
         ("Environment", escape(&environment_text(cert, environment, matches!(survey.setup, Setup::Simulated(_))))),
@@ -139,7 +160,7 @@ fn fields(p: &Page<'_>) -> String {
                 escape(&survey.updated_at),
             ),
         ),
-        ("Issued", format!("report made {} by survey {}", escape(generated), env!("CARGO_PKG_VERSION"))),
+        ("Issued", issued_text(&p.d.issue, generated)),
         ("Units", format!("errors in {}; angles in degrees", units.symbol())),
     ];
     let mut html = String::from("<table class=\"header\" id=\"tbl-header\"><tbody>\n");
@@ -147,6 +168,53 @@ fn fields(p: &Page<'_>) -> String {
         let _ = writeln!(html, "<tr><td>{k}</td><td>{v}</td></tr>");
     }
     html + "</tbody></table>\n"
+}
+
+/// When the certificate was issued and what it replaces, or that it is a draft.
+fn issued_text(issue: &Issue, generated: &str) -> String {
+    let by = format!("by survey {}", env!("CARGO_PKG_VERSION"));
+    match issue {
+        Issue::Issued { issued_at, replaces: None, .. } => format!("{} {by}", escape(issued_at)),
+        Issue::Issued { issued_at, replaces: Some(r), seq, .. } => format!(
+            "{} {by}: amendment {} replacing certificate {} of {} ({})",
+            escape(issued_at),
+            seq - 1,
+            escape(&r.number),
+            escape(&r.issued_at),
+            escape(&r.reason)
+        ),
+        Issue::Draft(why) => format!("not issued: a draft made {} {by} ({})", escape(generated), escape(why)),
+    }
+}
+
+/// Where each field of the certificate came from: a flag of `survey
+/// report`, the configuration's `[certificate]`, the bench, the survey
+/// (an appendix: the customer's pages state the fields, not their provenance).
+pub fn show_sources(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
+    let c = &p.cert;
+    let fields: [(&str, Option<&'static str>); 17] = [
+        ("Certificate number", Some(c.number.from)),
+        ("Calibrating laboratory", c.laboratory.as_ref().map(|s| s.from)),
+        ("Laboratory's country", c.country.as_ref().map(|s| s.from)),
+        ("Customer", c.customer.as_ref().map(|s| s.from)),
+        ("Item calibrated", c.positioner.as_ref().map(|s| s.from)),
+        ("Item's condition", c.item_condition.as_ref().map(|s| s.from)),
+        ("Date received", c.received.as_ref().map(|s| s.from)),
+        ("Location of calibration", c.location.as_ref().map(|s| s.from)),
+        ("Reference instrument", c.reference.as_ref().map(|s| s.from)),
+        ("Reference uncertainty", c.reference_uncertainty_deg.as_ref().map(|s| s.from)),
+        ("Traceability", c.traceability.as_ref().map(|s| s.from)),
+        ("Stated air temperature", c.temperature_c.as_ref().map(|s| s.from)),
+        ("Tolerance", c.tolerance_deg.as_ref().map(|s| s.from)),
+        ("Operator", c.operator.as_ref().map(|s| s.from)),
+        ("Authorised by", c.signatory.as_ref().map(|s| s.from)),
+        ("Method, dates, environment measured, survey", Some("the survey as stored")),
+        ("Issued", Some("the store's record of the certificate (or a draft's time)")),
+    ];
+    let rows: Vec<Vec<String>> =
+        fields.iter().map(|(k, f)| vec![k.to_string(), escape(f.unwrap_or("not stated anywhere"))]).collect();
+    let body = crate::page::table_left("tbl-sources", &["field", "where it came from"], &rows, &[1]);
+    Ok(Section::page("sources", "Where each field came from", body))
 }
 
 /// The section: the certificate's fields.

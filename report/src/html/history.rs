@@ -174,7 +174,9 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
             ]
         })
         .collect();
-    let head = ["survey", "made (UTC)", "kind", "A", "R", "table U", "check"];
+    let u = units.symbol();
+    let (a, r, table_u) = (format!("A, {u}"), format!("R, {u}"), format!("table U, {u}"));
+    let head = ["survey", "made (UTC)", "kind", &a, &r, &table_u, "check"];
     html += &table_left("tbl-history", &head, &rows, &[1, 2, 6]);
     for (a, b, c) in &h.changes {
         if c.verdict == survey_modelgap::compare::Verdict::Changed {

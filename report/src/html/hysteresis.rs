@@ -4,7 +4,7 @@
 
 use super::{Page, Section, note};
 use crate::page::{Key, escape, figure, legend};
-use crate::plot::{self, GREY, HEIGHT, PURPLE, WIDTH, axes, extent, hex, padded, render};
+use crate::plot::{self, GREY, HEIGHT, INK, SKY, VERMILLION, WIDTH, axes, extent, hex, padded, render};
 use crate::units::Units;
 use plotters::prelude::*;
 use survey_processing::errormap::{ErrorMap, RunHysteresis};
@@ -35,29 +35,27 @@ pub fn section(map: &ErrorMap, units: Units) -> anyhow::Result<String> {
             .map(|(x, b)| (*x, units.of(b.2)))
             .chain(t.iter().zip(&band).rev().map(|(x, b)| (*x, units.of(b.1))))
             .collect();
-        chart.draw_series(std::iter::once(Polygon::new(outline, PURPLE.mix(0.18).filled()))).map_err(plot::plot_err)?;
+        chart.draw_series(std::iter::once(Polygon::new(outline, GREY.mix(0.3).filled()))).map_err(plot::plot_err)?;
         for run in &runs {
             let pts = t.iter().zip(run).map(|(x, h)| (*x, units.of(*h)));
-            chart.draw_series(LineSeries::new(pts, PURPLE.mix(0.45).stroke_width(1))).map_err(plot::plot_err)?;
+            chart.draw_series(LineSeries::new(pts, SKY.stroke_width(1))).map_err(plot::plot_err)?;
         }
         let pts = t.iter().zip(&mean).map(|(x, h)| (*x, units.of(*h)));
-        chart.draw_series(LineSeries::new(pts, PURPLE.stroke_width(3))).map_err(plot::plot_err)?;
+        chart.draw_series(LineSeries::new(pts, VERMILLION.stroke_width(3))).map_err(plot::plot_err)?;
         let level = units.of(overall);
         chart
-            .draw_series(std::iter::once(PathElement::new(
-                vec![(x.start, level), (x.end, level)],
-                GREY.stroke_width(2),
-            )))
+            .draw_series(std::iter::once(PathElement::new(vec![(x.start, level), (x.end, level)], INK.stroke_width(1))))
             .map_err(plot::plot_err)?;
         Ok(())
     })?;
     let mut entries = vec![
-        (hex(PURPLE), Key::Line, "mean over the runs".to_string()),
-        (hex(PURPLE), Key::Thin, "each run".to_string()),
-        (hex(GREY), Key::Line, format!("average over the targets: {}", units.show(overall))),
+        // Each series its own colour: the mean, the runs, the band and the average told apart in print.
+        (hex(VERMILLION), Key::Line, "mean over the runs".to_string()),
+        (hex(SKY), Key::Line, "each run".to_string()),
+        (hex(INK), Key::Thin, format!("average over the targets: {}", units.show(overall))),
     ];
     if sd.is_some() {
-        entries.insert(2, (hex(PURPLE), Key::Band, "mean ± 2 s (over the runs)".to_string()));
+        entries.insert(2, (hex(GREY), Key::Band, "mean ± 2 s (over the runs)".to_string()));
     }
     let caption = format!(
         "Hysteresis: the forward error minus the reverse error at each target ({}), per run and averaged. \

@@ -2,14 +2,14 @@
 //! figures beside them and the definitions used.
 
 use super::{Page, Section, note};
-use crate::conformity;
 use crate::page::{escape, table};
 use crate::units::{Units, angle};
+use crate::{conformity, rounding};
 use survey_processing::iso230::Iso230;
 use survey_processing::vdi3441::{Vdi3441, vdi3441};
 
 /// The axis figures: ISO 230-2 and VDI/DGQ 3441 side by side.
-pub fn axis_section(iso: &Iso230, units: Units) -> String {
+pub fn axis_section(iso: &Iso230, units: Units, u_deg: Option<f64>) -> String {
     let vdi = vdi3441(iso);
     let u = units.symbol();
     let rows: Vec<Vec<String>> = [
@@ -21,7 +21,10 @@ pub fn axis_section(iso: &Iso230, units: Units) -> String {
         ("B mean, mean reversal value", iso.b_mean, None, None),
     ]
     .into_iter()
-    .map(|(name, all, up, down)| vec![name.to_string(), units.opt(all), units.opt(up), units.opt(down)])
+    .map(|(name, all, up, down)| {
+        let at_u = |v: Option<f64>| rounding::opt(units, v, u_deg);
+        vec![name.to_string(), at_u(all), at_u(up), at_u(down)]
+    })
     .collect();
     let mut html = table(
         "tbl-iso-axis",
@@ -33,16 +36,16 @@ pub fn axis_section(iso: &Iso230, units: Units) -> String {
          |B<sub>i</sub>|, 4s↑, 4s↓); A from the bands x̄ ± 2s (the 1997 and later editions).</p>\n",
         iso.runs
     );
-    html += &vdi_table(&vdi, units);
+    html += &vdi_table(&vdi, units, u_deg);
     html
 }
 
-fn vdi_table(v: &Vdi3441, units: Units) -> String {
+fn vdi_table(v: &Vdi3441, units: Units, u_deg: Option<f64>) -> String {
     let u = units.symbol();
     let rows = vec![
-        vec!["P, positional uncertainty".to_string(), units.num(v.p_deg)],
-        vec!["Pa, position deviation".to_string(), units.num(v.pa_deg)],
-        vec!["Ps, largest positional scatter".to_string(), units.num(v.ps_deg)],
+        vec!["P, positional uncertainty".to_string(), rounding::num(units, v.p_deg, u_deg)],
+        vec!["Pa, position deviation".to_string(), rounding::num(units, v.pa_deg, u_deg)],
+        vec!["Ps, largest positional scatter".to_string(), rounding::num(units, v.ps_deg, u_deg)],
         vec!["U, largest reversal span".to_string(), units.opt(v.u_deg)],
         vec!["Ū, mean reversal span".to_string(), units.opt(v.u_mean_deg)],
     ];
@@ -114,7 +117,8 @@ pub fn show_axis(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let body = match &p.iso {
         Ok(iso) => {
             let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
-            let u = match conformity::accuracy_u_deg(reference_u, p.d.reference_systematic_u_deg, p.d.axis_u_deg) {
+            let measured_u = conformity::accuracy_u_deg(reference_u, p.d.reference_systematic_u_deg, p.d.axis_u_deg);
+            let u = match measured_u {
                 Some(u) => format!(
                     "The measured figures A, E and M carry the expanded uncertainty U = {} (k = 2) of the \
                      measurement (see the summary).",
@@ -122,7 +126,7 @@ pub fn show_axis(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
                 ),
                 None => "The reference's uncertainty is not stated: the figures' uncertainty is not known.".into(),
             };
-            axis_section(iso, p.units) + &note(&u)
+            axis_section(iso, p.units, measured_u) + &note(&u)
         }
         Err(e) => note(&format!("No ISO 230-2 figures: {e}.")),
     };

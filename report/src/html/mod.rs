@@ -35,7 +35,8 @@ pub mod table;
 pub mod uncertainty;
 pub mod verification;
 
-use crate::certificate::Certificate;
+use crate::certificate::Issue;
+use crate::certificate::{Certificate, REHEARSAL, Stated};
 use crate::page::{self, escape};
 use crate::units::Units;
 use crate::{ReportData, ReportOptions};
@@ -112,7 +113,7 @@ pub const BODY: &[Show] = &[
 ];
 
 /// The appendices, after the body, lettered A, B, ... in this order.
-pub const APPENDIX: &[Show] = &[iso::show_targets];
+pub const APPENDIX: &[Show] = &[iso::show_targets, header::show_sources];
 
 /// A note in place of what a section cannot show.
 pub fn note(text: &str) -> String {
@@ -140,9 +141,7 @@ fn notes(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
 /// its signature line, and the end of the certificate (what follows is
 /// the appendix).
 fn end(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
-    let signatory = p.cert.signatory.as_ref().map_or("<i>not stated</i>".to_string(), |s| {
-        format!("{} <span class=\"note\">({})</span>", escape(&s.value), s.from)
-    });
+    let signatory = p.cert.signatory.as_ref().map_or("<i>not stated</i>".to_string(), |s| escape(&s.value));
     let body = format!(
         "<ul class=\"statements\">\n\
          <li>The results relate only to the item calibrated, as it was when calibrated (ISO/IEC 17025:2017, \
@@ -161,25 +160,68 @@ fn end(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     Ok(Some(Section { id: "authorisation", title: "Statements and authorisation".into(), new_page: false, body }))
 }
 
+/// Under the number: what this certificate replaces and why (an
+/// amendment), or that the page is a draft and why.
+fn issue_note(issue: &Issue) -> String {
+    match issue {
+        Issue::Issued { replaces: Some(r), .. } => format!(
+            "<p class=\"verdict\" id=\"amendment\">This certificate replaces certificate <b>{}</b> issued {}, \
+             which is withdrawn. Reason: {}</p>\n",
+            escape(&r.number),
+            escape(&r.issued_at),
+            escape(&r.reason)
+        ),
+        Issue::Issued { .. } => String::new(),
+        Issue::Draft(why) => {
+            format!("<p class=\"verdict fail\" id=\"draft\"><b>Draft, not issued</b>: {}.</p>\n", escape(why))
+        }
+    }
+}
+
 /// The title of the page.
 fn title(p: &Page<'_>) -> String {
     let s = &p.d.survey;
     let name = p.cert.positioner_name(s);
-    match (&s.source, &s.verification) {
-        (SurveySource::Verification, Some(v)) => {
+    match (&s.source, &s.verification, &p.cert.rehearsal) {
+        (SurveySource::Verification, Some(v), None) => {
             format!("{name}: verification (survey {}) of the table of survey {}", s.id, v.verifies_survey)
         }
-        _ => format!("{name}: calibration survey {}", s.id),
+        (SurveySource::Verification, Some(v), Some(_)) => {
+            format!(
+                "{name}: verification (survey {}) of the table of survey {}, a {REHEARSAL}",
+                s.id, v.verifies_survey
+            )
+        }
+        (_, _, None) => format!("{name}: calibration survey {}", s.id),
+        (_, _, Some(_)) => format!("{name}: {REHEARSAL} (survey {})", s.id),
     }
+}
+
+/// A rehearsal's banner under the number (its running foot says it on every printed page).
+fn rehearsal_note(p: &Page<'_>) -> String {
+    p.cert.rehearsal.as_ref().map_or(String::new(), |why| {
+        format!(
+            "<p class=\"verdict fail\" id=\"rehearsal\"><b>Rehearsal on simulated instruments, not a \
+             calibration</b>: {}. Its figures show the method and this program at work; they certify no instrument \
+             and are traceable to nothing.</p>\n",
+            escape(why)
+        )
+    })
 }
 
 /// What every section (and the DCC) reads, of `d`.
 pub fn page<'a>(d: &'a ReportData, opts: &'a ReportOptions) -> Page<'a> {
+    let mut cert = Certificate::of(&d.survey, &opts.flags);
+    cert.number = match &d.issue {
+        Issue::Issued { number, .. } => Stated { value: number.clone(), from: cert.number.from },
+        // A draft's number says what it is, on every page and in the DCC.
+        Issue::Draft(_) => Stated { value: format!("DRAFT-{}", cert.number.value), from: cert.number.from },
+    };
     Page {
         d,
         opts,
         units: opts.units,
-        cert: Certificate::of(&d.survey, &opts.flags),
+        cert,
         map: ErrorMap::from_samples(&d.samples).map_err(|e| e.to_string()),
         iso: iso230_2(&d.samples).map_err(|e| e.to_string()),
     }
@@ -191,17 +233,21 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
     let title = title(&p);
     let number = &p.cert.number.value;
     let laboratory = p.cert.laboratory.as_ref().map(|l| l.value.clone()).unwrap_or_default();
-    let origin = format!(
-        "{} <span class=\"note\">(number: {})</span>",
-        if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) },
-        p.cert.number.from
-    );
+    let origin = if laboratory.is_empty() { String::new() } else { format!(" · {}", escape(&laboratory)) };
+    let kind = if p.cert.rehearsal.is_some() {
+        "Rehearsal, not a calibration: certificate"
+    } else {
+        "Calibration certificate"
+    };
     let mut body = format!(
-        "<p class=\"subtitle\" id=\"certificate-number\">Calibration certificate <b>{}</b>{}</p>\n<h1>{}</h1>\n\
+        "<p class=\"subtitle\" id=\"certificate-number\">{} <b>{}</b>{}</p>\n{}{}<h1>{}</h1>\n\
          <p class=\"subtitle\">Readout error of the positioner, its sources, the correction table and the accuracy \
          figures of ISO 230-2 and VDI/DGQ 3441. Errors are readout − actual, in {}.</p>\n",
+        kind,
         escape(number),
         origin,
+        rehearsal_note(&p),
+        issue_note(&d.issue),
         escape(&title),
         p.units.symbol()
     );
@@ -224,9 +270,12 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
         escape(&d.generated)
     );
     let running = page::Running {
-        top_left: format!("Calibration certificate {number}"),
+        top_left: format!("{kind} {number}"),
         top_right: laboratory,
-        bottom_left: format!("{}: survey {}", p.cert.positioner_name(&d.survey), d.survey.id),
+        bottom_left: match &p.cert.rehearsal {
+            None => format!("{}: survey {}", p.cert.positioner_name(&d.survey), d.survey.id),
+            Some(_) => format!("{}: survey {}", REHEARSAL.to_uppercase(), d.survey.id),
+        },
     };
     Ok(page::document(&title, &running, &body))
 }

@@ -22,7 +22,8 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let mut rows: Vec<Vec<String>> = Vec::new();
     if let Ok(iso) = &p.iso {
         rows.push(row("ISO 230-2 accuracy A, as measured".into(), iso.a, measured_u, ""));
-        rows.push(vec!["ISO 230-2 repeatability R".into(), units.show(iso.r), "-".into()]);
+        // R has no U of its own: to the place of the U beside it (ILAC-P14: one rounding).
+        rows.push(vec!["ISO 230-2 repeatability R".into(), rounding::show(units, iso.r, measured_u).0, "-".into()]);
     }
     let table_u = d.uncertainty.as_ref().map(|b| b.table_u_deg);
     if let Ok(processed) = &d.processed {
@@ -161,9 +162,8 @@ fn verdict(figure: Option<f64>, u: Option<f64>, tolerance: f64, what: &str, p: &
             (
                 class,
                 format!(
-                    "Verdict against the tolerance {} ({}): {}. A = {}, {u_text}, {why}. Judged: {what}.",
+                    "Verdict against the tolerance {}: {}. A = {}, {u_text}, {why}. Judged: {what}.",
                     units.show(tolerance),
-                    p.cert.tolerance_deg.as_ref().map_or("", |t| t.from),
                     decision.word().to_uppercase(),
                     at_u(a),
                 ),

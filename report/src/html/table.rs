@@ -140,8 +140,9 @@ fn capitalised(s: &str) -> String {
     })
 }
 
-/// The section: the figure and the excerpt.
-pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
+/// The section: the figure and the excerpt, each value to the decimal
+/// place of the table's U `u_deg` (ILAC-P14, as in the DCC).
+pub fn section(p: &Processed, units: Units, u_deg: Option<f64>) -> anyhow::Result<String> {
     let t = &p.built.table;
     let mut entries: Vec<_> =
         columns(p).into_iter().map(|(_, c, name)| (hex(c), Key::Line, format!("table, {name}"))).collect();
@@ -179,14 +180,17 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
                 let x = ex.from + k as f64 * ex.step;
                 row.push(angle(x));
                 for (d, _, _) in &cols {
-                    row.push(units.num(t.error_at(x, *d)));
+                    row.push(crate::rounding::num(units, t.error_at(x, *d), u_deg));
                 }
             }
             row
         })
         .collect();
     let head: Vec<&str> = head.iter().map(String::as_str).collect();
-    html += &format!("<h3>Table values (excerpt): the error of each column, {u}</h3>\n");
+    let at = u_deg.map_or(String::new(), |v| {
+        format!(" (to the decimal place of the table's U = {})", crate::rounding::show_u(units, v))
+    });
+    html += &format!("<h3>Table values (excerpt): the error of each column, {u}{at}</h3>\n");
     html += &table("tbl-table", &head, &rows);
     html += &format!(
         "<p class=\"note\" id=\"table-excerpt\">{} The correction is the error with its sign changed (the value \
@@ -200,7 +204,10 @@ pub fn section(p: &Processed, units: Units) -> anyhow::Result<String> {
 /// The section, when the survey was processed.
 pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     match p.processed() {
-        Some(processed) => Ok(Section::page("correction-table", "Correction table", section(processed, p.units)?)),
+        Some(processed) => {
+            let u = p.d.uncertainty.as_ref().map(|b| b.table_u_deg);
+            Ok(Section::page("correction-table", "Correction table", section(processed, p.units, u)?))
+        }
         None => Ok(None),
     }
 }

@@ -40,7 +40,9 @@ pub fn section(b: &UncertaintyBudget, units: Units) -> String {
         })
         .collect();
     rows.push(vec!["combined standard uncertainty u".into(), units.num(b.combined_u_deg), String::new()]);
-    rows.push(vec![format!("expanded uncertainty U = k u (k = {})", b.k), units.num(b.table_u_deg), String::new()]);
+    // U as every other place states it: two significant digits, rounded up (ILAC-P14).
+    let u_stated = crate::rounding::num_u(units, b.table_u_deg);
+    rows.push(vec![format!("expanded uncertainty U = k u (k = {})", b.k), u_stated, String::new()]);
     let mut html = table("tbl-uncertainty", &["source", &format!("standard uncertainty, {u}"), "share of u²"], &rows);
     html += "<p class=\"note\">Each contribution is a standard uncertainty (k = 1); the shares are of the sum of \
              their squares.</p>\n";
@@ -67,6 +69,8 @@ mod tests {
         .unwrap();
         let html = section(&b, Units::Deg);
         assert!(html.contains("36.0 %") && html.contains("64.0 %"), "{html}");
-        assert!(html.contains("0.00050") && html.contains("0.00100"), "u = 0.0005, U = 2 x 0.0005: {html}");
+        assert!(html.contains("0.00050"), "u = 0.0005: {html}");
+        // U as the certificate states it everywhere: two significant digits (ILAC-P14).
+        assert!(html.contains("(k = 2)</td><td>0.0010</td>"), "U = 2 x 0.0005: {html}");
     }
 }

@@ -92,6 +92,7 @@ pub(super) const ROOT: &[Field] = &[
         ]),
     ),
     opt("asset", Ty::Table(ASSET)),
+    opt("rehearsal", Ty::Table(&[req("simulator", Ty::Checked(crate::config::check_field, FIELD_WORDS))])),
     opt(
         "smrs",
         Ty::Table(&[
@@ -263,22 +264,27 @@ const TIMING: &[Field] = &[
     opt("time_scale", Ty::Number(Low::Above(0.0), 10_000.0, "x real time")),
 ];
 
+/// What a certificate's text field takes, in words.
+const FIELD_WORDS: &str = "text in quotes on one line, 1 to 400 characters, no control characters";
+/// What a certificate number takes, in words.
+const NUMBER_WORDS: &str = "text in quotes on one line, 1 to 64 characters, no control characters";
+
 const CERTIFICATE: &[Field] = &[
-    opt("positioner", Ty::Text),
-    opt("reference", Ty::Text),
+    opt("positioner", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("reference", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
     opt("reference_uncertainty_deg", Ty::Number(Low::Above(0.0), 1.0, "deg")),
     opt("reference_mpe_um", Ty::Number(Low::From(0.0), 1000.0, "um")),
     opt("reference_mpe_um_per_m", Ty::Number(Low::From(0.0), 1000.0, "um/m")),
-    opt("operator", Ty::Text),
-    opt("customer", Ty::Text),
+    opt("operator", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("customer", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
     opt("temperature_c", Ty::Number(Low::From(-50.0), 100.0, "°C")),
-    opt("number", Ty::Text),
-    opt("laboratory", Ty::Text),
-    opt("traceability", Ty::Text),
+    opt("number", Ty::Checked(crate::config::check_number, NUMBER_WORDS)),
+    opt("laboratory", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("traceability", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
     opt("tolerance_deg", Ty::Number(Low::Above(0.0), 360.0, "deg")),
-    opt("signatory", Ty::Text),
-    opt("location", Ty::Text),
-    opt("item_condition", Ty::Text),
+    opt("signatory", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("location", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("item_condition", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
     opt("received", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
     opt("country", Ty::Checked(crate::config::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
 ];
@@ -449,7 +455,19 @@ impl<'a> Walk<'a> {
                 }
             }
             (Ty::Number(..) | Ty::AnyNumber, DeValue::Integer(_) | DeValue::Float(_)) => self.number(key, v, ty),
-            (Ty::Text, DeValue::String(_)) | (Ty::Flag, DeValue::Boolean(_)) => {}
+            (Ty::Text, DeValue::String(text)) => {
+                // Text may be printed (an address on the certificate): never a control character.
+                if let Some((place, c)) = crate::config::control_character(text) {
+                    let text = format!(
+                        "{} holds the control character U+{:04X} at character {place}: it takes text in quotes \
+                         without control characters",
+                        shown(self.text, v),
+                        c as u32
+                    );
+                    self.push(at, key, text);
+                }
+            }
+            (Ty::Flag, DeValue::Boolean(_)) => {}
             (Ty::Checked(check, words), DeValue::String(text)) => {
                 if let Err(why) = check(text) {
                     let why = why.strip_prefix("not ").map_or(why.clone(), |rest| format!("is not {rest}"));

@@ -252,6 +252,21 @@ const ROWS: &[Table] = &[
         ],
         order: "survey_id",
     },
+    // The certificates issued, as issued (one issued after the survey was
+    // pushed goes with the next push: `sync_certificates`).
+    Table {
+        name: "certificates",
+        columns: &[
+            ("number", Text),
+            ("seq", Int),
+            ("issued_at", Text),
+            ("replaces", Text),
+            ("reason", Text),
+            ("page", Text),
+            ("dcc", Text),
+        ],
+        order: "seq",
+    },
 ];
 
 /// Every table of a survey, with the column that keys it to the survey.
@@ -306,7 +321,55 @@ pub async fn push(station: &Store, lab: &Store, which: Which) -> anyhow::Result<
         copy(station, from, to, s, &mut report).await?;
     }
     sync_checks(from, to).await?;
+    for uid in &report.already {
+        if let Some(s) = chosen.iter().find(|s| &s.uid == uid) {
+            sync_certificates(station, to, s)
+                .await
+                .map_err(|e| e.context(format!("cannot push the certificates of survey {} ({})", s.id, s.uid)))?;
+        }
+    }
     Ok(report)
+}
+
+/// The certificates of survey `s` issued at the station after it was
+/// pushed: copied into the lab store, each once (a number the lab store
+/// holds for another survey is refused there, and said).
+async fn sync_certificates(station: &Store, to: &PgPool, s: &SurveyRecord) -> anyhow::Result<()> {
+    let Some(id) = lab_id(to, &s.uid).await? else { return Ok(()) };
+    let there: Vec<String> =
+        sqlx::query_scalar("SELECT number FROM certificates WHERE survey_id = $1").bind(id).fetch_all(to).await?;
+    for c in station.certificates(s.id).await?.into_iter().filter(|c| !there.contains(&c.number)) {
+        let mut tx = WriteTx::begin(to).await?;
+        let inserted = sqlx::query(
+            "INSERT INTO certificates (survey_id, number, seq, issued_at, replaces, reason, page, dcc) \
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8)",
+        )
+        .bind(id)
+        .bind(&c.number)
+        .bind(c.seq)
+        .bind(&c.issued_at)
+        .bind(&c.replaces)
+        .bind(&c.reason)
+        .bind(&c.page)
+        .bind(&c.dcc)
+        .execute(&mut *tx.conn())
+        .await;
+        match inserted {
+            Ok(_) => tx.commit().await?,
+            Err(e) => {
+                tx.abort().await;
+                if e.as_database_error().is_some_and(|d| d.is_unique_violation()) {
+                    return Err(bad_input(format!(
+                        "certificate number {} is in the lab store already, issued for another survey: a number is \
+                         issued once in a lab (amend this survey's certificate with another --certificate-number)",
+                        c.number
+                    )));
+                }
+                return Err(e.into());
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The lab store's id of the survey with `uid`, if it is there.
