@@ -192,7 +192,11 @@ impl Certificate {
         match &self.positioner {
             Some(p) if p.from != BENCH => p.value.clone(),
             _ => match &survey.setup {
-                Setup::Simulated(s) => format!("simulated {} positioner", s.preset),
+                // A model file is the positioner, never the preset it borrows instruments from.
+                Setup::Simulated(s) => match &s.model_file {
+                    Some(f) => format!("simulated {} positioner", f.rsplit('/').next().unwrap_or(f)),
+                    None => format!("simulated {} positioner", s.preset),
+                },
                 _ => described_or(survey, "positioner", "positioner"),
             },
         }

@@ -303,4 +303,9 @@ fn a_model_files_survey_is_named_by_its_file() {
     let out = b.survey(&["run", "--points", "36", "--runs", "2", "--model", "mine.toml"]).success();
     assert!(out.stderr.contains("simulated mine.toml positioner, simulated tracker reference"), "{out}");
     assert!(!out.stderr.contains("fig8"), "{out}");
+    // The certificate's title too.
+    let dir = b.path("out");
+    b.survey(&["report", "--out", dir.to_str().unwrap()]).success();
+    let page = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    assert!(page.contains("simulated mine.toml positioner") && !page.contains("fig8 positioner"), "the title");
 }
