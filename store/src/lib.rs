@@ -627,10 +627,13 @@ async fn schema(pool: &SqlitePool, path: &Path) -> anyhow::Result<Schema> {
 /// foreign that way (every checkpoint is a committed state of it); anything
 /// this glance cannot read (a checkpoint under way, a file that is not
 /// SQLite) is left to the connection that follows, which decides. Damage
-/// seen while a write-ahead log is there (a writer's checkpoint may have
-/// changed the file under the glance) is confirmed on an ordinary read-only
-/// connection first.
+/// seen while a write-ahead log or a rollback journal is there, or while the
+/// file changed under the glance (a writer's checkpoint, a new database's
+/// schema being made by another process), is confirmed on an ordinary
+/// read-only connection first.
 async fn inspect(path: &Path) -> anyhow::Result<()> {
+    let stamp = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.len(), m.modified().ok()));
+    let before = stamp(path);
     let options = SqliteConnectOptions::new().filename(path).read_only(true).immutable(true);
     let Ok(pool) = single_connection_pool().connect_with(options).await else { return Ok(()) };
     let found = schema(&pool, path).await;
@@ -650,9 +653,16 @@ async fn inspect(path: &Path) -> anyhow::Result<()> {
     if problems.is_empty() {
         return Ok(());
     }
-    let mut wal = path.as_os_str().to_os_string();
-    wal.push("-wal");
-    if std::fs::metadata(&wal).is_ok_and(|m| m.len() > 0) {
+    let beside = |suffix: &str| {
+        let mut p = path.as_os_str().to_os_string();
+        p.push(suffix);
+        std::fs::metadata(p).is_ok_and(|m| m.len() > 0)
+    };
+    // Another process writing it (a write-ahead log, a rollback journal: a
+    // new database's schema being made; or the file changed under the
+    // glance) may have shown the glance a page mid-write: confirmed on an
+    // ordinary read-only connection, which takes SQLite's locks.
+    if beside("-wal") || beside("-journal") || stamp(path) != before {
         let (pool, _) = connect_read_only(path).await?;
         let again = match schema(&pool, path).await {
             Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v).await,
