@@ -227,50 +227,10 @@ impl GrossTest {
 mod tests {
     use super::*;
 
-    /// A survey of `points` targets, `runs` runs both ways, of a positioner
-    /// error with two lines and a backlash, seeded normal noise `sigma`, and
-    /// `ramp` deg per run of drift growing in time.
+    /// A survey of `points` targets, `runs` runs both ways, seeded normal
+    /// noise `sigma`, and `ramp` deg per run of drift growing in time.
     fn survey(points: usize, runs: u32, sigma: f64, ramp: f64, seed: u64) -> Vec<Sample> {
-        // splitmix64 (an LCG's consecutive pairs spoil Box-Muller's tails).
-        let mut state = seed;
-        let mut normal = move || {
-            let mut u = || {
-                state = state.wrapping_add(0x9e3779b97f4a7c15);
-                let mut z = state;
-                z = (z ^ (z >> 30)).wrapping_mul(0xbf58476d1ce4e5b9);
-                z = (z ^ (z >> 27)).wrapping_mul(0x94d049bb133111eb);
-                (((z ^ (z >> 31)) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            (-2.0 * u().ln()).sqrt() * (std::f64::consts::TAU * u()).cos()
-        };
-        let mut out = Vec::new();
-        let mut t = 0.0;
-        for run in 1..=runs {
-            for direction in [Direction::Forward, Direction::Reverse] {
-                let order: Vec<usize> = match direction {
-                    Direction::Forward => (0..points).collect(),
-                    Direction::Reverse => (0..points).rev().collect(),
-                };
-                for k in order {
-                    let target = 360.0 * k as f64 / points as f64;
-                    let x = target.to_radians();
-                    let back = if direction == Direction::Forward { 0.004 } else { -0.004 };
-                    let e = 0.0078 * (20.0 * x).sin() + 0.0015 * (x + 1.9).sin() + back;
-                    let drift = ramp * t / (2.0 * points as f64);
-                    let err = e + drift + sigma * normal();
-                    out.push(Sample {
-                        run,
-                        direction,
-                        target_deg: target,
-                        readout_deg: target,
-                        actual_deg: target - err,
-                        timestamp_s: Some(t),
-                    });
-                    t += 1.0;
-                }
-            }
-        }
-        out
+        crate::analysis::testutil::timed_survey(points, runs, sigma, seed, |t, _| ramp * t / (2.0 * points as f64))
     }
 
     #[test]
@@ -293,7 +253,7 @@ mod tests {
     }
 
     /// The rate: over 200 clean surveys (360 points, 3 runs both ways) at most
-    /// a few name a reading (1 % stated: 2 expected, 1 measured; 4.5 Poisson
+    /// a few name a reading (1 % stated: 2 expected, 0 measured; 4.5 Poisson
     /// sigma allow 8);
     /// a drift of 0.004 deg a run, growing in time within the runs, names none.
     #[test]

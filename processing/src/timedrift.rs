@@ -207,49 +207,13 @@ impl TimeDrift {
 mod tests {
     use super::*;
 
-    /// 120 targets, `runs` runs both ways, one reading a second; the
-    /// positioner's error two lines and a backlash; `ramp` deg per run
-    /// growing in time; `step` deg added from run 2 on; noise `sigma`.
+    /// 120 targets, `runs` runs both ways, one reading a second; `ramp`
+    /// deg per run growing in time; `step` deg added from run 2 on; noise
+    /// `sigma`.
     fn survey(runs: u32, ramp: f64, step: f64, sigma: f64, seed: u64) -> Vec<Sample> {
-        let mut state = seed;
-        let mut normal = move || {
-            let mut u = || {
-                state = state.wrapping_add(0x9e3779b97f4a7c15);
-                let mut z = state;
-                z = (z ^ (z >> 30)).wrapping_mul(0xbf58476d1ce4e5b9);
-                z = (z ^ (z >> 27)).wrapping_mul(0x94d049bb133111eb);
-                (((z ^ (z >> 31)) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            (-2.0 * u().ln()).sqrt() * (std::f64::consts::TAU * u()).cos()
-        };
-        let (points, mut t, mut out) = (120usize, 0.0, Vec::new());
-        let per_run = 2.0 * points as f64;
-        for run in 1..=runs {
-            for direction in [Direction::Forward, Direction::Reverse] {
-                let order: Vec<usize> = match direction {
-                    Direction::Forward => (0..points).collect(),
-                    Direction::Reverse => (0..points).rev().collect(),
-                };
-                for k in order {
-                    let target = 360.0 * k as f64 / points as f64;
-                    let x = target.to_radians();
-                    let back = if direction == Direction::Forward { 0.004 } else { -0.004 };
-                    let e = 0.0078 * (20.0 * x).sin() + 0.0015 * (x + 1.9).sin() + back;
-                    let drift = ramp * t / per_run + if run >= 2 { step } else { 0.0 };
-                    let err = e + drift + sigma * normal();
-                    out.push(Sample {
-                        run,
-                        direction,
-                        target_deg: target,
-                        readout_deg: target,
-                        actual_deg: target - err,
-                        timestamp_s: Some(t),
-                    });
-                    t += 1.0;
-                }
-            }
-        }
-        out
+        crate::analysis::testutil::timed_survey(120, runs, sigma, seed, |t, run| {
+            ramp * t / 240.0 + if run >= 2 { step } else { 0.0 }
+        })
     }
 
     /// The ramp: 0.004 deg a run, growing within the runs, 3 runs.

@@ -92,6 +92,31 @@ pub fn survey(
     out
 }
 
+/// A survey of `points` targets, `runs` runs both ways, one reading a
+/// second (each sample stamped with its place in acquisition order): the
+/// error two lines (20 and 1 cycles/rev) and 0.008 deg of backlash, plus
+/// `drift(t, run)` and normal noise of `sigma`.
+pub fn timed_survey(points: usize, runs: u32, sigma: f64, seed: u64, drift: impl Fn(f64, u32) -> f64) -> Vec<Sample> {
+    let targets = circle(points, 0.0);
+    let time = |run: u32, d: Direction, t: f64| {
+        let k = (t * points as f64 / 360.0).round() as usize;
+        let (pass, at) = match d {
+            Direction::Forward => (0, k),
+            Direction::Reverse => (1, points - 1 - k),
+        };
+        (((run as usize - 1) * 2 + pass) * points + at) as f64
+    };
+    let mut out = survey(&targets, runs, &[Direction::Forward, Direction::Reverse], sigma, seed, |run, d, t| {
+        let x = t.to_radians();
+        let back = if d == Direction::Forward { 0.004 } else { -0.004 };
+        0.0078 * (20.0 * x).sin() + 0.0015 * (x + 1.9).sin() + back + drift(time(run, d, t), run)
+    });
+    for (i, s) in out.iter_mut().enumerate() {
+        s.timestamp_s = Some(i as f64);
+    }
+    out
+}
+
 /// The true angle `theta` at which a positioner whose error at the true angle
 /// is `error(theta)` reads `readout` (`theta + error(theta) = readout`, the
 /// contract's convention), by fixed-point iteration.
