@@ -5,16 +5,16 @@ use async_trait::async_trait;
 use std::sync::Arc;
 use std::time::Duration;
 use survey_acquire::{Engine, Reference};
-use survey_drivers::canopen::frame::CanBus;
-use survey_drivers::canopen::slcan::SlcanBus;
-use survey_drivers::canopen::{CanopenConfig, Cia402Positioner, SocketCanBus};
 use survey_drivers::clock::with_timeout;
 use survey_drivers::elcomat::ElcomatDriver;
 use survey_drivers::emscon::EmsconConnector;
-use survey_drivers::modbus::ModbusPositioner;
 use survey_drivers::reconnect::{Connect, Reconnecting};
-use survey_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
 use survey_drivers::{Autocollimator, Clock, DriverError, ErrorKind, Positioner, Tracker};
+use survey_positioner_drivers::canopen::frame::CanBus;
+use survey_positioner_drivers::canopen::slcan::SlcanBus;
+use survey_positioner_drivers::canopen::{CanopenConfig, Cia402Positioner, SocketCanBus};
+use survey_positioner_drivers::modbus::ModbusPositioner;
+use survey_positioner_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
 use survey_store::config::{AutocollimatorConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
 
 /// The SCPI driver's deadlines under the engine's call timeout: half of it

@@ -29,9 +29,21 @@ const MAY_USE: &[(&str, &[&str])] = &[
     ("plan", &["survey-processing"]),
     ("modelgap", &["survey-processing"]),
     ("drivers", &["survey-processing"]),
+    ("positioner-drivers", &["survey-processing", "survey-drivers"]),
     ("sims", &["survey-processing", "survey-drivers"]),
+    ("sim-servers", &["survey-processing", "survey-drivers", "survey-positioner-drivers", "survey-sims"]),
     ("acquire", &["survey-processing", "survey-plan", "survey-drivers", "survey-sims"]),
-    ("store", &["survey-processing", "survey-plan", "survey-drivers", "survey-sims", "survey-acquire"]),
+    (
+        "store",
+        &[
+            "survey-processing",
+            "survey-plan",
+            "survey-drivers",
+            "survey-positioner-drivers",
+            "survey-sims",
+            "survey-acquire",
+        ],
+    ),
     (
         "bench",
         &[
@@ -39,7 +51,9 @@ const MAY_USE: &[(&str, &[&str])] = &[
             "survey-tables",
             "survey-plan",
             "survey-drivers",
+            "survey-positioner-drivers",
             "survey-sims",
+            "survey-sim-servers",
             "survey-acquire",
             "survey-store",
         ],

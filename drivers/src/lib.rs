@@ -5,17 +5,18 @@
 //! tells link faults from device faults and bad usage, and the [`Clock`] every
 //! instrument and the survey engine share, so simulated instruments can run on
 //! virtual time.
+//!
+//! The tracker's and the autocollimator's drivers ([`emscon`], [`elcomat`])
+//! live here; the positioner controllers' (CANopen, Modbus, SCPI) are in
+//! `survey-positioner-drivers`.
 
-pub mod canopen;
 pub mod clock;
 pub mod elcomat;
 pub mod emscon;
 pub mod error;
 pub mod fuzz_targets;
-pub mod modbus;
 pub mod reconnect;
-pub mod scpi;
-mod stream;
+pub mod stream;
 pub mod traits;
 
 pub use clock::{Clock, ScaledClock, SystemClock, VirtualClock};

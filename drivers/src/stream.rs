@@ -1,5 +1,5 @@
 //! Draining stale input before a request, shared by the drivers that talk to
-//! an instrument over a byte stream ([`scpi`](crate::scpi),
+//! an instrument over a byte stream (the SCPI controller's in `survey-positioner-drivers`,
 //! [`elcomat`](crate::elcomat), [`emscon`](crate::emscon)).
 //!
 //! None of these protocols ties a reply to its request, so a reply that comes
@@ -20,7 +20,7 @@ use tokio::time::Instant;
 
 /// Why a drain stopped early: the stream ended or failed.
 #[derive(Debug)]
-pub(crate) enum Lost {
+pub enum Lost {
     /// End of stream: the peer closed the connection.
     Closed,
     /// The read failed.
@@ -30,7 +30,7 @@ pub(crate) enum Lost {
 impl Lost {
     /// The reason as the drivers report it: `connection closed by <peer>`, or
     /// the I/O error's text.
-    pub(crate) fn why(&self, peer: &str) -> String {
+    pub fn why(&self, peer: &str) -> String {
         match self {
             Lost::Closed => format!("connection closed by {peer}"),
             Lost::Failed(e) => e.to_string(),
@@ -42,7 +42,7 @@ impl Lost {
 /// grace deadline is set, everything that arrives until it passes; then, when
 /// asked for, what is already waiting, without blocking.
 #[derive(Debug, Clone)]
-pub(crate) struct Drain {
+pub struct Drain {
     /// Wait for late input until then.
     late_until: Option<Instant>,
     /// Then take what is already waiting.
@@ -56,30 +56,30 @@ pub(crate) struct Drain {
 impl Drain {
     /// What arrives until `late_until` (when given), then what is already
     /// waiting.
-    pub(crate) fn new(late_until: Option<Instant>) -> Self {
+    pub fn new(late_until: Option<Instant>) -> Self {
         Self { late_until, waiting: true, limit: usize::MAX, read: 0 }
     }
 
     /// Only what is already waiting.
-    pub(crate) fn waiting() -> Self {
+    pub fn waiting() -> Self {
         Self::new(None)
     }
 
     /// Only what arrives until `deadline`.
-    pub(crate) fn late(deadline: Instant) -> Self {
+    pub fn late(deadline: Instant) -> Self {
         Self { waiting: false, ..Self::new(Some(deadline)) }
     }
 
     /// Stop taking waiting input once `limit` bytes were read (a peer that
     /// never stops sending would otherwise keep the drain busy forever).
-    pub(crate) fn at_most(self, limit: usize) -> Self {
+    pub fn at_most(self, limit: usize) -> Self {
         Self { limit, ..self }
     }
 
     /// The next chunk of stale input, read into `buf`: `Ok(Some(n))` for
     /// `buf[..n]`, `Ok(None)` when the drain is over (the grace has passed and
     /// nothing more is waiting, or the limit is reached).
-    pub(crate) async fn next<T>(&mut self, io: &mut T, buf: &mut [u8]) -> Result<Option<usize>, Lost>
+    pub async fn next<T>(&mut self, io: &mut T, buf: &mut [u8]) -> Result<Option<usize>, Lost>
     where
         T: AsyncRead + Unpin,
     {

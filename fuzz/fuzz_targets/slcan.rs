@@ -1,4 +1,4 @@
-//! cargo-fuzz harness: [`survey_drivers::fuzz_targets::slcan`] on every input.
+//! cargo-fuzz harness: [`survey_positioner_drivers::fuzz_targets::slcan`] on every input.
 #![no_main]
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| survey_drivers::fuzz_targets::slcan(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| survey_positioner_drivers::fuzz_targets::slcan(data));

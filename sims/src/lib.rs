@@ -17,6 +17,9 @@
 //!   one for measurement noise and one for fault injection, so turning faults on
 //!   does not change the noise of the moves or measurements that do succeed.
 //!   [`SimBench`] derives the seeds of the three instruments from one seed.
+//! - The instruments as devices on a wire (the protocol servers of Modbus,
+//!   CANopen, SCPI, emScon and ELCOMAT, the fault relay, `survey sim`'s
+//!   serving) are in `survey-sim-servers`, built on these.
 //!
 //! # Sign conventions (the contract's)
 //!
@@ -39,19 +42,11 @@
 
 pub mod autocollimator;
 pub mod bench;
-pub mod canopen_node;
-pub mod elcomat_server;
-pub mod emscon_server;
 pub mod faults;
-pub mod modbus_server;
 pub mod positioner;
 pub mod presets;
-pub mod relay;
 pub mod room;
-pub mod scpi_server;
-pub mod serve;
 pub mod servo;
-pub mod slcan_adapter;
 pub mod tracker;
 pub mod turntable;
 

@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Duration;
 use survey_acquire::{ReferenceKind, SettleMode, SettleModel, SettleSpec, Timing, default_window_deg};
-use survey_drivers::canopen::CanopenConfig;
+use survey_positioner_drivers::canopen::CanopenConfig;
 
 mod consistency;
 mod derived;
@@ -37,8 +37,8 @@ mod place;
 mod schema;
 use place::{Defect, Places};
 use survey_drivers::emscon::EmsconConfig;
-use survey_drivers::modbus::{ModbusTimeouts, RegisterMap};
-use survey_drivers::scpi::ErrorQueryForm;
+use survey_positioner_drivers::modbus::{ModbusTimeouts, RegisterMap};
+use survey_positioner_drivers::scpi::ErrorQueryForm;
 
 /// A whole configuration file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -344,7 +344,7 @@ impl PositionerConfig {
             }
             (CanTransport::Slcan, None, Some(p)) => {
                 let bitrate = bitrate.unwrap_or(DEFAULT_CAN_BITRATE);
-                match survey_drivers::canopen::slcan::bitrate_code(bitrate) {
+                match survey_positioner_drivers::canopen::slcan::bitrate_code(bitrate) {
                     Some(_) => Ok(CanLink::Slcan { port: p.clone(), bitrate }),
                     None => Err(format!(
                         "positioner.bitrate = {bitrate} has no SLCAN command (10000, 20000, 50000, 100000, 125000, \

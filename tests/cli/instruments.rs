@@ -6,10 +6,10 @@ use super::Bench;
 use serde_json::Value;
 use std::sync::Arc;
 use survey_drivers::{Clock, VirtualClock};
+use survey_sim_servers::elcomat_server::{pty_pair, serve};
+use survey_sim_servers::scpi_server::serve_tcp;
 use survey_sims::autocollimator::AutocollimatorConfig;
-use survey_sims::elcomat_server::{pty_pair, serve};
 use survey_sims::faults::Faults;
-use survey_sims::scpi_server::serve_tcp;
 use survey_sims::{Preset, SimBench};
 use tokio_serial::SerialPort as _;
 

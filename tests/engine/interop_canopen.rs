@@ -74,11 +74,11 @@ fn python_canopen_enables_moves_and_reads_the_simulated_drive_over_slcan() {
 #[tokio::test]
 async fn our_sdo_client_against_python_canopens_local_node() {
     use std::time::Duration;
-    use survey_drivers::canopen::slcan::SlcanBus;
-    use survey_drivers::canopen::{MemoryBus, SdoClient, SdoTimeouts};
     use survey_drivers::error::ErrorKind;
-    use survey_sims::elcomat_server::pty_pair;
-    use survey_sims::slcan_adapter::serve_adapter;
+    use survey_positioner_drivers::canopen::slcan::SlcanBus;
+    use survey_positioner_drivers::canopen::{MemoryBus, SdoClient, SdoTimeouts};
+    use survey_sim_servers::elcomat_server::pty_pair;
+    use survey_sim_servers::slcan_adapter::serve_adapter;
     use tokio::io::{AsyncBufReadExt as _, AsyncWriteExt as _};
 
     if let Some(why) = python_canopen_missing() {
@@ -154,12 +154,12 @@ async fn our_sdo_client_against_python_canopens_local_node() {
 async fn our_driver_checks_enables_and_moves_a_drive_with_only_the_standard_objects() {
     use std::time::Duration;
     use survey_drivers::Positioner as _;
-    use survey_drivers::canopen::slcan::SlcanBus;
-    use survey_drivers::canopen::{CanopenConfig, Cia402Positioner, MemoryBus};
     use survey_drivers::error::ErrorKind;
+    use survey_positioner_drivers::canopen::slcan::SlcanBus;
+    use survey_positioner_drivers::canopen::{CanopenConfig, Cia402Positioner, MemoryBus};
     use survey_processing::table::CorrectionTable;
-    use survey_sims::elcomat_server::pty_pair;
-    use survey_sims::slcan_adapter::serve_adapter;
+    use survey_sim_servers::elcomat_server::pty_pair;
+    use survey_sim_servers::slcan_adapter::serve_adapter;
     use survey_store::config::SurveyConfig;
     use tokio::io::{AsyncBufReadExt as _, AsyncWriteExt as _};
 

@@ -10,10 +10,10 @@ use survey_drivers::{Clock, VirtualClock};
 use survey_plan::SurveyPlan;
 use survey_processing::iso230::{Iso230, iso230_2};
 use survey_processing::{Direction, Sample};
+use survey_sim_servers::elcomat_server::{pty_pair, serve};
+use survey_sim_servers::scpi_server::serve_tcp;
 use survey_sims::autocollimator::AutocollimatorConfig;
-use survey_sims::elcomat_server::{pty_pair, serve};
 use survey_sims::faults::Faults;
-use survey_sims::scpi_server::serve_tcp;
 use survey_sims::{Preset, SimBench};
 use survey_store::config::SurveyConfig;
 use tokio_serial::SerialPort as _;
@@ -109,9 +109,9 @@ async fn a_survey_over_scpi_and_elcomat_matches_the_in_process_survey() {
 /// both behind their protocols, against the same bench in process.
 #[tokio::test]
 async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
-    use survey_drivers::modbus::RegisterMap;
+    use survey_positioner_drivers::modbus::RegisterMap;
 
-    use survey_sims::modbus_server::ModbusDevice;
+    use survey_sim_servers::modbus_server::ModbusDevice;
     const POINTS: u32 = 36;
     const RUNS: u32 = 3;
 
@@ -122,7 +122,7 @@ async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
     let modbus = device.spawn_tcp(Faults::new()).await.unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let emscon_addr = listener.local_addr().unwrap();
-    let emscon = tokio::spawn(survey_sims::emscon_server::serve_tcp(listener, wired.tracker, Faults::new()));
+    let emscon = tokio::spawn(survey_sim_servers::emscon_server::serve_tcp(listener, wired.tracker, Faults::new()));
     let text = format!(
         "[survey]\nreference = \"tracker\"\n\
          [positioner]\ndriver = \"modbus-tcp\"\naddress = \"{}\"\n\
@@ -192,7 +192,7 @@ async fn a_survey_over_modbus_and_emscon_matches_the_in_process_survey() {
 async fn the_emscon_driver_streams_in_continuous_time_mode_and_goes_back_to_stationary() {
     use survey_drivers::Tracker as _;
     use survey_drivers::emscon::{EmsconConfig, EmsconTracker};
-    use survey_sims::emscon_server::serve_tcp;
+    use survey_sim_servers::emscon_server::serve_tcp;
     use survey_sims::tracker::{SimTracker, TrackerConfig};
     let clock = VirtualClock::new();
     let turntable = survey_sims::Turntable::new(0.0);

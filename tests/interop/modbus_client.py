@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """A pymodbus Modbus TCP client (not written by this project) that drives the
-simulated positioner controller of survey_sims::modbus_server through the
+simulated positioner controller of survey_sim_servers::modbus_server through the
 default register map, written here independently of the Rust code from the
-table in drivers/src/modbus/mod.rs.
+table in positioner-drivers/src/modbus/mod.rs.
 
-Used by sims/src/modbus_server/interop.rs: the test starts the simulator on
+Used by sim-servers/src/modbus_server/interop.rs: the test starts the simulator on
 127.0.0.1:<port> and runs this script, which
 
   1. writes the velocity (counts/s) and the target (i32 counts, 100000 per

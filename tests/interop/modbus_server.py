@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """A Modbus TCP server built with pymodbus (not by this project) that serves
-the default register map of survey_drivers::modbus, minimally.
+the default register map of survey_positioner_drivers::modbus, minimally.
 
-Used by the interoperability test of the Rust driver (sims/src/modbus_server/
+Used by the interoperability test of the Rust driver (sim-servers/src/modbus_server/
 interop.rs). The register layout is written here independently of the Rust
-code, from the table in drivers/src/modbus/mod.rs:
+code, from the table in positioner-drivers/src/modbus/mod.rs:
 
   input registers   0-1  actual position, i32 counts (100000 per degree), high word first
                     2    status bits (0 moving, 1 in position, 2 fault, 3 lower limit,

@@ -27,7 +27,7 @@
 //! simulator by the relay: a Modbus exception 4, SDO abort 0x06060000, SCPI
 //! error -310, emScon `ES_RS_SensorNotStable`; the ELCOMAT answers "no
 //! reflection"), moves trip the drive and measurements break the beam (for
-//! `beam_hold_s`). The relays are `survey_sims::relay`'s, the one layer that
+//! `beam_hold_s`). The relays are `survey_sim_servers::relay`'s, the one layer that
 //! injects link faults; [`Served::injected`] counts every kind. A model that
 //! drifts drifts by its rate per run of the configuration's plan at the
 //! simulated hardware's pace ([`Served::drift_run_s`]; `points` required).
@@ -40,16 +40,16 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
-use survey_drivers::canopen::CanopenConfig;
 use survey_drivers::{Clock, ScaledClock};
+use survey_positioner_drivers::canopen::CanopenConfig;
 use survey_processing::model::Model;
+use survey_sim_servers::elcomat_server::{self, pty_pair};
+use survey_sim_servers::emscon_server;
+use survey_sim_servers::modbus_server::ModbusDevice;
+use survey_sim_servers::relay::{Ended, Framing, Relay, relay, relay_tcp};
+use survey_sim_servers::scpi_server;
 use survey_sims::autocollimator::AutocollimatorConfig;
-use survey_sims::elcomat_server::{self, pty_pair};
-use survey_sims::emscon_server;
 use survey_sims::faults::{FaultKind, FaultRates, Faults, Injected};
-use survey_sims::modbus_server::ModbusDevice;
-use survey_sims::relay::{Ended, Framing, Relay, relay, relay_tcp};
-use survey_sims::scpi_server;
 use survey_sims::tracker::ArmGeometry;
 use survey_sims::{Preset, SimAutocollimator, SimBench, SimPositioner, SimTracker, derive_seed};
 use survey_store::config::{
@@ -425,7 +425,7 @@ impl Served {
                 let port = self.port("positioner", port);
                 let device = self.serial("positioner", &port, relay)?;
                 // On a serial line the slave address is the unit (as the driver does).
-                let map = survey_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
+                let map = survey_positioner_drivers::modbus::RegisterMap { unit_id: *address, ..map.clone() };
                 let server =
                     ModbusDevice::new(positioner, map).map_err(|e| bad_input(format!("positioner.map: {e}")))?;
                 self.tasks.push(tokio::spawn(async move {
@@ -450,7 +450,7 @@ impl Served {
         positioner: SimPositioner,
         relays: &mut Relays<'_>,
     ) -> anyhow::Result<()> {
-        let mut node = survey_sims::canopen_node::NodeConfig::new(drive.node_id);
+        let mut node = survey_sim_servers::canopen_node::NodeConfig::new(drive.node_id);
         node.counts_per_degree = drive.counts_per_degree;
         // A drive with this project's own objects when the configuration
         // says so; else one with the standard objects only.
@@ -463,19 +463,19 @@ impl Served {
                 // on the replies among the adapter's messages).
                 let relay = relays.front_of("positioner", &faults, Framing::SlcanCanopen, true);
                 let device = self.serial("positioner", &port, relay)?;
-                let bus = survey_drivers::canopen::MemoryBus::new();
+                let bus = survey_positioner_drivers::canopen::MemoryBus::new();
                 let (drive_end, adapter_end) = (bus.endpoint(), bus.endpoint());
                 self.tasks.push(tokio::spawn(async move {
-                    survey_sims::canopen_node::serve(drive_end, positioner, node, faults).await;
+                    survey_sim_servers::canopen_node::serve(drive_end, positioner, node, faults).await;
                 }));
                 self.tasks.push(tokio::spawn(async move {
-                    survey_sims::slcan_adapter::serve_adapter(device, adapter_end).await;
+                    survey_sim_servers::slcan_adapter::serve_adapter(device, adapter_end).await;
                     drop(bus);
                 }));
                 self.instruments.insert("positioner".into(), port.clone().into());
             }
             CanLink::SocketCan(interface) => {
-                let bus = survey_drivers::canopen::SocketCanBus::open(&interface).map_err(|e| {
+                let bus = survey_positioner_drivers::canopen::SocketCanBus::open(&interface).map_err(|e| {
                     anyhow::anyhow!(
                         "positioner: cannot open the SocketCAN interface {interface} ({e}); survey sim serves a \
                          CANopen drive on an existing interface (ip link add dev {interface} type vcan; ip link \
@@ -486,7 +486,7 @@ impl Served {
                     // No relay on the kernel's bus: link and armed device
                     // faults reach a CANopen drive on its SLCAN line only
                     // (its drive trips are the simulator's, here too).
-                    survey_sims::canopen_node::serve(bus, positioner, node, faults).await;
+                    survey_sim_servers::canopen_node::serve(bus, positioner, node, faults).await;
                 }));
                 self.instruments.insert("positioner".into(), format!("{interface} node {}", drive.node_id).into());
             }

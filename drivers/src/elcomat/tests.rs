@@ -1,6 +1,6 @@
 //! Tests of the codec (property-tested) and of the driver against a scripted
 //! unit over an in-memory duplex. The driver against the simulator over a pty
-//! is tested in `survey_sims::elcomat_server`.
+//! is tested in `survey_sim_servers::elcomat_server`.
 
 use super::*;
 use crate::error::ErrorKind;
