@@ -1,6 +1,7 @@
 //! ARCHITECTURE.md's claims that a test can check: every crate uses only
 //! the floors below it (the one-way graph of crates), every store write goes
-//! through `WriteTx`, and every path in the code map exists.
+//! through `WriteTx`, every path in the code map exists, and no crate
+//! outgrows a room (12,000 lines of Rust, its tests included).
 
 use std::path::{Path, PathBuf};
 
@@ -120,6 +121,24 @@ fn every_crate_uses_only_the_floors_below_it() {
         assert!(!own_dependencies(&manifest).contains(&"survey-cli".to_string()), "{dir} uses the command line");
     }
     assert_eq!(own_dependencies(&members), ["survey-cli"], "the binary is a shell over the command line");
+}
+
+/// The most lines of Rust a crate may hold (sources, tests and benches):
+/// past it, a crate holds more than one concern (issue 47).
+const MOST_LINES: usize = 12_000;
+
+#[test]
+fn no_crate_is_over_twelve_thousand_lines() {
+    let mut sizes = Vec::new();
+    for (dir, _) in MAY_USE.iter().chain(&[("cli", &[][..])]) {
+        let mut files = Vec::new();
+        rust_files(&root().join(dir), &mut files);
+        let lines: usize = files.iter().map(|f| std::fs::read_to_string(f).expect("readable").lines().count()).sum();
+        sizes.push((*dir, lines));
+    }
+    let over: Vec<_> = sizes.iter().filter(|(_, n)| *n > MOST_LINES).collect();
+    assert!(over.is_empty(), "crates over {MOST_LINES} lines: {over:?}");
+    assert!(sizes.iter().any(|(d, n)| *d == "processing" && *n > 1000), "the crates were not found: {sizes:?}");
 }
 
 #[test]
