@@ -376,6 +376,13 @@ fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_thei
     let doc = out.json();
     assert_eq!(doc["outcome"], "in tolerance", "{doc:#}");
     assert_eq!(doc["check"]["design"]["points"].as_u64(), Some(48), "{doc:#}");
+    // "In tolerance" only as far as 48 targets see: a new line at 48 (the
+    // mean) or 24 (the Nyquist bin) would hide, and it says so.
+    let blind = doc["blind"].as_str().unwrap();
+    assert!(
+        blind.starts_with("as far as its 48 targets see") && blind.contains("24 cycles/rev (the Nyquist bin)"),
+        "{blind}"
+    );
     let largest = doc["check"]["lines"].as_array().unwrap().iter().map(|l| l["amplitude_to_deg"].as_f64().unwrap());
     assert!(largest.fold(0.0, f64::max) < 0.02, "{doc:#}");
     let tested: Vec<f64> =
@@ -389,6 +396,9 @@ fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_thei
     let worn = run(&["--seed", "3", "--model", "worn40.toml"]);
     assert_eq!(worn.code, 3, "{worn}");
     let doc = worn.json();
+    // The next check looked at other bins than the last one's 48 targets.
+    assert_eq!(doc["check"]["design"]["previous_points"].as_u64(), Some(48), "{doc:#}");
+    assert_ne!(doc["check"]["design"]["points"].as_u64(), Some(48), "{doc:#}");
     assert_eq!(doc["outcome"], "recalibrated", "{doc:#}");
     let reason = doc["reason"].as_str().unwrap().to_string();
     assert!(reason.contains("the 40 cycles/rev line changed"), "{reason}");
@@ -398,13 +408,13 @@ fn a_check_designed_from_a_120_point_calibration_sees_its_lines_and_catches_thei
     assert_eq!(blind.code, 1, "{blind}");
     let doc = blind.json();
     assert_eq!(doc["outcome"], "not decided", "{doc:#}");
-    let unseen: Vec<f64> = doc["check"]["design"]["unseen"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|u| u["cycles_per_rev"].as_f64().unwrap())
-        .collect();
-    assert_eq!(unseen, [20.0, 40.0], "{doc:#}");
+    let unseen = |kind: &str| -> Vec<f64> {
+        let all = doc["check"]["design"]["unseen"].as_array().unwrap().iter();
+        all.filter(|u| u["kind"] == kind).map(|u| u["cycles_per_rev"].as_f64().unwrap()).collect()
+    };
+    assert_eq!(unseen("in force"), [20.0, 40.0], "{doc:#}");
+    // And where a new line would hide from 40 targets, up to the calibration's Nyquist bin (60).
+    assert_eq!(unseen("new line"), [38.0, 39.0, 41.0, 42.0, 60.0], "{doc:#}");
     assert!(
         blind.stderr.contains("cannot say the asset is in tolerance") && blind.stderr.contains("Nyquist"),
         "{blind}"
@@ -619,6 +629,9 @@ fn a_knock_inside_tolerance_is_caught_by_the_control_chart_and_recalibrated() {
     let check = |seed: &str, model: Option<&str>| {
         let mut args = vec!["run", "--check", "--asset", "lab/k", "--seed", seed, "--json"];
         args.extend(["--points", "360", "--runs", "3", "--bidirectional"].iter().filter(|_| seed == "1"));
+        // One grid for every check (asked): the chart compares like with like
+        // (left alone, successive checks alternate grids blind elsewhere).
+        args.extend(["--points", "48"].iter().filter(|_| seed != "1"));
         if let Some(m) = model {
             args.extend(["--model", m]);
         }

@@ -323,9 +323,11 @@ fn a_rehearsal_on_a_scaled_sim_reports_instrument_time_on_the_instruments_clock(
     assert!(num("instrument_time_s") >= num("bound_s"), "{doc}");
     let real = num("real_time_s");
     // The instruments' clock runs at SCALE x real time: within a tenth of the
-    // run's real time (under a second), and 0.1 s of scheduling on a loaded
-    // machine (eight test threads on two cores put it 0.087 s apart, 11 %).
-    assert!((num("instrument_time_s") / SCALE - real).abs() < 0.1 * real + 0.1, "{doc}");
+    // run's real time (under a second), and 0.3 s of scheduling on a loaded
+    // machine (eight test threads on two cores put it 0.087 s apart, 11 %;
+    // four builds beside them 0.19 s). A clock not scaled would be hundreds
+    // of seconds apart.
+    assert!((num("instrument_time_s") / SCALE - real).abs() < 0.1 * real + 0.3, "{doc}");
     let components: f64 =
         doc["time_budget"]["components"].as_array().unwrap().iter().map(|c| c["time_s"].as_f64().unwrap()).sum();
     assert!((components - num("instrument_time_s")).abs() < 1e-6 * components, "{doc}");

@@ -175,7 +175,12 @@ async fn check_with(
             lines.push(k);
         }
     }
-    let design = cal.plan().map(|p| design_check(grid_of(p, req.polygon), &lines, req.size.points));
+    // Successive checks see different bins: the last check's grid (any
+    // check of the asset, decided or not).
+    let checks = store.surveys_of_asset(asset).await?;
+    let previous =
+        checks.iter().rev().find(|r| r.check_of.is_some()).and_then(|r| r.plan()).map(|p| p.targets_deg.len() as u32);
+    let design = cal.plan().map(|p| design_check(grid_of(p, req.polygon), &lines, req.size.points, previous));
     let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
     // The check measures the axis as it finds it, and leaves it so.
@@ -257,8 +262,11 @@ async fn check_with(
     if !recalibrate {
         let outcome = if cmp.decision.changed { "changed, the table holds" } else { "in tolerance" };
         text += &format!("{outcome}: the table of survey {} stays in force\n", cal.id);
+        let blind = design.as_ref().map(|d| blind_text(d, asset)).unwrap_or_default();
+        text += &blind;
         let doc = json!({"asset": asset, "outcome": outcome, "recalibrate": false,
-            "reason": reason, "check": check_doc, "recalibration": null, "table_in_force": table_of(&cal)});
+            "reason": reason, "check": check_doc, "recalibration": null, "table_in_force": table_of(&cal),
+            "blind": blind.trim_end()});
         return Ok((doc, text, None, None));
     }
     text += &format!("recalibrating: {reason}\n");
@@ -373,10 +381,50 @@ fn check_json(cmp: &Compared, a: &Measured, c: &Measured, design: Option<&CheckD
     doc["survey_id"] = c.survey.id.into();
     doc["uid"] = c.survey.uid.clone().into();
     doc["design"] = match design {
-        Some(d) => json!({"points": d.points, "why": d.why, "unseen": d.unseen}),
+        Some(d) => {
+            // The lines asked for that it could not see, then the bins where
+            // a new line would hide.
+            let kind = |kind: &'static str| move |u: &Unseen| json!({"cycles_per_rev": u.cycles_per_rev, "why": u.why, "kind": kind});
+            let unseen: Vec<Value> =
+                d.unseen.iter().map(kind("in force")).chain(d.blind.iter().map(kind("new line"))).collect();
+            json!({"points": d.points, "why": d.why, "unseen": unseen, "up_to_cycles_per_rev": d.up_to,
+                "previous_points": d.previous})
+        }
         None => Value::Null,
     };
     doc
+}
+
+/// What a check's targets could not see of a new line, qualifying its "the
+/// table holds": the bins by kind, and that the next check looks elsewhere.
+fn blind_text(d: &CheckDesign, asset: &str) -> String {
+    if d.blind.is_empty() {
+        return format!(
+            "its {} targets see every line up to {} cycles/rev apart from the mean and the Nyquist bin\n",
+            d.points, d.up_to
+        );
+    }
+    let of = |kind: &str| {
+        let ks: Vec<String> =
+            d.blind.iter().filter(|u| u.why.contains(kind)).map(|u| format!("{}", u.cycles_per_rev)).collect();
+        ks.join(", ")
+    };
+    let mut parts = Vec::new();
+    for (kind, said) in
+        [("onto the mean", "the mean"), ("Nyquist", "the Nyquist bin"), ("line in force", "a line in force's bin")]
+    {
+        let ks = of(kind);
+        if !ks.is_empty() {
+            parts.push(format!("{ks} cycles/rev ({said})"));
+        }
+    }
+    format!(
+        "as far as its {} targets see: a new line at {} would not be seen (each listed in unseen, up to {} cycles/rev); \
+         the next check of {asset} chooses targets blind elsewhere\n",
+        d.points,
+        parts.join("; "),
+        d.up_to
+    )
 }
 
 /// The design's lines of the text (none without one).

@@ -117,6 +117,85 @@ pub fn unseen(lines: &[f64], n: f64, jointly: bool) -> Vec<Unseen> {
     out
 }
 
+/// Why a line that is not in force hides from a grid of targets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Blind {
+    /// It aliases onto the mean: it cannot be told from an offset.
+    Mean,
+    /// It sits on or next to the Nyquist bin: only its cosine is seen (none
+    /// at all at phase 0 on the bin).
+    Nyquist,
+}
+
+/// The whole cycles per revolution from 1 to `up_to` at which a line hides
+/// from targets at `n` points per revolution, and why (the rule of
+/// [`unseen`]: within a bin of the mean or of the Nyquist bin).
+pub fn blind_bins(n: f64, up_to: u32) -> Vec<(u32, Blind)> {
+    (1..=up_to)
+        .filter_map(|k| {
+            let a = alias(f64::from(k), n).observed;
+            if a < 1.0 {
+                Some((k, Blind::Mean))
+            } else if n / 2.0 - a < 1.0 {
+                Some((k, Blind::Nyquist))
+            } else {
+                None
+            }
+        })
+        .collect()
+}
+
+/// Every whole line from 1 to `up_to` cycles per revolution that is not in
+/// `lines` (those in force and seen before) and that targets at `n` points
+/// per revolution cannot see by itself: on the mean, on the Nyquist bin, or
+/// on the bin of a line in force (then seen only as a change of that line).
+/// A new line there would leave a check "in tolerance" while the table in
+/// force no longer holds: the check lists them.
+pub fn blind(n: f64, lines: &[f64], up_to: u32) -> Vec<Unseen> {
+    let hidden = blind_bins(n, up_to);
+    let in_force: Vec<(f64, f64)> = lines.iter().filter(|k| **k > 0.0).map(|&k| (k, alias(k, n).observed)).collect();
+    let mut out = Vec::new();
+    for k in 1..=up_to {
+        let kf = f64::from(k);
+        if in_force.iter().any(|(l, _)| (l - kf).abs() < 1e-9) {
+            continue;
+        }
+        let why = match hidden.iter().find(|(b, _)| *b == k) {
+            Some((_, Blind::Mean)) => format!(
+                "a new line at {k} cycles/rev aliases onto the mean at {} points per revolution: the check cannot see it",
+                count(n)
+            ),
+            Some((_, Blind::Nyquist)) => format!(
+                "a new line at {k} cycles/rev sits on or next to the Nyquist bin ({}) at {} points per revolution: only its cosine is seen, none of it at phase 0",
+                count(n / 2.0),
+                count(n)
+            ),
+            None => {
+                let a = alias(kf, n).observed;
+                match in_force.iter().find(|(_, b)| (b - a).abs() < 1.0) {
+                    Some((l, _)) => format!(
+                        "a new line at {k} cycles/rev aliases onto the {} cycles/rev line in force at {} points per revolution: seen only as a change of that line",
+                        cycles(*l),
+                        count(n)
+                    ),
+                    None => continue,
+                }
+            }
+        };
+        out.push(Unseen { cycles_per_rev: kf, why });
+    }
+    out
+}
+
+/// Whether targets at `n` and at `m` points per revolution share no blind
+/// bin from 1 to `up_to` (the mean's, the Nyquist bin's): a line one check
+/// cannot see, the other can.
+pub fn blind_bins_differ(n: f64, m: f64, up_to: u32) -> bool {
+    let other: Vec<u32> = blind_bins(m, up_to).iter().map(|(k, _)| *k).collect();
+    blind_bins(n, up_to).iter().all(|(k, _)| !other.contains(k))
+}
+
 /// The calibration a check is designed from: its targets' grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CalibrationGrid {
@@ -137,6 +216,14 @@ pub struct CheckDesign {
     pub why: String,
     /// The lines asked for that these targets cannot see.
     pub unseen: Vec<Unseen>,
+    /// The lines not in force, up to [`CheckDesign::up_to`], that these
+    /// targets cannot see by themselves ([`blind`]).
+    pub blind: Vec<Unseen>,
+    /// The highest line the check answers for: the calibration's own
+    /// Nyquist bin (a line above it the calibration could not have placed).
+    pub up_to: u32,
+    /// The targets of the asset's check before this one, when there was one.
+    pub previous: Option<u32>,
 }
 
 impl CalibrationGrid {
@@ -157,7 +244,67 @@ impl CalibrationGrid {
 /// The check survey for a calibration on `grid` whose table corrects (or
 /// whose history has seen) `lines` (see the module documentation).
 /// `requested`: the targets the command line asked for, used as they are.
-pub fn design_check(grid: CalibrationGrid, lines: &[f64], requested: Option<u32>) -> CheckDesign {
+/// `previous`: the targets of the asset's last check: successive checks
+/// choose grids whose blind bins ([`blind_bins`], up to the calibration's
+/// Nyquist bin) differ, so that a new line one check cannot see, the next
+/// one can (where no grid that sees the lines in force does, the design
+/// says so).
+pub fn design_check(
+    grid: CalibrationGrid,
+    lines: &[f64],
+    requested: Option<u32>,
+    previous: Option<u32>,
+) -> CheckDesign {
+    let up_to = (grid.per_rev(grid.points) / 2.0).floor().max(1.0) as u32;
+    let differs = |n: u32| previous.is_none_or(|p| blind_bins_differ(grid.per_rev(n), grid.per_rev(p), up_to));
+    let plain = design_with(grid, lines, requested, (&|_| true, false));
+    let mut d = match previous {
+        Some(p) if requested.is_none() && !grid.polygon => {
+            let fresh = design_with(grid, lines, requested, (&differs, true));
+            if fresh.unseen.is_empty() && differs(fresh.points) {
+                CheckDesign {
+                    why: format!(
+                        "{}; its blind bins differ from the last check's ({p} targets) up to {up_to} cycles/rev",
+                        fresh.why
+                    ),
+                    ..fresh
+                }
+            } else {
+                CheckDesign {
+                    why: format!(
+                        "{}; no grid that sees the lines in force has blind bins apart from the last check's ({p} targets): the two share some",
+                        plain.why
+                    ),
+                    ..plain
+                }
+            }
+        }
+        _ => plain,
+    };
+    d.blind = blind(grid.per_rev(d.points), lines, up_to);
+    d.up_to = up_to;
+    d.previous = previous;
+    d
+}
+
+/// [`design_check`]'s choice among the grids `fresh` admits (the last
+/// resort, every calibration target and every point half way, admitted
+/// always); `previous_apart`: the choice is of a grid apart from the last
+/// check's.
+fn design_with(
+    grid: CalibrationGrid,
+    lines: &[f64],
+    requested: Option<u32>,
+    (fresh, previous_apart): (&dyn Fn(u32) -> bool, bool),
+) -> CheckDesign {
+    let done = |points: u32, why: String, unseen: Vec<Unseen>| CheckDesign {
+        points,
+        why,
+        unseen,
+        blind: Vec::new(),
+        up_to: 0,
+        previous: None,
+    };
     let names = |ls: &[f64]| {
         let mut seen: Vec<f64> = Vec::new();
         for &k in ls.iter().filter(|k| **k > 0.0) {
@@ -169,18 +316,14 @@ pub fn design_check(grid: CalibrationGrid, lines: &[f64], requested: Option<u32>
     };
     if grid.polygon {
         let n = grid.points;
-        return CheckDesign {
-            points: n,
-            why: format!("every face of the polygon ({n}): the faces are the targets"),
-            unseen: unseen(lines, grid.per_rev(n), true),
-        };
+        return done(
+            n,
+            format!("every face of the polygon ({n}): the faces are the targets"),
+            unseen(lines, grid.per_rev(n), true),
+        );
     }
     if let Some(n) = requested {
-        return CheckDesign {
-            points: n,
-            why: format!("{n} targets, as asked (--points)"),
-            unseen: unseen(lines, grid.per_rev(n), false),
-        };
+        return done(n, format!("{n} targets, as asked (--points)"), unseen(lines, grid.per_rev(n), false));
     }
     let cal = grid.intervals(grid.points);
     let first = |n: u32| if grid.arc_deg.is_some() { n + 1 } else { n };
@@ -193,45 +336,52 @@ pub fn design_check(grid: CalibrationGrid, lines: &[f64], requested: Option<u32>
         .filter(|&n| n >= MIN_CHECK_POINTS)
         .collect();
     half_steps.sort_unstable();
-    if let Some(&n) = half_steps.iter().find(|&&n| unseen(lines, grid.per_rev(n), false).is_empty()) {
+    let limit = first(2 * cal).max(MIN_CHECK_POINTS);
+    let sees = |n: u32| fresh(n) && unseen(lines, grid.per_rev(n), false).is_empty();
+    // A grid apart from the last check's: the half steps' only when it costs
+    // at most twice the fewest targets of any grid apart.
+    let most = match previous_apart {
+        true => (MIN_CHECK_POINTS..=limit).find(|&n| sees(n)).map_or(u32::MAX, |n| 2 * n),
+        false => u32::MAX,
+    };
+    if let Some(&n) = half_steps.iter().find(|&&n| n <= most && sees(n)) {
         let spacing = (2 * cal) / grid.intervals(n);
-        return CheckDesign {
-            points: n,
-            why: format!(
+        return done(
+            n,
+            format!(
                 "{n} targets: the fewest (at least {MIN_CHECK_POINTS}) that see every line in force and seen before \
                  ({} cycles/rev) away from the mean, the Nyquist bin and each other, spaced {spacing} half steps of the \
                  calibration apart: every other target is a calibration target, the rest fall half way between two, \
                  where the table interpolates",
                 names(lines)
             ),
-            unseen: Vec::new(),
-        };
+            Vec::new(),
+        );
     }
     // No half-step grid sees them all: the fewest evenly spaced targets that do.
-    let limit = first(2 * cal).max(MIN_CHECK_POINTS);
-    if let Some(n) = (MIN_CHECK_POINTS..=limit).find(|&n| unseen(lines, grid.per_rev(n), false).is_empty()) {
+    if let Some(n) = (MIN_CHECK_POINTS..=limit).find(|&n| sees(n)) {
         let (m, c) = (grid.intervals(n), cal);
         let shared = (0..n).filter(|j| (u64::from(*j) * u64::from(c)).is_multiple_of(u64::from(m.max(1)))).count();
-        return CheckDesign {
-            points: n,
-            why: format!(
+        return done(
+            n,
+            format!(
                 "{n} targets: the fewest (at least {MIN_CHECK_POINTS}) that see every line in force and seen before \
                  ({} cycles/rev) away from the mean, the Nyquist bin and each other (no spacing of whole half steps of \
                  the calibration does); {shared} of them are calibration targets, the rest fall between",
                 names(lines)
             ),
-            unseen: Vec::new(),
-        };
+            Vec::new(),
+        );
     }
-    CheckDesign {
-        points: limit,
-        why: format!(
+    done(
+        limit,
+        format!(
             "{limit} targets, every calibration target and every point half way between: no smaller grid sees every \
              line in force and seen before ({} cycles/rev)",
             names(lines)
         ),
-        unseen: unseen(lines, grid.per_rev(limit), false),
-    }
+        unseen(lines, grid.per_rev(limit), false),
+    )
 }
 
 #[cfg(test)]
@@ -273,7 +423,7 @@ mod tests {
     /// target, every other half way between.
     #[test]
     fn a_check_of_a_120_point_calibration_sees_its_lines_with_48_targets() {
-        let d = design_check(full(120), &[1.0, 20.0, 40.0], None);
+        let d = design_check(full(120), &[1.0, 20.0, 40.0], None, None);
         assert_eq!(d.points, 48, "{d:?}");
         assert!(d.unseen.is_empty() && d.why.contains("5 half steps"), "{d:?}");
         let step = 3.0;
@@ -292,7 +442,7 @@ mod tests {
             (36, vec![1.0, 16.0, 4.0]),
             (720, vec![1.0, 2.0, 3.0, 24.0, 48.0, 72.0]),
         ] {
-            let d = design_check(full(points), &lines, None);
+            let d = design_check(full(points), &lines, None, None);
             assert!(d.unseen.is_empty() && d.points >= MIN_CHECK_POINTS, "{points}: {d:?}");
             assert!(unseen(&lines, f64::from(d.points), false).is_empty(), "{points}: {d:?}");
             // Fewest: no smaller count of at least 16 on the half-step grid sees them.
@@ -311,19 +461,65 @@ mod tests {
     #[test]
     fn a_polygon_is_checked_at_its_faces_and_an_asked_count_as_asked() {
         let faces = CalibrationGrid { points: 24, arc_deg: None, polygon: true };
-        let d = design_check(faces, &[1.0, 20.0, 100.0, 12.0], None);
+        let d = design_check(faces, &[1.0, 20.0, 100.0, 12.0], None, None);
         assert_eq!(d.points, 24);
         // 100 shares 20's bin (4): tested together; 12 is the Nyquist bin of 24 faces.
         assert_eq!(d.unseen.iter().map(|u| u.cycles_per_rev).collect::<Vec<_>>(), [12.0]);
-        let asked = design_check(full(120), &[1.0, 20.0, 40.0], Some(40));
+        let asked = design_check(full(120), &[1.0, 20.0, 40.0], Some(40), None);
         assert_eq!((asked.points, asked.unseen.len()), (40, 2));
+    }
+
+    /// Issue 49's check of a 120-point calibration with 16 targets: a new
+    /// line at 16 or 48 cycles/rev (the mean) or at 8 (the Nyquist bin) is
+    /// listed as blind; the next check of the asset takes 18 targets, blind
+    /// elsewhere, and sees all three.
+    #[test]
+    fn a_check_lists_its_blind_bins_and_the_next_one_is_blind_elsewhere() {
+        let first = design_check(full(120), &[1.0, 20.0], None, None);
+        assert_eq!((first.points, first.up_to, first.previous), (16, 60, None), "{first:?}");
+        let listed: Vec<f64> = first.blind.iter().map(|u| u.cycles_per_rev).collect();
+        for k in [8.0, 16.0, 24.0, 32.0, 40.0, 48.0, 56.0] {
+            assert!(listed.contains(&k), "{k} not listed: {listed:?}");
+        }
+        // 4 = 20 - 16 and 36 = 16 + 20 share the 20 cycles/rev line's bin; 15 and 17 the mounting's.
+        for k in [4.0, 36.0, 15.0, 17.0] {
+            assert!(listed.contains(&k), "{k} not listed: {listed:?}");
+        }
+        assert!(!listed.contains(&20.0) && !listed.contains(&1.0) && !listed.contains(&5.0), "{listed:?}");
+        assert!(first.blind.iter().find(|u| u.cycles_per_rev == 36.0).is_some_and(|u| u.why.contains("20 cycles/rev")));
+        let next = design_check(full(120), &[1.0, 20.0], None, Some(first.points));
+        assert_eq!(next.points, 18, "{next:?}");
+        assert!(next.unseen.is_empty() && next.why.contains("differ from the last check's (16 targets)"), "{next:?}");
+        assert!(blind_bins_differ(18.0, 16.0, 60));
+        // Neither on the mean nor on the Nyquist bin now (16 shares the 20
+        // cycles/rev line's bin at 18: seen as a change of that line).
+        for k in [8.0, 16.0, 48.0] {
+            let again = next.blind.iter().find(|u| u.cycles_per_rev == k);
+            assert!(again.is_none_or(|u| u.why.contains("line in force")), "{k} blind again: {again:?}");
+        }
+        // And the one after goes back to 16, apart from 18's.
+        let third = design_check(full(120), &[1.0, 20.0], None, Some(next.points));
+        assert!(third.points == 16 && blind_bins_differ(16.0, 18.0, 60), "{third:?}");
+    }
+
+    #[test]
+    fn blind_bins_are_the_mean_s_and_the_nyquist_bin_s() {
+        let b = blind_bins(16.0, 40);
+        assert_eq!(
+            b,
+            [(8, Blind::Nyquist), (16, Blind::Mean), (24, Blind::Nyquist), (32, Blind::Mean), (40, Blind::Nyquist)]
+        );
+        // An odd count has no whole Nyquist line but two next to it.
+        let odd: Vec<u32> = blind_bins(17.0, 20).iter().map(|(k, _)| *k).collect();
+        assert_eq!(odd, [8, 9, 17]);
+        assert!(!blind_bins_differ(16.0, 48.0, 60) && blind_bins_differ(16.0, 18.0, 60));
     }
 
     #[test]
     fn a_check_of_an_arc_keeps_the_arc_s_half_steps() {
         // 101 targets over 100 deg (1 deg apart): 67 targets 1.5 deg apart (3 half steps).
         let arc = CalibrationGrid { points: 101, arc_deg: Some(100.0), polygon: false };
-        let d = design_check(arc, &[1.0, 20.0], None);
+        let d = design_check(arc, &[1.0, 20.0], None, None);
         assert!(d.unseen.is_empty(), "{d:?}");
         let spacing = 100.0 / f64::from(d.points - 1);
         assert!(
