@@ -273,7 +273,15 @@ pub async fn verify(
     acquire(store, id, engine, plan, 0, options).await?;
     // A verification writes no file: its figures are its outputs.
     store.set_status(id, SurveyStatus::Complete, None).await?;
-    let corrected = store.samples(id).await?;
+    let measured = store.samples(id).await?;
+    // The verification's own drift in time, as a calibration's (issue 49):
+    // corrected when significant, and a drift no straight line takes leaves
+    // it unable to confirm anything.
+    let drift = survey_processing::timedrift::estimate(&measured);
+    let corrected = match &drift {
+        Some(d) if d.corrected => survey_processing::timedrift::corrected(&measured, d),
+        _ => measured,
+    };
     // The prediction for this verification: its own count of samples.
     let predicted = survey_tables::verification::predicted_for(&processed.processed.prediction, corrected.len());
     let mut out = figures(id, native.id, native_samples, &corrected, Some(predicted), table.is_directional(), units)?;
@@ -287,7 +295,21 @@ pub async fn verify(
         // The verification is made with the calibration's own reference.
         shared_reference_u_deg: processed.uncertainty.reference_systematic_u_deg().map(|u| u * processed.uncertainty.k),
     };
-    let judged = judge(&claim, &corrected, &blind);
+    let mut judged = judge(&claim, &corrected, &blind);
+    if let Some(d) = drift.as_ref().filter(|d| d.left_significant) {
+        judged = Judged {
+            verdict: Verdict::NotConfirmed,
+            reason: format!(
+                "the verification drifted in time in a way no straight line takes (up to {:.2e} deg a pass, \
+                 chi-square {:.1} a degree of freedom): what it measured is not the table's residual ({})",
+                d.left_deg, d.left_f, judged.reason
+            ),
+        };
+    }
+    out.doc["drift_in_time"] = serde_json::to_value(&drift).unwrap_or_default();
+    if let Some(d) = &drift {
+        out.text += &d.text();
+    }
     out.doc["targets"] = plan.targets_deg.len().into();
     out.doc["between_targets"] = verify_plan.between.into();
     out.doc["offset_deg"] = verify_plan.offset_deg.into();

@@ -333,7 +333,7 @@ fn a_ramp_within_the_runs_is_measured_corrected_and_covered() {
     let db = dir.path().join("r.db");
     let run = survey(
         &db,
-        &["run", "--points", "120", "--runs", "3", "--bidirectional", "--seed", "3", "--json", "--model"]
+        &["run", "--points", "120", "--runs", "3", "--bidirectional", "--seed", "3", "--json", "--verify", "--model"]
             .into_iter()
             .chain([model.to_str().unwrap()])
             .collect::<Vec<_>>(),
@@ -344,4 +344,10 @@ fn a_ramp_within_the_runs_is_measured_corrected_and_covered() {
     let over = d["over_survey_deg"].as_f64().unwrap();
     assert!((over - 0.012).abs() < 5e-4, "{d}");
     assert!((run["iso230_2"]["B_mean"].as_f64().unwrap() + 0.008).abs() < 3e-4, "{}", run["iso230_2"]);
+    // The verification carries its own drift: the ramp goes on through it,
+    // measured from its own readings and corrected before it is judged.
+    let v = &run["verify"]["drift_in_time"];
+    assert_eq!(v["corrected"], true, "{v}");
+    let (slope, survey_slope) = (v["slope_deg_per_h"].as_f64().unwrap(), d["slope_deg_per_h"].as_f64().unwrap());
+    assert!(slope > 0.0 && (slope / survey_slope - 1.0).abs() < 0.5, "the same ramp: {v} against {d}");
 }
