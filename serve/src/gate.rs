@@ -133,6 +133,7 @@ impl Gate {
         }
         let digest = self.digest(name, password);
         if lock(&self.remembered).get(&digest).is_some_and(|&until| now < until) {
+            lock(&self.failures).succeeded(peer);
             return Checked::Ok;
         }
         let ok = match self.checking.acquire().await {

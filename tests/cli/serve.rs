@@ -101,12 +101,28 @@ impl Response {
 
 /// One HTTP/1.1 request to `url` (`http://host:port`) for `path`.
 pub fn request(url: &str, method: &str, path: &str) -> Response {
+    send(url, method, path, &[], "")
+}
+
+/// One HTTP/1.1 request to `url` for `path` with more `headers` and `body`.
+pub fn send(url: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> Response {
     let host = url.trim_start_matches("http://");
     let mut s = TcpStream::connect(host).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    write!(s, "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nContent-Length: 0\r\n\r\n").unwrap();
+    let extra: String = headers.iter().map(|(k, v)| format!("{k}: {v}\r\n")).collect();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n{extra}Content-Length: {}\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
     let mut raw = Vec::new();
     s.read_to_end(&mut raw).unwrap();
+    parse_response(raw)
+}
+
+/// A whole HTTP/1.1 response as read from its connection.
+pub fn parse_response(raw: Vec<u8>) -> Response {
     let text = String::from_utf8(raw).expect("UTF-8");
     let (head, body) = text.split_once("\r\n\r\n").expect("a header and a body");
     let mut lines = head.lines();
