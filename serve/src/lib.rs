@@ -202,6 +202,33 @@ fn html_body(page: String) -> ([(header::HeaderName, &'static str); 1], String) 
     ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], page)
 }
 
+/// The store as the pages and documents name it: a lab store's URL without
+/// its password, a station's SQLite file by its name alone (no local path
+/// is shown to whoever reads the pages).
+fn store_name(db: &std::path::Path) -> String {
+    let shown = survey_store::lab::display(db);
+    if shown.contains("://") {
+        return shown;
+    }
+    db.file_name().map_or(shown, |n| n.to_string_lossy().into_owned())
+}
+
+/// `text` without the local paths of the store: the SQLite file's path (as
+/// given, and absolute) by its name, the files beside it by theirs.
+fn without_paths(text: &str, db: &std::path::Path) -> String {
+    if survey_store::lab::display(db).contains("://") {
+        return text.to_string();
+    }
+    let mut text = text.to_string();
+    let absolute = std::path::absolute(db).ok();
+    for path in [Some(db.to_path_buf()), absolute].into_iter().flatten() {
+        if let Some(folder) = path.parent().map(|f| f.display().to_string()).filter(|f| !f.is_empty()) {
+            text = text.replace(&format!("{folder}/"), "");
+        }
+    }
+    text
+}
+
 /// Open the store read-only, run `$body` with it bound to `$store`, close it;
 /// the body's error mapped to its status.
 macro_rules! read {
@@ -269,6 +296,9 @@ async fn guard(State(app): State<App>, req: Request, next: Next) -> Response {
         r.headers_mut().insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
         r
     };
+    if response.status().is_client_error() || response.status().is_server_error() {
+        response = scrubbed(response, &app.db).await;
+    }
     let h = response.headers_mut();
     h.entry(header::CONTENT_SECURITY_POLICY).or_insert(HeaderValue::from_static(HEADER_POLICY));
     h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
@@ -276,6 +306,17 @@ async fn guard(State(app): State<App>, req: Request, next: Next) -> Response {
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
     tracing::info!(%method, path = %path, status = response.status().as_u16(), "served");
     response
+}
+
+/// An error's response without the store's local paths ([`without_paths`]).
+async fn scrubbed(response: Response, db: &std::path::Path) -> Response {
+    let (mut parts, body) = response.into_parts();
+    let Ok(bytes) = axum::body::to_bytes(body, 1 << 20).await else {
+        return (StatusCode::INTERNAL_SERVER_ERROR, "an error's answer too long to show\n").into_response();
+    };
+    let text = without_paths(&String::from_utf8_lossy(&bytes), db);
+    parts.headers.remove(header::CONTENT_LENGTH);
+    Response::from_parts(parts, axum::body::Body::from(text))
 }
 
 /// Serve `options.db` on `listener` until `shutdown` resolves; the requests
@@ -371,7 +412,7 @@ pub mod api {
     async fn list(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
         let doc = offload(app.clone(), true, async move {
             let surveys = read!(app, true, |store| store.list().await);
-            Ok(list_json(&survey_store::lab::display(&app.db), &surveys))
+            Ok(list_json(&super::store_name(&app.db), &surveys))
         });
         Ok(json_body(&doc.await?))
     }

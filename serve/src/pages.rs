@@ -100,7 +100,7 @@ async fn index_page(app: App) -> Result<String, Failure> {
         let live = overview::live(&store).await?;
         anyhow::Ok((assets, live))
     });
-    let db = survey_store::lab::display(&app.db);
+    let db = super::store_name(&app.db);
     let live_html: String = live.iter().map(live_element).collect();
     let body = format!(
         "<h1>Surveys of {db}</h1>\n{live}{assets}<script src=\"/static/live.js\"></script>\n",

@@ -296,3 +296,49 @@ fn an_address_other_than_loopback_needs_auth_or_no_auth_and_a_bad_auth_file_is_r
     let out = bench.command(&["serve", "--hash-password"]).stdin(Stdio::null()).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "no password on stdin");
 }
+
+#[test]
+fn no_local_path_in_any_page_or_api_answer() {
+    let bench = Bench::new();
+    let folder = bench.path("").canonicalize().unwrap().display().to_string();
+    bench.write("m.toml", "[design]\ngear_ratios = [12]\n\n[[effect]]\nkind = \"gear_pass\"\ncycles_per_rev = 12\namplitude_deg = 0.006\nphase_deg = 30.0\n");
+    let (db, model) = (format!("{folder}/survey.db"), format!("{folder}/m.toml"));
+    let run = ["--db", &db, "run", "--points", "24", "--runs", "2", "--bidirectional", "--model", &model, "--json"];
+    bench.survey(&run).success();
+    bench.survey(&["--db", &db, "report", "--out", &format!("{folder}/rep")]).success();
+    let server = Server::on(&bench, &db, &[]);
+    let paths = [
+        "/",
+        "/api/",
+        "/api/surveys",
+        "/api/surveys/1",
+        "/api/surveys/1/stats",
+        "/api/history/sim-fig8",
+        "/api/assets",
+        "/api/due",
+        "/api/live",
+        "/assets/sim-fig8",
+        "/surveys/1",
+        "/surveys/1/dcc.xml",
+        "/surveys/1/certificate.html",
+        "/api/surveys/9",
+        "/surveys/9",
+        "/api/compare/1/9",
+        "/nothing",
+    ];
+    for path in paths {
+        let r = super::serve::get(&server.url, path);
+        assert!(!r.body.contains(&folder), "{path} ({}) shows {folder}:\n{}", r.status, r.body);
+    }
+    assert_eq!(super::serve::get(&server.url, "/api/surveys").json()["db"], "survey.db");
+    assert_eq!(server.stop(), Some(0));
+    // A store that cannot be read: the reason, without its folder.
+    let missing = format!("{folder}/missing/none.db");
+    let server = Server::on(&bench, &missing, &[]);
+    for path in ["/", "/api/surveys"] {
+        let r = super::serve::get(&server.url, path);
+        assert_eq!(r.status, 503);
+        assert!(r.body.contains("none.db") && !r.body.contains(&folder), "{path}: {}", r.body);
+    }
+    assert_eq!(server.stop(), Some(0));
+}

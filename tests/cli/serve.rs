@@ -339,9 +339,11 @@ fn it_binds_loopback_unless_told_otherwise_and_says_so() {
     let server = Server::on(&bench, "survey.db", &[]);
     assert!(server.url.starts_with("http://127.0.0.1:"));
     drop(server);
-    let server = Server::start(bench.command(&["serve", "--listen", "0.0.0.0:0"]));
+    // Any other address only with --auth or, on purpose, --no-auth (tests/cli/auth.rs).
+    bench.command(&["serve", "--listen", "0.0.0.0:0"]).output().map(|o| assert_eq!(o.status.code(), Some(2))).unwrap();
+    let server = Server::start(bench.command(&["serve", "--listen", "0.0.0.0:0", "--no-auth"]));
     let warned = server.log.recv_timeout(Duration::from_secs(30)).unwrap();
-    assert!(warned.contains("not loopback") && warned.contains("reverse proxy"), "{warned}");
+    assert!(warned.contains("without authentication") && warned.contains("reverse proxy"), "{warned}");
     assert_eq!(server.stop(), Some(0));
     bench.command(&["serve", "--listen", "nowhere"]).output().map(|o| assert_eq!(o.status.code(), Some(2))).unwrap();
 }
