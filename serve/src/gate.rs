@@ -433,8 +433,14 @@ pub(crate) async fn login_form(req: Request) -> Response {
     form_page(StatusCode::OK, login_page(&local_target(next.as_deref()), ""))
 }
 
-/// A POST from another site (its `Origin` is not this server) is refused.
+/// A POST from another site is refused: a browser says where a form came
+/// from in `Sec-Fetch-Site` (its `Origin` is `null` under the pages'
+/// `Referrer-Policy: no-referrer`); an older one by `Origin`; a program
+/// sends neither.
 fn same_origin(headers: &HeaderMap) -> bool {
+    if let Some(site) = headers.get("sec-fetch-site") {
+        return site == "same-origin";
+    }
     let Some(origin) = headers.get(header::ORIGIN).and_then(|v| v.to_str().ok()) else { return true };
     let host = headers.get(header::HOST).and_then(|v| v.to_str().ok()).unwrap_or_default();
     origin.split_once("://").is_some_and(|(_, o)| !host.is_empty() && o == host)

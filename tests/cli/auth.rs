@@ -112,6 +112,9 @@ fn without_credentials_only_the_login_answers_and_with_them_everything() {
         &format!("name=lab&password={}", PASSWORD.replace(' ', "+")),
     );
     assert_eq!(foreign.status, 403, "a login posted from another site");
+    let form = format!("name=lab&password={}", PASSWORD.replace(' ', "+"));
+    let cross = send(&url, "POST", "/login", &[("Sec-Fetch-Site", "cross-site"), ("Origin", "null")], &form);
+    assert_eq!(cross.status, 403, "a login a browser says came from another site");
     let ok = log_in(&url, "lab", PASSWORD, "/assets/unassigned");
     assert_eq!((ok.status, ok.header("location")), (303, Some("/assets/unassigned")), "{ok:?}");
     let (cookie, set) = session_cookie(&ok);
