@@ -759,6 +759,19 @@ fn behind_the_door_the_browser_sees_the_login_then_after_it_the_page() {
     tools.call("Page.navigate", serde_json::json!({"url": format!("{}/", server.url)}));
     tools.loaded("/");
     assert_eq!(tools.eval("!!document.getElementById('assets')"), true);
+    // Logged out by the pages' link and its button: the login again.
+    tools.eval("document.getElementById('log-out').click(); true");
+    tools.loaded("/logout");
+    tools.eval("document.getElementById('logout').requestSubmit(); true");
+    tools.loaded("/login");
+    tools.call("Page.navigate", serde_json::json!({"url": format!("{}/assets/rig-1", server.url)}));
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let next = "document.readyState === 'complete' && location.pathname === '/login' ? \
+                document.querySelector('input[name=next]').value : ''";
+    while tools.eval(next) != "/assets/rig-1" {
+        assert!(Instant::now() < deadline, "the asset's page after the logout: not the login");
+        std::thread::sleep(Duration::from_millis(50));
+    }
     let _ = tools.call("Browser.close", Value::Null);
     let (code, log) = server.stop_and_log();
     assert_eq!(code, Some(0));
