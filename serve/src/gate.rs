@@ -75,8 +75,54 @@ pub(crate) struct Gate {
     remembered: Mutex<HashMap<[u8; 32], Instant>>,
     /// The key of [`Gate::remembered`]'s digests (random, this process's only).
     key: [u8; 32],
-    /// Argon2 checks at once (each takes 19 MiB and tens of milliseconds).
-    checking: tokio::sync::Semaphore,
+    /// The threads that check passwords ([`Checkers`]).
+    checkers: Checkers,
+}
+
+/// A password to check, and where to say whether it is right.
+type Job = (String, String, tokio::sync::oneshot::Sender<bool>);
+
+/// Argon2 checks on threads of their own, as many as there are cores (each
+/// check takes 19 MiB and tens of milliseconds), each in memory it keeps
+/// for its next check: the memory of logins is bounded by these threads
+/// (about 19 MiB each), however many logins come. (Checked on the blocking
+/// pool with the crate's own allocation, each failed login left about 20
+/// MiB more resident: the allocator keeps freed memory per thread arena.)
+#[derive(Debug)]
+struct Checkers {
+    jobs: Mutex<std::sync::mpsc::Sender<Job>>,
+}
+
+impl Checkers {
+    fn start(users: &Users) -> Checkers {
+        let (jobs, queue) = std::sync::mpsc::channel::<Job>();
+        let queue = std::sync::Arc::new(Mutex::new(queue));
+        let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
+        for i in 0..threads {
+            let (users, queue) = (users.clone(), std::sync::Arc::clone(&queue));
+            let spawned = std::thread::Builder::new().name(format!("login-{i}")).spawn(move || {
+                let mut blocks = Vec::new();
+                loop {
+                    let job = lock(&queue).recv();
+                    let Ok((name, password, answer)) = job else { return };
+                    let _ = answer.send(users.check_in(&name, &password, &mut blocks));
+                }
+            });
+            if let Err(e) = spawned {
+                tracing::warn!("cannot start a thread to check passwords: {e}");
+            }
+        }
+        Checkers { jobs: Mutex::new(jobs) }
+    }
+
+    /// Whether `password` is `name`'s (false when no thread can say).
+    async fn check(&self, name: &str, password: &str) -> bool {
+        let (answer, answered) = tokio::sync::oneshot::channel();
+        if lock(&self.jobs).send((name.to_string(), password.to_string(), answer)).is_err() {
+            return false;
+        }
+        answered.await.unwrap_or(false)
+    }
 }
 
 /// The client's address, as the connection gave it ([`crate::doors`]).
@@ -104,14 +150,13 @@ pub(crate) enum Checked {
 
 impl Gate {
     pub(crate) fn new(door: Door) -> Gate {
-        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         Gate {
             sessions: Mutex::new(Sessions::new(door.session_idle)),
+            checkers: Checkers::start(&door.users),
             door,
             failures: Mutex::new(Failures::default()),
             remembered: Mutex::new(HashMap::new()),
             key: random_32(),
-            checking: tokio::sync::Semaphore::new(cores),
         }
     }
 
@@ -136,13 +181,7 @@ impl Gate {
             lock(&self.failures).succeeded(peer);
             return Checked::Ok;
         }
-        let ok = match self.checking.acquire().await {
-            Ok(_turn) => {
-                let (users, name, password) = (self.door.users.clone(), name.to_string(), password.to_string());
-                tokio::task::spawn_blocking(move || users.check(&name, &password)).await.unwrap_or(false)
-            }
-            Err(_) => false,
-        };
+        let ok = self.checkers.check(name, password).await;
         let now = Instant::now();
         if ok {
             lock(&self.failures).succeeded(peer);
