@@ -235,7 +235,7 @@ fn https_on_the_server_itself_with_a_secure_cookie_that_ends_when_idle() {
     with("key.pem", "key.pem").bad_input(&["key.pem: holds no PEM certificate"]);
 
     let mut args = tls.to_vec();
-    args.extend(["--tls-cert", "cert.pem", "--tls-key", "key.pem", "--session-idle", "1"]);
+    args.extend(["--tls-cert", "cert.pem", "--tls-key", "key.pem", "--session-idle", "1", "--header-timeout", "1"]);
     let server = Server::start(bench.command(&args));
     assert!(server.url.starts_with("https://127.0.0.1:"), "{}", server.url);
     let url = server.url.clone();
@@ -257,6 +257,13 @@ fn https_on_the_server_itself_with_a_secure_cookie_that_ends_when_idle() {
     let mut raw = Vec::new();
     let _ = plain.read_to_end(&mut raw);
     assert!(!String::from_utf8_lossy(&raw).contains("HTTP/1.1 200"));
+    // A connection that never begins its handshake is closed after the header timeout.
+    let mut idle = std::net::TcpStream::connect(url.trim_start_matches("https://")).unwrap();
+    idle.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let start = std::time::Instant::now();
+    let closed = idle.read(&mut [0u8; 16]);
+    assert!(matches!(closed, Ok(0)) || closed.is_err(), "{closed:?}");
+    assert!(start.elapsed() < Duration::from_secs(5), "an idle handshake held {:?}", start.elapsed());
     // The session ends after 1 s without a request (the server's clock
     // cannot run short: waiting longer can only find it ended).
     std::thread::sleep(Duration::from_millis(1300));
