@@ -244,7 +244,9 @@ Examples:
 Examples:
   survey serve                                          # survey.db on http://127.0.0.1:8080
   survey --db lab.db serve --listen 127.0.0.1:0         # any free port: the ready line says which
-  survey --db postgres://viewer:PASSWORD@lab-db/surveys serve --due-after 180   # the lab store")]
+  survey --db postgres://viewer:PASSWORD@lab-db/surveys serve --due-after 180   # the lab store
+  survey serve --hash-password < password.txt           # a user's hash for the --auth file
+  survey serve --listen 0.0.0.0:8443 --auth users.toml --tls-cert lab.crt --tls-key lab.key")]
     Serve {
         #[command(flatten)]
         db: args::DbArg,

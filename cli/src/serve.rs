@@ -1,21 +1,43 @@
-//! `survey serve [--listen ADDR]`: the lab's pages, read-only
-//! ([`survey_serve`]), until SIGINT or SIGTERM.
+//! `survey serve [--listen ADDR] [--auth FILE | --no-auth] [--tls-cert FILE
+//! --tls-key FILE]`: the lab's pages, read-only ([`survey_serve`]), until
+//! SIGINT or SIGTERM; `survey serve --hash-password`: the hash of a password
+//! read from stdin, for the auth file.
 
 use super::support::emit;
 use anyhow::Context as _;
 use clap::Args;
 use serde_json::json;
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
-use survey_serve::{Limits, ServeOptions, connection_bound, on_signals, serve as serve_on};
+use survey_lab::error::bad_input;
+use survey_serve::{Door, Limits, ServeOptions, Tls, Users, connection_bound, on_signals, serve as serve_on};
 
 #[derive(Debug, Args)]
 pub struct ServeArgs {
     /// The address to listen on (port 0: any free port; the ready line gives it).
-    /// Anything but loopback serves every survey to whoever can reach it: put it behind the lab's reverse proxy.
+    /// Any address but loopback needs --auth (or --no-auth, on purpose).
     #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:8080")]
     pub listen: SocketAddr,
+    /// Only the users of this file may read the pages (TOML: [[user]] name, password_hash from --hash-password):
+    /// a browser logs in through a form, a program sends HTTP Basic credentials.
+    #[arg(long, value_name = "FILE", conflicts_with = "no_auth")]
+    pub auth: Option<PathBuf>,
+    /// Serve an address other than loopback without authentication, on purpose (behind a reverse proxy that does it).
+    #[arg(long)]
+    pub no_auth: bool,
+    /// Serve HTTPS with this PEM certificate chain (the server's certificate first); needs --tls-key.
+    #[arg(long, value_name = "FILE", requires = "tls_key")]
+    pub tls_cert: Option<PathBuf>,
+    /// The PEM private key of --tls-cert.
+    #[arg(long, value_name = "FILE", requires = "tls_cert")]
+    pub tls_key: Option<PathBuf>,
+    /// A login's session ends after this many seconds without a request (and 24 h after the login whatever its use).
+    #[arg(long, value_name = "S", default_value_t = 28_800.0, value_parser = limit_seconds)]
+    pub session_idle: f64,
+    /// Read a password (one line) from stdin, print its argon2id hash for the --auth file, and exit.
+    #[arg(long, exclusive = true)]
+    pub hash_password: bool,
     /// A calibration older than this many days is due.
     #[arg(long, value_name = "DAYS", default_value_t = 365.0, value_parser = positive_days)]
     pub due_after: f64,
@@ -83,15 +105,72 @@ fn refresh_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
+/// `--hash-password`: one line of stdin (its line end dropped), hashed.
+fn hash_password() -> anyhow::Result<()> {
+    use std::io::{BufRead as _, IsTerminal as _};
+    if std::io::stdin().is_terminal() {
+        survey_bench::say!("password (one line; it is shown as you type):");
+    }
+    let mut line = String::new();
+    std::io::stdin().lock().read_line(&mut line).context("reading the password from stdin")?;
+    let password = line.strip_suffix('\n').unwrap_or(&line);
+    let password = password.strip_suffix('\r').unwrap_or(password);
+    if password.is_empty() {
+        return Err(bad_input("--hash-password: no password on stdin (one line, not empty)"));
+    }
+    emit(&format!("{}\n", survey_serve::hash_password(password)?));
+    Ok(())
+}
+
+/// The door `args` ask for, or why the server must not start: an address
+/// other than loopback needs `--auth` or `--no-auth`.
+fn door(args: &ServeArgs, tls: bool) -> anyhow::Result<Option<Door>> {
+    let Some(file) = &args.auth else {
+        if !args.listen.ip().is_loopback() && !args.no_auth {
+            return Err(bad_input(format!(
+                "--listen {}: not loopback, so whoever reaches it would read every customer's surveys; give --auth \
+                 FILE (users made with `survey serve --hash-password`), or --no-auth when a reverse proxy in front \
+                 does the authentication",
+                args.listen
+            )));
+        }
+        return Ok(None);
+    };
+    let users = Users::read(file).map_err(|e| bad_input(e.to_string()))?;
+    warn_if_readable(file);
+    Ok(Some(Door { users, session_idle: Duration::from_secs_f64(args.session_idle), tls }))
+}
+
+/// A warning when every user of the machine may read the auth file.
+fn warn_if_readable(file: &Path) {
+    use std::os::unix::fs::PermissionsExt as _;
+    if let Ok(meta) = std::fs::metadata(file)
+        && meta.permissions().mode() & 0o004 != 0
+    {
+        survey_bench::say!(
+            "warning: {}: every user of this machine can read the password hashes: chmod 600 it",
+            file.display()
+        );
+    }
+}
+
 pub async fn serve(db: &Path, args: ServeArgs) -> anyhow::Result<()> {
+    if args.hash_password {
+        return hash_password();
+    }
+    let tls = match (&args.tls_cert, &args.tls_key) {
+        (Some(cert), Some(key)) => Some(Tls::from_pem_files(cert, key).map_err(|e| bad_input(e.to_string()))?),
+        _ => None,
+    };
+    let door = door(&args, tls.is_some())?;
     let listener = tokio::net::TcpListener::bind(args.listen)
         .await
         .with_context(|| format!("cannot listen on {}", args.listen))?;
     let at = listener.local_addr().context("the address listened on")?;
-    if !at.ip().is_loopback() {
+    if !at.ip().is_loopback() && door.is_none() {
         survey_bench::say!(
-            "warning: serving on {at}, not loopback: whoever can reach this address reads every survey; put it \
-             behind the lab's reverse proxy for access control"
+            "warning: serving on {at} without authentication (--no-auth): whoever can reach this address reads \
+             every survey unless the reverse proxy in front stops them"
         );
     }
     // Said once at the start; every request opens the store again and
@@ -113,9 +192,12 @@ pub async fn serve(db: &Path, args: ServeArgs) -> anyhow::Result<()> {
         due_after_days: args.due_after,
         refresh_ms: (args.refresh * 1000.0).round() as u64,
         limits,
+        door,
+        tls,
     };
+    let scheme = if options.tls.is_some() { "https" } else { "http" };
     let signalled = on_signals().context("cannot listen for SIGINT and SIGTERM")?;
-    emit(&format!("{}\n", json!({"listening": format!("http://{at}")})));
+    emit(&format!("{}\n", json!({"listening": format!("{scheme}://{at}")})));
     serve_on(listener, options, signalled).await.context("serving the pages")?;
     Ok(())
 }

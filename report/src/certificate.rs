@@ -113,7 +113,10 @@ impl Certificate {
             Setup::Simulated(s) => {
                 let preset = survey_sims::Preset::by_name(&s.preset);
                 let positioner = match (&s.model_file, &preset) {
-                    (Some(file), _) => format!("simulated positioner, model file {file}"),
+                    // By its name: the certificate shows no local path.
+                    (Some(file), _) => {
+                        format!("simulated positioner, model file {}", file.rsplit('/').next().unwrap_or(file))
+                    }
                     (None, Some(p)) => format!("simulated {} positioner: {}", p.name, p.description),
                     (None, None) => format!("simulated {} positioner", s.preset),
                 };

@@ -13,16 +13,22 @@
 //!   make the server unreachable, and `/api/live` answers;
 //! - on shutdown the listener closes, every connection is told to close
 //!   once its response is sent (an idle one closes at once), and those still
-//!   open after [`Limits::stop_within`] are dropped.
+//!   open after [`Limits::stop_within`] are dropped;
+//! - with [`Tls`], each connection's TLS handshake must end within the
+//!   header timeout too (a connection in its handshake counts as one with no
+//!   request under way), and the same HTTP/1 is served inside it.
 
 use axum::Router;
 use hyper::body::Incoming;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
 use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
+use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::watch;
 use tokio::task::AbortHandle;
@@ -75,6 +81,72 @@ pub fn connection_bound(wanted: usize) -> usize {
             wanted.min(usize::try_from(free).unwrap_or(usize::MAX))
         }
         Err(_) => wanted,
+    }
+}
+
+/// TLS on the server itself: the certificate chain and key of `--tls-cert`
+/// and `--tls-key` (rustls, TLS 1.2 and 1.3, HTTP/1.1).
+#[derive(Clone)]
+pub struct Tls(tokio_rustls::TlsAcceptor);
+
+impl std::fmt::Debug for Tls {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Tls")
+    }
+}
+
+/// A TLS file that cannot be used: its path and why.
+#[derive(Debug)]
+pub struct TlsFileError(pub String);
+
+impl std::fmt::Display for TlsFileError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for TlsFileError {}
+
+impl Tls {
+    /// The acceptor of the PEM certificate chain `cert` (the server's
+    /// certificate first) and the PEM private key `key` (PKCS#8, PKCS#1 or SEC1).
+    pub fn from_pem_files(cert: &Path, key: &Path) -> Result<Tls, TlsFileError> {
+        use rustls_pki_types::pem::{Error as PemError, PemObject as _};
+        use rustls_pki_types::{CertificateDer, PrivateKeyDer};
+        let said = |path: &Path, what: &str, e: PemError| {
+            let why = match e {
+                PemError::Io(io) if io.kind() == std::io::ErrorKind::NotFound => "no such file".to_string(),
+                PemError::Io(io) if io.kind() == std::io::ErrorKind::PermissionDenied => "permission denied".into(),
+                PemError::Io(io) => io.to_string().split(" (os error").next().unwrap_or_default().to_string(),
+                PemError::NoItemsFound => format!("holds no PEM {what}"),
+                _ => format!("is not a PEM {what}"),
+            };
+            TlsFileError(format!("{}: {why}", path.display()))
+        };
+        let chain: Vec<CertificateDer<'static>> = CertificateDer::pem_file_iter(cert)
+            .map_err(|e| said(cert, "certificate", e))?
+            .collect::<Result<_, _>>()
+            .map_err(|e| said(cert, "certificate", e))?;
+        if chain.is_empty() {
+            return Err(said(cert, "certificate (-----BEGIN CERTIFICATE-----)", PemError::NoItemsFound));
+        }
+        let private = PrivateKeyDer::from_pem_file(key).map_err(|e| said(key, "private key", e))?;
+        let provider = Arc::new(tokio_rustls::rustls::crypto::ring::default_provider());
+        let config = tokio_rustls::rustls::ServerConfig::builder_with_provider(provider)
+            .with_safe_default_protocol_versions()
+            .map_err(|e| TlsFileError(format!("TLS: {e}")))?
+            .with_no_client_auth()
+            .with_single_cert(chain, private)
+            .map_err(|e| {
+                TlsFileError(format!(
+                    "{} and {}: the certificate and the key cannot be used together ({e})",
+                    cert.display(),
+                    key.display()
+                ))
+            })?;
+        let mut config = config;
+        config.alpn_protocols = vec![b"http/1.1".to_vec()];
+        Ok(Tls(tokio_rustls::TlsAcceptor::from(Arc::new(config))))
     }
 }
 
@@ -139,6 +211,7 @@ pub async fn serve(
     listener: TcpListener,
     router: Router,
     limits: &Limits,
+    tls: Option<Tls>,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let bound = connection_bound(limits.max_connections);
@@ -148,10 +221,10 @@ pub async fn serve(
     http.timer(TokioTimer::new()).header_read_timeout(limits.header_timeout);
     let mut shutdown = std::pin::pin!(shutdown);
     loop {
-        let stream = tokio::select! {
+        let (stream, peer) = tokio::select! {
             () = &mut shutdown => break,
             accepted = listener.accept() => match accepted {
-                Ok((stream, _)) => stream,
+                Ok(accepted) => accepted,
                 Err(e) => {
                     on_accept_error(&e, &connections).await;
                     continue;
@@ -163,7 +236,8 @@ pub async fn serve(
             drop(stream);
             continue;
         }
-        open(stream, &connections, &http, router.clone(), stopping.clone());
+        let how = How { http: http.clone(), tls: tls.clone(), handshake_within: limits.header_timeout };
+        open(stream, peer, &connections, how, router.clone(), stopping.clone());
     }
     drop(listener);
     let _ = stop.send(true);
@@ -202,19 +276,28 @@ async fn on_accept_error(e: &std::io::Error, connections: &Connections) {
     }
 }
 
+/// How a connection is served: HTTP/1 (with its timeouts), inside TLS or not.
+struct How {
+    http: hyper::server::conn::http1::Builder,
+    tls: Option<Tls>,
+    handshake_within: Duration,
+}
+
 /// Serve one connection on its own task, registered in `connections` until it closes.
 fn open(
     stream: TcpStream,
+    peer: SocketAddr,
     connections: &Arc<Connections>,
-    http: &hyper::server::conn::http1::Builder,
+    how: How,
     router: Router,
-    mut stopping: watch::Receiver<bool>,
+    stopping: watch::Receiver<bool>,
 ) {
     let id = connections.next.fetch_add(1, Ordering::Relaxed) as u64;
     let busy = Arc::new(AtomicUsize::new(0));
     let tower = TowerToHyperService::new(router);
     let counted = Arc::clone(&busy);
-    let service = hyper::service::service_fn(move |req: hyper::Request<Incoming>| {
+    let service = hyper::service::service_fn(move |mut req: hyper::Request<Incoming>| {
+        req.extensions_mut().insert(crate::gate::Peer(peer));
         let turn = Busy::new(&counted);
         let call = hyper::service::Service::call(&tower, req);
         async move {
@@ -223,25 +306,50 @@ fn open(
             response
         }
     });
-    let conn = http.serve_connection(TokioIo::new(stream), service);
     let left = Arc::clone(connections);
     // The registry holds the connection before its task can end and remove it.
     let mut open = connections.lock();
     let task = tokio::spawn(async move {
-        let mut conn = std::pin::pin!(conn);
-        let served = tokio::select! {
-            r = conn.as_mut() => r,
-            () = async { let _ = stopping.wait_for(|&s| s).await; } => {
-                conn.as_mut().graceful_shutdown();
-                conn.await
-            }
-        };
-        if let Err(e) = served {
-            tracing::debug!("a connection ended: {e}");
+        match how.tls {
+            None => drive(&how.http, stream, service, stopping).await,
+            Some(Tls(acceptor)) => match tokio::time::timeout(how.handshake_within, acceptor.accept(stream)).await {
+                Ok(Ok(tls)) => drive(&how.http, tls, service, stopping).await,
+                Ok(Err(e)) => tracing::debug!("a TLS handshake failed: {e}"),
+                Err(_) => tracing::debug!("a TLS handshake did not end within the header timeout"),
+            },
         }
         left.closed(id);
     });
     open.insert(id, Open { busy, abort: task.abort_handle() });
+}
+
+/// Serve HTTP/1 on `io` until the client closes it, or until the server
+/// stops (then gracefully: the request under way is answered).
+async fn drive<IO, S>(
+    http: &hyper::server::conn::http1::Builder,
+    io: IO,
+    service: S,
+    mut stopping: watch::Receiver<bool>,
+) where
+    IO: AsyncRead + AsyncWrite + Unpin + Send + 'static,
+    S: hyper::service::HttpService<Incoming> + Send,
+    S::Future: Send + 'static,
+    S::ResBody: Send + 'static,
+    <S::ResBody as hyper::body::Body>::Data: Send,
+    <S::ResBody as hyper::body::Body>::Error: Into<Box<dyn std::error::Error + Send + Sync>>,
+{
+    let conn = http.serve_connection(TokioIo::new(io), service);
+    let mut conn = std::pin::pin!(conn);
+    let served = tokio::select! {
+        r = conn.as_mut() => r,
+        () = async { let _ = stopping.wait_for(|&s| s).await; } => {
+            conn.as_mut().graceful_shutdown();
+            conn.await
+        }
+    };
+    if let Err(e) = served {
+        tracing::debug!("a connection ended: {e}");
+    }
 }
 
 /// A request under way on its connection (counted while it lives).

@@ -17,15 +17,19 @@
 //! `/api/`); a store that cannot be read, a 503 with the reason (a lab
 //! store's URL shown without its password).
 
+mod auth;
 mod doors;
+mod gate;
 mod overview;
 mod pages;
 
-pub use doors::{Limits, connection_bound};
+pub use auth::{AuthFileError, Users, hash_password};
+pub use doors::{Limits, Tls, TlsFileError, connection_bound};
+pub use gate::{BASIC_REMEMBERED, Door, FREE_FAILURES, SESSION_MAX};
 
 use axum::Router;
-use axum::extract::Request;
-use axum::http::{HeaderValue, Method, StatusCode, Uri, header};
+use axum::extract::{Request, State};
+use axum::http::{HeaderValue, StatusCode, Uri, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
@@ -61,6 +65,10 @@ pub struct ServeOptions {
     pub refresh_ms: u64,
     /// The bounds on connections, on the work done at once, on shutdown.
     pub limits: Limits,
+    /// Who may read the pages (`--auth`); `None`: whoever reaches the address.
+    pub door: Option<Door>,
+    /// HTTPS on the server itself (`--tls-cert`, `--tls-key`).
+    pub tls: Option<Tls>,
 }
 
 /// The server's state: what it was told, and the bound on the work done off
@@ -68,6 +76,8 @@ pub struct ServeOptions {
 #[derive(Debug)]
 struct AppState {
     options: ServeOptions,
+    /// The door's sessions and counts of failed logins (`options.door`).
+    gate: Option<gate::Gate>,
     /// Pages and documents computed at once on blocking threads ([`offload`]).
     heavy: tokio::sync::Semaphore,
     /// Pages and documents computed or waiting their turn ([`offload`]).
@@ -192,6 +202,33 @@ fn html_body(page: String) -> ([(header::HeaderName, &'static str); 1], String) 
     ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], page)
 }
 
+/// The store as the pages and documents name it: a lab store's URL without
+/// its password, a station's SQLite file by its name alone (no local path
+/// is shown to whoever reads the pages).
+fn store_name(db: &std::path::Path) -> String {
+    let shown = survey_store::lab::display(db);
+    if shown.contains("://") {
+        return shown;
+    }
+    db.file_name().map_or(shown, |n| n.to_string_lossy().into_owned())
+}
+
+/// `text` without the local paths of the store: the SQLite file's path (as
+/// given, and absolute) by its name, the files beside it by theirs.
+fn without_paths(text: &str, db: &std::path::Path) -> String {
+    if survey_store::lab::display(db).contains("://") {
+        return text.to_string();
+    }
+    let mut text = text.to_string();
+    let absolute = std::path::absolute(db).ok();
+    for path in [Some(db.to_path_buf()), absolute].into_iter().flatten() {
+        if let Some(folder) = path.parent().map(|f| f.display().to_string()).filter(|f| !f.is_empty()) {
+            text = text.replace(&format!("{folder}/"), "");
+        }
+    }
+    text
+}
+
 /// Open the store read-only, run `$body` with it bound to `$store`, close it;
 /// the body's error mapped to its status.
 macro_rules! read {
@@ -213,7 +250,19 @@ fn survey_ref(text: &str, api: bool) -> Result<survey_store::survey::SurveyRef, 
 
 /// The server's routes, over the store `options.db`.
 pub fn router(options: ServeOptions) -> Router {
-    Router::new()
+    let app = Arc::new(AppState {
+        heavy: tokio::sync::Semaphore::new(options.limits.heavy_at_once.max(1)),
+        admitted: tokio::sync::Semaphore::new(options.limits.heavy_at_once.max(1) + options.limits.heavy_queue),
+        gate: options.door.clone().map(gate::Gate::new),
+        options,
+    });
+    let mut routes = Router::new();
+    if app.gate.is_some() {
+        routes = routes
+            .route("/login", get(gate::login_form).post(gate::login))
+            .route("/logout", get(gate::logout_form).post(gate::logout));
+    }
+    routes
         .route("/", get(pages::index))
         .route("/static/live.js", get(pages::script))
         .route("/assets/{*asset}", get(pages::asset))
@@ -225,12 +274,9 @@ pub fn router(options: ServeOptions) -> Router {
         .route("/api", get(api::index))
         .nest("/api", api::routes())
         .fallback(not_found)
-        .layer(middleware::from_fn(guard))
-        .with_state(Arc::new(AppState {
-            heavy: tokio::sync::Semaphore::new(options.limits.heavy_at_once.max(1)),
-            admitted: tokio::sync::Semaphore::new(options.limits.heavy_at_once.max(1) + options.limits.heavy_queue),
-            options,
-        }))
+        .layer(middleware::from_fn_with_state(app.clone(), gate::gate))
+        .layer(middleware::from_fn_with_state(app.clone(), guard))
+        .with_state(app)
 }
 
 async fn not_found(uri: Uri) -> Failure {
@@ -238,10 +284,11 @@ async fn not_found(uri: Uri) -> Failure {
     Failure::not_found(format!("nothing at {}", uri.path()), api)
 }
 
-/// Every request: only GET and HEAD; every response: the policy and no caching.
-async fn guard(req: Request, next: Next) -> Response {
+/// Every request: only GET and HEAD (and POST to log in and out); every
+/// response: the policy (the login form's own, where it set one) and no caching.
+async fn guard(State(app): State<App>, req: Request, next: Next) -> Response {
     let (method, path) = (req.method().clone(), req.uri().path().to_string());
-    let mut response = if method == Method::GET || method == Method::HEAD {
+    let mut response = if gate::allowed(&method, &path, app.gate.is_some()) {
         next.run(req).await
     } else {
         let mut r = (StatusCode::METHOD_NOT_ALLOWED, format!("{method} is not served: these pages are read-only\n"))
@@ -249,13 +296,27 @@ async fn guard(req: Request, next: Next) -> Response {
         r.headers_mut().insert(header::ALLOW, HeaderValue::from_static("GET, HEAD"));
         r
     };
+    if response.status().is_client_error() || response.status().is_server_error() {
+        response = scrubbed(response, &app.db).await;
+    }
     let h = response.headers_mut();
-    h.insert(header::CONTENT_SECURITY_POLICY, HeaderValue::from_static(HEADER_POLICY));
+    h.entry(header::CONTENT_SECURITY_POLICY).or_insert(HeaderValue::from_static(HEADER_POLICY));
     h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
     h.insert(header::REFERRER_POLICY, HeaderValue::from_static("no-referrer"));
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
     tracing::info!(%method, path = %path, status = response.status().as_u16(), "served");
     response
+}
+
+/// An error's response without the store's local paths ([`without_paths`]).
+async fn scrubbed(response: Response, db: &std::path::Path) -> Response {
+    let (mut parts, body) = response.into_parts();
+    let Ok(bytes) = axum::body::to_bytes(body, 1 << 20).await else {
+        return (StatusCode::INTERNAL_SERVER_ERROR, "an error's answer too long to show\n").into_response();
+    };
+    let text = without_paths(&String::from_utf8_lossy(&bytes), db);
+    parts.headers.remove(header::CONTENT_LENGTH);
+    Response::from_parts(parts, axum::body::Body::from(text))
 }
 
 /// Serve `options.db` on `listener` until `shutdown` resolves; the requests
@@ -265,8 +326,8 @@ pub async fn serve(
     options: ServeOptions,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    let limits = options.limits.clone();
-    doors::serve(listener, router(options), &limits, shutdown).await
+    let (limits, tls) = (options.limits.clone(), options.tls.clone());
+    doors::serve(listener, router(options), &limits, tls, shutdown).await
 }
 
 /// A future that resolves on SIGINT or SIGTERM, the handlers installed now
@@ -351,7 +412,7 @@ pub mod api {
     async fn list(State(app): State<App>) -> Result<impl IntoResponse, Failure> {
         let doc = offload(app.clone(), true, async move {
             let surveys = read!(app, true, |store| store.list().await);
-            Ok(list_json(&survey_store::lab::display(&app.db), &surveys))
+            Ok(list_json(&super::store_name(&app.db), &surveys))
         });
         Ok(json_body(&doc.await?))
     }

@@ -18,9 +18,11 @@ fn asset_link(asset: &str) -> String {
     format!("<a href=\"/assets/{0}\">{0}</a>", escape(asset))
 }
 
-/// A page of `survey serve`: the report's look, under the server's policy.
-fn page(title: &str, body: &str) -> String {
-    let nav = "<p class=\"subtitle\"><a href=\"/\">All assets and live surveys</a></p>\n";
+/// A page of `survey serve`: the report's look, under the server's policy
+/// (behind a door, a way to log out).
+fn page(title: &str, body: &str, door: bool) -> String {
+    let out = if door { " &middot; <a href=\"/logout\" id=\"log-out\">log out</a>" } else { "" };
+    let nav = format!("<p class=\"subtitle\"><a href=\"/\">All assets and live surveys</a>{out}</p>\n");
     document_under(POLICY, title, &Running::default(), &format!("{nav}{body}"))
 }
 
@@ -100,7 +102,7 @@ async fn index_page(app: App) -> Result<String, Failure> {
         let live = overview::live(&store).await?;
         anyhow::Ok((assets, live))
     });
-    let db = survey_store::lab::display(&app.db);
+    let db = super::store_name(&app.db);
     let live_html: String = live.iter().map(live_element).collect();
     let body = format!(
         "<h1>Surveys of {db}</h1>\n{live}{assets}<script src=\"/static/live.js\"></script>\n",
@@ -136,7 +138,7 @@ async fn index_page(app: App) -> Result<String, Failure> {
             }
         ),
     );
-    Ok(page(&format!("Surveys of {db}"), &body).replacen(
+    Ok(page(&format!("Surveys of {db}"), &body, app.gate.is_some()).replacen(
         "<body>",
         &format!("<body data-refresh-ms=\"{}\">", app.refresh_ms),
         1,
@@ -172,7 +174,7 @@ pub(super) async fn asset(
             c = section("control", "Control chart of the checks", &[], &control_table(&h)),
             s = section("history", "History", &[], &figures),
         );
-        Ok(page(&format!("Asset {}", h.asset), &body))
+        Ok(page(&format!("Asset {}", h.asset), &body, app.gate.is_some()))
     });
     Ok(html_body(html.await?))
 }
@@ -326,5 +328,5 @@ fn with_way_back(html: String, asset: &str, uid: &str, replaced: &[(String, Stri
 /// An error page.
 pub(super) fn failure(status: StatusCode, reason: &str) -> String {
     let title = format!("{} {}", status.as_u16(), status.canonical_reason().unwrap_or(""));
-    page(&title, &format!("<h1>{}</h1>\n<p id=\"reason\">{}</p>\n", escape(&title), escape(reason)))
+    page(&title, &format!("<h1>{}</h1>\n<p id=\"reason\">{}</p>\n", escape(&title), escape(reason)), false)
 }

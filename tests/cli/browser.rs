@@ -612,3 +612,168 @@ fn a_survey_being_acquired_moves_on_the_open_page_without_a_reload() {
     assert_eq!(served_pages, 0, "the page was not loaded again");
     rt.block_on(store.close());
 }
+
+/// Chromium driven over the DevTools protocol on a pipe
+/// (`--remote-debugging-pipe`: it reads commands on descriptor 3 and writes
+/// answers on 4, JSON messages each ended by a NUL byte), the descriptors
+/// given by a shell from two FIFOs: a browser that types into a form and
+/// submits it, with nothing but the standard library.
+struct Devtools {
+    child: std::process::Child,
+    to: std::fs::File,
+    from: std::io::BufReader<std::fs::File>,
+    next: u64,
+    session: String,
+    _profile: tempfile::TempDir,
+}
+
+impl Devtools {
+    fn start(browser: &Path) -> Devtools {
+        use nix::sys::stat::Mode;
+        let profile = tempfile::tempdir().expect("a browser profile");
+        let (fifo_in, fifo_out) = (profile.path().join("cdp-in"), profile.path().join("cdp-out"));
+        for f in [&fifo_in, &fifo_out] {
+            nix::unistd::mkfifo(f, Mode::S_IRUSR | Mode::S_IWUSR).expect("a FIFO");
+        }
+        let mut cmd = Command::new("sh");
+        cmd.arg("-c").arg("exec \"$0\" \"$@\" 3<\"$CDP_IN\" 4>\"$CDP_OUT\"").arg(browser).args(FLAGS);
+        cmd.arg(format!("--user-data-dir={}", profile.path().join("data").display()));
+        cmd.args(["--remote-debugging-pipe", "about:blank"]).env("CDP_IN", &fifo_in).env("CDP_OUT", &fifo_out);
+        let child = cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+        // The same order as the shell's: its 3 (our writer), then its 4 (our reader).
+        let to = std::fs::OpenOptions::new().write(true).open(&fifo_in).expect("the command pipe");
+        let from = std::io::BufReader::new(std::fs::File::open(&fifo_out).expect("the answer pipe"));
+        let mut tools = Devtools { child, to, from, next: 0, session: String::new(), _profile: profile };
+        let target = tools.call("Target.createTarget", serde_json::json!({"url": "about:blank"}));
+        let target = target["targetId"].as_str().unwrap().to_string();
+        let attached = tools.call("Target.attachToTarget", serde_json::json!({"targetId": target, "flatten": true}));
+        tools.session = attached["sessionId"].as_str().unwrap().to_string();
+        tools
+    }
+
+    /// Send `method` (to the page once attached) and wait for its answer.
+    fn call(&mut self, method: &str, params: Value) -> Value {
+        use std::io::{BufRead as _, Write as _};
+        self.next += 1;
+        let mut message = serde_json::json!({"id": self.next, "method": method, "params": params});
+        if !self.session.is_empty() {
+            message["sessionId"] = Value::from(self.session.clone());
+        }
+        let mut bytes = message.to_string().into_bytes();
+        bytes.push(0);
+        self.to.write_all(&bytes).expect("a command to the browser");
+        loop {
+            let mut raw = Vec::new();
+            let n = self.from.read_until(0, &mut raw).expect("an answer from the browser");
+            assert!(n > 0, "the browser closed its pipe");
+            raw.pop();
+            let answer: Value = serde_json::from_slice(&raw).expect("JSON from the browser");
+            if answer["id"].as_u64() == Some(self.next) {
+                assert!(answer.get("error").is_none(), "{method}: {answer}");
+                return answer["result"].clone();
+            }
+        }
+    }
+
+    /// The value of `expression` in the page (`null` while it is loading).
+    fn eval(&mut self, expression: &str) -> Value {
+        let r = self.call("Runtime.evaluate", serde_json::json!({"expression": expression, "returnByValue": true}));
+        r["result"]["value"].clone()
+    }
+
+    /// Wait until the page at `path` has loaded (the browser's own clock: at most 30 s).
+    fn loaded(&mut self, path: &str) {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let at = self.eval("document.readyState === 'complete' ? location.pathname : ''");
+            if at.as_str() == Some(path) {
+                return;
+            }
+            let html = self.eval("document.documentElement.outerHTML");
+            assert!(Instant::now() < deadline, "never at {path}; at {at}:\n{html}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for Devtools {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn behind_the_door_the_browser_sees_the_login_then_after_it_the_page() {
+    let browser = match chromium() {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let bench = Bench::new();
+    bench.write("valid.csv", super::VALID_CSV);
+    bench.survey(&["import", "valid.csv", "--asset", "rig-1"]).success();
+    let mut hashing = bench.command(&["serve", "--hash-password"]);
+    let out = hashing.stdin(Stdio::piped()).stdout(Stdio::piped()).spawn().and_then(|mut c| {
+        use std::io::Write as _;
+        c.stdin.take().unwrap().write_all(b"open sesame\n")?;
+        c.wait_with_output()
+    });
+    let hash = String::from_utf8(out.unwrap().stdout).unwrap();
+    bench.write("auth.toml", format!("[[user]]\nname = \"lab\"\npassword_hash = \"{}\"\n", hash.trim()));
+    let server = super::serve::Server::on(&bench, "survey.db", &["--auth", "auth.toml"]);
+    let mut tools = Devtools::start(&browser);
+    tools.call("Page.navigate", serde_json::json!({"url": format!("{}/assets/rig-1", server.url)}));
+    // Without a session: the login form, nothing of the asset.
+    tools.loaded("/login");
+    let html = tools.eval("document.documentElement.outerHTML").as_str().unwrap().to_string();
+    assert!(html.contains("id=\"login\"") && !html.contains("id=\"history\""), "{html}");
+    let type_in = |password: &str| {
+        format!(
+            "document.getElementById('name').value = 'lab'; document.getElementById('password').value = '{password}'; \
+             document.getElementById('login').requestSubmit(); true"
+        )
+    };
+    tools.eval(&type_in("open sesam"));
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while tools
+        .eval("document.getElementById('login-message') ? document.getElementById('login-message').textContent : ''")
+        != "The name or the password is wrong."
+    {
+        if Instant::now() > deadline {
+            let html = tools.eval("location.href + ' ' + document.documentElement.outerHTML");
+            panic!("no word of the wrong password: {html}");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    tools.eval(&type_in("open sesame"));
+    // The page asked for, after the login; the cookie out of the page's reach.
+    tools.loaded("/assets/rig-1");
+    let html = tools.eval("document.documentElement.outerHTML").as_str().unwrap().to_string();
+    for id in ["history", "tbl-history"] {
+        assert!(html.contains(&format!("id=\"{id}\"")), "the asset's page lacks {id}:\n{html}");
+    }
+    assert_eq!(tools.eval("document.cookie"), "", "the session cookie is HttpOnly");
+    tools.call("Page.navigate", serde_json::json!({"url": format!("{}/", server.url)}));
+    tools.loaded("/");
+    assert_eq!(tools.eval("!!document.getElementById('assets')"), true);
+    // Logged out by the pages' link and its button: the login again.
+    tools.eval("document.getElementById('log-out').click(); true");
+    tools.loaded("/logout");
+    tools.eval("document.getElementById('logout').requestSubmit(); true");
+    tools.loaded("/login");
+    tools.call("Page.navigate", serde_json::json!({"url": format!("{}/assets/rig-1", server.url)}));
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let next = "document.readyState === 'complete' && location.pathname === '/login' ? \
+                document.querySelector('input[name=next]').value : ''";
+    while tools.eval(next) != "/assets/rig-1" {
+        assert!(Instant::now() < deadline, "the asset's page after the logout: not the login");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let _ = tools.call("Browser.close", Value::Null);
+    let (code, log) = server.stop_and_log();
+    assert_eq!(code, Some(0));
+    assert_eq!(log.iter().filter(|l| l.contains("a failed login")).count(), 1, "{log:#?}");
+}

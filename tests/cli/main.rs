@@ -13,6 +13,7 @@
 //! the first that does not exist); a failed command must leave that list equal,
 //! and the next valid import must get the next id.
 
+mod auth;
 mod browser;
 mod budget;
 mod correction;

@@ -101,12 +101,28 @@ impl Response {
 
 /// One HTTP/1.1 request to `url` (`http://host:port`) for `path`.
 pub fn request(url: &str, method: &str, path: &str) -> Response {
+    send(url, method, path, &[], "")
+}
+
+/// One HTTP/1.1 request to `url` for `path` with more `headers` and `body`.
+pub fn send(url: &str, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> Response {
     let host = url.trim_start_matches("http://");
     let mut s = TcpStream::connect(host).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    write!(s, "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\nContent-Length: 0\r\n\r\n").unwrap();
+    let extra: String = headers.iter().map(|(k, v)| format!("{k}: {v}\r\n")).collect();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n{extra}Content-Length: {}\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
     let mut raw = Vec::new();
     s.read_to_end(&mut raw).unwrap();
+    parse_response(raw)
+}
+
+/// A whole HTTP/1.1 response as read from its connection.
+pub fn parse_response(raw: Vec<u8>) -> Response {
     let text = String::from_utf8(raw).expect("UTF-8");
     let (head, body) = text.split_once("\r\n\r\n").expect("a header and a body");
     let mut lines = head.lines();
@@ -323,9 +339,11 @@ fn it_binds_loopback_unless_told_otherwise_and_says_so() {
     let server = Server::on(&bench, "survey.db", &[]);
     assert!(server.url.starts_with("http://127.0.0.1:"));
     drop(server);
-    let server = Server::start(bench.command(&["serve", "--listen", "0.0.0.0:0"]));
+    // Any other address only with --auth or, on purpose, --no-auth (tests/cli/auth.rs).
+    bench.command(&["serve", "--listen", "0.0.0.0:0"]).output().map(|o| assert_eq!(o.status.code(), Some(2))).unwrap();
+    let server = Server::start(bench.command(&["serve", "--listen", "0.0.0.0:0", "--no-auth"]));
     let warned = server.log.recv_timeout(Duration::from_secs(30)).unwrap();
-    assert!(warned.contains("not loopback") && warned.contains("reverse proxy"), "{warned}");
+    assert!(warned.contains("without authentication") && warned.contains("reverse proxy"), "{warned}");
     assert_eq!(server.stop(), Some(0));
     bench.command(&["serve", "--listen", "nowhere"]).output().map(|o| assert_eq!(o.status.code(), Some(2))).unwrap();
 }
