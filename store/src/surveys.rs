@@ -141,7 +141,7 @@ impl Store {
                 if !crate::lock::release_reserve(&self.path, id) {
                     return Err(e);
                 }
-                tracing::warn!(survey = id, error = %format!("{e:#}"), "the disk is full: the status is written into the reserve");
+                tracing::warn!(survey = id, error = %crate::error::said(&e), "the disk is full: the status is written into the reserve");
                 let written = self.write_status(id, status, ended_at_s).await;
                 drop(guard);
                 written
