@@ -280,9 +280,14 @@ pub(crate) fn examine(path: &Path) -> std::io::Result<Found> {
         } else {
             format!("{pages} ({} bytes of page {} are missing)", h.page_size - len % h.page_size, whole + 1)
         };
+        let kept = match whole {
+            0 => "no page is whole".to_string(),
+            1 => "page 1 is whole".to_string(),
+            n => format!("pages 1 to {n} are whole"),
+        };
         found.problems.push(format!(
             "it is {len} bytes long and its header counts {} pages of {} bytes: it lacks {cut}, cut short (a copy \
-             or a disk that stopped); pages 1 to {whole} are whole, what the lost bytes held is gone",
+             or a disk that stopped); {kept}, what the lost bytes held is gone",
             needed.max(whole + 1),
             h.page_size
         ));
