@@ -270,8 +270,11 @@ pub(crate) fn examine(path: &Path) -> std::io::Result<Found> {
     // The length: every page the database has, whole, in the file or the log.
     let whole = len / h.page_size;
     let needed = replay.commits.last().copied().or(h.pages).unwrap_or(len.div_ceil(h.page_size));
-    let lacking: Vec<u64> =
-        (whole + 1..=needed.max(len.div_ceil(h.page_size))).filter(|p| !replay.pages.contains(p)).collect();
+    // The page that holds the lock bytes at 1 GiB is never written.
+    let pending = (1u64 << 30) / h.page_size + 1;
+    let lacking: Vec<u64> = (whole + 1..=needed.max(len.div_ceil(h.page_size)))
+        .filter(|p| !replay.pages.contains(p) && *p != pending)
+        .collect();
     if let (Some(&from), Some(&to)) = (lacking.first(), lacking.last()) {
         let expected = needed.max(whole + 1) * h.page_size;
         let pages = if from == to { format!("page {from}") } else { format!("pages {from} to {to}") };
