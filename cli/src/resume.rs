@@ -32,6 +32,74 @@ pub struct ResumeArgs {
     /// Print the summary as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
+    /// The survey's configuration with new transport addresses (a
+    /// re-plugged adapter's device path, a new port or host); nothing else
+    /// may differ from the one it started with.
+    #[arg(long, value_name = "FILE", value_hint = clap::ValueHint::FilePath)]
+    pub config: Option<std::path::PathBuf>,
+}
+
+/// `--config FILE` on resume: the survey's setup with the file's transport
+/// addresses, the change stored with an event saying it (nothing stored when
+/// nothing changed); any other difference is refused naming the key (bad
+/// input). Every serial port of the configuration is checked to be a serial
+/// line before anything opens it, with or without `--config`
+/// (`config::readdress`).
+async fn readdress(
+    store: &survey_store::Store,
+    record: &mut survey_store::survey::SurveyRecord,
+    config: Option<&Path>,
+    at_s: f64,
+) -> anyhow::Result<()> {
+    use survey_store::config::{SurveyConfig, readdress};
+    use survey_store::survey::Setup;
+    let id = record.id;
+    let Setup::Configured(setup) = &mut record.setup else {
+        return match config {
+            Some(file) => Err(bad_input(format!(
+                "--config {}: survey {id} was not acquired on configured instruments (its setup is the simulated                  bench's): resume it without --config",
+                file.display()
+            ))),
+            None => Ok(()),
+        };
+    };
+    if let Some(file) = config {
+        let new = SurveyConfig::from_file(file)?;
+        let changes = readdress::address_changes(&setup.config, &new)
+            .map_err(|why| bad_input(format!("--config {}: {why}", file.display())))?;
+        check_devices(&new, Some(file))?;
+        if !changes.is_empty() {
+            setup.config = new;
+            let said = changes.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ");
+            let message = format!("resumed on new addresses from {}: {said}", file.display());
+            store.readdress(id, &record.setup, at_s, &message).await?;
+            survey_bench::say!("survey {id}: {message}");
+        }
+        return Ok(());
+    }
+    check_devices(&setup.config, None)
+}
+
+/// Every serial port of `config` is a serial line (checked without opening
+/// it), or bad input naming the key and what the path is.
+fn check_devices(config: &survey_store::config::SurveyConfig, file: Option<&Path>) -> anyhow::Result<()> {
+    for (key, path) in survey_store::config::readdress::device_paths(config) {
+        // Nothing there: nothing to open by mistake (the driver says it cannot connect).
+        if !Path::new(&path).exists() {
+            continue;
+        }
+        if let Err(why) = survey_store::config::readdress::serial_line(Path::new(&path)) {
+            let from = match file {
+                Some(f) => format!("--config {}", f.display()),
+                None => "the survey's configuration".to_string(),
+            };
+            return Err(bad_input(format!(
+                "{from}: {key} = {path}: {why}; nothing was opened (a re-plugged adapter has a new path: `survey \
+                 resume --config FILE` with it)"
+            )));
+        }
+    }
+    Ok(())
 }
 
 pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
@@ -47,7 +115,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     let lock = AcquirerLock::acquire(store.path(), id)?;
     let stop = Stop::on_signals();
     // Read under the lock: the survey may have changed while it was held.
-    let record = store.survey(id).await?;
+    let mut record = store.survey(id).await?;
     match record.status {
         SurveyStatus::Interrupted | SurveyStatus::Running | SurveyStatus::Processing | SurveyStatus::Failed => {}
         SurveyStatus::Complete => {
@@ -77,6 +145,7 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     }
     // Instrument time goes on from where the survey stopped (drift continues).
     let last_time = store.last_sample_time(id).await?.unwrap_or(0.0).max(record.started_at_s.unwrap_or(0.0));
+    readdress(&store, &mut record, args.config.as_deref(), last_time).await?;
     let mut bench = Bench::resume(&record, Duration::from_secs_f64(last_time.max(0.0)), next)?;
     bench.engine.set_stop(stop.clone());
     let plan = bench.plan.clone();

@@ -34,6 +34,7 @@ use survey_positioner_drivers::canopen::CanopenConfig;
 mod consistency;
 mod derived;
 mod place;
+pub mod readdress;
 mod schema;
 use place::{Defect, Places};
 use survey_drivers::emscon::EmsconConfig;

@@ -46,6 +46,9 @@ use sqlx::{AssertSqlSafe, Row, SqlitePool};
 
 use super::{MIGRATIONS, NotFound};
 
+mod file;
+pub(crate) use file::{examine, wal_path};
+
 /// Files up to this size are checked whole by `PRAGMA quick_check` on open;
 /// larger ones on every table but the samples' (see the module's documentation).
 pub const WHOLE_CHECK_BYTES: u64 = 32 * 1024 * 1024;
@@ -69,9 +72,38 @@ pub(crate) struct Shape {
 }
 
 impl Shape {
+    /// A table's column, as found.
+    pub(crate) fn add_column(&mut self, table: &str, column: Option<&str>) {
+        let columns = self.tables.entry(table.to_string()).or_default();
+        if let Some(c) = column {
+            columns.insert(c.to_string());
+        }
+    }
+
+    /// A named index, as found.
+    pub(crate) fn add_index(&mut self, name: &str) {
+        self.indexes.insert(name.to_string());
+    }
+
+    /// The tables.
+    pub(crate) fn table_names(&self) -> impl Iterator<Item = &str> {
+        self.tables.keys().map(String::as_str)
+    }
+
+    /// The same without what `other` holds (its tables whole, its indexes
+    /// and triggers), and without any trigger: the lab store's shape is the
+    /// station's without migration 7's packs and SQLite's triggers.
+    pub(crate) fn without(&self, other: &Shape) -> Shape {
+        let mut out = self.clone();
+        out.tables.retain(|t, _| !other.tables.contains_key(t));
+        out.indexes.retain(|i| !other.indexes.contains(i));
+        out.triggers.clear();
+        out
+    }
+
     /// What `self` (the expected) has that `found` lacks, in words, one entry
     /// a missing object.
-    fn missing_from(&self, found: &Shape) -> Vec<String> {
+    pub(crate) fn missing_from(&self, found: &Shape) -> Vec<String> {
         let mut out = Vec::new();
         for (table, columns) in &self.tables {
             match found.tables.get(table) {
@@ -186,6 +218,34 @@ async fn quick_check(pool: &SqlitePool, file_bytes: u64, tables: &BTreeSet<&str>
     Ok(problems)
 }
 
+/// The file's length and its write-ahead log, checked before SQLite reads
+/// them ([`examine`]): whether the log has frames SQLite will replay, or the
+/// refusal of the file. Found wrong while the file or its log changed (a
+/// writer's checkpoint, a commit), it is looked at again: refused only when
+/// two looks at an unchanged file and log agree.
+pub(crate) async fn settled(path: &Path) -> anyhow::Result<bool> {
+    let stamp = || {
+        let of = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.len(), m.modified().ok()));
+        (of(path), of(&wal_path(path)))
+    };
+    let mut last = None;
+    for tries in 1..=6u64 {
+        let before = stamp();
+        let found = examine(path)
+            .map_err(|e| anyhow::Error::new(e).context(format!("cannot read the database {}", path.display())))?;
+        if found.problems.is_empty() {
+            return Ok(found.replays);
+        }
+        let after = stamp();
+        if before == after && (last.as_ref() == Some(&after) || tries == 6) {
+            return Err(damaged(path, &found.problems));
+        }
+        last = (before == after).then_some(after);
+        tokio::time::sleep(std::time::Duration::from_millis(10 * tries)).await;
+    }
+    unreachable!("the sixth look decides")
+}
+
 /// The refusal of a damaged file ([`NotFound`]: bad input, exit status 2).
 pub(crate) fn damaged(path: &Path, what: &[String]) -> anyhow::Error {
     NotFound(format!(
@@ -200,7 +260,16 @@ pub(crate) fn damaged(path: &Path, what: &[String]) -> anyhow::Error {
 /// `version`: its missing schema objects, or else the first lines of
 /// `PRAGMA quick_check`; empty when it is sound. A page SQLite cannot read
 /// at all while checking is damage too.
-pub(crate) async fn problems(pool: &SqlitePool, path: &Path, version: i64) -> anyhow::Result<Vec<String>> {
+///
+/// `with_wal`: the connection reads the write-ahead log beside the file (an
+/// ordinary connection), so what was found sound is remembered with the
+/// log's length and time too.
+pub(crate) async fn problems(
+    pool: &SqlitePool,
+    path: &Path,
+    version: i64,
+    with_wal: bool,
+) -> anyhow::Result<Vec<String>> {
     let expected = expected(version)?;
     let corrupt = |e: sqlx::Error| -> anyhow::Result<Vec<String>> {
         match super::sqlite_code(&e).map(|c| c & 0xff) {
@@ -225,7 +294,8 @@ pub(crate) async fn problems(pool: &SqlitePool, path: &Path, version: i64) -> an
     static SOUND: OnceLock<Mutex<BTreeSet<Stamp>>> = OnceLock::new();
     let sound = SOUND.get_or_init(Default::default);
     let meta = std::fs::metadata(path).ok();
-    let stamp = meta.as_ref().map(|m| (m.dev(), m.ino(), m.len(), m.modified().ok()));
+    let wal = with_wal.then(|| std::fs::metadata(wal_path(path)).ok().map(|m| (m.len(), m.modified().ok()))).flatten();
+    let stamp = meta.as_ref().map(|m| (m.dev(), m.ino(), m.len(), m.modified().ok(), wal));
     if stamp.as_ref().is_some_and(|s| sound.lock().expect("not poisoned").contains(s)) {
         return Ok(Vec::new());
     }
@@ -242,8 +312,9 @@ pub(crate) async fn problems(pool: &SqlitePool, path: &Path, version: i64) -> an
     }
 }
 
-/// A file as found: device, inode, length, modification time.
-type Stamp = (u64, u64, u64, Option<std::time::SystemTime>);
+/// A file as found: device, inode, length, modification time (and its
+/// write-ahead log's length and time, when it was read).
+type Stamp = (u64, u64, u64, Option<std::time::SystemTime>, Option<(u64, Option<std::time::SystemTime>)>);
 
 /// An error met reading the file at `path` (a bulk read of samples): when
 /// SQLite found a page it cannot parse (`SQLITE_CORRUPT`, `SQLITE_NOTADB`),
@@ -305,6 +376,37 @@ mod tests {
             ]
         );
         assert!(shape.missing_from(&shape).is_empty());
+    }
+
+    /// A log that belongs to the file as far as its bytes tell (no page 1,
+    /// the file's size) but whose replay breaks a b-tree: the file as the
+    /// log makes it is checked, and refused naming the log.
+    #[tokio::test]
+    async fn a_log_whose_replay_breaks_the_file_is_refused_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("w.db");
+        let store = crate::Store::open(&path).await.unwrap();
+        store.create_survey(&crate::survey::NewSurvey::default()).await.unwrap();
+        store.close().await;
+        let bytes = std::fs::read(&path).unwrap();
+        let pages = u32::from_be_bytes(bytes[28..32].try_into().unwrap());
+        let conn = rusqlite::Connection::open_with_flags(&path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY).unwrap();
+        let root: u32 =
+            conn.query_row("SELECT rootpage FROM sqlite_master WHERE name = 'surveys'", [], |r| r.get(0)).unwrap();
+        drop(conn);
+        let noise: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect();
+        std::fs::write(wal_path(&path), file::tests::log(4096, (3, 4), &[(root, pages, noise)])).unwrap();
+        let e = crate::Store::open_read_only(&path).await.unwrap_err();
+        let text = format!("{e:#}");
+        assert!(crate::is_not_found(&e), "{text}");
+        assert!(
+            text.contains("w.db is damaged: as the write-ahead log beside it (") && text.contains("w.db-wal) makes it"),
+            "{text}"
+        );
+        assert!(std::fs::read(&path).unwrap() == bytes, "the file unchanged");
+        // The writers refuse it too.
+        assert!(crate::is_not_found(&crate::Store::open(&path).await.unwrap_err()));
+        assert!(std::fs::read(&path).unwrap() == bytes, "the file unchanged");
     }
 
     /// A page of the samples damaged after the file was checked (what a

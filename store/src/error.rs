@@ -58,6 +58,13 @@ pub fn path_error(e: std::io::Error, what: String) -> anyhow::Error {
 pub fn said(e: &anyhow::Error) -> String {
     let mut parts: Vec<String> = Vec::new();
     for c in e.chain() {
+        // The engine's store failure carries its error as text and no
+        // source: said from the error it holds.
+        if let Some(survey_acquire::EngineError::Sink(inner)) = c.downcast_ref::<survey_acquire::EngineError>() {
+            parts.push("recording failed".to_string());
+            parts.push(said(inner));
+            break;
+        }
         let words = c.downcast_ref::<sqlx::Error>().and_then(crate::sqlite_code).and_then(|code| match code & 0xff {
             13 => Some(
                 "the disk is full (SQLite could not write: free some space; a survey stopped by it is kept and \
@@ -77,4 +84,51 @@ pub fn said(e: &anyhow::Error) -> String {
     }
     parts.dedup();
     parts.join(": ")
+}
+
+#[cfg(test)]
+mod tests {
+    /// Issue 51: a full disk met by the engine's store (its error held as
+    /// text by `EngineError::Sink`) is said in words, not as SQLite's codes.
+    #[test]
+    fn a_full_disk_met_while_recording_is_said_in_words() {
+        let full = sqlx::Error::Database(Box::new(FullDisk));
+        let e = anyhow::Error::new(full).context("cannot commit samples of survey 1 in survey.db");
+        let e = anyhow::Error::new(survey_acquire::EngineError::Sink(e));
+        let text = super::said(&e);
+        assert!(
+            text.starts_with("recording failed: cannot commit samples of survey 1 in survey.db: the disk is full"),
+            "{text}"
+        );
+        assert!(!text.contains("code: 13"), "{text}");
+    }
+
+    #[derive(Debug)]
+    struct FullDisk;
+    impl std::fmt::Display for FullDisk {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("(code: 13) database or disk is full")
+        }
+    }
+    impl std::error::Error for FullDisk {}
+    impl sqlx::error::DatabaseError for FullDisk {
+        fn message(&self) -> &str {
+            "database or disk is full"
+        }
+        fn code(&self) -> Option<std::borrow::Cow<'_, str>> {
+            Some("13".into())
+        }
+        fn as_error(&self) -> &(dyn std::error::Error + Send + Sync + 'static) {
+            self
+        }
+        fn as_error_mut(&mut self) -> &mut (dyn std::error::Error + Send + Sync + 'static) {
+            self
+        }
+        fn into_error(self: Box<Self>) -> Box<dyn std::error::Error + Send + Sync + 'static> {
+            self
+        }
+        fn kind(&self) -> sqlx::error::ErrorKind {
+            sqlx::error::ErrorKind::Other
+        }
+    }
 }

@@ -24,6 +24,7 @@
 //! CA's PEM file; the system's roots otherwise) as libpq reads them.
 
 mod push;
+mod schema;
 
 pub use push::{PushReport, Which, push};
 
@@ -153,17 +154,23 @@ pub async fn open(url: &str, setup: bool) -> anyhow::Result<Store> {
         control: setup,
         certificates: setup,
     };
-    let at = Server { host, port, user };
     let ready = if setup {
-        set_up(&pool, &shown).await
+        set_up(&pool, &shown).await.map(|()| MIGRATIONS.last().map_or(0, |m| m.0))
     } else {
-        check_schema(&pool, &shown).await.map(|version| {
+        check_schema(&pool, &shown).await.inspect(|&version| {
             store.cache = version >= super::CACHE_SCHEMA;
             store.environment = version >= super::ENVIRONMENT_SCHEMA;
             store.control = version >= super::CONTROL_SCHEMA;
             store.certificates = version >= super::CERTIFICATE_SCHEMA;
         })
     };
+    // Every table, column and index of that version there, and the role's
+    // privileges on them (`schema`).
+    let ready = match ready {
+        Ok(version) => schema::check(&pool, &shown, &user, version, setup).await,
+        Err(e) => Err(e),
+    };
+    let at = Server { host, port, user };
     let ready = ready.map_err(|e| explained(e, &at, if setup { PUSHING } else { "reading its schema" }));
     if let Err(e) = ready {
         store.close().await;
@@ -266,11 +273,17 @@ fn io_in_words(kind: std::io::ErrorKind) -> Option<&'static str> {
 fn link_in_words(e: &sqlx::Error) -> Option<String> {
     match e {
         sqlx::Error::Io(io) => {
+            // The connection's end first: a server stopped at once under TLS
+            // is rustls's "peer closed connection without sending TLS
+            // close_notify: https://docs.rs/...", an unexpected end of file.
+            if let Some(w) = io_in_words(io.kind()) {
+                return Some(w.to_string());
+            }
             let text = io.to_string();
             if text.contains("certificate") || text.contains("TLS") || text.contains("tls") {
                 return Some(tls_in_words(&text));
             }
-            io_in_words(io.kind()).map(str::to_string)
+            None
         }
         sqlx::Error::Tls(t) => Some(tls_in_words(&t.to_string())),
         // The first reply to TLS's request read as 0 bytes: the connection was closed.
@@ -419,6 +432,19 @@ fn connect_error(e: &sqlx::Error, shown: &str, host: &str, port: u16, user: &str
     anyhow::anyhow!("cannot reach the lab store at {host}:{port} ({shown}): {why}")
 }
 
+/// A library's text without the links it adds (rustls points at its
+/// manual on docs.rs): the words up to the first `http`.
+fn without_links(t: &str) -> String {
+    match t.find("http://").or_else(|| t.find("https://")) {
+        Some(at) => {
+            let t = t[..at].trim_end_matches([' ', ':', '(', '-']);
+            let t = t.strip_suffix("see").unwrap_or(t);
+            t.trim_end_matches([' ', ':', '(', '-', ',']).to_string()
+        }
+        None => t.to_string(),
+    }
+}
+
 /// A TLS failure in words: what the server's certificate lacks, what the URL can say.
 fn tls_in_words(t: &str) -> String {
     let why = if t.contains("UnknownIssuer") {
@@ -435,7 +461,7 @@ fn tls_in_words(t: &str) -> String {
          at the server"
             .to_string()
     } else {
-        t.to_string()
+        without_links(t)
     };
     format!("TLS: {why}")
 }
@@ -491,6 +517,20 @@ mod tests {
             format!("{e:#}"),
             "listing its surveys: the lab store at db.example:5433 gave no connection within 10 s"
         );
+        // A server stopped at once under TLS: rustls's end of file, in words, without its link.
+        let rustls = std::io::Error::new(
+            std::io::ErrorKind::UnexpectedEof,
+            "peer closed connection without sending TLS close_notify: \
+             https://docs.rs/rustls/latest/rustls/manual/_03_howto/index.html#unexpected-eof",
+        );
+        let e = explained(anyhow::Error::new(sqlx::Error::Io(rustls)), &at, "listing its surveys");
+        assert_eq!(
+            format!("{e:#}"),
+            "listing its surveys: the lab store at db.example:5433: the server closed the connection (it went away: \
+             stopped, restarted, or the network dropped it)"
+        );
+        assert_eq!(without_links("bad record: https://docs.rs/x"), "bad record");
+        assert_eq!(tls_in_words("odd (see https://docs.rs/y)"), "TLS: odd");
         assert!(gone_in_words("57P01").unwrap().contains("shutting down") && gone_in_words("42P01").is_none());
         // Anything else is left as it was.
         let e = explained(anyhow::anyhow!("no such survey"), &at, "x");

@@ -632,6 +632,8 @@ async fn schema(pool: &SqlitePool, path: &Path) -> anyhow::Result<Schema> {
 /// schema being made by another process), is confirmed on an ordinary
 /// read-only connection first.
 async fn inspect(path: &Path) -> anyhow::Result<()> {
+    // The file's length and its write-ahead log, before SQLite reads either.
+    let replays = damage::settled(path).await?;
     let stamp = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.len(), m.modified().ok()));
     let before = stamp(path);
     let options = SqliteConnectOptions::new().filename(path).read_only(true).immutable(true);
@@ -643,7 +645,7 @@ async fn inspect(path: &Path) -> anyhow::Result<()> {
             pool.close().await;
             return Err(foreign(path));
         }
-        Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v).await,
+        Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v, false).await,
         // Pages of the schema or the migrations' table that do not read.
         Err(e) if e.to_string().contains(damage::MALFORMED) => Ok(vec![damage::MALFORMED.to_string()]),
         _ => Ok(Vec::new()),
@@ -651,7 +653,10 @@ async fn inspect(path: &Path) -> anyhow::Result<()> {
     pool.close().await;
     let problems = problems?;
     if problems.is_empty() {
-        return Ok(());
+        return match replays {
+            true => through_log(path).await,
+            false => Ok(()),
+        };
     }
     let beside = |suffix: &str| {
         let mut p = path.as_os_str().to_os_string();
@@ -665,7 +670,7 @@ async fn inspect(path: &Path) -> anyhow::Result<()> {
     if beside("-wal") || beside("-journal") || stamp(path) != before {
         let (pool, _) = connect_read_only(path).await?;
         let again = match schema(&pool, path).await {
-            Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v).await,
+            Ok(Schema::Survey(Some(v))) if v <= known => damage::problems(&pool, path, v, true).await,
             _ => Ok(problems.clone()),
         };
         pool.close().await;
@@ -674,6 +679,36 @@ async fn inspect(path: &Path) -> anyhow::Result<()> {
         }
     }
     Err(damage::damaged(path, &problems))
+}
+
+/// The survey database at `path` as its write-ahead log makes it (the log
+/// has frames SQLite replays, and belongs to the file as far as its bytes
+/// tell: `damage::settled`) is checked as the file alone was: its schema and
+/// `PRAGMA quick_check`, on an ordinary read-only connection, which reads the
+/// log as every reader and writer will (and may make SQLite's shared-memory
+/// index beside it; the file and the log are not written).
+async fn through_log(path: &Path) -> anyhow::Result<()> {
+    let (pool, immutable) = connect_read_only(path).await?;
+    let known = MIGRATIONS.last().map_or(0, |m| m.0);
+    let problems = match schema(&pool, path).await {
+        Ok(Schema::Survey(Some(v))) if v <= known && !immutable => damage::problems(&pool, path, v, true).await,
+        Ok(_) => Ok(Vec::new()),
+        Err(e) if e.to_string().contains(damage::MALFORMED) => Ok(vec![damage::MALFORMED.to_string()]),
+        Err(e) => Err(e),
+    };
+    pool.close().await;
+    let problems = problems?;
+    if problems.is_empty() {
+        return Ok(());
+    }
+    let log = damage::wal_path(path);
+    let mut said = vec![format!("as the write-ahead log beside it ({}) makes it", log.display())];
+    said.extend(problems);
+    said.push(format!(
+        "the file without that log reads as of its last checkpoint (move {} aside to read it so)",
+        log.display()
+    ));
+    Err(damage::damaged(path, &said))
 }
 
 /// A read-only connection to the SQLite file at `path` that has read its

@@ -141,7 +141,7 @@ impl Store {
                 if !crate::lock::release_reserve(&self.path, id) {
                     return Err(e);
                 }
-                tracing::warn!(survey = id, error = %format!("{e:#}"), "the disk is full: the status is written into the reserve");
+                tracing::warn!(survey = id, error = %crate::error::said(&e), "the disk is full: the status is written into the reserve");
                 let written = self.write_status(id, status, ended_at_s).await;
                 drop(guard);
                 written
@@ -294,6 +294,37 @@ impl Store {
             .bind(id)
             .bind(at_s)
             .bind(level)
+            .bind(message)
+            .execute(tx.conn())
+            .await
+            .map_err(|e| self.fk_to_not_found(id, e).context(context()))?;
+        tx.commit().await.with_context(context)?;
+        Ok(())
+    }
+
+    /// Store a survey's setup with new transport addresses (`resume
+    /// --config`: see `config::readdress`) and the event that says which,
+    /// in one transaction: a later resume uses the new addresses, and the
+    /// events keep the old ones.
+    pub async fn readdress(
+        &self,
+        id: i64,
+        setup: &crate::survey::Setup,
+        at_s: f64,
+        message: &str,
+    ) -> anyhow::Result<()> {
+        let context = || format!("cannot store the new addresses of survey {id}");
+        let mut tx = WriteTx::begin(self.sqlite()?).await.with_context(context)?;
+        sqlx::query("UPDATE surveys SET config_json = ? WHERE id = ?")
+            .bind(setup.to_column())
+            .bind(id)
+            .execute(tx.conn())
+            .await
+            .with_context(context)?;
+        sqlx::query("INSERT INTO events (survey_id, at_s, level, message) VALUES (?, ?, ?, ?)")
+            .bind(id)
+            .bind(at_s)
+            .bind("info")
             .bind(message)
             .execute(tx.conn())
             .await

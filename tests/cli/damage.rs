@@ -128,3 +128,129 @@ fn serve_answers_503_saying_the_file_is_damaged_in_words() {
     assert!(std::fs::read(bench.path("no-events.db")).unwrap() == before);
     assert_no_sidecars(&bench, "no-events.db", "after serve");
 }
+
+/// The commands of issue 51's attack set, each refused on a damaged file.
+const EVERY_COMMAND: [&[&str]; 7] = [
+    &["list"],
+    &["stats"],
+    &["export", "--csv", "out.csv"],
+    &["run", "--points", "36", "--runs", "2"],
+    &["import", "valid.csv"],
+    &["push", "--to", "postgres://survey@127.0.0.1:9/none"],
+    &["resume"],
+];
+
+/// A file cut short by less than a page (1, 100, 4095 bytes) or by one
+/// whole page: SQLite reads the missing tail as zeros or a short read, so
+/// every command looked at it as sound (`list` exited 1 with `(code: 522)`,
+/// `stats` and `export` 0, `run` and `import` wrote into it). Now each is
+/// refused, exit 2, naming what the file lacks, its bytes unchanged.
+#[test]
+fn a_file_cut_short_by_less_than_a_page_is_refused_by_every_command() {
+    let bench = Bench::new();
+    bench.write("valid.csv", VALID_CSV);
+    bench.small_survey(true);
+    let whole = std::fs::read(bench.path("survey.db")).unwrap();
+    assert_eq!(whole.len() % 4096, 0);
+    for cut in [1usize, 100, 4095, 4096] {
+        let db = format!("cut-{cut}.db");
+        let before = whole[..whole.len() - cut].to_vec();
+        bench.write(&db, &before);
+        for args in EVERY_COMMAND {
+            let out = refused(&bench, &db, &before, args, "its header counts");
+            assert!(out.stderr.contains("cut short") && out.stderr.contains("are whole"), "{out}");
+        }
+        assert!(!bench.exists("out.csv"), "no export written from a damaged file");
+    }
+    bench.survey(&["list"]).success();
+}
+
+/// The write-ahead log of `db` as it stands after `change` on a connection
+/// that never checkpoints (what a killed writer leaves), copied to `to`; the
+/// connection then closes, checkpointing it into `db` (the log goes).
+fn log_of(bench: &Bench, db: &str, to: &str, change: &str) {
+    let conn = rusqlite::Connection::open(bench.path(db)).unwrap();
+    conn.execute_batch("PRAGMA journal_mode = WAL; PRAGMA wal_autocheckpoint = 0").unwrap();
+    conn.execute_batch(change).unwrap();
+    std::fs::copy(bench.path(&format!("{db}-wal")), bench.path(to)).unwrap();
+    drop(conn);
+}
+
+/// Rows enough to add pages to the file (page 1 changes with the count).
+fn grow(tag: &str) -> String {
+    format!(
+        "WITH RECURSIVE n(v) AS (SELECT 1 UNION ALL SELECT v + 1 FROM n WHERE v < 8) \
+         INSERT INTO events (survey_id, at_s, level, message) SELECT 1, v, 'info', '{tag}' || printf('%.3000c', 'x') FROM n"
+    )
+}
+
+/// A `-wal` beside the file that is not its own: another copy's log (the
+/// copies parted, both wrote), an old log of the file itself, and another
+/// copy's log that changed no page 1 while this file grew. SQLite replays any
+/// log onto the file it finds it beside; every command looked at the file
+/// alone and `run`, `import` and `resume` wrote into the mixture. Now each is
+/// refused, exit 2, the file and the log unchanged, nothing made beside them.
+/// A log that is the file's own (left by a killed writer) is read.
+#[test]
+fn a_write_ahead_log_from_another_copy_is_refused_by_every_command() {
+    let bench = Bench::new();
+    bench.write("valid.csv", VALID_CSV);
+    bench.small_survey(true);
+    let copy = |name: &str| std::fs::copy(bench.path("survey.db"), bench.path(name)).unwrap();
+    // Another copy's log: both copies changed page 1 after they parted.
+    copy("other.db");
+    log_of(&bench, "other.db", "other.wal", &format!("PRAGMA user_version = 7; {}", grow("other")));
+    copy("diverged.db");
+    rusqlite::Connection::open(bench.path("diverged.db")).unwrap().execute_batch(&grow("mine")).unwrap();
+    std::fs::copy(bench.path("other.wal"), bench.path("diverged.db-wal")).unwrap();
+    // The file's own log, from before its last transactions.
+    copy("stale.db");
+    log_of(&bench, "stale.db", "stale.wal", &grow("first"));
+    rusqlite::Connection::open(bench.path("stale.db")).unwrap().execute_batch(&grow("then")).unwrap();
+    std::fs::copy(bench.path("stale.wal"), bench.path("stale.db-wal")).unwrap();
+    // Another copy's log of a change within its pages, beside a file that grew.
+    copy("inplace.db");
+    log_of(&bench, "inplace.db", "inplace.wal", "UPDATE events SET level = 'note' WHERE id = 1");
+    copy("grown.db");
+    rusqlite::Connection::open(bench.path("grown.db")).unwrap().execute_batch(&grow("grown")).unwrap();
+    std::fs::copy(bench.path("inplace.wal"), bench.path("grown.db-wal")).unwrap();
+    for (db, why) in [("diverged.db", "another copy"), ("stale.db", "newer than the log"), ("grown.db", "another copy")]
+    {
+        assert_no_sidecars_but_the_log(&bench, db);
+        let before = std::fs::read(bench.path(db)).unwrap();
+        let log = std::fs::read(bench.path(&format!("{db}-wal"))).unwrap();
+        for args in EVERY_COMMAND {
+            let mut all = vec!["--db", db];
+            all.extend(args);
+            let out = bench.survey(&all).bad_input(&[db, "is damaged", "does not belong to it", why, "move"]);
+            assert!(!out.stderr.contains("(code:"), "{out}");
+            assert!(std::fs::read(bench.path(db)).unwrap() == before, "the file unchanged\n{out}");
+            assert!(std::fs::read(bench.path(&format!("{db}-wal"))).unwrap() == log, "the log unchanged\n{out}");
+            assert_no_sidecars_but_the_log(&bench, db);
+        }
+        // Moved aside, the file reads as of its last checkpoint.
+        std::fs::rename(bench.path(&format!("{db}-wal")), bench.path(&format!("{db}.aside"))).unwrap();
+        bench.survey(&["--db", db, "stats"]).success();
+    }
+    // The file's own log, as a killed writer leaves it: read, and written.
+    copy("killed.db");
+    let conn = rusqlite::Connection::open(bench.path("killed.db")).unwrap();
+    conn.execute_batch(&format!("PRAGMA wal_autocheckpoint = 0; PRAGMA user_version = 3; {}", grow("killed"))).unwrap();
+    std::fs::copy(bench.path("killed.db"), bench.path("own.db")).unwrap();
+    std::fs::copy(bench.path("killed.db-wal"), bench.path("own.db-wal")).unwrap();
+    drop(conn);
+    bench.survey(&["--db", "own.db", "stats"]).success();
+    bench.survey(&["--db", "own.db", "import", "valid.csv"]).success();
+    let events: i64 = rusqlite::Connection::open(bench.path("own.db"))
+        .unwrap()
+        .query_row("SELECT count(*) FROM events WHERE message LIKE 'killed%'", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(events, 8, "the log's transaction is the file's");
+}
+
+#[track_caller]
+fn assert_no_sidecars_but_the_log(bench: &Bench, name: &str) {
+    for suffix in ["-shm", "-journal"] {
+        assert!(!bench.exists(&format!("{name}{suffix}")), "{name}{suffix} is there");
+    }
+}

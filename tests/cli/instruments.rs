@@ -204,3 +204,65 @@ fn polygon_turns_in_a_configuration_are_checked_before_anything_is_stored() {
     assert!(out.stderr.contains("[polygon] turns"), "{out}");
     assert!(!bench.exists("survey.db"), "nothing stored");
 }
+
+/// Issue 51, item 3: `survey resume --config FILE` takes new transport
+/// addresses for an interrupted survey, refuses any other difference naming
+/// the key (exit 2), and records the change in the survey's events; a device
+/// path that is there but is not a serial line is refused before anything
+/// opens it.
+#[test]
+fn resume_takes_new_addresses_refuses_other_changes_and_checks_a_device_before_opening_it() {
+    let bench = Bench::new();
+    let base = |address: &str, port: &str| {
+        config(address, port).replace("[timing]\n", "[timing]\nmax_retries = 1\nretry_backoff_s = 0.01\n")
+    };
+    bench.write("c.toml", base("127.0.0.1:1", "/nonexistent/ttyX"));
+    assert_eq!(bench.survey(&["run", "--config", "c.toml"]).code, 1);
+    let stored = || std::fs::read(bench.path("survey.db")).unwrap();
+    let before = stored();
+    for (name, text, key) in [
+        ("baud.toml", base("127.0.0.1:1", "/nonexistent/ttyX").replace("115200", "9600"), "`autocollimator.baud`"),
+        (
+            "points.toml",
+            base("127.0.0.1:1", "/nonexistent/ttyX").replace("points = 24", "points = 12"),
+            "`survey.points`",
+        ),
+        (
+            "axis.toml",
+            base("127.0.0.1:1", "/nonexistent/ttyX")
+                .replace("driver = \"scpi-tcp\"\n", "driver = \"scpi-tcp\"\naxis = 2\n"),
+            "`positioner.axis`",
+        ),
+    ] {
+        bench.write(name, text);
+        bench.survey(&["resume", "--config", name]).bad_input(&[name, key, "transport addresses only"]);
+    }
+    // A path that is there but not a serial line: named, never opened.
+    bench.write("plain.txt", "not a tty");
+    for (port, what) in [("plain.txt", "is a regular file, not a serial port"), ("/dev/null", "not a serial port")] {
+        bench.write("device.toml", base("127.0.0.1:1", port));
+        bench.survey(&["resume", "--config", "device.toml"]).bad_input(&[
+            "autocollimator.port",
+            what,
+            "nothing was opened",
+        ]);
+    }
+    assert!(stored() == before, "nothing stored by a refused resume");
+    // New addresses: taken, said, kept in the events and for the next resume.
+    bench.write("moved.toml", base("127.0.0.1:2", "/nonexistent/ttyY"));
+    let out = bench.survey(&["resume", "--config", "moved.toml"]);
+    assert_eq!(out.code, 1, "{out}");
+    let change =
+        "autocollimator.port: /nonexistent/ttyX -> /nonexistent/ttyY; positioner.address: 127.0.0.1:1 -> 127.0.0.1:2";
+    assert!(out.stderr.contains(change), "{out}");
+    let events: Vec<String> = {
+        let conn = rusqlite::Connection::open(bench.path("survey.db")).unwrap();
+        let mut q = conn.prepare("SELECT message FROM events WHERE message LIKE 'resumed on new addresses%'").unwrap();
+        q.query_map([], |r| r.get(0)).unwrap().map(Result::unwrap).collect()
+    };
+    assert_eq!(events.len(), 1, "{events:?}");
+    assert!(events[0].contains(change), "{events:?}");
+    let out = bench.survey(&["resume"]);
+    assert_eq!(out.code, 1, "{out}");
+    assert!(out.stderr.contains("127.0.0.1:2") && !out.stderr.contains("127.0.0.1:1 "), "{out}");
+}

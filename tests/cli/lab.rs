@@ -689,3 +689,44 @@ fn the_lab_store_s_schema_is_the_station_s_tables_columns_types_and_keys() {
         assert_eq!(t, &store[name], "table {name}: SQLite left, PostgreSQL right");
     }
 }
+
+/// Issue 51, item 4: the lab store's schema is checked as a station's
+/// file's is. A column or a table dropped, an index gone: every read and
+/// `push` exits 2 naming what is missing and the migration that makes it
+/// (it gave raw sqlx text, exit 1); a table the role may not read: exit 2
+/// with the grant to run.
+#[test]
+fn a_lab_store_missing_a_column_a_table_or_a_grant_is_refused_saying_what_to_run() {
+    let Some(server) = server() else { return };
+    let bench = Bench::new();
+    small_surveys(&bench, 1, 3);
+    let lab = server.database("damaged_lab");
+    bench.survey(&["push", "--to", &lab]).success();
+    server.psql("damaged_lab", "ALTER TABLE checks DROP COLUMN stated_u_deg; DROP INDEX surveys_by_asset");
+    for args in [&["list"][..], &["stats"], &["history"]] {
+        let out = on_lab(&bench, &lab, args).bad_input(&[
+            "the lab store postgres://survey@127.0.0.1:",
+            "is damaged: the table `checks` has no column `stated_u_deg` (made by migrations/postgres/0012_intervals.sql)",
+            "the index `surveys_by_asset` is missing (made by migrations/postgres/0005_assets.sql)",
+        ]);
+        assert!(!out.stderr.contains(PASSWORD) && !out.stderr.contains("error returned from database"), "{out}");
+    }
+    bench.survey(&["push", "--to", &lab]).bad_input(&["is damaged", "stated_u_deg"]);
+    server.psql("damaged_lab", "DROP TABLE events");
+    on_lab(&bench, &lab, &["list"])
+        .bad_input(&["the table `events` is missing (made by migrations/postgres/0001_init.sql)"]);
+    // A role that may read the migrations' table and the surveys only.
+    let sound = server.database("granted_lab");
+    bench.survey(&["push", "--to", &sound]).success();
+    server.psql(
+        "granted_lab",
+        "CREATE ROLE reader51 LOGIN PASSWORD 'reader-pw-51'; GRANT SELECT ON _sqlx_migrations, surveys TO reader51",
+    );
+    let reader = sound.replace(&format!("survey:{PASSWORD}"), "reader51:reader-pw-51");
+    let out = on_lab(&bench, &reader, &["list"]).bad_input(&[
+        "the role reader51 may not read the tables",
+        "`events`",
+        "GRANT SELECT ON",
+    ]);
+    assert!(!out.stderr.contains("reader-pw-51"), "{out}");
+}
