@@ -62,11 +62,14 @@ pub struct PolarPoint {
     pub tilt_urad: Option<f64>,
 }
 
+/// One target's sample indices (one a run), with the target.
+type Target = (f64, Vec<usize>);
+
 /// The samples grouped by direction and target, and the tracker's bounds.
 #[derive(Debug)]
 pub struct Figures {
     /// Per direction: each target's sample indices (one a run), in target order.
-    groups: Vec<(Direction, Vec<(f64, Vec<usize>)>)>,
+    groups: Vec<(Direction, Vec<Target>)>,
     runs: usize,
     e_t_um: f64,
     sigma_um: f64,
@@ -87,7 +90,7 @@ impl Figures {
             let key = (s.direction == Direction::Reverse, (s.target_deg * 1e6).round() as i64);
             by.entry(key).or_insert_with(|| (s.target_deg, Vec::new())).1.push(i);
         }
-        let mut groups: Vec<(Direction, Vec<(f64, Vec<usize>)>)> = Vec::new();
+        let mut groups: Vec<(Direction, Vec<Target>)> = Vec::new();
         for ((reverse, _), g) in by {
             let d = if reverse { Direction::Reverse } else { Direction::Forward };
             match groups.last_mut() {

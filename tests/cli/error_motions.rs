@@ -89,6 +89,19 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
     within("axial_um", pv(72, |t| 40.0 * (3.0 * t + 30.0).to_radians().sin() + tilt(t)));
     within("tilt_urad", pv(72, tilt));
 
+    // The report shows them (a table and polar plots); the DCC carries them as a result of their own.
+    bench.survey(&["report", "--out", "r"]).success();
+    let html = bench.read("r/index.html");
+    for id in ["tbl-axis-location", "tbl-error-motions", "fig-radial-motion", "fig-axial-motion", "fig-tilt-motion"] {
+        assert!(html.contains(&format!("id=\"{id}\"")), "the report shows {id}");
+    }
+    let dcc = bench.read("r/dcc.xml");
+    for ref_type in ["survey_errorMotions", "survey_motionRadialSynchronous", "survey_motionTiltTotal", "survey_axisB0"]
+    {
+        assert!(dcc.contains(ref_type), "the DCC carries {ref_type}");
+    }
+    assert!(dcc.contains("<dcc:noQuantity>"), "the asynchronous motions are below the limit: said, not a number");
+
     // The Figure 8 default's wobble (a few um) is below what the tracker can tell.
     let fig8 = bench.survey(&["--db", "fig8.db", "run", "--points", "72", "--runs", "2", "--json"]).success().json();
     let m = &fig8["process"]["error_motions"];
