@@ -119,3 +119,31 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
         "location",
     ]);
 }
+
+/// A growing wobble (a worn bearing) across an asset's surveys: `history`
+/// shows each survey's radial and axial totals, `compare` the change.
+#[test]
+fn history_and_compare_show_a_growing_wobble() {
+    let bench = Bench::new();
+    let model = |um: f64| {
+        format!("[[effect]]\nkind = \"radial_motion\"\ncycles_per_rev = 2\namplitude_um = {um:.1}\nphase_deg = 0.0\n")
+    };
+    for (file, um) in [("new.toml", 40.0), ("worn.toml", 120.0)] {
+        bench.write(file, model(um));
+        bench.survey(&["run", "--points", "72", "--runs", "2", "--model", file, "--asset", "az-1", "--json"]).success();
+    }
+    let h = bench.survey(&["history", "--asset", "az-1", "--json"]).success().json();
+    let totals: Vec<f64> = h["surveys"]
+        .as_array()
+        .expect("surveys")
+        .iter()
+        .map(|s| num(&s["error_motions"]["radial_um"]["total"], "radial total"))
+        .collect();
+    assert_eq!(totals.len(), 2, "{h}");
+    for (got, truth) in totals.iter().zip([80.0, 240.0]) {
+        assert!((got - truth).abs() < 40.0, "radial totals {totals:?} against 2 x the amplitudes");
+    }
+    let c = bench.survey(&["compare", "1", "2", "--json"]).success().json();
+    let change = &c["error_motions"]["radial_total_change_um"];
+    assert!(num(&change["change"], "change") > 100.0 && change["significant"] == true, "{c}");
+}
