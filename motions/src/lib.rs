@@ -32,13 +32,15 @@
 //!    largest spread across runs at any target.
 //! 5. Each figure's `U` (k = 2) and the detection limit, [`figures`].
 
+mod deviations;
 mod figures;
 mod location;
 
 pub use figures::{Block, Figures, PolarPoint};
 pub use location::Location;
 
-use survey_processing::geometry::{AxisFit, fit_axis};
+use deviations::{deviations, tilt_pair};
+
 use survey_processing::smrs::SmrMount;
 use survey_processing::tracker_errors::TransverseMpe;
 use survey_processing::{Direction, Sample};
@@ -101,46 +103,6 @@ pub const METHOD: &str = "ISO 230-7 from the tracker's SMR positions: each SMR's
                           and different heights; synchronous = the mean over runs, asynchronous = the spread across \
                           runs, total = the peak-to-valley of every reading; U (k = 2) from the tracker's MPE and its \
                           random error";
-
-/// One SMR's deviations at every sample, um: radial and axial; and its fit.
-struct Deviations {
-    fit: AxisFit,
-    radial_um: Vec<f64>,
-    axial_um: Vec<f64>,
-}
-
-fn deviations(points: &[[f64; 3]], readouts: &[f64]) -> Option<Deviations> {
-    let fit = fit_axis(points, readouts).ok()?;
-    let (c, n) = (fit.center_mm, fit.normal);
-    let mut radial_um = Vec::with_capacity(points.len());
-    let mut axial_um = Vec::with_capacity(points.len());
-    for p in points {
-        let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
-        let h = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
-        let inplane = [d[0] - h * n[0], d[1] - h * n[1], d[2] - h * n[2]];
-        let r = (inplane[0] * inplane[0] + inplane[1] * inplane[1] + inplane[2] * inplane[2]).sqrt();
-        radial_um.push((r - fit.radius_mm) * 1000.0);
-        axial_um.push(h * 1000.0);
-    }
-    Some(Deviations { fit, radial_um, axial_um })
-}
-
-/// The pair of SMRs that measures tilt: the two at one phase (within 1
-/// degree) farthest apart in height (at least 10 mm), first index lower.
-fn tilt_pair(tracks: &[Track]) -> Option<(usize, usize, f64)> {
-    let mut best: Option<(usize, usize, f64)> = None;
-    for i in 0..tracks.len() {
-        for j in 0..tracks.len() {
-            let (a, b) = (tracks[i].mount, tracks[j].mount);
-            let phase = (a.phase_deg - b.phase_deg + 180.0).rem_euclid(360.0) - 180.0;
-            let dh = b.height_mm - a.height_mm;
-            if phase.abs() <= 1.0 && dh >= 10.0 && best.is_none_or(|(_, _, h)| dh > h) {
-                best = Some((i, j, dh));
-            }
-        }
-    }
-    best
-}
 
 /// The error motions of a survey; `None` when the first SMR's positions do
 /// not locate an axis (fewer than 3, degenerate) or a track's length is not
