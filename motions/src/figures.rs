@@ -15,15 +15,20 @@
 //!   urad of each angle at the distance, at least 1 um): every one of the `M`
 //!   readings of a direction lies within `z sigma` of its truth at 95 % with
 //!   `z` the two-sided normal quantile of `0.05 / M`, so the random part moves
-//!   a peak-to-valley by at most `2 z sigma` (`2 z sigma / sqrt(runs)` for the
-//!   synchronous curve, a mean of the runs);
-//! - total and synchronous: `U = sqrt(e_T^2 + random^2)`; asynchronous:
-//!   `U = 2 z sigma`.
+//!   a peak-to-valley by at most `r = 2 z sigma`;
+//! - the synchronous curve is a mean of the runs: what scatters from run to
+//!   run (the tracker's noise and the axis's own asynchronous motion) moves
+//!   it by at most `2 z s / sqrt(runs)`, `s` the larger of `sigma` and the
+//!   scatter measured within the targets (pooled);
+//! - total: `U = sqrt(e_T^2 + r^2)`; synchronous: `U = sqrt(e_T^2 + (2 z s /
+//!   sqrt(runs))^2)`; asynchronous: `U = r`.
 //!
-//! The detection limit is `e_T` (the issue's "about its transverse error at
-//! that distance"): a figure below it is `None`, "below the detection
-//! limit". The tilt's figures are a difference of two SMRs' radial motions
-//! over their separation `dh`: every bound scaled by `sqrt(2) / dh`.
+//! The detection limit is the larger of `e_T` (the issue's "about its
+//! transverse error at that distance") and `r`, what the tracker's random
+//! error alone can make of a peak-to-valley: a figure below it is `None`,
+//! "below the detection limit". The tilt's figures are a difference of two
+//! SMRs' radial motions over their separation `dh`: every bound scaled by
+//! `sqrt(2) / dh`.
 
 use crate::direction_name;
 use std::collections::BTreeMap;
@@ -108,33 +113,35 @@ impl Figures {
         self.runs
     }
 
-    /// The detection limit of a radial or axial figure, um.
-    pub(crate) fn detection_limit_um(&self) -> f64 {
-        self.e_t_um
-    }
-
     /// The figures of `values` (one a sample), every bound scaled by `scale`
     /// (1 for um; `sqrt(2) / dh` for a tilt in urad).
     pub(crate) fn block(&self, values: &[f64], scale: f64) -> Block {
         let (mut total, mut sync, mut asynchronous, mut readings) = (0.0f64, 0.0f64, None::<f64>, 0usize);
+        let (mut squares, mut freedom) = (0.0f64, 0usize);
         for (_, list) in &self.groups {
             total = total.max(spread(list.iter().flat_map(|(_, ix)| ix.iter().map(|&i| values[i]))));
-            let means = list.iter().map(|(_, ix)| ix.iter().map(|&i| values[i]).sum::<f64>() / ix.len() as f64);
-            sync = sync.max(spread(means));
+            let mean = |ix: &[usize]| ix.iter().map(|&i| values[i]).sum::<f64>() / ix.len() as f64;
+            sync = sync.max(spread(list.iter().map(|(_, ix)| mean(ix))));
             for (_, ix) in list.iter().filter(|(_, ix)| ix.len() > 1) {
                 asynchronous = Some(asynchronous.unwrap_or(0.0).max(spread(ix.iter().map(|&i| values[i]))));
+                let m = mean(ix);
+                squares += ix.iter().map(|&i| (values[i] - m).powi(2)).sum::<f64>();
+                freedom += ix.len() - 1;
             }
             readings = readings.max(list.iter().map(|(_, ix)| ix.len()).sum());
         }
         let z = normal_two_sided_isf(0.05 / readings.max(1) as f64);
         let random = 2.0 * z * self.sigma_um * scale;
+        let scatter = if freedom > 0 { (squares / freedom as f64).sqrt() } else { 0.0 };
+        let of_means = 2.0 * z * (self.sigma_um * scale).max(scatter) / (self.runs.max(1) as f64).sqrt();
         let e_t = self.e_t_um * scale;
         let u_total = e_t.hypot(random);
-        let u_synchronous = e_t.hypot(random / (self.runs.max(1) as f64).sqrt());
+        let u_synchronous = e_t.hypot(of_means);
         let u_asynchronous = random;
+        let limit = e_t.max(random);
         let mut below_limit = Vec::new();
         let mut kept = |name: &'static str, v: Option<f64>| match v {
-            Some(v) if v >= e_t => Some(v),
+            Some(v) if v >= limit => Some(v),
             Some(_) => {
                 below_limit.push(name);
                 None
@@ -150,7 +157,7 @@ impl Figures {
             u: u_total.max(u_synchronous).max(u_asynchronous),
             below_detection_limit: !below_limit.is_empty(),
             below_limit,
-            detection_limit: e_t,
+            detection_limit: limit,
             u_total,
             u_synchronous,
             u_asynchronous,

@@ -77,8 +77,9 @@ pub struct ErrorMotions {
     /// Tilt error motion, urad: `None` without two SMRs at one phase and
     /// different heights.
     pub tilt_urad: Option<Block>,
-    /// The smallest motion the tracker can tell from its own error: its
-    /// transverse MPE at the farthest SMR's distance, um.
+    /// The smallest radial or axial motion the tracker can tell from its own
+    /// error: its transverse MPE at the farthest SMR's distance, or what its
+    /// random error can make of a peak-to-valley if larger, um.
     pub detection_limit_um: f64,
     /// The radius the radial and axial motions are measured at, mm.
     pub radius_mm: f64,
@@ -122,6 +123,7 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
         .fold(0.0, f64::max);
     let figures = Figures::new(samples, input.mpe, farthest_mm);
     let radial = figures.block(&first.radial_um, 1.0);
+    let detection_limit_um = radial.detection_limit;
     let axial = figures.block(&first.axial_um, 1.0);
     let mut notes = Vec::new();
     let tilt = match tilt_pair(&input.tracks) {
@@ -149,7 +151,7 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
         radial_um: radial,
         axial_um: axial,
         tilt_urad: tilt.map(|(b, _)| b),
-        detection_limit_um: figures.detection_limit_um(),
+        detection_limit_um,
         radius_mm: first.fit.radius_mm,
         runs: figures.runs(),
         method: METHOD,

@@ -134,8 +134,8 @@ fn one_smr_radial_and_axial_against_the_truth() {
     let total = e.radial_um.total.unwrap();
     assert!(total >= r && total - radial <= e.radial_um.u_total, "{total}");
     assert!(e.tilt_urad.is_none() && e.notes[0].contains("no tilt"));
-    // The detection limit: 15 um + 6 um/m at the farthest reading, about 3.6 m.
-    assert!((36.0..37.5).contains(&e.detection_limit_um), "{}", e.detection_limit_um);
+    // The detection limit: 15 um + 6 um/m at the farthest reading (about 3.6 m), or the noise's own peak-to-valley.
+    assert!((36.8..45.0).contains(&e.detection_limit_um), "{}", e.detection_limit_um);
     // Noise only across runs: the asynchronous figure is below the limit.
     assert!(e.radial_um.asynchronous.is_none() && e.radial_um.below_limit == ["asynchronous"]);
     // The location: the circle centre 50 mm up the axis, the tilt 0.3 deg toward 30 deg.
