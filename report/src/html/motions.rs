@@ -109,13 +109,16 @@ fn polar(points: &[PolarPoint], value: impl Fn(&PolarPoint) -> Option<f64>, unit
     Ok(svg + &legend(&entries))
 }
 
+/// What a polar plot shows of a point.
+type Value = fn(&PolarPoint) -> Option<f64>;
+
 /// The section's body.
 pub fn body(m: &ErrorMotions) -> anyhow::Result<String> {
     let mut s = figures_table(m);
-    let plots: [(&str, &str, &str, Box<dyn Fn(&PolarPoint) -> Option<f64>>); 3] = [
-        ("fig-radial-motion", "Radial error motion", "µm", Box::new(|p| Some(p.radial_um))),
-        ("fig-axial-motion", "Axial (face) error motion", "µm", Box::new(|p| Some(p.axial_um))),
-        ("fig-tilt-motion", "Tilt error motion", "µrad", Box::new(|p| p.tilt_urad)),
+    let plots: [(&str, &str, &str, Value); 3] = [
+        ("fig-radial-motion", "Radial error motion", "µm", |p| Some(p.radial_um)),
+        ("fig-axial-motion", "Axial (face) error motion", "µm", |p| Some(p.axial_um)),
+        ("fig-tilt-motion", "Tilt error motion", "µrad", |p| p.tilt_urad),
     ];
     for (id, name, unit, value) in plots {
         if m.polar.iter().all(|p| value(p).is_none()) {
