@@ -173,10 +173,13 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         let s = &mut samples[i];
         s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
     }
-    let first: Vec<(usize, [f64; 3])> =
-        smr.sample_indices().zip(&points[locate.len()..]).map(|(i, p)| (i, *p)).collect();
+    // The first SMR's positions, one a sample in order (a tracker survey's case): no copy made.
+    let indices: Option<Vec<usize>> = match smr.dense() {
+        Some(n) if n == samples.len() => None,
+        _ => Some(smr.sample_indices().collect()),
+    };
     let (reference_error, others) = combine_smrs(store, survey, &mut samples).await?;
-    let error_motions = motions_of(survey, &samples, &first, others.as_deref());
+    let error_motions = motions_of(survey, &samples, indices.as_deref(), &points[locate.len()..], others.as_deref());
     let center_shift_mm = in_plane_shift(&fit, located);
     let refit = AxisRefit {
         points: smr.xyz_mm.len(),
@@ -196,23 +199,28 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
 }
 
 /// The axis's location and error motions ([`survey_motions`]) from the
-/// samples that have the first SMR's position (`first`: the sample's index
-/// and the position) and, where every sample has them, the other SMRs'
-/// (`others[k - 1][sample]`).
+/// first SMR's positions `first` (those of the samples `indices`, or of
+/// every sample in order when `None`) and, where every sample has them, the
+/// other SMRs' (`others[k - 1][sample]`).
 fn motions_of(
     survey: &SurveyRecord,
     samples: &[Sample],
-    first: &[(usize, [f64; 3])],
+    indices: Option<&[usize]>,
+    first: &[[f64; 3]],
     others: Option<&[Vec<[f64; 3]>]>,
 ) -> Option<survey_motions::ErrorMotions> {
-    let kept: Vec<Sample> = first.iter().map(|(i, _)| samples[*i]).collect();
-    let points: Vec<[f64; 3]> = first.iter().map(|(_, p)| *p).collect();
+    let kept: std::borrow::Cow<'_, [Sample]> = match indices {
+        None => std::borrow::Cow::Borrowed(samples),
+        Some(ix) => std::borrow::Cow::Owned(ix.iter().map(|&i| samples[i]).collect()),
+    };
     let mounts = survey.smrs();
-    let mut tracks =
-        vec![survey_motions::Track { mount: survey_processing::smrs::SmrMount::FIRST, points_mm: &points }];
-    let theirs: Vec<Vec<[f64; 3]>> = match others {
-        Some(o) => o.iter().map(|pts| first.iter().map(|(i, _)| pts[*i]).collect()).collect(),
-        None => Vec::new(),
+    let mut tracks = vec![survey_motions::Track { mount: survey_processing::smrs::SmrMount::FIRST, points_mm: first }];
+    let theirs: Vec<std::borrow::Cow<'_, [[f64; 3]]>> = match (others, indices) {
+        (Some(o), None) => o.iter().map(|pts| std::borrow::Cow::Borrowed(pts.as_slice())).collect(),
+        (Some(o), Some(ix)) => {
+            o.iter().map(|pts| std::borrow::Cow::Owned(ix.iter().map(|&i| pts[i]).collect())).collect()
+        }
+        (None, _) => Vec::new(),
     };
     for (k, pts) in theirs.iter().enumerate() {
         if let Some(mount) = mounts.get(k + 1) {
