@@ -105,12 +105,12 @@ pub const BODY: &[Show] = &[
     table::show,
     verification::show,
     modelgap::show,
-    motions::show,
     drift::show,
     environment::show,
     uncertainty::show,
     history::show,
     iso::show_axis,
+    motions::show,
     notes,
     end,
 ];

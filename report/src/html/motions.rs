@@ -138,11 +138,14 @@ pub fn body(m: &ErrorMotions) -> anyhow::Result<String> {
          own error.",
         m.detection_limit_um
     );
+    // The polar plots and the method on the screen (and the lab's pages); printed, the
+    // certificate keeps the tables (the DCC carries every figure).
+    s += "<div class=\"screen-only\">\n";
     s += &figure("fig-error-motions", &svg, &legend(&entries), &escape(&caption));
     for n in &m.notes {
         s += &super::note(n);
     }
-    s += &format!("<p class=\"note\">{}</p>\n", escape(m.method));
+    s += &format!("<p class=\"note\">{}</p>\n</div>\n", escape(m.method));
     Ok(s)
 }
 
