@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 const INPUTS: &[&str] = &[
     "../processing/src",
     "../modelgap/src",
+    "../motions/src",
     "../plan/src",
     "../store/src/samples.rs",
     "../store/src/pack.rs",

@@ -238,6 +238,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
             doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
             doc["reference_error"] = serde_json::to_value(&r.reference_error).unwrap_or_default();
         }
+        doc["error_motions"] = loaded.refit.as_ref().map(|r| r.motions_json()).unwrap_or_default();
         if let Some(p) = &loaded.polygon {
             p.put_in(&mut doc);
         }
@@ -245,7 +246,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         doc["drift_in_time"] = serde_json::to_value(&loaded.time_drift).unwrap_or_default();
         format!("{doc}\n")
     } else {
-        let mut text = loaded.refit.as_ref().map(|r| units.text(&r.text())).unwrap_or_default();
+        let mut text = loaded.refit.as_ref().map(|r| units.text(&r.text()) + &r.motions_text()).unwrap_or_default();
         text += &loaded.polygon.as_ref().map(|p| p.text()).unwrap_or_default();
         text += &loaded.time_drift.as_ref().map(|d| d.text()).unwrap_or_default();
         for note in loaded.gross.notes() {

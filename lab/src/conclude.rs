@@ -329,7 +329,9 @@ async fn complete(
     if let Some(r) = &survey.loaded.refit {
         doc["process"]["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
         doc["process"]["reference_error"] = serde_json::to_value(&r.reference_error).unwrap_or_default();
+        doc["process"]["error_motions"] = r.motions_json();
         *text += &units.text(&r.text());
+        *text += &r.motions_text();
         // Recorded with the survey (`survey show` lists it); a failed write
         // loses only this line, the refit is made again from the raw readings.
         let at = engine.clock().now().as_secs_f64();

@@ -58,6 +58,11 @@ pub struct AxisRefit {
     /// What the survey's SMRs say of the tracker's own error (the
     /// contract's `reference_error`).
     pub reference_error: ReferenceError,
+    /// The axis's location and error motions (ISO 230-1, ISO 230-7:
+    /// `survey_motions`), the contract's `error_motions`; `None` where the
+    /// SMR positions do not give them. Put in the documents by their own key.
+    #[serde(skip)]
+    pub error_motions: Option<survey_motions::ErrorMotions>,
 }
 
 /// The tracker's own error as the survey's SMRs separated it from the
@@ -168,7 +173,13 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         let s = &mut samples[i];
         s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
     }
-    let reference_error = combine_smrs(store, survey, &mut samples).await?;
+    // The first SMR's positions, one a sample in order (a tracker survey's case): no copy made.
+    let indices: Option<Vec<usize>> = match smr.dense() {
+        Some(n) if n == samples.len() => None,
+        _ => Some(smr.sample_indices().collect()),
+    };
+    let (reference_error, others) = combine_smrs(store, survey, &mut samples).await?;
+    let error_motions = motions_of(survey, &samples, indices.as_deref(), &points[locate.len()..], others.as_deref());
     let center_shift_mm = in_plane_shift(&fit, located);
     let refit = AxisRefit {
         points: smr.xyz_mm.len(),
@@ -181,16 +192,57 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
         arc_deg,
         over_arc_se_deg,
         reference_error,
+        error_motions,
     };
     tracing::info!(survey = survey.id, ?refit, "axis fitted again from the survey's SMR positions");
     Ok(Some((samples, refit)))
 }
 
+/// The axis's location and error motions ([`survey_motions`]) from the
+/// first SMR's positions `first` (those of the samples `indices`, or of
+/// every sample in order when `None`) and, where every sample has them, the
+/// other SMRs' (`others[k - 1][sample]`).
+fn motions_of(
+    survey: &SurveyRecord,
+    samples: &[Sample],
+    indices: Option<&[usize]>,
+    first: &[[f64; 3]],
+    others: Option<&[Vec<[f64; 3]>]>,
+) -> Option<survey_motions::ErrorMotions> {
+    let kept: std::borrow::Cow<'_, [Sample]> = match indices {
+        None => std::borrow::Cow::Borrowed(samples),
+        Some(ix) => std::borrow::Cow::Owned(ix.iter().map(|&i| samples[i]).collect()),
+    };
+    let mounts = survey.smrs();
+    let mut tracks = vec![survey_motions::Track { mount: survey_processing::smrs::SmrMount::FIRST, points_mm: first }];
+    let theirs: Vec<std::borrow::Cow<'_, [[f64; 3]]>> = match (others, indices) {
+        (Some(o), None) => o.iter().map(|pts| std::borrow::Cow::Borrowed(pts.as_slice())).collect(),
+        (Some(o), Some(ix)) => {
+            o.iter().map(|pts| std::borrow::Cow::Owned(ix.iter().map(|&i| pts[i]).collect())).collect()
+        }
+        (None, _) => Vec::new(),
+    };
+    for (k, pts) in theirs.iter().enumerate() {
+        if let Some(mount) = mounts.get(k + 1) {
+            tracks.push(survey_motions::Track { mount: *mount, points_mm: pts });
+        }
+    }
+    survey_motions::error_motions(&survey_motions::Input { samples: &kept, tracks, mpe: tracker_mpe(survey) })
+}
+
+/// The other SMRs' positions (`[k - 1][sample]`), when every sample has them.
+type OtherSmrs = Option<Vec<Vec<[f64; 3]>>>;
+
 /// The samples' angles from every SMR of the survey (each located by its own
 /// circle, the first's already in `samples`), combined and the tracker's
 /// error separated ([`survey_processing::smrs::combine`]); with one SMR,
-/// what the specification bounds.
-async fn combine_smrs(store: &Store, survey: &SurveyRecord, samples: &mut [Sample]) -> anyhow::Result<ReferenceError> {
+/// what the specification bounds. Also the other SMRs' positions, for the
+/// error motions.
+async fn combine_smrs(
+    store: &Store,
+    survey: &SurveyRecord,
+    samples: &mut [Sample],
+) -> anyhow::Result<(ReferenceError, OtherSmrs)> {
     let mounts = survey.smrs();
     let u_spec = reference_systematic_u_deg(survey).unwrap_or(0.0);
     let alone = |notes: Vec<String>| ReferenceError {
@@ -202,7 +254,7 @@ async fn combine_smrs(store: &Store, survey: &SurveyRecord, samples: &mut [Sampl
         notes,
     };
     if mounts.len() <= 1 {
-        return Ok(alone(Vec::new()));
+        return Ok((alone(Vec::new()), None));
     }
     let n = samples.len();
     let others = store.other_smr_positions(survey.id).await?;
@@ -214,15 +266,20 @@ async fn combine_smrs(store: &Store, survey: &SurveyRecord, samples: &mut [Sampl
     }
     let missing = (1..mounts.len()).map(|k| points[k].iter().filter(|p| p.is_none()).count()).sum::<usize>();
     if missing > 0 {
-        return Ok(alone(vec![format!(
-            "{missing} readings of the other SMRs are missing: the first SMR's angles alone are used, and the \
-             tracker's error is not separated"
-        )]));
+        return Ok((
+            alone(vec![format!(
+                "{missing} readings of the other SMRs are missing: the first SMR's angles alone are used, and the \
+                 tracker's error is not separated"
+            )]),
+            None,
+        ));
     }
     let readouts: Vec<f64> = samples.iter().map(|s| s.readout_deg).collect();
     let mut angles = vec![samples.iter().map(|s| s.actual_deg).collect::<Vec<f64>>()];
+    let mut others = Vec::new();
     for (k, pts) in points.iter().enumerate().skip(1) {
         let xyz: Vec<[f64; 3]> = pts.iter().map(|p| p.expect("checked above")).collect();
+        others.push(xyz.clone());
         let fit = survey_processing::geometry::fit_axis(&xyz, &readouts)
             .map_err(|e| anyhow::anyhow!("survey {}: SMR {} cannot be located: {e}", survey.id, k + 1))?;
         angles.push(xyz.iter().zip(samples.iter()).map(|(p, s)| fit.angle_deg(*p, s.target_deg)).collect());
@@ -233,7 +290,7 @@ async fn combine_smrs(store: &Store, survey: &SurveyRecord, samples: &mut [Sampl
     for (s, a) in samples.iter_mut().zip(&c.angles_deg) {
         s.actual_deg = *a;
     }
-    Ok(ReferenceError {
+    let error = ReferenceError {
         separated: c.separated,
         method: c.method.as_str(),
         smrs: mounts.len(),
@@ -248,10 +305,44 @@ async fn combine_smrs(store: &Store, survey: &SurveyRecord, samples: &mut [Sampl
             .collect(),
         u_deg: c.u_deg,
         notes: c.notes,
-    })
+    };
+    Ok((error, Some(others)))
 }
 
 impl AxisRefit {
+    /// The contract's `error_motions` (null where the positions give none).
+    pub fn motions_json(&self) -> serde_json::Value {
+        self.error_motions.as_ref().and_then(|m| serde_json::to_value(m).ok()).unwrap_or_default()
+    }
+
+    /// The error motions for people: the location, then one line a motion.
+    pub fn motions_text(&self) -> String {
+        let Some(m) = &self.error_motions else { return String::new() };
+        let l = &m.location;
+        let mut s = format!(
+            "axis average line (ISO 230-1, tracker frame): X0 {:.3} mm, Y0 {:.3} mm, A0 {:.1} urad, B0 {:.1} urad\n",
+            l.x0_mm, l.y0_mm, l.a0_urad, l.b0_urad
+        );
+        let shown = |v: Option<f64>| v.map(|v| format!("{v:.1}")).unwrap_or_else(|| "below limit".into());
+        let mut line = |name: &str, unit: &str, b: &survey_motions::Block| {
+            s += &format!(
+                "error motion (ISO 230-7) {name}: total {}, synchronous {}, asynchronous {} {unit} (U = {:.1} {unit}, \
+                 k = 2; detection limit {:.1} {unit})\n",
+                shown(b.total),
+                shown(b.synchronous),
+                shown(b.asynchronous),
+                b.u,
+                b.detection_limit
+            );
+        };
+        line("radial", "um", &m.radial_um);
+        line(&format!("axial at {:.0} mm", m.radius_mm), "um", &m.axial_um);
+        if let Some(t) = &m.tilt_urad {
+            line("tilt", "urad", t);
+        }
+        s
+    }
+
     /// Two lines for people.
     pub fn text(&self) -> String {
         let mut s = format!(

@@ -99,6 +99,7 @@ mod purity {
             here.join("../tables/src"),
             here.join("../plan/src"),
             here.join("../modelgap/src"),
+            here.join("../motions/src"),
         ] {
             let before = files.len();
             sources(&src, &mut files);

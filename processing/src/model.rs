@@ -8,6 +8,8 @@
 //! and `-amplitude/2` on reverse ones; drift adds `rate_deg_per_run` per run
 //! elapsed; noise is a normal, non-repeatable error of `sigma_deg`.
 
+pub use motions::{AxisMotions, MOTION_KINDS, MotionHarmonic, SmrPlace};
+
 use crate::num::Num;
 use crate::tracker_errors::{TrackerErrorSpec, TrackerErrors};
 use crate::types::Direction;
@@ -164,6 +166,9 @@ pub struct Model {
     /// The simulated autocollimator's scale error, parts per million
     /// (`[autocollimator_errors] scale_ppm`; 0 when not given).
     pub autocollimator_scale_ppm: f64,
+    /// The axis's error motions (ISO 230-7: [`motions`]), which move the
+    /// simulated table's SMRs and leave the readout alone.
+    pub motions: AxisMotions,
 }
 
 /// A simulated polygon: what its faces truly are and what its certificate
@@ -195,7 +200,8 @@ pub struct ModelError {
     pub message: String,
 }
 
-const KINDS: &str = "eccentricity, ellipticity, gear_pass, tooth_mesh, harmonic, backlash, drift, noise";
+const KINDS: &str = "eccentricity, ellipticity, gear_pass, tooth_mesh, harmonic, backlash, drift, noise, \
+                     radial_motion, axial_motion, tilt_motion, bearing_noise";
 
 impl Model {
     /// Parse and validate model-file text; `source_name` names it in errors.
@@ -226,6 +232,7 @@ impl Model {
             Some(_) => return Err(err(locate.top_key("design"), "'design' must be a table".into())),
         };
         let mut effects = Vec::new();
+        let mut motions = AxisMotions::default();
         match table.get("effect") {
             None => {}
             Some(toml::Value::Array(items)) => {
@@ -233,7 +240,12 @@ impl Model {
                     let toml::Value::Table(t) = item else {
                         return Err(err(None, format!("effect[{}] must be a table ([[effect]])", i + 1)));
                     };
-                    effects.push(parse_effect(t, i, &locate).map_err(|(l, m)| err(l, m))?);
+                    match t.get("kind").and_then(|k| k.as_str()).filter(|k| MOTION_KINDS.contains(k)) {
+                        Some(kind) => {
+                            motions::parse_effect(t, kind, i, &locate, &mut motions).map_err(|(l, m)| err(l, m))?
+                        }
+                        None => effects.push(parse_effect(t, i, &locate).map_err(|(l, m)| err(l, m))?),
+                    }
                 }
             }
             Some(_) => {
@@ -294,7 +306,7 @@ impl Model {
                 ));
             }
         };
-        Ok(Model { design, effects, tracker_errors, smrs, polygon, autocollimator_scale_ppm })
+        Ok(Model { design, effects, tracker_errors, smrs, polygon, autocollimator_scale_ppm, motions })
     }
 
     /// The model as a model file (TOML), which [`Model::parse`] reads back.
@@ -329,6 +341,7 @@ impl Model {
                 }
             }
         }
+        s.push_str(&self.motions.to_toml());
         if let Some(smrs) = &self.smrs {
             s.push('\n');
             s.push_str(&crate::smrs::section_toml(smrs));
@@ -737,6 +750,8 @@ fn parse_effect(t: &toml::Table, index: usize, loc: &Locator) -> Result<Effect, 
         _ => unreachable!("kind checked above"),
     }
 }
+
+mod motions;
 
 #[cfg(test)]
 mod tests {

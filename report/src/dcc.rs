@@ -513,12 +513,89 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.close("dcc:influenceConditions")?;
     x.open("dcc:results", &[])?;
     figures(x, p)?;
+    motions(x, p)?;
     per_target(x, p)?;
     budget(x, p)?;
     table(x, p)?;
     x.close("dcc:results")?;
     x.close("dcc:measurementResult")?;
     x.close("dcc:measurementResults")
+}
+
+/// The axis's location (ISO 230-1) and error motions (ISO 230-7), one
+/// result of their own: each figure in micrometres or microradians with its
+/// expanded uncertainty, a figure below the detection limit as a
+/// `dcc:noQuantity` that says so.
+fn motions(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
+    let Some(m) = &p.d.error_motions else { return Ok(()) };
+    x.open("dcc:result", &[("refType", "survey_errorMotions")])?;
+    x.words("dcc:name", "Location of the axis average line (ISO 230-1) and error motions of the axis (ISO 230-7)")?;
+    x.words("dcc:description", m.method)?;
+    x.open("dcc:data", &[])?;
+    let real =
+        |x: &mut Xml, ref_type: &str, name: &str, value: f64, unit: &str, u: Option<f64>| -> anyhow::Result<()> {
+            x.open("dcc:quantity", &[("refType", &format!("basic_measuredValue {ref_type}"))])?;
+            x.words("dcc:name", name)?;
+            x.open("si:real", &[])?;
+            x.leaf("si:value", &format!("{value:.3}"))?;
+            x.leaf("si:unit", unit)?;
+            if let Some(u) = u {
+                x.open("si:expandedUnc", &[])?;
+                x.leaf("si:uncertainty", &format!("{u:.1}"))?;
+                x.leaf("si:coverageFactor", K)?;
+                x.leaf("si:coverageProbability", PROBABILITY)?;
+                x.leaf("si:distribution", NORMAL)?;
+                x.close("si:expandedUnc")?;
+            }
+            x.close("si:real")?;
+            x.close("dcc:quantity")
+        };
+    let l = &m.location;
+    const MM: &str = "\\milli\\metre";
+    const URAD: &str = "\\micro\\radian";
+    const UM: &str = "\\micro\\metre";
+    real(x, "survey_axisX0", "X0C, the axis average line's x in the tracker's frame", l.x0_mm, MM, None)?;
+    real(x, "survey_axisY0", "Y0C, the axis average line's y in the tracker's frame", l.y0_mm, MM, None)?;
+    real(x, "survey_axisA0", "A0C, the axis average line's rotation about x", l.a0_urad, URAD, None)?;
+    real(x, "survey_axisB0", "B0C, the axis average line's rotation about y", l.b0_urad, URAD, None)?;
+    let mut blocks = vec![("Radial", "radial", &m.radial_um, UM), ("Axial", "axial", &m.axial_um, UM)];
+    if let Some(t) = &m.tilt_urad {
+        blocks.push(("Tilt", "tilt", t, URAD));
+    }
+    for (tag, name, b, unit) in blocks {
+        for (kind, value, u) in [
+            ("Total", b.total, b.u_total),
+            ("Synchronous", b.synchronous, b.u_synchronous),
+            ("Asynchronous", b.asynchronous, b.u_asynchronous),
+        ] {
+            let ref_type = format!("survey_motion{tag}{kind}");
+            let what = format!("{} {name} error motion (ISO 230-7)", kind.to_lowercase());
+            match value {
+                Some(v) => real(x, &ref_type, &what, v, unit, Some(u))?,
+                None => {
+                    x.open("dcc:quantity", &[("refType", &ref_type)])?;
+                    x.words("dcc:name", &what)?;
+                    let why = format!(
+                        "below the detection limit of {:.1} (the tracker's transverse error at the SMR's distance): \
+                         not measurable with this reference",
+                        b.detection_limit
+                    );
+                    x.words("dcc:noQuantity", &why)?;
+                    x.close("dcc:quantity")?;
+                }
+            }
+        }
+    }
+    real(
+        x,
+        "survey_motionDetectionLimit",
+        "detection limit (the tracker's transverse MPE)",
+        m.detection_limit_um,
+        UM,
+        None,
+    )?;
+    x.close("dcc:data")?;
+    x.close("dcc:result")
 }
 
 /// The ISO 230-2 figures and the peaks, one result.

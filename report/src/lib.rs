@@ -100,6 +100,8 @@ pub struct ReportData {
     pub environment: survey_lab::environment::Environment,
     /// The air temperature against the samples' time, `(s, °C)`, when measured.
     pub temperature: Vec<(f64, f64)>,
+    /// The axis's location and error motions (a tracker survey's).
+    pub error_motions: Option<survey_motions::ErrorMotions>,
 }
 
 /// Read what the report of survey `id` (the latest when `None`) shows.
@@ -118,7 +120,7 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
     let environment = survey_lab::environment::Environment::of(store, &loaded.survey).await?;
     let temperature = store.temperature_series(loaded.survey.id).await?;
     let axis = loaded.axis_used();
-    let Loaded { survey, samples, drift, .. } = loaded;
+    let Loaded { survey, samples, drift, refit, .. } = loaded;
     Ok(ReportData {
         survey,
         samples,
@@ -137,6 +139,7 @@ pub async fn gather(store: &Store, id: Option<SurveyRef>, opts: &ReportOptions) 
         history,
         environment,
         temperature,
+        error_motions: refit.and_then(|r| r.error_motions),
     })
 }
 

@@ -207,7 +207,9 @@ impl SimBenchBuilder {
     }
 
     /// Build the instruments on one new turntable.
-    pub fn build(self) -> SimBench {
+    pub fn build(mut self) -> SimBench {
+        // The axis's error motions are the positioner's, seen by the tracker.
+        self.tracker.motions = self.positioner.model.motions.clone();
         let turntable = Turntable::new(0.0);
         let injected = Injected::new();
         let mut positioner = SimPositioner::with_turntable(self.positioner, self.clock.clone(), turntable.clone());

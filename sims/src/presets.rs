@@ -137,6 +137,7 @@ pub fn without_noise(model: &Model) -> Model {
     Model {
         design: model.design.clone(),
         effects: model.effects.iter().filter(|e| !matches!(e, Effect::Noise { .. })).cloned().collect(),
+        motions: survey_processing::model::AxisMotions { bearing_sigma_um: 0.0, ..model.motions.clone() },
         ..model.clone()
     }
 }

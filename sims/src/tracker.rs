@@ -63,6 +63,7 @@ use std::time::Duration;
 use survey_drivers::clock::Clock;
 use survey_drivers::error::{DriverError, Result};
 use survey_drivers::traits::{SmrMeasurement, StreamedPoint, Tracker, TrackerState};
+use survey_processing::model::{AxisMotions, SmrPlace};
 pub use survey_processing::smrs::SmrMount;
 use survey_processing::tracker_errors::{
     EncoderHarmonic, TYPICAL_ANGLE_NOISE_URAD, TrackerErrorSpec, TrackerErrors, transverse_mpe_um,
@@ -158,6 +159,42 @@ impl ArmGeometry {
     }
 }
 
+impl ArmGeometry {
+    /// `p`, SMR `k`'s position at true axis angle `theta_deg`, moved by the
+    /// axis's error motions (`survey_processing::model::AxisMotions`: the
+    /// table tilts about `axis_center_mm`) and by `jitter_um`, the bearing's
+    /// asynchronous displacement along `u`, `v` and the normal.
+    pub fn moved_by(
+        &self,
+        k: usize,
+        theta_deg: f64,
+        p: [f64; 3],
+        motions: &AxisMotions,
+        jitter_um: [f64; 3],
+    ) -> [f64; 3] {
+        let mount = self.smrs.get(k).copied().unwrap_or(SmrMount::FIRST);
+        let place = SmrPlace {
+            phase_deg: mount.phase_deg,
+            radius_mm: self.radius_mm,
+            height_mm: self.smr_height_mm + mount.height_mm,
+        };
+        let [radial, along, axial] = motions.displacement_um(theta_deg, place);
+        let (u, v, n) = self.basis();
+        let (s, c) = (theta_deg + self.arm_phase_deg + mount.phase_deg).to_radians().sin_cos();
+        std::array::from_fn(|i| {
+            let outward = c * u[i] + s * v[i];
+            let forward = -s * u[i] + c * v[i];
+            let um = radial * outward
+                + along * forward
+                + axial * n[i]
+                + jitter_um[0] * u[i]
+                + jitter_um[1] * v[i]
+                + jitter_um[2] * n[i];
+            p[i] + um * 1e-3
+        })
+    }
+}
+
 /// The typical tracker's random standard deviation per coordinate at
 /// `distance_mm` from it, mm: the transverse part of one reading
 /// ([`TYPICAL_ANGLE_NOISE_URAD`] at that range), the larger of the two.
@@ -168,6 +205,8 @@ pub fn sigma_mm(distance_mm: f64) -> f64 {
 
 /// Seed stream of the tracker's drawn error set.
 const ERRORS_STREAM: u64 = 5;
+/// Seed stream of the bearing noise.
+const BEARING_STREAM: u64 = 6;
 
 /// The seed of the simulated bench's own tracker's error set (its serial
 /// number, as it were): one instrument, the same on every survey of the
@@ -269,6 +308,10 @@ pub struct TrackerConfig {
     pub find_time: Duration,
     /// See `find_time`.
     pub capture_mm: f64,
+    /// The axis's error motions (the model file's `radial_motion`,
+    /// `axial_motion`, `tilt_motion`, `bearing_noise`): they move the SMRs,
+    /// and the tracker reads them where they truly are.
+    pub motions: AxisMotions,
 }
 
 impl Default for TrackerConfig {
@@ -287,6 +330,7 @@ impl Default for TrackerConfig {
             slew_deg_s: 180.0,
             find_time: Duration::from_millis(500),
             capture_mm: 25.0,
+            motions: AxisMotions::default(),
         }
     }
 }
@@ -310,6 +354,8 @@ pub struct SimTracker {
     errors: TrackerErrors,
     /// The SMR the beam is on (or was on, when it broke).
     target: usize,
+    /// Draws the bearing noise (the axis's asynchronous error motion).
+    bearing_rng: ChaCha8Rng,
     /// Where the beam points since a [`SimTracker::go_position`], until a
     /// reflector is found there.
     aim: Option<[f64; 3]>,
@@ -328,6 +374,7 @@ impl SimTracker {
             target: 0,
             aim: None,
             noise_rng: seeded_rng(cfg.seed, NOISE_STREAM),
+            bearing_rng: seeded_rng(cfg.seed, BEARING_STREAM),
             fault_rng: seeded_rng(cfg.seed, FAULT_STREAM),
             clock,
             cfg,
@@ -364,8 +411,20 @@ impl SimTracker {
     /// Where this tracker reads the SMR it is locked on at true axis angle
     /// `theta_deg`, with the random part's standard normals `z` (scaled by
     /// `noise_scale`).
-    fn read_at(&self, theta_deg: f64, z: [f64; 3]) -> [f64; 3] {
-        let p = self.cfg.arm.smr_position_of(self.target, theta_deg);
+    fn read_at(&mut self, theta_deg: f64, z: [f64; 3]) -> [f64; 3] {
+        let mut p = self.cfg.arm.smr_position_of(self.target, theta_deg);
+        if !self.cfg.motions.is_none() {
+            let sigma = self.cfg.motions.bearing_sigma_um;
+            let mut draw = || {
+                if sigma > 0.0 {
+                    sigma * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut self.bearing_rng)
+                } else {
+                    0.0
+                }
+            };
+            let jitter = [draw(), draw(), draw()];
+            p = self.cfg.arm.moved_by(self.target, theta_deg, p, &self.cfg.motions, jitter);
+        }
         self.errors.measured(p, z.map(|v| v * self.cfg.noise_scale))
     }
 

@@ -22,6 +22,7 @@ mod dcc;
 mod docs;
 mod doors;
 mod drift;
+mod error_motions;
 mod everyday;
 mod files;
 mod history;

@@ -34,7 +34,7 @@
 //! compares (the earlier kept from the step before).
 
 use super::codec::{Malformed, Reader, Writer};
-use super::{Compared, MainLine, Measured, kind, measure, not_comparable};
+use super::{Compared, MainLine, Measured, MotionTotals, kind, measure, not_comparable};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use survey_modelgap::compare::Verdict;
@@ -67,6 +67,8 @@ pub struct Summary {
     pub table_u_deg: Option<f64>,
     /// The lines its table corrects, largest first.
     pub lines: Vec<MainLine>,
+    /// Its axis's total radial and axial error motions.
+    pub motions: Option<MotionTotals>,
 }
 
 impl Summary {
@@ -77,6 +79,7 @@ impl Summary {
             iso: m.iso.as_ref().map(|i| Figures { a: i.a, r: i.r, b: i.b }),
             table_u_deg: m.table_u_deg,
             lines: m.lines.clone(),
+            motions: m.motions,
         }
     }
 
@@ -99,6 +102,17 @@ impl Summary {
             w.f64(l.amplitude_deg);
             w.f64(l.phase_deg);
         }
+        match &self.motions {
+            Some(m) => {
+                w.u8(1);
+                w.opt_f64(m.radial_um);
+                w.opt_f64(m.axial_um);
+                w.f64(m.u_radial_um);
+                w.f64(m.u_axial_um);
+                w.f64(m.limit_um);
+            }
+            None => w.u8(0),
+        }
         w.into_bytes()
     }
 
@@ -116,8 +130,19 @@ impl Summary {
         for _ in 0..n {
             lines.push(MainLine { cycles_per_rev: r.f64()?, amplitude_deg: r.f64()?, phase_deg: r.f64()? });
         }
+        let motions = match r.u8()? {
+            0 => None,
+            1 => Some(MotionTotals {
+                radial_um: r.opt_f64()?,
+                axial_um: r.opt_f64()?,
+                u_radial_um: r.f64()?,
+                u_axial_um: r.f64()?,
+                limit_um: r.f64()?,
+            }),
+            _ => return Err(Malformed),
+        };
         r.end()?;
-        Ok(Summary { samples, iso, table_u_deg, lines })
+        Ok(Summary { samples, iso, table_u_deg, lines, motions })
     }
 }
 
@@ -426,11 +451,18 @@ mod tests {
             iso: Some(Figures { a: 0.012_345_678_901_234_5, r: -0.0, b: Some(f64::NAN) }),
             table_u_deg: None,
             lines: vec![MainLine { cycles_per_rev: 1.0, amplitude_deg: 5e-324, phase_deg: -179.9 }],
+            motions: Some(MotionTotals {
+                radial_um: Some(112.5),
+                axial_um: None,
+                u_radial_um: 53.6,
+                u_axial_um: 53.6,
+                limit_um: 36.8,
+            }),
         };
         let back = Summary::decode(&s.encode()).unwrap();
         assert_eq!(format!("{back:?}"), format!("{s:?}"));
         assert_eq!(back.iso.unwrap().r.to_bits(), (-0.0f64).to_bits());
-        let none = Summary { samples: 0, iso: None, table_u_deg: Some(1e-3), lines: Vec::new() };
+        let none = Summary { samples: 0, iso: None, table_u_deg: Some(1e-3), lines: Vec::new(), motions: None };
         assert_eq!(Summary::decode(&none.encode()).unwrap(), none);
         let mut cut = s.encode();
         cut.pop();

@@ -42,6 +42,7 @@ impl Entry {
             "B_deg": m.iso.as_ref().and_then(|i| i.b),
             "table_u_deg": m.table_u_deg,
             "lines": m.lines,
+            "error_motions": m.motions.as_ref().map(|t| t.json()),
         })
     }
 }

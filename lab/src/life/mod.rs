@@ -68,6 +68,70 @@ pub struct Measured {
     pub table_u_beside_reference_deg: Option<f64>,
     /// The once-per-revolution standard error of its tracker's axis, degrees (0 otherwise).
     pub axis_se_deg: f64,
+    /// Its axis's total radial and axial error motions (a tracker survey's).
+    pub motions: Option<MotionTotals>,
+}
+
+/// The error motions of two surveys side by side (`compare --json`): each
+/// survey's totals, and where both are above the detection limit, the
+/// change with its `U` (the two surveys' in quadrature: the same tracker's
+/// error may be in both, so this is conservative) and whether it exceeds it.
+fn motions_change(a: Option<&MotionTotals>, b: Option<&MotionTotals>) -> Value {
+    let change = |x: Option<f64>, y: Option<f64>, ux: f64, uy: f64| match (x, y) {
+        (Some(x), Some(y)) => {
+            let u = ux.hypot(uy);
+            json!({"change": y - x, "u": u, "significant": (y - x).abs() > u})
+        }
+        _ => Value::Null,
+    };
+    json!({
+        "a": a.map(MotionTotals::json),
+        "b": b.map(MotionTotals::json),
+        "radial_total_change_um": match (a, b) {
+            (Some(a), Some(b)) => change(a.radial_um, b.radial_um, a.u_radial_um, b.u_radial_um),
+            _ => Value::Null,
+        },
+        "axial_total_change_um": match (a, b) {
+            (Some(a), Some(b)) => change(a.axial_um, b.axial_um, a.u_axial_um, b.u_axial_um),
+            _ => Value::Null,
+        },
+    })
+}
+
+/// A survey's total radial and axial error motions (ISO 230-7), as a history
+/// shows them across surveys: a growing wobble (a worn bearing) seen like a
+/// growing line. A figure below the detection limit is `None`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionTotals {
+    /// Total radial error motion, um.
+    pub radial_um: Option<f64>,
+    /// Total axial (face) error motion, um.
+    pub axial_um: Option<f64>,
+    /// The `U` (k = 2) of the radial and the axial total, um.
+    pub u_radial_um: f64,
+    pub u_axial_um: f64,
+    /// The detection limit, um.
+    pub limit_um: f64,
+}
+
+impl MotionTotals {
+    /// The totals of `m`.
+    pub fn of(m: &survey_motions::ErrorMotions) -> Self {
+        MotionTotals {
+            radial_um: m.radial_um.total,
+            axial_um: m.axial_um.total,
+            u_radial_um: m.radial_um.u_total,
+            u_axial_um: m.axial_um.u_total,
+            limit_um: m.detection_limit_um,
+        }
+    }
+
+    /// The history's keys: `radial_um` and `axial_um`, each `{"total", "u",
+    /// "below_detection_limit"}`.
+    pub fn json(&self) -> serde_json::Value {
+        let one = |v: Option<f64>, u: f64| serde_json::json!({"total": v, "u": u, "below_detection_limit": v.is_none(), "detection_limit": self.limit_um});
+        serde_json::json!({"radial_um": one(self.radial_um, self.u_radial_um), "axial_um": one(self.axial_um, self.u_axial_um)})
+    }
 }
 
 /// A main line of a survey's table: a line the table corrects.
@@ -163,6 +227,7 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
         ReferenceInfo::Tracker { axis_se_deg, .. } => axis_se_deg,
         _ => 0.0,
     };
+    let motions = loaded.refit.as_ref().and_then(|r| r.error_motions.as_ref()).map(MotionTotals::of);
     let lines = processed.as_ref().map_or_else(|_| Vec::new(), main_lines);
     let doubt = processed.as_ref().map_or_else(
         |_| Vec::new(),
@@ -180,6 +245,7 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
         lines,
         doubt,
         table_u_deg,
+        motions,
         table_u_beside_reference_deg,
         axis_se_deg,
     })
@@ -354,6 +420,7 @@ impl Compared {
                 "why": a.table.as_ref().err().cloned().unwrap_or_else(|| "no repeatability in B".into()),
             }),
         };
+        doc["error_motions"] = motions_change(a.motions.as_ref(), b.motions.as_ref());
         doc
     }
 

@@ -16,6 +16,7 @@
 //! - [`interpolation`]: the paper's Figure 6;
 //! - [`table`]: the correction table;
 //! - [`verification`]: native against corrected on one scale;
+//! - [`motions`]: the axis's location and error motions (ISO 230-1, 230-7), a tracker's;
 //! - [`modelgap`], [`drift`], [`environment`], [`uncertainty`]: when there is such data;
 //! - [`history`]: the asset's earlier surveys, when it has any;
 //! - [`iso`]: ISO 230-2 and VDI/DGQ 3441 for the axis; per target in the appendix.
@@ -29,6 +30,7 @@ pub mod hysteresis;
 pub mod interpolation;
 pub mod iso;
 pub mod modelgap;
+pub mod motions;
 pub mod spectrum;
 pub mod summary;
 pub mod table;
@@ -108,6 +110,7 @@ pub const BODY: &[Show] = &[
     uncertainty::show,
     history::show,
     iso::show_axis,
+    motions::show,
     notes,
     end,
 ];

@@ -1,0 +1,153 @@
+//! The axis's error motions (issue 52) from outside: `process --json`'s
+//! `error_motions` with the contract's keys, its figures against the model
+//! file's motions within their stated U, a wobble below the detection limit
+//! said so, and a bad motion refused naming its line and key.
+
+use super::Bench;
+use serde_json::Value;
+
+/// The Figure 8 positioner with motions a tracker can see, and two SMRs
+/// on one vertical line 300 mm apart (the tilt). The truth, at the first
+/// SMR (50 mm above the tilt's pivot): radial 2 cpr 60 um (the tilt adds
+/// 0.05 m x 200 urad at 2 cpr), axial 3 cpr 40 um, tilt 2 cpr 200 urad.
+const MOVING: &str = r#"[design]
+gear_ratios = [20]
+
+[[effect]]
+kind = "gear_pass"
+cycles_per_rev = 20
+amplitude_deg = 0.0078
+phase_deg = 0.0
+
+[[effect]]
+kind = "radial_motion"
+cycles_per_rev = 2
+amplitude_um = 60.0
+phase_deg = 0.0
+
+[[effect]]
+kind = "axial_motion"
+cycles_per_rev = 3
+amplitude_um = 40.0
+phase_deg = 30.0
+
+[[effect]]
+kind = "tilt_motion"
+cycles_per_rev = 2
+amplitude_urad = 200.0
+phase_deg = 0.0
+
+[[effect]]
+kind = "bearing_noise"
+sigma_um = 1.0
+
+[smrs]
+phases_deg = [0, 0]
+heights_mm = [0, 300]
+"#;
+
+fn num(v: &Value, what: &str) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("{what} should be a number: {v}"))
+}
+
+/// The peak-to-valley of `f` at `points` targets over the turn.
+fn pv(points: usize, f: impl Fn(f64) -> f64) -> f64 {
+    let v: Vec<f64> = (0..points).map(|j| f(360.0 * j as f64 / points as f64)).collect();
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max) - v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn error_motions_against_the_models_truth_and_below_the_limit() {
+    let bench = Bench::new();
+    bench.write("moving.toml", MOVING);
+    let doc = bench
+        .survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--model", "moving.toml", "--json"])
+        .success()
+        .json();
+    assert!(doc["process"]["error_motions"].is_object(), "{}", doc["process"]);
+    let doc = bench.survey(&["process", "--json"]).success().json();
+    let m = &doc["error_motions"];
+    for key in ["x0_mm", "y0_mm", "a0_urad", "b0_urad"] {
+        num(&m["location"][key], key);
+    }
+    for block in ["radial_um", "axial_um", "tilt_urad"] {
+        for key in ["total", "synchronous", "asynchronous", "u"] {
+            assert!(m[block].get(key).is_some(), "{block}.{key}: {m}");
+        }
+    }
+    let limit = num(&m["detection_limit_um"], "detection_limit_um");
+    assert!((25.0..40.0).contains(&limit), "an AT-class tracker a few metres away: {limit}");
+    // The bench's arm: SMR 1 at 2.5 m, tilted 0.3 deg toward 30 deg (sims' ArmGeometry).
+    assert!((num(&m["location"]["b0_urad"], "b0") - 4534.0).abs() < 30.0, "{m}");
+    let within = |block: &str, truth: f64| {
+        let got = num(&m[block]["synchronous"], block);
+        let u = num(&m[block]["u"], "u");
+        assert!((got - truth).abs() <= u, "{block}: {got} against the model's {truth}, U = {u}");
+    };
+    let tilt = |t: f64| 200.0 * (2.0 * t).to_radians().sin();
+    within("radial_um", pv(72, |t| 60.0 * (2.0 * t).to_radians().sin() - 0.05 * tilt(t)));
+    within("axial_um", pv(72, |t| 40.0 * (3.0 * t + 30.0).to_radians().sin() + tilt(t)));
+    within("tilt_urad", pv(72, tilt));
+
+    // The report shows them (a table and polar plots); the DCC carries them as a result of their own.
+    bench.survey(&["report", "--out", "r"]).success();
+    let html = bench.read("r/index.html");
+    for id in ["tbl-axis-location", "tbl-error-motions", "fig-error-motions"] {
+        assert!(html.contains(&format!("id=\"{id}\"")), "the report shows {id}");
+    }
+    let dcc = bench.read("r/dcc.xml");
+    for ref_type in ["survey_errorMotions", "survey_motionRadialSynchronous", "survey_motionTiltTotal", "survey_axisB0"]
+    {
+        assert!(dcc.contains(ref_type), "the DCC carries {ref_type}");
+    }
+    assert!(dcc.contains("<dcc:noQuantity>"), "the asynchronous motions are below the limit: said, not a number");
+
+    // The Figure 8 positioner with a small wobble (a few um) is below what the tracker can tell.
+    bench.write("wobble.toml", include_str!("../fixtures/fig8-wobble.toml"));
+    let fig8 = bench
+        .survey(&["--db", "fig8.db", "run", "--points", "72", "--runs", "2", "--model", "wobble.toml", "--json"])
+        .success()
+        .json();
+    let m = &fig8["process"]["error_motions"];
+    assert!(m["radial_um"]["total"].is_null() && m["radial_um"]["below_detection_limit"] == true, "{m}");
+    assert!(m["tilt_urad"].is_null(), "one SMR: no tilt");
+
+    // A once-per-revolution radial motion is the axis's location: refused.
+    bench.write(
+        "bad.toml",
+        MOVING.replace("cycles_per_rev = 2\namplitude_um = 60.0", "cycles_per_rev = 1\namplitude_um = 60.0"),
+    );
+    bench.survey(&["--db", "bad.db", "run", "--points", "24", "--model", "bad.toml"]).bad_input(&[
+        "bad.toml:12",
+        "cycles_per_rev",
+        "location",
+    ]);
+}
+
+/// A growing wobble (a worn bearing) across an asset's surveys: `history`
+/// shows each survey's radial and axial totals, `compare` the change.
+#[test]
+fn history_and_compare_show_a_growing_wobble() {
+    let bench = Bench::new();
+    let model = |um: f64| {
+        format!("[[effect]]\nkind = \"radial_motion\"\ncycles_per_rev = 2\namplitude_um = {um:.1}\nphase_deg = 0.0\n")
+    };
+    for (file, um) in [("new.toml", 40.0), ("worn.toml", 120.0)] {
+        bench.write(file, model(um));
+        bench.survey(&["run", "--points", "72", "--runs", "2", "--model", file, "--asset", "az-1", "--json"]).success();
+    }
+    let h = bench.survey(&["history", "--asset", "az-1", "--json"]).success().json();
+    let totals: Vec<f64> = h["surveys"]
+        .as_array()
+        .expect("surveys")
+        .iter()
+        .map(|s| num(&s["error_motions"]["radial_um"]["total"], "radial total"))
+        .collect();
+    assert_eq!(totals.len(), 2, "{h}");
+    for (got, truth) in totals.iter().zip([80.0, 240.0]) {
+        assert!((got - truth).abs() < 40.0, "radial totals {totals:?} against 2 x the amplitudes");
+    }
+    let c = bench.survey(&["compare", "1", "2", "--json"]).success().json();
+    let change = &c["error_motions"]["radial_total_change_um"];
+    assert!(num(&change["change"], "change") > 100.0 && change["significant"] == true, "{c}");
+}
