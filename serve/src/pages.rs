@@ -164,6 +164,8 @@ pub(super) async fn asset(
         });
         let figures =
             survey_report::html::history::figures(&h, None, Units::Deg, true).map_err(|e| Failure::of(&e, false))?;
+        let control =
+            survey_report::html::history::control_chart(&h).map_err(|e| Failure::of(&e, false))?.unwrap_or_default();
         let body = format!(
             "<h1>Asset {a}</h1>\n<p class=\"subtitle\">{n} {noun}; the history as JSON: \
              <a href=\"/api/history/{a}\">/api/history/{a}</a></p>\n{d}{c}{s}",
@@ -171,7 +173,7 @@ pub(super) async fn asset(
             n = h.surveys.len(),
             noun = if h.surveys.len() == 1 { "survey" } else { "surveys" },
             d = section("due", "When it is due", &[], &due_html(&due, now)),
-            c = section("control", "Control chart of the checks", &[], &control_table(&h)),
+            c = section("control", "Control chart of the checks", &[], &(control + &control_table(&h))),
             s = section("history", "History", &[], &figures),
         );
         Ok(page(&format!("Asset {}", h.asset), &body, app.gate.is_some()))

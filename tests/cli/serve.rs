@@ -520,6 +520,13 @@ fn the_asset_page_plots_every_calibration_on_a_date_axis_and_tells_checks_apart(
     assert_eq!(lines.matches("fill=\"#0072B2\"").count(), 3, "{lines}");
     let a = figure_of(&page.body, "fig-history-a");
     assert!(a.contains("A of a calibration") && a.contains("A of a check"), "{a}");
+    // The checks on their control chart, drawn (issue 53): the one check's statistic, in order.
+    let control = figure_of(&page.body, "fig-control");
+    assert!(
+        control.contains("cells beyond U / (allowed + 1)") && control.contains("check, in the order made"),
+        "{control}"
+    );
+    assert!(control.contains("<circle") && control.contains("3-sigma control limits"), "{control}");
 
     let survey = get(&url, &format!("/surveys/{uid}"));
     assert!(survey.body.contains("id=\"way-back\"><a href=\"/\">"), "{}", survey.body);

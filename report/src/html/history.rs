@@ -196,3 +196,63 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     let Some(h) = &p.d.history else { return Ok(None) };
     Ok(section(h, p.d.survey.id, p.units)?.and_then(|body| Section::page("history", "The asset's history", body)))
 }
+
+/// The checks' control chart drawn as a control chart is (issue 53): each
+/// check's statistic in the order the checks were made, the centre line and
+/// the 3-sigma limits where the chart has a baseline, the line at 1 (the
+/// table no longer holds), and a check out of control marked; `None`
+/// before any check measured its statistic.
+pub fn control_chart(h: &History) -> anyhow::Result<Option<String>> {
+    let chart = h.control();
+    let at = |i: usize| (i + 1) as f64;
+    let points: Vec<(f64, f64)> =
+        chart.iter().enumerate().filter_map(|(i, p)| p.statistic.map(|s| (at(i), s))).collect();
+    if points.is_empty() {
+        return Ok(None);
+    }
+    let line = |f: &dyn Fn(&survey_lab::life::control::Point) -> Option<f64>| -> Vec<(f64, f64)> {
+        chart.iter().enumerate().filter_map(|(i, p)| f(p).map(|v| (at(i), v))).collect()
+    };
+    let (centre, upper, lower) = (line(&|p| p.centre), line(&|p| p.upper()), line(&|p| p.lower()));
+    let out: Vec<(f64, f64)> = chart
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| p.statistic.filter(|_| p.out_of_control()).map(|s| (at(i), s)))
+        .collect();
+    let n = chart.len().max(2) as f64;
+    let (_, hi) = extent(points.iter().chain(&upper).map(|p| p.1).chain([1.0]));
+    let svg = render((WIDTH, HEIGHT), |root| {
+        let mut c = plot::axes(
+            root,
+            padded(1.0, n, 0.05),
+            padded(0.0, hi, 0.08),
+            "check, in the order made",
+            "cells beyond U / (allowed + 1)",
+        )?;
+        c.draw_series(LineSeries::new(vec![(1.0, 1.0), (n, 1.0)], RGBColor(128, 128, 128).stroke_width(1)))
+            .map_err(plot::plot_err)?;
+        for (limit, width) in [(&upper, 2), (&lower, 2)] {
+            c.draw_series(DashedLineSeries::new(limit.clone(), 6, 4, VERMILLION.stroke_width(width)))
+                .map_err(plot::plot_err)?;
+        }
+        c.draw_series(LineSeries::new(centre.clone(), GREEN.stroke_width(2))).map_err(plot::plot_err)?;
+        c.draw_series(LineSeries::new(points.clone(), BLUE.stroke_width(2))).map_err(plot::plot_err)?;
+        c.draw_series(points.iter().map(|&p| Circle::new(p, 4, BLUE.filled()))).map_err(plot::plot_err)?;
+        c.draw_series(out.iter().map(|&p| Circle::new(p, 8, VERMILLION.stroke_width(3)))).map_err(plot::plot_err)?;
+        Ok(())
+    })?;
+    let keys = legend(&[
+        (hex(BLUE), Key::Line, "each check's statistic".into()),
+        (hex(GREEN), Key::Line, "centre line (the checks in control before it)".into()),
+        (hex(VERMILLION), Key::Dashed, "3-sigma control limits".into()),
+        (hex(VERMILLION), Key::Ring, "out of control".into()),
+        ("#808080".into(), Key::Thin, "1: the table in force no longer holds".into()),
+    ]);
+    Ok(Some(figure(
+        "fig-control",
+        &svg,
+        &keys,
+        "The asset's checks on their control chart: a check beyond a limit (or a run of them) is out of control and \
+         recalibrates, even inside tolerance.",
+    )))
+}
