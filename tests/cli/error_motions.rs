@@ -147,6 +147,9 @@ fn history_and_compare_show_a_growing_wobble() {
     for (got, truth) in totals.iter().zip([80.0, 240.0]) {
         assert!((got - truth).abs() < 40.0, "radial totals {totals:?} against 2 x the amplitudes");
     }
+    // And in the history's text, a line a survey.
+    let text = bench.survey(&["history", "--asset", "az-1"]).success().stdout;
+    assert_eq!(text.matches("error motions (ISO 230-7, totals): radial ").count(), 2, "{text}");
     let c = bench.survey(&["compare", "1", "2", "--json"]).success().json();
     let change = &c["error_motions"]["radial_total_change_um"];
     assert!(num(&change["change"], "change") > 100.0 && change["significant"] == true, "{c}");

@@ -180,6 +180,18 @@ impl History {
                 num(m.summary.table_u_deg),
                 if lines.is_empty() { "-".to_string() } else { lines.join(", ") }
             );
+            if let Some(t) = &m.summary.motions {
+                let total = |v: Option<f64>, u: f64| match v {
+                    Some(v) => format!("{v:.1} um (U {u:.1})"),
+                    None => format!("below the detection limit ({:.1} um)", t.limit_um),
+                };
+                let _ = writeln!(
+                    s,
+                    "      error motions (ISO 230-7, totals): radial {}, axial {}",
+                    total(t.radial_um, t.u_radial_um),
+                    total(t.axial_um, t.u_axial_um)
+                );
+            }
             if let Some(c) = self.check(m.survey.id) {
                 let _ = writeln!(
                     s,
