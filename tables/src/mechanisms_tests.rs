@@ -97,10 +97,9 @@ fn sample_at(
     target: f64,
     direction: Direction,
     run: u32,
-    t: DriftTime,
+    (t, stamp): (DriftTime, Option<f64>),
     table: Option<&CorrectionTable>,
     rng: &mut Normal,
-    stamp: Option<f64>,
 ) -> Sample {
     let n = model.noise_sigma_deg() * rng.sample();
     let raw = match table {
@@ -151,7 +150,7 @@ fn acquire(
                 // The survey's clock: 2 s a step of its own plan, so the
                 // drift's runs and the stamps keep one scale (check points too).
                 let stamp = plan.timed.then_some(2.0 * (plan.points * dirs.len()) as f64 * elapsed);
-                out.push(sample_at(model, t, d, run + 1, time, table, rng, stamp));
+                out.push(sample_at(model, t, d, run + 1, (time, stamp), table, rng));
                 j += 1;
             }
         }
