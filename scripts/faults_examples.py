@@ -26,12 +26,14 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXAMPLES = os.path.join(HERE, "..", "examples", "config")
+FAULT_RATES = [""]
 
 
 def start_sim(binary, config, rate, seed, scale, folder):
     err = open(os.path.join(folder, "sim.err"), "w")
     sim = subprocess.Popen(
-        [binary, "sim", "--config", config, "--faults", str(rate), "--seed", str(seed), "--time-scale", str(scale)],
+        [binary, "sim", "--config", config, "--faults", str(rate), "--seed", str(seed), "--time-scale", str(scale)]
+        + (["--fault-rates", FAULT_RATES[0]] if FAULT_RATES[0] else []),
         stdout=subprocess.PIPE,
         stderr=err,
         text=True,
@@ -136,7 +138,9 @@ def main():
     p.add_argument("--timeout", type=float, default=900)
     p.add_argument("--only", default="", help="configurations whose name contains this")
     p.add_argument("--unverified", action="store_true", help="SCPI configurations with unverified_commands = true")
+    p.add_argument("--fault-rates", default="", help="survey sim's --fault-rates over --faults (e.g. move=0)")
     args = p.parse_args()
+    FAULT_RATES[0] = args.fault_rates
     names = sorted(n for n in os.listdir(EXAMPLES) if n.endswith(".toml") and args.only in n)
     seeds = [int(s) for s in args.seeds.split(",")]
     table = {}
