@@ -84,7 +84,7 @@ def one(binary, name, rate, seed, args):
     db = os.path.join(folder, "s.db")
     sim, written = start_sim(binary, config, rate, seed, args.time_scale, folder)
     started = time.time()
-    polygon = "elcomat" in name
+    polygon = "[autocollimator]" in open(config).read()
     plan = ["--runs", str(args.runs)] + ([] if polygon else ["--points", str(args.points)])
     tries = []
     try:
