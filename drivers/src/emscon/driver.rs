@@ -264,10 +264,11 @@ where
     }
 
     /// A command of the set-up, asked again in place (up to
-    /// [`SETUP_COMMAND_TRIES`] times) while it fails with a link fault the
-    /// connection survives (no answer, a garbled packet: the next request
-    /// resynchronises). A refusal of the tracker (a result status: a second
-    /// client refused, a sensor not warmed up) is the set-up's, which
+    /// [`SETUP_COMMAND_TRIES`] times) while its answer comes garbled (the
+    /// next request resynchronises). No answer is the set-up's: on a stream
+    /// the answers after a late one come late too, and a new connection is
+    /// what gets fresh ones. A refusal of the tracker (a result status: a
+    /// second client refused, a sensor not warmed up) is the set-up's, which
     /// [`Reconnecting`](crate::reconnect::Reconnecting) tries again on a new
     /// connection; a lost connection or bad usage ends it at once. Each
     /// setting is the same written twice, so asking again is safe.
@@ -275,11 +276,7 @@ where
         let mut tries = 1;
         loop {
             match self.command(request).await {
-                Err(e)
-                    if tries < SETUP_COMMAND_TRIES
-                        && self.io.is_some()
-                        && matches!(e.kind, ErrorKind::Timeout | ErrorKind::Garbled) =>
-                {
+                Err(e) if tries < SETUP_COMMAND_TRIES && self.io.is_some() && e.kind == ErrorKind::Garbled => {
                     tracing::warn!(instrument = %self.name, error = %e, tries, "an emScon set-up command failed: asked again");
                     tries += 1;
                 }
