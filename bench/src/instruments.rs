@@ -12,7 +12,7 @@ use survey_drivers::reconnect::{Connect, Reconnecting};
 use survey_drivers::{Autocollimator, Clock, DriverError, ErrorKind, Positioner, Tracker};
 use survey_positioner_drivers::canopen::frame::CanBus;
 use survey_positioner_drivers::canopen::slcan::SlcanBus;
-use survey_positioner_drivers::canopen::{CanopenConfig, Cia402Positioner, SocketCanBus};
+use survey_positioner_drivers::canopen::{CanopenConfig, Cia402Positioner, DriveMemory, SocketCanBus};
 use survey_positioner_drivers::modbus::ModbusPositioner;
 use survey_positioner_drivers::scpi::{Address, ScpiPositioner, ScpiTimeouts};
 use survey_store::config::{AutocollimatorConfig, CanLink, PositionerConfig, SurveyConfig, TrackerConfig};
@@ -36,6 +36,9 @@ pub fn elcomat_timeout(measure_timeout: Duration) -> Duration {
 pub struct PositionerConnector {
     pub config: PositionerConfig,
     pub timeout: Duration,
+    /// What the connections know of a CiA 402 drive: after its first full
+    /// set-up a reconnect re-checks the statusword only.
+    pub drive: Arc<DriveMemory>,
 }
 
 #[async_trait]
@@ -82,7 +85,9 @@ impl Connect<dyn Positioner> for PositionerConnector {
                 let link = self.config.can_link().transpose().map_err(|e| DriverError::usage("canopen", e))?;
                 match link {
                     Some(CanLink::Slcan { port, bitrate }) => {
-                        let bus = SlcanBus::open_port(&port, bitrate, self.timeout).await?;
+                        // An adapter answers its commands at once: a quarter of
+                        // the call's deadline each, so one asked again still fits.
+                        let bus = SlcanBus::open_port(&port, bitrate, self.timeout / 4).await?;
                         self.cia402(bus, drive).await
                     }
                     Some(CanLink::SocketCan(interface)) => {
@@ -106,7 +111,8 @@ impl Connect<dyn Positioner> for PositionerConnector {
 }
 
 impl PositionerConnector {
-    /// A CiA 402 drive on `bus`, enabled, its errors naming it as every
+    /// A CiA 402 drive on `bus`, set up (in full the first time, then by
+    /// its statusword: [`Cia402Positioner::set_up`]), its errors naming it as every
     /// other call through the connector does (`canopen slcan PATH node N`),
     /// not by the bus (`canopen node N on slcan PATH`): the events of a
     /// survey name one instrument one way.
@@ -116,7 +122,7 @@ impl PositionerConnector {
         drive: &CanopenConfig,
     ) -> survey_drivers::Result<Box<dyn Positioner>> {
         let mut d = Cia402Positioner::new(bus, drive.clone())?.named(self.describe());
-        d.enable().await?;
+        d.set_up(&self.drive).await?;
         Ok(Box::new(d))
     }
 }
@@ -188,6 +194,7 @@ impl Instruments {
         let positioner = Reconnecting::new(Box::new(PositionerConnector {
             config: cfg.positioner.clone(),
             timeout: timing.call_timeout,
+            drive: Arc::default(),
         }) as Box<dyn Connect<dyn Positioner>>);
         let reference = match cfg.reference() {
             survey_acquire::ReferenceKind::Tracker => {

@@ -752,25 +752,34 @@ impl Engine {
         self.faults_survived += 1;
         self.ledger.switch(self.clock.now(), Component::Recovery);
         self.clock.sleep(self.timing.retry_backoff).await;
-        if error.kind == ErrorKind::Device {
-            self.recover_device(failed).await;
+        if error.kind == ErrorKind::Device
+            && let Err(stuck) = self.recover_device(failed).await
+        {
+            // The instrument says its fault cannot be cleared from here (and
+            // what to do): retrying would only meet it again.
+            tracing::error!(error = %stuck, what, "the fault cannot be recovered here: giving up");
+            let _ = sink.event(self.clock.now().as_secs_f64(), "error", &format!("{what}: {stuck} (giving up)")).await;
+            return Err(EngineError::Instrument(stuck));
         }
         Ok(())
     }
 
-    /// After a device fault: clear a positioner fault, re-acquire a broken beam.
-    async fn recover_device(&mut self, failed: Failed) {
+    /// After a device fault: clear a positioner fault, re-acquire a broken
+    /// beam. A positioner that refuses the fault clear as bad usage (a
+    /// latched fault it has no command for) is the error returned; any other
+    /// failure of the recovery is logged, and the retry meets what is left.
+    async fn recover_device(&mut self, failed: Failed) -> Result<(), DriverError> {
         let clock = self.clock.clone();
         let t = self.timing.clone();
         if failed == Failed::Positioner {
             let name = self.positioner.name().to_string();
-            if let Err(e) =
-                with_timeout(&*clock, t.call_timeout, &name, "clear fault", self.positioner.clear_fault()).await
-            {
-                tracing::warn!(%e, "clearing the positioner fault failed");
-            }
             // The axis may have stopped anywhere: approach the next target afresh.
             self.commanded = None;
+            match with_timeout(&*clock, t.call_timeout, &name, "clear fault", self.positioner.clear_fault()).await {
+                Err(e) if e.kind == ErrorKind::Usage => return Err(e),
+                Err(e) => tracing::warn!(%e, "clearing the positioner fault failed"),
+                Ok(()) => {}
+            }
         }
         if let (Failed::Reference, Reference::Tracker(tracker)) = (failed, &mut self.reference) {
             let name = tracker.name().to_string();
@@ -784,6 +793,7 @@ impl Engine {
                 }
             }
         }
+        Ok(())
     }
 }
 

@@ -10,9 +10,9 @@
 
 use super::{Engine, EngineError, Failed, read_reference};
 use crate::record::{RawReading, SampleSink};
+use crate::settings::Timing;
 use std::time::Duration;
 use survey_drivers::SmrMeasurement;
-use survey_drivers::clock::with_timeout;
 use survey_plan::budget::Component;
 use survey_processing::smrs::SmrMount;
 
@@ -77,7 +77,14 @@ impl Engine {
                 return Err(EngineError::Plan("several SMRs need a tracker as the reference".into()));
             };
             let name = tracker.name().to_string();
-            let pointed = with_timeout(&*clock, t.measure_timeout, &name, "pointing", tracker.point_at(at)).await;
+            // Pointing is a command (pointing again is safe): each fault,
+            // the tracker's refusal too, asked again in place as a
+            // positioner's request is, under the measurement's deadline.
+            let pointing = Timing { call_timeout: t.measure_timeout, ..t.clone() };
+            let mut survived = Vec::new();
+            let pointed =
+                crate::settle::retried!(&*clock, &pointing, &name, "pointing", survived, tracker.point_at(at));
+            self.retried_in_place(&survived, &what, sink).await?;
             let result = match pointed {
                 Ok(()) if !read => return Ok(None),
                 Ok(()) => {

@@ -247,20 +247,42 @@ where
             ));
         }
         if self.cfg.initialize {
-            self.command(Request::Initialize).await?;
+            self.setup_command(Request::Initialize).await?;
         }
-        self.command(Request::SetUnits(SystemUnits::SURVEY)).await?;
-        self.command(Request::SetCoordinateSystemType(coordinate_system::RHR)).await?;
-        self.command(Request::SetMeasurementMode(meas_mode::STATIONARY)).await?;
+        self.setup_command(Request::SetUnits(SystemUnits::SURVEY)).await?;
+        self.setup_command(Request::SetCoordinateSystemType(coordinate_system::RHR)).await?;
+        self.setup_command(Request::SetMeasurementMode(meas_mode::STATIONARY)).await?;
         // Standard statistics, so a stationary measurement answers the
         // SingleMeasResultT decoded here (another program may have left the
         // tracker in extended mode; SingleMeasResult2T is decoded too).
         let standard = statistic_mode::STANDARD;
-        self.command(Request::SetStatisticMode { stationary: standard, continuous: standard }).await?;
+        self.setup_command(Request::SetStatisticMode { stationary: standard, continuous: standard }).await?;
         let params = StationaryModeData { meas_time_ms, use_adm: self.cfg.use_adm };
-        self.command(Request::SetStationaryModeParams(params)).await?;
+        self.setup_command(Request::SetStationaryModeParams(params)).await?;
         tracing::info!(instrument = %self.name, meas_time_ms, "emScon tracker set up: mm, RHR, stationary");
         Ok(())
+    }
+
+    /// A command of the set-up, asked again in place (up to
+    /// [`SETUP_COMMAND_TRIES`] times) while its answer comes garbled (the
+    /// next request resynchronises). No answer is the set-up's: on a stream
+    /// the answers after a late one come late too, and a new connection is
+    /// what gets fresh ones. A refusal of the tracker (a result status: a
+    /// second client refused, a sensor not warmed up) is the set-up's, which
+    /// [`Reconnecting`](crate::reconnect::Reconnecting) tries again on a new
+    /// connection; a lost connection or bad usage ends it at once. Each
+    /// setting is the same written twice, so asking again is safe.
+    async fn setup_command(&mut self, request: Request) -> Result<Answer> {
+        let mut tries = 1;
+        loop {
+            match self.command(request).await {
+                Err(e) if tries < SETUP_COMMAND_TRIES && self.io.is_some() && e.kind == ErrorKind::Garbled => {
+                    tracing::warn!(instrument = %self.name, error = %e, tries, "an emScon set-up command failed: asked again");
+                    tries += 1;
+                }
+                result => return result,
+            }
+        }
     }
 
     /// Send any modelled command except `StartMeasurement` and return its
@@ -590,6 +612,10 @@ where
         DriverError::new(ErrorKind::Disconnected, &self.name, format!("{what}: {why}"))
     }
 }
+
+/// How many times a command of the tracker's set-up is sent before its
+/// fault is the set-up's ([`EmsconTracker::setup`]).
+pub const SETUP_COMMAND_TRIES: u32 = 3;
 
 /// Opens an [`EmsconTracker`] over TCP for each connection of a
 /// [`Reconnecting`](crate::reconnect::Reconnecting) tracker.

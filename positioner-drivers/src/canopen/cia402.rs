@@ -216,12 +216,20 @@ impl<B: CanBus> Cia402Positioner<B> {
     /// fault is a [`ErrorKind::Device`] error with its code.
     pub async fn enable(&mut self) -> Result<()> {
         self.nmt(NmtCommand::Start).await?;
-        self.download(index::MODES_OF_OPERATION, 0, &PROFILE_POSITION_MODE.to_le_bytes()).await?;
+        self.select_profile_position().await?;
+        self.enable_state_machine().await
+    }
+
+    /// Write 0x6060 = profile position and read 0x6061 until it shows it,
+    /// within the transition timeout; each request asked again on a link
+    /// fault or a refusal ([`setup::SETUP_REQUEST_TRIES`]).
+    async fn select_profile_position(&mut self) -> Result<()> {
+        self.setup_write(index::MODES_OF_OPERATION, &PROFILE_POSITION_MODE.to_le_bytes()).await?;
         let deadline = tokio::time::Instant::now() + self.transition_timeout();
         loop {
-            let [shown] = self.read_fixed::<1>(index::MODES_OF_OPERATION_DISPLAY).await?;
+            let shown = self.setup_read(index::MODES_OF_OPERATION_DISPLAY, 1).await?[0];
             if shown as i8 == PROFILE_POSITION_MODE {
-                break;
+                return Ok(());
             }
             if tokio::time::Instant::now() >= deadline {
                 let e = DriverError::new(
@@ -239,7 +247,6 @@ impl<B: CanBus> Cia402Positioner<B> {
             }
             tokio::time::sleep(TRANSITION_POLL).await;
         }
-        self.enable_state_machine().await
     }
 
     fn transition_timeout(&self) -> Duration {
@@ -251,7 +258,7 @@ impl<B: CanBus> Cia402Positioner<B> {
     async fn await_statusword(&mut self, done: impl Fn(Statusword) -> bool) -> Result<(Statusword, bool)> {
         let deadline = tokio::time::Instant::now() + self.transition_timeout();
         loop {
-            let word = self.statusword().await?;
+            let word = self.setup_statusword().await?;
             if done(word) {
                 return Ok((word, true));
             }
@@ -263,7 +270,7 @@ impl<B: CanBus> Cia402Positioner<B> {
     }
 
     async fn enable_state_machine(&mut self) -> Result<()> {
-        let mut word = self.statusword().await?;
+        let mut word = self.setup_statusword().await?;
         for _ in 0..MAX_ENABLE_STEPS {
             let next = match word.state() {
                 Some(DriveState::OperationEnabled) => return Ok(()),
@@ -279,7 +286,7 @@ impl<B: CanBus> Cia402Positioner<B> {
             let from = word.state();
             if let Some(c) = next {
                 tracing::debug!(instrument = %self.name, %word, controlword = format_args!("0x{c:04X}"), "enabling");
-                self.write_controlword(c).await?;
+                self.setup_controlword(c).await?;
             }
             // Wait for the drive to leave the state the step was written in.
             let (now, moved) = self.await_statusword(|w| w.state() != from || w.fault()).await?;
@@ -537,6 +544,9 @@ impl<B: CanBus> Positioner for Cia402Positioner<B> {
         Ok(Some(self.read_fixed::<1>(index::CORRECTION_ENABLE).await?[0] != 0))
     }
 }
+
+mod setup;
+pub use setup::{DriveMemory, SETUP_REQUEST_TRIES, SetUp};
 
 #[cfg(test)]
 mod tests {

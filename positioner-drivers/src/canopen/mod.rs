@@ -179,7 +179,7 @@ pub mod sdo;
 pub mod slcan;
 pub mod socketcan_bus;
 
-pub use cia402::{CW_OPERATE, CanopenConfig, Cia402Positioner, DEFAULT_COUNTS_PER_DEGREE};
+pub use cia402::{CW_OPERATE, CanopenConfig, Cia402Positioner, DEFAULT_COUNTS_PER_DEGREE, DriveMemory, SetUp};
 pub use client::{SdoClient, SdoTimeouts};
 pub use frame::{CanBus, CanFrame, FrameError};
 pub use memory_bus::{MemoryBus, MemoryEndpoint};

@@ -43,6 +43,10 @@ pub const BITRATES: [(u32, u8); 11] = [
     (83_300, 9),
 ];
 
+/// How many times a command of the adapter's set-up (`Sn`, `O`) is sent
+/// before its fault is the set-up's ([`SlcanBus::open`]).
+pub const SETUP_COMMAND_TRIES: u32 = 3;
+
 /// The `Sn` digit of `bitrate`, if an adapter has one.
 pub fn bitrate_code(bitrate: u32) -> Option<u8> {
     BITRATES.iter().find(|(b, _)| *b == bitrate).map(|(_, n)| *n)
@@ -265,7 +269,10 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> SlcanBus<S> {
     /// Set the adapter up on `io`: close the channel (it may be open from
     /// before: the answer is not required), set `bitrate`, open. Each
     /// command waits `timeout` for the adapter's CR; BEL is refused
-    /// ([`ErrorKind::Device`]), silence [`ErrorKind::Timeout`].
+    /// ([`ErrorKind::Device`]), silence [`ErrorKind::Timeout`]; either is
+    /// asked again, up to [`SETUP_COMMAND_TRIES`] times (a lost or garbled
+    /// answer, or on a line, a late one read as a refusal). A port the
+    /// adapter closed ends the set-up at once.
     pub async fn open(io: S, bitrate: u32, name: impl Into<String>, timeout: Duration) -> Result<Self> {
         let name = name.into();
         let code = bitrate_code(bitrate).ok_or_else(|| {
@@ -277,8 +284,8 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> SlcanBus<S> {
         })?;
         let mut bus = Self { io: Some(io), decoder: LineDecoder::new(), frames: VecDeque::new(), name };
         let _ = bus.command(Message::Close, timeout).await;
-        bus.command(Message::Bitrate(code), timeout).await?;
-        bus.command(Message::Open, timeout).await?;
+        bus.set_up_command(Message::Bitrate(code), timeout).await?;
+        bus.set_up_command(Message::Open, timeout).await?;
         tracing::info!(instrument = %bus.name, bitrate, "SLCAN channel open");
         Ok(bus)
     }
@@ -327,6 +334,20 @@ impl<S: AsyncRead + AsyncWrite + Unpin + Send> SlcanBus<S> {
             Err(e) => {
                 tracing::warn!(instrument = %self.name, error = %e, "skipped a line from the adapter");
                 None
+            }
+        }
+    }
+
+    /// A command of the set-up, asked again on silence or a refusal.
+    async fn set_up_command(&mut self, message: Message, timeout: Duration) -> Result<()> {
+        let mut tries = 1;
+        loop {
+            match self.command(message, timeout).await {
+                Err(e) if tries < SETUP_COMMAND_TRIES && matches!(e.kind, ErrorKind::Timeout | ErrorKind::Device) => {
+                    tracing::warn!(instrument = %self.name, error = %e, tries, "an adapter set-up command failed: asked again");
+                    tries += 1;
+                }
+                result => return result,
             }
         }
     }

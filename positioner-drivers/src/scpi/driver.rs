@@ -556,18 +556,41 @@ where
         self.command(&[Command::SetVelocity(deg_per_s)], "set_velocity (VEL:COMM)").await
     }
 
-    /// `FAUL:CLE` when unverified commands are enabled; otherwise only `*CLS`
-    /// (the public record shows no fault-clear command: a latched drive fault
-    /// is cleared at the controller, and the next move says whether it was).
+    /// `FAUL:CLE` when unverified commands are enabled; otherwise what the
+    /// public record allows: `*CLS` (the error queue cleared), then `STAT?`.
+    /// An axis fault still latched then (PAU fault, error limit) cannot be
+    /// cleared from here: [`ErrorKind::Usage`], saying what to do (clear it
+    /// at the controller and resume, or send `FAUL:CLE` with
+    /// `unverified_commands = true`), so the survey stops at once instead of
+    /// trying a move the controller will refuse.
     async fn clear_fault(&mut self) -> Result<()> {
         if self.cfg.unverified_commands {
             self.command(&[Command::ClearFault], "clear_fault (FAUL:CLE)").await?;
-        } else {
-            self.request(&[Command::ClearStatus], "clear_fault (*CLS)").await?;
-            tracing::warn!(instrument = %self.name, "no public fault-clear command: only the error queue was cleared");
+            self.last_fault = None;
+            return Ok(());
         }
-        self.last_fault = None;
-        Ok(())
+        self.request(&[Command::ClearStatus], "clear_fault (*CLS)").await?;
+        let line = self.query(&[], Command::StatusQuery, "clear_fault (STAT? after *CLS)").await?;
+        let word = parse_status(&line).map_err(|e| self.garbled("clear_fault (STAT? after *CLS)", e))?;
+        if !word.fault() {
+            self.last_fault = None;
+            return Ok(());
+        }
+        let what = match self.last_fault.take() {
+            Some(f) => format!("{} ({}, code {})", word.fault_names(), f.text, f.code),
+            None => word.fault_names(),
+        };
+        let e = DriverError::usage(
+            &self.name,
+            format!(
+                "the axis fault ({what}) stays latched after *CLS (status word {word}), and the public record of \
+                 the MI-4190 shows no command that clears it: clear it at the controller (its front panel or its \
+                 own software), then run `survey resume`; or, if this controller takes FAUL:CLE, set \
+                 unverified_commands = true under [positioner] and the survey clears such trips itself"
+            ),
+        );
+        tracing::error!(instrument = %self.name, error = %e, "a latched axis fault cannot be cleared over SCPI");
+        Err(e)
     }
 
     async fn load_correction_table(&mut self, table: &CorrectionTable) -> Result<()> {

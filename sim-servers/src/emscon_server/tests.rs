@@ -318,6 +318,21 @@ async fn garbled_answers_are_garbled_and_the_link_recovers() {
     }
 }
 
+/// Issue 51: a garbled answer during the connection's set-up is asked again
+/// on the same connection (the next request resynchronises); three in a row
+/// are the set-up's fault.
+#[tokio::test]
+async fn a_garbled_answer_in_the_set_up_is_asked_again() {
+    let rig = Rig::new(sim_cfg(2, None)).await;
+    rig.faults.arm_n(garbled(Garble::UnknownType), 2);
+    let mut t = EmsconTracker::connect(rig.addr, driver_cfg()).await.unwrap();
+    t.measure().await.unwrap();
+    drop(t);
+    rig.faults.arm_n(garbled(Garble::UnknownType), 3);
+    let e = EmsconTracker::connect(rig.addr, driver_cfg()).await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Garbled, "{e}");
+}
+
 /// A result status changed into one the header does not define, in a
 /// measurement result and in a command's answer: a garbled packet, not
 /// the tracker's fault; the next requests are answered as before.

@@ -442,8 +442,20 @@ async fn the_driver_works_with_only_the_publicly_recorded_commands() {
     let s = p.status().await.unwrap();
     assert_eq!(s.fault.as_ref().map(|f| f.code), Some(305), "{s:?}");
     assert!(!s.in_position);
-    // No public fault-clear command: only the queue is cleared, the fault stays.
-    p.clear_fault().await.unwrap();
+    // No public fault-clear command: only the queue is cleared, the fault
+    // stays, and the clear says so and what to do (bad usage: the survey
+    // stops at once, interrupted).
+    let e = p.clear_fault().await.unwrap_err();
+    assert_eq!(e.kind, ErrorKind::Usage, "{e}");
+    for says in [
+        "PAU fault",
+        "stays latched after *CLS",
+        "clear it at the controller",
+        "survey resume",
+        "unverified_commands = true",
+    ] {
+        assert!(e.message.contains(says), "{says}: {e}");
+    }
     assert!(p.status().await.unwrap().fault.is_some());
     // Without the unverified commands the state is unknown (nothing asked).
     assert_eq!(p.correction_state().await.unwrap(), None);

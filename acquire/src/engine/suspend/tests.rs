@@ -23,6 +23,9 @@ struct Watched {
     inner: SimPositioner,
     limit_after: Option<usize>,
     stops: Arc<Mutex<usize>>,
+    /// Whether its fault clear is refused as bad usage (a controller with no
+    /// command for it, that says what to do).
+    no_clear: bool,
 }
 
 #[async_trait::async_trait]
@@ -51,6 +54,9 @@ impl Positioner for Watched {
         self.inner.set_velocity(v).await
     }
     async fn clear_fault(&mut self) -> survey_drivers::Result<()> {
+        if self.no_clear {
+            return Err(DriverError::usage("watched", "the fault stays latched: clear it at the controller"));
+        }
         self.inner.clear_fault().await
     }
     async fn load_correction_table(&mut self, t: &CorrectionTable) -> survey_drivers::Result<()> {
@@ -71,12 +77,22 @@ struct Rig {
 }
 
 fn make_rig(b: SimBenchBuilder, autocollimator: bool, timing: Timing, limit_after: Option<usize>) -> Rig {
+    make_rig_with(b, autocollimator, timing, limit_after, false)
+}
+
+fn make_rig_with(
+    b: SimBenchBuilder,
+    autocollimator: bool,
+    timing: Timing,
+    limit_after: Option<usize>,
+    no_clear: bool,
+) -> Rig {
     let bench = b.build();
     let cfg = bench.positioner.config();
     let timing = Timing { velocity_deg_s: cfg.velocity_deg_s, accel_deg_s2: cfg.accel_deg_s2, ..timing };
     let stops = Arc::new(Mutex::new(0));
     let truth = bench.positioner.truth();
-    let positioner = Watched { inner: bench.positioner, limit_after, stops: stops.clone() };
+    let positioner = Watched { inner: bench.positioner, limit_after, stops: stops.clone(), no_clear };
     let reference = if autocollimator {
         Reference::Autocollimator {
             faces: bench.autocollimator.faces(),
@@ -194,6 +210,25 @@ async fn a_drive_fault_that_clearing_does_not_cure_stops_the_axis() {
     assert!(matches!(err, EngineError::Instrument(ref e) if e.kind == ErrorKind::Device), "{err:?}");
     assert_eq!(*rig.stops.lock().unwrap(), 1, "the axis was stopped after the last retry");
     assert_eq!(events(&sink, "warn").len(), Timing::default().max_retries as usize);
+}
+
+/// A positioner that refuses to clear its fault as bad usage (the SCPI
+/// controller without a public fault-clear command) stops the survey at
+/// the first trip, its words (what to do) the error, without retries that
+/// would meet the same fault.
+#[tokio::test]
+async fn a_fault_the_positioner_cannot_clear_stops_the_axis_at_the_first_trip_saying_what_to_do() {
+    let clock = Arc::new(VirtualClock::new());
+    let faults = PositionerFaults { fault_probability_per_move: 1.0, ..Default::default() };
+    let mut rig = make_rig_with(builder(9, &clock).faults(faults), false, Timing::default(), None, true);
+    let mut sink = MemorySink::default();
+    let err = rig.engine.run(&plan12(), 0, &mut sink, &mut |_| {}).await.unwrap_err();
+    let EngineError::Instrument(e) = &err else { panic!("{err:?}") };
+    assert_eq!(e.kind, ErrorKind::Usage, "{e}");
+    assert!(e.message.contains("clear it at the controller"), "{e}");
+    assert_eq!(*rig.stops.lock().unwrap(), 1, "the axis was stopped");
+    let errors = events(&sink, "error");
+    assert!(errors.len() == 1 && errors[0].contains("clear it at the controller"), "{:?}", sink.events);
 }
 
 #[tokio::test]
