@@ -184,9 +184,10 @@ fn grow(tag: &str) -> String {
     )
 }
 
-/// A `-wal` beside the file that is not its own: another copy's log (the
-/// copies parted, both wrote), an old log of the file itself, and another
-/// copy's log that changed no page 1 while this file grew. SQLite replays any
+/// A `-wal` beside the file that is not its own: an old log of the file
+/// itself, and another copy's log that changed no page 1 while this file
+/// grew (another copy's log whose page 1 shares the file's change counter is
+/// a limit: see below). SQLite replays any
 /// log onto the file it finds it beside; every command looked at the file
 /// alone and `run`, `import` and `resume` wrote into the mixture. Now each is
 /// refused, exit 2, the file and the log unchanged, nothing made beside them.
@@ -214,8 +215,14 @@ fn a_write_ahead_log_from_another_copy_is_refused_by_every_command() {
     copy("grown.db");
     rusqlite::Connection::open(bench.path("grown.db")).unwrap().execute_batch(&grow("grown")).unwrap();
     std::fs::copy(bench.path("inplace.wal"), bench.path("grown.db-wal")).unwrap();
-    for (db, why) in [("diverged.db", "another copy"), ("stale.db", "newer than the log"), ("grown.db", "another copy")]
-    {
+    // "diverged.db" (both copies changed page 1 at one change counter) is
+    // not refused by its bytes: in WAL mode SQLite need not count every
+    // transaction, and CI's full-disk test met the file's own log with the
+    // same signature (refusing it would tell the user to move committed
+    // transactions aside). It is left to the check of the file as the log
+    // makes it, which finds a mixture only where it breaks a b-tree.
+    assert!(bench.exists("diverged.db-wal"));
+    for (db, why) in [("stale.db", "newer than the log"), ("grown.db", "another copy")] {
         assert_no_sidecars_but_the_log(&bench, db);
         let before = std::fs::read(bench.path(db)).unwrap();
         let log = std::fs::read(bench.path(&format!("{db}-wal"))).unwrap();
