@@ -192,8 +192,8 @@ fn replay(wal: &[u8], page_size: u64) -> Result<Replay, String> {
 }
 
 /// Whether the committed page-1 images `ones` of a log follow the file's
-/// page 1 (`first`, counter `counter`); why not, in words.
-fn follows(ones: &[(u32, Vec<u8>)], first: &[u8], counter: u32) -> Result<(), String> {
+/// page 1 (its change counter `counter`); why not, in words.
+fn follows(ones: &[(u32, Vec<u8>)], counter: u32) -> Result<(), String> {
     let (Some(low), Some(high)) = (ones.iter().map(|o| o.0).min(), ones.iter().map(|o| o.0).max()) else {
         return Ok(());
     };
@@ -252,7 +252,7 @@ pub(crate) fn examine(path: &Path) -> std::io::Result<Found> {
         }
     };
     found.replays = !replay.commits.is_empty();
-    let mut foreign = follows(&replay.page_ones, &first, h.counter).err();
+    let mut foreign = follows(&replay.page_ones, h.counter).err();
     if foreign.is_none()
         && replay.page_ones.is_empty()
         && let (Some(pages), Some(&size)) = (h.pages, replay.commits.iter().find(|&&s| Some(s) != h.pages))
@@ -363,21 +363,20 @@ pub(super) mod tests {
 
     #[test]
     fn page_one_s_counter_tells_whose_log_it_is() {
-        let file = page_one(5, 3);
         let ones = |c: &[u32]| c.iter().map(|&c| (c, page_one(c, 3))).collect::<Vec<_>>();
         // Restarted after the file's checkpoint, or checkpointed up to it.
-        assert!(follows(&ones(&[6, 7]), &file, 5).is_ok());
-        assert!(follows(&ones(&[4, 5, 6]), &file, 5).is_ok());
-        assert!(follows(&[], &file, 5).is_ok());
+        assert!(follows(&ones(&[6, 7]), 5).is_ok());
+        assert!(follows(&ones(&[4, 5, 6]), 5).is_ok());
+        assert!(follows(&[], 5).is_ok());
         // Older than the file; a gap where the file's transaction should be.
-        assert!(follows(&ones(&[3, 4]), &file, 5).unwrap_err().contains("newer"));
+        assert!(follows(&ones(&[3, 4]), 5).unwrap_err().contains("newer"));
         // The file's counter with other bytes is left to the check of the
         // file as the log makes it: in WAL mode SQLite need not count every
         // transaction, so such a log may be the file's own.
         let mut other = page_one(5, 3);
         other[200] = 1;
-        assert!(follows(&[(5, other)], &file, 5).is_ok());
-        assert!(follows(&[(4, page_one(4, 3)), (6, page_one(6, 3))], &file, 5).unwrap_err().contains("another copy"));
+        assert!(follows(&[(5, other)], 5).is_ok());
+        assert!(follows(&[(4, page_one(4, 3)), (6, page_one(6, 3))], 5).unwrap_err().contains("another copy"));
     }
 
     #[test]
