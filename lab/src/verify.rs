@@ -312,7 +312,7 @@ pub async fn verify(
     out.doc["drift_in_time"] = serde_json::to_value(&drift).unwrap_or_default();
     if let Some(d) = &drift {
         // A verification's table is judged, not made: what is left is named.
-        out.text += &d.text().replace(": the table is not a result", ": named, not corrected");
+        out.text += &d.text_saying("named, not corrected");
     }
     out.doc["targets"] = plan.targets_deg.len().into();
     out.doc["between_targets"] = verify_plan.between.into();

@@ -180,8 +180,15 @@ pub fn corrected(samples: &[Sample], d: &TimeDrift) -> Vec<Sample> {
 }
 
 impl TimeDrift {
-    /// One line for people.
+    /// One line for people (a survey's: what no straight line takes makes
+    /// its table not a result).
     pub fn text(&self) -> String {
+        self.text_saying("the table is not a result")
+    }
+
+    /// [`TimeDrift::text`], with `consequence` said of what no straight
+    /// line takes (a verification's: it is named, not corrected).
+    pub fn text_saying(&self, consequence: &str) -> String {
         let what = if self.corrected {
             format!("corrected ({:.2e} deg over the survey's {:.2} h)", self.over_survey_deg, self.duration_h)
         } else {
@@ -190,7 +197,7 @@ impl TimeDrift {
         let left = if self.left_significant {
             format!(
                 "; NOT A STRAIGHT LINE: the passes differ beyond their noise (chi-square {:.1} a degree of freedom), \
-                 up to {:.2e} deg a pass that no correction takes: the table is not a result",
+                 up to {:.2e} deg a pass that no correction takes: {consequence}",
                 self.left_f, self.left_deg
             )
         } else {

@@ -21,7 +21,7 @@ use survey_acquire::stop::Stop;
 use survey_bench::Bench;
 use survey_bench::output::Output;
 use survey_bench::session::{AcquireOptions, acquire};
-use survey_modelgap::compare::seen::{CalibrationGrid, CheckDesign, Unseen, design_check};
+use survey_modelgap::compare::seen::{Blind, CalibrationGrid, CheckDesign, Unseen, design_check};
 use survey_plan::SurveyPlan;
 use survey_store::asset::UNASSIGNED;
 use survey_store::survey::{NewSurvey, SurveyRecord, SurveyRef};
@@ -385,8 +385,12 @@ fn check_json(cmp: &Compared, a: &Measured, c: &Measured, design: Option<&CheckD
             // The lines asked for that it could not see, then the bins where
             // a new line would hide.
             let kind = |kind: &'static str| move |u: &Unseen| json!({"cycles_per_rev": u.cycles_per_rev, "why": u.why, "kind": kind});
-            let unseen: Vec<Value> =
-                d.unseen.iter().map(kind("in force")).chain(d.blind.iter().map(kind("new line"))).collect();
+            let unseen: Vec<Value> = d
+                .unseen
+                .iter()
+                .map(kind("in force"))
+                .chain(d.blind.iter().map(|(_, u)| u).map(kind("new line")))
+                .collect();
             json!({"points": d.points, "why": d.why, "unseen": unseen, "up_to_cycles_per_rev": d.up_to,
                 "previous_points": d.previous})
         }
@@ -404,14 +408,14 @@ fn blind_text(d: &CheckDesign, asset: &str) -> String {
             d.points, d.up_to
         );
     }
-    let of = |kind: &str| {
+    let of = |kind: Blind| {
         let ks: Vec<String> =
-            d.blind.iter().filter(|u| u.why.contains(kind)).map(|u| format!("{}", u.cycles_per_rev)).collect();
+            d.blind.iter().filter(|(b, _)| *b == kind).map(|(_, u)| format!("{}", u.cycles_per_rev)).collect();
         ks.join(", ")
     };
     let mut parts = Vec::new();
     for (kind, said) in
-        [("onto the mean", "the mean"), ("Nyquist", "the Nyquist bin"), ("line in force", "a line in force's bin")]
+        [(Blind::Mean, "the mean"), (Blind::Nyquist, "the Nyquist bin"), (Blind::LineInForce, "a line in force's bin")]
     {
         let ks = of(kind);
         if !ks.is_empty() {

@@ -126,34 +126,38 @@ pub enum Blind {
     /// It sits on or next to the Nyquist bin: only its cosine is seen (none
     /// at all at phase 0 on the bin).
     Nyquist,
+    /// It aliases onto a line in force: seen only as a change of that line.
+    LineInForce,
+}
+
+/// Whether a line at `k` cycles per revolution hides from targets at `n`
+/// points per revolution by its alias alone (the rule of [`unseen`]: within
+/// a bin of the mean or of the Nyquist bin).
+fn hides(k: f64, n: f64) -> Option<Blind> {
+    let a = alias(k, n).observed;
+    if a < 1.0 {
+        Some(Blind::Mean)
+    } else if n / 2.0 - a < 1.0 {
+        Some(Blind::Nyquist)
+    } else {
+        None
+    }
 }
 
 /// The whole cycles per revolution from 1 to `up_to` at which a line hides
-/// from targets at `n` points per revolution, and why (the rule of
-/// [`unseen`]: within a bin of the mean or of the Nyquist bin).
+/// from targets at `n` points per revolution, and why ([`Blind::Mean`] or
+/// [`Blind::Nyquist`]).
 pub fn blind_bins(n: f64, up_to: u32) -> Vec<(u32, Blind)> {
-    (1..=up_to)
-        .filter_map(|k| {
-            let a = alias(f64::from(k), n).observed;
-            if a < 1.0 {
-                Some((k, Blind::Mean))
-            } else if n / 2.0 - a < 1.0 {
-                Some((k, Blind::Nyquist))
-            } else {
-                None
-            }
-        })
-        .collect()
+    (1..=up_to).filter_map(|k| hides(f64::from(k), n).map(|b| (k, b))).collect()
 }
 
 /// Every whole line from 1 to `up_to` cycles per revolution that is not in
 /// `lines` (those in force and seen before) and that targets at `n` points
 /// per revolution cannot see by itself: on the mean, on the Nyquist bin, or
-/// on the bin of a line in force (then seen only as a change of that line).
-/// A new line there would leave a check "in tolerance" while the table in
-/// force no longer holds: the check lists them.
-pub fn blind(n: f64, lines: &[f64], up_to: u32) -> Vec<Unseen> {
-    let hidden = blind_bins(n, up_to);
+/// on the bin of a line in force (then seen only as a change of that line),
+/// each with why. A new line there would leave a check "in tolerance" while
+/// the table in force no longer holds: the check lists them.
+pub fn blind(n: f64, lines: &[f64], up_to: u32) -> Vec<(Blind, Unseen)> {
     let in_force: Vec<(f64, f64)> = lines.iter().filter(|k| **k > 0.0).map(|&k| (k, alias(k, n).observed)).collect();
     let mut out = Vec::new();
     for k in 1..=up_to {
@@ -161,31 +165,44 @@ pub fn blind(n: f64, lines: &[f64], up_to: u32) -> Vec<Unseen> {
         if in_force.iter().any(|(l, _)| (l - kf).abs() < 1e-9) {
             continue;
         }
-        let why = match hidden.iter().find(|(b, _)| *b == k) {
-            Some((_, Blind::Mean)) => format!(
-                "a new line at {k} cycles/rev aliases onto the mean at {} points per revolution: the check cannot see it",
-                count(n)
+        let (kind, why) = match hides(kf, n) {
+            Some(Blind::Mean) => (
+                Blind::Mean,
+                format!(
+                    "a new line at {k} cycles/rev aliases onto the mean at {} points per revolution: the check cannot see it",
+                    count(n)
+                ),
             ),
-            Some((_, Blind::Nyquist)) => format!(
-                "a new line at {k} cycles/rev sits on or next to the Nyquist bin ({}) at {} points per revolution: only its cosine is seen, none of it at phase 0",
-                count(n / 2.0),
-                count(n)
+            Some(_) => (
+                Blind::Nyquist,
+                format!(
+                    "a new line at {k} cycles/rev sits on or next to the Nyquist bin ({}) at {} points per revolution: only its cosine is seen, none of it at phase 0",
+                    count(n / 2.0),
+                    count(n)
+                ),
             ),
             None => {
                 let a = alias(kf, n).observed;
-                match in_force.iter().find(|(_, b)| (b - a).abs() < 1.0) {
-                    Some((l, _)) => format!(
+                let Some((l, _)) = in_force.iter().find(|(_, b)| (b - a).abs() < 1.0) else { continue };
+                (
+                    Blind::LineInForce,
+                    format!(
                         "a new line at {k} cycles/rev aliases onto the {} cycles/rev line in force at {} points per revolution: seen only as a change of that line",
                         cycles(*l),
                         count(n)
                     ),
-                    None => continue,
-                }
+                )
             }
         };
-        out.push(Unseen { cycles_per_rev: kf, why });
+        out.push((kind, Unseen { cycles_per_rev: kf, why }));
     }
     out
+}
+
+/// Whether targets at `n` points per revolution share none of `other`'s
+/// blind bins from 1 to `up_to` (the mean's, the Nyquist bin's).
+fn apart(n: f64, other: &[u32], up_to: u32) -> bool {
+    blind_bins(n, up_to).iter().all(|(k, _)| !other.contains(k))
 }
 
 /// Whether targets at `n` and at `m` points per revolution share no blind
@@ -193,7 +210,7 @@ pub fn blind(n: f64, lines: &[f64], up_to: u32) -> Vec<Unseen> {
 /// cannot see, the other can.
 pub fn blind_bins_differ(n: f64, m: f64, up_to: u32) -> bool {
     let other: Vec<u32> = blind_bins(m, up_to).iter().map(|(k, _)| *k).collect();
-    blind_bins(n, up_to).iter().all(|(k, _)| !other.contains(k))
+    apart(n, &other, up_to)
 }
 
 /// The calibration a check is designed from: its targets' grid.
@@ -217,8 +234,8 @@ pub struct CheckDesign {
     /// The lines asked for that these targets cannot see.
     pub unseen: Vec<Unseen>,
     /// The lines not in force, up to [`CheckDesign::up_to`], that these
-    /// targets cannot see by themselves ([`blind`]).
-    pub blind: Vec<Unseen>,
+    /// targets cannot see by themselves, and why ([`blind`]).
+    pub blind: Vec<(Blind, Unseen)>,
     /// The highest line the check answers for: the calibration's own
     /// Nyquist bin (a line above it the calibration could not have placed).
     pub up_to: u32,
@@ -256,7 +273,10 @@ pub fn design_check(
     previous: Option<u32>,
 ) -> CheckDesign {
     let up_to = (grid.per_rev(grid.points) / 2.0).floor().max(1.0) as u32;
-    let differs = |n: u32| previous.is_none_or(|p| blind_bins_differ(grid.per_rev(n), grid.per_rev(p), up_to));
+    // The last check's blind bins, once: every candidate is held apart from them.
+    let before: Option<Vec<u32>> =
+        previous.map(|p| blind_bins(grid.per_rev(p), up_to).iter().map(|(k, _)| *k).collect());
+    let differs = |n: u32| before.as_deref().is_none_or(|b| apart(grid.per_rev(n), b, up_to));
     let plain = design_with(grid, lines, requested, (&|_| true, false));
     let mut d = match previous {
         Some(p) if requested.is_none() && !grid.polygon => {
@@ -477,7 +497,7 @@ mod tests {
     fn a_check_lists_its_blind_bins_and_the_next_one_is_blind_elsewhere() {
         let first = design_check(full(120), &[1.0, 20.0], None, None);
         assert_eq!((first.points, first.up_to, first.previous), (16, 60, None), "{first:?}");
-        let listed: Vec<f64> = first.blind.iter().map(|u| u.cycles_per_rev).collect();
+        let listed: Vec<f64> = first.blind.iter().map(|(_, u)| u.cycles_per_rev).collect();
         for k in [8.0, 16.0, 24.0, 32.0, 40.0, 48.0, 56.0] {
             assert!(listed.contains(&k), "{k} not listed: {listed:?}");
         }
@@ -486,7 +506,13 @@ mod tests {
             assert!(listed.contains(&k), "{k} not listed: {listed:?}");
         }
         assert!(!listed.contains(&20.0) && !listed.contains(&1.0) && !listed.contains(&5.0), "{listed:?}");
-        assert!(first.blind.iter().find(|u| u.cycles_per_rev == 36.0).is_some_and(|u| u.why.contains("20 cycles/rev")));
+        assert!(
+            first
+                .blind
+                .iter()
+                .find(|(_, u)| u.cycles_per_rev == 36.0)
+                .is_some_and(|(_, u)| u.why.contains("20 cycles/rev"))
+        );
         let next = design_check(full(120), &[1.0, 20.0], None, Some(first.points));
         assert_eq!(next.points, 18, "{next:?}");
         assert!(next.unseen.is_empty() && next.why.contains("differ from the last check's (16 targets)"), "{next:?}");
@@ -494,8 +520,8 @@ mod tests {
         // Neither on the mean nor on the Nyquist bin now (16 shares the 20
         // cycles/rev line's bin at 18: seen as a change of that line).
         for k in [8.0, 16.0, 48.0] {
-            let again = next.blind.iter().find(|u| u.cycles_per_rev == k);
-            assert!(again.is_none_or(|u| u.why.contains("line in force")), "{k} blind again: {again:?}");
+            let again = next.blind.iter().find(|(_, u)| u.cycles_per_rev == k);
+            assert!(again.is_none_or(|(_, u)| u.why.contains("line in force")), "{k} blind again: {again:?}");
         }
         // And the one after goes back to 16, apart from 18's.
         let third = design_check(full(120), &[1.0, 20.0], None, Some(next.points));
