@@ -176,6 +176,11 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             // The tracker's MPE is the survey's (its U at every command), not the report's to change.
             reference_mpe_um: None,
             reference_mpe_um_per_m: None,
+            // Addresses and identifications are the configuration's (a table has no flag).
+            laboratory_address: None,
+            customer_address: None,
+            item: None,
+            reference_instrument: None,
         },
         design: args.design,
         recipe: args.recipe,

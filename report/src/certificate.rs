@@ -11,7 +11,7 @@
 //! of its date and uid when none was assigned, [`crate::issue`]); else "not stated".
 
 use survey_acquire::ReferenceKind;
-use survey_store::config::CertificateSection;
+use survey_store::config::{Address, CertificateSection, Equipment};
 use survey_store::survey::{Setup, SurveyRecord};
 
 /// What `survey report`'s flags say (each overrides the stored value): the
@@ -83,6 +83,68 @@ pub struct Certificate {
     /// Why the survey is a rehearsal on simulated instruments, not a
     /// calibration, when it is ([`survey_store::survey::Setup::rehearsal`]).
     pub rehearsal: Option<String>,
+    /// The laboratory's postal address (`[certificate.laboratory_address]`).
+    pub laboratory_address: Option<Address>,
+    /// The customer's postal address (`[certificate.customer_address]`).
+    pub customer_address: Option<Address>,
+    /// The item's identifications (`[certificate.item]`).
+    pub item: Option<Equipment>,
+    /// The reference's identifications and calibration (`[certificate.reference_instrument]`).
+    pub reference_instrument: Option<Equipment>,
+}
+
+/// An address on one line: street and number, post code and city, state, country.
+pub fn address_line(a: &Address) -> String {
+    let join = |parts: &[&Option<String>], sep: &str| {
+        parts.iter().filter_map(|p| p.as_deref()).filter(|p| !p.is_empty()).collect::<Vec<_>>().join(sep)
+    };
+    let street = join(&[&a.street_no, &a.street], " ");
+    let city = join(&[&a.post_code, &a.city], " ");
+    [street, city, join(&[&a.state], ""), join(&[&a.country], "")]
+        .into_iter()
+        .filter(|p| !p.is_empty())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// An instrument's identifications as the DCC names them: (issuer, value, what it is).
+pub fn identifications(e: &Equipment) -> Vec<(&'static str, &str, &'static str)> {
+    let mut ids = Vec::new();
+    if let Some(s) = &e.serial {
+        ids.push(("manufacturer", s.as_str(), "serial number"));
+    }
+    if let Some(s) = &e.inventory {
+        ids.push(("owner", s.as_str(), "inventory number"));
+    }
+    ids
+}
+
+/// An instrument's make, model and identifications on one line.
+pub fn equipment_line(e: &Equipment) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    for (what, v) in [("", &e.manufacturer), ("model ", &e.model)] {
+        if let Some(v) = v {
+            parts.push(format!("{what}{v}"));
+        }
+    }
+    parts.extend(identifications(e).into_iter().map(|(_, v, name)| format!("{name} {v}")));
+    parts.join(", ")
+}
+
+/// A reference's own calibration on one line, when one is stated.
+pub fn calibration_line(e: &Equipment) -> Option<String> {
+    let cert = e.certificate.as_ref()?;
+    let mut line = format!("calibration certificate {cert}");
+    if let Some(by) = &e.calibrated_by {
+        line += &format!(" by {by}");
+    }
+    if let Some(on) = &e.calibrated {
+        line += &format!(", calibrated {on}");
+    }
+    if let Some(due) = &e.due {
+        line += &format!(", due {due}");
+    }
+    Some(line)
 }
 
 /// What a rehearsal's certificate says on every page, in its title and in its DCC.
@@ -162,8 +224,18 @@ impl Certificate {
             location: pick(&flags.location, stored.location.as_ref(), None),
             item_condition: pick(&flags.item_condition, stored.item_condition.as_ref(), None),
             received: pick(&flags.received, stored.received.as_ref(), None),
-            country: pick(&flags.country, stored.country.as_ref(), None),
+            country: pick(&flags.country, stored.country.as_ref(), None).or_else(|| {
+                stored
+                    .laboratory_address
+                    .as_ref()
+                    .and_then(|a| a.country.clone())
+                    .map(|value| Stated { value, from: CONFIG })
+            }),
             rehearsal: None,
+            laboratory_address: stored.laboratory_address.clone(),
+            customer_address: stored.customer_address.clone(),
+            item: stored.item.clone(),
+            reference_instrument: stored.reference_instrument.clone(),
         };
         match survey.setup.rehearsal() {
             Some(why) => cert.rehearsal_of(why),
@@ -185,6 +257,10 @@ impl Certificate {
             if let Some(s) = field.as_mut().filter(|s| s.from != BENCH) {
                 s.value = format!("simulated, standing in for: {}", s.value);
             }
+        }
+        // A stand-in's calibration is not the rehearsal's: no certificate of the reference is claimed.
+        if let Some(r) = self.reference_instrument.as_mut() {
+            (r.certificate, r.calibrated_by, r.calibrated, r.due) = (None, None, None, None);
         }
         self.rehearsal = Some(why);
         self
@@ -257,6 +333,20 @@ mod tests {
         assert_eq!(cert.temperature_c.as_ref().map(|t| t.value), Some(20.3));
         assert_eq!(cert.laboratory.as_ref().map(|l| l.from), Some(CONFIG));
         assert!(cert.traceability.as_ref().is_some_and(|t| t.value.contains("certificate 5678")));
+        // The structured address and identifications, as the page and the DCC state them.
+        assert_eq!(address_line(cert.laboratory_address.as_ref().unwrap()), "1 Bay Road, 38116 Braunschweig, DE");
+        let reference = cert.reference_instrument.as_ref().unwrap();
+        assert_eq!(equipment_line(reference), "Leica Geosystems, model AT960, serial number 7788");
+        assert_eq!(
+            calibration_line(reference).as_deref(),
+            Some(
+                "calibration certificate 5678 by the national metrology institute, calibrated 2026-01-15, due 2027-01-15"
+            )
+        );
+        assert_eq!(identifications(cert.item.as_ref().unwrap()), [("manufacturer", "1042", "serial number")]);
+        // A rehearsal claims no calibration of its stand-in reference.
+        let rehearsal = cert.clone().rehearsal_of("a test".into());
+        assert_eq!(calibration_line(rehearsal.reference_instrument.as_ref().unwrap()), None);
         // No number assigned: made from the survey (its uid; `created_at` here has no date).
         assert_eq!((cert.number.value.as_str(), cert.number.from), ("000000000000", SURVEY));
         let numbered = CertificateFlags { number: Some("CAL-1".into()), ..CertificateFlags::default() };

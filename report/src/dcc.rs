@@ -21,7 +21,7 @@
 //!
 //! Written with quick-xml's [`Writer`] (every text escaped by it).
 
-use crate::certificate::{Issue, REHEARSAL};
+use crate::certificate::{Issue, REHEARSAL, calibration_line, identifications};
 use crate::conformity::{self, Decision};
 use crate::html::Page;
 use crate::html::header::{environment_text, method_text, performed};
@@ -32,6 +32,7 @@ use quick_xml::events::{BytesDecl, BytesEnd, BytesStart, BytesText, Event};
 use survey_lab::environment::Environment;
 use survey_processing::Direction;
 use survey_processing::iso230::iso230_2;
+use survey_store::config::{Address, Equipment};
 
 /// The D-SI unit of every angle.
 const DEGREE: &str = "\\degree";
@@ -142,17 +143,81 @@ impl Xml {
         self.close("dcc:statement")
     }
 
-    /// A contact with a name and, as free text, where it is.
-    fn contact(&mut self, name: &str, who: &str, country: Option<&str>) -> anyhow::Result<()> {
+    /// A contact with a name and where it is: its postal address as the
+    /// DCC structures one when it is stated, else the name as free text.
+    fn contact(
+        &mut self,
+        name: &str,
+        who: &str,
+        address: Option<&Address>,
+        country: Option<&str>,
+    ) -> anyhow::Result<()> {
         self.open(name, &[])?;
         self.words("dcc:name", who)?;
         self.open("dcc:location", &[])?;
-        if let Some(c) = country {
-            self.leaf("dcc:countryCode", c)?;
+        self.location(address)?;
+        match country.or_else(|| address.and_then(|a| a.country.as_deref())) {
+            Some(c) => self.leaf("dcc:countryCode", c)?,
+            None if address.is_none() => self.words("dcc:further", who)?,
+            None => {}
         }
-        self.words("dcc:further", who)?;
         self.close("dcc:location")?;
         self.close(name)
+    }
+
+    /// A postal address's parts (but its country), each in its element.
+    fn location(&mut self, address: Option<&Address>) -> anyhow::Result<()> {
+        let Some(a) = address else { return Ok(()) };
+        let parts = [
+            ("dcc:street", &a.street),
+            ("dcc:streetNo", &a.street_no),
+            ("dcc:postCode", &a.post_code),
+            ("dcc:city", &a.city),
+            ("dcc:state", &a.state),
+        ];
+        for (element, value) in parts {
+            if let Some(v) = value.as_deref().filter(|v| !v.trim().is_empty()) {
+                xml_text(element, v)?;
+                self.leaf(element, v)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// An instrument's manufacturer (named, or "not stated": the item's is required), model and identifications.
+    fn equipment(&mut self, e: Option<&Equipment>, required: bool, more: &[(&str, &str, &str)]) -> anyhow::Result<()> {
+        match e.and_then(|e| e.manufacturer.as_deref()) {
+            Some(m) => {
+                self.open("dcc:manufacturer", &[])?;
+                self.words("dcc:name", m)?;
+                self.close("dcc:manufacturer")?;
+            }
+            None if required => {
+                self.open("dcc:manufacturer", &[])?;
+                self.words("dcc:name", NOT_STATED)?;
+                self.close("dcc:manufacturer")?;
+            }
+            None => {}
+        }
+        if let Some(m) = e.and_then(|e| e.model.as_deref()) {
+            xml_text("dcc:model", m)?;
+            self.leaf("dcc:model", m)?;
+        }
+        let mut ids: Vec<(&str, &str, &str)> = e.map(identifications).unwrap_or_default();
+        ids.extend_from_slice(more);
+        if ids.is_empty() {
+            return Ok(());
+        }
+        self.open("dcc:identifications", &[])?;
+        for (issuer, value, name) in ids {
+            self.open("dcc:identification", &[])?;
+            self.leaf("dcc:issuer", issuer)?;
+            xml_text("dcc:value", value)?;
+            self.leaf("dcc:value", value)?;
+            self.words("dcc:name", name)?;
+            self.close("dcc:identification")?;
+        }
+        self.close("dcc:identifications")
     }
 }
 
@@ -301,21 +366,17 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:item", &[])?;
     x.words("dcc:name", &p.cert.positioner_name(survey))?;
     x.words("dcc:description", stated(&cert.positioner))?;
-    x.open("dcc:manufacturer", &[])?;
-    x.words("dcc:name", NOT_STATED)?;
-    x.close("dcc:manufacturer")?;
-    x.open("dcc:identifications", &[])?;
-    x.open("dcc:identification", &[])?;
-    x.leaf("dcc:issuer", "calibrationLaboratory")?;
-    x.leaf("dcc:value", &survey.asset)?;
-    x.words("dcc:name", "asset (the axis calibrated)")?;
-    x.close("dcc:identification")?;
-    x.close("dcc:identifications")?;
+    x.equipment(cert.item.as_ref(), true, &[("calibrationLaboratory", &survey.asset, "asset (the axis calibrated)")])?;
     x.close("dcc:item")?;
     x.close("dcc:items")?;
 
     x.open("dcc:calibrationLaboratory", &[])?;
-    x.contact("dcc:contact", stated(&cert.laboratory), cert.country.as_ref().map(|c| c.value.as_str()))?;
+    x.contact(
+        "dcc:contact",
+        stated(&cert.laboratory),
+        cert.laboratory_address.as_ref(),
+        cert.country.as_ref().map(|c| c.value.as_str()),
+    )?;
     x.close("dcc:calibrationLaboratory")?;
 
     x.open("dcc:respPersons", &[])?;
@@ -338,7 +399,7 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         x.close("dcc:respPerson")?;
     }
     x.close("dcc:respPersons")?;
-    x.contact("dcc:customer", stated(&cert.customer), None)?;
+    x.contact("dcc:customer", stated(&cert.customer), cert.customer_address.as_ref(), None)?;
     statements(x, p)?;
     x.close("dcc:administrativeData")
 }
@@ -451,8 +512,27 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:measuringEquipments", &[])?;
     x.open("dcc:measuringEquipment", &[("refType", "basic_normalUsed")])?;
     x.words("dcc:name", stated(&p.cert.reference))?;
+    let reference = p.cert.reference_instrument.as_ref();
+    let calibration = reference.and_then(calibration_line);
+    let description = [
+        p.cert
+            .reference_uncertainty_deg
+            .as_ref()
+            .map(|u| format!("standard uncertainty of one angle: {} deg", u.value)),
+        calibration.clone(),
+    ];
+    let description: Vec<String> = description.into_iter().flatten().collect();
+    if !description.is_empty() {
+        x.words("dcc:description", &description.join("; "))?;
+    }
+    // Its own calibration certificate, by its number, beside its identifications.
+    let certificate: Vec<(&str, &str, &str)> = reference
+        .and_then(|r| r.certificate.as_deref())
+        .map(|c| ("calibrationLaboratory", c, "certificate of its calibration"))
+        .into_iter()
+        .collect();
+    x.equipment(reference, false, &certificate)?;
     if let Some(u) = &p.cert.reference_uncertainty_deg {
-        x.words("dcc:description", &format!("standard uncertainty of one angle: {} deg", u.value))?;
         // The same as a quantity a machine reads.
         x.open("dcc:measuringEquipmentQuantities", &[])?;
         x.open("dcc:measuringEquipmentQuantity", &[("refType", "survey_referenceStandardUncertainty")])?;

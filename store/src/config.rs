@@ -201,6 +201,67 @@ pub struct CertificateSection {
     /// The laboratory's country, ISO 3166-1 alpha-2 (`DE`, `GB`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub country: Option<String>,
+    /// The laboratory's postal address.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub laboratory_address: Option<Address>,
+    /// The customer's postal address.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub customer_address: Option<Address>,
+    /// The item calibrated: its identifications.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub item: Option<Equipment>,
+    /// The reference instrument: its identifications and its calibration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_instrument: Option<Equipment>,
+}
+
+/// A postal address (`[certificate.laboratory_address]`, `[certificate.customer_address]`).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Address {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub street: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub street_no: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub post_code: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub city: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub state: Option<String>,
+    /// ISO 3166-1 alpha-2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub country: Option<String>,
+}
+
+/// An instrument's identifications (`[certificate.item]`,
+/// `[certificate.reference_instrument]`): who made it, its model, its
+/// serial and inventory numbers, and, for a reference, the certificate of
+/// its own calibration (number, by whom, when, when it is due again).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Equipment {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub manufacturer: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub serial: Option<String>,
+    /// The owner's inventory number.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inventory: Option<String>,
+    /// The number of the certificate of its own calibration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub certificate: Option<String>,
+    /// Who calibrated it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibrated_by: Option<String>,
+    /// When, `YYYY-MM-DD`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibrated: Option<String>,
+    /// When its calibration is due again, `YYYY-MM-DD`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub due: Option<String>,
 }
 
 /// `[survey]`: the plan; command-line flags override these.

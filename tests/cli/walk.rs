@@ -174,6 +174,24 @@ fn the_readme_walk_runs_as_written_against_survey_sim() {
     }
     let dcc = bench.read("certificate/dcc.xml");
     assert!(dcc.contains("refType=\"survey_rehearsal\"") && !dcc.contains("national metrology institute"));
+    // The example's address structured, its instruments identified; a stand-in's calibration not claimed.
+    for words in [
+        "<dcc:street>Bay Road</dcc:street>",
+        "<dcc:streetNo>1</dcc:streetNo>",
+        "<dcc:postCode>38116</dcc:postCode>",
+        "<dcc:city>Braunschweig</dcc:city>",
+        "<dcc:countryCode>DE</dcc:countryCode>",
+        "<dcc:model>AZ-200</dcc:model>",
+        "<dcc:model>AT960</dcc:model>",
+        "<dcc:value>7788</dcc:value>",
+    ] {
+        assert!(dcc.contains(words), "the DCC holds {words}");
+    }
+    assert!(!dcc.contains(">5678<") && !dcc.contains("5678,"), "a stand-in's calibration is claimed");
+    match crate::dcc::validator_missing() {
+        Some(why) => println!("skipped the validation: {why}"),
+        None => crate::dcc::validate(&bench, &["certificate/dcc.xml"]),
+    }
 }
 
 /// The lines of the README's first output block after `marker`.

@@ -3,7 +3,7 @@
 
 use super::{Page, Section};
 use crate::certificate::Issue;
-use crate::certificate::{BENCH, Certificate, Stated};
+use crate::certificate::{BENCH, Certificate, Stated, address_line, calibration_line, equipment_line};
 use crate::page::escape;
 use std::fmt::Write as _;
 use survey_lab::environment::Environment;
@@ -129,17 +129,28 @@ fn fields(p: &Page<'_>) -> String {
         Some(t) => format!(" ({} of instrument time)", duration_words(t)),
         None => String::new(),
     };
+    // A stated address or identification after the field it belongs to, on its own line.
+    let with = |field: String, more: Option<String>| match more.filter(|m| !m.is_empty()) {
+        Some(m) => format!("{field}<br>{}", escape(&m)),
+        None => field,
+    };
+    let reference = with(
+        text(&cert.reference),
+        cert.reference_instrument.as_ref().map(|e| {
+            [Some(equipment_line(e)), calibration_line(e)].into_iter().flatten().collect::<Vec<_>>().join("; ")
+        }),
+    );
     let rows: Vec<(&str, String)> = vec![
-        ("Calibrating laboratory", text(&cert.laboratory)),
+        ("Calibrating laboratory", with(text(&cert.laboratory), cert.laboratory_address.as_ref().map(address_line))),
         ("Laboratory's country", text(&cert.country)),
-        ("Customer (name, address)", text(&cert.customer)),
-        ("Item calibrated", text(&cert.positioner)),
+        ("Customer (name, address)", with(text(&cert.customer), cert.customer_address.as_ref().map(address_line))),
+        ("Item calibrated", with(text(&cert.positioner), cert.item.as_ref().map(equipment_line))),
         ("Item's condition", text(&cert.item_condition)),
         ("Date received", text(&cert.received)),
         ("Date of calibration", format!("{begin} to {end}{instrument_time}")),
         ("Location of calibration", text(&cert.location)),
         ("Method", escape(&method_text(survey))),
-        ("Reference instrument", text(&cert.reference)),
+        ("Reference instrument", reference),
         (
             "Reference uncertainty",
             cert.reference_uncertainty_deg

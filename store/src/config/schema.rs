@@ -287,6 +287,32 @@ const CERTIFICATE: &[Field] = &[
     opt("item_condition", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
     opt("received", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
     opt("country", Ty::Checked(crate::config::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
+    opt("laboratory_address", Ty::Table(ADDRESS)),
+    opt("customer_address", Ty::Table(ADDRESS)),
+    opt("item", Ty::Table(EQUIPMENT)),
+    opt("reference_instrument", Ty::Table(EQUIPMENT)),
+];
+
+/// A postal address, as the DCC's `location` holds one.
+const ADDRESS: &[Field] = &[
+    opt("street", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("street_no", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("post_code", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("city", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("state", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("country", Ty::Checked(crate::config::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
+];
+
+/// An instrument's identifications and, for a reference, its calibration.
+const EQUIPMENT: &[Field] = &[
+    opt("manufacturer", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("model", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("serial", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("inventory", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("certificate", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("calibrated_by", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("calibrated", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
+    opt("due", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
 ];
 
 /// A range of numbers in words: `from 0 to 3600 s`, `above 0, at most 1 deg`.
