@@ -269,6 +269,7 @@ pub fn router(options: ServeOptions) -> Router {
         .route("/surveys/{survey}", get(pages::survey))
         .route("/surveys/{survey}/dcc.xml", get(pages::survey_dcc))
         .route("/surveys/{survey}/certificate.html", get(pages::survey_certificate))
+        .route("/surveys/{survey}/certificate.pdf", get(pages::survey_pdf))
         // `/api/` and `/api` (the nest's own "/" would answer only the latter).
         .route("/api/", get(api::index))
         .route("/api", get(api::index))
@@ -378,6 +379,7 @@ pub mod api {
         ("/surveys/<id or uid>", "the survey's certificate as issued (a page; its draft before)"),
         ("/surveys/<id or uid>/certificate.html", "the certificate's page as issued, byte for byte"),
         ("/surveys/<id or uid>/dcc.xml", "the certificate's DCC as issued, byte for byte"),
+        ("/surveys/<id or uid>/certificate.pdf", "the certificate's page as issued, printed by Chromium"),
     ];
 
     pub(super) fn routes() -> Router<App> {

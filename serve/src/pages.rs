@@ -268,6 +268,37 @@ pub(super) async fn survey_certificate(
     Ok(html_body(html.await?))
 }
 
+/// `/surveys/<uid>/certificate.pdf`: the page as issued, printed by Chromium
+/// as `survey report --pdf` prints it (the browser `SURVEY_CHROMIUM` names,
+/// else one on `PATH`; bounded as the report's print is). One print at a
+/// time among the pages' heavy work; without a browser a 503 says what to do
+/// (the page prints from any browser too).
+pub(super) async fn survey_pdf(
+    State(app): State<App>,
+    UrlPath(survey): UrlPath<String>,
+) -> Result<impl IntoResponse, Failure> {
+    let r = survey_ref(&survey, false)?;
+    let pdf = offload(app.clone(), false, async move {
+        let c = read!(app, false, |store| certificate(&store, r).await);
+        let cannot = |e: anyhow::Error| Failure {
+            status: axum::http::StatusCode::SERVICE_UNAVAILABLE,
+            reason: format!(
+                "the certificate cannot be printed to PDF here: {e:#} (its page, /surveys/{}/certificate.html, \
+                 prints from any browser)",
+                c.uid
+            ),
+            api: false,
+        };
+        let bound = survey_report::pdf::timeout().map_err(cannot)?;
+        let folder = tempfile::tempdir().map_err(|e| cannot(e.into()))?;
+        let (html, pdf) = (folder.path().join("certificate.html"), folder.path().join("certificate.pdf"));
+        std::fs::write(&html, &c.page).map_err(|e| cannot(e.into()))?;
+        survey_report::pdf::print(&html, &pdf, bound).await.map_err(cannot)?;
+        std::fs::read(&pdf).map_err(|e| cannot(e.into()))
+    });
+    Ok(([(header::CONTENT_TYPE, "application/pdf")], pdf.await?))
+}
+
 /// A survey's certificate: the page and the DCC as issued, or its draft's.
 #[derive(Debug)]
 pub(super) struct Shown {
@@ -307,7 +338,8 @@ fn with_way_back(html: String, asset: &str, uid: &str, replaced: &[(String, Stri
     let mut nav = format!(
         "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> &middot; \
          the history of {} &middot; this certificate as issued: <a href=\"/surveys/{uid}/certificate.html\">the \
-         page</a>, <a href=\"/surveys/{uid}/dcc.xml\">its DCC (dcc.xml)</a></nav>\n",
+         page</a>, <a href=\"/surveys/{uid}/dcc.xml\">its DCC (dcc.xml)</a>, <a \
+         href=\"/surveys/{uid}/certificate.pdf\">printed (PDF)</a></nav>\n",
         asset_link(asset),
         uid = escape(uid)
     );

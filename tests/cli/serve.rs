@@ -143,6 +143,25 @@ pub fn get(url: &str, path: &str) -> Response {
     request(url, "GET", path)
 }
 
+/// GET `path` whose body is bytes (a PDF): the status and the body.
+fn get_bytes(url: &str, path: &str) -> (u16, Vec<u8>) {
+    let host = url.trim_start_matches("http://");
+    let mut s = TcpStream::connect(host).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(150))).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let end = raw.windows(4).position(|w| w == b"\r\n\r\n").expect("a header and a body");
+    let head = String::from_utf8_lossy(&raw[..end]).into_owned();
+    let status = head.split(' ').nth(1).and_then(|s| s.parse().ok()).expect("a status");
+    (status, raw[end + 4..].to_vec())
+}
+
+/// Whether `name` is on `PATH`.
+fn which(name: &str) -> bool {
+    std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default()).any(|d| d.join(name).is_file())
+}
+
 #[test]
 fn every_path_answers_with_its_status_and_the_commands_documents() {
     let bench = Bench::new();
@@ -239,7 +258,7 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
         "<nav class=\"subtitle\" id=\"way-back\"><a href=\"/\">All assets and live surveys</a> &middot; the \
          history of <a href=\"/assets/sim-fig8\">sim-fig8</a> &middot; this certificate as issued: <a \
          href=\"/surveys/{uid}/certificate.html\">the page</a>, <a href=\"/surveys/{uid}/dcc.xml\">its DCC \
-         (dcc.xml)</a></nav>\n"
+         (dcc.xml)</a>, <a href=\"/surveys/{uid}/certificate.pdf\">printed (PDF)</a></nav>\n"
     );
     assert!(report.body.contains(&way_back), "{}", report.body);
     assert_eq!(report.body.replacen(&way_back, "", 1), bench.read("r/index.html"));
@@ -252,6 +271,17 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
         assert!(got.body == bench.read(file), "{path} is {file} byte for byte");
     }
     assert_eq!(get(&url, "/surveys/2").status, 200, "an id names it too");
+    // The PDF: the page as issued, printed by Chromium (or a 503 saying what to do without one).
+    let pdf = get_bytes(&url, &format!("/surveys/{uid}/certificate.pdf"));
+    match (pdf.0, std::env::var_os("SURVEY_CHROMIUM").is_some() || which("chromium")) {
+        (200, _) => {
+            assert!(pdf.1.starts_with(b"%PDF-") && pdf.1.windows(10).filter(|w| w == b"/Type /Pag").count() >= 8);
+        }
+        (503, false) if std::env::var_os("CI").is_none() => {
+            println!("skipped the PDF: no chromium here: {}", String::from_utf8_lossy(&pdf.1));
+        }
+        (status, _) => panic!("{status}: {}", String::from_utf8_lossy(&pdf.1)),
+    }
 
     // The script, same-origin.
     let script = get(&url, "/static/live.js");
