@@ -336,6 +336,17 @@ fn unavailable(positioner: &PositionerConfig) -> &'static str {
     }
 }
 
+/// What an instrument said it is, for a check line (nothing when it says nothing or cannot now).
+fn identified(id: survey_drivers::Result<Option<String>>) -> String {
+    match id {
+        Ok(Some(text)) => {
+            let text: String = text.chars().map(|c| if c.is_control() { ' ' } else { c }).take(200).collect();
+            format!("; identifies itself as \"{}\"", text.trim())
+        }
+        _ => String::new(),
+    }
+}
+
 /// Connect to every instrument and read its status, bounded by the
 /// configuration's timeouts.
 pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
@@ -352,8 +363,9 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
             return Err(DriverError::device(name.clone(), f.code, f.text.clone()));
         }
         let readout = with_timeout(clock, timing.call_timeout, &name, "readout", p.readout()).await?;
+        let id = with_timeout(clock, timing.call_timeout, &name, "identification", p.identification()).await;
         Ok(format!(
-            "readout {readout} deg, {}{}{}",
+            "readout {readout} deg, {}{}{}{}",
             if status.moving {
                 "moving"
             } else if status.in_position {
@@ -362,7 +374,8 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
                 "at rest"
             },
             status.limit.map(|l| format!(", at the {l:?} limit")).unwrap_or_default(),
-            unavailable(&cfg.positioner)
+            unavailable(&cfg.positioner),
+            identified(id)
         ))
     }
     .await;
@@ -373,8 +386,9 @@ pub async fn check(cfg: &SurveyConfig, clock: &dyn Clock) -> Vec<CheckLine> {
             let result = async {
                 with_timeout(clock, limit, &name, "connect", t.connect()).await?;
                 let state = with_timeout(clock, timing.call_timeout, &name, "status", t.status()).await?;
+                let id = with_timeout(clock, timing.call_timeout, &name, "identification", t.identification()).await;
                 match state {
-                    survey_drivers::TrackerState::TargetLocked => Ok("target locked".to_string()),
+                    survey_drivers::TrackerState::TargetLocked => Ok(format!("target locked{}", identified(id))),
                     other => Err(DriverError::new(
                         ErrorKind::Device,
                         name.clone(),

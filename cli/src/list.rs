@@ -87,11 +87,18 @@ pub async fn list(db: &Path, args: ListArgs) -> anyhow::Result<()> {
 }
 
 /// The instruments of a configured survey, one a line (`positioner   scpi-tcp
-/// 192.168.1.20:4000`), as stored: a name's text, any other value as JSON.
+/// 192.168.1.20:4000`), as stored: a name's text, what each identified
+/// itself as on a line of its own, any other value as JSON.
 fn instruments_text(s: &mut String, instruments: &Value) {
-    for (role, name) in instruments.as_object().into_iter().flatten().filter(|(k, _)| *k != "config_file") {
+    let shown = instruments.as_object().into_iter().flatten();
+    for (role, name) in shown.filter(|(k, _)| !matches!(k.as_str(), "config_file" | "identified")) {
         let name = name.as_str().map_or_else(|| name.to_string(), str::to_string);
         let _ = writeln!(s, "  {role:<12} {name}");
+    }
+    let identified = instruments.get("identified").and_then(Value::as_object).into_iter().flatten();
+    for (role, said) in identified {
+        let said = said.as_str().unwrap_or("(did not say)");
+        let _ = writeln!(s, "  {:<12} {said}", format!("{role} is"));
     }
 }
 

@@ -295,6 +295,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     };
     let mut new = bench.new_survey();
     new.instruments["correction"] = before.as_str().into();
+    new.instruments["identified"] = survey_lab::identify::read(&mut bench.engine).await;
     if let Some(asset) = &args.asset {
         new.asset = asset.clone();
     } else if new.asset == survey_store::asset::UNASSIGNED {

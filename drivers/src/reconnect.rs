@@ -157,6 +157,9 @@ impl Positioner for Reconnecting<dyn Positioner> {
     async fn correction_state(&mut self) -> Result<Option<bool>> {
         self.call(|d| d.correction_state()).await
     }
+    async fn identification(&mut self) -> Result<Option<String>> {
+        self.call(|d| d.identification()).await
+    }
     /// The connected driver's (false before the first connection).
     fn can_capture(&self) -> bool {
         self.current.as_ref().is_some_and(|d| d.can_capture())
@@ -179,6 +182,9 @@ impl Tracker for Reconnecting<dyn Tracker> {
     }
     async fn measure(&mut self) -> Result<SmrMeasurement> {
         self.call(|d| d.measure()).await
+    }
+    async fn identification(&mut self) -> Result<Option<String>> {
+        self.call(|d| d.identification()).await
     }
     async fn status(&mut self) -> Result<TrackerState> {
         self.call(|d| d.status()).await
@@ -215,6 +221,9 @@ impl Autocollimator for Reconnecting<dyn Autocollimator> {
     }
     async fn read(&mut self) -> Result<AcReading> {
         self.call(|d| d.read()).await
+    }
+    async fn identification(&mut self) -> Result<Option<String>> {
+        self.call(|d| d.identification()).await
     }
     async fn status(&mut self) -> Result<AcState> {
         self.call(|d| d.status()).await

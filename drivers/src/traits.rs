@@ -89,6 +89,14 @@ pub trait Positioner: Send + Debug {
     /// read it (the state is then unknown: never assumed off). A calibration
     /// reads it before it measures: a corrected axis is not the native one.
     async fn correction_state(&mut self) -> Result<Option<bool>>;
+    /// What the instrument says it is, when its protocol lets it say (a
+    /// SCPI `*IDN?`, a CiA 301 device name, a Modbus device identification,
+    /// an emScon tracker's serial number and version); `Ok(None)` when its
+    /// protocol has no such request. Stored with a survey and stated on its
+    /// certificate beside what the configuration states.
+    async fn identification(&mut self) -> Result<Option<String>> {
+        Ok(None)
+    }
     /// Whether the controller records its readout at a fixed rate with its
     /// own time stamps (a position capture). Without one, a continuous scan
     /// polls [`Positioner::readout`] at a fixed rate and stamps each reading
@@ -188,6 +196,14 @@ pub enum TrackerState {
 #[async_trait]
 pub trait Tracker: Send + Debug {
     fn name(&self) -> &str;
+    /// What the instrument says it is, when its protocol lets it say (a
+    /// SCPI `*IDN?`, a CiA 301 device name, a Modbus device identification,
+    /// an emScon tracker's serial number and version); `Ok(None)` when its
+    /// protocol has no such request. Stored with a survey and stated on its
+    /// certificate beside what the configuration states.
+    async fn identification(&mut self) -> Result<Option<String>> {
+        Ok(None)
+    }
     /// A stationary measurement (takes the instrument's measurement time).
     async fn measure(&mut self) -> Result<SmrMeasurement>;
     async fn status(&mut self) -> Result<TrackerState>;
@@ -240,6 +256,14 @@ pub enum AcState {
 #[async_trait]
 pub trait Autocollimator: Send + Debug {
     fn name(&self) -> &str;
+    /// What the instrument says it is, when its protocol lets it say (a
+    /// SCPI `*IDN?`, a CiA 301 device name, a Modbus device identification,
+    /// an emScon tracker's serial number and version); `Ok(None)` when its
+    /// protocol has no such request. Stored with a survey and stated on its
+    /// certificate beside what the configuration states.
+    async fn identification(&mut self) -> Result<Option<String>> {
+        Ok(None)
+    }
     /// An absolute X/Y reading. Fails with a device error when no mirror is in
     /// range.
     async fn read(&mut self) -> Result<AcReading>;

@@ -18,6 +18,7 @@ pub mod documents;
 pub mod drift;
 pub mod environment;
 pub mod error;
+pub mod identify;
 pub mod life;
 pub mod load;
 pub mod overrides;

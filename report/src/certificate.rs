@@ -91,7 +91,19 @@ pub struct Certificate {
     pub item: Option<Equipment>,
     /// The reference's identifications and calibration (`[certificate.reference_instrument]`).
     pub reference_instrument: Option<Equipment>,
+    /// What the positioner and the reference said they are when the survey began.
+    pub identified: Identified,
 }
+
+/// What the instruments said they are, read through their drivers.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Identified {
+    pub positioner: Option<String>,
+    pub reference: Option<String>,
+}
+
+/// What an identification the instrument gave is called on the certificate.
+pub const IDENTIFIED_AS: &str = "as the instrument identified itself through its protocol";
 
 /// An address on one line: street and number, post code and city, state, country.
 pub fn address_line(a: &Address) -> String {
@@ -236,8 +248,12 @@ impl Certificate {
             customer_address: stored.customer_address.clone(),
             item: stored.item.clone(),
             reference_instrument: stored.reference_instrument.clone(),
+            identified: Identified {
+                positioner: survey.identified("positioner").map(str::to_string),
+                reference: survey.identified("reference").map(str::to_string),
+            },
         };
-        match survey.setup.rehearsal() {
+        match survey.rehearsal() {
             Some(why) => cert.rehearsal_of(why),
             None => cert,
         }

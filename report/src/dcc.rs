@@ -21,7 +21,7 @@
 //!
 //! Written with quick-xml's [`Writer`] (every text escaped by it).
 
-use crate::certificate::{Issue, REHEARSAL, calibration_line, identifications};
+use crate::certificate::{IDENTIFIED_AS, Issue, REHEARSAL, calibration_line, identifications};
 use crate::conformity::{self, Decision};
 use crate::html::Page;
 use crate::html::header::{environment_text, method_text, performed};
@@ -366,7 +366,11 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:item", &[])?;
     x.words("dcc:name", &p.cert.positioner_name(survey))?;
     x.words("dcc:description", stated(&cert.positioner))?;
-    x.equipment(cert.item.as_ref(), true, &[("calibrationLaboratory", &survey.asset, "asset (the axis calibrated)")])?;
+    let mut more = vec![("calibrationLaboratory", survey.asset.as_str(), "asset (the axis calibrated)")];
+    if let Some(said) = &cert.identified.positioner {
+        more.push(("manufacturer", said.as_str(), IDENTIFIED_AS));
+    }
+    x.equipment(cert.item.as_ref(), true, &more)?;
     x.close("dcc:item")?;
     x.close("dcc:items")?;
 
@@ -526,11 +530,14 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
         x.words("dcc:description", &description.join("; "))?;
     }
     // Its own calibration certificate, by its number, beside its identifications.
-    let certificate: Vec<(&str, &str, &str)> = reference
+    let mut certificate: Vec<(&str, &str, &str)> = reference
         .and_then(|r| r.certificate.as_deref())
         .map(|c| ("calibrationLaboratory", c, "certificate of its calibration"))
         .into_iter()
         .collect();
+    if let Some(said) = &p.cert.identified.reference {
+        certificate.push(("manufacturer", said.as_str(), IDENTIFIED_AS));
+    }
     x.equipment(reference, false, &certificate)?;
     if let Some(u) = &p.cert.reference_uncertainty_deg {
         // The same as a quantity a machine reads.

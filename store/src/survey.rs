@@ -554,6 +554,25 @@ impl SurveyRecord {
         matches!(self.status, SurveyStatus::Complete | SurveyStatus::Imported)
     }
 
+    /// What instrument `role` (`positioner`, `reference`) said it is when
+    /// the survey began (`instruments.identified`, survey_lab's identify).
+    pub fn identified(&self, role: &str) -> Option<&str> {
+        self.instruments.get("identified")?.get(role)?.as_str()
+    }
+
+    /// Why the survey is a rehearsal on simulated instruments, never a
+    /// calibration, when it is: its setup says so ([`Setup::rehearsal`]), or
+    /// an instrument identified itself as simulated (`survey sim`'s say
+    /// "(simulated)": a configuration written by hand against it is one too).
+    pub fn rehearsal(&self) -> Option<String> {
+        self.setup.rehearsal().or_else(|| {
+            ["positioner", "reference"].into_iter().find_map(|role| {
+                let said = self.identified(role).filter(|s| s.contains("(simulated)"))?;
+                Some(format!("instruments that said they are simulated (the {role} identified itself as \"{said}\")"))
+            })
+        })
+    }
+
     /// Whether the survey is a calibration (neither a check nor a
     /// verification, nor a survey of the corrected axis kept on purpose).
     pub fn is_calibration(&self) -> bool {

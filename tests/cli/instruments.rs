@@ -98,6 +98,9 @@ fn check_passes_against_simulators_speaking_the_protocols() {
         let lines = doc["instruments"].as_array().unwrap();
         assert_eq!(lines[0]["instrument"], "positioner");
         assert!(lines[0]["detail"].as_str().unwrap().contains("readout 0 deg"), "{out}");
+        // What the controller says it is (*IDN?), as it says it.
+        let idn = "identifies itself as \"survey-sims,MI-4190-style positioner controller (simulated),0,1.0\"";
+        assert!(lines[0]["detail"].as_str().unwrap().ends_with(idn), "{out}");
         assert_eq!(lines[1]["verdict"], "ok");
     })
     .expect("a runtime");

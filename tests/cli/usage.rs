@@ -337,6 +337,18 @@ fn a_rehearsal_on_a_scaled_sim_reports_instrument_time_on_the_instruments_clock(
     let text = b.survey(&["--db", "c.db", "run", "--config", "plain.toml"]).success();
     drop(sim);
     assert!(text.stdout.contains("below the bound") && text.stdout.contains("time_scale = X"), "{text}");
+    // A configuration written by hand ([rehearsal] and time_scale left out) is still a rehearsal: the
+    // simulators said so when asked what they are, and the survey kept what they said.
+    let shown = b.survey(&["--db", "c.db", "show", "1", "--json"]).success().json();
+    let positioner = shown["instruments"]["identified"]["positioner"].as_str().unwrap_or_default();
+    assert!(positioner.contains("Modbus positioner controller (simulated)"), "{shown}");
+    assert!(shown["instruments"]["identified"]["reference"].as_str().unwrap_or_default().contains("tracker serial"));
+    b.survey(&["--db", "c.db", "report", "--out", "plain"]).success();
+    let page = b.read("plain/index.html");
+    assert!(page.contains("id=\"rehearsal\"><b>Rehearsal on simulated instruments, not a calibration</b>"));
+    assert!(page.contains("instruments that said they are simulated (the positioner identified itself as"));
+    let dcc = b.read("plain/dcc.xml");
+    assert!(dcc.contains("refType=\"survey_rehearsal\"") && dcc.contains("(simulated)</dcc:value>"), "{dcc}");
 }
 
 /// Issue 41: `--db` is offered where it means something (and works before or

@@ -14,6 +14,8 @@ Used by sim-servers/src/modbus_server/interop.rs: the test starts the simulator 
   4. reads the actual position,
   5. provokes two exceptions: a move beyond the travel (exception 3) and a
      read of an unmapped register (exception 2),
+  6. reads the device identification (0x2B / MEI 0x0E): the regular objects
+     by stream access, object 4 alone, and an unknown object alone (exception 2),
 
 and prints one JSON line with what it saw.
 
@@ -77,6 +79,10 @@ def main():
         check(client.write_registers(0, i32_words(round(bad_target * COUNTS_PER_DEGREE)), device_id=UNIT), "bad target")
         refused = client.write_register(4, MOVE, device_id=UNIT)
         unmapped = client.read_holding_registers(1000, count=1, device_id=UNIT)
+        # Read Device Identification (0x2B/0x0E), regular objects by stream access.
+        identity = check(client.read_device_information(read_code=2, object_id=0, device_id=UNIT), "identification")
+        one = check(client.read_device_information(read_code=4, object_id=4, device_id=UNIT), "one object")
+        unknown = client.read_device_information(read_code=4, object_id=0x33, device_id=UNIT)
     finally:
         client.close()
     print(json.dumps({
@@ -90,6 +96,11 @@ def main():
         "bad_move_exception": getattr(refused, "exception_code", 0),
         "unmapped_is_error": unmapped.isError(),
         "unmapped_exception": getattr(unmapped, "exception_code", 0),
+        "identity_objects": sorted(identity.information.keys()),
+        "identity_simulated": b"(simulated)" in identity.information.get(4, b""),
+        "identity_vendor_sims": identity.information.get(0) == b"survey-sims",
+        "one_object": sorted(one.information.keys()),
+        "unknown_object_exception": getattr(unknown, "exception_code", 0),
     }), flush=True)
 
 

@@ -33,6 +33,7 @@ from pymodbus.datastore import (
     ModbusSequentialDataBlock,
     ModbusServerContext,
 )
+from pymodbus import ModbusDeviceIdentification
 from pymodbus.server import ModbusTcpServer
 
 COUNTS_PER_DEGREE = 100000
@@ -65,7 +66,14 @@ async def main():
     counts = round(args.actual_deg * COUNTS_PER_DEGREE)
     device.setValues(FC_READ_INPUT, 0, i32_words(counts) + [args.status, args.fault_code])
 
-    server = ModbusTcpServer(context, address=("127.0.0.1", 0))
+    # What it says it is when asked (Read Device Identification, 0x2B/0x0E).
+    identity = ModbusDeviceIdentification(info_name={
+        "VendorName": "pymodbus interop",
+        "ProductCode": "PM-1",
+        "MajorMinorRevision": "3.11",
+        "ProductName": "interop server",
+    })
+    server = ModbusTcpServer(context, identity=identity, address=("127.0.0.1", 0))
     await server.serve_forever(background=True)
     port = server.transport.sockets[0].getsockname()[1]
     print(json.dumps({"port": port}), flush=True)

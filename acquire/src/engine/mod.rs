@@ -377,6 +377,10 @@ impl Engine {
         self.positioner.as_mut()
     }
 
+    pub fn reference_mut(&mut self) -> &mut Reference {
+        &mut self.reference
+    }
+
     pub fn clock(&self) -> &Arc<dyn Clock> {
         &self.clock
     }

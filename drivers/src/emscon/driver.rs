@@ -647,6 +647,13 @@ where
         &self.name
     }
 
+    /// `GetSystemStatus`: the tracker's serial number and the emScon version.
+    async fn identification(&mut self) -> Result<Option<String>> {
+        let s = self.system_status().await?;
+        let [major, minor, build] = s.version;
+        Ok(Some(format!("tracker serial number {}, emScon {major}.{minor}.{build}", s.tracker_serial_number)))
+    }
+
     /// `StartMeasurement` in stationary mode: coordinates and standard
     /// deviations in mm; `measurement_time_s` is the configured `lMeasTime`.
     async fn measure(&mut self) -> Result<SmrMeasurement> {

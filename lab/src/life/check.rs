@@ -195,6 +195,7 @@ async fn check_with(
     };
     let mut new = NewSurvey { asset: asset.to_string(), check_of: Some(cal.uid.clone()), ..b.new_survey() };
     new.instruments["correction"] = found.as_str().into();
+    new.instruments["identified"] = crate::identify::read(&mut b.engine).await;
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
     b.engine.set_stop(stop.clone());
@@ -481,6 +482,7 @@ async fn full_survey(
     let before = correction::before_calibration(&mut b.engine, choice).await?;
     let mut new = NewSurvey { asset: asset.to_string(), ..b.new_survey() };
     new.instruments["correction"] = before.as_str().into();
+    new.instruments["identified"] = crate::identify::read(&mut b.engine).await;
     let (id, lock) = store.create_acquired_survey(&new).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
     if before == Before::SwitchedOff {

@@ -408,6 +408,11 @@ impl<B: CanBus> Positioner for Cia402Positioner<B> {
         &self.name
     }
 
+    /// The device name (0x1008, CiA 301).
+    async fn identification(&mut self) -> Result<Option<String>> {
+        Ok(Some(self.device_name().await?))
+    }
+
     /// Statusword check (a fault refuses the move with its code; a drive not
     /// in operation enabled is enabled), 0x607A, then the set-point
     /// handshake: controlword 0x3F (new set-point, change set immediately),

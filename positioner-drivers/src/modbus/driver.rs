@@ -17,6 +17,14 @@ use tokio_modbus::client::{Client as _, Context};
 use tokio_modbus::{ExceptionCode, Request, Response, Slave};
 use tokio_serial::SerialPortBuilderExt as _;
 
+/// The most Read Device Identification requests one identification makes
+/// (a device answers the regular objects in one or two).
+const MAX_ID_REQUESTS: usize = 4;
+
+/// The Modbus application protocol's names of objects 0x00-0x06.
+const ID_OBJECT_NAMES: [&str; 7] =
+    ["vendor", "product code", "revision", "vendor URL", "product", "model", "application"];
+
 /// Deadlines of the driver. In configuration files they are milliseconds:
 /// `connect_ms`, `request_ms`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -358,6 +366,47 @@ impl ModbusPositioner {
 impl Positioner for ModbusPositioner {
     fn name(&self) -> &str {
         &self.name
+    }
+
+    /// Read Device Identification (0x2B / MEI 0x0E), the regular objects by
+    /// stream access (vendor name, product code, revision, URL, product
+    /// and model name), following "more follows" for at most
+    /// [`MAX_ID_REQUESTS`] requests. A device without it (exception 0x01
+    /// illegal function, 0x02 illegal data address) has none to say.
+    async fn identification(&mut self) -> Result<Option<String>> {
+        let what = "identification (read device identification)";
+        let mut objects: Vec<(u8, String)> = Vec::new();
+        let mut next = 0u8;
+        for _ in 0..MAX_ID_REQUESTS {
+            let request = Request::ReadDeviceIdentification(tokio_modbus::prelude::ReadCode::Regular, next);
+            let rsp = match self.call(what, request).await {
+                Ok(rsp) => rsp,
+                Err(e) if !e.kind.is_link() && matches!(e.code, Some(1 | 2)) => return Ok(None),
+                Err(e) => return Err(e),
+            };
+            let Response::ReadDeviceIdentification(r) = rsp else {
+                return Err(self.garbled(what, format!("answered with {rsp:?}")));
+            };
+            for o in &r.device_id_objects {
+                let text = o.value_as_str().map(str::trim).filter(|t| !t.is_empty());
+                if let Some(t) = text.filter(|_| !objects.iter().any(|(id, _)| *id == o.id)) {
+                    objects.push((o.id, t.to_string()));
+                }
+            }
+            if !r.more_follows || r.next_object_id <= next {
+                break;
+            }
+            next = r.next_object_id;
+        }
+        objects.sort_by_key(|(id, _)| *id);
+        let words: Vec<String> = objects
+            .iter()
+            .map(|(id, text)| match ID_OBJECT_NAMES.get(usize::from(*id)) {
+                Some(name) => format!("{name} {text}"),
+                None => format!("object {id:#04x} {text}"),
+            })
+            .collect();
+        Ok((!words.is_empty()).then(|| words.join(", ")))
     }
 
     /// Write the commanded position (one write of both registers), then the

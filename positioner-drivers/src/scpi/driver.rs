@@ -491,6 +491,11 @@ where
         &self.name
     }
 
+    /// `*IDN?`: manufacturer, model, serial number, firmware.
+    async fn identification(&mut self) -> Result<Option<String>> {
+        Ok(Some(self.identify().await?))
+    }
+
     /// `POS:COMM <target>` (checked), then `MOT:STAR` (checked).
     async fn move_to(&mut self, target_deg: f64) -> Result<()> {
         if !target_deg.is_finite() {

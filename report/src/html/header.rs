@@ -134,17 +134,35 @@ fn fields(p: &Page<'_>) -> String {
         Some(m) => format!("{field}<br>{}", escape(&m)),
         None => field,
     };
+    let said = |id: &Option<String>| id.as_ref().map(|s| format!("identifies itself as \"{s}\""));
     let reference = with(
         text(&cert.reference),
-        cert.reference_instrument.as_ref().map(|e| {
-            [Some(equipment_line(e)), calibration_line(e)].into_iter().flatten().collect::<Vec<_>>().join("; ")
-        }),
+        Some(
+            [cert.reference_instrument.as_ref().map(equipment_line), said(&cert.identified.reference)]
+                .into_iter()
+                .chain([cert.reference_instrument.as_ref().and_then(calibration_line)])
+                .flatten()
+                .filter(|l| !l.is_empty())
+                .collect::<Vec<_>>()
+                .join("; "),
+        ),
+    );
+    let item = with(
+        text(&cert.positioner),
+        Some(
+            [cert.item.as_ref().map(equipment_line), said(&cert.identified.positioner)]
+                .into_iter()
+                .flatten()
+                .filter(|l| !l.is_empty())
+                .collect::<Vec<_>>()
+                .join("; "),
+        ),
     );
     let rows: Vec<(&str, String)> = vec![
         ("Calibrating laboratory", with(text(&cert.laboratory), cert.laboratory_address.as_ref().map(address_line))),
         ("Laboratory's country", text(&cert.country)),
         ("Customer (name, address)", with(text(&cert.customer), cert.customer_address.as_ref().map(address_line))),
-        ("Item calibrated", with(text(&cert.positioner), cert.item.as_ref().map(equipment_line))),
+        ("Item calibrated", item),
         ("Item's condition", text(&cert.item_condition)),
         ("Date received", text(&cert.received)),
         ("Date of calibration", format!("{begin} to {end}{instrument_time}")),

@@ -11,6 +11,7 @@ use survey_positioner_drivers::modbus::{
 };
 use survey_processing::table::CorrectionTable;
 use survey_sims::positioner::SimPositioner;
+use tokio_modbus::prelude::{ConformityLevel, DeviceIdObject, ReadCode, ReadDeviceIdentificationResponse};
 
 /// What became of one request.
 #[derive(Debug, Clone, PartialEq)]
@@ -97,6 +98,7 @@ impl DeviceState {
             Request::WriteMultipleRegisters(a, words) => {
                 self.write(*a, words, discard).await.map(|()| Response::WriteMultipleRegisters(*a, words.len() as u16))
             }
+            Request::ReadDeviceIdentification(code, object) => identification(*code, *object),
             other => {
                 tracing::debug!(request = ?other, "sim Modbus controller: function not served");
                 Err(exc(ExceptionCode::IllegalFunction))
@@ -294,4 +296,54 @@ impl DeviceState {
         };
         table.map_err(|e| refuse(&e.to_string()))
     }
+}
+
+/// What the simulated controller says it is (Read Device Identification,
+/// 0x2B / MEI 0x0E): the basic objects and two of the regular ones. That it
+/// is simulated it says in its product name: a rehearsal's survey records it.
+pub const IDENTIFICATION: [(u8, &str); 5] = [
+    (0x00, "survey-sims"),
+    (0x01, "SIM-MB-1"),
+    (0x02, "1.0"),
+    (0x04, "Modbus positioner controller (simulated)"),
+    (0x05, "servo drive, register map of survey (simulated)"),
+];
+
+/// Read Device Identification as the Modbus application protocol (V1.1b3,
+/// 6.21) has a server answer it: stream access by category (basic 0x01:
+/// objects 0-2; regular 0x02: 0-0x7F, extended 0x03: all) from the object
+/// asked for, restarting at object 0 when that object is not one of the
+/// category's; individual access (0x04) one object, an unknown one illegal
+/// data address. Conformity level 0x82: regular identification, stream and
+/// individual access. Every object fits one reply (no "more follows").
+fn identification(code: ReadCode, object: u8) -> Result<Response, Outcome> {
+    let last = match code {
+        ReadCode::Basic => 0x02,
+        ReadCode::Regular => 0x7F,
+        ReadCode::Extended => 0xFF,
+        ReadCode::Specific => {
+            let Some(&(id, text)) = IDENTIFICATION.iter().find(|(id, _)| *id == object) else {
+                return Err(exc(ExceptionCode::IllegalDataAddress));
+            };
+            return Ok(identification_reply(code, vec![(id, text)]));
+        }
+    };
+    let in_category = |id: u8| id <= last;
+    let known = IDENTIFICATION.iter().any(|(id, _)| *id == object && in_category(*id));
+    let first = if known { object } else { 0 };
+    let objects = IDENTIFICATION.iter().copied().filter(|(id, _)| *id >= first && in_category(*id)).collect();
+    Ok(identification_reply(code, objects))
+}
+
+fn identification_reply(read_code: ReadCode, objects: Vec<(u8, &str)>) -> Response {
+    Response::ReadDeviceIdentification(ReadDeviceIdentificationResponse {
+        read_code,
+        conformity_level: ConformityLevel::RegularIdentification,
+        more_follows: false,
+        next_object_id: 0,
+        device_id_objects: objects
+            .into_iter()
+            .map(|(id, text)| DeviceIdObject { id, value: text.as_bytes().to_vec().into() })
+            .collect(),
+    })
 }

@@ -140,6 +140,11 @@ async fn our_driver_against_a_pymodbus_server() {
     let mut drv = ModbusPositioner::connect_tcp(addr.clone(), RegisterMap::default(), TIMEOUTS).await.expect("connect");
     let r = drv.readout().await.unwrap();
     assert!((r + 123.45678).abs() < 1e-9, "readout {r}");
+    // What pymodbus's server says it is, read as our driver reads it (0x2B / 0x0E, regular, stream).
+    assert_eq!(
+        drv.identification().await.unwrap().as_deref(),
+        Some("vendor pymodbus interop, product code PM-1, revision 3.11, product interop server")
+    );
     let s = drv.status().await.unwrap();
     assert!(s.moving && !s.in_position && s.correction_enabled, "{s:?}");
     assert_eq!(s.limit, Some(Limit::Upper));
@@ -205,6 +210,11 @@ async fn a_pymodbus_client_against_our_simulator() {
     assert!(got["bad_move_is_error"].bool() && got["unmapped_is_error"].bool(), "{got:?}");
     assert_eq!(got["bad_move_exception"].num(), 3.0, "a target beyond the travel is illegal data value");
     assert_eq!(got["unmapped_exception"].num(), 2.0, "an unmapped register is illegal data address");
+    // The identification as pymodbus reads it: objects 0, 1, 2, 4, 5, saying it is simulated.
+    assert_eq!(got["identity_objects"].words(), [0, 1, 2, 4, 5], "{got:?}");
+    assert!(got["identity_simulated"].bool() && got["identity_vendor_sims"].bool(), "{got:?}");
+    assert_eq!(got["one_object"].words(), [4], "individual access: one object");
+    assert_eq!(got["unknown_object_exception"].num(), 2.0, "an unknown object is illegal data address");
     let (moves, raw) = device.with_positioner(|p| (p.moves(), p.raw_readout_deg())).await;
     assert_eq!(moves, 1, "the refused move did not start");
     assert_eq!(raw, 12.34567);

@@ -585,3 +585,24 @@ async fn register_level_refusals_and_multi_item_writes() {
     assert_eq!(inputs[2] & 1, 1, "moving: {inputs:?}");
     assert_eq!(inputs[3], 0, "no fault");
 }
+
+#[tokio::test]
+async fn the_controller_identifies_itself_and_one_without_the_function_has_nothing_to_say() {
+    let mut rig = tcp_rig(config(), RegisterMap::default()).await;
+    let id = rig.drv.identification().await.unwrap().expect("the simulator answers 0x2B / 0x0E");
+    assert_eq!(
+        id,
+        "vendor survey-sims, product code SIM-MB-1, revision 1.0, product Modbus positioner controller \
+         (simulated), model servo drive, register map of survey (simulated)"
+    );
+    // A device that does not serve the function (illegal function) or the object (illegal data address).
+    for code in [ExceptionCode::IllegalFunction, ExceptionCode::IllegalDataAddress] {
+        rig.faults.arm(exception(code));
+        assert_eq!(rig.drv.identification().await.unwrap(), None);
+    }
+    // Any other refusal is the device's fault, said as such; a garbled reply a link fault.
+    rig.faults.arm(exception(ExceptionCode::ServerDeviceBusy));
+    assert_eq!(rig.drv.identification().await.unwrap_err().kind, ErrorKind::Device);
+    rig.faults.arm(garbled(false));
+    assert!(rig.drv.identification().await.unwrap_err().kind.is_link());
+}
