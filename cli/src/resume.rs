@@ -40,17 +40,13 @@ pub struct ResumeArgs {
 }
 
 /// `--config FILE` on resume: the survey's setup with the file's transport
-/// addresses, the change stored with an event saying it (nothing stored when
-/// nothing changed); any other difference is refused naming the key (bad
-/// input). Every serial port of the configuration is checked to be a serial
-/// line before anything opens it, with or without `--config`
+/// addresses, and what to say of the change (to be stored with an event
+/// once the instruments there are the survey's: `None` when nothing
+/// changed); any other difference is refused naming the key (bad input).
+/// Every serial port of the configuration is checked to be a serial line
+/// before anything opens it, with or without `--config`
 /// (`config::readdress`).
-async fn readdress(
-    store: &survey_store::Store,
-    record: &mut survey_store::survey::SurveyRecord,
-    config: Option<&Path>,
-    at_s: f64,
-) -> anyhow::Result<()> {
+fn readdress(record: &mut survey_store::survey::SurveyRecord, config: Option<&Path>) -> anyhow::Result<Option<String>> {
     use survey_store::config::{SurveyConfig, readdress};
     use survey_store::survey::Setup;
     let id = record.id;
@@ -60,7 +56,7 @@ async fn readdress(
                 "--config {}: survey {id} was not acquired on configured instruments (its setup is the simulated                  bench's): resume it without --config",
                 file.display()
             ))),
-            None => Ok(()),
+            None => Ok(None),
         };
     };
     if let Some(file) = config {
@@ -68,16 +64,54 @@ async fn readdress(
         let changes = readdress::address_changes(&setup.config, &new)
             .map_err(|why| bad_input(format!("--config {}: {why}", file.display())))?;
         check_devices(&new, Some(file))?;
-        if !changes.is_empty() {
-            setup.config = new;
-            let said = changes.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ");
-            let message = format!("resumed on new addresses from {}: {said}", file.display());
-            store.readdress(id, &record.setup, at_s, &message).await?;
-            survey_bench::say!("survey {id}: {message}");
+        if changes.is_empty() {
+            return Ok(None);
         }
+        setup.config = new;
+        let said = changes.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ");
+        return Ok(Some(format!("resumed on new addresses from {}: {said}", file.display())));
+    }
+    check_devices(&setup.config, None)?;
+    Ok(None)
+}
+
+/// The instruments now at the survey's addresses are the ones it began on:
+/// each that identified itself when the survey began ([`survey_lab::identify`])
+/// must say the same now. One that says something else, twice in a row (a
+/// reply garbled once is not another device), is another instrument (an
+/// adapter re-plugged, a device swapped, a path that now names another
+/// port): refused, bad input, before anything is stored. One that cannot
+/// say now is logged and the survey goes on (its calls survive a fault or
+/// not as they do every fault).
+async fn same_instruments(record: &survey_store::survey::SurveyRecord, bench: &mut Bench) -> anyhow::Result<()> {
+    let began = ["positioner", "reference"].map(|role| record.identified(role).map(str::to_string));
+    if began.iter().all(Option::is_none) {
         return Ok(());
     }
-    check_devices(&setup.config, None)
+    let mut last: Option<serde_json::Value> = None;
+    for _ in 0..3 {
+        let now = survey_lab::identify::read(&mut bench.engine).await;
+        let differs = ["positioner", "reference"].into_iter().zip(&began).find_map(|(role, began)| {
+            let (began, said) = (began.as_deref()?, now[role].as_str()?);
+            (began != said).then(|| (role, began.to_string(), said.to_string()))
+        });
+        let Some((role, began, said)) = differs else { return Ok(()) };
+        if last.as_ref().is_some_and(|l| l[role] == now[role]) {
+            let name = match role {
+                "positioner" => bench.engine.positioner_name().to_string(),
+                _ => bench.engine.reference_name().to_string(),
+            };
+            return Err(bad_input(format!(
+                "survey {}: the {role} at {name} identifies itself as \"{said}\", but the survey began on one that \
+                 identified itself as \"{began}\": another instrument is there (an adapter re-plugged, a device \
+                 swapped); nothing was stored. Connect the survey's own {role}, or give its new address with \
+                 `survey resume --config FILE`",
+                record.id
+            )));
+        }
+        last = Some(now);
+    }
+    Ok(())
 }
 
 /// Every serial port of `config` is a serial line (checked without opening
@@ -145,8 +179,13 @@ pub async fn resume(db: &Path, args: ResumeArgs) -> anyhow::Result<()> {
     }
     // Instrument time goes on from where the survey stopped (drift continues).
     let last_time = store.last_sample_time(id).await?.unwrap_or(0.0).max(record.started_at_s.unwrap_or(0.0));
-    readdress(&store, &mut record, args.config.as_deref(), last_time).await?;
+    let moved = readdress(&mut record, args.config.as_deref())?;
     let mut bench = Bench::resume(&record, Duration::from_secs_f64(last_time.max(0.0)), next)?;
+    same_instruments(&record, &mut bench).await?;
+    if let Some(message) = moved {
+        store.readdress(id, &record.setup, last_time, &message).await?;
+        survey_bench::say!("survey {id}: {message}");
+    }
     bench.engine.set_stop(stop.clone());
     let plan = bench.plan.clone();
     if plan.continuous() {

@@ -269,3 +269,66 @@ fn resume_takes_new_addresses_refuses_other_changes_and_checks_a_device_before_o
     assert_eq!(out.code, 1, "{out}");
     assert!(out.stderr.contains("127.0.0.1:2") && !out.stderr.contains("127.0.0.1:1 "), "{out}");
 }
+
+/// On resume, the instruments at the survey's addresses must be the ones it
+/// began on: a positioner that identifies itself otherwise (here the
+/// survey's record says it began on another controller; `survey sim`'s says
+/// it is simulated) is refused, exit 2, with nothing stored, the new address
+/// included; the same controller is taken.
+#[test]
+fn resume_refuses_an_instrument_that_identifies_itself_as_another() {
+    use std::io::{BufRead as _, BufReader};
+    use std::process::Stdio;
+    let b = Bench::new();
+    let config = |positioner: &str, tracker: &str| {
+        format!(
+            "[survey]\npoints = 4\nruns = 2\nreference = \"tracker\"\n\
+             [positioner]\ndriver = \"modbus-tcp\"\naddress = \"{positioner}\"\n\
+             [tracker]\ndriver = \"emscon\"\naddress = \"{tracker}\"\n\
+             [timing]\ndwell_s = 0.01\nlocate_points = 4\nmax_retries = 1\nretry_backoff_s = 0.01\ntime_scale = 500\n"
+        )
+    };
+    // Begun where nothing answers: stored, not complete, nothing identified.
+    b.write("gone.toml", config("127.0.0.1:1", "127.0.0.1:2"));
+    assert_eq!(b.survey(&["run", "--config", "gone.toml"]).code, 1);
+    let conn = rusqlite::Connection::open(b.path("survey.db")).unwrap();
+    let began = |positioner: &str| {
+        let ids = serde_json::json!({"positioner": positioner, "reference": null}).to_string();
+        conn.execute(
+            "UPDATE surveys SET instruments_json = json_set(instruments_json, '$.identified', json(?1))",
+            [ids],
+        )
+        .unwrap();
+    };
+    // As if it had begun on another controller.
+    began("ACME,AZ-200,1042,2.1");
+    b.write("sim.toml", config("127.0.0.1:0", "127.0.0.1:0").replace("time_scale = 500\n", ""));
+    let mut child = b
+        .command(&["sim", "--config", "sim.toml", "--time-scale", "500"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start survey sim");
+    let mut ready = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut ready).unwrap();
+    let _sim = super::drift::Sim(child);
+    let ready: Value = serde_json::from_str(&ready).expect("the ready line");
+    let at = |k: &str| ready["instruments"][k].as_str().unwrap().to_string();
+    b.write("moved.toml", config(&at("positioner"), &at("tracker")));
+    let before = std::fs::read(b.path("survey.db")).unwrap();
+    b.survey(&["resume", "--config", "moved.toml"]).bad_input(&[
+        "the positioner at modbus-tcp",
+        "identifies itself as \"vendor survey-sims",
+        "began on one that identified itself as \"ACME,AZ-200,1042,2.1\"",
+        "nothing was stored",
+    ]);
+    assert!(std::fs::read(b.path("survey.db")).unwrap() == before, "nothing stored by a refused resume");
+    // The same controller (as it says now): taken, and the survey finishes on it.
+    let said = b.survey(&["check", "--config", "moved.toml", "--json"]).success().json();
+    let line = said["instruments"][0]["detail"].as_str().unwrap().to_string();
+    let idn = line.split("identifies itself as \"").nth(1).and_then(|s| s.strip_suffix('"')).expect("its words");
+    began(idn);
+    let out = b.survey(&["resume", "--config", "moved.toml"]);
+    assert_eq!(out.code, 0, "{out}");
+    assert!(out.stderr.contains("resumed on new addresses"), "{out}");
+}
