@@ -83,6 +83,9 @@ pub struct ReportArgs {
     /// Print the page to DIR/index.pdf with Chromium, headless (SURVEY_CHROMIUM names the browser; else chromium on PATH).
     #[arg(long)]
     pub pdf: bool,
+    /// Draw the number of the certificate issued now from the lab store's sequence (postgres://...): YYYY-NNNNN, one sequence for every station of the lab.
+    #[arg(long, value_name = "URL")]
+    pub lab: Option<String>,
 }
 
 /// Every text flag printed on the certificate: not empty, one line without
@@ -155,6 +158,12 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     }
     // Checked before anything is written.
     let pdf_bound = if args.pdf { Some(survey_report::pdf::timeout()?) } else { None };
+    let lab = LabNumber {
+        url: args.lab.clone(),
+        survey: args.survey.clone(),
+        number_given: args.certificate_number.is_some(),
+        amend: args.amend.is_some(),
+    };
     let opts = ReportOptions {
         units: args.units.units(),
         flags: CertificateFlags {
@@ -199,6 +208,18 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let writer = (writable && survey_store::lab::url_of(db).is_none()).then_some(db);
     let store = open_read_only(db).await?;
     let amend = args.amend.as_deref();
+    let mut opts = opts;
+    if let Some(url) = &lab.url {
+        let (number, from) = match draw_number(&store, url, writer.is_some(), &lab).await {
+            Ok(drawn) => drawn,
+            Err(e) => {
+                store.close().await;
+                return Err(e);
+            }
+        };
+        eprintln!("certificate number {number} drawn from the lab store {from}");
+        opts.flags.number = Some(number);
+    }
     let written = survey_report::issue::report(&store, writer, args.survey, &opts, amend, &changes).await;
     store.close().await;
     let (html, dcc, said) = match written? {
@@ -228,6 +249,68 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let dcc = path.with_file_name("dcc.xml");
     emit(&format!("{}\n{}\n{printed}", path.display(), dcc.display()));
     Ok(())
+}
+
+/// `--lab URL`: the number of the certificate this report issues, drawn from
+/// the lab store's sequence (`YYYY-NNNNN`, the year's count across every
+/// station), and the store as it may be named. Refused (bad input, nothing
+/// drawn) where no certificate is issued now: a number given otherwise
+/// (the flag, the configuration's `[certificate] number`), a survey not
+/// complete, one issued before (but with `--amend`), a file only read here.
+async fn draw_number(
+    store: &survey_store::Store,
+    url: &str,
+    issues: bool,
+    args: &LabNumber,
+) -> anyhow::Result<(String, String)> {
+    use survey_lab::error::bad_input;
+    let shown = survey_store::lab::redacted(url);
+    let refused = |why: String| Err(bad_input(format!("--lab {shown}: {why}; no number was drawn")));
+    if survey_store::lab::url_of(Path::new(url)).is_none() {
+        return refused("not a lab store (a postgres:// URL)".into());
+    }
+    if args.number_given {
+        return refused("--certificate-number gives the number: give one of the two".into());
+    }
+    if !issues {
+        return refused(format!(
+            "{} is only read here: a certificate is issued on the station's file",
+            store.path().display()
+        ));
+    }
+    let survey = store.resolve(args.survey.clone()).await?;
+    if survey.status != survey_store::survey::SurveyStatus::Complete {
+        return refused(format!(
+            "survey {} is {}: a certificate is issued for a complete survey",
+            survey.id, survey.status
+        ));
+    }
+    if let Some(c) = store.certificates(survey.id).await?.last()
+        && !args.amend
+    {
+        return refused(format!(
+            "certificate {} of survey {} was issued: a number is drawn only for one issued now (--amend)",
+            c.number, survey.id
+        ));
+    }
+    if let survey_store::survey::Setup::Configured(c) = &survey.setup
+        && let Some(n) = c.config.certificate.as_ref().and_then(|c| c.number.as_ref())
+    {
+        return refused(format!("the survey's [certificate] number states its number ({n})"));
+    }
+    let year: i32 = humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()[..4].parse()?;
+    let lab = survey_store::lab::open(url, true).await?;
+    let n = lab.draw_certificate_number(year).await;
+    lab.close().await;
+    Ok((format!("{year}-{:05}", n?), shown))
+}
+
+/// What `--lab` needs of the flags.
+struct LabNumber {
+    url: Option<String>,
+    survey: Option<survey_store::survey::SurveyRef>,
+    number_given: bool,
+    amend: bool,
 }
 
 /// `out` is a folder, or can be made: the nearest part of it that exists is a folder.

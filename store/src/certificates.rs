@@ -40,6 +40,19 @@ const INSERT: &str = "INSERT INTO certificates (number, survey_id, seq, issued_a
                       VALUES ($1, $2, $3, $4, $5, $6, $7, $8)";
 
 impl Store {
+    /// The next certificate number of `year` in the laboratory's sequence
+    /// (`certificate_numbers`, migration 13): 1 for the year's first, one
+    /// more than the last drawn otherwise, in one statement (two stations
+    /// drawing at once get two numbers). Drawn from the lab store (`survey
+    /// report --lab URL`, opened to write as a push opens it); a number drawn
+    /// for a certificate that is then not issued is a gap, never reused.
+    pub async fn draw_certificate_number(&self, year: i32) -> anyhow::Result<i64> {
+        const DRAW: &str = "INSERT INTO certificate_numbers (year, last) VALUES ($1, 1) \
+                            ON CONFLICT (year) DO UPDATE SET last = certificate_numbers.last + 1 RETURNING last";
+        let n: i64 = on_pool!(self, |pool| sqlx::query_scalar(DRAW).bind(i64::from(year)).fetch_one(pool).await?);
+        Ok(n)
+    }
+
     /// Whether this store keeps certificates (schema 11 on; a file or a lab
     /// store of an older schema read as it is has none).
     pub fn keeps_certificates(&self) -> bool {

@@ -53,6 +53,7 @@ pub(super) const MIGRATIONS: &[(i64, &str, &str)] = &[
     (10, "smr readings", include_str!("../../migrations/postgres/0010_smr_readings.sql")),
     (11, "certificates", include_str!("../../migrations/postgres/0011_certificates.sql")),
     (12, "intervals", include_str!("../../migrations/postgres/0012_intervals.sql")),
+    (13, "certificate numbers", include_str!("../../migrations/postgres/0013_certificate_numbers.sql")),
 ];
 
 /// The oldest lab store schema a read command reads as it is (migration 8

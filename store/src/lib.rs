@@ -123,6 +123,7 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
     (10, "smr readings", include_str!("../../migrations/0010_smr_readings.sql")),
     (11, "certificates", include_str!("../../migrations/0011_certificates.sql")),
     (12, "intervals", include_str!("../../migrations/0012_intervals.sql")),
+    (13, "certificate numbers", include_str!("../../migrations/0013_certificate_numbers.sql")),
 ];
 
 /// The schema that keeps the certificates issued (`certificates`).

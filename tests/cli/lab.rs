@@ -730,3 +730,54 @@ fn a_lab_store_missing_a_column_a_table_or_a_grant_is_refused_saying_what_to_run
     ]);
     assert!(!out.stderr.contains("reader-pw-51"), "{out}");
 }
+
+/// `survey report --lab URL`: every station's certificate numbered from the
+/// lab store's one sequence (YYYY-NNNNN), two stations at once included; no
+/// number drawn where no certificate is issued; the certificates pushed side
+/// by side.
+#[test]
+fn certificate_numbers_are_drawn_from_the_lab_store_s_sequence_by_every_station() {
+    let Some(server) = server() else { return };
+    let lab = server.database("numbers");
+    let (a, b) = (Bench::new(), Bench::new());
+    small_surveys(&a, 2, 1);
+    small_surveys(&b, 1, 5);
+    let year = &survey_store_year();
+    // Two stations at once: two numbers.
+    let both = [(&a, "1"), (&b, "1")]
+        .map(|(s, id)| s.command(&["report", "--survey", id, "--out", "r", "--lab", &lab]).output().unwrap());
+    let mut numbers: Vec<String> = [&a, &b]
+        .iter()
+        .zip(&both)
+        .map(|(s, out)| {
+            assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+            let dcc = s.read("r/dcc.xml");
+            let id = dcc.split("<dcc:uniqueIdentifier>").nth(1).and_then(|t| t.split('<').next()).unwrap().to_string();
+            assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("certificate number {id} drawn")));
+            id
+        })
+        .collect();
+    numbers.sort();
+    assert_eq!(numbers, [format!("{year}-00001"), format!("{year}-00002")]);
+    // The next: 3; none drawn for a certificate issued before, a given number or a survey not complete.
+    a.survey(&["report", "--survey", "2", "--out", "r2", "--lab", &lab]).success();
+    assert!(a.read("r2/dcc.xml").contains(&format!("<dcc:uniqueIdentifier>{year}-00003<")));
+    a.survey(&["report", "--survey", "1", "--out", "again", "--lab", &lab])
+        .bad_input(&["was issued", "no number was drawn"]);
+    a.survey(&["report", "--survey", "2", "--out", "x", "--lab", &lab, "--certificate-number", "C-1"])
+        .bad_input(&["--certificate-number gives the number"]);
+    a.survey(&["report", "--out", "x", "--lab", "not-a-url.db"]).bad_input(&["not a lab store"]);
+    assert_eq!(server.psql("numbers", "SELECT last FROM certificate_numbers").trim(), "3", "nothing else drawn");
+    // An amendment may draw its own.
+    a.survey(&["report", "--survey", "1", "--out", "amended", "--amend", "a typo", "--lab", &lab]).success();
+    assert!(a.read("amended/dcc.xml").contains(&format!("<dcc:uniqueIdentifier>{year}-00004<")));
+    for s in [&a, &b] {
+        s.survey(&["push", "--to", &lab, "--all"]).success();
+    }
+    assert_eq!(server.psql("numbers", "SELECT COUNT(DISTINCT number) FROM certificates").trim(), "4");
+}
+
+/// This year, as the report draws it (UTC).
+fn survey_store_year() -> String {
+    humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()[..4].to_string()
+}
