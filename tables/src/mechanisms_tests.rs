@@ -227,12 +227,13 @@ fn run(case: &Case, seed: u64) -> Outcome {
     // SURVEY_MECHANISM_BUDGET=1: every survey's budget beside its truth.
     if std::env::var_os("SURVEY_MECHANISM_BUDGET").is_some() {
         eprintln!(
-            "    {}: U {:.2e}, p95 {:.2e}, T {:.2e}\n{}",
+            "    {}: U {:.2e}, p95 {:.2e}, T {:.2e}\n{}{}",
             case.what,
             u.table_u_deg,
             p95,
             processed.analysis.noise.coherent_threshold_deg,
-            u.text()
+            u.text(),
+            processed.resolutions.iter().map(|r| format!("    {}\n", r.why)).collect::<String>()
         );
     }
     let verdict = case.plan.verify.then(|| {
@@ -302,9 +303,10 @@ enum Mechanism {
     SparseUnknown,
     Changed,
     RampDrift,
+    Fold,
 }
 
-const MECHANISMS: [Mechanism; 8] = [
+const MECHANISMS: [Mechanism; 9] = [
     Mechanism::Nyquist,
     Mechanism::BelowThreshold,
     Mechanism::NoiseOverLines,
@@ -313,6 +315,7 @@ const MECHANISMS: [Mechanism; 8] = [
     Mechanism::SparseUnknown,
     Mechanism::Changed,
     Mechanism::RampDrift,
+    Mechanism::Fold,
 ];
 
 impl Mechanism {
@@ -326,6 +329,7 @@ impl Mechanism {
             Mechanism::SparseUnknown => "an unknown design sparsely sampled",
             Mechanism::Changed => "an axis changed before the verification",
             Mechanism::RampDrift => "a ramp within the runs (thermal growth)",
+            Mechanism::Fold => "lines the design does not name folded onto named bins",
         }
     }
 
@@ -494,6 +498,37 @@ impl Mechanism {
                     ),
                     changed: None,
                     plan: Plan { points, runs, bidirectional: true, tracker: true, verify: false, timed: true },
+                }
+            }
+            // Issue 49: a tooth mesh at N = T, its once-per-revolution
+            // sidebands T +/- 1 (the gear's runout modulating it: not named by
+            // the design) folding onto bin 1 and the mesh onto bin 0; the
+            // design's own sidebands T +/- g land on the gear pass's bin (the
+            // table nulls it until check points decide it); and a harmonic
+            // above Nyquist folding onto a named bin: a sideband of the
+            // second mesh harmonic, at 2T + 1 (bin 1 again: a fold the
+            // survey lists) or at 2T - 2g (the second gear harmonic's bin:
+            // one it does not, which the check points' residual must show).
+            Mechanism::Fold => {
+                let teeth = pick(r, &[120usize, 144, 180]);
+                let t = teeth as f64;
+                let mut lines = base(r, 1.0);
+                lines.push(("tooth_mesh", t, between(r, 0.001, 0.003), between(r, 0.0, 360.0)));
+                lines.push(("harmonic", t - 1.0, between(r, 0.0005, 0.0015), between(r, 0.0, 360.0)));
+                lines.push(("harmonic", t + 1.0, between(r, 0.0005, 0.0015), between(r, 0.0, 360.0)));
+                let high = if seed.is_multiple_of(2) { 2.0 * t + 1.0 } else { 2.0 * t - 2.0 * gear };
+                lines.push(("harmonic", high, between(r, 0.0003, 0.001), between(r, 0.0, 360.0)));
+                let runs = pick(r, &[3u32, 5]);
+                let extra = if r.uniform() < 0.5 { backlash(0.003) } else { String::new() };
+                Case {
+                    what: format!("{teeth} points, a {teeth}-tooth mesh with {} and {}, and {high}", t - 1.0, t + 1.0),
+                    model: model(
+                        &format!("gear_ratios = [{gear}]\ntooth_counts = [{teeth}]"),
+                        &lines,
+                        &(extra + &noise(between(r, 0.0002, 0.0003))),
+                    ),
+                    changed: None,
+                    plan: Plan { points: teeth, runs, bidirectional: true, tracker: true, verify: true, timed: false },
                 }
             }
             // A bad table for the verification to find: the axis changed
