@@ -703,3 +703,41 @@ fn a_kept_line_under_twice_the_threshold_is_counted_as_possibly_false() {
         line.amplitude_deg
     );
 }
+
+/// Issue 49: without check points (a reference that measures only at its
+/// targets) a bin that folds the design does not name land on is in doubt
+/// whole, and `U` counts it; the mesh on bin 0 is said to be unseen. With
+/// them (a tracker) the folds are measured, the gear pass's bin decided
+/// and corrected.
+#[test]
+fn folds_onto_a_named_bin_are_in_doubt_until_check_points_measure_them() {
+    let fold = |tracker: bool| Case {
+        what: "the issue's 180-tooth mesh at 180 points".into(),
+        model: model(
+            "gear_ratios = [20]\ntooth_counts = [180]",
+            &[
+                ("eccentricity", 1.0, 0.002, 40.0),
+                ("gear_pass", 20.0, 0.006, 10.0),
+                ("tooth_mesh", 180.0, 0.002, 70.0),
+                ("harmonic", 179.0, 0.001, 20.0),
+                ("harmonic", 181.0, 0.001, 150.0),
+            ],
+            "[[effect]]\nkind = \"noise\"\nsigma_deg = 0.0002\n",
+        ),
+        changed: None,
+        plan: Plan { points: 180, runs: 3, bidirectional: true, tracker, verify: false, timed: false },
+    };
+    let (p, _, u) = survey(&fold(false), &mut Normal::new(7));
+    let doubt = p.left.lines.iter().find(|l| l.kind == crate::left::LeftKind::MayFold).expect("bin 1 in doubt");
+    assert_eq!((doubt.observed_cycles, doubt.candidates.clone()), (1.0, vec![1.0, 179.0, 181.0]));
+    assert!(p.notes.iter().any(|n| n.contains("180 cycles/rev") && n.contains("lands on bin 0")), "{:?}", p.notes);
+    assert!(u.budget.iter().any(|c| c.source.contains("bin 1 may hold a fold")), "{}", u.text());
+    let (p, _, u) = survey(&fold(true), &mut Normal::new(7));
+    assert!(p.decisions.kept_cycles.contains(&20.0), "bin 20 decided and corrected: {:?}", p.notes);
+    let folded: Vec<f64> =
+        p.left.lines.iter().filter(|l| l.kind == crate::left::LeftKind::Folded).map(|l| l.candidates[0]).collect();
+    assert!(folded.contains(&179.0) && folded.contains(&181.0) && folded.contains(&180.0), "{folded:?}");
+    let e = table_errors(&fold(true).model, &p.built.table, true);
+    let within = e.iter().filter(|x| x.abs() <= u.table_u_deg).count() as f64 / e.len() as f64;
+    assert!(within >= 0.9, "{within} within U {}", u.table_u_deg);
+}
