@@ -101,7 +101,9 @@ pub fn measure_folds(mut left: Left, table: &CorrectionTable, checks: &[Sample])
             observed_cycles: b,
             kind: LeftKind::Folded,
             decided_cycles: None,
-            candidates: got.iter().map(|(f, m)| (f.true_cycles, m.amplitude_deg)).collect(),
+            // (What each fold measured is in `why` and in the `folded` lines
+            // of `left`: these pairs are hypotheses' residuals.)
+            candidates: Vec::new(),
             rest_deg: 0.0,
             explained,
             why,
