@@ -82,14 +82,18 @@ pub async fn measure(
             bidirectional: checks.bidirectional,
             setup,
             model: native.model.clone(),
-            instruments: serde_json::json!({"resolves_survey": native.id, "doubts": doubts}),
+            instruments: serde_json::json!({"resolves_survey": native.id, "doubts": doubts, "folds": left.folds}),
             planned_samples: Some(checks.total_steps()),
             ..NewSurvey::default()
         })
         .await?;
     // Named by the survey they belong to: their own survey is folded into it.
+    let folds = match left.folds.len() {
+        0 => String::new(),
+        n => format!(" and measure {n} line(s) the design does not name that fold onto the bins the table holds"),
+    };
     survey_bench::say!(
-        "survey {}: {} check points between its targets decide {} line(s) its analysis left in doubt",
+        "survey {}: {} check points between its targets decide {} line(s) its analysis left in doubt{folds}",
         native.id,
         checks.targets_deg.len(),
         doubts.len()

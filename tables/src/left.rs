@@ -34,6 +34,8 @@
 //! hypothesis (up to [`MAX_HYPOTHESES`]: the largest lines' alternatives
 //! first), and the least favourable one is stated.
 
+pub mod folds;
+
 use crate::correction::Prediction;
 use crate::recipe::{Decisions, LineAction};
 use serde::Serialize;
@@ -67,6 +69,18 @@ pub enum LeftKind {
     /// counts at most one missed line, the largest of these and the
     /// threshold's.
     Possible,
+    /// A line the table carries at its bin that may be in part a line the
+    /// design does not name folded onto it ([`folds`]: a tooth
+    /// mesh's once-per-revolution sidebands above the sampling's
+    /// resolution), not measured between the targets: like a possible
+    /// alias, the whole line may be at one of them.
+    MayFold,
+    /// A line the design does not name, folded onto a bin the table
+    /// carries, as check points between the targets measured it (its size
+    /// and phase fitted to them, jointly with every other fold and the
+    /// lines in doubt): the table carries its alias at the bin and leaves
+    /// the line between the targets.
+    Folded,
 }
 
 /// One line the table leaves, wholly or possibly.
@@ -86,6 +100,11 @@ pub struct LeftLine {
     /// The true frequencies it may have, cycles/rev (for `maybe_alias`, the
     /// bin itself first: the line where it is seen).
     pub candidates: Vec<f64>,
+    /// For a line that may be folded or is (`may_fold`, `folded`): the
+    /// frequency the table carries its bin at (the bin, or where the recipe
+    /// relocated it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub carried_cycles: Option<f64>,
     /// In words.
     pub why: String,
 }
@@ -104,6 +123,10 @@ pub struct Left {
     /// The standard deviation of what is left that the lines' functions of
     /// the readout leave out (see [`Left::second_order_deg`]), degrees.
     pub second_order_deg: f64,
+    /// The lines the design does not name that may fold onto a bin the
+    /// table holds at this count ([`folds`]): what check points fit
+    /// beside the lines in doubt.
+    pub folds: Vec<folds::Fold>,
 }
 
 /// The least favourable hypothesis and its figures.
@@ -122,7 +145,7 @@ pub struct Worst {
 impl Left {
     /// Nothing left (a partial range, or every line carried).
     pub fn none() -> Self {
-        Left { lines: Vec::new(), points: 0, start_deg: 0.0, worst: None, second_order_deg: 0.0 }
+        Left { lines: Vec::new(), points: 0, start_deg: 0.0, worst: None, second_order_deg: 0.0, folds: Vec::new() }
     }
 
     /// What the table `decisions` made from `analysis` leaves (see the module
@@ -227,13 +250,14 @@ impl Left {
                 noise_sd_deg: l.noise_sd_deg,
                 kind,
                 candidates,
+                carried_cycles: None,
                 why,
             });
         }
         // The largest first: their alternatives are the ones enumerated.
         lines.sort_by(|a, b| b.amplitude_deg.total_cmp(&a.amplitude_deg));
         let second_order_deg = second_order(&lines, analysis);
-        let mut left = Left { lines, points: n, start_deg, worst: None, second_order_deg };
+        let mut left = Left { lines, points: n, start_deg, worst: None, second_order_deg, folds: Vec::new() };
         left.worst = left.least_favourable(&analysis.error_map.targets_deg);
         left
     }
@@ -312,6 +336,18 @@ impl Left {
                     LeftKind::NotCarried | LeftKind::Possible => line(f, phase_f),
                     LeftKind::MaybeAlias if f == l.observed_cycles => 0.0,
                     LeftKind::MaybeAlias => line(f, phase_f) - line(l.observed_cycles, l.phase_deg),
+                    // The table carries the bin at `c`; bin 0 is its zero
+                    // reference (a constant, not an error of the table).
+                    LeftKind::MayFold | LeftKind::Folded => {
+                        let c = l.carried_cycles.unwrap_or(l.observed_cycles);
+                        if f == c {
+                            0.0
+                        } else if l.observed_cycles == 0.0 {
+                            line(f, phase_f)
+                        } else {
+                            line(f, phase_f) - line(c, unalias_phase_deg(l.phase_deg, alias(c, nf), nf, self.start_deg))
+                        }
+                    }
                 }
             })
             .sum()
@@ -363,7 +399,7 @@ impl Left {
 /// (A_l^2/2) D^2`, `E^2` and `D^2` the mean squares of the error and its
 /// slope over the survey's repeatable lines, `S_l = A_l f_l pi / 180` the
 /// left line's slope at its highest candidate frequency.
-fn second_order(lines: &[LeftLine], analysis: &Analysis) -> f64 {
+pub(crate) fn second_order(lines: &[LeftLine], analysis: &Analysis) -> f64 {
     let rad = std::f64::consts::PI / 180.0;
     let repeatable = analysis.lines.iter().filter(|l| l.repeatable);
     let e2: f64 = repeatable.clone().map(|l| l.amplitude_deg.powi(2) / 2.0).sum();
@@ -422,6 +458,7 @@ mod tests {
             noise_sd_deg: 0.0,
             kind,
             candidates,
+            carried_cycles: None,
             why: String::new(),
         }
     }
@@ -434,6 +471,7 @@ mod tests {
             start_deg: 0.0,
             worst: None,
             second_order_deg: 0.0,
+            folds: Vec::new(),
         };
         for f in [20.0, 52.0] {
             for j in 0..36 {
@@ -454,6 +492,7 @@ mod tests {
             start_deg: 0.0,
             worst: None,
             second_order_deg: 0.0,
+            folds: Vec::new(),
         };
         for f in [20.0, 100.0] {
             for j in 0..24 {
@@ -473,7 +512,7 @@ mod tests {
         for i in 0..6 {
             lines.push(line(LeftKind::NotCarried, 4.0 + i as f64, vec![1.0, 2.0, 3.0]));
         }
-        let left = Left { lines, points: 24, start_deg: 0.0, worst: None, second_order_deg: 0.0 };
+        let left = Left { lines, points: 24, start_deg: 0.0, worst: None, second_order_deg: 0.0, folds: Vec::new() };
         let h = left.hypotheses();
         assert!(h.len() <= MAX_HYPOTHESES && h.len() >= 27, "{}", h.len());
         assert!(h.iter().all(|x| x.len() == 6));

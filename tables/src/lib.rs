@@ -9,7 +9,9 @@
 //!   error map; the predicted accuracy.
 //! - [`true_angle`]: the kept lines as lines of the true angle.
 //! - [`left`]: what the table leaves that the survey saw; [`resolve`]: check
-//!   points between the targets, and which hypothesis of a line they decide.
+//!   points between the targets, and which hypothesis of a line they decide;
+//!   [`left::folds`]: lines the design does not name folded onto a bin the
+//!   table holds, in doubt until check points measure them.
 //! - [`pipeline`]: the whole processing of one survey (what `survey process`
 //!   and the end of `survey run` compute).
 //! - [`uncertainty`]: the table's uncertainty budget.

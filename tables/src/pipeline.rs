@@ -87,6 +87,10 @@ pub struct Processed {
     /// (its coverage interval, [`crate::resolve::measured_left_deg`]),
     /// when no hypothesis explains them: the table's `U` is at least this.
     pub measured_left_deg: Option<f64>,
+    /// What check points fitted with the survey's folds leave unexplained
+    /// beyond their noise, an rms in degrees ([`crate::resolve::Folds::unexplained_deg`]):
+    /// a term of `U`.
+    pub unexplained_deg: Option<f64>,
     /// Native and corrected accuracy, predicted on the survey's samples,
     /// with what the table leaves between the targets.
     pub prediction: Prediction,
@@ -177,10 +181,16 @@ pub fn process_with_checks(
     let mut decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
     let mut built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
     let unknown_design = design.gear_ratios.is_empty() && design.tooth_counts.is_empty();
-    let mut left = Left::of(&analysis, &decisions, &[], unknown_design);
+    // Lines the design does not name that fold onto the bins the table
+    // holds at this count ([`crate::left::folds`]): in doubt until check points
+    // measure them.
+    let folds = crate::left::folds::of(&analysis, design, &recipe.analysis, &decisions);
+    let mut left = Left::of(&analysis, &decisions, &[], unknown_design).with_folds(folds, &analysis);
     let mut resolutions = Vec::new();
     let mut measured_left = None;
-    if !checks.is_empty() && !left.is_empty() {
+    let mut unexplained = None;
+    let in_doubt = !left.is_empty() || !left.folds.is_empty();
+    if !checks.is_empty() && in_doubt {
         resolutions = resolve(&left, &built.table, checks);
         let (resolved, stays) = resolved_recipe(&recipe, &left, &resolutions);
         if resolved != recipe {
@@ -188,12 +198,20 @@ pub fn process_with_checks(
             decisions = recipe.decide(&analysis).map_err(|e| recipe_error(e.into(), replay))?;
             built = recipe.build_table(&analysis, &decisions).map_err(|e| recipe_error(e, replay))?;
         }
-        left = Left::of(&analysis, &decisions, &stays, unknown_design).with_rest(
+        let folds = crate::left::folds::of(&analysis, design, &recipe.analysis, &decisions);
+        left = Left::of(&analysis, &decisions, &stays, unknown_design).with_folds(folds, &analysis).with_rest(
             &left,
             &resolutions,
             &analysis.error_map.targets_deg,
         );
         notes.extend(resolutions.iter().map(|r| r.why.clone()));
+        // The folds measured by the same check points, with the table made
+        // from what they decided.
+        let folds = crate::resolve::measure_folds(left, &built.table, checks);
+        left = folds.left;
+        unexplained = folds.unexplained_deg;
+        notes.extend(folds.resolutions.iter().map(|r| r.why.clone()));
+        resolutions.extend(folds.resolutions);
         // A line on the Nyquist bin: the check points measure the quadrature
         // component the targets do not see (as they measure what no
         // hypothesis explains).
@@ -205,6 +223,7 @@ pub fn process_with_checks(
             measured_left = measured_left_deg_of(&built.table, checks);
         }
     }
+    notes.extend(left.unseen_folds());
     notes.extend(decisions.notes.iter().cloned());
     notes.extend(built.notes.iter().cloned());
     // The survey's figures and its corrected samples' `A` (actual angles:
@@ -275,6 +294,7 @@ pub fn process_with_checks(
         left,
         resolutions,
         measured_left_deg: measured_left.map(|m| m.0),
+        unexplained_deg: unexplained,
         prediction,
         floor,
         iso,
@@ -301,7 +321,7 @@ fn resolved_recipe(recipe: &Recipe, left: &Left, resolutions: &[Resolution]) -> 
         let bin = r.observed_cycles;
         match r.kind {
             // Never in doubt: a possible line is what check points left.
-            LeftKind::Possible => {}
+            LeftKind::Possible | LeftKind::MayFold | LeftKind::Folded => {}
             LeftKind::MaybeAlias if f == bin => stays.push(bin),
             LeftKind::MaybeAlias => {
                 out.lines.keep.retain(|k| *k != bin);

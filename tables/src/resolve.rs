@@ -40,6 +40,10 @@
 //! which the table (carrying the bin's mix at the decided frequency) misses
 //! at both frequencies ([`Resolution::rest_deg`]).
 
+mod folded;
+
+pub use folded::{Folds, measure_folds};
+
 use crate::left::{Left, LeftKind, LeftLine};
 use serde::Serialize;
 use survey_processing::analysis::alias;
@@ -57,60 +61,92 @@ const MARGIN: f64 = 25.0;
 /// (a full circle, ascending); empty when nothing is in doubt.
 pub fn plan_checks(left: &Left, targets: &[f64]) -> Vec<f64> {
     let doubtful: Vec<usize> = (0..left.lines.len()).filter(|&i| in_doubt(left, i)).collect();
-    if doubtful.is_empty() || targets.len() < 2 {
+    if (doubtful.is_empty() && left.folds.is_empty()) || targets.len() < 2 {
         return Vec::new();
     }
-    let candidates: usize = doubtful.iter().map(|&i| left.lines[i].candidates.len()).sum();
+    let candidates: usize = doubtful.iter().map(|&i| left.lines[i].candidates.len()).sum::<usize>() + left.folds.len();
     let wanted = (PER_CANDIDATE * candidates).max(MIN_CHECKS).min(targets.len());
-    // The grid: a quarter, a half and three quarters of every gap (wrapping round).
+    // The grid: a quarter, a half and three quarters of every gap (wrapping
+    // round); eighths where folds are to be measured: a line at `m N + s` is,
+    // at the fraction `q` of every step, a line of `s` cycles/rev at the
+    // phase `360 m q`, so three fractions give as many columns as three
+    // folds take and measure them no better than the points' noise allows
+    // through an exactly determined fit; seven give each its own.
+    let fractions: &[f64] =
+        if left.folds.is_empty() { &[0.25, 0.5, 0.75] } else { &[0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875] };
     let grid: Vec<(usize, f64)> = (0..targets.len())
         .flat_map(|g| {
             let a = targets[g];
             let b = if g + 1 < targets.len() { targets[g + 1] } else { targets[0] + 360.0 };
-            [0.25, 0.5, 0.75].map(move |q| (g, (a + q * (b - a)).rem_euclid(360.0)))
+            fractions.iter().map(move |q| (g, (a + q * (b - a)).rem_euclid(360.0)))
         })
         .collect();
     // Every pair of candidates of a line, and how they differ at each grid angle.
-    let base: Vec<f64> = left.lines.iter().map(|l| l.candidates[0]).collect();
+    let view = left.for_decision();
+    let base: Vec<f64> = view.lines.iter().map(|l| l.candidates[0]).collect();
     let alone = |i: usize, c: f64, r: f64| {
         let mut h = base.clone();
         h[i] = c;
-        left.at(&h, r) - left.at(&base, r)
+        view.at(&h, r) - view.at(&base, r)
     };
-    let pairs: Vec<Vec<f64>> = doubtful
+    // The folds' columns (each fitted beside the others: see `decide`).
+    let (n, start) = (left.points as f64, left.start_deg);
+    let folds: Vec<Vec<f64>> = left
+        .folds
+        .iter()
+        .flat_map(|f| {
+            let c = crate::left::folds::carried_under(&view, &base, f);
+            let grid = &grid;
+            [0.0, 90.0].map(move |ph| {
+                grid.iter()
+                    .map(|&(_, r)| crate::left::folds::delta(f.true_cycles, ph, f.observed_cycles, c, n, start, r))
+                    .collect()
+            })
+        })
+        .collect();
+    let pairs: Vec<(Vec<f64>, Option<usize>)> = doubtful
         .iter()
         .flat_map(|&i| {
             let cs = &left.lines[i].candidates;
             (0..cs.len()).flat_map(move |p| (p + 1..cs.len()).map(move |q| (i, cs[p], cs[q])))
         })
-        .map(|(i, c1, c2)| grid.iter().map(|&(_, r)| alone(i, c1, r) - alone(i, c2, r)).collect())
+        .map(|(i, c1, c2)| (grid.iter().map(|&(_, r)| alone(i, c1, r) - alone(i, c2, r)).collect(), None))
         .chain(
             // A line on the Nyquist bin: the component the targets do not
             // see, which the check points must tell from their offset (half
             // steps of both parities).
             doubtful.iter().filter(|&&i| left.on_nyquist(i)).map(|&i| {
                 let l = &left.lines[i];
-                grid.iter().map(|&(_, r)| (l.observed_cycles * r + l.phase_deg).to_radians().cos()).collect()
+                (grid.iter().map(|&(_, r)| (l.observed_cycles * r + l.phase_deg).to_radians().cos()).collect(), None)
             }),
         )
+        // Each fold's column, to be told from the rest.
+        .chain(folds.iter().enumerate().map(|(k, c)| (c.clone(), Some(k))))
         .collect();
     // Greedy, at most one angle per gap: each next angle the one after which
     // the pair told apart least is told apart most, what separates a pair
-    // being its differences less an offset and a once-per-revolution term
-    // (which the decision fits away); ties (the first few angles) by the sum
-    // of the squared differences.
+    // being its differences less an offset, a once-per-revolution term and
+    // the folds' columns (which the decision fits away); ties (the first
+    // few angles) by the sum of the squared differences.
     let mut used = vec![false; targets.len()];
     let mut chosen: Vec<usize> = Vec::new();
     while chosen.len() < wanted {
         let score = |j: usize| {
+            let at: Vec<usize> = chosen.iter().copied().chain([j]).collect();
             let worst = pairs
                 .iter()
-                .map(|d| {
-                    let pts: Vec<(f64, f64)> = chosen.iter().chain([&j]).map(|&k| (grid[k].1, d[k])).collect();
-                    ssr_offset_once_per_rev(&pts)
+                .map(|(d, own)| {
+                    let pts: Vec<(f64, f64)> = at.iter().map(|&k| (grid[k].1, d[k])).collect();
+                    let extra: Vec<Vec<f64>> = folds
+                        .iter()
+                        .enumerate()
+                        .filter(|(k, _)| Some(*k) != *own)
+                        .map(|(_, c)| at.iter().map(|&k| c[k]).collect())
+                        .collect();
+                    ssr_offset_once_per_rev_and(&pts, extra)
                 })
                 .fold(f64::INFINITY, f64::min);
-            (worst, pairs.iter().map(|d| d[j] * d[j]).sum::<f64>())
+            (worst, pairs.iter().map(|(d, _)| d[j] * d[j]).sum::<f64>())
         };
         let best = (0..grid.len())
             .filter(|&j| !used[grid[j].0])
@@ -128,8 +164,18 @@ pub fn plan_checks(left: &Left, targets: &[f64]) -> Vec<f64> {
 /// Whether line `i` of `left` has more than one candidate frequency, or
 /// sits on the Nyquist bin (its size is in doubt: the targets see one
 /// quadrature component of it, the check points between them the other).
+/// A line that may hold folds is not: its folds are fitted beside the
+/// lines in doubt ([`crate::left::folds`]).
 fn in_doubt(left: &Left, i: usize) -> bool {
-    left.lines[i].candidates.len() > 1 || left.on_nyquist(i)
+    left.lines[i].kind != LeftKind::MayFold && (left.lines[i].candidates.len() > 1 || left.on_nyquist(i))
+}
+
+/// Whether a residual `ssr` over `dof` degrees of freedom is what the noise
+/// `sigma2` (itself estimated from `noise_dof` degrees of freedom) makes:
+/// the ratio is an `F(dof, noise_dof)`, whose spread both add to; three
+/// standard deviations of it.
+pub(crate) fn consistent(ssr: f64, dof: usize, sigma2: f64, noise_dof: usize) -> bool {
+    ssr / dof as f64 <= sigma2 * (1.0 + 3.0 * (2.0 / dof as f64 + 2.0 / noise_dof as f64).sqrt())
 }
 
 /// What the check points decided about one line.
@@ -186,18 +232,26 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
     let Some((sigma2, noise_dof)) = sigma2.filter(|(v, _)| *v > 0.0 && dof >= 3) else {
         return undecided("the check points do not give their own noise (one run, or too few points)".into());
     };
-    let fits: Vec<(Vec<f64>, f64)> = left
+    // Every hypothesis fitted jointly with the folds of the survey (lines
+    // the design does not name, folded onto the bins the table holds): their
+    // energy at the check points is not a failure of the hypothesis.
+    let view = left.for_decision();
+    let (n, start) = (left.points as f64, left.start_deg);
+    let fits: Vec<(Vec<f64>, f64, usize)> = view
         .hypotheses()
         .into_iter()
         .map(|h| {
-            let y: Vec<(f64, f64)> = d.iter().map(|&(r, v)| (r, v - left.at(&h, r))).collect();
-            (h, ssr_offset_once_per_rev(&y))
+            let y: Vec<(f64, f64)> = d.iter().map(|&(r, v)| (r, v - view.at(&h, r))).collect();
+            let carried = |f: &crate::left::folds::Fold| crate::left::folds::carried_under(&view, &h, f);
+            let (ssr, k) =
+                crate::left::folds::fit(&y, &left.folds, &carried, n, start).map_or((0.0, dof), |j| (j.ssr, j.dof));
+            (h, ssr, k)
         })
         .collect();
-    let (best_h, best) = fits.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map(|(h, s)| (h.clone(), *s)).unwrap();
-    // The noise is itself estimated (from `noise_dof` degrees of freedom):
-    // the ratio is an F(dof, noise_dof), whose spread both add to.
-    let consistent = best / dof as f64 <= sigma2 * (1.0 + 3.0 * (2.0 / dof as f64 + 2.0 / noise_dof as f64).sqrt());
+    let (best_h, best, best_dof) =
+        fits.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map(|(h, s, k)| (h.clone(), *s, *k)).unwrap();
+    let consistent = best_dof >= 3 && consistent(best, best_dof, sigma2, noise_dof);
+    let dof = best_dof;
     doubtful
         .iter()
         .map(|&i| {
@@ -206,16 +260,33 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
                 .candidates
                 .iter()
                 .map(|&c| {
-                    let s = fits.iter().filter(|(h, _)| h[i] == c).map(|(_, s)| *s).fold(f64::INFINITY, f64::min);
+                    let s = fits.iter().filter(|(h, _, _)| h[i] == c).map(|(_, s, _)| *s).fold(f64::INFINITY, f64::min);
                     (c, s / sigma2)
                 })
                 .collect();
             let chosen = best_h[i];
             let runner_up =
                 per.iter().filter(|(c, _)| *c != chosen).map(|(_, s)| *s).fold(f64::INFINITY, f64::min);
-            let margin = runner_up - best / sigma2;
-            let decided = consistent && margin > MARGIN;
-            let why = if decided {
+            // Where no hypothesis explains the points (a line no hypothesis
+            // holds: another line the design does not name, two lines in one
+            // bin), the candidates are judged against the residual's own
+            // variance instead of the noise's: what is unexplained adds to
+            // every hypothesis alike except where it resembles one's
+            // difference, and then the margin in its own variance is small.
+            let scale = if consistent { 1.0 } else { (best / sigma2 / dof as f64).max(1.0) };
+            let margin = (runner_up - best / sigma2) / scale;
+            let decided = margin > MARGIN;
+            let why = if decided && !consistent {
+                format!(
+                    "bin {}: no candidate explains the {} check points down to their noise (best residual {:.1} \
+                     sigma^2 over {dof} degrees of freedom), but against that residual's own variance they decide \
+                     {chosen} cycles/rev (the next candidate {margin:.0} times it worse): U is at least what they \
+                     measure the table leaves",
+                    l.observed_cycles,
+                    d.len(),
+                    best / sigma2,
+                )
+            } else if decided {
                 format!(
                     "bin {}: the {} check points decide {chosen} cycles/rev (residual {:.1} sigma^2 over {dof} degrees \
                      of freedom; the next candidate {:.0} sigma^2 worse)",
@@ -246,7 +317,9 @@ pub fn decide(left: &Left, table: &CorrectionTable, checks: &[Sample]) -> Vec<Re
                 decided_cycles: decided.then_some(chosen),
                 candidates: per,
                 rest_deg: if decided {
-                    std::f64::consts::SQRT_2 * survey_processing::coverage::K * (sigma2 * 2.0 / d.len() as f64).sqrt()
+                    std::f64::consts::SQRT_2
+                        * survey_processing::coverage::K
+                        * (scale * sigma2 * 2.0 / d.len() as f64).sqrt()
                 } else {
                     0.0
                 },
@@ -382,22 +455,40 @@ pub fn measure_nyquist(mut left: Left, table: &CorrectionTable, checks: &[Sample
 /// The residual sum of squares of `y(r)` fitted by `c + a sin r + b cos r`
 /// ([`survey_processing::lstsq`]; with fewer than four points, or points that cannot
 /// resolve the three terms, nothing is left: 0).
-fn ssr_offset_once_per_rev(y: &[(f64, f64)]) -> f64 {
-    let columns = vec![
-        vec![1.0; y.len()],
-        y.iter().map(|(r, _)| r.to_radians().sin()).collect(),
-        y.iter().map(|(r, _)| r.to_radians().cos()).collect(),
-    ];
+/// `extra` columns (their values at the same points) are fitted too; an
+/// extra column the points cannot tell from those before it is dropped (it
+/// cannot hide what it cannot reach).
+fn ssr_offset_once_per_rev_and(y: &[(f64, f64)], mut extra: Vec<Vec<f64>>) -> f64 {
     let scale = (y.len() as f64).sqrt();
-    match survey_processing::lstsq::Qr::new(columns, |_| 1e-9 * scale) {
-        Ok(qr) if y.len() > 3 => qr.solve(&y.iter().map(|p| p.1).collect::<Vec<_>>()).1,
-        _ => 0.0,
+    let values: Vec<f64> = y.iter().map(|p| p.1).collect();
+    loop {
+        let mut columns = vec![
+            vec![1.0; y.len()],
+            y.iter().map(|(r, _)| r.to_radians().sin()).collect(),
+            y.iter().map(|(r, _)| r.to_radians().cos()).collect(),
+        ];
+        let count = 3 + extra.len();
+        columns.extend(extra.iter().cloned());
+        if y.len() <= count {
+            if extra.is_empty() {
+                return 0.0;
+            }
+            extra.pop();
+            continue;
+        }
+        match survey_processing::lstsq::Qr::new(columns, |_| 1e-9 * scale) {
+            Ok(qr) => return qr.solve(&values).1,
+            Err(j) if j >= 3 => {
+                extra.remove(j - 3);
+            }
+            Err(_) => return 0.0,
+        }
     }
 }
 
 /// The variance of one check sample's error about its point's and
 /// direction's mean over the runs (`None` without repeated points).
-fn noise_var(checks: &[Sample], table: &CorrectionTable) -> Option<(f64, usize)> {
+pub(crate) fn noise_var(checks: &[Sample], table: &CorrectionTable) -> Option<(f64, usize)> {
     let mut groups: std::collections::BTreeMap<(u64, bool), Vec<f64>> = Default::default();
     for s in checks {
         let e = s.error_deg() - table.error_at(s.readout_deg, s.direction);
@@ -436,6 +527,7 @@ impl Left {
                 noise_sd_deg: 0.0,
                 kind: LeftKind::Possible,
                 candidates: others,
+                carried_cycles: None,
                 why: format!(
                     "bin {}: decided {f} cycles/rev; the check points cannot exclude a line of up to {:.2e} deg at {} \
                      cycles/rev sharing the bin, which the table would miss",
@@ -499,6 +591,8 @@ fn describe(l: &LeftLine) -> String {
         LeftKind::NotCarried => "not carried",
         LeftKind::MaybeAlias => "kept where it is seen",
         LeftKind::Possible => "possible, not excluded",
+        LeftKind::MayFold => "may hold a line the design does not name",
+        LeftKind::Folded => "a line the design does not name, measured",
     };
     format!("the line at bin {} ({} cycles/rev, {what})", l.observed_cycles, c.join(" or "))
 }

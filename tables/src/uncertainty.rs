@@ -317,6 +317,16 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     };
     let drift_var = drift_from_runs(a, &in_range_kept).unwrap_or(0.0);
     budget.push(Contribution { source: "drift".into(), u_deg: drift_var.sqrt() });
+    // What check points fitted with the survey's folds leave unexplained
+    // beyond their noise (a line no fold and no hypothesis holds): a normal
+    // term of its rms (for a sinusoid, `k` times its rms is 1.41 times its
+    // amplitude: the normal's interval holds it).
+    if let Some(v) = processed.unexplained_deg {
+        budget.push(Contribution {
+            source: "what the check points leave unexplained beside the folds (its rms beyond their noise)".into(),
+            u_deg: v,
+        });
+    }
     // A line below the detection threshold is left out of the table whole:
     // a sinusoid of any amplitude up to the threshold `T`, at any phase. Its
     // size is one for every readout (systematic), so it is not averaged
@@ -513,6 +523,8 @@ fn with_left(
                 LeftKind::NotCarried => format!("bin {} not carried (at {f} cycles/rev)", l.observed_cycles),
                 LeftKind::MaybeAlias => format!("bin {} may be an alias (of {f} cycles/rev)", l.observed_cycles),
                 LeftKind::Possible => format!("bin {} possibly shared (at {f} cycles/rev)", l.observed_cycles),
+                LeftKind::MayFold => format!("bin {} may hold a fold (of {f} cycles/rev)", l.observed_cycles),
+                LeftKind::Folded => format!("bin {} holds a fold measured (at {f} cycles/rev)", l.observed_cycles),
             })
             .collect();
         budget.push(Contribution {

@@ -174,6 +174,7 @@ fn left(points: usize, lines: &[(f64, &[f64], LeftKind)]) -> Left {
                 noise_sd_deg: 0.0,
                 kind,
                 candidates: c.to_vec(),
+                carried_cycles: None,
                 why: String::new(),
             })
             .collect(),
@@ -181,6 +182,7 @@ fn left(points: usize, lines: &[(f64, &[f64], LeftKind)]) -> Left {
         start_deg: 0.0,
         worst: None,
         second_order_deg: 0.0,
+        folds: Vec::new(),
     }
 }
 
