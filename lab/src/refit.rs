@@ -337,8 +337,12 @@ impl AxisRefit {
         };
         line("radial", "um", &m.radial_um);
         line(&format!("axial at {:.0} mm", m.radius_mm), "um", &m.axial_um);
+        if let Some(a) = &m.axial_on_axis_um {
+            line("axial on the axis", "um", a);
+        }
         if let Some(t) = &m.tilt_urad {
-            line("tilt", "urad", t);
+            let how = if t.method == "phases" { "at several phases" } else { "at two heights" };
+            line(&format!("tilt ({} SMRs {how})", t.smrs), "urad", t);
         }
         s
     }

@@ -181,3 +181,85 @@ fn a_small_wobble_is_below_the_detection_limit() {
     }
     assert!(json["tilt_urad"].is_null() && json["detection_limit_um"].is_f64());
 }
+
+/// The peak-to-valley of the model's tilt and axial motion on the axis at
+/// the survey's targets, and the synchronous figures reported.
+fn on_axis_and_tilt(e: &ErrorMotions, m: &AxisMotions, points: usize) -> ((f64, f64), (f64, f64)) {
+    let on_axis = e.axial_on_axis_um.as_ref().expect("the phases separate it");
+    let tilt = e.tilt_urad.as_ref().expect("a tilt");
+    assert!((on_axis.u_synchronous - on_axis.u).abs() >= 0.0 && tilt.smrs >= 2);
+    let truth = (pv(points, |t| m.axial_um(t)), pv(points, |t| m.tilt_urad(t, 0.0)));
+    let got = (on_axis.synchronous.expect("above the limit"), tilt.synchronous.expect("above the limit"));
+    assert!(
+        (got.0 - truth.0).abs() <= on_axis.u_synchronous,
+        "on the axis {} against {} +/- {}",
+        got.0,
+        truth.0,
+        on_axis.u_synchronous
+    );
+    assert!(
+        (got.1 - truth.1).abs() <= tilt.u_synchronous,
+        "tilt {} against {} +/- {}",
+        got.1,
+        truth.1,
+        tilt.u_synchronous
+    );
+    (got, truth)
+}
+
+#[test]
+fn two_smrs_at_opposite_phases_give_the_axial_motion_on_the_axis_and_the_tilt() {
+    // A fundamental axial motion (1 cpr) too: on the axis it is a motion, kept; at one SMR the plane takes it.
+    let m = motions(&[(2, 30.0, 0.0)], &[(1, 25.0, 20.0), (3, 40.0, 10.0)], &[(2, 150.0, 60.0)]);
+    let mounts = [SmrMount { phase_deg: 0.0, height_mm: 50.0 }, SmrMount { phase_deg: 180.0, height_mm: 50.0 }];
+    let (samples, tracks) = survey(72, 2, &mounts, &m, 3.5);
+    let e = run(&samples, &tracks, &mounts);
+    let (got, truth) = on_axis_and_tilt(&e, &m, 72);
+    // An exact tracker: the noise's share only (3.5 um a coordinate, halved by the pair's mean and the 2 runs'
+    // mean, read as a peak-to-valley of 144 readings: about 2 x 3 x 1.75 um at most).
+    assert!((got.0 - truth.0).abs() < 12.0 && (got.1 - truth.1).abs() < 12.0, "{got:?} {truth:?}");
+    let t = e.tilt_urad.as_ref().unwrap();
+    assert_eq!((t.method, t.smrs), ("phases", 2));
+    // U of the pair: the MPE once (the weights 1/2 and 1/2 add to 1), the random bound by 1/sqrt(2); the tilt's
+    // the same over the 1 m radius (weights +-1/2 over 1 m).
+    let on_axis = e.axial_on_axis_um.as_ref().unwrap();
+    let systematic = |b: &Block| (b.u_total.powi(2) - b.u_asynchronous.powi(2)).sqrt();
+    assert!((systematic(on_axis) - systematic(&e.axial_um)).abs() < 0.01, "{on_axis:?} {:?}", e.axial_um);
+    assert!((on_axis.u_asynchronous - e.axial_um.u_asynchronous / 2f64.sqrt()).abs() < 0.01, "{on_axis:?}");
+    assert!((t.u_total - on_axis.u_total).abs() < 0.5, "{t:?} {on_axis:?}");
+    // One SMR's face motion is still reported: at 1 m the tilt's share, less the 1 cpr the plane takes.
+    let face = pv(72, |x| 40.0 * (3.0 * x + 10.0).to_radians().sin() + m.tilt_urad(x, 0.0));
+    assert!((e.axial_um.synchronous.unwrap() - face).abs() < 12.0, "{:?} {face}", e.axial_um);
+    assert!(e.notes.iter().any(|n| n.contains("2 SMRs at 0.0, 180.0 deg")), "{:?}", e.notes);
+    let json = serde_json::to_value(&e).unwrap();
+    assert_eq!(json["tilt_urad"]["method"], "phases");
+    assert!(json["tilt_urad"]["synchronous"].is_f64() && json["axial_on_axis_um"]["u"].is_f64());
+    assert!(json["polar"][0]["axial_on_axis_um"].is_f64());
+}
+
+#[test]
+fn three_smrs_spread_and_a_pair_at_one_phase_choose_the_better_tilt() {
+    let m = motions(&[(3, 20.0, 0.0)], &[(2, 35.0, 0.0)], &[(2, 120.0, 10.0), (4, 40.0, 0.0)]);
+    let spread: Vec<SmrMount> = [0.0, 120.0, 240.0].map(|p| SmrMount { phase_deg: p, height_mm: 50.0 }).to_vec();
+    let (samples, tracks) = survey(72, 2, &spread, &m, 3.5);
+    let e = run(&samples, &tracks, &spread);
+    let (got, truth) = on_axis_and_tilt(&e, &m, 72);
+    // As above; three SMRs' least squares weigh the axial 1/3 each, the tilt 2/3, -1/3, -1/3 over 1 m.
+    assert!((got.0 - truth.0).abs() < 12.0 && (got.1 - truth.1).abs() < 12.0, "{got:?} {truth:?}");
+    // Two at one phase 300 mm apart and one opposite: both ways to the tilt; the phases' (2 m apart) is the better.
+    let mixed = [
+        SmrMount { phase_deg: 0.0, height_mm: 50.0 },
+        SmrMount { phase_deg: 0.0, height_mm: 350.0 },
+        SmrMount { phase_deg: 180.0, height_mm: 50.0 },
+    ];
+    let (samples, tracks) = survey(72, 2, &mixed, &m, 3.5);
+    let e = run(&samples, &tracks, &mixed);
+    on_axis_and_tilt(&e, &m, 72);
+    assert_eq!(e.tilt_urad.as_ref().unwrap().method, "phases");
+    // Two SMRs 90 deg apart cannot tell the axial motion from the tilt: said, and no figure.
+    let square = [SmrMount { phase_deg: 0.0, height_mm: 50.0 }, SmrMount { phase_deg: 90.0, height_mm: 50.0 }];
+    let (samples, tracks) = survey(36, 2, &square, &m, 3.5);
+    let e = run(&samples, &tracks, &square);
+    assert!(e.axial_on_axis_um.is_none() && e.tilt_urad.is_none());
+    assert!(e.notes.iter().any(|n| n.contains("do not separate")), "{:?}", e.notes);
+}

@@ -559,8 +559,11 @@ fn motions(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     real(x, "survey_axisA0", "A0C, the axis average line's rotation about x", l.a0_urad, URAD, None)?;
     real(x, "survey_axisB0", "B0C, the axis average line's rotation about y", l.b0_urad, URAD, None)?;
     let mut blocks = vec![("Radial", "radial", &m.radial_um, UM), ("Axial", "axial", &m.axial_um, UM)];
+    if let Some(a) = &m.axial_on_axis_um {
+        blocks.push(("AxialOnAxis", "axial (on the axis)", a, UM));
+    }
     if let Some(t) = &m.tilt_urad {
-        blocks.push(("Tilt", "tilt", t, URAD));
+        blocks.push(("Tilt", "tilt", &t.block, URAD));
     }
     for (tag, name, b, unit) in blocks {
         for (kind, value, u) in [

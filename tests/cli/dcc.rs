@@ -21,7 +21,7 @@ fn schema_dir() -> PathBuf {
 }
 
 /// Why the validation cannot run here, if it cannot; in CI that is a failure.
-fn validator_missing() -> Option<String> {
+pub(super) fn validator_missing() -> Option<String> {
     let why = if !schema_dir().join("dcc_3_2_0.xsd").is_file() {
         Some(format!("the DCC schema is not at {}", schema_dir().display()))
     } else {
@@ -43,7 +43,7 @@ fn validator_missing() -> Option<String> {
 }
 
 /// Validate the DCCs `files` (paths in `bench`); panics with the schema's errors.
-fn validate(bench: &Bench, files: &[&str]) {
+pub(super) fn validate(bench: &Bench, files: &[&str]) {
     let out = Command::new("python3")
         .arg(SCRIPT)
         .arg(schema_dir())

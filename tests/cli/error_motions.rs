@@ -7,9 +7,10 @@ use super::Bench;
 use serde_json::Value;
 
 /// The Figure 8 positioner with motions a tracker can see, and two SMRs
-/// on one vertical line 300 mm apart (the tilt). The truth, at the first
-/// SMR (50 mm above the tilt's pivot): radial 2 cpr 60 um (the tilt adds
-/// 0.05 m x 200 urad at 2 cpr), axial 3 cpr 40 um, tilt 2 cpr 200 urad.
+/// at opposite phases (the axial motion on the axis and the tilt). The
+/// truth, at the first SMR (50 mm above the tilt's pivot): radial 2 cpr 60
+/// um (the tilt adds 0.05 m x 200 urad at 2 cpr), axial 3 cpr 40 um on the
+/// axis, tilt 2 cpr 200 urad.
 const MOVING: &str = r#"[design]
 gear_ratios = [20]
 
@@ -42,8 +43,7 @@ kind = "bearing_noise"
 sigma_um = 1.0
 
 [smrs]
-phases_deg = [0, 0]
-heights_mm = [0, 300]
+phases_deg = [0, 180]
 "#;
 
 fn num(v: &Value, what: &str) -> f64 {
@@ -88,6 +88,15 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
     within("radial_um", pv(72, |t| 60.0 * (2.0 * t).to_radians().sin() - 0.05 * tilt(t)));
     within("axial_um", pv(72, |t| 40.0 * (3.0 * t + 30.0).to_radians().sin() + tilt(t)));
     within("tilt_urad", pv(72, tilt));
+    within("axial_on_axis_um", pv(72, |t| 40.0 * (3.0 * t + 30.0).to_radians().sin()));
+    assert_eq!(m["tilt_urad"]["method"], "phases", "{m}");
+    let text = bench.survey(&["process"]).success().stdout;
+    for line in [
+        "error motion (ISO 230-7) axial on the axis: total",
+        "error motion (ISO 230-7) tilt (2 SMRs at several phases)",
+    ] {
+        assert!(text.contains(line), "{text}");
+    }
 
     // The report shows them (a table and polar plots); the DCC carries them as a result of their own.
     bench.survey(&["report", "--out", "r"]).success();
@@ -101,6 +110,10 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
         assert!(dcc.contains(ref_type), "the DCC carries {ref_type}");
     }
     assert!(dcc.contains("<dcc:noQuantity>"), "the asynchronous motions are below the limit: said, not a number");
+    assert!(dcc.contains("survey_motionAxialOnAxisSynchronous"), "the DCC carries the axial motion on the axis");
+    if super::dcc::validator_missing().is_none() {
+        super::dcc::validate(&bench, &["r/dcc.xml"]);
+    }
 
     // The Figure 8 positioner with a small wobble (a few um) is below what the tracker can tell.
     bench.write("wobble.toml", include_str!("../fixtures/fig8-wobble.toml"));

@@ -37,8 +37,12 @@ pub fn figures_table(m: &ErrorMotions) -> String {
     };
     row("radial, µm".into(), "", &m.radial_um);
     row(format!("axial at {:.0} mm, µm", m.radius_mm), "", &m.axial_um);
+    if let Some(a) = &m.axial_on_axis_um {
+        row("axial on the axis, µm".into(), "", a);
+    }
     if let Some(t) = &m.tilt_urad {
-        row("tilt, µrad".into(), "", t);
+        let how = if t.method == "phases" { "SMRs at several phases" } else { "SMRs at two heights" };
+        row(format!("tilt ({how}), µrad"), "", t);
     }
     let l = &m.location;
     let location = table(
@@ -114,6 +118,7 @@ pub fn body(m: &ErrorMotions) -> anyhow::Result<String> {
     let plots: Vec<(&str, &str, Value)> = [
         ("radial, µm", "µm", (|p: &PolarPoint| Some(p.radial_um)) as Value),
         ("axial (face), µm", "µm", |p: &PolarPoint| Some(p.axial_um)),
+        ("axial on the axis, µm", "µm", |p: &PolarPoint| p.axial_on_axis_um),
         ("tilt, µrad", "µrad", |p: &PolarPoint| p.tilt_urad),
     ]
     .into_iter()
