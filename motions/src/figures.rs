@@ -140,6 +140,11 @@ impl Figures {
         self.runs
     }
 
+    /// The tracker's systematic bound `e_T`, um.
+    pub(crate) fn e_t_um(&self) -> f64 {
+        self.e_t_um
+    }
+
     /// The figures of `values` (one a sample), the bounds scaled by `scale`
     /// (1 for one SMR's um; `sqrt(2) / dh` for a tilt from two heights, urad).
     pub(crate) fn block(&self, values: &[f64], scale: Scale) -> Block {

@@ -9,7 +9,8 @@
 //! 1. Each SMR's positions are fitted with a plane and a circle
 //!    (`survey_processing::geometry::fit_axis`). The first SMR's circle
 //!    centre and plane normal are the axis average line's location in the
-//!    tracker's frame ([`Location`]).
+//!    tracker's frame, and in the machine's where the survey states it
+//!    ([`Location`], with their `U`).
 //! 2. Each position's radial deviation is its distance from the circle's
 //!    centre, in the plane, less the radius; its axial deviation its distance
 //!    from the plane. The least-squares circle's centre takes the
@@ -41,11 +42,12 @@ mod location;
 mod phases;
 
 pub use figures::{Block, Figures, PolarPoint};
-pub use location::Location;
+pub use location::{Location, MachineLocation};
 
 use deviations::{deviations, tilt_pair};
 use figures::Scale;
 use phases::separate;
+use survey_processing::frame::MachineFrame;
 use survey_processing::geometry::fit_axis;
 
 use survey_processing::smrs::SmrMount;
@@ -70,6 +72,8 @@ pub struct Input<'a> {
     pub tracks: Vec<Track<'a>>,
     /// The tracker's transverse maximum permissible error.
     pub mpe: TransverseMpe,
+    /// The machine's frame in the tracker's, where the survey states one.
+    pub frame: Option<MachineFrame>,
 }
 
 /// The contract's `error_motions`.
@@ -217,6 +221,14 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
     if figures.runs() < 2 {
         notes.push("one run: no asynchronous motion (it is the spread across runs)".into());
     }
+    let location = Location::of(&first.fit, figures.e_t_um(), input.frame.as_ref());
+    if input.frame.is_some() && location.machine.is_none() {
+        notes.push(
+            "no location in the machine's frame: the axis is more than 60 deg from its z axis ([machine_frame] \
+             rotation_deg states the frame of a C axis, z along it)"
+                .into(),
+        );
+    }
     let polar = figures.polar(
         &first.radial_um,
         &first.axial_um,
@@ -224,7 +236,7 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
         on_axis.as_ref().map(|(_, a)| a.as_slice()),
     );
     Some(ErrorMotions {
-        location: Location::of(&first.fit),
+        location,
         radial_um: radial,
         axial_um: axial,
         tilt_urad: tilt,

@@ -104,7 +104,7 @@ fn motions(radial: &[(u32, f64, f64)], axial: &[(u32, f64, f64)], tilt: &[(u32, 
 
 fn run(samples: &[Sample], tracks: &[Vec<[f64; 3]>], mounts: &[SmrMount]) -> ErrorMotions {
     let tracks = tracks.iter().zip(mounts).map(|(p, m)| Track { mount: *m, points_mm: p }).collect();
-    error_motions(&Input { samples, tracks, mpe: TransverseMpe::AT_CLASS }).expect("figures")
+    error_motions(&Input { samples, tracks, mpe: TransverseMpe::AT_CLASS, frame: None }).expect("figures")
 }
 
 /// The peak-to-valley of `f` over the survey's targets.
@@ -262,4 +262,50 @@ fn three_smrs_spread_and_a_pair_at_one_phase_choose_the_better_tilt() {
     let e = run(&samples, &tracks, &square);
     assert!(e.axial_on_axis_um.is_none() && e.tilt_urad.is_none());
     assert!(e.notes.iter().any(|n| n.contains("do not separate")), "{:?}", e.notes);
+}
+
+#[test]
+fn the_location_in_a_stated_machine_frame_against_the_truth() {
+    use survey_processing::frame::MachineFrame;
+    let m = motions(&[(2, 30.0, 0.0)], &[(3, 20.0, 0.0)], &[]);
+    let mounts = [SmrMount { phase_deg: 0.0, height_mm: 50.0 }];
+    let (samples, tracks) = survey(72, 2, &mounts, &m, 3.5);
+    // The machine's z axis is the true axis, its x turned 30 deg about it; the axis passes (10, -20) mm from the
+    // machine's origin: rotation_deg makes R ez = n (R = Rz Ry Rx: Ry Rx ez = Rz(-30) n).
+    let (_, _, n) = basis();
+    let (s, c) = (-30f64).to_radians().sin_cos();
+    let turned = [c * n[0] - s * n[1], s * n[0] + c * n[1], n[2]];
+    let rotation_deg = [(-turned[1]).asin().to_degrees(), turned[0].atan2(turned[2]).to_degrees(), 30.0];
+    let r = MachineFrame { origin_mm: [0.0; 3], rotation_deg }.rotation();
+    assert!((0..3).all(|i| (r[i][2] - n[i]).abs() < 1e-12), "the machine's z is the axis");
+    let at = [10.0, -20.0, 35.0];
+    let origin_mm: [f64; 3] = std::array::from_fn(|i| CENTRE[i] - (0..3).map(|j| r[i][j] * at[j]).sum::<f64>());
+    let frame = MachineFrame { origin_mm, rotation_deg };
+    let tracks_of = || tracks.iter().zip(&mounts).map(|(p, m)| Track { mount: *m, points_mm: p }).collect();
+    let input = Input { samples: &samples, tracks: tracks_of(), mpe: TransverseMpe::AT_CLASS, frame: Some(frame) };
+    let e = error_motions(&input).expect("figures");
+    let l = e.location.machine.expect("a C axis's frame");
+    for (got, truth, u) in [
+        (l.x0_mm, 10.0, l.u_xy_mm),
+        (l.y0_mm, -20.0, l.u_xy_mm),
+        (l.a0_urad, 0.0, l.u_ab_urad),
+        (l.b0_urad, 0.0, l.u_ab_urad),
+    ] {
+        assert!((got - truth).abs() <= u, "{got} against {truth} +/- {u}: {l:?}");
+    }
+    // An exact tracker: the noise's share only (3.5 um over 144 points: the centre to some 0.5 um, the normal to
+    // some 0.5 urad; the axial motion's 3 cpr does not tilt the plane).
+    assert!((l.x0_mm - 10.0).abs() < 0.002 && (l.y0_mm + 20.0).abs() < 0.002, "{l:?}");
+    assert!(l.a0_urad.abs() < 3.0 && l.b0_urad.abs() < 3.0, "{l:?}");
+    // U: the MPE's once-per-revolution share, 4 e_T / pi (e_T about 37 um at 3.6 m), the normal's over 1 m.
+    assert!((0.045..0.05).contains(&l.u_xy_mm) && (45.0..50.0).contains(&l.u_ab_urad), "{l:?}");
+    assert!((e.location.u_xy_mm - l.u_xy_mm).abs() < 0.001 && e.location.frame == "tracker");
+    let json = serde_json::to_value(&e).unwrap();
+    assert!(json["location"]["machine"]["x0_mm"].is_f64() && json["location"]["x0_mm"].is_f64());
+    assert!(run(&samples, &tracks, &mounts).location.machine.is_none(), "no frame stated: none");
+    // A frame on its side (the axis along the machine's x): not a C axis's frame, said.
+    let side = MachineFrame { origin_mm, rotation_deg: [0.0, 90.0, 0.0] };
+    let input = Input { samples: &samples, tracks: tracks_of(), mpe: TransverseMpe::AT_CLASS, frame: Some(side) };
+    let e = error_motions(&input).expect("figures");
+    assert!(e.location.machine.is_none() && e.notes.iter().any(|n| n.contains("60 deg")), "{:?}", e.notes);
 }

@@ -46,6 +46,34 @@ sigma_um = 1.0
 phases_deg = [0, 180]
 "#;
 
+/// The sim's axis (sims' `ArmGeometry`: through [2500, 800, -300] mm,
+/// tilted 0.3 deg toward 30 deg) as the z axis of a machine whose origin is
+/// 10 mm, -20 mm off it (and 35 mm below the axis's point): `[machine_frame]`
+/// with `R = Ry(ry) Rx(rx)` (fixed x then y) taking z to the axis.
+fn machine_frame() -> String {
+    let (t, w) = (0.3f64.to_radians(), 30f64.to_radians());
+    let n = [t.sin() * w.cos(), t.sin() * w.sin(), t.cos()];
+    let (rx, ry) = (-n[1].asin(), n[0].atan2(n[2]));
+    let rotate = |v: [f64; 3]| {
+        let (s, c) = rx.sin_cos();
+        let v = [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]];
+        let (s, c) = ry.sin_cos();
+        [c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]]
+    };
+    let off = rotate([10.0, -20.0, 35.0]);
+    let z = rotate([0.0, 0.0, 1.0]);
+    assert!((0..3).all(|i| (z[i] - n[i]).abs() < 1e-12), "the machine's z is the axis");
+    let o = [2500.0 - off[0], 800.0 - off[1], -300.0 - off[2]];
+    format!(
+        "[machine_frame]\norigin_mm = [{}, {}, {}]\nrotation_deg = [{}, {}, 0]\n",
+        o[0],
+        o[1],
+        o[2],
+        rx.to_degrees(),
+        ry.to_degrees()
+    )
+}
+
 fn num(v: &Value, what: &str) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("{what} should be a number: {v}"))
 }
@@ -59,7 +87,7 @@ fn pv(points: usize, f: impl Fn(f64) -> f64) -> f64 {
 #[test]
 fn error_motions_against_the_models_truth_and_below_the_limit() {
     let bench = Bench::new();
-    bench.write("moving.toml", MOVING);
+    bench.write("moving.toml", format!("{MOVING}\n{}", machine_frame()));
     let doc = bench
         .survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--model", "moving.toml", "--json"])
         .success()
@@ -90,8 +118,21 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
     within("tilt_urad", pv(72, tilt));
     within("axial_on_axis_um", pv(72, |t| 40.0 * (3.0 * t + 30.0).to_radians().sin()));
     assert_eq!(m["tilt_urad"]["method"], "phases", "{m}");
+    // The location in the machine's frame: the frame puts the sim's axis on its z axis, 10 mm along its x and
+    // -20 mm along its y from its origin.
+    let machine = &m["location"]["machine"];
+    for (key, truth, u) in [
+        ("x0_mm", 10.0, "u_xy_mm"),
+        ("y0_mm", -20.0, "u_xy_mm"),
+        ("a0_urad", 0.0, "u_ab_urad"),
+        ("b0_urad", 0.0, "u_ab_urad"),
+    ] {
+        let (got, u) = (num(&machine[key], key), num(&machine[u], u));
+        assert!((got - truth).abs() <= u, "machine {key}: {got} against {truth}, U = {u}");
+    }
     let text = bench.survey(&["process"]).success().stdout;
     for line in [
+        "axis average line (ISO 230-1, machine frame): X0 ",
         "error motion (ISO 230-7) axial on the axis: total",
         "error motion (ISO 230-7) tilt (2 SMRs at several phases)",
     ] {
@@ -123,7 +164,8 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
         .json();
     let m = &fig8["process"]["error_motions"];
     assert!(m["radial_um"]["total"].is_null() && m["radial_um"]["below_detection_limit"] == true, "{m}");
-    assert!(m["tilt_urad"].is_null(), "one SMR: no tilt");
+    assert!(m["tilt_urad"].is_null() && m["axial_on_axis_um"].is_null(), "one SMR: no tilt, only the face motion");
+    assert!(m["axial_um"]["u"].is_f64() && m["location"]["machine"].is_null(), "no frame stated: {m}");
 
     // A once-per-revolution radial motion is the axis's location: refused.
     bench.write(

@@ -45,16 +45,28 @@ pub fn figures_table(m: &ErrorMotions) -> String {
         row(format!("tilt ({how}), µrad"), "", t);
     }
     let l = &m.location;
+    let mut frames = vec![vec![
+        "tracker frame".into(),
+        format!("{:.3}", l.x0_mm),
+        format!("{:.3}", l.y0_mm),
+        format!("{:.1}", l.a0_urad),
+        format!("{:.1}", l.b0_urad),
+        format!("{:.3} mm, {:.1} µrad", l.u_xy_mm, l.u_ab_urad),
+    ]];
+    if let Some(m) = &l.machine {
+        frames.push(vec![
+            "machine frame (X0C, Y0C at its z = 0)".into(),
+            format!("{:.3}", m.x0_mm),
+            format!("{:.3}", m.y0_mm),
+            format!("{:.1}", m.a0_urad),
+            format!("{:.1}", m.b0_urad),
+            format!("{:.3} mm, {:.1} µrad", m.u_xy_mm, m.u_ab_urad),
+        ]);
+    }
     let location = table(
         "tbl-axis-location",
-        &["axis average line (ISO 230-1)", "X0C, mm", "Y0C, mm", "A0C, µrad", "B0C, µrad"],
-        &[vec![
-            "tracker frame".into(),
-            format!("{:.3}", l.x0_mm),
-            format!("{:.3}", l.y0_mm),
-            format!("{:.1}", l.a0_urad),
-            format!("{:.1}", l.b0_urad),
-        ]],
+        &["axis average line (ISO 230-1)", "X0C, mm", "Y0C, mm", "A0C, µrad", "B0C, µrad", "U (k = 2)"],
+        &frames,
     );
     let motions = table(
         "tbl-error-motions",
