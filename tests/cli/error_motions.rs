@@ -145,13 +145,16 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
     for id in ["tbl-axis-location", "tbl-error-motions", "fig-error-motions"] {
         assert!(html.contains(&format!("id=\"{id}\"")), "the report shows {id}");
     }
+    assert!(html.contains("machine frame (X0C, Y0C at its z = 0)") && html.contains("axial on the axis, µm"));
     let dcc = bench.read("r/dcc.xml");
     for ref_type in ["survey_errorMotions", "survey_motionRadialSynchronous", "survey_motionTiltTotal", "survey_axisB0"]
     {
         assert!(dcc.contains(ref_type), "the DCC carries {ref_type}");
     }
     assert!(dcc.contains("<dcc:noQuantity>"), "the asynchronous motions are below the limit: said, not a number");
-    assert!(dcc.contains("survey_motionAxialOnAxisSynchronous"), "the DCC carries the axial motion on the axis");
+    for ref_type in ["survey_motionAxialOnAxisSynchronous", "survey_axisMachineX0", "survey_axisMachineB0"] {
+        assert!(dcc.contains(ref_type), "the DCC carries {ref_type}");
+    }
     if super::dcc::validator_missing().is_none() {
         super::dcc::validate(&bench, &["r/dcc.xml"]);
     }

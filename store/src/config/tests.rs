@@ -296,4 +296,11 @@ fn the_machine_frame_is_stored_with_the_survey_and_checked() {
         let e = error_of(&format!("{TRACKER_BENCH}[machine_frame]\n{bad}"));
         assert!(e.contains(says), "{bad}: {e}");
     }
+    // The frame says where the tracker measures the axis: an autocollimator survey has no use for it.
+    let e = error_of(
+        "[survey]\nreference = \"autocollimator\"\n[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n\
+         [autocollimator]\ndriver = \"elcomat\"\nport = \"/dev/ttyS0\"\n[polygon]\nfaces = 4\n\
+         [machine_frame]\norigin_mm = [0, 0, 0]\n",
+    );
+    assert!(e.starts_with("c.toml:12: machine_frame.origin_mm: ") && e.contains("needs the tracker"), "{e}");
 }
