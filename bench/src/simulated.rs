@@ -195,6 +195,7 @@ impl Bench {
             faults: req.faults,
             smrs,
             polygon_turns: req.polygon_turns.clone(),
+            machine_frame: model.machine_frame,
         };
         Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
     }

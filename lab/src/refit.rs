@@ -227,7 +227,12 @@ fn motions_of(
             tracks.push(survey_motions::Track { mount: *mount, points_mm: pts });
         }
     }
-    survey_motions::error_motions(&survey_motions::Input { samples: &kept, tracks, mpe: tracker_mpe(survey) })
+    survey_motions::error_motions(&survey_motions::Input {
+        samples: &kept,
+        tracks,
+        mpe: tracker_mpe(survey),
+        frame: survey.machine_frame(),
+    })
 }
 
 /// The other SMRs' positions (`[k - 1][sample]`), when every sample has them.
@@ -320,9 +325,17 @@ impl AxisRefit {
         let Some(m) = &self.error_motions else { return String::new() };
         let l = &m.location;
         let mut s = format!(
-            "axis average line (ISO 230-1, tracker frame): X0 {:.3} mm, Y0 {:.3} mm, A0 {:.1} urad, B0 {:.1} urad\n",
-            l.x0_mm, l.y0_mm, l.a0_urad, l.b0_urad
+            "axis average line (ISO 230-1, tracker frame): X0 {:.3} mm, Y0 {:.3} mm, A0 {:.1} urad, B0 {:.1} urad (U = \
+             {:.3} mm, {:.1} urad, k = 2)\n",
+            l.x0_mm, l.y0_mm, l.a0_urad, l.b0_urad, l.u_xy_mm, l.u_ab_urad
         );
+        if let Some(m) = &l.machine {
+            s += &format!(
+                "axis average line (ISO 230-1, machine frame): X0 {:.3} mm, Y0 {:.3} mm (at the machine's z = 0), A0 \
+                 {:.1} urad, B0 {:.1} urad (U = {:.3} mm, {:.1} urad, k = 2)\n",
+                m.x0_mm, m.y0_mm, m.a0_urad, m.b0_urad, m.u_xy_mm, m.u_ab_urad
+            );
+        }
         let shown = |v: Option<f64>| v.map(|v| format!("{v:.1}")).unwrap_or_else(|| "below limit".into());
         let mut line = |name: &str, unit: &str, b: &survey_motions::Block| {
             s += &format!(
@@ -337,8 +350,12 @@ impl AxisRefit {
         };
         line("radial", "um", &m.radial_um);
         line(&format!("axial at {:.0} mm", m.radius_mm), "um", &m.axial_um);
+        if let Some(a) = &m.axial_on_axis_um {
+            line("axial on the axis", "um", a);
+        }
         if let Some(t) = &m.tilt_urad {
-            line("tilt", "urad", t);
+            let how = if t.method == "phases" { "at several phases" } else { "at two heights" };
+            line(&format!("tilt ({} SMRs {how})", t.smrs), "urad", t);
         }
         s
     }

@@ -26,9 +26,12 @@
 //! The detection limit is the larger of `e_T` (the issue's "about its
 //! transverse error at that distance") and `r`, what the tracker's random
 //! error alone can make of a peak-to-valley: a figure below it is `None`,
-//! "below the detection limit". The tilt's figures are a difference of two
-//! SMRs' radial motions over their separation `dh`: every bound scaled by
-//! `sqrt(2) / dh`.
+//! "below the detection limit". A motion made of several SMRs' deviations,
+//! `sum w_k d_k`, has its bounds scaled ([`Scale`]): the systematic one by
+//! `sum |w_k|` (the tracker's error at the SMRs' places is not independent:
+//! the bounds add), the random one by `sqrt(sum w_k^2)` (independent
+//! readings). The tilt from two heights keeps its own scaling: every bound by
+//! `sqrt(2) / dh`, the two SMRs' bounds added in quadrature.
 
 use crate::direction_name;
 use std::collections::BTreeMap;
@@ -65,6 +68,30 @@ pub struct PolarPoint {
     pub radial_um: f64,
     pub axial_um: f64,
     pub tilt_urad: Option<f64>,
+    /// The axial motion on the axis (SMRs at several phases), um.
+    pub axial_on_axis_um: Option<f64>,
+}
+
+/// How a motion's bounds scale from one SMR's deviation's (see the module
+/// documentation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Scale {
+    /// Of the tracker's systematic error (its MPE).
+    pub systematic: f64,
+    /// Of its random error.
+    pub random: f64,
+}
+
+impl Scale {
+    /// Both bounds scaled alike.
+    pub(crate) fn both(s: f64) -> Self {
+        Scale { systematic: s, random: s }
+    }
+
+    /// The scaling of `sum w_k d_k`.
+    pub(crate) fn of_weights(w: &[f64]) -> Self {
+        Scale { systematic: w.iter().map(|x| x.abs()).sum(), random: w.iter().map(|x| x * x).sum::<f64>().sqrt() }
+    }
 }
 
 /// One target's sample indices (one a run), with the target.
@@ -113,9 +140,14 @@ impl Figures {
         self.runs
     }
 
-    /// The figures of `values` (one a sample), every bound scaled by `scale`
-    /// (1 for um; `sqrt(2) / dh` for a tilt in urad).
-    pub(crate) fn block(&self, values: &[f64], scale: f64) -> Block {
+    /// The tracker's systematic bound `e_T`, um.
+    pub(crate) fn e_t_um(&self) -> f64 {
+        self.e_t_um
+    }
+
+    /// The figures of `values` (one a sample), the bounds scaled by `scale`
+    /// (1 for one SMR's um; `sqrt(2) / dh` for a tilt from two heights, urad).
+    pub(crate) fn block(&self, values: &[f64], scale: Scale) -> Block {
         let (mut total, mut sync, mut asynchronous, mut readings) = (0.0f64, 0.0f64, None::<f64>, 0usize);
         let (mut squares, mut freedom) = (0.0f64, 0usize);
         for (_, list) in &self.groups {
@@ -131,10 +163,10 @@ impl Figures {
             readings = readings.max(list.iter().map(|(_, ix)| ix.len()).sum());
         }
         let z = normal_two_sided_isf(0.05 / readings.max(1) as f64);
-        let random = 2.0 * z * self.sigma_um * scale;
+        let random = 2.0 * z * self.sigma_um * scale.random;
         let scatter = if freedom > 0 { (squares / freedom as f64).sqrt() } else { 0.0 };
-        let of_means = 2.0 * z * (self.sigma_um * scale).max(scatter) / (self.runs.max(1) as f64).sqrt();
-        let e_t = self.e_t_um * scale;
+        let of_means = 2.0 * z * (self.sigma_um * scale.random).max(scatter) / (self.runs.max(1) as f64).sqrt();
+        let e_t = self.e_t_um * scale.systematic;
         let u_total = e_t.hypot(random);
         let u_synchronous = e_t.hypot(of_means);
         let u_asynchronous = random;
@@ -166,7 +198,13 @@ impl Figures {
 
     /// The synchronous motions per target and direction, every n-th target
     /// beyond [`crate::POLAR_POINTS`] a direction.
-    pub(crate) fn polar(&self, radial: &[f64], axial: &[f64], tilt: Option<&[f64]>) -> Vec<PolarPoint> {
+    pub(crate) fn polar(
+        &self,
+        radial: &[f64],
+        axial: &[f64],
+        tilt: Option<&[f64]>,
+        on_axis: Option<&[f64]>,
+    ) -> Vec<PolarPoint> {
         let mean = |v: &[f64], ix: &[usize]| ix.iter().map(|&i| v[i]).sum::<f64>() / ix.len() as f64;
         let mut out = Vec::new();
         for (d, list) in &self.groups {
@@ -178,6 +216,7 @@ impl Figures {
                     radial_um: mean(radial, ix),
                     axial_um: mean(axial, ix),
                     tilt_urad: tilt.map(|t| mean(t, ix)),
+                    axial_on_axis_um: on_axis.map(|a| mean(a, ix)),
                 });
             }
         }

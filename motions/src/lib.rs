@@ -9,7 +9,8 @@
 //! 1. Each SMR's positions are fitted with a plane and a circle
 //!    (`survey_processing::geometry::fit_axis`). The first SMR's circle
 //!    centre and plane normal are the axis average line's location in the
-//!    tracker's frame ([`Location`]).
+//!    tracker's frame, and in the machine's where the survey states it
+//!    ([`Location`], with their `U`).
 //! 2. Each position's radial deviation is its distance from the circle's
 //!    centre, in the plane, less the radius; its axial deviation its distance
 //!    from the plane. The least-squares circle's centre takes the
@@ -22,7 +23,10 @@
 //!    rotating sensitive direction).
 //! 3. Tilt: two SMRs at one phase and different heights; the tilt motion is
 //!    minus the difference of their radial motions over their separation
-//!    (urad).
+//!    (urad). With SMRs at opposite or spread phases ([`phases`]), the axial
+//!    motion on the axis (E_ZC: the part of their axial motions common to
+//!    them) and the tilt (from their difference over their separation); of
+//!    the two tilts the one with the smaller `U` is reported, and says which.
 //! 4. Per target and direction, the synchronous motion is the mean over the
 //!    runs; the asynchronous the spread across them. The figures, per
 //!    direction (the larger of the two is reported): total = the largest
@@ -35,11 +39,16 @@
 mod deviations;
 mod figures;
 mod location;
+mod phases;
 
 pub use figures::{Block, Figures, PolarPoint};
-pub use location::Location;
+pub use location::{Location, MachineLocation};
 
 use deviations::{deviations, tilt_pair};
+use figures::Scale;
+use phases::separate;
+use survey_processing::frame::MachineFrame;
+use survey_processing::geometry::fit_axis;
 
 use survey_processing::smrs::SmrMount;
 use survey_processing::tracker_errors::TransverseMpe;
@@ -63,6 +72,8 @@ pub struct Input<'a> {
     pub tracks: Vec<Track<'a>>,
     /// The tracker's transverse maximum permissible error.
     pub mpe: TransverseMpe,
+    /// The machine's frame in the tracker's, where the survey states one.
+    pub frame: Option<MachineFrame>,
 }
 
 /// The contract's `error_motions`.
@@ -74,9 +85,13 @@ pub struct ErrorMotions {
     pub radial_um: Block,
     /// Axial (face) error motion of the first SMR at its radius, um.
     pub axial_um: Block,
-    /// Tilt error motion, urad: `None` without two SMRs at one phase and
-    /// different heights.
-    pub tilt_urad: Option<Block>,
+    /// Tilt error motion, urad, in the first SMR's radial direction: `None`
+    /// without two SMRs at one phase and different heights or at phases
+    /// that separate it ([`phases`]).
+    pub tilt_urad: Option<Tilt>,
+    /// Axial error motion on the axis (E_ZC), um: `None` without SMRs at
+    /// phases that separate it from the tilt ([`phases`]).
+    pub axial_on_axis_um: Option<Block>,
     /// The smallest radial or axial motion the tracker can tell from its own
     /// error: its transverse MPE at the farthest SMR's distance, or what its
     /// random error can make of a peak-to-valley if larger, um.
@@ -94,6 +109,28 @@ pub struct ErrorMotions {
     pub polar: Vec<PolarPoint>,
 }
 
+/// The tilt error motion and how it was obtained.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Tilt {
+    #[serde(flatten)]
+    pub block: Block,
+    /// `"heights"` (two SMRs at one phase: their radial motions) or
+    /// `"phases"` (SMRs at opposite or spread phases: their axial motions).
+    pub method: &'static str,
+    /// The SMRs it was computed from.
+    pub smrs: usize,
+    /// Its value at every sample, urad.
+    #[serde(skip)]
+    pub series: Vec<f64>,
+}
+
+impl std::ops::Deref for Tilt {
+    type Target = Block;
+    fn deref(&self) -> &Block {
+        &self.block
+    }
+}
+
 /// The most points of the polar plot kept per direction.
 pub const POLAR_POINTS: usize = 720;
 
@@ -101,7 +138,8 @@ pub const POLAR_POINTS: usize = 720;
 pub const METHOD: &str = "ISO 230-7 from the tracker's SMR positions: each SMR's least-squares plane and circle \
                           (centring and the axis's tilt removed), radial in the SMR's radial direction (rotating \
                           sensitive direction), axial as face motion at its radius, tilt from two SMRs at one phase \
-                          and different heights; synchronous = the mean over runs, asynchronous = the spread across \
+                          and different heights or from SMRs at opposite or spread phases (then also the axial motion \
+                          on the axis); synchronous = the mean over runs, asynchronous = the spread across \
                           runs, total = the peak-to-valley of every reading; U (k = 2) from the tracker's MPE and its \
                           random error";
 
@@ -122,35 +160,87 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
         .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
         .fold(0.0, f64::max);
     let figures = Figures::new(samples, input.mpe, farthest_mm);
-    let radial = figures.block(&first.radial_um, 1.0);
+    let radial = figures.block(&first.radial_um, Scale::both(1.0));
     let detection_limit_um = radial.detection_limit;
-    let axial = figures.block(&first.axial_um, 1.0);
+    let axial = figures.block(&first.axial_um, Scale::both(1.0));
     let mut notes = Vec::new();
-    let tilt = match tilt_pair(&input.tracks) {
+    let by_heights = match tilt_pair(&input.tracks) {
         Some((i, j, dh)) => {
             let (lo, hi) =
                 (deviations(input.tracks[i].points_mm, &readouts)?, deviations(input.tracks[j].points_mm, &readouts)?);
             // urad = um / m: minus the radial difference over the separation.
             let tilt: Vec<f64> = lo.radial_um.iter().zip(&hi.radial_um).map(|(a, b)| -(b - a) / (dh * 1e-3)).collect();
-            let block = figures.block(&tilt, std::f64::consts::SQRT_2 / (dh * 1e-3));
-            Some((block, tilt))
+            let block = figures.block(&tilt, Scale::both(std::f64::consts::SQRT_2 / (dh * 1e-3)));
+            Some(Tilt { block, method: "heights", smrs: 2, series: tilt })
         }
-        None => {
-            notes.push(
-                "no tilt: it needs two SMRs at one phase and different heights ([smrs] phases_deg, heights_mm)".into(),
-            );
-            None
+        None => None,
+    };
+    // Every SMR's fit, for the phases.
+    let fits: Option<Vec<_>> = std::iter::once(Some(first.fit.clone()))
+        .chain(input.tracks[1..].iter().map(|t| fit_axis(t.points_mm, &readouts).ok()))
+        .collect();
+    let points: Vec<&[[f64; 3]]> = input.tracks.iter().map(|t| t.points_mm).collect();
+    let separated =
+        fits.ok_or_else(|| "an SMR cannot be fitted".to_string()).and_then(|f| separate(&points, &f, &readouts));
+    let (on_axis, by_phases) = match separated {
+        Ok(s) => {
+            let phases: Vec<String> = s.phases_deg.iter().map(|p| format!("{p:.1}")).collect();
+            notes.push(format!(
+                "the axial motion on the axis and the tilt from {} SMRs at {} deg (measured)",
+                s.smrs,
+                phases.join(", ")
+            ));
+            let on_axis = figures.block(&s.axial_um, s.axial);
+            let tilt = Tilt {
+                block: figures.block(&s.tilt_urad, s.tilt),
+                method: "phases",
+                smrs: s.smrs,
+                series: s.tilt_urad,
+            };
+            (Some((on_axis, s.axial_um)), Some(tilt))
+        }
+        Err(why) => {
+            if input.tracks.len() > 1 {
+                notes.push(format!("no axial motion on the axis: {why}"));
+            }
+            (None, None)
         }
     };
+    // Of two ways to the tilt, the one with the smaller U.
+    let tilt = match (by_heights, by_phases) {
+        (Some(h), Some(p)) => Some(if p.block.u <= h.block.u { p } else { h }),
+        (h, p) => h.or(p),
+    };
+    if tilt.is_none() {
+        notes.push(
+            "no tilt: it needs two SMRs at one phase and different heights, or at opposite or spread phases ([smrs] \
+             phases_deg, heights_mm)"
+                .into(),
+        );
+    }
     if figures.runs() < 2 {
         notes.push("one run: no asynchronous motion (it is the spread across runs)".into());
     }
-    let polar = figures.polar(&first.radial_um, &first.axial_um, tilt.as_ref().map(|(_, t)| t.as_slice()));
+    let location = Location::of(&first.fit, figures.e_t_um(), input.frame.as_ref());
+    if input.frame.is_some() && location.machine.is_none() {
+        notes.push(
+            "no location in the machine's frame: the axis is more than 60 deg from its z axis ([machine_frame] \
+             rotation_deg states the frame of a C axis, z along it)"
+                .into(),
+        );
+    }
+    let polar = figures.polar(
+        &first.radial_um,
+        &first.axial_um,
+        tilt.as_ref().map(|t| t.series.as_slice()),
+        on_axis.as_ref().map(|(_, a)| a.as_slice()),
+    );
     Some(ErrorMotions {
-        location: Location::of(&first.fit),
+        location,
         radial_um: radial,
         axial_um: axial,
-        tilt_urad: tilt.map(|(b, _)| b),
+        tilt_urad: tilt,
+        axial_on_axis_um: on_axis.map(|(b, _)| b),
         detection_limit_um,
         radius_mm: first.fit.radius_mm,
         runs: figures.runs(),

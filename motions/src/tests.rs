@@ -104,7 +104,7 @@ fn motions(radial: &[(u32, f64, f64)], axial: &[(u32, f64, f64)], tilt: &[(u32, 
 
 fn run(samples: &[Sample], tracks: &[Vec<[f64; 3]>], mounts: &[SmrMount]) -> ErrorMotions {
     let tracks = tracks.iter().zip(mounts).map(|(p, m)| Track { mount: *m, points_mm: p }).collect();
-    error_motions(&Input { samples, tracks, mpe: TransverseMpe::AT_CLASS }).expect("figures")
+    error_motions(&Input { samples, tracks, mpe: TransverseMpe::AT_CLASS, frame: None }).expect("figures")
 }
 
 /// The peak-to-valley of `f` over the survey's targets.
@@ -180,4 +180,132 @@ fn a_small_wobble_is_below_the_detection_limit() {
         assert!(json["location"][key].is_f64(), "{key}");
     }
     assert!(json["tilt_urad"].is_null() && json["detection_limit_um"].is_f64());
+}
+
+/// The peak-to-valley of the model's tilt and axial motion on the axis at
+/// the survey's targets, and the synchronous figures reported.
+fn on_axis_and_tilt(e: &ErrorMotions, m: &AxisMotions, points: usize) -> ((f64, f64), (f64, f64)) {
+    let on_axis = e.axial_on_axis_um.as_ref().expect("the phases separate it");
+    let tilt = e.tilt_urad.as_ref().expect("a tilt");
+    assert!((on_axis.u_synchronous - on_axis.u).abs() >= 0.0 && tilt.smrs >= 2);
+    let truth = (pv(points, |t| m.axial_um(t)), pv(points, |t| m.tilt_urad(t, 0.0)));
+    let got = (on_axis.synchronous.expect("above the limit"), tilt.synchronous.expect("above the limit"));
+    assert!(
+        (got.0 - truth.0).abs() <= on_axis.u_synchronous,
+        "on the axis {} against {} +/- {}",
+        got.0,
+        truth.0,
+        on_axis.u_synchronous
+    );
+    assert!(
+        (got.1 - truth.1).abs() <= tilt.u_synchronous,
+        "tilt {} against {} +/- {}",
+        got.1,
+        truth.1,
+        tilt.u_synchronous
+    );
+    (got, truth)
+}
+
+#[test]
+fn two_smrs_at_opposite_phases_give_the_axial_motion_on_the_axis_and_the_tilt() {
+    // A fundamental axial motion (1 cpr) too: on the axis it is a motion, kept; at one SMR the plane takes it.
+    let m = motions(&[(2, 30.0, 0.0)], &[(1, 25.0, 20.0), (3, 40.0, 10.0)], &[(2, 150.0, 60.0)]);
+    let mounts = [SmrMount { phase_deg: 0.0, height_mm: 50.0 }, SmrMount { phase_deg: 180.0, height_mm: 50.0 }];
+    let (samples, tracks) = survey(72, 2, &mounts, &m, 3.5);
+    let e = run(&samples, &tracks, &mounts);
+    let (got, truth) = on_axis_and_tilt(&e, &m, 72);
+    // An exact tracker: the noise's share only (3.5 um a coordinate, halved by the pair's mean and the 2 runs'
+    // mean, read as a peak-to-valley of 144 readings: about 2 x 3 x 1.75 um at most).
+    assert!((got.0 - truth.0).abs() < 12.0 && (got.1 - truth.1).abs() < 12.0, "{got:?} {truth:?}");
+    let t = e.tilt_urad.as_ref().unwrap();
+    assert_eq!((t.method, t.smrs), ("phases", 2));
+    // U of the pair: the MPE once (the weights 1/2 and 1/2 add to 1), the random bound by 1/sqrt(2); the tilt's
+    // the same over the 1 m radius (weights +-1/2 over 1 m).
+    let on_axis = e.axial_on_axis_um.as_ref().unwrap();
+    let systematic = |b: &Block| (b.u_total.powi(2) - b.u_asynchronous.powi(2)).sqrt();
+    assert!((systematic(on_axis) - systematic(&e.axial_um)).abs() < 0.01, "{on_axis:?} {:?}", e.axial_um);
+    assert!((on_axis.u_asynchronous - e.axial_um.u_asynchronous / 2f64.sqrt()).abs() < 0.01, "{on_axis:?}");
+    assert!((t.u_total - on_axis.u_total).abs() < 0.5, "{t:?} {on_axis:?}");
+    // One SMR's face motion is still reported: at 1 m the tilt's share, less the 1 cpr the plane takes.
+    let face = pv(72, |x| 40.0 * (3.0 * x + 10.0).to_radians().sin() + m.tilt_urad(x, 0.0));
+    assert!((e.axial_um.synchronous.unwrap() - face).abs() < 12.0, "{:?} {face}", e.axial_um);
+    assert!(e.notes.iter().any(|n| n.contains("2 SMRs at 0.0, 180.0 deg")), "{:?}", e.notes);
+    let json = serde_json::to_value(&e).unwrap();
+    assert_eq!(json["tilt_urad"]["method"], "phases");
+    assert!(json["tilt_urad"]["synchronous"].is_f64() && json["axial_on_axis_um"]["u"].is_f64());
+    assert!(json["polar"][0]["axial_on_axis_um"].is_f64());
+}
+
+#[test]
+fn three_smrs_spread_and_a_pair_at_one_phase_choose_the_better_tilt() {
+    let m = motions(&[(3, 20.0, 0.0)], &[(2, 35.0, 0.0)], &[(2, 120.0, 10.0), (4, 40.0, 0.0)]);
+    let spread: Vec<SmrMount> = [0.0, 120.0, 240.0].map(|p| SmrMount { phase_deg: p, height_mm: 50.0 }).to_vec();
+    let (samples, tracks) = survey(72, 2, &spread, &m, 3.5);
+    let e = run(&samples, &tracks, &spread);
+    let (got, truth) = on_axis_and_tilt(&e, &m, 72);
+    // As above; three SMRs' least squares weigh the axial 1/3 each, the tilt 2/3, -1/3, -1/3 over 1 m.
+    assert!((got.0 - truth.0).abs() < 12.0 && (got.1 - truth.1).abs() < 12.0, "{got:?} {truth:?}");
+    // Two at one phase 300 mm apart and one opposite: both ways to the tilt; the phases' (2 m apart) is the better.
+    let mixed = [
+        SmrMount { phase_deg: 0.0, height_mm: 50.0 },
+        SmrMount { phase_deg: 0.0, height_mm: 350.0 },
+        SmrMount { phase_deg: 180.0, height_mm: 50.0 },
+    ];
+    let (samples, tracks) = survey(72, 2, &mixed, &m, 3.5);
+    let e = run(&samples, &tracks, &mixed);
+    on_axis_and_tilt(&e, &m, 72);
+    assert_eq!(e.tilt_urad.as_ref().unwrap().method, "phases");
+    // Two SMRs 90 deg apart cannot tell the axial motion from the tilt: said, and no figure.
+    let square = [SmrMount { phase_deg: 0.0, height_mm: 50.0 }, SmrMount { phase_deg: 90.0, height_mm: 50.0 }];
+    let (samples, tracks) = survey(36, 2, &square, &m, 3.5);
+    let e = run(&samples, &tracks, &square);
+    assert!(e.axial_on_axis_um.is_none() && e.tilt_urad.is_none());
+    assert!(e.notes.iter().any(|n| n.contains("do not separate")), "{:?}", e.notes);
+}
+
+#[test]
+fn the_location_in_a_stated_machine_frame_against_the_truth() {
+    use survey_processing::frame::MachineFrame;
+    let m = motions(&[(2, 30.0, 0.0)], &[(3, 20.0, 0.0)], &[]);
+    let mounts = [SmrMount { phase_deg: 0.0, height_mm: 50.0 }];
+    let (samples, tracks) = survey(72, 2, &mounts, &m, 3.5);
+    // The machine's z axis is the true axis, its x turned 30 deg about it; the axis passes (10, -20) mm from the
+    // machine's origin: rotation_deg makes R ez = n (R = Rz Ry Rx: Ry Rx ez = Rz(-30) n).
+    let (_, _, n) = basis();
+    let (s, c) = (-30f64).to_radians().sin_cos();
+    let turned = [c * n[0] - s * n[1], s * n[0] + c * n[1], n[2]];
+    let rotation_deg = [(-turned[1]).asin().to_degrees(), turned[0].atan2(turned[2]).to_degrees(), 30.0];
+    let r = MachineFrame { origin_mm: [0.0; 3], rotation_deg }.rotation();
+    assert!((0..3).all(|i| (r[i][2] - n[i]).abs() < 1e-12), "the machine's z is the axis");
+    let at = [10.0, -20.0, 35.0];
+    let origin_mm: [f64; 3] = std::array::from_fn(|i| CENTRE[i] - (0..3).map(|j| r[i][j] * at[j]).sum::<f64>());
+    let frame = MachineFrame { origin_mm, rotation_deg };
+    let tracks_of = || tracks.iter().zip(&mounts).map(|(p, m)| Track { mount: *m, points_mm: p }).collect();
+    let input = Input { samples: &samples, tracks: tracks_of(), mpe: TransverseMpe::AT_CLASS, frame: Some(frame) };
+    let e = error_motions(&input).expect("figures");
+    let l = e.location.machine.expect("a C axis's frame");
+    for (got, truth, u) in [
+        (l.x0_mm, 10.0, l.u_xy_mm),
+        (l.y0_mm, -20.0, l.u_xy_mm),
+        (l.a0_urad, 0.0, l.u_ab_urad),
+        (l.b0_urad, 0.0, l.u_ab_urad),
+    ] {
+        assert!((got - truth).abs() <= u, "{got} against {truth} +/- {u}: {l:?}");
+    }
+    // An exact tracker: the noise's share only (3.5 um over 144 points: the centre to some 0.5 um, the normal to
+    // some 0.5 urad; the axial motion's 3 cpr does not tilt the plane).
+    assert!((l.x0_mm - 10.0).abs() < 0.002 && (l.y0_mm + 20.0).abs() < 0.002, "{l:?}");
+    assert!(l.a0_urad.abs() < 3.0 && l.b0_urad.abs() < 3.0, "{l:?}");
+    // U: the MPE's once-per-revolution share, 4 e_T / pi (e_T about 37 um at 3.6 m), the normal's over 1 m.
+    assert!((0.045..0.05).contains(&l.u_xy_mm) && (45.0..50.0).contains(&l.u_ab_urad), "{l:?}");
+    assert!((e.location.u_xy_mm - l.u_xy_mm).abs() < 0.001 && e.location.frame == "tracker");
+    let json = serde_json::to_value(&e).unwrap();
+    assert!(json["location"]["machine"]["x0_mm"].is_f64() && json["location"]["x0_mm"].is_f64());
+    assert!(run(&samples, &tracks, &mounts).location.machine.is_none(), "no frame stated: none");
+    // A frame on its side (the axis along the machine's x): not a C axis's frame, said.
+    let side = MachineFrame { origin_mm, rotation_deg: [0.0, 90.0, 0.0] };
+    let input = Input { samples: &samples, tracks: tracks_of(), mpe: TransverseMpe::AT_CLASS, frame: Some(side) };
+    let e = error_motions(&input).expect("figures");
+    assert!(e.location.machine.is_none() && e.notes.iter().any(|n| n.contains("60 deg")), "{:?}", e.notes);
 }

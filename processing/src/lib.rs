@@ -9,6 +9,7 @@ pub mod analysis;
 pub mod closure;
 pub mod coverage;
 pub mod errormap;
+pub mod frame;
 pub mod geometry;
 pub mod gross;
 pub mod iso230;

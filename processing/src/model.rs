@@ -169,6 +169,9 @@ pub struct Model {
     /// The axis's error motions (ISO 230-7: [`motions`]), which move the
     /// simulated table's SMRs and leave the readout alone.
     pub motions: AxisMotions,
+    /// The machine's frame in the simulated tracker's (`[machine_frame]`),
+    /// when given: the axis's location is stated in it too.
+    pub machine_frame: Option<crate::frame::MachineFrame>,
 }
 
 /// A simulated polygon: what its faces truly are and what its certificate
@@ -214,14 +217,14 @@ impl Model {
         })?;
         let locate = Locator { text };
         for key in table.keys() {
-            if !["design", "effect", "tracker_errors", "smrs", "polygon", "autocollimator_errors"]
+            if !["design", "effect", "tracker_errors", "smrs", "polygon", "autocollimator_errors", "machine_frame"]
                 .contains(&key.as_str())
             {
                 return Err(err(
                     locate.top_key(key),
                     format!(
                         "unknown top-level key '{key}' (expected [design], [[effect]], [tracker_errors], [smrs], \
-                         [polygon] and [autocollimator_errors])"
+                         [polygon], [autocollimator_errors] and [machine_frame])"
                     ),
                 ));
             }
@@ -271,6 +274,16 @@ impl Model {
             }
             Some(_) => return Err(err(locate.top_key("smrs"), "'smrs' must be a table".into())),
         };
+        let machine_frame = match table.get("machine_frame") {
+            None => None,
+            Some(toml::Value::Table(t)) => {
+                let header = locate.section_header("machine_frame");
+                let at = |key: &str| locate.key_in_table(header, key);
+                let f = crate::frame::parse_section(t, "machine_frame", &at);
+                Some(f.map_err(|(l, m)| err(l.or(header), m))?)
+            }
+            Some(_) => return Err(err(locate.top_key("machine_frame"), "'machine_frame' must be a table".into())),
+        };
         let polygon = match table.get("polygon") {
             None => None,
             Some(toml::Value::Table(t)) => {
@@ -306,7 +319,7 @@ impl Model {
                 ));
             }
         };
-        Ok(Model { design, effects, tracker_errors, smrs, polygon, autocollimator_scale_ppm, motions })
+        Ok(Model { design, effects, tracker_errors, smrs, polygon, autocollimator_scale_ppm, motions, machine_frame })
     }
 
     /// The model as a model file (TOML), which [`Model::parse`] reads back.
@@ -345,6 +358,10 @@ impl Model {
         if let Some(smrs) = &self.smrs {
             s.push('\n');
             s.push_str(&crate::smrs::section_toml(smrs));
+        }
+        if let Some(f) = &self.machine_frame {
+            s.push('\n');
+            s.push_str(&f.section_toml());
         }
         if let Some(p) = &self.polygon {
             let list = |v: &[f64]| v.iter().map(|x| fmt_num(*x)).collect::<Vec<_>>().join(", ");

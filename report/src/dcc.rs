@@ -628,7 +628,8 @@ fn motions(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
             x.leaf("si:unit", unit)?;
             if let Some(u) = u {
                 x.open("si:expandedUnc", &[])?;
-                x.leaf("si:uncertainty", &format!("{u:.1}"))?;
+                // One decimal for the motions (tens of um); a location's U in mm (some 0.05) to three.
+                x.leaf("si:uncertainty", &if u < 1.0 { format!("{u:.3}") } else { format!("{u:.1}") })?;
                 x.leaf("si:coverageFactor", K)?;
                 x.leaf("si:coverageProbability", PROBABILITY)?;
                 x.leaf("si:distribution", NORMAL)?;
@@ -641,13 +642,26 @@ fn motions(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     const MM: &str = "\\milli\\metre";
     const URAD: &str = "\\micro\\radian";
     const UM: &str = "\\micro\\metre";
-    real(x, "survey_axisX0", "X0C, the axis average line's x in the tracker's frame", l.x0_mm, MM, None)?;
-    real(x, "survey_axisY0", "Y0C, the axis average line's y in the tracker's frame", l.y0_mm, MM, None)?;
-    real(x, "survey_axisA0", "A0C, the axis average line's rotation about x", l.a0_urad, URAD, None)?;
-    real(x, "survey_axisB0", "B0C, the axis average line's rotation about y", l.b0_urad, URAD, None)?;
+    let (uxy, uab) = (Some(l.u_xy_mm), Some(l.u_ab_urad));
+    real(x, "survey_axisX0", "X0C, the axis average line's x in the tracker's frame", l.x0_mm, MM, uxy)?;
+    real(x, "survey_axisY0", "Y0C, the axis average line's y in the tracker's frame", l.y0_mm, MM, uxy)?;
+    real(x, "survey_axisA0", "A0C, the axis average line's rotation about x", l.a0_urad, URAD, uab)?;
+    real(x, "survey_axisB0", "B0C, the axis average line's rotation about y", l.b0_urad, URAD, uab)?;
+    if let Some(f) = &l.machine {
+        let (uxy, uab) = (Some(f.u_xy_mm), Some(f.u_ab_urad));
+        let at = "in the machine's frame, where it crosses the machine's z = 0";
+        real(x, "survey_axisMachineX0", &format!("X0C, the axis average line's x {at}"), f.x0_mm, MM, uxy)?;
+        real(x, "survey_axisMachineY0", &format!("Y0C, the axis average line's y {at}"), f.y0_mm, MM, uxy)?;
+        let about = |axis: &str| format!("the axis average line's rotation about the machine's {axis}");
+        real(x, "survey_axisMachineA0", &format!("A0C, {}", about("x")), f.a0_urad, URAD, uab)?;
+        real(x, "survey_axisMachineB0", &format!("B0C, {}", about("y")), f.b0_urad, URAD, uab)?;
+    }
     let mut blocks = vec![("Radial", "radial", &m.radial_um, UM), ("Axial", "axial", &m.axial_um, UM)];
+    if let Some(a) = &m.axial_on_axis_um {
+        blocks.push(("AxialOnAxis", "axial (on the axis)", a, UM));
+    }
     if let Some(t) = &m.tilt_urad {
-        blocks.push(("Tilt", "tilt", t, URAD));
+        blocks.push(("Tilt", "tilt", &t.block, URAD));
     }
     for (tag, name, b, unit) in blocks {
         for (kind, value, u) in [

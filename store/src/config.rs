@@ -72,6 +72,10 @@ pub struct SurveyConfig {
     /// `[smrs]`: several SMRs on the table, each measured at every target.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub smrs: Option<SmrsSection>,
+    /// `[machine_frame]`: the machine's frame in the tracker's, where the
+    /// axis's location is stated too (`survey_processing::frame`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub machine_frame: Option<survey_processing::frame::MachineFrame>,
     /// `[rehearsal]`: the instruments are simulated (`survey sim` writes it
     /// into the configuration it serves): a survey of them is never a calibration.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -116,6 +116,10 @@ pub struct SimulatedSetup {
     /// calibrated in place. Empty: on the table, never turned.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub polygon_turns: Vec<u32>,
+    /// The machine's frame in the simulated tracker's (a model file's
+    /// `[machine_frame]`), when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub machine_frame: Option<survey_processing::frame::MachineFrame>,
 }
 
 /// What a survey of real instruments was made from, stored with it.
@@ -465,6 +469,17 @@ impl SurveyRecord {
             _ => Vec::new(),
         };
         if smrs.len() > 1 { smrs } else { vec![survey_processing::smrs::SmrMount::FIRST] }
+    }
+
+    /// The machine's frame in the tracker's, where the survey states one: the
+    /// simulated bench's (a model file's `[machine_frame]`) or the
+    /// configuration's.
+    pub fn machine_frame(&self) -> Option<survey_processing::frame::MachineFrame> {
+        match &self.setup {
+            Setup::Simulated(s) => s.machine_frame,
+            Setup::Configured(c) => c.config.machine_frame,
+            _ => None,
+        }
     }
 
     /// The reference instrument the survey was measured with, when recorded

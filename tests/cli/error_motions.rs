@@ -7,9 +7,10 @@ use super::Bench;
 use serde_json::Value;
 
 /// The Figure 8 positioner with motions a tracker can see, and two SMRs
-/// on one vertical line 300 mm apart (the tilt). The truth, at the first
-/// SMR (50 mm above the tilt's pivot): radial 2 cpr 60 um (the tilt adds
-/// 0.05 m x 200 urad at 2 cpr), axial 3 cpr 40 um, tilt 2 cpr 200 urad.
+/// at opposite phases (the axial motion on the axis and the tilt). The
+/// truth, at the first SMR (50 mm above the tilt's pivot): radial 2 cpr 60
+/// um (the tilt adds 0.05 m x 200 urad at 2 cpr), axial 3 cpr 40 um on the
+/// axis, tilt 2 cpr 200 urad.
 const MOVING: &str = r#"[design]
 gear_ratios = [20]
 
@@ -42,9 +43,36 @@ kind = "bearing_noise"
 sigma_um = 1.0
 
 [smrs]
-phases_deg = [0, 0]
-heights_mm = [0, 300]
+phases_deg = [0, 180]
 "#;
+
+/// The sim's axis (sims' `ArmGeometry`: through [2500, 800, -300] mm,
+/// tilted 0.3 deg toward 30 deg) as the z axis of a machine whose origin is
+/// 10 mm, -20 mm off it (and 35 mm below the axis's point): `[machine_frame]`
+/// with `R = Ry(ry) Rx(rx)` (fixed x then y) taking z to the axis.
+fn machine_frame() -> String {
+    let (t, w) = (0.3f64.to_radians(), 30f64.to_radians());
+    let n = [t.sin() * w.cos(), t.sin() * w.sin(), t.cos()];
+    let (rx, ry) = (-n[1].asin(), n[0].atan2(n[2]));
+    let rotate = |v: [f64; 3]| {
+        let (s, c) = rx.sin_cos();
+        let v = [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]];
+        let (s, c) = ry.sin_cos();
+        [c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]]
+    };
+    let off = rotate([10.0, -20.0, 35.0]);
+    let z = rotate([0.0, 0.0, 1.0]);
+    assert!((0..3).all(|i| (z[i] - n[i]).abs() < 1e-12), "the machine's z is the axis");
+    let o = [2500.0 - off[0], 800.0 - off[1], -300.0 - off[2]];
+    format!(
+        "[machine_frame]\norigin_mm = [{}, {}, {}]\nrotation_deg = [{}, {}, 0]\n",
+        o[0],
+        o[1],
+        o[2],
+        rx.to_degrees(),
+        ry.to_degrees()
+    )
+}
 
 fn num(v: &Value, what: &str) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("{what} should be a number: {v}"))
@@ -59,7 +87,7 @@ fn pv(points: usize, f: impl Fn(f64) -> f64) -> f64 {
 #[test]
 fn error_motions_against_the_models_truth_and_below_the_limit() {
     let bench = Bench::new();
-    bench.write("moving.toml", MOVING);
+    bench.write("moving.toml", format!("{MOVING}\n{}", machine_frame()));
     let doc = bench
         .survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--model", "moving.toml", "--json"])
         .success()
@@ -88,6 +116,28 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
     within("radial_um", pv(72, |t| 60.0 * (2.0 * t).to_radians().sin() - 0.05 * tilt(t)));
     within("axial_um", pv(72, |t| 40.0 * (3.0 * t + 30.0).to_radians().sin() + tilt(t)));
     within("tilt_urad", pv(72, tilt));
+    within("axial_on_axis_um", pv(72, |t| 40.0 * (3.0 * t + 30.0).to_radians().sin()));
+    assert_eq!(m["tilt_urad"]["method"], "phases", "{m}");
+    // The location in the machine's frame: the frame puts the sim's axis on its z axis, 10 mm along its x and
+    // -20 mm along its y from its origin.
+    let machine = &m["location"]["machine"];
+    for (key, truth, u) in [
+        ("x0_mm", 10.0, "u_xy_mm"),
+        ("y0_mm", -20.0, "u_xy_mm"),
+        ("a0_urad", 0.0, "u_ab_urad"),
+        ("b0_urad", 0.0, "u_ab_urad"),
+    ] {
+        let (got, u) = (num(&machine[key], key), num(&machine[u], u));
+        assert!((got - truth).abs() <= u, "machine {key}: {got} against {truth}, U = {u}");
+    }
+    let text = bench.survey(&["process"]).success().stdout;
+    for line in [
+        "axis average line (ISO 230-1, machine frame): X0 ",
+        "error motion (ISO 230-7) axial on the axis: total",
+        "error motion (ISO 230-7) tilt (2 SMRs at several phases)",
+    ] {
+        assert!(text.contains(line), "{text}");
+    }
 
     // The report shows them (a table and polar plots); the DCC carries them as a result of their own.
     bench.survey(&["report", "--out", "r"]).success();
@@ -95,12 +145,19 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
     for id in ["tbl-axis-location", "tbl-error-motions", "fig-error-motions"] {
         assert!(html.contains(&format!("id=\"{id}\"")), "the report shows {id}");
     }
+    assert!(html.contains("machine frame (X0C, Y0C at its z = 0)") && html.contains("axial on the axis, µm"));
     let dcc = bench.read("r/dcc.xml");
     for ref_type in ["survey_errorMotions", "survey_motionRadialSynchronous", "survey_motionTiltTotal", "survey_axisB0"]
     {
         assert!(dcc.contains(ref_type), "the DCC carries {ref_type}");
     }
     assert!(dcc.contains("<dcc:noQuantity>"), "the asynchronous motions are below the limit: said, not a number");
+    for ref_type in ["survey_motionAxialOnAxisSynchronous", "survey_axisMachineX0", "survey_axisMachineB0"] {
+        assert!(dcc.contains(ref_type), "the DCC carries {ref_type}");
+    }
+    if super::dcc::validator_missing().is_none() {
+        super::dcc::validate(&bench, &["r/dcc.xml"]);
+    }
 
     // The Figure 8 positioner with a small wobble (a few um) is below what the tracker can tell.
     bench.write("wobble.toml", include_str!("../fixtures/fig8-wobble.toml"));
@@ -110,7 +167,8 @@ fn error_motions_against_the_models_truth_and_below_the_limit() {
         .json();
     let m = &fig8["process"]["error_motions"];
     assert!(m["radial_um"]["total"].is_null() && m["radial_um"]["below_detection_limit"] == true, "{m}");
-    assert!(m["tilt_urad"].is_null(), "one SMR: no tilt");
+    assert!(m["tilt_urad"].is_null() && m["axial_on_axis_um"].is_null(), "one SMR: no tilt, only the face motion");
+    assert!(m["axial_um"]["u"].is_f64() && m["location"]["machine"].is_null(), "no frame stated: {m}");
 
     // A once-per-revolution radial motion is the axis's location: refused.
     bench.write(

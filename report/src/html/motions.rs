@@ -37,20 +37,36 @@ pub fn figures_table(m: &ErrorMotions) -> String {
     };
     row("radial, µm".into(), "", &m.radial_um);
     row(format!("axial at {:.0} mm, µm", m.radius_mm), "", &m.axial_um);
+    if let Some(a) = &m.axial_on_axis_um {
+        row("axial on the axis, µm".into(), "", a);
+    }
     if let Some(t) = &m.tilt_urad {
-        row("tilt, µrad".into(), "", t);
+        let how = if t.method == "phases" { "SMRs at several phases" } else { "SMRs at two heights" };
+        row(format!("tilt ({how}), µrad"), "", t);
     }
     let l = &m.location;
+    let mut frames = vec![vec![
+        "tracker frame".into(),
+        format!("{:.3}", l.x0_mm),
+        format!("{:.3}", l.y0_mm),
+        format!("{:.1}", l.a0_urad),
+        format!("{:.1}", l.b0_urad),
+        format!("{:.3} mm, {:.1} µrad", l.u_xy_mm, l.u_ab_urad),
+    ]];
+    if let Some(m) = &l.machine {
+        frames.push(vec![
+            "machine frame (X0C, Y0C at its z = 0)".into(),
+            format!("{:.3}", m.x0_mm),
+            format!("{:.3}", m.y0_mm),
+            format!("{:.1}", m.a0_urad),
+            format!("{:.1}", m.b0_urad),
+            format!("{:.3} mm, {:.1} µrad", m.u_xy_mm, m.u_ab_urad),
+        ]);
+    }
     let location = table(
         "tbl-axis-location",
-        &["axis average line (ISO 230-1)", "X0C, mm", "Y0C, mm", "A0C, µrad", "B0C, µrad"],
-        &[vec![
-            "tracker frame".into(),
-            format!("{:.3}", l.x0_mm),
-            format!("{:.3}", l.y0_mm),
-            format!("{:.1}", l.a0_urad),
-            format!("{:.1}", l.b0_urad),
-        ]],
+        &["axis average line (ISO 230-1)", "X0C, mm", "Y0C, mm", "A0C, µrad", "B0C, µrad", "U (k = 2)"],
+        &frames,
     );
     let motions = table(
         "tbl-error-motions",
@@ -114,6 +130,7 @@ pub fn body(m: &ErrorMotions) -> anyhow::Result<String> {
     let plots: Vec<(&str, &str, Value)> = [
         ("radial, µm", "µm", (|p: &PolarPoint| Some(p.radial_um)) as Value),
         ("axial (face), µm", "µm", |p: &PolarPoint| Some(p.axial_um)),
+        ("axial on the axis, µm", "µm", |p: &PolarPoint| p.axial_on_axis_um),
         ("tilt, µrad", "µrad", |p: &PolarPoint| p.tilt_urad),
     ]
     .into_iter()

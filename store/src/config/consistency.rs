@@ -72,6 +72,12 @@ impl SurveyConfig {
         derived::check(self, at)?;
         self.check_arm(at)?;
         self.check_smrs(at)?;
+        if self.machine_frame.is_some() && self.reference() != ReferenceKind::Tracker {
+            return Err(at.defect(
+                "machine_frame.origin_mm",
+                "the machine's frame states where the tracker measures the axis: it needs the tracker as the reference",
+            ));
+        }
         self.check_positioner(at)?;
         self.check_drift_control(at)
     }

@@ -32,6 +32,8 @@ pub(super) enum Ty {
     Choice(&'static [&'static str]),
     /// Two numbers, each within the range.
     Pair(Low, f64, &'static str),
+    /// Three numbers (a point or three angles), each within the range.
+    Triple(Low, f64, &'static str),
     /// A list of numbers, each within the range.
     Numbers(Low, f64, &'static str),
     /// A list of whole numbers, each in `min..=max`.
@@ -100,7 +102,16 @@ pub(super) const ROOT: &[Field] = &[
             opt("heights_mm", Ty::Numbers(Low::From(-10_000.0), 10_000.0, "mm")),
         ]),
     ),
+    opt(
+        "machine_frame",
+        Ty::Table(&[
+            req("origin_mm", Ty::Triple(Low::From(-MAX_ORIGIN_MM), MAX_ORIGIN_MM, "mm")),
+            opt("rotation_deg", Ty::Triple(Low::From(-360.0), 360.0, "deg")),
+        ]),
+    ),
 ];
+
+const MAX_ORIGIN_MM: f64 = survey_processing::frame::MAX_ORIGIN_MM;
 
 /// `[asset]`: the axis, and how the interval between its checks is set
 /// (ILAC-G24; `survey due`).
@@ -354,6 +365,7 @@ fn allowed(ty: Ty, key: &str) -> String {
         Ty::Flag => "true or false".into(),
         Ty::Choice(words) => format!("one of {}", one_of(words)),
         Ty::Pair(low, max, unit) => format!("two numbers [low, high], each {}", range_words(low, max, unit)),
+        Ty::Triple(low, max, unit) => format!("three numbers [x, y, z], each {}", range_words(low, max, unit)),
         Ty::Numbers(low, max, unit) => format!("a list of numbers [a, b, ...], each {}", range_words(low, max, unit)),
         Ty::Wholes(lo, hi) => format!("a list of whole numbers [a, b, ...], each from {lo} to {hi}"),
         Ty::Table(fields) => {
@@ -393,6 +405,7 @@ fn kind(v: &DeValue<'_>, ty: Ty) -> &'static str {
         (DeValue::Boolean(_), _) => "is a yes-or-no value",
         (DeValue::Datetime(_), _) => "is a date or time",
         (DeValue::Array(_), Ty::Pair(..)) => "is not two values",
+        (DeValue::Array(_), Ty::Triple(..)) => "is not three values",
         (DeValue::Array(_) | DeValue::Table(_), _) => "is not allowed here",
     }
 }
@@ -508,6 +521,9 @@ impl<'a> Walk<'a> {
                 }
             }
             (Ty::Pair(low, max, unit), DeValue::Array(a)) if a.len() == 2 => {
+                self.numbers(key, a, Ty::Number(low, max, unit));
+            }
+            (Ty::Triple(low, max, unit), DeValue::Array(a)) if a.len() == 3 => {
                 self.numbers(key, a, Ty::Number(low, max, unit));
             }
             (Ty::Numbers(low, max, unit), DeValue::Array(a)) => self.numbers(key, a, Ty::Number(low, max, unit)),

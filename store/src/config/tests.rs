@@ -272,3 +272,35 @@ fn timing_overrides_the_defaults() {
         "the defaults: only the publicly recorded commands, SYST:ERR:ALL?"
     );
 }
+
+#[test]
+fn the_machine_frame_is_stored_with_the_survey_and_checked() {
+    let frame = "[machine_frame]\norigin_mm = [2500, 800.5, -300]\nrotation_deg = [0.1, -0.2, 90]\n";
+    let cfg = SurveyConfig::parse(&format!("{TRACKER_BENCH}{frame}"), "c.toml").unwrap();
+    let f = cfg.machine_frame.expect("stated");
+    assert_eq!((f.origin_mm, f.rotation_deg), ([2500.0, 800.5, -300.0], [0.1, -0.2, 90.0]));
+    let text = serde_json::to_string(&cfg).unwrap();
+    assert_eq!(serde_json::from_str::<SurveyConfig>(&text).unwrap(), cfg);
+    let only = SurveyConfig::parse(&format!("{TRACKER_BENCH}[machine_frame]\norigin_mm = [0, 0, 0]\n"), "c.toml");
+    assert_eq!(only.unwrap().machine_frame.unwrap().rotation_deg, [0.0; 3]);
+    for (bad, says) in [
+        ("origin_mm = [1, 2]\n", "c.toml:8: machine_frame.origin_mm: a list of 2 is not three values"),
+        (
+            "origin_mm = [1, 2, 3]\nrotation_deg = [0, 0, 400]\n",
+            "c.toml:9: machine_frame.rotation_deg[2]: 400 is out of range",
+        ),
+        ("rotation_deg = [0, 0, 0]\n", "machine_frame.origin_mm"),
+        ("origin_mm = [1, 2, 3]\nrotate = 1\n", "c.toml:9: machine_frame.rotate: no such key in [machine_frame]"),
+        ("origin_mm = [1, 2, 1e6]\n", "c.toml:8: machine_frame.origin_mm[2]: 1e6 is out of range"),
+    ] {
+        let e = error_of(&format!("{TRACKER_BENCH}[machine_frame]\n{bad}"));
+        assert!(e.contains(says), "{bad}: {e}");
+    }
+    // The frame says where the tracker measures the axis: an autocollimator survey has no use for it.
+    let e = error_of(
+        "[survey]\nreference = \"autocollimator\"\n[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n\
+         [autocollimator]\ndriver = \"elcomat\"\nport = \"/dev/ttyS0\"\n[polygon]\nfaces = 4\n\
+         [machine_frame]\norigin_mm = [0, 0, 0]\n",
+    );
+    assert!(e.starts_with("c.toml:12: machine_frame.origin_mm: ") && e.contains("needs the tracker"), "{e}");
+}
