@@ -114,7 +114,7 @@ fn history_read_from_what_the_commands_keep_is_what_computing_it_gives_bit_for_b
     // A database of schema 7 (before the cache) is read as it is.
     execute(
         &bench,
-        "DROP TABLE certificates; DROP TABLE survey_summaries; DROP TABLE survey_changes; DROP TABLE smr_readings; ALTER TABLE \
+        "DROP TABLE certificate_numbers; DROP TABLE certificates; DROP TABLE survey_summaries; DROP TABLE survey_changes; DROP TABLE smr_readings; ALTER TABLE \
          raw_readings DROP COLUMN air_temperature_c; ALTER TABLE raw_readings DROP COLUMN air_pressure_hpa; ALTER TABLE raw_readings DROP \
          COLUMN air_humidity_pct; ALTER TABLE checks DROP COLUMN residual_peak_deg; ALTER TABLE checks DROP COLUMN \
          stated_u_deg; ALTER TABLE checks DROP COLUMN cells_outside; ALTER TABLE checks DROP COLUMN allowed_outside; \
