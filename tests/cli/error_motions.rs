@@ -190,8 +190,12 @@ fn history_and_compare_show_a_growing_wobble() {
     let model = |um: f64| {
         format!("[[effect]]\nkind = \"radial_motion\"\ncycles_per_rev = 2\namplitude_um = {um:.1}\nphase_deg = 0.0\n")
     };
+    // The worn one measured with two SMRs at opposite phases: its axial motion on the axis separated too.
+    let axial = "[[effect]]\nkind = \"axial_motion\"\ncycles_per_rev = 3\namplitude_um = 60.0\nphase_deg = 0.0\n\
+                 [smrs]\nphases_deg = [0.0, 180.0]\n";
     for (file, um) in [("new.toml", 40.0), ("worn.toml", 120.0)] {
-        bench.write(file, model(um));
+        let text = if file == "worn.toml" { model(um) + axial } else { model(um) };
+        bench.write(file, text);
         bench.survey(&["run", "--points", "72", "--runs", "2", "--model", file, "--asset", "az-1", "--json"]).success();
     }
     let h = bench.survey(&["history", "--asset", "az-1", "--json"]).success().json();
@@ -205,9 +209,16 @@ fn history_and_compare_show_a_growing_wobble() {
     for (got, truth) in totals.iter().zip([80.0, 240.0]) {
         assert!((got - truth).abs() < 40.0, "radial totals {totals:?} against 2 x the amplitudes");
     }
+    // The axial motion on the axis where the SMRs separate it (60 um at 3 cycles/rev: 120 um
+    // peak to valley; within its U, about 46 um on this bench), null where one SMR cannot.
+    let on_axis = |k: usize| h["surveys"][k]["error_motions"]["axial_on_axis_um"].clone();
+    assert!(on_axis(0).is_null(), "{h}");
+    let worn = &on_axis(1);
+    assert!((num(&worn["total"], "on the axis") - 120.0).abs() < num(&worn["u"], "its U"), "{worn}");
     // And in the history's text, a line a survey.
     let text = bench.survey(&["history", "--asset", "az-1"]).success().stdout;
     assert_eq!(text.matches("error motions (ISO 230-7, totals): radial ").count(), 2, "{text}");
+    assert_eq!(text.matches(", axial on the axis ").count(), 1, "{text}");
     let c = bench.survey(&["compare", "1", "2", "--json"]).success().json();
     let change = &c["error_motions"]["radial_total_change_um"];
     assert!(num(&change["change"], "change") > 100.0 && change["significant"] == true, "{c}");

@@ -34,7 +34,7 @@
 //! compares (the earlier kept from the step before).
 
 use super::codec::{Malformed, Reader, Writer};
-use super::{Compared, MainLine, Measured, MotionTotals, kind, measure, not_comparable};
+use super::{Compared, MainLine, Measured, MotionTotals, Total, kind, measure, not_comparable};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use survey_modelgap::compare::Verdict;
@@ -110,6 +110,17 @@ impl Summary {
                 w.f64(m.u_radial_um);
                 w.f64(m.u_axial_um);
                 w.f64(m.limit_um);
+                for t in [&m.axial_on_axis_um, &m.tilt_urad] {
+                    match t {
+                        Some(t) => {
+                            w.u8(1);
+                            w.opt_f64(t.total);
+                            w.f64(t.u);
+                            w.f64(t.limit);
+                        }
+                        None => w.u8(0),
+                    }
+                }
             }
             None => w.u8(0),
         }
@@ -132,13 +143,27 @@ impl Summary {
         }
         let motions = match r.u8()? {
             0 => None,
-            1 => Some(MotionTotals {
-                radial_um: r.opt_f64()?,
-                axial_um: r.opt_f64()?,
-                u_radial_um: r.f64()?,
-                u_axial_um: r.f64()?,
-                limit_um: r.f64()?,
-            }),
+            1 => {
+                let (radial_um, axial_um, u_radial_um, u_axial_um, limit_um) =
+                    (r.opt_f64()?, r.opt_f64()?, r.f64()?, r.f64()?, r.f64()?);
+                let mut total = || -> Result<Option<Total>, Malformed> {
+                    match r.u8()? {
+                        0 => Ok(None),
+                        1 => Ok(Some(Total { total: r.opt_f64()?, u: r.f64()?, limit: r.f64()? })),
+                        _ => Err(Malformed),
+                    }
+                };
+                let (axial_on_axis_um, tilt_urad) = (total()?, total()?);
+                Some(MotionTotals {
+                    radial_um,
+                    axial_um,
+                    u_radial_um,
+                    u_axial_um,
+                    limit_um,
+                    axial_on_axis_um,
+                    tilt_urad,
+                })
+            }
             _ => return Err(Malformed),
         };
         r.end()?;
@@ -457,6 +482,8 @@ mod tests {
                 u_radial_um: 53.6,
                 u_axial_um: 53.6,
                 limit_um: 36.8,
+                axial_on_axis_um: Some(Total { total: Some(84.1), u: 46.0, limit: 36.8 }),
+                tilt_urad: Some(Total { total: None, u: 46.0, limit: 52.0 }),
             }),
         };
         let back = Summary::decode(&s.encode()).unwrap();

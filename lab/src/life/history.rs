@@ -185,11 +185,20 @@ impl History {
                     Some(v) => format!("{v:.1} um (U {u:.1})"),
                     None => format!("below the detection limit ({:.1} um)", t.limit_um),
                 };
+                let separated = |what: &str, x: Option<crate::life::Total>, unit: &str| match x {
+                    Some(x) => match x.total {
+                        Some(v) => format!(", {what} {v:.1} {unit} (U {:.1})", x.u),
+                        None => format!(", {what} below the detection limit ({:.1} {unit})", x.limit),
+                    },
+                    None => String::new(),
+                };
                 let _ = writeln!(
                     s,
-                    "      error motions (ISO 230-7, totals): radial {}, axial {}",
+                    "      error motions (ISO 230-7, totals): radial {}, axial {}{}{}",
                     total(t.radial_um, t.u_radial_um),
-                    total(t.axial_um, t.u_axial_um)
+                    total(t.axial_um, t.u_axial_um),
+                    separated("axial on the axis", t.axial_on_axis_um, "um"),
+                    separated("tilt", t.tilt_urad, "urad")
                 );
             }
             if let Some(c) = self.check(m.survey.id) {

@@ -95,6 +95,14 @@ fn motions_change(a: Option<&MotionTotals>, b: Option<&MotionTotals>) -> Value {
             (Some(a), Some(b)) => change(a.axial_um, b.axial_um, a.u_axial_um, b.u_axial_um),
             _ => Value::Null,
         },
+        "axial_on_axis_total_change_um": match (a.and_then(|a| a.axial_on_axis_um), b.and_then(|b| b.axial_on_axis_um)) {
+            (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
+            _ => Value::Null,
+        },
+        "tilt_total_change_urad": match (a.and_then(|a| a.tilt_urad), b.and_then(|b| b.tilt_urad)) {
+            (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
+            _ => Value::Null,
+        },
     })
 }
 
@@ -112,6 +120,30 @@ pub struct MotionTotals {
     pub u_axial_um: f64,
     /// The detection limit, um.
     pub limit_um: f64,
+    /// The total axial error motion on the axis (um) and the total tilt
+    /// (urad), where the SMRs separate them: each its total (`None` below
+    /// its detection limit), `U` and detection limit.
+    pub axial_on_axis_um: Option<Total>,
+    pub tilt_urad: Option<Total>,
+}
+
+/// One total error motion as a history keeps it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Total {
+    pub total: Option<f64>,
+    pub u: f64,
+    pub limit: f64,
+}
+
+impl Total {
+    fn of(b: &survey_motions::Block) -> Self {
+        Total { total: b.total, u: b.u_total, limit: b.detection_limit }
+    }
+
+    fn json(&self) -> serde_json::Value {
+        serde_json::json!({"total": self.total, "u": self.u, "below_detection_limit": self.total.is_none(),
+            "detection_limit": self.limit})
+    }
 }
 
 impl MotionTotals {
@@ -123,14 +155,18 @@ impl MotionTotals {
             u_radial_um: m.radial_um.u_total,
             u_axial_um: m.axial_um.u_total,
             limit_um: m.detection_limit_um,
+            axial_on_axis_um: m.axial_on_axis_um.as_ref().map(Total::of),
+            tilt_urad: m.tilt_urad.as_ref().map(|t| Total::of(&t.block)),
         }
     }
 
     /// The history's keys: `radial_um` and `axial_um`, each `{"total", "u",
-    /// "below_detection_limit"}`.
+    /// "below_detection_limit"}`; `axial_on_axis_um` and `tilt_urad` the
+    /// same where the SMRs separate them, else `null`.
     pub fn json(&self) -> serde_json::Value {
-        let one = |v: Option<f64>, u: f64| serde_json::json!({"total": v, "u": u, "below_detection_limit": v.is_none(), "detection_limit": self.limit_um});
-        serde_json::json!({"radial_um": one(self.radial_um, self.u_radial_um), "axial_um": one(self.axial_um, self.u_axial_um)})
+        let one = |v: Option<f64>, u: f64| Total { total: v, u, limit: self.limit_um }.json();
+        serde_json::json!({"radial_um": one(self.radial_um, self.u_radial_um), "axial_um": one(self.axial_um, self.u_axial_um),
+            "axial_on_axis_um": self.axial_on_axis_um.map(|t| t.json()), "tilt_urad": self.tilt_urad.map(|t| t.json())})
     }
 }
 
