@@ -21,7 +21,7 @@ use survey_acquire::stop::Stop;
 use survey_bench::Bench;
 use survey_bench::output::Output;
 use survey_bench::session::{AcquireOptions, acquire};
-use survey_modelgap::compare::seen::{Blind, CalibrationGrid, CheckDesign, Unseen, design_check};
+use survey_modelgap::compare::seen::{Blind, CalibrationGrid, CheckDesign, Unseen, design_check_avoiding};
 use survey_plan::SurveyPlan;
 use survey_store::asset::UNASSIGNED;
 use survey_store::survey::{NewSurvey, SurveyRecord, SurveyRef};
@@ -180,7 +180,9 @@ async fn check_with(
     let checks = store.surveys_of_asset(asset).await?;
     let previous =
         checks.iter().rev().find(|r| r.check_of.is_some()).and_then(|r| r.plan()).map(|p| p.targets_deg.len() as u32);
-    let design = cal.plan().map(|p| design_check(grid_of(p, req.polygon), &lines, req.size.points, previous));
+    let avoid = &a.design_frequencies;
+    let design =
+        cal.plan().map(|p| design_check_avoiding(grid_of(p, req.polygon), &lines, avoid, req.size.points, previous));
     let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
     // The check measures the axis as it finds it, and leaves it so.

@@ -58,6 +58,10 @@ pub struct Measured {
     pub lines: Vec<MainLine>,
     /// The lines its own targets cannot place ([`Measured::lines_in_doubt`]).
     pub doubt: Vec<(f64, Vec<f64>)>,
+    /// Every frequency its design predicts (gear passes, tooth meshes,
+    /// their harmonics and sidebands, 1 and 2), cycles/rev: a check's grid
+    /// keeps them off its lines' bins.
+    pub design_frequencies: Vec<f64>,
     /// Its ISO 230-2 figures, when it allows them.
     pub iso: Option<Iso230>,
     /// Its table's expanded uncertainty `U` (k = 2), degrees.
@@ -273,6 +277,9 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
         },
     );
     let table = processed.map(|p| p.built.table);
+    let options = survey_processing::analysis::AnalysisOptions::default();
+    let design_frequencies =
+        survey_processing::analysis::design_candidates(&design, &options).iter().map(|c| c.cycles_per_rev).collect();
     Ok(Measured {
         iso: iso230_2(&samples).ok(),
         survey: loaded.survey,
@@ -280,6 +287,7 @@ pub async fn measure(store: &Store, r: SurveyRef) -> anyhow::Result<Measured> {
         table,
         lines,
         doubt,
+        design_frequencies,
         table_u_deg,
         motions,
         table_u_beside_reference_deg,

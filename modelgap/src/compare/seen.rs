@@ -272,15 +272,32 @@ pub fn design_check(
     requested: Option<u32>,
     previous: Option<u32>,
 ) -> CheckDesign {
+    design_check_avoiding(grid, lines, &[], requested, previous)
+}
+
+/// [`design_check`], with the design's other frequencies `avoid` (its gear
+/// and tooth harmonics that are not lines in force): a grid on which one of
+/// them aliases onto a line in force's bin is not chosen, since the check's
+/// own processing would then hold that line in doubt (it cannot tell the two
+/// apart) and decide nothing. (The last resort, every calibration target and
+/// every point half way, is admitted always.)
+pub fn design_check_avoiding(
+    grid: CalibrationGrid,
+    lines: &[f64],
+    avoid: &[f64],
+    requested: Option<u32>,
+    previous: Option<u32>,
+) -> CheckDesign {
     let up_to = (grid.per_rev(grid.points) / 2.0).floor().max(1.0) as u32;
     // The last check's blind bins, once: every candidate is held apart from them.
     let before: Option<Vec<u32>> =
         previous.map(|p| blind_bins(grid.per_rev(p), up_to).iter().map(|(k, _)| *k).collect());
     let differs = |n: u32| before.as_deref().is_none_or(|b| apart(grid.per_rev(n), b, up_to));
-    let plain = design_with(grid, lines, requested, (&|_| true, false));
+    let clear = |n: u32| !collides(avoid, lines, grid.per_rev(n));
+    let plain = design_with(grid, lines, requested, (&clear, false));
     let mut d = match previous {
         Some(p) if requested.is_none() && !grid.polygon => {
-            let fresh = design_with(grid, lines, requested, (&differs, true));
+            let fresh = design_with(grid, lines, requested, (&|n| differs(n) && clear(n), true));
             if fresh.unseen.is_empty() && differs(fresh.points) {
                 CheckDesign {
                     why: format!(
@@ -305,6 +322,16 @@ pub fn design_check(
     d.up_to = up_to;
     d.previous = previous;
     d
+}
+
+/// Whether at `n` points per revolution a frequency of `avoid` (not itself
+/// a line) aliases onto the bin of one of `lines` (a line's own aliases, the
+/// mean and the Nyquist bin are [`unseen`]'s).
+fn collides(avoid: &[f64], lines: &[f64], n: f64) -> bool {
+    avoid.iter().filter(|f| **f > 0.0 && !lines.iter().any(|l| (l - *f).abs() < 1e-9)).any(|&f| {
+        let a = alias(f, n).observed;
+        lines.iter().filter(|l| **l > 0.0).any(|&l| (alias(l, n).observed - a).abs() < 1.0)
+    })
 }
 
 /// [`design_check`]'s choice among the grids `fresh` admits (the last
@@ -526,6 +553,25 @@ mod tests {
         // And the one after goes back to 16, apart from 18's.
         let third = design_check(full(120), &[1.0, 20.0], None, Some(next.points));
         assert!(third.points == 16 && blind_bins_differ(16.0, 18.0, 60), "{third:?}");
+    }
+
+    /// The Figure 8 positioner's second check (issue 49, measured): 17
+    /// targets put its design's 120 and 100 cycles/rev onto the lines in
+    /// force at 1 and 2, so the check's processing held them in doubt and
+    /// decided nothing, every other night. A grid where a design frequency
+    /// lands on a line's bin is not chosen.
+    #[test]
+    fn a_check_keeps_the_design_s_other_frequencies_off_its_lines_bins() {
+        let lines = [1.0, 20.0, 40.0, 2.0];
+        let design = [1.0, 2.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0];
+        let blind = design_check(full(120), &lines, None, Some(48));
+        assert_eq!(blind.points, 17, "without the design: {blind:?}");
+        assert!(collides(&design, &lines, 17.0));
+        let next = design_check_avoiding(full(120), &lines, &design, None, Some(48));
+        assert!(!collides(&design, &lines, f64::from(next.points)), "{next:?}");
+        assert!(next.points != 17 && next.unseen.is_empty(), "{next:?}");
+        // A frequency that is itself a line is the line, not a collision.
+        assert!(!collides(&[20.0], &[20.0, 1.0], 19.0));
     }
 
     #[test]
