@@ -19,6 +19,8 @@ pub mod due;
 pub mod history;
 pub mod interval;
 #[cfg(test)]
+mod rates_tests;
+#[cfg(test)]
 mod year_tests;
 
 pub use cache::lines_seen;
