@@ -26,6 +26,21 @@ impl Drop for Sim {
     }
 }
 
+impl Sim {
+    /// `survey sim ARGS` in `b`, running until dropped, and its ready line.
+    pub(super) fn serve(b: &super::Bench, args: &[&str]) -> (Sim, serde_json::Value) {
+        use std::io::{BufRead as _, BufReader};
+        use std::process::Stdio;
+        let mut all = vec!["sim"];
+        all.extend_from_slice(args);
+        let mut child = b.command(&all).stdout(Stdio::piped()).stderr(Stdio::null()).spawn().expect("start survey sim");
+        let mut ready = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut ready).unwrap();
+        let sim = Sim(child);
+        (sim, serde_json::from_str(&ready).expect("the ready line"))
+    }
+}
+
 fn config(positioner: &str, tracker: &str) -> String {
     format!(
         "[survey]\nreference = \"tracker\"\npoints = 12\nruns = 2\nbidirectional = true\n\

@@ -277,8 +277,6 @@ fn resume_takes_new_addresses_refuses_other_changes_and_checks_a_device_before_o
 /// included; the same controller is taken.
 #[test]
 fn resume_refuses_an_instrument_that_identifies_itself_as_another() {
-    use std::io::{BufRead as _, BufReader};
-    use std::process::Stdio;
     let b = Bench::new();
     let config = |positioner: &str, tracker: &str| {
         format!(
@@ -303,16 +301,7 @@ fn resume_refuses_an_instrument_that_identifies_itself_as_another() {
     // As if it had begun on another controller.
     began("ACME,AZ-200,1042,2.1");
     b.write("sim.toml", config("127.0.0.1:0", "127.0.0.1:0").replace("time_scale = 500\n", ""));
-    let mut child = b
-        .command(&["sim", "--config", "sim.toml", "--time-scale", "500"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start survey sim");
-    let mut ready = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut ready).unwrap();
-    let _sim = super::drift::Sim(child);
-    let ready: Value = serde_json::from_str(&ready).expect("the ready line");
+    let (_sim, ready) = super::drift::Sim::serve(&b, &["--config", "sim.toml", "--time-scale", "500"]);
     let at = |k: &str| ready["instruments"][k].as_str().unwrap().to_string();
     b.write("moved.toml", config(&at("positioner"), &at("tracker")));
     let before = std::fs::read(b.path("survey.db")).unwrap();
