@@ -22,6 +22,9 @@ struct Refusing {
     inner: SimTracker,
     refuse: Range<usize>,
     measures: usize,
+    /// This many measurements refused after the first pointing (at SMR 2).
+    after_pointing: usize,
+    pointed: usize,
 }
 
 #[async_trait::async_trait]
@@ -31,7 +34,11 @@ impl Tracker for Refusing {
     }
     async fn measure(&mut self) -> survey_drivers::Result<SmrMeasurement> {
         self.measures += 1;
-        if self.refuse.contains(&self.measures) {
+        let at_second = self.pointed == 1 && self.after_pointing > 0;
+        if at_second {
+            self.after_pointing -= 1;
+        }
+        if self.refuse.contains(&self.measures) || at_second {
             return Err(DriverError::device(self.inner.name(), CODE_SENSOR_NOT_STABLE, "sensor not stable (injected)"));
         }
         self.inner.measure().await
@@ -42,12 +49,23 @@ impl Tracker for Refusing {
     async fn reacquire(&mut self) -> survey_drivers::Result<()> {
         self.inner.reacquire().await
     }
+    fn can_point(&self) -> bool {
+        self.inner.can_point()
+    }
+    async fn point_at(&mut self, xyz_mm: [f64; 3]) -> survey_drivers::Result<()> {
+        self.pointed += 1;
+        self.inner.point_at(xyz_mm).await
+    }
 }
 
 /// A tracker rig in `mode`, its positioner refusing the readouts in
 /// `readouts` and its tracker the measurements in `measures`.
 fn refusing_rig(mode: SettleMode, readouts: Range<usize>, measures: Range<usize>) -> Rig {
-    let bench = builder(&fig8(), 7, &new_clock()).build();
+    rig_on(builder(&fig8(), 7, &new_clock()), mode, readouts, measures, 0)
+}
+
+fn rig_on(b: SimBenchBuilder, mode: SettleMode, readouts: Range<usize>, measures: Range<usize>, after: usize) -> Rig {
+    let bench = b.build();
     let cfg = bench.positioner.config();
     let mut timing = Timing { velocity_deg_s: cfg.velocity_deg_s, accel_deg_s2: cfg.accel_deg_s2, ..Timing::default() };
     timing.settle.mode = mode;
@@ -61,7 +79,7 @@ fn refusing_rig(mode: SettleMode, readouts: Range<usize>, measures: Range<usize>
         refuse_readouts: readouts,
         readouts: 0,
     };
-    let tracker = Refusing { inner: bench.tracker, refuse: measures, measures: 0 };
+    let tracker = Refusing { inner: bench.tracker, refuse: measures, measures: 0, after_pointing: after, pointed: 0 };
     let engine = Engine::new(bench.clock, Box::new(spy), Reference::Tracker(Box::new(tracker)), timing);
     Rig { engine, log }
 }
@@ -149,5 +167,25 @@ async fn a_measurement_refused_is_read_again_with_its_readout() {
         let (outcome, sink) = survey(&mut rig).await;
         assert_eq!(outcome.faults_met, FaultCounts { device: 4, ..FaultCounts::default() }, "{mode:?}");
         assert_eq!(count(&sink, "warn", "(attempt 1, retrying)"), 1, "{mode:?}: {:?}", sink.events);
+    }
+}
+
+/// Two SMRs: the second's measurement, refused after the tracker was
+/// pointed at it, is measured again in place (the tracker stays on it, not
+/// pointed again) up to the bound; once more is the SMR's step (pointed again).
+#[tokio::test]
+async fn another_smrs_measurement_refused_is_measured_again_in_place() {
+    let second = survey_sims::tracker::SmrMount { phase_deg: 120.0, height_mm: 0.0 };
+    let arm = survey_sims::ArmGeometry { smrs: vec![SmrMount::FIRST, second], ..Default::default() };
+    for (n, retried) in [(3, 0), (4, 1)] {
+        let b = builder(&fig8(), 7, &new_clock()).arm(arm.clone());
+        let mut rig = rig_on(b, SettleMode::InPosition, 0..0, 0..0, n);
+        rig.engine = rig.engine.with_smrs(vec![SmrMount::FIRST, second], Duration::ZERO);
+        let (outcome, sink) = survey(&mut rig).await;
+        assert_eq!(outcome.faults_met, FaultCounts { device: n as u32, ..FaultCounts::default() }, "{n}");
+        assert_eq!(count(&sink, "warn", "SMR 2 at 0 deg"), n, "{n}: {:?}", sink.events);
+        assert_eq!(count(&sink, "warn", "(asked again)"), 3, "{n}: {:?}", sink.events);
+        assert_eq!(count(&sink, "warn", "(attempt 1, retrying)"), retried, "{n}: {:?}", sink.events);
+        assert!(sink.samples.iter().all(|s| s.others.len() == 1), "every sample with the second SMR's reading");
     }
 }
