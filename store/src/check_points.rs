@@ -28,7 +28,8 @@ const SURVEY_TABLES: &[&str] = &[
 impl Store {
     /// Fold the samples of survey `from` (check points acquired to their own
     /// plan) into the check points of survey `into`, replacing any it had,
-    /// and remove survey `from` with everything of it: one transaction.
+    /// and remove survey `from` with everything of it but its events, which
+    /// `into` keeps ("check points: ..."): one transaction.
     /// Returns how many check points `into` now holds.
     pub async fn fold_check_points(&self, from: i64, into: i64) -> anyhow::Result<u64> {
         let mut tx = WriteTx::begin(self.sqlite()?).await?;
@@ -53,6 +54,16 @@ impl Store {
             .execute(tx.conn())
             .await?
             .rows_affected();
+            // What happened while they were measured (every fault met, each
+            // asked again) stays in the survey's log, said to be theirs.
+            sqlx::query(
+                "INSERT INTO events (survey_id, at_s, level, message) SELECT ?, at_s, level, \
+                 'check points: ' || message FROM events WHERE survey_id = ? ORDER BY id",
+            )
+            .bind(into)
+            .bind(from)
+            .execute(tx.conn())
+            .await?;
             for table in SURVEY_TABLES {
                 sqlx::query(sqlx::AssertSqlSafe(format!("DELETE FROM {table} WHERE survey_id = ?")))
                     .bind(from)

@@ -836,6 +836,9 @@ async fn check_points_fold_into_their_survey_and_free_their_id() {
     }
     assert!(is_not_found(&store.survey(checks).await.unwrap_err()), "the check-point survey is gone");
     assert!(store.events(checks).await.unwrap().is_empty());
+    // Their events (the faults met measuring them) are the survey's, said to be theirs.
+    let kept: Vec<String> = store.events(main).await.unwrap().into_iter().map(|e| e.message).collect();
+    assert_eq!(kept, ["check points: measured"]);
     assert_eq!(store.create_survey(&new_survey()).await.unwrap(), checks, "its id is free again");
     assert!(store.check_points(checks).await.unwrap().is_empty());
     store.close().await;

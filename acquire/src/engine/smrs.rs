@@ -4,10 +4,13 @@
 //! SMR's circle, the other's phase and height), the reflector found there
 //! and measured; then it is pointed back at the first, which the next
 //! target's move carries along. The axis stands still meanwhile: every
-//! SMR's reading is of the same target. A pointing or a reading that fails
-//! is a reference fault like any other (retried with recovery, or the
-//! survey stops `interrupted`).
+//! SMR's reading is of the same target. Pointing is asked again in place
+//! (a refusal too); a measurement lost or refused (the beam not broken) is
+//! measured again in place, as a reading's is ([`super::read`]); beyond
+//! that a pointing or a reading that fails is a reference fault like any
+//! other (retried with recovery, or the survey stops `interrupted`).
 
+use super::read::ReadFault;
 use super::{Engine, EngineError, Failed, read_reference};
 use crate::record::{RawReading, SampleSink};
 use crate::settings::Timing;
@@ -89,10 +92,26 @@ impl Engine {
                 Ok(()) if !read => return Ok(None),
                 Ok(()) => {
                     self.ledger.switch(clock.now(), Component::Measure);
-                    match read_reference(&*clock, &t, &mut self.reference, target, 0).await {
-                        Ok(RawReading::Smr(m)) => return Ok(Some(m)),
-                        Ok(_) => unreachable!("a tracker gives SMR readings"),
-                        Err(e) => e,
+                    // The measurement asked again in place as a reading's is
+                    // (a link fault, a refusal with the beam not broken): the
+                    // tracker stays on this SMR, nothing else is read with it.
+                    let mut failed = 0u32;
+                    loop {
+                        match read_reference(&*clock, &t, &mut self.reference, target, 0).await {
+                            Ok(RawReading::Smr(m)) => return Ok(Some(m)),
+                            Ok(_) => unreachable!("a tracker gives SMR readings"),
+                            Err(e)
+                                if crate::settle::again(&e, failed, survived.len(), &t)
+                                    && self.read_fault(&e, Failed::Reference).await == ReadFault::InPlace =>
+                            {
+                                failed += 1;
+                                tracing::debug!(error = %e, failed, "measuring {what} again in place");
+                                self.retried_in_place(std::slice::from_ref(&e), &what, sink).await?;
+                                survived.push(e);
+                                clock.sleep(t.retry_backoff).await;
+                            }
+                            Err(e) => break e,
+                        }
                     }
                 }
                 Err(e) => e,

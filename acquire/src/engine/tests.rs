@@ -67,6 +67,10 @@ struct Spy {
     clock: Arc<dyn Clock>,
     log: Arc<Mutex<SpyLog>>,
     refuse_after_moves: Option<usize>,
+    /// The readouts (counted from 1) refused with a device fault (Modbus
+    /// exception 4), without passing the call on.
+    refuse_readouts: std::ops::Range<usize>,
+    readouts: usize,
 }
 
 impl Spy {
@@ -90,6 +94,10 @@ impl Positioner for Spy {
     async fn readout(&mut self) -> survey_drivers::Result<f64> {
         self.push(Call::Readout);
         let call = self.log.lock().unwrap().calls.len() - 1;
+        self.readouts += 1;
+        if self.refuse_readouts.contains(&self.readouts) {
+            return Err(DriverError::device(self.inner.name(), 4, "server device failure (injected)"));
+        }
         let r = self.inner.readout().await;
         if let Ok(readout) = r {
             let at = self.clock.now();
@@ -228,6 +236,8 @@ fn rig_with(b: SimBenchBuilder, reference: RefKind, timing: Timing, refuse_after
         clock: bench.clock.clone(),
         log: log.clone(),
         refuse_after_moves,
+        refuse_readouts: 0..0,
+        readouts: 0,
     };
     let reference = match reference {
         RefKind::Tracker => Reference::Tracker(Box::new(bench.tracker)),
@@ -915,3 +925,5 @@ async fn faults_in_five_of_a_hundred_calls_are_survived_request_by_request() {
     assert!(asked_again > 20 && outcome.faults_survived as usize >= asked_again, "{asked_again}: {outcome:?}");
     assert!(events(&sink, "error").is_empty(), "{:?}", sink.events);
 }
+
+mod reads;
