@@ -264,11 +264,13 @@ async fn draw_number(
     args: &LabNumber,
 ) -> anyhow::Result<(String, String)> {
     use survey_lab::error::bad_input;
+    if survey_store::lab::url_of(Path::new(url)).is_none() {
+        // Shown as given unless it may hold a password (user:password@).
+        let given = if url.contains('@') { "(a URL with credentials)" } else { url };
+        return Err(bad_input(format!("--lab {given}: not a lab store (a postgres:// URL); no number was drawn")));
+    }
     let shown = survey_store::lab::redacted(url);
     let refused = |why: String| Err(bad_input(format!("--lab {shown}: {why}; no number was drawn")));
-    if survey_store::lab::url_of(Path::new(url)).is_none() {
-        return refused("not a lab store (a postgres:// URL)".into());
-    }
     if args.number_given {
         return refused("--certificate-number gives the number: give one of the two".into());
     }

@@ -766,7 +766,9 @@ fn certificate_numbers_are_drawn_from_the_lab_store_s_sequence_by_every_station(
         .bad_input(&["was issued", "no number was drawn"]);
     a.survey(&["report", "--survey", "2", "--out", "x", "--lab", &lab, "--certificate-number", "C-1"])
         .bad_input(&["--certificate-number gives the number"]);
-    a.survey(&["report", "--out", "x", "--lab", "not-a-url.db"]).bad_input(&["not a lab store"]);
+    a.survey(&["report", "--out", "x", "--lab", "not-a-url.db"]).bad_input(&["--lab not-a-url.db: not a lab store"]);
+    let hidden = a.survey(&["report", "--out", "x", "--lab", "mysql://u:secret@h/db"]);
+    assert!(!hidden.stderr.contains("secret"), "{hidden}");
     assert_eq!(server.psql("numbers", "SELECT last FROM certificate_numbers").trim(), "3", "nothing else drawn");
     // An amendment may draw its own.
     a.survey(&["report", "--survey", "1", "--out", "amended", "--amend", "a typo", "--lab", &lab]).success();
