@@ -338,13 +338,22 @@ fn unavailable(positioner: &PositionerConfig) -> &'static str {
 
 /// What an instrument said it is, for a check line (nothing when it says nothing or cannot now).
 fn identified(id: survey_drivers::Result<Option<String>>) -> String {
-    match id {
-        Ok(Some(text)) => {
-            let text: String = text.chars().map(|c| if c.is_control() { ' ' } else { c }).take(200).collect();
-            format!("; identifies itself as \"{}\"", text.trim())
-        }
-        _ => String::new(),
+    match id.ok().flatten().as_deref().and_then(printable) {
+        Some(text) => format!("; identifies itself as \"{text}\""),
+        None => String::new(),
     }
+}
+
+/// The longest identification kept, characters (a certificate's line holds it).
+pub const MAX_IDENTIFICATION_CHARS: usize = 200;
+
+/// An instrument's identification as it is shown and kept: a control
+/// character read as a space, at most [`MAX_IDENTIFICATION_CHARS`], trimmed;
+/// `None` when nothing is left.
+pub fn printable(text: &str) -> Option<String> {
+    let clean: String =
+        text.chars().map(|c| if c.is_control() { ' ' } else { c }).take(MAX_IDENTIFICATION_CHARS).collect();
+    Some(clean.trim().to_string()).filter(|t| !t.is_empty())
 }
 
 /// Connect to every instrument and read its status, bounded by the

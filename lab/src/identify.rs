@@ -15,10 +15,8 @@
 
 use serde_json::{Value, json};
 use survey_acquire::{Engine, Reference};
+use survey_bench::instruments::printable;
 use survey_drivers::clock::with_timeout;
-
-/// The longest identification kept, characters (a certificate's line holds it).
-pub const MAX_CHARS: usize = 200;
 
 /// What the engine's instruments say they are, as stored with a survey.
 pub async fn read(engine: &mut Engine) -> Value {
@@ -39,17 +37,10 @@ pub async fn read(engine: &mut Engine) -> Value {
     json!({"positioner": said(positioner), "reference": said(reference)})
 }
 
-/// An identification as kept: printable (a control character a space), at most [`MAX_CHARS`].
+/// An identification as kept ([`survey_bench::instruments::printable`]).
 fn said(read: Result<Option<String>, (String, survey_drivers::DriverError)>) -> Value {
     match read {
-        Ok(Some(text)) => {
-            let clean: String = text.chars().map(|c| if c.is_control() { ' ' } else { c }).take(MAX_CHARS).collect();
-            match clean.trim() {
-                "" => Value::Null,
-                t => t.into(),
-            }
-        }
-        Ok(None) => Value::Null,
+        Ok(text) => text.as_deref().and_then(printable).map_or(Value::Null, Value::from),
         Err((name, e)) => {
             tracing::warn!(instrument = %name, error = %e, "the instrument's identification could not be read");
             Value::Null
@@ -60,6 +51,7 @@ fn said(read: Result<Option<String>, (String, survey_drivers::DriverError)>) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use survey_bench::instruments::MAX_IDENTIFICATION_CHARS as MAX_CHARS;
 
     #[test]
     fn an_identification_is_kept_printable_and_bounded() {

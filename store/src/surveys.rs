@@ -290,6 +290,20 @@ impl Store {
     pub async fn log_event(&self, id: i64, at_s: f64, level: &str, message: &str) -> anyhow::Result<()> {
         let context = || format!("cannot log an event of survey {id}");
         let mut tx = WriteTx::begin(self.sqlite()?).await.with_context(context)?;
+        self.insert_event(&mut tx, id, at_s, level, message).await.with_context(context)?;
+        tx.commit().await.with_context(context)?;
+        Ok(())
+    }
+
+    /// One event of survey `id` in `tx` (a survey that is not there: [`NotFound`](crate::NotFound)).
+    async fn insert_event(
+        &self,
+        tx: &mut WriteTx,
+        id: i64,
+        at_s: f64,
+        level: &str,
+        message: &str,
+    ) -> anyhow::Result<()> {
         sqlx::query("INSERT INTO events (survey_id, at_s, level, message) VALUES (?, ?, ?, ?)")
             .bind(id)
             .bind(at_s)
@@ -297,8 +311,7 @@ impl Store {
             .bind(message)
             .execute(tx.conn())
             .await
-            .map_err(|e| self.fk_to_not_found(id, e).context(context()))?;
-        tx.commit().await.with_context(context)?;
+            .map_err(|e| self.fk_to_not_found(id, e))?;
         Ok(())
     }
 
@@ -321,14 +334,7 @@ impl Store {
             .execute(tx.conn())
             .await
             .with_context(context)?;
-        sqlx::query("INSERT INTO events (survey_id, at_s, level, message) VALUES (?, ?, ?, ?)")
-            .bind(id)
-            .bind(at_s)
-            .bind("info")
-            .bind(message)
-            .execute(tx.conn())
-            .await
-            .map_err(|e| self.fk_to_not_found(id, e).context(context()))?;
+        self.insert_event(&mut tx, id, at_s, "info", message).await.with_context(context)?;
         tx.commit().await.with_context(context)?;
         Ok(())
     }

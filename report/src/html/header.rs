@@ -129,39 +129,26 @@ fn fields(p: &Page<'_>) -> String {
         Some(t) => format!(" ({} of instrument time)", duration_words(t)),
         None => String::new(),
     };
-    // A stated address or identification after the field it belongs to, on its own line.
-    let with = |field: String, more: Option<String>| match more.filter(|m| !m.is_empty()) {
-        Some(m) => format!("{field}<br>{}", escape(&m)),
-        None => field,
+    // What is stated of a field (an address, identifications) after it, on a line of its own, "; " between.
+    let with = |field: String, more: &[Option<String>]| {
+        let parts: Vec<&str> = more.iter().flatten().map(String::as_str).filter(|m| !m.is_empty()).collect();
+        match parts.is_empty() {
+            true => field,
+            false => format!("{field}<br>{}", escape(&parts.join("; "))),
+        }
     };
     let said = |id: &Option<String>| id.as_ref().map(|s| format!("identifies itself as \"{s}\""));
+    let instrument = cert.reference_instrument.as_ref();
     let reference = with(
         text(&cert.reference),
-        Some(
-            [cert.reference_instrument.as_ref().map(equipment_line), said(&cert.identified.reference)]
-                .into_iter()
-                .chain([cert.reference_instrument.as_ref().and_then(calibration_line)])
-                .flatten()
-                .filter(|l| !l.is_empty())
-                .collect::<Vec<_>>()
-                .join("; "),
-        ),
+        &[instrument.map(equipment_line), said(&cert.identified.reference), instrument.and_then(calibration_line)],
     );
-    let item = with(
-        text(&cert.positioner),
-        Some(
-            [cert.item.as_ref().map(equipment_line), said(&cert.identified.positioner)]
-                .into_iter()
-                .flatten()
-                .filter(|l| !l.is_empty())
-                .collect::<Vec<_>>()
-                .join("; "),
-        ),
-    );
+    let item =
+        with(text(&cert.positioner), &[cert.item.as_ref().map(equipment_line), said(&cert.identified.positioner)]);
     let rows: Vec<(&str, String)> = vec![
-        ("Calibrating laboratory", with(text(&cert.laboratory), cert.laboratory_address.as_ref().map(address_line))),
+        ("Calibrating laboratory", with(text(&cert.laboratory), &[cert.laboratory_address.as_ref().map(address_line)])),
         ("Laboratory's country", text(&cert.country)),
-        ("Customer (name, address)", with(text(&cert.customer), cert.customer_address.as_ref().map(address_line))),
+        ("Customer (name, address)", with(text(&cert.customer), &[cert.customer_address.as_ref().map(address_line)])),
         ("Item calibrated", item),
         ("Item's condition", text(&cert.item_condition)),
         ("Date received", text(&cert.received)),
