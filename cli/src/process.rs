@@ -217,6 +217,7 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         crash_when_staged: false,
         checks: loaded.checks_corrected(&loaded.checks),
         quiet: false,
+        uncorrected_drift_deg: loaded.uncorrected_drift_deg(),
     };
     progress.stage(format!("processing survey {} ({} samples) and writing its tables", survey.id, to_process.len()));
     let outcome = process_survey(survey, &to_process, opts)?;

@@ -269,6 +269,7 @@ async fn process(
         make_folder: true,
         uncertainty,
         crash_when_staged: options.crash_when_staged,
+        uncorrected_drift_deg: survey.loaded.uncorrected_drift_deg(),
         ..ProcessOptions::default()
     };
     // Check points already stored with it (a survey finished by `survey

@@ -97,6 +97,14 @@ impl Loaded {
         }
     }
 
+    /// What a drift in time that no straight line takes left in the
+    /// readings (the largest a pass keeps, degrees), when the survey
+    /// measured one beyond doubt ([`TimeDrift::left_beyond_doubt`]): no
+    /// correction took it.
+    pub fn uncorrected_drift_deg(&self) -> Option<f64> {
+        self.time_drift.as_ref().filter(|d| d.left_beyond_doubt).map(|d| d.left_deg)
+    }
+
     /// Which axis the samples are around, as the output says it.
     pub fn axis_used(&self) -> AxisUsed {
         AxisUsed::of(&self.survey, self.refit.as_ref())

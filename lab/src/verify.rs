@@ -291,7 +291,7 @@ pub async fn verify(
         predicted_deg: predicted,
         u_deg: u,
         native_deg: peak_deg(native_samples),
-        not_a_result: processed.processed.prediction.no_better_than_native(),
+        not_a_result: processed.processed.prediction.not_a_result(),
         // The verification is made with the calibration's own reference.
         shared_reference_u_deg: processed.uncertainty.reference_systematic_u_deg().map(|u| u * processed.uncertainty.k),
     };

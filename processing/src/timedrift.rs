@@ -47,7 +47,18 @@ pub struct TimeDrift {
     pub left_significant: bool,
     /// The chi-square of the passes' means and slopes per degree of freedom.
     pub left_f: f64,
+    /// `P(a chi-square this large | a straight line)` (Wilson-Hilferty).
+    pub left_p: f64,
+    /// Beyond doubt: `left_p` below [`NOT_A_RESULT_ALPHA`]; the table
+    /// carries what no correction took, and is not a result. (At 1 % it is
+    /// named: noise alone would make one drift-free survey in a hundred
+    /// not a result.)
+    pub left_beyond_doubt: bool,
 }
+
+/// The rate at which a drift no straight line takes makes a survey's table
+/// not a result: one drift-free survey in a thousand. Our design.
+pub const NOT_A_RESULT_ALPHA: f64 = 1e-3;
 
 /// The two-sided rate the slope is tested at.
 pub const ALPHA: f64 = 0.01;
@@ -98,7 +109,7 @@ pub fn estimate(samples: &[Sample]) -> Option<TimeDrift> {
     let (t0, t1) = times.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), t| (a.min(*t), z.max(*t)));
     let z = normal_two_sided_isf(ALPHA);
     let corrected = se > 0.0 && (b / se).abs() > z;
-    let (left_deg, left_f, left_significant) =
+    let (left_deg, left_f, left_p, left_significant) =
         straightness(samples, &times, if corrected { b } else { 0.0 }, rss / dof as f64);
     Some(TimeDrift {
         slope_deg_per_h: b * 3600.0,
@@ -110,6 +121,8 @@ pub fn estimate(samples: &[Sample]) -> Option<TimeDrift> {
         left_deg,
         left_significant,
         left_f,
+        left_p,
+        left_beyond_doubt: left_significant && left_p < NOT_A_RESULT_ALPHA,
     })
 }
 
@@ -120,7 +133,7 @@ pub fn estimate(samples: &[Sample]) -> Option<TimeDrift> {
 /// slopes per degree of freedom (`2 P - 2`); and whether it is beyond the
 /// 1 % point (its normal limit for many degrees of freedom: `F > 1 + z
 /// sqrt(2 / k)`).
-fn straightness(samples: &[Sample], times: &[f64], b: f64, var: f64) -> (f64, f64, bool) {
+fn straightness(samples: &[Sample], times: &[f64], b: f64, var: f64) -> (f64, f64, f64, bool) {
     let mut by_pass: HashMap<(u32, Direction), Vec<usize>> = HashMap::new();
     for (i, s) in samples.iter().enumerate() {
         by_pass.entry((s.run, s.direction)).or_default().push(i);
@@ -152,7 +165,7 @@ fn straightness(samples: &[Sample], times: &[f64], b: f64, var: f64) -> (f64, f6
         })
         .collect();
     if passes.len() < 2 || var <= 0.0 {
-        return (0.0, 0.0, false);
+        return (0.0, 0.0, 1.0, false);
     }
     let w: f64 = passes.iter().map(|p| 1.0 / p.3).sum();
     let m = passes.iter().map(|p| p.2 / p.3).sum::<f64>() / w;
@@ -162,7 +175,10 @@ fn straightness(samples: &[Sample], times: &[f64], b: f64, var: f64) -> (f64, f6
     let z = normal_two_sided_isf(2.0 * ALPHA);
     let significant = f > 1.0 + z * (2.0 / k).sqrt();
     let left = passes.iter().map(|p| p.0.abs().max((p.2 - m).abs() * p.4)).fold(0.0, f64::max);
-    (left, f, significant)
+    // Wilson-Hilferty: (chi2 / k)^(1/3) is about normal, mean 1 - 2/(9k).
+    let h = 2.0 / (9.0 * k);
+    let p = 0.5 * crate::special::erfc((f.cbrt() - (1.0 - h)) / h.sqrt() / std::f64::consts::SQRT_2);
+    (left, f, p, significant)
 }
 
 /// `samples` (the survey's, or readings it took after, on its clock) less
@@ -183,7 +199,15 @@ impl TimeDrift {
     /// One line for people (a survey's: what no straight line takes makes
     /// its table not a result).
     pub fn text(&self) -> String {
-        self.text_saying("the table is not a result")
+        if self.left_beyond_doubt {
+            self.text_saying("the table carries it and is not a result")
+        } else {
+            self.text_saying(
+                "named (at p = {p} one drift-free survey in a hundred shows as much; the table is not a result below \
+                 1 in 1000)",
+            )
+            .replace("{p}", &format!("{:.1e}", self.left_p))
+        }
     }
 
     /// [`TimeDrift::text`], with `consequence` said of what no straight
@@ -196,9 +220,9 @@ impl TimeDrift {
         };
         let left = if self.left_significant {
             format!(
-                "; NOT A STRAIGHT LINE: the passes differ beyond their noise (chi-square {:.1} a degree of freedom), \
-                 up to {:.2e} deg a pass that no correction takes: {consequence}",
-                self.left_f, self.left_deg
+                "; NOT A STRAIGHT LINE: the passes differ beyond their noise (chi-square {:.1} a degree of freedom, \
+                 p = {:.1e}), up to {:.2e} deg a pass that no correction takes: {consequence}",
+                self.left_f, self.left_p, self.left_deg
             )
         } else {
             String::new()
@@ -255,6 +279,9 @@ mod tests {
         let crooked = found.iter().filter(|d| d.left_significant).count();
         eprintln!("of 200 drift-free surveys {corrected} corrected, {crooked} not a straight line");
         assert!(corrected <= 8 && crooked <= 8, "{corrected}, {crooked} of 200");
+        // Not a result at 1 in 1000: 0.2 expected, at most 2 allowed.
+        let beyond = found.iter().filter(|d| d.left_beyond_doubt).count();
+        assert!(beyond <= 2, "{beyond} of 200 beyond doubt");
     }
 
     /// A step between runs is no straight line: said, with its size.
@@ -262,5 +289,7 @@ mod tests {
     fn a_step_is_not_a_straight_line_and_says_so() {
         let d = estimate(&survey(3, 0.0, 0.004, 0.0005, 1)).unwrap();
         assert!(d.left_significant && d.text().contains("NOT A STRAIGHT LINE"), "{d:?}");
+        // 0.004 deg against 0.0005 of noise: beyond doubt, the table not a result.
+        assert!(d.left_beyond_doubt && d.left_p < 1e-6 && d.text().contains("is not a result"), "{d:?}");
     }
 }

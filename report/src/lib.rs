@@ -156,6 +156,7 @@ fn analyse(loaded: &Loaded, opts: &ReportOptions) -> anyhow::Result<Analysed> {
         recipe: opts.recipe.clone(),
         table_out: None,
         checks: loaded.checks_corrected(&loaded.checks),
+        uncorrected_drift_deg: loaded.uncorrected_drift_deg(),
         quiet: opts.quiet,
         ..Default::default()
     };

@@ -319,6 +319,21 @@ pub struct Prediction {
     pub floor_deg: f64,
     /// Number of samples used.
     pub samples: usize,
+    /// What a drift in time that no straight line takes leaves in the
+    /// survey's readings (the largest a pass keeps, degrees), when the
+    /// survey measured one: the table carries it ([`Prediction::not_a_result`]).
+    pub uncorrected_drift_deg: Option<f64>,
+}
+
+/// Why a table is not a result to load.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NotAResult {
+    /// The corrected axis is predicted no better than the native one.
+    NoBetterThanNative,
+    /// The survey drifted in time in a way it could not correct: the table
+    /// carries the drift, whatever the prediction says.
+    DriftNotCorrected,
 }
 
 /// The corrected error of each sample: `(readout - table.error_at(readout)) - actual`.
@@ -372,6 +387,7 @@ pub(crate) fn predict_accuracy_with_a(
         corrected,
         floor_deg,
         samples: samples.len(),
+        uncorrected_drift_deg: None,
     })
 }
 
@@ -379,6 +395,34 @@ impl Prediction {
     /// Whether the corrected axis is predicted no better than the native one.
     pub fn no_better_than_native(&self) -> bool {
         self.corrected_peak_deg >= self.native_peak_deg
+    }
+
+    /// Why the table is not a result to load, if it is not: a drift the
+    /// survey could not correct first (it is in every value), then a
+    /// prediction no better than native.
+    pub fn not_a_result(&self) -> Option<NotAResult> {
+        if self.uncorrected_drift_deg.is_some() {
+            Some(NotAResult::DriftNotCorrected)
+        } else if self.no_better_than_native() {
+            Some(NotAResult::NoBetterThanNative)
+        } else {
+            None
+        }
+    }
+
+    /// [`Prediction::not_a_result`] in words, with the figures.
+    pub fn not_a_result_text(&self) -> Option<String> {
+        self.not_a_result().map(|why| match why {
+            NotAResult::DriftNotCorrected => format!(
+                "the survey drifted in time in a way no straight line takes (a pass keeps up to {:.5} deg): the \
+                 table carries that drift",
+                self.uncorrected_drift_deg.unwrap_or(0.0)
+            ),
+            NotAResult::NoBetterThanNative => format!(
+                "this table is not expected to improve the axis (corrected +/-{:.5} deg against native +/-{:.5} deg)",
+                self.corrected_peak_deg, self.native_peak_deg
+            ),
+        })
     }
 }
 

@@ -192,7 +192,9 @@ fn survey(case: &Case, rng: &mut Normal) -> (Processed, Vec<Sample>, Uncertainty
     let targets: Vec<f64> = (0..p.points).map(|k| 360.0 * k as f64 / p.points as f64).collect();
     let mut samples = acquire(&case.model, &targets, p, p.runs, 0.0, None, rng);
     // The drift in time, measured and corrected as the lab loads a survey.
-    let drift = survey_processing::timedrift::estimate(&samples).filter(|d| d.corrected);
+    let measured = survey_processing::timedrift::estimate(&samples);
+    let crooked = measured.as_ref().filter(|d| d.left_beyond_doubt).map(|d| d.left_deg);
+    let drift = measured.filter(|d| d.corrected);
     if let Some(d) = &drift {
         samples = survey_processing::timedrift::corrected(&samples, d);
     }
@@ -208,6 +210,9 @@ fn survey(case: &Case, rng: &mut Normal) -> (Processed, Vec<Sample>, Uncertainty
             processed = process_with_checks(&samples, design, None, None, &checks).expect("processed with checks");
         }
     }
+    // A drift no straight line takes makes the table not a result, as the
+    // lab's processing says.
+    processed.prediction.uncorrected_drift_deg = crooked;
     let u = uncertainty(&processed, &samples, &UncertaintyInputs::default());
     (processed, samples, u)
 }
@@ -249,7 +254,7 @@ fn run(case: &Case, seed: u64) -> Outcome {
             predicted_deg: predicted,
             u_deg: u.table_u_deg,
             native_deg: peak_deg(&samples),
-            not_a_result: processed.prediction.no_better_than_native(),
+            not_a_result: processed.prediction.not_a_result(),
             shared_reference_u_deg: u.reference_systematic_u_deg().map(|s| s * u.k),
         };
         let j = judge(&claim, &corrected, &[]);
@@ -260,7 +265,7 @@ fn run(case: &Case, seed: u64) -> Outcome {
         };
         let peak = e.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let bad = peak > processed.prediction.corrected_peak_deg + u.table_u_deg;
-        (j.verdict == Verdict::Confirmed, bad, processed.prediction.no_better_than_native())
+        (j.verdict == Verdict::Confirmed, bad, processed.prediction.not_a_result().is_some())
     });
     Outcome {
         what: case.what.clone(),

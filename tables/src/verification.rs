@@ -125,8 +125,9 @@ pub struct Claim {
     pub u_deg: f64,
     /// The native peak (the calibration survey's), degrees.
     pub native_deg: f64,
-    /// The processing predicted the table no better than native: not a result.
-    pub not_a_result: bool,
+    /// Why the processing calls the table not a result (predicted no better
+    /// than native, or carrying a drift it could not correct), if it does.
+    pub not_a_result: Option<crate::correction::NotAResult>,
     /// The expanded uncertainty (k = 2) of the reference's systematic part,
     /// degrees, when the verification is made with the same reference as
     /// the calibration: its own error is in both alike, the table absorbed
@@ -183,16 +184,23 @@ pub fn judge_peak(claim: &Claim, measured: f64, spread: f64, blind: &[aliases::B
          verification's count included) with U = {u:.5} deg (the verification's own peak spread {spread:.5} deg), \
          native +/-{native:.5} deg"
     );
-    if not_a_result {
+    if let Some(kind) = not_a_result {
         let better = if measured >= native {
             "not better than the native one".to_string()
         } else {
             format!("{:.1}x better", native / measured)
         };
+        let calibration = match kind {
+            crate::correction::NotAResult::NoBetterThanNative => {
+                "the processing predicted this table no better than the native axis"
+            }
+            crate::correction::NotAResult::DriftNotCorrected => {
+                "the calibration drifted in time in a way it could not correct, and its table carries that drift"
+            }
+        };
         let why = format!(
-            "nothing to confirm: the processing predicted this table no better than the native axis (NOT A \
-             RESULT), and the verification measured the corrected axis at +/-{measured:.5} deg against native \
-             +/-{native:.5} deg ({better})"
+            "nothing to confirm: {calibration} (NOT A RESULT), and the verification measured the corrected axis at \
+             +/-{measured:.5} deg against native +/-{native:.5} deg ({better})"
         );
         return Judged { verdict: Verdict::NotConfirmed, reason: format!("{why} ({figures})") };
     }
@@ -278,6 +286,7 @@ mod tests {
             corrected: ErrorFigures::of(&[0.0], None),
             floor_deg: 0.0,
             samples: 480,
+            uncorrected_drift_deg: None,
         };
         // sigma = 0.0007 x sqrt(2 ln 960) / ln 19 = 8.81e-4; 768 samples peak higher.
         let sigma = 0.0007 * (2.0 * 960f64.ln()).sqrt() / 19f64.ln();
@@ -289,7 +298,7 @@ mod tests {
     }
 
     fn claim(predicted_deg: f64, u_deg: f64, native_deg: f64) -> Claim {
-        Claim { predicted_deg, u_deg, native_deg, not_a_result: false, shared_reference_u_deg: None }
+        Claim { predicted_deg, u_deg, native_deg, not_a_result: None, shared_reference_u_deg: None }
     }
 
     fn judge(predicted: f64, u: f64, measured: f64, native: f64, blind: &[aliases::Blind]) -> Judged {
@@ -343,7 +352,12 @@ mod tests {
             }
         }
         // The issue's survey: NOT A RESULT, then 1.2x better: nothing to confirm.
-        let j = judge_peak(&Claim { not_a_result: true, ..c }, 0.0125, 0.0004, &[]);
+        let j = judge_peak(
+            &Claim { not_a_result: Some(crate::correction::NotAResult::NoBetterThanNative), ..c },
+            0.0125,
+            0.0004,
+            &[],
+        );
         assert_eq!(j.verdict, Verdict::NotConfirmed);
         assert!(j.reason.starts_with("nothing to confirm") && j.reason.contains("1.2x better"), "{}", j.reason);
         // The spread: its own noise about the per-target means, at its count.

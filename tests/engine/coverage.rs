@@ -351,3 +351,24 @@ fn a_ramp_within_the_runs_is_measured_corrected_and_covered() {
     let (slope, survey_slope) = (v["slope_deg_per_h"].as_f64().unwrap(), d["slope_deg_per_h"].as_f64().unwrap());
     assert!(slope > 0.0 && (slope / survey_slope - 1.0).abs() < 0.5, "the same ramp: {v} against {d}");
 }
+
+/// Issue 49: a drift that steps between the runs (0.004 deg a run, the
+/// axis constant within each run: a re-homing, a warm-up that settles
+/// during the pause). Read in time, it is the ramp's slope between the
+/// runs but nothing within them, and a straight line in time would put a
+/// sawtooth of half a run's step into the passes.
+#[test]
+fn a_drift_that_steps_between_runs_is_covered_or_not_a_result() {
+    const STEP: &str = concat!(
+        include_str!("../../sims/presets/fig8.toml"),
+        "\n[[effect]]\nkind = \"drift\"\nrate_deg_per_run = 0.004\nshape = \"step\"\n"
+    );
+    let case = Case {
+        name: "a drift stepping between the runs (fig8, 0.004 deg a run), 120 points, 3 runs",
+        args: ["--points", "120", "--runs", "3", "--bidirectional"].map(String::from).to_vec(),
+        model: Model::parse(STEP, "step.toml").unwrap(),
+        model_file: Some(STEP),
+    };
+    let f = run_case(&case, 1..=2);
+    check(&case, &f);
+}

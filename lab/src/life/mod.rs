@@ -370,7 +370,9 @@ fn tested(a: &Measured, b: &Measured) -> Result<Compared, CompareError> {
     let held_to =
         if same_reference_setup(&a.survey, &b.survey) { a.table_u_beside_reference_deg } else { a.table_u_deg };
     let table_of_a_on_b = match (&a.table, held_to) {
-        (Ok(table), Some(u)) => table_on(table, u, &a.samples, &b.samples, FALSE_ALARM_RATE),
+        (Ok(table), Some(u)) => {
+            table_on(table, u, &a.samples, &b.samples, FALSE_ALARM_RATE, [a.axis_se_deg, b.axis_se_deg])
+        }
         _ => None,
     };
     let decision = decide(&comparison, table_of_a_on_b.as_ref(), asset_tolerance(a));

@@ -85,6 +85,10 @@ pub struct ProcessOptions {
     /// ([`say_notes`]; a survey that measures check points next says the
     /// notes of its final processing only).
     pub quiet: bool,
+    /// What a drift in time no straight line takes left in the survey's
+    /// readings, degrees ([`crate::load::Loaded::uncorrected_drift_deg`]):
+    /// the table carries it and is not a result.
+    pub uncorrected_drift_deg: Option<f64>,
 }
 
 /// The notes of a processing on stderr, as [`compute`] says them unless
@@ -219,6 +223,14 @@ pub fn compute(
             other => other.with_context(|| format!("survey {id} cannot be processed"))?,
         };
     let mut processed = processed;
+    processed.prediction.uncorrected_drift_deg = opts.uncorrected_drift_deg;
+    if let Some(left) = opts.uncorrected_drift_deg {
+        processed.notes.push(format!(
+            "the survey drifted in time in a way no straight line takes (a pass keeps up to {left:.5} deg): the \
+             table carries that drift and is not a result to load; survey again with the room settled, or with \
+             [drift_control] (docs/acquisition.md)"
+        ));
+    }
     // An autocollimator's faces fix the sampling: say what a second
     // orientation of the polygon would resolve.
     if survey.reference() == Some(survey_acquire::ReferenceKind::Autocollimator)

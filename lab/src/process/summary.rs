@@ -23,6 +23,7 @@ use serde_json::{Value, json};
 use std::fmt::Write as _;
 use survey_bench::output::Units;
 use survey_controllers::export::{Controller, ControllerExport};
+use survey_tables::correction::NotAResult;
 use survey_tables::recipe::LineAction;
 
 /// The controller files written (none when the table went to a device or a pipe).
@@ -135,6 +136,8 @@ pub fn json(o: &ProcessOutcome) -> Value {
             "unseen_between_targets_deg": pr.unseen_between_targets_deg,
             "peak_spread_deg": pr.peak_spread_deg,
             "no_better_than_native": pr.no_better_than_native(),
+            "not_a_result": pr.not_a_result(),
+            "uncorrected_drift_deg": pr.uncorrected_drift_deg,
         },
         "left": p.left,
         "interpolation": p.interpolation.as_ref().ok(),
@@ -373,14 +376,25 @@ fn prediction(s: &mut String, o: &ProcessOutcome, e: Errors) {
     for l in &p.left.lines {
         let _ = writeln!(s, "  left: {}", e.units.text(&l.why));
     }
-    if pr.no_better_than_native() {
-        let _ = writeln!(
-            s,
-            "NOT A RESULT: this table is not expected to improve the axis (corrected +/-{} {u} against native \
-             +/-{} {u}): do not load it",
-            e.e5(pr.corrected_peak_deg),
-            e.e5(pr.native_peak_deg)
-        );
+    match pr.not_a_result() {
+        Some(NotAResult::NoBetterThanNative) => {
+            let _ = writeln!(
+                s,
+                "NOT A RESULT: this table is not expected to improve the axis (corrected +/-{} {u} against native \
+                 +/-{} {u}): do not load it",
+                e.e5(pr.corrected_peak_deg),
+                e.e5(pr.native_peak_deg)
+            );
+        }
+        Some(NotAResult::DriftNotCorrected) => {
+            let _ = writeln!(
+                s,
+                "NOT A RESULT: the survey drifted in time in a way no straight line takes (a pass keeps up to {} \
+                 {u}): the table carries that drift: do not load it",
+                e.e5(pr.uncorrected_drift_deg.unwrap_or(0.0))
+            );
+        }
+        None => {}
     }
     let _ = writeln!(s, "repeatability floor: {} {u} ({})", e.opt(p.floor.deg), p.floor.what);
 }

@@ -46,12 +46,19 @@
 //! difference: the table itself cancels, so a cell is outside by chance in at
 //! most 4.55 % of surveys while the error moved by less than `U`). The table
 //! holds unless more cells are outside than `p0 = 0.05 + 0.95 x 0.0455` of
-//! them allows (a binomial count at the stated rate). The second survey's
+//! them allows (a binomial count at half the stated rate). The second survey's
 //! cells between the first's targets (a check designed to fall between the
 //! calibration's targets, where the table interpolates) have no measurement
 //! of the first to move from: there, and everywhere without common cells,
 //! the second survey's residual itself is held to `U + 2 s / sqrt(n)`, and
-//! counted with the rest. It is
+//! counted with the rest. A cell tells little when its noise is near `U`
+//! (a check's two-sample means), so the same values are also pooled (at the
+//! other half of the rate): their mean square less what their noise puts
+//! into it is the best estimate of what the table leaves beyond its
+//! statement, in rms; when its one-sided lower bound is beyond the rms of
+//! the largest line that stays within `U` at 95 % of the readouts (`0.7093
+//! U`: a line of `1.0031 U`), the table no longer holds (a new line no
+//! survey names, twice `U`, passes every cell and fails here). It is
 //! a test of a change that matters against the table's own statement; a
 //! change too small for it is what the tests of the lines and of the map are
 //! for (a change can be significant and still within `U`). A check's few
@@ -73,7 +80,7 @@ pub mod seen;
 #[cfg(test)]
 mod tests;
 
-use crate::stats::{f_sf, normal_two_sided_sf, t_two_sided_isf, t_two_sided_sf};
+use crate::stats::{f_sf, normal_two_sided_isf, normal_two_sided_sf, t_two_sided_isf, t_two_sided_sf};
 use fit::{CellKey, Cells, cells, fit_both};
 use serde::Serialize;
 use survey_processing::Sample;
@@ -387,8 +394,45 @@ pub struct TableCheck {
     pub cells_outside: usize,
     /// The most cells that may be outside while the table holds.
     pub allowed_outside: usize,
-    /// Whether the table still holds.
+    /// The best estimate of the rms of what the table leaves beyond its
+    /// statement at the tested cells (a common cell's move, a cell between
+    /// the first survey's targets its residual), the cell means' noise
+    /// removed, degrees (0 when the noise explains it all).
+    pub left_rms_deg: f64,
+    /// The least that rms is at the test's rate (its one-sided lower
+    /// confidence bound), degrees.
+    pub left_rms_least_deg: f64,
+    /// The rms of the largest line that stays within `U` at 95 % of the
+    /// readouts (amplitude `1.0031 U`, rms `0.7093 U`), degrees.
+    pub left_rms_allowed_deg: f64,
+    /// Whether the table still holds: no more cells outside than allowed,
+    /// and what it leaves no larger in rms than the line it may leave.
     pub holds: bool,
+}
+
+/// The rms of a sine that exceeds `U` at exactly 5 % of its readouts, per
+/// unit `U`: amplitude `1 / sin(0.475 pi)`, over the square root of 2.
+pub const LINE_RMS_WITHIN_U: f64 = 0.709_294;
+
+/// The mean square of `x` less what the noise `s2` (each value's variance,
+/// the centring's `1 - 1/n` applied) puts into it, and the least it is at
+/// one-sided rate `rate`; `dof`: the degrees of freedom of the noise's
+/// estimate.
+fn mean_square_left(x: &[(f64, f64)], dof: usize, rate: f64) -> (f64, f64) {
+    let n = x.len() as f64;
+    if x.is_empty() {
+        return (0.0, 0.0);
+    }
+    let keep = 1.0 - 1.0 / n;
+    let ms = x.iter().map(|(v, _)| v * v).sum::<f64>() / n;
+    let noise = x.iter().map(|(_, s2)| s2 * keep).sum::<f64>() / n;
+    let left = ms - noise;
+    // Var(v^2) = 4 m^2 s^2 + 2 s^4 for v ~ N(m, s^2), m^2 estimated by
+    // v^2 - s^2; and the noise's own estimate, 2 s^4 / dof.
+    let var = x.iter().map(|(v, s2)| 4.0 * (v * v - s2).max(0.0) * s2 + 2.0 * s2 * s2).sum::<f64>() / (n * n)
+        + 2.0 * noise * noise / dof.max(1) as f64;
+    let z = normal_two_sided_isf(2.0 * rate);
+    (left.max(0.0), left - z * var.sqrt())
 }
 
 /// Apply `table`, made from survey `a` and stated to leave at most
@@ -400,7 +444,9 @@ pub fn table_on(
     a: &[Sample],
     b: &[Sample],
     alpha: f64,
+    axis_se_deg: [f64; 2],
 ) -> Option<TableCheck> {
+    let axis_var = axis_se_deg[0].powi(2) + axis_se_deg[1].powi(2);
     let corrected = |samples: &[Sample]| -> Vec<Sample> {
         samples
             .iter()
@@ -433,22 +479,34 @@ pub fn table_on(
         }
         None => Vec::new(),
     };
+    // Each tested cell's value (a common cell's move, else its residual) and
+    // its noise variance, the axis each survey's reference fitted included.
+    let mut tested: Vec<(f64, f64)> = Vec::new();
     let (cells_tested, outside, predicted) = if common.len() >= 3 {
         let outside = common.iter().filter(|(_, d, s)| d.abs() > stated_u_deg + 2.0 * s).count();
+        tested.extend(common.iter().map(|(_, d, s)| (*d, s * s + axis_var)));
         // B's cells between A's targets: what the table leaves where it
         // interpolates, held to U itself (no measurement of A to move from).
         let between: Vec<&(CellKey, f64, usize)> =
             residual.iter().filter(|(k, _, _)| ca.as_ref().is_some_and(|ca| !ca.cells.contains_key(k))).collect();
         let beyond =
             between.iter().filter(|(_, r, n)| r.abs() > stated_u_deg + 2.0 * (cb.var / *n as f64).sqrt()).count();
+        tested.extend(between.iter().map(|(_, r, n)| (*r, cb.var / *n as f64 + axis_var)));
         (common.len() + between.len(), outside + beyond, Some(peak(&mut common.iter().map(|c| c.0))))
     } else {
         let outside =
             residual.iter().filter(|(_, r, n)| r.abs() > stated_u_deg + 2.0 * (cb.var / *n as f64).sqrt()).count();
+        tested.extend(residual.iter().map(|(_, r, n)| (*r, cb.var / *n as f64 + axis_var)));
         (residual.len(), outside, None)
     };
+    // Two tests, each at half the rate: the count of cells outside, and the
+    // rms of what the table leaves against the largest line it may leave.
     let p0 = 0.05 + 0.95 * normal_two_sided_sf(2.0);
-    let allowed = binomial_isf(cells_tested, p0, alpha);
+    let allowed = binomial_isf(cells_tested, p0, alpha / 2.0);
+    let dof = ca.as_ref().map_or(cb.dof, |ca| ca.dof.min(cb.dof));
+    let (left_ms, least_ms) = mean_square_left(&tested, dof, alpha / 2.0);
+    let rms_allowed = LINE_RMS_WITHIN_U * stated_u_deg;
+    let rms_beyond = least_ms > rms_allowed * rms_allowed;
     Some(TableCheck {
         residual_peak_deg: peak(&mut residual.iter().map(|r| r.1)),
         residual_rms_deg: (residual.iter().map(|r| r.1 * r.1).sum::<f64>() / residual.len() as f64).sqrt(),
@@ -457,7 +515,10 @@ pub fn table_on(
         cells: cells_tested,
         cells_outside: outside,
         allowed_outside: allowed,
-        holds: outside <= allowed,
+        left_rms_deg: left_ms.sqrt(),
+        left_rms_least_deg: least_ms.max(0.0).sqrt(),
+        left_rms_allowed_deg: rms_allowed,
+        holds: outside <= allowed && !rms_beyond,
     })
 }
 
@@ -548,12 +609,19 @@ pub fn decide(c: &Comparison, table: Option<&TableCheck>, tolerance_deg: Option<
                 None => w.clone(),
             })
             .collect();
-        if let Some(t) = fails {
+        if let Some(t) = fails.filter(|t| t.cells_outside > t.allowed_outside) {
             let predicted = t.predicted_peak_deg.map_or(String::new(), |p| format!(" where it left {p:.2e} deg"));
             why.push(format!(
                 "the table in force no longer holds: it leaves {:.2e} deg{predicted}, {} of {} cells beyond its \
                  stated U {:.2e} deg where {} may be",
                 t.residual_peak_deg, t.cells_outside, t.cells, t.stated_u_deg, t.allowed_outside
+            ));
+        } else if let Some(t) = fails {
+            why.push(format!(
+                "the table in force no longer holds: what it leaves beyond its statement is {:.2e} deg rms over {} \
+                 cells, the noise removed (at least {:.2e} at the test's rate), where a line within its stated U \
+                 {:.2e} deg at 95 % of readouts leaves {:.2e}",
+                t.left_rms_deg, t.cells, t.left_rms_least_deg, t.stated_u_deg, t.left_rms_allowed_deg
             ));
         } else if let Some((t, left)) = estimate {
             why.push(format!(

@@ -160,8 +160,8 @@ pub fn verdict_rows(
 ) -> Vec<Vec<String>> {
     use survey_tables::verification::{Claim, Verdict, judge, peak_deg};
     let mut rows = Vec::new();
-    if p.prediction.no_better_than_native() {
-        rows.push(vec![
+    match p.prediction.not_a_result() {
+        Some(survey_tables::correction::NotAResult::NoBetterThanNative) => rows.push(vec![
             "the table".into(),
             format!(
                 "NOT A RESULT: predicted no better than the native axis (corrected ±{} against native ±{}, with what \
@@ -170,7 +170,17 @@ pub fn verdict_rows(
                 units.show(p.prediction.native_peak_deg)
             ),
             "-".into(),
-        ]);
+        ]),
+        Some(survey_tables::correction::NotAResult::DriftNotCorrected) => rows.push(vec![
+            "the table".into(),
+            format!(
+                "NOT A RESULT: the survey drifted in time in a way no straight line takes (a pass keeps up to ±{}): \
+                 the table carries that drift",
+                units.show(p.prediction.uncorrected_drift_deg.unwrap_or(0.0))
+            ),
+            "-".into(),
+        ]),
+        None => {}
     }
     if let (Some(v), Some(u)) = (v, u_deg)
         && v.native_id == survey_id
@@ -183,7 +193,7 @@ pub fn verdict_rows(
             predicted_deg: predicted,
             u_deg: u,
             native_deg: peak_deg(v.native(own)),
-            not_a_result: p.prediction.no_better_than_native(),
+            not_a_result: p.prediction.not_a_result(),
             shared_reference_u_deg,
         };
         let j = judge(&claim, v.corrected(own), &blind);
