@@ -330,9 +330,16 @@ impl AxisRefit {
             l.x0_mm, l.y0_mm, l.a0_urad, l.b0_urad, l.u_xy_mm, l.u_ab_urad
         );
         if let Some(m) = &l.machine {
+            let terms = match (m.u_xy_alignment_mm, m.u_ab_alignment_urad) {
+                (Some(xy), Some(ab)) => format!(
+                    ": the fit's {:.3} mm, {:.1} urad; the alignment's {xy:.3} mm, {ab:.1} urad",
+                    m.u_xy_fit_mm, m.u_ab_fit_urad
+                ),
+                _ => ", the frame taken as stated".into(),
+            };
             s += &format!(
                 "axis average line (ISO 230-1, machine frame): X0 {:.3} mm, Y0 {:.3} mm (at the machine's z = 0), A0 \
-                 {:.1} urad, B0 {:.1} urad (U = {:.3} mm, {:.1} urad, k = 2)\n",
+                 {:.1} urad, B0 {:.1} urad (U = {:.3} mm, {:.1} urad, k = 2{terms})\n",
                 m.x0_mm, m.y0_mm, m.a0_urad, m.b0_urad, m.u_xy_mm, m.u_ab_urad
             );
         }
@@ -356,6 +363,9 @@ impl AxisRefit {
         if let Some(t) = &m.tilt_urad {
             let how = if t.method == "phases" { "at several phases" } else { "at two heights" };
             line(&format!("tilt ({} SMRs {how})", t.smrs), "urad", t);
+        }
+        if let Some(t) = &m.tilt_across_urad {
+            line(&format!("tilt across, at 90 deg to the first SMR's radial direction ({} SMRs)", t.smrs), "urad", t);
         }
         s
     }

@@ -68,6 +68,8 @@ pub struct PolarPoint {
     pub radial_um: f64,
     pub axial_um: f64,
     pub tilt_urad: Option<f64>,
+    /// The tilt at 90 degrees to the first SMR's radial direction, urad.
+    pub tilt_across_urad: Option<f64>,
     /// The axial motion on the axis (SMRs at several phases), um.
     pub axial_on_axis_um: Option<f64>,
 }
@@ -203,6 +205,7 @@ impl Figures {
         radial: &[f64],
         axial: &[f64],
         tilt: Option<&[f64]>,
+        across: Option<&[f64]>,
         on_axis: Option<&[f64]>,
     ) -> Vec<PolarPoint> {
         let mean = |v: &[f64], ix: &[usize]| ix.iter().map(|&i| v[i]).sum::<f64>() / ix.len() as f64;
@@ -216,6 +219,7 @@ impl Figures {
                     radial_um: mean(radial, ix),
                     axial_um: mean(axial, ix),
                     tilt_urad: tilt.map(|t| mean(t, ix)),
+                    tilt_across_urad: across.map(|t| mean(t, ix)),
                     axial_on_axis_um: on_axis.map(|a| mean(a, ix)),
                 });
             }

@@ -27,6 +27,8 @@
 //!    motion on the axis (E_ZC: the part of their axial motions common to
 //!    them) and the tilt (from their difference over their separation); of
 //!    the two tilts the one with the smaller `U` is reported, and says which.
+//!    Three or more SMRs at spread phases also give the tilt at 90 degrees to
+//!    the first SMR's radial direction (`tilt_across_urad`).
 //! 4. Per target and direction, the synchronous motion is the mean over the
 //!    runs; the asynchronous the spread across them. The figures, per
 //!    direction (the larger of the two is reported): total = the largest
@@ -89,6 +91,10 @@ pub struct ErrorMotions {
     /// without two SMRs at one phase and different heights or at phases
     /// that separate it ([`phases`]).
     pub tilt_urad: Option<Tilt>,
+    /// Tilt error motion, urad, at 90 degrees to the first SMR's radial
+    /// direction (toward increasing angle: `t2` of [`phases`]): `None`
+    /// without three or more SMRs at phases spread in both directions.
+    pub tilt_across_urad: Option<Tilt>,
     /// Axial error motion on the axis (E_ZC), um: `None` without SMRs at
     /// phases that separate it from the tilt ([`phases`]).
     pub axial_on_axis_um: Option<Block>,
@@ -139,9 +145,9 @@ pub const METHOD: &str = "ISO 230-7 from the tracker's SMR positions: each SMR's
                           (centring and the axis's tilt removed), radial in the SMR's radial direction (rotating \
                           sensitive direction), axial as face motion at its radius, tilt from two SMRs at one phase \
                           and different heights or from SMRs at opposite or spread phases (then also the axial motion \
-                          on the axis); synchronous = the mean over runs, asynchronous = the spread across \
-                          runs, total = the peak-to-valley of every reading; U (k = 2) from the tracker's MPE and its \
-                          random error";
+                          on the axis; at spread phases also the tilt across the first SMR's radial direction); \
+                          synchronous = the mean over runs, asynchronous = the spread across runs, total = the \
+                          peak-to-valley of every reading; U (k = 2) from the tracker's MPE and its random error";
 
 /// The error motions of a survey; `None` when the first SMR's positions do
 /// not locate an axis (fewer than 3, degenerate) or a track's length is not
@@ -182,7 +188,7 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
     let points: Vec<&[[f64; 3]]> = input.tracks.iter().map(|t| t.points_mm).collect();
     let separated =
         fits.ok_or_else(|| "an SMR cannot be fitted".to_string()).and_then(|f| separate(&points, &f, &readouts));
-    let (on_axis, by_phases) = match separated {
+    let (on_axis, by_phases, across) = match separated {
         Ok(s) => {
             let phases: Vec<String> = s.phases_deg.iter().map(|p| format!("{p:.1}")).collect();
             notes.push(format!(
@@ -197,13 +203,26 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
                 smrs: s.smrs,
                 series: s.tilt_urad,
             };
-            (Some((on_axis, s.axial_um)), Some(tilt))
+            let across = s.tilt_across.map(|(series, scale)| Tilt {
+                block: figures.block(&series, scale),
+                method: "phases",
+                smrs: s.smrs,
+                series,
+            });
+            if across.is_none() {
+                notes.push(
+                    "no tilt at 90 deg to the first SMR's radial direction: SMRs on one line (0 and 180 deg) cannot \
+                     see it; three or more at spread phases (0, 120, 240 deg) measure it"
+                        .into(),
+                );
+            }
+            (Some((on_axis, s.axial_um)), Some(tilt), across)
         }
         Err(why) => {
             if input.tracks.len() > 1 {
                 notes.push(format!("no axial motion on the axis: {why}"));
             }
-            (None, None)
+            (None, None, None)
         }
     };
     // Of two ways to the tilt, the one with the smaller U.
@@ -222,6 +241,13 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
         notes.push("one run: no asynchronous motion (it is the spread across runs)".into());
     }
     let location = Location::of(&first.fit, figures.e_t_um(), input.frame.as_ref());
+    if location.machine.is_some_and(|m| m.u_xy_alignment_mm.is_none()) {
+        notes.push(
+            "the machine's frame is taken as stated: its alignment's uncertainty is not in the location's U ([machine_frame] \
+             origin_u_mm, rotation_u_deg state it)"
+                .into(),
+        );
+    }
     if input.frame.is_some() && location.machine.is_none() {
         notes.push(
             "no location in the machine's frame: the axis is more than 60 deg from its z axis ([machine_frame] \
@@ -233,6 +259,7 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
         &first.radial_um,
         &first.axial_um,
         tilt.as_ref().map(|t| t.series.as_slice()),
+        across.as_ref().map(|t| t.series.as_slice()),
         on_axis.as_ref().map(|(_, a)| a.as_slice()),
     );
     Some(ErrorMotions {
@@ -240,6 +267,7 @@ pub fn error_motions(input: &Input) -> Option<ErrorMotions> {
         radial_um: radial,
         axial_um: axial,
         tilt_urad: tilt,
+        tilt_across_urad: across,
         axial_on_axis_um: on_axis.map(|(b, _)| b),
         detection_limit_um,
         radius_mm: first.fit.radius_mm,

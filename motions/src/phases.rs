@@ -16,9 +16,11 @@
 //! its own once-per-revolution part (the fundamental axial error motion:
 //! the axis's tilt cannot make one on the axis).
 //!
-//! At each sample `Z` and `t1` are the least-squares solution of the SMRs'
-//! equations: `Z = sum wz_k a_k`, `t1 = sum wt_k a_k`, the weights the same
-//! at every sample (they depend on the SMRs' places only). Which equations:
+//! At each sample `Z` and `t1` (and `t2`) are the least-squares solution of
+//! the SMRs' equations: `Z = sum wz_k a_k`, `t1 = sum wt_k a_k`, the weights
+//! the same at every sample (they depend on the SMRs' places only). The
+//! normal's once-per-revolution term lands in `t2` as in `t1`, and is taken
+//! out of it alike. Which equations:
 //!
 //! - the phases spread in the plane (three or more, the scatter of their
 //!   directions at least 0.05 in every direction, e.g. 0/120/240 or
@@ -38,12 +40,15 @@ use crate::figures::Scale;
 use survey_processing::geometry::AxisFit;
 
 /// The axial motion on the axis and the tilt in the first SMR's radial
-/// direction at every sample, with their weights' scaling.
+/// direction at every sample, with their weights' scaling; the tilt at 90
+/// degrees to it where the phases spread (three or more SMRs).
 pub(crate) struct Separated {
     pub axial_um: Vec<f64>,
     pub tilt_urad: Vec<f64>,
     pub axial: Scale,
     pub tilt: Scale,
+    /// `t2`, urad, and its scaling: `None` for SMRs on one line (0 and 180).
+    pub tilt_across: Option<(Vec<f64>, Scale)>,
     /// How many SMRs took part.
     pub smrs: usize,
     /// The measured phases, degrees from the first's.
@@ -167,11 +172,13 @@ pub(crate) fn separate(points: &[&[[f64; 3]]], fits: &[AxisFit], readouts: &[f64
     };
     let on_axis = combine(&w[0]);
     let tilt = without_once_per_rev(&combine(&w[1]), readouts);
+    let tilt_across = w.get(2).map(|w2| (without_once_per_rev(&combine(w2), readouts), Scale::of_weights(w2)));
     Ok(Separated {
         axial_um: on_axis,
         tilt_urad: tilt,
         axial: Scale::of_weights(&w[0]),
         tilt: Scale::of_weights(&w[1]),
+        tilt_across,
         smrs: points.len(),
         phases_deg: phases,
     })

@@ -246,6 +246,14 @@ fn three_smrs_spread_and_a_pair_at_one_phase_choose_the_better_tilt() {
     let (got, truth) = on_axis_and_tilt(&e, &m, 72);
     // As above; three SMRs' least squares weigh the axial 1/3 each, the tilt 2/3, -1/3, -1/3 over 1 m.
     assert!((got.0 - truth.0).abs() < 12.0 && (got.1 - truth.1).abs() < 12.0, "{got:?} {truth:?}");
+    tilt_across_against_the_truth(&e, &m, 72);
+    // Two opposite SMRs cannot see the tilt across their line: none, said.
+    let pair = [SmrMount { phase_deg: 0.0, height_mm: 50.0 }, SmrMount { phase_deg: 180.0, height_mm: 50.0 }];
+    let (samples, tracks) = survey(36, 2, &pair, &m, 3.5);
+    let e = run(&samples, &tracks, &pair);
+    assert!(e.tilt_urad.is_some() && e.tilt_across_urad.is_none(), "{:?}", e.tilt_across_urad);
+    assert!(e.notes.iter().any(|n| n.contains("no tilt at 90 deg")), "{:?}", e.notes);
+    assert!(serde_json::to_value(&e).unwrap()["tilt_across_urad"].is_null());
     // Two at one phase 300 mm apart and one opposite: both ways to the tilt; the phases' (2 m apart) is the better.
     let mixed = [
         SmrMount { phase_deg: 0.0, height_mm: 50.0 },
@@ -276,11 +284,11 @@ fn the_location_in_a_stated_machine_frame_against_the_truth() {
     let (s, c) = (-30f64).to_radians().sin_cos();
     let turned = [c * n[0] - s * n[1], s * n[0] + c * n[1], n[2]];
     let rotation_deg = [(-turned[1]).asin().to_degrees(), turned[0].atan2(turned[2]).to_degrees(), 30.0];
-    let r = MachineFrame { origin_mm: [0.0; 3], rotation_deg }.rotation();
+    let r = MachineFrame { origin_mm: [0.0; 3], rotation_deg, ..Default::default() }.rotation();
     assert!((0..3).all(|i| (r[i][2] - n[i]).abs() < 1e-12), "the machine's z is the axis");
     let at = [10.0, -20.0, 35.0];
     let origin_mm: [f64; 3] = std::array::from_fn(|i| CENTRE[i] - (0..3).map(|j| r[i][j] * at[j]).sum::<f64>());
-    let frame = MachineFrame { origin_mm, rotation_deg };
+    let frame = MachineFrame { origin_mm, rotation_deg, ..Default::default() };
     let tracks_of = || tracks.iter().zip(&mounts).map(|(p, m)| Track { mount: *m, points_mm: p }).collect();
     let input = Input { samples: &samples, tracks: tracks_of(), mpe: TransverseMpe::AT_CLASS, frame: Some(frame) };
     let e = error_motions(&input).expect("figures");
@@ -303,9 +311,81 @@ fn the_location_in_a_stated_machine_frame_against_the_truth() {
     let json = serde_json::to_value(&e).unwrap();
     assert!(json["location"]["machine"]["x0_mm"].is_f64() && json["location"]["x0_mm"].is_f64());
     assert!(run(&samples, &tracks, &mounts).location.machine.is_none(), "no frame stated: none");
+    assert!((l.u_xy_fit_mm, l.u_ab_fit_urad) == (l.u_xy_mm, l.u_ab_urad) && l.u_xy_alignment_mm.is_none());
+    assert!(e.notes.iter().any(|n| n.contains("taken as stated")), "{:?}", e.notes);
+    // The frame as an alignment states it: off the true one by 0.08 mm along the tracker's x and 0.006 deg about
+    // its x, within its stated U of 0.1 mm and 0.01 deg. The location against the true frame's truth is off by
+    // more than the fit's U, and within the combined one.
+    let mut off = frame;
+    off.origin_mm[0] += 0.08;
+    off.rotation_deg[0] += 0.006;
+    off.origin_u_mm = Some(0.1);
+    off.rotation_u_deg = Some(0.01);
+    let input = Input { samples: &samples, tracks: tracks_of(), mpe: TransverseMpe::AT_CLASS, frame: Some(off) };
+    let e = error_motions(&input).expect("figures");
+    let l = e.location.machine.expect("a C axis's frame");
+    assert!((l.x0_mm - 10.0).abs() > l.u_xy_fit_mm && (l.a0_urad.abs() > l.u_ab_fit_urad), "{l:?}");
+    for (got, truth, u) in [
+        (l.x0_mm, 10.0, l.u_xy_mm),
+        (l.y0_mm, -20.0, l.u_xy_mm),
+        (l.a0_urad, 0.0, l.u_ab_urad),
+        (l.b0_urad, 0.0, l.u_ab_urad),
+    ] {
+        assert!((got - truth).abs() <= u, "{got} against {truth} +/- {u}: {l:?}");
+    }
+    // The terms: the origin's U moves X0C, Y0C by itself (a shift of the frame), the rotation's about z by the
+    // line's 22 mm from the machine's origin times 175 urad (4 um); the rotations about x and y move A0C, B0C by
+    // 0.01 deg (174.5 urad) each.
+    let (a_xy, a_ab) = (l.u_xy_alignment_mm.unwrap(), l.u_ab_alignment_urad.unwrap());
+    assert!((0.1..0.1002).contains(&a_xy), "{l:?}");
+    assert!((a_ab - 0.01f64.to_radians() * 1e6).abs() < 0.5, "{l:?}");
+    assert!(
+        (l.u_xy_mm - l.u_xy_fit_mm.hypot(a_xy)).abs() < 1e-12
+            && (l.u_ab_urad - l.u_ab_fit_urad.hypot(a_ab)).abs() < 1e-9
+    );
+    assert_eq!((l.origin_u_mm, l.rotation_u_deg), (Some(0.1), Some(0.01)));
+    assert!(!e.notes.iter().any(|n| n.contains("taken as stated")), "{:?}", e.notes);
     // A frame on its side (the axis along the machine's x): not a C axis's frame, said.
-    let side = MachineFrame { origin_mm, rotation_deg: [0.0, 90.0, 0.0] };
+    let side = MachineFrame { origin_mm, rotation_deg: [0.0, 90.0, 0.0], ..Default::default() };
     let input = Input { samples: &samples, tracks: tracks_of(), mpe: TransverseMpe::AT_CLASS, frame: Some(side) };
     let e = error_motions(&input).expect("figures");
     assert!(e.location.machine.is_none() && e.notes.iter().any(|n| n.contains("60 deg")), "{:?}", e.notes);
+}
+
+/// The tilt at 90 deg to the first SMR's radial direction (`t2`) against the
+/// model's: a tilt of the table has a direction, the model's `T sin(k theta +
+/// phi + delta)` at an SMR `delta` from the first is `t1 cos delta + t2 sin
+/// delta` with `t2` the tilt "in the radial direction" of an SMR mounted 90 deg
+/// on (`tilt_urad(theta, 90)`). Its synchronous figure within its `U`, and its
+/// mean curve within half of it at every target (the random part of `U_sync`
+/// bounds a peak-to-valley of two points, each by half; this tracker is
+/// exact): the curve is `t2`'s, not `t1`'s (which is off by more).
+fn tilt_across_against_the_truth(e: &ErrorMotions, m: &AxisMotions, points: usize) -> (f64, f64) {
+    let across = e.tilt_across_urad.as_ref().expect("three SMRs at spread phases measure it");
+    assert_eq!((across.method, across.smrs), ("phases", 3));
+    let truth = pv(points, |t| m.tilt_urad(t, 90.0));
+    let got = across.synchronous.expect("above the limit");
+    assert!(
+        (got - truth).abs() <= across.u_synchronous,
+        "tilt across {got} against {truth} +/- {}",
+        across.u_synchronous
+    );
+    let (mut worst, mut as_t1) = (0.0f64, 0.0f64);
+    for p in &e.polar {
+        let v = p.tilt_across_urad.expect("in the polar points");
+        worst = worst.max((v - m.tilt_urad(p.target_deg, 90.0)).abs());
+        as_t1 = as_t1.max((v - m.tilt_urad(p.target_deg, 0.0)).abs());
+    }
+    assert!(worst <= across.u_synchronous / 2.0, "t2's curve off by {worst} urad (U {})", across.u_synchronous);
+    assert!(as_t1 > across.u_synchronous, "the curve is t2's, not t1's: {as_t1}");
+    // U as the tilt's: three SMRs at 0, 120, 240 deg weigh t2 0, +-1/sqrt(3) over 1 m: the MPE by 2/sqrt(3), the
+    // random bound by sqrt(2/3).
+    let t1 = e.tilt_urad.as_ref().unwrap();
+    assert!(across.u_asynchronous < t1.u_asynchronous + 0.5, "{across:?} {t1:?}");
+    let json = serde_json::to_value(e).unwrap();
+    for key in ["total", "synchronous", "asynchronous", "u", "below_detection_limit", "method", "smrs"] {
+        assert!(json["tilt_across_urad"].get(key).is_some(), "tilt_across_urad.{key}");
+    }
+    assert!(json["polar"][0]["tilt_across_urad"].is_f64());
+    (got, truth)
 }

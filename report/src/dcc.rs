@@ -663,6 +663,9 @@ fn motions(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     if let Some(t) = &m.tilt_urad {
         blocks.push(("Tilt", "tilt", &t.block, URAD));
     }
+    if let Some(t) = &m.tilt_across_urad {
+        blocks.push(("TiltAcross", "tilt (at 90 deg to the first SMR's radial direction)", &t.block, URAD));
+    }
     for (tag, name, b, unit) in blocks {
         for (kind, value, u) in [
             ("Total", b.total, b.u_total),

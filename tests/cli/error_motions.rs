@@ -51,6 +51,15 @@ phases_deg = [0, 180]
 /// 10 mm, -20 mm off it (and 35 mm below the axis's point): `[machine_frame]`
 /// with `R = Ry(ry) Rx(rx)` (fixed x then y) taking z to the axis.
 fn machine_frame() -> String {
+    let (o, r) = frame_values();
+    format!(
+        "[machine_frame]\norigin_mm = [{}, {}, {}]\nrotation_deg = [{}, {}, {}]\n",
+        o[0], o[1], o[2], r[0], r[1], r[2]
+    )
+}
+
+/// The true frame's `origin_mm` and `rotation_deg` (see [`machine_frame`]).
+fn frame_values() -> ([f64; 3], [f64; 3]) {
     let (t, w) = (0.3f64.to_radians(), 30f64.to_radians());
     let n = [t.sin() * w.cos(), t.sin() * w.sin(), t.cos()];
     let (rx, ry) = (-n[1].asin(), n[0].atan2(n[2]));
@@ -64,14 +73,7 @@ fn machine_frame() -> String {
     let z = rotate([0.0, 0.0, 1.0]);
     assert!((0..3).all(|i| (z[i] - n[i]).abs() < 1e-12), "the machine's z is the axis");
     let o = [2500.0 - off[0], 800.0 - off[1], -300.0 - off[2]];
-    format!(
-        "[machine_frame]\norigin_mm = [{}, {}, {}]\nrotation_deg = [{}, {}, 0]\n",
-        o[0],
-        o[1],
-        o[2],
-        rx.to_degrees(),
-        ry.to_degrees()
-    )
+    (o, [rx.to_degrees(), ry.to_degrees(), 0.0])
 }
 
 fn num(v: &Value, what: &str) -> f64 {
@@ -222,4 +224,103 @@ fn history_and_compare_show_a_growing_wobble() {
     let c = bench.survey(&["compare", "1", "2", "--json"]).success().json();
     let change = &c["error_motions"]["radial_total_change_um"];
     assert!(num(&change["change"], "change") > 100.0 && change["significant"] == true, "{c}");
+}
+
+/// Three SMRs at 0, 120 and 240 deg measure the tilt across the first SMR's
+/// radial direction too (`tilt_across_urad`); and a machine frame stated as
+/// an alignment states it, off the true one by less than its stated U, gives
+/// the location within the combined U (the fit's and the alignment's).
+#[test]
+fn three_smrs_give_the_tilt_across_and_the_alignments_u_is_in_the_machine_frames() {
+    let bench = Bench::new();
+    // The true frame, then 0.08 mm off along the tracker's x and 0.006 deg off about its x; U 0.1 mm, 0.01 deg.
+    let (mut o, mut r) = frame_values();
+    o[0] += 0.08;
+    r[0] += 0.006;
+    let frame = format!(
+        "[machine_frame]\norigin_mm = [{}, {}, {}]\nrotation_deg = [{}, {}, {}]\norigin_u_mm = 0.1\nrotation_u_deg = 0.01\n",
+        o[0], o[1], o[2], r[0], r[1], r[2]
+    );
+    let model = MOVING.replace("phases_deg = [0, 180]", "phases_deg = [0, 120, 240]");
+    bench.write("three.toml", format!("{model}\n{frame}"));
+    bench.survey(&["run", "--points", "72", "--runs", "2", "--bidirectional", "--model", "three.toml"]).success();
+    let doc = bench.survey(&["process", "--json"]).success().json();
+    let m = &doc["error_motions"];
+    // The model's tilt (2 cpr, 200 urad) at an SMR mounted 90 deg on from the first: t2's truth.
+    let truth = pv(72, |t| 200.0 * (2.0 * t + 90.0).to_radians().sin());
+    let across = &m["tilt_across_urad"];
+    for key in ["total", "synchronous", "asynchronous", "u"] {
+        assert!(across.get(key).is_some(), "tilt_across_urad.{key}: {m}");
+    }
+    let (got, u) = (num(&across["synchronous"], "t2"), num(&across["u"], "its U"));
+    assert!((got - truth).abs() <= u, "tilt across: {got} against the model's {truth}, U = {u}");
+    assert_eq!((across["method"].as_str(), across["smrs"].as_u64()), (Some("phases"), Some(3)), "{m}");
+    let t1 = num(&m["tilt_urad"]["synchronous"], "t1");
+    assert!((t1 - pv(72, |t| 200.0 * (2.0 * t).to_radians().sin())).abs() <= num(&m["tilt_urad"]["u"], "U"), "{m}");
+    // The machine frame: off the truth by more than the fit's U, within the combined one.
+    let l = &m["location"]["machine"];
+    let x0 = num(&l["x0_mm"], "x0");
+    assert!((x0 - 10.0).abs() > num(&l["u_xy_fit_mm"], "the fit's U"), "{l}");
+    for (key, truth, u) in [("x0_mm", 10.0, "u_xy_mm"), ("y0_mm", -20.0, "u_xy_mm"), ("a0_urad", 0.0, "u_ab_urad")] {
+        let (got, u) = (num(&l[key], key), num(&l[u], u));
+        assert!((got - truth).abs() <= u, "machine {key}: {got} against {truth}, U = {u}");
+    }
+    let (xy, ab) = (num(&l["u_xy_alignment_mm"], "alignment xy"), num(&l["u_ab_alignment_urad"], "alignment ab"));
+    assert!((0.1..0.1002).contains(&xy) && (ab - 174.53).abs() < 0.5, "the stated U's share: {l}");
+    assert_eq!((l["origin_u_mm"].as_f64(), l["rotation_u_deg"].as_f64()), (Some(0.1), Some(0.01)));
+    let text = bench.survey(&["process"]).success().stdout;
+    for line in [
+        "error motion (ISO 230-7) tilt across, at 90 deg to the first SMR's radial direction (3 SMRs): total",
+        "the alignment's 0.100 mm, 174.5 urad",
+    ] {
+        assert!(text.contains(line), "{line}\n{text}");
+    }
+    bench.survey(&["report", "--out", "r"]).success();
+    assert!(bench.read("r/index.html").contains("tilt across, at 90° to the first SMR"), "the report's table");
+    let dcc = bench.read("r/dcc.xml");
+    assert!(dcc.contains("survey_motionTiltAcrossSynchronous"), "the DCC carries the tilt across");
+    if super::dcc::validator_missing().is_none() {
+        super::dcc::validate(&bench, &["r/dcc.xml"]);
+    }
+    // A bad alignment uncertainty: exit 2 naming the file, the line and the key; nothing stored.
+    let before = bench.survey(&["list", "--json"]).success().stdout;
+    bench.write("bad.toml", format!("{MOVING}\n[machine_frame]\norigin_mm = [0, 0, 0]\norigin_u_mm = -1\n"));
+    let line = format!("bad.toml:{}", MOVING.lines().count() + 4);
+    bench.survey(&["run", "--points", "24", "--model", "bad.toml"]).bad_input(&[&line, "origin_u_mm"]);
+    assert_eq!(bench.survey(&["list", "--json"]).success().stdout, before, "nothing stored");
+}
+
+/// `survey sim --model` with a `[machine_frame]`: the configuration to run
+/// against states the simulated bench's frame (as `survey run --model`
+/// stores it), so a survey against the served instruments gives the
+/// location in it.
+#[test]
+fn survey_sim_passes_the_models_machine_frame() {
+    let bench = Bench::new();
+    bench.write("frame.toml", format!("{}origin_u_mm = 0.05\n", machine_frame()));
+    bench.write(
+        "sim.toml",
+        "[survey]\npoints = 12\nruns = 2\nbidirectional = true\nreference = \"tracker\"\n\
+         [positioner]\ndriver = \"modbus-tcp\"\naddress = \"127.0.0.1:0\"\n\
+         [tracker]\ndriver = \"emscon\"\naddress = \"127.0.0.1:0\"\n[timing]\ndwell_s = 0.01\nlocate_points = 4\n",
+    );
+    let (sim, ready) =
+        super::drift::Sim::serve(&bench, &["--config", "sim.toml", "--model", "frame.toml", "--time-scale", "500"]);
+    let config = ready["config"].as_str().expect("the configuration to run against").to_string();
+    let written: toml::Table = std::fs::read_to_string(&config).unwrap().parse().unwrap();
+    let f = &written["machine_frame"];
+    let (o, r) = frame_values();
+    let three = |k: &str| -> Vec<f64> { f[k].as_array().unwrap().iter().map(|v| v.as_float().unwrap()).collect() };
+    assert_eq!((three("origin_mm"), three("rotation_deg")), (o.to_vec(), r.to_vec()), "{written}");
+    assert_eq!(f["origin_u_mm"].as_float(), Some(0.05));
+    bench.survey(&["run", "--config", &config]).success();
+    drop(sim);
+    let doc = bench.survey(&["process", "--json"]).success().json();
+    let l = &doc["error_motions"]["location"]["machine"];
+    assert_eq!(l["origin_mm"].as_array().map(|a| a.len()), Some(3), "the frame reached the survey: {doc}");
+    for (key, truth, u) in [("x0_mm", 10.0, "u_xy_mm"), ("y0_mm", -20.0, "u_xy_mm"), ("a0_urad", 0.0, "u_ab_urad")] {
+        let (got, u) = (num(&l[key], key), num(&l[u], u));
+        assert!((got - truth).abs() <= u, "machine {key}: {got} against {truth}, U = {u}");
+    }
+    assert!(num(&l["u_xy_alignment_mm"], "the alignment's") >= 0.05, "{l}");
 }

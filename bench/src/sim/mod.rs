@@ -232,6 +232,17 @@ pub async fn serve(cfg: &SurveyConfig, opts: &SimOptions) -> anyhow::Result<Serv
         opts.seed,
         opts.time_scale
     ));
+    if let Some(frame) = opts.model.as_ref().and_then(|m| m.machine_frame.as_ref()) {
+        if cfg.reference() == survey_acquire::ReferenceKind::Tracker {
+            served.stand_ins.machine_frame(frame, cfg.machine_frame.is_some());
+        } else {
+            served.stand_ins.moved.push(
+                "machine_frame: the model file's is left out (it locates the axis for the tracker; the reference is \
+                 the autocollimator)"
+                    .into(),
+            );
+        }
+    }
     served.positioner(cfg, bench.positioner, &mut relays).await?;
     // The reference instruments (both may be configured; each is served).
     if let Some(TrackerConfig::Emscon { address, .. }) = &cfg.tracker {

@@ -100,6 +100,22 @@ impl StandIns {
         self.rewrites.push((section, key, None));
     }
 
+    /// The simulated bench's machine frame (a model file's
+    /// `[machine_frame]`): the configuration to run against states it, as
+    /// `survey run --model` stores it with the survey, in place of any the
+    /// configuration gave (that is the real bench's).
+    pub fn machine_frame(&mut self, f: &survey_processing::frame::MachineFrame, configured: bool) {
+        let three = |v: [f64; 3]| Some(toml::Value::Array(v.map(toml::Value::Float).to_vec()));
+        self.rewrites.push(("machine_frame", "origin_mm", three(f.origin_mm)));
+        self.rewrites.push(("machine_frame", "rotation_deg", three(f.rotation_deg)));
+        self.rewrites.push(("machine_frame", "origin_u_mm", f.origin_u_mm.map(toml::Value::Float)));
+        self.rewrites.push(("machine_frame", "rotation_u_deg", f.rotation_u_deg.map(toml::Value::Float)));
+        self.moved.push(format!(
+            "machine_frame: the model file's (the simulated bench's){}",
+            if configured { ", in place of the configuration's" } else { "" }
+        ));
+    }
+
     /// Write the configuration to run against: `original` (the text of
     /// `source`) with the served addresses, in the sim's folder; its path.
     pub fn write_config(&self, original: &str, source: &Path) -> anyhow::Result<PathBuf> {
@@ -175,6 +191,25 @@ mod tests {
         );
         assert_eq!((p["driver"].as_str(), p["node_id"].as_integer()), (Some("canopen"), Some(5)));
         assert_eq!(cfg["tracker"]["address"].as_str(), Some("127.0.0.1:4000"));
+        assert!(cfg.get("machine_frame").is_none(), "none stated, none written");
+        // A model file's machine frame replaces the configuration's, keys and all.
+        let frame = survey_processing::frame::MachineFrame {
+            origin_mm: [2500.0, 800.0, -300.0],
+            rotation_deg: [0.0, 0.3, 30.0],
+            origin_u_mm: Some(0.05),
+            rotation_u_deg: None,
+        };
+        s.machine_frame(&frame, true);
+        let original = format!("{original}[machine_frame]\norigin_mm = [0, 0, 0]\nrotation_u_deg = 1\n");
+        let text = std::fs::read_to_string(s.write_config(&original, std::path::Path::new("/x/bench.toml")).unwrap());
+        let written: toml::Table = text.unwrap().parse().unwrap();
+        let parsed = survey_processing::frame::parse_section(
+            written["machine_frame"].as_table().unwrap(),
+            "machine_frame",
+            &|_| None,
+        );
+        assert_eq!(parsed, Ok(frame));
+        assert!(s.moved.last().unwrap().contains("in place of the configuration's"), "{:?}", s.moved);
         let dir = s.dir().to_path_buf();
         drop(s);
         assert!(!dir.exists(), "the folder goes with the sim");

@@ -10,7 +10,7 @@ use crate::plot::{self, GREY, INK, SKY, VERMILLION, hex, render};
 use plotters::prelude::*;
 use survey_motions::{Block, ErrorMotions, PolarPoint};
 
-/// The polar plots' canvas, pixels: the panels side by side.
+/// The polar plots' canvas, pixels: a row of panels side by side.
 const PANELS: (u32, u32) = (plot::WIDTH, 380);
 
 /// A figure or "below the detection limit".
@@ -44,6 +44,9 @@ pub fn figures_table(m: &ErrorMotions) -> String {
         let how = if t.method == "phases" { "SMRs at several phases" } else { "SMRs at two heights" };
         row(format!("tilt ({how}), µrad"), "", t);
     }
+    if let Some(t) = &m.tilt_across_urad {
+        row("tilt across, at 90° to the first SMR's radial direction, µrad".into(), "", t);
+    }
     let l = &m.location;
     let mut frames = vec![vec![
         "tracker frame".into(),
@@ -54,13 +57,20 @@ pub fn figures_table(m: &ErrorMotions) -> String {
         format!("{:.3} mm, {:.1} µrad", l.u_xy_mm, l.u_ab_urad),
     ]];
     if let Some(m) = &l.machine {
+        let terms = match (m.u_xy_alignment_mm, m.u_ab_alignment_urad) {
+            (Some(xy), Some(ab)) => format!(
+                " (the fit's {:.3} mm, {:.1} µrad; the alignment's {xy:.3} mm, {ab:.1} µrad)",
+                m.u_xy_fit_mm, m.u_ab_fit_urad
+            ),
+            _ => " (the frame taken as stated)".into(),
+        };
         frames.push(vec![
             "machine frame (X0C, Y0C at its z = 0)".into(),
             format!("{:.3}", m.x0_mm),
             format!("{:.3}", m.y0_mm),
             format!("{:.1}", m.a0_urad),
             format!("{:.1}", m.b0_urad),
-            format!("{:.3} mm, {:.1} µrad", m.u_xy_mm, m.u_ab_urad),
+            format!("{:.3} mm, {:.1} µrad{}", m.u_xy_mm, m.u_ab_urad, escape(&terms)),
         ]);
     }
     let location = table(
@@ -132,13 +142,17 @@ pub fn body(m: &ErrorMotions) -> anyhow::Result<String> {
         ("axial (face), µm", "µm", |p: &PolarPoint| Some(p.axial_um)),
         ("axial on the axis, µm", "µm", |p: &PolarPoint| p.axial_on_axis_um),
         ("tilt, µrad", "µrad", |p: &PolarPoint| p.tilt_urad),
+        ("tilt across, µrad", "µrad", |p: &PolarPoint| p.tilt_across_urad),
     ]
     .into_iter()
     .filter(|(_, _, value)| m.polar.iter().any(|p| value(p).is_some()))
     .collect();
     let mut spans = Vec::new();
-    let svg = render(PANELS, |root| {
-        for ((title, unit, value), area) in plots.iter().zip(root.split_evenly((1, plots.len().max(1)))) {
+    // Up to four panels side by side; five (the tilt across too) in two rows of three.
+    let rows = if plots.len() > 4 { 2 } else { 1 };
+    let columns = plots.len().div_ceil(rows).max(1);
+    let svg = render((PANELS.0, PANELS.1 * rows as u32), |root| {
+        for ((title, unit, value), area) in plots.iter().zip(root.split_evenly((rows, columns))) {
             spans.push(format!("{title}: {:.1} {unit}", polar(&area, &m.polar, *value, title)?));
         }
         Ok(())

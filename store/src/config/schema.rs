@@ -107,6 +107,8 @@ pub(super) const ROOT: &[Field] = &[
         Ty::Table(&[
             req("origin_mm", Ty::Triple(Low::From(-MAX_ORIGIN_MM), MAX_ORIGIN_MM, "mm")),
             opt("rotation_deg", Ty::Triple(Low::From(-360.0), 360.0, "deg")),
+            opt("origin_u_mm", Ty::Number(Low::From(0.0), survey_processing::frame::MAX_ORIGIN_U_MM, "mm")),
+            opt("rotation_u_deg", Ty::Number(Low::From(0.0), survey_processing::frame::MAX_ROTATION_U_DEG, "deg")),
         ]),
     ),
 ];

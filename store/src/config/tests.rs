@@ -283,7 +283,16 @@ fn the_machine_frame_is_stored_with_the_survey_and_checked() {
     assert_eq!(serde_json::from_str::<SurveyConfig>(&text).unwrap(), cfg);
     let only = SurveyConfig::parse(&format!("{TRACKER_BENCH}[machine_frame]\norigin_mm = [0, 0, 0]\n"), "c.toml");
     assert_eq!(only.unwrap().machine_frame.unwrap().rotation_deg, [0.0; 3]);
+    // The alignment's uncertainty, stated (optional): read and stored.
+    let stated = format!("{TRACKER_BENCH}{frame}origin_u_mm = 0.05\nrotation_u_deg = 0.01\n");
+    let cfg = SurveyConfig::parse(&stated, "c.toml").unwrap();
+    let f = cfg.machine_frame.unwrap();
+    assert_eq!((f.origin_u_mm, f.rotation_u_deg), (Some(0.05), Some(0.01)));
+    assert_eq!(serde_json::from_str::<SurveyConfig>(&serde_json::to_string(&cfg).unwrap()).unwrap(), cfg);
     for (bad, says) in [
+        ("origin_mm = [1, 2, 3]\norigin_u_mm = -1\n", "c.toml:9: machine_frame.origin_u_mm: -1 is out of range"),
+        ("origin_mm = [1, 2, 3]\nrotation_u_deg = \"x\"\n", "c.toml:9: machine_frame.rotation_u_deg"),
+        ("origin_mm = [1, 2, 3]\nrotation_u_deg = 20\n", "c.toml:9: machine_frame.rotation_u_deg: 20 is out of range"),
         ("origin_mm = [1, 2]\n", "c.toml:8: machine_frame.origin_mm: a list of 2 is not three values"),
         (
             "origin_mm = [1, 2, 3]\nrotation_deg = [0, 0, 400]\n",
