@@ -223,6 +223,7 @@ fn day_of(t: SystemTime) -> f64 {
 async fn year(dir: &Path, truth: Truth, keys: &AssetSection, days: u32, seed: u64) -> Year {
     let wall = std::time::Instant::now();
     let db = dir.join(format!("year-{seed}.db"));
+    assert!(!db.exists(), "one year a seed: {}", db.display());
     let mut ticks = Vec::new();
     for week in 0..=u64::from(days / 7) {
         let at = start() + Duration::from_secs(week * 7 * DAY);
@@ -366,6 +367,8 @@ async fn a_year_of_weekly_checks_through_the_simulators() {
     let knocked = Truth { knock: Some((150.0, Knock::Eccentricity(KNOCK))), ..STABLE };
     let y = year(d, knocked, &keys("staircase", 7.0, Some(21.0)), 365, 3).await;
     show("knocked at day 150 (eccentricity), staircase from 7 days", &y);
+    let y = year(d, knocked, &keys("control-chart", 7.0, Some(21.0)), 365, 7).await;
+    show("knocked at day 150 (eccentricity), control chart from 7 days", &y);
     let bent = Truth { knock: Some((150.0, Knock::NewLine(KNOCK))), ..STABLE };
     let y = year(d, bent, &keys("staircase", 7.0, Some(21.0)), 365, 5).await;
     show("knocked at day 150 (a 3 cycles/rev line), staircase from 7 days", &y);
