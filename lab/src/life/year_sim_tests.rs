@@ -8,20 +8,21 @@
 //! when it calls for it (with the calibration's plan). The truth is known:
 //! the table in force leaves the change of the positioner since its
 //! calibration, and the asset is out of tolerance when that change is
-//! beyond the table's `U` at more than 5 % of readouts (the contract's
-//! statement of `U` broken). The figures are docs/lab.md's ("A simulated
-//! year").
+//! beyond the `U` the table is held to (its `U` beside the reference's own
+//! part: the same simulated tracker set up in the same place) at more than
+//! 5 % of readouts (the contract's statement of `U` broken). The figures
+//! are docs/lab.md's ("A simulated year").
 //!
 //! The positioner is the rates' simple one (`rates_tests`: a 20 cycles/rev
 //! gear line of 0.0078 deg, an eccentricity of 0.0015 deg, backlash 0.008
 //! deg, noise 0.0004 deg), calibrated with 120 targets x 2 runs both ways
 //! (its `U` about 4e-4 deg): stable; wearing (its gear line growing
-//! every day); or knocked once (a 3 cycles/rev line appearing, inside
-//! tolerance).
+//! every day); or knocked once, inside tolerance (its eccentricity grown,
+//! or a 3 cycles/rev line off the design appearing).
 //!
 //! `cargo test -p survey-lab year_sim_tests -- --ignored --nocapture`
-//! prints the year of each; the test run by default is a shortened
-//! horizon asserting what must hold.
+//! prints the year of each (about 35 s); the tests run by default are
+//! shortened horizons asserting what must hold (about 7 s).
 
 use super::check::{CheckRequest, PlanSize, run_check};
 use super::due;
