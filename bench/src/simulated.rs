@@ -196,6 +196,7 @@ impl Bench {
             smrs,
             polygon_turns: req.polygon_turns.clone(),
             machine_frame: model.machine_frame,
+            asset: None,
         };
         Ok(on_clock(&setup, &preset, model, Arc::new(VirtualClock::new())))
     }

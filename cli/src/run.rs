@@ -262,6 +262,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
             units: args.units.units(),
             correction: correction_choice(args.correction),
             only_due: args.due,
+            at: None,
         };
         let outcome = run_check(db, &req, &|size| bench(&args, size)).await?;
         emit(&outcome.output.render(args.json));

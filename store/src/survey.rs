@@ -120,6 +120,13 @@ pub struct SimulatedSetup {
     /// `[machine_frame]`), when given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub machine_frame: Option<survey_processing::frame::MachineFrame>,
+    /// The asset's `[asset]` keys (its id and interval keys), when the
+    /// bench was given them: a configuration states them for real
+    /// instruments; the command line's simulated bench takes none (its
+    /// surveys' intervals are the defaults), a test of the intervals on
+    /// the simulated bench sets them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub asset: Option<crate::config::AssetSection>,
 }
 
 /// What a survey of real instruments was made from, stored with it.
@@ -196,7 +203,7 @@ impl Setup {
     /// id`, else [`UNASSIGNED`].
     pub fn default_asset(&self) -> String {
         match self {
-            Setup::Simulated(s) => simulated_asset(&s.preset),
+            Setup::Simulated(s) => s.asset.as_ref().map_or_else(|| simulated_asset(&s.preset), |a| a.id.clone()),
             Setup::Configured(c) => c.config.asset.as_ref().map_or(UNASSIGNED.to_string(), |a| a.id.clone()),
             Setup::Imported { .. } | Setup::Unrecorded => UNASSIGNED.to_string(),
         }

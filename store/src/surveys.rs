@@ -120,6 +120,26 @@ impl Store {
         Ok((id, lock))
     }
 
+    /// Date a survey made on a virtual clock (a simulated year of checks):
+    /// its `created_at` (which the intervals read) set to `at`, in whole
+    /// seconds as the store writes it. A [`NotFound`] error when there is
+    /// no such survey. Surveys made on the wall clock are dated by the store.
+    pub async fn set_created_at(&self, id: i64, at: std::time::SystemTime) -> anyhow::Result<()> {
+        let created_at = humantime::format_rfc3339_seconds(at).to_string();
+        let mut tx = WriteTx::begin(self.sqlite()?).await?;
+        let done = sqlx::query("UPDATE surveys SET created_at = ? WHERE id = ?")
+            .bind(&created_at)
+            .bind(id)
+            .execute(tx.conn())
+            .await?;
+        if done.rows_affected() == 0 {
+            tx.abort().await;
+            return Err(self.no_survey(id).into());
+        }
+        tx.commit().await?;
+        Ok(())
+    }
+
     /// Set a survey's status and, when given, the instrument time it ended.
     /// A [`NotFound`] error when there is no such survey.
     ///

@@ -17,6 +17,7 @@ use crate::correction::{self, Before, Choice};
 use crate::error::{Recalibrated, bad_input};
 use serde_json::{Value, json};
 use std::path::Path;
+use std::time::SystemTime;
 use survey_acquire::stop::Stop;
 use survey_bench::Bench;
 use survey_bench::output::Output;
@@ -65,6 +66,11 @@ pub struct CheckRequest {
     /// Only when the asset's next check is due (`--due`: [`super::due`]);
     /// otherwise nothing is measured and the outcome is `not due`.
     pub only_due: bool,
+    /// The time the loop runs at: `None`, the system clock's (the command
+    /// line); given, a virtual clock's (a simulated year of weekly checks):
+    /// what is due is judged at it, and the surveys the loop makes are
+    /// dated at it (their `created_at`, which the intervals read).
+    pub at: Option<SystemTime>,
 }
 
 /// The grid a check is designed on: the calibration's targets (a full
@@ -148,7 +154,7 @@ async fn check_with(
     stop: &Stop,
 ) -> anyhow::Result<(Value, String, Option<String>, Option<String>)> {
     if req.only_due
-        && let Some((doc, text)) = not_due(store, asset).await?
+        && let Some((doc, text)) = not_due(store, asset, req.at.unwrap_or_else(SystemTime::now)).await?
     {
         return Ok((doc, text, None, None));
     }
@@ -199,6 +205,7 @@ async fn check_with(
     new.instruments["correction"] = found.as_str().into();
     new.instruments["identified"] = crate::identify::read(&mut b.engine).await;
     let (id, lock) = store.create_acquired_survey(&new).await?;
+    dated(store, id, req).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
     b.engine.set_stop(stop.clone());
     survey_bench::say!(
@@ -286,10 +293,19 @@ async fn check_with(
     Ok((doc, text, Some(reason), None))
 }
 
+/// A survey the loop made on a virtual clock ([`CheckRequest::at`]) dated
+/// at its time; on the system clock the store dates it.
+async fn dated(store: &Store, id: i64, req: &CheckRequest) -> anyhow::Result<()> {
+    match req.at {
+        Some(at) => store.set_created_at(id, at).await,
+        None => Ok(()),
+    }
+}
+
 /// With `--due`: the document and text saying the asset is not due yet
-/// (nothing measured), or `None` when it is due.
-async fn not_due(store: &Store, asset: &str) -> anyhow::Result<Option<(Value, String)>> {
-    let due = super::due::due(store, Some(asset), std::time::SystemTime::now()).await?;
+/// at `now` (nothing measured), or `None` when it is due.
+async fn not_due(store: &Store, asset: &str, now: SystemTime) -> anyhow::Result<Option<(Value, String)>> {
+    let due = super::due::due(store, Some(asset), now).await?;
     let Some(d) = due.first().filter(|d| !d.due.overdue) else { return Ok(None) };
     let why = format!(
         "not due: the next check of {asset} is due at {} ({})",
@@ -313,7 +329,13 @@ async fn charted(
     let held = cmp.table_of_a_on_b.as_ref();
     let statistic = held.map(|t| control::statistic(t.cells_outside, t.allowed_outside));
     let earlier: Vec<control::Check> = store.checks_of_asset(asset).await?.iter().map(control::Check::of).collect();
-    let point = control::next(&earlier, &control::chart(&earlier), statistic, &cal.uid);
+    let now = control::Check {
+        statistic,
+        calibration: cal.uid.clone(),
+        out_of_tolerance: false,
+        step: held.map(|t| 1.0 / (t.allowed_outside as f64 + 1.0)),
+    };
+    let point = control::next(&earlier, &control::chart(&earlier), &now);
     if cmp.decision.recalibrate || !point.out_of_control() {
         return Ok((point, cmp.decision.recalibrate, cmp.decision.reason.clone()));
     }
@@ -486,6 +508,7 @@ async fn full_survey(
     new.instruments["correction"] = before.as_str().into();
     new.instruments["identified"] = crate::identify::read(&mut b.engine).await;
     let (id, lock) = store.create_acquired_survey(&new).await?;
+    dated(store, id, req).await?;
     store.set_started(id, b.clock.now().as_secs_f64()).await?;
     if before == Before::SwitchedOff {
         let at = b.clock.now().as_secs_f64();

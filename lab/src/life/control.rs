@@ -42,7 +42,8 @@ pub const BASELINE: usize = 5;
 pub const WINDOW: usize = 25;
 
 /// The smallest standard deviation the limits are set with (a hundredth of
-/// `U`: a simulated bench can repeat itself closer than any real one).
+/// `U`: a simulated bench can repeat itself closer than any real one), and
+/// never less than one step of the check's statistic ([`next`]).
 pub const SIGMA_FLOOR: f64 = 0.01;
 
 /// The statistic of a check whose table check found `outside` cells beyond
@@ -113,6 +114,9 @@ pub struct Check {
     pub calibration: String,
     /// It called for a recalibration by tolerance (not by the chart).
     pub out_of_tolerance: bool,
+    /// The step of its statistic, one cell beyond `U` more or fewer
+    /// (`1 / (allowed + 1)`), when measured.
+    pub step: Option<f64>,
 }
 
 impl Check {
@@ -122,6 +126,7 @@ impl Check {
             statistic: statistic_of(c),
             calibration: c.against_uid.clone(),
             out_of_tolerance: c.recalibrate && !c.reason.starts_with(OUT_OF_CONTROL),
+            step: c.allowed_outside.filter(|a| *a >= 0).map(|a| 1.0 / (a as f64 + 1.0)),
         }
     }
 }
@@ -130,15 +135,16 @@ impl Check {
 pub fn chart(checks: &[Check]) -> Vec<Point> {
     let mut points: Vec<Point> = Vec::with_capacity(checks.len());
     for (i, c) in checks.iter().enumerate() {
-        let p = next(&checks[..i], &points, c.statistic, &c.calibration);
+        let p = next(&checks[..i], &points, c);
         points.push(p);
     }
     points
 }
 
-/// The point of a new check of `calibration` with statistic `x`, after the
-/// checks `before` and their points.
-pub fn next(before: &[Check], points: &[Point], x: Option<f64>, calibration: &str) -> Point {
+/// The point of a new check `now` (of its calibration, with its
+/// statistic), after the checks `before` and their points.
+pub fn next(before: &[Check], points: &[Point], now: &Check) -> Point {
+    let (x, calibration) = (now.statistic, now.calibration.as_str());
     let worn_out = |cal: &str| before.iter().any(|c| c.calibration == cal && c.out_of_tolerance);
     let baseline: Vec<f64> = before
         .iter()
@@ -160,7 +166,12 @@ pub fn next(before: &[Check], points: &[Point], x: Option<f64>, calibration: &st
     let n = baseline.len() as f64;
     let centre = baseline.iter().sum::<f64>() / n;
     let mr = baseline.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / (n - 1.0);
-    let sigma = (mr / 1.128).max(SIGMA_FLOOR);
+    // Never below one step of the check's statistic: a count of cells
+    // resolves no less, and a baseline of checks with no cell beyond `U`
+    // would put the upper limit below one cell, when an unchanged
+    // positioner shows a cell beyond `U` now and then (through the
+    // simulators, `year_sim_tests`: a false recalibration in ten checks).
+    let sigma = (mr / 1.128).max(SIGMA_FLOOR).max(now.step.unwrap_or(0.0));
     let mut rules = rules(&run, centre, sigma);
     if rising {
         rules.push("6 rising");
@@ -197,7 +208,10 @@ mod tests {
 
     /// Checks of calibration `cal`, in tolerance.
     fn of(cal: &str, stats: &[Option<f64>]) -> Vec<Check> {
-        stats.iter().map(|&s| Check { statistic: s, calibration: cal.into(), out_of_tolerance: false }).collect()
+        stats
+            .iter()
+            .map(|&s| Check { statistic: s, calibration: cal.into(), out_of_tolerance: false, step: None })
+            .collect()
     }
 
     fn some(xs: &[f64]) -> Vec<Option<f64>> {
@@ -227,7 +241,7 @@ mod tests {
             assert!(doc.get(key).is_some(), "{key}: {doc}");
         }
         // The knock is not in the next check's baseline; nor is a check far below: none fires.
-        let after = next(&checks, &c, Some(0.10), "b");
+        let after = next(&checks, &c, &of("b", &[Some(0.10)])[0]);
         assert!((after.centre.unwrap() - 1.9 / 6.0).abs() < 1e-12, "{after:?}");
         assert!(!after.out_of_control() && after.lower().unwrap() > 0.10, "{after:?}");
     }
@@ -250,9 +264,27 @@ mod tests {
     }
 
     #[test]
+    fn a_single_cell_beyond_u_over_a_baseline_of_none_does_not_fire() {
+        // Checks with 16 cells allowed: the statistic moves in steps of 1/17.
+        let step = 1.0 / 17.0;
+        let mut checks = of("a", &some(&[0.0; 6]));
+        for c in &mut checks {
+            c.step = Some(step);
+        }
+        let c = chart(&checks);
+        let now = |x: f64| Check { statistic: Some(x), step: Some(step), ..checks[0].clone() };
+        let one = next(&checks, &c, &now(step));
+        assert_eq!((one.sigma, one.out_of_control()), (Some(step), false), "{one:?}");
+        let four = next(&checks, &c, &now(4.0 * step));
+        assert_eq!(four.rules, ["beyond 3 sigma"], "{four:?}");
+        // Without the step (the statistic alone), the floor of a hundredth.
+        assert!(next(&checks, &c, &Check { step: None, ..now(step) }).out_of_control());
+    }
+
+    #[test]
     fn a_calibration_that_wore_out_is_no_baseline() {
         let mut checks = of("a", &some(&[0.3, 0.5, 0.7, 0.8, 0.9]));
-        checks.push(Check { statistic: Some(1.1), calibration: "a".into(), out_of_tolerance: true });
+        checks.push(Check { statistic: Some(1.1), calibration: "a".into(), out_of_tolerance: true, step: None });
         checks.extend(of("b", &some(&[0.31, 0.29, 0.32, 0.3, 0.31, 0.3])));
         let c = chart(&checks);
         assert!(c[6..].iter().all(|p| !p.out_of_control()), "{c:?}");

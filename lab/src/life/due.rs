@@ -56,10 +56,12 @@ pub fn travel(r: &SurveyRecord) -> f64 {
     span * f64::from(plan.runs) * if plan.bidirectional { 2.0 } else { 1.0 }
 }
 
-/// The `[asset]` interval keys a survey was made with (defaults unless configured).
+/// The `[asset]` interval keys a survey was made with (defaults unless
+/// stated: a configuration's, or those a simulated bench was given).
 fn settings(r: &SurveyRecord) -> Settings {
     match &r.setup {
         Setup::Configured(c) => Settings::of(c.config.asset.as_ref()),
+        Setup::Simulated(s) => Settings::of(s.asset.as_ref()),
         _ => Settings::default(),
     }
 }
@@ -78,6 +80,7 @@ pub async fn events(store: &Store, asset: &str) -> anyhow::Result<Vec<Event>> {
                 Outcome::OutOfControl
             }
             ("check", Some(c)) if c.recalibrate => Outcome::OutOfTolerance,
+            ("check", Some(c)) if c.verdict == "changed" => Outcome::Changed,
             ("check", Some(_)) => Outcome::InTolerance,
             _ => Outcome::Other,
         };

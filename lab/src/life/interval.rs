@@ -17,7 +17,13 @@
 //!   longer holds) since the calibration, when it rises
 //!   significantly (at least three checks, the slope over twice its
 //!   standard error), sets the interval to half the time the trend takes to
-//!   reach 1 (the table's `U`); without a rising trend it lengthens.
+//!   reach 1 (the table's `U`); without a rising trend, a check that found
+//!   the positioner changed (the table still holding) shortens it by half,
+//!   one that found it unchanged lengthens it. (Through the simulators the
+//!   statistic stays near 0 while a line wears, and jumps only once the
+//!   table fails: the change found is what says a positioner is on its way
+//!   out, `year_sim_tests`.) The staircase reads only in or out of
+//!   tolerance: a change inside tolerance lengthens it.
 //! - `in-use` (M3): `interval_revolutions` of travel between checks, counted
 //!   from the surveys' own travel (what the drivers tell today); the date is
 //!   projected at the rate the asset turned so far, the calendar interval
@@ -127,6 +133,9 @@ pub enum Outcome {
     Calibration,
     /// A check in tolerance and in control.
     InTolerance,
+    /// A check in tolerance and in control that found the positioner
+    /// changed (a significant change, the table in force still holding).
+    Changed,
     /// A check that called for a recalibration (out of tolerance).
     OutOfTolerance,
     /// A check in tolerance whose control chart fired (a recalibration follows).
@@ -262,29 +271,46 @@ fn moved(before: &Review, events: &[Event], s: &Settings) -> (f64, String) {
         Outcome::OutOfControl => shorten("out of control on the control chart"),
         Outcome::InTolerance if s.method == Method::ControlChart => match trend(events) {
             Some(t) if t.slope_per_day > 0.0 && t.slope_per_day > 2.0 * t.slope_se => {
-                let to_limit = ((1.0 - t.now) / t.slope_per_day).max(0.0);
-                let (d, held) = s.bounded(to_limit / 2.0);
-                let mut why = format!(
-                    "in tolerance, the control statistic rising {:.2e} a day over {} checks since the calibration: \
-                     it reaches 1 (the table no longer holding) in {} days, the interval is half that, {} days",
-                    t.slope_per_day,
-                    t.checks,
-                    num(to_limit.round()),
-                    num(d)
-                );
-                if let Some(h) = held {
-                    why += &format!(" ({h})");
-                }
-                (d, why)
+                rising(t, s, lengthen("in tolerance"))
             }
             Some(t) => {
                 lengthen(&format!("in tolerance, no rising trend over {} checks since the calibration", t.checks))
             }
             None => lengthen("in tolerance, too few checks since the calibration for a trend"),
         },
-        Outcome::InTolerance => lengthen("in tolerance"),
+        Outcome::Changed if s.method == Method::ControlChart => match trend(events) {
+            Some(t) if t.slope_per_day > 0.0 && t.slope_per_day > 2.0 * t.slope_se => {
+                rising(t, s, shorten("in tolerance, but the positioner changed (the table still holds)"))
+            }
+            _ => shorten("in tolerance, but the positioner changed (the table still holds)"),
+        },
+        Outcome::InTolerance | Outcome::Changed => lengthen("in tolerance"),
         Outcome::Other => unreachable!("an event without a review"),
     }
+}
+
+/// The interval of a check in tolerance whose control statistic rises
+/// (`t`): half the time the trend takes to reach 1, when that is shorter
+/// than what the check sets without the trend (`without`: a slight rise
+/// far from 1 is no reason to lengthen more than that).
+fn rising(t: Trend, s: &Settings, without: (f64, String)) -> (f64, String) {
+    let to_limit = ((1.0 - t.now) / t.slope_per_day).max(0.0);
+    let trend = format!(
+        "the control statistic rising {:.2e} a day over {} checks since the calibration: it reaches 1 (the table no \
+         longer holding) in {} days",
+        t.slope_per_day,
+        t.checks,
+        num(to_limit.round())
+    );
+    let (d, held) = s.bounded(to_limit / 2.0);
+    if d >= without.0 {
+        return (without.0, format!("{}; {trend}, no sooner", without.1));
+    }
+    let mut why = format!("in tolerance, {trend}, the interval is half that, {} days", num(d));
+    if let Some(h) = held {
+        why += &format!(" ({h})");
+    }
+    (d, why)
 }
 
 /// The control statistic's straight-line trend over the checks since the
@@ -379,11 +405,11 @@ pub struct Due {
 /// What is due for the asset of `events` at `now_days`.
 pub fn due(events: &[Event], now_days: f64) -> Due {
     let reviews = reviews(events);
-    let checks = events
-        .iter()
-        .filter(|e| matches!(e.outcome, Outcome::InTolerance | Outcome::OutOfTolerance | Outcome::OutOfControl));
+    let checks = events.iter().filter(|e| {
+        matches!(e.outcome, Outcome::InTolerance | Outcome::Changed | Outcome::OutOfTolerance | Outcome::OutOfControl)
+    });
     let decided = checks.clone().count();
-    let good = checks.filter(|e| e.outcome == Outcome::InTolerance).count();
+    let good = checks.filter(|e| matches!(e.outcome, Outcome::InTolerance | Outcome::Changed)).count();
     let Some(last) = reviews.last().cloned() else {
         return Due {
             last: None,
@@ -543,5 +569,24 @@ mod tests {
             .collect();
         let r = reviews(&flat);
         assert!(r.last().unwrap().reason.contains("no rising trend over 4 checks"), "{}", r.last().unwrap().reason);
+        // A slight rise far from 1: lengthened by a quarter at most.
+        let mut slight = vec![ev(1, 0.0, Outcome::Calibration, s)];
+        for (k, at) in [28.0, 63.0, 107.0].into_iter().enumerate() {
+            slight.push(with(2 + k as i64, at, 0.001 * at));
+        }
+        let r = reviews(&slight);
+        assert_eq!(r.iter().map(|r| r.interval_days).collect::<Vec<_>>(), [90.0, 90.0, 90.0, 90.0], "{r:?}");
+        assert!(r[3].reason.ends_with("in 893 days, no sooner"), "{}", r[3].reason);
+        // A change inside tolerance without a rising statistic: halved by the
+        // control chart's method, lengthened by the staircase's.
+        let mut changed = flat.clone();
+        changed.push(Event { statistic: Some(0.3), ..ev(6, 160.0, Outcome::Changed, s) });
+        let last = reviews(&changed).last().unwrap().clone();
+        assert_eq!(last.interval_days, (0.5 * r.last().unwrap().interval_days).round(), "{last:?}");
+        assert!(last.reason.starts_with("in tolerance, but the positioner changed (the table still holds): shortened"));
+        let staircase = Settings::default();
+        let r = reviews(&[ev(1, 0.0, Outcome::Calibration, staircase), ev(2, 90.0, Outcome::Changed, staircase)]);
+        assert_eq!(r[1].interval_days, 113.0, "{:?}", r[1]);
+        assert_eq!(due(&changed, 170.0).reliability, (5, 5));
     }
 }

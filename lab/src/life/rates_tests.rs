@@ -127,6 +127,7 @@ fn request(points: Option<u32>) -> CheckRequest {
         units: Default::default(),
         correction: Choice::Refuse,
         only_due: false,
+        at: None,
     }
 }
 

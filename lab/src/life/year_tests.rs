@@ -67,7 +67,9 @@ fn year(truth: Truth, settings: Settings, seed: u64) -> Year {
         }
         let calibrated = *calibrations.last().unwrap();
         let x = truth.at(now, calibrated) + noise.sample(&mut rng);
-        let point = control::next(&charted, &chart, Some(x), &format!("{calibrated}"));
+        let this =
+            Check { statistic: Some(x), calibration: format!("{calibrated}"), out_of_tolerance: false, step: None };
+        let point = control::next(&charted, &chart, &this);
         let outcome = match (x > 1.0, point.out_of_control()) {
             (true, _) => Outcome::OutOfTolerance,
             (false, true) => Outcome::OutOfControl,
@@ -79,6 +81,7 @@ fn year(truth: Truth, settings: Settings, seed: u64) -> Year {
             statistic: Some(x),
             calibration: format!("{calibrated}"),
             out_of_tolerance: outcome == Outcome::OutOfTolerance,
+            step: None,
         });
         events.push(ev(events.len(), now, outcome, Some(x)));
         if outcome != Outcome::InTolerance {
