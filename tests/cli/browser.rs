@@ -653,6 +653,14 @@ impl Devtools {
 
     /// Send `method` (to the page once attached) and wait for its answer.
     fn call(&mut self, method: &str, params: Value) -> Value {
+        match self.try_call(method, params) {
+            Ok(result) => result,
+            Err(answer) => panic!("{method}: {answer}"),
+        }
+    }
+
+    /// [`Devtools::call`], the browser's error answer as the error.
+    fn try_call(&mut self, method: &str, params: Value) -> Result<Value, Value> {
         use std::io::{BufRead as _, Write as _};
         self.next += 1;
         let mut message = serde_json::json!({"id": self.next, "method": method, "params": params});
@@ -669,16 +677,24 @@ impl Devtools {
             raw.pop();
             let answer: Value = serde_json::from_slice(&raw).expect("JSON from the browser");
             if answer["id"].as_u64() == Some(self.next) {
-                assert!(answer.get("error").is_none(), "{method}: {answer}");
-                return answer["result"].clone();
+                return match answer.get("error") {
+                    None => Ok(answer["result"].clone()),
+                    Some(_) => Err(answer),
+                };
             }
         }
     }
 
-    /// The value of `expression` in the page (`null` while it is loading).
+    /// The value of `expression` in the page (`null` while it is loading,
+    /// and when the page navigated away while it was evaluated: the
+    /// browser answers "Inspected target navigated or closed").
     fn eval(&mut self, expression: &str) -> Value {
-        let r = self.call("Runtime.evaluate", serde_json::json!({"expression": expression, "returnByValue": true}));
-        r["result"]["value"].clone()
+        let params = serde_json::json!({"expression": expression, "returnByValue": true});
+        match self.try_call("Runtime.evaluate", params) {
+            Ok(r) => r["result"]["value"].clone(),
+            Err(answer) if answer.to_string().contains("navigated or closed") => Value::Null,
+            Err(answer) => panic!("Runtime.evaluate: {answer}"),
+        }
     }
 
     /// Wait until the page at `path` has loaded (the browser's own clock: at most 30 s).
