@@ -409,21 +409,6 @@ impl Prediction {
             None
         }
     }
-
-    /// [`Prediction::not_a_result`] in words, with the figures.
-    pub fn not_a_result_text(&self) -> Option<String> {
-        self.not_a_result().map(|why| match why {
-            NotAResult::DriftNotCorrected => format!(
-                "the survey drifted in time in a way no straight line takes (a pass keeps up to {:.5} deg): the \
-                 table carries that drift",
-                self.uncorrected_drift_deg.unwrap_or(0.0)
-            ),
-            NotAResult::NoBetterThanNative => format!(
-                "this table is not expected to improve the axis (corrected +/-{:.5} deg against native +/-{:.5} deg)",
-                self.corrected_peak_deg, self.native_peak_deg
-            ),
-        })
-    }
 }
 
 impl ErrorFigures {

@@ -100,7 +100,7 @@ impl Checked {
 }
 
 /// The simulated bench of `model` at `seed`, of the loop's plan `size`.
-fn bench(model: &Path, seed: u64, size: PlanSize) -> anyhow::Result<Bench> {
+pub(super) fn bench(model: &Path, seed: u64, size: PlanSize) -> anyhow::Result<Bench> {
     Bench::simulated(&SimulatedRequest {
         points: size.points.unwrap_or(CAL_POINTS),
         runs: size.runs,

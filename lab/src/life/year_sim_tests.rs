@@ -32,9 +32,7 @@ use serde_json::Value;
 use std::cell::Cell;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
-use survey_acquire::ReferenceKind;
-use survey_bench::{Bench, SimulatedRequest};
-use survey_plan::ScanMode;
+use survey_bench::Bench;
 use survey_store::Store;
 use survey_store::config::AssetSection;
 use survey_store::survey::{Setup, SurveyRef};
@@ -132,22 +130,10 @@ impl Truth {
     }
 }
 
-/// The simulated bench of `model` at `seed`, of the loop's plan `size`,
-/// with the asset's interval keys `keys`.
+/// The simulated bench of `model` at `seed`, of the loop's plan `size`
+/// (the rates' bench), with the asset's interval keys `keys`.
 fn bench(model: &Path, seed: u64, size: PlanSize, keys: &AssetSection) -> anyhow::Result<Bench> {
-    let mut b = Bench::simulated(&SimulatedRequest {
-        points: size.points.unwrap_or(CAL_POINTS),
-        runs: size.runs,
-        bidirectional: size.bidirectional,
-        preset: "fig8".into(),
-        model_file: Some(model.to_path_buf()),
-        reference: ReferenceKind::Tracker,
-        seed,
-        scan: ScanMode::Step,
-        faults: None,
-        smrs: 0,
-        polygon_turns: Vec::new(),
-    })?;
+    let mut b = super::rates_tests::bench(model, seed, size)?;
     if let Setup::Simulated(s) = &mut b.setup {
         s.asset = Some(keys.clone());
     }
