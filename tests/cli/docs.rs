@@ -166,7 +166,7 @@ fn the_readme_is_a_guide_of_at_most_400_lines_with_cis_test_command() {
     let lines = readme.lines().count();
     assert!(lines <= 400, "README.md has {lines} lines: move reference material to docs/");
     let ci = std::fs::read_to_string(root().join(".ci/run")).unwrap();
-    let command = ci.lines().rev().find(|l| l.starts_with("cargo test")).expect(".ci/run runs cargo test");
+    let command = ci.lines().rev().find(|l| l.starts_with("cargo nextest run")).expect(".ci/run runs cargo nextest");
     assert!(
         readme.contains(&format!("```sh\n{command}\n```")),
         "README.md does not show the test command .ci/run runs: {command}"
