@@ -22,8 +22,11 @@
 //!   one that found it unchanged lengthens it. (Through the simulators the
 //!   statistic stays near 0 while a line wears, and jumps only once the
 //!   table fails: the change found is what says a positioner is on its way
-//!   out, `year_sim_tests`.) The staircase reads only in or out of
-//!   tolerance: a change inside tolerance lengthens it.
+//!   out, `year_sim_tests`.) The staircase keeps the interval after a
+//!   change inside tolerance (our design: ILAC-G24's staircase reads only
+//!   in or out, and lengthening after a check that found the positioner
+//!   moving had a wearing one checked 113 days later, 159 days out of
+//!   tolerance in a simulated year).
 //! - `in-use` (M3): `interval_revolutions` of travel between checks, counted
 //!   from the surveys' own travel (what the drivers tell today); the date is
 //!   projected at the rate the asset turned so far, the calendar interval
@@ -284,7 +287,14 @@ fn moved(before: &Review, events: &[Event], s: &Settings) -> (f64, String) {
             }
             _ => shorten("in tolerance, but the positioner changed (the table still holds)"),
         },
-        Outcome::InTolerance | Outcome::Changed => lengthen("in tolerance"),
+        Outcome::Changed => (
+            prev,
+            format!(
+                "in tolerance, but the positioner changed (the table still holds): the interval stays {} days",
+                num(prev)
+            ),
+        ),
+        Outcome::InTolerance => lengthen("in tolerance"),
         Outcome::Other => unreachable!("an event without a review"),
     }
 }
@@ -578,7 +588,7 @@ mod tests {
         assert_eq!(r.iter().map(|r| r.interval_days).collect::<Vec<_>>(), [90.0, 90.0, 90.0, 90.0], "{r:?}");
         assert!(r[3].reason.ends_with("in 893 days, no sooner"), "{}", r[3].reason);
         // A change inside tolerance without a rising statistic: halved by the
-        // control chart's method, lengthened by the staircase's.
+        // control chart's method, kept by the staircase's.
         let mut changed = flat.clone();
         changed.push(Event { statistic: Some(0.3), ..ev(6, 160.0, Outcome::Changed, s) });
         let last = reviews(&changed).last().unwrap().clone();
@@ -586,7 +596,8 @@ mod tests {
         assert!(last.reason.starts_with("in tolerance, but the positioner changed (the table still holds): shortened"));
         let staircase = Settings::default();
         let r = reviews(&[ev(1, 0.0, Outcome::Calibration, staircase), ev(2, 90.0, Outcome::Changed, staircase)]);
-        assert_eq!(r[1].interval_days, 113.0, "{:?}", r[1]);
+        assert_eq!(r[1].interval_days, 90.0, "{:?}", r[1]);
+        assert!(r[1].reason.ends_with("the interval stays 90 days"), "{:?}", r[1]);
         assert_eq!(due(&changed, 170.0).reliability, (5, 5));
     }
 }
