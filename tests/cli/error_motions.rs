@@ -217,6 +217,8 @@ fn history_and_compare_show_a_growing_wobble() {
     assert!(on_axis(0).is_null(), "{h}");
     let worn = &on_axis(1);
     assert!((num(&worn["total"], "on the axis") - 120.0).abs() < num(&worn["u"], "its U"), "{worn}");
+    // Two SMRs on one line (0 and 180 deg) cannot see the tilt across: null, and no change of it.
+    assert!(h["surveys"][1]["error_motions"]["tilt_across_urad"].is_null(), "{h}");
     // And in the history's text, a line a survey.
     let text = bench.survey(&["history", "--asset", "az-1"]).success().stdout;
     assert_eq!(text.matches("error motions (ISO 230-7, totals): radial ").count(), 2, "{text}");
@@ -224,6 +226,55 @@ fn history_and_compare_show_a_growing_wobble() {
     let c = bench.survey(&["compare", "1", "2", "--json"]).success().json();
     let change = &c["error_motions"]["radial_total_change_um"];
     assert!(num(&change["change"], "change") > 100.0 && change["significant"] == true, "{c}");
+    assert!(c["error_motions"]["tilt_across_total_change_urad"].is_null(), "{c}");
+}
+
+/// A growing tilt (a worn bearing that rocks the table) seen across, at 90
+/// deg to the first SMR's radial direction, by three SMRs at 0, 120 and 240
+/// deg: `history` keeps each survey's `tilt_across_urad` (text and JSON), and
+/// `compare` finds its change significant. The model's tilt turns with the
+/// table, so across it is the model's at 90 deg on: its peak-to-valley at the
+/// 72 targets is twice the amplitude (`2 theta + 90` reaches 90 and 270 deg).
+#[test]
+fn history_and_compare_show_a_growing_tilt_across() {
+    let bench = Bench::new();
+    let model = |urad: f64| {
+        format!(
+            "[[effect]]\nkind = \"tilt_motion\"\ncycles_per_rev = 2\namplitude_urad = {urad:.1}\nphase_deg = 0.0\n\n\
+             [smrs]\nphases_deg = [0.0, 120.0, 240.0]\n"
+        )
+    };
+    let amplitudes = [100.0, 300.0];
+    for (file, urad) in ["new.toml", "worn.toml"].into_iter().zip(amplitudes) {
+        bench.write(file, model(urad));
+        bench.survey(&["run", "--points", "72", "--runs", "2", "--model", file, "--asset", "az-1", "--json"]).success();
+    }
+    let truth = |urad: f64| pv(72, |t| urad * (2.0 * t + 90.0).to_radians().sin());
+    let h = bench.survey(&["history", "--asset", "az-1", "--json"]).success().json();
+    let surveys = h["surveys"].as_array().expect("surveys");
+    assert_eq!(surveys.len(), 2, "{h}");
+    // Each survey's total within its U (k = 2: the tracker's systematic bound and what its noise
+    // makes of a peak-to-valley, which bound the total's error; no bearing noise here).
+    for (s, urad) in surveys.iter().zip(amplitudes) {
+        let across = &s["error_motions"]["tilt_across_urad"];
+        for key in ["total", "u", "below_detection_limit", "detection_limit"] {
+            assert!(across.get(key).is_some(), "tilt_across_urad.{key}: {s}");
+        }
+        let (got, u) = (num(&across["total"], "tilt across total"), num(&across["u"], "its U"));
+        eprintln!("tilt across: {got:.1} urad against {:.1}, U {u:.1}", truth(urad));
+        assert!((got - truth(urad)).abs() <= u, "tilt across {got} against the model's {}, U = {u}", truth(urad));
+    }
+    let text = bench.survey(&["history", "--asset", "az-1"]).success().stdout;
+    assert_eq!(text.matches(", tilt across ").count(), 2, "{text}");
+    let c = bench.survey(&["compare", "1", "2", "--json"]).success().json();
+    let change = &c["error_motions"]["tilt_across_total_change_urad"];
+    let (got, u) = (num(&change["change"], "change"), num(&change["u"], "its U"));
+    let true_change = truth(amplitudes[1]) - truth(amplitudes[0]);
+    eprintln!("tilt across change: {got:.1} urad against {true_change:.1}, U {u:.1}");
+    // The two surveys' U in quadrature bound the change's error; the truth, 400 urad, is far beyond it.
+    assert!((got - true_change).abs() <= u && change["significant"] == true, "{c}");
+    assert!(c["error_motions"]["tilt_total_change_urad"]["significant"] == true, "the tilt too: {c}");
+    assert!(c["error_motions"]["a"]["tilt_across_urad"].is_object(), "each survey's totals beside: {c}");
 }
 
 /// Three SMRs at 0, 120 and 240 deg measure the tilt across the first SMR's

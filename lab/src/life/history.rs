@@ -194,11 +194,12 @@ impl History {
                 };
                 let _ = writeln!(
                     s,
-                    "      error motions (ISO 230-7, totals): radial {}, axial {}{}{}",
+                    "      error motions (ISO 230-7, totals): radial {}, axial {}{}{}{}",
                     total(t.radial_um, t.u_radial_um),
                     total(t.axial_um, t.u_axial_um),
                     separated("axial on the axis", t.axial_on_axis_um, "um"),
-                    separated("tilt", t.tilt_urad, "urad")
+                    separated("tilt", t.tilt_urad, "urad"),
+                    separated("tilt across", t.tilt_across_urad, "urad")
                 );
             }
             if let Some(c) = self.check(m.survey.id) {

@@ -111,6 +111,10 @@ fn motions_change(a: Option<&MotionTotals>, b: Option<&MotionTotals>) -> Value {
             (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
             _ => Value::Null,
         },
+        "tilt_across_total_change_urad": match (a.and_then(|a| a.tilt_across_urad), b.and_then(|b| b.tilt_across_urad)) {
+            (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
+            _ => Value::Null,
+        },
     })
 }
 
@@ -128,11 +132,14 @@ pub struct MotionTotals {
     pub u_axial_um: f64,
     /// The detection limit, um.
     pub limit_um: f64,
-    /// The total axial error motion on the axis (um) and the total tilt
-    /// (urad), where the SMRs separate them: each its total (`None` below
-    /// its detection limit), `U` and detection limit.
+    /// The total axial error motion on the axis (um), the total tilt in the
+    /// first SMR's radial direction (urad) and the total tilt at 90 deg to
+    /// it (urad, three or more SMRs at spread phases), where the SMRs
+    /// separate them: each its total (`None` below its detection limit),
+    /// `U` and detection limit.
     pub axial_on_axis_um: Option<Total>,
     pub tilt_urad: Option<Total>,
+    pub tilt_across_urad: Option<Total>,
 }
 
 /// One total error motion as a history keeps it.
@@ -165,16 +172,18 @@ impl MotionTotals {
             limit_um: m.detection_limit_um,
             axial_on_axis_um: m.axial_on_axis_um.as_ref().map(Total::of),
             tilt_urad: m.tilt_urad.as_ref().map(|t| Total::of(&t.block)),
+            tilt_across_urad: m.tilt_across_urad.as_ref().map(|t| Total::of(&t.block)),
         }
     }
 
     /// The history's keys: `radial_um` and `axial_um`, each `{"total", "u",
-    /// "below_detection_limit"}`; `axial_on_axis_um` and `tilt_urad` the
-    /// same where the SMRs separate them, else `null`.
+    /// "below_detection_limit"}`; `axial_on_axis_um`, `tilt_urad` and
+    /// `tilt_across_urad` the same where the SMRs separate them, else `null`.
     pub fn json(&self) -> serde_json::Value {
         let one = |v: Option<f64>, u: f64| Total { total: v, u, limit: self.limit_um }.json();
         serde_json::json!({"radial_um": one(self.radial_um, self.u_radial_um), "axial_um": one(self.axial_um, self.u_axial_um),
-            "axial_on_axis_um": self.axial_on_axis_um.map(|t| t.json()), "tilt_urad": self.tilt_urad.map(|t| t.json())})
+            "axial_on_axis_um": self.axial_on_axis_um.map(|t| t.json()), "tilt_urad": self.tilt_urad.map(|t| t.json()),
+            "tilt_across_urad": self.tilt_across_urad.map(|t| t.json())})
     }
 }
 
