@@ -429,7 +429,8 @@ fn check_json(cmp: &Compared, a: &Measured, c: &Measured, design: Option<&CheckD
 fn blind_text(d: &CheckDesign, asset: &str) -> String {
     if d.blind.is_empty() {
         return format!(
-            "its {} targets see every line up to {} cycles/rev apart from the mean and the Nyquist bin\n",
+            "its {} targets see every line up to {} cycles/rev apart from the mean and the Nyquist bin; above it \
+             (the calibration's own Nyquist bin) it answers for no line, as the calibration could not place one\n",
             d.points, d.up_to
         );
     }
@@ -448,8 +449,9 @@ fn blind_text(d: &CheckDesign, asset: &str) -> String {
         }
     }
     format!(
-        "as far as its {} targets see: a new line at {} would not be seen (each listed in unseen, up to {} cycles/rev); \
-         the next check of {asset} chooses targets blind elsewhere\n",
+        "as far as its {} targets see: a new line at {} would not be seen (each listed in unseen, up to {} cycles/rev, \
+         the calibration's own Nyquist bin: above it the check answers for no line, as the calibration could not \
+         place one); the next check of {asset} chooses targets blind elsewhere\n",
         d.points,
         parts.join("; "),
         d.up_to
