@@ -187,8 +187,25 @@ async fn check_with(
     let previous =
         checks.iter().rev().find(|r| r.check_of.is_some()).and_then(|r| r.plan()).map(|p| p.targets_deg.len() as u32);
     let avoid = &a.design_frequencies;
-    let design =
-        cal.plan().map(|p| design_check_avoiding(grid_of(p, req.polygon), &lines, avoid, req.size.points, previous));
+    // A check that could not decide (a line it could not see or place) is
+    // followed by one on the calibration's own targets, which placed every
+    // line the calibration corrected: the loop measures more rather than
+    // stay undecided check after check.
+    let last_undecided = undecided_before(store, asset, &cal, &checks).await?;
+    let requested = req.size.points.or(last_undecided.and(cal.plan().map(|p| p.targets_deg.len() as u32)));
+    let design = cal.plan().map(|p| {
+        let d = design_check_avoiding(grid_of(p, req.polygon), &lines, avoid, requested, previous);
+        match last_undecided.filter(|_| req.size.points.is_none() && !req.polygon) {
+            Some(id) => CheckDesign {
+                why: format!(
+                    "{} targets, the calibration's own: the last check of this table (survey {id}) could not decide",
+                    d.points
+                ),
+                ..d
+            },
+            None => d,
+        }
+    });
     let points = design.as_ref().map(|d| d.points).or(req.size.points);
     let mut b = bench(PlanSize { points, runs: Some(CHECK_RUNS), bidirectional: true })?;
     // The check measures the axis as it finds it, and leaves it so.
@@ -456,6 +473,22 @@ fn blind_text(d: &CheckDesign, asset: &str) -> String {
         parts.join("; "),
         d.up_to
     )
+}
+
+/// The asset's last check survey, when it was of the table in force
+/// (`cal`), complete and left without a decision ([`undecided`]).
+async fn undecided_before(
+    store: &Store,
+    asset: &str,
+    cal: &SurveyRecord,
+    surveys: &[SurveyRecord],
+) -> anyhow::Result<Option<i64>> {
+    let Some(last) = surveys.iter().rev().find(|r| r.check_of.is_some()) else { return Ok(None) };
+    if last.check_of.as_deref() != Some(cal.uid.as_str()) || !last.is_complete() {
+        return Ok(None);
+    }
+    let decided = store.checks_of_asset(asset).await?.iter().any(|d| d.survey_id == last.id);
+    Ok((!decided).then_some(last.id))
 }
 
 /// The design's lines of the text (none without one).
