@@ -249,7 +249,7 @@ impl Pair {
     /// anything else is an error, not a pair).
     pub fn of(a: &Measured, b: &Measured) -> anyhow::Result<Pair> {
         super::comparable(a, b)?;
-        Ok(match super::tested(a, b) {
+        Ok(match super::tested(a, b, &[]) {
             Ok(c) => Pair::Compared(Change::of(&c, a, b)),
             Err(e) => Pair::NotComparable(e.to_string()),
         })

@@ -11,7 +11,7 @@
 //! (a recalibration, or the asset's first calibration), 1 for a failure, 2
 //! for bad input.
 
-use super::{Compared, Measured, compared, control, measure};
+use super::{Compared, Measured, compared_placing, control, measure};
 use crate::conclude::{ConcludeOptions, conclude};
 use crate::correction::{self, Before, Choice};
 use crate::error::{Recalibrated, bad_input};
@@ -247,7 +247,14 @@ async fn check_with(
     if corrected {
         as_native(&mut c, &a)?;
     }
-    let cmp = compared(&a, &c)?;
+    // A line the check's targets cannot place may be placed by the last
+    // decided check of this table on the calibration's own targets (the
+    // one after a check left undecided): later checks then decide too.
+    let placing = match placing_check(store, asset, &cal, &checks).await? {
+        Some(id) => vec![measure(store, SurveyRef::Id(id)).await?],
+        None => Vec::new(),
+    };
+    let cmp = compared_placing(&a, &c, &placing)?;
     // What of the table in force the check could not see: by its design, or
     // by the comparison (a line not estimable at its targets).
     let mut unseen: Vec<Unseen> = design.as_ref().map_or_else(Vec::new, |d| d.unseen.clone());
@@ -489,6 +496,24 @@ async fn undecided_before(
     }
     let decided = store.checks_of_asset(asset).await?.iter().any(|d| d.survey_id == last.id);
     Ok((!decided).then_some(last.id))
+}
+
+/// The asset's last decided check of the table in force (`cal`) made on
+/// the calibration's own targets, when there is one.
+async fn placing_check(
+    store: &Store,
+    asset: &str,
+    cal: &SurveyRecord,
+    surveys: &[SurveyRecord],
+) -> anyhow::Result<Option<i64>> {
+    let Some(n) = cal.plan().map(|p| p.targets_deg.len()) else { return Ok(None) };
+    let decided: Vec<i64> = store.checks_of_asset(asset).await?.iter().map(|d| d.survey_id).collect();
+    Ok(surveys
+        .iter()
+        .rev()
+        .filter(|r| r.check_of.as_deref() == Some(cal.uid.as_str()) && decided.contains(&r.id))
+        .find(|r| r.plan().is_some_and(|p| p.targets_deg.len() == n))
+        .map(|r| r.id))
 }
 
 /// The design's lines of the text (none without one).

@@ -323,8 +323,15 @@ pub struct Compared {
 /// main line of either (and the once-per-revolution line, a mounting's),
 /// the backlash and the mean error map; the table of `a` applied to `b`.
 pub fn compared(a: &Measured, b: &Measured) -> anyhow::Result<Compared> {
+    compared_placing(a, b, &[])
+}
+
+/// [`compared`], where a line either survey cannot place may also be placed
+/// by one of `placing` (an earlier check of the same table on a denser grid,
+/// [`placed_by`]).
+pub fn compared_placing(a: &Measured, b: &Measured, placing: &[Measured]) -> anyhow::Result<Compared> {
     comparable(a, b)?;
-    tested(a, b).map_err(|e| not_comparable(a.survey.id, b.survey.id, &e.to_string()))
+    tested(a, b, placing).map_err(|e| not_comparable(a.survey.id, b.survey.id, &e.to_string()))
 }
 
 /// Why survey `a` cannot be compared with survey `b` (bad input): `why`,
@@ -360,11 +367,11 @@ fn comparable(a: &Measured, b: &Measured) -> anyhow::Result<()> {
 
 /// The tests of `a` against `b` (surveys that compare), or why the
 /// comparison could not be made.
-fn tested(a: &Measured, b: &Measured) -> Result<Compared, CompareError> {
+fn tested(a: &Measured, b: &Measured, placing: &[Measured]) -> Result<Compared, CompareError> {
     let lines: Vec<f64> =
         std::iter::once(1.0).chain(a.main_lines().iter().chain(b.main_lines()).map(|l| l.cycles_per_rev)).collect();
     // A line either survey's targets cannot place compares only on one grid.
-    let doubt = in_doubt_across_grids(a, b);
+    let doubt = in_doubt_across_grids(a, b, placing);
     let lines: Vec<f64> = lines.into_iter().filter(|k| !doubt.iter().any(|u| u.cycles_per_rev == *k)).collect();
     let opts =
         CompareOptions { false_alarm_rate: FALSE_ALARM_RATE, lines, axis_se_deg: [a.axis_se_deg, b.axis_se_deg] };
@@ -440,14 +447,15 @@ fn placed_by(other: &Measured, targets: &[u64], bin: f64, candidates: &[f64]) ->
 /// ([`Measured::lines_in_doubt`]), when the two surveys' targets differ:
 /// seen at one bin on one grid and at another on the other, their phasors do
 /// not compare (the table's check judges what they leave).
-fn in_doubt_across_grids(a: &Measured, b: &Measured) -> Vec<Unseen> {
+fn in_doubt_across_grids(a: &Measured, b: &Measured, placing: &[Measured]) -> Vec<Unseen> {
     if grid(a) == grid(b) {
         return Vec::new();
     }
     let mut out: Vec<Unseen> = Vec::new();
     for (m, other, name) in [(a, b, "A"), (b, a, "B")] {
         for (bin, candidates) in m.lines_in_doubt() {
-            if out.iter().any(|u| u.cycles_per_rev == *bin) || placed_by(other, &grid(other), *bin, candidates) {
+            let placed = |p: &Measured| placed_by(p, &grid(p), *bin, candidates);
+            if out.iter().any(|u| u.cycles_per_rev == *bin) || placed(other) || placing.iter().any(placed) {
                 continue;
             }
             let c: Vec<String> = candidates.iter().map(|c| format!("{c}")).collect();
