@@ -191,7 +191,8 @@ async fn check_with(
     // followed by one on the calibration's own targets, which placed every
     // line the calibration corrected: the loop measures more rather than
     // stay undecided check after check.
-    let last_undecided = undecided_before(store, asset, &cal, &checks).await?;
+    let decided: Vec<i64> = store.checks_of_asset(asset).await?.iter().map(|d| d.survey_id).collect();
+    let last_undecided = undecided_before(&cal, &checks, &decided);
     let requested = req.size.points.or(last_undecided.and(cal.plan().map(|p| p.targets_deg.len() as u32)));
     let design = cal.plan().map(|p| {
         let d = design_check_avoiding(grid_of(p, req.polygon), &lines, avoid, requested, previous);
@@ -250,7 +251,7 @@ async fn check_with(
     // A line the check's targets cannot place may be placed by the last
     // decided check of this table on the calibration's own targets (the
     // one after a check left undecided): later checks then decide too.
-    let placing = match placing_check(store, asset, &cal, &checks).await? {
+    let placing = match placing_check(&cal, &checks, &decided) {
         Some(id) => vec![measure(store, SurveyRef::Id(id)).await?],
         None => Vec::new(),
     };
@@ -482,38 +483,25 @@ fn blind_text(d: &CheckDesign, asset: &str) -> String {
     )
 }
 
-/// The asset's last check survey, when it was of the table in force
-/// (`cal`), complete and left without a decision ([`undecided`]).
-async fn undecided_before(
-    store: &Store,
-    asset: &str,
-    cal: &SurveyRecord,
-    surveys: &[SurveyRecord],
-) -> anyhow::Result<Option<i64>> {
-    let Some(last) = surveys.iter().rev().find(|r| r.check_of.is_some()) else { return Ok(None) };
-    if last.check_of.as_deref() != Some(cal.uid.as_str()) || !last.is_complete() {
-        return Ok(None);
-    }
-    let decided = store.checks_of_asset(asset).await?.iter().any(|d| d.survey_id == last.id);
-    Ok((!decided).then_some(last.id))
+/// The asset's last check survey (of `surveys`, the asset's), when it was
+/// of the table in force (`cal`), complete and left without a decision
+/// ([`undecided`]; `decided`: the surveys with one).
+fn undecided_before(cal: &SurveyRecord, surveys: &[SurveyRecord], decided: &[i64]) -> Option<i64> {
+    let last = surveys.iter().rev().find(|r| r.check_of.is_some())?;
+    let of_cal = last.check_of.as_deref() == Some(cal.uid.as_str());
+    (of_cal && last.is_complete() && !decided.contains(&last.id)).then_some(last.id)
 }
 
 /// The asset's last decided check of the table in force (`cal`) made on
 /// the calibration's own targets, when there is one.
-async fn placing_check(
-    store: &Store,
-    asset: &str,
-    cal: &SurveyRecord,
-    surveys: &[SurveyRecord],
-) -> anyhow::Result<Option<i64>> {
-    let Some(n) = cal.plan().map(|p| p.targets_deg.len()) else { return Ok(None) };
-    let decided: Vec<i64> = store.checks_of_asset(asset).await?.iter().map(|d| d.survey_id).collect();
-    Ok(surveys
+fn placing_check(cal: &SurveyRecord, surveys: &[SurveyRecord], decided: &[i64]) -> Option<i64> {
+    let n = cal.plan()?.targets_deg.len();
+    surveys
         .iter()
         .rev()
         .filter(|r| r.check_of.as_deref() == Some(cal.uid.as_str()) && decided.contains(&r.id))
         .find(|r| r.plan().is_some_and(|p| p.targets_deg.len() == n))
-        .map(|r| r.id))
+        .map(|r| r.id)
 }
 
 /// The design's lines of the text (none without one).

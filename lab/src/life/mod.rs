@@ -92,6 +92,11 @@ fn motions_change(a: Option<&MotionTotals>, b: Option<&MotionTotals>) -> Value {
         }
         _ => Value::Null,
     };
+    // A total the SMRs separate (where both surveys have it).
+    let separated = |of: fn(&MotionTotals) -> Option<Total>| match (a.and_then(of), b.and_then(of)) {
+        (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
+        _ => Value::Null,
+    };
     json!({
         "a": a.map(MotionTotals::json),
         "b": b.map(MotionTotals::json),
@@ -103,18 +108,9 @@ fn motions_change(a: Option<&MotionTotals>, b: Option<&MotionTotals>) -> Value {
             (Some(a), Some(b)) => change(a.axial_um, b.axial_um, a.u_axial_um, b.u_axial_um),
             _ => Value::Null,
         },
-        "axial_on_axis_total_change_um": match (a.and_then(|a| a.axial_on_axis_um), b.and_then(|b| b.axial_on_axis_um)) {
-            (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
-            _ => Value::Null,
-        },
-        "tilt_total_change_urad": match (a.and_then(|a| a.tilt_urad), b.and_then(|b| b.tilt_urad)) {
-            (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
-            _ => Value::Null,
-        },
-        "tilt_across_total_change_urad": match (a.and_then(|a| a.tilt_across_urad), b.and_then(|b| b.tilt_across_urad)) {
-            (Some(a), Some(b)) => change(a.total, b.total, a.u, b.u),
-            _ => Value::Null,
-        },
+        "axial_on_axis_total_change_um": separated(|m| m.axial_on_axis_um),
+        "tilt_total_change_urad": separated(|m| m.tilt_urad),
+        "tilt_across_total_change_urad": separated(|m| m.tilt_across_urad),
     })
 }
 
