@@ -254,6 +254,7 @@ pub enum SpectrumError {
 }
 
 /// Plans FFTs once and reuses them (planning costs more than a transform).
+#[derive(Default)]
 pub struct Planner {
     inner: RealFftPlanner<f64>,
 }
@@ -261,12 +262,6 @@ pub struct Planner {
 impl fmt::Debug for Planner {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("Planner").finish_non_exhaustive()
-    }
-}
-
-impl Default for Planner {
-    fn default() -> Self {
-        Planner { inner: RealFftPlanner::new() }
     }
 }
 
