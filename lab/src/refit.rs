@@ -343,14 +343,17 @@ impl AxisRefit {
                 m.x0_mm, m.y0_mm, m.a0_urad, m.b0_urad, m.u_xy_mm, m.u_ab_urad
             );
         }
-        let shown = |v: Option<f64>| v.map(|v| format!("{v:.1}")).unwrap_or_else(|| "below limit".into());
+        // Each figure with its unit, or "below the limit" (no number).
+        let shown = |v: Option<f64>, unit: &str| {
+            v.map(|v| format!("{v:.1} {unit}")).unwrap_or_else(|| "below the limit".into())
+        };
         let mut line = |name: &str, unit: &str, b: &survey_motions::Block| {
             s += &format!(
-                "error motion (ISO 230-7) {name}: total {}, synchronous {}, asynchronous {} {unit} (U = {:.1} {unit}, \
-                 k = 2; detection limit {:.1} {unit})\n",
-                shown(b.total),
-                shown(b.synchronous),
-                shown(b.asynchronous),
+                "error motion (ISO 230-7) {name}: total {}, synchronous {}, asynchronous {} (U = {:.1} {unit}, k = 2; \
+                 detection limit {:.1} {unit})\n",
+                shown(b.total, unit),
+                shown(b.synchronous, unit),
+                shown(b.asynchronous, unit),
                 b.u,
                 b.detection_limit
             );

@@ -206,6 +206,15 @@ impl SimBenchBuilder {
         self
     }
 
+    /// The axis without error motions (ISO 230-7): the table turns about a
+    /// fixed line, so the tracker sees the positioner's angle alone (a test
+    /// of something else held to the positioner's truth within microdegrees:
+    /// a tilt motion with the SMR above its centre moves it along its circle).
+    pub fn without_motions(mut self) -> Self {
+        self.positioner.model.motions = survey_processing::model::AxisMotions::default();
+        self
+    }
+
     /// Build the instruments on one new turntable.
     pub fn build(mut self) -> SimBench {
         // The axis's error motions are the positioner's, seen by the tracker.

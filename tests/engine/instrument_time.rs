@@ -95,7 +95,8 @@ fn the_default_plan_scanned_continuously_takes_50_times_less_instrument_time_for
 async fn deviations(timing: Timing) -> (Vec<f64>, f64) {
     let clock: Arc<dyn Clock> = Arc::new(VirtualClock::new());
     let preset = Preset::by_name("fig8").unwrap();
-    let bench = SimBench::builder(&preset, 7, clock.clone()).servo(Servo::default()).without_noise().build();
+    let bench =
+        SimBench::builder(&preset, 7, clock.clone()).servo(Servo::default()).without_noise().without_motions().build();
     let model = bench.positioner.config().model.clone();
     let timing = Timing { velocity_deg_s: preset.velocity_deg_s, accel_deg_s2: preset.accel_deg_s2, ..timing };
     let window = timing.settle.window_deg;

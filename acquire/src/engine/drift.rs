@@ -106,7 +106,8 @@ mod tests {
         let builder = SimBench::builder(&preset, 21, clock.clone())
             .model(model.clone())
             .drift_run_period(Duration::from_secs(600))
-            .without_noise();
+            .without_noise()
+            .without_motions();
         let arm = builder.tracker.arm.clone();
         let bench = builder.build();
         let cfg = bench.positioner.config();
