@@ -117,10 +117,17 @@ impl Loaded {
 
     /// What the table's uncertainty budget needs beyond the samples.
     pub fn uncertainty_inputs(&self) -> UncertaintyInputs {
-        let mut inputs = crate::refit::uncertainty_inputs(&self.survey, self.refit.as_ref(), self.located.as_ref());
+        self.with_own_inputs(crate::refit::uncertainty_inputs(&self.survey, self.refit.as_ref(), self.located.as_ref()))
+    }
+
+    /// `inputs` with what this load measured itself: the polygon's faces
+    /// (closed in place: the reference's systematic part) and what the drift
+    /// in time's slope leaves in the table.
+    pub fn with_own_inputs(&self, mut inputs: UncertaintyInputs) -> UncertaintyInputs {
         if let Some(p) = &self.polygon {
             inputs.reference_systematic_u_deg = Some(p.u_deg);
         }
+        inputs.drift_in_time_u_deg = self.time_drift.as_ref().map(|d| d.table_u_deg(&self.samples));
         inputs
     }
 }

@@ -494,6 +494,7 @@ pub fn uncertainty_inputs(
         reference_u_deg: stated_reference_u_deg(survey).map(|u| u / smrs.sqrt()),
         reference_systematic_u_deg: systematic,
         axis_u_deg,
+        drift_in_time_u_deg: None,
     }
 }
 

@@ -193,6 +193,7 @@ fn survey(case: &Case, rng: &mut Normal) -> (Processed, Vec<Sample>, Uncertainty
     let mut samples = acquire(&case.model, &targets, p, p.runs, 0.0, None, rng);
     // The drift in time, measured and corrected as the lab loads a survey.
     let measured = survey_processing::timedrift::estimate(&samples);
+    let drift_in_time_u_deg = measured.as_ref().map(|d| d.table_u_deg(&samples));
     let crooked = measured.as_ref().filter(|d| d.left_beyond_doubt).map(|d| d.left_deg);
     let drift = measured.filter(|d| d.corrected);
     if let Some(d) = &drift {
@@ -213,7 +214,7 @@ fn survey(case: &Case, rng: &mut Normal) -> (Processed, Vec<Sample>, Uncertainty
     // A drift no straight line takes makes the table not a result, as the
     // lab's processing says.
     processed.prediction.uncorrected_drift_deg = crooked;
-    let u = uncertainty(&processed, &samples, &UncertaintyInputs::default());
+    let u = uncertainty(&processed, &samples, &UncertaintyInputs { drift_in_time_u_deg, ..Default::default() });
     (processed, samples, u)
 }
 

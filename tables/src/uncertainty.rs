@@ -51,6 +51,10 @@
 //!   line and leaves nothing; one that changes the lines is counted by how
 //!   much it does. (It was a ramp assumed from the run means' slope: a step
 //!   drift, which leaves nothing, made `U` 20 to 55 times the true error.)
+//! - **drift in time**: the slope of the drift measured from the survey's
+//!   own readings (`survey_processing::timedrift`) corrects every reading by
+//!   `b (t - mid)`; its standard error leaves `se (t_cell - mid)` in each
+//!   table cell, counted at its rms over the cells, corrected or not.
 //!
 //! - **a line below the detection threshold** (the model of the table): the
 //!   table holds the lines the analysis found; one it could not find is at
@@ -129,6 +133,11 @@ pub struct UncertaintyInputs {
     /// The axis location's once-per-revolution standard error over the
     /// measured arc (a tracker), degrees; `None` without a fitted axis.
     pub axis_u_deg: Option<f64>,
+    /// What the drift in time's slope, measured from the survey's readings,
+    /// leaves in the table through its own standard error, degrees
+    /// (`survey_processing::timedrift::TimeDrift::table_u_deg`); `None`
+    /// when the survey could not measure it or drift control corrected it.
+    pub drift_in_time_u_deg: Option<f64>,
 }
 
 /// One source and its standard uncertainty.
@@ -317,6 +326,9 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     };
     let drift_var = drift_from_runs(a, &in_range_kept).unwrap_or(0.0);
     budget.push(Contribution { source: "drift".into(), u_deg: drift_var.sqrt() });
+    if let Some(u) = inputs.drift_in_time_u_deg {
+        budget.push(Contribution { source: "drift in time (its measured slope's standard error)".into(), u_deg: u });
+    }
     // What check points fitted with the survey's folds leave unexplained
     // beyond their noise (a line no fold and no hypothesis holds): a normal
     // term of its rms (for a sinusoid, `k` times its rms is 1.41 times its
