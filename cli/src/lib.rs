@@ -65,7 +65,7 @@ Examples:
   survey run --points 360 --bidirectional     # a survey on the simulated bench, processed
   survey stats                                # ISO 230-2 figures of the latest survey
   survey process --table-start -720 --table-end 720
-  survey report --out report/
+  survey report --out certificate/            # the page and its DCC (index.html, dcc.xml)
   survey help process                         # every option of one command";
 
 /// The commands.
@@ -101,10 +101,10 @@ Examples:
         #[command(flatten)]
         args: resume::ResumeArgs,
     },
-    /// Write the survey's report, its calibration certificate: one self-contained HTML page into --out DIR.
+    /// Write the survey's report, its calibration certificate: the HTML page (index.html) and the DCC (dcc.xml) into --out DIR.
     #[command(after_help = "\
 Examples:
-  survey report --out report/               # report/index.html of the latest survey
+  survey report --out certificate/          # certificate/index.html and certificate/dcc.xml of the latest survey
   survey report --survey 3 --out survey-3/")]
     Report {
         #[command(flatten)]

@@ -15,7 +15,7 @@ pub struct ReportArgs {
     /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<survey_store::survey::SurveyRef>,
-    /// The folder to write index.html into (created if missing).
+    /// The folder to write into (created if missing): index.html, the page; dcc.xml, the certificate as a DCC; index.pdf with --pdf.
     #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: PathBuf,
     #[command(flatten)]
