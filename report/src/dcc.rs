@@ -561,24 +561,38 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:data", &[])?;
     match (&p.cert.temperature_c, &p.d.environment) {
         (_, Environment::Tracker(m)) => {
+            // Rounded as the page states them: 0.01 °C, 0.1 hPa, 0.1 % (0.001 as a fraction).
             let quantities = [
-                ("basic_temperatureMin", "air temperature, least measured", m.temperature_c.min, "\\degreecelsius"),
-                ("basic_temperatureMax", "air temperature, greatest measured", m.temperature_c.max, "\\degreecelsius"),
-                ("basic_pressureMin", "air pressure, least measured", m.pressure_hpa.min, "\\hecto\\pascal"),
-                ("basic_pressureMax", "air pressure, greatest measured", m.pressure_hpa.max, "\\hecto\\pascal"),
-                ("basic_humidityRelativeMin", "relative humidity, least measured", m.humidity_pct.min / 100.0, "\\one"),
+                ("basic_temperatureMin", "air temperature, least measured", m.temperature_c.min, 2, "\\degreecelsius"),
+                (
+                    "basic_temperatureMax",
+                    "air temperature, greatest measured",
+                    m.temperature_c.max,
+                    2,
+                    "\\degreecelsius",
+                ),
+                ("basic_pressureMin", "air pressure, least measured", m.pressure_hpa.min, 1, "\\hecto\\pascal"),
+                ("basic_pressureMax", "air pressure, greatest measured", m.pressure_hpa.max, 1, "\\hecto\\pascal"),
+                (
+                    "basic_humidityRelativeMin",
+                    "relative humidity, least measured",
+                    m.humidity_pct.min / 100.0,
+                    3,
+                    "\\one",
+                ),
                 (
                     "basic_humidityRelativeMax",
                     "relative humidity, greatest measured",
                     m.humidity_pct.max / 100.0,
+                    3,
                     "\\one",
                 ),
             ];
-            for (ref_type, name, value, unit) in quantities {
+            for (ref_type, name, value, places, unit) in quantities {
                 x.open("dcc:quantity", &[("refType", ref_type)])?;
                 x.words("dcc:name", name)?;
                 x.open("si:real", &[])?;
-                x.leaf("si:value", &format!("{value}"))?;
+                x.leaf("si:value", &format!("{value:.places$}"))?;
                 x.leaf("si:unit", unit)?;
                 x.close("si:real")?;
                 x.close("dcc:quantity")?;
@@ -771,8 +785,9 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
 }
 
 /// ISO 230-2's figures each way (forward: increasing angle) and VDI/DGQ
-/// 3441's P, Pa and Ps, each to the place of the measured figures' U (with
-/// it where the figure is of the deviations themselves: A, E, P, Pa).
+/// 3441's P, Pa, Ps, U and U mean (the last two where both directions were
+/// measured), each to the place of the measured figures' U (with it where
+/// the figure is of the deviations themselves: A, E, P, Pa).
 fn directions_and_vdi(x: &mut Xml, iso: &survey_processing::iso230::Iso230, u: Option<f64>) -> anyhow::Result<()> {
     let with_u = |v: f64| rounded(v, u);
     let figures = [
@@ -789,6 +804,9 @@ fn directions_and_vdi(x: &mut Xml, iso: &survey_processing::iso230::Iso230, u: O
         ("survey_vdi3441_P", "P, positional uncertainty (VDI/DGQ 3441)", Some(vdi.p_deg), true),
         ("survey_vdi3441_Pa", "Pa, position deviation (VDI/DGQ 3441)", Some(vdi.pa_deg), true),
         ("survey_vdi3441_Ps", "Ps, largest positional scatter (VDI/DGQ 3441)", Some(vdi.ps_deg), false),
+        // VDI's U is a reversal span, not an uncertainty: given to the place of the measured figures' U, without one.
+        ("survey_vdi3441_U", "U, largest reversal span (VDI/DGQ 3441; not an uncertainty)", vdi.u_deg, false),
+        ("survey_vdi3441_Umean", "U mean, mean reversal span (VDI/DGQ 3441)", vdi.u_mean_deg, false),
     ];
     for (ref_type, name, value, carries_u) in figures.into_iter().chain(vdi_figures) {
         let Some(v) = value else { continue };
