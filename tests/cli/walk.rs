@@ -213,7 +213,7 @@ fn the_readme_s_example_figures_are_what_this_build_prints() {
     for line in iso {
         assert!(out.stdout.lines().any(|l| l == line), "the README prints {line:?}; this build does not\n{out}");
     }
-    let verification = block_after("(here `survey run --points 120\n--verify`, on the simulated bench):");
+    let verification = block_after("(here `survey run --points 120 --verify`, on the simulated bench):");
     let out = bench.survey(&["--db", "verify.db", "run", "--points", "120", "--verify"]).success();
     // No signed zero printed as a size (its budget said "-0.00e0 deg").
     assert!(!out.stdout.contains("-0.00e0"), "{out}");
