@@ -46,13 +46,13 @@ fn walk_commands() -> Vec<String> {
 
 /// A `survey sim` started in the bench folder; its ready line's
 /// configuration path. Killed when dropped.
-struct Sim {
+pub(super) struct Sim {
     child: Child,
-    config: String,
+    pub(super) config: String,
 }
 
 impl Sim {
-    fn start(bench: &Bench, args: &[&str]) -> Sim {
+    pub(super) fn start(bench: &Bench, args: &[&str]) -> Sim {
         let mut child = bench.command(args).stdout(Stdio::piped()).stderr(Stdio::null()).spawn().unwrap();
         let mut line = String::new();
         BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
