@@ -298,9 +298,22 @@ impl Command {
     }
 }
 
+/// The arguments parsed, with what clap alone knows of them: whether
+/// `report`'s lab store came from `SURVEY_LAB` rather than `--lab`.
+fn parse() -> Result<Cli, clap::Error> {
+    use clap::{CommandFactory as _, FromArgMatches as _};
+    let matches = Cli::command().try_get_matches()?;
+    let mut cli = Cli::from_arg_matches(&matches)?;
+    if let Command::Report { args, .. } = &mut cli.command {
+        let source = matches.subcommand_matches("report").and_then(|m| m.value_source("lab"));
+        args.lab_from_env = source == Some(clap::parser::ValueSource::EnvVariable);
+    }
+    Ok(cli)
+}
+
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    let cli = match parse() {
         Ok(cli) => cli,
         // Help and version go to stdout, usage errors to stderr (clap's exit
         // codes); a help whose write failed is not a silent success.
