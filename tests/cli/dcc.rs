@@ -147,6 +147,10 @@ fn every_dcc_written_validates_against_the_dcc_3_2_0_schema() {
     ] {
         assert!(full.contains(words), "the DCC should hold {words}");
     }
+    // No address stated: the customer is named once, its location says so (never the name again).
+    assert_eq!(full.matches(">ACME Ltd, 2 Dock St</dcc:content>").count(), 1, "the customer named once");
+    let customer = full.split("<dcc:customer>").nth(1).and_then(|c| c.split("</dcc:customer>").next()).unwrap();
+    assert!(customer.contains(">postal address not stated</dcc:content>"), "{customer}");
     let bare = bench.read("bare/dcc.xml");
     assert!(!bare.contains("mainSigner"), "no main signer when none is stated");
     // The reference's uncertainty as a quantity; the location "Bay 3" says neither laboratory nor customer.
