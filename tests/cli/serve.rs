@@ -215,11 +215,16 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
     assert_eq!(index.status, 200, "{}", index.body);
     let paths: Vec<String> =
         index.json()["paths"].as_array().unwrap().iter().map(|p| p["path"].as_str().unwrap().to_string()).collect();
-    for path in ["/api/surveys", "/api/assets", "/api/live", "/surveys/<id or uid>/dcc.xml"] {
+    for path in ["/", "/assets/<asset>", "/api/surveys", "/api/assets", "/api/live", "/surveys/<id or uid>/dcc.xml"] {
         assert!(paths.iter().any(|p| p == path), "/api/ lists {path}: {paths:?}");
     }
     for path in paths.iter().filter(|p| !p.contains('<')) {
         assert_eq!(get(&url, path).status, 200, "{path}");
+    }
+    // Each path with its parameter too, this survey's and asset's (the pages as well as the JSON).
+    for path in paths.iter().filter(|p| p.contains('<') && !p.contains("<a>") && !p.contains(".pdf")) {
+        let path = path.replace("<id or uid>", &uid).replace("<asset>", "sim-fig8");
+        assert_eq!(get(&url, &path).status, 200, "{path}");
     }
     // With an interval shorter than the calibration's age (0.000001 days: 0.09 s), it is due.
     let strict = Server::on(&bench, "survey.db", &["--due-after", "0.000001"]);
