@@ -120,7 +120,7 @@ The survey database (a SQLite file, or a lab store's postgres:// URL) when \fB\-
 The default of \fB\-\-units\fR: deg, arcsec or urad.
 .TP
 \fBSURVEY_LAB\fR
-The lab store \fBsurvey push\fR copies to when \fB\-\-to\fR is not given (its password never printed).
+The lab store \fBsurvey push\fR copies to when \fB\-\-to\fR is not given, and whose sequence \fBsurvey report\fR draws a certificate's number from when \fB\-\-lab\fR is not given (its password never printed).
 .TP
 \fBSURVEY_CHROMIUM\fR, \fBSURVEY_PDF_TIMEOUT_S\fR
 The browser \fBsurvey report \-\-pdf\fR prints with, and how long one print may take (seconds, default 120).

@@ -65,7 +65,7 @@ Examples:
   survey run --points 360 --bidirectional     # a survey on the simulated bench, processed
   survey stats                                # ISO 230-2 figures of the latest survey
   survey process --table-start -720 --table-end 720
-  survey report --out report/
+  survey report --out certificate/            # the page and its DCC (index.html, dcc.xml)
   survey help process                         # every option of one command";
 
 /// The commands.
@@ -101,10 +101,10 @@ Examples:
         #[command(flatten)]
         args: resume::ResumeArgs,
     },
-    /// Write the survey's report, its calibration certificate: one self-contained HTML page into --out DIR.
+    /// Write the survey's report, its calibration certificate: the HTML page (index.html) and the DCC (dcc.xml) into --out DIR.
     #[command(after_help = "\
 Examples:
-  survey report --out report/               # report/index.html of the latest survey
+  survey report --out certificate/          # certificate/index.html and certificate/dcc.xml of the latest survey
   survey report --survey 3 --out survey-3/")]
     Report {
         #[command(flatten)]
@@ -298,9 +298,22 @@ impl Command {
     }
 }
 
+/// The arguments parsed, with what clap alone knows of them: whether
+/// `report`'s lab store came from `SURVEY_LAB` rather than `--lab`.
+fn parse() -> Result<Cli, clap::Error> {
+    use clap::{CommandFactory as _, FromArgMatches as _};
+    let matches = Cli::command().try_get_matches()?;
+    let mut cli = Cli::from_arg_matches(&matches)?;
+    if let Command::Report { args, .. } = &mut cli.command {
+        let source = matches.subcommand_matches("report").and_then(|m| m.value_source("lab"));
+        args.lab_from_env = source == Some(clap::parser::ValueSource::EnvVariable);
+    }
+    Ok(cli)
+}
+
 /// Parse the arguments, run the command, map the outcome to the exit status.
 pub fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    let cli = match parse() {
         Ok(cli) => cli,
         // Help and version go to stdout, usage errors to stderr (clap's exit
         // codes); a help whose write failed is not a silent success.

@@ -15,7 +15,7 @@ pub struct ReportArgs {
     /// Survey id or uid (default: the latest).
     #[arg(long, value_name = "ID", allow_negative_numbers = true)]
     pub survey: Option<survey_store::survey::SurveyRef>,
-    /// The folder to write index.html into (created if missing).
+    /// The folder to write into (created if missing): index.html, the page; dcc.xml, the certificate as a DCC; index.pdf with --pdf.
     #[arg(long, value_name = "DIR", value_hint = clap::ValueHint::DirPath)]
     pub out: PathBuf,
     #[command(flatten)]
@@ -83,9 +83,13 @@ pub struct ReportArgs {
     /// Print the page to DIR/index.pdf with Chromium, headless (SURVEY_CHROMIUM names the browser; else chromium on PATH).
     #[arg(long)]
     pub pdf: bool,
-    /// Draw the number of the certificate issued now from the lab store's sequence (postgres://...): YYYY-NNNNN, one sequence for every station of the lab.
-    #[arg(long, value_name = "URL")]
+    /// Draw the number of the certificate issued now from the lab store's sequence (postgres://...): YYYY-NNNNN, one sequence for every station of the lab (SURVEY_LAB, as push reads it: where nothing is issued now, no number is drawn and the certificate issued is written again).
+    #[arg(long, value_name = "URL", env = "SURVEY_LAB", hide_env_values = true)]
     pub lab: Option<String>,
+    /// Whether `lab` came from the environment's SURVEY_LAB, not the flag
+    /// (set by `crate::main` from clap's value source).
+    #[arg(skip)]
+    pub lab_from_env: bool,
 }
 
 /// Every text flag printed on the certificate: not empty, one line without
@@ -160,6 +164,7 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let pdf_bound = if args.pdf { Some(survey_report::pdf::timeout()?) } else { None };
     let lab = LabNumber {
         url: args.lab.clone(),
+        from_env: args.lab_from_env,
         survey: args.survey.clone(),
         number_given: args.certificate_number.is_some(),
         amend: args.amend.is_some(),
@@ -210,15 +215,17 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     let amend = args.amend.as_deref();
     let mut opts = opts;
     if let Some(url) = &lab.url {
-        let (number, from) = match draw_number(&store, url, writer.is_some(), &lab).await {
-            Ok(drawn) => drawn,
+        match draw_number(&store, url, writer.is_some(), &lab).await {
+            Ok(Some((number, from))) => {
+                eprintln!("certificate number {number} drawn from the lab store {from}");
+                opts.flags.number = Some(number);
+            }
+            Ok(None) => {}
             Err(e) => {
                 store.close().await;
                 return Err(e);
             }
-        };
-        eprintln!("certificate number {number} drawn from the lab store {from}");
-        opts.flags.number = Some(number);
+        }
     }
     let written = survey_report::issue::report(&store, writer, args.survey, &opts, amend, &changes).await;
     store.close().await;
@@ -251,65 +258,82 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--lab URL`: the number of the certificate this report issues, drawn from
-/// the lab store's sequence (`YYYY-NNNNN`, the year's count across every
-/// station), and the store as it may be named. Refused (bad input, nothing
-/// drawn) where no certificate is issued now: a number given otherwise
-/// (the flag, the configuration's `[certificate] number`), a survey not
-/// complete, one issued before (but with `--amend`), a file only read here.
+/// `--lab URL` (or `SURVEY_LAB`): the number of the certificate this report
+/// issues, drawn from the lab store's sequence (`YYYY-NNNNN`, the year's
+/// count across every station), and the store as it may be named. Where no
+/// certificate is issued now ([`nothing_issued`]) nothing is drawn: the
+/// flag is refused (bad input), the environment's URL left unused (`None`:
+/// the report goes on, a certificate issued is written again), either said.
 async fn draw_number(
     store: &survey_store::Store,
     url: &str,
     issues: bool,
     args: &LabNumber,
-) -> anyhow::Result<(String, String)> {
+) -> anyhow::Result<Option<(String, String)>> {
     use survey_lab::error::bad_input;
+    let name = if args.from_env { "SURVEY_LAB" } else { "--lab" };
     if survey_store::lab::url_of(Path::new(url)).is_none() {
         // Shown as given unless it may hold a password (user:password@).
         let given = if url.contains('@') { "(a URL with credentials)" } else { url };
-        return Err(bad_input(format!("--lab {given}: not a lab store (a postgres:// URL); no number was drawn")));
+        return Err(bad_input(format!("{name} {given}: not a lab store (a postgres:// URL); no number was drawn")));
     }
     let shown = survey_store::lab::redacted(url);
-    let refused = |why: String| Err(bad_input(format!("--lab {shown}: {why}; no number was drawn")));
-    if args.number_given {
-        return refused("--certificate-number gives the number: give one of the two".into());
-    }
-    if !issues {
-        return refused(format!(
-            "{} is only read here: a certificate is issued on the station's file",
-            store.path().display()
-        ));
-    }
-    let survey = store.resolve(args.survey.clone()).await?;
-    if survey.status != survey_store::survey::SurveyStatus::Complete {
-        return refused(format!(
-            "survey {} is {}: a certificate is issued for a complete survey",
-            survey.id, survey.status
-        ));
-    }
-    if let Some(c) = store.certificates(survey.id).await?.last()
-        && !args.amend
-    {
-        return refused(format!(
-            "certificate {} of survey {} was issued: a number is drawn only for one issued now (--amend)",
-            c.number, survey.id
-        ));
-    }
-    if let survey_store::survey::Setup::Configured(c) = &survey.setup
-        && let Some(n) = c.config.certificate.as_ref().and_then(|c| c.number.as_ref())
-    {
-        return refused(format!("the survey's [certificate] number states its number ({n})"));
+    if let Some(why) = nothing_issued(store, issues, args).await? {
+        if args.from_env {
+            eprintln!("{name} {shown}: no number drawn: {why}");
+            return Ok(None);
+        }
+        return Err(bad_input(format!("{name} {shown}: {why}; no number was drawn")));
     }
     let year: i32 = humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()[..4].parse()?;
     let lab = survey_store::lab::open(url, true).await?;
     let n = lab.draw_certificate_number(year).await;
     lab.close().await;
-    Ok((format!("{year}-{:05}", n?), shown))
+    Ok(Some((format!("{year}-{:05}", n?), shown)))
+}
+
+/// Why this report issues no certificate that a lab's number could go to,
+/// if it issues none: a number given otherwise (the flag, the
+/// configuration's `[certificate] number`), a file only read here, a survey
+/// not complete, one issued before (but with `--amend`).
+async fn nothing_issued(store: &survey_store::Store, issues: bool, args: &LabNumber) -> anyhow::Result<Option<String>> {
+    if args.number_given {
+        return Ok(Some("--certificate-number gives the number: give one of the two".into()));
+    }
+    if !issues {
+        return Ok(Some(format!(
+            "{} is only read here: a certificate is issued on the station's file",
+            store.path().display()
+        )));
+    }
+    let survey = store.resolve(args.survey.clone()).await?;
+    if survey.status != survey_store::survey::SurveyStatus::Complete {
+        return Ok(Some(format!(
+            "survey {} is {}: a certificate is issued for a complete survey",
+            survey.id, survey.status
+        )));
+    }
+    if let Some(c) = store.certificates(survey.id).await?.last()
+        && !args.amend
+    {
+        return Ok(Some(format!(
+            "certificate {} of survey {} was issued: a number is drawn only for one issued now (--amend)",
+            c.number, survey.id
+        )));
+    }
+    if let survey_store::survey::Setup::Configured(c) = &survey.setup
+        && let Some(n) = c.config.certificate.as_ref().and_then(|c| c.number.as_ref())
+    {
+        return Ok(Some(format!("the survey's [certificate] number states its number ({n})")));
+    }
+    Ok(None)
 }
 
 /// What `--lab` needs of the flags.
 struct LabNumber {
     url: Option<String>,
+    /// The URL is the environment's `SURVEY_LAB`, not the flag's.
+    from_env: bool,
     survey: Option<survey_store::survey::SurveyRef>,
     number_given: bool,
     amend: bool,

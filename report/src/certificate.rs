@@ -261,7 +261,7 @@ impl Certificate {
 
     /// A rehearsal's certificate: no traceability claimed whatever was
     /// stated, and the instruments named as simulated stand-ins.
-    fn rehearsal_of(mut self, why: String) -> Certificate {
+    pub(crate) fn rehearsal_of(mut self, why: String) -> Certificate {
         self.traceability = Some(Stated {
             value: format!(
                 "none: a {REHEARSAL} ({why}); nothing on this certificate is traceable to the SI, whatever the \
@@ -303,11 +303,12 @@ fn described_or(survey: &SurveyRecord, key: &str, default: &str) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    #[test]
-    fn a_configured_survey_states_its_certificate_section_and_flags_override_it() {
+    /// A survey of the example configuration (a real bench, not a
+    /// rehearsal: its `[certificate]` states the reference's calibration).
+    pub(crate) fn configured_survey() -> SurveyRecord {
         let text =
             std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config/modbus-emscon.toml"))
                 .unwrap();
@@ -338,7 +339,12 @@ mod tests {
             planned_samples: None,
             sample_count: 0,
         };
-        let survey = SurveyRecord::parse(columns, "x.db").unwrap();
+        SurveyRecord::parse(columns, "x.db").unwrap()
+    }
+
+    #[test]
+    fn a_configured_survey_states_its_certificate_section_and_flags_override_it() {
+        let survey = configured_survey();
         let cert = Certificate::of(&survey, &CertificateFlags::default());
         let positioner = cert.positioner.as_ref().unwrap();
         assert_eq!(

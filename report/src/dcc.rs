@@ -21,18 +21,20 @@
 //!
 //! Written with quick-xml's [`Writer`] (every text escaped by it).
 
-use crate::certificate::{IDENTIFIED_AS, Issue, REHEARSAL, calibration_line, identifications};
+mod xml;
+
+use crate::certificate::{IDENTIFIED_AS, Issue, REHEARSAL, calibration_line};
 use crate::conformity::{self, Decision};
 use crate::html::Page;
 use crate::html::header::{environment_text, method_text, performed};
 use crate::rounding;
 use anyhow::Context as _;
 use quick_xml::Writer;
-use quick_xml::events::{BytesDecl, BytesEnd, BytesStart, BytesText, Event};
+use quick_xml::events::{BytesDecl, Event};
 use survey_lab::environment::Environment;
 use survey_processing::Direction;
 use survey_processing::iso230::iso230_2;
-use survey_store::config::{Address, Equipment};
+use xml::Xml;
 
 /// The D-SI unit of every angle.
 const DEGREE: &str = "\\degree";
@@ -41,206 +43,6 @@ const K: &str = "2";
 use crate::rounding::{NORMAL, PROBABILITY, TABLE_DISTRIBUTION};
 /// What a field the laboratory did not state says.
 const NOT_STATED: &str = "not stated";
-
-/// The XML being written.
-struct Xml {
-    w: Writer<Vec<u8>>,
-    /// The distribution of the expanded uncertainties being written: the
-    /// measured figures' ([`NORMAL`]) or the table's ([`TABLE_DISTRIBUTION`]).
-    distribution: &'static str,
-}
-
-type Attrs<'a> = &'a [(&'a str, &'a str)];
-
-impl Xml {
-    fn open(&mut self, name: &str, attrs: Attrs<'_>) -> anyhow::Result<()> {
-        let start = BytesStart::new(name).with_attributes(attrs.iter().copied());
-        self.w.write_event(Event::Start(start)).context("writing the DCC")?;
-        Ok(())
-    }
-
-    fn close(&mut self, name: &str) -> anyhow::Result<()> {
-        self.w.write_event(Event::End(BytesEnd::new(name))).context("writing the DCC")?;
-        Ok(())
-    }
-
-    /// `<name>text</name>`.
-    fn leaf(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
-        xml_text(name, text)?;
-        self.open(name, &[])?;
-        self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
-        self.close(name)
-    }
-
-    /// A `textType`/`richContentType` element: `<name><dcc:content lang="en">text</dcc:content></name>`.
-    fn words(&mut self, name: &str, text: &str) -> anyhow::Result<()> {
-        xml_text(name, text)?;
-        self.open(name, &[])?;
-        self.open("dcc:content", &[("lang", "en")])?;
-        self.w.write_event(Event::Text(BytesText::new(text))).context("writing the DCC")?;
-        self.close("dcc:content")?;
-        self.close(name)
-    }
-
-    /// A quantity: name, one `si:real` in degrees, its expanded uncertainty when known.
-    fn angle(&mut self, ref_type: &str, name: &str, value: &str, u: Option<&str>) -> anyhow::Result<()> {
-        // PTB's own refType beside ours (refType is a list): a consumer finds the measured values by it.
-        let ref_type = match ref_type {
-            r if r.starts_with("survey_") => format!("basic_measuredValue {r}"),
-            r => r.to_string(),
-        };
-        self.open("dcc:quantity", &[("refType", ref_type.as_str())])?;
-        self.words("dcc:name", name)?;
-        self.open("si:real", &[])?;
-        self.leaf("si:value", value)?;
-        self.leaf("si:unit", DEGREE)?;
-        if let Some(u) = u {
-            self.open("si:expandedUnc", &[])?;
-            self.leaf("si:uncertainty", u)?;
-            self.leaf("si:coverageFactor", K)?;
-            self.leaf("si:coverageProbability", PROBABILITY)?;
-            self.leaf("si:distribution", self.distribution)?;
-            self.close("si:expandedUnc")?;
-        }
-        self.close("si:real")?;
-        self.close("dcc:quantity")
-    }
-
-    /// A list quantity (`si:realListXMLList`) in `unit`, with one expanded uncertainty for every value.
-    fn list(
-        &mut self,
-        ref_type: &str,
-        name: &str,
-        values: &[String],
-        unit: &str,
-        u: Option<&str>,
-    ) -> anyhow::Result<()> {
-        self.open("dcc:quantity", &[("refType", ref_type)])?;
-        self.words("dcc:name", name)?;
-        self.open("si:realListXMLList", &[])?;
-        self.leaf("si:valueXMLList", &values.join(" "))?;
-        self.leaf("si:unitXMLList", unit)?;
-        if let Some(u) = u {
-            self.open("si:expandedUncXMLList", &[])?;
-            self.leaf("si:uncertaintyXMLList", u)?;
-            self.leaf("si:coverageFactorXMLList", K)?;
-            self.leaf("si:coverageProbabilityXMLList", PROBABILITY)?;
-            self.leaf("si:distributionXMLList", self.distribution)?;
-            self.close("si:expandedUncXMLList")?;
-        }
-        self.close("si:realListXMLList")?;
-        self.close("dcc:quantity")
-    }
-
-    /// A statement: its declaration, and the norm and clause it answers.
-    fn statement(&mut self, ref_type: &str, norm: Option<(&str, &str)>, declaration: &str) -> anyhow::Result<()> {
-        self.open("dcc:statement", &[("refType", ref_type)])?;
-        if let Some((norm, clause)) = norm {
-            self.leaf("dcc:norm", norm)?;
-            self.leaf("dcc:reference", clause)?;
-        }
-        self.words("dcc:declaration", declaration)?;
-        self.close("dcc:statement")
-    }
-
-    /// A contact with a name and where it is: its postal address as the
-    /// DCC structures one when it is stated, else the name as free text.
-    fn contact(
-        &mut self,
-        name: &str,
-        who: &str,
-        address: Option<&Address>,
-        country: Option<&str>,
-    ) -> anyhow::Result<()> {
-        self.open(name, &[])?;
-        self.words("dcc:name", who)?;
-        self.open("dcc:location", &[])?;
-        self.location(address)?;
-        match country.or_else(|| address.and_then(|a| a.country.as_deref())) {
-            Some(c) => self.leaf("dcc:countryCode", c)?,
-            None if address.is_none() => self.words("dcc:further", who)?,
-            None => {}
-        }
-        self.close("dcc:location")?;
-        self.close(name)
-    }
-
-    /// A postal address's parts (but its country), each in its element.
-    fn location(&mut self, address: Option<&Address>) -> anyhow::Result<()> {
-        let Some(a) = address else { return Ok(()) };
-        let parts = [
-            ("dcc:street", &a.street),
-            ("dcc:streetNo", &a.street_no),
-            ("dcc:postCode", &a.post_code),
-            ("dcc:city", &a.city),
-            ("dcc:state", &a.state),
-        ];
-        for (element, value) in parts {
-            if let Some(v) = value.as_deref().filter(|v| !v.trim().is_empty()) {
-                xml_text(element, v)?;
-                self.leaf(element, v)?;
-            }
-        }
-        Ok(())
-    }
-
-    /// An instrument's manufacturer (named, or "not stated": the item's is required), model and identifications.
-    fn equipment(&mut self, e: Option<&Equipment>, required: bool, more: &[(&str, &str, &str)]) -> anyhow::Result<()> {
-        match e.and_then(|e| e.manufacturer.as_deref()) {
-            Some(m) => {
-                self.open("dcc:manufacturer", &[])?;
-                self.words("dcc:name", m)?;
-                self.close("dcc:manufacturer")?;
-            }
-            None if required => {
-                self.open("dcc:manufacturer", &[])?;
-                self.words("dcc:name", NOT_STATED)?;
-                self.close("dcc:manufacturer")?;
-            }
-            None => {}
-        }
-        if let Some(m) = e.and_then(|e| e.model.as_deref()) {
-            xml_text("dcc:model", m)?;
-            self.leaf("dcc:model", m)?;
-        }
-        let mut ids: Vec<(&str, &str, &str)> = e.map(identifications).unwrap_or_default();
-        ids.extend_from_slice(more);
-        if ids.is_empty() {
-            return Ok(());
-        }
-        self.open("dcc:identifications", &[])?;
-        for (issuer, value, name) in ids {
-            self.open("dcc:identification", &[])?;
-            self.leaf("dcc:issuer", issuer)?;
-            xml_text("dcc:value", value)?;
-            self.leaf("dcc:value", value)?;
-            self.words("dcc:name", name)?;
-            self.close("dcc:identification")?;
-        }
-        self.close("dcc:identifications")
-    }
-}
-
-/// Refuse text that XML 1.0 cannot hold as written or that a certificate
-/// cannot print: a control character but tab and line feed (NUL and most C0
-/// controls are not XML characters; a carriage return would be read back as
-/// a line feed), U+FFFE and U+FFFF. What XML can hold, quick-xml escapes
-/// (`&`, `<`, `>`, quotes). The configuration and the flags refuse these
-/// first; this is for what reaches the writer otherwise (a survey stored
-/// before they did).
-fn xml_text(element: &str, text: &str) -> anyhow::Result<()> {
-    let bad = |c: char| (c.is_control() && c != '\n' && c != '\t') || c == '\u{FFFE}' || c == '\u{FFFF}';
-    match text.chars().enumerate().find(|(_, c)| bad(*c)) {
-        None => Ok(()),
-        Some((i, c)) => Err(survey_lab::error::bad_input(format!(
-            "the DCC cannot hold {element}'s text {:?}: the character U+{:04X} at character {} is not printable \
-             (state the field again with its survey report flag)",
-            text.chars().take(40).collect::<String>(),
-            c as u32,
-            i + 1
-        ))),
-    }
-}
 
 /// The DCC's `performanceLocation` from the location stated: the
 /// customer's site (or branch) when it says so, the laboratory's when it
@@ -513,46 +315,7 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.leaf("dcc:norm", "ISO 230-2:2014")?;
     x.close("dcc:usedMethod")?;
     x.close("dcc:usedMethods")?;
-    x.open("dcc:measuringEquipments", &[])?;
-    x.open("dcc:measuringEquipment", &[("refType", "basic_normalUsed")])?;
-    x.words("dcc:name", stated(&p.cert.reference))?;
-    let reference = p.cert.reference_instrument.as_ref();
-    let calibration = reference.and_then(calibration_line);
-    let description = [
-        p.cert
-            .reference_uncertainty_deg
-            .as_ref()
-            .map(|u| format!("standard uncertainty of one angle: {} deg", u.value)),
-        calibration.clone(),
-    ];
-    let description: Vec<String> = description.into_iter().flatten().collect();
-    if !description.is_empty() {
-        x.words("dcc:description", &description.join("; "))?;
-    }
-    // Its own calibration certificate, by its number, beside its identifications.
-    let mut certificate: Vec<(&str, &str, &str)> = reference
-        .and_then(|r| r.certificate.as_deref())
-        .map(|c| ("calibrationLaboratory", c, "certificate of its calibration"))
-        .into_iter()
-        .collect();
-    if let Some(said) = &p.cert.identified.reference {
-        certificate.push(("manufacturer", said.as_str(), IDENTIFIED_AS));
-    }
-    x.equipment(reference, false, &certificate)?;
-    if let Some(u) = &p.cert.reference_uncertainty_deg {
-        // The same as a quantity a machine reads.
-        x.open("dcc:measuringEquipmentQuantities", &[])?;
-        x.open("dcc:measuringEquipmentQuantity", &[("refType", "survey_referenceStandardUncertainty")])?;
-        x.words("dcc:name", "the reference's standard uncertainty of one angle (k = 1)")?;
-        x.open("si:real", &[])?;
-        x.leaf("si:value", &format!("{}", u.value))?;
-        x.leaf("si:unit", DEGREE)?;
-        x.close("si:real")?;
-        x.close("dcc:measuringEquipmentQuantity")?;
-        x.close("dcc:measuringEquipmentQuantities")?;
-    }
-    x.close("dcc:measuringEquipment")?;
-    x.close("dcc:measuringEquipments")?;
+    measuring_equipment(x, &p.cert)?;
     x.open("dcc:influenceConditions", &[])?;
     x.open("dcc:influenceCondition", &[("refType", "basic_temperature")])?;
     x.words("dcc:name", "Ambient air (temperature; with a tracker, pressure and relative humidity too)")?;
@@ -561,24 +324,38 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.open("dcc:data", &[])?;
     match (&p.cert.temperature_c, &p.d.environment) {
         (_, Environment::Tracker(m)) => {
+            // Rounded as the page states them: 0.01 °C, 0.1 hPa, 0.1 % (0.001 as a fraction).
             let quantities = [
-                ("basic_temperatureMin", "air temperature, least measured", m.temperature_c.min, "\\degreecelsius"),
-                ("basic_temperatureMax", "air temperature, greatest measured", m.temperature_c.max, "\\degreecelsius"),
-                ("basic_pressureMin", "air pressure, least measured", m.pressure_hpa.min, "\\hecto\\pascal"),
-                ("basic_pressureMax", "air pressure, greatest measured", m.pressure_hpa.max, "\\hecto\\pascal"),
-                ("basic_humidityRelativeMin", "relative humidity, least measured", m.humidity_pct.min / 100.0, "\\one"),
+                ("basic_temperatureMin", "air temperature, least measured", m.temperature_c.min, 2, "\\degreecelsius"),
+                (
+                    "basic_temperatureMax",
+                    "air temperature, greatest measured",
+                    m.temperature_c.max,
+                    2,
+                    "\\degreecelsius",
+                ),
+                ("basic_pressureMin", "air pressure, least measured", m.pressure_hpa.min, 1, "\\hecto\\pascal"),
+                ("basic_pressureMax", "air pressure, greatest measured", m.pressure_hpa.max, 1, "\\hecto\\pascal"),
+                (
+                    "basic_humidityRelativeMin",
+                    "relative humidity, least measured",
+                    m.humidity_pct.min / 100.0,
+                    3,
+                    "\\one",
+                ),
                 (
                     "basic_humidityRelativeMax",
                     "relative humidity, greatest measured",
                     m.humidity_pct.max / 100.0,
+                    3,
                     "\\one",
                 ),
             ];
-            for (ref_type, name, value, unit) in quantities {
+            for (ref_type, name, value, places, unit) in quantities {
                 x.open("dcc:quantity", &[("refType", ref_type)])?;
                 x.words("dcc:name", name)?;
                 x.open("si:real", &[])?;
-                x.leaf("si:value", &format!("{value}"))?;
+                x.leaf("si:value", &format!("{value:.places$}"))?;
                 x.leaf("si:unit", unit)?;
                 x.close("si:real")?;
                 x.close("dcc:quantity")?;
@@ -607,6 +384,50 @@ fn results(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     x.close("dcc:results")?;
     x.close("dcc:measurementResult")?;
     x.close("dcc:measurementResults")
+}
+
+/// `dcc:measuringEquipments`: the reference instrument, its identifications
+/// and the certificate of its own calibration, and its stated uncertainty
+/// as a quantity.
+fn measuring_equipment(x: &mut Xml, cert: &crate::certificate::Certificate) -> anyhow::Result<()> {
+    x.open("dcc:measuringEquipments", &[])?;
+    x.open("dcc:measuringEquipment", &[("refType", "basic_normalUsed")])?;
+    x.words("dcc:name", stated(&cert.reference))?;
+    let reference = cert.reference_instrument.as_ref();
+    let calibration = reference.and_then(calibration_line);
+    let description = [
+        cert.reference_uncertainty_deg.as_ref().map(|u| format!("standard uncertainty of one angle: {} deg", u.value)),
+        calibration.clone(),
+    ];
+    let description: Vec<String> = description.into_iter().flatten().collect();
+    if !description.is_empty() {
+        x.words("dcc:description", &description.join("; "))?;
+    }
+    // Its own calibration certificate, by its number, beside its identifications.
+    let mut certificate: Vec<(&str, &str, &str)> = reference
+        .and_then(|r| r.certificate.as_deref())
+        .map(|c| ("calibrationLaboratory", c, "certificate of its calibration"))
+        .into_iter()
+        .collect();
+    if let Some(said) = &cert.identified.reference {
+        certificate.push(("manufacturer", said.as_str(), IDENTIFIED_AS));
+    }
+    x.equipment(reference, false, &certificate)?;
+    if let Some(u) = &cert.reference_uncertainty_deg {
+        // The same as a quantity a machine reads.
+        x.open("dcc:measuringEquipmentQuantities", &[])?;
+        x.open("dcc:measuringEquipmentQuantity", &[("refType", "survey_referenceStandardUncertainty")])?;
+        x.words("dcc:name", "the reference's standard uncertainty of one angle (k = 1)")?;
+        x.open("si:real", &[])?;
+        x.leaf("si:value", &format!("{}", u.value))?;
+        x.leaf("si:unit", DEGREE)?;
+        x.close("si:real")?;
+        x.close("dcc:measuringEquipmentQuantity")?;
+        x.close("dcc:measuringEquipmentQuantities")?;
+    }
+    x.close("dcc:measuringEquipment")?;
+    x.close("dcc:measuringEquipments")?;
+    Ok(())
 }
 
 /// The axis's location (ISO 230-1) and error motions (ISO 230-7), one
@@ -771,8 +592,9 @@ fn figures(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
 }
 
 /// ISO 230-2's figures each way (forward: increasing angle) and VDI/DGQ
-/// 3441's P, Pa and Ps, each to the place of the measured figures' U (with
-/// it where the figure is of the deviations themselves: A, E, P, Pa).
+/// 3441's P, Pa, Ps, U and U mean (the last two where both directions were
+/// measured), each to the place of the measured figures' U (with it where
+/// the figure is of the deviations themselves: A, E, P, Pa).
 fn directions_and_vdi(x: &mut Xml, iso: &survey_processing::iso230::Iso230, u: Option<f64>) -> anyhow::Result<()> {
     let with_u = |v: f64| rounded(v, u);
     let figures = [
@@ -789,6 +611,9 @@ fn directions_and_vdi(x: &mut Xml, iso: &survey_processing::iso230::Iso230, u: O
         ("survey_vdi3441_P", "P, positional uncertainty (VDI/DGQ 3441)", Some(vdi.p_deg), true),
         ("survey_vdi3441_Pa", "Pa, position deviation (VDI/DGQ 3441)", Some(vdi.pa_deg), true),
         ("survey_vdi3441_Ps", "Ps, largest positional scatter (VDI/DGQ 3441)", Some(vdi.ps_deg), false),
+        // VDI's U is a reversal span, not an uncertainty: given to the place of the measured figures' U, without one.
+        ("survey_vdi3441_U", "U, largest reversal span (VDI/DGQ 3441; not an uncertainty)", vdi.u_deg, false),
+        ("survey_vdi3441_Umean", "U mean, mean reversal span (VDI/DGQ 3441)", vdi.u_mean_deg, false),
     ];
     for (ref_type, name, value, carries_u) in figures.into_iter().chain(vdi_figures) {
         let Some(v) = value else { continue };
@@ -915,6 +740,32 @@ fn table(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
+    /// Issue 50: a calibration (not a rehearsal) whose reference has a
+    /// calibration certificate names it in the DCC, as an identification of
+    /// the equipment, beside its serial number and in its description.
+    #[test]
+    fn a_calibrations_reference_carries_its_certificate_as_an_identification() {
+        let survey = crate::certificate::tests::configured_survey();
+        assert_eq!(survey.rehearsal(), None, "a configured bench's survey is a calibration");
+        let cert = crate::certificate::Certificate::of(&survey, &Default::default());
+        assert_eq!(cert.rehearsal, None);
+        let mut x = Xml { w: Writer::new(Vec::new()), distribution: NORMAL };
+        measuring_equipment(&mut x, &cert).unwrap();
+        let xml = String::from_utf8(x.w.into_inner()).unwrap();
+        let identification = "<dcc:identification><dcc:issuer>calibrationLaboratory</dcc:issuer>\
+                              <dcc:value>5678</dcc:value><dcc:name><dcc:content lang=\"en\">certificate of its \
+                              calibration</dcc:content></dcc:name></dcc:identification>";
+        assert!(xml.contains(identification), "{xml}");
+        assert!(xml.contains("<dcc:value>7788</dcc:value>"), "its serial number: {xml}");
+        assert!(xml.contains("calibration certificate 5678 by the national metrology institute"), "{xml}");
+        assert!(xml.contains("refType=\"survey_referenceStandardUncertainty\""), "{xml}");
+        // A rehearsal of the same bench claims none.
+        let mut x = Xml { w: Writer::new(Vec::new()), distribution: NORMAL };
+        measuring_equipment(&mut x, &cert.rehearsal_of("a test".into())).unwrap();
+        let xml = String::from_utf8(x.w.into_inner()).unwrap();
+        assert!(!xml.contains("5678") && xml.contains("<dcc:value>7788</dcc:value>"), "{xml}");
+    }
+
     #[test]
     fn the_performance_location_follows_the_location_stated() {
         assert_eq!(performance_location(Some("Metrology Lab North, room 2 (permanent laboratory)")), "laboratory");
@@ -922,32 +773,5 @@ mod tests {
         assert_eq!(performance_location(Some("Customer branch office, Leeds")), "customerBranch");
         assert_eq!(performance_location(Some("Bay 3")), "other");
         assert_eq!(performance_location(None), "other");
-    }
-
-    #[test]
-    fn text_xml_cannot_hold_is_refused_and_the_rest_is_escaped() {
-        for bad in ["J. Smith\u{7}", "a\u{0}b", "a\rb", "\u{1b}[31m", "a\u{85}", "\u{FFFF}"] {
-            let e = xml_text("dcc:content", bad).unwrap_err();
-            assert!(survey_lab::error::is_bad_input(&e), "{e:#}");
-            assert!(format!("{e:#}").contains("U+"), "{e:#}");
-        }
-        let hostile = "<a b=\"c\">&amp; ]]> '\u{202E}x\ty\nz \u{1F600}";
-        xml_text("dcc:content", hostile).unwrap();
-        let mut x = Xml { w: Writer::new(Vec::new()), distribution: NORMAL };
-        x.words("dcc:name", hostile).unwrap();
-        let written = String::from_utf8(x.w.into_inner()).unwrap();
-        let mut reader = quick_xml::Reader::from_str(&written);
-        let mut text = String::new();
-        loop {
-            match reader.read_event().unwrap() {
-                Event::Eof => break,
-                Event::Text(t) => text += &t.xml10_content(),
-                Event::GeneralRef(r) => {
-                    text += &quick_xml::escape::unescape(&format!("&{};", r.xml10_content())).unwrap();
-                }
-                _ => {}
-            }
-        }
-        assert_eq!(text, hostile, "read back as written: {written}");
     }
 }

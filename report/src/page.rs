@@ -4,7 +4,9 @@
 //! The page loads nothing: its Content-Security-Policy forbids every fetch
 //! (`default-src 'none'`), so a browser refuses, and reports, anything that
 //! is not inline. Print: A4, one section a page, no figure or table row cut
-//! across pages, SVG scaled to the page width, and on every page the
+//! across pages, no note cut either, nor parted from the table or figure it
+//! follows (a page never holds a note's last line alone), no paragraph
+//! leaving fewer than three lines on a page, SVG scaled to the page width, and on every page the
 //! certificate's running head and "page x of y" (CSS paged media: `@page`
 //! margin boxes with `counter(page)` and `counter(pages)`, which Chromium
 //! prints from version 131 on). The first page leaves the running head's
@@ -36,7 +38,8 @@ span.signature{display:inline-block;width:20em;border-bottom:1px solid #333;heig
 p.end{font-weight:bold;text-align:center;margin-top:1.4em;border-top:1px solid #999;padding-top:.4em}\
 @media print{body{max-width:none;margin:0;padding:0;font-size:10pt}.screen-only{display:none}\
 section.page{break-before:page}figure,tr,table.header,ul.legend{break-inside:avoid}h2,h3{break-after:avoid}\
-table#tbl-table{break-inside:avoid}\
+table#tbl-table{break-inside:avoid}p,li{orphans:3;widows:3}\
+p.note,p.verdict,p.end{break-inside:avoid}table+p.note,figure+p.note{break-before:avoid}\
 thead{display:table-header-group}}";
 
 /// The print margins' own rule: A4, and the boxes' type.

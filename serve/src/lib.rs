@@ -376,6 +376,8 @@ pub mod api {
         ("/api/assets", "the assets of /, each with its calibration in force and state"),
         ("/api/due", "survey due --json, as of now"),
         ("/api/live", "the surveys being acquired now, with their progress"),
+        ("/", "the assets and the surveys being acquired now, with their progress (a page)"),
+        ("/assets/<asset>", "the asset's history: plots over time, every survey linked (a page)"),
         ("/surveys/<id or uid>", "the survey's certificate as issued (a page; its draft before)"),
         ("/surveys/<id or uid>/certificate.html", "the certificate's page as issued, byte for byte"),
         ("/surveys/<id or uid>/dcc.xml", "the certificate's DCC as issued, byte for byte"),

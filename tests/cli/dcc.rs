@@ -147,6 +147,10 @@ fn every_dcc_written_validates_against_the_dcc_3_2_0_schema() {
     ] {
         assert!(full.contains(words), "the DCC should hold {words}");
     }
+    // No address stated: the customer is named once, its location says so (never the name again).
+    assert_eq!(full.matches(">ACME Ltd, 2 Dock St</dcc:content>").count(), 1, "the customer named once");
+    let customer = full.split("<dcc:customer>").nth(1).and_then(|c| c.split("</dcc:customer>").next()).unwrap();
+    assert!(customer.contains(">postal address not stated</dcc:content>"), "{customer}");
     let bare = bench.read("bare/dcc.xml");
     assert!(!bare.contains("mainSigner"), "no main signer when none is stated");
     // The reference's uncertainty as a quantity; the location "Bay 3" says neither laboratory nor customer.
@@ -194,6 +198,30 @@ fn the_dccs_values_are_survey_stats_and_process() {
     ] {
         let shown = page.split(&format!("{row}</td><td>")).nth(1).and_then(|s| s.split('<').next()).unwrap();
         assert_eq!(Some(shown.to_string()), after(&xml, ref_type, "si:value"), "{row}: the page and the DCC");
+    }
+    // VDI/DGQ 3441's figures too (its U and Ū, reversal spans, to the same place: issue 50).
+    for (row, ref_type) in [
+        ("P, positional uncertainty", "survey_vdi3441_P"),
+        ("Pa, position deviation", "survey_vdi3441_Pa"),
+        ("Ps, largest positional scatter", "survey_vdi3441_Ps"),
+        ("U, largest reversal span", "survey_vdi3441_U"),
+        ("Ū, mean reversal span", "survey_vdi3441_Umean"),
+    ] {
+        let shown = page.split(&format!("{row}</td><td>")).nth(1).and_then(|s| s.split('<').next()).unwrap();
+        assert_eq!(Some(shown.to_string()), after(&xml, ref_type, "si:value"), "{row}: the page and the DCC");
+    }
+    // The table's hysteresis is B, rounded as B is; the air as the page states it.
+    let b = after(&xml, "survey_iso230_2_B", "si:value").unwrap();
+    assert!(page.contains(&format!("ysteresis max {b} deg ")), "the hysteresis as B, {b}");
+    let (t_min, t_max) = (
+        after(&xml, "basic_temperatureMin", "si:value").expect("the air measured"),
+        after(&xml, "basic_temperatureMax", "si:value").unwrap(),
+    );
+    assert!(page.contains(&format!("air temperature {t_min} to {t_max} °C")), "{t_min} to {t_max} on the page");
+    for (ref_type, places) in [("basic_temperatureMin", 2), ("basic_pressureMax", 1), ("basic_humidityRelativeMin", 3)]
+    {
+        let v = after(&xml, ref_type, "si:value").unwrap();
+        assert_eq!(v.split('.').nth(1).map_or(0, str::len), places, "{ref_type} {v}: as the page rounds it");
     }
     for ref_type in ["survey_nativePeak", "survey_correctedPeakPredicted"] {
         let (v, u) = (after(&xml, ref_type, "si:value").unwrap(), after(&xml, ref_type, "si:uncertainty").unwrap());

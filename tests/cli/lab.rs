@@ -769,6 +769,10 @@ fn certificate_numbers_are_drawn_from_the_lab_store_s_sequence_by_every_station(
     a.survey(&["report", "--out", "x", "--lab", "not-a-url.db"]).bad_input(&["--lab not-a-url.db: not a lab store"]);
     let hidden = a.survey(&["report", "--out", "x", "--lab", "mysql://u:secret@h/db"]);
     assert!(!hidden.stderr.contains("secret"), "{hidden}");
+    // The environment's SURVEY_LAB (as push reads it): a certificate issued is written again, nothing drawn.
+    let again = a.survey_with_env(&["report", "--survey", "1", "--out", "again-env"], "SURVEY_LAB", &lab).success();
+    assert!(again.stderr.contains("no number drawn") && !again.stderr.contains(PASSWORD), "{again}");
+    assert_eq!(a.read("again-env/dcc.xml"), a.read("r/dcc.xml"), "the certificate as issued");
     assert_eq!(server.psql("numbers", "SELECT last FROM certificate_numbers").trim(), "3", "nothing else drawn");
     // An amendment may draw its own.
     a.survey(&["report", "--survey", "1", "--out", "amended", "--amend", "a typo", "--lab", &lab]).success();

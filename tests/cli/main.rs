@@ -191,11 +191,15 @@ impl Bench {
         std::fs::read_to_string(self.path(name)).unwrap_or_else(|e| panic!("read {name}: {e}"))
     }
 
-    /// A command for the binary in the bench folder, with no `SURVEY_DB` or
-    /// `RUST_LOG` from the environment of the test run.
+    /// A command for the binary in the bench folder, with no `SURVEY_DB`,
+    /// `SURVEY_LAB` or `RUST_LOG` from the environment of the test run.
     fn command(&self, args: &[&str]) -> Command {
         let mut cmd = Command::new(BIN);
-        cmd.args(args).current_dir(self.dir.path()).env_remove("SURVEY_DB").env_remove("RUST_LOG");
+        cmd.args(args)
+            .current_dir(self.dir.path())
+            .env_remove("SURVEY_DB")
+            .env_remove("SURVEY_LAB")
+            .env_remove("RUST_LOG");
         cmd
     }
 

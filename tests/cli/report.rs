@@ -552,3 +552,32 @@ fn the_air_the_tracker_measured_is_in_run_show_the_certificate_and_its_dcc() {
     bench.survey(&["report", "--out", "ac"]).success();
     assert!(bench.read("ac/index.html").contains("not measured: no air temperature was measured or stated"));
 }
+
+/// Issue 50: `report` reads `SURVEY_LAB` as `push` does: a survey to issue
+/// draws its number from that lab store (here one nothing answers at, so the
+/// report fails and issues nothing), a survey issued before is written again
+/// as issued (not an error), a URL that is not a lab store is refused naming
+/// SURVEY_LAB; the URL's password is never printed.
+#[test]
+fn report_reads_survey_lab_and_a_certificate_issued_is_written_again() {
+    let b = Bench::new();
+    b.survey(&["run", "--points", "24", "--runs", "2", "--json"]).success();
+    let nowhere = "postgres://survey:pw-50-secret@127.0.0.1:1/lab";
+    let failed = b.survey_with_env(&["report", "--out", "a"], "SURVEY_LAB", nowhere);
+    assert_ne!(failed.code, 0, "the lab store's number could not be drawn: {failed}");
+    assert!(!failed.stderr.contains("pw-50-secret") && !failed.stdout.contains("pw-50-secret"), "{failed}");
+    assert!(!b.exists("a/dcc.xml"), "nothing issued without its number");
+    let issued = b.survey(&["report", "--out", "b"]).success();
+    assert!(issued.stderr.contains(" issued "), "{issued}");
+    let again = b.survey_with_env(&["report", "--out", "c"], "SURVEY_LAB", nowhere).success();
+    assert!(again.stderr.contains("SURVEY_LAB postgres://") && again.stderr.contains("no number drawn"), "{again}");
+    assert!(again.stderr.contains("was issued") && !again.stderr.contains("pw-50-secret"), "{again}");
+    assert_eq!(b.read("c/dcc.xml"), b.read("b/dcc.xml"), "the certificate as issued");
+    assert_eq!(b.read("c/index.html"), b.read("b/index.html"));
+    b.survey_with_env(&["report", "--out", "d"], "SURVEY_LAB", "lab.db")
+        .bad_input(&["SURVEY_LAB lab.db: not a lab store"]);
+    // The flag still refuses what the environment passes over.
+    b.survey(&["report", "--out", "e", "--lab", nowhere]).bad_input(&["--lab postgres://", "was issued"]);
+    let help = b.survey(&["report", "--help"]).success().stdout;
+    assert!(help.contains("SURVEY_LAB"), "{help}");
+}

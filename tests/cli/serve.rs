@@ -215,11 +215,16 @@ fn every_path_answers_with_its_status_and_the_commands_documents() {
     assert_eq!(index.status, 200, "{}", index.body);
     let paths: Vec<String> =
         index.json()["paths"].as_array().unwrap().iter().map(|p| p["path"].as_str().unwrap().to_string()).collect();
-    for path in ["/api/surveys", "/api/assets", "/api/live", "/surveys/<id or uid>/dcc.xml"] {
+    for path in ["/", "/assets/<asset>", "/api/surveys", "/api/assets", "/api/live", "/surveys/<id or uid>/dcc.xml"] {
         assert!(paths.iter().any(|p| p == path), "/api/ lists {path}: {paths:?}");
     }
     for path in paths.iter().filter(|p| !p.contains('<')) {
         assert_eq!(get(&url, path).status, 200, "{path}");
+    }
+    // Each path with its parameter too, this survey's and asset's (the pages as well as the JSON).
+    for path in paths.iter().filter(|p| p.contains('<') && !p.contains("<a>") && !p.contains(".pdf")) {
+        let path = path.replace("<id or uid>", &uid).replace("<asset>", "sim-fig8");
+        assert_eq!(get(&url, &path).status, 200, "{path}");
     }
     // With an interval shorter than the calibration's age (0.000001 days: 0.09 s), it is due.
     let strict = Server::on(&bench, "survey.db", &["--due-after", "0.000001"]);
@@ -538,6 +543,13 @@ fn the_asset_page_plots_every_calibration_on_a_date_axis_and_tells_checks_apart(
     // ... on the date named beside it (a time is never without its date).
     assert!(lines.contains("time of day (UTC) on 20") || lines.contains("time of day (UTC) from 20"), "{lines}");
     assert!(page.body.contains("<th>A, deg</th><th>R, deg</th><th>table U, deg</th>"), "units in every column");
+    // The table's U as the certificate states it (two significant digits, rounded up: issue 50).
+    let dcc = get(&url, &format!("/surveys/{uid}/dcc.xml")).body;
+    let stated = dcc.split("survey_correctedPeakPredicted\"").nth(1).and_then(|r| r.split("<si:uncertainty>").nth(1));
+    let stated = stated.and_then(|r| r.split('<').next()).expect("the table's U in the DCC");
+    let row = page.body.split(&format!("/surveys/{uid}\">3</a>")).nth(1).unwrap().split("</tr>").next().unwrap();
+    let cells: Vec<&str> = row.split("<td>").skip(1).map(|c| c.split('<').next().unwrap()).collect();
+    assert_eq!(cells.get(2).copied(), Some(stated), "survey 3's table U, A and R: {cells:?}");
     let is_time = |t: &str| {
         t.len() == 8
             && t.bytes().enumerate().all(|(i, b)| if i == 2 || i == 5 { b == b':' } else { b.is_ascii_digit() })

@@ -230,6 +230,38 @@ fn completions_offer_values_for_choices_folders_for_folders_and_no_file_names_fo
     assert!(controller.contains("-f -a \"linuxcnc") || controller.contains("linuxcnc\t"), "{controller}");
 }
 
+/// Issue 50: `report --help` names every file it writes, and no example
+/// of any command's help writes into the source tree (a clone's `report/`
+/// is the report crate): every `--out` of every example names a folder the
+/// repository does not hold.
+#[test]
+fn report_help_names_its_files_and_no_example_writes_into_the_repository() {
+    let b = Bench::new();
+    let help = b.survey(&["report", "--help"]).success().stdout;
+    for file in ["index.html", "dcc.xml", "index.pdf"] {
+        assert!(help.contains(file), "report's help names {file}\n{help}");
+    }
+    b.survey(&["man", "--out", "man"]).success();
+    let repository = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut outs = Vec::new();
+    for entry in std::fs::read_dir(b.path("man")).unwrap() {
+        let page = std::fs::read_to_string(entry.unwrap().path()).unwrap().replace("\\-", "-");
+        let examples = page.split(".SH EXAMPLES\n.nf\n").nth(1).unwrap_or("").split(".fi\n").next().unwrap();
+        for line in examples.lines() {
+            let words: Vec<&str> = line.split_whitespace().collect();
+            for pair in words.windows(2).filter(|w| w[0] == "--out") {
+                outs.push((line.to_string(), pair[1].to_string()));
+            }
+        }
+    }
+    assert!(outs.iter().any(|(_, out)| out == "certificate/"), "report's example: {outs:?}");
+    for (line, out) in &outs {
+        let first = std::path::Path::new(out).components().next().unwrap();
+        let first = repository.join(first.as_os_str());
+        assert!(out.starts_with('/') || !first.exists(), "{line}: --out {out} writes into the repository ({first:?})");
+    }
+}
+
 #[test]
 fn man_pages_have_examples_and_see_also_only_pages_that_exist() {
     let b = Bench::new();

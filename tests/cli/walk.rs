@@ -46,13 +46,13 @@ fn walk_commands() -> Vec<String> {
 
 /// A `survey sim` started in the bench folder; its ready line's
 /// configuration path. Killed when dropped.
-struct Sim {
+pub(super) struct Sim {
     child: Child,
-    config: String,
+    pub(super) config: String,
 }
 
 impl Sim {
-    fn start(bench: &Bench, args: &[&str]) -> Sim {
+    pub(super) fn start(bench: &Bench, args: &[&str]) -> Sim {
         let mut child = bench.command(args).stdout(Stdio::piped()).stderr(Stdio::null()).spawn().unwrap();
         let mut line = String::new();
         BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
@@ -80,7 +80,7 @@ fn words(command: &str) -> Vec<&str> {
 fn the_readme_walk_runs_as_written_against_survey_sim() {
     let commands = walk_commands();
     let expected = [
-        "cp examples/config/modbus-emscon.toml bench.toml",
+        "cp ~/survey/examples/config/modbus-emscon.toml bench.toml",
         "survey check --config bench.toml",
         "survey sim --config bench.toml --time-scale 100",
         "survey check --config /tmp/survey-sim-Ab12Cd/bench.toml",
@@ -96,14 +96,15 @@ fn the_readme_walk_runs_as_written_against_survey_sim() {
 
     let bench = Bench::new();
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    std::os::unix::fs::symlink(root.join("examples"), bench.path("examples")).unwrap();
     let mut sims = Vec::new();
     for command in &commands {
         let command = command.replace(PLACEHOLDER, sims.first().map_or(PLACEHOLDER, |s: &Sim| s.config.as_str()));
         let argv = words(&command);
         match argv[..] {
             ["cp", from, to] => {
-                std::fs::copy(bench.path(from), bench.path(to)).unwrap();
+                // From the clone, which the README calls ~/survey: this repository.
+                let from = from.strip_prefix("~/survey/").expect("the README copies from the clone");
+                std::fs::copy(root.join(from), bench.path(to)).unwrap();
                 // The bench: step 3's own simulator, started now (step 2
                 // checks the bench), serving the copied example; bench.toml
                 // becomes the configuration it writes, its plan shortened.
@@ -212,7 +213,7 @@ fn the_readme_s_example_figures_are_what_this_build_prints() {
     for line in iso {
         assert!(out.stdout.lines().any(|l| l == line), "the README prints {line:?}; this build does not\n{out}");
     }
-    let verification = block_after("(here `survey run --points 120\n--verify`, on the simulated bench):");
+    let verification = block_after("(here `survey run --points 120 --verify`, on the simulated bench):");
     let out = bench.survey(&["--db", "verify.db", "run", "--points", "120", "--verify"]).success();
     // No signed zero printed as a size (its budget said "-0.00e0 deg").
     assert!(!out.stdout.contains("-0.00e0"), "{out}");

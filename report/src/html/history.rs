@@ -169,7 +169,8 @@ pub fn figures(h: &History, this: Option<i64>, units: Units, links: bool) -> any
                 m.kind().to_string(),
                 units.opt(m.summary.iso.as_ref().map(|i| i.a)),
                 units.opt(m.summary.iso.as_ref().map(|i| i.r)),
-                units.opt(m.summary.table_u_deg),
+                // As the certificate states a U: two significant digits, rounded up.
+                m.summary.table_u_deg.map_or_else(|| "-".into(), |u| crate::rounding::num_u(units, u)),
                 escape(&decided),
             ]
         })

@@ -46,8 +46,8 @@ fn vdi_table(v: &Vdi3441, units: Units, u_deg: Option<f64>) -> String {
         vec!["P, positional uncertainty".to_string(), rounding::num(units, v.p_deg, u_deg)],
         vec!["Pa, position deviation".to_string(), rounding::num(units, v.pa_deg, u_deg)],
         vec!["Ps, largest positional scatter".to_string(), rounding::num(units, v.ps_deg, u_deg)],
-        vec!["U, largest reversal span".to_string(), units.opt(v.u_deg)],
-        vec!["Ū, mean reversal span".to_string(), units.opt(v.u_mean_deg)],
+        vec!["U, largest reversal span".to_string(), rounding::opt(units, v.u_deg, u_deg)],
+        vec!["Ū, mean reversal span".to_string(), rounding::opt(units, v.u_mean_deg, u_deg)],
     ];
     let mut html = table("tbl-vdi", &["VDI/DGQ 3441", &format!("axis, {u}")], &rows);
     html += "<p class=\"note\" id=\"vdi-definitions\">The VDI/DGQ 3441 figures are computed from the same per-target \

@@ -78,13 +78,22 @@ pub struct Section {
     pub id: &'static str,
     /// Its heading.
     pub title: String,
-    /// Whether it starts a printed page.
+    /// Whether it starts a printed page (one with neither a figure nor a
+    /// table, a sentence or two, follows the section before it instead:
+    /// [`Section::starts_a_page`]).
     pub new_page: bool,
     /// Its body, HTML.
     pub body: String,
 }
 
 impl Section {
+    /// Whether it starts a printed page: asked to, and more than words (a
+    /// figure or a table); a printed page never holds a heading and a
+    /// sentence alone ("measured in one direction: no hysteresis").
+    pub fn starts_a_page(&self) -> bool {
+        self.new_page && (self.body.contains("<figure") || self.body.contains("<table"))
+    }
+
     /// A section that starts a printed page.
     pub fn page(id: &'static str, title: impl Into<String>, body: String) -> Option<Section> {
         Some(Section { id, title: title.into(), new_page: true, body })
@@ -256,7 +265,7 @@ pub fn render(d: &ReportData, opts: &ReportOptions) -> anyhow::Result<String> {
     );
     for show in BODY {
         if let Some(s) = show(&p)? {
-            body += &page::section(s.id, &s.title, if s.new_page { &["page"] } else { &[] }, &s.body);
+            body += &page::section(s.id, &s.title, if s.starts_a_page() { &["page"] } else { &[] }, &s.body);
         }
     }
     // The appendix: always in the page, folded; printed only when asked for (`--appendix`).

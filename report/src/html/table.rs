@@ -140,9 +140,23 @@ fn capitalised(s: &str) -> String {
     })
 }
 
+/// Why the table has its columns, in `units`: a largest hysteresis in it
+/// (the largest |B<sub>i</sub>|, which is B) rounded as the certificate
+/// rounds B, to the place of the measured figures' U `b_u_deg` (one rounding).
+fn directional_reason(p: &Processed, units: Units, b_u_deg: Option<f64>) -> String {
+    let reason = &p.built.directional_reason;
+    match &p.built.hysteresis {
+        Some(h) if *reason == h.auto_reason(&h.max_text()) => {
+            units.text(&h.auto_reason(&crate::rounding::show(units, h.max_deg, b_u_deg).0))
+        }
+        _ => units.text(reason),
+    }
+}
+
 /// The section: the figure and the excerpt, each value to the decimal
-/// place of the table's U `u_deg` (ILAC-P14, as in the DCC).
-pub fn section(p: &Processed, units: Units, u_deg: Option<f64>) -> anyhow::Result<String> {
+/// place of the table's U `u_deg` (ILAC-P14, as in the DCC); the
+/// hysteresis named to the place of the measured figures' U `b_u_deg`, as B.
+pub fn section(p: &Processed, units: Units, u_deg: Option<f64>, b_u_deg: Option<f64>) -> anyhow::Result<String> {
     let t = &p.built.table;
     let mut entries: Vec<_> =
         columns(p).into_iter().map(|(_, c, name)| (hex(c), Key::Line, format!("table, {name}"))).collect();
@@ -154,7 +168,7 @@ pub fn section(p: &Processed, units: Units, u_deg: Option<f64>) -> anyhow::Resul
         t.spacing_deg(),
         if t.is_directional() { ", a forward and a reverse column" } else { ", one column" },
         escape(&units.text(&p.built.method.to_string())),
-        escape(&capitalised(&units.text(&p.built.directional_reason))),
+        escape(&capitalised(&directional_reason(p, units, b_u_deg))),
     );
     let mut html = figure("fig-table", &svg(p, units)?, &legend(&entries), &caption);
     let ex = excerpt(p);
@@ -206,7 +220,10 @@ pub fn show(p: &Page<'_>) -> anyhow::Result<Option<Section>> {
     match p.processed() {
         Some(processed) => {
             let u = p.d.uncertainty.as_ref().map(|b| b.table_u_deg);
-            Ok(Section::page("correction-table", "Correction table", section(processed, p.units, u)?))
+            let reference_u = p.cert.reference_uncertainty_deg.as_ref().map(|u| u.value);
+            let b_u = crate::conformity::accuracy_u_deg(reference_u, p.d.reference_systematic_u_deg, p.d.axis_u_deg);
+            let body = section(processed, p.units, u, b_u)?;
+            Ok(Section::page("correction-table", "Correction table", body))
         }
         None => Ok(None),
     }

@@ -31,6 +31,26 @@ pub struct Hysteresis {
     pub significant: bool,
 }
 
+impl Hysteresis {
+    /// Why `table.directional = "auto"` chose its columns, the largest
+    /// hysteresis written as `max` (here to five decimals of a degree; a
+    /// certificate states it as it rounds its B: `survey_report`).
+    pub fn auto_reason(&self, max: &str) -> String {
+        let cmp = if self.significant { ">" } else { "<=" };
+        format!(
+            "hysteresis max {max} {cmp} {} x {:.2e} deg (its noise): {}",
+            self.factor,
+            self.noise_deg,
+            if self.significant { "forward and reverse columns" } else { "one column" }
+        )
+    }
+
+    /// The largest hysteresis as [`Hysteresis::auto_reason`] writes it by default.
+    pub fn max_text(&self) -> String {
+        format!("{:.5} deg", self.max_deg)
+    }
+}
+
 /// The hysteresis of a bidirectional survey (`None` with one direction).
 pub fn hysteresis(analysis: &Analysis, factor: f64) -> Option<Hysteresis> {
     let h = analysis.error_map.hysteresis_deg.as_ref()?;
@@ -131,19 +151,7 @@ impl Recipe {
             (_, None) | (Directional::On, _) => {
                 (false, "the survey measured one direction only: one column".to_string())
             }
-            (Directional::Auto, Some(h)) => {
-                let cmp = if h.significant { ">" } else { "<=" };
-                (
-                    h.significant,
-                    format!(
-                        "hysteresis max {:.5} deg {cmp} {} x {:.2e} deg (its noise): {}",
-                        h.max_deg,
-                        h.factor,
-                        h.noise_deg,
-                        if h.significant { "forward and reverse columns" } else { "one column" }
-                    ),
-                )
-            }
+            (Directional::Auto, Some(h)) => (h.significant, h.auto_reason(&h.max_text())),
         };
         (on, why, h)
     }
