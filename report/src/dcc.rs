@@ -45,13 +45,16 @@ use crate::rounding::{NORMAL, PROBABILITY, TABLE_DISTRIBUTION};
 const NOT_STATED: &str = "not stated";
 
 /// The DCC's `performanceLocation` from the location stated: the
-/// customer's site (or branch) when it says so, the laboratory's when it
-/// names a laboratory (or lab), else `other` (not stated, or not said).
+/// customer's (or client's) premises or branch when it names the customer or
+/// says on site, the laboratory's when it names a laboratory (or lab), else
+/// `other` (not stated, or not said). A bare "site" says neither ("Lab North,
+/// site B" is the laboratory's).
 fn performance_location(location: Option<&str>) -> &'static str {
     let Some(l) = location.map(str::to_lowercase) else { return "other" };
     let words: Vec<&str> = l.split(|c: char| !c.is_alphanumeric()).filter(|w| !w.is_empty()).collect();
     let has = |w: &[&str]| words.iter().any(|x| w.contains(x));
-    match (has(&["customer", "customers", "client", "site", "onsite"]), has(&["branch"])) {
+    let on_site = words.windows(2).any(|p| p == ["on", "site"]) || has(&["onsite"]);
+    match (has(&["customer", "customers", "client", "clients"]) || on_site, has(&["branch"])) {
         (true, true) => "customerBranch",
         (true, false) => "customer",
         (false, branch) if has(&["laboratory", "lab", "laboratories", "labs"]) => {
@@ -772,6 +775,9 @@ mod tests {
         assert_eq!(performance_location(Some("at the customer's site, ACME Ltd")), "customer");
         assert_eq!(performance_location(Some("Customer branch office, Leeds")), "customerBranch");
         assert_eq!(performance_location(Some("Bay 3")), "other");
+        assert_eq!(performance_location(Some("Lab North, site B")), "laboratory");
+        assert_eq!(performance_location(Some("on site at ACME, hall 4")), "customer");
+        assert_eq!(performance_location(Some("Site B")), "other");
         assert_eq!(performance_location(None), "other");
     }
 }
