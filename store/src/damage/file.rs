@@ -51,6 +51,15 @@
 //! transaction that changed the file's size, so each of its commits must
 //! leave the database at the size the file's header counts.
 //!
+//! Every write of this store also seals page 1 (`crate::tx`): the header's
+//! `user_version` (offset 60) becomes a new random number and its
+//! `application_id` (offset 68) the one it followed. A log whose first
+//! page-1 image followed (or kept) another state than the file's, and none
+//! of whose images is the file's page 1, is another copy's: two copies that
+//! each wrote after they parted are told apart even when their change
+//! counters agree (issue 51's third foreign log). Files and logs written
+//! before the seal read 0 in both and are told as before.
+//!
 //! The limits: a log from a copy that parted from this file after the file's
 //! last page-1 change, and wrote only pages other than page 1 (rows updated
 //! or added within existing pages), cannot be told from this file's own log
@@ -218,6 +227,29 @@ fn follows(ones: &[(u32, Vec<u8>)], counter: u32) -> Result<(), String> {
     }
 }
 
+/// Whether the log's committed page-1 images `ones` follow the file's page
+/// 1 `first` by the chain every write of this store seals into the header
+/// (`crate::tx`: `user_version` a new random number, `application_id` the
+/// one it followed): the file's page 1 is one of them (checkpointed up to
+/// there), or the first of them followed the file's state (its
+/// `application_id` is the file's `user_version`) or kept it (a write that
+/// did not seal, its `user_version` the file's). Why not, in words.
+fn chained(ones: &[(u32, Vec<u8>)], first: &[u8]) -> Result<(), String> {
+    let Some((_, one)) = ones.first() else { return Ok(()) };
+    if first.len() < 72 || one.len() < 72 || ones.iter().any(|(_, b)| b.as_slice() == first) {
+        return Ok(());
+    }
+    let (state, followed, kept) = (be32(first, 60), be32(one, 68), be32(one, 60));
+    if followed == state || kept == state {
+        return Ok(());
+    }
+    Err(format!(
+        "its first transaction followed the database's state {followed:08x}, and the file is at state {state:08x} (the \
+         header's user_version, which every write of survey renews): the log was written by another copy of this \
+         database"
+    ))
+}
+
 /// Look at the file at `path` and its log: see the module's documentation.
 /// A file too short to have a header, or without SQLite's, is left to the
 /// checks that follow.
@@ -252,7 +284,7 @@ pub(crate) fn examine(path: &Path) -> std::io::Result<Found> {
         }
     };
     found.replays = !replay.commits.is_empty();
-    let mut foreign = follows(&replay.page_ones, h.counter).err();
+    let mut foreign = chained(&replay.page_ones, &first).err().or_else(|| follows(&replay.page_ones, h.counter).err());
     if foreign.is_none()
         && replay.page_ones.is_empty()
         && let (Some(pages), Some(&size)) = (h.pages, replay.commits.iter().find(|&&s| Some(s) != h.pages))
@@ -335,6 +367,31 @@ pub(super) mod tests {
         p[28..32].copy_from_slice(&pages.to_be_bytes());
         p[92..96].copy_from_slice(&counter.to_be_bytes());
         p
+    }
+
+    /// `page_one` sealed at state `now`, having followed `before`.
+    fn sealed(counter: u32, pages: u32, before: u32, now: u32) -> Vec<u8> {
+        let mut p = page_one(counter, pages);
+        p[60..64].copy_from_slice(&now.to_be_bytes());
+        p[68..72].copy_from_slice(&before.to_be_bytes());
+        p
+    }
+
+    #[test]
+    fn the_seal_tells_another_copys_log_at_the_same_change_counter() {
+        let file = sealed(5, 3, 0x11, 0x22);
+        let ones = |v: Vec<Vec<u8>>| v.into_iter().map(|b| (5, b)).collect::<Vec<_>>();
+        // The file's own: its first image followed the file's state; or the
+        // file is one of them (checkpointed); or a write that did not seal.
+        assert!(chained(&ones(vec![sealed(5, 3, 0x22, 0x33), sealed(5, 3, 0x33, 0x44)]), &file).is_ok());
+        assert!(chained(&ones(vec![sealed(5, 3, 0x11, 0x22), file.clone(), sealed(5, 3, 0x22, 0x33)]), &file).is_ok());
+        assert!(chained(&ones(vec![sealed(5, 3, 0x11, 0x22)]), &file).is_ok());
+        assert!(chained(&[], &file).is_ok());
+        // Another copy's, parted at 0x11 (both wrote since): the same counter.
+        let e = chained(&ones(vec![sealed(5, 3, 0x11, 0x99)]), &file).unwrap_err();
+        assert!(e.contains("followed the database's state 00000011") && e.contains("another copy"), "{e}");
+        // Unsealed files and logs (written before the seal) read 0: as before.
+        assert!(chained(&ones(vec![page_one(6, 3)]), &page_one(5, 3)).is_ok());
     }
 
     #[test]
