@@ -69,7 +69,9 @@ fn readdress(record: &mut survey_store::survey::SurveyRecord, config: Option<&Pa
         }
         setup.config = new;
         let said = changes.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ");
-        return Ok(Some(format!("resumed on new addresses from {}: {said}", file.display())));
+        // The file by its name: the survey's events are shown on the lab's pages.
+        let name = file.file_name().map_or_else(|| file.display().to_string(), |n| n.to_string_lossy().into_owned());
+        return Ok(Some(format!("resumed on new addresses from {name}: {said}")));
     }
     check_devices(&setup.config, None)?;
     Ok(None)
