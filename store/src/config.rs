@@ -590,7 +590,10 @@ impl ConfigError {
 }
 
 impl SurveyConfig {
-    /// Read and check a configuration file.
+    /// Read and check a configuration file, and every serial port it names
+    /// that is there: a serial line, checked without opening it
+    /// ([`readdress::serial_line`]; `/dev/null` or a disk is refused at its
+    /// line and key before anything is stored or opened).
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
         let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
@@ -598,7 +601,20 @@ impl SurveyConfig {
             at: None,
             message: format!("cannot read the configuration: {e}"),
         })?;
-        Self::parse(&text, &file)
+        let cfg = Self::parse(&text, &file)?;
+        for (key, port) in readdress::device_paths(&cfg) {
+            // Nothing there: nothing to open by mistake (the driver says it cannot connect).
+            let Err(why) = readdress::serial_line(Path::new(&port)).or_else(|e| match Path::new(&port).exists() {
+                true => Err(e),
+                false => Ok(String::new()),
+            }) else {
+                continue;
+            };
+            let doc = toml::de::DeTable::parse(&text).expect("parsed above");
+            let d = Places::of(&text, doc.get_ref()).defect(key, format!("{why}; nothing was opened"));
+            return Err(ConfigError { file, at: Some((d.line, d.key)), message: d.text });
+        }
+        Ok(cfg)
     }
 
     /// Parse and check configuration text; `file` names it in errors. The

@@ -16,9 +16,12 @@
 //! its metadata and sysfs alone (no `open`, which on a serial line may
 //! toggle DTR and reset what is behind it): it must be a character device
 //! whose class is `tty` in `/sys/dev/char/MAJOR:MINOR/subsystem` (a serial
-//! port: ttyS, ttyUSB, ttyACM, ...), or a pseudo-terminal (majors 136 to
-//! 143, what `survey sim` serves a serial instrument on). A regular file, a
-//! folder, a block device, a pipe, another kind of character device (a disk,
+//! port: ttyS, ttyUSB, ttyACM, ...) with a device behind it
+//! (`/sys/dev/char/MAJOR:MINOR/device`: a UART, a USB-serial adapter, an
+//! ACM modem), or a pseudo-terminal's slave (majors 136 to 143, what
+//! `survey sim` serves a serial instrument on). A regular file, a folder, a
+//! block device, a pipe, a virtual terminal (a console `/dev/tty0`, the
+//! multiplexer `/dev/ptmx`), another kind of character device (a disk,
 //! `/dev/null`, a sound card) is refused. What this cannot tell: whether the
 //! serial port is the same adapter as before (no udev here; two adapters of
 //! one kind look alike).
@@ -133,9 +136,18 @@ pub fn serial_line(path: &Path) -> Result<String, String> {
     let class = std::fs::read_link(format!("/sys/dev/char/{major}:{minor}/subsystem"))
         .ok()
         .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()));
+    // A pseudo-terminal's slave (what `survey sim` serves on); a tty with a
+    // device behind it (a UART, a USB adapter, an ACM modem). A virtual tty
+    // (a console `/dev/tty0`, the multiplexer `/dev/ptmx`) has none.
+    let hardware = Path::new(&format!("/sys/dev/char/{major}:{minor}/device")).exists();
     match class.as_deref() {
-        Some("tty") => Ok(format!("a serial port (character device {major}:{minor}, class tty)")),
         _ if (136..=143).contains(&major) => Ok(format!("a pseudo-terminal (character device {major}:{minor})")),
+        Some("tty") if hardware => Ok(format!("a serial port (character device {major}:{minor}, class tty)")),
+        Some("tty") => Err(format!(
+            "{} is a virtual terminal ({major}:{minor}: a console or the pseudo-terminal multiplexer), not a serial \
+             port",
+            path.display()
+        )),
         Some(other) => Err(format!(
             "{} is a character device of class {other} ({major}:{minor}), not a serial port",
             path.display()
@@ -237,9 +249,16 @@ mod tests {
         assert!(serial_line(dir.path()).unwrap_err().contains("a folder"));
         assert!(serial_line(Path::new("/dev/null")).unwrap_err().contains("not a serial port"));
         assert!(serial_line(&dir.path().join("none")).is_err());
-        // The terminal multiplexer is a tty's character device.
-        if Path::new("/sys/dev/char/5:2").exists() {
-            assert!(serial_line(Path::new("/dev/ptmx")).unwrap().contains("class tty"));
+        // The terminal multiplexer and a console are ttys with no device behind them.
+        for virtual_tty in ["/dev/ptmx", "/dev/tty0"] {
+            if Path::new(virtual_tty).exists() {
+                assert!(serial_line(Path::new(virtual_tty)).is_err(), "{virtual_tty}");
+            }
+        }
+        // A pseudo-terminal's slave is what `survey sim` serves on.
+        let pts = std::fs::read_dir("/dev/pts").into_iter().flatten().flatten().map(|e| e.path());
+        if let Some(slave) = pts.into_iter().find(|p| p.file_name().is_some_and(|n| n != "ptmx")) {
+            assert!(serial_line(&slave).unwrap().contains("pseudo-terminal"), "{}", slave.display());
         }
     }
 
