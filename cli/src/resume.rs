@@ -60,7 +60,7 @@ fn readdress(record: &mut survey_store::survey::SurveyRecord, config: Option<&Pa
         };
     };
     if let Some(file) = config {
-        let new = SurveyConfig::from_file(file)?;
+        let new = SurveyConfig::from_file_to_open(file)?;
         let changes = readdress::address_changes(&setup.config, &new)
             .map_err(|why| bad_input(format!("--config {}: {why}", file.display())))?;
         check_devices(&new, Some(file))?;
