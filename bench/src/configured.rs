@@ -32,7 +32,7 @@ pub struct PlanOverrides {
 impl Bench {
     /// The bench of the configuration file at `path`, checked before anything is stored.
     pub fn configured(path: &Path, overrides: PlanOverrides) -> anyhow::Result<Bench> {
-        let mut cfg = SurveyConfig::from_file(path)?;
+        let mut cfg = SurveyConfig::from_file_to_open(path)?;
         if let Some(n) = overrides.smrs {
             let max = survey_processing::smrs::MAX_SMRS;
             if n as usize > max {

@@ -59,7 +59,7 @@ pub async fn acquire(
     let outcome = run_engine(engine, plan, from_seq, &mut sink, &options).await;
     // Where this acquisition's instrument time went, added to the survey's.
     if let Err(e) = store.add_survey_time(id, &engine.spent()).await {
-        tracing::warn!(error = %format!("{e:#}"), "the instrument time by component could not be stored");
+        tracing::warn!(error = %survey_store::error::said(&e), "the instrument time by component could not be stored");
     }
     if options.signal_after.is_some_and(|n| n <= plan.total_steps()) {
         // The test hook raised SIGTERM: do not go on before the stop request
@@ -70,21 +70,23 @@ pub async fn acquire(
     let status = if outcome.is_ok() { SurveyStatus::Processing } else { SurveyStatus::Interrupted };
     if let Err(e) = &outcome {
         let level = if matches!(e, EngineError::Stopped(_)) { "warn" } else { "error" };
-        let _ = store.log_event(id, now.as_secs_f64(), level, &format!("{e:#}")).await;
-        let stored = store
-            .sample_count(id)
-            .await
-            .map(|n| format!("{n} samples are stored"))
-            .unwrap_or_else(|e| format!("the samples stored could not be counted ({e:#})"));
-        crate::say!("survey {id} stopped: {e:#}\n{stored}; continue with `survey resume --survey {id}`");
+        // A full disk in words (which file, that it is full), not SQLite's codes.
+        let why = survey_store::error::engine_said(e);
+        let _ = store.log_event(id, now.as_secs_f64(), level, &why).await;
+        let stored =
+            store.sample_count(id).await.map(|n| format!("{n} samples are stored")).unwrap_or_else(|e| {
+                format!("the samples stored could not be counted ({})", survey_store::error::said(&e))
+            });
+        crate::say!("survey {id} stopped: {why}\n{stored}; continue with `survey resume --survey {id}`");
     }
     let marked = store.set_status(id, status, Some(now.as_secs_f64())).await;
     if let Err(e) = &marked {
         // A full disk refuses the status too; the samples on disk are what
         // `resume` goes by, so the survey stays resumable.
-        tracing::error!(error = %format!("{e:#}"), "the survey's status could not be stored");
+        let why = survey_store::error::said(e);
+        tracing::error!(error = %why, "the survey's status could not be stored");
         crate::say!(
-            "survey {id}: its status could not be stored ({e:#}); `survey resume --survey {id}` works all the same"
+            "survey {id}: its status could not be stored ({why}); `survey resume --survey {id}` works all the same"
         );
     }
     if outcome.is_ok() {

@@ -18,7 +18,7 @@ pub struct CheckArgs {
 }
 
 pub async fn check(args: CheckArgs) -> anyhow::Result<()> {
-    let cfg = SurveyConfig::from_file(&args.config)?;
+    let cfg = SurveyConfig::from_file_to_open(&args.config)?;
     let clock = SystemClock::new();
     // An instrument that does not answer takes its timeout: say what is being waited for.
     let progress = crate::progress::Progress::spinner(

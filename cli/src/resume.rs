@@ -60,7 +60,7 @@ fn readdress(record: &mut survey_store::survey::SurveyRecord, config: Option<&Pa
         };
     };
     if let Some(file) = config {
-        let new = SurveyConfig::from_file(file)?;
+        let new = SurveyConfig::from_file_to_open(file)?;
         let changes = readdress::address_changes(&setup.config, &new)
             .map_err(|why| bad_input(format!("--config {}: {why}", file.display())))?;
         check_devices(&new, Some(file))?;
@@ -69,7 +69,9 @@ fn readdress(record: &mut survey_store::survey::SurveyRecord, config: Option<&Pa
         }
         setup.config = new;
         let said = changes.iter().map(ToString::to_string).collect::<Vec<_>>().join("; ");
-        return Ok(Some(format!("resumed on new addresses from {}: {said}", file.display())));
+        // The file by its name: the survey's events are shown on the lab's pages.
+        let name = file.file_name().map_or_else(|| file.display().to_string(), |n| n.to_string_lossy().into_owned());
+        return Ok(Some(format!("resumed on new addresses from {name}: {said}")));
     }
     check_devices(&setup.config, None)?;
     Ok(None)

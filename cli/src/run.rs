@@ -244,7 +244,7 @@ pub async fn run(db: &Path, args: RunArgs) -> anyhow::Result<()> {
     if args.check {
         let (asset, polygon) = match &args.config {
             Some(path) => {
-                let cfg = survey_store::config::SurveyConfig::from_file(path)?;
+                let cfg = survey_store::config::SurveyConfig::from_file_to_open(path)?;
                 let asset = cfg.asset.as_ref().map(|a| a.id.clone());
                 (asset, cfg.reference() == ReferenceKind::Autocollimator)
             }

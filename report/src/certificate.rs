@@ -11,6 +11,7 @@
 //! of its date and uid when none was assigned, [`crate::issue`]); else "not stated".
 
 use survey_acquire::ReferenceKind;
+use survey_store::config::readdress::instrument_words;
 use survey_store::config::{Address, CertificateSection, Equipment};
 use survey_store::survey::{Setup, SurveyRecord};
 
@@ -182,7 +183,8 @@ impl Certificate {
             Setup::Configured(c) => c.config.certificate.clone().unwrap_or_default(),
             _ => CertificateSection::default(),
         };
-        let described = |key: &str| survey.instruments.get(key).and_then(|v| v.as_str()).map(str::to_string);
+        // By driver and transport, never a local path (a serial adapter's carries its serial number).
+        let described = |key: &str| survey.instruments.get(key).and_then(|v| v.as_str()).map(instrument_words);
         let (bench_positioner, bench_reference, bench_u) = match &survey.setup {
             Setup::Simulated(s) => {
                 let preset = survey_sims::Preset::by_name(&s.preset);
@@ -299,7 +301,7 @@ impl Certificate {
 }
 
 fn described_or(survey: &SurveyRecord, key: &str, default: &str) -> String {
-    survey.instruments.get(key).and_then(|v| v.as_str()).map(str::to_string).unwrap_or_else(|| default.to_string())
+    survey.instruments.get(key).and_then(|v| v.as_str()).map(instrument_words).unwrap_or_else(|| default.to_string())
 }
 
 #[cfg(test)]
@@ -397,6 +399,11 @@ pub(crate) mod tests {
         let cert = Certificate::of(&bare, &CertificateFlags::default());
         assert_eq!(cert.reference.unwrap().value, "emscon 192.168.1.30:700");
         assert_eq!(cert.reference_uncertainty_deg, None);
+        // A serial instrument by its driver and transport, not its device path.
+        bare.instruments["positioner"] = "modbus-rtu /dev/serial/by-id/usb-FTDI_A12345-if00 slave 1".into();
+        let cert = Certificate::of(&bare, &CertificateFlags::default());
+        assert_eq!(cert.positioner.as_ref().unwrap().value, "modbus-rtu (serial port) slave 1");
+        assert_eq!(cert.positioner_name(&bare), "modbus-rtu (serial port) slave 1");
     }
 
     #[test]

@@ -13,12 +13,17 @@
 //! - without either, `/api/...` is answered 401 with `WWW-Authenticate`, a
 //!   page is a redirection to `/login?next=PATH`, and only `/login` answers;
 //! - failed logins are counted per client address (an IPv6 address by its
-//!   /64): the first [`FREE_FAILURES`] cost nothing, each further one
-//!   refuses the address for 1 minute, doubling at each failure up to 1
-//!   hour ([`Failures::lock_for`]); a refused address is answered 429 with
-//!   `Retry-After` and its password is not even checked; a login that
-//!   succeeds clears its count. Each failure is logged (warning) with the
-//!   name tried and the address, never the password.
+//!   /64) and name: the first [`FREE_FAILURES`] cost nothing, each further
+//!   one refuses that name from the address for 1 minute, doubling at each
+//!   failure up to 1 hour ([`Failures::lock_for`]); a login that succeeds
+//!   clears its own name's count only (one account's holder cannot clear
+//!   what was guessed at another's). The address's failures over every
+//!   name are counted too, never cleared by a success: beyond
+//!   [`ADDRESS_FREE_FAILURES`] the whole address is refused on the same
+//!   schedule (guessing many names). A refused login is answered 429 with
+//!   `Retry-After` and its password is not even checked. Each failure is
+//!   logged (warning) with the name tried and the address, never the
+//!   password.
 
 use super::auth::Users;
 use super::{App, html_body};
@@ -41,8 +46,10 @@ pub const COOKIE: &str = "survey_session";
 pub const SESSION_MAX: Duration = Duration::from_secs(24 * 3600);
 /// Sessions kept at most (beyond, the one idle longest ends).
 const MAX_SESSIONS: usize = 10_000;
-/// Failed logins from one address that cost nothing.
+/// Failed logins as one name from one address that cost nothing.
 pub const FREE_FAILURES: u32 = 4;
+/// Failed logins from one address, over every name, that cost nothing.
+pub const ADDRESS_FREE_FAILURES: u32 = 20;
 /// How long Basic credentials checked once are remembered.
 pub const BASIC_REMEMBERED: Duration = Duration::from_secs(300);
 /// Addresses whose failures are counted at most (beyond, the one that failed longest ago is forgotten).
@@ -172,19 +179,19 @@ impl Gate {
     /// Check `name` and `password` from `peer`, counting a failure against its address.
     pub(crate) async fn check(&self, peer: IpAddr, name: &str, password: &str, how: &str) -> Checked {
         let now = Instant::now();
-        if let Some(wait) = lock(&self.failures).refused(peer, now) {
+        if let Some(wait) = lock(&self.failures).refused(peer, name, now) {
             tracing::warn!(user = ?clip(name), client = %peer, how, "a login refused: too many failed logins from this address");
             return Checked::Refused(wait);
         }
         let digest = self.digest(name, password);
         if lock(&self.remembered).get(&digest).is_some_and(|&until| now < until) {
-            lock(&self.failures).succeeded(peer);
+            lock(&self.failures).succeeded(peer, name);
             return Checked::Ok;
         }
         let ok = self.checkers.check(name, password).await;
         let now = Instant::now();
         if ok {
-            lock(&self.failures).succeeded(peer);
+            lock(&self.failures).succeeded(peer, name);
             let mut remembered = lock(&self.remembered);
             if remembered.len() >= 256 {
                 remembered.retain(|_, &mut until| now < until);
@@ -195,10 +202,10 @@ impl Gate {
             remembered.insert(digest, now + BASIC_REMEMBERED);
             return Checked::Ok;
         }
-        let (count, refused) = lock(&self.failures).failed(peer, now);
+        let (count, refused) = lock(&self.failures).failed(peer, name, now);
         tracing::warn!(user = ?clip(name), client = %peer, how, failures = count, "a failed login");
         if let Some(wait) = refused {
-            tracing::warn!(client = %peer, "failed logins: this address is refused for {} s", wait.as_secs());
+            tracing::warn!(user = ?clip(name), client = %peer, "failed logins: this address is refused for {} s", wait.as_secs());
         }
         Checked::Wrong
     }
@@ -272,9 +279,23 @@ impl Sessions {
 }
 
 /// Failed logins by client address.
+/// Failed logins: per address and name, and per address over every name.
 #[derive(Debug, Default)]
 pub(crate) struct Failures {
-    by_client: HashMap<IpAddr, Failed>,
+    by_account: Counts<(IpAddr, String)>,
+    by_client: Counts<IpAddr>,
+}
+
+/// Failures counted by a key.
+#[derive(Debug)]
+struct Counts<K> {
+    map: HashMap<K, Failed>,
+}
+
+impl<K> Default for Counts<K> {
+    fn default() -> Self {
+        Counts { map: HashMap::new() }
+    }
 }
 
 #[derive(Debug)]
@@ -296,6 +317,35 @@ fn client_of(ip: IpAddr) -> IpAddr {
     }
 }
 
+impl<K: std::hash::Hash + Eq + Clone> Counts<K> {
+    fn refused(&self, key: &K, now: Instant) -> Option<Duration> {
+        let f = self.map.get(key)?;
+        f.refused_until.filter(|&until| now < until).map(|until| until - now)
+    }
+
+    /// A failure of `key`: its count in a row, and how long it is now refused
+    /// (none for the first `free`).
+    fn failed(&mut self, key: K, now: Instant, free: u32) -> (u32, Option<Duration>) {
+        if self.map.len() >= MAX_ADDRESSES && !self.map.contains_key(&key) {
+            self.map.retain(|_, f| now.saturating_duration_since(f.last) < FAILURES_FORGOTTEN);
+            if self.map.len() >= MAX_ADDRESSES
+                && let Some(oldest) = self.map.iter().min_by_key(|(_, f)| f.last).map(|(c, _)| c.clone())
+            {
+                self.map.remove(&oldest);
+            }
+        }
+        let f = self.map.entry(key).or_insert(Failed { count: 0, last: now, refused_until: None });
+        if now.saturating_duration_since(f.last) >= FAILURES_FORGOTTEN {
+            f.count = 0;
+        }
+        f.count += 1;
+        f.last = now;
+        let refused = f.count.checked_sub(free - FREE_FAILURES).and_then(Failures::lock_for);
+        f.refused_until = refused.map(|d| now + d);
+        (f.count, refused)
+    }
+}
+
 impl Failures {
     /// How long an address is refused after its `count`th failure in a row:
     /// nothing for the first [`FREE_FAILURES`], then 1 minute doubling at
@@ -305,36 +355,29 @@ impl Failures {
         Some(Duration::from_secs((60u64 << beyond.min(6)).min(3600)))
     }
 
-    /// How much longer `ip` is refused, if it is.
-    pub(crate) fn refused(&mut self, ip: IpAddr, now: Instant) -> Option<Duration> {
-        let f = self.by_client.get(&client_of(ip))?;
-        f.refused_until.filter(|&until| now < until).map(|until| until - now)
+    fn account(ip: IpAddr, name: &str) -> (IpAddr, String) {
+        (client_of(ip), clip(name))
     }
 
-    /// A failure from `ip`: its count in a row, and how long it is now refused.
-    pub(crate) fn failed(&mut self, ip: IpAddr, now: Instant) -> (u32, Option<Duration>) {
-        let client = client_of(ip);
-        if self.by_client.len() >= MAX_ADDRESSES && !self.by_client.contains_key(&client) {
-            self.by_client.retain(|_, f| now.saturating_duration_since(f.last) < FAILURES_FORGOTTEN);
-            if self.by_client.len() >= MAX_ADDRESSES
-                && let Some(oldest) = self.by_client.iter().min_by_key(|(_, f)| f.last).map(|(&c, _)| c)
-            {
-                self.by_client.remove(&oldest);
-            }
-        }
-        let f = self.by_client.entry(client).or_insert(Failed { count: 0, last: now, refused_until: None });
-        if now.saturating_duration_since(f.last) >= FAILURES_FORGOTTEN {
-            f.count = 0;
-        }
-        f.count += 1;
-        f.last = now;
-        let refused = Failures::lock_for(f.count);
-        f.refused_until = refused.map(|d| now + d);
-        (f.count, refused)
+    /// How much longer `name` from `ip` is refused, if it is (the address's
+    /// own refusal included).
+    pub(crate) fn refused(&mut self, ip: IpAddr, name: &str, now: Instant) -> Option<Duration> {
+        let account = self.by_account.refused(&Failures::account(ip, name), now);
+        account.max(self.by_client.refused(&client_of(ip), now))
     }
 
-    pub(crate) fn succeeded(&mut self, ip: IpAddr) {
-        self.by_client.remove(&client_of(ip));
+    /// A failure of `name` from `ip`: the name's count in a row from there,
+    /// and how long it is now refused (the longer of the name's and the address's).
+    pub(crate) fn failed(&mut self, ip: IpAddr, name: &str, now: Instant) -> (u32, Option<Duration>) {
+        let (count, account) = self.by_account.failed(Failures::account(ip, name), now, FREE_FAILURES);
+        let (_, address) = self.by_client.failed(client_of(ip), now, ADDRESS_FREE_FAILURES);
+        (count, account.max(address))
+    }
+
+    /// A login of `name` from `ip` succeeded: its own count cleared (not
+    /// another name's, nor the address's).
+    pub(crate) fn succeeded(&mut self, ip: IpAddr, name: &str) {
+        self.by_account.map.remove(&Failures::account(ip, name));
     }
 }
 
@@ -603,27 +646,52 @@ mod tests {
             (Instant::now(), "10.0.0.7".parse().unwrap(), "10.0.0.8".parse().unwrap());
         let mut f = Failures::default();
         for n in 1..=4 {
-            assert_eq!(f.failed(a, t0), (n, None));
-            assert_eq!(f.refused(a, t0), None);
+            assert_eq!(f.failed(a, "lab", t0), (n, None));
+            assert_eq!(f.refused(a, "lab", t0), None);
         }
-        assert_eq!(f.failed(a, t0), (5, Some(Duration::from_secs(60))));
-        assert_eq!(f.refused(a, t0 + Duration::from_secs(59)), Some(Duration::from_secs(1)));
-        assert_eq!(f.refused(b, t0), None, "another address is not refused");
-        assert_eq!(f.refused(a, t0 + Duration::from_secs(60)), None);
-        assert_eq!(f.failed(a, t0 + Duration::from_secs(61)).1, Some(Duration::from_secs(120)));
-        f.succeeded(a);
-        assert_eq!(f.failed(a, t0 + Duration::from_secs(62)), (1, None), "a success clears the count");
+        assert_eq!(f.failed(a, "lab", t0), (5, Some(Duration::from_secs(60))));
+        assert_eq!(f.refused(a, "lab", t0 + Duration::from_secs(59)), Some(Duration::from_secs(1)));
+        assert_eq!(f.refused(b, "lab", t0), None, "another address is not refused");
+        assert_eq!(f.refused(a, "lab", t0 + Duration::from_secs(60)), None);
+        assert_eq!(f.failed(a, "lab", t0 + Duration::from_secs(61)).1, Some(Duration::from_secs(120)));
+        f.succeeded(a, "lab");
+        assert_eq!(f.failed(a, "lab", t0 + Duration::from_secs(62)), (1, None), "a success clears the count");
         // A day later, the count starts again.
         for _ in 0..5 {
-            f.failed(b, t0);
+            f.failed(b, "lab", t0);
         }
-        assert_eq!(f.failed(b, t0 + FAILURES_FORGOTTEN), (1, None));
+        assert_eq!(f.failed(b, "lab", t0 + FAILURES_FORGOTTEN), (1, None));
         // An IPv6 address by its /64.
         let (c, d): (IpAddr, IpAddr) = ("2001:db8:1:2::1".parse().unwrap(), "2001:db8:1:2::ffff".parse().unwrap());
         for _ in 0..5 {
-            f.failed(c, t0);
+            f.failed(c, "lab", t0);
         }
-        assert!(f.refused(d, t0).is_some());
+        assert!(f.refused(d, "lab", t0).is_some());
+    }
+
+    /// One account's holder cannot clear, by logging in, what was guessed
+    /// at another account from the same address; guessing many names from
+    /// one address refuses the address.
+    #[test]
+    fn failures_are_counted_per_address_and_name_and_a_success_clears_only_its_own() {
+        let (t0, a): (Instant, IpAddr) = (Instant::now(), "10.0.0.7".parse().unwrap());
+        let mut f = Failures::default();
+        for n in 1..=4 {
+            assert_eq!(f.failed(a, "admin", t0), (n, None));
+        }
+        // The guesser's own account, logged into, clears nothing of admin's.
+        f.succeeded(a, "mallory");
+        assert_eq!(f.failed(a, "admin", t0), (5, Some(Duration::from_secs(60))));
+        assert!(f.refused(a, "admin", t0).is_some());
+        assert_eq!(f.refused(a, "mallory", t0), None, "another name from the address is not refused yet");
+        // Many names from one address: the address itself, beyond its free failures.
+        let mut f = Failures::default();
+        for n in 0..ADDRESS_FREE_FAILURES {
+            assert_eq!(f.failed(a, &format!("user{n}"), t0).1, None, "{n}");
+            f.succeeded(a, &format!("user{n}"));
+        }
+        assert_eq!(f.failed(a, "one more", t0), (1, Some(Duration::from_secs(60))));
+        assert!(f.refused(a, "lab", t0).is_some(), "the whole address");
     }
 
     #[test]

@@ -229,6 +229,28 @@ fn without_paths(text: &str, db: &std::path::Path) -> String {
     text
 }
 
+/// `survey show --json` as `/api/` serves it: the instruments by driver and
+/// transport, every other local path (in an event: a device's, a file's) said
+/// as `(a local path)` (`survey show` itself, the operator's view, keeps them).
+fn without_device_paths(mut doc: Value) -> Value {
+    use survey_store::config::readdress::{instrument_words, without_local_paths};
+    fn walk(v: &mut Value, f: &dyn Fn(&str) -> String) {
+        match v {
+            Value::String(s) => *s = f(s),
+            Value::Array(items) => items.iter_mut().for_each(|i| walk(i, f)),
+            Value::Object(map) => map.values_mut().for_each(|i| walk(i, f)),
+            _ => {}
+        }
+    }
+    for role in ["positioner", "reference"] {
+        if let Some(v) = doc.get_mut("instruments").and_then(|i| i.get_mut(role)) {
+            walk(v, &instrument_words);
+        }
+    }
+    walk(&mut doc, &without_local_paths);
+    doc
+}
+
 /// Open the store read-only, run `$body` with it bound to `$store`, close it;
 /// the body's error mapped to its status.
 macro_rules! read {
@@ -425,7 +447,7 @@ pub mod api {
         let r = survey_ref(&survey, true)?;
         let doc = offload(app.clone(), true, async move {
             let shown = read!(app, true, |store| shown(&store, Some(r)).await);
-            Ok(shown.json())
+            Ok(super::without_device_paths(shown.json()))
         });
         Ok(json_body(&doc.await?))
     }

@@ -592,13 +592,40 @@ impl ConfigError {
 impl SurveyConfig {
     /// Read and check a configuration file.
     pub fn from_file(path: &Path) -> Result<Self, ConfigError> {
+        Self::read(path).map(|(cfg, _)| cfg)
+    }
+
+    /// [`Self::from_file`] for a command that opens the instruments (`run`,
+    /// `check`, `resume`; not `sim`, which makes its serial ports): every
+    /// serial port it names that is there must be a serial line, checked
+    /// without opening it ([`readdress::serial_line`]; `/dev/null` or a disk
+    /// is refused at its line and key before anything is stored or opened).
+    pub fn from_file_to_open(path: &Path) -> Result<Self, ConfigError> {
+        let (cfg, text) = Self::read(path)?;
+        for (key, port) in readdress::device_paths(&cfg) {
+            // Nothing there: nothing to open by mistake (the driver says it cannot connect).
+            let Err(why) = readdress::serial_line(Path::new(&port)).or_else(|e| match Path::new(&port).exists() {
+                true => Err(e),
+                false => Ok(String::new()),
+            }) else {
+                continue;
+            };
+            let doc = toml::de::DeTable::parse(&text).expect("parsed above");
+            let d = Places::of(&text, doc.get_ref()).defect(key, format!("{why}; nothing was opened"));
+            return Err(ConfigError { file: path.display().to_string(), at: Some((d.line, d.key)), message: d.text });
+        }
+        Ok(cfg)
+    }
+
+    /// The configuration of the file at `path`, checked, and its text.
+    fn read(path: &Path) -> Result<(Self, String), ConfigError> {
         let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
             file: file.clone(),
             at: None,
             message: format!("cannot read the configuration: {e}"),
         })?;
-        Self::parse(&text, &file)
+        Self::parse(&text, &file).map(|cfg| (cfg, text))
     }
 
     /// Parse and check configuration text; `file` names it in errors. The

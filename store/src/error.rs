@@ -86,6 +86,16 @@ pub fn said(e: &anyhow::Error) -> String {
     parts.join(": ")
 }
 
+/// What stopped an acquisition, for people: as `{e:#}` prints it, but a
+/// store's failure (a full disk: which file, and that it is full) said as
+/// [`said`] says it.
+pub fn engine_said(e: &survey_acquire::EngineError) -> String {
+    match e {
+        survey_acquire::EngineError::Sink(inner) => format!("recording failed: {}", said(inner)),
+        other => format!("{other:#}"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     /// Issue 51: a full disk met by the engine's store (its error held as
@@ -101,6 +111,8 @@ mod tests {
             "{text}"
         );
         assert!(!text.contains("code: 13"), "{text}");
+        let Ok(engine) = e.downcast::<survey_acquire::EngineError>() else { panic!("the engine's error") };
+        assert_eq!(super::engine_said(&engine), text);
     }
 
     #[derive(Debug)]

@@ -269,9 +269,10 @@ fn io_in_words(kind: std::io::ErrorKind) -> Option<&'static str> {
     })
 }
 
-/// A failure of the connection itself (not the server's answer) in words:
-/// I/O, TLS, a reply that is not PostgreSQL's.
-fn link_in_words(e: &sqlx::Error) -> Option<String> {
+/// A failure of the connection to `host`:`port` itself (not the server's
+/// answer) in words: I/O, a name that does not resolve, TLS, a reply that is
+/// not PostgreSQL's.
+fn link_in_words(e: &sqlx::Error, host: &str, port: u16) -> Option<String> {
     match e {
         sqlx::Error::Io(io) => {
             // The connection's end first: a server stopped at once under TLS
@@ -281,12 +282,19 @@ fn link_in_words(e: &sqlx::Error) -> Option<String> {
                 return Some(w.to_string());
             }
             let text = io.to_string();
-            if text.contains("certificate") || text.contains("TLS") || text.contains("tls") {
-                return Some(tls_in_words(&text));
+            // The resolver's words (glibc's, or sqlx's for a name with no address).
+            if ["failed to lookup address", "Name or service not known", "name resolution", "did not resolve"]
+                .iter()
+                .any(|w| text.contains(w))
+            {
+                return Some(format!("cannot find host {host} (the name has no address: check it, and the DNS)"));
+            }
+            if ["certificate", "TLS", "tls", "corrupt message"].iter().any(|w| text.contains(w)) {
+                return Some(tls_in_words(&text, host, port));
             }
             None
         }
-        sqlx::Error::Tls(t) => Some(tls_in_words(&t.to_string())),
+        sqlx::Error::Tls(t) => Some(tls_in_words(&t.to_string(), host, port)),
         // The first reply to TLS's request read as 0 bytes: the connection was closed.
         sqlx::Error::Protocol(p) if p.contains("SSLRequest") => Some(
             "the server closed the connection as soon as it was made (it went away, or is not a PostgreSQL \
@@ -327,7 +335,7 @@ fn in_words(e: &sqlx::Error, at: &Server, pushing: bool) -> Option<(String, bool
         }
         return gone_in_words(&code).map(|w| (format!("the lab store at {host}:{port}: {w}"), false));
     }
-    if let Some(w) = link_in_words(e) {
+    if let Some(w) = link_in_words(e, host, *port) {
         return Some((format!("the lab store at {host}:{port}: {w}"), false));
     }
     match e {
@@ -390,12 +398,17 @@ fn root_certificate_readable(url: &str, shown: &str) -> anyhow::Result<()> {
 }
 
 /// What a configuration error says, without its debug form (which would
-/// show the options, the password among them).
+/// show the options, the password among them) and without sqlx's "error
+/// with configuration:" (twice where it wraps its own error).
 fn reason(e: &sqlx::Error) -> String {
-    match e {
+    let mut text = match e {
         sqlx::Error::Configuration(inner) => inner.to_string(),
         other => other.to_string(),
+    };
+    while let Some(rest) = text.strip_prefix("error with configuration: ") {
+        text = rest.to_string();
     }
+    text
 }
 
 /// A connection that failed: refused credentials or a database that does
@@ -425,7 +438,7 @@ fn connect_error(e: &sqlx::Error, shown: &str, host: &str, port: u16, user: &str
     }
     let why = match e {
         sqlx::Error::PoolTimedOut => format!("no answer within {} s", CONNECT_TIMEOUT.as_secs()),
-        other => match link_in_words(other) {
+        other => match link_in_words(other, host, port) {
             Some(w) => w,
             None => reason(other),
         },
@@ -446,9 +459,16 @@ fn without_links(t: &str) -> String {
     }
 }
 
-/// A TLS failure in words: what the server's certificate lacks, what the URL can say.
-fn tls_in_words(t: &str) -> String {
-    let why = if t.contains("UnknownIssuer") {
+/// A TLS failure (talking to `host`:`port`) in words: what the server's
+/// certificate lacks, what the URL can say.
+fn tls_in_words(t: &str, host: &str, port: u16) -> String {
+    let why = if t.contains("InvalidContentType") || t.contains("corrupt message") {
+        // rustls's "received corrupt message of type InvalidContentType": the reply is not a TLS record.
+        format!(
+            "the server at {host}:{port} answered something that is not TLS (not PostgreSQL with TLS, or a proxy in \
+             the way)"
+        )
+    } else if t.contains("UnknownIssuer") {
         "the server's certificate is not signed by a known authority: give its CA's PEM file with \
          `sslrootcert=PATH` in the URL"
             .to_string()
@@ -531,12 +551,40 @@ mod tests {
              stopped, restarted, or the network dropped it)"
         );
         assert_eq!(without_links("bad record: https://docs.rs/x"), "bad record");
-        assert_eq!(tls_in_words("odd (see https://docs.rs/y)"), "TLS: odd");
+        assert_eq!(tls_in_words("odd (see https://docs.rs/y)", "h", 1), "TLS: odd");
         assert!(gone_in_words("57P01").unwrap().contains("shutting down") && gone_in_words("42P01").is_none());
         // Anything else is left as it was.
         let e = explained(anyhow::anyhow!("no such survey"), &at, "x");
         assert_eq!(format!("{e:#}"), "no such survey");
         assert!(!text.contains("s3cret"));
+    }
+
+    /// Issue 51: a reply that is not TLS, a host that does not resolve, a
+    /// bad `sslmode`: in words, without the library's, or the password.
+    #[test]
+    fn a_link_that_fails_is_said_in_words() {
+        let io = |kind, text: &str| sqlx::Error::Io(std::io::Error::new(kind, text.to_string()));
+        let not_tls = io(std::io::ErrorKind::InvalidData, "received corrupt message of type InvalidContentType");
+        assert_eq!(
+            link_in_words(&not_tls, "db.example", 5432).unwrap(),
+            "TLS: the server at db.example:5432 answered something that is not TLS (not PostgreSQL with TLS, or a \
+             proxy in the way)"
+        );
+        for said in [
+            "failed to lookup address information: Name or service not known",
+            "failed to lookup address information: Temporary failure in name resolution",
+            "Hostname did not resolve to any addresses",
+        ] {
+            let e = io(std::io::ErrorKind::Other, said);
+            let text = link_in_words(&e, "nowhere.invalid", 5432).unwrap();
+            assert!(text.starts_with("cannot find host nowhere.invalid ("), "{text}");
+        }
+        let e = connect_error(&not_tls, "postgres://lab@db.example/x", "db.example", 5432, "lab");
+        let text = format!("{e:#}");
+        assert!(text.contains("answered something that is not TLS") && !text.contains("corrupt"), "{text}");
+        let bad = PgConnectOptions::from_str("postgres://lab:s3cret@db.example/x?sslmode=bogus").unwrap_err();
+        let text = reason(&bad);
+        assert_eq!(text, "unknown value \"bogus\" for `ssl_mode`");
     }
 
     #[tokio::test]

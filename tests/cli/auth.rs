@@ -352,3 +352,64 @@ fn no_local_path_in_any_page_or_api_answer() {
     }
     assert_eq!(server.stop(), Some(0));
 }
+
+/// A survey on configured instruments (a Modbus RTU positioner on the pty
+/// `survey sim` serves, its path under the temporary folder), interrupted
+/// where nothing answered and resumed with an absolute `--config` path: no
+/// local path (the device's, the configuration's, the store's) in any page
+/// or `/api/` answer; `survey show`, the operator's own view, keeps them.
+#[test]
+fn no_device_path_in_any_page_or_api_answer_of_a_configured_survey() {
+    let b = Bench::new();
+    let folder = b.path("").canonicalize().unwrap().display().to_string();
+    let config = |port: &str, tracker: &str| {
+        format!(
+            "[survey]\npoints = 4\nruns = 2\nreference = \"tracker\"\n\
+             [positioner]\ndriver = \"modbus-rtu\"\nport = \"{port}\"\n\
+             [tracker]\ndriver = \"emscon\"\naddress = \"{tracker}\"\n\
+             [timing]\ndwell_s = 0.01\nlocate_points = 4\nmax_retries = 1\nretry_backoff_s = 0.01\n"
+        )
+    };
+    // Begun where nothing answers: stored, interrupted, its events naming the device.
+    b.write("gone.toml", config(&format!("{folder}/gone"), "127.0.0.1:2"));
+    assert_eq!(b.survey(&["run", "--config", "gone.toml"]).code, 1);
+    b.write("sim.toml", config(&format!("{folder}/rtu"), "127.0.0.1:0"));
+    let (sim, ready) = super::drift::Sim::serve(&b, &["--config", "sim.toml", "--time-scale", "500"]);
+    let at = |k: &str| ready["instruments"][k].as_str().unwrap().to_string();
+    b.write("moved.toml", config(&at("positioner"), &at("tracker")));
+    let moved = format!("{folder}/moved.toml");
+    let out = b.survey(&["resume", "--config", &moved]);
+    drop(sim);
+    assert_eq!(out.code, 0, "{out}");
+    let show = b.survey(&["show", "--json"]).success().stdout;
+    assert!(show.contains(&format!("{folder}/rtu")), "survey show keeps the device's path: {show}");
+    assert!(show.contains("resumed on new addresses from moved.toml:"), "the file by its name: {show}");
+    b.survey(&["report", "--out", &format!("{folder}/rep")]).success();
+    let server = Server::on(&b, &format!("{folder}/survey.db"), &[]);
+    let paths = [
+        "/",
+        "/api/surveys",
+        "/api/surveys/1",
+        "/api/surveys/1/stats",
+        "/api/history/unassigned",
+        "/api/assets",
+        "/api/due",
+        "/api/live",
+        "/assets/unassigned",
+        "/surveys/1",
+        "/surveys/1/dcc.xml",
+        "/surveys/1/certificate.html",
+    ];
+    for path in paths {
+        let r = super::serve::get(&server.url, path);
+        assert_eq!(r.status, 200, "{path}: {}", r.body);
+        for local in [folder.as_str(), "/tmp/", "/dev/"] {
+            assert!(!r.body.contains(local), "{path} shows {local}:\n{}", r.body);
+        }
+    }
+    let page = super::serve::get(&server.url, "/surveys/1").body;
+    assert!(page.contains("modbus-rtu (serial port)"), "the positioner by driver and transport: {page}");
+    let api = super::serve::get(&server.url, "/api/surveys/1").json();
+    assert_eq!(api["instruments"]["positioner"], "modbus-rtu (serial port) slave 1", "{api}");
+    assert_eq!(server.stop(), Some(0));
+}

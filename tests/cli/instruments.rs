@@ -161,6 +161,31 @@ fn a_tiny_or_huge_timing_value_is_bad_input_naming_its_key_never_a_panic() {
     }
 }
 
+/// Issue 51, item 3: a serial port that is there but is not a serial line
+/// (`/dev/null`, a regular file, a folder, a console) is refused by `run`
+/// and `check` at its line and key, before anything is stored or opened.
+#[test]
+fn a_device_path_that_is_not_a_serial_line_is_refused_by_run_and_check() {
+    let bench = Bench::new();
+    bench.write("plain.txt", "not a tty");
+    let port_line = config("127.0.0.1:1", "X").lines().position(|l| l.starts_with("port =")).unwrap() + 1;
+    let mut devices = vec![("/dev/null", "not a serial port"), ("plain.txt", "a regular file"), (".", "a folder")];
+    if std::path::Path::new("/dev/tty0").exists() {
+        devices.push(("/dev/tty0", "not a serial port"));
+    }
+    for (port, what) in devices {
+        bench.write("c.toml", config("127.0.0.1:1", port));
+        for command in ["run", "check"] {
+            bench.survey(&[command, "--config", "c.toml"]).bad_input(&[
+                &format!("c.toml:{port_line}: autocollimator.port: "),
+                what,
+                "nothing was opened",
+            ]);
+        }
+        assert!(!bench.exists("survey.db"), "nothing stored");
+    }
+}
+
 #[test]
 fn a_connection_error_names_the_instrument_and_the_cause_once() {
     let bench = Bench::new();

@@ -321,7 +321,10 @@ async fn a_full_disk_stops_the_survey_claims_only_what_is_stored_and_resume_reme
     let out = survey(&db, &args);
     let all = text(&out);
     assert_eq!(out.status.code(), Some(1), "a failed commit stops the acquisition: {all}");
-    assert!(all.contains("database or disk is full"), "{all}");
+    // Said in words, naming the file (issue 51 item 5), on the stop line and in the stored event.
+    let stop = all.lines().find(|l| l.starts_with("survey 1 stopped: ")).unwrap_or_else(|| panic!("{all}"));
+    assert!(stop.contains(&db.display().to_string()) && stop.contains("the disk is full"), "{stop}");
+    assert!(!stop.contains("code: 13") && !stop.contains("error returned from database"), "{stop}");
     let (status, kept, _) = dense_prefix(&db).await;
     assert!(kept > 0 && kept < 1440, "{kept}");
     // What is claimed stored is what is on disk.
@@ -336,6 +339,11 @@ async fn a_full_disk_stops_the_survey_claims_only_what_is_stored_and_resume_reme
     assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("resumed at step {kept}")));
     let (status, n, _) = dense_prefix(&db).await;
     assert_eq!((status, n), (SurveyStatus::Complete, 1440), "exactly what was lost was measured again");
+    // The stop's event, where the full file still took it: in the same words.
+    let conn = rusqlite::Connection::open(&db).unwrap();
+    let mut q = conn.prepare("SELECT message FROM events").unwrap();
+    let events: Vec<String> = q.query_map([], |r| r.get(0)).unwrap().map(Result::unwrap).collect();
+    assert!(events.iter().all(|e| !e.contains("code: 13")), "{events:#?}");
 }
 
 fn sha(path: &Path) -> Vec<u8> {

@@ -16,9 +16,12 @@
 //! its metadata and sysfs alone (no `open`, which on a serial line may
 //! toggle DTR and reset what is behind it): it must be a character device
 //! whose class is `tty` in `/sys/dev/char/MAJOR:MINOR/subsystem` (a serial
-//! port: ttyS, ttyUSB, ttyACM, ...), or a pseudo-terminal (majors 136 to
-//! 143, what `survey sim` serves a serial instrument on). A regular file, a
-//! folder, a block device, a pipe, another kind of character device (a disk,
+//! port: ttyS, ttyUSB, ttyACM, ...) with a device behind it
+//! (`/sys/dev/char/MAJOR:MINOR/device`: a UART, a USB-serial adapter, an
+//! ACM modem), or a pseudo-terminal's slave (majors 136 to 143, what
+//! `survey sim` serves a serial instrument on). A regular file, a folder, a
+//! block device, a pipe, a virtual terminal (a console `/dev/tty0`, the
+//! multiplexer `/dev/ptmx`), another kind of character device (a disk,
 //! `/dev/null`, a sound card) is refused. What this cannot tell: whether the
 //! serial port is the same adapter as before (no udev here; two adapters of
 //! one kind look alike).
@@ -133,15 +136,80 @@ pub fn serial_line(path: &Path) -> Result<String, String> {
     let class = std::fs::read_link(format!("/sys/dev/char/{major}:{minor}/subsystem"))
         .ok()
         .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()));
+    // A pseudo-terminal's slave (what `survey sim` serves on); a tty with a
+    // device behind it (a UART, a USB adapter, an ACM modem). A virtual tty
+    // (a console `/dev/tty0`, the multiplexer `/dev/ptmx`) has none.
+    let hardware = Path::new(&format!("/sys/dev/char/{major}:{minor}/device")).exists();
     match class.as_deref() {
-        Some("tty") => Ok(format!("a serial port (character device {major}:{minor}, class tty)")),
         _ if (136..=143).contains(&major) => Ok(format!("a pseudo-terminal (character device {major}:{minor})")),
+        Some("tty") if hardware => Ok(format!("a serial port (character device {major}:{minor}, class tty)")),
+        Some("tty") => Err(format!(
+            "{} is a virtual terminal ({major}:{minor}: a console or the pseudo-terminal multiplexer), not a serial \
+             port",
+            path.display()
+        )),
         Some(other) => Err(format!(
             "{} is a character device of class {other} ({major}:{minor}), not a serial port",
             path.display()
         )),
         None => Err(format!("{} is a character device ({major}:{minor}) that is not a serial port", path.display())),
     }
+}
+
+/// Whether `token` (a word of a sentence) is a local path: it begins with
+/// `/` and names something under it (`/dev/ttyUSB0`, `/tmp/x/positioner`).
+fn is_local_path(token: &str) -> bool {
+    token.starts_with('/') && !token.trim_matches(|c: char| c == '/' || c == '.').is_empty()
+}
+
+/// Splits `text` into words and what is between them, and maps each word
+/// that is a local path through `f` (`None`: dropped with the space before it).
+fn map_paths(text: &str, mut f: impl FnMut(Option<&str>) -> Option<&'static str>) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut previous: Option<&str> = None;
+    let mut rest = text;
+    while !rest.is_empty() {
+        let start = rest.find(|c: char| !is_break(c)).unwrap_or(rest.len());
+        let (gap, after) = rest.split_at(start);
+        let end = after.find(is_break).unwrap_or(after.len());
+        let (word, tail) = after.split_at(end);
+        // A sentence's colon or full stop after a path is the sentence's.
+        let path = word.trim_end_matches([':', '.']);
+        match is_local_path(path).then(|| f(previous)) {
+            Some(None) => out.extend([gap.trim_end_matches(' '), &word[path.len()..]]),
+            Some(Some(said)) => out.extend([gap, said, &word[path.len()..]]),
+            None => out.extend([gap, word]),
+        }
+        if !word.is_empty() {
+            previous = Some(word);
+        }
+        rest = tail;
+    }
+    out
+}
+
+/// What ends a word: white space, quotes, brackets and the punctuation after one.
+fn is_break(c: char) -> bool {
+    c.is_whitespace() || "\"'()[]{}<>,;=`".contains(c)
+}
+
+/// `text` with every local path (a device's, a file's: a serial adapter's
+/// `/dev/serial/by-id/...` carries its serial number) said as
+/// `(a local path)`: what the lab's pages and `/api/` show of an event.
+/// A URL's path (`postgres://host/db`) is not one.
+pub fn without_local_paths(text: &str) -> String {
+    map_paths(text, |_| Some("(a local path)"))
+}
+
+/// An instrument as stored in a survey (`modbus-rtu /dev/ttyUSB0 slave 1`)
+/// as the pages, the certificate and the DCC name it: by its driver and
+/// transport (`modbus-rtu (serial port) slave 1`, `canopen slcan node 3`,
+/// `scpi-serial`), never by a local path. A network address stays.
+pub fn instrument_words(described: &str) -> String {
+    map_paths(described, |before| match before {
+        Some(w) if w == "slcan" || w.ends_with("-serial") => None,
+        _ => Some("(serial port)"),
+    })
 }
 
 #[cfg(test)]
@@ -181,9 +249,32 @@ mod tests {
         assert!(serial_line(dir.path()).unwrap_err().contains("a folder"));
         assert!(serial_line(Path::new("/dev/null")).unwrap_err().contains("not a serial port"));
         assert!(serial_line(&dir.path().join("none")).is_err());
-        // The terminal multiplexer is a tty's character device.
-        if Path::new("/sys/dev/char/5:2").exists() {
-            assert!(serial_line(Path::new("/dev/ptmx")).unwrap().contains("class tty"));
+        // The terminal multiplexer and a console are ttys with no device behind them.
+        for virtual_tty in ["/dev/ptmx", "/dev/tty0"] {
+            if Path::new(virtual_tty).exists() {
+                assert!(serial_line(Path::new(virtual_tty)).is_err(), "{virtual_tty}");
+            }
         }
+        // A pseudo-terminal's slave is what `survey sim` serves on.
+        let pts = std::fs::read_dir("/dev/pts").into_iter().flatten().flatten().map(|e| e.path());
+        if let Some(slave) = pts.into_iter().find(|p| p.file_name().is_some_and(|n| n != "ptmx")) {
+            assert!(serial_line(&slave).unwrap().contains("pseudo-terminal"), "{}", slave.display());
+        }
+    }
+
+    #[test]
+    fn local_paths_are_not_shown_on_the_pages() {
+        assert_eq!(instrument_words("modbus-rtu /dev/ttyUSB0 slave 1"), "modbus-rtu (serial port) slave 1");
+        assert_eq!(instrument_words("scpi-serial /dev/serial/by-id/usb-FTDI_A12345-if00"), "scpi-serial");
+        assert_eq!(instrument_words("canopen slcan /tmp/survey-sim-x/positioner node 3"), "canopen slcan node 3");
+        assert_eq!(instrument_words("elcomat /tmp/s/autocollimator"), "elcomat (serial port)");
+        assert_eq!(instrument_words("modbus-tcp 192.168.1.40:502"), "modbus-tcp 192.168.1.40:502");
+        assert_eq!(
+            without_local_paths("positioner.port: /dev/ttyUSB0 -> /dev/ttyUSB1; cannot open (/tmp/a/b): gone"),
+            "positioner.port: (a local path) -> (a local path); cannot open ((a local path)): gone"
+        );
+        assert_eq!(without_local_paths("\"/dev/ttyACM0\", 3 / 4 deg/s"), "\"(a local path)\", 3 / 4 deg/s");
+        assert_eq!(without_local_paths("postgres://lab.example/survey"), "postgres://lab.example/survey");
+        assert_eq!(without_local_paths("full at /tmp/x/survey.db: stop."), "full at (a local path): stop.");
     }
 }
