@@ -181,6 +181,18 @@ fn straightness(samples: &[Sample], times: &[f64], b: f64, var: f64) -> (f64, f6
     (left, f, p, significant)
 }
 
+/// Each table cell's mean time (a target in one direction), sorted.
+fn cell_times(samples: &[Sample]) -> Vec<f64> {
+    let mut cells: HashMap<(i64, Direction), (f64, usize)> = HashMap::new();
+    for (s, t) in samples.iter().filter_map(|s| s.timestamp_s.map(|t| (s, t))) {
+        let c = cells.entry(key(s)).or_default();
+        (c.0, c.1) = (c.0 + t, c.1 + 1);
+    }
+    let mut out: Vec<f64> = cells.values().map(|(t, n)| t / *n as f64).collect();
+    out.sort_by(f64::total_cmp);
+    out
+}
+
 /// `samples` (the survey's, or readings it took after, on its clock) less
 /// the drift `d`, about the survey's middle time.
 pub fn corrected(samples: &[Sample], d: &TimeDrift) -> Vec<Sample> {
@@ -196,29 +208,14 @@ pub fn corrected(samples: &[Sample], d: &TimeDrift) -> Vec<Sample> {
 }
 
 impl TimeDrift {
-    /// What the slope's own uncertainty leaves in a table of `samples` (the
-    /// survey's), standard, degrees: a table cell is the mean over the runs
-    /// of its target's readings in one direction, corrected by `b (t -
-    /// mid)`, so an error `db` in the slope leaves `db (t_g - mid)` there,
-    /// `t_g` the cell's mean time. Its rms over the cells, with `db` at the
-    /// slope's standard error. The same when the slope was not corrected
-    /// (a drift below its noise is left in, up to about its standard
-    /// error). Small beside a line's noise: the slope is fitted from every
-    /// reading (issue 49: "what it leaves is in U").
+    /// What the slope's own uncertainty leaves in a table of `samples`,
+    /// standard, degrees: a cell (a target's readings in one direction over
+    /// the runs) corrected by `b (t - mid)` keeps `db (t_cell - mid)`; its rms
+    /// over the cells, `db` the slope's standard error (corrected or not:
+    /// issue 49, "what it leaves is in U").
     pub fn table_u_deg(&self, samples: &[Sample]) -> f64 {
-        let mut cells: HashMap<(i64, Direction), (f64, usize)> = HashMap::new();
-        for s in samples {
-            if let Some(t) = s.timestamp_s {
-                let c = cells.entry(key(s)).or_default();
-                c.0 += t;
-                c.1 += 1;
-            }
-        }
-        if cells.is_empty() {
-            return 0.0;
-        }
-        let ms: f64 =
-            cells.values().map(|(t, n)| (t / *n as f64 - self.mid_s).powi(2)).sum::<f64>() / cells.len() as f64;
+        let t = cell_times(samples);
+        let ms = t.iter().map(|t| (t - self.mid_s).powi(2)).sum::<f64>() / t.len().max(1) as f64;
         self.slope_se_deg_per_h / 3600.0 * ms.sqrt()
     }
 
@@ -310,29 +307,18 @@ mod tests {
         assert!(beyond <= 2, "{beyond} of 200 beyond doubt");
     }
 
-    /// The slope's standard error through the table: over 300 drift-free
-    /// surveys the table cells' correction error `(b - 0)(t_g - mid)` has
-    /// the rms [`TimeDrift::table_u_deg`] states, within 15 % (300 draws of
-    /// a slope: the rms of their squares is known to about 8 % at 1 sigma).
+    /// Over 300 drift-free surveys the cells' correction error `(b - 0)
+    /// (t_cell - mid)` has the rms `table_u_deg` states, within 15 % (300
+    /// draws: the rms of their squares is known to about 8 % at 1 sigma).
     #[test]
     fn the_slopes_uncertainty_in_the_table_is_what_the_draws_show() {
         let (mut sq, mut stated) = (0.0, 0.0);
         for seed in 0..300 {
             let s = survey(3, 0.0, 0.0, 0.0005, seed);
             let d = estimate(&s).unwrap();
-            let u = d.table_u_deg(&s);
-            // The true slope is 0: the estimate is its own error.
-            let b = d.slope_deg_per_h / 3600.0;
-            let mut cells: HashMap<(i64, Direction), (f64, usize)> = HashMap::new();
-            for x in &s {
-                let c = cells.entry(key(x)).or_default();
-                c.0 += x.timestamp_s.unwrap();
-                c.1 += 1;
-            }
-            let m: f64 =
-                cells.values().map(|(t, n)| (b * (t / *n as f64 - d.mid_s)).powi(2)).sum::<f64>() / cells.len() as f64;
-            sq += m;
-            stated += u * u;
+            let (b, t) = (d.slope_deg_per_h / 3600.0, cell_times(&s));
+            sq += t.iter().map(|t| (b * (t - d.mid_s)).powi(2)).sum::<f64>() / t.len() as f64;
+            stated += d.table_u_deg(&s).powi(2);
         }
         let ratio = (sq / stated).sqrt();
         assert!((ratio - 1.0).abs() < 0.15, "the correction's error in the table is {ratio:.3} of its stated u");
