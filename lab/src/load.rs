@@ -149,9 +149,14 @@ pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::R
     let checks = store.check_points(survey.id).await?;
     let controlled = crate::drift::for_analysis(&survey, &samples, &drift);
     // Drift control's own correction, when it made one, is the survey's.
-    let time_drift = match &controlled {
-        Cow::Borrowed(_) => timedrift::estimate(&samples),
-        Cow::Owned(_) => None,
+    // A polygon turned between runs: each turn reads its own faces and
+    // the stage's own error at every target, and the stage lands each run
+    // a little differently; none of it is a drift, which is told between
+    // runs at the same turn only, against that landing.
+    let time_drift = match (&controlled, &polygon) {
+        (Cow::Borrowed(_), None) => timedrift::estimate(&samples),
+        (Cow::Borrowed(_), Some(p)) => timedrift::estimate_between_placements(&samples, &p.turns_of(&samples)),
+        (Cow::Owned(_), _) => None,
     };
     let in_time = match time_drift.as_ref().filter(|d| d.corrected) {
         Some(d) => Cow::Owned(timedrift::corrected(&controlled, d)),
