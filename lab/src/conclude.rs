@@ -259,9 +259,7 @@ async fn process(
     let record = &survey.loaded.survey;
     let table_out = Some(default_table_path(survey.db, survey.id));
     let mut uncertainty = crate::refit::uncertainty_inputs(record, survey.loaded.refit.as_ref(), None);
-    if let Some(p) = &survey.loaded.polygon {
-        uncertainty.reference_systematic_u_deg = Some(p.u_deg);
-    }
+    survey.loaded.complete_reference(&mut uncertainty);
     let processing = ProcessOptions {
         recipe: options.recipe.clone(),
         design: None,
