@@ -237,7 +237,9 @@ pub async fn process(db: &Path, args: ProcessArgs) -> anyhow::Result<()> {
         }
         if let Some(r) = &loaded.refit {
             doc["axis_refit"] = serde_json::to_value(r).unwrap_or_default();
-            doc["reference_error"] = serde_json::to_value(&r.reference_error).unwrap_or_default();
+        }
+        if let Some(e) = loaded.reference_error() {
+            doc["reference_error"] = serde_json::to_value(&e).unwrap_or_default();
         }
         doc["error_motions"] = loaded.refit.as_ref().map(|r| r.motions_json()).unwrap_or_default();
         if let Some(p) = &loaded.polygon {

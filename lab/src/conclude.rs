@@ -258,8 +258,8 @@ async fn process(
 ) -> Result<ProcessOutcome, Unprocessed> {
     let record = &survey.loaded.survey;
     let table_out = Some(default_table_path(survey.db, survey.id));
-    let uncertainty =
-        survey.loaded.with_own_inputs(crate::refit::uncertainty_inputs(record, survey.loaded.refit.as_ref(), None));
+    let mut uncertainty = crate::refit::uncertainty_inputs(record, survey.loaded.refit.as_ref(), None);
+    survey.loaded.complete_reference(&mut uncertainty);
     let processing = ProcessOptions {
         recipe: options.recipe.clone(),
         design: None,

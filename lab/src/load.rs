@@ -7,13 +7,13 @@
 //! borrowing them when the survey asked for none, and never written back.
 
 use crate::polygon::{PolygonClosure, close_polygon};
-use crate::refit::{AxisRefit, AxisUsed, located_axis_knowledge, refit_survey};
+use crate::refit::{AxisRefit, AxisUsed, ReferenceError, located_axis_knowledge, refit_survey};
 use std::borrow::Cow;
 use std::path::Path;
 use survey_modelgap::ReferenceInfo;
 use survey_plan::drift::DriftPoint;
 use survey_processing::Sample;
-use survey_processing::geometry::Refit;
+use survey_processing::geometry::{AxisFit, Refit};
 use survey_processing::gross::{self, GrossTest};
 use survey_processing::timedrift::{self, TimeDrift};
 use survey_store::Store;
@@ -45,7 +45,8 @@ pub struct Loaded {
     /// The axis fitted again, when the samples are around it.
     pub refit: Option<AxisRefit>,
     /// How well the axis located before the runs is known (with
-    /// [`Axis::Located`], or [`Axis::Refitted`] when there was no refit).
+    /// [`Axis::Located`], or [`Axis::Refitted`] when there was no refit); a
+    /// verification's, its calibration's (the axis it measured around).
     pub located: Option<Refit>,
     /// The drift-control reference measurements.
     pub drift: Vec<DriftPoint>,
@@ -65,6 +66,10 @@ pub struct Loaded {
     /// and drift control did not correct it: corrected in
     /// [`Loaded::analysed`] when significant.
     pub time_drift: Option<TimeDrift>,
+    /// The axis a verification's angles were measured around when it
+    /// located none of its own: its calibration's. The tracker's
+    /// systematic part of its `U` is reckoned through that geometry.
+    pub reference_axis: Option<AxisFit>,
 }
 
 impl Loaded {
@@ -117,18 +122,46 @@ impl Loaded {
 
     /// What the table's uncertainty budget needs beyond the samples.
     pub fn uncertainty_inputs(&self) -> UncertaintyInputs {
-        self.with_own_inputs(crate::refit::uncertainty_inputs(&self.survey, self.refit.as_ref(), self.located.as_ref()))
+        let mut inputs = crate::refit::uncertainty_inputs(&self.survey, self.refit.as_ref(), self.located.as_ref());
+        self.complete_reference(&mut inputs);
+        inputs
     }
 
-    /// `inputs` with what this load measured itself: the polygon's faces
-    /// (closed in place: the reference's systematic part) and what the drift
-    /// in time's slope leaves in the table.
-    pub fn with_own_inputs(&self, mut inputs: UncertaintyInputs) -> UncertaintyInputs {
+    /// `inputs` given what the survey's reference leaves that the record
+    /// alone does not say: the faces of a polygon calibrated in place, or
+    /// the tracker's systematic part through the axis a verification
+    /// measured around; and what the drift in time's measured slope leaves
+    /// in the table.
+    pub fn complete_reference(&self, inputs: &mut UncertaintyInputs) {
         if let Some(p) = &self.polygon {
             inputs.reference_systematic_u_deg = Some(p.u_deg);
+        } else if let (None, Some(axis)) = (inputs.reference_systematic_u_deg, &self.reference_axis) {
+            inputs.reference_systematic_u_deg = Some(crate::refit::tracker_systematic_u_deg(&self.survey, axis));
         }
         inputs.drift_in_time_u_deg = self.time_drift.as_ref().map(|d| d.table_u_deg(&self.samples));
-        inputs
+    }
+
+    /// What the survey says of its reference's own error (the contract's
+    /// `reference_error`): its SMRs' when its axis was fitted again; for a
+    /// verification measured around its calibration's axis, what the
+    /// tracker's specification bounds, not separated.
+    pub fn reference_error(&self) -> Option<ReferenceError> {
+        if let Some(r) = &self.refit {
+            return Some(r.reference_error.clone());
+        }
+        let axis = self.reference_axis.as_ref()?;
+        Some(ReferenceError {
+            separated: false,
+            method: survey_processing::smrs::Method::None.as_str(),
+            smrs: self.survey.smrs().len().max(1),
+            lines: Vec::new(),
+            u_deg: crate::refit::tracker_systematic_u_deg(&self.survey, axis),
+            notes: vec![format!(
+                "a verification, measured around the axis of survey {} with the same tracker: its error is not \
+                 separated, what its specification bounds stays in U",
+                self.survey.verification.as_ref().map_or(0, |v| v.verifies_survey)
+            )],
+        })
     }
 }
 
@@ -148,17 +181,30 @@ pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::R
     let mut samples = samples;
     let polygon = close_polygon(store, &survey, &mut samples).await?;
     survey.sample_count = samples.len() as u64;
-    let located = match refit {
-        None => located_axis_knowledge(store, &survey).await?,
-        Some(_) => None,
+    // A verification locates no axis: it measures around its calibration's,
+    // located before the calibration's runs, and carries what is known of it.
+    let calibration = match (&survey.axis, &survey.verification, survey.reference()) {
+        (None, Some(v), Some(survey_acquire::ReferenceKind::Tracker)) => store.survey(v.verifies_survey).await.ok(),
+        _ => None,
     };
+    let located = match (&refit, &calibration) {
+        (Some(_), _) => None,
+        (None, Some(c)) => located_axis_knowledge(store, c).await?,
+        (None, None) => located_axis_knowledge(store, &survey).await?,
+    };
+    let reference_axis = calibration.and_then(|c| c.axis);
     let drift = store.drift_points(survey.id).await?;
     let checks = store.check_points(survey.id).await?;
     let controlled = crate::drift::for_analysis(&survey, &samples, &drift);
     // Drift control's own correction, when it made one, is the survey's.
-    let time_drift = match &controlled {
-        Cow::Borrowed(_) => timedrift::estimate(&samples),
-        Cow::Owned(_) => None,
+    // A polygon turned between runs: each turn reads its own faces and
+    // the stage's own error at every target, and the stage lands each run
+    // a little differently; none of it is a drift, which is told between
+    // runs at the same turn only, against that landing.
+    let time_drift = match (&controlled, &polygon) {
+        (Cow::Borrowed(_), None) => timedrift::estimate(&samples),
+        (Cow::Borrowed(_), Some(p)) => timedrift::estimate_between_placements(&samples, &p.turns_of(&samples)),
+        (Cow::Owned(_), _) => None,
     };
     let in_time = match time_drift.as_ref().filter(|d| d.corrected) {
         Some(d) => Cow::Owned(timedrift::corrected(&controlled, d)),
@@ -168,7 +214,7 @@ pub async fn load(store: &Store, id: Option<SurveyRef>, axis: Axis) -> anyhow::R
     for note in gross.notes() {
         tracing::info!(survey = survey.id, "{note}");
     }
-    Ok(Loaded { survey, samples, refit, located, drift, checks, polygon, gross, time_drift })
+    Ok(Loaded { survey, samples, refit, located, drift, checks, polygon, gross, time_drift, reference_axis })
 }
 
 /// [`load`] from the database at `db`, opened read-only and closed again:

@@ -60,6 +60,18 @@ pub struct PolygonClosure {
     /// the used faces' standard uncertainties), degrees: the budget's
     /// "reference instrument, systematic".
     pub u_deg: f64,
+    /// The turn (faces) each run read the polygon at: a drift in time is
+    /// told only between runs at the same turn
+    /// (`survey_processing::timedrift::estimate_between_placements`).
+    #[serde(skip)]
+    pub turn_of_run: std::collections::BTreeMap<u32, usize>,
+}
+
+impl PolygonClosure {
+    /// The turn of each of `samples`' runs (0 for a run it does not know).
+    pub fn turns_of(&self, samples: &[Sample]) -> Vec<usize> {
+        samples.iter().map(|s| self.turn_of_run.get(&s.run).copied().unwrap_or(0)).collect()
+    }
 }
 
 impl PolygonClosure {
@@ -187,6 +199,7 @@ pub async fn close_polygon(
         .enumerate()
         .fold((0, 0.0), |best, (k, d)| if d > best.1 { (k, d) } else { best });
     let u_deg = rms(&faces_used_u_arcsec) / 3600.0;
+    let turn_of_run = face_samples.iter().map(|f| (f.run, f.orientation(faces))).collect();
     let closure = PolygonClosure {
         faces,
         turns: c.orientations,
@@ -203,6 +216,7 @@ pub async fn close_polygon(
         run_offsets_arcsec: c.run_offsets_arcsec,
         reading_sd_arcsec: c.reading_sd_arcsec,
         u_deg,
+        turn_of_run,
     };
     tracing::info!(survey = survey.id, ?closure, "polygon closed");
     Ok(Some(closure))

@@ -516,10 +516,24 @@ pub fn tracker_mpe(survey: &SurveyRecord) -> TransverseMpe {
 /// The reference's systematic standard uncertainty at an angle of the
 /// table, degrees: a tracker's from its MPE through the survey's geometry
 /// (the located axis in the tracker's frame, over the plan's targets:
-/// [`TransverseMpe::systematic_angle_u_deg`]); `None` without a located
-/// axis (an autocollimator, an import).
+/// [`tracker_systematic_u_deg`]); an autocollimator's, what its polygon's
+/// certificate states of each face ([`polygon_certificate_u_deg`]: each
+/// target is read at one face, whose error repeats at every reading);
+/// `None` for a tracker survey without a located axis (an import; a
+/// verification, which measured around its calibration's axis, is given it
+/// by [`crate::load`]).
 pub fn reference_systematic_u_deg(survey: &SurveyRecord) -> Option<f64> {
-    let axis = survey.axis.as_ref()?;
+    match survey.reference() {
+        Some(ReferenceKind::Autocollimator) => Some(polygon_certificate_u_deg()),
+        _ => survey.axis.as_ref().map(|axis| tracker_systematic_u_deg(survey, axis)),
+    }
+}
+
+/// A tracker's systematic standard uncertainty at an angle of `survey`'s
+/// table measured around `axis` (its own located axis, or the one a
+/// verification measured around: its calibration's), degrees: its MPE
+/// through the geometry, over the plan's targets.
+pub fn tracker_systematic_u_deg(survey: &SurveyRecord, axis: &AxisFit) -> f64 {
     let arc = match survey.setup.plan().map(|p| &p.targets_deg) {
         Some(t) if !t.is_empty() => {
             let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
@@ -530,7 +544,19 @@ pub fn reference_systematic_u_deg(survey: &SurveyRecord) -> Option<f64> {
         }
         _ => (0.0, 360.0),
     };
-    Some(tracker_mpe(survey).systematic_angle_u_deg(axis, arc))
+    tracker_mpe(survey).systematic_angle_u_deg(axis, arc)
+}
+
+/// What an autocollimator survey's polygon certificate states of each
+/// face, degrees (standard uncertainty): the simulated polygon's
+/// ([`survey_sims::autocollimator::CERTIFICATE_U_ARCSEC`], 0.1 arcsec, a
+/// calibrated polygon's typical `U = 0.2` arcsec at `k = 2`), which a
+/// configured survey shares: its configuration states none. Systematic: a
+/// face's error is the same at every reading of its target, so it is never
+/// divided by their number. A polygon calibrated in place replaces it with
+/// what the closure measured ([`crate::polygon`]).
+pub fn polygon_certificate_u_deg() -> f64 {
+    survey_sims::autocollimator::CERTIFICATE_U_ARCSEC / 3600.0
 }
 
 /// The reference instrument's stated standard uncertainty of one angle, as

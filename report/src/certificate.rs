@@ -11,6 +11,8 @@
 //! of its date and uid when none was assigned, [`crate::issue`]); else "not stated".
 
 use survey_acquire::ReferenceKind;
+use survey_processing::model::Model;
+use survey_processing::tracker_errors::TrackerErrorSpec;
 use survey_store::config::readdress::instrument_words;
 use survey_store::config::{Address, CertificateSection, Equipment};
 use survey_store::survey::{Setup, SurveyRecord};
@@ -176,6 +178,52 @@ fn pick<T: Clone>(flag: &Option<T>, config: Option<&T>, bench: Option<T>) -> Opt
         .or_else(|| bench.map(|value| Stated { value, from: BENCH }))
 }
 
+/// The simulated reference as the survey recorded it: the tracker's own
+/// error (typical, ideal or the model file's) and its SMRs; the polygon's
+/// certificate against its true faces, the autocollimator's scale error,
+/// and whether the polygon was calibrated in place.
+fn simulated_reference(s: &survey_store::survey::SimulatedSetup, model: Option<&Model>) -> String {
+    match s.reference {
+        ReferenceKind::Tracker => {
+            let errors = match model.map(|m| &m.tracker_errors) {
+                Some(TrackerErrorSpec::None) => "an ideal tracker: its random error only",
+                Some(TrackerErrorSpec::Given(_)) => "the tracker's own error as the model file states it",
+                _ => "an AT-class tracker's own error, systematic and random",
+            };
+            let radius = survey_sims::tracker::ArmGeometry::default().radius_mm;
+            let smrs = match s.smrs.len() {
+                0 | 1 => "an SMR".to_string(),
+                n => format!("{n} SMRs"),
+            };
+            format!("simulated laser tracker ({errors}) on {smrs} on an arm of {radius:.0} mm")
+        }
+        ReferenceKind::Autocollimator => {
+            let faces = s.plan.targets_deg.len();
+            let stale = model.and_then(|m| m.polygon.as_ref()).and_then(|p| {
+                let c = p.certificate_arcsec.as_ref()?;
+                let off = c.iter().zip(&p.face_errors_arcsec).map(|(c, t)| (c - t).abs()).fold(0.0, f64::max);
+                (off > 0.0).then_some(off)
+            });
+            let certificate = match stale {
+                Some(off) => format!("a certificate off its true faces by up to {off:.2} arcsec"),
+                None => "its faces as its certificate states".to_string(),
+            };
+            let scale = model.map_or(0.0, |m| m.autocollimator_scale_ppm);
+            let scale = if scale != 0.0 { format!(", a scale error of {scale} ppm") } else { String::new() };
+            let used = if s.polygon_turns.len() >= 2 {
+                format!(
+                    "; the polygon turned by {:?} faces between runs on an indexing stage and calibrated in place \
+                     (closure), its certificate checked against what was measured",
+                    s.polygon_turns
+                )
+            } else {
+                "; the angles computed through its certificate".to_string()
+            };
+            format!("simulated autocollimator on a {faces}-face polygon with {certificate}{scale}{used}")
+        }
+    }
+}
+
 impl Certificate {
     /// The header of `survey`, with `flags` over what is stored (see the module documentation).
     pub fn of(survey: &SurveyRecord, flags: &CertificateFlags) -> Certificate {
@@ -196,16 +244,8 @@ impl Certificate {
                     (None, Some(p)) => format!("simulated {} positioner: {}", p.name, p.description),
                     (None, None) => format!("simulated {} positioner", s.preset),
                 };
-                let (reference, u) = match s.reference {
-                    ReferenceKind::Tracker => (
-                        "simulated laser tracker (an AT-class tracker's own error, systematic and random) on an SMR arm of 1000 mm".to_string(),
-                        survey_lab::refit::simulated_reference_u_deg(ReferenceKind::Tracker),
-                    ),
-                    ReferenceKind::Autocollimator => (
-                        "simulated autocollimator on a polygon with an exact certificate".to_string(),
-                        survey_lab::refit::simulated_reference_u_deg(ReferenceKind::Autocollimator),
-                    ),
-                };
+                let reference = simulated_reference(s, survey.model.as_ref());
+                let u = survey_lab::refit::simulated_reference_u_deg(s.reference);
                 (Some(positioner), Some(reference), Some(u))
             }
             _ => (described("positioner"), described("reference"), None),
@@ -404,6 +444,54 @@ pub(crate) mod tests {
         let cert = Certificate::of(&bare, &CertificateFlags::default());
         assert_eq!(cert.positioner.as_ref().unwrap().value, "modbus-rtu (serial port) slave 1");
         assert_eq!(cert.positioner_name(&bare), "modbus-rtu (serial port) slave 1");
+    }
+
+    /// The simulated reference is said as the survey recorded it (issue 48):
+    /// the tracker's own error (typical, ideal) and its SMRs; the polygon's
+    /// certificate against its true faces, the autocollimator's scale error,
+    /// and whether the polygon was calibrated in place.
+    #[test]
+    fn the_simulated_reference_is_said_as_the_survey_recorded_it() {
+        let setup = |reference, polygon_turns: Vec<u32>, smrs: usize| survey_store::survey::SimulatedSetup {
+            preset: "fig8".into(),
+            model_file: None,
+            reference,
+            seed: 1,
+            plan: survey_plan::SurveyPlan::full_circle(24, 4, true).unwrap(),
+            timing: Default::default(),
+            run_period_s: 60.0,
+            faults: None,
+            smrs: vec![survey_processing::smrs::SmrMount::FIRST; smrs],
+            polygon_turns,
+            machine_frame: None,
+            asset: None,
+        };
+        let typical = survey_sims::Preset::by_name("fig8").unwrap().model;
+        let said = simulated_reference(&setup(ReferenceKind::Tracker, vec![], 1), Some(&typical));
+        assert!(
+            said.contains("an AT-class tracker's own error") && said.contains("on an SMR on an arm of 1000 mm"),
+            "{said}"
+        );
+        let ideal = Model { tracker_errors: TrackerErrorSpec::None, ..typical.clone() };
+        let said = simulated_reference(&setup(ReferenceKind::Tracker, vec![], 3), Some(&ideal));
+        assert!(said.contains("an ideal tracker: its random error only") && said.contains("on 3 SMRs"), "{said}");
+        let said = simulated_reference(&setup(ReferenceKind::Autocollimator, vec![], 0), Some(&typical));
+        assert!(said.contains("24-face polygon with its faces as its certificate states"), "{said}");
+        assert!(said.contains("computed through its certificate") && !said.contains("scale"), "{said}");
+        let truth = vec![0.0; 24];
+        let mut certificate = truth.clone();
+        certificate[5] = 1.5;
+        let stale = Model {
+            polygon: Some(survey_processing::model::PolygonTruth {
+                face_errors_arcsec: truth,
+                certificate_arcsec: Some(certificate),
+            }),
+            autocollimator_scale_ppm: 500.0,
+            ..typical
+        };
+        let said = simulated_reference(&setup(ReferenceKind::Autocollimator, vec![0, 1], 0), Some(&stale));
+        assert!(said.contains("a certificate off its true faces by up to 1.50 arcsec"), "{said}");
+        assert!(said.contains("a scale error of 500 ppm") && said.contains("calibrated in place (closure)"), "{said}");
     }
 
     #[test]

@@ -277,6 +277,49 @@ fn the_dccs_values_are_survey_stats_and_process() {
     }
 }
 
+/// A verification survey's own `U` carries the tracker's systematic part
+/// (issue 48): it measures around its calibration's axis with the same
+/// tracker, whose error repeats at each place; before, with no axis of its
+/// own, its budget had no such row and its `U` was the random part alone
+/// (2 x 2.27e-4 deg). `process --survey 2`'s budget names the part, as the
+/// calibration's does through the same axis over the same circle (equal
+/// to 1 %); its `reference_error` says it was not separated; the report's
+/// `A` and the DCC's state a `U` of at least twice that part (`U = 2 sqrt(
+/// random^2 + systematic^2 + axis^2)`), and the report's budget shows the row.
+#[test]
+fn a_verification_survey_s_own_u_carries_the_tracker_s_systematic_part() {
+    let bench = Bench::new();
+    // Evenly spaced verification targets (72, between the 36), so that
+    // `process` can make a table of the verification too; whether the
+    // verification confirms (exit 0) or not (exit 1) is not this test's.
+    let out = bench.survey(&["run", "--points", "36", "--runs", "2", "--verify", "--verify-points", "72", "--json"]);
+    assert!(out.code == 0 || out.code == 1, "{out}");
+    let systematic_of = |id: &str| -> f64 {
+        let p: Value = bench.survey(&["process", "--survey", id, "--json"]).success().json();
+        p["uncertainty"]["budget"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["source"] == "reference instrument, systematic")
+            .unwrap_or_else(|| panic!("survey {id}: no systematic part in {}", p["uncertainty"]))["u_deg"]
+            .as_f64()
+            .unwrap()
+    };
+    let (calibration, verification) = (systematic_of("1"), systematic_of("2"));
+    assert!(verification > 1e-4, "the tracker's MPE through the default arm: {verification}");
+    assert!((verification / calibration - 1.0).abs() < 0.01, "{verification} against {calibration}");
+    let p: Value = bench.survey(&["process", "--survey", "2", "--json"]).success().json();
+    let r = &p["reference_error"];
+    assert_eq!((&r["separated"], &r["method"]), (&Value::Bool(false), &Value::from("none")), "{r}");
+    assert!((r["u_deg"].as_f64().unwrap() / verification - 1.0).abs() < 1e-9, "{r}");
+    bench.survey(&["report", "--out", "v"]).success();
+    let xml = bench.read("v/dcc.xml");
+    let u: f64 = after(&xml, "survey_iso230_2_A", "si:uncertainty").expect("A's U").parse().unwrap();
+    assert!(u >= 2.0 * verification, "the verification's U {u} against its systematic part {verification}");
+    let page = bench.read("v/index.html");
+    assert!(page.contains("reference instrument, systematic"), "the budget's row on the verification's report");
+}
+
 /// Every element's text of `xml`, as a parser reads it back (quick-xml,
 /// end names checked); panics if it is not well-formed or holds a character
 /// a certificate cannot print.

@@ -397,6 +397,36 @@ fn three_smrs_separate_the_trackers_error_and_say_so() {
     assert!(out.stderr.contains("need the tracker"), "{out}");
 }
 
+/// The polygon's certificate in `U` (issue 48): read where it stands, each
+/// target is read at one face in every run, whose certificate error repeats,
+/// so the certificate's stated standard uncertainty of a face (0.1 arcsec,
+/// the simulated polygon's) is the budget's "reference instrument,
+/// systematic", whole, not divided by the readings, and `U` is at least
+/// twice it; turned, the closure measured the faces and its `u_deg` is that
+/// part instead.
+#[test]
+fn the_polygon_certificate_s_uncertainty_is_in_u() {
+    let bench = Bench::new();
+    let systematic = |p: &serde_json::Value| {
+        p["uncertainty"]["budget"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["source"] == "reference instrument, systematic")
+            .map(|c| c["u_deg"].as_f64().unwrap())
+    };
+    let ac = ["run", "--reference", "autocollimator", "--points", "24", "--runs", "2", "--bidirectional", "--json"];
+    bench.survey(&ac).success();
+    let p = bench.survey(&["process", "--json"]).success().json();
+    let stands = systematic(&p).unwrap_or_else(|| panic!("no systematic part: {}", p["uncertainty"]));
+    assert!((stands * 3600.0 - 0.1).abs() < 1e-12, "{stands}");
+    assert!(p["uncertainty"]["table_u_deg"].as_f64().unwrap() >= 2.0 * stands, "{}", p["uncertainty"]);
+    bench.survey(&[&ac[..], &["--polygon-turns", "0,1"]].concat()).success();
+    let p = bench.survey(&["process", "--json"]).success().json();
+    let turned = systematic(&p).expect("the closure's part");
+    assert!((turned - num(&p["polygon"]["u_deg"], "u_deg")).abs() < 1e-15, "{turned}: {}", p["polygon"]);
+}
+
 /// `--polygon-turns 0,1` on the simulated bench: the polygon turned between
 /// runs, measured in place; `polygon` and `reference_error` say so, and
 /// `process` gives the same; turns that cannot work are refused before

@@ -117,3 +117,82 @@ fn a_polygon_turned_between_runs_is_calibrated_in_place_and_its_stale_face_found
     assert!(turned.p95 <= allowed, "{:.2e} against {:.2e} (u of the faces used {u_used:.2e})", turned.p95, allowed);
     assert!(turned.coverage >= 0.95, "U covers {:.1} %", 100.0 * turned.coverage);
 }
+
+/// The quiet positioner with an exact certificate, drifting by `rate` deg a
+/// run (a ramp in time) when `rate` is not zero.
+fn drifting(rate: f64) -> String {
+    let drift = if rate == 0.0 {
+        String::new()
+    } else {
+        format!("\n[[effect]]\nkind = \"drift\"\nrate_deg_per_run = {rate}\n")
+    };
+    QUIET.to_string() + &drift
+}
+
+/// `survey run --json` of `model` with `args`, seed `seed`: the processing's
+/// drift in time and whether the table is a result.
+fn drift_of(dir: &std::path::Path, model: &str, args: &str, seed: u64) -> (serde_json::Value, serde_json::Value) {
+    let path = dir.join(format!("m{seed}-{}.toml", args.len()));
+    std::fs::write(&path, model).unwrap();
+    let db = dir.join(format!("d{seed}-{}-{}.db", args.len(), model.len()));
+    let seed_s = seed.to_string();
+    let mut run: Vec<&str> = vec!["run", "--json", "--seed", &seed_s, "--model", path.to_str().unwrap()];
+    run.extend(args.split_whitespace());
+    let done = survey(&db, &run);
+    (done["process"]["drift_in_time"].clone(), done["process"]["predicted"]["not_a_result"].clone())
+}
+
+/// Turning the polygon is not a drift (issue 48: each turn reads its own
+/// faces and the stage's own error at every target, and the stage lands
+/// each run a little differently; compared across turns, 5 of 6 seeds read
+/// that as a drift no straight line takes, NOT A RESULT, and 4 of 6
+/// "corrected" a false drift of 4.6e-4 to 1.07e-3 deg/h). Six seeds of the
+/// quiet positioner turned 0,1 over 4 runs: none made no result by its
+/// drift, none
+/// corrected (the slope is tested at 1 %: 6 seeds make a false correction
+/// a 6 % event at worst, and it would show as a drift, which the assertion
+/// names). And a real drift is still found with turns: 0.002 deg a run (a
+/// ramp) over 6 runs in 2 turns (3 degrees of freedom against the stage's
+/// landing) is corrected in each of three seeds, what it makes over the
+/// survey within 4.5 combined standard errors of the same survey's without
+/// turns (Student's 3 degrees of freedom put 2 % of draws past 4.5).
+#[test]
+fn turning_the_polygon_is_not_a_drift_and_a_real_drift_is_still_found() {
+    let dir = tempfile::tempdir().unwrap();
+    let quiet = drifting(0.0);
+    let turned = format!("{ARGS} --polygon-turns 0,1");
+    for seed in 1..=6u64 {
+        let (d, not_a_result) = drift_of(dir.path(), &quiet, &turned, seed);
+        eprintln!("seed {seed}, no drift, turned: {d}");
+        // (24 faces leave this quiet table "no better than native" whatever
+        // the drift: that is the prediction's, said beside; the drift's is
+        // `drift-not-corrected`.)
+        assert_ne!(not_a_result, "drift-not-corrected", "seed {seed}: {d}");
+        assert_eq!(d["corrected"], false, "seed {seed}: a false drift corrected: {d}");
+        assert_eq!(d["left_beyond_doubt"], false, "seed {seed}: {d}");
+    }
+    let ramp = drifting(0.002);
+    let six = ARGS.replace("--runs 4", "--runs 6");
+    assert_ne!(six, ARGS);
+    for seed in 1..=3u64 {
+        let (t, not_a_result) = drift_of(dir.path(), &ramp, &format!("{six} --polygon-turns 0,1"), seed);
+        let (u, _) = drift_of(dir.path(), &ramp, &six, seed);
+        eprintln!("seed {seed}, 0.002 deg a run: turned {t}; where it stands {u}");
+        assert_eq!(t["corrected"], true, "seed {seed}: the drift not found with turns: {t}");
+        assert_eq!(u["corrected"], true, "seed {seed}: the drift not found without turns: {u}");
+        assert_ne!(not_a_result, "drift-not-corrected", "seed {seed}: {t}");
+        // Over the survey: the simulated drift grows with the plan's steps,
+        // and the stage's turns add time between the runs without steps (the
+        // turned survey's slope in time is 1.2 % lower for it: its runs take
+        // 1.2 % longer); over the survey the two are the same drift.
+        let over = |d: &serde_json::Value| {
+            let duration = d["duration_h"].as_f64().unwrap();
+            (d["over_survey_deg"].as_f64().unwrap(), d["slope_se_deg_per_h"].as_f64().unwrap() * duration)
+        };
+        let ((bt, st), (bu, su)) = (over(&t), over(&u));
+        assert!(
+            (bt - bu).abs() < 4.5 * st.hypot(su),
+            "seed {seed}: over the survey turned {bt:.3e} +/- {st:.1e} deg, without {bu:.3e} +/- {su:.1e}"
+        );
+    }
+}
