@@ -15,9 +15,9 @@ use survey_plan::drift::DriftPoint;
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit};
 use survey_processing::gross::{self, GrossTest};
-use survey_processing::timedrift::{self, TimeDrift};
 use survey_store::Store;
 use survey_store::survey::{SurveyRecord, SurveyRef};
+use survey_tables::timedrift::{self, TimeDrift};
 use survey_tables::uncertainty::UncertaintyInputs;
 
 /// Around which axis a tracker survey's actual angles are taken, and what a
@@ -62,7 +62,7 @@ pub struct Loaded {
     /// [`Loaded::analysed`].
     pub gross: GrossTest,
     /// A drift in time measured from the same targets read at different
-    /// times ([`survey_processing::timedrift`]), when the survey tells one
+    /// times ([`survey_tables::timedrift`]), when the survey tells one
     /// and drift control did not correct it: corrected in
     /// [`Loaded::analysed`] when significant.
     pub time_drift: Option<TimeDrift>,

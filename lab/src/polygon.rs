@@ -62,7 +62,7 @@ pub struct PolygonClosure {
     pub u_deg: f64,
     /// The turn (faces) each run read the polygon at: a drift in time is
     /// told only between runs at the same turn
-    /// (`survey_processing::timedrift::estimate_between_placements`).
+    /// (`survey_tables::timedrift::estimate_between_placements`).
     #[serde(skip)]
     pub turn_of_run: std::collections::BTreeMap<u32, usize>,
 }

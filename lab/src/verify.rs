@@ -277,9 +277,9 @@ pub async fn verify(
     // The verification's own drift in time, as a calibration's (issue 49):
     // corrected when significant, and a drift no straight line takes leaves
     // it unable to confirm anything.
-    let drift = survey_processing::timedrift::estimate(&measured);
+    let drift = survey_tables::timedrift::estimate(&measured);
     let corrected = match &drift {
-        Some(d) if d.corrected => survey_processing::timedrift::corrected(&measured, d),
+        Some(d) if d.corrected => survey_tables::timedrift::corrected(&measured, d),
         _ => measured,
     };
     // The prediction for this verification: its own count of samples.

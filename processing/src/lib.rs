@@ -21,7 +21,6 @@ pub mod smrs;
 pub mod special;
 pub mod spectrum;
 pub mod table;
-pub mod timedrift;
 pub mod tracker_errors;
 pub mod types;
 pub mod units;

@@ -28,6 +28,7 @@ pub mod left;
 pub mod pipeline;
 pub mod recipe;
 pub mod resolve;
+pub mod timedrift;
 pub mod true_angle;
 pub mod uncertainty;
 pub mod verification;

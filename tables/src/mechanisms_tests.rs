@@ -56,7 +56,7 @@ struct Plan {
     verify: bool,
     /// Each reading stamped (2 s a step): the survey measures its drift in
     /// time from its own readings and corrects it, as `survey` does
-    /// (`survey_processing::timedrift`, applied where the lab loads a survey).
+    /// (`crate::timedrift`, applied where the lab loads a survey).
     timed: bool,
 }
 
@@ -192,12 +192,12 @@ fn survey(case: &Case, rng: &mut Normal) -> (Processed, Vec<Sample>, Uncertainty
     let targets: Vec<f64> = (0..p.points).map(|k| 360.0 * k as f64 / p.points as f64).collect();
     let mut samples = acquire(&case.model, &targets, p, p.runs, 0.0, None, rng);
     // The drift in time, measured and corrected as the lab loads a survey.
-    let measured = survey_processing::timedrift::estimate(&samples);
+    let measured = crate::timedrift::estimate(&samples);
     let drift_in_time_u_deg = measured.as_ref().map(|d| d.table_u_deg(&samples));
     let crooked = measured.as_ref().filter(|d| d.left_beyond_doubt).map(|d| d.left_deg);
     let drift = measured.filter(|d| d.corrected);
     if let Some(d) = &drift {
-        samples = survey_processing::timedrift::corrected(&samples, d);
+        samples = crate::timedrift::corrected(&samples, d);
     }
     let design = &case.model.design;
     let mut processed = process_with_checks(&samples, design, None, None, &[]).expect("processed");
@@ -206,7 +206,7 @@ fn survey(case: &Case, rng: &mut Normal) -> (Processed, Vec<Sample>, Uncertainty
         if !at.is_empty() {
             let mut checks = acquire(&case.model, &at, p, 2, p.runs as f64, None, rng);
             if let Some(d) = &drift {
-                checks = survey_processing::timedrift::corrected(&checks, d);
+                checks = crate::timedrift::corrected(&checks, d);
             }
             processed = process_with_checks(&samples, design, None, None, &checks).expect("processed with checks");
         }

@@ -52,7 +52,7 @@
 //!   much it does. (It was a ramp assumed from the run means' slope: a step
 //!   drift, which leaves nothing, made `U` 20 to 55 times the true error.)
 //! - **drift in time**: the slope of the drift measured from the survey's
-//!   own readings (`survey_processing::timedrift`) corrects every reading by
+//!   own readings (`crate::timedrift`) corrects every reading by
 //!   `b (t - mid)`; its standard error leaves `se (t_cell - mid)` in each
 //!   table cell, counted at its rms over the cells, corrected or not.
 //!
@@ -135,7 +135,7 @@ pub struct UncertaintyInputs {
     pub axis_u_deg: Option<f64>,
     /// What the drift in time's slope, measured from the survey's readings,
     /// leaves in the table through its own standard error, degrees
-    /// (`survey_processing::timedrift::TimeDrift::table_u_deg`); `None`
+    /// (`crate::timedrift::TimeDrift::table_u_deg`); `None`
     /// when the survey could not measure it or drift control corrected it.
     pub drift_in_time_u_deg: Option<f64>,
 }

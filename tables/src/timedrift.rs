@@ -19,10 +19,10 @@
 //! the table is not a result (a drift it cannot correct is in every value).
 //! Our design (ISO 230-2 asks for drift to be checked, not how).
 
-use crate::special::{normal_two_sided_isf, student_two_sided_isf};
-use crate::types::{Direction, Sample};
 use serde::Serialize;
 use std::collections::HashMap;
+use survey_processing::special::{normal_two_sided_isf, student_two_sided_isf};
+use survey_processing::types::{Direction, Sample};
 
 /// The drift found in a survey's readings.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -299,7 +299,7 @@ fn straightness(
         passes.iter().zip(&means).map(|(p, (d, _))| d.abs().max((p.slope - m).abs() * p.span)).fold(0.0, f64::max);
     // Wilson-Hilferty: (chi2 / k)^(1/3) is about normal, mean 1 - 2/(9k).
     let h = 2.0 / (9.0 * k);
-    let p = 0.5 * crate::special::erfc((f.cbrt() - (1.0 - h)) / h.sqrt() / std::f64::consts::SQRT_2);
+    let p = 0.5 * survey_processing::special::erfc((f.cbrt() - (1.0 - h)) / h.sqrt() / std::f64::consts::SQRT_2);
     (left, f, p, significant)
 }
 
@@ -387,7 +387,7 @@ mod tests {
     /// deg per run growing in time; `step` deg added from run 2 on; noise
     /// `sigma`.
     fn survey(runs: u32, ramp: f64, step: f64, sigma: f64, seed: u64) -> Vec<Sample> {
-        crate::analysis::testutil::timed_survey(120, runs, sigma, seed, |t, run| {
+        survey_processing::analysis::testutil::timed_survey(120, runs, sigma, seed, |t, run| {
             ramp * t / 240.0 + if run >= 2 { step } else { 0.0 }
         })
     }
@@ -467,7 +467,7 @@ mod tests {
             })
             .collect();
         let turn = |run: u32| (run as usize - 1) % 2;
-        let s = crate::analysis::testutil::timed_survey(120, runs, 0.0005, seed, |t, run| {
+        let s = survey_processing::analysis::testutil::timed_survey(120, runs, 0.0005, seed, |t, run| {
             ramp * t / 240.0 + 0.003 * turn(run) as f64 + landing[run as usize]
         });
         let class = s.iter().map(|x| turn(x.run)).collect();
@@ -510,7 +510,7 @@ mod tests {
             let d = estimate_between_placements(&s, &class).unwrap();
             let truth = 0.004 / 240.0 * 3600.0;
             assert!(d.corrected, "seed {seed}: {d:?}");
-            let t = crate::special::student_two_sided_isf(1e-3, 3);
+            let t = survey_processing::special::student_two_sided_isf(1e-3, 3);
             assert!((d.slope_deg_per_h - truth).abs() < t * d.slope_se_deg_per_h, "seed {seed}: {d:?}");
             assert!(!d.left_beyond_doubt, "seed {seed}: {d:?}");
         }
