@@ -168,7 +168,7 @@ pub async fn close_polygon(
             return Ok(None);
         }
     };
-    let u_c = survey_sims::autocollimator::CERTIFICATE_U_ARCSEC;
+    let u_c = crate::refit::polygon_certificate_u_arcsec(survey);
     let z = survey_processing::special::normal_two_sided_isf(0.05 / faces as f64);
     let mut en = Vec::with_capacity(faces);
     let mut stale_faces = Vec::new();

@@ -517,14 +517,14 @@ pub fn tracker_mpe(survey: &SurveyRecord) -> TransverseMpe {
 /// table, degrees: a tracker's from its MPE through the survey's geometry
 /// (the located axis in the tracker's frame, over the plan's targets:
 /// [`tracker_systematic_u_deg`]); an autocollimator's, what its polygon's
-/// certificate states of each face ([`polygon_certificate_u_deg`]: each
+/// certificate states of each face ([`polygon_certificate_u_arcsec`]: each
 /// target is read at one face, whose error repeats at every reading);
 /// `None` for a tracker survey without a located axis (an import; a
 /// verification, which measured around its calibration's axis, is given it
 /// by [`crate::load`]).
 pub fn reference_systematic_u_deg(survey: &SurveyRecord) -> Option<f64> {
     match survey.reference() {
-        Some(ReferenceKind::Autocollimator) => Some(polygon_certificate_u_deg()),
+        Some(ReferenceKind::Autocollimator) => Some(polygon_certificate_u_arcsec(survey) / 3600.0),
         _ => survey.axis.as_ref().map(|axis| tracker_systematic_u_deg(survey, axis)),
     }
 }
@@ -548,15 +548,19 @@ pub fn tracker_systematic_u_deg(survey: &SurveyRecord, axis: &AxisFit) -> f64 {
 }
 
 /// What an autocollimator survey's polygon certificate states of each
-/// face, degrees (standard uncertainty): the simulated polygon's
-/// ([`survey_sims::autocollimator::CERTIFICATE_U_ARCSEC`], 0.1 arcsec, a
-/// calibrated polygon's typical `U = 0.2` arcsec at `k = 2`), which a
-/// configured survey shares: its configuration states none. Systematic: a
-/// face's error is the same at every reading of its target, so it is never
-/// divided by their number. A polygon calibrated in place replaces it with
-/// what the closure measured ([`crate::polygon`]).
-pub fn polygon_certificate_u_deg() -> f64 {
-    survey_sims::autocollimator::CERTIFICATE_U_ARCSEC / 3600.0
+/// face, arcseconds (standard uncertainty): half the configuration's
+/// `[polygon] certificate_u_arcsec` (the certificate's `U`, `k = 2`), else
+/// the simulated polygon's ([`survey_sims::autocollimator::CERTIFICATE_U_ARCSEC`],
+/// 0.1 arcsec, a calibrated polygon's typical `U = 0.2` arcsec). Systematic:
+/// a face's error is the same at every reading of its target, so it is
+/// never divided by their number. A polygon calibrated in place replaces it
+/// with what the closure measured ([`crate::polygon`]).
+pub fn polygon_certificate_u_arcsec(survey: &SurveyRecord) -> f64 {
+    let stated = match &survey.setup {
+        Setup::Configured(c) => c.config.polygon.as_ref().and_then(|p| p.certificate_u_arcsec),
+        _ => None,
+    };
+    stated.map_or(survey_sims::autocollimator::CERTIFICATE_U_ARCSEC, |u| u / 2.0)
 }
 
 /// The reference instrument's stated standard uncertainty of one angle, as
@@ -598,5 +602,60 @@ mod tests {
         let u = simulated_reference_u_deg(ReferenceKind::Tracker);
         assert!((u - 2.27e-4).abs() < 1e-6, "{u}");
         assert!((simulated_reference_u_deg(ReferenceKind::Autocollimator) - 0.1 / 3600.0).abs() < 1e-15);
+    }
+
+    /// A configured survey of the example polygon configuration, its
+    /// `[polygon]` section given `extra` keys.
+    fn polygon_survey(extra: &str) -> SurveyRecord {
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config/scpi-elcomat.toml"))
+                .unwrap()
+                .replace("certificate_u_arcsec = 0.2", extra);
+        let config = survey_store::config::SurveyConfig::parse(&text, "scpi-elcomat.toml").unwrap();
+        let setup = survey_store::survey::ConfiguredSetup {
+            config,
+            plan: survey_plan::SurveyPlan::full_circle(24, 5, true).unwrap(),
+        };
+        let columns = survey_store::survey::StoredColumns {
+            id: 1,
+            uid: "00000000-0000-4000-8000-000000000001".into(),
+            asset: "unassigned".into(),
+            check_of: None,
+            created_at: "t".into(),
+            updated_at: "t".into(),
+            status: "complete".into(),
+            source: "instruments".into(),
+            points: Some(24),
+            runs: Some(5),
+            bidirectional: true,
+            config_json: serde_json::to_string(&setup).unwrap(),
+            model_toml: None,
+            instruments_json: r#"{"positioner": "scpi-tcp 192.168.1.20:4000", "reference": "elcomat"}"#.into(),
+            axis_json: None,
+            started_at_s: None,
+            ended_at_s: None,
+            planned_samples: None,
+            sample_count: 0,
+        };
+        SurveyRecord::parse(columns, "x.db").unwrap()
+    }
+
+    /// A real polygon's certificate states its own `U` (`[polygon]
+    /// certificate_u_arcsec`, `k = 2`): half of it is the reference's
+    /// systematic standard uncertainty; unstated, the typical 0.2 arcsec.
+    #[test]
+    fn a_configured_polygon_s_certificate_states_its_u() {
+        let stated = polygon_survey("certificate_u_arcsec = 0.6");
+        assert_eq!(stated.reference(), Some(ReferenceKind::Autocollimator));
+        let u = reference_systematic_u_deg(&stated).unwrap();
+        assert!((u * 3600.0 - 0.3).abs() < 1e-12, "{u}");
+        let unstated = polygon_survey("");
+        assert!((reference_systematic_u_deg(&unstated).unwrap() * 3600.0 - 0.1).abs() < 1e-12);
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/config/scpi-elcomat.toml"))
+                .unwrap()
+                .replace("certificate_u_arcsec = 0.2", "certificate_u_arcsec = 0");
+        let e = survey_store::config::SurveyConfig::parse(&text, "c.toml").unwrap_err().to_string();
+        assert!(e.contains("polygon.certificate_u_arcsec"), "{e}");
     }
 }

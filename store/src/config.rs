@@ -496,6 +496,10 @@ pub struct PolygonSection {
     /// Face angle deviations from nominal, arcseconds, one per face (default all 0).
     #[serde(default)]
     pub certificate_arcsec: Vec<f64>,
+    /// The certificate's expanded uncertainty (k = 2) of each face angle,
+    /// arcseconds; `None`: 0.2 arcsec, a calibrated polygon's typical.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub certificate_u_arcsec: Option<f64>,
     /// The polygon turned by hand between runs: by `turns[r - 1]` faces
     /// relative to the table in run `r` (repeated), the operator asked for
     /// each turn (the survey stops for it; `survey resume` confirms it).

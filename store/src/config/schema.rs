@@ -80,6 +80,7 @@ pub(super) const ROOT: &[Field] = &[
         Ty::Table(&[
             req("faces", Ty::Whole(0, 3600)),
             opt("certificate_arcsec", Ty::Numbers(Low::From(-3600.0), 3600.0, "arcsec")),
+            opt("certificate_u_arcsec", Ty::Number(Low::Above(0.0), 60.0, "arcsec")),
             opt("turns", Ty::Wholes(0, 3599)),
         ]),
     ),
