@@ -169,15 +169,21 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
             anyhow::anyhow!("survey {}: the axis cannot be fitted again from its SMR positions: {e}", survey.id)
         })?;
     // The samples' positions follow the locate points in `raw`.
+    let mut moved: Vec<(usize, f64)> = Vec::new();
     for (i, &raw) in smr.sample_indices().zip(&raw[locate.len()..]) {
         let s = &mut samples[i];
+        let was = s.actual_deg;
         s.actual_deg = fit.angle_of_raw(raw, s.target_deg);
+        moved.push((i, s.actual_deg - was));
     }
     // The first SMR's positions, one a sample in order (a tracker survey's case): no copy made.
     let indices: Option<Vec<usize>> = match smr.dense() {
         Some(n) if n == samples.len() => None,
         _ => Some(smr.sample_indices().collect()),
     };
+    if indices.is_some() {
+        into_the_refits_frame(&mut samples, &moved);
+    }
     let (reference_error, others) = combine_smrs(store, survey, &mut samples).await?;
     let error_motions = motions_of(survey, &samples, indices.as_deref(), &points[locate.len()..], others.as_deref());
     let center_shift_mm = in_plane_shift(&fit, located);
@@ -196,6 +202,39 @@ pub async fn refit_survey(store: &Store, survey: &SurveyRecord) -> anyhow::Resul
     };
     tracing::info!(survey = survey.id, ?refit, "axis fitted again from the survey's SMR positions");
     Ok(Some((samples, refit)))
+}
+
+/// A sample whose SMR position is gone keeps the angle it was stored with,
+/// measured around the located axis from another zero: it is moved into the
+/// refit's frame by what the refit moved the samples at its target (`moved`:
+/// each refitted sample's index and change; the change is the two axes'
+/// difference at that angle, the same in every run), their median, or over
+/// the survey where no other sample has its target. Left as stored, it
+/// stood 3-4e-3 deg off the others (the two zeros apart) and was either
+/// named a gross reading or moved the table.
+fn into_the_refits_frame(samples: &mut [Sample], moved: &[(usize, f64)]) {
+    let key = |s: &Sample| (s.target_deg * 1e9).round() as i64;
+    let mut at: std::collections::HashMap<i64, Vec<f64>> = std::collections::HashMap::new();
+    let mut refitted = vec![false; samples.len()];
+    for &(i, d) in moved {
+        at.entry(key(&samples[i])).or_default().push(d);
+        refitted[i] = true;
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    };
+    let mut all: Vec<f64> = moved.iter().map(|m| m.1).collect();
+    if all.is_empty() {
+        return;
+    }
+    let overall = median(&mut all);
+    for (i, s) in samples.iter_mut().enumerate() {
+        if !refitted[i] {
+            s.actual_deg += at.get_mut(&key(s)).map_or(overall, &median);
+        }
+    }
 }
 
 /// The axis's location and error motions ([`survey_motions`]) from the
