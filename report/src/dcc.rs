@@ -48,7 +48,8 @@ const NOT_STATED: &str = "not stated";
 /// customer's (or client's) premises or branch when it names the customer or
 /// says on site, the laboratory's when it names a laboratory (or lab), else
 /// `other` (not stated, or not said). A bare "site" says neither ("Lab North,
-/// site B" is the laboratory's).
+/// site B" is the laboratory's). `[certificate] performance_location`, where
+/// stated, says it instead.
 fn performance_location(location: Option<&str>) -> &'static str {
     let Some(l) = location.map(str::to_lowercase) else { return "other" };
     let words: Vec<&str> = l.split(|c: char| !c.is_alphanumeric()).filter(|w| !w.is_empty()).collect();
@@ -66,6 +67,18 @@ fn performance_location(location: Option<&str>) -> &'static str {
         }
         _ => "other",
     }
+}
+
+/// The DCC's `performanceLocation`: the configuration's `[certificate]
+/// performance_location` where stated, else read from `location`.
+fn performed_at<'a>(survey: &'a survey_store::survey::SurveyRecord, location: Option<&str>) -> &'a str {
+    let stated = match &survey.setup {
+        survey_store::survey::Setup::Configured(c) => {
+            c.config.certificate.as_ref().and_then(|c| c.performance_location.as_deref())
+        }
+        _ => None,
+    };
+    stated.unwrap_or_else(|| performance_location(location))
 }
 
 /// `s` with its first letter a capital.
@@ -144,7 +157,7 @@ fn administrative(x: &mut Xml, p: &Page<'_>) -> anyhow::Result<()> {
     }
     x.leaf("dcc:beginPerformanceDate", &begin)?;
     x.leaf("dcc:endPerformanceDate", &end)?;
-    x.leaf("dcc:performanceLocation", performance_location(cert.location.as_ref().map(|l| l.value.as_str())))?;
+    x.leaf("dcc:performanceLocation", performed_at(survey, cert.location.as_ref().map(|l| l.value.as_str())))?;
     let issued = match &p.d.issue {
         Issue::Issued { issued_at, .. } => issued_at,
         Issue::Draft(_) => &p.d.generated,
@@ -776,6 +789,14 @@ mod tests {
         assert_eq!(performance_location(Some("Customer branch office, Leeds")), "customerBranch");
         assert_eq!(performance_location(Some("Bay 3")), "other");
         assert_eq!(performance_location(Some("Lab North, site B")), "laboratory");
+        // Stated in the configuration, it is what the configuration says.
+        let mut survey = crate::certificate::tests::configured_survey();
+        let words = Some("Bay 3");
+        assert_eq!(performed_at(&survey, words), "other");
+        if let survey_store::survey::Setup::Configured(c) = &mut survey.setup {
+            c.config.certificate.as_mut().unwrap().performance_location = Some("customerBranch".into());
+        }
+        assert_eq!(performed_at(&survey, words), "customerBranch");
         assert_eq!(performance_location(Some("on site at ACME, hall 4")), "customer");
         assert_eq!(performance_location(Some("Site B")), "other");
         assert_eq!(performance_location(None), "other");

@@ -196,6 +196,11 @@ pub struct CertificateSection {
     /// Where the calibration was performed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub location: Option<String>,
+    /// Whose premises `location` is, as the DCC says it (`laboratory`,
+    /// `customer`, `laboratoryBranch`, `customerBranch`, `other`); not
+    /// stated: read from `location`'s words.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub performance_location: Option<String>,
     /// The condition of the item when received (or calibrated).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub item_condition: Option<String>,

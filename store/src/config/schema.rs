@@ -298,6 +298,7 @@ const CERTIFICATE: &[Field] = &[
     opt("tolerance_deg", Ty::Number(Low::Above(0.0), 360.0, "deg")),
     opt("signatory", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
     opt("location", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("performance_location", Ty::Choice(&["laboratory", "customer", "laboratoryBranch", "customerBranch", "other"])),
     opt("item_condition", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
     opt("received", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
     opt("country", Ty::Checked(crate::config::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
