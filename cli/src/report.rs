@@ -184,6 +184,8 @@ pub async fn report(db: &Path, args: ReportArgs) -> anyhow::Result<()> {
             tolerance_deg: args.tolerance,
             signatory: args.signatory,
             location: args.location,
+            // Whose premises: the configuration's, else read from the location's words.
+            performance_location: None,
             item_condition: args.item_condition,
             received: args.received,
             country: args.country,
