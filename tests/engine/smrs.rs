@@ -123,9 +123,15 @@ fn tracker_set(seed: u64) -> String {
 /// One SMR's `U` over tracker error sets the simulator was not built on:
 /// each survey's `U` covers at least 90 % of its table's rows.
 fn one_smr_over_sets(sets: std::ops::Range<u64>) -> Vec<f64> {
+    over_sets(sets, "one SMR", "").into_iter().map(|f| f.coverage).collect()
+}
+
+/// The surveys of the tracker error sets `sets` with `smrs` (the model
+/// file's `[smrs]` text, or none for one SMR), each its figures.
+fn over_sets(sets: std::ops::Range<u64>, label: &str, smrs: &str) -> Vec<Figures> {
     sets.map(|s| {
-        let text: &'static str = Box::leak(format!("{FIG8}{}", tracker_set(s)).into_boxed_str());
-        let name: &'static str = Box::leak(format!("one SMR, tracker set {s}").into_boxed_str());
+        let text: &'static str = Box::leak(format!("{FIG8}{}{smrs}", tracker_set(s)).into_boxed_str());
+        let name: &'static str = Box::leak(format!("{label}, tracker set {s}").into_boxed_str());
         let f = run_case(&case(name, "--points 360 --runs 3 --bidirectional", text), 1..=1);
         eprintln!(
             "{name}: coverage {:.1} %, true error p95 {:.2e} deg, U {:.2e} deg",
@@ -133,7 +139,7 @@ fn one_smr_over_sets(sets: std::ops::Range<u64>) -> Vec<f64> {
             f.p95,
             f.widest_u
         );
-        f.coverage
+        f
     })
     .collect()
 }
@@ -152,4 +158,35 @@ fn one_smrs_u_over_many_tracker_error_sets() {
     let worst = coverage.iter().copied().fold(1.0, f64::min);
     eprintln!("{n} tracker error sets: the worst survey's coverage {:.1} %", 100.0 * worst);
     assert!(worst >= 0.9, "{coverage:?}");
+}
+
+/// Three SMRs at unequal spacing (0, 37, 131 deg) over the tracker error
+/// sets: each survey's coverage, and its table's true error against one
+/// SMR's and an ideal tracker's (docs/validation/uncertainty.md).
+#[test]
+#[ignore = "Monte Carlo over tracker error sets: SURVEY_TRACKER_SETS=N, figures for docs/validation/uncertainty.md"]
+fn three_smrs_over_many_tracker_error_sets() {
+    let n: u64 = std::env::var("SURVEY_TRACKER_SETS").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
+    let three = over_sets(1..n + 1, "three SMRs, 0/37/131 deg", "\n[smrs]\nphases_deg = [0, 37, 131]\n");
+    let one = over_sets(1..n + 1, "one SMR", "");
+    let ideal = figures(&case("an ideal tracker", "--points 360 --runs 3 --bidirectional", IDEAL));
+    let worst = three.iter().map(|f| f.coverage).fold(1.0, f64::min);
+    let (mut to_one, mut to_ideal): (Vec<f64>, Vec<f64>) =
+        three.iter().zip(&one).map(|(t, o)| (o.p95 / t.p95, t.p95 / ideal.p95)).unzip();
+    to_one.sort_by(f64::total_cmp);
+    to_ideal.sort_by(f64::total_cmp);
+    eprintln!(
+        "{n} tracker error sets, three SMRs: the worst survey's coverage {:.1} %; one SMR's p95 over three's {:.2} to \
+         {:.2} (median {:.2}); three's over an ideal tracker's {:.2} to {:.2} (median {:.2}); U {:.2e} to {:.2e}",
+        100.0 * worst,
+        to_one[0],
+        to_one[to_one.len() - 1],
+        to_one[to_one.len() / 2],
+        to_ideal[0],
+        to_ideal[to_ideal.len() - 1],
+        to_ideal[to_ideal.len() / 2],
+        three.iter().map(|f| f.widest_u).fold(f64::INFINITY, f64::min),
+        three.iter().map(|f| f.widest_u).fold(0.0, f64::max),
+    );
+    assert!(worst >= 0.95, "{:?}", three.iter().map(|f| f.coverage).collect::<Vec<_>>());
 }
