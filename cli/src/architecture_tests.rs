@@ -35,6 +35,7 @@ const MAY_USE: &[(&str, &[&str])] = &[
     ("sims", &["survey-processing", "survey-drivers"]),
     ("sim-servers", &["survey-processing", "survey-drivers", "survey-positioner-drivers", "survey-sims"]),
     ("acquire", &["survey-processing", "survey-plan", "survey-drivers", "survey-sims"]),
+    ("config", &["survey-processing", "survey-plan", "survey-drivers", "survey-positioner-drivers", "survey-acquire"]),
     (
         "store",
         &[
@@ -44,6 +45,7 @@ const MAY_USE: &[(&str, &[&str])] = &[
             "survey-positioner-drivers",
             "survey-sims",
             "survey-acquire",
+            "survey-config",
         ],
     ),
     (

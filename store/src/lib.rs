@@ -31,8 +31,8 @@
 //!   the whole-survey reads decode);
 //! - `sink`: [`StoreSink`], the batching [`SampleSink`].
 
-pub mod asset;
-pub mod config;
+pub use survey_config as config;
+pub use survey_config::asset;
 pub mod error;
 pub mod runtime;
 pub mod survey;

@@ -910,3 +910,19 @@ async fn the_other_smrs_readings_are_stored_with_their_sample_and_read_back_in_o
     assert_eq!(store.other_smr_positions(id).await.unwrap().len(), 12);
     store.close().await;
 }
+
+/// A configured survey's asset is its configuration's `[asset] id`, else
+/// the unassigned one (the configuration's own checks are survey-config's).
+#[test]
+fn the_configured_asset_is_the_surveys() {
+    use crate::config::SurveyConfig;
+    use crate::survey::ConfiguredSetup;
+    let bench =
+        "[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:1\"\n[tracker]\ndriver = \"emscon\"\naddress = \"h:700\"\n";
+    let plan = survey_plan::SurveyPlan::full_circle(36, 2, true).unwrap();
+    let setup = |config| Setup::Configured(ConfiguredSetup { config, plan: plan.clone() });
+    let cfg = SurveyConfig::parse(&format!("{bench}[asset]\nid = \"bay-2/az\"\n"), "c.toml").unwrap();
+    assert_eq!(setup(cfg).default_asset(), "bay-2/az");
+    let without = SurveyConfig::parse(bench, "c.toml").unwrap();
+    assert_eq!(setup(without).default_asset(), crate::asset::UNASSIGNED);
+}

@@ -24,6 +24,11 @@
 //!
 //! Unknown keys are errors, so a misspelt setting never silently falls back
 //! to a default.
+//!
+//! Its own crate (`survey-config`, reached as `survey_store::config` too):
+//! the file's schema, checks and messages, apart from the store that keeps
+//! a survey's configuration with it. [`asset`]: an asset's id, as the
+//! configuration and the store check it.
 
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -31,6 +36,7 @@ use std::time::Duration;
 use survey_acquire::{ReferenceKind, SettleMode, SettleModel, SettleSpec, Timing, default_window_deg};
 use survey_positioner_drivers::canopen::CanopenConfig;
 
+pub mod asset;
 mod consistency;
 mod derived;
 mod place;

@@ -25,16 +25,13 @@ const TRACKER_BENCH: &str = "[positioner]\ndriver = \"scpi-tcp\"\naddress = \"h:
 
 #[test]
 fn the_asset_section_names_the_surveys_asset_and_is_checked() {
-    use crate::survey::{ConfiguredSetup, Setup};
-    let plan = survey_plan::SurveyPlan::full_circle(36, 2, true).unwrap();
-    let setup = |config| Setup::Configured(ConfiguredSetup { config, plan: plan.clone() });
+    // (A survey's asset from it: the store's `the_configured_asset_is_the_surveys`.)
     let cfg = SurveyConfig::parse(&format!("{TRACKER_BENCH}[asset]\nid = \"bay-2/az\"\n"), "c.toml").unwrap();
-    assert_eq!(setup(cfg.clone()).default_asset(), "bay-2/az");
+    assert_eq!(cfg.asset.as_ref().map(|a| a.id.as_str()), Some("bay-2/az"));
     // Stored with the survey and read back.
     let text = serde_json::to_string(&cfg).unwrap();
     assert_eq!(serde_json::from_str::<SurveyConfig>(&text).unwrap(), cfg);
-    let without = SurveyConfig::parse(TRACKER_BENCH, "c.toml").unwrap();
-    assert_eq!(setup(without).default_asset(), crate::asset::UNASSIGNED);
+    assert_eq!(SurveyConfig::parse(TRACKER_BENCH, "c.toml").unwrap().asset, None);
     let e = error_of(&format!("{TRACKER_BENCH}[asset]\nid = \"bay 2\"\n"));
     assert!(e.starts_with("c.toml:8: asset.id: the asset id 'bay 2' holds ' '"), "{e}");
     let e = error_of(&format!("{TRACKER_BENCH}[asset]\nname = \"x\"\n"));

@@ -95,7 +95,7 @@ pub(super) const ROOT: &[Field] = &[
         ]),
     ),
     opt("asset", Ty::Table(ASSET)),
-    opt("rehearsal", Ty::Table(&[req("simulator", Ty::Checked(crate::config::check_field, FIELD_WORDS))])),
+    opt("rehearsal", Ty::Table(&[req("simulator", Ty::Checked(crate::check_field, FIELD_WORDS))])),
     opt(
         "smrs",
         Ty::Table(&[
@@ -284,24 +284,24 @@ const FIELD_WORDS: &str = "text in quotes on one line, 1 to 400 characters, no c
 const NUMBER_WORDS: &str = "text in quotes on one line, 1 to 64 characters, no control characters";
 
 const CERTIFICATE: &[Field] = &[
-    opt("positioner", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("reference", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("positioner", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("reference", Ty::Checked(crate::check_field, FIELD_WORDS)),
     opt("reference_uncertainty_deg", Ty::Number(Low::Above(0.0), 1.0, "deg")),
     opt("reference_mpe_um", Ty::Number(Low::From(0.0), 1000.0, "um")),
     opt("reference_mpe_um_per_m", Ty::Number(Low::From(0.0), 1000.0, "um/m")),
-    opt("operator", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("customer", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("operator", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("customer", Ty::Checked(crate::check_field, FIELD_WORDS)),
     opt("temperature_c", Ty::Number(Low::From(-50.0), 100.0, "°C")),
-    opt("number", Ty::Checked(crate::config::check_number, NUMBER_WORDS)),
-    opt("laboratory", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("traceability", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("number", Ty::Checked(crate::check_number, NUMBER_WORDS)),
+    opt("laboratory", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("traceability", Ty::Checked(crate::check_field, FIELD_WORDS)),
     opt("tolerance_deg", Ty::Number(Low::Above(0.0), 360.0, "deg")),
-    opt("signatory", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("location", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
+    opt("signatory", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("location", Ty::Checked(crate::check_field, FIELD_WORDS)),
     opt("performance_location", Ty::Choice(&["laboratory", "customer", "laboratoryBranch", "customerBranch", "other"])),
-    opt("item_condition", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("received", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
-    opt("country", Ty::Checked(crate::config::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
+    opt("item_condition", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("received", Ty::Checked(crate::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
+    opt("country", Ty::Checked(crate::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
     opt("laboratory_address", Ty::Table(ADDRESS)),
     opt("customer_address", Ty::Table(ADDRESS)),
     opt("item", Ty::Table(EQUIPMENT)),
@@ -310,24 +310,24 @@ const CERTIFICATE: &[Field] = &[
 
 /// A postal address, as the DCC's `location` holds one.
 const ADDRESS: &[Field] = &[
-    opt("street", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("street_no", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("post_code", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("city", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("state", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("country", Ty::Checked(crate::config::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
+    opt("street", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("street_no", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("post_code", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("city", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("state", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("country", Ty::Checked(crate::check_country, "an ISO 3166-1 alpha-2 code in quotes, such as \"DE\"")),
 ];
 
 /// An instrument's identifications and, for a reference, its calibration.
 const EQUIPMENT: &[Field] = &[
-    opt("manufacturer", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("model", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("serial", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("inventory", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("certificate", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("calibrated_by", Ty::Checked(crate::config::check_field, FIELD_WORDS)),
-    opt("calibrated", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
-    opt("due", Ty::Checked(crate::config::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
+    opt("manufacturer", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("model", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("serial", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("inventory", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("certificate", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("calibrated_by", Ty::Checked(crate::check_field, FIELD_WORDS)),
+    opt("calibrated", Ty::Checked(crate::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
+    opt("due", Ty::Checked(crate::check_date, "a date in quotes, \"YYYY-MM-DD\"")),
 ];
 
 /// A range of numbers in words: `from 0 to 3600 s`, `above 0, at most 1 deg`.
@@ -500,7 +500,7 @@ impl<'a> Walk<'a> {
             (Ty::Number(..) | Ty::AnyNumber, DeValue::Integer(_) | DeValue::Float(_)) => self.number(key, v, ty),
             (Ty::Text, DeValue::String(text)) => {
                 // Text may be printed (an address on the certificate): never a control character.
-                if let Some((place, c)) = crate::config::control_character(text) {
+                if let Some((place, c)) = crate::control_character(text) {
                     let text = format!(
                         "{} holds the control character U+{:04X} at character {place}: it takes text in quotes \
                          without control characters",
