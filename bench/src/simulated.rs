@@ -205,7 +205,7 @@ impl Bench {
 /// `--polygon-turns`: the faces the polygon turns in each run, checked
 /// before anything is measured: an autocollimator's polygon, each turn
 /// within its faces, a run for each, and turns that link every face to
-/// every other (the closure's condition, `survey_processing::closure`).
+/// every other (the closure's condition, `survey_tables::closure`).
 pub fn check_polygon_turns(
     name: &str,
     turns: &[u32],

@@ -14,9 +14,9 @@ use survey_modelgap::ReferenceInfo;
 use survey_plan::drift::DriftPoint;
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit};
-use survey_processing::gross::{self, GrossTest};
 use survey_store::Store;
 use survey_store::survey::{SurveyRecord, SurveyRef};
+use survey_tables::gross::{self, GrossTest};
 use survey_tables::timedrift::{self, TimeDrift};
 use survey_tables::uncertainty::UncertaintyInputs;
 
@@ -58,7 +58,7 @@ pub struct Loaded {
     /// faces.
     pub polygon: Option<PolygonClosure>,
     /// Gross readings found in the drift-corrected samples
-    /// ([`survey_processing::gross`]): those replaced are left out of
+    /// ([`survey_tables::gross`]): those replaced are left out of
     /// [`Loaded::analysed`].
     pub gross: GrossTest,
     /// A drift in time measured from the same targets read at different

@@ -1,7 +1,7 @@
 //! A polygon calibrated in place (issue 48): an autocollimator survey whose
 //! polygon was turned relative to the table between runs (`run
 //! --polygon-turns`) measures the polygon's face errors itself
-//! (`survey_processing::closure`), and its actual angles are corrected from
+//! (`survey_tables::closure`), and its actual angles are corrected from
 //! the certificate's faces to the faces known best before anything is
 //! computed of them: each face's measurement and its certificate weighed by
 //! their uncertainties (GUM's weighted mean of two independent estimates),
@@ -16,9 +16,9 @@
 use serde::Serialize;
 use survey_acquire::RawReading;
 use survey_processing::Sample;
-use survey_processing::closure::{self, FaceSample};
 use survey_store::Store;
 use survey_store::survey::SurveyRecord;
+use survey_tables::closure::{self, FaceSample};
 
 /// What the survey measured of its polygon: the contract's `polygon`.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -6,12 +6,10 @@
 //! measured data.
 
 pub mod analysis;
-pub mod closure;
 pub mod coverage;
 pub mod errormap;
 pub mod frame;
 pub mod geometry;
-pub mod gross;
 pub mod iso230;
 pub mod lstsq;
 pub mod model;

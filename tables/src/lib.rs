@@ -16,6 +16,10 @@
 //!   and the end of `survey run` compute).
 //! - [`uncertainty`]: the table's uncertainty budget.
 //! - [`verification`]: a verification's figures and its verdict.
+//! - [`gross`]: gross readings, found and left out before anything is
+//!   computed; [`timedrift`]: the drift in time of the same targets read at
+//!   different times; [`closure`]: a polygon turned between runs, calibrated
+//!   in place. Leaves: they use only `survey-processing`.
 //!
 //! The modules form one way (no circle): `correction` at the bottom;
 //! `true_angle` and `verification` on it; `recipe` on `correction` and
@@ -23,7 +27,9 @@
 //! `pipeline` on all of these; `uncertainty` on `pipeline` (ARCHITECTURE.md's
 //! module graphs).
 
+pub mod closure;
 pub mod correction;
+pub mod gross;
 pub mod left;
 pub mod pipeline;
 pub mod recipe;

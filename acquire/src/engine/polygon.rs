@@ -4,7 +4,7 @@
 //! number of faces per run as the plan of orientations says. Then every face
 //! meets every table position the orientations link, and the processing
 //! measures the polygon's face errors in place (closure,
-//! `survey_processing::closure`) instead of trusting its certificate.
+//! `survey_tables::closure`) instead of trusting its certificate.
 //!
 //! Without a stage the operator turns it ([`PolygonStage::by_operator`]):
 //! the polygon is taken as the operator set it up for the run the survey

@@ -28,10 +28,10 @@
 //! cannot be told, nor when more than one reading there is: the survey then
 //! decides with them and says why.
 
-use crate::special::normal_two_sided_isf;
-use crate::types::{Direction, Sample};
 use serde::Serialize;
 use std::collections::HashMap;
+use survey_processing::special::normal_two_sided_isf;
+use survey_processing::types::{Direction, Sample};
 
 /// One gross reading.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -309,7 +309,9 @@ mod tests {
     /// A survey of `points` targets, `runs` runs both ways, seeded normal
     /// noise `sigma`, and `ramp` deg per run of drift growing in time.
     fn survey(points: usize, runs: u32, sigma: f64, ramp: f64, seed: u64) -> Vec<Sample> {
-        crate::analysis::testutil::timed_survey(points, runs, sigma, seed, |t, _| ramp * t / (2.0 * points as f64))
+        survey_processing::analysis::testutil::timed_survey(points, runs, sigma, seed, |t, _| {
+            ramp * t / (2.0 * points as f64)
+        })
     }
 
     #[test]
@@ -358,7 +360,7 @@ mod tests {
     fn a_noise_that_changes_along_the_circle_names_nothing_at_the_rate() {
         let noisy = |points: usize, seed: u64| {
             let mut s = survey(points, 3, 0.0, 0.0, seed);
-            let mut rng = crate::analysis::testutil::Normal::new(seed + 1000);
+            let mut rng = survey_processing::analysis::testutil::Normal::new(seed + 1000);
             for x in &mut s {
                 let sigma = 0.0003 * (1.0 + 0.38 * x.target_deg.to_radians().cos());
                 x.actual_deg -= sigma * rng.sample();
@@ -382,7 +384,7 @@ mod tests {
 
     #[test]
     fn the_selected_median_is_the_sorted_one() {
-        let mut rng = crate::analysis::testutil::Normal::new(5);
+        let mut rng = survey_processing::analysis::testutil::Normal::new(5);
         for n in 1..40 {
             let v: Vec<f64> = (0..n).map(|_| rng.sample()).collect();
             assert_eq!(select_median(&mut v.clone()), median(&mut v.clone()), "{n}");

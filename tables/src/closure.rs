@@ -28,8 +28,8 @@
 //! reading); each sample's actual angle is then corrected by adding
 //! `(t_k - c_k) / 3600`.
 
-use crate::lstsq::Qr;
-use crate::types::Direction;
+use survey_processing::lstsq::Qr;
+use survey_processing::types::Direction;
 
 /// One sample as the closure reads it.
 #[derive(Debug, Clone, Copy, PartialEq)]
