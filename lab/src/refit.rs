@@ -534,7 +534,28 @@ pub fn uncertainty_inputs(
         reference_systematic_u_deg: systematic,
         axis_u_deg,
         drift_in_time_u_deg: None,
+        wobble_u_deg: refit.and_then(wobble_u_deg),
     }
+}
+
+/// What the axis's radial error motion puts into the table's angles, as a
+/// standard uncertainty, degrees: a translation of the axis moves an SMR
+/// along its circle as much as across its radius (a whirl: the same
+/// amplitude), the along part is read as angle, repeats in every run and is
+/// corrected into the table as the positioner's (ISO 230-1 keeps E_C, the
+/// angle, apart from E_XC and E_YC). Sized from the synchronous radial
+/// motion measured (a sinusoid of half its peak-to-valley at the SMR's
+/// radius: `A / sqrt 2`); `None` below the tracker's detection limit (the
+/// reference's own systematic part bounds as much) and where SMRs at equal
+/// spacing average the angles (a translation moves them in senses that
+/// cancel: measured, docs/error-motions.md).
+fn wobble_u_deg(refit: &AxisRefit) -> Option<f64> {
+    if refit.reference_error.method == "equal-division" {
+        return None;
+    }
+    let m = refit.error_motions.as_ref()?;
+    let pv_um = m.radial_um.synchronous?;
+    Some((0.5 * pv_um * 1e-3 / m.radius_mm).to_degrees() / std::f64::consts::SQRT_2)
 }
 
 /// The tracker reference's transverse MPE: the configuration's

@@ -138,6 +138,12 @@ pub struct UncertaintyInputs {
     /// (`crate::timedrift::TimeDrift::table_u_deg`); `None`
     /// when the survey could not measure it or drift control corrected it.
     pub drift_in_time_u_deg: Option<f64>,
+    /// The axis's radial error motion as one SMR reads it along its circle,
+    /// degrees: a translation of the axis moves the SMR across its radius
+    /// as much as along it, and the along part is read as angle and
+    /// corrected into the table; `None` where the motion is below the
+    /// tracker's detection limit or SMRs at equal spacing cancel it.
+    pub wobble_u_deg: Option<f64>,
 }
 
 /// One source and its standard uncertainty.
@@ -328,6 +334,12 @@ pub fn uncertainty(processed: &Processed, samples: &[Sample], inputs: &Uncertain
     budget.push(Contribution { source: "drift".into(), u_deg: drift_var.sqrt() });
     if let Some(u) = inputs.drift_in_time_u_deg {
         budget.push(Contribution { source: "drift in time (its measured slope's standard error)".into(), u_deg: u });
+    }
+    if let Some(u) = inputs.wobble_u_deg {
+        budget.push(Contribution {
+            source: "the axis's radial motion read as angle (its part along the SMR's circle)".into(),
+            u_deg: u,
+        });
     }
     // What check points fitted with the survey's folds leave unexplained
     // beyond their noise (a line no fold and no hypothesis holds): a normal
