@@ -25,6 +25,7 @@ use survey_acquire::ReferenceKind;
 use survey_modelgap::ReferenceInfo;
 use survey_processing::Sample;
 use survey_processing::geometry::{AxisFit, Refit, refit_axis, refit_axis_with_angles};
+use survey_processing::special::median;
 use survey_processing::tracker_errors::TransverseMpe;
 use survey_store::Store;
 use survey_store::survey::{Setup, SurveyRecord};
@@ -220,11 +221,6 @@ fn into_the_refits_frame(samples: &mut [Sample], moved: &[(usize, f64)]) {
         at.entry(key(&samples[i])).or_default().push(d);
         refitted[i] = true;
     }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
-    };
     let mut all: Vec<f64> = moved.iter().map(|m| m.1).collect();
     if all.is_empty() {
         return;
@@ -232,7 +228,7 @@ fn into_the_refits_frame(samples: &mut [Sample], moved: &[(usize, f64)]) {
     let overall = median(&mut all);
     for (i, s) in samples.iter_mut().enumerate() {
         if !refitted[i] {
-            s.actual_deg += at.get_mut(&key(s)).map_or(overall, &median);
+            s.actual_deg += at.get_mut(&key(s)).map_or(overall, |v| median(v));
         }
     }
 }
@@ -550,7 +546,7 @@ pub fn uncertainty_inputs(
 /// spacing average the angles (a translation moves them in senses that
 /// cancel: measured, docs/error-motions.md).
 fn wobble_u_deg(refit: &AxisRefit) -> Option<f64> {
-    if refit.reference_error.method == "equal-division" {
+    if refit.reference_error.method == survey_processing::smrs::Method::EqualDivision.as_str() {
         return None;
     }
     let m = refit.error_motions.as_ref()?;
@@ -676,27 +672,8 @@ mod tests {
             config,
             plan: survey_plan::SurveyPlan::full_circle(24, 5, true).unwrap(),
         };
-        let columns = survey_store::survey::StoredColumns {
-            id: 1,
-            uid: "00000000-0000-4000-8000-000000000001".into(),
-            asset: "unassigned".into(),
-            check_of: None,
-            created_at: "t".into(),
-            updated_at: "t".into(),
-            status: "complete".into(),
-            source: "instruments".into(),
-            points: Some(24),
-            runs: Some(5),
-            bidirectional: true,
-            config_json: serde_json::to_string(&setup).unwrap(),
-            model_toml: None,
-            instruments_json: r#"{"positioner": "scpi-tcp 192.168.1.20:4000", "reference": "elcomat"}"#.into(),
-            axis_json: None,
-            started_at_s: None,
-            ended_at_s: None,
-            planned_samples: None,
-            sample_count: 0,
-        };
+        let instruments = r#"{"positioner": "scpi-tcp 192.168.1.20:4000", "reference": "elcomat"}"#;
+        let columns = survey_store::survey::StoredColumns::configured(1, &setup, instruments);
         SurveyRecord::parse(columns, "x.db").unwrap()
     }
 

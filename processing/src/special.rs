@@ -1,5 +1,14 @@
 //! Special functions shared by the statistical tests of the analysis and of
-//! model-gap.
+//! model-gap, and the median they and the crates above take.
+
+/// The median of `v` (reordered; the mean of the two middle values of an
+/// even count), in linear time.
+pub fn median(v: &mut [f64]) -> f64 {
+    let n = v.len();
+    let (left, mid, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
+    let mid = *mid;
+    if n % 2 == 1 { mid } else { 0.5 * (mid + left.iter().copied().fold(f64::NEG_INFINITY, f64::max)) }
+}
 
 /// Complementary error function (Numerical Recipes `erfcc`, fractional error
 /// below 1.2e-7 everywhere).
@@ -71,6 +80,18 @@ pub fn normal_two_sided_isf(p: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_selected_median_is_the_sorted_one() {
+        let mut rng = crate::analysis::testutil::Normal::new(5);
+        for n in 1..40 {
+            let mut v: Vec<f64> = (0..n).map(|_| rng.sample()).collect();
+            let m = median(&mut v.clone());
+            v.sort_by(f64::total_cmp);
+            let sorted = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+            assert_eq!(m, sorted, "{n}");
+        }
+    }
 
     /// Student's two-sided 1 % points against the tables (Abramowitz and
     /// Stegun, table 26.10, to the digits printed), and the normal's beyond.

@@ -359,28 +359,8 @@ pub(crate) mod tests {
             config,
             plan: survey_plan::SurveyPlan::full_circle(360, 5, true).unwrap(),
         };
-        let columns = survey_store::survey::StoredColumns {
-            id: 4,
-            uid: "00000000-0000-4000-8000-000000000004".into(),
-            asset: "unassigned".into(),
-            check_of: None,
-            created_at: "t".into(),
-            updated_at: "t".into(),
-            status: "complete".into(),
-            source: "instruments".into(),
-            points: Some(360),
-            runs: Some(5),
-            bidirectional: true,
-            config_json: serde_json::to_string(&setup).unwrap(),
-            model_toml: None,
-            instruments_json:
-                r#"{"positioner": "modbus-tcp 192.168.1.40:502", "reference": "emscon 192.168.1.30:700"}"#.into(),
-            axis_json: None,
-            started_at_s: None,
-            ended_at_s: None,
-            planned_samples: None,
-            sample_count: 0,
-        };
+        let instruments = r#"{"positioner": "modbus-tcp 192.168.1.40:502", "reference": "emscon 192.168.1.30:700"}"#;
+        let columns = survey_store::survey::StoredColumns::configured(4, &setup, instruments);
         SurveyRecord::parse(columns, "x.db").unwrap()
     }
 

@@ -466,6 +466,36 @@ pub struct StoredColumns {
     pub sample_count: u64,
 }
 
+impl StoredColumns {
+    /// The columns of a complete survey of `setup` as survey `id` would
+    /// store them, with nothing measured yet (no axis, no samples): a
+    /// record that reads a configuration as the commands read a stored
+    /// survey's, without a store (the tests of what it says).
+    pub fn configured(id: i64, setup: &ConfiguredSetup, instruments_json: &str) -> Self {
+        StoredColumns {
+            id,
+            uid: format!("00000000-0000-4000-8000-{id:012}"),
+            asset: UNASSIGNED.into(),
+            check_of: None,
+            created_at: "t".into(),
+            updated_at: "t".into(),
+            status: "complete".into(),
+            source: "instruments".into(),
+            points: Some(setup.plan.targets_deg.len() as u32),
+            runs: Some(setup.plan.runs),
+            bidirectional: setup.plan.bidirectional,
+            config_json: serde_json::to_string(setup).expect("a configuration serialises"),
+            model_toml: None,
+            instruments_json: instruments_json.into(),
+            axis_json: None,
+            started_at_s: None,
+            ended_at_s: None,
+            planned_samples: None,
+            sample_count: 0,
+        }
+    }
+}
+
 impl SurveyRecord {
     /// The SMRs on the table: the simulated bench's (`--smrs`, a model
     /// file's `[smrs]`) or the configuration's `[smrs]`; one otherwise.

@@ -30,7 +30,7 @@
 
 use serde::Serialize;
 use std::collections::HashMap;
-use survey_processing::special::normal_two_sided_isf;
+use survey_processing::special::{median, normal_two_sided_isf};
 use survey_processing::types::{Direction, Sample};
 
 /// One gross reading.
@@ -70,20 +70,6 @@ pub struct GrossTest {
 
 /// The family-wise false-alarm rate the processing tests at.
 pub const ALPHA: f64 = 0.01;
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
-}
-
-/// The median of `v` (reordered) in linear time.
-fn select_median(v: &mut [f64]) -> f64 {
-    let n = v.len();
-    let (left, mid, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
-    let mid = *mid;
-    if n % 2 == 1 { mid } else { 0.5 * (mid + left.iter().copied().fold(f64::NEG_INFINITY, f64::max)) }
-}
 
 type Place = (i64, Direction);
 
@@ -167,7 +153,7 @@ fn local_sigmas(groups: &HashMap<Place, Vec<usize>>, s: &[f64]) -> HashMap<i64, 
             }
             w += 1;
         }
-        let sigma = if window.is_empty() { f64::NAN } else { 1.4826 * select_median(&mut window) };
+        let sigma = if window.is_empty() { f64::NAN } else { 1.4826 * median(&mut window) };
         for key in &keys[k0..(k0 + stride).min(n)] {
             out.insert(*key, sigma);
         }
@@ -380,15 +366,6 @@ mod tests {
         s[i].actual_deg -= 0.004;
         let test = find(&s, ALPHA);
         assert_eq!(test.readings.iter().map(|g| g.index).collect::<Vec<_>>(), [i], "{test:#?}");
-    }
-
-    #[test]
-    fn the_selected_median_is_the_sorted_one() {
-        let mut rng = survey_processing::analysis::testutil::Normal::new(5);
-        for n in 1..40 {
-            let v: Vec<f64> = (0..n).map(|_| rng.sample()).collect();
-            assert_eq!(select_median(&mut v.clone()), median(&mut v.clone()), "{n}");
-        }
     }
 
     #[test]

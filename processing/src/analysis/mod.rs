@@ -512,8 +512,7 @@ fn full_circle(
         ((ss / dof as f64).sqrt(), NoiseMethod::SpectrumScatter, Some(dof))
     } else {
         let mut p: Vec<f64> = (1..=regular).map(|k| spectra[0][k].norm_sqr()).collect();
-        p.sort_by(f64::total_cmp);
-        let median = if p.len() % 2 == 1 { p[p.len() / 2] } else { 0.5 * (p[p.len() / 2 - 1] + p[p.len() / 2]) };
+        let median = crate::special::median(&mut p);
         ((median / (2.0 * std::f64::consts::LN_2)).sqrt(), NoiseMethod::SpectrumMedian, None)
     };
     let sd_run = sd_run.max(numerical_floor * (2.0 / n as f64).sqrt());
